@@ -1,0 +1,1 @@
+"""numba discrete-element method: bonded-particle breakage tests and mill-charge collisions (SI units)."""

@@ -1,0 +1,13 @@
+"""Exception family of the ``dem`` package (SI units throughout)."""
+
+
+class DemError(Exception):
+    """Base class of every error raised by ``dem``."""
+
+
+class DemInputError(DemError, ValueError):
+    """A parameter is outside what is allowed; the message names field, value and range."""
+
+
+class DemInstabilityError(DemError, RuntimeError):
+    """The integration blew up (non-finite state); the message names the step and the cause."""

@@ -1,0 +1,1 @@
+"""Model predictive control, estimation and baselines on the grindtwin mill model."""

@@ -1,0 +1,1 @@
+"""Scenes, replays, what-if sweeps, reports and the grindtwin command."""

@@ -1,0 +1,13 @@
+"""Exception family of the ``scenarios`` package."""
+
+
+class ScenarioError(Exception):
+    """Base class of every error raised by ``scenarios``."""
+
+
+class SceneError(ScenarioError, ValueError):
+    """A scene file is invalid; the message names the file, the key path, the value and what is allowed."""
+
+
+class RunError(ScenarioError, RuntimeError):
+    """A run failed; the message says why. Partial output is never presented as complete."""
