@@ -134,9 +134,11 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
         raise SceneError(f"{where}: composition does not sum to {target:g} within "
                          f"{sum_tol_frac:.0%} in data rows {_names(rows)} (sums "
                          f"{', '.join(f'{s:.4g}' for s in sums[off][:_MAX_NAMED])})")
-    rescaled = int(np.sum(np.abs(sums - target) > 1e-9 * target))
+    rel = np.abs(sums / target - 1)
+    rescaled = int(np.sum(rel > 1e-9))
     if rescaled:
-        report.append(f"{rescaled} rows rescaled so that the composition sums to {target:g}")
+        report.append(f"{rescaled} rows rescaled so that the composition sums to {target:g} "
+                      f"(largest correction {rel.max() * 100:.2g} %)")
     filled[comp_cols] = filled[comp_cols].to_numpy() * (target / sums)[:, None]
 
     grid = np.arange(int(np.floor(t[-1] / sample_period_h + 1e-9)) + 1) * sample_period_h
