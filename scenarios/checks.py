@@ -22,10 +22,10 @@ MINERAL_SUM_TOL_PCT = 0.5
 #: DESIGN.md's effects, used when ``twin.effects.registry`` is not importable.
 FALLBACK_EFFECTS = ("breakage", "transport", "holdup", "speed", "cushioning", "power",
                     "classification", "slowing_down", "sensor_delay")
-#: Minerals a scene may name, used when ``twin.mineralogy`` does not provide its own list.
+#: Minerals a scene may name, used when ``twin.minerals`` is not importable (same list).
 FALLBACK_MINERALS = ("quartz", "k_feldspar", "plagioclase", "biotite", "muscovite", "chlorite",
-                     "kaolinite", "illite", "montmorillonite", "pyrite", "chalcopyrite",
-                     "bornite", "magnetite", "calcite")
+                     "kaolinite", "illite", "pyrite", "chalcopyrite", "bornite", "magnetite",
+                     "calcite")
 TEXTURE_KEYS = ("mean_grain_um", "uniformity", "association_entropy")
 
 
@@ -39,12 +39,12 @@ def known_effects() -> list[str]:
 
 
 def known_minerals() -> list[str]:
-    """Mineral names: from ``twin.mineralogy.known_minerals`` when importable, else a fallback."""
+    """Mineral names: from the twin's mineral table when importable, else a fallback."""
     try:
-        from twin.mineralogy import known_minerals as twin_minerals
+        from twin.minerals import mineral_names
     except ImportError:
         return list(FALLBACK_MINERALS)
-    return list(twin_minerals())
+    return list(mineral_names())
 
 
 def _get(data: Any, *loc) -> Any:
@@ -139,11 +139,11 @@ def _check_effects(data, r: _Report) -> None:
 
 
 def _check_ores(data, r: _Report) -> list[str]:
-    ores = data.get("ores")
+    ores = data.get("ores", {})
     if not isinstance(ores, dict):
         return []
-    if not ores:
-        r.add(("ores",), "define at least one ore")
+    if not ores and _get(data, "feed", "history") is None:
+        r.add(("ores",), "define at least one ore (only a scene with feed.history may have none)")
     minerals = known_minerals()
     for name, ore in ores.items():
         if not isinstance(ore, dict):
@@ -201,7 +201,29 @@ def _check_feed(data, ore_names: list[str], r: _Report) -> None:
     feed = data.get("feed")
     if not isinstance(feed, dict):
         return
+    has_history = feed.get("history") is not None
+    if feed.get("blend") is None and not has_history:
+        r.add(("feed", "blend"), "required key is missing (the initial blend, e.g. "
+              "{ B = 1.0 }); only a scene with feed.history has none")
+    elif feed.get("blend") is not None and has_history:
+        r.add(("feed", "blend"), "the history gives the feed from t = 0; remove feed.blend")
     _check_blend(feed.get("blend"), ("feed", "blend"), ore_names, r)
+    effects = data.get("effects") if isinstance(data.get("effects"), list) else []
+    continuous = "transport" in effects
+    if continuous and feed.get("feed_tph") is None:
+        r.add(("feed", "feed_tph"), "required with the `transport` effect (continuous mill)")
+    if continuous and feed.get("batch_charge_kg") is not None:
+        r.add(("feed", "batch_charge_kg"), "only for batch scenes (effects without `transport`)")
+    if not continuous and isinstance(data.get("effects"), list):
+        if feed.get("batch_charge_kg") is None:
+            r.add(("feed", "batch_charge_kg"), "required for a batch scene (effects without "
+                  "`transport`); or add `transport` to effects for a continuous mill")
+        if feed.get("feed_tph") is not None:
+            r.add(("feed", "feed_tph"), "a batch scene (effects without `transport`) has no "
+                  "feed rate; use batch_charge_kg")
+        if _get(data, "controller", "kind") not in (None, "none"):
+            r.add(("controller", "kind"), "a batch scene (effects without `transport`) has "
+                  "nothing to control; use kind = \"none\"", _get(data, "controller", "kind"))
     if feed.get("p80_um") is not None and feed.get("rosin_rammler") is not None:
         r.add(("feed", "rosin_rammler"), "give the feed size as p80_um or as rosin_rammler, "
               "not both")
@@ -271,6 +293,8 @@ def _check_history(data, ore_names: list[str], base_dir: Path, r: _Report) -> No
             r.add(("feed", "history"), line.strip())
         return
     if history.kind == "blend":
+        if not ore_names:
+            r.add(("ores",), "the history gives ore fractions; define those ores in [ores]")
         for ore in history.ores:
             if ore_names and ore not in ore_names:
                 r.add(("feed", "history"), f"column ore_{ore}_frac names an ore not defined in "

@@ -125,7 +125,10 @@ def _fill_defaults(scene: Scene) -> None:
         scene.feed.p80_um = DEFAULT_FEED_P80_UM
     if scene.sensors.p80_sample_period_h is None:
         scene.sensors.p80_sample_period_h = scene.scene.sample_period_h
-    for blend in [scene.feed.blend] + [ev.blend for ev in scene.feed.schedule]:
+    blends = [ev.blend for ev in scene.feed.schedule]
+    if scene.feed.blend is not None:
+        blends.append(scene.feed.blend)
+    for blend in blends:
         total = sum(blend.values())
         for ore in blend:
             blend[ore] = blend[ore] / total

@@ -62,11 +62,13 @@ class Mill(Section):
 
 
 class Texture(Section):
-    """``[ores.NAME.texture]``: mean grain size, grain-size uniformity, association entropy."""
+    """``[ores.NAME.texture]``: mean grain size, grain-size uniformity in (0, 1] (1 =
+    equigranular), mineral-association entropy in [0, 1] (1 = fully intergrown); as
+    ``twin.mineralogy.Texture``."""
 
     mean_grain_um: float = Field(gt=0, le=1e5)
     uniformity: float = Field(gt=0, le=1)
-    association_entropy: float = Field(ge=0, le=10)
+    association_entropy: float = Field(ge=0, le=1)
 
 
 class Ore(Section):
@@ -96,13 +98,18 @@ class ScheduleEvent(Section):
 class Feed(Section):
     """``[feed]``: initial blend and operating point, feed size, then a schedule or a history.
 
+    ``blend`` is required unless a ``history`` gives the feed from t = 0. ``feed_tph`` is
+    required with the ``transport`` effect (continuous mill); without it the scene is a batch
+    grind of ``batch_charge_kg``.
+
     ``history`` is a recorded file (path relative to the scene file) read by
     :mod:`scenarios.history`; ``history_texture`` is required when it records mineralogy
     without texture columns; ``history_max_gap_h`` is how long a value may be held.
     """
 
-    blend: dict[str, float]
-    feed_tph: float = Field(gt=0, le=1e4)
+    blend: dict[str, float] | None = None
+    feed_tph: float | None = Field(default=None, gt=0, le=1e4)
+    batch_charge_kg: float | None = Field(default=None, gt=0, le=1e6)
     speed_frac_critical: float = Field(gt=0, lt=1)
     p80_um: float | None = Field(default=None, gt=0, le=1e6)
     rosin_rammler: RosinRammler | None = None
@@ -227,7 +234,7 @@ class Scene(Section):
 
     scene: SceneInfo
     mill: Mill
-    ores: dict[str, Ore]
+    ores: dict[str, Ore] = Field(default_factory=dict)
     feed: Feed
     effects: list[str]
     effect_options: EffectOptions = Field(default_factory=EffectOptions)
