@@ -24,6 +24,14 @@ Sampling design (per sample of generating type T with reference ore R_T):
 - wt% rounded to 0.01, the largest phase absorbing the rounding residue so rows sum to 100.00;
 - :data:`COUNTS` samples per type (12 + 12 + 12 + 11 = 47), rows shuffled, ids ``PD-01..PD-47``.
 
+How the spreads were chosen: MISSION.md reports that the first two PCs explain ~73 % of the
+variance of the real deposit. With REST_LOG_SD = 0.20, SHARE_SD = 0.06 the synthetic types
+were far tighter (PC1 + PC2 ~ 86 %); the spreads were raised to 0.45 / 0.12, which gives
+PC1 + PC2 ~ 74-78 % over seeds 47, 1-4 while the types stay separable (silhouette picks k = 4
+for all five seeds). At 0.50 / 0.15 PC1 + PC2 reaches ~73 % but the types start to merge
+(one seed in five picks k = 5). So the spreads are tuned to one reported statistic; treat
+agreement with 73 % as by construction, not as a finding.
+
 The generating type of each sample is kept in the column ``generating_type`` (for tests of
 the ore typing; a real table would not have it).
 """
@@ -54,8 +62,8 @@ TABLE1_RANGES = {
 #: MISSION.md, deposit-wide ranges [wt%].
 DEPOSIT_RANGES = {"quartz": (15.0, 65.0), "clay": (0.0, 40.0), "sulfide": (2.0, 18.0)}
 COUNTS = {"A": 12, "B": 12, "C": 12, "D": 11}
-SHARE_SD = 0.06
-REST_LOG_SD = 0.20
+SHARE_SD = 0.12
+REST_LOG_SD = 0.45
 TEXTURE_SD = 0.04
 DEFAULT_SEED = 47
 COMMAND = "python -m twin.sample_library --out twin/data/reference_samples.csv --seed {seed}"

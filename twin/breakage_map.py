@@ -1,0 +1,53 @@
+"""Mineralogy -> breakage parameters: the one replaceable function the model calls.
+
+Until the DEM calibration replaces it, the energy-specific selection at 1 mm follows the ore's
+mineralogical hardness and texture,
+
+    S^E_1 = S^E_ref (H_ref / H_min)^a_H * TI^-a_T       [t/kWh]
+
+(harder minerals absorb more energy per fracture: Bond's law and the Vickers-hardness
+correlation of grindability, e.g. Ozkahraman 2005, Int. J. Rock Mech. 42, 1022; finer,
+intergrown textures resist breakage: Brace 1961), while the shape of S and the breakage
+function B take the typical values Austin, Klimpel & Luckie (1984, ch. 4) report for ores
+ground with ~25 mm balls. S^E_ref, a_H and a_T are not typed in: `grindtwin calibrate`
+fits them and writes ``twin/data/calibration.json``.
+"""
+
+from __future__ import annotations
+
+import json
+from functools import cache
+from importlib import resources
+
+from .breakage import BreakageParams
+from .errors import TwinError
+from .mineralogy import Mineralogy
+
+#: Reference hardness index [GPa] that makes S^E_ref the rate of a Type-B-like ore.
+HARDNESS_REFERENCE_GPA = 8.0
+#: Austin shape parameters, typical of ores ground by ~25 mm balls (Austin et al. 1984, ch. 4).
+AUSTIN_SHAPE = {"alpha": 1.0, "mu_um": 3000.0, "Lambda": 2.5, "gamma": 1.0, "beta": 4.0, "phi": 0.5}
+
+COEFFICIENT_NAMES = ("se_ref_t_kwh", "hardness_exponent", "texture_exponent",
+                     "cushioning_rate_coeff", "cushioning_power_coeff")
+
+
+@cache
+def shipped_calibration() -> dict:
+    """The shipped calibration file (made by `grindtwin calibrate`)."""
+    path = resources.files("twin").joinpath("data", "calibration.json")
+    if not path.is_file():
+        raise TwinError("No calibration file twin/data/calibration.json: run `grindtwin calibrate`.")
+    return json.loads(path.read_text(encoding="utf-8"))
+
+
+def shipped_coefficients() -> dict:
+    return dict(shipped_calibration()["coefficients"])
+
+
+def mineralogy_breakage(ore: Mineralogy, coefficients: dict) -> BreakageParams:
+    """Breakage parameters of one ore from its mineralogy (documented mapping above)."""
+    se = (coefficients["se_ref_t_kwh"]
+          * (HARDNESS_REFERENCE_GPA / ore.hardness_index_gpa) ** coefficients["hardness_exponent"]
+          * ore.textural_index ** (-coefficients["texture_exponent"]))
+    return BreakageParams(se_1mm_t_kwh=se, source="mineralogy map (twin.breakage_map)", **AUSTIN_SHAPE)

@@ -1,0 +1,52 @@
+"""Mill load dynamics: discharge depends on hold-up, breakage rates on the powder filling.
+
+- Discharge: the flow out of a mixer rises with its content, Q = Q_nom (H/H_nom)^n; n = 2
+  follows the overflow-discharge law of the le Roux et al. (2013) circuit model, where mill
+  outflow is proportional to the square of its slurry content (Minerals Engineering 43-44,
+  eq. 9), and Morrell & Stephenson (1996, Powder Technol. 88, 63-69) for slurry hold-up
+  against flow.
+- Breakage: energy-specific selection S = S^E P / H (Herbst & Fuerstenau 1980): above the
+  powder filling where rates saturate, the same power is shared by more ore, so S ~ 1/H;
+  below it (U < 0.5, Austin et al. 1984, fig. 8.3, ball-on-ball impacts waste energy) the
+  rates stop rising. The smooth maximum keeps the model differentiable near an empty mill.
+- Load status from load = H / H_nom: under, stable, over by the mill's stable band."""
+
+from __future__ import annotations
+
+from .base import Assembly, Effect, smooth_max
+
+#: Powder filling (fraction of nominal hold-up) below which rates stop rising (Austin et al.
+#: 1984: rates roughly constant for U below ~0.5 of full void filling).
+RATE_SATURATION_LOAD = 0.5
+
+
+class Holdup(Effect):
+    name = "holdup"
+    requires = ("transport",)
+    source = "Herbst & Fuerstenau (1980); le Roux et al. (2013) eq. 9; Austin et al. (1984) fig. 8.3"
+    summary = "discharge Q_nom (H/H_nom)^n; S ~ H_nom / max(H, H_sat); load status"
+
+    def apply(self, asm: Assembly) -> None:
+        spec = asm.spec
+        h_nom = spec.holdup_nominal_t
+        q_nom = spec.feed_nominal_tph * asm.flow_multiplier
+        n = asm.param("discharge_exponent", spec.mill.discharge_exponent, "-", "le Roux et al. 2013")
+        n_mix = asm.n_mixers
+        h_sat = asm.param("rate_saturation_load", RATE_SATURATION_LOAD, "H/H_nom", "Austin et al. 1984")
+
+        def rate(k, h_k):
+            # mixer k holds 1/N of the nominal hold-up at nominal flow
+            load_k = smooth_max(n_mix * h_k / h_nom, 0.0, 1e-3)
+            return n_mix * q_nom / h_nom * load_k ** (n - 1.0)
+
+        asm.discharge_rate = rate
+        load = asm.holdup() / h_nom
+        asm.rate_factors.append(1.0 / smooth_max(load, h_sat, 0.05))
+        asm.outputs["load_frac"] = load
+        asm.note(self.name, "discharge law on every mixer; selection factor 1/max(load, 0.5)")
+
+
+def load_status(load_frac: float, band) -> str:
+    """'under', 'stable' or 'over' for a load (hold-up over nominal) and a stable band."""
+    lo, hi = band
+    return "under" if load_frac < lo else "over" if load_frac > hi else "stable"

@@ -1,0 +1,103 @@
+"""Mill geometry, charge and nominal operating point; presets for the laboratory and an
+industrial mill.
+
+Units: m, t, t/m3, t/h, fraction of critical speed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+from .errors import TwinInputError, bad_value, check_range, close_matches
+
+G_M_S2 = 9.80665
+
+
+@dataclass(frozen=True)
+class Mill:
+    """A ball mill. ``powder_filling_nominal`` is Austin's U: the fraction of the ball bed's
+    voids filled by powder at the nominal hold-up; ``stable_band`` the load (hold-up over
+    nominal hold-up) within which the mill is called stable."""
+
+    name: str
+    diameter_m: float
+    length_m: float
+    ball_filling_frac: float = 0.35
+    ball_density_t_m3: float = 7.8
+    bed_porosity: float = 0.4
+    powder_filling_nominal: float = 1.0
+    speed_nominal_frac_critical: float = 0.70
+    stable_band: tuple = (0.8, 1.2)
+    grate_d50_um: float = 400.0
+    grate_sharpness: float = 3.0
+    discharge_exponent: float = 2.0
+    feed_nominal_tph: float = 0.031
+
+    def __post_init__(self):
+        o = f"Mill {self.name!r}"
+        check_range(o, "diameter_m", self.diameter_m, 0.0, 20.0)
+        check_range(o, "length_m", self.length_m, 0.0, 30.0)
+        check_range(o, "ball_filling_frac", self.ball_filling_frac, 0.0, 0.5)
+        check_range(o, "bed_porosity", self.bed_porosity, 0.0, 1.0)
+        check_range(o, "powder_filling_nominal", self.powder_filling_nominal, 0.0, 3.0)
+        check_range(o, "speed_nominal_frac_critical", self.speed_nominal_frac_critical, 0.0, 1.0)
+        lo, hi = self.stable_band
+        if not 0 < lo < 1 < hi:
+            raise bad_value(o, "stable_band", self.stable_band, "a pair (lo, hi) with 0 < lo < 1 < hi")
+        check_range(o, "grate_d50_um", self.grate_d50_um, 0.0, 1e6)
+        check_range(o, "grate_sharpness", self.grate_sharpness, 0.0, 50.0)
+        check_range(o, "discharge_exponent", self.discharge_exponent, 0.0, 10.0)
+        check_range(o, "feed_nominal_tph", self.feed_nominal_tph, 0.0, 1e5)
+
+    @property
+    def volume_m3(self) -> float:
+        return math.pi * self.diameter_m ** 2 / 4.0 * self.length_m
+
+    @property
+    def ball_bulk_density_t_m3(self) -> float:
+        return self.ball_density_t_m3 * (1.0 - self.bed_porosity)
+
+    def critical_speed_rpm(self, ball_diameter_m: float = 0.0) -> float:
+        """Critical speed [rpm]: the centrifugal force on a ball at the shell equals its weight,
+        n_c = (60 / 2 pi) sqrt(2 g / (D - d)) (Wills & Finch 2016, eq. 7.3)."""
+        return 60.0 / (2 * math.pi) * math.sqrt(2 * G_M_S2 / (self.diameter_m - ball_diameter_m))
+
+    def nominal_holdup_t(self, solids_density_t_m3: float) -> float:
+        """Ore hold-up [t] at the nominal powder filling: U * bed voids * ball-bed volume *
+        packed-powder density (packed at the bed porosity; Austin et al. 1984, ch. 8)."""
+        bed_volume = self.ball_filling_frac * self.volume_m3
+        return (self.powder_filling_nominal * self.bed_porosity * bed_volume
+                * solids_density_t_m3 * (1.0 - self.bed_porosity))
+
+    def with_(self, **changes) -> "Mill":
+        return replace(self, **changes)
+
+
+#: The laboratory mill of MISSION.md: 0.5 m x 0.3 m, 70 % of critical.
+LAB = Mill("lab", diameter_m=0.5, length_m=0.3, feed_nominal_tph=0.031)
+#: An industrial overflow ball mill sized (Bond power at 35 % balls, 70 % critical) for about
+#: 30 t/h of Type B at 12.8 kWh/t: 3.2 m x 4.8 m draws ~0.38 MW.
+INDUSTRIAL = Mill("industrial", diameter_m=3.2, length_m=4.8, feed_nominal_tph=30.0)
+
+MILLS = {"lab": LAB, "industrial": INDUSTRIAL}
+
+
+def get_mill(spec) -> Mill:
+    """A preset name ('lab', 'industrial') or a Mill."""
+    if isinstance(spec, Mill):
+        return spec
+    if spec in MILLS:
+        return MILLS[spec]
+    raise TwinInputError(f"The 'mill' must be one of {', '.join(MILLS)}. Got {spec!r}.{close_matches(str(spec), MILLS)}")
+
+
+def bond_power_kw(mill: Mill, speed_frac_critical):
+    """Net power of an overflow ball mill [kW], Bond (1961) in metric form
+    P = 7.33 J phi_c (1 - 0.937 J) (1 - 0.1 / 2^(9 - 10 phi_c)) rho_b L D^2.3
+    (Gupta & Yan 2016, *Mineral Processing Design and Operations*, 2nd ed., eq. 9.28; rho_b
+    the ball bed's bulk density t/m3, D and L in m). Works on floats and CasADi expressions."""
+    J = mill.ball_filling_frac
+    phi = speed_frac_critical
+    return (7.33 * J * phi * (1.0 - 0.937 * J) * (1.0 - 0.1 / 2.0 ** (9.0 - 10.0 * phi))
+            * mill.ball_bulk_density_t_m3 * mill.length_m * mill.diameter_m ** 2.3)

@@ -1,0 +1,171 @@
+"""The mill model: a CasADi ODE assembled from a list of effects.
+
+Units inside the model (well scaled for the solvers): mass t, time h, size um, power kW,
+flows t/h. States: mass of each ore component c in each mixer k and size class i
+(``m[c, k, i]``, component-major), then the states effects add (e.g. analyser lags).
+Inputs u = [feed_tph, speed_frac_critical]; disturbances d = [blend fraction of each
+component..., hardness_scale] (hardness_scale divides every selection rate; 1 = as
+calibrated; the estimator uses it for unmeasured ore hardness).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import casadi as ca
+import numpy as np
+
+from .effects.base import Assembly
+from .effects.registry import resolve
+from .errors import TwinInputError
+from .sizes import SizeGrid, smooth_pxx
+
+INPUT_NAMES = ("feed_tph", "speed_frac_critical")
+
+
+@dataclass
+class ModelSpec:
+    """Everything numeric a model is built from (made by :class:`twin.Twin`)."""
+
+    grid: SizeGrid
+    mill: object  # twin.mill.Mill
+    component_names: list
+    breakage: list  # [OreBreakage] per component
+    feed_frac: np.ndarray  # feed size distribution, mass fraction per class
+    feed_nominal_tph: float
+    holdup_nominal_t: float
+    solids_density_t_m3: float
+    soft_frac: list  # clay + mica mass fraction per component
+    coefficients: dict
+    n_mixers: int = 3
+    p80_initial_um: float = 200.0
+    effects: list = field(default_factory=list)
+    effect_options: dict = field(default_factory=dict)
+
+
+class Model:
+    """A built mill model: symbols, the ODE right-hand side and named outputs as CasADi
+    Functions of (x, u, d). The same object serves plant, estimator and controller."""
+
+    def __init__(self, spec: ModelSpec):
+        self.spec = spec
+        effects = resolve(spec.effects, spec.effect_options)
+        self.effect_names = [e.name for e in effects]
+        C, N, n = len(spec.breakage), spec.n_mixers, spec.grid.count
+        self.shape = (C, N, n)
+        xm = ca.SX.sym("m", C * N * n)
+        mass = [[xm[(c * N + k) * n:(c * N + k + 1) * n] for k in range(N)] for c in range(C)]
+        self.u = ca.SX.sym("u", len(INPUT_NAMES))
+        self.d = ca.SX.sym("d", C + 1)
+        asm = Assembly(spec, self.u, self.d, mass)
+        for eff in effects:
+            if not getattr(eff, "after_outputs", False):
+                eff.apply(asm)
+        psd = asm.outputs.get("product_tph", asm.class_mass())
+        asm.outputs["holdup_t"] = asm.holdup()
+        asm.outputs["p80_um"] = smooth_pxx(spec.grid, psd)
+        asm.outputs["psd_frac"] = psd / (ca.sum1(psd) + 1e-12 * spec.holdup_nominal_t)
+        for eff in effects:
+            if getattr(eff, "after_outputs", False):
+                eff.apply(asm)
+        self._asm = asm
+        self._psd = psd
+        blocks = [asm.rhs.get(id(mass[c][k]), ca.SX.zeros(n)) for c in range(C) for k in range(N)]
+        extra = list(asm.extra_states.items())
+        self.x = ca.vertcat(xm, *[sym for _, (sym, _) in extra])
+        self.xdot = ca.vertcat(*blocks, *[asm.rhs.get(id(sym), ca.SX.zeros(sym.numel()))
+                                         for _, (sym, _) in extra])
+        self.n_mass = C * N * n
+        self.state_groups = [("mass [t]", self.n_mass)] + [(name, sym.numel()) for name, (sym, _) in extra]
+        self._extra_initial = [init for _, (_, init) in extra]
+        self.f = ca.Function("f", [self.x, self.u, self.d], [self.xdot], ["x", "u", "d"], ["xdot"])
+        self.outputs = {name: ca.Function(name, [self.x, self.u, self.d], [expr], ["x", "u", "d"], [name])
+                        for name, expr in asm.outputs.items()}
+        self.parameters = asm.parameters
+        self.terms = asm.terms
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n_x(self) -> int:
+        return self.x.numel()
+
+    @property
+    def n_components(self) -> int:
+        return self.shape[0]
+
+    def mass_array(self, x) -> np.ndarray:
+        """Mass states as an array (component, mixer, class) [t]."""
+        return np.asarray(x, dtype=float).ravel()[: self.n_mass].reshape(self.shape)
+
+    def product_psd_function(self) -> ca.Function:
+        """Product flow per size class [t/h] (or mill content per class [t] in a batch model)."""
+        return ca.Function("psd", [self.x, self.u, self.d], [self._psd], ["x", "u", "d"], ["psd"])
+
+    def passing_function(self, size_um: float) -> ca.Function:
+        """Fraction of the product passing ``size_um``: linear in the states' flows, so a smooth
+        control variable (fraction passing the target size held at 0.80 <=> P80 = target)."""
+        w = ca.DM(self.spec.grid.passing_weights(size_um))
+        expr = ca.dot(w, self._psd) / (ca.sum1(self._psd) + 1e-12 * self.spec.holdup_nominal_t)
+        return ca.Function("passing", [self.x, self.u, self.d], [expr], ["x", "u", "d"], ["passing_frac"])
+
+    # ------------------------------------------------------------------ values
+    def d_vector(self, blend_fracs=None, hardness_scale: float = 1.0) -> np.ndarray:
+        C = self.n_components
+        w = np.ones(C) / C if blend_fracs is None and C > 1 else np.atleast_1d(
+            np.asarray(blend_fracs if blend_fracs is not None else [1.0], float))
+        if w.shape != (C,):
+            raise TwinInputError(f"The 'blend' must have {C} fraction(s), one per component "
+                                 f"{self.spec.component_names}. Got {list(w)}.")
+        return np.concatenate([w, [hardness_scale]])
+
+    def u_vector(self, feed_tph: float, speed_frac_critical: float | None = None) -> np.ndarray:
+        speed = self.spec.mill.speed_nominal_frac_critical if speed_frac_critical is None else speed_frac_critical
+        return np.array([feed_tph, speed], dtype=float)
+
+    def initial_state(self, blend_fracs=None, load_frac: float = 1.0) -> np.ndarray:
+        """Mill filled to ``load_frac`` of nominal hold-up with feed of the given blend."""
+        C, N, n = self.shape
+        w = self.d_vector(blend_fracs)[:C]
+        m = np.zeros(self.shape)
+        for c in range(C):
+            m[c, :, :] = load_frac * self.spec.holdup_nominal_t / N * w[c] * self.spec.feed_frac
+        return np.concatenate([m.ravel(), *self._extra_initial])
+
+    def evaluate(self, name: str, x, u, d) -> np.ndarray | float:
+        if name not in self.outputs:
+            from .errors import close_matches
+            raise TwinInputError(f"Unknown output {name!r} of this model.{close_matches(name, self.outputs)} "
+                                 f"Outputs: {', '.join(self.outputs)}.")
+        val = np.asarray(self.outputs[name](x, u, d), dtype=float)
+        return float(val) if val.size == 1 else val.ravel()
+
+    @cached_property
+    def n_instructions(self) -> int:
+        """Operations in the right-hand side: a measure of what the effects cost."""
+        return self.f.n_instructions()
+
+    # ------------------------------------------------------------------ report
+    def describe(self) -> str:
+        """The effects, states, inputs, outputs, parameters and sources actually in the model."""
+        from .effects.registry import EFFECTS
+
+        lines = [f"Model: {len(self.effect_names)} effect(s), {self.n_x} states, "
+                 f"{self.n_instructions} RHS operations"]
+        lines.append("Effects:")
+        for name in self.effect_names:
+            lines.append(f"  {name:15s} {EFFECTS[name].summary}  [{EFFECTS[name].source}]")
+        lines.append("Terms:")
+        lines += [f"  {t.effect:15s} {t.what}" for t in self.terms]
+        lines.append("States: " + ", ".join(f"{g} x{n}" for g, n in self.state_groups)
+                     + f"  (components {self.spec.component_names}, {self.shape[1]} mixer(s), "
+                       f"{self.shape[2]} size classes)")
+        lines.append("Inputs: " + ", ".join(INPUT_NAMES))
+        lines.append("Disturbances: " + ", ".join([f"blend_{c}" for c in self.spec.component_names]
+                                                   + ["hardness_scale"]))
+        lines.append("Outputs: " + ", ".join(self.outputs))
+        if self.parameters:
+            lines.append("Parameters:")
+            for name, (val, unit, src) in self.parameters.items():
+                lines.append(f"  {name} = {val:.6g} {unit}  ({src})")
+        return "\n".join(lines)

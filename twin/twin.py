@@ -1,0 +1,143 @@
+"""The Twin facade: ores + mill + effects -> a built model, with steady state and simulation.
+
+    >>> from twin import Twin
+    >>> t = Twin("B", mill="lab")
+    >>> ss = t.steady(feed_tph=0.031, speed_frac_critical=0.70)
+    >>> 150 < ss.p80_um < 300
+    True
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from .breakage import ore_breakage
+from .breakage_map import mineralogy_breakage, shipped_coefficients
+from .errors import TwinInputError, bad_value
+from .mill import Mill, bond_power_kw, get_mill
+from .mineralogy import Mineralogy
+from .minerals import CLAY_MINERALS, MICA_MINERALS
+from .model import Model, ModelSpec
+from .ores import Blend, load_ore
+from .sizes import GatesGaudinSchuhmann, SizeGrid, discretise
+
+#: The effects of the reference scenes: a continuous grate-discharge mill with load dynamics,
+#: speed-dependent rates, cushioning by clay and mica, and power.
+DEFAULT_EFFECTS = ("breakage", "transport", "holdup", "speed", "cushioning", "power", "classification")
+#: Feed size of the laboratory tests (MISSION.md: feed P80 3.2 mm) and the GGS modulus of a
+#: crusher product (Gupta & Yan 2016, ch. 3: 0.7-1.0).
+FEED_P80_UM = 3200.0
+FEED_GGS_MODULUS = 0.8
+
+
+class Twin:
+    """A mill twin for a set of ore components.
+
+    ``ores``: a reference type ('B'), a Blend, or a sequence of ores (types, TOML paths,
+    Mineralogy); the nominal blend (for the nominal hold-up's density and defaults) is the
+    Blend's fractions, else equal shares. ``breakage_map(ore, coefficients)`` is the one
+    replaceable mineralogy -> BreakageParams function.
+    """
+
+    def __init__(self, ores="B", mill: str | Mill = "lab", effects: Sequence[str] = DEFAULT_EFFECTS,
+                 effect_options: dict | None = None, grid: SizeGrid | None = None, n_mixers: int = 3,
+                 feed_p80_um: float = FEED_P80_UM, feed_modulus: float = FEED_GGS_MODULUS,
+                 breakage_map: Callable = mineralogy_breakage, coefficients: dict | None = None):
+        self.blend = _as_blend(ores)
+        self.mill = get_mill(mill)
+        self.grid = grid or SizeGrid()
+        if not isinstance(n_mixers, int) or not 1 <= n_mixers <= 20:
+            raise bad_value("Twin", "n_mixers", n_mixers, "an integer in [1, 20]")
+        self.coefficients = coefficients or shipped_coefficients()
+        density = 1.0 / sum(f / o.density_t_m3 for o, f in zip(self.blend.ores, self.blend.fractions))
+        holdup_nom = self.mill.nominal_holdup_t(density)
+        power_nom = bond_power_kw(self.mill, self.mill.speed_nominal_frac_critical)
+        breakage = [ore_breakage(self.grid, breakage_map(o, self.coefficients), power_nom, holdup_nom)
+                    for o in self.blend.ores]
+        feed = discretise(self.grid, GatesGaudinSchuhmann.from_p80(feed_p80_um, feed_modulus))
+        self.spec = ModelSpec(
+            grid=self.grid, mill=self.mill, component_names=self.blend.names, breakage=breakage,
+            feed_frac=feed, feed_nominal_tph=self.mill.feed_nominal_tph, holdup_nominal_t=holdup_nom,
+            solids_density_t_m3=density,
+            soft_frac=[o.group_fraction(CLAY_MINERALS + MICA_MINERALS) for o in self.blend.ores],
+            coefficients=self.coefficients, n_mixers=n_mixers, effects=list(effects),
+            effect_options=dict(effect_options or {}))
+        self.model = Model(self.spec)
+
+    @property
+    def nominal_blend(self) -> np.ndarray:
+        return np.asarray(self.blend.fractions, float)
+
+    def steady(self, feed_tph: float | None = None, speed_frac_critical: float | None = None,
+               blend=None, hardness_scale: float = 1.0):
+        """Steady state at the given feed rate [t/h] and speed (defaults: the mill's nominal)."""
+        from .steady import steady_state
+
+        feed = self.mill.feed_nominal_tph if feed_tph is None else feed_tph
+        return steady_state(self.model, self._u(feed, speed_frac_critical), self._d(blend, hardness_scale))
+
+    def steady_at_constant_load(self, speed_frac_critical: float | None = None, blend=None,
+                                load_frac: float = 1.0, hardness_scale: float = 1.0):
+        """Steady state whose hold-up is ``load_frac`` of nominal: the feed rate is solved for
+        (how the laboratory reports throughput 'at constant load')."""
+        from .steady import steady_state_at_load
+
+        return steady_state_at_load(self.model, self._u(self.mill.feed_nominal_tph, speed_frac_critical),
+                                    self._d(blend, hardness_scale), load_frac)
+
+    def simulate(self, duration_h: float, dt_h: float, feed_tph=None, speed_frac_critical=None,
+                 blend=None, x0=None, **kwargs):
+        """Open-loop run with inputs given as constants or callables of time [h]; returns a
+        :class:`twin.simulate.Trajectory`."""
+        from .simulate import simulate
+
+        def as_fn(v, default):
+            v = default if v is None else v
+            return v if callable(v) else (lambda t, v=v: v)
+
+        feed_fn = as_fn(feed_tph, self.mill.feed_nominal_tph)
+        speed_fn = as_fn(speed_frac_critical, self.mill.speed_nominal_frac_critical)
+        blend_fn = as_fn(blend, self.nominal_blend)
+        x0 = self.model.initial_state(self.nominal_blend) if x0 is None else x0
+        return simulate(self.model, x0, duration_h, dt_h,
+                        u_fn=lambda t: [feed_fn(t), speed_fn(t)],
+                        d_fn=lambda t: self.model.d_vector(blend_fn(t)), **kwargs)
+
+    def _u(self, feed_tph, speed):
+        speed = self.mill.speed_nominal_frac_critical if speed is None else speed
+        if not 0.0 <= float(feed_tph) < 1e5:
+            raise bad_value("Twin", "feed_tph", feed_tph, "a float in [0, 1e5)")
+        if not 0.0 < float(speed) < 1.0:
+            raise bad_value("Twin", "speed_frac_critical", speed, "a float in (0, 1)")
+        return np.array([feed_tph, speed], float)
+
+    def _d(self, blend, hardness_scale):
+        if blend is None:
+            fr = self.nominal_blend
+        elif isinstance(blend, Blend):
+            fr = np.array([dict(zip(blend.names, blend.fractions)).get(n, 0.0) for n in self.blend.names])
+            missing = set(blend.names) - set(self.blend.names)
+            if missing:
+                raise TwinInputError(f"Blend ores {sorted(missing)} are not components of this twin "
+                                     f"{self.blend.names}.")
+        else:
+            fr = np.asarray(blend, float)
+        if abs(fr.sum() - 1.0) > 1e-6 or np.any(fr < 0):
+            raise bad_value("Twin", "blend", list(fr), "non-negative fractions summing to 1")
+        return self.model.d_vector(fr, hardness_scale)
+
+
+def _as_blend(ores) -> Blend:
+    if isinstance(ores, Blend):
+        return ores
+    if isinstance(ores, (str, Mineralogy)) or not isinstance(ores, Sequence):
+        return Blend.single(ores)
+    items = [load_ore(o) for o in ores]
+    if not items:
+        raise TwinInputError("A Twin needs at least one ore.")
+    names = [o.name for o in items]
+    if len(set(names)) != len(names):
+        raise TwinInputError(f"Ore names in a Twin must be unique. Got {names}.")
+    return Blend(tuple(items), tuple([1.0 / len(items)] * len(items)))
