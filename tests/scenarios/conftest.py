@@ -1,0 +1,56 @@
+"""A small valid continuous scene, written to a file, for tests to break one key at a time."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+BASE_SCENE = """\
+effects = ["breakage", "transport", "holdup", "cushioning", "power"]
+
+[scene]
+name = "base"
+duration_h = 8.0
+sample_period_h = 0.25
+
+[mill]
+preset = "industrial"
+
+[ores.B]
+type = "B"
+
+[ores.D]
+type = "D"
+
+[feed]
+blend = { B = 1.0 }
+feed_tph = 30.0
+speed_frac_critical = 0.70
+
+[[feed.schedule]]
+at_h = 2.0
+kind = "ramp"
+ramp_h = 1.0
+blend = { B = 0.6, D = 0.4 }
+
+[controller]
+kind = "nmpc"
+target_p80_um = 210.0
+
+[controller.bounds]
+feed_tph_min = 20.0
+feed_tph_max = 45.0
+"""
+
+
+@pytest.fixture
+def write_scene(tmp_path):
+    """``write_scene(text=BASE_SCENE, name="scene.toml") -> Path``."""
+
+    def write(text: str = BASE_SCENE, name: str = "scene.toml") -> Path:
+        path = tmp_path / name
+        path.write_text(text, encoding="utf-8")
+        return path
+
+    return write

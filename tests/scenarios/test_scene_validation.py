@@ -1,0 +1,134 @@
+"""Scene files are validated as a whole; each broken file gets a message naming file, key
+path, value and what is allowed."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from scenarios.errors import SceneError
+from scenarios.loader import check_scene, load_scene
+from tests.scenarios.conftest import BASE_SCENE
+
+LIBRARY = sorted((Path(__file__).parents[2] / "scenarios").glob("*.toml"))
+
+
+def edit(old: str, new: str) -> str:
+    assert old in BASE_SCENE, old
+    return BASE_SCENE.replace(old, new, 1)
+
+
+# (id, broken scene text, fragments that one message must contain)
+BROKEN = [
+    ("wrong type", edit("feed_tph = 30.0", 'feed_tph = "thirty"'),
+     ["feed.feed_tph", "valid number", "'thirty'"]),
+    ("out of range", edit("speed_frac_critical = 0.70", "speed_frac_critical = 1.3"),
+     ["feed.speed_frac_critical", "less than 1", "1.3"]),
+    ("unknown key, close match", edit("duration_h = 8.0", "duraton_h = 8.0"),
+     ["scene.duraton_h", "unknown key", "did you mean 'duration_h'"]),
+    ("misspelt word", edit('preset = "industrial"', 'preset = "industral"'),
+     ["mill.preset", "'lab' or 'industrial'", "did you mean 'industrial'", "'industral'"]),
+    ("unknown effect", edit('"cushioning"', '"cushoning"'),
+     ["effects[3]", "unknown effect", "did you mean 'cushioning'", "'cushoning'"]),
+    ("unknown ore", edit("blend = { B = 0.6, D = 0.4 }", "blend = { B = 0.6, E = 0.4 }"),
+     ["feed.schedule[0].blend.E", "not defined in [ores]", "'E'"]),
+    ("blend sum", edit("blend = { B = 0.6, D = 0.4 }", "blend = { B = 0.6, D = 0.3 }"),
+     ["feed.schedule[0].blend", "sum to 1 within 0.001", "0.9"]),
+    ("schedule out of order", BASE_SCENE + "\n[[feed.schedule]]\nat_h = 1.5\nblend = { B = 1.0 }\n",
+     ["feed.schedule[1].at_h", "increasing time", "1.5"]),
+    ("schedule beyond duration", edit("at_h = 2.0", "at_h = 7.5"),
+     ["feed.schedule[0].at_h", "after scene.duration_h = 8", "7.5"]),
+    ("missing required", edit("speed_frac_critical = 0.70\n", ""),
+     ["feed.speed_frac_critical", "required key is missing"]),
+    ("bad history path", edit('[[feed.schedule]]\nat_h = 2.0\nkind = "ramp"\nramp_h = 1.0\n'
+                              "blend = { B = 0.6, D = 0.4 }\n", "").replace(
+        "blend = { B = 1.0 }\n", 'history = "no_such_day.csv"\n'),
+     ["feed.history", "file not found", "no_such_day.csv"]),
+    ("bounds reversed", edit("feed_tph_min = 20.0", "feed_tph_min = 50.0"),
+     ["controller.bounds.feed_tph_max", "above feed_tph_min = 50", "45"]),
+    ("controller without target", edit("target_p80_um = 210.0\n", ""),
+     ["controller.target_p80_um", "required when kind = 'nmpc'"]),
+    ("options for an effect not used", BASE_SCENE + '\n[effect_options.classification]\nkind = "grate"\n',
+     ["effect_options.classification", "not in `effects`"]),
+    ("unknown mineral", edit('[ores.D]\ntype = "D"',
+                             "[ores.D.mineralogy]\nquartz = 60.0\npyrit = 40.0\n"
+                             "[ores.D.texture]\nmean_grain_um = 50.0\nuniformity = 0.4\n"
+                             "association_entropy = 0.8"),
+     ["ores.D.mineralogy.pyrit", "unknown mineral", "did you mean 'pyrite'"]),
+    ("type and mineralogy both", edit('[ores.D]\ntype = "D"', '[ores.D]\ntype = "D"\n'
+                                      "mineralogy = { quartz = 100.0 }"),
+     ["ores.D", "either `type` or an explicit mineralogy"]),
+    ("batch scene with a feed rate", edit('"transport", "holdup", ', "").replace(
+        'kind = "nmpc"', 'kind = "none"'),
+     ["feed.feed_tph", "batch scene", "batch_charge_kg"]),
+    ("not TOML", BASE_SCENE + "\n[feed\n", ["not valid TOML"]),
+]
+
+
+@pytest.mark.parametrize("text,fragments", [b[1:] for b in BROKEN], ids=[b[0] for b in BROKEN])
+def test_broken_scene_names_file_path_value_and_rule(write_scene, text, fragments):
+    path = write_scene(text, name="broken.toml")
+    messages = check_scene(path)
+    assert messages, "a broken scene must not pass"
+    assert all(str(path) in m for m in messages)
+    matching = [m for m in messages if all(f in m for f in fragments)]
+    assert matching, f"no message contains {fragments}; got:\n" + "\n".join(messages)
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    assert all(m in str(info.value) for m in messages)
+
+
+def test_every_error_of_a_file_is_reported_at_once(write_scene):
+    text = (edit("feed_tph = 30.0", "feed_tph = -1.0")
+            .replace("duration_h = 8.0", "duraton_h = 8.0")
+            .replace('"cushioning"', '"cushoning"')
+            .replace("feed_tph_min = 20.0", "feed_tph_min = 50.0"))
+    messages = check_scene(write_scene(text))
+    for path in ("feed.feed_tph", "scene.duraton_h", "scene.duration_h", "effects[3]",
+                 "controller.bounds.feed_tph_max"):
+        assert any(f": {path}:" in m for m in messages), (path, messages)
+
+
+def test_base_scene_is_valid_and_defaults_are_filled_visibly(write_scene):
+    scene = load_scene(write_scene())
+    assert scene.source_path.name == "scene.toml"
+    assert (scene.mill.diameter_m, scene.mill.length_m, scene.mill.n_mixers) == (2.8, 4.0, 3)
+    assert scene.feed.p80_um == 3200.0
+    assert scene.sensors.p80_sample_period_h == scene.scene.sample_period_h
+    assert scene.controller.bounds.speed_max == 0.85
+
+
+def test_blend_within_tolerance_is_rescaled_to_exactly_one(write_scene):
+    scene = load_scene(write_scene(edit("blend = { B = 0.6, D = 0.4 }",
+                                        "blend = { B = 0.6, D = 0.3995 }")))
+    assert sum(scene.feed.schedule[0].blend.values()) == pytest.approx(1.0, abs=1e-15)
+
+
+@pytest.mark.parametrize("path", LIBRARY, ids=[p.stem for p in LIBRARY])
+def test_library_scene_is_valid(path):
+    assert check_scene(path) == []
+
+
+def test_library_has_the_scenes_of_the_issue():
+    names = {p.stem for p in LIBRARY}
+    assert {"reference_transition", "hard_to_soft", "pyrite_surge", "replay_day"} <= names
+    assert len([n for n in names if n.startswith("batch_")]) == 3
+
+
+def test_batch_scenes_have_no_transport_and_reference_scene_previews():
+    for path in LIBRARY:
+        scene = load_scene(path)
+        if path.stem.startswith("batch_"):
+            assert "transport" not in scene.effects and scene.feed.batch_charge_kg > 0
+    ref = load_scene(LIBRARY[[p.stem for p in LIBRARY].index("reference_transition")])
+    assert ref.controller.kind == "nmpc" and ref.controller.target_p80_um == 210.0
+    assert ref.controller.preview_lead_h == 0.5
+    assert ref.feed.schedule[-1].blend == {"B": 0.6, "D": 0.4}
+
+
+def test_pyrite_surge_differs_from_type_b_by_fifteen_points_of_pyrite_for_biotite():
+    scene = load_scene(Path(__file__).parents[2] / "scenarios" / "pyrite_surge.toml")
+    ref, surge = scene.ores["B_ref"].mineralogy, scene.ores["B_pyrite"].mineralogy
+    diff = {m: surge[m] - ref[m] for m in ref if surge[m] != ref[m]}
+    assert diff == {"pyrite": 15.0, "biotite": -15.0}
