@@ -114,28 +114,55 @@ def _check_effect_list(effects: Any, loc: tuple, r: _Report) -> list[str]:
     return [e for e in effects if isinstance(e, str)]
 
 
+def effect_classes() -> dict[str, Any]:
+    """The twin's effect classes by name (``{}`` when ``twin.effects.registry`` is absent)."""
+    try:
+        from twin.effects.registry import EFFECTS
+    except ImportError:
+        return {}
+    return dict(EFFECTS)
+
+
+def _check_requirements(effects: list[str], loc: tuple, r: _Report) -> None:
+    classes = effect_classes()
+    for i, name in enumerate(effects):
+        cls = classes.get(name)
+        for req in getattr(cls, "requires", ()):
+            if req not in effects:
+                r.add(loc + (i,), f"effect {name!r} requires effect {req!r}; add it to the list")
+        for exc in getattr(cls, "excludes", ()):
+            if exc in effects:
+                r.add(loc + (i,), f"effect {name!r} cannot be combined with {exc!r}")
+
+
 def _check_effect_options(options: Any, effects: list[str], loc: tuple, r: _Report) -> None:
     if not isinstance(options, dict):
         return
-    known = known_effects()
+    known, classes = known_effects(), effect_classes()
     for name, table in options.items():
         if name not in known:
             r.add(loc + (name,), f"options for an unknown effect{did_you_mean(name, known)}; "
                   "known effects: " + ", ".join(known))
-        elif name not in effects:
+            continue
+        if name not in effects:
             r.add(loc + (name,), "options for an effect that is not in `effects`; add it there "
                   "or remove these options")
         if not isinstance(table, dict):
             r.add(loc + (name,), "must be a table of options", table)
+            continue
+        allowed = getattr(classes.get(name), "options", None)
+        if allowed is None:
+            continue
+        for key in table:
+            if key not in allowed:
+                r.add(loc + (name, key), f"unknown option of effect {name!r}"
+                      f"{did_you_mean(key, allowed)}; allowed: {', '.join(allowed) or 'none'}")
 
 
 def _check_effects(data, r: _Report) -> None:
     effects = _check_effect_list(data.get("effects"), ("effects",), r)
+    _check_requirements(effects, ("effects",), r)
     _check_effect_options(data.get("effect_options"), effects, ("effect_options",), r)
-    if _get(data, "mill", "n_mixers") is not None and \
-            _get(data, "effect_options", "transport", "n_mixers") is not None:
-        r.add(("effect_options", "transport", "n_mixers"),
-              "also given as mill.n_mixers; give it in one place only")
 
 
 def _check_ores(data, r: _Report) -> list[str]:
@@ -224,10 +251,8 @@ def _check_feed(data, ore_names: list[str], r: _Report) -> None:
         if _get(data, "controller", "kind") not in (None, "none"):
             r.add(("controller", "kind"), "a batch scene (effects without `transport`) has "
                   "nothing to control; use kind = \"none\"", _get(data, "controller", "kind"))
-    if feed.get("p80_um") is not None and feed.get("rosin_rammler") is not None:
-        r.add(("feed", "rosin_rammler"), "give the feed size as p80_um or as rosin_rammler, "
-              "not both")
-    p80, top = _num(feed.get("p80_um")), _num(_get(data, "mill", "size_classes", "top_um"))
+    p80 = _num(feed.get("p80_um", 3200.0))
+    top = _num(_get(data, "mill", "size_classes", "top_um") or 6700.0)
     if p80 is not None and top is not None and p80 >= top:
         r.add(("feed", "p80_um"), f"must be below the top size class mill.size_classes.top_um "
               f"= {top:g}", p80)
@@ -347,9 +372,9 @@ def _check_controller(data, r: _Report) -> None:
         r.add(("controller", "move_block"), f"must not exceed horizon_steps = {hor:g}", block)
     band = ctl.get("load_band_frac")
     if isinstance(band, list) and len(band) == 2 and all(_num(b) is not None for b in band):
-        if not 0 < band[0] < band[1]:
-            r.add(("controller", "load_band_frac"), "must be [low, high] with 0 < low < high",
-                  band)
+        if not 0 < band[0] < 1 < band[1]:
+            r.add(("controller", "load_band_frac"), "must be [low, high] with 0 < low < 1 < high "
+                  "(hold-up over nominal hold-up)", band)
     dur, lead = _num(_get(data, "scene", "duration_h")), _num(ctl.get("preview_lead_h"))
     if dur is not None and lead is not None and lead > dur:
         r.add(("controller", "preview_lead_h"), f"longer than the scene ({dur:g} h)", lead)
@@ -377,4 +402,6 @@ def _check_plant(data, r: _Report) -> None:
     effects = _check_effect_list(plant.get("effects"), ("plant", "effects"), r)
     if plant.get("effects") is None:
         effects = [e for e in data.get("effects") or [] if isinstance(e, str)]
+    if plant.get("effects") is not None:
+        _check_requirements(effects, ("plant", "effects"), r)
     _check_effect_options(plant.get("effect_options"), effects, ("plant", "effect_options"), r)

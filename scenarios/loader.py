@@ -6,10 +6,9 @@ run, so a file with five mistakes gets five messages. Each message reads
 ``FILE: key.path: what is wrong and what is allowed (got VALUE)``.
 
 After validation, defaults that depend on other fields are filled in visibly (the returned
-``Scene`` shows them): mill dimensions from the preset, ``mill.n_mixers`` from
-``effect_options.transport.n_mixers`` when given there, the feed size (P80 3200 um when no
-size is given), the P80 analyser's sample period (the scene's), and blends are rescaled to
-sum exactly to 1 (they must already sum to 1 within ``BLEND_SUM_TOL``).
+``Scene`` shows them): mill dimensions and ``n_mixers`` from the preset, the P80 analyser's
+sample period (the scene's), and blends are rescaled to sum exactly to 1 (they must already
+sum to 1 within ``checks.BLEND_SUM_TOL``).
 """
 
 from __future__ import annotations
@@ -23,9 +22,7 @@ from pydantic import ValidationError
 from scenarios.checks import cross_check
 from scenarios.errors import SceneError
 from scenarios.keypaths import allowed_keys, did_you_mean, format_path, type_at
-from scenarios.schema import MILL_PRESETS, Scene
-
-DEFAULT_FEED_P80_UM = 3200.0
+from scenarios.schema import Scene, mill_preset
 
 
 def read_toml(path: str | Path) -> dict[str, Any]:
@@ -114,15 +111,9 @@ def _pydantic_message(label: str, err: dict) -> str:
 
 def _fill_defaults(scene: Scene) -> None:
     mill = scene.mill
-    preset = MILL_PRESETS[mill.preset]
-    for key, value in preset.items():
+    for key, value in mill_preset(mill.preset).items():
         if getattr(mill, key) is None:
             setattr(mill, key, value)
-    transport = scene.effect_options.transport
-    if transport is not None and transport.n_mixers is not None:
-        mill.n_mixers = transport.n_mixers
-    if scene.feed.p80_um is None and scene.feed.rosin_rammler is None:
-        scene.feed.p80_um = DEFAULT_FEED_P80_UM
     if scene.sensors.p80_sample_period_h is None:
         scene.sensors.p80_sample_period_h = scene.scene.sample_period_h
     blends = [ev.blend for ev in scene.feed.schedule]

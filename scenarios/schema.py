@@ -18,12 +18,26 @@ ORE_TYPES = ("A", "B", "C", "D")
 CONTROLLER_KINDS = ("none", "pi", "nmpc")
 SOLVERS = ("ipopt", "fatrop", "sqpmethod")
 
-#: Mill presets. ``lab`` is the reference laboratory mill of MISSION.md; ``industrial`` is
-#: sized for ~30 t/h of Type B by scaling the lab throughput (31 kg/h) with D**2.5 * L.
+#: Mill presets as in ``twin.mill`` (read from there when importable, see :func:`mill_preset`):
+#: ``lab`` the 0.5 m x 0.3 m laboratory mill of MISSION.md; ``industrial`` sized for ~30 t/h of
+#: Type B. ``n_mixers`` is the twin's default number of mixers in series.
 MILL_PRESETS: dict[str, dict[str, float | int]] = {
-    "lab": {"diameter_m": 0.5, "length_m": 0.3, "ball_filling_frac": 0.35, "n_mixers": 1},
-    "industrial": {"diameter_m": 2.8, "length_m": 4.0, "ball_filling_frac": 0.30, "n_mixers": 3},
+    "lab": {"diameter_m": 0.5, "length_m": 0.3, "ball_filling_frac": 0.35, "n_mixers": 3},
+    "industrial": {"diameter_m": 3.2, "length_m": 4.8, "ball_filling_frac": 0.35, "n_mixers": 3},
 }
+
+
+def mill_preset(name: str) -> dict[str, float | int]:
+    """Dimensions of a preset: from ``twin.mill.MILLS`` when importable, else the table above."""
+    values = dict(MILL_PRESETS[name])
+    try:
+        from twin.mill import MILLS
+    except ImportError:
+        return values
+    twin_mill = MILLS[name]
+    for key in ("diameter_m", "length_m", "ball_filling_frac"):
+        values[key] = getattr(twin_mill, key)
+    return values
 
 
 class Section(BaseModel):
@@ -47,17 +61,17 @@ class SizeClasses(Section):
 
     top_um: float = Field(default=6700.0, gt=0, le=1e6)
     ratio: float = Field(default=math.sqrt(2), gt=1, le=10)
-    count: int = Field(default=24, ge=2, le=200)
+    count: int = Field(default=25, ge=3, le=200)
 
 
 class Mill(Section):
     """``[mill]``: a preset plus optional overrides; after loading every field is set."""
 
     preset: Literal["lab", "industrial"]
-    diameter_m: float | None = Field(default=None, gt=0, le=15)
-    length_m: float | None = Field(default=None, gt=0, le=30)
-    ball_filling_frac: float | None = Field(default=None, gt=0, lt=0.6)
-    n_mixers: int | None = Field(default=None, ge=1, le=50)
+    diameter_m: float | None = Field(default=None, gt=0, lt=20)
+    length_m: float | None = Field(default=None, gt=0, lt=30)
+    ball_filling_frac: float | None = Field(default=None, gt=0, lt=0.5)
+    n_mixers: int | None = Field(default=None, ge=1, le=20)
     size_classes: SizeClasses = Field(default_factory=SizeClasses)
 
 
@@ -79,13 +93,6 @@ class Ore(Section):
     texture: Texture | None = None
 
 
-class RosinRammler(Section):
-    """Feed size as a Rosin-Rammler distribution: 63.2 % passing size and spread."""
-
-    x63_um: float = Field(gt=0, le=1e6)
-    spread: float = Field(gt=0, le=20)
-
-
 class ScheduleEvent(Section):
     """``[[feed.schedule]]``: from ``at_h`` the blend moves to ``blend`` (step or linear ramp)."""
 
@@ -98,7 +105,8 @@ class ScheduleEvent(Section):
 class Feed(Section):
     """``[feed]``: initial blend and operating point, feed size, then a schedule or a history.
 
-    ``blend`` is required unless a ``history`` gives the feed from t = 0. ``feed_tph`` is
+    Feed size: Gates-Gaudin-Schuhmann distribution with ``p80_um`` and ``ggs_modulus`` (as the
+    twin's feed). ``blend`` is required unless a ``history`` gives the feed from t = 0. ``feed_tph`` is
     required with the ``transport`` effect (continuous mill); without it the scene is a batch
     grind of ``batch_charge_kg``.
 
@@ -111,53 +119,12 @@ class Feed(Section):
     feed_tph: float | None = Field(default=None, gt=0, le=1e4)
     batch_charge_kg: float | None = Field(default=None, gt=0, le=1e6)
     speed_frac_critical: float = Field(gt=0, lt=1)
-    p80_um: float | None = Field(default=None, gt=0, le=1e6)
-    rosin_rammler: RosinRammler | None = None
+    p80_um: float = Field(default=3200.0, gt=0, le=1e6)
+    ggs_modulus: float = Field(default=0.8, gt=0, le=5)
     schedule: list[ScheduleEvent] = Field(default_factory=list)
     history: str | None = None
     history_texture: Texture | None = None
     history_max_gap_h: float = Field(default=10 / 60, gt=0)
-
-
-class TransportOptions(Section):
-    """``[effect_options.transport]``."""
-
-    n_mixers: int | None = Field(default=None, ge=1, le=50)
-
-
-class ClassificationOptions(Section):
-    """``[effect_options.classification]``: grate discharge or closed circuit with a cyclone."""
-
-    kind: Literal["grate", "hydrocyclone"] = "grate"
-    cut_size_um: float | None = Field(default=None, gt=0)
-    sharpness: float | None = Field(default=None, gt=0)
-
-
-class EffectOptions(Section):
-    """``[effect_options]``: one table per effect; only effects listed in ``effects``.
-
-    ``transport`` and ``classification`` are checked key by key; the other effects' tables
-    are passed to the twin as given (the twin validates them when it builds the model).
-    """
-
-    breakage: dict[str, Any] | None = None
-    transport: TransportOptions | None = None
-    holdup: dict[str, Any] | None = None
-    speed: dict[str, Any] | None = None
-    cushioning: dict[str, Any] | None = None
-    power: dict[str, Any] | None = None
-    classification: ClassificationOptions | None = None
-    slowing_down: dict[str, Any] | None = None
-    sensor_delay: dict[str, Any] | None = None
-
-    model_config = ConfigDict(extra="allow")  # names are checked against the effect registry
-
-    def given(self) -> dict[str, Any]:
-        """The tables actually written in the file, as plain dicts (effect name -> options)."""
-        out = {k: (v.model_dump() if isinstance(v, BaseModel) else v)
-               for k, v in self if v is not None}
-        out.update(self.model_extra or {})
-        return out
 
 
 class Weights(Section):
@@ -195,7 +162,7 @@ class Controller(Section):
     weights: Weights = Field(default_factory=Weights)
     bounds: Bounds = Field(default_factory=Bounds)
     solver: Literal["ipopt", "fatrop", "sqpmethod"] = "ipopt"
-    load_band_frac: tuple[float, float] = (0.9, 1.1)
+    load_band_frac: tuple[float, float] = (0.8, 1.2)
     power_max_kw: float | None = Field(default=None, gt=0)
 
 
@@ -222,12 +189,14 @@ class Plant(Section):
     model: Literal["twin", "leroux2013"] = "twin"
     effects: list[str] | None = None
     size_classes: SizeClasses | None = None
-    effect_options: EffectOptions | None = None
+    effect_options: dict[str, dict[str, Any]] | None = None
 
 
 class Scene(Section):
     """A validated scene. Build it with :func:`scenarios.loader.load_scene`.
 
+    ``effect_options`` maps an effect of ``effects`` to its options (option names are checked
+    against those the twin's effect declares; values are passed to the twin as written).
     ``source_path`` is the file it came from (``None`` if built from a dict); relative paths
     in the scene (``feed.history``) are resolved against its folder.
     """
@@ -237,7 +206,7 @@ class Scene(Section):
     ores: dict[str, Ore] = Field(default_factory=dict)
     feed: Feed
     effects: list[str]
-    effect_options: EffectOptions = Field(default_factory=EffectOptions)
+    effect_options: dict[str, dict[str, Any]] = Field(default_factory=dict)
     controller: Controller = Field(default_factory=Controller)
     sensors: Sensors = Field(default_factory=Sensors)
     plant: Plant | None = None

@@ -93,7 +93,7 @@ def test_every_error_of_a_file_is_reported_at_once(write_scene):
 def test_base_scene_is_valid_and_defaults_are_filled_visibly(write_scene):
     scene = load_scene(write_scene())
     assert scene.source_path.name == "scene.toml"
-    assert (scene.mill.diameter_m, scene.mill.length_m, scene.mill.n_mixers) == (2.8, 4.0, 3)
+    assert (scene.mill.diameter_m, scene.mill.length_m, scene.mill.n_mixers) == (3.2, 4.8, 3)
     assert scene.feed.p80_um == 3200.0
     assert scene.sensors.p80_sample_period_h == scene.scene.sample_period_h
     assert scene.controller.bounds.speed_max == 0.85
@@ -132,3 +132,20 @@ def test_pyrite_surge_differs_from_type_b_by_fifteen_points_of_pyrite_for_biotit
     ref, surge = scene.ores["B_ref"].mineralogy, scene.ores["B_pyrite"].mineralogy
     diff = {m: surge[m] - ref[m] for m in ref if surge[m] != ref[m]}
     assert diff == {"pyrite": 15.0, "biotite": -15.0}
+
+
+def test_effect_requirements_come_from_the_twin_registry(write_scene):
+    pytest.importorskip("twin.effects.registry")
+    messages = check_scene(write_scene(edit('"transport", ', "")))
+    assert any("effects[1]" in m and "'holdup' requires effect 'transport'" in m
+               for m in messages), messages
+
+
+def test_unknown_effect_option_names_the_allowed_ones(write_scene):
+    registry = pytest.importorskip("twin.effects.registry")
+    allowed = list(registry.EFFECTS["classification"].options)
+    text = edit('"power"]', '"power", "classification"]') + \
+        '\n[effect_options.classification]\nknd = "grate"\n'
+    messages = check_scene(write_scene(text))
+    assert any("effect_options.classification.knd" in m and "did you mean 'kind'" in m
+               and ", ".join(allowed) in m for m in messages), messages
