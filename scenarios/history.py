@@ -229,11 +229,15 @@ def _check_holds(t: np.ndarray, missing: np.ndarray, rows: pd.Series, what: str,
         return
     ends = np.append(t[valid[1:]], t[-1])
     held = ends - t[valid]
-    for i in np.flatnonzero(held > max_gap_h + 1e-12):
+    too_long = np.flatnonzero(held > max_gap_h + 1e-12)
+    for i in too_long[:_MAX_NAMED]:
         a = valid[i]
         b = valid[i + 1] if i + 1 < len(valid) else len(t) - 1
         errors.append(f"{what}: no valid value for {held[i] * 60:.4g} min between data rows "
                       f"{int(rows.iloc[a])} and {int(rows.iloc[b])} (limit {max_gap_h * 60:g} min)")
+    if len(too_long) > _MAX_NAMED:
+        errors.append(f"{what}: and {len(too_long) - _MAX_NAMED} more gaps longer than "
+                      f"{max_gap_h * 60:g} min")
 
 
 def _time_average(t: np.ndarray, values: np.ndarray, grid: np.ndarray, dt: float) -> np.ndarray:

@@ -1,0 +1,143 @@
+"""Recorded histories: a messy CSV is cleaned by the documented rules or refused naming rows."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from scenarios.errors import SceneError
+from scenarios.history import read_history
+from scenarios.loader import load_scene
+
+ROOT = Path(__file__).parents[2]
+DT = 1 / 60
+
+# irregular (02:30), out of order (row 4), duplicated time (rows 3 and 5: the last is kept),
+# NaN (row 6: held), a row summing to 99 (row 7: rescaled), a 1.5 min hold (within limit).
+MESSY = """\
+# a comment line, ignored
+timestamp,quartz_wt_pct,kaolinite_wt_pct,feed_tph
+2026-01-15T00:00:00,60,40,30
+2026-01-15T00:01:00,60,40,30
+2026-01-15T00:03:00,50,50,31
+2026-01-15T00:02:30,70,30,
+2026-01-15T00:03:00,40,60,32
+2026-01-15T00:04:00,,55,33
+2026-01-15T00:05:00,49.5,49.5,34
+2026-01-15T00:06:00,50,50,35
+"""
+
+
+def write(tmp_path, text, name="history.csv"):
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_messy_csv_is_cleaned_by_the_documented_rules(tmp_path):
+    h = read_history(write(tmp_path, MESSY), DT)
+    assert h.kind == "mineralogy" and h.minerals == ["quartz", "kaolinite"]
+    assert list(h.frame.index) == pytest.approx([k / 60 for k in range(7)])
+    # time-weighted mean over each minute of the held signal
+    assert h.frame["quartz_wt_pct"].to_numpy() == pytest.approx([60, 60, 65, 40, 40, 50, 50])
+    assert h.frame["feed_tph"].to_numpy() == pytest.approx([30, 30, 30, 32, 33, 34, 35])
+    assert np.allclose(h.frame[["quartz_wt_pct", "kaolinite_wt_pct"]].sum(axis=1), 100)
+    text = "\n".join(h.report)
+    assert "out of time order (first: data row 4); sorted" in text
+    assert "dropped data rows 3, keeping the last" in text
+    assert "missing values held from the previous row" in text
+    assert "rows rescaled so that the composition sums to 100" in text
+    assert "irregular records" in text
+    assert h.start == pd.Timestamp("2026-01-15T00:00:00")
+
+
+def test_parquet_reads_like_csv(tmp_path):
+    csv = write(tmp_path, MESSY)
+    frame = pd.read_csv(csv, comment="#")
+    frame.to_parquet(tmp_path / "history.parquet")
+    a, b = read_history(csv, DT), read_history(tmp_path / "history.parquet", DT)
+    pd.testing.assert_frame_equal(a.frame, b.frame)
+
+
+@pytest.mark.parametrize("text,fragments", [
+    (MESSY + "2026-01-15T00:30:00,50,50,35\n",
+     ["composition: no valid value for 24 min between data rows 8 and 9", "limit 10 min"]),
+    (MESSY.replace("2026-01-15T00:05:00,49.5,49.5", "2026-01-15T00:05:00,40,40"),
+     ["does not sum to 100 within 2%", "data rows 7", "80"]),
+    (MESSY.replace("2026-01-15T00:00:00,60,40,30", "2026-01-15T00:00:00,,40,30"),
+     ["composition: missing in the first data row 1"]),
+    (MESSY.replace("00:04:00,,55", "00:04:00,-5,55"), ["negative values in data rows 6"]),
+    (MESSY.replace("2026-01-15T00:06:00", "yesterday noon"), ["unreadable or missing time in data rows 8"]),
+    (MESSY.replace("kaolinite_wt_pct", "kaolinte_wt_pct"),
+     ["'kaolinte_wt_pct': unknown mineral (did you mean 'kaolinite'"]),
+    (MESSY.replace("feed_tph", "feed_tp"), ["unknown column 'feed_tp' (did you mean 'feed_tph'?)"]),
+    (MESSY.replace("timestamp", "time"), ["exactly one time column"]),
+], ids=["gap", "row sum", "NaN first row", "negative", "bad timestamp", "unknown mineral",
+        "unknown column", "no time column"])
+def test_messy_csv_beyond_the_rules_is_refused_naming_rows(tmp_path, text, fragments):
+    path = write(tmp_path, text)
+    with pytest.raises(SceneError) as info:
+        read_history(path, DT)
+    message = str(info.value)
+    assert str(path) in message
+    for f in fragments:
+        assert f in message, message
+
+
+def test_gap_limit_is_a_parameter(tmp_path):
+    path = write(tmp_path, MESSY + "2026-01-15T00:30:00,50,50,35\n")
+    h = read_history(path, DT, max_gap_h=0.5)
+    assert h.frame["quartz_wt_pct"].iloc[-2] == pytest.approx(50)
+
+
+def test_coarse_records_are_repeated_on_the_grid(tmp_path):
+    text = "time_h,ore_B_frac,ore_D_frac\n0,1,0\n0.1,0.5,0.5\n"
+    h = read_history(write(tmp_path, text), 0.025, max_gap_h=0.2)
+    assert h.kind == "blend" and h.ores == ["B", "D"]
+    assert h.frame["ore_D_frac"].to_numpy() == pytest.approx([0, 0, 0, 0, 0.5])
+
+
+def test_ore_fraction_history_drives_blend_at(tmp_path, write_scene):
+    write(tmp_path, "time_h,ore_B_frac,ore_D_frac\n" +
+          "".join(f"{t / 4},{1 - t / 40},{t / 40}\n" for t in range(33)), name="day.csv")
+    from tests.scenarios.conftest import BASE_SCENE
+    text = BASE_SCENE.split("[[feed.schedule]]")[0].replace("blend = { B = 1.0 }",
+                                                            'history = "day.csv"\n'
+                                                            "history_max_gap_h = 0.25")
+    text += BASE_SCENE[BASE_SCENE.index("[controller]"):]
+    scene = load_scene(write_scene(text))
+    assert scene.blend_at(4.0) == pytest.approx({"B": 0.6, "D": 0.4})
+    table = scene.feed_table()
+    assert list(table.columns) == ["ore_B_frac", "ore_D_frac"] and len(table) == 33
+
+
+def test_sample_history_is_a_synthetic_day_at_one_minute():
+    path = ROOT / "scenarios" / "data" / "sample_history.csv"
+    assert "SYNTHETIC" in path.read_text(encoding="utf-8").splitlines()[0]
+    h = read_history(path, DT)
+    assert len(h.frame) == 24 * 60 and h.kind == "mineralogy"
+    assert not any("held" in line or "dropped" in line for line in h.report)
+
+
+def test_sample_history_script_reproduces_the_shipped_file(tmp_path):
+    pytest.importorskip("twin.ores")
+    out = tmp_path / "again.csv"
+    subprocess.run([sys.executable, str(ROOT / "scenarios" / "data" / "make_sample_history.py"),
+                    "--out", str(out)], check=True, cwd=ROOT, capture_output=True,
+                   env={"PYTHONPATH": str(ROOT), "PATH": ""})
+    shipped = (ROOT / "scenarios" / "data" / "sample_history.csv").read_bytes()
+    assert out.read_bytes() == shipped
+
+
+def test_replay_scene_feed_table_has_mineralogy_texture_and_recorded_values():
+    scene = load_scene(ROOT / "scenarios" / "replay_day.toml")
+    table = scene.feed_table()
+    assert len(table) == 24 * 60 + 1
+    assert {"quartz_wt_pct", "mean_grain_um", "recorded_feed_tph", "recorded_p80_um"} <= set(table)
+    with pytest.raises(SceneError, match="records mineralogy"):
+        scene.blend_at(1.0)
