@@ -1,0 +1,103 @@
+"""What-if sweeps: case expansion, checked key paths, local pool and Dask give one table."""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from scenarios.errors import SceneError
+from scenarios.loader import read_toml
+from scenarios.sweep import expand_cases, parse_vary, run_sweep
+
+VARY = {"feed.feed_tph": [25.0, 30.0, 44.0], "controller.weights.p80": [1.0, 2.0]}
+
+
+def cheap_kpis(scene):
+    """A pure-Python stand-in for the runner; fails on purpose above 40 t/h."""
+    feed = scene.feed.feed_tph
+    if feed > 40:
+        raise RuntimeError(f"mill overloaded at {feed} t/h")
+    return {"p80_um": 150 + 2 * feed, "score": feed * scene.controller.weights.p80}
+
+
+def test_cartesian_expansion_sets_every_combination_and_leaves_the_base_alone(write_scene):
+    base = read_toml(write_scene())
+    cases = expand_cases(base, VARY)
+    assert [c.values for c in cases] == [
+        {"feed.feed_tph": f, "controller.weights.p80": w} for f in VARY["feed.feed_tph"]
+        for w in VARY["controller.weights.p80"]]
+    assert cases[5].data["feed"]["feed_tph"] == 44.0
+    assert cases[5].data["controller"]["weights"] == {"p80": 2.0}  # created where absent
+    assert base["feed"]["feed_tph"] == 30.0 and "weights" not in base["controller"]
+
+
+def test_paired_expansion_zips_and_needs_equal_lengths(write_scene):
+    base = read_toml(write_scene())
+    cases = expand_cases(base, {"feed.feed_tph": [25.0, 35.0],
+                                "feed.schedule[0].blend": [{"B": 1.0}, {"D": 1.0}]}, "paired")
+    assert len(cases) == 2 and cases[1].data["feed"]["schedule"][0]["blend"] == {"D": 1.0}
+    with pytest.raises(SceneError, match="equal length"):
+        expand_cases(base, VARY, "paired")
+
+
+@pytest.mark.parametrize("key,fragment", [
+    ("feed.feed_tp", "'feed_tp' is not a key of feed (did you mean 'feed_tph'?)"),
+    ("controler.kind", "'controler' is not a key of the scene (did you mean 'controller'?)"),
+    ("feed.schedule[3].at_h", "feed.schedule has 1 entries in the scene file; index 3"),
+])
+def test_unknown_key_path_is_refused_with_close_matches(write_scene, key, fragment):
+    with pytest.raises(SceneError) as info:
+        expand_cases(read_toml(write_scene()), {key: [1.0]})
+    assert fragment in str(info.value)
+
+
+def test_an_invalid_case_is_refused_before_anything_runs(write_scene):
+    with pytest.raises(SceneError) as info:
+        run_sweep(write_scene(), {"feed.speed_frac_critical": [0.7, 1.2]}, cheap_kpis,
+                  workers=1, progress=False)
+    assert "case 1 (feed.speed_frac_critical=1.2)" in str(info.value)
+    assert "less than 1" in str(info.value)
+
+
+def test_parse_vary_reads_lists_ranges_and_tables():
+    assert parse_vary("feed.feed_tph=25,30,35") == ("feed.feed_tph", [25, 30, 35])
+    assert parse_vary("feed.feed_tph=25:35:5") == ("feed.feed_tph", [25, 30, 35])
+    assert parse_vary("controller.kind=none,nmpc") == ("controller.kind", ["none", "nmpc"])
+    assert parse_vary("feed.blend={B=1.0},{B=0.6,D=0.4}") == \
+        ("feed.blend", [{"B": 1.0}, {"B": 0.6, "D": 0.4}])
+    key, values = parse_vary("feed.speed_frac_critical=0.65:0.75:0.05")
+    assert values == pytest.approx([0.65, 0.70, 0.75])
+
+
+def test_failing_case_is_reported_and_the_others_kept(write_scene):
+    table = run_sweep(write_scene(), VARY, cheap_kpis, workers=1, progress=False)
+    assert list(table.columns) == ["case", "feed.feed_tph", "controller.weights.p80",
+                                   "p80_um", "score", "error"]
+    failed = table[table["error"].notna()]
+    assert list(failed["case"]) == [4, 5]
+    assert failed["error"].str.contains("RuntimeError: mill overloaded at 44.0 t/h").all()
+    assert table.loc[table["error"].isna(), "p80_um"].tolist() == [200, 200, 210, 210]
+
+
+def test_local_pool_and_dask_cluster_give_identical_tables(write_scene):
+    distributed = pytest.importorskip("distributed")
+    path = write_scene()
+    serial = run_sweep(path, VARY, cheap_kpis, workers=1, progress=False)
+    pooled = run_sweep(path, VARY, cheap_kpis, workers=2, progress=False)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        on_dask = run_sweep(path, VARY, cheap_kpis, scheduler=cluster, progress=False)
+    pd.testing.assert_frame_equal(pooled, serial)
+    pd.testing.assert_frame_equal(on_dask, serial)
+
+
+@pytest.mark.slow
+def test_dask_worker_processes_give_the_same_table(write_scene):
+    distributed = pytest.importorskip("distributed")
+    path = write_scene()
+    serial = run_sweep(path, VARY, cheap_kpis, workers=1, progress=False)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        on_dask = run_sweep(path, VARY, cheap_kpis, scheduler=cluster.scheduler_address,
+                            progress=False)
+    pd.testing.assert_frame_equal(on_dask, serial)
