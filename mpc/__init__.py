@@ -1,1 +1,39 @@
 """Model predictive control, estimation and baselines on the grindtwin mill model."""
+
+from mpc.discretize import cvodes_map, min_rk4_substeps, rk4_map
+from mpc.errors import MpcError, MpcInputError, MpcSolverError
+from mpc.leroux import LeRouxCircuit, LeRouxParameters
+from mpc.linear import (
+    Fopdt,
+    LinearMPC,
+    OperatingPoint,
+    discretize,
+    fit_fopdt,
+    fopdt_from_model,
+    gain_table,
+    linearize,
+)
+from mpc.pi import DiscretePI, simc_pi
+from mpc.results import ControllerStepResult
+
+__all__ = [
+    "ControllerStepResult",
+    "DiscretePI",
+    "Fopdt",
+    "LeRouxCircuit",
+    "LeRouxParameters",
+    "LinearMPC",
+    "MpcError",
+    "MpcInputError",
+    "MpcSolverError",
+    "OperatingPoint",
+    "cvodes_map",
+    "discretize",
+    "fit_fopdt",
+    "fopdt_from_model",
+    "gain_table",
+    "linearize",
+    "min_rk4_substeps",
+    "rk4_map",
+    "simc_pi",
+]

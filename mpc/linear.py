@@ -66,12 +66,14 @@ def linearize(
     output_names,
     input_names: tuple[str, ...] = ("feed_tph", "speed_frac_critical"),
     include_disturbances: bool = False,
+    disturbance_names: tuple[str, ...] | None = None,
     steady_tol: float | None = 1e-6,
 ) -> tuple[control.StateSpace, OperatingPoint]:
     """Linearise ``f`` and the chosen outputs at ``(x_ss, u_ss, d_ss)``.
 
     Returns a continuous-time ``control.StateSpace`` (time unit: hour) in deviation variables
-    with inputs ``u`` (and, if ``include_disturbances``, then ``d``), outputs in the order of
+    with inputs ``u`` (and, if ``include_disturbances``, then ``d``, named by
+    ``disturbance_names``), outputs in the order of
     ``output_names``, and the :class:`OperatingPoint`. If ``steady_tol`` is not None the point
     must be a steady state: ``max |f(x_ss, u_ss, d_ss)| <= steady_tol``.
     """
@@ -115,7 +117,11 @@ def linearize(
     if include_disturbances:
         b = np.hstack([b, bd])
         dd = np.hstack([dd, ddist])
-        inputs += [f"d{i}" for i in range(nd)]
+        dn = tuple(f"d{i}" for i in range(nd)) if disturbance_names is None else tuple(disturbance_names)
+        if len(dn) != nd:
+            raise MpcInputError(f"The 'disturbance_names' parameter must have {nd} names. "
+                                f"Got {len(dn)}.")
+        inputs += list(dn)
     sys = control.ss(a, b, c, dd, inputs=inputs, outputs=list(output_names),
                      states=[f"x{i}" for i in range(nx)], name="linearized")
     op = OperatingPoint(x_ss, u_ss, d_ss, y0.reshape(-1), output_names)
@@ -157,6 +163,9 @@ def gain_table(sys_c: control.StateSpace, horizon_factor: float = 6.0,
         )
     w = np.linalg.inv(v)
     gains = d - c @ np.linalg.solve(a, b)
+    # round-off zeros (e.g. a conserved quantity) to exact zeros, relative to the channel scale
+    scale = np.abs(d) + np.abs(c) @ np.abs(np.linalg.solve(a, b))
+    gains[np.abs(gains) <= 1e-10 * scale] = 0.0
     tau_max = float(np.max(-1.0 / lam.real))
     t_h = np.linspace(0.0, horizon_factor * tau_max, n_points)
     rows = []

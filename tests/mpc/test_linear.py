@@ -225,3 +225,30 @@ def test_results_object_validates_fallback():
         ControllerStepResult(False, "x", 1.0, 3, 0.01, [1.0], fallback_used="magic")
     with pytest.raises(MpcInputError, match="fallback_used"):
         ControllerStepResult(True, "x", 1.0, 3, 0.01, [1.0], fallback_used="hold_input")
+
+
+def test_le_roux_gain_table_matches_nonlinear_steady_states():
+    from mpc.leroux import DISTURBANCE_NAMES, LeRouxCircuit
+
+    c = LeRouxCircuit()
+    xs = c.steady_state()
+    sys, _ = linearize(c.f, c.outputs, xs, c.u_nominal, c.d_nominal,
+                       ["p80_um", "product_tph"], include_disturbances=True,
+                       disturbance_names=DISTURBANCE_NAMES)
+    tab = gain_table(sys).set_index(["input", "output"])
+    for j, name, h in ((0, "feed_tph", 0.2), (1, "speed_frac_critical", 0.002)):
+        du = np.zeros(2)
+        du[j] = h
+        yp = c.evaluate_outputs(c.steady_state(u=c.u_nominal + du, x0=xs), c.u_nominal + du)
+        ym = c.evaluate_outputs(c.steady_state(u=c.u_nominal - du, x0=xs), c.u_nominal - du)
+        fd = (yp["p80_um"] - ym["p80_um"]) / (2 * h)
+        assert tab.loc[(name, "p80_um"), "gain"] == pytest.approx(fd, rel=1e-3)
+    # more feed coarsens, faster mill refines, harder ore (phi_f) coarsens
+    assert tab.loc[("feed_tph", "p80_um"), "gain"] > 0
+    assert tab.loc[("speed_frac_critical", "p80_um"), "gain"] < 0
+    assert tab.loc[("phi_f_kwh_t", "p80_um"), "gain"] > 0
+    # at steady state every tonne fed leaves as product; speed does not change throughput
+    assert tab.loc[("feed_tph", "product_tph"), "gain"] == pytest.approx(1.0, rel=1e-9)
+    assert tab.loc[("speed_frac_critical", "product_tph"), "gain"] == 0.0
+    # the P80 response is dominated by a ~1.3 h mode (mill and sump fines inventories)
+    assert 0.5 < tab.loc[("feed_tph", "p80_um"), "tau_dominant_h"] < 3.0

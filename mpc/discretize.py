@@ -1,0 +1,102 @@
+"""Discrete-time maps of a continuous CasADi model ``f(x, u, d) -> xdot`` (time in hours).
+
+The NMPC (direct multiple shooting) and the estimator need ``x_next = F(x, u, d)`` over one
+sample period with ``u`` and ``d`` held (zero-order hold). Two constructions:
+
+- :func:`rk4_map` - ``n_steps`` classical fourth-order Runge-Kutta steps (Hairer, Norsett &
+  Wanner, *Solving ODEs I*, section II.1), symbolic, so it embeds in an NLP and is cheap to
+  differentiate; global error O(h^4) (tested by the observed order);
+- :func:`cvodes_map` - SUNDIALS CVODES through ``casadi.integrator`` (variable order BDF,
+  error-controlled), the reference for accuracy, slower to embed.
+
+Explicit RK4 is only stable when ``h * lambda`` lies in its stability region
+``|1 + z + z^2/2 + z^3/6 + z^4/24| <= 1`` for every eigenvalue ``lambda`` of the Jacobian;
+:func:`min_rk4_substeps` finds the fewest sub-steps that achieve that at a linearisation.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from mpc.errors import MpcInputError
+
+
+def _check_f(f) -> None:
+    if not isinstance(f, ca.Function) or f.n_in() != 3 or f.n_out() != 1:
+        raise MpcInputError(
+            "The 'f' parameter must be a casadi.Function f(x, u, d) -> xdot with 3 inputs "
+            f"and 1 output. Got {f!r}."
+        )
+
+
+def _check_dt(dt_h: float) -> float:
+    dt_h = float(dt_h)
+    if not (np.isfinite(dt_h) and dt_h > 0):
+        raise MpcInputError(f"The 'dt_h' parameter must be a float > 0. Got {dt_h!r}.")
+    return dt_h
+
+
+def rk4_map(f: ca.Function, dt_h: float, n_steps: int = 1, name: str = "rk4_map") -> ca.Function:
+    """``F(x, u, d) -> x_next`` by ``n_steps`` RK4 steps of length ``dt_h / n_steps``."""
+    _check_f(f)
+    dt_h = _check_dt(dt_h)
+    if not (isinstance(n_steps, (int, np.integer)) and n_steps >= 1):
+        raise MpcInputError(f"The 'n_steps' parameter of rk4_map must be an int >= 1. "
+                            f"Got {n_steps!r}.")
+    x = ca.MX.sym("x", f.size1_in(0))
+    u = ca.MX.sym("u", f.size1_in(1))
+    d = ca.MX.sym("d", f.size1_in(2))
+    h = dt_h / n_steps
+    xk = x
+    for _ in range(int(n_steps)):
+        k1 = f(xk, u, d)
+        k2 = f(xk + 0.5 * h * k1, u, d)
+        k3 = f(xk + 0.5 * h * k2, u, d)
+        k4 = f(xk + h * k3, u, d)
+        xk = xk + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return ca.Function(name, [x, u, d], [xk], ["x", "u", "d"], ["x_next"])
+
+
+def cvodes_map(f: ca.Function, dt_h: float, abstol: float = 1e-8, reltol: float = 1e-8,
+               name: str = "cvodes_map") -> ca.Function:
+    """``F(x, u, d) -> x_next`` by CVODES over ``dt_h`` with the given tolerances."""
+    _check_f(f)
+    dt_h = _check_dt(dt_h)
+    for nm, tol in (("abstol", abstol), ("reltol", reltol)):
+        if not (np.isfinite(tol) and tol > 0):
+            raise MpcInputError(f"The '{nm}' parameter of cvodes_map must be > 0. Got {tol!r}.")
+    nx, nu, nd = f.size1_in(0), f.size1_in(1), f.size1_in(2)
+    x = ca.MX.sym("x", nx)
+    p = ca.MX.sym("p", nu + nd)
+    ode = f(x, p[:nu], p[nu:])
+    integ = ca.integrator(f"{name}_integrator", "cvodes", {"x": x, "p": p, "ode": ode},
+                          0.0, dt_h, {"abstol": float(abstol), "reltol": float(reltol)})
+    xs = ca.MX.sym("x", nx)
+    u = ca.MX.sym("u", nu)
+    d = ca.MX.sym("d", nd)
+    xn = integ(x0=xs, p=ca.vertcat(u, d))["xf"]
+    return ca.Function(name, [xs, u, d], [xn], ["x", "u", "d"], ["x_next"])
+
+
+def rk4_amplification(z) -> np.ndarray:
+    """``|R(z)|`` of classical RK4, ``R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24``."""
+    z = np.asarray(z, dtype=complex)
+    return np.abs(1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24)
+
+
+def min_rk4_substeps(a, dt_h: float, n_max: int = 10_000) -> int:
+    """Fewest RK4 sub-steps over ``dt_h`` for which every eigenvalue of ``a`` is stable.
+
+    ``a`` is a Jacobian ``df/dx`` (e.g. ``sys.A`` of :func:`mpc.linear.linearize`). Raises
+    :class:`MpcInputError` if an eigenvalue has a positive real part (no step is stable).
+    """
+    dt_h = _check_dt(dt_h)
+    lam = np.linalg.eigvals(np.asarray(a, dtype=float))
+    if np.any(lam.real > 0):
+        raise MpcInputError(f"The 'a' parameter must have no eigenvalue with Re > 0. "
+                            f"Got {lam[lam.real > 0]}.")
+    for n in range(1, n_max + 1):
+        if np.all(rk4_amplification(lam * dt_h / n) <= 1.0):
+            return n
+    raise MpcInputError(f"No stable RK4 sub-step count up to n_max = {n_max}.")
