@@ -35,6 +35,8 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         raise SceneError(f"{path}: scene file not found") from None
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: not valid TOML: {exc}") from None
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read the scene file: {exc.strerror or exc}") from None
 
 
 def validate_scene_dict(data: dict[str, Any], source_path: str | Path | None = None,
@@ -96,8 +98,12 @@ def _pydantic_message(label: str, err: dict) -> str:
     if kind == "extra_forbidden":
         key = loc[-1]
         allowed = allowed_keys(Scene, loc[:-1])
+        hint = ""
+        if len(loc) > 1 and key in Scene.model_fields:
+            hint = (f" ({key!r} is a top-level key: in TOML it must come before the first "
+                    "[table], else it belongs to that table)")
         return (f"{label}: {path}: unknown key {key!r}{did_you_mean(key, allowed)}; "
-                f"allowed keys: {', '.join(allowed)}")
+                f"allowed keys: {', '.join(allowed)}{hint}")
     hint = ""
     if kind == "literal_error":
         try:

@@ -12,6 +12,7 @@ import math
 from pathlib import Path
 from typing import Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr
 
 ORE_TYPES = ("A", "B", "C", "D")
@@ -41,9 +42,10 @@ def mill_preset(name: str) -> dict[str, float | int]:
 
 
 class Section(BaseModel):
-    """Base of every section: unknown keys are errors, values are not coerced from strings."""
+    """Base of every section: unknown keys are errors; values are not coerced (strict), except
+    that an integer is accepted where a float is expected."""
 
-    model_config = ConfigDict(extra="forbid", strict=False, frozen=False)
+    model_config = ConfigDict(extra="forbid", strict=True)
 
 
 class SceneInfo(Section):
@@ -162,7 +164,8 @@ class Controller(Section):
     weights: Weights = Field(default_factory=Weights)
     bounds: Bounds = Field(default_factory=Bounds)
     solver: Literal["ipopt", "fatrop", "sqpmethod"] = "ipopt"
-    load_band_frac: tuple[float, float] = (0.8, 1.2)
+    load_band_frac: list[float] = Field(default_factory=lambda: [0.8, 1.2], min_length=2,
+                                        max_length=2)
     power_max_kw: float | None = Field(default=None, gt=0)
 
 
@@ -227,10 +230,8 @@ class Scene(Section):
             p = self._source_path.parent / p
         return p
 
-    def time_grid_h(self):
-        """Sample times 0, dt, ..., duration (inclusive), as a numpy array."""
-        import numpy as np
-
+    def time_grid_h(self) -> np.ndarray:
+        """Sample times 0, dt, ..., duration (inclusive)."""
         n = int(round(self.scene.duration_h / self.scene.sample_period_h))
         return np.arange(n + 1) * self.scene.sample_period_h
 

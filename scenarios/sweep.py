@@ -18,6 +18,7 @@ from __future__ import annotations
 import copy
 import itertools
 import os
+import pickle
 import tomllib
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
@@ -159,6 +160,8 @@ def run_one(run_case: RunCase, scene: Scene) -> tuple[dict | None, str | None]:
 
 def _run_local(run_case: RunCase, scenes: list[Scene], workers: int | None, progress: bool):
     workers = min(workers or os.cpu_count() or 1, len(scenes))
+    if workers > 1:
+        _check_picklable(run_case)
     bar = tqdm(total=len(scenes), desc="sweep", unit="case", disable=not progress)
     outcomes: list = [None] * len(scenes)
     with bar:
@@ -173,6 +176,14 @@ def _run_local(run_case: RunCase, scenes: list[Scene], workers: int | None, prog
                 outcomes[futures[fut]] = _outcome(fut)
                 bar.update()
     return outcomes
+
+
+def _check_picklable(run_case: RunCase) -> None:
+    try:
+        pickle.dumps(run_case)
+    except Exception as exc:  # noqa: BLE001 - any pickling failure means the same thing
+        raise RunError(f"run_case {run_case!r} cannot be sent to worker processes ({exc}); "
+                       "use a module-level function, or workers=1") from None
 
 
 def _run_dask(run_case: RunCase, scenes: list[Scene], scheduler: Any, progress: bool):

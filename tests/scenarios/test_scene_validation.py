@@ -63,6 +63,12 @@ BROKEN = [
         'kind = "nmpc"', 'kind = "none"'),
      ["feed.feed_tph", "batch scene", "batch_charge_kg"]),
     ("not TOML", BASE_SCENE + "\n[feed\n", ["not valid TOML"]),
+    ("top-level key inside a table", BASE_SCENE + '\nseed = 3\neffects = ["breakage"]\n',
+     ["controller.bounds.effects", "'effects' is a top-level key", "before the first [table]"]),
+    ("plant model with effects", BASE_SCENE + '\n[plant]\nmodel = "leroux2013"\n'
+     'effects = ["breakage"]\n', ["plant.effects", "not used with model = \"leroux2013\""]),
+    ("integer expected", edit('name = "base"', 'name = "base"\nseed = 1.5'),
+     ["scene.seed", "valid integer", "1.5"]),
 ]
 
 

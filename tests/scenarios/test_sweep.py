@@ -5,7 +5,7 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-from scenarios.errors import SceneError
+from scenarios.errors import RunError, SceneError
 from scenarios.loader import read_toml
 from scenarios.sweep import expand_cases, parse_vary, run_sweep
 
@@ -101,3 +101,8 @@ def test_dask_worker_processes_give_the_same_table(write_scene):
         on_dask = run_sweep(path, VARY, cheap_kpis, scheduler=cluster.scheduler_address,
                             progress=False)
     pd.testing.assert_frame_equal(on_dask, serial)
+
+
+def test_a_run_case_that_cannot_reach_worker_processes_is_refused_clearly(write_scene):
+    with pytest.raises(RunError, match="module-level function, or workers=1"):
+        run_sweep(write_scene(), VARY, lambda scene: {}, workers=2, progress=False)
