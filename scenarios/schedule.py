@@ -31,6 +31,22 @@ def ore_column(ore: str) -> str:
     return f"ore_{ore}_frac"
 
 
+def ore_mineralogies(scene: Scene) -> dict:
+    """Each ore of the scene as a ``twin.Mineralogy`` (reference types from ``twin.ores``)."""
+    from twin.mineralogy import Mineralogy, Texture
+    from twin.ores import reference_ores
+
+    out = {}
+    for name, ore in scene.ores.items():
+        if ore.type is not None:
+            ref = reference_ores()[ore.type]
+            out[name] = Mineralogy(dict(ref.wt_pct), ref.texture, name=name)
+        else:
+            out[name] = Mineralogy(dict(ore.mineralogy), Texture(**ore.texture.model_dump()),
+                                   name=name)
+    return out
+
+
 def load_history(scene: Scene) -> History | None:
     """The scene's recorded history on its sample grid (cached per file), or ``None``."""
     path = scene.history_path()

@@ -1,0 +1,46 @@
+"""The feed over time: schedule semantics (steps, ramps) and the ores as twin objects."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from scenarios.loader import load_scene
+from scenarios.schedule import blend_at, feed_table, ore_mineralogies
+
+ROOT = Path(__file__).parents[2]
+
+
+def test_ramp_moves_linearly_from_the_blend_in_force(write_scene):
+    scene = load_scene(write_scene())  # B, then at 2 h a 1 h ramp to 60 % B / 40 % D
+    assert blend_at(scene, 0.0) == {"B": 1.0, "D": 0.0}
+    assert blend_at(scene, 2.0) == {"B": 1.0, "D": 0.0}
+    assert blend_at(scene, 2.5) == pytest.approx({"B": 0.8, "D": 0.2})
+    assert blend_at(scene, 3.0) == pytest.approx({"B": 0.6, "D": 0.4})
+    assert blend_at(scene, 100.0) == pytest.approx({"B": 0.6, "D": 0.4})  # held after the end
+
+
+def test_steps_switch_at_their_time():
+    scene = load_scene(ROOT / "scenarios" / "pyrite_surge.toml")
+    assert scene.blend_at(1.99)["B_pyrite"] == 0.0
+    assert scene.blend_at(2.0)["B_pyrite"] == 1.0
+    assert scene.blend_at(4.0) == {"B_ref": 1.0, "B_pyrite": 0.0}
+
+
+def test_feed_table_is_on_the_scene_grid_and_previews_by_shifting_time(write_scene):
+    scene = load_scene(write_scene())
+    table = feed_table(scene)
+    assert table.index.name == "time_h" and len(table) == 8 / 0.25 + 1
+    assert np.allclose(table.sum(axis=1), 1.0)
+    ahead = feed_table(scene, scene.time_grid_h() + 0.5)  # what a 0.5 h belt analyser sees
+    assert ahead["ore_D_frac"].iloc[8] == pytest.approx(0.2)  # seen at t = 2.0 h, for 2.5 h
+
+
+def test_ores_become_twin_mineralogies():
+    pytest.importorskip("twin.mineralogy")
+    ores = ore_mineralogies(load_scene(ROOT / "scenarios" / "pyrite_surge.toml"))
+    assert ores["B_pyrite"].wt_pct["pyrite"] - ores["B_ref"].wt_pct["pyrite"] == pytest.approx(15)
+    ref = ore_mineralogies(load_scene(ROOT / "scenarios" / "reference_transition.toml"))
+    assert set(ref) == {"B", "D"} and ref["D"].name == "D"
