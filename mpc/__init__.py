@@ -12,6 +12,7 @@ from mpc.linear import (
     fopdt_from_model,
     gain_table,
     linearize,
+    steady_target,
 )
 from mpc.pi import DiscretePI, simc_pi
 from mpc.results import ControllerStepResult
@@ -36,4 +37,5 @@ __all__ = [
     "min_rk4_substeps",
     "rk4_map",
     "simc_pi",
+    "steady_target",
 ]

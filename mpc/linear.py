@@ -268,6 +268,46 @@ def fopdt_from_model(sys_c: control.StateSpace, input_name: str, output_name: st
     return fit_fopdt(t, _step_channel(sys_c, j, i, t))
 
 
+# --------------------------------------------------------------------------- targets
+def steady_target(sys: control.StateSpace, y_ref: dict[str, float], u_ref=None,
+                  u_weight=None) -> tuple[np.ndarray, np.ndarray]:
+    """Steady state ``(x_s, u_s)`` of a linear model whose named outputs equal ``y_ref``.
+
+    Among all steady states meeting the targets, picks the one with the least weighted input
+    move ``(u_s - u_ref)' W (u_s - u_ref)`` (target calculation of Muske & Rawlings 1993; see
+    Rawlings, Mayne & Diehl, section 1.5), in closed form from the steady-state gain ``G``:
+    ``u_s = u_ref + W^-1 G' (G W^-1 G')^-1 (y_ref - G u_ref)``. Continuous models use
+    ``A x + B u = 0``, discrete ones ``x = A x + B u``; the model must have no integrating
+    mode. Deviation coordinates, like the model.
+    """
+    a, b, c, d = (np.asarray(m, dtype=float) for m in (sys.A, sys.B, sys.C, sys.D))
+    nx, nu = b.shape
+    unknown = [n for n in y_ref if n not in sys.output_labels]
+    if unknown or not y_ref:
+        raise MpcInputError(f"The 'y_ref' parameter must name outputs among "
+                            f"{sys.output_labels}. Got {list(y_ref)}.")
+    rows = [sys.output_labels.index(n) for n in y_ref]
+    yv = np.array([float(y_ref[n]) for n in y_ref])
+    u_ref = np.zeros(nu) if u_ref is None else _as_vec("u_ref", u_ref, nu)
+    w = np.eye(nu) if u_weight is None else np.atleast_2d(np.asarray(u_weight, dtype=float))
+    a_eq = a - np.eye(nx) if control.isdtime(sys, strict=True) else a
+    if np.linalg.matrix_rank(a_eq) < nx:
+        raise MpcInputError("The 'sys' parameter of steady_target must have no integrating "
+                            "mode (A - I, or A in continuous time, must be invertible).")
+    xu = -np.linalg.solve(a_eq, b)  # x_s = xu u_s
+    g = (c @ xu + d)[rows]  # steady-state gain of the targeted outputs
+    if w.shape != (nu, nu) or np.min(np.linalg.eigvalsh(0.5 * (w + w.T))) <= 0:
+        raise MpcInputError(f"The 'u_weight' parameter must be a positive definite "
+                            f"{nu}x{nu} matrix. Got {w!r}.")
+    winv_gt = np.linalg.solve(w, g.T)
+    m = g @ winv_gt
+    if np.linalg.matrix_rank(m) < len(rows):
+        raise MpcInputError(f"The 'y_ref' targets {y_ref} cannot be met at steady state by "
+                            "this model (steady-state gain matrix is rank deficient).")
+    u_s = u_ref + winv_gt @ np.linalg.solve(m, yv - g @ u_ref)
+    return xu @ u_s, u_s
+
+
 # --------------------------------------------------------------------------- linear MPC
 def _mat(name: str, value, shape: tuple[int, int]) -> np.ndarray:
     arr = np.atleast_2d(np.asarray(value, dtype=float))
@@ -312,6 +352,12 @@ class LinearMPC:
         Bounds (scalars broadcast). ``None`` means unbounded.
     solver : str
         CasADi QP plugin (``"qpoases"`` default; ``"osqp"``, ``"hpipm"``, ... as installed).
+
+    When the QP fails (infeasible, solver error, or a solution violating the constraints
+    beyond tolerance) :meth:`make_step` says so (``success=False``, solver status) and applies
+    a fallback: the previous plan shifted by one step (``"shifted_plan"``; repeated failures
+    keep shifting, the last move repeated), or, without a previous plan, the previous input
+    held (``"hold_input"``).
     """
 
     def __init__(self, sys_d: control.StateSpace, q, r, horizon: int, terminal="q",

@@ -252,3 +252,41 @@ def test_le_roux_gain_table_matches_nonlinear_steady_states():
     assert tab.loc[("speed_frac_critical", "product_tph"), "gain"] == 0.0
     # the P80 response is dominated by a ~1.3 h mode (mill and sump fines inventories)
     assert 0.5 < tab.loc[("feed_tph", "p80_um"), "tau_dominant_h"] < 3.0
+
+
+def test_steady_target_and_linear_mpc_move_le_roux_p80():
+    from mpc.leroux import LeRouxCircuit
+    from mpc.linear import steady_target
+
+    dt = 0.05
+    c = LeRouxCircuit(dt_h=dt)
+    xs = c.steady_state()
+    sysc, op = linearize(c.f, c.outputs, xs, c.u_nominal, c.d_nominal, ["p80_um", "load_frac"])
+    sysd = discretize(sysc, dt)
+    # feed only (speed weighted heavily): the target input is -4 um / gain
+    xt, ut = steady_target(sysd, {"p80_um": -4.0}, u_weight=np.diag([1.0, 1e10]))
+    yt = np.asarray(sysd.C) @ xt + np.asarray(sysd.D) @ ut
+    assert yt[0] == pytest.approx(-4.0, abs=1e-9)
+    np.testing.assert_allclose(np.asarray(sysd.A) @ xt + np.asarray(sysd.B) @ ut, xt, atol=1e-9)
+    gain = float(np.asarray(control.dcgain(sysc))[0, 0])
+    assert ut[0] == pytest.approx(-4.0 / gain, rel=1e-3)
+    with pytest.raises(MpcInputError, match="y_ref"):
+        steady_target(sysd, {"p81_um": 1.0})
+    # closed loop on the nonlinear plant, state feedback, bounds and rate limits in force
+    cp = np.asarray(sysd.C)[0]
+    q = np.outer(cp, cp) + 1e-6 * np.eye(sysd.nstates)
+    lo = np.array([30.0, 0.6]) - c.u_nominal
+    hi = np.array([90.0, 0.8]) - c.u_nominal
+    mpc = LinearMPC(sysd, q, np.diag([1e-3, 1e3]), horizon=20, u_min=lo, u_max=hi,
+                    du_max=[1.0, 0.005])
+    c.reset(xs)
+    u_prev = np.zeros(2)
+    for _ in range(60):  # 3 h
+        res = mpc.make_step(c.x - xs, x_ref=xt, u_ref=ut)
+        assert res.success, res.status
+        assert np.all(res.u_applied >= lo - 1e-9) and np.all(res.u_applied <= hi + 1e-9)
+        assert np.all(np.abs(res.u_applied - u_prev) <= np.array([1.0, 0.005]) + 1e-9)
+        u_prev = res.u_applied
+        y = c.make_step(c.u_nominal + res.u_applied)
+    # nonlinear plant, no disturbance model: close to, not exactly at, the target
+    assert y["p80_um"] - op.y_ss[0] == pytest.approx(-4.0, abs=0.3)
