@@ -155,8 +155,10 @@ def _check_effect_options(options: Any, effects: list[str], loc: tuple, r: _Repo
             continue
         for key in table:
             if key not in allowed:
+                where = " (the number of mixers is mill.n_mixers)" if key == "n_mixers" else ""
                 r.add(loc + (name, key), f"unknown option of effect {name!r}"
-                      f"{did_you_mean(key, allowed)}; allowed: {', '.join(allowed) or 'none'}")
+                      f"{did_you_mean(key, allowed)}; allowed: {', '.join(allowed) or 'none'}"
+                      + where)
 
 
 def _check_effects(data, r: _Report) -> None:

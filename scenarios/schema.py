@@ -108,9 +108,9 @@ class Feed(Section):
     """``[feed]``: initial blend and operating point, feed size, then a schedule or a history.
 
     Feed size: Gates-Gaudin-Schuhmann distribution with ``p80_um`` and ``ggs_modulus`` (as the
-    twin's feed). ``blend`` is required unless a ``history`` gives the feed from t = 0. ``feed_tph`` is
-    required with the ``transport`` effect (continuous mill); without it the scene is a batch
-    grind of ``batch_charge_kg``.
+    twin's feed). ``blend`` is required unless a ``history`` gives the feed from t = 0.
+    ``feed_tph`` is required with the ``transport`` effect (continuous mill); without it the
+    scene is a batch grind of ``batch_charge_kg``.
 
     ``history`` is a recorded file (path relative to the scene file) read by
     :mod:`scenarios.history`; ``history_texture`` is required when it records mineralogy
