@@ -22,6 +22,9 @@ Goodness of fit: Kolmogorov-Smirnov statistic against the fitted CDF. Its textbo
 assumes parameters fixed in advance and is too optimistic for fitted ones (Lilliefors 1967);
 ``n_boot > 0`` replaces it by a parametric-bootstrap p-value (refit on each resample).
 
+Drop-weight tests at set energies give pass/fail outcomes instead of energies; the same
+``P(E)`` is then fitted by a probit maximum likelihood (:func:`fit_breakage_outcomes`).
+
 Size dependence of the median (Tavares & King 1998): ``E50(d) = E_inf (1 + (d0 / d)^phi)``,
 fitted across size classes by least squares on ln E50 (:func:`fit_size_dependence`).
 
@@ -38,7 +41,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from scipy import stats
-from scipy.optimize import least_squares, minimize_scalar
+from scipy.optimize import least_squares, minimize, minimize_scalar
 from scipy.special import ndtr
 
 from .errors import TwinInputError, bad_value
@@ -181,6 +184,51 @@ def fit_fracture_energy(energies_j_kg, model: str = "lognormal", n_boot: int = 0
     n = len(e)
     return FractureEnergyFit(model, e50, sigma, e_max, n, ll, d, p, method,
                              sigma / math.sqrt(n), sigma / math.sqrt(2 * n))
+
+
+@dataclass(frozen=True)
+class BreakageOutcomeFit:
+    """Log-normal fit to pass/fail impacts at set specific energies (drop-weight tests)."""
+
+    e50_j_kg: float
+    sigma: float
+    n: int
+    n_broken: int
+    log_likelihood: float
+
+    def breakage_probability(self, e_j_kg):
+        return breakage_probability(e_j_kg, self.e50_j_kg, self.sigma)
+
+
+def fit_breakage_outcomes(energies_j_kg, broken) -> BreakageOutcomeFit:
+    """Maximum likelihood of ``P(break | E) = Phi(ln(E/E50)/sigma)`` from single impacts:
+    each particle hit once at a set specific energy E [J/kg], ``broken`` True/False (a probit
+    regression on ln E; each test is a Bernoulli trial). Needs broken and unbroken particles
+    at overlapping energies; with complete separation the ML estimate does not exist."""
+    e = np.asarray(energies_j_kg, dtype=float).ravel()
+    b = np.asarray(broken, dtype=bool).ravel()
+    if e.shape != b.shape or len(e) < 3 or not np.all(np.isfinite(e) & (e > 0)):
+        raise bad_value("fit_breakage_outcomes", "energies_j_kg/broken", f"{len(e)} tests",
+                        "at least 3 tests with finite energies > 0, one outcome each")
+    if b.all() or not b.any():
+        raise bad_value("fit_breakage_outcomes", "broken", f"{int(b.sum())} of {len(b)} broken",
+                        "both broken and unbroken particles")
+    x = np.log(e)
+    if x[b].min() > x[~b].max():
+        raise TwinInputError("fit_breakage_outcomes: every broken particle was hit harder than every "
+                             "unbroken one (complete separation); E50 is bracketed by "
+                             f"[{math.exp(x[~b].max()):.4g}, {math.exp(x[b].min()):.4g}] J/kg but "
+                             "sigma cannot be estimated. Test more energies in between.")
+
+    def nll(q):
+        mu, ls = q
+        z = (x - mu) / math.exp(ls)
+        return -float(np.sum(np.where(b, stats.norm.logcdf(z), stats.norm.logsf(z))))
+
+    q0 = [float(np.median(x)), math.log(max(float(x.std()), 0.05))]
+    sol = minimize(nll, q0, method="Nelder-Mead", options={"xatol": 1e-9, "fatol": 1e-12, "maxiter": 5000})
+    mu, ls = sol.x
+    return BreakageOutcomeFit(math.exp(mu), math.exp(ls), len(e), int(b.sum()), -float(sol.fun))
 
 
 # ---------------------------------------------------------------------- tables of results

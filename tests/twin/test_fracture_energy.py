@@ -105,3 +105,17 @@ def test_bad_single_particle_rows_reported(tmp_path):
         fit_fracture_energy([1.0, 2.0, 0.0])
     with pytest.raises(TwinInputError, match="'model'"):
         fit_fracture_energy([1.0, 2.0, 3.0], model="weibull")
+
+
+def test_drop_weight_outcomes_recover_distribution():
+    """Particles with log-normal fracture energies, each hit once at one of six set energies."""
+    from twin.fracture_energy import fit_breakage_outcomes
+    rng = np.random.default_rng(21)
+    levels = np.array([40.0, 70.0, 110.0, 170.0, 260.0, 400.0])
+    applied = np.repeat(levels, 80)
+    strength = sample_fracture_energies(len(applied), 120.0, 0.6, random_state=rng)
+    f = fit_breakage_outcomes(applied, strength <= applied)
+    assert f.e50_j_kg == pytest.approx(120.0, rel=0.1)
+    assert f.sigma == pytest.approx(0.6, rel=0.2)
+    with pytest.raises(TwinInputError, match="complete separation"):
+        fit_breakage_outcomes([10.0, 20.0, 30.0, 40.0], [False, False, True, True])
