@@ -436,8 +436,20 @@ class LinearMPC:
     def _build_qp(self, solver: str) -> None:
         hs = ca.DM(self._h).sparsity()
         asp = ca.DM(self._amat).sparsity()
-        opts = {"printLevel": "none"} if solver == "qpoases" else {}
-        opts["error_on_fail"] = False
+        if solver in ("hpipm", "fatrop"):
+            raise MpcInputError(f"The 'solver' parameter of LinearMPC must be a QP solver for "
+                                f"a condensed (dense) QP; {solver!r} needs the sparse OCP "
+                                "structure. Use 'qpoases', 'osqp', 'daqp', 'proxqp', 'qrqp' or "
+                                "'highs'.")
+        opts: dict = {"error_on_fail": False}
+        if solver == "qpoases":
+            opts["printLevel"] = "none"
+        elif solver == "osqp":
+            opts["osqp"] = {"verbose": False, "eps_abs": 1e-9, "eps_rel": 1e-9,
+                            "polishing": False, "max_iter": 20000}
+        elif solver == "qrqp":
+            opts["print_iter"] = False
+            opts["print_header"] = False
         self._solver_name = solver
         self._qp = ca.conic("linear_mpc", solver, {"h": hs, "a": asp}, opts)
 

@@ -29,7 +29,8 @@ class ControllerStepResult:
     cost : float
         Optimal cost of this step's problem (``nan`` when not solved).
     iterations : int
-        Solver iterations (0 for closed-form or non-optimising controllers).
+        Solver iterations (0 for closed-form or non-optimising controllers, -1 when the
+        solver does not report them).
     solve_time_s : float
         Wall-clock time of the solve, seconds.
     u_applied : numpy.ndarray

@@ -290,3 +290,24 @@ def test_steady_target_and_linear_mpc_move_le_roux_p80():
         y = c.make_step(c.u_nominal + res.u_applied)
     # nonlinear plant, no disturbance model: close to, not exactly at, the target
     assert y["p80_um"] - op.y_ss[0] == pytest.approx(-4.0, abs=0.3)
+
+
+@pytest.mark.parametrize("solver", ["daqp", "osqp"])
+def test_other_dense_qp_solvers_agree_with_qpoases(solver):
+    import casadi as ca
+
+    if not ca.has_conic(solver):
+        pytest.skip(f"{solver} not installed")
+    sysd = random_system(3, rho=0.95)
+    kw = dict(horizon=15, u_min=-0.3, u_max=0.3, du_max=0.2)
+    ref = LinearMPC(sysd, np.eye(3), np.eye(2) * 0.1, **kw).make_step([1.0, -0.8, 0.6])
+    other = LinearMPC(sysd, np.eye(3), np.eye(2) * 0.1, solver=solver, **kw).make_step(
+        [1.0, -0.8, 0.6])
+    assert ref.success and other.success
+    np.testing.assert_allclose(other.plan, ref.plan, atol=1e-5)
+    assert other.cost == pytest.approx(ref.cost, rel=1e-6)
+
+
+def test_sparse_ocp_solvers_are_refused_for_the_condensed_qp():
+    with pytest.raises(MpcInputError, match="hpipm"):
+        LinearMPC(random_system(0), np.eye(3), np.eye(2), horizon=3, solver="hpipm")
