@@ -94,3 +94,13 @@ def test_plots_are_written(reference, tmp_path):
     p2 = plot_scores(ot, df, tmp_path / "scores.png")
     for p in (p1, p2):
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 10_000
+
+
+def test_command_line_writes_report(tmp_path):
+    import json
+
+    from twin.oretyping import main
+    assert main(["--out", str(tmp_path)]) == 0
+    rep = json.loads((tmp_path / "oretyping.json").read_text())
+    assert rep["n_types"] == 4 and rep["criterion"] == "silhouette"
+    assert {"assignments.csv", "loadings.csv", "ternary.png", "scores.png"} <= {p.name for p in tmp_path.iterdir()}
