@@ -35,6 +35,10 @@ Pipeline (MISSION.md section 1):
    Technometrics 37, 41), or when it contains minerals the typer never saw.
    ``predict`` returns -1 for flagged samples.
 
+Only the ``<mineral>_wt_pct`` columns enter the PCA (MISSION: "PCA of the mineralogy
+matrix"); texture columns are not used. A mineral column missing from a table passed to
+``predict``/``assign`` counts as 0 wt%.
+
 Types are numbered 0..k-1 by decreasing mean PC1 score (hardest first) and named after the
 nearest reference ore A-D (``twin/data/ores.toml``) projected into the same PC space
 (``type_names_``), a letter used only once; a type with no unique nearest reference is
@@ -120,6 +124,12 @@ class OreTyper(BaseEstimator):
         if self.n_types is not None and not (isinstance(self.n_types, (int, np.integer))
                                              and 1 <= self.n_types <= n_samples - 1):
             raise bad_value("OreTyper", "n_types", self.n_types, f"None or an int in [1, {n_samples - 1}]")
+        nc = self.n_components
+        if isinstance(nc, (bool, np.bool_)) or not (
+                (isinstance(nc, (int, np.integer)) and nc >= 1)
+                or (isinstance(nc, (float, np.floating)) and 0.0 < nc < 1.0)):
+            raise bad_value("OreTyper", "n_components", nc,
+                            "an int >= 1 or a float in (0, 1) (fraction of variance kept)")
         if not 0.5 < float(self.outlier_quantile) < 1.0:
             raise bad_value("OreTyper", "outlier_quantile", self.outlier_quantile, "a float in (0.5, 1)")
         if not float(self.detection_limit_wt_pct) > 0:

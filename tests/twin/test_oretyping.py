@@ -104,3 +104,12 @@ def test_command_line_writes_report(tmp_path):
     rep = json.loads((tmp_path / "oretyping.json").read_text())
     assert rep["n_types"] == 4 and rep["criterion"] == "silhouette"
     assert {"assignments.csv", "loadings.csv", "ternary.png", "scores.png"} <= {p.name for p in tmp_path.iterdir()}
+
+
+def test_centred_log_ratio_option_also_recovers_types():
+    df = generate_library(seed=2024)
+    ot = OreTyper(transform="clr", random_state=1).fit(df)
+    assert ot.n_types_ == 4
+    assert adjusted_rand_score(df.generating_type, ot.labels_) >= 0.9
+    with pytest.raises(TwinInputError, match="'n_components'"):
+        OreTyper(n_components=1.5).fit(df)
