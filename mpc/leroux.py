@@ -46,6 +46,14 @@ on the sump volume (gain 20 (m^3/h)/m^3, integral time 0.25 h, the sump-volume l
 SAG Mill Simulator's ``params_SAGmill.m``; the filter of that loop is omitted). Without that
 loop the sump volume is a pure integrator.
 
+Departures from [LR13] that only matter far from the operating point (each stated where it is
+coded, all parameters of :class:`LeRouxParameters`): the power draw is clipped at zero (the
+quadratic surface turns negative in deep overload); fines production needs coarse solids
+(saturation with half-saturation 1e-3 m^3); ratios of vanishing hold-ups carry a 1e-9 m^3
+regularisation; the cyclone's water split is guarded against 0/0 when the sump holds no coarse
+solids; the sump pump's flow falls smoothly as the sump runs dry. With them the plant survives
+a feed stop and a deep overload (tests); the survey-3 steady state moves by < 0.1 %.
+
 Product size: [LR13] predicts PSE, the fraction of cyclone-overflow solids below 75 um. It is
 mapped to P80 by *assuming* a Gates-Gaudin-Schuhmann distribution of the overflow solids,
 ``F(size) = (size / k)^m`` with modulus ``m`` (default 0.8, our assumption, not from [LR13]):
@@ -130,6 +138,11 @@ class LeRouxParameters:
     # positive value to recover the paper's fixed ball feed.
     ball_charge_setpoint_m3: float = 8.51
     ball_gain_t_h_per_m3: float = 5.0
+    sump_dry_m3: float = 0.05  # sump volume at which the pump delivers half its demand (ours)
+    # --- fines production needs coarse solids (ours, not in [LR13]); see LeRouxCircuit._build
+    fines_half_sat_m3: float = 1e-3
+    # --- regularisation of ratios of hold-ups that vanish in an empty mill (ours)
+    regularisation_m3: float = 1e-9
     # --- size-distribution assumption for P80 (ours, not [LR13])
     ggs_modulus: float = 0.8
     target_size_um: float = 100.0
@@ -231,7 +244,7 @@ class LeRouxCircuit:
         # [LR13, mill]: power surface in filling and rheology, scaled by speed^alpha_P.
         z_x = load_m3 / (p.v_pmax_frac * p.v_mill_m3) - 1.0
         z_r = rheology / p.phi_pmax - 1.0
-        power_kw = (
+        power_surface_kw = (
             p.p_max_kw
             * (
                 1.0
@@ -241,26 +254,41 @@ class LeRouxCircuit:
             )
             * speed**p.alpha_p
         )
+        # the quadratic surface of [LR13] turns negative beyond ~1.8 x v_Pmax filling (deep
+        # overload), which would make rocks from solids; ours: power is clipped at zero
+        power_kw = ca.fmax(power_surface_kw, 0.0)
         # [LR13, mill]: discharge through the grate, driven by the flowing water volume.
         discharge = p.v_v_per_h * rheology * xmw / (xms + xmw)
         v_mwo = discharge * xmw
         v_mso = discharge * xms
         v_mfo = discharge * xmf
         # [LR13, mill]: rock consumption, fines production (phi_f: ore hardness), ball wear.
-        rc = power_kw * rheology / (ds * p.phi_r_kwh_t) * xmr / (xmr + xms)
-        fp = power_kw / (ds * phi_f * (1.0 + p.alpha_phif * (load_frac - p.v_pmax_frac)))
+        eps = p.regularisation_m3  # keeps 0/0 out of an empty mill or sump (ours)
+        rc = power_kw * rheology / (ds * p.phi_r_kwh_t) * xmr / (xmr + xms + eps)
+        # fines can only be made from coarse solids: [LR13] has no such limit (it is valid near
+        # the operating point); without it an empty or overloaded mill makes fines from nothing
+        # and the fines hold-up exceeds the solids. Ours: a saturation in the coarse solids
+        # X_ms - X_mf with half-saturation 1e-3 m^3 (0.03 % change of FP at survey 3).
+        coarse = xms - xmf
+        availability = ca.fmax(coarse, 0.0) / (ca.fmax(coarse, 0.0) + p.fines_half_sat_m3)
+        fp = availability * power_kw / (
+            ds * phi_f * (1.0 + p.alpha_phif * (load_frac - p.v_pmax_frac)))
         bc = power_kw * rheology / p.phi_b_kwh_t * xmb / (ds * (xmr + xms) + db * xmb)
 
         # [LR13, sump]: perfectly mixed, drawn off at the cyclone feed flow CFF.
         svol = xsw + xss
-        cff = p.cff_m3_h + p.level_gain_per_h * (svol - p.svol_setpoint_m3 + xint / p.level_ti_h)
+        cff_demand = p.cff_m3_h + p.level_gain_per_h * (
+            svol - p.svol_setpoint_m3 + xint / p.level_ti_h)
+        # the pump cannot draw a negative flow nor empty the sump: its flow falls smoothly as
+        # the sump runs dry (ours, not in [LR13]; factor 0.99993 at the 5.99 m^3 set point)
+        cff = ca.fmax(cff_demand, 0.0) * svol**2 / (svol**2 + p.sump_dry_m3**2)
         v_swo = cff * xsw / svol
         v_sso = cff * xss / svol
         v_sfo = cff * xsf / svol
 
         # [LR13, cyclone]: coarse underflow from feed flow, solids content, fines content.
         f_i = xss / svol
-        p_i = xsf / xss
+        p_i = xsf / (xss + eps)
         v_ccu = (
             (v_sso - v_sfo)
             * (1.0 - p.c1 * ca.exp(-cff / p.eps_c_m3_h))
@@ -269,14 +297,17 @@ class LeRouxCircuit:
         )
         f_u = 0.6 - (0.6 - f_i) * ca.exp(-v_ccu / (p.alpha_su * p.eps_c_m3_h))
         # water and fines split in the same proportion (unclassified), fixing F_u
-        split = v_ccu * (1.0 - f_u) / (f_u * v_swo + f_u * v_sfo - v_sfo)
+        # (0/0 when the sump holds no coarse solids, e.g. after a feed stop: guarded and the
+        # split kept in [0, 1], ours; inactive at survey 3 where the denominator is ~105 m^3/h)
+        split_den = ca.fmax(f_u * v_swo + f_u * v_sfo - v_sfo, 1e-6 * cff)
+        split = ca.fmin(ca.fmax(v_ccu * (1.0 - f_u) / split_den, 0.0), 1.0)
         v_cwu = v_swo * split
         v_cfu = v_sfo * split
         v_csu = v_ccu + v_cfu
         v_cwo = v_swo - v_cwu
         v_cso = v_sso - v_csu
         v_cfo = v_sfo - v_cfu
-        pse = v_cfo / v_cso
+        pse = (v_cfo + eps) / (v_cso + eps)
 
         xdot = ca.vertcat(
             v_fwo + v_cwu - v_mwo,
@@ -307,7 +338,7 @@ class LeRouxCircuit:
             "mfb_tph": mfb_tph,
             "cfd_t_m3": (xsw + ds * xss) / svol,
             "product_tph": product_tph,
-            "specific_energy_kwh_t": power_kw / product_tph,
+            "specific_energy_kwh_t": power_kw / (product_tph + ds * eps),
             # flows for balance checks (m^3/h)
             "ore_in_m3_h": feed_tph / ds,
             "solids_overflow_m3_h": v_cso,
@@ -410,7 +441,10 @@ class LeRouxCircuit:
         state with the applied ``u`` and ``d``.
         """
         u, d = self._check_u_d(u, d)
-        res = self._integrator(x0=self.x, p=np.concatenate([u, d]))
+        try:
+            res = self._integrator(x0=self.x, p=np.concatenate([u, d]))
+        except RuntimeError as exc:
+            raise MpcSolverError(f"LeRouxCircuit integration failed (CVODES): {exc}") from exc
         xn = np.array(res["xf"]).reshape(-1)
         if not np.all(np.isfinite(xn)):
             raise MpcSolverError("LeRouxCircuit integration returned non-finite states")

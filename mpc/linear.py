@@ -90,6 +90,11 @@ def linearize(
             f"The 'output_names' parameter has unknown outputs {unknown}; "
             f"allowed: {sorted(outputs)}."
         )
+    vector = [n for n in output_names
+              if outputs[n].size1_out(0) * outputs[n].size2_out(0) != 1]
+    if vector:
+        raise MpcInputError(f"The 'output_names' parameter must name scalar outputs; "
+                            f"{vector} are vectors.")
     if len(input_names) != nu:
         raise MpcInputError(
             f"The 'input_names' parameter must have {nu} names. Got {len(input_names)}."

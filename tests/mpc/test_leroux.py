@@ -131,3 +131,31 @@ def test_parameters_are_validated():
         LeRouxCircuit(LeRouxParameters(v_mill_m3=-1.0))
     with pytest.raises(MpcInputError, match="dt_h"):
         LeRouxCircuit(dt_h=0.0)
+
+
+def test_hard_case_feed_stop_and_restart(circuit, x_ss):
+    # conveyor trip: 5 h without feed, then 30 h at the nominal feed
+    c = LeRouxCircuit(dt_h=0.1)
+    c.reset(x_ss)
+    for _ in range(50):
+        y = c.make_step([0.0, c.params.speed_frac_critical])
+        assert np.all(np.isfinite(c.x))
+    assert y["load_frac"] < 0.2  # only balls and a little water left
+    assert c.x[1] < 1e-3 and c.x[3] < 1e-3  # no solids, no rocks
+    assert y["svol_m3"] == pytest.approx(c.params.svol_setpoint_m3, rel=0.01)  # sump held
+    for _ in range(300):
+        y = c.make_step(c.u_nominal)
+    y_ss = circuit.evaluate_outputs(x_ss, circuit.u_nominal)
+    assert y["p80_um"] == pytest.approx(y_ss["p80_um"], abs=0.05)
+
+
+def test_hard_case_overload_integrates_and_is_visible(x_ss):
+    # 38 % over the survey feed: the charge passes the power peak and runs away (le Roux's
+    # power surface falls beyond v_Pmax); the plant must integrate and show it, not crash
+    c = LeRouxCircuit(dt_h=0.1)
+    c.reset(x_ss)
+    for _ in range(100):
+        y = c.make_step([90.0, c.params.speed_frac_critical])
+    assert np.all(np.isfinite(c.x))
+    assert y["load_frac"] > 0.6 and y["power_kw"] < 100.0
+    assert y["p80_um"] > 300.0
