@@ -1,0 +1,270 @@
+"""`System`: the state of one DEM simulation; it holds arrays and calls the numba kernels.
+
+Spheres (positions, velocities, spins, radii, masses), optional bonds (:class:`dem.bonds.BondSet`),
+planar walls (platens, anvil, drop weight), an optional rotating drum with lifters, gravity,
+optional periodicity along z. The time step is ``time_step_factor`` times the critical step
+(the smaller of the Rayleigh step of the smallest sphere and the bond-spring step, see
+:mod:`dem.materials`); a user time step above the critical one is refused.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dem.bonds import BondSet
+from dem.contacts import new_contact_tables
+from dem.errors import DemInputError, DemInstabilityError, DemError
+from dem import kernels as K
+from dem.materials import (RAYLEIGH_SAFETY_FACTOR, STEEL, Material, bond_time_step_s,
+                           damping_coefficient, effective_shear_Pa, effective_youngs_Pa,
+                           rayleigh_time_step_s)
+
+#: default energy classes of the collision histograms: log10(E/J) from -9 to 2 in 0.25 steps
+HIST_LO_LOG10 = -9.0
+HIST_DLOG10 = 0.25
+HIST_NBINS = 44
+
+
+@dataclass
+class PlaneWall:
+    """An infinite plane: a point on it, the unit normal pointing into the domain, its velocity.
+
+    ``mass_kg > 0`` makes it a free body moving along its normal (a drop weight).
+    """
+
+    point_m: tuple[float, float, float]
+    normal: tuple[float, float, float]
+    velocity_m_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    mass_kg: float = 0.0
+
+
+@dataclass
+class DrumGeometry:
+    """Drum shell of radius ``radius_m`` about the z axis, rotating at ``omega_rad_s`` (counter-clockwise).
+
+    ``n_lifters`` equally spaced radial lifter bars of ``lifter_height_m`` and
+    ``lifter_width_m`` (rounded ends).
+    """
+
+    radius_m: float
+    omega_rad_s: float
+    n_lifters: int = 0
+    lifter_height_m: float = 0.0
+    lifter_width_m: float = 0.0
+
+
+@dataclass
+class Records:
+    """Per-step records of a run (appended chunk by chunk)."""
+
+    wall_force_N: list = field(default_factory=list)
+    wall_pos_m: list = field(default_factory=list)
+    torque_Nm: list = field(default_factory=list)
+    broken: list = field(default_factory=list)
+
+
+class System:
+    """State of one DEM run; see the module docstring."""
+
+    def __init__(self, pos_m, radius_m, material: Material, *, density_kg_m3=None,
+                 bonds: BondSet | None = None, wall_material: Material = STEEL,
+                 walls: list[PlaneWall] | None = None, drum: DrumGeometry | None = None,
+                 gravity_m_s2=(0.0, 0.0, 0.0), periodic_z_m: float = 0.0,
+                 local_damping: float = 0.0, time_step_factor: float = RAYLEIGH_SAFETY_FACTOR,
+                 dt_s: float | None = None, skin_fraction: float = 0.3,
+                 max_contacts: int = 24) -> None:
+        pos = np.array(pos_m, dtype=np.float64).reshape(-1, 3)
+        rad = np.array(radius_m, dtype=np.float64).reshape(-1)
+        n = pos.shape[0]
+        if n < 1 or rad.shape[0] != n:
+            raise DemInputError(
+                f"The 'radius_m' parameter of System must have one entry per sphere ({n}). Got {rad.shape[0]}.")
+        if not np.all(np.isfinite(pos)):
+            raise DemInputError("The 'pos_m' parameter of System must be finite. Got non-finite entries.")
+        if np.any(rad <= 0) or not np.all(np.isfinite(rad)):
+            raise DemInputError(
+                f"The 'radius_m' parameter of System must be finite and > 0. Got min {rad.min()!r}.")
+        if not (0.0 <= local_damping < 1.0):
+            raise DemInputError(
+                f"The 'local_damping' parameter of System must be a float in [0, 1). Got {local_damping!r}.")
+        if not (0.0 < time_step_factor <= 1.0):
+            raise DemInputError(
+                f"The 'time_step_factor' parameter of System must be a float in (0, 1]. Got {time_step_factor!r}.")
+        self.n = n
+        self.material = material
+        self.wall_material = wall_material
+        rho = material.density_kg_m3 if density_kg_m3 is None else float(density_kg_m3)
+        self.density_kg_m3 = rho
+        self.pos = pos
+        self.rad = rad
+        self.vel = np.zeros((n, 3))
+        self.omega = np.zeros((n, 3))
+        self.mass = rho * 4.0 / 3.0 * math.pi * rad**3
+        self.inertia = 0.4 * self.mass * rad**2
+        self.force = np.zeros((n, 3))
+        self.torque = np.zeros((n, 3))
+        self.bonds = bonds if bonds is not None else BondSet(np.zeros((0, 2), dtype=np.int64),
+                                                              pos, rad, _dummy_bond_params())
+        # walls
+        walls = walls or []
+        nw = len(walls)
+        self.w_p = np.array([w.point_m for w in walls], dtype=np.float64).reshape(nw, 3)
+        wn = np.array([w.normal for w in walls], dtype=np.float64).reshape(nw, 3)
+        if nw:
+            wn /= np.linalg.norm(wn, axis=1)[:, None]
+        self.w_n = wn
+        self.w_v = np.array([w.velocity_m_s for w in walls], dtype=np.float64).reshape(nw, 3)
+        self.w_mass = np.array([w.mass_kg for w in walls], dtype=np.float64).reshape(nw)
+        self.w_f = np.zeros((nw, 3))
+        self.w_xi = np.zeros((n, nw, 3))
+        self.w_in = np.zeros((n, nw), dtype=np.int8)
+        # drum
+        self.drum = drum
+        nl = drum.n_lifters if drum is not None else 0
+        self.lifter_angles = np.arange(nl) * (2.0 * math.pi / max(nl, 1))
+        self.d_xi = np.zeros((n, 1 + nl, 3))
+        self.d_in = np.zeros((n, 1 + nl), dtype=np.int8)
+        self.drum_angle = 0.0
+        # contact parameters
+        cp = np.zeros(K.N_CP)
+        cp[K.CP_ESTAR_PP] = effective_youngs_Pa(material, material)
+        cp[K.CP_GSTAR_PP] = effective_shear_Pa(material, material)
+        cp[K.CP_MU_PP] = material.friction_coef
+        cp[K.CP_ETA_PP] = damping_coefficient(material.restitution)
+        cp[K.CP_ESTAR_PW] = effective_youngs_Pa(material, wall_material)
+        cp[K.CP_GSTAR_PW] = effective_shear_Pa(material, wall_material)
+        cp[K.CP_MU_PW] = min(material.friction_coef, wall_material.friction_coef)
+        cp[K.CP_ETA_PW] = damping_coefficient(math.sqrt(material.restitution * wall_material.restitution))
+        cp[K.CP_LOCAL_DAMPING] = local_damping
+        cp[K.CP_GX:K.CP_GZ + 1] = np.asarray(gravity_m_s2, dtype=float)
+        cp[K.CP_LZ] = float(periodic_z_m)
+        cp[K.CP_SKIN] = skin_fraction * float(np.min(rad))
+        cp[K.CP_BETA] = self.bonds.beta
+        if drum is not None:
+            cp[K.CP_DRUM_R] = drum.radius_m
+            cp[K.CP_DRUM_OMEGA] = drum.omega_rad_s
+            cp[K.CP_LIFTER_H] = drum.lifter_height_m
+            cp[K.CP_LIFTER_HW] = 0.5 * drum.lifter_width_m
+        cp[K.CP_HIST_LO] = HIST_LO_LOG10
+        cp[K.CP_HIST_DLOG] = HIST_DLOG10
+        self.cp = cp
+        self.hist_pp = np.zeros(HIST_NBINS)
+        self.hist_pw = np.zeros(HIST_NBINS)
+        self.c_partner, self.c_xi = new_contact_tables(n, max_contacts)
+        # time step
+        mat_for_dt = Material(material.youngs_modulus_Pa, material.poisson_ratio, rho,
+                              material.friction_coef, material.restitution)
+        dt_r = rayleigh_time_step_s(float(np.min(rad)), mat_for_dt)
+        k_sum, r_sum = self.bonds.stiffness_sums(n)
+        dt_b = bond_time_step_s(self.mass, self.inertia, k_sum, r_sum)
+        self.critical_dt_s = min(dt_r, dt_b)
+        self.rayleigh_dt_s = dt_r
+        self.bond_dt_s = dt_b
+        if dt_s is None:
+            self.dt_s = time_step_factor * self.critical_dt_s
+        else:
+            dt_s = float(dt_s)
+            if not (0.0 < dt_s <= self.critical_dt_s):
+                raise DemInputError(
+                    f"The 'dt_s' parameter of System must be a float in (0, {self.critical_dt_s:.4g}] "
+                    f"(the critical time step). Got {dt_s!r}.")
+            self.dt_s = dt_s
+        self.time_s = 0.0
+        self.steps = 0
+        self.records = Records()
+        self.pos_ref = self.pos.copy()
+        self.pi, self.pj, self.pb, _ = K.build_neighbour_list(
+            self.pos, self.rad, cp[K.CP_SKIN], cp[K.CP_LZ], self.bonds.partner, self.bonds.index)
+        self._forces(0.0)
+
+    # ------------------------------------------------------------------
+    def _forces(self, dt: float):
+        b = self.bonds
+        st, tq, nbr = K.compute_forces(
+            self.pos, self.vel, self.omega, self.rad, self.mass, self.force, self.torque, self.cp,
+            dt, self.pi, self.pj, self.pb, self.c_partner, self.c_xi, b.ij, b.props, b.fn, b.fs,
+            b.mb, b.mt, b.length, b.state, self.w_p, self.w_n, self.w_v, self.w_f, self.w_xi,
+            self.w_in, self.drum_angle, self.lifter_angles, self.d_xi, self.d_in, self.hist_pp,
+            self.hist_pw)
+        return st, tq, nbr
+
+    def run(self, n_steps: int) -> None:
+        """Advance ``n_steps`` steps and append the per-step records."""
+        n_steps = int(n_steps)
+        if n_steps <= 0:
+            return
+        nw = self.w_p.shape[0]
+        rec_f = np.zeros((n_steps, nw))
+        rec_p = np.zeros((n_steps, nw))
+        rec_t = np.zeros(n_steps)
+        rec_b = np.zeros(n_steps, dtype=np.int64)
+        b = self.bonds
+        status, done, ang, self.pi, self.pj, self.pb = K.run_steps(
+            n_steps, self.dt_s, self.pos, self.vel, self.omega, self.rad, self.mass, self.inertia,
+            self.force, self.torque, self.cp, self.pos_ref, self.pi, self.pj, self.pb,
+            self.c_partner, self.c_xi, b.ij, b.props, b.fn, b.fs, b.mb, b.mt, b.length, b.state,
+            b.partner, b.index, self.w_p, self.w_n, self.w_v, self.w_mass, self.w_f, self.w_xi,
+            self.w_in, self.drum_angle, self.lifter_angles, self.d_xi, self.d_in, self.hist_pp,
+            self.hist_pw, rec_f, rec_p, rec_t, rec_b)
+        self.drum_angle = ang
+        self.steps += done
+        self.time_s += done * self.dt_s
+        self.records.wall_force_N.append(rec_f[:done])
+        self.records.wall_pos_m.append(rec_p[:done])
+        self.records.torque_Nm.append(rec_t[:done])
+        self.records.broken.append(rec_b[:done])
+        if status == K.STATUS_NONFINITE:
+            raise DemInstabilityError(
+                f"Non-finite state at step {self.steps} (t = {self.time_s:.4g} s, dt = {self.dt_s:.3g} s); "
+                "reduce time_step_factor or check the material parameters.")
+        if status == K.STATUS_CONTACT_TABLE_FULL:
+            raise DemError(
+                f"Contact table overflow at step {self.steps}: a sphere touched more than "
+                f"{self.c_partner.shape[1]} others; raise max_contacts or check for collapse.")
+
+    def set_wall_velocity(self, k: int, velocity_m_s) -> None:
+        self.w_v[k, :] = velocity_m_s
+
+    def record_arrays(self) -> dict[str, np.ndarray]:
+        """Concatenated per-step records."""
+        r = self.records
+        nw = self.w_p.shape[0]
+        cat = (lambda lst, shape: np.concatenate(lst) if lst else np.zeros(shape))
+        return {"wall_force_N": cat(r.wall_force_N, (0, nw)), "wall_pos_m": cat(r.wall_pos_m, (0, nw)),
+                "torque_Nm": cat(r.torque_Nm, (0,)), "broken": cat(r.broken, (0,))}
+
+    # energies ------------------------------------------------------------
+    def kinetic_energy_J(self) -> float:
+        return float(0.5 * np.sum(self.mass[:, None] * self.vel**2)
+                     + 0.5 * np.sum(self.inertia[:, None] * self.omega**2))
+
+    def contact_energy_J(self) -> float:
+        """Hertz normal strain energy ``8/15 E* sqrt(R*) delta^2.5`` of sphere–sphere contacts not held by an intact bond."""
+        e_star = self.cp[K.CP_ESTAR_PP]
+        lz = self.cp[K.CP_LZ]
+        tot = 0.0
+        for k in range(self.pi.shape[0]):
+            b = self.pb[k]
+            if b >= 0 and self.bonds.state[b] == 0:
+                continue
+            i, j = self.pi[k], self.pj[k]
+            d = self.pos[j] - self.pos[i]
+            if lz > 0:
+                d[2] -= lz * math.floor(d[2] / lz + 0.5)
+            delta = self.rad[i] + self.rad[j] - float(np.linalg.norm(d))
+            if delta > 0:
+                r_eff = self.rad[i] * self.rad[j] / (self.rad[i] + self.rad[j])
+                tot += 8.0 / 15.0 * e_star * math.sqrt(r_eff) * delta**2.5
+        return tot
+
+    def total_energy_J(self) -> float:
+        return self.kinetic_energy_J() + self.contact_energy_J() + self.bonds.elastic_energy_J()
+
+
+def _dummy_bond_params():
+    from dem.bonds import BondParams
+
+    return BondParams(moment_factor=0.0)
