@@ -9,9 +9,9 @@ Works on the generic model contract of the twin (and of :mod:`mpc.leroux`): a ca
 - :func:`gain_table` - steady-state gain and dominant time constant of every input-output
   channel, as a pandas DataFrame;
 - :func:`fit_fopdt` / :func:`fopdt_from_model` - first-order-plus-dead-time fit of a step
-  response (least squares, started from the two-point method of Smith, 1972: ``tau =
-  1.5 (t63 - t28)``, ``theta = t63 - tau``, see Seborg, Edgar & Mellichamp, *Process Dynamics
-  and Control*, section 7.2);
+  response (least squares, started from the two-point estimate ``tau = 1.5 (t63 - t28)``,
+  ``theta = t63 - tau``, exact for a FOPDT since it reaches 28.3 % = 1 - exp(-1/3) of its
+  final value at ``theta + tau/3`` and 63.2 % at ``theta + tau``);
 - :class:`LinearMPC` - linear MPC on a discrete ``StateSpace``, condensed to a QP in the
   input sequence (Maciejowski, *Predictive Control with Constraints*, 2002, ch. 3; Rawlings,
   Mayne & Diehl, *Model Predictive Control*, 2nd ed., section 1.3). Without constraints its
@@ -216,8 +216,8 @@ def fit_fopdt(t_h, y, du: float = 1.0) -> Fopdt:
     """Fit a FOPDT model to a step response ``y(t)`` (deviation from the initial value).
 
     Least squares (``scipy.optimize.least_squares``) on gain, time constant and delay, started
-    from the two-point method (28.3 % and 63.2 % times, Smith 1972). ``rms_error`` is the RMS
-    residual in output units.
+    from the two-point estimate (28.3 % and 63.2 % times, see the module docstring).
+    ``rms_error`` is the RMS residual in output units.
     """
     t = _as_vec("t_h", t_h)
     yv = _as_vec("y", y, t.size)

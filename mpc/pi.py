@@ -21,8 +21,9 @@ Anti-windup, chosen with ``anti_windup``:
 
 - ``"back_calculation"`` (default): ``I += Kc dt / Ti * e + dt / Tt * (u - v)``: when the
   actuator saturates the integral is driven back so that ``v`` tracks ``u`` with time constant
-  ``Tt`` (K.J. Astrom and R.M. Murray, *Feedback Systems*, 2008, section 10.4 "Integrator
-  windup", Fig. 10.11; Astrom and Hagglund, *PID Controllers*, 1995, section 3.5). They advise
+  ``Tt`` (K.J. Astrom and R.M. Murray, *Feedback Systems*, 2008, chapter 10 "PID Control",
+  section "Integrator Windup"; Astrom and Hagglund, *PID Controllers*, 2nd ed., 1995, section
+  3.5). They advise
   ``Tt`` between ``Td`` and ``Ti``; with no derivative action we default to ``Tt = Ti / 2``.
   Because the clipped ``u`` includes the rate limit, rate saturation does not wind up either.
 - ``"conditional"``: conditional integration (Astrom and Hagglund 1995, section 3.5): the
