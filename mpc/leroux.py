@@ -432,7 +432,14 @@ class LeRouxCircuit:
     # ------------------------------------------------------------ closed loop
     def reset(self, x0=None) -> None:
         """Set the plant state (default: steady state at the nominal point)."""
-        self.x = self.steady_state() if x0 is None else np.asarray(x0, dtype=float).copy()
+        if x0 is None:
+            self.x = self.steady_state()
+            return
+        x0 = np.asarray(x0, dtype=float).reshape(-1)
+        if x0.shape != (len(STATE_NAMES),) or not np.all(np.isfinite(x0)):
+            raise MpcInputError(f"The 'x0' parameter of LeRouxCircuit.reset must be "
+                                f"{len(STATE_NAMES)} finite floats {STATE_NAMES}. Got {x0!r}.")
+        self.x = x0.copy()
 
     def make_step(self, u, d=None) -> dict[str, float]:
         """Advance the plant by ``dt_h`` with ``u`` and ``d`` held; return the outputs.

@@ -311,3 +311,20 @@ def test_other_dense_qp_solvers_agree_with_qpoases(solver):
 def test_sparse_ocp_solvers_are_refused_for_the_condensed_qp():
     with pytest.raises(MpcInputError, match="hpipm"):
         LinearMPC(random_system(0), np.eye(3), np.eye(2), horizon=3, solver="hpipm")
+
+
+def test_reported_cost_is_the_cost_of_the_predicted_trajectory():
+    sysd = random_system(5, rho=0.95)
+    q, r = np.diag([1.0, 2.0, 3.0]), np.diag([0.5, 0.2])
+    mpc = LinearMPC(sysd, q, r, horizon=8, terminal="dare", u_min=-0.2, u_max=0.2)
+    x_ref, u_ref = np.array([0.1, 0.0, -0.1]), np.array([0.05, 0.0])
+    res = mpc.make_step([1.0, -0.5, 0.5], x_ref=x_ref, u_ref=u_ref)
+    assert res.success
+    xs, us = res.states_plan, res.plan
+    cost = sum((xs[k] - x_ref) @ q @ (xs[k] - x_ref) + (us[k] - u_ref) @ r @ (us[k] - u_ref)
+               for k in range(8))
+    cost += (xs[8] - x_ref) @ mpc.p @ (xs[8] - x_ref)
+    assert res.cost == pytest.approx(cost, rel=1e-9)
+    # the predicted states follow the model
+    for k in range(8):
+        np.testing.assert_allclose(xs[k + 1], sysd.A @ xs[k] + sysd.B @ us[k], atol=1e-12)
