@@ -63,7 +63,7 @@ mapped to P80 by *assuming* a Gates-Gaudin-Schuhmann distribution of the overflo
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 
 import casadi as ca
 import numpy as np
