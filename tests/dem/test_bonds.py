@@ -1,0 +1,189 @@
+"""Parallel bonds: k A du, failure exactly at strength, reference match, energy conservation."""
+
+import math
+
+import numpy as np
+import pytest
+
+from dem.bonds import (BROKEN_SHEAR, BROKEN_TENSION, INTACT, BondParams, BondSet, bond_forces,
+                       find_bond_pairs)
+from dem.errors import DemInputError
+from dem.materials import Material
+from dem.reference import reference_bond
+from dem.system import System
+
+R = 1e-3
+KN = 1e13
+KS = 4e12
+
+
+def _pair(params, gap=0.0):
+    pos = np.array([[0.0, 0.0, 0.0], [2 * R + gap, 0.0, 0.0]])
+    rad = np.array([R, R])
+    return pos, rad, BondSet(np.array([[0, 1]]), pos, rad, params)
+
+
+def _apply(pos, rad, bs, vel, omega=None, dt=1e-7):
+    """Move by vel*dt and update the bond (what the integrator does), return forces, torques."""
+    omega = np.zeros((2, 3)) if omega is None else omega
+    pos += vel * dt
+    f = np.zeros((2, 3))
+    t = np.zeros((2, 3))
+    nbr = bond_forces(pos, vel, omega, rad, f, t, 0.0, dt, bs.ij, bs.props, bs.fn, bs.fs, bs.mb,
+                      bs.mt, bs.length, bs.state, bs.beta)
+    return f, t, nbr
+
+
+def test_axial_displacement_gives_kn_A_du():
+    p = BondParams(kn_Pa_m=KN, ks_Pa_m=KS, tensile_strength_Pa=1e12, cohesion_Pa=1e12)
+    pos, rad, bs = _pair(p, gap=1e-4)
+    area = math.pi * R**2
+    du = 1e-7
+    f, _, _ = _apply(pos, rad, bs, np.array([[0, 0, 0], [du / 1e-7, 0, 0]]))
+    assert bs.fn[0] == pytest.approx(KN * area * du, rel=1e-9)
+    # tension pulls j back (-x) and i forward (+x)
+    assert f[1, 0] == pytest.approx(-KN * area * du, rel=1e-9)
+    assert f[0, 0] == pytest.approx(KN * area * du, rel=1e-9)
+    # compression is carried too
+    _apply(pos, rad, bs, np.array([[0, 0, 0], [-3 * du / 1e-7, 0, 0]]))
+    assert bs.fn[0] == pytest.approx(-2 * KN * area * du, rel=1e-9)
+
+
+def test_shear_displacement_gives_minus_ks_A_du():
+    p = BondParams(kn_Pa_m=KN, ks_Pa_m=KS, tensile_strength_Pa=1e12, cohesion_Pa=1e12,
+                   moment_factor=0.0)
+    pos, rad, bs = _pair(p)
+    area = math.pi * R**2
+    du = 1e-8
+    f, t, _ = _apply(pos, rad, bs, np.array([[0, 0, 0], [0, du / 1e-7, 0]]))
+    assert bs.fs[0, 1] == pytest.approx(-KS * area * du, rel=1e-6)
+    assert f[1, 1] == pytest.approx(-KS * area * du, rel=1e-6)
+    # the shear force acts at the bond centre: torques on both spheres about z
+    assert t[1, 2] == pytest.approx(R * KS * area * du, rel=1e-5)
+    assert t[0, 2] == pytest.approx(R * KS * area * du, rel=1e-5)
+
+
+def test_bond_breaks_exactly_at_tensile_strength():
+    sig_t = 5e6
+    p = BondParams(kn_Pa_m=KN, ks_Pa_m=KS, tensile_strength_Pa=sig_t, cohesion_Pa=1e12)
+    pos, rad, bs = _pair(p)
+    area = math.pi * R**2
+    du = 1e-10
+    vel = np.array([[0, 0, 0], [du / 1e-7, 0, 0]])
+    last = 0.0
+    for step in range(100000):
+        _, _, nbr = _apply(pos, rad, bs, vel)
+        if nbr:
+            break
+        last = bs.fn[0]
+    assert bs.state[0] == BROKEN_TENSION
+    # the last intact force is within one increment below the strength
+    inc = KN * area * du
+    assert sig_t * area - inc <= last <= sig_t * area
+    assert bs.fn[0] == 0.0
+
+
+def test_bond_breaks_exactly_at_cohesion_in_shear():
+    coh = 4e6
+    p = BondParams(kn_Pa_m=KN, ks_Pa_m=KS, tensile_strength_Pa=1e12, cohesion_Pa=coh,
+                   moment_factor=0.0)
+    pos, rad, bs = _pair(p)
+    area = math.pi * R**2
+    du = 1e-10
+    vel = np.array([[0, 0, 0], [0, 0, du / 1e-7]])
+    last = 0.0
+    for _ in range(100000):
+        _, _, nbr = _apply(pos, rad, bs, vel)
+        if nbr:
+            break
+        last = np.linalg.norm(bs.fs[0])
+    assert bs.state[0] == BROKEN_SHEAR
+    assert coh * area - 1.01 * KS * area * du <= last <= coh * area
+
+
+def test_mohr_coulomb_compression_raises_shear_strength():
+    p0 = BondParams(kn_Pa_m=KN, ks_Pa_m=KS, tensile_strength_Pa=1e12, cohesion_Pa=4e6,
+                    moment_factor=0.0)
+    p30 = BondParams(kn_Pa_m=KN, ks_Pa_m=KS, tensile_strength_Pa=1e12, cohesion_Pa=4e6,
+                     friction_angle_deg=30.0, moment_factor=0.0)
+    out = []
+    for p in (p0, p30):
+        pos, rad, bs = _pair(p)
+        _apply(pos, rad, bs, np.array([[0, 0, 0], [-2e-9 / 1e-7, 0, 0]]))  # compress first
+        for n in range(1, 100000):
+            _, _, nbr = _apply(pos, rad, bs, np.array([[0, 0, 0], [0, 1e-3, 0]]))
+            if nbr:
+                out.append(n)
+                break
+    assert out[1] > out[0]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_bond_kernel_matches_reference(seed):
+    rng = np.random.default_rng(seed)
+    p = BondParams(kn_Pa_m=KN, ks_Pa_m=KS, tensile_strength_Pa=3e6, cohesion_Pa=4e6,
+                   friction_angle_deg=20.0)
+    pos, rad, bs = _pair(p, gap=2e-5)
+    pos[1] += rng.normal(0, 1e-4, 3)
+    bs = BondSet(np.array([[0, 1]]), pos, rad, p)
+    area = bs.props[0, 0]
+    state = {"fn": 0.0, "fs": np.zeros(3), "mb": np.zeros(3), "mt": 0.0, "length": bs.length[0]}
+    for _ in range(40):
+        vel = rng.normal(0, 2e-3, (2, 3))
+        om = rng.normal(0, 2.0, (2, 3))
+        p_old = pos.copy()
+        f, t, _ = _apply(pos, rad, bs, vel, om)
+        state, f_j, t_i, t_j, mode = reference_bond(
+            pos[0], pos[1], vel[0], vel[1], om[0], om[1], R, R, state, area=area, rbar=R, kn=KN,
+            ks=KS, tensile=3e6, cohesion=4e6, tan_phi=math.tan(math.radians(20.0)), beta=1.0,
+            dt=1e-7)
+        assert mode == bs.state[0]
+        if mode:
+            break
+        np.testing.assert_allclose(f[1], f_j, rtol=1e-8, atol=1e-12)
+        np.testing.assert_allclose(t[0], t_i, rtol=1e-8, atol=1e-15)
+        np.testing.assert_allclose(t[1], t_j, rtol=1e-8, atol=1e-15)
+        assert p_old is not pos
+
+
+def test_energy_drift_without_damping_or_breakage():
+    """Velocity Verlet: |E(t) - E(0)| / E(0) < 1e-4 over 1e4 steps and no secular drift."""
+    from dem.agglomerate import make_agglomerate
+
+    agg = make_agglomerate(0.006, 40, random_state=3)
+    p = BondParams(kn_Pa_m=KN, ks_Pa_m=KS, tensile_strength_Pa=1e15, cohesion_Pa=1e15)
+    bs = BondSet(agg.bond_pairs, agg.pos_m, agg.radius_m, p)
+    mat = Material(restitution=1.0, friction_coef=0.0)
+    s = System(agg.pos_m.copy(), agg.radius_m, mat, bonds=bs, time_step_factor=0.03)
+    rng = np.random.default_rng(0)
+    s.vel[:] = rng.normal(0, 0.05, s.vel.shape)
+    s.omega[:] = rng.normal(0, 20.0, s.omega.shape)
+    s._forces(0.0)
+    e0 = s.total_energy_J()
+    rel = []
+    for _ in range(100):
+        s.run(100)
+        rel.append((s.total_energy_J() - e0) / e0)
+    rel = np.array(rel)
+    assert np.all(bs.state == INTACT)
+    assert np.max(np.abs(rel)) < 1e-4
+    # no secular drift: late and early means agree far better than the bound
+    assert abs(np.mean(rel[-20:]) - np.mean(rel[:20])) < 1e-5
+    # and the energy did flow into the bonds (the test is not trivial)
+    assert bs.elastic_energy_J() > 0.05 * e0
+
+
+def test_find_bond_pairs_uses_distance_factor():
+    pos = np.array([[0, 0, 0], [2.5e-3, 0, 0], [2.7e-3, 0, 0]], dtype=float)
+    rad = np.array([1e-3, 1e-3, 1e-3])
+    pairs = find_bond_pairs(pos, rad, 1.3)
+    assert [tuple(x) for x in pairs] == [(0, 1), (1, 2)]
+    with pytest.raises(DemInputError, match="bond_distance_factor"):
+        find_bond_pairs(pos, rad, 3.0)
+
+
+def test_bond_params_validation():
+    with pytest.raises(DemInputError, match="tensile_strength_Pa"):
+        BondParams(tensile_strength_Pa=0.0)
+    with pytest.raises(DemInputError, match="moment_factor"):
+        BondParams(moment_factor=2.0)
