@@ -14,7 +14,7 @@ from mpc.linear import (
     linearize,
     steady_target,
 )
-from mpc.pi import DiscretePI, simc_pi
+from mpc.pi import DiscretePI, pi_from_model, simc_pi
 from mpc.results import ControllerStepResult
 
 __all__ = [
@@ -35,6 +35,7 @@ __all__ = [
     "gain_table",
     "linearize",
     "min_rk4_substeps",
+    "pi_from_model",
     "rk4_map",
     "simc_pi",
     "steady_target",

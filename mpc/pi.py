@@ -39,7 +39,7 @@ import time
 import numpy as np
 
 from mpc.errors import MpcInputError
-from mpc.linear import Fopdt
+from mpc.linear import Fopdt, fopdt_from_model, linearize
 from mpc.results import ControllerStepResult
 
 ANTI_WINDUP = ("back_calculation", "conditional", "none")
@@ -185,3 +185,25 @@ class DiscretePI:
             True, status, float(e * e), 0, time.perf_counter() - t0, [u], None, None
         )
         return u
+
+
+def pi_from_model(f, outputs, x_ss, u_ss, d_ss, dt_h: float, setpoint: float | None = None,
+                  output_name: str = "p80_um", input_name: str = "feed_tph",
+                  input_names: tuple[str, ...] = ("feed_tph", "speed_frac_critical"),
+                  tau_c_h: float | None = None, **kwargs) -> tuple["DiscretePI", Fopdt]:
+    """The reactive baseline in one call: linearise the model at the steady state
+    ``(x_ss, u_ss, d_ss)``, fit a FOPDT to the ``input_name -> output_name`` step response
+    (:func:`mpc.linear.fopdt_from_model`), tune by SIMC and return ``(pi, fopdt)``.
+
+    ``setpoint`` defaults to the output at the operating point; ``u_bias`` is the operating
+    input; further keyword arguments (``u_min``, ``u_max``, ``du_max``, ``anti_windup``,
+    ``tt_h``) go to :class:`DiscretePI`.
+    """
+    if input_name not in input_names:
+        raise MpcInputError(f"The 'input_name' parameter of pi_from_model must be one of "
+                            f"{input_names}. Got {input_name!r}.")
+    sys_c, op = linearize(f, outputs, x_ss, u_ss, d_ss, [output_name], input_names=input_names)
+    model = fopdt_from_model(sys_c, input_name, output_name)
+    sp = float(op.y_ss[0]) if setpoint is None else float(setpoint)
+    u_bias = float(op.u_ss[input_names.index(input_name)])
+    return DiscretePI.from_fopdt(model, dt_h, sp, u_bias, tau_c_h=tau_c_h, **kwargs), model

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from mpc.errors import MpcInputError
-from mpc.linear import Fopdt, fopdt_from_model, linearize
-from mpc.pi import DiscretePI, simc_pi
+from mpc.linear import Fopdt
+from mpc.pi import DiscretePI, pi_from_model, simc_pi
 
 
 class FopdtPlant:
@@ -120,12 +120,13 @@ def test_simc_pi_from_linearised_le_roux_holds_p80_through_harder_ore():
 
     plant = LeRouxCircuit(dt_h=0.05)
     xs = plant.steady_state()
-    sys, _ = linearize(plant.f, plant.outputs, xs, plant.u_nominal, plant.d_nominal, ["p80_um"])
-    model = fopdt_from_model(sys, "feed_tph", "p80_um")
+    pi, model = pi_from_model(plant.f, plant.outputs, xs, plant.u_nominal, plant.d_nominal,
+                              dt_h=0.05, tau_c_h=0.5, u_min=30.0, u_max=90.0, du_max=1.0)
     assert model.gain == pytest.approx(1.64, rel=0.05)  # um per t/h at survey 3
+    assert 1.0 < model.tau_h < 2.0 and model.delay_h < 0.1
     y_sp = float(plant.outputs["p80_um"](xs, plant.u_nominal, plant.d_nominal))
-    pi = DiscretePI.from_fopdt(model, 0.05, setpoint=y_sp, u_bias=plant.u_nominal[0],
-                               tau_c_h=0.5, u_min=30.0, u_max=90.0, du_max=1.0)
+    assert pi.setpoint == pytest.approx(y_sp) and pi.u_bias == pytest.approx(plant.u_nominal[0])
+    assert (pi.kc, pi.ti_h) == pytest.approx(simc_pi(model, 0.5))
     plant.reset(xs)
     d_hard = plant.d_nominal * np.array([1.05, 1.0, 1.0])  # 5 % harder ore from t = 0
     y = y_sp
