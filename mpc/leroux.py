@@ -186,7 +186,14 @@ class LeRouxCircuit:
     outputs : dict[str, casadi.Function]
         ``outputs[name](x, u, d) -> y`` for every name in :attr:`output_names`.
     x : numpy.ndarray
-        Current plant state used by :meth:`make_step`.
+        Current plant state used by :meth:`make_step` (initially the published survey-3
+        state; :meth:`reset` puts it at the model's own steady state).
+
+    Outputs: ``pse_frac`` (overflow solids < 75 um), ``p80_um`` and ``passing_target_frac``
+    (GGS mapping), ``power_kw``, ``load_frac`` (J_T: water + solids + rocks + balls over the
+    mill volume), ``holdup_t`` (ore and water in the mill, balls excluded), ``rheology_frac``,
+    ``svol_m3``, ``cff_m3_h``, ``mfb_tph``, ``cfd_t_m3``, ``product_tph`` (overflow solids),
+    ``specific_energy_kwh_t`` and the flows used by the balance tests.
     """
 
     state_names = STATE_NAMES
