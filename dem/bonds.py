@@ -16,7 +16,10 @@ Model (MISSION.md eqs. 3–4; Potyondy & Cundall, IJRMMS 41 (2004) 1329, §2.2.2
   tensile strength``, else in *shear* if ``tau > cohesion + max(-F_n/A, 0) tan(phi_b)``
   (Mohr–Coulomb when ``phi_b > 0``; Potyondy & Cundall use ``phi_b = 0``);
 - a broken bond carries nothing; the two spheres then interact through the frictional
-  Hertz–Mindlin contact of :mod:`dem.contacts` (skipped while the bond is intact).
+  Hertz–Mindlin contact of :mod:`dem.contacts` (skipped while the bond is intact). Its
+  overlap is counted from the overlap the pair had when the bond was made (packings leave
+  small overlaps; without this offset a breaking bond would release a spurious Hertz force
+  and trigger a cascade of failures).
 """
 
 from __future__ import annotations
@@ -35,7 +38,8 @@ BROKEN_TENSION = 1
 BROKEN_SHEAR = 2
 
 # columns of the bond property table
-P_AREA, P_RBAR, P_KN, P_KS, P_SIGT, P_COH, P_TANPHI = range(7)
+P_AREA, P_RBAR, P_KN, P_KS, P_SIGT, P_COH, P_TANPHI, P_OVERLAP0 = range(8)
+N_PROPS = 8
 
 
 @dataclass(frozen=True)
@@ -118,7 +122,7 @@ class BondSet:
         self.params = params
         self.ij = pairs
         rbar = params.radius_multiplier * np.minimum(radius_m[pairs[:, 0]], radius_m[pairs[:, 1]])
-        self.props = np.zeros((nbnd, 7))
+        self.props = np.zeros((nbnd, N_PROPS))
         self.props[:, P_AREA] = math.pi * rbar**2
         self.props[:, P_RBAR] = rbar
         self.props[:, P_KN] = params.kn_Pa_m
@@ -133,6 +137,10 @@ class BondSet:
         self.state = np.zeros(nbnd, dtype=np.int8)
         self.length = (np.linalg.norm(pos_m[pairs[:, 1]] - pos_m[pairs[:, 0]], axis=1)
                        if nbnd else np.zeros(0))
+        # overlap at bonding (packings leave small overlaps): after the bond breaks, the Hertz
+        # contact counts only overlap beyond it, so breaking releases no stored contact force
+        self.props[:, P_OVERLAP0] = np.maximum(
+            0.0, radius_m[pairs[:, 0]] + radius_m[pairs[:, 1]] - self.length) if nbnd else 0.0
         self.beta = float(params.moment_factor)
         n = pos_m.shape[0]
         counts = np.bincount(pairs.ravel(), minlength=n) if nbnd else np.zeros(n, dtype=np.int64)

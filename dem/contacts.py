@@ -117,8 +117,11 @@ def hertz_mindlin(delta, nx, ny, nz, vrx, vry, vrz, r_eff, m_eff, e_star, g_star
 
 @nb.njit(cache=True)
 def pair_contact(i, j, pos, vel, omega, rad, mass, force, torque, lz, e_star, g_star, mu, eta,
-                 dt, c_partner, c_xi, hist, lo_log10, dlog10):
+                 dt, c_partner, c_xi, hist, lo_log10, dlog10, overlap0):
     """Hertz–Mindlin contact between spheres i < j; updates forces, torques and history.
+
+    ``overlap0`` is subtracted from the geometric overlap (the overlap at bonding of a pair
+    whose bond has broken, else 0).
 
     Returns 0, or STATUS_CONTACT_TABLE_FULL if a new contact found no free slot.
     """
@@ -127,7 +130,7 @@ def pair_contact(i, j, pos, vel, omega, rad, mass, force, torque, lz, e_star, g_
     dz = pos[j, 2] - pos[i, 2]
     if lz > 0.0:
         dz -= lz * math.floor(dz / lz + 0.5)
-    rs = rad[i] + rad[j]
+    rs = rad[i] + rad[j] - overlap0
     d2 = dx * dx + dy * dy + dz * dz
     s = slot_find(c_partner, i, j)
     if d2 >= rs * rs:
@@ -146,8 +149,8 @@ def pair_contact(i, j, pos, vel, omega, rad, mass, force, torque, lz, e_star, g_
         if s < 0:
             return STATUS_CONTACT_TABLE_FULL
     # contact point arms
-    ai = rad[i] - 0.5 * delta
-    aj = rad[j] - 0.5 * delta
+    ai = rad[i] - 0.5 * (delta + overlap0)
+    aj = rad[j] - 0.5 * (delta + overlap0)
     # velocities of the contact point on each body: v + w x r
     # arm of i: +ai n ; arm of j: -aj n
     wix = omega[i, 0]
@@ -162,7 +165,7 @@ def pair_contact(i, j, pos, vel, omega, rad, mass, force, torque, lz, e_star, g_
     vjx = vel[j, 0] - aj * (wjy * nz - wjz * ny)
     vjy = vel[j, 1] - aj * (wjz * nx - wjx * nz)
     vjz = vel[j, 2] - aj * (wjx * ny - wjy * nx)
-    r_eff = rad[i] * rad[j] / rs
+    r_eff = rad[i] * rad[j] / (rad[i] + rad[j])
     m_eff = mass[i] * mass[j] / (mass[i] + mass[j])
     fx, fy, fz, fn, vn = hertz_mindlin(delta, nx, ny, nz, vjx - vix, vjy - viy, vjz - viz,
                                        r_eff, m_eff, e_star, g_star, mu, eta, c_xi[i, s], dt)

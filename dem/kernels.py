@@ -18,7 +18,7 @@ import math
 import numba as nb
 import numpy as np
 
-from dem.bonds import bond_forces
+from dem.bonds import P_OVERLAP0, bond_forces
 from dem.contacts import drum_walls, pair_contact, plane_walls
 
 # indices of the scalar parameter vector ``cp``
@@ -156,11 +156,14 @@ def compute_forces(pos, vel, omega, rad, mass, force, torque, cp, dt, pi, pj, pb
     lz = cp[CP_LZ]
     for k in range(pi.shape[0]):
         b = pb[k]
-        if b >= 0 and b_state[b] == 0:
-            continue
+        ov0 = 0.0
+        if b >= 0:
+            if b_state[b] == 0:
+                continue
+            ov0 = b_props[b, P_OVERLAP0]
         st = pair_contact(pi[k], pj[k], pos, vel, omega, rad, mass, force, torque, lz,
                           cp[CP_ESTAR_PP], cp[CP_GSTAR_PP], cp[CP_MU_PP], cp[CP_ETA_PP], dt,
-                          c_partner, c_xi, hist_pp, cp[CP_HIST_LO], cp[CP_HIST_DLOG])
+                          c_partner, c_xi, hist_pp, cp[CP_HIST_LO], cp[CP_HIST_DLOG], ov0)
         if st != 0:
             status = STATUS_CONTACT_TABLE_FULL
     nbroken = bond_forces(pos, vel, omega, rad, force, torque, lz, dt, b_ij, b_props, b_fn, b_fs,

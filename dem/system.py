@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dem.bonds import BondSet
+from dem.bonds import P_OVERLAP0, BondSet
 from dem.contacts import new_contact_tables
 from dem.errors import DemInputError, DemInstabilityError, DemError
 from dem import kernels as K
@@ -248,13 +248,16 @@ class System:
         tot = 0.0
         for k in range(self.pi.shape[0]):
             b = self.pb[k]
-            if b >= 0 and self.bonds.state[b] == 0:
-                continue
+            ov0 = 0.0
+            if b >= 0:
+                if self.bonds.state[b] == 0:
+                    continue
+                ov0 = self.bonds.props[b, P_OVERLAP0]
             i, j = self.pi[k], self.pj[k]
             d = self.pos[j] - self.pos[i]
             if lz > 0:
                 d[2] -= lz * math.floor(d[2] / lz + 0.5)
-            delta = self.rad[i] + self.rad[j] - float(np.linalg.norm(d))
+            delta = self.rad[i] + self.rad[j] - ov0 - float(np.linalg.norm(d))
             if delta > 0:
                 r_eff = self.rad[i] * self.rad[j] / (self.rad[i] + self.rad[j])
                 tot += 8.0 / 15.0 * e_star * math.sqrt(r_eff) * delta**2.5
