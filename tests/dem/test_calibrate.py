@@ -1,0 +1,44 @@
+"""BondCalibrator: scikit-learn contract and fit to a peak-force target (tiny agglomerates)."""
+
+import numpy as np
+import pytest
+
+from dem.calibrate import BondCalibrator
+from dem.errors import DemInputError
+
+
+def _cal(**kw):
+    args = dict(n_particles=10, particle_diameter_m=0.022, spheres_per_particle=30,
+                random_state=3, platen_speed_m_s=0.3, tol_pct=2.0)
+    args.update(kw)
+    return BondCalibrator(**args)
+
+
+def test_constructor_only_stores_arguments():
+    c = _cal()
+    assert c.get_params()["spheres_per_particle"] == 30
+    assert not [k for k in vars(c) if k.endswith("_")]
+
+
+def test_fit_matches_target_peak_force_with_few_simulations():
+    c = _cal().fit(2000.0)
+    assert c.calibration_error_pct_ <= 2.0
+    assert abs(c.mean_peak_force_N_ - 2000.0) / 2000.0 * 100 == pytest.approx(c.calibration_error_pct_)
+    assert c.peak_force_N_.shape == (10,)
+    assert c.n_iter_ <= 4
+    assert c.cohesion_Pa_ == pytest.approx(2.0 * c.tensile_strength_Pa_)
+    assert c.ks_Pa_m_ == pytest.approx(0.4 * c.kn_Pa_m_)
+    assert np.all(c.fracture_energy_J_ > 0)
+    assert len(c.results_frame()) == 10
+    # the strength was fitted: far from the starting guess of 10 MPa
+    assert c.history_["tensile_strength_Pa"].iloc[-1] != c.history_["tensile_strength_Pa"].iloc[0]
+    # reproducible
+    c2 = _cal().fit(2000.0)
+    assert c2.tensile_strength_Pa_ == c.tensile_strength_Pa_
+
+
+def test_fit_rejects_bad_input():
+    with pytest.raises(DemInputError, match="target_peak_force_N"):
+        _cal().fit(-1.0)
+    with pytest.raises(DemInputError, match="n_particles"):
+        _cal(n_particles=0).fit(1000.0)
