@@ -1,0 +1,44 @@
+"""Drum-mill charge DEM: short smoke run with physical checks, critical speed, validation."""
+
+import math
+
+import numpy as np
+import pytest
+
+from dem.drum import critical_speed_rad_s, drum_test
+from dem.errors import DemInputError
+
+
+def test_critical_speed_formula():
+    assert critical_speed_rad_s(0.5, 0.025) == pytest.approx(math.sqrt(2 * 9.81 / 0.475))
+    with pytest.raises(DemInputError, match="ball_diameter_m"):
+        critical_speed_rad_s(0.5, 0.6)
+
+
+@pytest.fixture(scope="module")
+def short_run():
+    return drum_test(0.7, 0.3, ball_diameter_m=0.04, section_length_m=0.1, settle_revolutions=0.5,
+                     measure_revolutions=0.5, random_state=1)
+
+
+def test_drum_power_and_spectrum_are_physical(short_run):
+    r = short_run
+    # the charge resists the rotation: positive power, negative torque on the drum
+    assert r.power_W > 0 and r.torque_Nm < 0
+    # power is bounded by lifting the whole charge's weight at the shell speed
+    m_charge = r.n_balls_full_mill * 7800 * math.pi * 0.04**3 / 6
+    assert r.power_W < m_charge * 9.81 * 0.25 * r.omega_rad_s
+    sp = r.spectrum
+    assert list(sp.columns) == ["energy_lo_J", "energy_hi_J", "energy_mid_J", "ball_ball_per_s",
+                                "ball_wall_per_s", "total_per_s"]
+    assert r.collisions_per_s > 0
+    assert np.all(sp["total_per_s"] >= 0)
+    assert r.length_scale == pytest.approx(3.0)
+    assert r.omega_rad_s == pytest.approx(0.7 * critical_speed_rad_s(0.5, 0.04))
+
+
+def test_drum_input_validation():
+    with pytest.raises(DemInputError, match="speed_frac_critical"):
+        drum_test(-0.1, 0.35)
+    with pytest.raises(DemInputError, match="section_length_m"):
+        drum_test(0.7, 0.35, section_length_m=0.01)
