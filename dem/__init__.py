@@ -1,1 +1,30 @@
-"""numba discrete-element method: bonded-particle breakage tests and mill-charge collisions (SI units)."""
+"""numba discrete-element method: bonded-particle breakage tests and mill-charge collisions (SI units).
+
+Public API (``dem`` imports nothing from twin, mpc or scenarios):
+
+- :mod:`dem.materials`: ``Material``, ``STEEL``, ``RAYLEIGH_SAFETY_FACTOR``,
+  ``damping_coefficient``, ``rayleigh_time_step_s``, ``hertz_contact_duration_s``;
+- :mod:`dem.bonds`: ``BondParams``, ``BondSet``, ``kn_from_modulus_Pa_m``;
+- :mod:`dem.agglomerate`: ``make_agglomerate`` -> ``Agglomerate``;
+- :mod:`dem.lab`: ``compression_test`` -> ``CompressionResult``, ``drop_weight_test`` -> ``ImpactResult``;
+- :mod:`dem.fragments`: ``find_fragments`` -> ``FragmentResult``;
+- :mod:`dem.calibrate`: ``BondCalibrator``;
+- :mod:`dem.drum`: ``drum_test`` -> ``DrumResult``, ``critical_speed_rad_s``;
+- :mod:`dem.system`: ``System`` (low level: state + kernels), ``PlaneWall``, ``DrumGeometry``;
+- :mod:`dem.errors`: ``DemError``, ``DemInputError``, ``DemInstabilityError``.
+"""
+
+from dem.agglomerate import Agglomerate, make_agglomerate
+from dem.bonds import BondParams, kn_from_modulus_Pa_m
+from dem.calibrate import BondCalibrator
+from dem.drum import DrumResult, critical_speed_rad_s, drum_test
+from dem.errors import DemError, DemInputError, DemInstabilityError
+from dem.fragments import FragmentResult, find_fragments
+from dem.lab import CompressionResult, ImpactResult, compression_test, drop_weight_test
+from dem.materials import RAYLEIGH_SAFETY_FACTOR, STEEL, Material
+
+__all__ = ["Agglomerate", "make_agglomerate", "BondParams", "kn_from_modulus_Pa_m",
+           "BondCalibrator", "DrumResult", "critical_speed_rad_s", "drum_test", "DemError",
+           "DemInputError", "DemInstabilityError", "FragmentResult", "find_fragments",
+           "CompressionResult", "ImpactResult", "compression_test", "drop_weight_test",
+           "RAYLEIGH_SAFETY_FACTOR", "STEEL", "Material"]
