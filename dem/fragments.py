@@ -59,6 +59,13 @@ class FragmentResult:
     t10_resolved: bool
     bridges_cut: int
     size_distribution: pd.DataFrame
+    original_size_m: float = float("nan")
+
+    def t(self, n: float) -> float:
+        """t_n: mass fraction finer than ``D0 / n`` (t10 = t(10); t2, t4 are resolved by coarse agglomerates)."""
+        if not (n >= 1):
+            raise DemInputError(f"The 'n' parameter of FragmentResult.t must be a float >= 1. Got {n!r}.")
+        return float(np.sum(self.mass_fractions[self.sizes_m < self.original_size_m / n]))
 
 
 def _find_bridges(n: int, edges: np.ndarray):
@@ -181,4 +188,4 @@ def find_fragments(bond_pairs: np.ndarray, intact: np.ndarray, sphere_volume_m3:
     return FragmentResult(labels=labels, n_fragments=int(frag_vol.size), sizes_m=sizes,
                           mass_fractions=frac, largest_mass_fraction=float(frac[0]), t10=t10,
                           t10_resolved=bool(single < 0.1 * original_size_m), bridges_cut=int(cut.size),
-                          size_distribution=psd)
+                          size_distribution=psd, original_size_m=float(original_size_m))

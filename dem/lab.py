@@ -126,6 +126,7 @@ class ImpactResult:
                 "broken_shear": self.broken_final["shear"], "broken_fraction": self.broken_fraction,
                 "n_fragments": self.fragments.n_fragments,
                 "largest_fragment_frac": self.fragments.largest_mass_fraction,
+                "t2": self.fragments.t(2), "t4": self.fragments.t(4),
                 "t10": self.fragments.t10, "n_spheres": self.n_spheres,
                 "particle_mass_kg": self.particle_mass_kg, "n_steps": self.n_steps,
                 "wall_time_s": self.wall_time_s}

@@ -93,6 +93,8 @@ def test_all_bonds_broken_gives_single_spheres_and_t10():
     fr2 = find_fragments(np.zeros((0, 2), int), np.zeros(0, bool), np.ones(2000), 0.02)
     assert fr2.t10 == pytest.approx(1.0)
     assert fr2.t10_resolved
+    assert fr2.t(10) == fr2.t10 and fr2.t(2) == pytest.approx(1.0)
+    assert not fr.t10_resolved or fr.t(10) == fr.t10
 
 
 @pytest.fixture(scope="module")
