@@ -16,7 +16,9 @@ G_M_S2 = 9.80665
 
 @dataclass(frozen=True)
 class Mill:
-    """A ball mill. ``powder_filling_nominal`` is Austin's U: the fraction of the ball bed's
+    """A ball mill. ``power_factor`` scales Bond's power equation where it is extrapolated
+    (a laboratory mill below the ~1 m diameters it was fitted to; Rowland & Kjos 1980); it is
+    fitted by `grindtwin calibrate`, never typed in. ``powder_filling_nominal`` is Austin's U: the fraction of the ball bed's
     voids filled by powder at the nominal hold-up; ``stable_band`` the load (hold-up over
     nominal hold-up) within which the mill is called stable."""
 
@@ -33,6 +35,7 @@ class Mill:
     grate_sharpness: float = 3.0
     discharge_exponent: float = 2.0
     feed_nominal_tph: float = 0.031
+    power_factor: float = 1.0
 
     def __post_init__(self):
         o = f"Mill {self.name!r}"
@@ -49,6 +52,7 @@ class Mill:
         check_range(o, "grate_sharpness", self.grate_sharpness, 0.0, 50.0)
         check_range(o, "discharge_exponent", self.discharge_exponent, 0.0, 10.0)
         check_range(o, "feed_nominal_tph", self.feed_nominal_tph, 0.0, 1e5)
+        check_range(o, "power_factor", self.power_factor, 0.0, 10.0)
 
     @property
     def volume_m3(self) -> float:
@@ -83,21 +87,23 @@ INDUSTRIAL = Mill("industrial", diameter_m=3.2, length_m=4.8, feed_nominal_tph=3
 MILLS = {"lab": LAB, "industrial": INDUSTRIAL}
 
 
-def get_mill(spec) -> Mill:
-    """A preset name ('lab', 'industrial') or a Mill."""
+def get_mill(spec, calibration: dict | None = None) -> Mill:
+    """A preset name ('lab', 'industrial') or a Mill. A preset takes the fitted mill values
+    (``calibration['mills'][name]``, e.g. the lab mill's power factor and grate cut size)."""
     if isinstance(spec, Mill):
         return spec
     if spec in MILLS:
-        return MILLS[spec]
+        fitted = (calibration or {}).get("mills", {}).get(spec, {})
+        return MILLS[spec].with_(**fitted)
     raise TwinInputError(f"The 'mill' must be one of {', '.join(MILLS)}. Got {spec!r}.{close_matches(str(spec), MILLS)}")
 
 
 def bond_power_kw(mill: Mill, speed_frac_critical):
     """Net power of an overflow ball mill [kW], Bond (1961) in metric form
-    P = 7.33 J phi_c (1 - 0.937 J) (1 - 0.1 / 2^(9 - 10 phi_c)) rho_b L D^2.3
+    P = power_factor x 7.33 J phi_c (1 - 0.937 J) (1 - 0.1 / 2^(9 - 10 phi_c)) rho_b L D^2.3
     (Gupta & Yan 2016, *Mineral Processing Design and Operations*, 2nd ed., eq. 9.28; rho_b
     the ball bed's bulk density t/m3, D and L in m). Works on floats and CasADi expressions."""
     J = mill.ball_filling_frac
     phi = speed_frac_critical
-    return (7.33 * J * phi * (1.0 - 0.937 * J) * (1.0 - 0.1 / 2.0 ** (9.0 - 10.0 * phi))
+    return (mill.power_factor * 7.33 * J * phi * (1.0 - 0.937 * J) * (1.0 - 0.1 / 2.0 ** (9.0 - 10.0 * phi))
             * mill.ball_bulk_density_t_m3 * mill.length_m * mill.diameter_m ** 2.3)

@@ -70,20 +70,41 @@ class Model:
             if getattr(eff, "after_outputs", False):
                 eff.apply(asm)
         self._asm = asm
-        self._psd = psd
         blocks = [asm.rhs.get(id(mass[c][k]), ca.SX.zeros(n)) for c in range(C) for k in range(N)]
         extra = list(asm.extra_states.items())
         self.x = ca.vertcat(xm, *[sym for _, (sym, _) in extra])
-        self.xdot = ca.vertcat(*blocks, *[asm.rhs.get(id(sym), ca.SX.zeros(sym.numel()))
+        xdot_dae = ca.vertcat(*blocks, *[asm.rhs.get(id(sym), ca.SX.zeros(sym.numel()))
                                          for _, (sym, _) in extra])
+        # aggregates (hold-ups, soft mass, fines) as algebraic variables z = g(x): the DAE form
+        # keeps the integrator's Jacobian sparse; substituting z = g(x) gives the plain ODE
+        self.z = ca.vertcat(*[z for z, _ in asm.aggregates.values()]) if asm.aggregates else ca.SX(0, 1)
+        self.z_expr = ca.vertcat(*[e for _, e in asm.aggregates.values()]) if asm.aggregates else ca.SX(0, 1)
+        self.z_names = list(asm.aggregates)
+        self.dae = {"x": self.x, "z": self.z, "ode": xdot_dae, "alg": self.z - self.z_expr}
+        self.xdot = self._substitute(xdot_dae)
+        self._psd_dae = psd
+        self._psd = self._substitute(psd)
+        self.output_exprs_dae = dict(asm.outputs)
         self.n_mass = C * N * n
         self.state_groups = [("mass [t]", self.n_mass)] + [(name, sym.numel()) for name, (sym, _) in extra]
         self._extra_initial = [init for _, (_, init) in extra]
         self.f = ca.Function("f", [self.x, self.u, self.d], [self.xdot], ["x", "u", "d"], ["xdot"])
-        self.outputs = {name: ca.Function(name, [self.x, self.u, self.d], [expr], ["x", "u", "d"], [name])
+        self.outputs = {name: ca.Function(name, [self.x, self.u, self.d], [self._substitute(expr)],
+                                          ["x", "u", "d"], [name])
                         for name, expr in asm.outputs.items()}
         self.parameters = asm.parameters
         self.terms = asm.terms
+
+    def _substitute(self, expr):
+        if self.z.numel() == 0:
+            return expr
+        return ca.substitute(expr, self.z, self.z_expr)
+
+    def z_of(self, x) -> np.ndarray:
+        """Values of the algebraic aggregates for a state."""
+        if self.z.numel() == 0:
+            return np.zeros(0)
+        return np.asarray(ca.Function("zx", [self.x], [self.z_expr])(x), float).ravel()
 
     # ------------------------------------------------------------------ sizes
     @property

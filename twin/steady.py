@@ -54,27 +54,53 @@ def _scalar_outputs(model, x, u, d) -> dict:
 
 
 @lru_cache(maxsize=64)
-def _newton(model, with_feed: bool):
-    """Rootfinder on f(x) = 0 (with_feed: unknowns [x; feed], extra equation holdup = target)."""
-    p = ca.SX.sym("p", model.u.numel() + model.d.numel() + 1)
-    u = p[: model.u.numel()]
-    d = p[model.u.numel(): -1]
-    target = p[-1]
-    x = ca.SX.sym("x", model.n_x)
-    scale = model.spec.holdup_nominal_t
-    if with_feed:
-        feed = ca.SX.sym("feed")
-        z = ca.vertcat(x / scale, feed / model.spec.feed_nominal_tph)
-        uu = ca.vertcat(feed, u[1])
-        res = ca.vertcat(model.f(x, uu, d) / model.spec.feed_nominal_tph,
-                         model.outputs["holdup_t"](x, uu, d) / scale - target)
-        xs = ca.vertcat(x, feed)
-        g = ca.Function("g", [xs, p], [ca.substitute(res, xs, ca.vertcat(z[:-1] * scale, z[-1] * model.spec.feed_nominal_tph))])
-    else:
-        g = ca.Function("g", [x, p], [model.f(x, u, d) / model.spec.feed_nominal_tph])
-    opts = {"abstol": RESIDUAL_REL_TOL, "max_iter": 60, "error_on_fail": False,
-            "line_search": True} if False else {"abstol": RESIDUAL_REL_TOL, "max_iter": 60, "error_on_fail": False}
-    return ca.rootfinder("steady", "newton", g, opts)
+def _jacobians(model) -> ca.Function:
+    """(x, u, d) -> (f, df/dx, df/dfeed, dH/dx) as one SX Function (cheap to build)."""
+    f = model.xdot
+    h = model._substitute(model.output_exprs_dae["holdup_t"])
+    return ca.Function("steady_jacobians", [model.x, model.u, model.d],
+                       [f, ca.jacobian(f, model.x), ca.jacobian(f, model.u[0]), ca.jacobian(h, model.x)])
+
+
+def _newton(model, x, u, d, load_target=None, max_iter: int = 60):
+    """Damped Newton on f(x) = 0 (and holdup(x) = load_target x H_nom, solving for the feed when
+    a target is given). Steps are cut so that masses stay non-negative. Returns (x, u, ok)."""
+    jac = _jacobians(model)
+    q_nom = model.spec.feed_nominal_tph
+    h_nom = model.spec.holdup_nominal_t
+    nm = model.n_mass
+    x, u = x.copy(), u.copy()
+    for _ in range(max_iter):
+        f, jx, ju, jh = (np.asarray(v, float) for v in jac(x, u, d))
+        f = f.ravel()
+        res = [f / q_nom]
+        if load_target is not None:
+            res.append([(float(model.outputs["holdup_t"](x, u, d)) / h_nom - load_target)])
+        r = np.concatenate(res)
+        if np.abs(r).max() < RESIDUAL_REL_TOL:
+            return x, u, True
+        try:
+            if load_target is None:
+                step = np.linalg.solve(jx, -f)
+                dfeed = 0.0
+            else:
+                A = np.block([[jx, ju.reshape(-1, 1)], [jh.reshape(1, -1), np.zeros((1, 1))]])
+                sol = np.linalg.solve(A, -np.concatenate([f, [r[-1] * h_nom]]))
+                step, dfeed = sol[:-1], sol[-1]
+        except np.linalg.LinAlgError:
+            return x, u, False  # singular Jacobian: reported by the caller as non-convergence
+        alpha = 1.0
+        neg = step[:nm] < 0
+        if np.any(neg):  # keep masses >= 0: go at most 95 % of the way to zero
+            room = x[:nm][neg] / -step[:nm][neg]
+            room = room[room > 0]  # masses already at zero may not fall further; others bound the step
+            if room.size:
+                alpha = max(min(1.0, 0.95 * room.min()), 1e-3)
+        if load_target is not None and u[0] + alpha * dfeed <= 0:
+            alpha = min(alpha, 0.5 * u[0] / -dfeed)
+        x = x + alpha * step
+        u[0] = u[0] + alpha * dfeed
+    return x, u, False
 
 
 def _check(model, x, u, d, how: str):
@@ -116,17 +142,18 @@ def steady_state(model, u, d, x_guess=None) -> SteadyState:
         x[model.n_mass:] = model.initial_state(d[:-1])[model.n_mass:]
         return _result(model, x, u, d, "empty (no feed)")
     guess = model.initial_state(d[:-1]) if x_guess is None else np.asarray(x_guess, float)
-    p = np.concatenate([u, d, [1.0]])
-    x = np.asarray(_newton(model, False)(guess, p)).ravel()
-    try:
+    x, _, ok = _newton(model, guess, u, d)
+    if ok:
         return _result(model, _check(model, x, u, d, "Newton"), u, d, "newton")
-    except SolverError:
-        from .simulate import integrate_constant
+    from .simulate import integrate_constant
 
-        tau = model.spec.holdup_nominal_t / max(u[0], 1e-9)
-        x_long = integrate_constant(model, guess, 40.0 * tau, u, d)
-        x = np.asarray(_newton(model, False)(x_long, p)).ravel()
-        return _result(model, _check(model, x, u, d, "long integration + Newton"), u, d, "integration+newton")
+    tau = model.spec.holdup_nominal_t / u[0]
+    x_long = integrate_constant(model, guess, 40.0 * tau, u, d)
+    x, _, ok = _newton(model, x_long, u, d)
+    if not ok:
+        raise SolverError("Steady state not found: Newton failed from the nominal guess and after "
+                          f"40 residence times of integration at feed {u[0]:.4g} t/h, speed {u[1]:.3f}.")
+    return _result(model, _check(model, x, u, d, "long integration + Newton"), u, d, "integration+newton")
 
 
 def steady_state_at_load(model, u, d, load_frac: float = 1.0) -> SteadyState:
@@ -136,11 +163,8 @@ def steady_state_at_load(model, u, d, load_frac: float = 1.0) -> SteadyState:
         raise TwinInputError(f"The 'load_frac' must be a float in (0, 5). Got {load_frac}.")
     u, d = np.asarray(u, float), np.asarray(d, float)
     first = steady_state(model, u, d)
-    guess = np.concatenate([first.x, [u[0]]])
-    p = np.concatenate([u, d, [load_frac]])
-    z = np.asarray(_newton(model, True)(guess, p)).ravel()
-    feed = z[-1]
-    if not feed > 0:
-        raise SolverError(f"No positive feed rate holds the load at {load_frac} of nominal (got {feed:.3g} t/h).")
-    uu = np.array([feed, u[1]])
-    return _result(model, _check(model, z[:-1], uu, d, "Newton at constant load"), uu, d, "newton-load")
+    x, uu, ok = _newton(model, first.x, u, d, load_target=load_frac)
+    if not ok or not uu[0] > 0:
+        raise SolverError(f"No positive feed rate found that holds the load at {load_frac} of nominal "
+                          f"(speed {u[1]:.3f}); last feed {uu[0]:.4g} t/h.")
+    return _result(model, _check(model, x, uu, d, "Newton at constant load"), uu, d, "newton-load")

@@ -14,7 +14,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from .breakage import ore_breakage
-from .breakage_map import mineralogy_breakage, shipped_coefficients
+from .breakage_map import mineralogy_breakage, shipped_calibration
 from .errors import TwinInputError, bad_value
 from .mill import Mill, bond_power_kw, get_mill
 from .mineralogy import Mineralogy
@@ -38,25 +38,28 @@ class Twin:
     ``ores``: a reference type ('B'), a Blend, or a sequence of ores (types, TOML paths,
     Mineralogy); the nominal blend (for the nominal hold-up's density and defaults) is the
     Blend's fractions, else equal shares. ``breakage_map(ore, coefficients)`` is the one
-    replaceable mineralogy -> BreakageParams function.
+    replaceable mineralogy -> BreakageParams function; ``calibration`` (default: the shipped
+    ``twin/data/calibration.json``) gives its coefficients and the fitted mill values.
+    ``feed_psd`` overrides the feed size distribution (object with ``passing`` or class fractions).
     """
 
     def __init__(self, ores="B", mill: str | Mill = "lab", effects: Sequence[str] = DEFAULT_EFFECTS,
                  effect_options: dict | None = None, grid: SizeGrid | None = None, n_mixers: int = 3,
-                 feed_p80_um: float = FEED_P80_UM, feed_modulus: float = FEED_GGS_MODULUS,
-                 breakage_map: Callable = mineralogy_breakage, coefficients: dict | None = None):
+                 feed_p80_um: float = FEED_P80_UM, feed_modulus: float = FEED_GGS_MODULUS, feed_psd=None,
+                 breakage_map: Callable = mineralogy_breakage, calibration: dict | None = None):
         self.blend = _as_blend(ores)
-        self.mill = get_mill(mill)
+        self.calibration = calibration or shipped_calibration()
+        self.coefficients = dict(self.calibration["coefficients"])
+        self.mill = get_mill(mill, self.calibration)
         self.grid = grid or SizeGrid()
         if not isinstance(n_mixers, int) or not 1 <= n_mixers <= 20:
             raise bad_value("Twin", "n_mixers", n_mixers, "an integer in [1, 20]")
-        self.coefficients = coefficients or shipped_coefficients()
         density = 1.0 / sum(f / o.density_t_m3 for o, f in zip(self.blend.ores, self.blend.fractions))
         holdup_nom = self.mill.nominal_holdup_t(density)
         power_nom = bond_power_kw(self.mill, self.mill.speed_nominal_frac_critical)
         breakage = [ore_breakage(self.grid, breakage_map(o, self.coefficients), power_nom, holdup_nom)
                     for o in self.blend.ores]
-        feed = discretise(self.grid, GatesGaudinSchuhmann.from_p80(feed_p80_um, feed_modulus))
+        feed = _feed_fractions(self.grid, feed_psd, feed_p80_um, feed_modulus)
         self.spec = ModelSpec(
             grid=self.grid, mill=self.mill, component_names=self.blend.names, breakage=breakage,
             feed_frac=feed, feed_nominal_tph=self.mill.feed_nominal_tph, holdup_nominal_t=holdup_nom,
@@ -127,6 +130,20 @@ class Twin:
         if abs(fr.sum() - 1.0) > 1e-6 or np.any(fr < 0):
             raise bad_value("Twin", "blend", list(fr), "non-negative fractions summing to 1")
         return self.model.d_vector(fr, hardness_scale)
+
+
+def _feed_fractions(grid, feed_psd, feed_p80_um, feed_modulus) -> np.ndarray:
+    """Feed mass fraction per class: a distribution object (``passing(x_um)``), an array of
+    class fractions, or by default GGS with the given P80 and modulus."""
+    if feed_psd is None:
+        return discretise(grid, GatesGaudinSchuhmann.from_p80(feed_p80_um, feed_modulus))
+    if hasattr(feed_psd, "passing"):
+        return discretise(grid, feed_psd)
+    frac = np.asarray(feed_psd, float)
+    if frac.shape != (grid.count,) or np.any(frac < 0) or abs(frac.sum() - 1.0) > 1e-9:
+        raise bad_value("Twin", "feed_psd", feed_psd,
+                        f"a size distribution or {grid.count} non-negative class fractions summing to 1")
+    return frac
 
 
 def _as_blend(ores) -> Blend:

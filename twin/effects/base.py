@@ -50,6 +50,7 @@ class Assembly:
     class_factor: np.ndarray | None = None  # discharge factor per class at the last mixer
     product_split: object = None  # callable(list of discharge vectors) -> (product, recycle)
     flow_multiplier: float = 1.0  # mill through-flow / fresh feed at nominal (recycle)
+    aggregates: dict = field(default_factory=dict)  # name -> (SX symbol z, SX expression of x)
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -75,10 +76,19 @@ class Assembly:
     def hardness_scale(self):
         return self.d[self.n_components]
 
+    def aggregate(self, name: str, expr):
+        """A scalar sum over many states (a hold-up, a soft mass) as an algebraic variable
+        z = expr. Terms that use z keep the Jacobian sparse (the integrator solves the DAE);
+        ``Model.f`` substitutes z back for a plain ODE."""
+        if name not in self.aggregates:
+            self.aggregates[name] = (ca.SX.sym(name), expr)
+        return self.aggregates[name][0]
+
     def holdup(self, k: int | None = None):
-        """Total hold-up [t], of one mixer or of the mill."""
+        """Total hold-up [t], of one mixer or of the mill (algebraic aggregates)."""
         ks = range(self.n_mixers) if k is None else [k]
-        return sum(ca.sum1(self.mass[c][kk]) for c in range(self.n_components) for kk in ks)
+        return sum(self.aggregate(f"holdup_{kk}_t", sum(ca.sum1(self.mass[c][kk]) for c in range(self.n_components)))
+                   for kk in ks)
 
     def class_mass(self, k: int | None = None):
         """Mass per size class summed over components [t] (of one mixer, or of the mill)."""

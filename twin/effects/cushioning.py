@@ -26,8 +26,8 @@ class Cushioning(Effect):
         k_power = asm.param("cushioning_power_coeff", spec.coefficients["cushioning_power_coeff"], "-",
                             "calibration.json")
         total = asm.holdup()
-        soft = sum(spec.soft_frac[c] * ca.sum1(asm.mass[c][k])
-                   for c in range(asm.n_components) for k in range(asm.n_mixers))
+        soft = asm.aggregate("soft_mass_t", sum(spec.soft_frac[c] * ca.sum1(asm.mass[c][k])
+                                                for c in range(asm.n_components) for k in range(asm.n_mixers)))
         # in an empty mill the soft fraction is that of the feed blend
         feed_soft = sum(spec.soft_frac[c] * asm.blend(c) for c in range(asm.n_components))
         eps = 1e-6 * spec.holdup_nominal_t

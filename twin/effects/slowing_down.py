@@ -27,7 +27,7 @@ class SlowingDown(Effect):
         w = ca.DM(grid.passing_weights(FINES_SIZE_UM))
         m = asm.class_mass()
         eps = 1e-9
-        fines = ca.dot(w, m) / (ca.sum1(m) + eps)
+        fines = asm.aggregate("fines_mass_t", ca.dot(w, m)) / (asm.holdup() + eps)
         k = asm.param("slowing_down_slope", SLOPE, "-", "Austin et al. 1984")
         f0 = asm.param("slowing_down_onset_frac", ONSET_FINES_FRAC, "-", "Austin et al. 1984")
         asm.rate_factors.append(1.0 / (1.0 + k * smooth_max(fines - f0, 0.0, 0.02)))

@@ -1,0 +1,44 @@
+import numpy as np
+import pytest
+
+from twin.errors import TwinInputError
+from twin.simulate import integrate_constant
+
+
+def test_newton_steady_state_agrees_with_long_integration(twin_b):
+    m = twin_b.model
+    ss = twin_b.steady(feed_tph=0.035, speed_frac_critical=0.75)
+    x_long = integrate_constant(m, m.initial_state(), 40.0, ss.u, ss.d, rtol=1e-11, atol_rel=1e-13)
+    assert np.abs(x_long - ss.x).max() / ss.x.sum() < 1e-7
+    assert ss.outputs["throughput_tph"] == pytest.approx(0.035, rel=1e-9)
+
+
+def test_steady_at_constant_load_holds_nominal_holdup(twin_b):
+    ss = twin_b.steady_at_constant_load()
+    assert ss.outputs["load_frac"] == pytest.approx(1.0, abs=1e-9)
+    assert ss.load_status == "stable"
+    assert ss.outputs["specific_energy_kwh_t"] == pytest.approx(
+        ss.outputs["power_kw"] / ss.feed_tph, rel=1e-6)
+
+
+def test_more_feed_coarsens_product_and_loads_the_mill(twin_b):
+    lo = twin_b.steady(feed_tph=0.025)
+    hi = twin_b.steady(feed_tph=0.040)
+    assert hi.p80_um > lo.p80_um
+    assert hi.outputs["holdup_t"] > lo.outputs["holdup_t"]
+    assert hi.outputs["specific_energy_kwh_t"] < lo.outputs["specific_energy_kwh_t"]
+
+
+def test_smooth_p80_output_is_close_to_exact(twin_b):
+    ss = twin_b.steady()
+    assert ss.outputs["p80_um"] == pytest.approx(ss.p80_um, rel=0.013)
+
+
+def test_steady_state_of_batch_mill_is_refused(batch_b):
+    with pytest.raises(TwinInputError, match="needs the 'transport' effect"):
+        batch_b.steady()
+
+
+def test_bad_speed_is_named(twin_b):
+    with pytest.raises(TwinInputError, match="'speed_frac_critical' parameter of Twin must be a float in \\(0, 1\\). Got 1.3"):
+        twin_b.steady(speed_frac_critical=1.3)

@@ -1,0 +1,133 @@
+"""Calibration of the mineralogy -> breakage map and of the laboratory mill against the
+reference table (``twin/data/reference_table.csv``, MISSION.md).
+
+What is fitted here, to that table (12 numbers: P80, specific energy, throughput at constant
+load for A-D): S^E_ref, the hardness and texture exponents of the breakage map, the two
+cushioning coefficients, the laboratory mill's power factor and grate cut size. Nothing else.
+The DEM calibration (a separate issue) is to replace the map's S^E by values derived from
+virtual breakage tests, leaving fewer numbers fitted to the table.
+
+Run: ``grindtwin calibrate`` (or ``python -m twin.calibration``); writes
+``twin/data/calibration.json`` with the command, versions, the fitted values and the errors.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import platform
+import sys
+import time
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import scipy.optimize
+
+from .breakage_map import COEFFICIENT_NAMES
+
+#: Start of the fit and bounds (log-space for positive values); only a starting point.
+START = {"se_ref_t_kwh": 1.0, "hardness_exponent": 1.0, "texture_exponent": 0.5, "alpha_texture_exponent": 0.3,
+         "cushioning_rate_coeff": 1.0, "cushioning_power_coeff": 0.5,
+         "lab_power_factor": 1.2, "lab_grate_d50_um": 400.0}
+#: Signs are physical: harder minerals and finer textures never speed breakage up, cushioning
+#: never adds energy.
+BOUNDS = {"se_ref_t_kwh": (0.05, 20.0), "hardness_exponent": (0.0, 5.0), "texture_exponent": (0.0, 5.0),
+          "alpha_texture_exponent": (-1.0, 2.0),
+          "cushioning_rate_coeff": (0.0, 20.0), "cushioning_power_coeff": (0.0, 20.0),
+          "lab_power_factor": (0.3, 3.0), "lab_grate_d50_um": (50.0, 3000.0)}
+NAMES = tuple(START)
+KPIS = ("p80_um", "specific_energy_kwh_t", "throughput_kg_h")
+
+
+def reference_table() -> dict:
+    text = resources.files("twin").joinpath("data", "reference_table.csv").read_text(encoding="utf-8")
+    rows = csv.DictReader([ln for ln in text.splitlines() if ln and not ln.startswith("#")])
+    return {r["ore"]: {k: float(r[k]) for k in KPIS} for r in rows}
+
+
+def calibration_dict(values: dict) -> dict:
+    return {"coefficients": {k: values[k] for k in COEFFICIENT_NAMES},
+            "mills": {"lab": {"power_factor": values["lab_power_factor"],
+                              "grate_d50_um": values["lab_grate_d50_um"]}}}
+
+
+def predict(values: dict, ores=("A", "B", "C", "D"), **twin_kwargs) -> dict:
+    """Steady state at constant load, 70 % critical, in the laboratory mill, per ore."""
+    from .twin import Twin
+
+    out = {}
+    for ore in ores:
+        ss = Twin(ore, mill="lab", calibration=calibration_dict(values), **twin_kwargs) \
+            .steady_at_constant_load(speed_frac_critical=0.70)
+        out[ore] = {"p80_um": ss.p80_um, "specific_energy_kwh_t": ss.outputs["specific_energy_kwh_t"],
+                    "throughput_kg_h": ss.feed_tph * 1000.0}
+    return out
+
+
+def _residuals(z, ref):
+    values = _unpack(z)
+    try:
+        pred = predict(values)
+    except Exception:  # a failed steady state is a bad point for the optimiser, not a crash
+        return np.full(len(ref) * len(KPIS), 10.0)
+    return np.array([np.log(pred[o][k] / ref[o][k]) for o in ref for k in KPIS])
+
+
+def _pack(values):
+    return np.array([np.log(values[n]) if BOUNDS[n][0] > 0 else values[n] for n in NAMES])
+
+
+def _unpack(z):
+    return {n: float(np.exp(v)) if BOUNDS[n][0] > 0 else float(v) for n, v in zip(NAMES, z)}
+
+
+def fit(max_nfev: int = 200, verbose: int = 0) -> dict:
+    """Least squares on log-ratios of predicted to reference KPIs; returns the record to save."""
+    ref = reference_table()
+    lo = np.array([np.log(BOUNDS[n][0]) if BOUNDS[n][0] > 0 else BOUNDS[n][0] for n in NAMES])
+    hi = np.array([np.log(BOUNDS[n][1]) if BOUNDS[n][0] > 0 else BOUNDS[n][1] for n in NAMES])
+    t0 = time.perf_counter()
+    sol = scipy.optimize.least_squares(_residuals, _pack(START), args=(ref,), bounds=(lo, hi),
+                                       x_scale=1.0, diff_step=1e-4, max_nfev=max_nfev, verbose=verbose)
+    values = _unpack(sol.x)
+    pred = predict(values)
+    errors = {o: {k: 100.0 * (pred[o][k] / ref[o][k] - 1.0) for k in KPIS} for o in ref}
+    record = calibration_dict(values)
+    record["fit"] = {
+        "fitted_to": "twin/data/reference_table.csv (MISSION.md reference table)",
+        "parameters_fitted": list(NAMES),
+        "predicted": pred, "error_pct": errors,
+        "max_abs_error_pct": max(abs(e) for row in errors.values() for e in row.values()),
+        "optimizer": {"status": int(sol.status), "message": str(sol.message), "nfev": int(sol.nfev),
+                      "cost": float(sol.cost), "seconds": time.perf_counter() - t0},
+    }
+    return record
+
+
+def provenance(command: str) -> dict:
+    import casadi
+    import scipy
+
+    return {"command": command, "python": platform.python_version(), "numpy": np.__version__,
+            "scipy": scipy.__version__, "casadi": casadi.__version__, "seed": None,
+            "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="grindtwin calibrate", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", type=Path, default=Path(str(resources.files("twin").joinpath("data", "calibration.json"))))
+    ap.add_argument("--fast", action="store_true", help="fewer optimiser evaluations (a quick check)")
+    args = ap.parse_args(argv)
+    record = fit(max_nfev=12 if args.fast else 80)
+    record["provenance"] = provenance("grindtwin calibrate" + (" --fast" if args.fast else ""))
+    tmp = args.out.with_suffix(".tmp")
+    tmp.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+    tmp.replace(args.out)  # nothing half-written
+    print(f"wrote {args.out}: max |error| {record['fit']['max_abs_error_pct']:.2f} %")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
