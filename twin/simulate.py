@@ -186,3 +186,15 @@ def batch_exact(selection_per_h: np.ndarray, b: np.ndarray, m0: np.ndarray, t_h:
     Reid 1965 gives the same in closed form for distinct S)."""
     A = (b - np.eye(len(m0))) * np.asarray(selection_per_h)[None, :]
     return scipy.linalg.expm(A * t_h) @ np.asarray(m0, float)
+
+
+def step(model, x, u, d, dt_h: float, rtol: float = RTOL, atol_rel: float = ATOL_REL):
+    """Advance the plant one sample period at constant inputs (restarting the integrator, as a
+    closed loop must when its inputs jump). Returns (x_next, fed_t, produced_t)."""
+    F = step_integrator(model, float(dt_h), rtol, atol_rel)
+    try:
+        out = F(x0=x, z0=_z0(F, model, x), p=np.concatenate([np.asarray(u, float), np.asarray(d, float)]))
+    except RuntimeError as exc:
+        raise SolverError(f"The integrator failed over one {dt_h} h step: {exc}") from exc
+    q = np.asarray(out["qf"]).ravel()
+    return _clean(model, np.asarray(out["xf"]).ravel(), "plant step"), float(q[0]), float(q[1])
