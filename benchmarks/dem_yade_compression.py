@@ -1,11 +1,12 @@
 # Yade script (run inside Yade: ``yade -n -x benchmarks/dem_yade_compression.py PACK OUT``).
 # Yade is a benchmark peer only, never a dependency of grindtwin.
 # The test: sphere D = 22 mm of dense random packing (read from PACK, the same packing
-# as the grindtwin run), radii r(1 ± 0.25), bonds between neighbours within 1.3 (R1 + R2),
-# E = 30 GPa, ks/kn = 0.4, tensile 10 MPa, cohesion 20 MPa, friction 30°, density 2700 kg/m³
+# as the grindtwin run), radii r(1 +- 0.25), bonds between neighbours within 1.3 (R1 + R2),
+# E = 30 GPa, ks/kn = 0.4, tensile 10 MPa, cohesion 20 MPa, friction 30 deg, density 2700 kg/m3
 # (scaled by the solid fraction like grindtwin), platen speed 0.1 m/s, local damping 0.7.
-# Yade's CohFrictMat bonds are linear springs with kn = 2 E R1 R2 / (R1 + R2), ks = 0.4 kn
-# (poisson = ks/kn), normal/shear strengths times pi min(R)^2, moments on (Law2 ..._CohesionMoment).
+# Yade's bonded rock model JCFpm (Scholtes & Donze 2012): linear bonds kn = 2 E R1 R2/(R1+R2),
+# ks = poisson * kn = 0.4 kn, strengths times pi min(R)^2, stress-free at creation (initD),
+# no bond moments; broken bonds become frictional linear contacts.
 import math
 import sys
 import time
@@ -13,10 +14,9 @@ import time
 pack, out = sys.argv[1], sys.argv[2]
 rows = [list(map(float, l.split())) for l in open(pack) if l.strip() and not l.startswith("#")]
 solid = float(open(pack).readline().split()[-1])
-mat = O.materials.append(CohFrictMat(young=30e9, poisson=0.4, frictionAngle=math.radians(30),
-                                     density=2700.0 / solid, normalCohesion=10e6,
-                                     shearCohesion=20e6, isCohesive=True, momentRotationLaw=True,
-                                     label="rock"))
+mat = O.materials.append(JCFpmMat(young=30e9, poisson=0.4, frictionAngle=math.radians(30),
+                                  density=2700.0 / solid, tensileStrength=10e6, cohesion=20e6,
+                                  label="rock"))
 wmat = O.materials.append(FrictMat(young=210e9, poisson=0.3, frictionAngle=math.radians(30),
                                    density=7800, label="steel"))
 for x, y, z, r in rows:
@@ -32,17 +32,16 @@ O.engines = [
     ForceResetter(),
     InsertionSortCollider([Bo1_Sphere_Aabb(aabbEnlargeFactor=1.3, label="aabb"), Bo1_Wall_Aabb()]),
     InteractionLoop(
-        [Ig2_Sphere_Sphere_ScGeom6D(interactionDetectionFactor=1.3, label="ig2"), Ig2_Wall_Sphere_ScGeom()],
-        [Ip2_CohFrictMat_CohFrictMat_CohFrictPhys(setCohesionNow=True, setCohesionOnNewContacts=False),
-         Ip2_FrictMat_FrictMat_FrictPhys()],
-        [Law2_ScGeom6D_CohFrictPhys_CohesionMoment(), Law2_ScGeom_FrictPhys_CundallStrack()]),
+        [Ig2_Sphere_Sphere_ScGeom(interactionDetectionFactor=1.3, label="ig2"), Ig2_Wall_Sphere_ScGeom()],
+        [Ip2_JCFpmMat_JCFpmMat_JCFpmPhys(cohesiveTresholdIteration=1), Ip2_FrictMat_FrictMat_FrictPhys()],
+        [Law2_ScGeom_JCFpmPhys_JointedCohesiveFrictionalPM(), Law2_ScGeom_FrictPhys_CundallStrack()]),
     NewtonIntegrator(damping=0.7),
 ]
 O.dt = 0.5 * PWaveTimeStep()
 O.step()
 aabb.aabbEnlargeFactor = 1.0
 ig2.interactionDetectionFactor = 1.0
-n_bonds = sum(1 for i in O.interactions if isinstance(i.phys, CohFrictPhys) and i.phys.cohesionBroken is False)
+n_bonds = sum(1 for i in O.interactions if isinstance(i.phys, JCFpmPhys) and i.phys.isCohesive)
 rec = []
 peak = 0.0
 t0 = time.time()
@@ -50,8 +49,8 @@ steps = 0
 while True:
     O.run(200, True)
     steps += 200
-    ft = -O.forces.f(top)[2]
-    fb = O.forces.f(bot)[2]
+    ft = O.forces.f(top)[2]
+    fb = -O.forces.f(bot)[2]
     disp = zhi - O.bodies[top].state.pos[2]
     rec.append((O.time, disp, ft, fb))
     peak = max(peak, ft)
