@@ -1,0 +1,45 @@
+"""`grindtwin steady` end to end, through the console entry point's main()."""
+
+import json
+
+import pytest
+
+from scenarios.cli import main
+
+
+def test_steady_json_has_unit_suffixed_kpis(capsys):
+    assert main(["steady", "--ore", "B", "--feed-tph", "0.031", "--speed", "0.70", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert 150 < out["p80_um"] < 300 and 5 < out["specific_energy_kwh_t"] < 20
+    assert out["throughput_tph"] == pytest.approx(0.031, rel=1e-6)
+    assert out["load_status"] in ("under", "stable", "over")
+    assert out["mineralogy"]["B"]["wt_pct"]["quartz"] == pytest.approx(40.0)
+
+
+def test_steady_blend_at_constant_load(capsys):
+    assert main(["steady", "--blend", "B=0.6,D=0.4", "--at-constant-load", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["load_frac"] == pytest.approx(1.0, abs=1e-6)
+    assert set(out["blend"]) == {"B", "D"}
+
+
+def test_steady_ore_from_toml(tmp_path, capsys):
+    ore = tmp_path / "quartzite.toml"
+    ore.write_text("[mineralogy]\nquartz = 90.0\nk_feldspar = 10.0\n[texture]\nmean_grain_um = 300.0\n")
+    assert main(["steady", "--ore", str(ore), "--feed-tph", "0.03", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["mineralogy"]["quartzite"]["hardness_index_gpa"] > 10
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["steady", "--speed", "1.3"], "--speed must be in (0, 1). Got 1.3."),
+    (["steady", "--feed-tph", "-1"], "--feed-tph must be in [0, 100000]. Got -1."),
+    (["steady", "--ore", "E"], "must be a reference type (A, B, C, D)"),
+    (["steady", "--blend", "B=0.6,D=0.3"], "must sum to 1"),
+])
+def test_bad_arguments_give_one_line_and_exit_2(argv, message, capsys):
+    with pytest.raises(SystemExit) as exc:
+        code = main(argv)
+        raise SystemExit(code)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and "Traceback" not in err
