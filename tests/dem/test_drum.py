@@ -42,3 +42,20 @@ def test_drum_input_validation():
         drum_test(-0.1, 0.35)
     with pytest.raises(DemInputError, match="section_length_m"):
         drum_test(0.7, 0.35, section_length_m=0.01)
+
+
+def test_shell_and_lifter_contacts_push_inwards_and_load_the_drum():
+    from dem.materials import Material
+    from dem.system import DrumGeometry, System
+
+    mat = Material(youngs_modulus_Pa=1e9, friction_coef=0.3, restitution=0.7)
+    r = 0.01
+    # ball 0 presses on the shell at the bottom; ball 1 touches the side of lifter 0 (angle 0)
+    drum = DrumGeometry(0.25, 1.0, n_lifters=1, lifter_height_m=0.02, lifter_width_m=0.01)
+    pos = [[0.0, -(0.25 - r + 1e-4), 0.05], [0.235, 0.005 + r - 1e-4, 0.05]]
+    s = System(pos, [r, r], mat, drum=drum, periodic_z_m=0.1)
+    f_shell = 4 / 3 * s.cp[0 + 4] * math.sqrt(r) * (1e-4) ** 1.5
+    assert s.force[0, 1] == pytest.approx(f_shell, rel=1e-9)  # along +y, towards the axis
+    assert s.force[1, 1] > 0 and abs(s.force[1, 0]) < 1e-2 * s.force[1, 1]  # only tangential damping
+    # the lifter force on the drum (-y at x = 0.235) turns it clockwise: negative torque
+    assert s._forces(0.0)[1] < 0
