@@ -1,0 +1,232 @@
+"""The ``grindtwin`` subcommands around scenes: run, replay, sweep, check, report.
+
+Each command is a pair ``add_<name>_parser(subparsers)`` / ``cmd_<name>(args) -> int``, to be
+registered in :mod:`scenarios.cli`. Every ``cmd_*`` returns its exit code itself: 0 success,
+2 bad input (one clear message on stderr, no traceback), 1 a run that failed (with the
+reason), so it behaves the same however it is called.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import sys
+from pathlib import Path
+
+from scenarios.errors import RunError, SceneError
+
+
+def _fail(kind: str, command: str, exc: BaseException) -> int:
+    if kind == "input":
+        sys.stderr.write(f"grindtwin: error: {exc}\n")
+        return 2
+    sys.stderr.write(f"grindtwin: {command} failed: {exc}\n")
+    return 1
+
+
+def _exit_codes(command: str):
+    """Map the exception families to exit codes (2 bad input, 1 failed run)."""
+
+    def wrap(fn):
+        @functools.wraps(fn)
+        def inner(args) -> int:
+            from twin.errors import TwinError, TwinInputError
+
+            try:
+                return fn(args)
+            except (SceneError, TwinInputError) as exc:
+                return _fail("input", command, exc)
+            except (RunError, TwinError) as exc:
+                return _fail("run", command, exc)
+            except OSError as exc:
+                return _fail("run", command, exc)
+        return inner
+    return wrap
+
+
+def _print_kpis(summary: dict, out=None) -> None:
+    out = out or sys.stdout
+    out.write(f"{summary['scene']} ({summary.get('mode')}, controller {summary.get('controller')})\n")
+    for key, value in summary["kpis"].items():
+        if value is None or (isinstance(value, float) and not math.isfinite(value)):
+            text = "n/a"
+        else:
+            text = f"{value:.4g}"
+        out.write(f"  {key:26s} {text}\n")
+
+
+def _add_output_options(p) -> None:
+    p.add_argument("--out", help="write the results into this folder (created; replaced when complete)")
+    p.add_argument("--csv", action="store_true", help="also write timeseries.csv")
+    p.add_argument("--no-plots", action="store_true", help="do not draw the PNG plots")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+# --------------------------------------------------------------------------- run
+def add_run_parser(subparsers):
+    p = subparsers.add_parser("run", help="run a scene (open or closed loop) and write its results",
+                              description="Run SCENE.toml: the twin driven by the scene's feed "
+                              "schedule, open loop or with its controller; KPIs on stdout.")
+    p.add_argument("scene", help="scene file (TOML)")
+    _add_output_options(p)
+    p.set_defaults(func=cmd_run)
+    return p
+
+
+@_exit_codes("run")
+def cmd_run(args) -> int:
+    from scenarios.loader import load_scene
+    from scenarios.runner import run_scene
+
+    scene = load_scene(args.scene)
+    result = run_scene(scene, out_dir=args.out, progress=not args.quiet, csv=args.csv,
+                       plots=not args.no_plots)
+    _print_kpis(result.summary)
+    if result.out_dir is not None:
+        print(f"results in {result.out_dir}")
+    return 0
+
+
+# --------------------------------------------------------------------------- replay
+def add_replay_parser(subparsers):
+    p = subparsers.add_parser("replay", help="drive a scene with recorded plant data",
+                              description="Replay a recorded history (CSV or Parquet: timestamp, "
+                              "mineral wt%% or ore fractions, optionally recorded feed_tph, "
+                              "speed_frac_critical, p80_um) through SCENE.toml; the run's inputs and "
+                              "P80 sit beside the recorded ones.")
+    p.add_argument("scene", help="scene file (TOML)")
+    p.add_argument("--history", required=True, help="recorded history, .csv or .parquet")
+    _add_output_options(p)
+    p.set_defaults(func=cmd_replay)
+    return p
+
+
+@_exit_codes("replay")
+def cmd_replay(args) -> int:
+    from scenarios.loader import load_scene
+    from scenarios.runner import replay_scene
+
+    if not Path(args.history).is_file():
+        raise SceneError(f"{args.history}: history file not found")
+    result = replay_scene(load_scene(args.scene), args.history, out_dir=args.out,
+                          progress=not args.quiet, csv=args.csv, plots=not args.no_plots)
+    _print_kpis(result.summary)
+    for key, value in result.summary.get("replay", {}).get("run_minus_recorded", {}).items():
+        print(f"  {key:26s} {value:.4g}")
+    if result.out_dir is not None:
+        print(f"results in {result.out_dir}")
+    return 0
+
+
+# --------------------------------------------------------------------------- sweep
+def sweep_case(scene) -> dict:
+    """The sweep's ``run_case``: run the scene quietly, return its KPIs (picklable: module level)."""
+    from scenarios.runner import run_scene
+
+    return dict(run_scene(scene, out_dir=None, progress=False).kpis)
+
+
+def add_sweep_parser(subparsers):
+    p = subparsers.add_parser("sweep", help="what-if study: vary scene keys, one row per case",
+                              description="Run SCENE.toml for every combination (cartesian) or "
+                              "every i-th tuple (paired) of the varied keys; a local process pool "
+                              "by default, a Dask cluster with --scheduler.")
+    p.add_argument("scene", help="scene file (TOML)")
+    p.add_argument("--vary", action="append", required=True, metavar="KEY=v1,v2,...",
+                   help="a scene key path and its values (or start:stop:step); repeatable")
+    p.add_argument("--mode", choices=["cartesian", "paired"], default="cartesian")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--workers", type=int, default=None, help="local processes (default: all cores)")
+    g.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://host:8786")
+    p.add_argument("--out", help="write sweep.csv and sweep.parquet into this folder")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_sweep)
+    return p
+
+
+@_exit_codes("sweep")
+def cmd_sweep(args) -> int:
+    import pandas as pd
+
+    from scenarios.sweep import parse_vary, run_sweep
+
+    if args.workers is not None and args.workers < 1:
+        raise SceneError(f"--workers must be >= 1 (got {args.workers})")
+    vary = {}
+    for text in args.vary:
+        key, values = parse_vary(text)
+        if key in vary:
+            raise SceneError(f"--vary {key}: given twice")
+        vary[key] = values
+    table = run_sweep(args.scene, vary, sweep_case, mode=args.mode, workers=args.workers,
+                      scheduler=args.scheduler, progress=not args.quiet)
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        tmp = out / "sweep.csv.partial"
+        table.to_csv(tmp, index=False)
+        tmp.replace(out / "sweep.csv")
+        flat = table.copy()
+        for c in flat.columns:  # blends etc. are dicts: parquet wants plain columns
+            if flat[c].map(lambda v: isinstance(v, (dict, list))).any():
+                flat[c] = flat[c].map(str)
+        tmp = out / "sweep.parquet.partial"
+        flat.to_parquet(tmp, index=False)
+        tmp.replace(out / "sweep.parquet")
+    cols = ["case", *vary, "p80_iae_um_h", "specific_energy_kwh_t", "throughput_t", "error"]
+    with pd.option_context("display.width", 160, "display.max_columns", 20):
+        print(table[[c for c in cols if c in table.columns]].to_string(index=False))
+    failed = int(table["error"].notna().sum())
+    if failed:
+        sys.stderr.write(f"grindtwin: sweep: {failed} of {len(table)} cases failed (see the error column)\n")
+        return 1 if failed == len(table) else 0
+    return 0
+
+
+# --------------------------------------------------------------------------- check
+def add_check_parser(subparsers):
+    p = subparsers.add_parser("check", help="validate scene files only (exit 2 listing every problem)")
+    p.add_argument("scenes", nargs="+", metavar="SCENE", help="scene file(s) (TOML)")
+    p.set_defaults(func=cmd_check)
+    return p
+
+
+def cmd_check(args) -> int:
+    from scenarios.loader import check_scene
+
+    bad = 0
+    for path in args.scenes:
+        messages = check_scene(path)
+        if messages:
+            bad += 1
+            for m in messages:
+                sys.stderr.write(f"{m}\n")
+        else:
+            print(f"{path}: OK")
+    return 2 if bad else 0
+
+
+# --------------------------------------------------------------------------- report
+def add_report_parser(subparsers):
+    p = subparsers.add_parser("report", help="write RUN_DIR/report.html: KPI table and plots, self-contained")
+    p.add_argument("run_dir", help="a folder written by grindtwin run --out")
+    p.set_defaults(func=cmd_report)
+    return p
+
+
+@_exit_codes("report")
+def cmd_report(args) -> int:
+    from scenarios.report import write_report
+
+    print(write_report(args.run_dir))
+    return 0
+
+
+#: name -> (add_parser, cmd) for registration in scenarios.cli.
+COMMANDS = {
+    "run": (add_run_parser, cmd_run),
+    "replay": (add_replay_parser, cmd_replay),
+    "sweep": (add_sweep_parser, cmd_sweep),
+    "check": (add_check_parser, cmd_check),
+    "report": (add_report_parser, cmd_report),
+}
