@@ -1,0 +1,205 @@
+"""The runner: a scene becomes a run with KPIs in physical ranges; batch grinds; mineralogy
+histories mapped to ores; replays; no half-written result presented as complete."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from scenarios.errors import RunError
+from scenarios.runner import (_require, mineralogy_to_blend, replay_scene, run_scene)
+
+LIBRARY = Path(__file__).resolve().parents[2] / "scenarios"
+
+
+def short_pyrite_scene(tmp_path: Path, duration_h: float = 1.0, target_p80_um: float = 250.0) -> Path:
+    """The library's pyrite surge, shortened (duration d: B, pyrite-rich B from 0.3 d, B again
+    from 0.6 d), on a coarser grid (13 classes, ratio 2, one mixer) so that tests run fast."""
+    text = (LIBRARY / "pyrite_surge.toml").read_text()
+    for old, new in (("duration_h = 6.0", f"duration_h = {duration_h}"),
+                     ("at_h = 2.0", f"at_h = {0.3 * duration_h:g}"),
+                     ("at_h = 4.0", f"at_h = {0.6 * duration_h:g}"),
+                     ('preset = "industrial"', 'preset = "industrial"\nn_mixers = 1\n'
+                      'size_classes = { ratio = 2.0, count = 13 }'),
+                     ('kind = "none"', f'kind = "none"\ntarget_p80_um = {target_p80_um}')):
+        assert old in text
+        text = text.replace(old, new)
+    path = tmp_path / "short.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture(scope="module")
+def short_run(tmp_path_factory):
+    """One open-loop run of the short scene (1 h, target 250 um), shared by several tests."""
+    return run_scene(short_pyrite_scene(tmp_path_factory.mktemp("short")), progress=False)
+
+
+def test_open_loop_run_kpis_in_physical_ranges(short_run):
+    res = short_run
+    k = res.kpis
+    fr = res.frame
+    assert len(fr) == 61 and fr["time_h"].iloc[-1] == pytest.approx(1.0)
+    # 30 t/h for 1 h, from steady state: about 30 t fed and produced
+    assert k["fed_t"] == pytest.approx(30.0, rel=1e-9)
+    assert k["throughput_t"] == pytest.approx(30.0, rel=0.02)
+    assert 3.0 < k["specific_energy_kwh_t"] < 30.0
+    # specific energy = energy / feed, and energy = integral of power
+    assert k["specific_energy_kwh_t"] == pytest.approx(k["energy_kwh"] / k["fed_t"])
+    assert k["energy_kwh"] == pytest.approx(np.trapezoid(fr["power_kw"], fr["time_h"]))
+    assert k["mass_balance_error"] < 1e-6
+    assert 50.0 < k["p80_final_um"] < 1000.0
+    assert k["load_outside_band_frac"] == 0.0
+    # open loop: no solver ran, solve times are NaN (not 0)
+    assert math.isnan(k["solve_time_median_s"]) and math.isnan(k["solve_time_p95_s"])
+    # the schedule reached the plant: the pyrite-rich ore draws more power
+    pw = fr.set_index("time_h")["power_kw"]
+    assert pw.loc[0.6 - 1e-9:0.61].iloc[0] > pw.iloc[0] * 1.05
+    assert {"blend_B_ref_frac", "blend_B_pyrite_frac", "p80_um", "load_frac"} <= set(fr.columns)
+    assert res.summary["mode"] == "open_loop" and res.summary["seed"] == 3
+
+
+def test_target_kpis_follow_their_definition(short_run):
+    fr = short_run.frame
+    err = np.abs(fr["p80_um"] - 250.0)
+    assert short_run.kpis["p80_iae_um_h"] == pytest.approx(np.trapezoid(err, fr["time_h"]))
+    assert short_run.kpis["p80_within_10um_frac"] == pytest.approx(float(np.mean(err <= 10)))
+    assert short_run.kpis["p80_iae_um_h"] > 0
+
+
+def test_no_target_means_no_p80_kpis(short_run):
+    from scenarios.runner import compute_kpis
+
+    scene = short_run.summary  # the KPIs are a function of the frame and the scene's target
+    assert scene["target_p80_um"] == 250.0
+    from scenarios.loader import load_scene
+
+    bare = load_scene(LIBRARY / "pyrite_surge.toml")
+    k = compute_kpis(bare, short_run.frame)
+    assert math.isnan(k["p80_iae_um_h"]) and math.isnan(k["p80_within_10um_frac"])
+
+
+def test_batch_grind_refines_the_charge():
+    res = run_scene(LIBRARY / "batch_50B_50D.toml", progress=False)
+    k = res.kpis
+    assert res.summary["mode"] == "batch"
+    assert k["throughput_t"] == pytest.approx(0.012)
+    p80 = res.frame["p80_um"].to_numpy()
+    assert p80[0] > 2000 and p80[-1] < 0.3 * p80[0]
+    assert np.all(np.diff(p80) <= 1e-6)  # a batch grind only gets finer
+    assert 1.0 < k["specific_energy_kwh_t"] < 100.0
+    assert k["mass_balance_error"] < 1e-9
+    assert math.isnan(k["load_outside_band_frac"])
+    # size distributions over time: passing at any size grows
+    psd = res.psd.to_numpy()
+    assert psd.shape[0] >= 2 and np.all(np.diff(psd, axis=0) >= -1e-9)
+
+
+def test_mineralogy_rows_are_mapped_to_the_ores_by_nnls():
+    from twin.ores import reference_ores
+
+    ores = {n: reference_ores()[n] for n in ("B", "D")}
+    minerals = sorted(set(ores["B"].wt_pct) | set(ores["D"].wt_pct))
+    mix = {m: 0.6 * ores["B"].wt_pct.get(m, 0) + 0.4 * ores["D"].wt_pct.get(m, 0) for m in minerals}
+    rows = pd.DataFrame([{f"{m}_wt_pct": v for m, v in mix.items()},
+                         {f"{m}_wt_pct": ores["D"].wt_pct.get(m, 0) for m in minerals}])
+    fr, resid = mineralogy_to_blend(rows, ores)
+    assert fr[0] == pytest.approx([0.6, 0.4], abs=1e-6)
+    assert fr[1] == pytest.approx([0.0, 1.0], abs=1e-6)
+    assert resid == pytest.approx([0, 0], abs=1e-6)
+    # a mineralogy that is no mix of B and D: fractions still a blend, residual reported
+    odd = pd.DataFrame([{"quartz_wt_pct": 100.0}])
+    fr, resid = mineralogy_to_blend(odd, ores)
+    assert fr.sum() == pytest.approx(1.0) and np.all(fr >= 0) and resid[0] > 10
+
+
+def _history_csv(tmp_path: Path) -> Path:
+    t = pd.date_range("2026-01-15T00:00", periods=31, freq="1min")
+    feed = np.where(np.arange(31) < 15, 30.0, 33.0)
+    df = pd.DataFrame({"timestamp": t.strftime("%Y-%m-%dT%H:%M:%S"), "ore_B_ref_frac": 1.0,
+                       "ore_B_pyrite_frac": 0.0, "feed_tph": feed, "speed_frac_critical": 0.70,
+                       "p80_um": 260.0})
+    path = tmp_path / "hist.csv"
+    df.to_csv(path, index=False)
+    return path
+
+
+def test_replay_drives_the_recorded_inputs_and_compares(tmp_path):
+    scene = short_pyrite_scene(tmp_path, duration_h=0.5)
+    res = replay_scene(scene, _history_csv(tmp_path), progress=False)
+    fr = res.frame
+    assert {"recorded_feed_tph", "recorded_speed_frac_critical", "recorded_p80_um"} <= set(fr.columns)
+    np.testing.assert_allclose(fr["feed_tph"], fr["recorded_feed_tph"])
+    cmp = res.summary["replay"]["run_minus_recorded"]
+    assert cmp["feed_tph_mean_abs_diff"] == pytest.approx(0.0)
+    assert cmp["p80_um_mean_diff"] == pytest.approx(float(np.mean(fr["p80_um"] - 260.0)))
+    assert res.kpis["fed_t"] == pytest.approx(0.25 * 30 + 0.25 * 33, rel=1e-6)
+
+
+def test_missing_controller_module_is_a_run_error():
+    with pytest.raises(RunError, match="controller kind 'nmpc' needs mpc.no_such_module, not available"):
+        _require("mpc.no_such_module", "nmpc")
+
+
+def test_written_run_is_complete_and_json_has_no_nan(short_run, tmp_path):
+    from scenarios.outputs import write_run
+
+    out = tmp_path / "run"
+    assert write_run(short_run, out, csv=True, plots=False) == out
+    names = {p.name for p in out.iterdir()}
+    assert {"timeseries.parquet", "timeseries.csv", "summary.json", "product_psd.csv"} <= names
+    assert not any(n.endswith(".partial") or n == "_INCOMPLETE" for n in names)
+    text = (out / "summary.json").read_text()
+    summary = json.loads(text)
+    assert "NaN" not in text  # strict JSON: undefined KPIs are null
+    assert summary["kpis"]["solve_time_median_s"] is None
+    assert summary["scene"] == "pyrite_surge" and summary["seed"] == 3
+    assert "Effects:" in summary["model"] and summary["versions"]["numpy"]
+    assert summary["effects"] == ["breakage", "transport", "holdup", "speed", "cushioning", "power"]
+    back = pd.read_parquet(out / "timeseries.parquet")
+    pd.testing.assert_frame_equal(back, short_run.frame, check_dtype=False)
+
+
+@pytest.mark.parametrize("where", ["plots", "summary"])
+def test_interrupted_write_leaves_no_complete_looking_output(short_run, tmp_path, monkeypatch, where):
+    import scenarios.outputs as outputs
+
+    out = tmp_path / "run"
+    outputs.write_run(short_run, out, plots=False)
+    before = (out / "summary.json").read_text()
+
+    def boom(*args, **kwargs):
+        raise KeyboardInterrupt  # Ctrl-C half-way through writing
+
+    monkeypatch.setattr(outputs, "write_plots" if where == "plots" else "json_safe", boom)
+    with pytest.raises(KeyboardInterrupt):
+        outputs.write_run(short_run, tmp_path / "fresh", plots=True)
+    assert not (tmp_path / "fresh").exists() and not (tmp_path / "fresh.partial").exists()
+    # an earlier complete result is untouched by an interrupted rewrite
+    with pytest.raises(KeyboardInterrupt):
+        outputs.write_run(short_run, out, plots=True)
+    assert (out / "summary.json").read_text() == before
+    assert not (tmp_path / "run.partial").exists()
+
+
+def test_run_interrupted_mid_simulation_writes_nothing(tmp_path, monkeypatch):
+    import scenarios.runner as runner
+
+    calls = []
+    real = runner._psd_snapshots
+
+    def boom(*args, **kwargs):  # the run dies after the integration, before any output
+        calls.append(1)
+        raise RuntimeError("killed")
+
+    monkeypatch.setattr(runner, "_psd_snapshots", boom)
+    scene = short_pyrite_scene(tmp_path, 0.25)
+    with pytest.raises(RuntimeError, match="killed"):
+        run_scene(scene, out_dir=tmp_path / "run", progress=False)
+    assert calls and real is not boom
+    assert not (tmp_path / "run").exists() and not (tmp_path / "run.partial").exists()
