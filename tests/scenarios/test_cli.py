@@ -1,0 +1,139 @@
+"""The scene commands end to end: run, report, check, sweep, replay; exit codes 0 / 2 / 1."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from scenarios import commands
+from scenarios.cli import _Parser
+from tests.scenarios.test_runner import LIBRARY, _history_csv, short_pyrite_scene
+
+
+def grindtwin(argv) -> int:
+    """Parse and run like the ``grindtwin`` command does, with the scene commands registered."""
+    p = _Parser(prog="grindtwin")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for add, _ in commands.COMMANDS.values():
+        add(sub)
+    args = p.parse_args([str(a) for a in argv])
+    return args.func(args)
+
+
+@pytest.fixture(scope="module")
+def cli_run(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("cli")
+    scene = short_pyrite_scene(tmp, duration_h=0.5)
+    out = tmp / "out"
+    code = grindtwin(["run", scene, "--out", out, "--csv", "--quiet"])
+    return code, out
+
+
+def test_run_writes_results_with_kpis_in_range(cli_run, capsys):
+    code, out = cli_run
+    assert code == 0
+    names = {p.name for p in out.iterdir()}
+    assert {"timeseries.parquet", "timeseries.csv", "summary.json", "product_psd.csv", "p80.png",
+            "inputs.png", "energy.png", "load.png", "psd.png"} <= names
+    assert not out.with_name("out.partial").exists()
+    s = json.loads((out / "summary.json").read_text())
+    k = s["kpis"]
+    assert s["scene"] == "pyrite_surge" and s["seed"] == 3
+    assert 3 < k["specific_energy_kwh_t"] < 30
+    assert k["throughput_t"] == pytest.approx(15.0, rel=0.02)  # 30 t/h for 0.5 h
+    assert k["mass_balance_error"] < 1e-6
+    assert 0 <= k["p80_within_10um_frac"] <= 1 and k["p80_iae_um_h"] >= 0
+    assert k["load_outside_band_frac"] == 0 and k["solve_time_median_s"] is None
+    ts = pd.read_parquet(out / "timeseries.parquet")
+    assert len(ts) == 31 and (ts["p80_um"].between(50, 1000)).all()
+    assert len(pd.read_csv(out / "timeseries.csv")) == 31
+
+
+def test_report_command_embeds_plots_and_kpis(cli_run, capsys):
+    _, out = cli_run
+    assert grindtwin(["report", out]) == 0
+    text = (out / "report.html").read_text()
+    assert '<table class="kpis">' in text and "specific_energy_kwh_t" in text
+    assert re.search(r'<img [^>]*src="data:image/png;base64,[A-Za-z0-9+/]{100,}', text)
+    assert grindtwin(["report", out.parent / "missing"]) == 2
+    assert "run directory not found" in capsys.readouterr().err
+
+
+BROKEN = ("feed_tph = 30.0", "feed_tp = 30.0")
+
+
+def test_check_exits_2_with_the_message(tmp_path, capsys):
+    good = short_pyrite_scene(tmp_path)
+    assert grindtwin(["check", good]) == 0
+    assert "OK" in capsys.readouterr().out
+    bad = tmp_path / "bad.toml"
+    bad.write_text(good.read_text().replace(*BROKEN))
+    assert grindtwin(["check", bad]) == 2
+    err = capsys.readouterr().err
+    assert "feed.feed_tp: unknown key 'feed_tp' (did you mean 'feed_tph'?)" in err
+    assert str(bad) in err and "Traceback" not in err
+
+
+def test_run_on_bad_input_exits_2_without_traceback(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(short_pyrite_scene(tmp_path).read_text().replace(*BROKEN))
+    assert grindtwin(["run", bad, "--out", tmp_path / "o", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("grindtwin: error:") and "feed_tp" in err and "Traceback" not in err
+    assert not (tmp_path / "o").exists()
+    assert grindtwin(["run", tmp_path / "nope.toml"]) == 2
+    assert "scene file not found" in capsys.readouterr().err
+
+
+def test_failed_run_exits_1_with_the_reason(tmp_path, monkeypatch, capsys):
+    from twin.errors import SolverError
+    from twin.twin import Twin
+
+    def fail(self, *args, **kwargs):
+        raise SolverError("IDAS: too much work")
+
+    monkeypatch.setattr(Twin, "simulate", fail)
+    scene = short_pyrite_scene(tmp_path, duration_h=0.25)
+    assert grindtwin(["run", scene, "--out", tmp_path / "o", "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("grindtwin: run failed:") and "IDAS: too much work" in err
+    assert not (tmp_path / "o").exists() and not (tmp_path / "o.partial").exists()
+
+
+def test_sweep_on_the_local_pool(tmp_path, capsys):
+    scene = short_pyrite_scene(tmp_path, duration_h=0.25)
+    out = tmp_path / "sweep"
+    code = grindtwin(["sweep", scene, "--vary", "feed.feed_tph=24,30", "--workers", "2",
+                      "--out", out, "--quiet"])
+    assert code == 0, capsys.readouterr().err
+    table = pd.read_csv(out / "sweep.csv")
+    assert list(table["case"]) == [0, 1] and table["error"].isna().all()
+    assert list(table["feed.feed_tph"]) == [24, 30]
+    assert table["fed_t"].tolist() == pytest.approx([6.0, 7.5])
+    # a lighter feed is ground finer with more energy per tonne
+    assert table["p80_final_um"][0] < table["p80_final_um"][1]
+    assert table["specific_energy_kwh_t"][0] > table["specific_energy_kwh_t"][1]
+    assert "feed.feed_tph" in capsys.readouterr().out
+
+
+def test_sweep_bad_key_exits_2(tmp_path, capsys):
+    scene = short_pyrite_scene(tmp_path, duration_h=0.25)
+    assert grindtwin(["sweep", scene, "--vary", "feed.feed_tp=24,30", "--quiet"]) == 2
+    assert "did you mean 'feed_tph'" in capsys.readouterr().err
+
+
+def test_replay_command(tmp_path, capsys):
+    scene = short_pyrite_scene(tmp_path, duration_h=0.5)
+    out = tmp_path / "replay"
+    assert grindtwin(["replay", scene, "--history", _history_csv(tmp_path), "--out", out,
+                      "--quiet", "--no-plots"]) == 0
+    ts = pd.read_parquet(out / "timeseries.parquet")
+    assert (ts["feed_tph"] == ts["recorded_feed_tph"]).all()
+    assert "replay" in json.loads((out / "summary.json").read_text())
+    assert grindtwin(["replay", scene, "--history", tmp_path / "none.csv"]) == 2
+    assert "history file not found" in capsys.readouterr().err

@@ -1,0 +1,61 @@
+"""grindtwin report: one self-contained HTML file with the KPI table and the plots inline."""
+
+from __future__ import annotations
+
+import base64
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from scenarios.errors import SceneError
+from scenarios.outputs import write_run
+from scenarios.report import render_report, write_report
+from scenarios.runner import RunResult
+
+
+def fake_run(tmp_path):
+    """A run directory written from a small hand-made result (no simulation needed)."""
+    t = np.linspace(0, 1, 11)
+    frame = pd.DataFrame({"time_h": t, "feed_tph": 30.0, "speed_frac_critical": 0.7,
+                          "p80_um": 250 - 20 * t, "power_kw": 300.0, "specific_energy_kwh_t": 10.0,
+                          "load_frac": 1.0, "holdup_t": 10.0, "fed_t": 30 * t, "produced_t": 30 * t})
+    psd = pd.DataFrame([[1.0, 0.8, 0.3], [1.0, 0.9, 0.4]], index=pd.Index([0.0, 1.0], name="time_h"),
+                       columns=[1000.0, 250.0, 50.0])
+    summary = {"scene": "tiny <demo>", "description": "a & b", "seed": 7, "controller": "none",
+               "mode": "open_loop", "target_p80_um": 240.0, "load_band_frac": [0.8, 1.2],
+               "effects": ["breakage", "transport"], "components": ["B"],
+               "kpis": {"p80_iae_um_h": 4.5, "specific_energy_kwh_t": 10.0, "throughput_t": 30.0,
+                        "solve_time_median_s": float("nan"), "mass_balance_error": 1e-12},
+               "model": "Model: 2 effect(s)", "notes": ["started at steady state"],
+               "versions": {"numpy": np.__version__}}
+    return write_run(RunResult(frame, summary, psd=psd), tmp_path / "run")
+
+
+def test_report_is_self_contained_with_kpi_table_and_images(tmp_path):
+    run = fake_run(tmp_path)
+    out = write_report(run)
+    assert out == run / "report.html"
+    text = out.read_text(encoding="utf-8")
+    assert text.startswith("<!DOCTYPE html>") and text.rstrip().endswith("</html>")
+    assert '<table class="kpis">' in text
+    row = re.search(r"<code>specific_energy_kwh_t</code>.*?</tr>", text).group(0)
+    assert ">10<" in row
+    assert re.search(r"<code>solve_time_median_s</code>.*?n/a", text)  # null KPI shown as n/a
+    images = re.findall(r'<img [^>]*src="data:image/png;base64,([A-Za-z0-9+/=]+)"', text)
+    assert len(images) == 5  # p80, inputs, energy, load, psd
+    assert all(base64.b64decode(b)[:8] == b"\x89PNG\r\n\x1a\n" for b in images)
+    # nothing external: no links to files, no scripts; user text is escaped
+    assert "<script" not in text and 'src="p80.png"' not in text
+    assert "tiny &lt;demo&gt;" in text and "a &amp; b" in text
+
+
+def test_report_refuses_what_is_not_a_complete_run(tmp_path):
+    with pytest.raises(SceneError, match="not found"):
+        render_report(tmp_path / "nowhere")
+    with pytest.raises(SceneError, match="no summary.json"):
+        render_report(tmp_path)
+    (tmp_path / "_INCOMPLETE").write_text("")
+    with pytest.raises(SceneError, match="incomplete"):
+        render_report(tmp_path)
