@@ -389,40 +389,106 @@ def _run_batch(scene, models, feed, progress):
     return frame, psd, {"notes": notes, "solve_times_s": None, "batch_charge_t": charge_t}
 
 
-def _cumulative_energy_kwh(frame: pd.DataFrame) -> np.ndarray:
-    """Integral of power over time (trapezoidal) [kWh] at every sample."""
-    if "power_kw" not in frame:
+def _cumulative(frame: pd.DataFrame, column: str) -> np.ndarray:
+    """Integral of a rate column over time (trapezoidal) at every sample; NaN if absent."""
+    if column not in frame:
         return np.full(len(frame), np.nan)
-    p = frame["power_kw"].to_numpy(float)
+    p = frame[column].to_numpy(float)
     t = frame["time_h"].to_numpy(float)
     return np.concatenate([[0.0], np.cumsum(0.5 * (p[1:] + p[:-1]) * np.diff(t))])
 
 
+def _cumulative_energy_kwh(frame: pd.DataFrame) -> np.ndarray:
+    """Integral of power over time (trapezoidal) [kWh] at every sample."""
+    return _cumulative(frame, "power_kw")
+
+
 # --------------------------------------------------------------------------- closed loop
 def _require(module: str, kind: str):
-    if importlib.util.find_spec(module.split(".")[0]) is None or importlib.util.find_spec(module) is None:
+    """Import ``module`` for controller ``kind``; RunError naming it when it is missing."""
+    try:
+        found = importlib.util.find_spec(module) is not None
+    except ModuleNotFoundError:
+        found = False
+    if not found:
         raise RunError(f"controller kind {kind!r} needs {module}, not available")
     return importlib.import_module(module)
+
+
+def _feed_bounds(scene: Scene) -> tuple[float, float]:
+    """Feed-rate bounds: the scene's, else half and one and a half times its feed rate."""
+    b = scene.controller.bounds
+    f = float(scene.feed.feed_tph)
+    return (b.feed_tph_min if b.feed_tph_min is not None else 0.5 * f,
+            b.feed_tph_max if b.feed_tph_max is not None else 1.5 * f)
+
+
+def nmpc_settings(scene: Scene):
+    """``mpc.nmpc.NmpcSettings`` from ``[controller]``: names map one to one (weights prefixed
+    ``weight_``); unset feed bounds are 0.5x and 1.5x ``feed.feed_tph``; unset rate limits
+    and power limit are infinite; ``dt_h`` is the scene's sample period."""
+    nmpc = _require("mpc.nmpc", "nmpc")
+    c = scene.controller
+    lo, hi = _feed_bounds(scene)
+    return nmpc.NmpcSettings(
+        target_p80_um=float(c.target_p80_um), horizon_steps=c.horizon_steps,
+        dt_h=scene.scene.sample_period_h, move_block=c.move_block,
+        weight_p80=c.weights.p80, weight_du_feed=c.weights.du_feed,
+        weight_du_speed=c.weights.du_speed, weight_energy=c.weights.energy,
+        feed_tph_min=lo, feed_tph_max=hi, speed_min=c.bounds.speed_min, speed_max=c.bounds.speed_max,
+        feed_rate_max_tph_per_h=(c.bounds.feed_rate_max_tph_per_h
+                                 if c.bounds.feed_rate_max_tph_per_h is not None else math.inf),
+        speed_rate_max_per_h=(c.bounds.speed_rate_max_per_h
+                              if c.bounds.speed_rate_max_per_h is not None else math.inf),
+        load_band_frac=tuple(c.load_band_frac),
+        power_max_kw=c.power_max_kw if c.power_max_kw is not None else math.inf,
+        solver=c.solver, preview=c.preview_lead_h > 0)
+
+
+def make_controller(scene: Scene, twin, x_ss=None):
+    """The scene's controller on the controller's twin: ``mpc.nmpc.Controller`` with
+    :func:`nmpc_settings`, or the PI of ``mpc.pi.pi_from_model`` (P80 -> feed rate, tuned by
+    SIMC on the model linearised at the initial steady state; conditional integration as
+    anti-windup, because SIMC's integral time can be shorter than a sample, which
+    back-calculation refuses)."""
+    kind = scene.controller.kind
+    if kind == "nmpc":
+        return _require("mpc.nmpc", kind).Controller(twin.model, nmpc_settings(scene))
+    pi = _require("mpc.pi", kind)
+    c = scene.controller
+    ss = twin.steady(feed_tph=scene.feed.feed_tph, speed_frac_critical=scene.feed.speed_frac_critical,
+                     blend=None)
+    lo, hi = _feed_bounds(scene)
+    rate = c.bounds.feed_rate_max_tph_per_h
+    du = rate * scene.scene.sample_period_h if rate is not None else math.inf
+    ctrl, _ = pi.pi_from_model(twin.model.f, twin.model.outputs, ss.x, ss.u, ss.d,
+                               scene.scene.sample_period_h, setpoint=c.target_p80_um,
+                               u_min=lo, u_max=hi, du_max=du, anti_windup="conditional")
+    return ctrl
 
 
 def _closed_loop(scene, models, feed, progress):
     """Closed loop through ``mpc.closed_loop.run_closed_loop`` (the agreed entry point).
 
-    The controller and estimator are built by ``mpc.nmpc.controller_from_scene(scene, model)``
-    / ``mpc.pi.controller_from_scene`` and ``mpc.estimator.estimator_from_scene(scene, model)``
-    when those factories exist; a missing module or factory is a RunError naming it.
+    The controller comes from :func:`make_controller`; the estimator from
+    ``mpc.estimator.estimator_from_scene(scene, model)`` when that exists, else ``None`` (the
+    loop's own default). ``schedule`` is the feed on the sample grid: ``time_h`` and
+    ``blend_<component>_frac`` in the order of the model's components. A missing module is a
+    RunError naming it; any failure inside the loop is a RunError with its reason.
     """
     kind = scene.controller.kind
-    ctrl_mod = _require("mpc.nmpc" if kind == "nmpc" else "mpc.pi", kind)
+    _require("mpc.nmpc" if kind == "nmpc" else "mpc.pi", kind)
     loop_mod = _require("mpc.closed_loop", kind)
-    est_mod = _require("mpc.estimator", kind)
-    make_ctrl = getattr(ctrl_mod, "controller_from_scene", None)
-    make_est = getattr(est_mod, "estimator_from_scene", None)
-    if make_ctrl is None or make_est is None:
-        missing = ctrl_mod.__name__ if make_ctrl is None else est_mod.__name__
-        raise RunError(f"controller kind {kind!r} needs {missing}.*_from_scene(scene, model), "
-                       "not available")
     notes: list[str] = []
+    estimator = None
+    try:
+        est_mod = importlib.import_module("mpc.estimator")
+    except ImportError:
+        est_mod = None
+    if est_mod is not None and hasattr(est_mod, "estimator_from_scene"):
+        estimator = est_mod.estimator_from_scene(scene, models.control.model)
+    else:
+        notes.append("no mpc.estimator.estimator_from_scene: the loop's default estimator")
     blend = _component_blend(feed, models.components)
     u0 = np.array([scene.feed.feed_tph, scene.feed.speed_frac_critical], float)
     x0 = _start_state(scene, models.plant, u0, blend[0], notes)
@@ -430,18 +496,23 @@ def _closed_loop(scene, models, feed, progress):
     for j, c in enumerate(models.components):
         schedule[f"blend_{c}_frac"] = blend[:, j]
     try:
+        controller = make_controller(scene, models.control)
         res = loop_mod.run_closed_loop(
-            models.plant.model, make_ctrl(scene, models.control.model),
-            make_est(scene, models.control.model), schedule, scene.sensors, scene.scene.duration_h,
-            scene.scene.sample_period_h, x0, u0, scene.scene.seed, scene.controller.preview_lead_h)
+            models.plant.model, controller, estimator, schedule, scene.sensors,
+            scene.scene.duration_h, scene.scene.sample_period_h, x0, u0, scene.scene.seed,
+            scene.controller.preview_lead_h)
     except (RunError, SceneError):
         raise
     except Exception as exc:  # noqa: BLE001 - the loop's failure is the run's failure
         raise RunError(f"scene {scene.scene.name}: the closed loop failed: "
                        f"{type(exc).__name__}: {exc}") from None
     frame = res.frame.copy()
+    if "p80_um" not in frame or "time_h" not in frame:
+        raise RunError(f"scene {scene.scene.name}: the closed loop's frame has no p80_um/time_h "
+                       f"columns (got {list(frame.columns)})")
     k = dict(res.kpis)
-    extra = {"notes": notes, "solve_times_s": None,
+    extra = {"notes": notes,
+             "solve_times_s": frame["solve_time_s"].dropna().to_numpy() if "solve_time_s" in frame else None,
              "solve_time_median_s": k.get("solve_time_median_s", math.nan),
              "solve_time_p95_s": k.get("solve_time_p95_s", math.nan)}
     return frame, None, extra
@@ -463,6 +534,10 @@ def compute_kpis(scene: Scene, frame: pd.DataFrame, solve_times_s=None, batch_ch
         k["p80_iae_um_h"] = math.nan
         k["p80_within_10um_frac"] = math.nan
     energy = _cumulative_energy_kwh(frame)[-1]
+    if "fed_t" not in frame and "feed_tph" in frame:  # e.g. a closed-loop frame: integrate
+        frame["fed_t"] = _cumulative(frame, "feed_tph")
+    if "produced_t" not in frame and "throughput_tph" in frame:
+        frame["produced_t"] = _cumulative(frame, "throughput_tph")
     fed = float(frame["fed_t"].iloc[-1]) if "fed_t" in frame else math.nan
     if batch_charge_t is not None:
         k["specific_energy_kwh_t"] = float(energy / batch_charge_t)
