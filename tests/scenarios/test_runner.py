@@ -269,3 +269,45 @@ def test_nmpc_settings_from_the_scene():
     assert s.dt_h == pytest.approx(1 / 60) and s.weight_energy == 0.01
     assert (s.feed_tph_min, s.feed_tph_max, s.speed_rate_max_per_h) == (20.0, 45.0, 0.10)
     assert tuple(s.load_band_frac) == (0.8, 1.2) and s.power_max_kw == math.inf and s.preview
+
+
+def test_mineralogy_history_without_ores_runs_on_the_reference_types(tmp_path):
+    """replay_day's form: mineral wt% and texture per minute, no [ores]: the components are the
+    reference types A-D and each minute is their NNLS mix (here exactly B, then 60 % B / 40 % D)."""
+    from twin.ores import reference_ores
+
+    ref = reference_ores()
+    minerals = sorted(set(ref["B"].wt_pct) | set(ref["D"].wt_pct))
+    rows = []
+    for i in range(16):
+        w = 0.0 if i < 8 else 0.4
+        row = {"time_h": i / 60}
+        row |= {f"{m}_wt_pct": (1 - w) * ref["B"].wt_pct.get(m, 0) + w * ref["D"].wt_pct.get(m, 0)
+                for m in minerals}
+        row |= {"mean_grain_um": 125.0, "uniformity": 0.6, "association_entropy": 0.55}
+        rows.append(row)
+    pd.DataFrame(rows).to_csv(tmp_path / "mineralogy.csv", index=False)
+    scene = tmp_path / "min.toml"
+    scene.write_text("""effects = ["breakage", "transport", "holdup", "power"]
+[scene]
+name = "mineralogy_replay"
+duration_h = 0.25
+sample_period_h = 0.016666666666666666
+[mill]
+preset = "industrial"
+n_mixers = 1
+size_classes = { ratio = 2.0, count = 13 }
+[feed]
+history = "mineralogy.csv"
+feed_tph = 30.0
+speed_frac_critical = 0.70
+""")
+    res = run_scene(scene, progress=False)
+    fr = res.frame
+    assert res.summary["components"] == ["A", "B", "C", "D"]
+    blends = fr[[f"blend_{c}_frac" for c in "ABCD"]].to_numpy()
+    np.testing.assert_allclose(blends[0], [0, 1, 0, 0], atol=1e-6)
+    np.testing.assert_allclose(blends[-1], [0, 0.6, 0, 0.4], atol=1e-6)
+    assert fr["history_fit_residual_wt_pct"].max() < 1e-6
+    assert any("NNLS" in n for n in res.summary["notes"])
+    assert res.kpis["mass_balance_error"] < 1e-6
