@@ -8,8 +8,9 @@ target stiffness). Learned attributes end in ``_``.
 
 Scaling used to need few simulations (Potyondy & Cundall 2004 §3.2: with the stiffness ratio
 and the strength ratio held fixed, peak force is proportional to bond strength and the
-pre-peak stiffness to bond stiffness): each iteration multiplies the strengths by
-``target/mean peak`` and the stiffnesses by ``target stiffness/mean stiffness``. The same
+pre-peak stiffness to bond stiffness): the first iteration multiplies the strengths by
+``target/mean peak`` and the stiffnesses by ``target stiffness/mean stiffness``; later ones use
+the measured exponent of ``F ~ sigma^p`` from the last two iterations (log-log secant). The same
 agglomerates are reused in every iteration (common random numbers), so the iteration converges
 on the model, not on noise; usually 2–3 iterations of ``n_particles`` tests.
 
@@ -164,10 +165,17 @@ class BondCalibrator:
                 break
             if mean_f <= 0:
                 raise DemError(f"Calibration failed: mean peak force {mean_f!r} N at iteration {it}.")
-            # proportional scaling (see module docstring)
+            # proportional scaling (see module docstring); from the second iteration on, the
+            # exponent p of F ~ sigma^p is measured from the last two iterations (secant in
+            # log-log), which removes the residual non-linearity (Hertz contacts, platens)
+            p_exp = 1.0
+            if len(rows) >= 2 and target_stiffness_N_m is None:
+                s0, f0 = rows[-2]["tensile_strength_Pa"], rows[-2]["mean_peak_force_N"]
+                if s0 != sig and f0 > 0:
+                    p_exp = min(1.5, max(0.5, math.log(mean_f / f0) / math.log(sig / s0)))
             if target_stiffness_N_m is not None:
                 kn *= target_stiffness_N_m / mean_k
-            sig *= target_peak_force_N / mean_f
+            sig *= (target_peak_force_N / mean_f) ** (1.0 / p_exp)
         self.bond_params_ = params
         self.tensile_strength_Pa_ = params.tensile_strength_Pa
         self.cohesion_Pa_ = params.cohesion_Pa
