@@ -25,7 +25,6 @@ import shutil
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 INCOMPLETE_MARKER = "_INCOMPLETE"
 #: Plot files: name -> what it shows.

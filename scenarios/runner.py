@@ -47,7 +47,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -265,6 +265,10 @@ def run_scene(scene_or_path, out_dir=None, progress: bool = True, *, csv: bool =
             frame[c] = feed[c].to_numpy()
     kpis = compute_kpis(scene, frame, **extra)
     summary = make_summary(scene, models, kpis, notes, time.perf_counter() - t_start)
+    if psd is not None:
+        summary["final_psd"] = {"what": psd.attrs.get("what", "product"), "time_h": float(psd.index[-1]),
+                                "size_um": [float(x) for x in psd.columns],
+                                "passing_frac": [float(v) for v in psd.iloc[-1]]}
     result = RunResult(frame=frame, summary=summary, psd=psd)
     if out_dir is not None:
         from scenarios.outputs import write_run
@@ -305,7 +309,7 @@ def _start_state(scene: Scene, twin, u0, blend0, notes: list[str]):
         return twin.model.initial_state(list(blend0))
 
 
-def _simulate_chunks(scene: Scene, twin, x0, feed_tph, speed, blend, progress: bool, desc: str):
+def _simulate_chunks(scene: Scene, twin, x0, feed_tph, speed, blend, progress: bool):
     """Integrate over the grid in stretches; returns (frame, states) with cumulative fed/produced."""
     from twin.errors import TwinError
 
@@ -367,7 +371,7 @@ def _run_open_loop(scene, models, feed, progress, replay):
     if replay and "recorded_feed_tph" in feed:
         notes.append("replay: inputs are the recorded feed rate and speed")
     x0 = _start_state(scene, twin, (f[0], s[0]), blend[0], notes)
-    frame, states = _simulate_chunks(scene, twin, x0, f, s, blend, progress, scene.scene.name)
+    frame, states = _simulate_chunks(scene, twin, x0, f, s, blend, progress)
     psd = _psd_snapshots(twin, states, frame, models.components, batch=False)
     return frame, psd, {"notes": notes, "solve_times_s": None}
 
@@ -380,7 +384,7 @@ def _run_batch(scene, models, feed, progress):
     n = len(blend)
     f = np.zeros(n)
     s = np.full(n, float(scene.feed.speed_frac_critical))
-    frame, states = _simulate_chunks(scene, twin, x0, f, s, blend, progress, scene.scene.name)
+    frame, states = _simulate_chunks(scene, twin, x0, f, s, blend, progress)
     energy = _cumulative_energy_kwh(frame)
     frame["specific_energy_kwh_t"] = energy / charge_t  # the twin's power/feed is undefined at zero feed
     psd = _psd_snapshots(twin, states, frame, models.components, batch=True)

@@ -2,17 +2,15 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import re
-from pathlib import Path
 
 import pandas as pd
 import pytest
 
 from scenarios import commands
 from scenarios.cli import _Parser
-from tests.scenarios.test_runner import LIBRARY, _history_csv, short_pyrite_scene
+from tests.scenarios.test_runner import _history_csv, short_pyrite_scene
 
 
 def grindtwin(argv) -> int:

@@ -98,6 +98,9 @@ def test_batch_grind_refines_the_charge():
     # size distributions over time: passing at any size grows
     psd = res.psd.to_numpy()
     assert psd.shape[0] >= 2 and np.all(np.diff(psd, axis=0) >= -1e-9)
+    final = res.summary["final_psd"]
+    assert final["what"] == "mill content" and final["time_h"] == pytest.approx(0.5)
+    assert final["passing_frac"] == pytest.approx(list(psd[-1]))
 
 
 def test_mineralogy_rows_are_mapped_to_the_ores_by_nnls():
