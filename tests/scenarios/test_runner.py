@@ -314,3 +314,14 @@ speed_frac_critical = 0.70
     assert fr["history_fit_residual_wt_pct"].max() < 1e-6
     assert any("NNLS" in n for n in res.summary["notes"])
     assert res.kpis["mass_balance_error"] < 1e-6
+
+
+def test_a_different_plant_is_built_and_simulated(tmp_path):
+    path = short_pyrite_scene(tmp_path, duration_h=0.25)
+    path.write_text(path.read_text() + "\n[plant]\nmodel = \"twin\"\n"
+                    "size_classes = { ratio = 2.0, count = 11 }\n")
+    res = run_scene(path, progress=False)
+    assert res.summary["plant_model"] is not None and "11 size classes" in res.summary["plant_model"]
+    assert "13 size classes" in res.summary["model"]
+    assert res.psd.shape[1] == 11  # the plant's grid is what ran
+    assert any("plant is a separate twin" in n for n in res.summary["notes"])
