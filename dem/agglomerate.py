@@ -137,7 +137,7 @@ def _validate(diameter_m, n_spheres, radius_spread, target_solid_fraction, aspec
             f"Got {bond_distance_factor!r}.")
 
 
-def make_agglomerate(diameter_m: float = 0.022, n_spheres: int = 500, *, radius_spread: float = 0.25,
+def make_agglomerate(diameter_m: float = 0.022, n_spheres: int = 250, *, radius_spread: float = 0.25,
                      target_solid_fraction: float = 0.58, aspect=(1.0, 1.0, 1.0),
                      bond_distance_factor: float = 1.3, random_state: int = 0,
                      max_passes: int = 4000) -> Agglomerate:
