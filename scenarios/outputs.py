@@ -117,8 +117,10 @@ def write_plots(result, folder: Path) -> list[Path]:
 
     fig, ax = plt.subplots(figsize=(8, 3.2))
     ax.plot(t, fr["p80_um"], label="P80 (plant)")
-    if "p80_measured_um" in fr:
-        ax.plot(t, fr["p80_measured_um"], lw=0.7, alpha=0.6, label="P80 (analyser)")
+    for col in ("p80_analyser_um", "p80_measured_um"):
+        if col in fr:
+            ax.step(t, fr[col], where="post", lw=0.7, alpha=0.6, label="P80 (analyser)")
+            break
     if "recorded_p80_um" in fr:
         ax.plot(t, fr["recorded_p80_um"], lw=0.8, alpha=0.7, label="P80 (recorded)")
     if target is not None:

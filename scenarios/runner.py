@@ -21,6 +21,9 @@ What a run does
 - **Inputs.** Held over each sample period. Controller ``"none"``: the scene's ``feed_tph``
   and ``speed_frac_critical`` throughout (in a replay, the recorded ones where recorded).
   ``"pi"`` and ``"nmpc"`` need the ``mpc`` package's modules (see :func:`_closed_loop`).
+- **Analyser.** Open loop, ``p80_analyser_um`` is what the scene's P80 analyser would report
+  (:func:`analyser_trace`: dead time, sampling, noise drawn with the scene's seed); the KPIs use
+  the plant's ``p80_um``.
 - **Progress.** The run is integrated in stretches of ``PROGRESS_CHUNK_STEPS`` samples with a
   tqdm bar; the integrator restarts at each stretch (as at every input change).
 
@@ -372,8 +375,25 @@ def _run_open_loop(scene, models, feed, progress, replay):
         notes.append("replay: inputs are the recorded feed rate and speed")
     x0 = _start_state(scene, twin, (f[0], s[0]), blend[0], notes)
     frame, states = _simulate_chunks(scene, twin, x0, f, s, blend, progress)
+    frame["p80_analyser_um"] = analyser_trace(frame["time_h"].to_numpy(), frame["p80_um"].to_numpy(),
+                                              scene.sensors, scene.scene.seed)
     psd = _psd_snapshots(twin, states, frame, models.components, batch=False)
     return frame, psd, {"notes": notes, "solve_times_s": None}
+
+
+def analyser_trace(time_h: np.ndarray, p80_um: np.ndarray, sensors, seed: int) -> np.ndarray:
+    """What the P80 analyser of ``[sensors]`` reports: the plant P80 ``p80_dead_time_h`` earlier
+    (linear interpolation; the first value before t = 0), sampled every ``p80_sample_period_h``
+    and held until the next sample, plus Gaussian noise of ``p80_noise_um`` (one draw per
+    analyser sample, ``numpy.random.default_rng(seed)``)."""
+    t = np.asarray(time_h, float)
+    period = sensors.p80_sample_period_h or (t[1] - t[0] if len(t) > 1 else 1.0)
+    k = np.floor(t / period + 1e-9)
+    t_sample = k * period
+    seen = np.interp(t_sample - sensors.p80_dead_time_h, t, np.asarray(p80_um, float))
+    n_samples = int(k.max()) + 1 if len(k) else 0
+    noise = np.random.default_rng(seed).normal(0.0, 1.0, n_samples) * sensors.p80_noise_um
+    return seen + noise[k.astype(int)]
 
 
 def _run_batch(scene, models, feed, progress):

@@ -325,3 +325,28 @@ def test_a_different_plant_is_built_and_simulated(tmp_path):
     assert "13 size classes" in res.summary["model"]
     assert res.psd.shape[1] == 11  # the plant's grid is what ran
     assert any("plant is a separate twin" in n for n in res.summary["notes"])
+
+
+def test_analyser_trace_delays_samples_holds_and_adds_seeded_noise():
+    import types
+
+    from scenarios.runner import analyser_trace
+
+    t = np.arange(13) / 12  # 5-min grid over 1 h
+    p80 = 200 + 60 * t  # a ramp
+    quiet = types.SimpleNamespace(p80_noise_um=0.0, p80_dead_time_h=0.25, p80_sample_period_h=0.25)
+    y = analyser_trace(t, p80, quiet, seed=1)
+    np.testing.assert_allclose(y[:3], 200.0)  # nothing seen before the dead time has passed
+    np.testing.assert_allclose(y[3:6], 200.0)  # sample at 0.25 h sees t = 0
+    np.testing.assert_allclose(y[6:9], 215.0)  # sample at 0.5 h sees t = 0.25 h, held
+    noisy = types.SimpleNamespace(p80_noise_um=3.0, p80_dead_time_h=0.25, p80_sample_period_h=0.25)
+    a, b = analyser_trace(t, p80, noisy, seed=7), analyser_trace(t, p80, noisy, seed=7)
+    np.testing.assert_array_equal(a, b)  # reproducible from the seed
+    assert not np.allclose(a, analyser_trace(t, p80, noisy, seed=8))
+    assert np.all(a[:3] == a[0]) and 0 < np.std(a - y) < 10  # held between samples, noise ~ 3 um
+
+
+def test_open_loop_frame_has_the_analyser(short_run):
+    fr = short_run.frame
+    assert "p80_analyser_um" in fr  # the short scene has no [sensors]: a perfect analyser
+    np.testing.assert_allclose(fr["p80_analyser_um"], fr["p80_um"])
