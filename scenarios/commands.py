@@ -96,6 +96,8 @@ def add_replay_parser(subparsers):
                               "P80 sit beside the recorded ones.")
     p.add_argument("scene", help="scene file (TOML)")
     p.add_argument("--history", required=True, help="recorded history, .csv or .parquet")
+    p.add_argument("--duration-h", type=float, default=None,
+                   help="replay this long [h] (default: the whole history)")
     _add_output_options(p)
     p.set_defaults(func=cmd_replay)
     return p
@@ -108,8 +110,11 @@ def cmd_replay(args) -> int:
 
     if not Path(args.history).is_file():
         raise SceneError(f"{args.history}: history file not found")
+    if args.duration_h is not None and not args.duration_h > 0:
+        raise SceneError(f"--duration-h must be > 0 (got {args.duration_h:g})")
     result = replay_scene(load_scene(args.scene), args.history, out_dir=args.out,
-                          progress=not args.quiet, csv=args.csv, plots=not args.no_plots)
+                          progress=not args.quiet, duration_h=args.duration_h, csv=args.csv,
+                          plots=not args.no_plots)
     _print_kpis(result.summary)
     for key, value in result.summary.get("replay", {}).get("run_minus_recorded", {}).items():
         print(f"  {key:26s} {value:.4g}")

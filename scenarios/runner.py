@@ -645,26 +645,40 @@ def make_summary(scene: Scene, models: Models, kpis: dict, notes: list[str], wal
 
 
 # --------------------------------------------------------------------------- replay
-def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True, **kwargs) -> RunResult:
+def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True, *,
+                 duration_h: float | None = None, csv: bool = False, plots: bool = True) -> RunResult:
     """Drive a scene with a recorded history (CSV or Parquet; format in :mod:`scenarios.history`).
 
     The scene's ``feed.history`` is set to ``history_csv`` (its ``feed.blend`` and schedule are
-    dropped) and the scene validated again, so the file is checked by the same rules. Open loop
-    (controller ``"none"``) the inputs are the recorded feed rate and speed; with a controller
-    the controller chooses them. Either way the recorded columns (``recorded_feed_tph``,
-    ``recorded_speed_frac_critical``, ``recorded_p80_um``) sit beside the run's own in the frame,
-    and the summary's ``replay`` block compares them (mean differences).
+    dropped) and the scene validated again, so the file is checked by the same rules.
+    ``duration_h`` defaults to the history's span (the whole recording, on the scene's sample
+    grid). Open loop (controller ``"none"``) the inputs are the recorded feed rate and speed
+    where recorded; with a controller the controller chooses them. Either way the recorded
+    columns (``recorded_feed_tph``, ``recorded_speed_frac_critical``, ``recorded_p80_um``) sit
+    beside the run's own in the frame, and the summary's ``replay`` block compares them
+    (mean and mean absolute differences, run minus recorded).
     """
+    from scenarios.history import read_history
+
     scene = _as_scene(scene_or_path)
+    history_path = Path(history_csv).resolve()
     data = scene.model_dump(exclude_none=True)
     data["feed"].pop("blend", None)
     data["feed"].pop("schedule", None)
-    data["feed"]["history"] = str(Path(history_csv).resolve())
-    # keep only what the user could have written: drop filled-in defaults that depend on others
+    data["feed"]["history"] = str(history_path)
+    if duration_h is None:
+        dt = scene.scene.sample_period_h
+        span = read_history(history_path, sample_period_h=dt,
+                            max_gap_h=scene.feed.history_max_gap_h).span_h
+        n = int(np.floor(span / dt + 1e-9))
+        if n < 1:
+            raise SceneError(f"{history_csv}: the history spans {span:g} h, less than one sample "
+                             f"period ({dt:g} h) of the scene")
+        duration_h = n * dt
+    data["scene"]["duration_h"] = float(duration_h)
     src = scene.source_path
     new = scene_from_dict(data, src if src is not None else Path.cwd() / "scene.toml")
-    result = run_scene(new, out_dir=None, progress=progress, replay=True, **{
-        k: v for k, v in kwargs.items() if k in ("csv", "plots")})
+    result = run_scene(new, out_dir=None, progress=progress, replay=True)
     frame = result.frame
     cmp = {}
     for col in ("feed_tph", "speed_frac_critical", "p80_um"):
@@ -673,10 +687,9 @@ def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True
             diff = frame[col].to_numpy(float) - frame[rec].to_numpy(float)
             cmp[f"{col}_mean_diff"] = float(np.nanmean(diff))
             cmp[f"{col}_mean_abs_diff"] = float(np.nanmean(np.abs(diff)))
-    result.summary["replay"] = {"history": str(Path(history_csv)), "run_minus_recorded": cmp}
+    result.summary["replay"] = {"history": str(history_csv), "run_minus_recorded": cmp}
     if out_dir is not None:
         from scenarios.outputs import write_run
 
-        result.out_dir = write_run(result, out_dir, csv=kwargs.get("csv", False),
-                                   plots=kwargs.get("plots", True))
+        result.out_dir = write_run(result, out_dir, csv=csv, plots=plots)
     return result

@@ -133,7 +133,7 @@ def _history_csv(tmp_path: Path) -> Path:
 
 
 def test_replay_drives_the_recorded_inputs_and_compares(tmp_path):
-    scene = short_pyrite_scene(tmp_path, duration_h=0.5)
+    scene = short_pyrite_scene(tmp_path, duration_h=1.0)
     res = replay_scene(scene, _history_csv(tmp_path), progress=False)
     fr = res.frame
     assert {"recorded_feed_tph", "recorded_speed_frac_critical", "recorded_p80_um"} <= set(fr.columns)
@@ -142,6 +142,10 @@ def test_replay_drives_the_recorded_inputs_and_compares(tmp_path):
     assert cmp["feed_tph_mean_abs_diff"] == pytest.approx(0.0)
     assert cmp["p80_um_mean_diff"] == pytest.approx(float(np.mean(fr["p80_um"] - 260.0)))
     assert res.kpis["fed_t"] == pytest.approx(0.25 * 30 + 0.25 * 33, rel=1e-6)
+    # default duration: the whole history (30 min here), whatever the scene file says
+    assert res.kpis["duration_h"] == pytest.approx(0.5)
+    short = replay_scene(scene, _history_csv(tmp_path), progress=False, duration_h=0.25)
+    assert short.kpis["fed_t"] == pytest.approx(0.25 * 30)
 
 
 def test_missing_controller_module_is_a_run_error():
