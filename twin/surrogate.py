@@ -54,7 +54,20 @@ training domain: each raw field outside its trained [min, max] widened by
 :data:`RANGE_MARGIN` of the range (minerals absent from training have range [0, 0]; a mineral
 whose trained minimum is below :data:`TRACE_WT_PCT` may be absent); a mineralogy whose PCA scores leave the trained score range by more than
 :data:`SCORE_MARGIN` of that range, or whose PCA residual (Q statistic) exceeds
-:data:`Q_LIMIT_FACTOR` x the largest training residual.
+:data:`Q_LIMIT_FACTOR` x the largest training residual (at least :data:`Q_FLOOR`; with all
+PCs kept, as shipped, the residual only tests that the wt% close to 100 over the trained minerals).
+
+Shipped settings and measured scores (``twin/data/surrogate.joblib``; 2560 steady states of 320
+mineralogies, table generation 299 s on a shared 2-core machine, fit 4 s):
+``degree=2, n_pca=10, n_components=80``. Grouped 5-fold CV R2 (by mineralogy, KPI units):
+P80 0.9989, specific energy 0.99995, load 0.999998; on 20 % held-out mineralogies: 0.9989,
+0.99994, 0.999998 (relative error P80 median 0.6 %, max 3.3 %; specific energy median 0.2 %,
+max 1.1 %). Plain linear eq. 8 (``degree=1``) reaches CV R2 P80 0.954, specific energy 0.998,
+load 1.000: it meets the 0.95 goal, but only just for P80 (the feed x mineralogy interaction of
+P80 is not linear). Keeping 6 of the 10 PCs costs specific energy (max error 3.9 % instead of
+1.1 %): the clay + mica fraction that sets the cushioning of power sits partly in minor PCs;
+so all PCs are kept (the PCA is then a rotation that decorrelates the wt%). Speed: see
+``benchmarks/results/twin_surrogate.md``.
 
 Persistence: :func:`save` / :func:`load` with joblib; the file holds the estimator and
 metadata (format version, scikit-learn/numpy/python versions, commands, seed, design,
@@ -110,15 +123,17 @@ DEFAULT_SEED = 2026
 DEFAULT_N_MINERALOGIES = 320
 DEFAULT_POINTS = 8
 #: Shipped hyper-parameters (chosen by grouped 5-fold CV on the shipped table, see main()).
-DEFAULT_PARAMS = {"n_components": 32, "n_pca": 6, "degree": 2}
+DEFAULT_PARAMS = {"n_components": 80, "n_pca": 10, "degree": 2}
 #: A raw input may leave its trained [min, max] by this share of the trained range.
 RANGE_MARGIN = 0.05
 #: A mineral whose smallest trained content is below this [wt%] may also be absent (range from 0).
 TRACE_WT_PCT = 1.0
 #: A PCA score may leave the trained [min, max] by this share of the trained range.
 SCORE_MARGIN = 0.10
-#: A mineralogy's PCA residual may reach this multiple of the largest training residual.
+#: A mineralogy's PCA residual may reach this multiple of the largest training residual, and at
+#: least Q_FLOOR (with all PCs kept the training residual is round-off, ~1e-29).
 Q_LIMIT_FACTOR = 1.5
+Q_FLOOR = 1e-8
 FORMAT_VERSION = 1
 TABLE_FILE = "surrogate_training.parquet"
 MODEL_FILE = "surrogate.joblib"
@@ -390,7 +405,7 @@ class Surrogate(RegressorMixin, BaseEstimator):
         self._compile()
         scores, q = self._scores_and_q(X[list(self.feature_names_in_)].to_numpy(float))
         self.score_range_ = np.stack([scores.min(axis=0), scores.max(axis=0)], axis=1)
-        self.q_limit_ = float(Q_LIMIT_FACTOR * q.max())
+        self.q_limit_ = max(float(Q_LIMIT_FACTOR * q.max()), Q_FLOOR)
         return self
 
     def _targets(self, y, n) -> np.ndarray:
@@ -483,7 +498,7 @@ class Surrogate(RegressorMixin, BaseEstimator):
                            "a mineral combination outside the training design.")
             if bad_q[i]:
                 out.append(f"row {i}: the mineralogy's PCA residual (Q) of Surrogate must be <= "
-                           f"{self.q_limit_:.4g} ({Q_LIMIT_FACTOR} x the largest in training). Got {q[i]:.4g}: "
+                           f"{self.q_limit_:.4g} ({Q_LIMIT_FACTOR} x the largest in training, at least {Q_FLOOR:g}). Got {q[i]:.4g}: "
                            "a mineral combination unlike the training mineralogies.")
             if len(out) >= max_problems:
                 break

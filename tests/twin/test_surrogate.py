@@ -17,9 +17,10 @@ from twin.twin import Twin
 #: design reaches ~0.998, so 0.99 catches a degradation long before the goal is missed).
 R2_THRESHOLD = 0.99
 #: Agreement with the twin on fresh points: relative error per KPI. Held-out errors of the
-#: shipped settings: P80 median 0.6 %, max 3.6 %; specific energy median 0.9 %, max 3.9 %;
-#: load max 0.12 %.
-REL_TOL = {"p80_um": 0.05, "specific_energy_kwh_t": 0.05, "load_frac": 0.01}
+#: shipped settings (512 points of 64 unseen mineralogies): P80 median 0.6 %, p95 1.9 %,
+#: max 3.3 %; specific energy median 0.2 %, max 1.1 %; load max 0.13 %. Worst on the fresh
+#: points below: P80 1.5 %, specific energy 0.34 %, load 0.04 %.
+REL_TOL = {"p80_um": 0.05, "specific_energy_kwh_t": 0.03, "load_frac": 0.01}
 
 
 @pytest.fixture(scope="module")
