@@ -9,6 +9,8 @@ from functools import lru_cache
 
 import casadi as ca
 import numpy as np
+import scipy.sparse
+import scipy.sparse.linalg
 
 from .effects.holdup import load_status
 from .errors import SolverError, TwinInputError
@@ -55,52 +57,64 @@ def _scalar_outputs(model, x, u, d) -> dict:
 
 @lru_cache(maxsize=64)
 def _jacobians(model) -> ca.Function:
-    """(x, u, d) -> (f, df/dx, df/dfeed, dH/dx) as one SX Function (cheap to build)."""
-    f = model.xdot
-    h = model._substitute(model.output_exprs_dae["holdup_t"])
-    return ca.Function("steady_jacobians", [model.x, model.u, model.d],
-                       [f, ca.jacobian(f, model.x), ca.jacobian(f, model.u[0]), ca.jacobian(h, model.x)])
+    """On the sparse DAE form w = [x; z]: (w, u, d) -> (residual, d res/dw, d res/dfeed, dH/dw)
+    with residual = [ode; z - g(x)]; the Jacobian has ~3,000 non-zeros where the plain ODE's is
+    dense (the aggregates z carry the coupling)."""
+    w = ca.vertcat(model.x, model.z)
+    res = ca.vertcat(model.dae["ode"], model.dae["alg"])
+    h = model.output_exprs_dae["holdup_t"]
+    return ca.Function("steady_jacobians", [w, model.u, model.d],
+                       [res, ca.jacobian(res, w), ca.jacobian(res, model.u[0]), ca.jacobian(h, w)])
+
+
+def _sparse(dm) -> scipy.sparse.csc_matrix:
+    return dm.sparse() if hasattr(dm, "sparse") else scipy.sparse.csc_matrix(np.asarray(dm))
 
 
 def _newton(model, x, u, d, load_target=None, max_iter: int = 60):
     """Damped Newton on f(x) = 0 (and holdup(x) = load_target x H_nom, solving for the feed when
-    a target is given). Steps are cut so that masses stay non-negative. Returns (x, u, ok)."""
+    a target is given), on the sparse DAE form. Steps are cut so masses stay non-negative.
+    Returns (x, u, ok)."""
     jac = _jacobians(model)
     q_nom = model.spec.feed_nominal_tph
     h_nom = model.spec.holdup_nominal_t
-    nm = model.n_mass
-    x, u = x.copy(), u.copy()
+    nm, nx = model.n_mass, model.n_x
+    w = np.concatenate([x, model.z_of(x)])
+    # row scaling: mass rates by nominal flow, aggregates by nominal hold-up
+    scale = np.concatenate([np.full(nx, 1.0 / q_nom), np.full(w.size - nx, 1.0 / h_nom)])
+    u = u.copy()
     for _ in range(max_iter):
-        f, jx, ju, jh = (np.asarray(v, float) for v in jac(x, u, d))
-        f = f.ravel()
-        res = [f / q_nom]
-        if load_target is not None:
-            res.append([(float(model.outputs["holdup_t"](x, u, d)) / h_nom - load_target)])
-        r = np.concatenate(res)
-        if np.abs(r).max() < RESIDUAL_REL_TOL:
-            return x, u, True
+        r_dm, j_dm, ju_dm, jh_dm = jac(w, u, d)
+        r = np.asarray(r_dm, float).ravel()
+        load_res = (float(model.outputs["holdup_t"](w[:nx], u, d)) / h_nom - load_target
+                    if load_target is not None else 0.0)
+        if max(np.abs(r * scale).max(), abs(load_res)) < RESIDUAL_REL_TOL:
+            return w[:nx], u, True
+        J = _sparse(j_dm)
         try:
             if load_target is None:
-                step = np.linalg.solve(jx, -f)
+                step = scipy.sparse.linalg.spsolve(J, -r)
                 dfeed = 0.0
             else:
-                A = np.block([[jx, ju.reshape(-1, 1)], [jh.reshape(1, -1), np.zeros((1, 1))]])
-                sol = np.linalg.solve(A, -np.concatenate([f, [r[-1] * h_nom]]))
+                A = scipy.sparse.bmat([[J, _sparse(ju_dm)], [_sparse(jh_dm), None]], format="csc")
+                sol = scipy.sparse.linalg.spsolve(A, -np.concatenate([r, [load_res * h_nom]]))
                 step, dfeed = sol[:-1], sol[-1]
-        except np.linalg.LinAlgError:
-            return x, u, False  # singular Jacobian: reported by the caller as non-convergence
+        except (RuntimeError, ValueError):
+            return w[:nx], u, False
+        if not np.all(np.isfinite(step)):
+            return w[:nx], u, False  # singular Jacobian: reported by the caller as non-convergence
         alpha = 1.0
         neg = step[:nm] < 0
         if np.any(neg):  # keep masses >= 0: go at most 95 % of the way to zero
-            room = x[:nm][neg] / -step[:nm][neg]
+            room = w[:nm][neg] / -step[:nm][neg]
             room = room[room > 0]  # masses already at zero may not fall further; others bound the step
             if room.size:
                 alpha = max(min(1.0, 0.95 * room.min()), 1e-3)
         if load_target is not None and u[0] + alpha * dfeed <= 0:
             alpha = min(alpha, 0.5 * u[0] / -dfeed)
-        x = x + alpha * step
+        w = w + alpha * step
         u[0] = u[0] + alpha * dfeed
-    return x, u, False
+    return w[:nx], u, False
 
 
 def _check(model, x, u, d, how: str):
