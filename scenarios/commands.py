@@ -1,4 +1,4 @@
-"""The ``grindtwin`` subcommands around scenes: run, replay, sweep, check, report.
+"""The ``grindtwin`` subcommands: run, replay, sweep, check, report, steady, calibrate.
 
 Each command is a pair ``add_<name>_parser(subparsers)`` / ``cmd_<name>(args) -> int``, to be
 registered in :mod:`scenarios.cli`. Every ``cmd_*`` returns its exit code itself: 0 success,
@@ -227,8 +227,93 @@ def cmd_report(args) -> int:
     return 0
 
 
+# --------------------------------------------------------------------------- steady
+def _float_in(name, lo, hi, lo_open=False, hi_open=False):
+    """argparse type: a float in an interval, the message naming the option and the interval."""
+    import argparse
+
+    def parse(text):
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number. Got {text!r}.") from None
+        ok = (v > lo if lo_open else v >= lo) and (v < hi if hi_open else v <= hi)
+        if not ok:
+            br = ("(" if lo_open else "[") + f"{lo:g}, {hi:g}" + (")" if hi_open else "]")
+            raise argparse.ArgumentTypeError(f"{name} must be in {br}. Got {text}.")
+        return v
+    return parse
+
+
+def add_steady_parser(subparsers):
+    s = subparsers.add_parser("steady", help="steady-state KPIs of the mill for an ore or a blend")
+    s.add_argument("--ore", default="B", help="reference type A-D or a TOML file with [mineralogy] and [texture]")
+    s.add_argument("--blend", help="blend of ores, e.g. B=0.6,D=0.4 (overrides --ore)")
+    g = s.add_mutually_exclusive_group()
+    g.add_argument("--feed-tph", type=_float_in("--feed-tph", 0, 1e5), help="fresh feed rate [t/h]")
+    g.add_argument("--at-constant-load", action="store_true",
+                   help="solve for the feed rate that holds the nominal hold-up")
+    s.add_argument("--speed", type=_float_in("--speed", 0, 1, True, True), default=None,
+                   help="mill speed as a fraction of critical (0.70, not 70)")
+    s.add_argument("--mill", default="lab", choices=["lab", "industrial"])
+    s.add_argument("--json", action="store_true", help="print the KPIs as JSON (unit-suffixed keys)")
+    s.set_defaults(func=cmd_steady)
+    return s
+
+
+STEADY_KEYS = ("feed_tph", "speed_frac_critical", "p80_um", "specific_energy_kwh_t", "power_kw",
+               "throughput_tph", "holdup_t", "load_frac", "load_status")
+
+
+@_exit_codes("steady")
+def cmd_steady(args) -> int:
+    import json
+
+    from twin.ores import Blend, load_ore
+    from twin.twin import Twin
+
+    blend = Blend.parse(args.blend) if args.blend else Blend.single(load_ore(args.ore))
+    twin = Twin(blend, mill=args.mill)
+    if args.at_constant_load:
+        ss = twin.steady_at_constant_load(speed_frac_critical=args.speed)
+    else:
+        ss = twin.steady(feed_tph=args.feed_tph, speed_frac_critical=args.speed)
+    kpis = {k: v for k, v in ss.summary().items() if k in STEADY_KEYS}
+    if args.json:
+        mineralogy = {o.name: {"wt_pct": o.wt_pct, **o.summary()} for o in blend.ores}
+        print(json.dumps({"mill": args.mill, "blend": dict(zip(blend.names, blend.fractions)),
+                          **kpis, "mineralogy": mineralogy}, indent=2))
+        return 0
+    print(f"Mill {args.mill}, blend " + ", ".join(f"{n} {f:.0%}" for n, f in zip(blend.names, blend.fractions)))
+    for key, val in kpis.items():
+        print(f"  {key:24s} {val:.4g}" if isinstance(val, float) else f"  {key:24s} {val}")
+    for ore in blend.ores:
+        wt = ", ".join(f"{m} {w:.1f}" for m, w in sorted(ore.wt_pct.items(), key=lambda kv: -kv[1]))
+        print(f"  ore {ore.name}: H_min {ore.hardness_index_gpa:.2f} GPa, textural index "
+              f"{ore.textural_index:.2f}; wt%: {wt}")
+    return 0
+
+
+# --------------------------------------------------------------------------- calibrate
+def add_calibrate_parser(subparsers):
+    c = subparsers.add_parser("calibrate", help="regenerate twin/data/calibration.json from the repository")
+    c.add_argument("--fast", action="store_true", help="a quick, coarser calibration (a check)")
+    c.add_argument("--out", help="write here instead of the shipped file")
+    c.set_defaults(func=cmd_calibrate)
+    return c
+
+
+@_exit_codes("calibrate")
+def cmd_calibrate(args) -> int:
+    from twin import calibration
+
+    return calibration.main((["--fast"] if args.fast else []) + (["--out", args.out] if args.out else []))
+
+
 #: name -> (add_parser, cmd) for registration in scenarios.cli.
 COMMANDS = {
+    "steady": (add_steady_parser, cmd_steady),
+    "calibrate": (add_calibrate_parser, cmd_calibrate),
     "run": (add_run_parser, cmd_run),
     "replay": (add_replay_parser, cmd_replay),
     "sweep": (add_sweep_parser, cmd_sweep),
