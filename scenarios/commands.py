@@ -310,10 +310,44 @@ def cmd_calibrate(args) -> int:
     return calibration.main((["--fast"] if args.fast else []) + (["--out", args.out] if args.out else []))
 
 
+# --------------------------------------------------------------------------- bench
+BENCH_LAYERS = ("dem", "twin", "mpc")
+
+
+def add_bench_parser(subparsers):
+    b = subparsers.add_parser("bench", help="accuracy-against-time benchmarks (run from a checkout)",
+                              description="Run benchmarks/<LAYER>_*.py from the repository checkout in the "
+                              "current directory; each writes its table to benchmarks/results/.")
+    b.add_argument("layer", nargs="?", choices=BENCH_LAYERS, help="one layer (default: all)")
+    b.add_argument("--list", action="store_true", help="list the scripts only")
+    b.set_defaults(func=cmd_bench)
+    return b
+
+
+@_exit_codes("bench")
+def cmd_bench(args) -> int:
+    import subprocess
+
+    root = Path("benchmarks")
+    if not root.is_dir():
+        raise SceneError("grindtwin bench runs from a checkout of the repository: no benchmarks/ folder in "
+                         f"{Path.cwd()}.")
+    layers = [args.layer] if args.layer else list(BENCH_LAYERS)
+    # a benchmark is a script with a __main__ block (helper modules and Yade-side scripts are not)
+    scripts = sorted(p for layer in layers for p in root.glob(f"{layer}_*.py")
+                     if '__name__ == "__main__"' in p.read_text(encoding="utf-8"))
+    for script in scripts:
+        print(script)
+        if not args.list and subprocess.call([sys.executable, str(script)]) != 0:
+            raise RunError(f"benchmark {script} failed")
+    return 0
+
+
 #: name -> (add_parser, cmd) for registration in scenarios.cli.
 COMMANDS = {
     "steady": (add_steady_parser, cmd_steady),
     "calibrate": (add_calibrate_parser, cmd_calibrate),
+    "bench": (add_bench_parser, cmd_bench),
     "run": (add_run_parser, cmd_run),
     "replay": (add_replay_parser, cmd_replay),
     "sweep": (add_sweep_parser, cmd_sweep),
