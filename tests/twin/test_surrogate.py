@@ -187,3 +187,11 @@ def test_table_generation_small(tmp_path):
     assert t.attrs["command"] == S.GENERATE_COMMAND and t.attrs["calibration_sha256"] == S.calibration_sha256()
     t.to_parquet(tmp_path / "t.parquet")
     assert S.load_training_table(tmp_path / "t.parquet").attrs["seed"] == 3
+
+
+def test_surrogate_steady_defaults_and_bad_numbers(shipped):
+    out = S.surrogate_steady("B", surrogate=shipped)  # the lab mill's nominal 0.031 t/h, 0.70
+    assert (out["feed_tph"], out["speed_frac_critical"]) == (0.031, 0.70)
+    for bad in ("fast", float("nan")):
+        with pytest.raises(TwinInputError, match="'feed_tph' parameter of surrogate_steady"):
+            S.surrogate_steady("B", bad, 0.70, surrogate=shipped)
