@@ -22,6 +22,9 @@ from .errors import TwinInputError
 from .sizes import SizeGrid, smooth_pxx
 
 INPUT_NAMES = ("feed_tph", "speed_frac_critical")
+#: Negative masses down to this share of nominal hold-up are solver round-off and set to zero;
+#: anything more negative is a solver failure, reported.
+NEGATIVE_ROUNDOFF_REL = 1e-8
 
 
 @dataclass
@@ -99,6 +102,22 @@ class Model:
         if self.z.numel() == 0:
             return expr
         return ca.substitute(expr, self.z, self.z_expr)
+
+    def checked_state(self, x, where: str) -> np.ndarray:
+        """``x`` with round-off negative masses set to zero; SolverError if it is not finite or a
+        mass is negative beyond round-off (mass is never negative)."""
+        from .errors import SolverError
+
+        x = np.array(x, dtype=float)
+        if not np.all(np.isfinite(x)):
+            raise SolverError(f"Non-finite state in {where}.")
+        tol = NEGATIVE_ROUNDOFF_REL * self.spec.holdup_nominal_t
+        worst = x[: self.n_mass].min()
+        if worst < -tol:
+            raise SolverError(f"Negative mass {worst:.3g} t in {where} (beyond round-off {tol:.2g} t): "
+                              "tighten the tolerances.")
+        x[: self.n_mass] = np.maximum(x[: self.n_mass], 0.0)
+        return x
 
     def z_of(self, x) -> np.ndarray:
         """Values of the algebraic aggregates for a state."""

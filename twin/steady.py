@@ -18,9 +18,6 @@ from .sizes import pxx_um
 
 #: Newton stops when the largest mass-rate residual is below this share of nominal flow [-].
 RESIDUAL_REL_TOL = 1e-10
-#: Negative masses down to this share of nominal hold-up are round-off and set to zero;
-#: anything more negative is reported as a solver failure.
-NEGATIVE_ROUNDOFF_REL = 1e-9
 
 
 @dataclass
@@ -118,18 +115,10 @@ def _newton(model, x, u, d, load_target=None, max_iter: int = 60):
 
 
 def _check(model, x, u, d, how: str):
-    scale = model.spec.holdup_nominal_t
-    if not np.all(np.isfinite(x)):
-        raise SolverError(f"Steady state ({how}) is not finite.")
-    worst = x[: model.n_mass].min()
-    if worst < -NEGATIVE_ROUNDOFF_REL * scale:
-        raise SolverError(f"Steady state ({how}) has a negative mass {worst:.3g} t "
-                          f"(allowed round-off {NEGATIVE_ROUNDOFF_REL * scale:.2g} t).")
+    x = model.checked_state(x, f"the steady state ({how})")
     res = np.abs(np.asarray(model.f(x, u, d))).max() / model.spec.feed_nominal_tph
     if not res < 1e3 * RESIDUAL_REL_TOL:
         raise SolverError(f"Steady state ({how}) did not converge: residual {res:.3g} of nominal flow.")
-    x = x.copy()
-    x[: model.n_mass] = np.clip(x[: model.n_mass], 0.0, None)
     return x
 
 
