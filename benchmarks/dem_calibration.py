@@ -30,7 +30,7 @@ SPHERES = int(os.environ.get("DEM_SPHERES", "250"))
 
 def run(label, **kw):
     cal = BondCalibrator(n_particles=10, particle_diameter_m=0.022, spheres_per_particle=SPHERES,
-                         random_state=0, **kw)
+                         random_state=0, verbose=True, **kw)
     if label == "mission_ratios":
         # hold MISSION's k_n: bond modulus = k_n * 2 r_mean (P&C 2004 eq. 9 inverted)
         aggs = cal._agglomerates()

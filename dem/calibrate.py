@@ -59,6 +59,7 @@ class BondCalibrator:
     platen_speed_m_s, time_step_factor, local_damping : passed to the compression test.
     tol_pct : stop when the peak-force (and stiffness) errors are below this (%).
     max_iter : most scaling iterations.
+    verbose : print each iteration.
     """
 
     def __init__(self, n_particles: int = 10, particle_diameter_m: float = 0.022,
@@ -68,7 +69,8 @@ class BondCalibrator:
                  initial_tensile_strength_Pa: float = 10e6, friction_angle_deg: float = 0.0,
                  radius_multiplier: float = 1.0, moment_factor: float = 1.0,
                  platen_speed_m_s: float = 0.1, time_step_factor: float = 0.5,
-                 local_damping: float = 0.7, tol_pct: float = 1.0, max_iter: int = 6) -> None:
+                 local_damping: float = 0.7, tol_pct: float = 1.0, max_iter: int = 6,
+                 verbose: bool = False) -> None:
         self.n_particles = n_particles
         self.particle_diameter_m = particle_diameter_m
         self.spheres_per_particle = spheres_per_particle
@@ -86,6 +88,7 @@ class BondCalibrator:
         self.local_damping = local_damping
         self.tol_pct = tol_pct
         self.max_iter = max_iter
+        self.verbose = verbose
 
     def get_params(self) -> dict:
         return {k: getattr(self, k) for k in (
@@ -93,7 +96,7 @@ class BondCalibrator:
             "material", "bond_modulus_Pa", "stiffness_ratio", "cohesion_ratio",
             "initial_tensile_strength_Pa", "friction_angle_deg", "radius_multiplier",
             "moment_factor", "platen_speed_m_s", "time_step_factor", "local_damping", "tol_pct",
-            "max_iter")}
+            "max_iter", "verbose")}
 
     def _validate(self) -> None:
         o = "BondCalibrator"
@@ -160,6 +163,8 @@ class BondCalibrator:
             rows.append({"iteration": it, "tensile_strength_Pa": sig, "kn_Pa_m": kn,
                          "mean_peak_force_N": mean_f, "mean_stiffness_N_m": mean_k,
                          "peak_error_pct": err_f, "stiffness_error_pct": err_k})
+            if self.verbose:
+                print(f"BondCalibrator iteration {it}: {rows[-1]}", flush=True)
             done = err_f <= self.tol_pct and (target_stiffness_N_m is None or err_k <= self.tol_pct)
             if done or it == self.max_iter:
                 break
