@@ -1,0 +1,476 @@
+"""Nonlinear MPC of the mill: feed rate and speed that hold product P80 at target.
+
+Formulation (direct multiple shooting; Bock & Plitt 1984, "A multiple shooting algorithm for
+direct solution of optimal control problems", IFAC World Congress; Rawlings, Mayne & Diehl,
+*Model Predictive Control*, 2nd ed., 2017, section 8.5):
+
+- the controller's model ``m.f(x, u, d)`` (time in hours) is discretised over one sample period
+  ``dt_h`` by ``rk4_substeps`` classical RK4 steps (:func:`mpc.discretize.rk4_map`); one shooting
+  node per sample, ``X_{k+1} = F(X_k, U_k, D_k)`` as equality constraints (states scaled by a
+  typical value so the NLP is well conditioned);
+- move blocking (Cagienard et al. 2007, "Move blocking strategies in receding horizon control",
+  J. Process Control 17, 563-570): the input is a decision variable on every stage, and equality
+  constraints ``U_k = U_{k-1}`` inside each block of ``move_block`` samples keep it constant;
+- controlled variable: the fraction of the product passing the target size (mass-flow weighted,
+  :meth:`twin.model.Model.passing_function`, linear in the states' flows), held at 0.80, which is
+  equivalent to P80 = target (interpolation of cumulative passing in log size between class
+  bounds is the same in :func:`twin.sizes.pxx_um`); the exact P80 of the plan is reported
+  beside it (``last_info``);
+- stage cost, summed over k = 0..N-1 with outputs at ``(X_{k+1}, U_k, D_k)``::
+
+      weight_p80 * (100 (passing_k - 0.80))^2                      [per (percentage point)^2]
+    + weight_du_feed * (U_k,feed - U_{k-1},feed)^2                  [per (t/h)^2]
+    + weight_du_speed * (100 (U_k,speed - U_{k-1},speed))^2         [per (% of critical)^2]
+    + weight_energy * specific_energy_kwh_t_k                       [per kWh/t, economic term]
+    + load_penalty_quad * s_k^2 + load_penalty_lin * s_k            [soft load band, s_k >= 0]
+    + power_penalty_quad * r_k^2 + power_penalty_lin * r_k          [soft power limit, r_k >= 0]
+
+  with ``U_{-1} = u_prev`` (the input applied last). The soft constraints
+  ``lo - s_k <= load_frac_k <= hi + s_k`` and ``power_kw_k - r_k <= power_max_kw`` use an exact
+  (l1) plus quadratic penalty (Kerrigan & Maciejowski 2000, "Soft constraints and exact
+  penalty functions in model predictive control", UKACC Control Conference): with a linear
+  weight above the constraint's Lagrange multiplier the soft constraint is met whenever the hard
+  one could be;
+- hard bounds on the inputs and rate limits ``|U_k - U_{k-1}| <= rate * dt_h``;
+- feed-forward: the disturbance trajectory ``D_k`` (blend fractions over the horizon, as a belt
+  analyser or stockpile plan foresees them, plus the estimated hardness) is a parameter of the
+  NLP; without preview the current ``d`` is held over the horizon.
+
+The NLP is built once (``casadi.nlpsol``, expanded to SX) and reused; each step updates the
+parameters and warm-starts from the previous solution shifted by one sample (primal, and the
+constraint and bound multipliers, stage by stage). Solvers by name: ``"ipopt"`` (interior point;
+Waechter & Biegler 2006), ``"sqpmethod"`` with ``qpsol`` ``"qrqp"`` or ``"hpipm"`` (SQP; HPIPM of
+Frison & Diehl 2020 exploits the stage structure), ``"fatrop"`` (Vanroye et al. 2023, structure
+detected from the stage-wise ordering of variables and constraints).
+
+Failure handling: if the solver does not converge the controller applies the previous plan
+shifted by one sample (``fallback_used="shifted_plan"``) while the old plan lasts, then holds the
+previous input (``"hold_input"``). If the solve succeeds but the predicted passing fraction at the
+end of the horizon misses 0.80 by more than ``unreachable_tol_frac`` the status says
+``"target_unreachable"`` (the best plan is still applied).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, fields
+
+import casadi as ca
+import numpy as np
+
+from mpc.discretize import rk4_map
+from mpc.errors import MpcInputError
+from mpc.results import ControllerStepResult
+
+SOLVERS = ("ipopt", "sqpmethod", "fatrop")
+QP_SOLVERS = ("qrqp", "hpipm")
+PASSING_TARGET = 0.80
+
+
+@dataclass
+class NmpcSettings:
+    """Settings of :class:`Controller` (units in the names; time in hours)."""
+
+    target_p80_um: float = 210.0
+    """Product P80 target [um]; the controlled passing fraction at this size is held at 0.80."""
+    horizon_steps: int = 20
+    """Prediction horizon N in samples."""
+    dt_h: float = 0.05
+    """Sample period [h] (also the shooting interval)."""
+    move_block: int = 1
+    """Samples per input block (1 = a free move every sample)."""
+    rk4_substeps: int = 3
+    """RK4 steps per sample in the prediction model (3 is stable for the 15-class model at 0.05 h)."""
+    weight_p80: float = 1.0
+    """Weight on (100 (passing - 0.80))^2, per sample."""
+    weight_du_feed: float = 0.1
+    """Weight on (feed move [t/h])^2."""
+    weight_du_speed: float = 0.1
+    """Weight on (speed move [% of critical])^2."""
+    weight_energy: float = 0.01
+    """Economic weight on specific energy [per kWh/t], per sample."""
+    feed_tph_min: float = 20.0
+    """Lower bound of the feed rate [t/h]."""
+    feed_tph_max: float = 45.0
+    """Upper bound of the feed rate [t/h]."""
+    speed_min: float = 0.60
+    """Lower bound of mill speed [fraction of critical]."""
+    speed_max: float = 0.85
+    """Upper bound of mill speed [fraction of critical]."""
+    feed_rate_max_tph_per_h: float = 20.0
+    """Largest feed-rate change per hour [t/h per h]."""
+    speed_rate_max_per_h: float = 0.10
+    """Largest speed change per hour [fraction of critical per h]."""
+    load_band_frac: tuple = (0.8, 1.2)
+    """Stable band of mill load (hold-up / nominal), soft constraint."""
+    load_penalty_lin: float = 100.0
+    """l1 (exact) penalty on the load-band violation [per unit of load fraction]."""
+    load_penalty_quad: float = 1e4
+    """Quadratic penalty on the load-band violation [per (load fraction)^2]."""
+    power_max_kw: float = math.inf
+    """Soft upper limit of mill power [kW]; inf: no limit."""
+    power_penalty_lin: float = 1.0
+    """l1 penalty on the power-limit violation [per kW]."""
+    power_penalty_quad: float = 0.01
+    """Quadratic penalty on the power-limit violation [per kW^2]."""
+    solver: str = "ipopt"
+    """NLP solver: "ipopt", "sqpmethod" or "fatrop"."""
+    qpsol: str = "qrqp"
+    """QP solver of "sqpmethod": "qrqp" or "hpipm"."""
+    max_iter: int = 100
+    """Iteration limit of the NLP solver (0 forces a failure: a test of the fallback)."""
+    tol: float = 1e-6
+    """Convergence tolerance of the NLP solver."""
+    hessian: str = "exact"
+    """IPOPT Hessian: "limited-memory" (L-BFGS; cheap per iteration, the dense model Jacobian
+    makes the exact Hessian costly) or "exact"."""
+    warm_start: bool = True
+    """Start from the previous solution shifted by one sample (primal and dual)."""
+    preview: bool = True
+    """Use the disturbance preview over the horizon; False: hold the current d (feedback only)."""
+    unreachable_tol_frac: float = 0.01
+    """Passing-fraction miss at the horizon end above which the status says target_unreachable."""
+
+    def __post_init__(self) -> None:
+        def bad(name, allowed):
+            raise MpcInputError(f"The '{name}' parameter of NmpcSettings must be {allowed}. "
+                                f"Got {getattr(self, name)!r}.")
+
+        for name in ("horizon_steps", "move_block", "rk4_substeps"):
+            v = getattr(self, name)
+            if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
+                bad(name, "an int >= 1")
+        if not isinstance(self.max_iter, (int, np.integer)) or self.max_iter < 0:
+            bad("max_iter", "an int >= 0")
+        if self.move_block > self.horizon_steps:
+            bad("move_block", f"an int in [1, horizon_steps = {self.horizon_steps}]")
+        for name in ("target_p80_um", "dt_h", "feed_rate_max_tph_per_h", "speed_rate_max_per_h",
+                     "tol", "power_max_kw"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and v > 0 and not math.isnan(v)):
+                bad(name, "a float > 0")
+        for name in ("weight_p80", "weight_du_feed", "weight_du_speed", "weight_energy",
+                     "load_penalty_lin", "load_penalty_quad", "power_penalty_lin",
+                     "power_penalty_quad", "unreachable_tol_frac"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                bad(name, "a finite float >= 0")
+        if not 0 < self.feed_tph_min < self.feed_tph_max:
+            bad("feed_tph_min", f"in (0, feed_tph_max = {self.feed_tph_max})")
+        if not 0 < self.speed_min < self.speed_max < 1:
+            bad("speed_min", f"in (0, speed_max = {self.speed_max}) with speed_max < 1")
+        lb = tuple(self.load_band_frac)
+        if len(lb) != 2 or not 0 <= lb[0] < lb[1]:
+            bad("load_band_frac", "a pair (lo, hi) with 0 <= lo < hi")
+        if self.solver not in SOLVERS:
+            bad("solver", f"one of {SOLVERS}")
+        if self.qpsol not in QP_SOLVERS:
+            bad("qpsol", f"one of {QP_SOLVERS}")
+
+    @classmethod
+    def field_names(cls) -> tuple[str, ...]:
+        return tuple(f.name for f in fields(cls))
+
+
+class Controller:
+    """Nonlinear MPC on a twin model (``model.f``, ``model.outputs``, ``model.passing_function``).
+
+    ``model`` is the controller's model (typically coarser than the plant: fewer size classes
+    and mixers); ``settings`` an :class:`NmpcSettings`. The NLP is built here, once.
+    ``make_step(x_est, d_preview, u_prev)`` returns a :class:`ControllerStepResult`;
+    ``last_info`` holds the predicted passing fraction, exact P80 and load of the plan.
+    """
+
+    input_names = ("feed_tph", "speed_frac_critical")
+
+    def __init__(self, model, settings: NmpcSettings | None = None, x_scale=None):
+        self.model = model
+        self.settings = s = settings or NmpcSettings()
+        if not isinstance(s, NmpcSettings):
+            raise MpcInputError(f"The 'settings' parameter of Controller must be NmpcSettings. "
+                                f"Got {type(s).__name__}.")
+        for out in ("load_frac", "specific_energy_kwh_t", "power_kw"):
+            if out not in model.outputs:
+                raise MpcInputError(f"The controller's model must have the output '{out}' "
+                                    f"(effects 'holdup' and 'power'). Got {sorted(model.outputs)}.")
+        self.nx, self.nu, self.nd = model.f.size1_in(0), model.f.size1_in(1), model.f.size1_in(2)
+        if x_scale is None:
+            x_scale = np.maximum(np.abs(model.initial_state(None)), 1e-3 * model.spec.holdup_nominal_t)
+        self.x_scale = np.asarray(x_scale, float).reshape(-1)
+        if self.x_scale.size != self.nx or np.any(self.x_scale <= 0):
+            raise MpcInputError(f"The 'x_scale' parameter must have {self.nx} entries > 0.")
+        self._build()
+        self.reset()
+
+    # ------------------------------------------------------------------ build
+    def _build(self) -> None:
+        s, m = self.settings, self.model
+        nx, nu, nd, N = self.nx, self.nu, self.nd, s.horizon_steps
+        F = rk4_map(m.f, s.dt_h, s.rk4_substeps, name="nmpc_F").expand()
+        psd_fn = m.product_psd_function()
+        xs = ca.SX.sym("x", nx)
+        us = ca.SX.sym("u", nu)
+        ds = ca.SX.sym("d", nd)
+        wpass = ca.SX.sym("wpass", m.spec.grid.count)
+        psd = psd_fn(xs, us, ds)
+        passing = ca.dot(wpass, psd) / (ca.sum1(psd) + 1e-12 * m.spec.holdup_nominal_t)
+        out_fn = ca.Function("nmpc_out", [xs, us, ds, wpass],
+                             [passing, m.outputs["load_frac"](xs, us, ds),
+                              m.outputs["specific_energy_kwh_t"](xs, us, ds),
+                              m.outputs["power_kw"](xs, us, ds)])
+        self._out_fn = out_fn
+        scale = ca.DM(self.x_scale)
+        has_power = math.isfinite(s.power_max_kw)
+        n_slack = 2 if has_power else 1
+        self._n_slack = n_slack
+
+        # decision variables, stage-wise: [X0, U0, S0, X1, U1, S1, ..., XN] (X scaled)
+        p_x0 = ca.MX.sym("x0", nx)
+        p_d = ca.MX.sym("D", nd, N)
+        p_uprev = ca.MX.sym("u_prev", nu)
+        p_wpass = ca.MX.sym("wpass", m.spec.grid.count)
+        P = ca.vertcat(p_x0, ca.vec(p_d), p_uprev, p_wpass)
+        w, lbw, ubw = [], [], []
+        g, lbg, ubg = [], [], []
+        J = 0
+        Xs = [ca.MX.sym("X0", nx)]
+        Us, Ss = [], []
+        w.append(Xs[0]); lbw.append(-np.inf * np.ones(nx)); ubw.append(np.inf * np.ones(nx))
+        u_lo = np.array([s.feed_tph_min, s.speed_min])
+        u_hi = np.array([s.feed_tph_max, s.speed_max])
+        du_max = np.array([s.feed_rate_max_tph_per_h, s.speed_rate_max_per_h]) * s.dt_h
+        lo_band, hi_band = s.load_band_frac
+        # initial condition as the first constraint (keeps stage blocks uniform for warm starts)
+        g.append(Xs[0] - p_x0 / scale); lbg.append(np.zeros(nx)); ubg.append(np.zeros(nx))
+        u_last = p_uprev
+        for k in range(N):
+            Uk = ca.MX.sym(f"U{k}", nu)
+            Sk = ca.MX.sym(f"S{k}", n_slack)
+            Us.append(Uk); Ss.append(Sk)
+            w += [Uk, Sk]
+            lbw += [u_lo, np.zeros(n_slack)]
+            ubw += [u_hi, np.inf * np.ones(n_slack)]
+            Xk1 = ca.MX.sym(f"X{k + 1}", nx)
+            Xs.append(Xk1)
+            w.append(Xk1); lbw.append(-np.inf * np.ones(nx)); ubw.append(np.inf * np.ones(nx))
+            dk = p_d[:, k]
+            xk_phys = Xs[k] * scale
+            x_next = F(xk_phys, Uk, dk)
+            # stage block of constraints: gap, rate/blocking, load band, power
+            g.append(x_next / scale - Xk1); lbg.append(np.zeros(nx)); ubg.append(np.zeros(nx))
+            du = Uk - u_last
+            if k % s.move_block == 0:
+                g.append(du); lbg.append(-du_max); ubg.append(du_max)
+            else:  # inside a block: no move
+                g.append(du); lbg.append(np.zeros(nu)); ubg.append(np.zeros(nu))
+            pas, load, se, pw = out_fn(Xk1 * scale, Uk, dk, p_wpass)
+            g.append(ca.vertcat(load - Sk[0], load + Sk[0]))
+            lbg.append(np.array([-np.inf, lo_band])); ubg.append(np.array([hi_band, np.inf]))
+            J = J + s.load_penalty_quad * Sk[0] ** 2 + s.load_penalty_lin * Sk[0]
+            if has_power:
+                g.append(pw - Sk[1]); lbg.append(np.array([-np.inf])); ubg.append(np.array([s.power_max_kw]))
+                J = J + s.power_penalty_quad * Sk[1] ** 2 + s.power_penalty_lin * Sk[1]
+            J = (J + s.weight_p80 * (100.0 * (pas - PASSING_TARGET)) ** 2
+                 + s.weight_du_feed * du[0] ** 2 + s.weight_du_speed * (100.0 * du[1]) ** 2
+                 + s.weight_energy * se)
+            u_last = Uk
+        self._ng_stage = nx + nu + 2 + (1 if has_power else 0)
+        self._nw_stage = nu + n_slack + nx
+        wv = ca.vertcat(*w)
+        gv = ca.vertcat(*g)
+        self._lbw, self._ubw = np.concatenate(lbw), np.concatenate(ubw)
+        self._lbg, self._ubg = np.concatenate(lbg), np.concatenate(ubg)
+        nlp = {"x": wv, "f": J, "g": gv, "p": P}
+        opts = {"expand": s.hessian == "exact"}
+        if s.solver == "ipopt":
+            opts["ipopt"] = {"print_level": 0, "hessian_approximation": s.hessian, "max_iter": int(s.max_iter), "tol": s.tol,
+                             "acceptable_tol": 1e3 * s.tol, "sb": "yes",
+                             "mu_strategy": "adaptive"}
+            opts["print_time"] = False
+            if s.warm_start:
+                opts["ipopt"].update({"warm_start_init_point": "yes",
+                                      "warm_start_bound_push": 1e-6,
+                                      "warm_start_mult_bound_push": 1e-6})
+        elif s.solver == "sqpmethod":
+            opts.update({"qpsol": s.qpsol, "max_iter": int(s.max_iter), "print_time": False,
+                         "print_header": False, "print_iteration": False, "print_status": False,
+                         "tol_pr": s.tol, "tol_du": s.tol, "error_on_fail": False})
+            if s.qpsol == "qrqp":
+                opts["qpsol_options"] = {"print_iter": False, "print_header": False,
+                                         "error_on_fail": False}
+            else:
+                opts["qpsol_options"] = {"error_on_fail": False}
+        else:  # fatrop
+            opts.update({"structure_detection": "auto", "print_time": False,
+                         "fatrop": {"print_level": 0, "max_iter": int(s.max_iter), "tol": s.tol},
+                         "error_on_fail": False})
+        t0 = time.perf_counter()
+        self._solver = ca.nlpsol("nmpc", s.solver, nlp, opts)
+        self.build_time_s = time.perf_counter() - t0
+        # index maps into w
+        self._ix = [np.arange(nx)]
+        self._iu, self._is = [], []
+        pos = nx
+        for k in range(N):
+            self._iu.append(np.arange(pos, pos + nu)); pos += nu
+            self._is.append(np.arange(pos, pos + n_slack)); pos += n_slack
+            self._ix.append(np.arange(pos, pos + nx)); pos += nx
+        self._nw = pos
+        self._wpass = np.asarray(m.spec.grid.passing_weights(s.target_p80_um), float)
+
+    # ------------------------------------------------------------------ state
+    def reset(self, u_prev=None) -> None:
+        """Forget the previous solution (warm start, plan, fallback counters)."""
+        self._w_prev = None
+        self._lam_g_prev = None
+        self._lam_x_prev = None
+        self._plan_prev = None
+        self._plan_age = 0
+        self.last_info: dict = {}
+
+    def set_target(self, target_p80_um: float) -> None:
+        """Change the P80 target without rebuilding (the passing weights are a parameter)."""
+        if not (np.isfinite(target_p80_um) and target_p80_um > 0):
+            raise MpcInputError(f"The 'target_p80_um' parameter must be a float > 0. "
+                                f"Got {target_p80_um!r}.")
+        self.settings.target_p80_um = float(target_p80_um)
+        self._wpass = np.asarray(self.model.spec.grid.passing_weights(target_p80_um), float)
+
+    def _d_traj(self, d_preview) -> np.ndarray:
+        N, nd = self.settings.horizon_steps, self.nd
+        d = np.asarray(d_preview, float)
+        if d.ndim == 1:
+            if d.size != nd:
+                raise MpcInputError(f"The 'd_preview' parameter must have {nd} entries or shape "
+                                    f"({nd}, {N}). Got shape {d.shape}.")
+            d = np.repeat(d[:, None], N, axis=1)
+        if d.ndim != 2 or d.shape[0] != nd or d.shape[1] < 1:
+            raise MpcInputError(f"The 'd_preview' parameter must have shape ({nd}, {N}). "
+                                f"Got {d.shape}.")
+        if not self.settings.preview:
+            d = np.repeat(d[:, :1], N, axis=1)
+        if d.shape[1] < N:  # hold the last known value
+            d = np.hstack([d, np.repeat(d[:, -1:], N - d.shape[1], axis=1)])
+        if not np.all(np.isfinite(d)):
+            raise MpcInputError("The 'd_preview' parameter must be finite.")
+        return d[:, :N]
+
+    def _initial_guess(self, x0s, u_prev):
+        N, nx = self.settings.horizon_steps, self.nx
+        if self.settings.warm_start and self._w_prev is not None:
+            w_old = self._w_prev
+            w0 = np.empty(self._nw)
+            for k in range(N + 1):
+                w0[self._ix[k]] = w_old[self._ix[min(k + 1, N)]]
+            for k in range(N):
+                w0[self._iu[k]] = w_old[self._iu[min(k + 1, N - 1)]]
+                w0[self._is[k]] = w_old[self._is[min(k + 1, N - 1)]]
+            w0[self._ix[0]] = x0s
+            lam_g = lam_x = None
+            if self._lam_g_prev is not None:
+                ng0, ngs = nx, self._ng_stage
+                lg = self._lam_g_prev
+                lam_g = lg.copy()
+                lam_g[ng0:ng0 + (N - 1) * ngs] = lg[ng0 + ngs:]
+                lam_x = self._lam_x_prev.copy()
+                lx = self._lam_x_prev
+                for k in range(N):
+                    lam_x[self._iu[k]] = lx[self._iu[min(k + 1, N - 1)]]
+                    lam_x[self._is[k]] = lx[self._is[min(k + 1, N - 1)]]
+            return w0, lam_g, lam_x
+        w0 = np.empty(self._nw)
+        for k in range(N + 1):
+            w0[self._ix[k]] = x0s
+        for k in range(N):
+            w0[self._iu[k]] = u_prev
+            w0[self._is[k]] = 0.0
+        return w0, None, None
+
+    # ------------------------------------------------------------------ step
+    def make_step(self, x_est, d_preview, u_prev, y_meas=None) -> ControllerStepResult:
+        """One sample: from the state estimate, the disturbance preview (shape ``(n_d, N)``, or
+        ``(n_d,)`` held) and the last applied input to the input to apply now.
+        ``y_meas`` is accepted for a common closed-loop verb and not used."""
+        s = self.settings
+        N, nx, nu = s.horizon_steps, self.nx, self.nu
+        x = np.asarray(x_est, float).reshape(-1)
+        if x.size != nx or not np.all(np.isfinite(x)):
+            raise MpcInputError(f"The 'x_est' parameter must be {nx} finite values. Got {x.size}.")
+        u_prev = np.asarray(u_prev, float).reshape(-1)
+        if u_prev.size != nu or not np.all(np.isfinite(u_prev)):
+            raise MpcInputError(f"The 'u_prev' parameter must be {nu} finite values. Got {u_prev!r}.")
+        D = self._d_traj(d_preview)
+        x0s = x / self.x_scale
+        w0, lam_g0, lam_x0 = self._initial_guess(x0s, u_prev)
+        p = np.concatenate([x, D.ravel(order="F"), u_prev, self._wpass])
+        args = dict(x0=w0, p=p, lbx=self._lbw, ubx=self._ubw, lbg=self._lbg, ubg=self._ubg)
+        if lam_g0 is not None and s.solver == "ipopt":
+            args["lam_g0"] = lam_g0
+            args["lam_x0"] = lam_x0
+        t0 = time.perf_counter()
+        try:
+            sol = self._solver(**args)
+            stats = self._solver.stats()
+            ok = bool(stats.get("success", False))
+            status = str(stats.get("return_status", "unknown"))
+            iters = int(stats.get("iter_count", -1))
+        except RuntimeError as exc:  # solver raised (e.g. NaN in a function)
+            sol, ok, status, iters = None, False, f"error: {exc}", -1
+        dt_solve = time.perf_counter() - t0
+        if ok:
+            wopt = np.asarray(sol["x"], float).ravel()
+            if not np.all(np.isfinite(wopt)):
+                ok, status = False, "non-finite solution"
+        if not ok:
+            return self._fallback(status, iters, dt_solve, u_prev)
+        self._w_prev = wopt
+        self._lam_g_prev = np.asarray(sol["lam_g"], float).ravel()
+        self._lam_x_prev = np.asarray(sol["lam_x"], float).ravel()
+        plan = np.array([wopt[i] for i in self._iu])
+        plan = np.clip(plan, [s.feed_tph_min, s.speed_min], [s.feed_tph_max, s.speed_max])
+        states = np.array([wopt[i] * self.x_scale for i in self._ix])
+        self._plan_prev = plan
+        self._plan_age = 0
+        info = self._plan_info(states, plan, D)
+        if abs(info["passing_end"] - PASSING_TARGET) > s.unreachable_tol_frac:
+            status = f"target_unreachable ({status}): predicted P80 {info['p80_end_um']:.1f} um " \
+                     f"at the horizon end against {s.target_p80_um:.1f} um"
+        self.last_info = info
+        u0 = plan[0].copy()
+        return ControllerStepResult(True, status, float(sol["f"]), iters, dt_solve, u0, plan,
+                                    None, states)
+
+    def _plan_info(self, states, plan, D) -> dict:
+        from twin.sizes import pxx_um
+
+        psd_fn = self.model.product_psd_function()
+        x_end, u_end, d_end = states[-1], plan[-1], D[:, -1]
+        pas, load, se, pw = (float(v) for v in self._out_fn(x_end, u_end, d_end, self._wpass))
+        psd = np.asarray(psd_fn(x_end, u_end, d_end), float).ravel()
+        p80_end = pxx_um(self.model.spec.grid, psd) if psd.sum() > 0 else math.nan
+        pas1 = float(self._out_fn(states[1], plan[0], D[:, 0], self._wpass)[0])
+        return {"passing_end": pas, "passing_next": pas1, "p80_end_um": p80_end,
+                "load_end_frac": load, "specific_energy_end_kwh_t": se, "power_end_kw": pw}
+
+    def _fallback(self, status, iters, dt_solve, u_prev) -> ControllerStepResult:
+        s = self.settings
+        self._w_prev = None  # cold start after a failure (the old iterate may be the cause)
+        self._lam_g_prev = None
+        self._lam_x_prev = None
+        if self._plan_prev is not None and self._plan_age + 1 < s.horizon_steps:
+            self._plan_age += 1
+            plan = np.vstack([self._plan_prev[self._plan_age:],
+                              np.repeat(self._plan_prev[-1:], self._plan_age, axis=0)])
+            # the shifted plan was feasible for the old u_prev; keep the rate limit for this one
+            du_max = np.array([s.feed_rate_max_tph_per_h, s.speed_rate_max_per_h]) * s.dt_h
+            u0 = np.clip(plan[0], u_prev - du_max, u_prev + du_max)
+            self.last_info = {"fallback": "shifted_plan"}
+            return ControllerStepResult(False, status, math.nan, iters, dt_solve, u0, plan,
+                                        "shifted_plan", None)
+        self._plan_prev = None
+        self._w_prev = None
+        self.last_info = {"fallback": "hold_input"}
+        plan = np.repeat(u_prev[None, :], s.horizon_steps, axis=0)
+        return ControllerStepResult(False, status, math.nan, iters, dt_solve, u_prev.copy(), plan,
+                                    "hold_input", None)
