@@ -71,7 +71,7 @@ need the full design: trained on 128 mineralogies they reach P80 R2 0.994, on 64
 32 they diverge on unseen ores; ``n_pca=6, n_components=32`` degrades more gracefully (0.998,
 0.993, 0.977). Speed (``benchmarks/results/twin_surrogate.md``; 2 shared cores, load ~6, so
 noisy): the twin takes ~15-18 ms per steady state of a built twin and ~250 ms with the build;
-the surrogate ~2-5 us per prediction in a batch (ratio ~600-10 000x, median ~4 000x against a
+the surrogate ~1-28 us per prediction in a batch (ratio 630-15 000x, median ~5 000x against a
 built twin) and 0.1-0.3 ms per single ``surrogate_steady`` call (~60-150x against a built
 twin's steady state, ~800-2 000x against build + steady state). The 1000x goal is met for
 batches and against a fresh build, not for one call against an already built twin: Python
