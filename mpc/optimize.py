@@ -1,0 +1,171 @@
+"""Steady-state set-point optimiser: feed rate and speed that hold a target P80 with a stable load.
+
+On the twin's steady state (``Twin.steady``, ~10 ms): for a blend, the P80 rises with feed rate
+and falls with speed (over the usable range), so
+
+- ``"feed"``: speed held (default: the mill's nominal), the feed rate that gives the target is
+  the root of ``P80(feed) - target`` (Brent's method, ``scipy.optimize.brentq``);
+- ``"speed"``: feed held (default: the mill's nominal), the speed root of ``P80(speed) - target``;
+- ``"both"``: on the curve P80 = target (feed solved for each speed), the speed that minimises
+  specific energy [kWh/t] (``objective="min_energy"``) or maximises throughput
+  (``objective="max_throughput"``), by a grid over the speed bounds refined with a bounded
+  scalar search (``scipy.optimize.minimize_scalar``), subject to the load in its stable band.
+
+Every answer says whether it is feasible (a root inside the bounds and the load in the band);
+an unreachable target is reported in ``message``, never replaced by the nearest point silently.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+import scipy.optimize
+
+from mpc.errors import MpcInputError
+
+MODES = ("both", "feed", "speed")
+OBJECTIVES = ("min_energy", "max_throughput")
+
+
+@dataclass(frozen=True)
+class Setpoints:
+    """The chosen set points and the table of alternatives."""
+
+    feasible: bool
+    feed_tph: float
+    speed_frac_critical: float
+    p80_um: float
+    specific_energy_kwh_t: float
+    load_frac: float
+    power_kw: float
+    mode: str
+    objective: str
+    message: str
+    table: pd.DataFrame
+
+
+def _row(twin, blend, feed, speed, target, option, objective, hardness_scale, band):
+    ss = twin.steady(feed_tph=feed, speed_frac_critical=speed, blend=blend,
+                     hardness_scale=hardness_scale)
+    load = ss.outputs["load_frac"]
+    ok = abs(ss.p80_um - target) <= 0.5 and band[0] <= load <= band[1]
+    note = "" if ok else ("load outside the stable band" if abs(ss.p80_um - target) <= 0.5
+                          else "target not reached")
+    return {"option": option, "objective": objective, "feasible": ok, "feed_tph": feed,
+            "speed_frac_critical": speed, "p80_um": ss.p80_um, "target_p80_um": target,
+            "specific_energy_kwh_t": ss.outputs["specific_energy_kwh_t"], "load_frac": load,
+            "power_kw": ss.outputs["power_kw"], "throughput_tph": ss.outputs["throughput_tph"],
+            "note": note}
+
+
+def feed_for_target(twin, blend, target_p80_um: float, speed_frac_critical: float,
+                    feed_bounds_tph=(5.0, 60.0), hardness_scale: float = 1.0) -> float:
+    """Feed rate [t/h] with steady P80 = target at the given speed; nan if outside the bounds."""
+    def g(f):
+        return twin.steady(feed_tph=f, speed_frac_critical=speed_frac_critical, blend=blend,
+                           hardness_scale=hardness_scale).p80_um - target_p80_um
+    lo, hi = feed_bounds_tph
+    glo, ghi = g(lo), g(hi)
+    if glo * ghi > 0:
+        return math.nan
+    return float(scipy.optimize.brentq(g, lo, hi, xtol=1e-4))
+
+
+def speed_for_target(twin, blend, target_p80_um: float, feed_tph: float,
+                     speed_bounds=(0.55, 0.90), hardness_scale: float = 1.0) -> float:
+    """Speed [fraction of critical] with steady P80 = target at the given feed; nan if none."""
+    def g(s):
+        return twin.steady(feed_tph=feed_tph, speed_frac_critical=s, blend=blend,
+                           hardness_scale=hardness_scale).p80_um - target_p80_um
+    lo, hi = speed_bounds
+    glo, ghi = g(lo), g(hi)
+    if glo * ghi > 0:
+        return math.nan
+    return float(scipy.optimize.brentq(g, lo, hi, xtol=1e-7))
+
+
+def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
+                      objective: str = "min_energy", feed_bounds_tph=(5.0, 60.0),
+                      speed_bounds=(0.55, 0.90), feed_tph: float | None = None,
+                      speed_frac_critical: float | None = None, hardness_scale: float = 1.0,
+                      load_band=None) -> Setpoints:
+    """Set points for ``blend`` (fractions in the twin's component order) that hold
+    ``target_p80_um``; ``mode`` in ``("both", "feed", "speed")`` picks the answer, the table
+    always lists every option: feed only (speed held at ``speed_frac_critical``, default
+    nominal), speed only (feed held at ``feed_tph``, default nominal), both for least specific
+    energy and both for most throughput."""
+    if mode not in MODES:
+        raise MpcInputError(f"The 'mode' parameter of optimal_setpoints must be one of {MODES}. "
+                            f"Got {mode!r}.")
+    if objective not in OBJECTIVES:
+        raise MpcInputError(f"The 'objective' parameter of optimal_setpoints must be one of "
+                            f"{OBJECTIVES}. Got {objective!r}.")
+    if not (np.isfinite(target_p80_um) and target_p80_um > 0):
+        raise MpcInputError(f"The 'target_p80_um' parameter of optimal_setpoints must be a "
+                            f"float > 0. Got {target_p80_um!r}.")
+    mill = twin.mill
+    speed0 = mill.speed_nominal_frac_critical if speed_frac_critical is None else speed_frac_critical
+    feed0 = mill.feed_nominal_tph if feed_tph is None else feed_tph
+    band = tuple(load_band or mill.stable_band)
+    blend = list(blend)
+    rows = []
+
+    def add(option, obj, feed, speed):
+        if math.isnan(feed) or math.isnan(speed):
+            rows.append({"option": option, "objective": obj, "feasible": False, "feed_tph": feed,
+                         "speed_frac_critical": speed, "p80_um": math.nan,
+                         "target_p80_um": target_p80_um, "specific_energy_kwh_t": math.nan,
+                         "load_frac": math.nan, "power_kw": math.nan, "throughput_tph": math.nan,
+                         "note": "target unreachable within the bounds"})
+        else:
+            rows.append(_row(twin, blend, feed, speed, target_p80_um, option, obj,
+                             hardness_scale, band))
+
+    add("feed", "hold target", feed_for_target(twin, blend, target_p80_um, speed0,
+                                               feed_bounds_tph, hardness_scale), speed0)
+    add("speed", "hold target", feed0, speed_for_target(twin, blend, target_p80_um, feed0,
+                                                        speed_bounds, hardness_scale))
+
+    def on_curve(speed):
+        f = feed_for_target(twin, blend, target_p80_um, speed, feed_bounds_tph, hardness_scale)
+        if math.isnan(f):
+            return math.nan, math.nan, math.nan
+        ss = twin.steady(feed_tph=f, speed_frac_critical=speed, blend=blend,
+                         hardness_scale=hardness_scale)
+        return f, ss.outputs["specific_energy_kwh_t"], ss.outputs["load_frac"]
+
+    grid = np.linspace(speed_bounds[0], speed_bounds[1], 9)
+    pts = [(s, *on_curve(s)) for s in grid]
+    for obj in OBJECTIVES:
+        def score(p):
+            s, f, se, load = p
+            if math.isnan(f) or not band[0] <= load <= band[1]:
+                return math.inf
+            return se if obj == "min_energy" else -f
+        best = min(pts, key=score)
+        if not math.isfinite(score(best)):
+            add("both", obj, math.nan, math.nan)
+            continue
+        i = int(np.argmin([score(p) for p in pts]))
+        lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+        r = scipy.optimize.minimize_scalar(lambda s: score((s, *on_curve(s))), bounds=(lo, hi),
+                                           method="bounded", options={"xatol": 1e-4})
+        s_best = float(r.x) if math.isfinite(r.fun) and r.fun <= score(best) else best[0]
+        add("both", obj, on_curve(s_best)[0], s_best)
+    table = pd.DataFrame(rows)
+    pick = table[(table.option == mode)
+                 & ((table.objective == objective) if mode == "both" else True)].iloc[0]
+    if pick.feasible:
+        msg = (f"P80 {target_p80_um:g} um with feed {pick.feed_tph:.2f} t/h, speed "
+               f"{pick.speed_frac_critical:.3f} of critical, {pick.specific_energy_kwh_t:.2f} "
+               f"kWh/t, load {pick.load_frac:.2f}")
+    else:
+        msg = (f"Target P80 {target_p80_um:g} um is infeasible in mode {mode!r} ({pick.note}; "
+               f"feed bounds {feed_bounds_tph} t/h, speed bounds {speed_bounds}, load band "
+               f"{band}).")
+    return Setpoints(bool(pick.feasible), float(pick.feed_tph), float(pick.speed_frac_critical),
+                     float(pick.p80_um), float(pick.specific_energy_kwh_t), float(pick.load_frac),
+                     float(pick.power_kw), mode, objective, msg, table)
