@@ -9,6 +9,8 @@ virtual breakage tests, leaving fewer numbers fitted to the table.
 
 Run: ``grindtwin calibrate`` (or ``python -m twin.calibration``); writes
 ``twin/data/calibration.json`` with the command, versions, the fitted values and the errors.
+``python -m twin.calibration --dem [--fast] [--seed N]`` runs the DEM path instead
+(:func:`twin.dem_link.calibrate_from_dem`, writes ``twin/data/dem_calibration.json``).
 """
 
 from __future__ import annotations
@@ -119,7 +121,16 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="grindtwin calibrate", description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", type=Path, default=Path(str(resources.files("twin").joinpath("data", "calibration.json"))))
     ap.add_argument("--fast", action="store_true", help="fewer optimiser evaluations (a quick check)")
+    ap.add_argument("--dem", action="store_true",
+                    help="the DEM path instead: regenerate twin/data/dem_calibration.json (twin.dem_link)")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the DEM path")
     args = ap.parse_args(argv)
+    if args.dem:
+        from .dem_link import DEM_CALIBRATION_PATH, calibrate_from_dem
+
+        out = args.out if "--out" in (argv if argv is not None else sys.argv) else DEM_CALIBRATION_PATH
+        calibrate_from_dem(fast=args.fast, seed=args.seed, out=out)
+        return 0
     record = fit(max_nfev=12 if args.fast else 80)
     record["provenance"] = provenance("grindtwin calibrate" + (" --fast" if args.fast else ""))
     tmp = args.out.with_suffix(".tmp")
