@@ -257,11 +257,13 @@ def add_steady_parser(subparsers):
                    help="mill speed as a fraction of critical (0.70, not 70)")
     s.add_argument("--mill", default="lab", choices=["lab", "industrial"])
     s.add_argument("--json", action="store_true", help="print the KPIs as JSON (unit-suffixed keys)")
+    s.add_argument("--surrogate", action="store_true",
+                   help="answer from the PLS surrogate (lab mill; refuses inputs outside its training domain)")
     s.set_defaults(func=cmd_steady)
     return s
 
 
-STEADY_KEYS = ("feed_tph", "speed_frac_critical", "p80_um", "specific_energy_kwh_t", "power_kw",
+STEADY_KEYS = ("source", "feed_tph", "speed_frac_critical", "p80_um", "specific_energy_kwh_t", "power_kw",
                "throughput_tph", "holdup_t", "load_frac", "load_status")
 
 
@@ -273,12 +275,20 @@ def cmd_steady(args) -> int:
     from twin.twin import Twin
 
     blend = Blend.parse(args.blend) if args.blend else Blend.single(load_ore(args.ore))
-    twin = Twin(blend, mill=args.mill)
-    if args.at_constant_load:
-        ss = twin.steady_at_constant_load(speed_frac_critical=args.speed)
+    if args.surrogate:
+        from twin.surrogate import surrogate_steady
+
+        if args.at_constant_load:
+            raise SceneError("--surrogate answers at a given feed rate; it cannot be combined with --at-constant-load.")
+        kpis = surrogate_steady(blend, args.feed_tph, args.speed, mill=args.mill)
+        kpis = {k: v for k, v in kpis.items() if k in STEADY_KEYS or k == "source"}
     else:
-        ss = twin.steady(feed_tph=args.feed_tph, speed_frac_critical=args.speed)
-    kpis = {k: v for k, v in ss.summary().items() if k in STEADY_KEYS}
+        twin = Twin(blend, mill=args.mill)
+        if args.at_constant_load:
+            ss = twin.steady_at_constant_load(speed_frac_critical=args.speed)
+        else:
+            ss = twin.steady(feed_tph=args.feed_tph, speed_frac_critical=args.speed)
+        kpis = {k: v for k, v in ss.summary().items() if k in STEADY_KEYS} | {"source": "twin"}
     if args.json:
         mineralogy = {o.name: {"wt_pct": o.wt_pct, **o.summary()} for o in blend.ores}
         print(json.dumps({"mill": args.mill, "blend": dict(zip(blend.names, blend.fractions)),

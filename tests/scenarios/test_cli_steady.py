@@ -43,3 +43,13 @@ def test_bad_arguments_give_one_line_and_exit_2(argv, message, capsys):
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_steady_from_surrogate_is_close_to_the_twin(capsys):
+    assert main(["steady", "--ore", "C", "--feed-tph", "0.035", "--speed", "0.72", "--json"]) == 0
+    twin = json.loads(capsys.readouterr().out)
+    assert main(["steady", "--ore", "C", "--feed-tph", "0.035", "--speed", "0.72", "--json", "--surrogate"]) == 0
+    sur = json.loads(capsys.readouterr().out)
+    assert (twin["source"], sur["source"]) == ("twin", "surrogate")
+    assert sur["p80_um"] == pytest.approx(twin["p80_um"], rel=0.05)
+    assert sur["specific_energy_kwh_t"] == pytest.approx(twin["specific_energy_kwh_t"], rel=0.03)
