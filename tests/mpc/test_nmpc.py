@@ -1,0 +1,98 @@
+import numpy as np
+import pytest
+
+from mpc.errors import MpcInputError
+from mpc.nmpc import Controller, NmpcSettings
+
+N = 4
+
+
+@pytest.fixture(scope="module")
+def setup(ctrl_twin):
+    m = ctrl_twin.model
+    ss = ctrl_twin.steady(feed_tph=27.0, speed_frac_critical=0.70, blend=[1.0, 0.0])
+    ctrl = Controller(m, NmpcSettings(horizon_steps=N, dt_h=0.05, move_block=2,
+                                      feed_rate_max_tph_per_h=10.0, speed_rate_max_per_h=0.05))
+    return ctrl, ss
+
+
+def test_settings_errors_name_field_value_allowed():
+    with pytest.raises(MpcInputError, match=r"'solver'.*one of.*Got 'cplex'"):
+        NmpcSettings(solver="cplex")
+    with pytest.raises(MpcInputError, match=r"'horizon_steps'.*int >= 1.*Got 0"):
+        NmpcSettings(horizon_steps=0)
+    with pytest.raises(MpcInputError, match="move_block"):
+        NmpcSettings(horizon_steps=3, move_block=5)
+
+
+def test_bounds_rate_limits_and_blocking_hold(setup):
+    ctrl, ss = setup
+    ctrl.reset()
+    s = ctrl.settings
+    d = np.repeat(ctrl.model.d_vector([0.6, 0.4])[:, None], N, axis=1)  # coarsening ore ahead
+    u_prev = ss.u
+    for _ in range(3):
+        r = ctrl.make_step(ss.x, d, u_prev)
+        assert r.success, r.status
+        assert r.iterations > 0
+        plan = r.plan
+        assert np.all(plan[:, 0] >= s.feed_tph_min - 1e-6) and np.all(plan[:, 0] <= s.feed_tph_max + 1e-6)
+        assert np.all(plan[:, 1] >= s.speed_min - 1e-6) and np.all(plan[:, 1] <= s.speed_max + 1e-6)
+        moves = np.diff(np.vstack([u_prev, plan]), axis=0)
+        assert np.all(np.abs(moves[:, 0]) <= s.feed_rate_max_tph_per_h * s.dt_h + 1e-6)
+        assert np.all(np.abs(moves[:, 1]) <= s.speed_rate_max_per_h * s.dt_h + 1e-6)
+        np.testing.assert_allclose(plan[1], plan[0], atol=1e-7)  # move blocking: block of 2
+        u_prev = r.u_applied
+    # the model is off target at this point (P80 ~198 um on B): the controller acts
+    assert np.abs(u_prev - ss.u).max() > 1e-3
+
+
+def test_forced_solver_failure_shifted_plan_then_hold(setup):
+    ctrl, ss = setup
+    ctrl.reset()
+    d = ctrl.model.d_vector([1.0, 0.0])
+    good = ctrl.make_step(ss.x, d, ss.u)
+    assert good.success and good.fallback_used is None
+    solver = ctrl._solver
+
+    def broken(**kwargs):
+        raise RuntimeError("forced failure")
+
+    ctrl._solver = broken
+    try:
+        u_prev = good.u_applied
+        used = []
+        for k in range(N + 1):
+            r = ctrl.make_step(ss.x, d, u_prev)
+            assert not r.success and "forced failure" in r.status
+            used.append(r.fallback_used)
+            if r.fallback_used == "shifted_plan":
+                np.testing.assert_allclose(r.u_applied, good.plan[k + 1], atol=1e-9)
+            u_prev = r.u_applied
+        assert used[: N - 1] == ["shifted_plan"] * (N - 1)
+        assert used[N - 1:] == ["hold_input"] * 2
+        np.testing.assert_allclose(r.u_applied, u_prev)
+    finally:
+        ctrl._solver = solver
+    r = ctrl.make_step(ss.x, d, u_prev)
+    assert r.success and r.fallback_used is None
+
+
+def test_max_iter_zero_fails_to_hold_input(ctrl_twin):
+    ss = ctrl_twin.steady(feed_tph=27.0, speed_frac_critical=0.70, blend=[1.0, 0.0])
+    ctrl = Controller(ctrl_twin.model, NmpcSettings(horizon_steps=2, dt_h=0.05, max_iter=0))
+    r = ctrl.make_step(ss.x, ctrl_twin.model.d_vector([0.6, 0.4]), ss.u)
+    assert not r.success and r.fallback_used == "hold_input"
+    np.testing.assert_allclose(r.u_applied, ss.u)
+    assert "Maximum_Iterations" in r.status
+
+
+def test_unreachable_target_is_reported(setup):
+    ctrl, ss = setup
+    ctrl.reset()
+    ctrl.set_target(40.0)  # far finer than any input in bounds can grind
+    try:
+        r = ctrl.make_step(ss.x, ctrl.model.d_vector([1.0, 0.0]), ss.u)
+        assert r.status.startswith("target_unreachable")
+    finally:
+        ctrl.set_target(210.0)
