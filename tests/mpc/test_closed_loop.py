@@ -1,0 +1,57 @@
+"""Short closed loop on a coarse plant with hardness 1.2 (the controller's model assumes 1.0):
+the EKF finds the hardness, the NMPC removes the P80 offset; the run is compared against a
+stored reference (tests/mpc/data/closed_loop_reference.csv; rewrite with --save-reference)."""
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from mpc.closed_loop import FixedInputs, Sensors, run_closed_loop
+from mpc.estimator import Ekf
+from mpc.nmpc import Controller, NmpcSettings
+from mpc.optimize import optimal_setpoints
+
+REF = Path(__file__).parent / "data" / "closed_loop_reference.csv"
+COLS = ["time_h", "feed_tph", "speed_frac_critical", "p80_um", "hardness_est"]
+
+
+def test_offset_free_against_reference(ctrl_twin, plant_twin, save_reference):
+    dt = 0.05
+    ss_c = ctrl_twin.steady(feed_tph=27.0, speed_frac_critical=0.70, blend=[1.0, 0.0])
+    ss_p = plant_twin.steady(feed_tph=27.0, speed_frac_critical=0.70, blend=[1.0, 0.0])
+    ctrl = Controller(ctrl_twin.model, NmpcSettings(horizon_steps=4, dt_h=0.05, move_block=2))
+    sensors = Sensors(p80_noise_um=1.0, p80_dead_time_h=0.1, p80_sample_period_h=0.05)
+    res = run_closed_loop(plant_twin.model, ctrl, Ekf(ctrl_twin.model, dt, ss_c.x, p80_noise_um=1.0),
+                          lambda t: np.array([1.0, 0.0]), sensors, 1.2, dt, ss_p.x, ss_p.u,
+                          seed=7, plant_hardness=1.2)
+    f = res.frame
+    assert set(COLS + ["p80_measured_um", "p80_target_um", "power_kw", "load_frac",
+                       "specific_energy_kwh_t", "throughput_tph", "blend_B_frac",
+                       "solve_time_s", "iterations", "fallback"]) <= set(f.columns)
+    # offset-free: estimate near 1.2, last half hour within 6 um of the target
+    assert abs(f.hardness_est.iloc[-6:].mean() - 1.2) < 0.06
+    assert (f.p80_um.iloc[-10:] - 210.0).abs().max() < 6.0
+    # no control stays off target on the same plant
+    res0 = run_closed_loop(plant_twin.model, FixedInputs(ss_p.u), None,
+                           lambda t: np.array([1.0, 0.0]), sensors, 1.2, dt, ss_p.x, ss_p.u,
+                           seed=7, plant_hardness=1.2)
+    assert res0.kpis["p80_iae_um_h"] > 1.5 * res.kpis["p80_iae_um_h"]
+    if save_reference:
+        REF.parent.mkdir(exist_ok=True)
+        f[COLS].to_csv(REF, index=False)
+        pytest.skip("reference saved")
+    ref = pd.read_csv(REF)
+    np.testing.assert_allclose(f[COLS].to_numpy(), ref[COLS].to_numpy(), rtol=1e-3, atol=0.2)
+
+
+def test_optimal_setpoints_table_and_infeasible(plant_twin):
+    r = optimal_setpoints(plant_twin, [0.6, 0.4], 210.0, mode="feed")
+    assert r.feasible and abs(r.p80_um - 210.0) < 0.5
+    assert set(r.table.option) == {"feed", "speed", "both"}
+    both = r.table[(r.table.option == "both") & r.table.feasible]
+    assert (both.specific_energy_kwh_t.min()
+            <= r.table.loc[r.table.feasible, "specific_energy_kwh_t"].min() + 1e-9)
+    bad = optimal_setpoints(plant_twin, [0.6, 0.4], 30.0, mode="both")
+    assert not bad.feasible and "infeasible" in bad.message
