@@ -50,6 +50,11 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--horizon", type=int, default=20)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--only", default="none,pi,nmpc,nmpc_preview")
+    ap.add_argument("--weight-du-feed", type=float, default=0.1)
+    ap.add_argument("--weight-du-speed", type=float, default=0.1)
+    ap.add_argument("--hardness-noise", type=float, default=0.3,
+                    help="EKF random-walk intensity of the hardness scale [1/sqrt(h)]")
+    ap.add_argument("--tag", default="", help="suffix of the result files")
     args = ap.parse_args(argv)
     dt = args.dt_h
     sensors = Sensors(p80_noise_um=3.0, p80_dead_time_h=0.1, p80_sample_period_h=0.05,
@@ -61,7 +66,7 @@ def main(argv=None) -> pd.DataFrame:
     css = ctw.steady(feed_tph=feed0, speed_frac_critical=0.70, blend=[1.0, 0.0])
     rows, runs = [], []
     for kind in args.only.split(","):
-        est = Ekf(ctw.model, dt, css.x)
+        est = Ekf(ctw.model, dt, css.x, hardness_noise_per_sqrt_h=args.hardness_noise)
         t0 = time.perf_counter()
         if kind == "none":
             ctrl = FixedInputs(ss.u)
@@ -71,6 +76,7 @@ def main(argv=None) -> pd.DataFrame:
         else:
             ctrl = Controller(ctw.model, NmpcSettings(
                 horizon_steps=args.horizon, dt_h=dt, target_p80_um=TARGET_UM,
+                weight_du_feed=args.weight_du_feed, weight_du_speed=args.weight_du_speed,
                 preview=kind == "nmpc_preview"))
         build_s = time.perf_counter() - t0
         t0 = time.perf_counter()
@@ -88,8 +94,8 @@ def main(argv=None) -> pd.DataFrame:
         runs.append(res.frame.assign(controller=kind))
     table = pd.DataFrame(rows)
     OUT.mkdir(exist_ok=True)
-    table.to_csv(OUT / "mpc_reference_case.csv", index=False)
-    pd.concat(runs).to_csv(OUT / "mpc_reference_case_runs.csv", index=False)
+    table.to_csv(OUT / f"mpc_reference_case{args.tag}.csv", index=False)
+    pd.concat(runs).to_csv(OUT / f"mpc_reference_case{args.tag}_runs.csv", index=False)
     cols = ["controller", "p80_iae_um_h", "p80_within_10um_frac", "p80_max_abs_err_um",
             "specific_energy_kwh_t", "throughput_t", "load_outside_band_frac",
             "solve_time_median_s", "solve_time_p95_s", "iterations_median", "fallback_steps"]
@@ -97,10 +103,11 @@ def main(argv=None) -> pd.DataFrame:
           f"target {TARGET_UM} um, lead {LEAD_H} h",
           "",
           f"duration {args.duration_h} h, sample {dt} h, NMPC horizon {args.horizon}, seed "
-          f"{args.seed}; plant 25 classes x 3 mixers; controller/EKF model 10 classes (ratio 2) "
+          f"{args.seed}; weights du_feed {args.weight_du_feed}, du_speed {args.weight_du_speed}; "
+          f"EKF hardness noise {args.hardness_noise}/sqrt(h); plant 25 classes x 3 mixers; controller/EKF model 10 classes (ratio 2) "
           "x 1 mixer + analyser lag; sensors: P80 noise 3 um, dead time 0.1 h, sampling 0.05 h.",
           "", table[cols].to_markdown(index=False, floatfmt=".4g")]
-    (OUT / "mpc_reference_case.md").write_text("\n".join(md) + "\n")
+    (OUT / f"mpc_reference_case{args.tag}.md").write_text("\n".join(md) + "\n")
     return table
 
 

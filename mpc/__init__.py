@@ -16,6 +16,17 @@ from mpc.linear import (
 )
 from mpc.pi import DiscretePI, pi_from_model, simc_pi
 from mpc.results import ControllerStepResult
+from mpc.closed_loop import (
+    ClosedLoopResult,
+    FixedInputs,
+    PiFeedback,
+    Sensors,
+    pi_baseline,
+    run_closed_loop,
+)
+from mpc.estimator import Ekf
+from mpc.nmpc import Controller, NmpcSettings
+from mpc.optimize import Setpoints, feed_for_target, optimal_setpoints, speed_for_target
 
 __all__ = [
     "ControllerStepResult",
@@ -39,4 +50,18 @@ __all__ = [
     "rk4_map",
     "simc_pi",
     "steady_target",
+    # NMPC, estimation, closed loop, steady-state optimiser
+    "ClosedLoopResult",
+    "Controller",
+    "Ekf",
+    "FixedInputs",
+    "NmpcSettings",
+    "PiFeedback",
+    "Sensors",
+    "Setpoints",
+    "feed_for_target",
+    "optimal_setpoints",
+    "pi_baseline",
+    "run_closed_loop",
+    "speed_for_target",
 ]
