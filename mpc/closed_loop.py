@@ -164,14 +164,18 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
                     duration_h: float, dt_h: float, x0, u0, seed: int = 0,
                     preview_lead_h: float = 0.0, target_p80_um: float = 210.0,
                     plant_hardness: float | Callable = 1.0, horizon_steps: int | None = None,
-                    load_band=(0.8, 1.2), progress: bool = False) -> ClosedLoopResult:
+                    load_band=(0.8, 1.2), progress: bool = False,
+                    estimator_warmup_h: float = 0.0) -> ClosedLoopResult:
     """Run the loop for ``duration_h`` at sample period ``dt_h``.
 
     ``plant_model``: the plant twin's model (may be finer than the controller's); ``x0`` its
     initial state; ``u0`` the input before t = 0; ``schedule(t_h)`` -> blend fractions (plant
     component order, shared with the controller's model); ``plant_hardness``: the plant's true
     hardness scale (a float or a callable of t_h), unknown to the controller; ``horizon_steps``
-    for the preview (default: the controller's settings, else 1).
+    for the preview (default: the controller's settings, else 1). ``estimator_warmup_h``: the
+    estimator first runs that long on the plant held at ``u0`` and ``schedule(0)`` (as on a
+    plant that was running before the loop closed; same seed stream), unrecorded; the loop
+    then starts from the plant state at the end of the warm-up.
     """
     from twin.simulate import step
     from twin.sizes import pxx_um
@@ -194,6 +198,21 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
     x = np.asarray(x0, float).copy()
     u_prev = np.asarray(u0, float).reshape(-1).copy()
     d_prev_known = None
+    n_warm = int(round(estimator_warmup_h / dt_h)) if estimator is not None else 0
+    if n_warm > 0:
+        warm = _SensorState(sensors, rng)
+        b0 = np.asarray(schedule(0.0), float)
+        d0 = plant_model.d_vector(b0, hard(0.0))
+        xw = x.copy()
+        for k in range(n_warm):
+            psd = np.asarray(psd_fn(xw, u_prev, d0), float).ravel()
+            p80w = pxx_um(plant_model.spec.grid, psd)
+            y = warm.make_step(k * dt_h, p80w, float(outs["power_kw"](xw, u_prev, d0)),
+                               float(outs["load_frac"](xw, u_prev, d0)))
+            if k > 0:
+                estimator.make_step([y[0], y[2], y[3]], u_prev, b0)
+            xw, _, _ = step(plant_model, xw, u_prev, d0, dt_h)
+        x, d_prev_known = xw, b0
     x_est = d_est = None
     rows = []
     iterator = range(n + 1)

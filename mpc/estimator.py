@@ -65,7 +65,7 @@ class Ekf:
 
     def __init__(self, model, dt_h: float, x0, hardness0: float = 1.0, p80_noise_um: float = 3.0,
                  power_noise_kw: float = 30.0, load_noise_frac: float = 0.1,
-                 state_noise_rel: float = 1e-4, hardness_noise_per_sqrt_h: float = 0.3,
+                 state_noise_rel: float = 1e-4, hardness_noise_per_sqrt_h: float = 0.1,
                  p0_rel: float = 0.05, hardness_p0: float = 0.1, rk4_substeps: int = 3,
                  hardness_bounds: tuple = (0.3, 3.0)):
         self.model = model
