@@ -137,7 +137,7 @@ def _mill(scene: Scene):
         diameter_m=m.diameter_m, length_m=m.length_m, ball_filling_frac=m.ball_filling_frac)
 
 
-def _twin(scene: Scene, ores: dict, effects, effect_options, size_classes):
+def _twin(scene: Scene, ores: dict, effects, effect_options, size_classes, n_mixers=None):
     from twin.errors import TwinError
     from twin.sizes import SizeGrid
     from twin.twin import Twin
@@ -146,7 +146,7 @@ def _twin(scene: Scene, ores: dict, effects, effect_options, size_classes):
         return Twin(list(ores.values()), mill=_mill(scene), effects=list(effects),
                     effect_options=dict(effect_options or {}),
                     grid=SizeGrid(size_classes.top_um, size_classes.ratio, size_classes.count),
-                    n_mixers=int(scene.mill.n_mixers), feed_p80_um=scene.feed.p80_um,
+                    n_mixers=int(n_mixers or scene.mill.n_mixers), feed_p80_um=scene.feed.p80_um,
                     feed_modulus=scene.feed.ggs_modulus)
     except TwinError as exc:
         src = scene.source_path or scene.scene.name
@@ -169,9 +169,10 @@ def build_models(scene: Scene) -> Models:
         effects = p.effects if p.effects is not None else scene.effects
         options = p.effect_options if p.effect_options is not None else scene.effect_options
         sizes = p.size_classes if p.size_classes is not None else scene.mill.size_classes
-        if (list(effects), dict(options), sizes) != (list(scene.effects), dict(scene.effect_options),
-                                                      scene.mill.size_classes):
-            plant = _twin(scene, ores, effects, options, sizes)
+        mixers = p.n_mixers if p.n_mixers is not None else scene.mill.n_mixers
+        if (list(effects), dict(options), sizes, mixers) != (
+                list(scene.effects), dict(scene.effect_options), scene.mill.size_classes, scene.mill.n_mixers):
+            plant = _twin(scene, ores, effects, options, sizes, mixers)
             notes.append("the plant is a separate twin (effects " + ", ".join(effects) + ")")
     return Models(control=control, plant=plant, components=list(ores), notes=notes)
 
@@ -469,71 +470,81 @@ def nmpc_settings(scene: Scene):
         solver=c.solver, preview=c.preview_lead_h > 0)
 
 
-def make_controller(scene: Scene, twin, x_ss=None):
-    """The scene's controller on the controller's twin: ``mpc.nmpc.Controller`` with
-    :func:`nmpc_settings`, or the PI of ``mpc.pi.pi_from_model`` (P80 -> feed rate, tuned by
-    SIMC on the model linearised at the initial steady state; conditional integration as
-    anti-windup, because SIMC's integral time can be shorter than a sample, which
-    back-calculation refuses)."""
-    kind = scene.controller.kind
-    if kind == "nmpc":
-        return _require("mpc.nmpc", kind).Controller(twin.model, nmpc_settings(scene))
-    pi = _require("mpc.pi", kind)
-    c = scene.controller
-    ss = twin.steady(feed_tph=scene.feed.feed_tph, speed_frac_critical=scene.feed.speed_frac_critical,
-                     blend=None)
-    lo, hi = _feed_bounds(scene)
-    rate = c.bounds.feed_rate_max_tph_per_h
-    du = rate * scene.scene.sample_period_h if rate is not None else math.inf
-    ctrl, _ = pi.pi_from_model(twin.model.f, twin.model.outputs, ss.x, ss.u, ss.d,
-                               scene.scene.sample_period_h, setpoint=c.target_p80_um,
-                               u_min=lo, u_max=hi, du_max=du, anti_windup="conditional")
-    return ctrl
+def make_controller(scene: Scene, twin):
+    """The scene's NMPC on the controller's twin: ``mpc.nmpc.Controller`` with
+    :func:`nmpc_settings` (the PI baseline is built by the closed loop itself)."""
+    return _require("mpc.nmpc", scene.controller.kind).Controller(twin.model, nmpc_settings(scene))
+
+
+#: The estimator runs this long on the steady plant before the loop closes (as on a plant that
+#: was running before; the same as the reference-case benchmark).
+ESTIMATOR_WARMUP_H = 2.0
 
 
 def _closed_loop(scene, models, feed, progress):
-    """Closed loop through ``mpc.closed_loop.run_closed_loop`` (the agreed entry point).
+    """Closed loop through :func:`mpc.closed_loop.run_closed_loop`.
 
-    The controller comes from :func:`make_controller`; the estimator from
-    ``mpc.estimator.estimator_from_scene(scene, model)`` when that exists, else ``None`` (the
-    loop's own default). ``schedule`` is the feed on the sample grid: ``time_h`` and
-    ``blend_<component>_frac`` in the order of the model's components. A missing module is a
-    RunError naming it; any failure inside the loop is a RunError with its reason.
+    Wiring (the same as benchmarks/mpc_reference_case.py): the plant starts at the steady state
+    that holds the target P80 at the scene's speed and initial blend (feed solved by
+    :func:`mpc.optimize.feed_for_target`; the scene's ``feed_tph`` if it has no target); the
+    sensors are the scene's ``[sensors]``; the NMPC gets an EKF on the controller's model
+    (hardness as a random walk), warmed up on the steady plant for ``ESTIMATOR_WARMUP_H``; PI is
+    :func:`mpc.closed_loop.pi_baseline` (SIMC on the linearised plant twin, analyser delay
+    added). ``schedule(t)`` holds the blend of the sample at or before t (clamped at the end).
+    A missing module is a RunError naming it; any failure inside the loop a RunError with its
+    reason.
     """
     kind = scene.controller.kind
     _require("mpc.nmpc" if kind == "nmpc" else "mpc.pi", kind)
-    loop_mod = _require("mpc.closed_loop", kind)
-    notes: list[str] = []
-    estimator = None
-    try:
-        est_mod = importlib.import_module("mpc.estimator")
-    except ImportError:
-        est_mod = None
-    if est_mod is not None and hasattr(est_mod, "estimator_from_scene"):
-        estimator = est_mod.estimator_from_scene(scene, models.control.model)
-    else:
-        notes.append("no mpc.estimator.estimator_from_scene: the loop's default estimator")
+    loop = _require("mpc.closed_loop", kind)
+    optimize = _require("mpc.optimize", kind)
+    c = scene.controller
     blend = _component_blend(feed, models.components)
-    u0 = np.array([scene.feed.feed_tph, scene.feed.speed_frac_critical], float)
-    x0 = _start_state(scene, models.plant, u0, blend[0], notes)
-    schedule = pd.DataFrame({"time_h": feed["time_h"]})
-    for j, c in enumerate(models.components):
-        schedule[f"blend_{c}_frac"] = blend[:, j]
+    times = feed["time_h"].to_numpy(float)
+    dt = scene.scene.sample_period_h
+    speed0 = scene.feed.speed_frac_critical
+    notes: list[str] = []
     try:
-        controller = make_controller(scene, models.control)
-        res = loop_mod.run_closed_loop(
-            models.plant.model, controller, estimator, schedule, scene.sensors,
-            scene.scene.duration_h, scene.scene.sample_period_h, x0, u0, scene.scene.seed,
-            scene.controller.preview_lead_h)
+        feed0 = (optimize.feed_for_target(models.plant, blend[0], c.target_p80_um, speed0)
+                 if c.target_p80_um is not None else scene.feed.feed_tph)
+        if not math.isfinite(feed0):
+            raise RunError(f"scene {scene.scene.name}: no feed rate in 5-60 t/h holds the target P80 "
+                           f"{c.target_p80_um} um at speed {speed0} with the initial blend")
+        ss = models.plant.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend[0])
+        notes.append(f"the plant starts at steady state, feed {feed0:.4g} t/h, speed {speed0:.3g}")
+        sensors = loop.Sensors(**{k: v for k, v in scene.sensors.model_dump().items()
+                                  if k in loop.Sensors.__dataclass_fields__})
+
+        def schedule(t_h):
+            k = min(max(int(np.searchsorted(times, t_h + 1e-9 * dt, side="right")) - 1, 0), len(times) - 1)
+            return blend[k]
+
+        estimator = None
+        if kind == "nmpc":
+            from mpc.estimator import Ekf
+
+            css = models.control.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend[0])
+            estimator = Ekf(models.control.model, dt, css.x)
+            controller = make_controller(scene, models.control)
+        else:
+            b = c.bounds
+            controller, _ = loop.pi_baseline(
+                models.plant.model, ss, sensors, dt, c.target_p80_um,
+                feed_tph_min=b.feed_tph_min, feed_tph_max=b.feed_tph_max,
+                feed_rate_max_tph_per_h=(b.feed_rate_max_tph_per_h if b.feed_rate_max_tph_per_h is not None
+                                         else math.inf))
+        res = loop.run_closed_loop(
+            models.plant.model, controller, estimator, schedule, sensors, scene.scene.duration_h, dt,
+            ss.x, ss.u, seed=scene.scene.seed, preview_lead_h=c.preview_lead_h,
+            target_p80_um=c.target_p80_um if c.target_p80_um is not None else math.nan,
+            load_band=tuple(c.load_band_frac), progress=progress,
+            estimator_warmup_h=ESTIMATOR_WARMUP_H if estimator is not None else 0.0)
     except (RunError, SceneError):
         raise
     except Exception as exc:  # noqa: BLE001 - the loop's failure is the run's failure
         raise RunError(f"scene {scene.scene.name}: the closed loop failed: "
                        f"{type(exc).__name__}: {exc}") from None
     frame = res.frame.copy()
-    if "p80_um" not in frame or "time_h" not in frame:
-        raise RunError(f"scene {scene.scene.name}: the closed loop's frame has no p80_um/time_h "
-                       f"columns (got {list(frame.columns)})")
     k = dict(res.kpis)
     extra = {"notes": notes,
              "solve_times_s": frame["solve_time_s"].dropna().to_numpy() if "solve_time_s" in frame else None,

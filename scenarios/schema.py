@@ -192,6 +192,7 @@ class Plant(Section):
     model: Literal["twin", "leroux2013"] = "twin"
     effects: list[str] | None = None
     size_classes: SizeClasses | None = None
+    n_mixers: int | None = Field(default=None, ge=1, le=20)
     effect_options: dict[str, dict[str, Any]] | None = None
 
 
