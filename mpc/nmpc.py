@@ -41,7 +41,10 @@ parameters and warm-starts from the previous solution shifted by one sample (pri
 constraint and bound multipliers, stage by stage). Solvers by name: ``"ipopt"`` (interior point;
 Waechter & Biegler 2006), ``"sqpmethod"`` with ``qpsol`` ``"qrqp"`` or ``"hpipm"`` (SQP; HPIPM of
 Frison & Diehl 2020 exploits the stage structure), ``"fatrop"`` (Vanroye et al. 2023, structure
-detected from the stage-wise ordering of variables and constraints).
+detected from the stage-wise ordering of variables and constraints). Measured state: ipopt and
+sqpmethod+qrqp work; fatrop and sqpmethod+hpipm are refused at build with an
+:class:`MpcSolverError` that says why (the rate constraints couple consecutive inputs, and hpipm
+is not given the stage dimensions).
 
 Failure handling: if the solver does not converge the controller applies the previous plan
 shifted by one sample (``fallback_used="shifted_plan"``) while the old plan lasts, then holds the
@@ -60,7 +63,7 @@ import casadi as ca
 import numpy as np
 
 from mpc.discretize import rk4_map
-from mpc.errors import MpcInputError
+from mpc.errors import MpcInputError, MpcSolverError
 from mpc.results import ControllerStepResult
 
 SOLVERS = ("ipopt", "sqpmethod", "fatrop")
@@ -303,10 +306,24 @@ class Controller:
                 opts["qpsol_options"] = {"error_on_fail": False}
         else:  # fatrop
             opts.update({"structure_detection": "auto", "print_time": False,
+                         "equality": [bool(v) for v in self._lbg == self._ubg],
                          "fatrop": {"print_level": 0, "max_iter": int(s.max_iter), "tol": s.tol},
                          "error_on_fail": False})
         t0 = time.perf_counter()
-        self._solver = ca.nlpsol("nmpc", s.solver, nlp, opts)
+        try:
+            self._solver = ca.nlpsol("nmpc", s.solver, nlp, opts)
+        except RuntimeError as exc:
+            hint = ""
+            if s.solver == "fatrop":
+                hint = (" fatrop's structure detection needs every constraint of stage k to depend "
+                        "on (x_k, u_k) only; the rate limits and move blocking here couple u_k "
+                        "with u_{k-1} (lifting the previous input into the state is not done).")
+            elif s.solver == "sqpmethod" and s.qpsol == "hpipm":
+                hint = (" hpipm needs the OCP dimensions per stage (qpsol_options N, nx, nu, ng), "
+                        "which this NLP layout does not pass.")
+            raise MpcSolverError(f"The '{s.solver}' solver (qpsol {s.qpsol!r}) could not be "
+                                 f"built for this NLP.{hint} Use 'ipopt' or 'sqpmethod' with "
+                                 f"'qrqp'. CasADi said: {str(exc)[-300:]}") from exc
         self.build_time_s = time.perf_counter() - t0
         # index maps into w
         self._ix = [np.arange(nx)]

@@ -96,3 +96,10 @@ def test_unreachable_target_is_reported(setup):
         assert r.status.startswith("target_unreachable")
     finally:
         ctrl.set_target(210.0)
+
+
+def test_unsupported_structured_solver_is_refused_clearly(ctrl_twin):
+    from mpc.errors import MpcSolverError
+
+    with pytest.raises(MpcSolverError, match="fatrop"):
+        Controller(ctrl_twin.model, NmpcSettings(horizon_steps=2, dt_h=0.05, solver="fatrop"))
