@@ -304,6 +304,60 @@ def cmd_steady(args) -> int:
     return 0
 
 
+# --------------------------------------------------------------------------- optimize
+#: The feed search range of `optimize`, as multiples of the mill's nominal feed rate.
+OPTIMIZE_FEED_RANGE = (0.2, 2.0)
+
+
+def add_optimize_parser(subparsers):
+    o = subparsers.add_parser("optimize", help="feed rate and speed that hold a target P80 at least energy",
+                              description="Steady set points for an ore or blend that hold the target P80 with "
+                              "the load in its stable band; a table of alternatives (feed only, speed only, both "
+                              "for least energy, both for most throughput).")
+    o.add_argument("--ore", default="B", help="reference type A-D or a TOML file with [mineralogy] and [texture]")
+    o.add_argument("--blend", help="blend of ores, e.g. B=0.6,D=0.4 (overrides --ore)")
+    o.add_argument("--target-p80-um", required=True, type=_float_in("--target-p80-um", 1.0, 1e4))
+    o.add_argument("--mill", default="lab", choices=["lab", "industrial"])
+    o.add_argument("--mode", default="both", choices=["both", "feed", "speed"], help="which answer to pick")
+    o.add_argument("--objective", default="min_energy", choices=["min_energy", "max_throughput"])
+    o.add_argument("--json", action="store_true", help="print the answer and the table as JSON")
+    o.set_defaults(func=cmd_optimize)
+    return o
+
+
+@_exit_codes("optimize")
+def cmd_optimize(args) -> int:
+    import json
+
+    from mpc.errors import MpcInputError
+    from mpc.optimize import optimal_setpoints
+    from twin.ores import Blend, load_ore
+    from twin.twin import Twin
+
+    blend = Blend.parse(args.blend) if args.blend else Blend.single(load_ore(args.ore))
+    twin = Twin(blend, mill=args.mill)
+    lo, hi = (f * twin.mill.feed_nominal_tph for f in OPTIMIZE_FEED_RANGE)
+    try:
+        sp = optimal_setpoints(twin, list(blend.fractions), args.target_p80_um, mode=args.mode,
+                               objective=args.objective, feed_bounds_tph=(lo, hi))
+    except MpcInputError as exc:
+        raise SceneError(str(exc)) from None
+    table = sp.table
+    if args.json:
+        print(json.dumps({"feasible": sp.feasible, "message": sp.message, "mode": sp.mode,
+                          "objective": sp.objective, "feed_tph": sp.feed_tph,
+                          "speed_frac_critical": sp.speed_frac_critical, "p80_um": sp.p80_um,
+                          "specific_energy_kwh_t": sp.specific_energy_kwh_t, "load_frac": sp.load_frac,
+                          "power_kw": sp.power_kw, "table": json.loads(table.to_json(orient="records"))},
+                         indent=2))
+    else:
+        print(f"Target P80 {args.target_p80_um:g} um, mill {args.mill}, blend "
+              + ", ".join(f"{n} {f:.0%}" for n, f in zip(blend.names, blend.fractions)))
+        print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+        print(("answer: " if sp.feasible else "no feasible answer: ") + sp.message)
+    return 0 if sp.feasible else 1
+
+
 # --------------------------------------------------------------------------- calibrate
 def add_calibrate_parser(subparsers):
     c = subparsers.add_parser("calibrate", help="regenerate twin/data/calibration.json from the repository")
@@ -356,6 +410,7 @@ def cmd_bench(args) -> int:
 #: name -> (add_parser, cmd) for registration in scenarios.cli.
 COMMANDS = {
     "steady": (add_steady_parser, cmd_steady),
+    "optimize": (add_optimize_parser, cmd_optimize),
     "calibrate": (add_calibrate_parser, cmd_calibrate),
     "bench": (add_bench_parser, cmd_bench),
     "run": (add_run_parser, cmd_run),

@@ -1,0 +1,22 @@
+"""`grindtwin optimize`: set points that hold a target P80, with the alternatives."""
+
+import json
+
+import pytest
+
+from scenarios.cli import main
+
+
+def test_optimize_holds_the_target_at_least_energy(capsys):
+    assert main(["optimize", "--blend", "B=0.6,D=0.4", "--mill", "industrial", "--target-p80-um", "210",
+                 "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["feasible"] and out["p80_um"] == pytest.approx(210.0, abs=0.5)
+    both = [r for r in out["table"] if r["option"] == "both" and r["feasible"]]
+    assert out["specific_energy_kwh_t"] == pytest.approx(min(r["specific_energy_kwh_t"] for r in both), rel=1e-6)
+    assert 0.8 <= out["load_frac"] <= 1.2
+
+
+def test_unreachable_target_is_reported_with_exit_1(capsys):
+    assert main(["optimize", "--ore", "A", "--target-p80-um", "20"]) == 1
+    assert "no feasible answer" in capsys.readouterr().out
