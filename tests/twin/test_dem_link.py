@@ -138,3 +138,15 @@ def test_fast_path_lands_near_the_shipped_calibration(shipped):
     ratio = np.array(fast["selection"]["se_t_kwh_per_size"]) / np.array(full["selection"]["se_t_kwh_per_size"])
     sel = (x >= 100) & (x <= 2000)
     assert np.all((1 / FAST_FACTOR_SE < ratio[sel]) & (ratio[sel] < FAST_FACTOR_SE)), ratio
+
+
+def test_twin_with_the_dem_map_reproduces_the_recorded_table_fit(shipped):
+    from twin import Twin
+
+    tf = shipped["table_fit"]
+    ss = Twin("B", mill="lab", breakage_map=dem_link.dem_breakage,
+              calibration=dem_link.dem_twin_calibration()).steady_at_constant_load(speed_frac_critical=0.70)
+    assert ss.p80_um == pytest.approx(tf["predicted"]["B"]["p80_um"], rel=1e-6)
+    assert ss.feed_tph * 1000 == pytest.approx(tf["predicted"]["B"]["throughput_kg_h"], rel=1e-6)
+    assert set(tf["parameters_fitted"]) == {"dem_capture_scale", "cushioning_rate_coeff", "cushioning_power_coeff",
+                                            "lab_power_factor", "lab_grate_d50_um"}
