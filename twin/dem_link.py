@@ -3,7 +3,12 @@
 ``calibrate_from_dem(fast, seed)`` regenerates ``twin/data/dem_calibration.json`` from nothing
 but the repository; ``dem_breakage(ore, coefficients)`` is a breakage map usable as
 ``Twin(ore, breakage_map=dem_breakage, calibration=dem_twin_calibration())``.
-Command line: ``python -m twin.calibration --dem [--fast]`` (or ``python -m twin.dem_link``).
+Command line: ``python -m twin.calibration --dem [--fast] [--seed N]`` (or ``python -m twin.dem_link``;
+``--table-only`` reruns only step 5 on the file's DEM numbers). ``grindtwin calibrate`` forwards
+only ``--fast``/``--out`` to twin.calibration (scenarios/commands.py), so it still runs the
+mineralogy-map fit; forwarding ``--dem`` there is one line in scenarios (not this module's).
+The shipped twin/data/calibration.json (mineralogy map) stays the default of ``Twin``: the
+DEM-based table fit is not better (see benchmarks/results/twin_dem_link_table.md).
 
 Units: SI inside the DEM part (N, Pa, J/kg, m); the twin's units (um, t/kWh, 1/h) at the end.
 
