@@ -131,7 +131,9 @@ class BondCalibrator:
         ``calibration_error_pct_`` (|mean peak - target| / target, %), ``peak_force_cv_pct_``
         (particle-to-particle scatter), ``stiffness_N_m_`` (per particle),
         ``stiffness_error_pct_`` (nan without a stiffness target), ``fracture_energy_J_``,
-        ``specific_fracture_energy_J_kg_`` (per particle), ``n_iter_``, ``n_simulations_``,
+        ``specific_fracture_energy_J_kg_`` (per particle), ``n_iter_``, ``best_iteration_`` (the
+        iteration whose parameters are returned: the one with the smallest error),
+        ``n_simulations_``,
         ``history_`` (DataFrame, one row per iteration), ``results_`` (last
         :class:`dem.lab.CompressionResult` list), ``fit_time_s_``.
         """
@@ -146,6 +148,7 @@ class BondCalibrator:
         sig = float(self.initial_tensile_strength_Pa)
         rows = []
         results = None
+        best = None  # (error, params, results, peaks, stiff, mean_f, err_f, err_k, iteration)
         for it in range(1, self.max_iter + 1):
             params = BondParams(kn_Pa_m=kn, ks_Pa_m=self.stiffness_ratio * kn,
                                 tensile_strength_Pa=sig, cohesion_Pa=self.cohesion_ratio * sig,
@@ -165,6 +168,9 @@ class BondCalibrator:
                          "peak_error_pct": err_f, "stiffness_error_pct": err_k})
             if self.verbose:
                 print(f"BondCalibrator iteration {it}: {rows[-1]}", flush=True)
+            score = err_f if target_stiffness_N_m is None else max(err_f, err_k)
+            if best is None or score < best[0]:
+                best = (score, params, results, peaks, stiff, mean_f, err_f, err_k, it)
             done = err_f <= self.tol_pct and (target_stiffness_N_m is None or err_k <= self.tol_pct)
             if done or it == self.max_iter:
                 break
@@ -181,6 +187,10 @@ class BondCalibrator:
             if target_stiffness_N_m is not None:
                 kn *= target_stiffness_N_m / mean_k
             sig *= (target_peak_force_N / mean_f) ** (1.0 / p_exp)
+        # the peak force is not a smooth function of strength (failure paths switch), so the
+        # iteration may step past its best point: keep the best iteration
+        _, params, results, peaks, stiff, mean_f, err_f, err_k, best_it = best
+        self.best_iteration_ = int(best_it)
         self.bond_params_ = params
         self.tensile_strength_Pa_ = params.tensile_strength_Pa
         self.cohesion_Pa_ = params.cohesion_Pa
