@@ -3,7 +3,7 @@
 Bond parameters: read from benchmarks/results/dem_calibration.csv (the ``issue_material`` Type B
 calibration, fitted by benchmarks/dem_calibration.py), never typed in. Agglomerates at the
 calibration's resolution (bond parameters are resolution-specific) at 22 mm; seeds 0-2;
-specific energies 0.1 ... 3 kJ/kg. Writes benchmarks/results/dem_impact.csv/.md.
+specific energies 20 J/kg ... 3 kJ/kg. Writes benchmarks/results/dem_impact.csv/.md.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from dem.bonds import BondParams
 from dem.lab import drop_weight_test
 
 N = int(os.environ.get("DEM_SPHERES", "0"))  # 0: the calibration's own resolution
-ENERGIES = [float(e) for e in os.environ.get("DEM_ENERGIES", "100,300,1000,3000").split(",")]
+ENERGIES = [float(e) for e in os.environ.get("DEM_ENERGIES", "20,40,70,100,300,1000,3000").split(",")]
 SEEDS = [0, 1, 2]
 
 
