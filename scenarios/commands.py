@@ -363,6 +363,9 @@ def add_calibrate_parser(subparsers):
     c = subparsers.add_parser("calibrate", help="regenerate twin/data/calibration.json from the repository")
     c.add_argument("--fast", action="store_true", help="a quick, coarser calibration (a check)")
     c.add_argument("--out", help="write here instead of the shipped file")
+    c.add_argument("--dem", action="store_true",
+                   help="derive the breakage parameters from the DEM (twin/data/dem_calibration.json)")
+    c.add_argument("--seed", type=int, help="seed of the DEM agglomerates and tests (with --dem)")
     c.set_defaults(func=cmd_calibrate)
     return c
 
@@ -371,7 +374,9 @@ def add_calibrate_parser(subparsers):
 def cmd_calibrate(args) -> int:
     from twin import calibration
 
-    return calibration.main((["--fast"] if args.fast else []) + (["--out", args.out] if args.out else []))
+    argv = (["--fast"] if args.fast else []) + (["--out", args.out] if args.out else [])
+    argv += (["--dem"] if args.dem else []) + (["--seed", str(args.seed)] if args.seed is not None else [])
+    return calibration.main(argv)
 
 
 # --------------------------------------------------------------------------- bench
