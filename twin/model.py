@@ -177,8 +177,8 @@ class Model:
             from .errors import close_matches
             raise TwinInputError(f"Unknown output {name!r} of this model.{close_matches(name, self.outputs)} "
                                  f"Outputs: {', '.join(self.outputs)}.")
-        val = np.asarray(self.outputs[name](x, u, d), dtype=float)
-        return float(val) if val.size == 1 else val.ravel()
+        val = np.asarray(self.outputs[name](x, u, d), dtype=float).ravel()
+        return float(val[0]) if val.size == 1 else val
 
     @cached_property
     def n_instructions(self) -> int:

@@ -132,3 +132,12 @@ def test_outputs_are_casadi_functions_of_x_u_d(twin_b):
     passing = m.passing_function(210.0)
     ss = twin_b.steady()
     assert 0.0 < float(passing(ss.x, ss.u, ss.d)) < 1.0
+
+
+def test_evaluate_returns_floats_for_scalar_outputs_and_arrays_otherwise(twin_b):
+    m = twin_b.model
+    ss = twin_b.steady()
+    assert isinstance(m.evaluate("holdup_t", ss.x, ss.u, ss.d), float)
+    assert m.evaluate("psd_frac", ss.x, ss.u, ss.d).shape == (m.spec.grid.count,)
+    with pytest.raises(Exception, match="Unknown output 'p8_um'.*Did you mean 'p80_um'"):
+        m.evaluate("p8_um", ss.x, ss.u, ss.d)
