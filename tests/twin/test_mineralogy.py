@@ -69,3 +69,25 @@ def test_blend_parse_and_validation():
 def test_bond_power_of_lab_mill_is_a_few_hundred_watts():
     # Bond's equation (before any calibration factor): 0.5 m x 0.3 m, J = 0.35, 70 % critical
     assert 0.25 < bond_power_kw(LAB.with_(power_factor=1.0), 0.70) < 0.45
+
+
+def test_hogg_fuerstenau_power_agrees_with_bond_for_the_lab_mill_and_scales_as_d25_l():
+    from twin.mill import INDUSTRIAL, hogg_fuerstenau_power_kw
+
+    lab = LAB.with_(power_factor=1.0)
+    hf, bond = hogg_fuerstenau_power_kw(lab, 0.70), bond_power_kw(lab, 0.70)
+    assert hf == pytest.approx(bond, rel=0.05)  # two independent published models, 0.5 m mill
+    big = INDUSTRIAL.with_(power_factor=1.0)
+    ratio = (big.diameter_m / lab.diameter_m) ** 2.5 * big.length_m / lab.length_m
+    assert hogg_fuerstenau_power_kw(big, 0.70) == pytest.approx(hf * ratio, rel=1e-12)
+
+
+def test_power_effect_model_option():
+    from twin.errors import ModelError
+    from twin.twin import DEFAULT_EFFECTS, Twin
+
+    hf = Twin("B", effect_options={"power": {"model": "hogg_fuerstenau"}}).steady()
+    bond = Twin("B").steady()
+    assert hf.outputs["power_kw"] == pytest.approx(bond.outputs["power_kw"], rel=0.05)
+    with pytest.raises(ModelError, match="'model' option of effect 'power' must be one of"):
+        Twin("B", effects=list(DEFAULT_EFFECTS), effect_options={"power": {"model": "morrell"}})
