@@ -134,17 +134,25 @@ def simulate(model, x0, duration_h: float, dt_h: float, u_fn, d_fn, rtol=RTOL, a
     return Trajectory(frame, xs, q[:, 0], q[:, 1])
 
 
+@lru_cache(maxsize=64)
+def _trajectory_outputs(model, n: int):
+    """One Function evaluating every scalar output and the product PSD at n samples at once."""
+    names = [name for name, fn in model.outputs.items() if fn.size1_out(0) == 1]
+    fn = ca.Function("trajectory_outputs", [model.x, model.u, model.d],
+                     [ca.vertcat(*[model.outputs[k](model.x, model.u, model.d) for k in names]), model._psd])
+    return names, fn.map(n)
+
+
 def outputs_frame(model, xs, us, ds, time_h, exact_p80=True) -> pd.DataFrame:
     """Scalar outputs along a trajectory as a DataFrame (one row per sample)."""
     cols = {"time_h": time_h, "feed_tph": us[:, 0], "speed_frac_critical": us[:, 1]}
     for i, name in enumerate(model.spec.component_names):
         cols[f"blend_{name}_frac"] = ds[:, i]
     cols["hardness_scale"] = ds[:, -1]
-    for name, fn in model.outputs.items():
-        if fn.size1_out(0) == 1:
-            cols[name] = np.asarray(fn.map(len(time_h))(xs.T, us.T, ds.T)).ravel()
+    names, fn = _trajectory_outputs(model, len(time_h))
+    scalars, psd = (np.asarray(v) for v in fn(xs.T, us.T, ds.T))
+    cols |= {name: scalars[i] for i, name in enumerate(names)}
     if exact_p80:
-        psd = np.asarray(model.product_psd_function().map(len(time_h))(xs.T, us.T, ds.T))
         cols["p80_exact_um"] = [pxx_um(model.spec.grid, psd[:, j]) if psd[:, j].sum() > 0 else math.nan
                                 for j in range(psd.shape[1])]
     return pd.DataFrame(cols)
