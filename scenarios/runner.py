@@ -167,7 +167,9 @@ def build_models(scene: Scene) -> Models:
             raise RunError(f"plant model {p.model!r} is not supported by the runner yet; use "
                            "plant.model = 'twin'")
         effects = p.effects if p.effects is not None else scene.effects
-        options = p.effect_options if p.effect_options is not None else scene.effect_options
+        # the scene's options apply to the plant's effects that have them
+        options = p.effect_options if p.effect_options is not None else {
+            k: v for k, v in scene.effect_options.items() if k in effects}
         sizes = p.size_classes if p.size_classes is not None else scene.mill.size_classes
         mixers = p.n_mixers if p.n_mixers is not None else scene.mill.n_mixers
         if (list(effects), dict(options), sizes, mixers) != (

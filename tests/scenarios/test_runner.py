@@ -331,3 +331,14 @@ def test_open_loop_frame_has_the_analyser(short_run):
     fr = short_run.frame
     assert "p80_analyser_um" in fr  # the short scene has no [sensors]: a perfect analyser
     np.testing.assert_allclose(fr["p80_analyser_um"], fr["p80_um"])
+
+
+def test_reference_scene_builds_a_coarse_controller_model_and_a_full_plant():
+    from scenarios.loader import load_scene
+    from scenarios.runner import build_models
+
+    models = build_models(load_scene(LIBRARY / "reference_transition.toml"))
+    control, plant = models.control.model, models.plant.model
+    assert control.shape == (2, 1, 10) and plant.shape == (2, 3, 25)
+    assert "sensor_delay" in control.effect_names and "sensor_delay" not in plant.effect_names
+    assert control.parameters["analyser_dead_time_h"][0] == 0.1

@@ -47,5 +47,5 @@ def resolve(names, options: dict | None = None) -> list:
     for name in options:
         if name not in seen:
             raise ModelError(f"Options given for effect {name!r}, which is not in the list "
-                             f"{names}.{close_matches(name, EFFECTS)}")
+                             f"{names}.{close_matches(name, names)}")
     return [EFFECTS[n](**options.get(n, {})) for n in EFFECTS if n in seen]
