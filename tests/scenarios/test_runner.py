@@ -249,7 +249,7 @@ def test_nmpc_settings_from_the_scene():
     from scenarios.runner import nmpc_settings
 
     s = nmpc_settings(load_scene(LIBRARY / "reference_transition.toml"))
-    assert (s.target_p80_um, s.horizon_steps, s.move_block) == (210.0, 20, 5)
+    assert (s.target_p80_um, s.horizon_steps, s.move_block) == (210.0, 20, 1)
     assert s.dt_h == pytest.approx(0.05) and s.weight_energy == 0.01
     assert (s.feed_tph_min, s.feed_tph_max, s.speed_rate_max_per_h) == (20.0, 45.0, 0.10)
     assert tuple(s.load_band_frac) == (0.8, 1.2) and s.power_max_kw == math.inf and s.preview
