@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from dem.contacts import add_pair_load
 from dem.errors import DemInputError
 
 #: bond state codes
@@ -328,21 +329,7 @@ def bond_forces(pos, vel, omega, rad, force, torque, lz, dt, b_ij, props, b_fn, 
         fx = -b_fn[b] * nx + b_fs[b, 0]
         fy = -b_fn[b] * ny + b_fs[b, 1]
         fz = -b_fn[b] * nz + b_fs[b, 2]
-        force[j, 0] += fx
-        force[j, 1] += fy
-        force[j, 2] += fz
-        force[i, 0] -= fx
-        force[i, 1] -= fy
-        force[i, 2] -= fz
-        tx = ny * fz - nz * fy
-        ty = nz * fx - nx * fz
-        tz = nx * fy - ny * fx
-        torque[j, 0] -= aj * tx
-        torque[j, 1] -= aj * ty
-        torque[j, 2] -= aj * tz
-        torque[i, 0] -= ai * tx
-        torque[i, 1] -= ai * ty
-        torque[i, 2] -= ai * tz
+        add_pair_load(force, torque, i, j, fx, fy, fz, nx, ny, nz, ai, aj)
         if beta > 0.0:
             mx = b_mb[b, 0] + b_mt[b] * nx
             my = b_mb[b, 1] + b_mt[b] * ny

@@ -49,6 +49,27 @@ def slot_insert(c_partner, c_xi, i, j):
 
 
 @nb.njit(cache=True, inline="always")
+def add_pair_load(force, torque, i, j, fx, fy, fz, nx, ny, nz, ai, aj):
+    """Force f on sphere j and -f on sphere i at their contact point (unit normal n from i to j,
+    lever arms ai, aj from the centres), with the torques: arm_j = -aj n, arm_i = +ai n."""
+    force[j, 0] += fx
+    force[j, 1] += fy
+    force[j, 2] += fz
+    force[i, 0] -= fx
+    force[i, 1] -= fy
+    force[i, 2] -= fz
+    tx = ny * fz - nz * fy
+    ty = nz * fx - nx * fz
+    tz = nx * fy - ny * fx
+    torque[j, 0] -= aj * tx
+    torque[j, 1] -= aj * ty
+    torque[j, 2] -= aj * tz
+    torque[i, 0] -= ai * tx
+    torque[i, 1] -= ai * ty
+    torque[i, 2] -= ai * tz
+
+
+@nb.njit(cache=True, inline="always")
 def hist_add(hist, lo_log10, dlog10, energy_J):
     if energy_J <= 0.0:
         k = 0
@@ -171,22 +192,7 @@ def pair_contact(i, j, pos, vel, omega, rad, mass, force, torque, lz, e_star, g_
                                        r_eff, m_eff, e_star, g_star, mu, eta, c_xi[i, s], dt)
     if new:
         hist_add(hist, lo_log10, dlog10, 0.5 * m_eff * vn * vn)
-    force[j, 0] += fx
-    force[j, 1] += fy
-    force[j, 2] += fz
-    force[i, 0] -= fx
-    force[i, 1] -= fy
-    force[i, 2] -= fz
-    # torque = arm x force ; arm_j = -aj n, force on j = f ; arm_i = +ai n, force on i = -f
-    tx = ny * fz - nz * fy
-    ty = nz * fx - nx * fz
-    tz = nx * fy - ny * fx
-    torque[j, 0] -= aj * tx
-    torque[j, 1] -= aj * ty
-    torque[j, 2] -= aj * tz
-    torque[i, 0] -= ai * tx
-    torque[i, 1] -= ai * ty
-    torque[i, 2] -= ai * tz
+    add_pair_load(force, torque, i, j, fx, fy, fz, nx, ny, nz, ai, aj)
     return 0
 
 
