@@ -194,7 +194,7 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
     names = list(plant_model.spec.component_names)
     psd_fn = plant_model.product_psd_function()
     outs = {k: plant_model.outputs[k] for k in
-            ("power_kw", "load_frac", "throughput_tph", "specific_energy_kwh_t")}
+            ("power_kw", "load_frac", "throughput_tph", "specific_energy_kwh_t", "holdup_t")}
     x = np.asarray(x0, float).copy()
     u_prev = np.asarray(u0, float).reshape(-1).copy()
     d_prev_known = None
@@ -222,6 +222,7 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
             iterator = tqdm(iterator, desc="closed loop")
         except ImportError:
             pass
+    fed_t = produced_t = 0.0  # cumulative plant feed and product [t], for the mass balance
     for k in iterator:
         t = k * dt_h
         blend = np.asarray(schedule(t), float)
@@ -247,6 +248,7 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
                "p80_measured_um": p80_held, "p80_target_um": target_p80_um}
         row.update(vals)
         row["power_meas_kw"], row["load_meas_frac"] = pw_m, ld_m
+        row["fed_t"], row["produced_t"] = fed_t, produced_t
         for i, nm in enumerate(names):
             row[f"blend_{nm}_frac"] = blend[i]
         row["hardness_scale"] = hard(t)
@@ -264,7 +266,8 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
         if k == n:
             break
         # apply u over [t, t + dt): the throughput/power rows above are at the sample instant
-        x, _, _ = step(plant_model, x, u, d_plant, dt_h)
+        x, fed, produced = step(plant_model, x, u, d_plant, dt_h)
+        fed_t, produced_t = fed_t + fed, produced_t + produced
         u_prev, d_prev_known = u, blend
     frame = pd.DataFrame(rows)
     return ClosedLoopResult(frame, kpis(frame, dt_h, load_band))

@@ -232,6 +232,7 @@ def test_closed_loop_through_the_real_loop(tmp_path, kind):
     if kind == "nmpc":
         assert k["solve_time_median_s"] > 0 and k["solve_time_p95_s"] >= k["solve_time_median_s"]
     assert {"feed_tph", "speed_frac_critical", "solve_time_s"} <= set(res.frame.columns)
+    assert k["mass_balance_error"] < 1e-6  # the plant's fed and produced mass close with its hold-up
 
 
 def test_closed_loop_without_mpc_closed_loop_is_a_run_error(tmp_path, monkeypatch):
