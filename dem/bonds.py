@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from dem.contacts import add_pair_load
+from dem.contacts import add_pair_load, rotate_into_plane
 from dem.errors import DemInputError
 
 #: bond state codes
@@ -275,17 +275,7 @@ def bond_forces(pos, vel, omega, rad, force, torque, lz, dt, b_ij, props, b_fn, 
         b_fn[b] += kn * a * (d - b_len[b])
         b_len[b] = d
         # shear: rotate the stored force into the new tangent plane, then dF_s = -k_s A du_s
-        old = math.sqrt(b_fs[b, 0] ** 2 + b_fs[b, 1] ** 2 + b_fs[b, 2] ** 2)
-        fsn = b_fs[b, 0] * nx + b_fs[b, 1] * ny + b_fs[b, 2] * nz
-        b_fs[b, 0] -= fsn * nx
-        b_fs[b, 1] -= fsn * ny
-        b_fs[b, 2] -= fsn * nz
-        new = math.sqrt(b_fs[b, 0] ** 2 + b_fs[b, 1] ** 2 + b_fs[b, 2] ** 2)
-        if new > 0.0:
-            sc = old / new
-            b_fs[b, 0] *= sc
-            b_fs[b, 1] *= sc
-            b_fs[b, 2] *= sc
+        rotate_into_plane(b_fs, b, nx, ny, nz)
         b_fs[b, 0] -= ks * a * (vrx - vn * nx) * dt
         b_fs[b, 1] -= ks * a * (vry - vn * ny) * dt
         b_fs[b, 2] -= ks * a * (vrz - vn * nz) * dt
@@ -295,17 +285,7 @@ def bond_forces(pos, vel, omega, rad, force, torque, lz, dt, b_ij, props, b_fn, 
             wz = (omega[j, 2] - omega[i, 2]) * dt
             wt = wx * nx + wy * ny + wz * nz
             b_mt[b] -= ks * polar * wt
-            old = math.sqrt(b_mb[b, 0] ** 2 + b_mb[b, 1] ** 2 + b_mb[b, 2] ** 2)
-            mn = b_mb[b, 0] * nx + b_mb[b, 1] * ny + b_mb[b, 2] * nz
-            b_mb[b, 0] -= mn * nx
-            b_mb[b, 1] -= mn * ny
-            b_mb[b, 2] -= mn * nz
-            new = math.sqrt(b_mb[b, 0] ** 2 + b_mb[b, 1] ** 2 + b_mb[b, 2] ** 2)
-            if new > 0.0:
-                sc = old / new
-                b_mb[b, 0] *= sc
-                b_mb[b, 1] *= sc
-                b_mb[b, 2] *= sc
+            rotate_into_plane(b_mb, b, nx, ny, nz)
             b_mb[b, 0] -= kn * inertia * (wx - wt * nx)
             b_mb[b, 1] -= kn * inertia * (wy - wt * ny)
             b_mb[b, 2] -= kn * inertia * (wz - wt * nz)

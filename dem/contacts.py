@@ -70,6 +70,24 @@ def add_pair_load(force, torque, i, j, fx, fy, fz, nx, ny, nz, ai, aj):
 
 
 @nb.njit(cache=True, inline="always")
+def rotate_into_plane(vec, b, nx, ny, nz):
+    """Rotate the stored vector vec[b] into the plane normal to n, keeping its magnitude (the
+    incremental update of a bond's shear force or bending moment as the bond turns;
+    Potyondy & Cundall 2004, sec. 2.2)."""
+    old = math.sqrt(vec[b, 0] ** 2 + vec[b, 1] ** 2 + vec[b, 2] ** 2)
+    along = vec[b, 0] * nx + vec[b, 1] * ny + vec[b, 2] * nz
+    vec[b, 0] -= along * nx
+    vec[b, 1] -= along * ny
+    vec[b, 2] -= along * nz
+    new = math.sqrt(vec[b, 0] ** 2 + vec[b, 1] ** 2 + vec[b, 2] ** 2)
+    if new > 0.0:
+        sc = old / new
+        vec[b, 0] *= sc
+        vec[b, 1] *= sc
+        vec[b, 2] *= sc
+
+
+@nb.njit(cache=True, inline="always")
 def hist_add(hist, lo_log10, dlog10, energy_J):
     if energy_J <= 0.0:
         k = 0

@@ -61,30 +61,28 @@ def _row(twin, blend, feed, speed, target, option, objective, hardness_scale, ba
             "note": note}
 
 
+def _root_in(g, bounds, xtol) -> float:
+    """Brent's root of g inside ``bounds``; nan if g does not change sign there."""
+    lo, hi = bounds
+    if g(lo) * g(hi) > 0:
+        return math.nan
+    return float(scipy.optimize.brentq(g, lo, hi, xtol=xtol))
+
+
 def feed_for_target(twin, blend, target_p80_um: float, speed_frac_critical: float,
                     feed_bounds_tph=(5.0, 60.0), hardness_scale: float = 1.0) -> float:
     """Feed rate [t/h] with steady P80 = target at the given speed; nan if outside the bounds."""
-    def g(f):
-        return twin.steady(feed_tph=f, speed_frac_critical=speed_frac_critical, blend=blend,
-                           hardness_scale=hardness_scale).p80_um - target_p80_um
-    lo, hi = feed_bounds_tph
-    glo, ghi = g(lo), g(hi)
-    if glo * ghi > 0:
-        return math.nan
-    return float(scipy.optimize.brentq(g, lo, hi, xtol=1e-4))
+    return _root_in(lambda f: twin.steady(feed_tph=f, speed_frac_critical=speed_frac_critical, blend=blend,
+                                          hardness_scale=hardness_scale).p80_um - target_p80_um,
+                    feed_bounds_tph, xtol=1e-4)
 
 
 def speed_for_target(twin, blend, target_p80_um: float, feed_tph: float,
                      speed_bounds=(0.55, 0.90), hardness_scale: float = 1.0) -> float:
     """Speed [fraction of critical] with steady P80 = target at the given feed; nan if none."""
-    def g(s):
-        return twin.steady(feed_tph=feed_tph, speed_frac_critical=s, blend=blend,
-                           hardness_scale=hardness_scale).p80_um - target_p80_um
-    lo, hi = speed_bounds
-    glo, ghi = g(lo), g(hi)
-    if glo * ghi > 0:
-        return math.nan
-    return float(scipy.optimize.brentq(g, lo, hi, xtol=1e-7))
+    return _root_in(lambda s: twin.steady(feed_tph=feed_tph, speed_frac_critical=s, blend=blend,
+                                          hardness_scale=hardness_scale).p80_um - target_p80_um,
+                    speed_bounds, xtol=1e-7)
 
 
 def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",

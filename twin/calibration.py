@@ -108,13 +108,26 @@ def fit(max_nfev: int = 200, verbose: int = 0) -> dict:
     return record
 
 
-def provenance(command: str) -> dict:
+def versions() -> dict:
+    """Versions of what shapes a calibration, for its provenance record."""
     import casadi
-    import scipy
+    import numba
 
-    return {"command": command, "python": platform.python_version(), "numpy": np.__version__,
-            "scipy": scipy.__version__, "casadi": casadi.__version__, "seed": None,
+    return {"python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__,
+            "numba": numba.__version__, "casadi": casadi.__version__}
+
+
+def provenance(command: str) -> dict:
+    return {"command": command, **versions(), "seed": None,
             "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+
+
+def write_json_atomically(path: Path, record: dict, indent: int = 2) -> None:
+    """Write to a temporary file and rename it over ``path``: nothing is ever half-written."""
+    path = Path(path)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(record, indent=indent) + "\n", encoding="utf-8")
+    tmp.replace(path)
 
 
 def main(argv=None) -> int:
@@ -133,9 +146,7 @@ def main(argv=None) -> int:
         return 0
     record = fit(max_nfev=12 if args.fast else 80)
     record["provenance"] = provenance("grindtwin calibrate" + (" --fast" if args.fast else ""))
-    tmp = args.out.with_suffix(".tmp")
-    tmp.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
-    tmp.replace(args.out)  # nothing half-written
+    write_json_atomically(args.out, record)
     print(f"wrote {args.out}: max |error| {record['fit']['max_abs_error_pct']:.2f} %")
     return 0
 

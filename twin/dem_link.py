@@ -103,7 +103,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import platform
 import sys
 import time
 from functools import cache
@@ -115,6 +114,7 @@ import scipy.optimize
 
 from .breakage import BreakageParams
 from .breakage_map import AUSTIN_SHAPE
+from .calibration import versions, write_json_atomically
 from .errors import TwinError, TwinInputError
 from .fracture_energy import breakage_probability, fit_fracture_energy
 from .mineralogy import Mineralogy
@@ -330,14 +330,6 @@ def fit_austin_selection(size_um, se_t_kwh) -> dict:
 
 
 # ---------------------------------------------------------------------- the pipeline
-def _versions() -> dict:
-    import casadi
-    import numba
-
-    return {"python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__,
-            "numba": numba.__version__, "casadi": casadi.__version__}
-
-
 def dem_part(fast: bool = False, seed: int = 0, ores=REFERENCE_ORES, verbose: bool = True) -> dict:
     """Steps 1-4 (the DEM-derived numbers); no table fit."""
     from twin.sizes import SizeGrid
@@ -542,14 +534,12 @@ def calibrate_from_dem(fast: bool = False, seed: int = 0, *, ores=REFERENCE_ORES
             print(f"table fit: max |error| {record['table_fit']['max_abs_error_pct']:.1f} %", flush=True)
     record["provenance"] = {"command": "python -m twin.calibration --dem" + (" --fast" if fast else ""),
                             "function": f"twin.dem_link.calibrate_from_dem(fast={fast}, seed={seed})",
-                            "seed": seed, "fast": fast, **_versions(),
+                            "seed": seed, "fast": fast, **versions(),
                             "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
                             "seconds": time.perf_counter() - t0}
     if out is not None:
         out = Path(out)
-        tmp = out.with_suffix(".tmp")
-        tmp.write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
-        tmp.replace(out)
+        write_json_atomically(out, record, indent=1)
         shipped_dem_calibration.cache_clear()
         if verbose:
             print(f"wrote {out}", flush=True)
@@ -567,9 +557,7 @@ def refit_table(path: Path | str = DEM_CALIBRATION_PATH, max_nfev: int | None = 
     record["table_fit"] = fit_table(record, n)
     record["provenance"]["table_fit_rerun"] = {
         "function": f"twin.dem_link.refit_table(max_nfev={n})", "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
-    tmp.replace(path)
+    write_json_atomically(path, record, indent=1)
     shipped_dem_calibration.cache_clear()
     if verbose:
         print(f"table fit: max |error| {record['table_fit']['max_abs_error_pct']:.1f} %; wrote {path}", flush=True)
