@@ -1,7 +1,8 @@
-"""Closed loop: plant twin -> sensors -> estimator -> controller -> actuators, every sample.
+"""Closed loop: plant -> sensors -> estimator -> controller -> actuators, every sample.
 
-Every part advances with ``make_step``: the plant by :func:`twin.simulate.step` (IDAS on the
-plant model, restarted each sample because the inputs jump), :class:`Sensors` (noise, analyser
+Every part advances with ``make_step``: the plant through the small plant protocol below (a
+twin's model by :func:`twin.simulate.step`, IDAS restarted each sample because the inputs jump;
+or an independent plant such as :class:`mpc.leroux.LeRouxPlant`), :class:`Sensors` (noise, analyser
 dead time and sample-and-hold, seeded), the estimator (:class:`mpc.estimator.Ekf` or None: then
 the controller gets the true state), the controller (``make_step(x_est, d_preview, u_prev,
 y_meas)`` -> :class:`mpc.results.ControllerStepResult`; the NMPC, :class:`FixedInputs` (no
@@ -11,6 +12,17 @@ Feed-forward: ``schedule(t_h)`` gives the blend entering the mill at ``t_h``; a 
 reports it ``preview_lead_h`` ahead, so the disturbance preview over the horizon is
 ``schedule(min(t + j dt, t + lead))`` for stage j (unknown beyond the lead: the last known blend
 is held), with the estimated hardness.
+
+Plant protocol (what :func:`run_closed_loop` needs of a plant; :class:`TwinPlant` wraps a twin's
+``Model``, :class:`mpc.leroux.LeRouxPlant` the le Roux et al. 2013 circuit):
+
+- ``component_names``: names of the blend entries ``schedule(t)`` returns (the controller's
+  components; recorded as ``blend_<name>_frac``);
+- ``disturbance(t_h, blend, hardness) -> d``: the plant's own disturbance vector;
+- ``measure(x, u, d) -> dict``: at least ``p80_um``, ``power_kw``, ``load_frac``,
+  ``throughput_tph``, ``specific_energy_kwh_t`` and ``holdup_t`` (the hold-up that the
+  cumulative fed and produced mass balance); any further entries become columns of the run;
+- ``step(x, u, d, dt_h) -> (x_next, fed_t, produced_t)``.
 
 KPIs (issue 5): IAE of exact P80 from target [um h] (rectangle rule over samples), fraction of
 samples within +-10 um, specific energy = sum(power dt) / sum(feed dt) [kWh/t], throughput =
@@ -84,6 +96,53 @@ class _SensorState:
         return new, self.held, pw, ld
 
 
+#: Outputs every plant's ``measure`` returns (the columns the KPIs use).
+PLANT_OUTPUTS = ("power_kw", "load_frac", "throughput_tph", "specific_energy_kwh_t", "holdup_t")
+#: Measurements the estimator can be given (order of :meth:`mpc.estimator.Ekf.make_step`).
+ESTIMATOR_MEASUREMENTS = ("p80_um", "power_kw", "load_frac")
+
+
+class TwinPlant:
+    """The plant protocol (module docstring) on a twin's :class:`twin.model.Model`: P80 from the
+    product size distribution (:func:`twin.sizes.pxx_um`, nan for an empty product), the
+    outputs :data:`PLANT_OUTPUTS` of the model, and :func:`twin.simulate.step`."""
+
+    def __init__(self, model):
+        self.model = model
+        self.component_names = tuple(model.spec.component_names)
+        self._psd_fn = model.product_psd_function()
+        self._outs = {k: model.outputs[k] for k in PLANT_OUTPUTS}
+
+    def disturbance(self, t_h: float, blend, hardness: float) -> np.ndarray:
+        return self.model.d_vector(blend, hardness)
+
+    def measure(self, x, u, d) -> dict:
+        from twin.sizes import pxx_um
+
+        psd = np.asarray(self._psd_fn(x, u, d), float).ravel()
+        vals = {"p80_um": pxx_um(self.model.spec.grid, psd) if psd.sum() > 0 else math.nan}
+        vals.update({key: float(fn(x, u, d)) for key, fn in self._outs.items()})
+        return vals
+
+    def step(self, x, u, d, dt_h: float):
+        from twin.simulate import step
+
+        return step(self.model, x, u, d, dt_h)
+
+
+def as_plant(plant):
+    """``plant`` itself if it follows the plant protocol, a :class:`TwinPlant` if it is a
+    twin's model; else an :class:`MpcInputError` naming what is missing."""
+    needed = ("component_names", "disturbance", "measure", "step")
+    if all(hasattr(plant, a) for a in needed):
+        return plant
+    if hasattr(plant, "product_psd_function") and hasattr(plant, "spec"):
+        return TwinPlant(plant)
+    raise MpcInputError(f"The 'plant_model' parameter of run_closed_loop must be a twin Model or "
+                        f"have {', '.join(needed)} (the plant protocol of mpc.closed_loop). "
+                        f"Got {type(plant).__name__}.")
+
+
 class FixedInputs:
     """No control: the inputs stay at ``u_fixed`` (e.g. the steady-state setpoints)."""
 
@@ -114,8 +173,10 @@ class PiFeedback:
 def pi_baseline(plant_model, steady, sensors: Sensors, dt_h: float, target_p80_um: float,
                 feed_tph_min: float = 20.0, feed_tph_max: float = 45.0,
                 feed_rate_max_tph_per_h: float = 20.0, tau_c_h: float | None = None):
-    """PI P80 -> feed tuned by SIMC (Skogestad 2003) on the linearised plant twin at ``steady``
-    (a :class:`twin.steady.SteadyState`): FOPDT fit of the feed -> P80 step response
+    """PI P80 -> feed tuned by SIMC (Skogestad 2003) on the linearised plant at ``steady``
+    (``plant_model``: a twin's model, or any model with ``f(x, u, d)`` and ``outputs['p80_um']``
+    such as :class:`mpc.leroux.LeRouxCircuit`; ``steady``: a :class:`twin.steady.SteadyState`
+    or anything with its ``x``, ``u``, ``d``): FOPDT fit of the feed -> P80 step response
     (:func:`mpc.linear.fopdt_from_model`), its dead time increased by the analyser dead time
     plus half the sampling period (the mean delay of a sample-and-hold; Seborg et al. 2011,
     sec. 17.1). Returns ``(PiFeedback, Fopdt)``."""
@@ -165,36 +226,45 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
                     preview_lead_h: float = 0.0, target_p80_um: float = 210.0,
                     plant_hardness: float | Callable = 1.0, horizon_steps: int | None = None,
                     load_band=(0.8, 1.2), progress: bool = False,
-                    estimator_warmup_h: float = 0.0) -> ClosedLoopResult:
+                    estimator_warmup_h: float = 0.0,
+                    estimator_measurements=ESTIMATOR_MEASUREMENTS) -> ClosedLoopResult:
     """Run the loop for ``duration_h`` at sample period ``dt_h``.
 
-    ``plant_model``: the plant twin's model (may be finer than the controller's); ``x0`` its
-    initial state; ``u0`` the input before t = 0; ``schedule(t_h)`` -> blend fractions (plant
+    ``plant_model``: the plant twin's model (may be finer than the controller's), or any plant
+    following the plant protocol (module docstring; e.g. :class:`mpc.leroux.LeRouxPlant`);
+    ``x0`` its initial state; ``u0`` the input before t = 0; ``schedule(t_h)`` -> blend fractions (plant
     component order, shared with the controller's model); ``plant_hardness``: the plant's true
     hardness scale (a float or a callable of t_h), unknown to the controller; ``horizon_steps``
     for the preview (default: the controller's settings, else 1). ``estimator_warmup_h``: the
     estimator first runs that long on the plant held at ``u0`` and ``schedule(0)`` (as on a
     plant that was running before the loop closed; same seed stream), unrecorded; the loop
-    then starts from the plant state at the end of the warm-up.
+    then starts from the plant state at the end of the warm-up. ``estimator_measurements``:
+    which of :data:`ESTIMATOR_MEASUREMENTS` the estimator is given (the others are passed as
+    nan; e.g. only ``("p80_um",)`` when the plant's power and load do not mean what the
+    controller's model means by them).
     """
-    from twin.simulate import step
-    from twin.sizes import pxx_um
-
     if not (np.isfinite(duration_h) and duration_h > 0 and np.isfinite(dt_h) and dt_h > 0):
         raise MpcInputError(f"The 'duration_h' and 'dt_h' parameters of run_closed_loop must be "
                             f"> 0. Got {duration_h!r}, {dt_h!r}.")
     if preview_lead_h < 0:
         raise MpcInputError(f"The 'preview_lead_h' parameter of run_closed_loop must be >= 0. "
                             f"Got {preview_lead_h!r}.")
+    used = tuple(estimator_measurements)
+    if not used or any(m not in ESTIMATOR_MEASUREMENTS for m in used):
+        raise MpcInputError(f"The 'estimator_measurements' parameter of run_closed_loop must be a "
+                            f"non-empty subset of {ESTIMATOR_MEASUREMENTS}. Got {used!r}.")
+    mask = np.array([m in used for m in ESTIMATOR_MEASUREMENTS])
+
+    def for_estimator(y):
+        return [v if keep else math.nan for v, keep in zip(y, mask)]
+
+    plant = as_plant(plant_model)
     n = int(round(duration_h / dt_h))
     rng = np.random.default_rng(seed)
     sens = _SensorState(sensors, rng)
     hard = plant_hardness if callable(plant_hardness) else (lambda t, h=float(plant_hardness): h)
     N = horizon_steps or getattr(getattr(controller, "settings", None), "horizon_steps", 1)
-    names = list(plant_model.spec.component_names)
-    psd_fn = plant_model.product_psd_function()
-    outs = {k: plant_model.outputs[k] for k in
-            ("power_kw", "load_frac", "throughput_tph", "specific_energy_kwh_t", "holdup_t")}
+    names = list(plant.component_names)
     x = np.asarray(x0, float).copy()
     u_prev = np.asarray(u0, float).reshape(-1).copy()
     d_prev_known = None
@@ -202,16 +272,14 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
     if n_warm > 0:
         warm = _SensorState(sensors, rng)
         b0 = np.asarray(schedule(0.0), float)
-        d0 = plant_model.d_vector(b0, hard(0.0))
+        d0 = plant.disturbance(0.0, b0, hard(0.0))
         xw = x.copy()
         for k in range(n_warm):
-            psd = np.asarray(psd_fn(xw, u_prev, d0), float).ravel()
-            p80w = pxx_um(plant_model.spec.grid, psd)
-            y = warm.make_step(k * dt_h, p80w, float(outs["power_kw"](xw, u_prev, d0)),
-                               float(outs["load_frac"](xw, u_prev, d0)))
+            mw = plant.measure(xw, u_prev, d0)
+            y = warm.make_step(k * dt_h, mw["p80_um"], mw["power_kw"], mw["load_frac"])
             if k > 0:
-                estimator.make_step([y[0], y[2], y[3]], u_prev, b0)
-            xw, _, _ = step(plant_model, xw, u_prev, d0, dt_h)
+                estimator.make_step(for_estimator([y[0], y[2], y[3]]), u_prev, b0)
+            xw, _, _ = plant.step(xw, u_prev, d0, dt_h)
         x, d_prev_known = xw, b0
     x_est = d_est = None
     rows = []
@@ -226,14 +294,14 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
     for k in iterator:
         t = k * dt_h
         blend = np.asarray(schedule(t), float)
-        d_plant = plant_model.d_vector(blend, hard(t))
-        psd = np.asarray(psd_fn(x, u_prev, d_plant), float).ravel()
-        p80 = pxx_um(plant_model.spec.grid, psd) if psd.sum() > 0 else math.nan
-        vals = {key: float(fn(x, u_prev, d_plant)) for key, fn in outs.items()}
+        d_plant = plant.disturbance(t, blend, hard(t))
+        vals = plant.measure(x, u_prev, d_plant)
+        p80 = vals.pop("p80_um")
         p80_new, p80_held, pw_m, ld_m = sens.make_step(t, p80, vals["power_kw"], vals["load_frac"])
         if estimator is not None:
             if d_prev_known is not None:
-                x_est, d_est = estimator.make_step([p80_new, pw_m, ld_m], u_prev, d_prev_known)
+                x_est, d_est = estimator.make_step(for_estimator([p80_new, pw_m, ld_m]), u_prev,
+                                                   d_prev_known)
             else:
                 x_est, d_est = estimator.x_est, np.r_[blend, estimator.hardness_est]
             h_est = float(d_est[-1])
@@ -266,7 +334,7 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
         if k == n:
             break
         # apply u over [t, t + dt): the throughput/power rows above are at the sample instant
-        x, fed, produced = step(plant_model, x, u, d_plant, dt_h)
+        x, fed, produced = plant.step(x, u, d_plant, dt_h)
         fed_t, produced_t = fed_t + fed, produced_t + produced
         u_prev, d_prev_known = u, blend
     frame = pd.DataFrame(rows)
