@@ -2,7 +2,7 @@
 
 from mpc.discretize import cvodes_map, min_rk4_substeps, rk4_map
 from mpc.errors import MpcError, MpcInputError, MpcSolverError
-from mpc.leroux import LeRouxCircuit, LeRouxParameters
+from mpc.leroux import LeRouxCircuit, LeRouxParameters, LeRouxPlant, MatchedTwin, matched_twin
 from mpc.linear import (
     Fopdt,
     LinearMPC,
@@ -21,6 +21,7 @@ from mpc.closed_loop import (
     FixedInputs,
     PiFeedback,
     Sensors,
+    TwinPlant,
     pi_baseline,
     run_closed_loop,
 )
@@ -34,6 +35,9 @@ __all__ = [
     "Fopdt",
     "LeRouxCircuit",
     "LeRouxParameters",
+    "LeRouxPlant",
+    "MatchedTwin",
+    "matched_twin",
     "LinearMPC",
     "MpcError",
     "MpcInputError",
@@ -57,6 +61,7 @@ __all__ = [
     "FixedInputs",
     "NmpcSettings",
     "PiFeedback",
+    "TwinPlant",
     "Sensors",
     "Setpoints",
     "feed_for_target",

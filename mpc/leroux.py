@@ -192,7 +192,8 @@ class LeRouxCircuit:
     Outputs: ``pse_frac`` (overflow solids < 75 um), ``p80_um`` and ``passing_target_frac``
     (GGS mapping), ``power_kw``, ``load_frac`` (J_T: water + solids + rocks + balls over the
     mill volume), ``holdup_t`` (ore and water in the mill, balls excluded), ``rheology_frac``,
-    ``svol_m3``, ``cff_m3_h``, ``mfb_tph``, ``cfd_t_m3``, ``product_tph`` (overflow solids),
+    ``ore_inventory_t`` (ore in mill and sump), ``svol_m3``, ``cff_m3_h``, ``mfb_tph``,
+    ``cfd_t_m3``, ``product_tph`` (overflow solids),
     ``specific_energy_kwh_t`` and the flows used by the balance tests.
     """
 
@@ -339,6 +340,8 @@ class LeRouxCircuit:
             "power_kw": power_kw,
             "load_frac": load_frac,
             "holdup_t": ds * (xms + xmr) + xmw,
+            # ore (solids incl. fines, and rocks) in mill and sump: what fed - product balances
+            "ore_inventory_t": ds * (xms + xmr + xss),
             "rheology_frac": rheology,
             "svol_m3": svol,
             "cff_m3_h": cff,
@@ -464,3 +467,233 @@ class LeRouxCircuit:
             raise MpcSolverError("LeRouxCircuit integration returned non-finite states")
         self.x = xn
         return self.evaluate_outputs(self.x, u, d)
+
+
+# ---------------------------------------------------------------------------- closed loop
+class LeRouxPlant:
+    """The [LR13] circuit as a plant of :func:`mpc.closed_loop.run_closed_loop` (its plant
+    protocol: ``component_names``, ``disturbance``, ``measure``, ``step``).
+
+    Parameters
+    ----------
+    circuit : LeRouxCircuit
+        The circuit (its parameters give the nominal disturbances).
+    component_names : tuple of str
+        Names of the blend entries the loop's ``schedule`` returns (the controller's twin's
+        components). The blend is only recorded: [LR13] has no mineralogy.
+    rock_frac : float or callable, optional
+        Fraction of rocks (> 22.4 mm) in the feed ore, ``alpha_r``, constant or a function of
+        time [h]; default the survey-3 value of [LR13, Table].
+    fines_frac : float or callable, optional
+        Fraction of fines (< 75 um) in the feed ore, ``alpha_f``; default survey 3.
+
+    The loop's ``hardness`` (``plant_hardness`` of ``run_closed_loop``) scales [LR13]'s energy
+    per tonne of fines: ``phi_f = hardness * params.phi_f_kwh_t`` (1 = survey 3, 1.15 = 15 %
+    harder). What :meth:`measure` reports (``p80_um`` by the GGS mapping of the module docstring):
+
+    - ``power_kw``: [LR13] mill power;
+    - ``load_frac``: total mill filling ``J_T`` (water, solids, rocks, balls over the mill
+      volume) relative to its value at the survey-3 steady state, so the loop's stable band
+      (0.8, 1.2) means what it means for a twin (load over nominal); ``filling_frac`` is ``J_T``
+      itself;
+    - ``throughput_tph``: cyclone-overflow solids; ``specific_energy_kwh_t``: power over it;
+    - ``holdup_t``: ore in the mill *and* sump (``ore_inventory_t``), the hold-up that the
+      cumulative fed and produced mass balance (balls are not ore; water is not counted);
+    - ``pse_frac``, ``phi_f_kwh_t``, ``alpha_r_frac`` as extra columns.
+    """
+
+    def __init__(self, circuit: LeRouxCircuit | None = None, component_names=("ore",),
+                 rock_frac=None, fines_frac=None):
+        self.circuit = LeRouxCircuit() if circuit is None else circuit
+        if not isinstance(self.circuit, LeRouxCircuit):
+            raise MpcInputError("The 'circuit' parameter of LeRouxPlant must be a LeRouxCircuit. "
+                                f"Got {type(self.circuit).__name__}.")
+        names = tuple(component_names)
+        if not names or not all(isinstance(n, str) for n in names):
+            raise MpcInputError("The 'component_names' parameter of LeRouxPlant must be a non-empty "
+                                f"sequence of str. Got {component_names!r}.")
+        self.component_names = names
+        p = self.circuit.params
+        self._rock = self._as_fn("rock_frac", p.alpha_r_frac if rock_frac is None else rock_frac)
+        self._fines = self._as_fn("fines_frac", p.alpha_f_frac if fines_frac is None else fines_frac)
+        c = self.circuit
+        x_ss = c.steady_state()
+        self.filling_nominal_frac = float(c.outputs["load_frac"](x_ss, c.u_nominal, c.d_nominal))
+        self._x_ss = x_ss
+        # cumulative ore fed and overflow solids produced as quadratures of the same CVODES run
+        self._quad = ca.vertcat(c._u[0], c.outputs["product_tph"](c._x, c._u, c._d))
+        self._steps: dict[float, ca.Function] = {}
+
+    @staticmethod
+    def _as_fn(name, value):
+        if callable(value):
+            return value
+        v = float(value)
+        if not 0.0 <= v < 1.0:
+            raise MpcInputError(f"The '{name}' parameter of LeRouxPlant must be a float in [0, 1) or "
+                                f"a callable of time [h]. Got {value!r}.")
+        return lambda t, v=v: v
+
+    @property
+    def x_steady(self) -> np.ndarray:
+        """The survey-3 steady state (computed at construction)."""
+        return self._x_ss.copy()
+
+    def disturbance(self, t_h: float, blend, hardness: float) -> np.ndarray:
+        h = float(hardness)
+        if not (np.isfinite(h) and h > 0):
+            raise MpcInputError(f"The 'hardness' of LeRouxPlant (scale of phi_f) must be a float > 0. "
+                                f"Got {hardness!r}.")
+        d = np.array([h * self.circuit.params.phi_f_kwh_t, float(self._rock(t_h)),
+                      float(self._fines(t_h))])
+        return self.circuit._check_u_d(self.circuit.u_nominal, d)[1]
+
+    def measure(self, x, u, d) -> dict:
+        y = self.circuit.evaluate_outputs(x, u, d)
+        return {"p80_um": y["p80_um"], "power_kw": y["power_kw"],
+                "load_frac": y["load_frac"] / self.filling_nominal_frac,
+                "throughput_tph": y["product_tph"],
+                "specific_energy_kwh_t": y["specific_energy_kwh_t"],
+                "holdup_t": y["ore_inventory_t"], "pse_frac": y["pse_frac"],
+                "filling_frac": y["load_frac"], "phi_f_kwh_t": float(d[0]),
+                "alpha_r_frac": float(d[1])}
+
+    def step(self, x, u, d, dt_h: float):
+        """Advance ``dt_h`` hours at constant ``u``, ``d`` (CVODES, restarted: the inputs jump).
+        Returns ``(x_next, fed_t, produced_t)``."""
+        u, d = self.circuit._check_u_d(u, d)
+        dt = float(dt_h)
+        if not (np.isfinite(dt) and dt > 0):
+            raise MpcInputError(f"The 'dt_h' parameter of LeRouxPlant.step must be a float > 0. "
+                                f"Got {dt_h!r}.")
+        if dt not in self._steps:
+            c = self.circuit
+            self._steps[dt] = ca.integrator(
+                "leroux_plant_step", "cvodes",
+                {"x": c._x, "p": ca.vertcat(c._u, c._d), "ode": c._xdot, "quad": self._quad},
+                0.0, dt, {"abstol": 1e-9, "reltol": 1e-9})
+        try:
+            res = self._steps[dt](x0=np.asarray(x, float), p=np.concatenate([u, d]))
+        except RuntimeError as exc:
+            raise MpcSolverError(f"LeRouxPlant integration failed (CVODES): {exc}") from exc
+        xn = np.array(res["xf"]).reshape(-1)
+        q = np.array(res["qf"]).reshape(-1)
+        if not np.all(np.isfinite(xn)):
+            raise MpcSolverError("LeRouxPlant integration returned non-finite states")
+        return xn, float(q[0]), float(q[1])
+
+
+# ------------------------------------------------------------- the twin matched to [LR13]
+@dataclass(frozen=True)
+class MatchedTwin:
+    """A controller twin matched to the [LR13] circuit at survey 3 (:func:`matched_twin`)."""
+
+    twin: object
+    """The :class:`twin.twin.Twin` (one ore; its model is the NMPC's and the EKF's)."""
+    steady: object
+    """The twin's steady state at survey-3 feed and speed and :attr:`hardness0`."""
+    hardness0: float
+    """Hardness scale at which the twin's P80 equals the circuit's survey-3 P80."""
+    power_factor: float
+    """Mill power factor at which the twin draws the circuit's survey-3 power."""
+    target_p80_um: float
+    """The circuit's survey-3 P80 (GGS mapping), rounded to 0.1 um."""
+    plant_steady_x: np.ndarray
+    """The circuit's survey-3 steady state."""
+    jacobian: np.ndarray
+    """``df/dx`` of the twin at :attr:`steady`."""
+
+    @property
+    def fastest_rate_per_h(self) -> float:
+        """Largest |real part| of the eigenvalues of :attr:`jacobian` [1/h]: the matched twin
+        grinds at ~120 kW/t (the reference industrial twin at ~20 kW/t), so it is stiff."""
+        return float(np.max(-np.linalg.eigvals(self.jacobian).real))
+
+    def rk4_substeps(self, dt_h: float, safety: float = 1.4) -> int:
+        """RK4 steps per sample that keep every mode stable with rates ``safety`` times those at
+        :attr:`steady` (:func:`mpc.discretize.min_rk4_substeps`): room for a softer ore
+        estimate or a lighter load, both of which make breakage faster."""
+        from mpc.discretize import min_rk4_substeps
+
+        _check_positive("MatchedTwin.rk4_substeps", "safety", float(safety))
+        return min_rk4_substeps(self.jacobian * float(safety), dt_h)
+
+
+def matched_twin(circuit: LeRouxCircuit | None = None, ore: str = "B", grid=None,
+                 analyser_dead_time_h: float = 0.1, n_mixers: int = 1) -> MatchedTwin:
+    """The twin the NMPC runs on, matched to the [LR13] circuit by what a plant would measure.
+
+    Choices (each a stated reason, not from [LR13] unless said):
+
+    - mill: a :class:`twin.mill.Mill` named ``"leroux2013"`` with [LR13]'s mill volume
+      (59.12 m^3) as a cylinder of length = diameter ([LR13] gives the volume only; after the
+      power fit below the twin depends on the diameter only through the fitted factor), ball
+      filling = [LR13]'s survey-3 ball volume (8.51 m^3 of steel) as a bed of the twin's porosity
+      (0.4) over the mill volume (0.24), nominal speed [LR13]'s 0.712 of critical and nominal
+      feed [LR13]'s 65.2 t/h;
+    - ``power_factor`` fitted so the twin draws [LR13]'s survey-3 power (1183 kW): a ROM mill
+      with 34 % total filling draws about 3x Bond's ball-mill power of its ball charge, and the
+      twin's breakage rates scale with specific power;
+    - ore: the twin's reference type ``ore`` (default B; [LR13] gives no mineralogy) with the
+      twin's own feed size (P80 3.2 mm: the twin cannot represent [LR13]'s run-of-mine feed with
+      46.5 % rocks above 22.4 mm); the difference in grindability is one number, the hardness
+      scale ``hardness0`` at which the twin's steady P80 at survey-3 feed and speed equals the
+      circuit's survey-3 P80 (94 um with the GGS modulus 0.8). The EKF starts from it and then
+      estimates it on line: that estimate is what makes the loop offset-free;
+    - model: the twin's default effects plus the analyser dead time (``sensor_delay``), a grid
+      of 12 classes of ratio 2 from 6.7 mm (down to 3.3 um; the target lies in the
+      52-105 um class) and ``n_mixers`` mixers (1: the coarse, fast controller model of the
+      reference case).
+    """
+    import math
+
+    from scipy.optimize import brentq
+
+    from twin.mill import Mill
+    from twin.sizes import SizeGrid
+    from twin.twin import DEFAULT_EFFECTS, Twin
+
+    c = LeRouxCircuit() if circuit is None else circuit
+    if not isinstance(c, LeRouxCircuit):
+        raise MpcInputError("The 'circuit' parameter of matched_twin must be a LeRouxCircuit. "
+                            f"Got {type(c).__name__}.")
+    _check_positive("matched_twin", "analyser_dead_time_h", float(analyser_dead_time_h))
+    p = c.params
+    x_ss = c.steady_state()
+    y_ss = c.evaluate_outputs(x_ss, c.u_nominal)
+    target = round(y_ss["p80_um"], 1)
+    diameter = (4.0 * p.v_mill_m3 / math.pi) ** (1.0 / 3.0)
+    porosity = 0.4  # the twin's Mill default bed porosity
+    ball_filling = x_ss[STATE_NAMES.index("mill_balls_m3")] / (1.0 - porosity) / p.v_mill_m3
+    grid = SizeGrid(top_um=6700.0, ratio=2.0, count=12) if grid is None else grid
+    effects = list(DEFAULT_EFFECTS) + ["sensor_delay"]
+    opts = {"sensor_delay": {"dead_time_h": float(analyser_dead_time_h)}}
+
+    def build(power_factor):
+        mill = Mill("leroux2013", diameter_m=diameter, length_m=diameter,
+                    ball_filling_frac=float(ball_filling), bed_porosity=porosity,
+                    speed_nominal_frac_critical=p.speed_frac_critical,
+                    feed_nominal_tph=p.feed_tph, power_factor=power_factor)
+        return Twin(ore, mill=mill, effects=effects, effect_options=opts, grid=grid,
+                    n_mixers=n_mixers)
+
+    tw1 = build(1.0)
+    ss1 = tw1.steady(feed_tph=p.feed_tph, speed_frac_critical=p.speed_frac_critical)
+    pf = y_ss["power_kw"] / float(tw1.model.evaluate("power_kw", ss1.x, ss1.u, ss1.d))
+    tw = build(pf)
+
+    def miss(h):
+        ss = tw.steady(feed_tph=p.feed_tph, speed_frac_critical=p.speed_frac_critical,
+                       hardness_scale=h)
+        return ss.p80_um - target
+
+    lo, hi = 0.3, 3.0  # the EKF's default hardness bounds
+    if miss(lo) * miss(hi) > 0:
+        raise MpcSolverError(f"matched_twin: no hardness scale in [{lo}, {hi}] gives the twin "
+                             f"the circuit's survey-3 P80 {target} um with ore {ore!r}")
+    h0 = float(brentq(miss, lo, hi, xtol=1e-4))
+    ss = tw.steady(feed_tph=p.feed_tph, speed_frac_critical=p.speed_frac_critical,
+                   hardness_scale=h0)
+    m = tw.model
+    jac = ca.Function("twin_jacobian", [m.x], [ca.jacobian(m.f(m.x, ss.u, ss.d), m.x)])(ss.x)
+    return MatchedTwin(tw, ss, h0, float(pf), float(target), x_ss, np.asarray(jac, float))
