@@ -43,32 +43,54 @@ def controller_model(dead_time_h: float, count: int = 10, ratio: float = 2.0, n_
                 grid=SizeGrid(top_um=6700.0, ratio=ratio, count=count), n_mixers=n_mixers)
 
 
-def main(argv=None) -> pd.DataFrame:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def add_case_arguments(ap: argparse.ArgumentParser) -> None:
+    """The command-line options of the reference case shared by its benchmarks."""
     ap.add_argument("--duration-h", type=float, default=8.0)
     ap.add_argument("--dt-h", type=float, default=0.05)
     ap.add_argument("--horizon", type=int, default=20)
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--only", default="none,pi,nmpc,nmpc_preview")
     ap.add_argument("--weight-du-feed", type=float, default=1.0)
     ap.add_argument("--weight-du-speed", type=float, default=1.0)
     ap.add_argument("--hardness-noise", type=float, default=0.1,
                     help="EKF random-walk intensity of the hardness scale [1/sqrt(h)]")
     ap.add_argument("--warmup-h", type=float, default=2.0,
                     help="estimator warm-up on the steady plant before t = 0 [h]")
-    ap.add_argument("--tag", default="", help="suffix of the result files")
-    args = ap.parse_args(argv)
-    dt = args.dt_h
-    sensors = Sensors(p80_noise_um=3.0, p80_dead_time_h=0.1, p80_sample_period_h=0.05,
-                      power_noise_kw=5.0, load_noise_frac=0.01)
+
+
+def reference_sensors() -> Sensors:
+    """P80 analyser (noise 3 um, dead time 0.1 h, sampling 0.05 h), power and load sensors."""
+    return Sensors(p80_noise_um=3.0, p80_dead_time_h=0.1, p80_sample_period_h=0.05,
+                   power_noise_kw=5.0, load_noise_frac=0.01)
+
+
+def reference_setup(sensors: Sensors):
+    """Plant twin (25 classes x 3 mixers) with its steady state at the target on Type B, and the
+    controller model with its steady state at the same inputs: ``(plant, ss, ctw, css)``."""
     plant = Twin(["B", "D"], mill="industrial", effects=list(DEFAULT_EFFECTS))
     feed0 = feed_for_target(plant, [1.0, 0.0], TARGET_UM, 0.70)
     ss = plant.steady(feed_tph=feed0, speed_frac_critical=0.70, blend=[1.0, 0.0])
     ctw = controller_model(sensors.p80_dead_time_h)
     css = ctw.steady(feed_tph=feed0, speed_frac_critical=0.70, blend=[1.0, 0.0])
+    return plant, ss, ctw, css
+
+
+def reference_ekf(ctw, css, dt_h: float, hardness_noise: float) -> Ekf:
+    """The EKF of the case on the controller model, started at its steady state."""
+    return Ekf(ctw.model, dt_h, css.x, hardness_noise_per_sqrt_h=hardness_noise)
+
+
+def main(argv=None) -> pd.DataFrame:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_case_arguments(ap)
+    ap.add_argument("--only", default="none,pi,nmpc,nmpc_preview")
+    ap.add_argument("--tag", default="", help="suffix of the result files")
+    args = ap.parse_args(argv)
+    dt = args.dt_h
+    sensors = reference_sensors()
+    plant, ss, ctw, css = reference_setup(sensors)
     rows, runs = [], []
     for kind in args.only.split(","):
-        est = Ekf(ctw.model, dt, css.x, hardness_noise_per_sqrt_h=args.hardness_noise)
+        est = reference_ekf(ctw, css, dt, args.hardness_noise)
         t0 = time.perf_counter()
         if kind == "none":
             ctrl = FixedInputs(ss.u)
