@@ -1,0 +1,186 @@
+"""The twin-based controller on a plant nobody here designed (issue 5): the run-of-mine milling
+circuit of le Roux, Craig, Hulbert & Hinde (2013, Minerals Engineering 43-44, 121-134) with its
+published parameters (:class:`mpc.leroux.LeRouxCircuit`), P80 from its fines fraction PSE by a
+Gates-Gaudin-Schuhmann assumption (modulus 0.8), ore hardness as its energy per tonne of fines
+phi_f.
+
+Case: the circuit at its survey-3 steady state (65.2 t/h, 71.2 % of critical, P80 94.0 um),
+then the ore turns harder: phi_f +15 % (29.6 -> 34.04 kWh/t) at t = 1 h (with ``--rock-step``
+also a rock fraction 0.465 -> 0.55 at t = 4 h); 8 h, 3-min samples. Three controllers on the
+same plant, sensors and seed: no control (survey-3 inputs held), PI P80 -> feed (SIMC on a
+FOPDT fit of the circuit's linearised feed -> P80 response, analyser delay added:
+:func:`mpc.closed_loop.pi_baseline` on the circuit), and the NMPC + EKF on the twin matched to
+the circuit (:func:`mpc.leroux.matched_twin`). The EKF is given the P80 analyser only: the
+circuit's power (a ROM-mill power surface in filling and rheology) and its filling (balls,
+rocks and water included) do not mean what the twin's power and load (ore hold-up over
+nominal) mean, and with one integrating disturbance (the hardness) a second measurement that
+the twin cannot match would leave a P80 offset (Muske & Badgwell 2002).
+
+KPIs as in :func:`mpc.closed_loop.kpis` (the +-10 um band of the reference case), plus a band
+scaled to this target (+-5 % of 94 um = +-4.7 um), and the final offset: mean P80 minus target
+over the last hour (true plant P80, not the noisy analyser).
+
+Writes benchmarks/results/mpc_leroux_case.csv (KPIs), .md (table) and mpc_leroux_case_runs.csv
+(one row per sample, all runs).
+
+    PYTHONPATH=. python benchmarks/mpc_leroux_case.py [--duration-h 8] [--dt-h 0.05]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pandas as pd
+
+from mpc.closed_loop import FixedInputs, Sensors, pi_baseline, run_closed_loop
+from mpc.estimator import Ekf
+from mpc.leroux import LeRouxCircuit, LeRouxPlant, matched_twin
+from mpc.nmpc import Controller, NmpcSettings
+
+OUT = Path(__file__).parent / "results"
+T_STEP_H = 1.0  # hardness step
+PHI_F_STEP = 1.15  # phi_f x 1.15
+T_ROCK_H, ROCK_FRAC = 4.0, 0.55  # optional rock-fraction step (survey 3: 0.465)
+BAND_REL = 0.05  # the scaled band: +-5 % of target (+-10 um is +-4.8 % of the 210 um reference)
+# Input limits on this circuit (ours): feed 40-80 t/h around the survey-3 65.2 t/h, moves up to
+# 40 t/h per hour (the reference case's 20 t/h per h on a 30 t/h mill, scaled by throughput).
+FEED_MIN, FEED_MAX, FEED_RATE = 40.0, 80.0, 40.0
+
+
+def hardness(t_h: float) -> float:
+    return PHI_F_STEP if t_h >= T_STEP_H else 1.0
+
+
+def controllers(args, circuit, mt, sensors, dt):
+    """(name, controller, estimator) for each requested kind."""
+    p = circuit.params
+    u3 = np.array([p.feed_tph, p.speed_frac_critical])
+    for kind in args.only.split(","):
+        est = Ekf(mt.twin.model, dt, mt.steady.x, hardness0=mt.hardness0,
+                  rk4_substeps=mt.rk4_substeps(dt),
+                  p80_noise_um=sensors.p80_noise_um,
+                  hardness_noise_per_sqrt_h=args.hardness_noise)
+        if kind == "none":
+            yield kind, FixedInputs(u3), est, None
+        elif kind == "pi":
+            steady = SimpleNamespace(x=mt.plant_steady_x, u=u3, d=circuit.d_nominal)
+            ctrl, fop = pi_baseline(circuit, steady, sensors, dt, mt.target_p80_um,
+                                    feed_tph_min=FEED_MIN, feed_tph_max=FEED_MAX,
+                                    feed_rate_max_tph_per_h=FEED_RATE)
+            note = (f"PI from FOPDT gain {fop.gain:.3g} um/(t/h), tau {fop.tau_h:.3g} h, "
+                    f"delay {fop.delay_h:.3g} h: kc {ctrl.pi.kc:.3g} (t/h)/um, "
+                    f"ti {ctrl.pi.ti_h:.3g} h")
+            print(note)
+            yield kind, ctrl, est, note
+        elif kind == "nmpc":
+            t0 = time.perf_counter()
+            ctrl = Controller(mt.twin.model, NmpcSettings(
+                horizon_steps=args.horizon, dt_h=dt, target_p80_um=mt.target_p80_um,
+                weight_du_feed=args.weight_du_feed, weight_du_speed=args.weight_du_speed,
+                feed_tph_min=FEED_MIN, feed_tph_max=FEED_MAX, feed_rate_max_tph_per_h=FEED_RATE,
+                rk4_substeps=mt.rk4_substeps(dt), preview=False))
+            print(f"NMPC built in {time.perf_counter() - t0:.1f} s, "
+                  f"{mt.rk4_substeps(dt)} RK4 steps per sample")
+            yield kind, ctrl, est, None
+        else:
+            raise SystemExit(f"--only: unknown controller {kind!r}; allowed none, pi, nmpc")
+
+
+def run_case(args) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
+    dt = args.dt_h
+    circuit = LeRouxCircuit()
+    mt = matched_twin(circuit, analyser_dead_time_h=0.1)
+    rock = (lambda t: ROCK_FRAC if t >= T_ROCK_H else circuit.params.alpha_r_frac) \
+        if args.rock_step else None
+    plant = LeRouxPlant(circuit, component_names=mt.twin.blend.names, rock_frac=rock)
+    sensors = Sensors(p80_noise_um=args.p80_noise, p80_dead_time_h=0.1, p80_sample_period_h=0.05,
+                      power_noise_kw=5.0, load_noise_frac=0.01)
+    notes = [f"twin matched to the circuit: power factor {mt.power_factor:.4g}, hardness scale "
+             f"{mt.hardness0:.4g}, target P80 {mt.target_p80_um} um"]
+    rows, runs = [], []
+    target = mt.target_p80_um
+    for kind, ctrl, est, note in controllers(args, circuit, mt, sensors, dt):
+        if note:
+            notes.append(note)
+        t0 = time.perf_counter()
+        res = run_closed_loop(plant, ctrl, est if kind == "nmpc" else None, lambda t: [1.0],
+                              sensors, args.duration_h, dt, mt.plant_steady_x,
+                              [circuit.params.feed_tph, circuit.params.speed_frac_critical],
+                              seed=args.seed, target_p80_um=target, plant_hardness=hardness,
+                              estimator_warmup_h=args.warmup_h if kind == "nmpc" else 0.0,
+                              estimator_measurements=("p80_um",))
+        run_s = time.perf_counter() - t0
+        f = res.frame
+        err = f.p80_um - target
+        last = f.time_h >= f.time_h.iloc[-1] - 1.0 - 1e-9
+        k = dict(controller=kind, run_s=run_s, **res.kpis)
+        k["p80_within_band_frac"] = float((err.abs() <= BAND_REL * target).mean())
+        k["p80_after_step_max_abs_err_um"] = float(err[f.time_h >= T_STEP_H].abs().max())
+        k["final_offset_um"] = float(err[last].mean())
+        k["final_max_abs_err_um"] = float(err[last].abs().max())
+        k["feed_final_tph"] = float(f.feed_tph[last].mean())
+        k["speed_final_frac"] = float(f.speed_frac_critical[last].mean())
+        k["hardness_est_final_rel"] = (float(f.hardness_est[last].mean()) / mt.hardness0
+                                       if kind == "nmpc" else np.nan)
+        k["mass_balance_error"] = float(
+            np.abs(f.fed_t - f.produced_t - (f.holdup_t - f.holdup_t.iloc[0])).max()
+            / (f.fed_t.iloc[-1] + f.holdup_t.iloc[0]))
+        k["iterations_median"] = float(f["iterations"].median())
+        print({a: (round(b, 4) if isinstance(b, float) else b) for a, b in k.items()}, flush=True)
+        rows.append(k)
+        runs.append(f.assign(controller=kind))
+    return pd.DataFrame(rows), pd.concat(runs), notes
+
+
+def main(argv=None) -> pd.DataFrame:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--duration-h", type=float, default=8.0)
+    ap.add_argument("--dt-h", type=float, default=0.05)
+    ap.add_argument("--horizon", type=int, default=20)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--only", default="none,pi,nmpc")
+    ap.add_argument("--weight-du-feed", type=float, default=1.0)
+    ap.add_argument("--weight-du-speed", type=float, default=1.0)
+    ap.add_argument("--hardness-noise", type=float, default=0.1,
+                    help="EKF random-walk intensity of the twin's hardness scale [1/sqrt(h)]")
+    ap.add_argument("--p80-noise", type=float, default=3.0, help="analyser noise [um]")
+    ap.add_argument("--warmup-h", type=float, default=2.0,
+                    help="estimator warm-up on the steady plant before t = 0 [h]")
+    ap.add_argument("--rock-step", action="store_true",
+                    help=f"also step the rock fraction to {ROCK_FRAC} at t = {T_ROCK_H} h")
+    ap.add_argument("--tag", default="", help="suffix of the result files")
+    args = ap.parse_args(argv)
+    table, runs, notes = run_case(args)
+    OUT.mkdir(exist_ok=True)
+    name = f"mpc_leroux_case{args.tag}"
+    table.to_csv(OUT / f"{name}.csv", index=False)
+    runs.to_csv(OUT / f"{name}_runs.csv", index=False)
+    cols = ["controller", "p80_iae_um_h", "p80_within_10um_frac", "p80_within_band_frac",
+            "p80_max_abs_err_um", "p80_after_step_max_abs_err_um", "final_offset_um",
+            "final_max_abs_err_um", "specific_energy_kwh_t", "throughput_t", "feed_final_tph",
+            "speed_final_frac", "hardness_est_final_rel", "solve_time_median_s",
+            "solve_time_p95_s", "fallback_steps", "mass_balance_error"]
+    rock = f", rock fraction -> {ROCK_FRAC} at {T_ROCK_H} h" if args.rock_step else ""
+    md = [f"# le Roux et al. (2013) circuit: phi_f x {PHI_F_STEP} at {T_STEP_H} h{rock}; "
+          "twin-based NMPC + EKF against PI and no control",
+          "",
+          f"duration {args.duration_h} h, sample {args.dt_h} h, NMPC horizon {args.horizon} "
+          f"(no preview), seed {args.seed}; weights du_feed {args.weight_du_feed}, du_speed "
+          f"{args.weight_du_speed}; EKF on the P80 analyser only, hardness noise "
+          f"{args.hardness_noise}/sqrt(h), warm-up {args.warmup_h} h; sensors: P80 noise "
+          f"{args.p80_noise} um, dead time 0.1 h, sampling 0.05 h. Band: +-{BAND_REL:.0%} of "
+          "target. final_offset_um: mean (P80 - target) over the last hour; "
+          "hardness_est_final_rel: the EKF's hardness over its survey-3 value (plant: "
+          f"{PHI_F_STEP}).",
+          "", *[f"- {n}" for n in notes], "",
+          table[cols].to_markdown(index=False, floatfmt=".4g")]
+    (OUT / f"{name}.md").write_text("\n".join(md) + "\n")
+    return table
+
+
+if __name__ == "__main__":
+    main()
