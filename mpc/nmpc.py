@@ -36,15 +36,32 @@ direct solution of optimal control problems", IFAC World Congress; Rawlings, May
   analyser or stockpile plan foresees them, plus the estimated hardness) is a parameter of the
   NLP; without preview the current ``d`` is held over the horizon.
 
-The NLP is built once (``casadi.nlpsol``, expanded to SX) and reused; each step updates the
-parameters and warm-starts from the previous solution shifted by one sample (primal, and the
-constraint and bound multipliers, stage by stage). Solvers by name: ``"ipopt"`` (interior point;
-Waechter & Biegler 2006), ``"sqpmethod"`` with ``qpsol`` ``"qrqp"`` or ``"hpipm"`` (SQP; HPIPM of
-Frison & Diehl 2020 exploits the stage structure), ``"fatrop"`` (Vanroye et al. 2023, structure
-detected from the stage-wise ordering of variables and constraints). Measured state: ipopt and
-sqpmethod+qrqp work; fatrop and sqpmethod+hpipm are refused at build with an
-:class:`MpcSolverError` that says why (the rate constraints couple consecutive inputs, and hpipm
-is not given the stage dimensions).
+Layout: the NLP is written as a standard optimal-control problem so the structure-exploiting
+solvers apply. The previous input and the outputs' slacks are lifted into the state,
+``X~_k = [X_k / scale; U_{k-1}; S_{k-1}]`` with ``X~_{k+1} = [F(X_k, U_k, D_k) / scale; U_k;
+S_k]``, so every constraint and cost term of stage k involves (X~_k, U~_k) only: the rate limit
+``U_k - V_k``, the output constraints and the P80 term at ``X~_k`` (outputs at
+``(X_k, U_{k-1}, D_{k-1})``, the same as above). Variables are ordered ``[X~_0, U~_0, X~_1, ...,
+X~_N]`` and constraints ``[gap_0, path_0, gap_1, ..., path_N]``; the initial state and the last
+applied input are equalities of ``path_0``. The problem is the same as without lifting (the
+IPOPT closed loop is unchanged).
+
+Solvers (``NmpcSettings.solver``), built once and reused:
+
+- ``"ipopt"`` (Waechter & Biegler 2006), exact Hessian (NLP expanded to SX), warm-started from
+  the previous solution shifted by one sample (primal, and the constraint and bound multipliers
+  stage by stage); 2-3 iterations a sample here;
+- ``"fatrop"`` (Vanroye et al. 2023, IROS, "FATROP: a fast constrained optimal control problem
+  solver for robot trajectory optimization and control"), interior point on the stage structure
+  (dimensions passed, no detection);
+- ``"sqpmethod"`` with ``qpsol = "qrqp"``: SQP with exact Hessian. With ``"hpipm"`` it is
+  refused, as measured here: ``Search_Direction_Becomes_Too_Small`` after 6 iterations, and no
+  convergence in 100 with ``convexify_strategy = "regularize"`` (an indefinite exact Hessian on
+  the stages is the likely cause, not confirmed); the Gauss-Newton ``"rti"`` uses HPIPM instead;
+- ``"rti"``: the real-time iteration (Diehl, Bock & Schloeder 2005) with a Gauss-Newton Hessian,
+  one structured QP per sample by HPIPM (Frison & Diehl 2020, "HPIPM: a high-performance
+  quadratic programming framework for model predictive control", IFAC-PapersOnLine 53, 6563),
+  qrqp or OSQP. Iterations are counted per QP.
 
 Failure handling: if the solver does not converge the controller applies the previous plan
 shifted by one sample (``fallback_used="shifted_plan"``) while the old plan lasts, then holds the
@@ -66,9 +83,13 @@ from mpc.discretize import rk4_map
 from mpc.errors import MpcInputError, MpcSolverError
 from mpc.results import ControllerStepResult
 
-SOLVERS = ("ipopt", "sqpmethod", "fatrop")
-QP_SOLVERS = ("qrqp", "hpipm")
+SOLVERS = ("ipopt", "sqpmethod", "fatrop", "rti")
+QP_SOLVERS = ("hpipm", "qrqp", "osqp")
 PASSING_TARGET = 0.80
+#: HPIPM's stand-in for an infinite bound. Its default (1e8) keeps the interior point from
+#: meeting its tolerance in 200 iterations (measured); the decision variables here are scaled
+#: to O(1) (states) or are inputs and slacks below ~100, so 1e4 is inactive and converges in ~7.
+HPIPM_INF = 1e4
 
 
 @dataclass
@@ -118,9 +139,16 @@ class NmpcSettings:
     power_penalty_quad: float = 0.01
     """Quadratic penalty on the power-limit violation [per kW^2]."""
     solver: str = "ipopt"
-    """NLP solver: "ipopt", "sqpmethod" or "fatrop"."""
-    qpsol: str = "qrqp"
-    """QP solver of "sqpmethod": "qrqp" or "hpipm"."""
+    """"ipopt" (interior point, exact Hessian), "sqpmethod" (SQP, exact Hessian, QPs by
+    ``qpsol``), "fatrop" (structure-exploiting interior point) or "rti" (real-time iteration:
+    ``rti_iterations`` Gauss-Newton QPs per sample by ``qpsol``)."""
+    qpsol: str | None = None
+    """QP solver of "rti": "hpipm" (Riccati-based interior point on the stage structure; the
+    default), "qrqp" (CasADi's sparse active set) or "osqp" (ADMM); of "sqpmethod": "qrqp"
+    (the default and only choice, see the module docstring)."""
+    rti_iterations: int = 1
+    """Gauss-Newton iterations per sample of "rti" (1 = the real-time iteration; more iterate
+    towards the Gauss-Newton solution, stopping early when the step is below ``tol``)."""
     max_iter: int = 100
     """Iteration limit of the NLP solver (0 forces a failure: a test of the fallback)."""
     tol: float = 1e-6
@@ -141,7 +169,7 @@ class NmpcSettings:
             raise MpcInputError(f"The '{name}' parameter of NmpcSettings must be {allowed}. "
                                 f"Got {getattr(self, name)!r}.")
 
-        for name in ("horizon_steps", "move_block", "rk4_substeps"):
+        for name in ("horizon_steps", "move_block", "rk4_substeps", "rti_iterations"):
             v = getattr(self, name)
             if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
                 bad(name, "an int >= 1")
@@ -169,8 +197,13 @@ class NmpcSettings:
             bad("load_band_frac", "a pair (lo, hi) with 0 <= lo < hi")
         if self.solver not in SOLVERS:
             bad("solver", f"one of {SOLVERS}")
+        if self.qpsol is None:
+            self.qpsol = "qrqp" if self.solver == "sqpmethod" else "hpipm"
         if self.qpsol not in QP_SOLVERS:
             bad("qpsol", f"one of {QP_SOLVERS}")
+        if self.solver == "sqpmethod" and self.qpsol != "qrqp":
+            bad("qpsol", "'qrqp' with solver 'sqpmethod' (HPIPM and OSQP fail inside this SQP, "
+                "see mpc.nmpc; use solver 'rti' for them)")
 
     @classmethod
     def field_names(cls) -> tuple[str, ...]:
@@ -209,13 +242,12 @@ class Controller:
 
     # ------------------------------------------------------------------ build
     def _build(self) -> None:
+        """The NLP in optimal-control layout (see the module docstring, "Layout")."""
         s, m = self.settings, self.model
         nx, nu, nd, N = self.nx, self.nu, self.nd, s.horizon_steps
         F = rk4_map(m.f, s.dt_h, s.rk4_substeps, name="nmpc_F").expand()
         psd_fn = m.product_psd_function()
-        xs = ca.SX.sym("x", nx)
-        us = ca.SX.sym("u", nu)
-        ds = ca.SX.sym("d", nd)
+        xs, us, ds = ca.SX.sym("x", nx), ca.SX.sym("u", nu), ca.SX.sym("d", nd)
         wpass = ca.SX.sym("wpass", m.spec.grid.count)
         psd = psd_fn(xs, us, ds)
         passing = ca.dot(wpass, psd) / (ca.sum1(psd) + 1e-12 * m.spec.holdup_nominal_t)
@@ -226,116 +258,157 @@ class Controller:
         self._out_fn = out_fn
         scale = ca.DM(self.x_scale)
         has_power = math.isfinite(s.power_max_kw)
-        n_slack = 2 if has_power else 1
-        self._n_slack = n_slack
+        ns = 2 if has_power else 1
+        self._n_slack = ns
+        nxl, nul = nx + nu + ns, nu + ns  # lifted state [x/scale; u_prev; slack], control [u; slack]
 
-        # decision variables, stage-wise: [X0, U0, S0, X1, U1, S1, ..., XN] (X scaled)
-        p_x0 = ca.MX.sym("x0", nx)
-        p_d = ca.MX.sym("D", nd, N)
-        p_uprev = ca.MX.sym("u_prev", nu)
-        p_wpass = ca.MX.sym("wpass", m.spec.grid.count)
+        p_x0, p_d = ca.MX.sym("x0", nx), ca.MX.sym("D", nd, N)
+        p_uprev, p_wpass = ca.MX.sym("u_prev", nu), ca.MX.sym("wpass", m.spec.grid.count)
         P = ca.vertcat(p_x0, ca.vec(p_d), p_uprev, p_wpass)
-        w, lbw, ubw = [], [], []
-        g, lbg, ubg = [], [], []
-        J = 0
-        Xs = [ca.MX.sym("X0", nx)]
-        Us, Ss = [], []
-        w.append(Xs[0]); lbw.append(-np.inf * np.ones(nx)); ubw.append(np.inf * np.ones(nx))
+        X = [ca.MX.sym(f"X{k}", nxl) for k in range(N + 1)]
+        U = [ca.MX.sym(f"U{k}", nul) for k in range(N)]
         u_lo = np.array([s.feed_tph_min, s.speed_min])
         u_hi = np.array([s.feed_tph_max, s.speed_max])
         du_max = np.array([s.feed_rate_max_tph_per_h, s.speed_rate_max_per_h]) * s.dt_h
         lo_band, hi_band = s.load_band_frac
-        # initial condition as the first constraint (keeps stage blocks uniform for warm starts)
-        g.append(Xs[0] - p_x0 / scale); lbg.append(np.zeros(nx)); ubg.append(np.zeros(nx))
-        u_last = p_uprev
-        for k in range(N):
-            Uk = ca.MX.sym(f"U{k}", nu)
-            Sk = ca.MX.sym(f"S{k}", n_slack)
-            Us.append(Uk); Ss.append(Sk)
-            w += [Uk, Sk]
-            lbw += [u_lo, np.zeros(n_slack)]
-            ubw += [u_hi, np.inf * np.ones(n_slack)]
-            Xk1 = ca.MX.sym(f"X{k + 1}", nx)
-            Xs.append(Xk1)
-            w.append(Xk1); lbw.append(-np.inf * np.ones(nx)); ubw.append(np.inf * np.ones(nx))
-            dk = p_d[:, k]
-            xk_phys = Xs[k] * scale
-            x_next = F(xk_phys, Uk, dk)
-            # stage block of constraints: gap, rate/blocking, load band, power
-            g.append(x_next / scale - Xk1); lbg.append(np.zeros(nx)); ubg.append(np.zeros(nx))
-            du = Uk - u_last
-            if k % s.move_block == 0:
-                g.append(du); lbg.append(-du_max); ubg.append(du_max)
-            else:  # inside a block: no move
-                g.append(du); lbg.append(np.zeros(nu)); ubg.append(np.zeros(nu))
-            pas, load, se, pw = out_fn(Xk1 * scale, Uk, dk, p_wpass)
-            g.append(ca.vertcat(load - Sk[0], load + Sk[0]))
-            lbg.append(np.array([-np.inf, lo_band])); ubg.append(np.array([hi_band, np.inf]))
-            J = J + s.load_penalty_quad * Sk[0] ** 2 + s.load_penalty_lin * Sk[0]
-            if has_power:
-                g.append(pw - Sk[1]); lbg.append(np.array([-np.inf])); ubg.append(np.array([s.power_max_kw]))
-                J = J + s.power_penalty_quad * Sk[1] ** 2 + s.power_penalty_lin * Sk[1]
-            J = (J + s.weight_p80 * (100.0 * (pas - PASSING_TARGET)) ** 2
-                 + s.weight_du_feed * du[0] ** 2 + s.weight_du_speed * (100.0 * du[1]) ** 2
-                 + s.weight_energy * se)
-            u_last = Uk
-        self._ng_stage = nx + nu + 2 + (1 if has_power else 0)
-        self._nw_stage = nu + n_slack + nx
-        wv = ca.vertcat(*w)
-        gv = ca.vertcat(*g)
+        inf = np.inf
+        gap_sign = -1.0 if s.solver == "fatrop" else 1.0
+        w, lbw, ubw, g, lbg, ubg = [], [], [], [], [], []
+        residuals, linear = [], 0  # cost = sum(residuals^2) + linear
+        self._ix, self._iu, self._ig_gap, self._ig_path, ng_path = [], [], [], [], []
+        nw = ng = 0
+        for k in range(N + 1):
+            Xk = X[k]
+            xk, vk, sig = Xk[:nx], Xk[nx:nx + nu], Xk[nx + nu:]
+            w.append(Xk); lbw.append(-inf * np.ones(nxl)); ubw.append(inf * np.ones(nxl))
+            self._ix.append(np.arange(nw, nw + nxl)); nw += nxl
+            path, plo, phi = [], [], []
+            if k == 0:  # initial state, last applied input, no slack: equalities of stage 0
+                path.append(Xk - ca.vertcat(p_x0 / scale, p_uprev, ca.DM.zeros(ns)))
+                plo.append(np.zeros(nxl)); phi.append(np.zeros(nxl))
+            else:  # outputs at X_k with the input held over the interval before it
+                pas, load, se, pw = out_fn(xk * scale, vk, p_d[:, k - 1], p_wpass)
+                path.append(ca.vertcat(load - sig[0], load + sig[0]))
+                plo.append(np.array([-inf, lo_band])); phi.append(np.array([hi_band, inf]))
+                if has_power:
+                    path.append(pw - sig[1]); plo.append(np.array([-inf])); phi.append(np.array([s.power_max_kw]))
+                residuals.append(math.sqrt(s.weight_p80) * 100.0 * (pas - PASSING_TARGET))
+                linear = linear + s.weight_energy * se
+            if k < N:
+                Uk = U[k]
+                uk, sk = Uk[:nu], Uk[nu:]
+                w.append(Uk); lbw.append(np.r_[u_lo, np.zeros(ns)]); ubw.append(np.r_[u_hi, inf * np.ones(ns)])
+                self._iu.append(np.arange(nw, nw + nul)); nw += nul
+                du = uk - vk
+                path.append(du)
+                free = k % s.move_block == 0  # inside a move block: no move
+                plo.append(-du_max if free else np.zeros(nu)); phi.append(du_max if free else np.zeros(nu))
+                residuals += [math.sqrt(s.weight_du_feed) * du[0],
+                              math.sqrt(s.weight_du_speed) * 100.0 * du[1],
+                              math.sqrt(s.load_penalty_quad) * sk[0]]
+                linear = linear + s.load_penalty_lin * sk[0]
+                if has_power:
+                    residuals.append(math.sqrt(s.power_penalty_quad) * sk[1])
+                    linear = linear + s.power_penalty_lin * sk[1]
+                # gap first, then the stage's path constraints (the order hpipm and fatrop ask
+                # for); hpipm wants F - X_{k+1}, fatrop X_{k+1} - F
+                gap = gap_sign * (ca.vertcat(F(xk * scale, uk, p_d[:, k]) / scale, uk, sk) - X[k + 1])
+                g.append(gap); lbg.append(np.zeros(nxl)); ubg.append(np.zeros(nxl))
+                self._ig_gap.append(np.arange(ng, ng + nxl)); ng += nxl
+            pv = ca.vertcat(*path)
+            g.append(pv); lbg.append(np.concatenate(plo)); ubg.append(np.concatenate(phi))
+            self._ig_path.append(np.arange(ng, ng + pv.numel())); ng += pv.numel()
+            ng_path.append(pv.numel())
+        self._nw = nw
+        wv, gv = ca.vertcat(*w), ca.vertcat(*g)
+        rv = ca.vertcat(*residuals)
+        J = ca.sumsqr(rv) + linear
         self._lbw, self._ubw = np.concatenate(lbw), np.concatenate(ubw)
         self._lbg, self._ubg = np.concatenate(lbg), np.concatenate(ubg)
-        nlp = {"x": wv, "f": J, "g": gv, "p": P}
-        opts = {"expand": s.hessian == "exact"}
+        self._dims = {"N": N, "nx": [nxl] * (N + 1), "nu": [nul] * N + [0], "ng": ng_path}
+        t0 = time.perf_counter()
+        try:
+            if s.solver == "rti":
+                self._build_rti(wv, gv, rv, J, P)
+            else:
+                self._solver = ca.nlpsol("nmpc", s.solver, {"x": wv, "f": J, "g": gv, "p": P},
+                                         self._nlp_options())
+        except RuntimeError as exc:
+            raise MpcSolverError(f"The '{s.solver}' solver (qpsol {s.qpsol!r}) could not be "
+                                 f"built for this NLP. CasADi said: {str(exc)[-300:]}") from exc
+        self.build_time_s = time.perf_counter() - t0
+        self._wpass = np.asarray(m.spec.grid.passing_weights(s.target_p80_um), float)
+
+    def _qp_options(self) -> dict:
+        s = self.settings
+        if s.qpsol == "hpipm":  # the stage dimensions of the layout, so HPIPM's Riccati applies
+            return {**self._dims, "error_on_fail": False, "inf": HPIPM_INF,
+                    "hpipm": {"iter_max": 100}}
+        if s.qpsol == "qrqp":
+            return {"print_iter": False, "print_header": False, "error_on_fail": False}
+        return {"error_on_fail": False, "osqp": {"verbose": False, "eps_abs": 1e-8, "eps_rel": 1e-8}}
+
+    def _nlp_options(self) -> dict:
+        s = self.settings
+        opts = {"expand": s.hessian == "exact", "print_time": False}
         if s.solver == "ipopt":
-            opts["ipopt"] = {"print_level": 0, "hessian_approximation": s.hessian, "max_iter": int(s.max_iter), "tol": s.tol,
-                             "acceptable_tol": 1e3 * s.tol, "sb": "yes",
-                             "mu_strategy": "adaptive"}
-            opts["print_time"] = False
+            opts["ipopt"] = {"print_level": 0, "hessian_approximation": s.hessian,
+                             "max_iter": int(s.max_iter), "tol": s.tol, "acceptable_tol": 1e3 * s.tol,
+                             "sb": "yes", "mu_strategy": "adaptive"}
             if s.warm_start:
-                opts["ipopt"].update({"warm_start_init_point": "yes",
-                                      "warm_start_bound_push": 1e-6,
+                opts["ipopt"].update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-6,
                                       "warm_start_mult_bound_push": 1e-6})
         elif s.solver == "sqpmethod":
-            opts.update({"qpsol": s.qpsol, "max_iter": int(s.max_iter), "print_time": False,
-                         "print_header": False, "print_iteration": False, "print_status": False,
+            opts.update({"qpsol": s.qpsol, "qpsol_options": self._qp_options(),
+                         "max_iter": int(s.max_iter), "print_header": False,
+                         "print_iteration": False, "print_status": False,
                          "tol_pr": s.tol, "tol_du": s.tol, "error_on_fail": False})
-            if s.qpsol == "qrqp":
-                opts["qpsol_options"] = {"print_iter": False, "print_header": False,
-                                         "error_on_fail": False}
-            else:
-                opts["qpsol_options"] = {"error_on_fail": False}
-        else:  # fatrop
-            opts.update({"structure_detection": "auto", "print_time": False,
+        else:  # fatrop: the stage dimensions given, no detection needed
+            d = self._dims
+            opts.update({"structure_detection": "manual", "N": d["N"], "nx": d["nx"],
+                         "nu": d["nu"], "ng": d["ng"],
                          "equality": [bool(v) for v in self._lbg == self._ubg],
                          "fatrop": {"print_level": 0, "max_iter": int(s.max_iter), "tol": s.tol},
                          "error_on_fail": False})
-        t0 = time.perf_counter()
-        try:
-            self._solver = ca.nlpsol("nmpc", s.solver, nlp, opts)
-        except RuntimeError as exc:
-            hint = ""
-            if s.solver == "fatrop":
-                hint = (" fatrop's structure detection needs every constraint of stage k to depend "
-                        "on (x_k, u_k) only; the rate limits and move blocking here couple u_k "
-                        "with u_{k-1} (lifting the previous input into the state is not done).")
-            elif s.solver == "sqpmethod" and s.qpsol == "hpipm":
-                hint = (" hpipm needs the OCP dimensions per stage (qpsol_options N, nx, nu, ng), "
-                        "which this NLP layout does not pass.")
-            raise MpcSolverError(f"The '{s.solver}' solver (qpsol {s.qpsol!r}) could not be "
-                                 f"built for this NLP.{hint} Use 'ipopt' or 'sqpmethod' with "
-                                 f"'qrqp'. CasADi said: {str(exc)[-300:]}") from exc
-        self.build_time_s = time.perf_counter() - t0
-        # index maps into w
-        self._ix = [np.arange(nx)]
-        self._iu, self._is = [], []
-        pos = nx
-        for k in range(N):
-            self._iu.append(np.arange(pos, pos + nu)); pos += nu
-            self._is.append(np.arange(pos, pos + n_slack)); pos += n_slack
-            self._ix.append(np.arange(pos, pos + nx)); pos += nx
-        self._nw = pos
-        self._wpass = np.asarray(m.spec.grid.passing_weights(s.target_p80_um), float)
+        return opts
+
+    def _build_rti(self, wv, gv, rv, J, P) -> None:
+        """Real-time iteration (Diehl, Bock & Schloeder 2005, SIAM J. Control Optim. 43,
+        1714-1736; Gros et al. 2020, Int. J. Control 93, 62-80): one Gauss-Newton QP per sample
+        at the shifted previous solution, full step. Hessian ``2 Jr^T Jr`` of the least-squares
+        residuals ``r`` (the linear energy and l1 slack terms enter the gradient only), so it is
+        positive semi-definite without regularisation; the QP goes to ``qpsol``."""
+        Jr = ca.jacobian(rv, wv)
+        H = 2.0 * ca.mtimes(Jr.T, Jr)
+        A = ca.jacobian(gv, wv)
+        self._qp_data = ca.Function("rti_qp_data", [wv, P], [H, ca.gradient(J, wv), gv, A]).expand()
+        self._cost = ca.Function("rti_cost", [wv, P], [J]).expand()
+        self._qp = ca.conic("rti_qp", self.settings.qpsol, {"h": H.sparsity(), "a": A.sparsity()},
+                            self._qp_options())
+        self._solver = self._rti_solve
+
+    def _rti_solve(self, x0, p, lbx, ubx, lbg, ubg, **_):
+        """``rti_iterations`` Gauss-Newton QPs from ``x0``; the nlpsol-like result dict. The
+        stats report success only if every QP solved."""
+        w = np.asarray(x0, float).copy()
+        ok, status, it = True, "rti", 0
+        for it in range(1, self.settings.rti_iterations + 1):
+            H, grad, g, A = self._qp_data(w, p)
+            g = np.asarray(g, float).ravel()
+            sol = self._qp(h=H, g=grad, a=A, lba=lbg - g, uba=ubg - g,
+                           lbx=lbx - w, ubx=ubx - w)
+            st = self._qp.stats()
+            if not st.get("success", False):
+                ok, status = False, f"rti QP failed: {st.get('return_status', 'unknown')}"
+                break
+            step = np.asarray(sol["x"], float).ravel()
+            w += step
+            if np.max(np.abs(step)) < self.settings.tol:
+                break
+        self._rti_stats = {"success": ok, "return_status": status, "iter_count": it}
+        f = float(self._cost(w, p)) if ok else math.nan
+        n_g = self._lbg.size
+        return {"x": w, "f": f, "lam_g": np.zeros(n_g), "lam_x": np.zeros(w.size)}
 
     # ------------------------------------------------------------------ state
     def reset(self, u_prev=None) -> None:
@@ -375,34 +448,35 @@ class Controller:
         return d[:, :N]
 
     def _initial_guess(self, x0s, u_prev):
-        N, nx = self.settings.horizon_steps, self.nx
+        """Primal (and, for IPOPT, dual) start: the previous solution shifted by one sample, its
+        first lifted state replaced by the new measurement; cold: everything at (x0, u_prev)."""
+        N, nx, nu, ns = self.settings.horizon_steps, self.nx, self.nu, self._n_slack
+        first = np.r_[x0s, u_prev, np.zeros(ns)]
         if self.settings.warm_start and self._w_prev is not None:
-            w_old = self._w_prev
+            old = self._w_prev
             w0 = np.empty(self._nw)
             for k in range(N + 1):
-                w0[self._ix[k]] = w_old[self._ix[min(k + 1, N)]]
+                w0[self._ix[k]] = old[self._ix[min(k + 1, N)]]
             for k in range(N):
-                w0[self._iu[k]] = w_old[self._iu[min(k + 1, N - 1)]]
-                w0[self._is[k]] = w_old[self._is[min(k + 1, N - 1)]]
-            w0[self._ix[0]] = x0s
+                w0[self._iu[k]] = old[self._iu[min(k + 1, N - 1)]]
+            w0[self._ix[0]] = first
             lam_g = lam_x = None
             if self._lam_g_prev is not None:
-                ng0, ngs = nx, self._ng_stage
-                lg = self._lam_g_prev
-                lam_g = lg.copy()
-                lam_g[ng0:ng0 + (N - 1) * ngs] = lg[ng0 + ngs:]
-                lam_x = self._lam_x_prev.copy()
-                lx = self._lam_x_prev
+                lg, lx = self._lam_g_prev, self._lam_x_prev
+                lam_g, lam_x = lg.copy(), lx.copy()
+                for k in range(N - 1):
+                    lam_g[self._ig_gap[k]] = lg[self._ig_gap[k + 1]]
+                for k in range(1, N - 1):  # stages 1..N-2 take the next one's (same size)
+                    lam_g[self._ig_path[k]] = lg[self._ig_path[k + 1]]
                 for k in range(N):
+                    lam_x[self._ix[k]] = lx[self._ix[k + 1]]
                     lam_x[self._iu[k]] = lx[self._iu[min(k + 1, N - 1)]]
-                    lam_x[self._is[k]] = lx[self._is[min(k + 1, N - 1)]]
             return w0, lam_g, lam_x
         w0 = np.empty(self._nw)
         for k in range(N + 1):
-            w0[self._ix[k]] = x0s
+            w0[self._ix[k]] = first
         for k in range(N):
-            w0[self._iu[k]] = u_prev
-            w0[self._is[k]] = 0.0
+            w0[self._iu[k]] = np.r_[u_prev, np.zeros(ns)]
         return w0, None, None
 
     # ------------------------------------------------------------------ step
@@ -429,7 +503,7 @@ class Controller:
         t0 = time.perf_counter()
         try:
             sol = self._solver(**args)
-            stats = self._solver.stats()
+            stats = self._rti_stats if s.solver == "rti" else self._solver.stats()
             ok = bool(stats.get("success", False))
             status = str(stats.get("return_status", "unknown"))
             iters = int(stats.get("iter_count", -1))
@@ -445,9 +519,9 @@ class Controller:
         self._w_prev = wopt
         self._lam_g_prev = np.asarray(sol["lam_g"], float).ravel()
         self._lam_x_prev = np.asarray(sol["lam_x"], float).ravel()
-        plan = np.array([wopt[i] for i in self._iu])
+        plan = np.array([wopt[i[:nu]] for i in self._iu])
         plan = np.clip(plan, [s.feed_tph_min, s.speed_min], [s.feed_tph_max, s.speed_max])
-        states = np.array([wopt[i] * self.x_scale for i in self._ix])
+        states = np.array([wopt[i[:nx]] * self.x_scale for i in self._ix])
         self._plan_prev = plan
         self._plan_age = 0
         info = self._plan_info(states, plan, D)

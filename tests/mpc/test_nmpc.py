@@ -98,8 +98,60 @@ def test_unreachable_target_is_reported(setup):
         ctrl.set_target(210.0)
 
 
-def test_unsupported_structured_solver_is_refused_clearly(ctrl_twin):
-    from mpc.errors import MpcSolverError
+def test_sqpmethod_with_hpipm_is_refused_clearly():
+    with pytest.raises(MpcInputError, match=r"'qpsol'.*'qrqp' with solver 'sqpmethod'.*Got 'hpipm'"):
+        NmpcSettings(solver="sqpmethod", qpsol="hpipm")
+    assert NmpcSettings(solver="sqpmethod").qpsol == "qrqp"
+    assert NmpcSettings(solver="rti").qpsol == "hpipm"
 
-    with pytest.raises(MpcSolverError, match="fatrop"):
-        Controller(ctrl_twin.model, NmpcSettings(horizon_steps=2, dt_h=0.05, solver="fatrop"))
+
+@pytest.fixture(scope="module")
+def ipopt_reference(setup):
+    """IPOPT's converged plan for a coarsening ore ahead (the other solvers must find it)."""
+    ctrl, ss = setup
+    ctrl.reset()
+    d = np.repeat(ctrl.model.d_vector([0.6, 0.4])[:, None], N, axis=1)
+    r = ctrl.make_step(ss.x, d, ss.u)
+    assert r.success, r.status
+    return d, r
+
+
+@pytest.mark.parametrize("solver, qpsol, iterations", [
+    ("fatrop", None, 1), ("sqpmethod", "qrqp", 1), ("rti", "hpipm", 30), ("rti", "osqp", 30)])
+def test_structured_solvers_reach_the_ipopt_solution(ctrl_twin, setup, ipopt_reference,
+                                                     solver, qpsol, iterations):
+    """Same NLP, same optimum: fatrop and SQP converge to it; Gauss-Newton iterations (RTI run
+    to convergence) reach it too, since a full-step fixed point of the QP is a KKT point of the
+    NLP (only the Hessian is approximated)."""
+    ctrl, ss = setup
+    d, ref = ipopt_reference
+    s = ctrl.settings
+    other = Controller(ctrl_twin.model, NmpcSettings(
+        horizon_steps=N, dt_h=0.05, move_block=2, feed_rate_max_tph_per_h=10.0,
+        speed_rate_max_per_h=0.05, solver=solver, qpsol=qpsol, rti_iterations=iterations,
+        tol=1e-9 if solver == "rti" else s.tol))
+    r = other.make_step(ss.x, d, ss.u)
+    assert r.success, r.status
+    np.testing.assert_allclose(r.plan[:, 0], ref.plan[:, 0], rtol=0, atol=2e-3)  # t/h
+    np.testing.assert_allclose(r.plan[:, 1], ref.plan[:, 1], rtol=0, atol=2e-5)  # of critical
+    assert r.cost == pytest.approx(ref.cost, rel=1e-5)
+
+
+def test_real_time_iteration_respects_bounds_rates_and_blocking(ctrl_twin, setup):
+    """One QP per sample (the real-time iteration) keeps every hard constraint of the plan."""
+    _, ss = setup
+    ctrl = Controller(ctrl_twin.model, NmpcSettings(
+        horizon_steps=N, dt_h=0.05, move_block=2, feed_rate_max_tph_per_h=10.0,
+        speed_rate_max_per_h=0.05, solver="rti"))
+    s = ctrl.settings
+    d = np.repeat(ctrl.model.d_vector([0.6, 0.4])[:, None], N, axis=1)
+    u_prev = ss.u
+    for _ in range(3):
+        r = ctrl.make_step(ss.x, d, u_prev)
+        assert r.success and r.iterations == 1, r.status
+        moves = np.diff(np.vstack([u_prev, r.plan]), axis=0)
+        assert np.all(np.abs(moves[:, 0]) <= s.feed_rate_max_tph_per_h * s.dt_h + 1e-6)
+        assert np.all(np.abs(moves[:, 1]) <= s.speed_rate_max_per_h * s.dt_h + 1e-6)
+        assert np.all(r.plan[:, 1] >= s.speed_min - 1e-6) and np.all(r.plan[:, 1] <= s.speed_max + 1e-6)
+        np.testing.assert_allclose(r.plan[1], r.plan[0], atol=1e-7)
+        u_prev = r.u_applied
