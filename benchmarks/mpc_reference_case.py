@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from mpc.closed_loop import FixedInputs, Sensors, pi_baseline, run_closed_loop
-from mpc.estimator import Ekf
+from mpc.estimator import HARDNESS_NOISE_PER_SQRT_H, Ekf
 from mpc.nmpc import Controller, NmpcSettings
 from mpc.optimize import feed_for_target
 from twin.sizes import SizeGrid
@@ -51,7 +51,10 @@ def add_case_arguments(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--weight-du-feed", type=float, default=1.0)
     ap.add_argument("--weight-du-speed", type=float, default=1.0)
-    ap.add_argument("--hardness-noise", type=float, default=0.1,
+    ap.add_argument("--weight-p80", type=float, default=1.0)
+    ap.add_argument("--weight-energy", type=float, default=0.01)
+    ap.add_argument("--solver", default="rti", help="NmpcSettings.solver of the NMPC runs")
+    ap.add_argument("--hardness-noise", type=float, default=HARDNESS_NOISE_PER_SQRT_H,
                     help="EKF random-walk intensity of the hardness scale [1/sqrt(h)]")
     ap.add_argument("--warmup-h", type=float, default=2.0,
                     help="estimator warm-up on the steady plant before t = 0 [h]")
@@ -85,6 +88,12 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--only", default="none,pi,nmpc,nmpc_preview")
     ap.add_argument("--tag", default="", help="suffix of the result files")
     args = ap.parse_args(argv)
+    return run_case(args)
+
+
+def run_case(args, plant_hardness=1.0, write: bool = True) -> pd.DataFrame:
+    """The controllers of ``args.only`` on the case; ``plant_hardness`` (float or callable of
+    t_h) is the plant's true hardness scale, unknown to the controllers."""
     dt = args.dt_h
     sensors = reference_sensors()
     plant, ss, ctw, css = reference_setup(sensors)
@@ -101,13 +110,15 @@ def main(argv=None) -> pd.DataFrame:
             ctrl = Controller(ctw.model, NmpcSettings(
                 horizon_steps=args.horizon, dt_h=dt, target_p80_um=TARGET_UM,
                 weight_du_feed=args.weight_du_feed, weight_du_speed=args.weight_du_speed,
+                weight_p80=args.weight_p80, weight_energy=args.weight_energy, solver=args.solver,
                 preview=kind == "nmpc_preview"))
         build_s = time.perf_counter() - t0
         t0 = time.perf_counter()
         res = run_closed_loop(plant.model, ctrl, est, schedule, sensors, args.duration_h, dt,
                               ss.x, ss.u, seed=args.seed,
                               preview_lead_h=LEAD_H if kind == "nmpc_preview" else 0.0,
-                              target_p80_um=TARGET_UM, estimator_warmup_h=args.warmup_h)
+                              target_p80_um=TARGET_UM, estimator_warmup_h=args.warmup_h,
+                              plant_hardness=plant_hardness)
         run_s = time.perf_counter() - t0
         k = dict(controller=kind, build_s=build_s, run_s=run_s, **res.kpis)
         k["p80_after_switch_max_abs_err_um"] = float(
@@ -117,6 +128,8 @@ def main(argv=None) -> pd.DataFrame:
         rows.append(k)
         runs.append(res.frame.assign(controller=kind))
     table = pd.DataFrame(rows)
+    if not write:
+        return table
     OUT.mkdir(exist_ok=True)
     table.to_csv(OUT / f"mpc_reference_case{args.tag}.csv", index=False)
     pd.concat(runs).to_csv(OUT / f"mpc_reference_case{args.tag}_runs.csv", index=False)
@@ -127,7 +140,8 @@ def main(argv=None) -> pd.DataFrame:
           f"target {TARGET_UM} um, lead {LEAD_H} h",
           "",
           f"duration {args.duration_h} h, sample {dt} h, NMPC horizon {args.horizon}, seed "
-          f"{args.seed}; weights du_feed {args.weight_du_feed}, du_speed {args.weight_du_speed}; "
+          f"{args.seed}; solver {args.solver}; weights p80 {args.weight_p80}, du_feed "
+          f"{args.weight_du_feed}, du_speed {args.weight_du_speed}, energy {args.weight_energy}; "
           f"EKF hardness noise {args.hardness_noise}/sqrt(h), warm-up {args.warmup_h} h "
           "before t = 0; plant 25 classes x 3 mixers; controller/EKF model 10 classes (ratio 2) "
           "x 1 mixer + analyser lag; sensors: P80 noise 3 um, dead time 0.1 h, sampling 0.05 h.",
