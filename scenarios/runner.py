@@ -469,7 +469,7 @@ def nmpc_settings(scene: Scene):
                               if c.bounds.speed_rate_max_per_h is not None else math.inf),
         load_band_frac=tuple(c.load_band_frac),
         power_max_kw=c.power_max_kw if c.power_max_kw is not None else math.inf,
-        solver=c.solver, preview=c.preview_lead_h > 0)
+        solver=c.solver, qpsol=c.qpsol, preview=c.preview_lead_h > 0)
 
 
 def make_controller(scene: Scene, twin):

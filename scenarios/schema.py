@@ -163,7 +163,8 @@ class Controller(Section):
     preview_lead_h: float = Field(default=0.0, ge=0)
     weights: Weights = Field(default_factory=Weights)
     bounds: Bounds = Field(default_factory=Bounds)
-    solver: Literal["ipopt", "fatrop", "sqpmethod"] = "ipopt"
+    solver: Literal["ipopt", "fatrop", "sqpmethod", "rti"] = "ipopt"
+    qpsol: Literal["hpipm", "qrqp", "osqp"] | None = None  # QP solver of rti / sqpmethod
     load_band_frac: list[float] = Field(default_factory=lambda: [0.8, 1.2], min_length=2,
                                         max_length=2)
     power_max_kw: float | None = Field(default=None, gt=0)
