@@ -37,10 +37,17 @@ from dem.errors import DemInputError
 INTACT = 0
 BROKEN_TENSION = 1
 BROKEN_SHEAR = 2
+#: "yade_jcfpm" only: broken in shear while in compression, still a frictional spring about
+#: the bond's stress-free length (JCFpm keeps the interaction with its ``initD``) until the
+#: pair moves apart beyond that length; then BROKEN_SHEAR
+BROKEN_SHEAR_SLIDING = 3
 
 # columns of the bond property table
-P_AREA, P_RBAR, P_KN, P_KS, P_SIGT, P_COH, P_TANPHI, P_OVERLAP0 = range(8)
-N_PROPS = 8
+P_AREA, P_RBAR, P_KN, P_KS, P_SIGT, P_COH, P_TANPHI, P_OVERLAP0, P_SIGNED_MC = range(9)
+N_PROPS = 9
+
+#: bond conventions of :class:`BondParams`
+CONVENTIONS = ("parallel", "yade_jcfpm")
 
 
 @dataclass(frozen=True)
@@ -56,6 +63,17 @@ class BondParams:
     friction_angle_deg : Mohr–Coulomb friction angle of the bond shear strength (0 = constant).
     radius_multiplier : lambda, bond radius / smaller sphere radius.
     moment_factor : beta in [0, 1], weight of bending/twist moments (0 = forces only).
+    convention : ``"parallel"`` (default; the model of the module docstring) or
+        ``"yade_jcfpm"``: the bond of Yade's JCFpm model (Scholtès & Donzé, IJRMMS 52 (2012) 18;
+        Yade ``Ip2_JCFpmMat_JCFpmMat_JCFpmPhys`` and
+        ``Law2_ScGeom_JCFpmPhys_JointedCohesiveFrictionalPM``), used to run the same model
+        as Yade: spring stiffness per bond ``k_n A = 2 E R1 R2/(R1+R2)`` (N/m) with
+        ``E = youngs_modulus_Pa``, ``k_s A = (ks_Pa_m/kn_Pa_m) k_n A`` (Yade's ``poisson``),
+        strengths times ``A = pi min(R1,R2)^2`` (so ``radius_multiplier`` must be 1), shear
+        strength ``c A + F_n tan(phi_b)`` with the *signed* normal force (compression positive:
+        tension lowers it, as in Yade); ``moment_factor`` must be 0 (JCFpm has no bond moments).
+        Build it with :meth:`BondParams.yade_jcfpm`.
+    youngs_modulus_Pa : E of the ``"yade_jcfpm"`` convention (unused by ``"parallel"``).
     """
 
     kn_Pa_m: float = 30e9 / 2.2e-3
@@ -65,8 +83,23 @@ class BondParams:
     friction_angle_deg: float = 0.0
     radius_multiplier: float = 1.0
     moment_factor: float = 1.0
+    convention: str = "parallel"
+    youngs_modulus_Pa: float = 0.0
 
     def __post_init__(self) -> None:
+        if self.convention not in CONVENTIONS:
+            raise DemInputError(
+                f"The 'convention' parameter of BondParams must be one of {CONVENTIONS}. Got {self.convention!r}.")
+        if self.convention == "yade_jcfpm":
+            e = float(self.youngs_modulus_Pa)
+            if not math.isfinite(e) or e <= 0.0:
+                raise DemInputError(
+                    "The 'youngs_modulus_Pa' parameter of BondParams must be a finite float > 0 "
+                    f"with convention 'yade_jcfpm'. Got {e!r}.")
+            if float(self.moment_factor) != 0.0 or float(self.radius_multiplier) != 1.0:
+                raise DemInputError(
+                    "BondParams with convention 'yade_jcfpm' needs moment_factor 0 and "
+                    f"radius_multiplier 1 (JCFpm bonds). Got {self.moment_factor!r}, {self.radius_multiplier!r}.")
         for name in ("kn_Pa_m", "ks_Pa_m", "tensile_strength_Pa", "cohesion_Pa",
                      "radius_multiplier"):
             v = float(getattr(self, name))
@@ -87,7 +120,20 @@ class BondParams:
         return BondParams(self.kn_Pa_m * stiffness_factor, self.ks_Pa_m * stiffness_factor,
                           self.tensile_strength_Pa * strength_factor,
                           self.cohesion_Pa * strength_factor, self.friction_angle_deg,
-                          self.radius_multiplier, self.moment_factor)
+                          self.radius_multiplier, self.moment_factor, self.convention,
+                          self.youngs_modulus_Pa * stiffness_factor)
+
+    @classmethod
+    def yade_jcfpm(cls, youngs_modulus_Pa: float, poisson: float, tensile_strength_Pa: float,
+                   cohesion_Pa: float, friction_angle_deg: float) -> "BondParams":
+        """Bonds of Yade's ``JCFpmMat(young, poisson, tensileStrength, cohesion, frictionAngle)``
+        (``poisson`` is Yade's k_s/k_n ratio); see the ``convention`` field. ``kn_Pa_m`` holds
+        E and ``ks_Pa_m`` poisson * E only to carry the ratio."""
+        e = float(youngs_modulus_Pa)
+        return cls(kn_Pa_m=e, ks_Pa_m=float(poisson) * e, tensile_strength_Pa=tensile_strength_Pa,
+                   cohesion_Pa=cohesion_Pa, friction_angle_deg=friction_angle_deg,
+                   radius_multiplier=1.0, moment_factor=0.0, convention="yade_jcfpm",
+                   youngs_modulus_Pa=e)
 
 
 def kn_from_modulus_Pa_m(modulus_Pa: float, mean_radius_m: float) -> float:
@@ -126,8 +172,16 @@ class BondSet:
         self.props = np.zeros((nbnd, N_PROPS))
         self.props[:, P_AREA] = math.pi * rbar**2
         self.props[:, P_RBAR] = rbar
-        self.props[:, P_KN] = params.kn_Pa_m
-        self.props[:, P_KS] = params.ks_Pa_m
+        if params.convention == "yade_jcfpm":
+            r1 = radius_m[pairs[:, 0]]
+            r2 = radius_m[pairs[:, 1]]
+            kn_area = params.youngs_modulus_Pa * 2.0 * r1 * r2 / (r1 + r2)  # N/m, Yade's kn
+            self.props[:, P_KN] = kn_area / (math.pi * rbar**2) if nbnd else 0.0
+            self.props[:, P_KS] = self.props[:, P_KN] * (params.ks_Pa_m / params.kn_Pa_m)
+            self.props[:, P_SIGNED_MC] = 1.0
+        else:
+            self.props[:, P_KN] = params.kn_Pa_m
+            self.props[:, P_KS] = params.ks_Pa_m
         self.props[:, P_SIGT] = params.tensile_strength_Pa
         self.props[:, P_COH] = params.cohesion_Pa
         self.props[:, P_TANPHI] = math.tan(math.radians(params.friction_angle_deg))
@@ -142,6 +196,9 @@ class BondSet:
         # contact counts only overlap beyond it, so breaking releases no stored contact force
         self.props[:, P_OVERLAP0] = np.maximum(
             0.0, radius_m[pairs[:, 0]] + radius_m[pairs[:, 1]] - self.length) if nbnd else 0.0
+        # "yade_jcfpm": P_OVERLAP0 becomes Yade's initD of the frictional contact that follows
+        # the bond; it is set at breakage and lowered as the pair separates (bond_forces and
+        # kernels.compute_forces)
         self.beta = float(params.moment_factor)
         n = pos_m.shape[0]
         counts = np.bincount(pairs.ravel(), minlength=n) if nbnd else np.zeros(n, dtype=np.int64)
@@ -169,7 +226,8 @@ class BondSet:
         """Numbers of intact bonds and of bonds broken in tension and in shear."""
         return {"intact": int(np.sum(self.state == INTACT)),
                 "broken_tension": int(np.sum(self.state == BROKEN_TENSION)),
-                "broken_shear": int(np.sum(self.state == BROKEN_SHEAR))}
+                "broken_shear": int(np.sum((self.state == BROKEN_SHEAR)
+                                           | (self.state == BROKEN_SHEAR_SLIDING)))}
 
     def stiffness_sums(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         """Per-sphere sums of translational (N/m) and rotational (N m/rad) bond stiffness."""
@@ -223,7 +281,7 @@ def bond_stresses(b, props, b_fn, b_fs, b_mb, b_mt, beta):
     sigma = b_fn[b] / a + beta * mb * rb / inertia
     tau = fs / a + beta * abs(b_mt[b]) * rb / polar
     comp = -b_fn[b] / a
-    if comp < 0.0:
+    if comp < 0.0 and props[b, P_SIGNED_MC] == 0.0:
         comp = 0.0
     return sigma, tau, props[b, P_SIGT], props[b, P_COH] + comp * props[b, P_TANPHI]
 
@@ -238,7 +296,7 @@ def bond_forces(pos, vel, omega, rad, force, torque, lz, dt, b_ij, props, b_fn, 
     """
     nbroken = 0
     for b in range(b_ij.shape[0]):
-        if b_state[b] != INTACT:
+        if b_state[b] != INTACT and b_state[b] != BROKEN_SHEAR_SLIDING:
             continue
         i = b_ij[b, 0]
         j = b_ij[b, 1]
@@ -261,12 +319,22 @@ def bond_forces(pos, vel, omega, rad, force, torque, lz, dt, b_ij, props, b_fn, 
         gap = d - rad[i] - rad[j]
         ai = rad[i] + 0.5 * gap
         aj = rad[j] + 0.5 * gap
-        vix = vel[i, 0] + ai * (omega[i, 1] * nz - omega[i, 2] * ny)
-        viy = vel[i, 1] + ai * (omega[i, 2] * nx - omega[i, 0] * nz)
-        viz = vel[i, 2] + ai * (omega[i, 0] * ny - omega[i, 1] * nx)
-        vjx = vel[j, 0] - aj * (omega[j, 1] * nz - omega[j, 2] * ny)
-        vjy = vel[j, 1] - aj * (omega[j, 2] * nx - omega[j, 0] * nz)
-        vjz = vel[j, 2] - aj * (omega[j, 0] * ny - omega[j, 1] * nx)
+        if props[b, P_SIGNED_MC] != 0.0:
+            # "yade_jcfpm": Yade's ScGeom::getIncidentVel (avoidGranularRatcheting): centre
+            # velocities scaled by (R1+R2)/d, spins times the sphere radii
+            alpha = (rad[i] + rad[j]) / d
+            qi = rad[i]
+            qj = rad[j]
+        else:
+            alpha = 1.0
+            qi = ai
+            qj = aj
+        vix = alpha * vel[i, 0] + qi * (omega[i, 1] * nz - omega[i, 2] * ny)
+        viy = alpha * vel[i, 1] + qi * (omega[i, 2] * nx - omega[i, 0] * nz)
+        viz = alpha * vel[i, 2] + qi * (omega[i, 0] * ny - omega[i, 1] * nx)
+        vjx = alpha * vel[j, 0] - qj * (omega[j, 1] * nz - omega[j, 2] * ny)
+        vjy = alpha * vel[j, 1] - qj * (omega[j, 2] * nx - omega[j, 0] * nz)
+        vjz = alpha * vel[j, 2] - qj * (omega[j, 0] * ny - omega[j, 1] * nx)
         vrx = vjx - vix
         vry = vjy - viy
         vrz = vjz - viz
@@ -289,12 +357,49 @@ def bond_forces(pos, vel, omega, rad, force, torque, lz, dt, b_ij, props, b_fn, 
             b_mb[b, 0] -= kn * inertia * (wx - wt * nx)
             b_mb[b, 1] -= kn * inertia * (wy - wt * ny)
             b_mb[b, 2] -= kn * inertia * (wz - wt * nz)
-        sigma, tau, smax, tmax = bond_stresses(b, props, b_fn, b_fs, b_mb, b_mt, beta)
-        if sigma > smax:
-            b_state[b] = BROKEN_TENSION
-        elif tau > tmax:
-            b_state[b] = BROKEN_SHEAR
-        if b_state[b] != INTACT:
+        if b_state[b] == BROKEN_SHEAR_SLIDING:
+            # JCFpm after a shear break: no tension (the interaction is erased when the pair
+            # is farther apart than at bonding), Coulomb friction |F_s| <= -F_n tan(phi)
+            if b_fn[b] > 0.0:
+                b_state[b] = BROKEN_SHEAR
+                pen = rad[i] + rad[j] - d
+                props[b, P_OVERLAP0] = pen if pen > 0.0 else 0.0
+                b_fn[b] = 0.0
+                b_fs[b, 0] = 0.0
+                b_fs[b, 1] = 0.0
+                b_fs[b, 2] = 0.0
+                continue
+            fsm = math.sqrt(b_fs[b, 0] ** 2 + b_fs[b, 1] ** 2 + b_fs[b, 2] ** 2)
+            lim = -b_fn[b] * props[b, P_TANPHI]
+            if fsm > lim:
+                sc = lim / fsm
+                b_fs[b, 0] *= sc
+                b_fs[b, 1] *= sc
+                b_fs[b, 2] *= sc
+        else:
+            sigma, tau, smax, tmax = bond_stresses(b, props, b_fn, b_fs, b_mb, b_mt, beta)
+            if sigma > smax:
+                b_state[b] = BROKEN_TENSION
+            elif tau > tmax:
+                b_state[b] = BROKEN_SHEAR
+                if props[b, P_SIGNED_MC] != 0.0 and b_fn[b] <= 0.0:
+                    # JCFpm: the pair stays in frictional contact about its bonding distance;
+                    # this step the shear force is cut to the strength it exceeded
+                    b_state[b] = BROKEN_SHEAR_SLIDING
+                    fsm = math.sqrt(b_fs[b, 0] ** 2 + b_fs[b, 1] ** 2 + b_fs[b, 2] ** 2)
+                    sc = tmax * a / fsm
+                    b_fs[b, 0] *= sc
+                    b_fs[b, 1] *= sc
+                    b_fs[b, 2] *= sc
+                    nbroken += 1
+            if b_state[b] == BROKEN_SHEAR_SLIDING:
+                pass
+            elif b_state[b] != INTACT and props[b, P_SIGNED_MC] != 0.0:
+                # JCFpm erases the interaction; a new (stress-free) contact forms at the
+                # current overlap if the spheres still overlap
+                pen = rad[i] + rad[j] - d
+                props[b, P_OVERLAP0] = pen if pen > 0.0 else 0.0
+        if b_state[b] != INTACT and b_state[b] != BROKEN_SHEAR_SLIDING:
             nbroken += 1
             b_fn[b] = 0.0
             b_fs[b, 0] = 0.0

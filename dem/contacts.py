@@ -27,6 +27,18 @@ import numpy as np
 #: contact-table overflow flag returned by kernels
 STATUS_CONTACT_TABLE_FULL = 1
 
+#: contact laws (``law`` argument of the kernels): Hertz–Mindlin (default) and the linear
+#: spring of Yade (``Ip2_FrictMat_FrictMat_FrictPhys`` + ``Law2_ScGeom_FrictPhys_CundallStrack``,
+#: also the non-cohesive branch of ``Law2_ScGeom_JCFpmPhys_JointedCohesiveFrictionalPM``):
+#: ``k_n = 2 E1 R1 E2 R2/(E1 R1 + E2 R2)``, ``k_s = 2 E1 nu1 R1 E2 nu2 R2/(E1 nu1 R1 + E2 nu2 R2)``
+#: (Yade's ``poisson`` is the ratio k_s/k_n, not Poisson's ratio), Coulomb ``|f_s| <= mu f_n``.
+#: In the kernels ``k_n = 2 e_star r_eff``, ``k_s = 2 g_star r_eff``; :class:`dem.system.System`
+#: sets e_star, g_star so that these are Yade's values (sphere-sphere of one material:
+#: ``e_star = E``, ``g_star = nu E``; sphere-wall, Yade gives both radii the sphere's:
+#: ``e_star = E_s E_w/(E_s + E_w)``, ``g_star = (nu E)_s (nu E)_w / ((nu E)_s + (nu E)_w)``).
+CONTACT_LAW_HERTZ_MINDLIN = 0
+CONTACT_LAW_LINEAR_YADE = 1
+
 
 @nb.njit(cache=True, inline="always")
 def slot_find(c_partner, i, j):
@@ -102,15 +114,22 @@ def hist_add(hist, lo_log10, dlog10, energy_J):
 
 @nb.njit(cache=True)
 def hertz_mindlin(delta, nx, ny, nz, vrx, vry, vrz, r_eff, m_eff, e_star, g_star, mu, eta,
-                  xi, dt):
+                  xi, dt, law=0.0):
     """Force on j (on the particle for walls) of one Hertz–Mindlin contact.
 
+    ``law = 1`` makes it the linear contact of Yade instead (``CONTACT_LAW_LINEAR_YADE``):
+    ``k_n = 2 e_star r_eff``, ``k_s = 2 g_star r_eff`` (see :data:`CONTACT_LAW_LINEAR_YADE`).
     ``xi`` (length-3 view) is updated in place. Returns (fx, fy, fz, fn, vn).
     """
     vn = vrx * nx + vry * ny + vrz * nz
-    sq = math.sqrt(r_eff * delta)
-    s_n = 2.0 * e_star * sq
-    fn = (4.0 / 3.0) * e_star * sq * delta - eta * math.sqrt(m_eff * s_n) * vn
+    if law == 1.0:
+        sq = 1.0
+        s_n = 2.0 * e_star * r_eff
+        fn = s_n * delta - eta * math.sqrt(m_eff * s_n) * vn
+    else:
+        sq = math.sqrt(r_eff * delta)
+        s_n = 2.0 * e_star * sq
+        fn = (4.0 / 3.0) * e_star * sq * delta - eta * math.sqrt(m_eff * s_n) * vn
     if fn < 0.0:
         fn = 0.0
     # tangential relative velocity
@@ -132,7 +151,10 @@ def hertz_mindlin(delta, nx, ny, nz, vrx, vry, vrz, r_eff, m_eff, e_star, g_star
     xi[0] += vtx * dt
     xi[1] += vty * dt
     xi[2] += vtz * dt
-    s_t = 8.0 * g_star * sq
+    if law == 1.0:
+        s_t = 2.0 * g_star * r_eff
+    else:
+        s_t = 8.0 * g_star * sq
     ct = eta * math.sqrt(m_eff * s_t)
     ftx = -s_t * xi[0] - ct * vtx
     fty = -s_t * xi[1] - ct * vty
@@ -156,7 +178,7 @@ def hertz_mindlin(delta, nx, ny, nz, vrx, vry, vrz, r_eff, m_eff, e_star, g_star
 
 @nb.njit(cache=True)
 def pair_contact(i, j, pos, vel, omega, rad, mass, force, torque, lz, e_star, g_star, mu, eta,
-                 dt, c_partner, c_xi, hist, lo_log10, dlog10, overlap0):
+                 dt, c_partner, c_xi, hist, lo_log10, dlog10, overlap0, law=0.0):
     """Hertz–Mindlin contact between spheres i < j; updates forces, torques and history.
 
     ``overlap0`` is subtracted from the geometric overlap (the overlap at bonding of a pair
@@ -207,7 +229,8 @@ def pair_contact(i, j, pos, vel, omega, rad, mass, force, torque, lz, e_star, g_
     r_eff = rad[i] * rad[j] / (rad[i] + rad[j])
     m_eff = mass[i] * mass[j] / (mass[i] + mass[j])
     fx, fy, fz, fn, vn = hertz_mindlin(delta, nx, ny, nz, vjx - vix, vjy - viy, vjz - viz,
-                                       r_eff, m_eff, e_star, g_star, mu, eta, c_xi[i, s], dt)
+                                       r_eff, m_eff, e_star, g_star, mu, eta, c_xi[i, s], dt,
+                                       law)
     if new:
         hist_add(hist, lo_log10, dlog10, 0.5 * m_eff * vn * vn)
     add_pair_load(force, torque, i, j, fx, fy, fz, nx, ny, nz, ai, aj)
@@ -217,7 +240,7 @@ def pair_contact(i, j, pos, vel, omega, rad, mass, force, torque, lz, e_star, g_
 @nb.njit(cache=True)
 def wall_contact(i, delta, nx, ny, nz, cx, cy, cz, wvx, wvy, wvz, pos, vel, omega, rad, mass,
                  force, torque, e_star, g_star, mu, eta, dt, xi, active, k, hist, lo_log10,
-                 dlog10):
+                 dlog10, law=0.0):
     """Hertz–Mindlin contact of sphere i with a wall element at contact point c.
 
     ``n`` points from the wall into the particle; ``(wvx, wvy, wvz)`` is the wall velocity at c;
@@ -236,7 +259,7 @@ def wall_contact(i, delta, nx, ny, nz, cx, cy, cz, wvx, wvy, wvz, pos, vel, omeg
     vz = vel[i, 2] + omega[i, 0] * ry - omega[i, 1] * rx - wvz
     # the particle plays the role of j (n from wall to particle, v_rel = particle - wall)
     fx, fy, fz, fn, vn = hertz_mindlin(delta, nx, ny, nz, vx, vy, vz, rad[i], mass[i], e_star,
-                                       g_star, mu, eta, xi, dt)
+                                       g_star, mu, eta, xi, dt, law)
     if active[i, k] == 0:
         hist_add(hist, lo_log10, dlog10, 0.5 * mass[i] * vn * vn)
         active[i, k] = 1
@@ -251,7 +274,7 @@ def wall_contact(i, delta, nx, ny, nz, cx, cy, cz, wvx, wvy, wvz, pos, vel, omeg
 
 @nb.njit(cache=True)
 def plane_walls(pos, vel, omega, rad, mass, force, torque, w_p, w_n, w_v, w_f, w_xi, w_in,
-                e_star, g_star, mu, eta, dt, hist, lo_log10, dlog10):
+                e_star, g_star, mu, eta, dt, hist, lo_log10, dlog10, law=0.0):
     """Contacts of all spheres with infinite planes (point ``w_p``, unit normal ``w_n`` into the domain)."""
     nw = w_p.shape[0]
     for k in range(nw):
@@ -272,7 +295,7 @@ def plane_walls(pos, vel, omega, rad, mass, force, torque, w_p, w_n, w_v, w_f, w
             fx, fy, fz = wall_contact(i, delta, w_n[k, 0], w_n[k, 1], w_n[k, 2], cx, cy, cz,
                                       w_v[k, 0], w_v[k, 1], w_v[k, 2], pos, vel, omega, rad,
                                       mass, force, torque, e_star, g_star, mu, eta, dt,
-                                      w_xi[i, k], w_in, k, hist, lo_log10, dlog10)
+                                      w_xi[i, k], w_in, k, hist, lo_log10, dlog10, law)
             w_f[k, 0] -= fx
             w_f[k, 1] -= fy
             w_f[k, 2] -= fz
@@ -281,7 +304,7 @@ def plane_walls(pos, vel, omega, rad, mass, force, torque, w_p, w_n, w_v, w_f, w
 @nb.njit(cache=True)
 def drum_walls(pos, vel, omega, rad, mass, force, torque, drum_radius, drum_omega, drum_angle,
                lifter_angles, lifter_height, lifter_half_width, d_xi, d_in, e_star, g_star, mu,
-               eta, dt, hist, lo_log10, dlog10):
+               eta, dt, hist, lo_log10, dlog10, law=0.0):
     """Contacts with a drum shell (axis z through the origin, rotating at ``drum_omega`` rad/s).
 
     Element 0 is the cylindrical shell (spheres inside); elements 1..K are lifters: radial bars
@@ -304,7 +327,7 @@ def drum_walls(pos, vel, omega, rad, mass, force, torque, drum_radius, drum_omeg
             fx, fy, fz = wall_contact(i, delta, nx, ny, 0.0, cx, cy, pos[i, 2],
                                       -drum_omega * cy, drum_omega * cx, 0.0, pos, vel, omega,
                                       rad, mass, force, torque, e_star, g_star, mu, eta, dt,
-                                      d_xi[i, 0], d_in, 0, hist, lo_log10, dlog10)
+                                      d_xi[i, 0], d_in, 0, hist, lo_log10, dlog10, law)
             tq -= cx * fy - cy * fx
         else:
             d_in[i, 0] = 0
@@ -337,7 +360,8 @@ def drum_walls(pos, vel, omega, rad, mass, force, torque, drum_radius, drum_omeg
             fx, fy, fz = wall_contact(i, delta, nx, ny, 0.0, cx, cy, pos[i, 2],
                                       -drum_omega * cy, drum_omega * cx, 0.0, pos, vel, omega,
                                       rad, mass, force, torque, e_star, g_star, mu, eta, dt,
-                                      d_xi[i, k + 1], d_in, k + 1, hist, lo_log10, dlog10)
+                                      d_xi[i, k + 1], d_in, k + 1, hist, lo_log10, dlog10,
+                                      law)
             tq -= cx * fy - cy * fx
     return tq
 

@@ -8,7 +8,9 @@
   (Allen & Tildesley §3.2); forces use the mid-step velocities for damping and incremental
   springs.
 - Optional Cundall local (non-viscous) damping ``F <- F - alpha |F| sign(v)`` per component
-  (Potyondy & Cundall 2004 §2.3; Yade ``NewtonIntegrator.damping``) for quasi-static tests.
+  (Potyondy & Cundall 2004 §2.3; Yade ``NewtonIntegrator.damping``) for quasi-static tests;
+  ``v`` is the mid-step velocity, or with ``CP_DAMP_AT_STEP`` (System ``damping_velocity=
+  "at_force"``) Yade's ``cundallDamp2nd`` estimate ``v + dt/2 F/m`` at the time of the force.
 """
 
 from __future__ import annotations
@@ -18,14 +20,14 @@ import math
 import numba as nb
 import numpy as np
 
-from dem.bonds import P_OVERLAP0, bond_forces
+from dem.bonds import BROKEN_SHEAR_SLIDING, P_OVERLAP0, P_SIGNED_MC, bond_forces
 from dem.contacts import drum_walls, pair_contact, plane_walls
 
 # indices of the scalar parameter vector ``cp``
 (CP_ESTAR_PP, CP_GSTAR_PP, CP_MU_PP, CP_ETA_PP, CP_ESTAR_PW, CP_GSTAR_PW, CP_MU_PW, CP_ETA_PW,
  CP_LOCAL_DAMPING, CP_GX, CP_GY, CP_GZ, CP_LZ, CP_SKIN, CP_BETA, CP_DRUM_R, CP_DRUM_OMEGA,
- CP_LIFTER_H, CP_LIFTER_HW, CP_HIST_LO, CP_HIST_DLOG) = range(21)
-N_CP = 21
+ CP_LIFTER_H, CP_LIFTER_HW, CP_HIST_LO, CP_HIST_DLOG, CP_CONTACT_LAW, CP_DAMP_AT_STEP) = range(23)
+N_CP = 23
 
 STATUS_OK = 0
 STATUS_CONTACT_TABLE_FULL = 1
@@ -158,12 +160,26 @@ def compute_forces(pos, vel, omega, rad, mass, force, torque, cp, dt, pi, pj, pb
         b = pb[k]
         ov0 = 0.0
         if b >= 0:
-            if b_state[b] == 0:
-                continue
+            if b_state[b] == 0 or b_state[b] == BROKEN_SHEAR_SLIDING:
+                continue  # carried by bond_forces
             ov0 = b_props[b, P_OVERLAP0]
+            if b_props[b, P_SIGNED_MC] != 0.0:
+                # "yade_jcfpm": the contact of a broken bond is erased while the spheres are
+                # apart by more than its initD, and re-created stress-free at the overlap
+                # they then have (Yade JCFpm: initD = penetration depth at creation)
+                ex = pos[pj[k], 0] - pos[pi[k], 0]
+                ey = pos[pj[k], 1] - pos[pi[k], 1]
+                ez = pos[pj[k], 2] - pos[pi[k], 2]
+                if lz > 0.0:
+                    ez -= lz * math.floor(ez / lz + 0.5)
+                pen = rad[pi[k]] + rad[pj[k]] - math.sqrt(ex * ex + ey * ey + ez * ez)
+                if pen < ov0:
+                    ov0 = pen if pen > 0.0 else 0.0
+                    b_props[b, P_OVERLAP0] = ov0
         st = pair_contact(pi[k], pj[k], pos, vel, omega, rad, mass, force, torque, lz,
                           cp[CP_ESTAR_PP], cp[CP_GSTAR_PP], cp[CP_MU_PP], cp[CP_ETA_PP], dt,
-                          c_partner, c_xi, hist_pp, cp[CP_HIST_LO], cp[CP_HIST_DLOG], ov0)
+                          c_partner, c_xi, hist_pp, cp[CP_HIST_LO], cp[CP_HIST_DLOG], ov0,
+                          cp[CP_CONTACT_LAW])
         if st != 0:
             status = STATUS_CONTACT_TABLE_FULL
     nbroken = bond_forces(pos, vel, omega, rad, force, torque, lz, dt, b_ij, b_props, b_fn, b_fs,
@@ -171,16 +187,36 @@ def compute_forces(pos, vel, omega, rad, mass, force, torque, cp, dt, pi, pj, pb
     if w_p.shape[0] > 0:
         plane_walls(pos, vel, omega, rad, mass, force, torque, w_p, w_n, w_v, w_f, w_xi, w_in,
                     cp[CP_ESTAR_PW], cp[CP_GSTAR_PW], cp[CP_MU_PW], cp[CP_ETA_PW], dt, hist_pw,
-                    cp[CP_HIST_LO], cp[CP_HIST_DLOG])
+                    cp[CP_HIST_LO], cp[CP_HIST_DLOG], cp[CP_CONTACT_LAW])
     tq = 0.0
     if cp[CP_DRUM_R] > 0.0:
         tq = drum_walls(pos, vel, omega, rad, mass, force, torque, cp[CP_DRUM_R],
                         cp[CP_DRUM_OMEGA], drum_angle, lifter_angles, cp[CP_LIFTER_H],
                         cp[CP_LIFTER_HW], d_xi, d_in, cp[CP_ESTAR_PW], cp[CP_GSTAR_PW],
                         cp[CP_MU_PW], cp[CP_ETA_PW], dt, hist_pw, cp[CP_HIST_LO],
-                        cp[CP_HIST_DLOG])
+                        cp[CP_HIST_DLOG], cp[CP_CONTACT_LAW])
     alpha = cp[CP_LOCAL_DAMPING]
-    if alpha > 0.0:
+    if alpha > 0.0 and cp[CP_DAMP_AT_STEP] != 0.0:
+        # Yade's NewtonIntegrator::cundallDamp2nd: the sign of the velocity at the time of the
+        # force, v(t) ~ v(t - dt/2) + dt/2 F/m, rather than the mid-step velocity
+        hdt = 0.5 * dt
+        for i in range(n):
+            im = 1.0 / mass[i]
+            ii = 1.0 / (0.4 * mass[i] * rad[i] * rad[i])
+            for d in range(3):
+                fd = force[i, d]
+                s = fd * (vel[i, d] + hdt * fd * im)
+                if s > 0.0:
+                    force[i, d] = fd - alpha * fd
+                elif s < 0.0:
+                    force[i, d] = fd + alpha * fd
+                td = torque[i, d]
+                s = td * (omega[i, d] + hdt * td * ii)
+                if s > 0.0:
+                    torque[i, d] = td - alpha * td
+                elif s < 0.0:
+                    torque[i, d] = td + alpha * td
+    elif alpha > 0.0:
         for i in range(n):
             for d in range(3):
                 if vel[i, d] != 0.0:

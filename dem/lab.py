@@ -160,8 +160,14 @@ def compression_test(agglomerate: Agglomerate, bonds: BondParams, *, material: M
                      local_damping: float = 0.7,
                      time_step_factor: float = 0.5, max_strain: float = 0.08,
                      stop_force_fraction: float = 0.5, post_peak_strain: float = 0.005,
-                     chunk_steps: int = 250) -> CompressionResult:
-    """Slow compression of one agglomerate between flat platens; see the module docstring."""
+                     chunk_steps: int = 250, contact_law: str = "hertz_mindlin",
+                     damping_velocity: str = "mid_step") -> CompressionResult:
+    """Slow compression of one agglomerate between flat platens; see the module docstring.
+
+    ``contact_law`` and ``damping_velocity`` go to :class:`dem.system.System`; with
+    ``BondParams.yade_jcfpm`` bonds, ``contact_law="linear_yade"`` and
+    ``damping_velocity="at_force"`` the test is Yade's JCFpm model (benchmarks/dem_yade.py).
+    """
     owner = "compression_test"
     v = _check("platen_speed_m_s", platen_speed_m_s, 0.0, 10.0, owner)
     _check("max_strain", max_strain, 0.0, 0.9, owner)
@@ -178,7 +184,8 @@ def compression_test(agglomerate: Agglomerate, bonds: BondParams, *, material: M
              PlaneWall((0.0, 0.0, z_hi), (0.0, 0.0, -1.0), (0.0, 0.0, -v))]
     sys_ = System(pos, rad, material, density_kg_m3=_sphere_density(agg, material), bonds=bset,
                   wall_material=platen_material, walls=walls, local_damping=local_damping,
-                  time_step_factor=time_step_factor)
+                  time_step_factor=time_step_factor, contact_law=contact_law,
+                  damping_velocity=damping_velocity)
     height = z_hi - z_lo
     max_disp = max_strain * height
     peak = 0.0

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dem.bonds import P_OVERLAP0, BondSet
-from dem.contacts import new_contact_tables
+from dem.contacts import CONTACT_LAW_HERTZ_MINDLIN, CONTACT_LAW_LINEAR_YADE, new_contact_tables
 from dem.errors import DemInputError, DemInstabilityError, DemError
 from dem import kernels as K
 from dem.materials import (RAYLEIGH_SAFETY_FACTOR, STEEL, Material, bond_time_step_s,
@@ -26,6 +26,12 @@ from dem.materials import (RAYLEIGH_SAFETY_FACTOR, STEEL, Material, bond_time_st
 HIST_LO_LOG10 = -9.0
 HIST_DLOG10 = 0.25
 HIST_NBINS = 44
+
+#: ``contact_law`` choices of :class:`System`: Hertz–Mindlin with restitution damping
+#: (default) or Yade's linear spring (``Law2_ScGeom_FrictPhys_CundallStrack``; the material's
+#: ``poisson_ratio`` is then Yade's ks/kn ratio; see :data:`dem.contacts.CONTACT_LAW_LINEAR_YADE`)
+CONTACT_LAWS = {"hertz_mindlin": float(CONTACT_LAW_HERTZ_MINDLIN),
+                "linear_yade": float(CONTACT_LAW_LINEAR_YADE)}
 
 
 @dataclass
@@ -75,7 +81,8 @@ class System:
                  gravity_m_s2=(0.0, 0.0, 0.0), periodic_z_m: float = 0.0,
                  local_damping: float = 0.0, time_step_factor: float = RAYLEIGH_SAFETY_FACTOR,
                  dt_s: float | None = None, skin_fraction: float = 0.3,
-                 max_contacts: int = 24) -> None:
+                 max_contacts: int = 24, contact_law: str = "hertz_mindlin",
+                 damping_velocity: str = "mid_step") -> None:
         pos = np.array(pos_m, dtype=np.float64).reshape(-1, 3)
         rad = np.array(radius_m, dtype=np.float64).reshape(-1)
         n = pos.shape[0]
@@ -93,6 +100,14 @@ class System:
         if not (0.0 < time_step_factor <= 1.0):
             raise DemInputError(
                 f"The 'time_step_factor' parameter of System must be a float in (0, 1]. Got {time_step_factor!r}.")
+        if contact_law not in CONTACT_LAWS:
+            raise DemInputError(
+                f"The 'contact_law' parameter of System must be one of {sorted(CONTACT_LAWS)}. Got {contact_law!r}.")
+        self.contact_law = contact_law
+        if damping_velocity not in ("mid_step", "at_force"):
+            raise DemInputError(
+                "The 'damping_velocity' parameter of System must be 'mid_step' or 'at_force'. "
+                f"Got {damping_velocity!r}.")
         self.n = n
         self.material = material
         self.wall_material = wall_material
@@ -138,7 +153,17 @@ class System:
         cp[K.CP_GSTAR_PW] = effective_shear_Pa(material, wall_material)
         cp[K.CP_MU_PW] = min(material.friction_coef, wall_material.friction_coef)
         cp[K.CP_ETA_PW] = damping_coefficient(math.sqrt(material.restitution * wall_material.restitution))
+        if contact_law == "linear_yade":
+            # Yade's linear spring (see dem.contacts.CONTACT_LAW_LINEAR_YADE): k = 2 e_star r_eff
+            es, ew = material.youngs_modulus_Pa, wall_material.youngs_modulus_Pa
+            gs, gw = es * material.poisson_ratio, ew * wall_material.poisson_ratio
+            cp[K.CP_ESTAR_PP] = es
+            cp[K.CP_GSTAR_PP] = gs
+            cp[K.CP_ESTAR_PW] = es * ew / (es + ew)
+            cp[K.CP_GSTAR_PW] = gs * gw / (gs + gw) if gs + gw > 0 else 0.0
+        cp[K.CP_CONTACT_LAW] = CONTACT_LAWS[contact_law]
         cp[K.CP_LOCAL_DAMPING] = local_damping
+        cp[K.CP_DAMP_AT_STEP] = 1.0 if damping_velocity == "at_force" else 0.0
         cp[K.CP_GX:K.CP_GZ + 1] = np.asarray(gravity_m_s2, dtype=float)
         cp[K.CP_LZ] = float(periodic_z_m)
         cp[K.CP_SKIN] = skin_fraction * float(np.min(rad))
@@ -158,6 +183,10 @@ class System:
         mat_for_dt = Material(material.youngs_modulus_Pa, material.poisson_ratio, rho,
                               material.friction_coef, material.restitution)
         dt_r = rayleigh_time_step_s(float(np.min(rad)), mat_for_dt)
+        if contact_law == "linear_yade":
+            # linear springs: no Rayleigh step; a sphere on one platen and one sphere contact
+            k_c = 2.0 * (cp[K.CP_ESTAR_PW] + 0.5 * cp[K.CP_ESTAR_PP]) * rad
+            dt_r = float(np.min(np.sqrt(self.mass / k_c)))
         k_sum, r_sum = self.bonds.stiffness_sums(n)
         dt_b = bond_time_step_s(self.mass, self.inertia, k_sum, r_sum)
         self.critical_dt_s = min(dt_r, dt_b)
@@ -242,7 +271,8 @@ class System:
                      + 0.5 * np.sum(self.inertia[:, None] * self.omega**2))
 
     def contact_energy_J(self) -> float:
-        """Hertz normal strain energy ``8/15 E* sqrt(R*) delta^2.5`` of sphere–sphere contacts not held by an intact bond."""
+        """Normal strain energy of sphere–sphere contacts not held by an intact bond (Hertz
+        ``8/15 E* sqrt(R*) delta^2.5``; linear law ``k_n delta^2 / 2``)."""
         e_star = self.cp[K.CP_ESTAR_PP]
         lz = self.cp[K.CP_LZ]
         tot = 0.0
@@ -250,7 +280,7 @@ class System:
             b = self.pb[k]
             ov0 = 0.0
             if b >= 0:
-                if self.bonds.state[b] == 0:
+                if self.bonds.state[b] in (0, 3):  # intact or JCFpm sliding: held by the bond
                     continue
                 ov0 = self.bonds.props[b, P_OVERLAP0]
             i, j = self.pi[k], self.pj[k]
@@ -260,7 +290,10 @@ class System:
             delta = self.rad[i] + self.rad[j] - ov0 - float(np.linalg.norm(d))
             if delta > 0:
                 r_eff = self.rad[i] * self.rad[j] / (self.rad[i] + self.rad[j])
-                tot += 8.0 / 15.0 * e_star * math.sqrt(r_eff) * delta**2.5
+                if self.contact_law == "linear_yade":
+                    tot += e_star * r_eff * delta**2
+                else:
+                    tot += 8.0 / 15.0 * e_star * math.sqrt(r_eff) * delta**2.5
         return tot
 
     def total_energy_J(self) -> float:
