@@ -3,15 +3,25 @@
 Builds one packing (22 mm, 500 spheres, seed 0), runs ``dem.lab.compression_test`` with the
 issue's parameters, writes the packing for Yade, runs ``yade -n -x dem_yade_compression.py`` on
 the same packing, and compares peak force, energy to the peak and particle-steps per second.
-Model differences: grindtwin bonds are parallel bonds ``k_n = E/(R1+R2)`` per unit area with
-Hertz contacts after breakage; Yade's CohFrictMat bonds are linear springs
-``k_n = 2 E R1 R2/(R1+R2)`` with Cundall–Strack (linear) contacts; so forces agree only to
-within the difference of the two bond stiffness/strength conventions.
-Writes benchmarks/results/dem_yade.csv/.md. Needs ``yade`` on PATH (Debian package ``yade``).
+Rows:
+- grindtwin, own conventions: parallel bonds ``k_n = E/(R1+R2)`` per unit area with bond
+  moments, constant shear strength, Hertz–Mindlin contacts (a different model from Yade's).
+- grindtwin, Yade-JCFpm mirror: the model of the Yade script (JCFpmMat bonds + FrictMat
+  platens): ``BondParams.yade_jcfpm`` (k_n = 2E R1R2/(R1+R2), k_s = 0.4 k_n, strengths times
+  pi min(R)^2, shear strength c A + F_n tan 30 with signed F_n, shear-broken bonds in
+  compression stay frictional about their bonding distance, Yade's shear increment), Yade's
+  linear contacts (``contact_law="linear_yade"``: E = 30 GPa and k_s/k_n = 0.4 for spheres,
+  E = 210 GPa and 0.3 for the platens, tan 30 friction, no viscous damping) and Yade's damping
+  (``damping_velocity="at_force"``). benchmarks/results/dem_yade_500.md logs what each of
+  these did to the peak force.
+- Yade JCFpm (records every 20 steps).
+Writes benchmarks/results/dem_yade_500.csv/.md and dem_yade_curve_500.csv (Yade's curve).
+Needs ``yade`` on PATH (Debian package ``yade``).
 """
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import subprocess
@@ -31,6 +41,24 @@ from dem.materials import Material
 
 N = int(os.environ.get("DEM_SPHERES", "500"))
 
+LOG = """Log (500 spheres, one run each, peak force of the grindtwin Yade-convention run; Yade 3611 N,
+energy 0.299 J, every 20 steps; Yade itself over dt = 0.3..0.7 PWaveTimeStep: 3609..3751 N):
+1. old "Yade conventions" row (kn A = E Rmin^2/Rmean, Hertz contacts, STEEL platen mu 0.3): 4669 N,
+   secant stiffness 8.2e6 N/m (Yade 1.67e7), peak at 0.42 mm (Yade 0.187 mm).
+2. per-bond kn A = 2E R1R2/(R1+R2) and shear strength with signed F_n (BondParams.yade_jcfpm): 4642 N.
+3. Yade's linear contacts, platen E 210 GPa/0.3 and tan 30 friction, no viscous damping: 4078 N,
+   stiffness 1.6e7 N/m; force and broken-bond counts then follow Yade's within 1-3 % to 0.18 mm.
+   From here the peak was chaotic in dt (0.3..0.87 of critical: 3509..4358 N, Yade: 1.6 % spread).
+4. shear-broken bonds in compression stay frictional about their bonding distance (JCFpm initD;
+   before, gap bonds lost their normal force at once): 4124 N; the early burst of breakage at
+   0.18 mm now matches Yade's (78 vs 76 broken at 0.185 mm).
+5. Yade's damping velocity (cundallDamp2nd, v + dt/2 F/m): 4309 N (no gain; kept as Yade's form).
+6. Yade's bond shear increment (ScGeom::getIncidentVel, avoidGranularRatcheting: centre velocities
+   times (R1+R2)/d, spins times the radii): 3624 N (dt 0.5 crit) / 3610 N (Yade's dt), force and
+   broken bonds match Yade's through the collapse (460 vs 453 broken at 0.21 mm). Without 5: 3606 N.
+Energy to the peak depends on which of two equal humps (0.187 and 0.204 mm) is the larger:
+0.2997 J (1.00x) when grindtwin peaks on the first, 0.359 J (1.20x) on the second."""
+
 
 def main():
     yade = shutil.which("yade") or shutil.which("yade-batch")
@@ -42,16 +70,24 @@ def main():
         for p, r in zip(agg.pos_m, agg.radius_m):
             fh.write(f"{p[0]:.9g} {p[1]:.9g} {p[2]:.9g} {r:.9g}\n")
     rows = []
-    cases = [("grindtwin, own conventions (kn = E/(R1+R2) per area, bond moments, c const)", 1.0, 1.0, 0.0),
-             ("grindtwin, Yade-JCFpm conventions (kn A = 2E R1R2/(R1+R2), no moments, c + sigma tan 30)",
-              2.0 / np.pi, 0.0, 30.0)]
-    for label, kn_conv, beta, phi_b in cases:
-        kn = kn_from_modulus_Pa_m(30e9, agg.mean_radius_m) * kn_conv
-        bp = BondParams(kn_Pa_m=kn, ks_Pa_m=0.4 * kn, tensile_strength_Pa=10e6, cohesion_Pa=20e6,
-                        moment_factor=beta, friction_angle_deg=phi_b)
-        r = compression_test(agg, bp, material=Material(youngs_modulus_Pa=30e9, poisson_ratio=0.25,
-                                                        density_kg_m3=2700.0),
-                             platen_speed_m_s=0.1, local_damping=0.7, time_step_factor=0.5)
+    own_kn = kn_from_modulus_Pa_m(30e9, agg.mean_radius_m)
+    cases = [
+        ("grindtwin, own conventions (kn = E/(R1+R2) per area, bond moments, c const, Hertz)",
+         BondParams(kn_Pa_m=own_kn, ks_Pa_m=0.4 * own_kn, tensile_strength_Pa=10e6,
+                    cohesion_Pa=20e6, moment_factor=1.0, friction_angle_deg=0.0),
+         dict(material=Material(youngs_modulus_Pa=30e9, poisson_ratio=0.25, density_kg_m3=2700.0))),
+        ("grindtwin, Yade-JCFpm mirror (BondParams.yade_jcfpm, linear_yade contacts, Yade damping)",
+         BondParams.yade_jcfpm(30e9, 0.4, 10e6, 20e6, 30.0),
+         dict(material=Material(youngs_modulus_Pa=30e9, poisson_ratio=0.4, density_kg_m3=2700.0,
+                                friction_coef=math.tan(math.radians(30)), restitution=1.0),
+              platen_material=Material(youngs_modulus_Pa=210e9, poisson_ratio=0.3,
+                                       density_kg_m3=7800.0,
+                                       friction_coef=math.tan(math.radians(30)), restitution=1.0),
+              contact_law="linear_yade", damping_velocity="at_force")),
+    ]
+    for label, bp, kw in cases:
+        r = compression_test(agg, bp, platen_speed_m_s=0.1, local_damping=0.7,
+                             time_step_factor=0.5, **kw)
         rows.append({"code": label, "n_spheres": N, "n_bonds": agg.n_bonds,
                      "peak_force_N": r.peak_force_N, "fracture_energy_J": r.fracture_energy_J,
                      "dt_s": r.dt_s, "steps": r.n_steps, "wall_s": r.wall_time_s,
@@ -83,7 +119,7 @@ def main():
         df["energy_ratio_vs_yade"] = df["fracture_energy_J"] / rows[-1]["fracture_energy_J"]
     write_table(df, f"dem_yade_{N}", "grindtwin DEM vs Yade: the issue's compression test",
                 "Same packing for both; single thread; see the module docstring of "
-                "benchmarks/dem_yade.py for the model differences.")
+                "benchmarks/dem_yade.py for the model differences.\n\n" + LOG)
 
 
 if __name__ == "__main__":
