@@ -187,3 +187,76 @@ def test_bond_params_validation():
         BondParams(tensile_strength_Pa=0.0)
     with pytest.raises(DemInputError, match="moment_factor"):
         BondParams(moment_factor=2.0)
+
+
+# ---------------------------------------------------------------- Yade JCFpm mirror convention
+E_YADE = 30e9
+
+
+def _yade_pair(r1, r2, tensile=1e12, cohesion=1e12, phi=30.0):
+    p = BondParams.yade_jcfpm(E_YADE, 0.4, tensile, cohesion, phi)
+    pos = np.array([[0.0, 0.0, 0.0], [r1 + r2, 0.0, 0.0]])
+    rad = np.array([r1, r2])
+    return pos, rad, BondSet(np.array([[0, 1]]), pos, rad, p)
+
+
+def test_yade_bond_stiffness_is_2E_R1R2_over_R1_plus_R2_per_bond():
+    """Yade's Ip2_JCFpmMat_JCFpmMat_JCFpmPhys: k_n = 2 E R1 R2 / (R1 + R2) [N/m], k_s = 0.4 k_n."""
+    r1, r2 = 1e-3, 1.5e-3
+    pos, rad, bs = _yade_pair(r1, r2)
+    kn = 2 * E_YADE * r1 * r2 / (r1 + r2)
+    du = 1e-9
+    _apply(pos, rad, bs, np.array([[0, 0, 0], [du / 1e-7, 0, 0]]))
+    assert bs.fn[0] == pytest.approx(kn * du, rel=1e-6)
+    _apply(pos, rad, bs, np.array([[0, 0, 0], [-du / 1e-7, 0, du / 1e-7]]))  # back, then shear
+    assert np.linalg.norm(bs.fs[0]) == pytest.approx(0.4 * kn * du, rel=1e-3)
+
+
+def test_yade_bond_breaks_at_tensile_strength_times_min_radius_area():
+    r1, r2 = 1e-3, 1.5e-3
+    sig_t = 5e6
+    pos, rad, bs = _yade_pair(r1, r2, tensile=sig_t)
+    area = math.pi * min(r1, r2) ** 2
+    kn = 2 * E_YADE * r1 * r2 / (r1 + r2)
+    du = 1e-11
+    last = 0.0
+    for _ in range(200000):
+        _, _, nbr = _apply(pos, rad, bs, np.array([[0, 0, 0], [du / 1e-7, 0, 0]]))
+        if nbr:
+            break
+        last = bs.fn[0]
+    assert bs.state[0] == BROKEN_TENSION
+    assert sig_t * area - kn * du <= last <= sig_t * area
+
+
+def test_yade_shear_strength_grows_with_compression_and_leaves_a_frictional_contact():
+    """JCFpm: shear strength c A + F_n tan(phi) with compression positive; a bond broken in shear
+    under compression stays a Coulomb contact |F_s| = F_n tan(phi)."""
+    from dem.bonds import BROKEN_SHEAR_SLIDING
+
+    r = 1e-3
+    coh, phi = 4e6, 30.0
+    area = math.pi * r**2
+    kn = E_YADE * r
+    pos, rad, bs = _yade_pair(r, r, cohesion=coh, phi=phi)
+    comp = 1e-6  # F_n = 30 N: its friction term (17 N) above the cohesion c A (12.6 N)
+    _apply(pos, rad, bs, np.array([[0, 0, 0], [-comp / 1e-7, 0, 0]]))
+    fn_c = -bs.fn[0]
+    assert fn_c == pytest.approx(kn * comp, rel=1e-6)
+    du = 5e-11
+    last = last_fn = 0.0
+    for _ in range(400000):
+        _, _, nbr = _apply(pos, rad, bs, np.array([[0, 0, 0], [0, 0, du / 1e-7]]))
+        if nbr:
+            break
+        last, last_fn = np.linalg.norm(bs.fs[0]), -bs.fn[0]
+    assert bs.state[0] == BROKEN_SHEAR_SLIDING
+    # the shear motion lengthens the pair slightly, so take the normal force it had then
+    assert last_fn == pytest.approx(fn_c, rel=0.03)
+    strength = coh * area + last_fn * math.tan(math.radians(phi))
+    assert strength > 1.5 * coh * area  # compression raised it
+    inc = 0.4 * kn * du
+    assert strength - 1.01 * inc <= last <= strength * (1 + 1e-6)
+    # after the break: sliding at the Coulomb limit of the normal force it still carries
+    _apply(pos, rad, bs, np.array([[0, 0, 0], [0, 0, du / 1e-7]]))
+    assert np.linalg.norm(bs.fs[0]) == pytest.approx(-bs.fn[0] * math.tan(math.radians(phi)), rel=1e-6)
