@@ -82,7 +82,7 @@ def controllers(args, circuit, mt, sensors, dt):
                 horizon_steps=args.horizon, dt_h=dt, target_p80_um=mt.target_p80_um,
                 weight_du_feed=args.weight_du_feed, weight_du_speed=args.weight_du_speed,
                 feed_tph_min=FEED_MIN, feed_tph_max=FEED_MAX, feed_rate_max_tph_per_h=FEED_RATE,
-                rk4_substeps=mt.rk4_substeps(dt), preview=False))
+                rk4_substeps=mt.rk4_substeps(dt), solver=args.solver, preview=False))
             print(f"NMPC built in {time.perf_counter() - t0:.1f} s, "
                   f"{mt.rk4_substeps(dt)} RK4 steps per sample")
             yield kind, ctrl, est, None
@@ -145,6 +145,7 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--only", default="none,pi,nmpc")
     ap.add_argument("--weight-du-feed", type=float, default=1.0)
     ap.add_argument("--weight-du-speed", type=float, default=1.0)
+    ap.add_argument("--solver", default="rti", help="NmpcSettings.solver of the NMPC")
     ap.add_argument("--hardness-noise", type=float, default=0.1,
                     help="EKF random-walk intensity of the twin's hardness scale [1/sqrt(h)]")
     ap.add_argument("--p80-noise", type=float, default=3.0, help="analyser noise [um]")
@@ -168,7 +169,7 @@ def main(argv=None) -> pd.DataFrame:
     md = [f"# le Roux et al. (2013) circuit: phi_f x {PHI_F_STEP} at {T_STEP_H} h{rock}; "
           "twin-based NMPC + EKF against PI and no control",
           "",
-          f"duration {args.duration_h} h, sample {args.dt_h} h, NMPC horizon {args.horizon} "
+          f"duration {args.duration_h} h, sample {args.dt_h} h, NMPC horizon {args.horizon} ({args.solver}) "
           f"(no preview), seed {args.seed}; weights du_feed {args.weight_du_feed}, du_speed "
           f"{args.weight_du_speed}; EKF on the P80 analyser only, hardness noise "
           f"{args.hardness_noise}/sqrt(h), warm-up {args.warmup_h} h; sensors: P80 noise "
