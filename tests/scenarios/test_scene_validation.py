@@ -67,6 +67,8 @@ BROKEN = [
      ["controller.bounds.effects", "'effects' is a top-level key", "before the first [table]"]),
     ("plant model with effects", BASE_SCENE + '\n[plant]\nmodel = "leroux2013"\n'
      'effects = ["breakage"]\n', ["plant.effects", "not used with model = \"leroux2013\""]),
+    ("le Roux plant not run by scenes", BASE_SCENE + '\n[plant]\nmodel = "leroux2013"\n',
+     ["plant.model", "not run by scenes yet", "mpc_leroux_case.py", "leroux2013"]),
     ("integer expected", edit('name = "base"', 'name = "base"\nseed = 1.5'),
      ["scene.seed", "valid integer", "1.5"]),
 ]
