@@ -138,6 +138,18 @@ def build_neighbour_list(pos, rad, skin, lz, b_partner, b_index):
     return pi[:npair], pj[:npair], pb, npair
 
 
+@nb.njit(inline="always", cache=True)
+def _cundall_damped(f, v, alpha):
+    """Cundall's local non-viscous damping ``f - alpha |f| sign(v)`` (Cundall 1987; Potyondy &
+    Cundall 2004, eq. 2); ``f`` unchanged when ``v = 0``."""
+    s = f * v
+    if s > 0.0:
+        return f - alpha * f
+    if s < 0.0:
+        return f + alpha * f
+    return f
+
+
 @nb.njit(cache=True)
 def compute_forces(pos, vel, omega, rad, mass, force, torque, cp, dt, pi, pj, pb, c_partner,
                    c_xi, b_ij, b_props, b_fn, b_fs, b_mb, b_mt, b_len, b_state, w_p, w_n, w_v,
@@ -196,33 +208,19 @@ def compute_forces(pos, vel, omega, rad, mass, force, torque, cp, dt, pi, pj, pb
                         cp[CP_MU_PW], cp[CP_ETA_PW], dt, hist_pw, cp[CP_HIST_LO],
                         cp[CP_HIST_DLOG], cp[CP_CONTACT_LAW])
     alpha = cp[CP_LOCAL_DAMPING]
-    if alpha > 0.0 and cp[CP_DAMP_AT_STEP] != 0.0:
-        # Yade's NewtonIntegrator::cundallDamp2nd: the sign of the velocity at the time of the
-        # force, v(t) ~ v(t - dt/2) + dt/2 F/m, rather than the mid-step velocity
-        hdt = 0.5 * dt
+    if alpha > 0.0:
+        # the velocity whose sign the damping opposes: the mid-step one, or with
+        # CP_DAMP_AT_STEP Yade's NewtonIntegrator::cundallDamp2nd, the velocity at the time of
+        # the force, v(t) ~ v(t - dt/2) + dt/2 F/m
+        hdt = 0.5 * dt if cp[CP_DAMP_AT_STEP] != 0.0 else 0.0
         for i in range(n):
             im = 1.0 / mass[i]
             ii = 1.0 / (0.4 * mass[i] * rad[i] * rad[i])
             for d in range(3):
                 fd = force[i, d]
-                s = fd * (vel[i, d] + hdt * fd * im)
-                if s > 0.0:
-                    force[i, d] = fd - alpha * fd
-                elif s < 0.0:
-                    force[i, d] = fd + alpha * fd
+                force[i, d] = _cundall_damped(fd, vel[i, d] + hdt * fd * im, alpha)
                 td = torque[i, d]
-                s = td * (omega[i, d] + hdt * td * ii)
-                if s > 0.0:
-                    torque[i, d] = td - alpha * td
-                elif s < 0.0:
-                    torque[i, d] = td + alpha * td
-    elif alpha > 0.0:
-        for i in range(n):
-            for d in range(3):
-                if vel[i, d] != 0.0:
-                    force[i, d] -= alpha * abs(force[i, d]) * math.copysign(1.0, vel[i, d])
-                if omega[i, d] != 0.0:
-                    torque[i, d] -= alpha * abs(torque[i, d]) * math.copysign(1.0, omega[i, d])
+                torque[i, d] = _cundall_damped(td, omega[i, d] + hdt * td * ii, alpha)
     return status, tq, nbroken
 
 
