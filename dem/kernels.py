@@ -11,6 +11,10 @@
   (Potyondy & Cundall 2004 §2.3; Yade ``NewtonIntegrator.damping``) for quasi-static tests;
   ``v`` is the mid-step velocity, or with ``CP_DAMP_AT_STEP`` (System ``damping_velocity=
   "at_force"``) Yade's ``cundallDamp2nd`` estimate ``v + dt/2 F/m`` at the time of the force.
+
+Developers: the kernels are cached by numba (``cache=True``), and numba checks only this file's
+time stamp, not those of the functions it compiles in (``dem.bonds``, ``dem.contacts``). After
+editing those, delete ``dem/__pycache__/*.nbi`` and ``*.nbc``, or the old kernels run.
 """
 
 from __future__ import annotations
