@@ -1,7 +1,9 @@
-"""Write benchmarks/results/dem_drum.csv/.md from the rows dem_drum.py printed (one dict a line).
+"""Merge the rows dem_drum.py printed (one dict a line) into benchmarks/results/dem_drum.csv/.md.
 
 Used when dem_drum.py is stopped before its end (shared machine): the rows are the same
-numbers, parsed from its log. Run: ``python benchmarks/dem_drum_table_from_log.py LOG``.
+numbers, parsed from its log; rows of the same case and speed already in the table are
+replaced, the power-model columns recomputed (dem_drum.add_models).
+Run: ``python benchmarks/dem_drum_table_from_log.py LOG``.
 """
 
 import ast
@@ -12,12 +14,10 @@ sys.path.insert(0, os.path.dirname(__file__))
 
 import pandas as pd
 
-from dem_common import write_table
+from dem_common import OUT, write_table
+from dem_drum import NOTES, TITLE, add_models, merge
 
 rows = [ast.literal_eval(line) for line in open(sys.argv[1]) if line.startswith("{")]
-write_table(pd.DataFrame(rows), "dem_drum",
-            "Drum DEM of the lab mill (0.5 m x 0.3 m, 25 mm balls, 8 lifters, J = 0.35)",
-            "3D periodic slice 0.1 m long scaled to 0.3 m; power = -torque x omega; ball Young's "
-            "modulus 1 GPa; impact energy = m* v_n^2/2 at first contact; settle 1 rev, measure 3 revs. "
-            "Rows parsed from the log of benchmarks/dem_drum.py (stopped early on a shared machine: "
-            "speeds above 0.7 and the stiffness check are not in this table).")
+path = os.path.join(OUT, "dem_drum.csv")
+old = pd.read_csv(path) if os.path.exists(path) else None
+write_table(add_models(merge(old, pd.DataFrame(rows))), "dem_drum", TITLE, NOTES)
