@@ -40,8 +40,6 @@ so the table can be rebuilt (``--table-only``). Run:
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import os
 import sys
 import time
@@ -52,9 +50,9 @@ import numpy as np
 import pandas as pd
 
 from dem_common import write_table
-from dem.drum import BED_POROSITY, G_M_S2, SOFT_STEEL_BALL, _place_balls, critical_speed_rad_s
+from dem.drum import SOFT_STEEL_BALL, drum_system
 from dem.materials import RAYLEIGH_SAFETY_FACTOR, Material
-from dem.system import HIST_DLOG10, HIST_LO_LOG10, HIST_NBINS, DrumGeometry, System
+from dem.system import HIST_DLOG10, HIST_LO_LOG10, HIST_NBINS
 from twin import dem_link
 from twin.ores import load_ore
 from twin.sizes import SizeGrid
@@ -83,26 +81,18 @@ def run_with_snapshots(section_length_m: float, total_rev: float, time_step_fact
                        mill_diameter_m: float = 0.5, mill_length_m: float = 0.3, ball_diameter_m: float = 0.025,
                        n_lifters: int = 8, lifter_height_m: float = 0.01, lifter_width_m: float = 0.012,
                        random_state: int = 0, ball_material: Material = SOFT_STEEL_BALL) -> dict:
-    """dem.drum.drum_test's set-up (same order of random draws), run ``total_rev`` revolutions
+    """dem.drum.drum_test's set-up (:func:`dem.drum.drum_system`), run ``total_rev`` revolutions
     from rest; cumulative collision histograms and wall time every SNAP_REV revolution, the
     torque at every step."""
     t0 = time.perf_counter()
-    rng = np.random.default_rng(random_state)
-    r = 0.5 * ball_diameter_m
-    drum_r = 0.5 * mill_diameter_m
-    w_c = critical_speed_rad_s(mill_diameter_m, ball_diameter_m)
-    omega = speed_frac_critical * w_c
-    v_ball = math.pi * ball_diameter_m ** 3 / 6.0
-    n_full = ball_filling * math.pi * drum_r ** 2 * mill_length_m * (1 - BED_POROSITY) / v_ball
-    n = max(1, int(round(n_full * section_length_m / mill_length_m)))
-    pos = _place_balls(n, r, drum_r, drum_r - (lifter_height_m + lifter_width_m if n_lifters else 0.0),
-                       section_length_m, rng)
-    drum = DrumGeometry(drum_r, omega, int(n_lifters), float(lifter_height_m), float(lifter_width_m))
-    s = System(pos, np.full(n, r), ball_material, wall_material=ball_material, drum=drum,
-               gravity_m_s2=(0.0, -G_M_S2, 0.0), periodic_z_m=section_length_m,
-               time_step_factor=time_step_factor, max_contacts=16)
-    s.vel[:] = rng.normal(0.0, 1e-3, s.vel.shape)
-    steps_rev = int(math.ceil(2.0 * math.pi / omega / s.dt_s))
+    st = drum_system(
+        speed_frac_critical, ball_filling, mill_diameter_m=mill_diameter_m,
+        mill_length_m=mill_length_m, ball_diameter_m=ball_diameter_m,
+        section_length_m=section_length_m, n_lifters=n_lifters, lifter_height_m=lifter_height_m,
+        lifter_width_m=lifter_width_m, ball_material=ball_material,
+        time_step_factor=time_step_factor, random_state=random_state)
+    s, omega, steps_rev = st.system, st.omega_rad_s, st.steps_per_rev
+    n = s.pos.shape[0]
     chunk = max(1, steps_rev // 8)
     n_snap = int(round(total_rev / SNAP_REV))
     snap_steps = [int(round(k * SNAP_REV * steps_rev)) for k in range(n_snap + 1)]

@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -120,20 +121,32 @@ def _place_balls(n, r, drum_r, clear_r, lz, rng):
     return p[order[:n]]
 
 
-def drum_test(speed_frac_critical: float = 0.7, ball_filling: float = 0.35, *,
-              mill_diameter_m: float = 0.5, mill_length_m: float = 0.3,
-              ball_diameter_m: float = 0.025, section_length_m: float = 0.1,
-              n_lifters: int = 8, lifter_height_m: float = 0.01, lifter_width_m: float = 0.012,
-              ball_material: Material = SOFT_STEEL_BALL, shell_material: Material | None = None,
-              settle_revolutions: float = 1.0, measure_revolutions: float = 2.0,
-              time_step_factor: float = RAYLEIGH_SAFETY_FACTOR, random_state: int = 0) -> DrumResult:
-    """Simulate the ball charge of a drum mill; see the module docstring."""
-    owner = "drum_test"
+class DrumSetup(NamedTuple):
+    """What :func:`drum_system` builds."""
+
+    system: System
+    omega_rad_s: float
+    critical_speed_rad_s: float
+    steps_per_rev: int
+    n_balls_full_mill: float
+    section_length_m: float
+    length_scale: float
+    """Full mill length / simulated slice length (scales torque, power and collision rates)."""
+
+
+def drum_system(speed_frac_critical: float = 0.7, ball_filling: float = 0.35, *,
+                mill_diameter_m: float = 0.5, mill_length_m: float = 0.3,
+                ball_diameter_m: float = 0.025, section_length_m: float = 0.1,
+                n_lifters: int = 8, lifter_height_m: float = 0.01, lifter_width_m: float = 0.012,
+                ball_material: Material = SOFT_STEEL_BALL, shell_material: Material | None = None,
+                time_step_factor: float = RAYLEIGH_SAFETY_FACTOR, random_state: int = 0,
+                owner: str = "drum_system"):
+    """The ball charge of :func:`drum_test` at rest, checked and placed (seeded), as a
+    :class:`DrumSetup`. Exposed so studies of the run (e.g. the accuracy benchmark's
+    snapshots) start from exactly the same set-up."""
     checks = [("speed_frac_critical", speed_frac_critical, 0.0, 2.0),
               ("ball_filling", ball_filling, 0.0, 0.6), ("mill_diameter_m", mill_diameter_m, 0.0, 20.0),
               ("mill_length_m", mill_length_m, 0.0, 50.0), ("ball_diameter_m", ball_diameter_m, 0.0, 0.2),
-              ("settle_revolutions", settle_revolutions, -1e-12, 100.0),
-              ("measure_revolutions", measure_revolutions, 0.0, 1000.0),
               ("lifter_height_m", lifter_height_m, -1e-12, 0.25 * mill_diameter_m),
               ("lifter_width_m", lifter_width_m, 0.0, 0.25 * mill_diameter_m)]
     for name, val, lo, hi in checks:
@@ -147,7 +160,6 @@ def drum_test(speed_frac_critical: float = 0.7, ball_filling: float = 0.35, *,
             f"Got {section_length_m!r}.")
     if not (isinstance(n_lifters, (int, np.integer)) and 0 <= n_lifters <= 64):
         raise DemInputError(f"The 'n_lifters' parameter of {owner} must be an int in [0, 64]. Got {n_lifters!r}.")
-    t0 = time.perf_counter()
     rng = np.random.default_rng(random_state)
     r = 0.5 * ball_diameter_m
     drum_r = 0.5 * mill_diameter_m
@@ -163,8 +175,24 @@ def drum_test(speed_frac_critical: float = 0.7, ball_filling: float = 0.35, *,
                   drum=drum, gravity_m_s2=(0.0, -G_M_S2, 0.0), periodic_z_m=section_length_m,
                   time_step_factor=time_step_factor, max_contacts=16)
     sys_.vel[:] = rng.normal(0.0, 1e-3, sys_.vel.shape)
-    period = 2.0 * math.pi / omega
-    steps_rev = int(math.ceil(period / sys_.dt_s))
+    return DrumSetup(sys_, omega, w_c, int(math.ceil(2.0 * math.pi / omega / sys_.dt_s)), n_full,
+                     float(section_length_m), mill_length_m / section_length_m)
+
+
+def drum_test(speed_frac_critical: float = 0.7, ball_filling: float = 0.35, *,
+              settle_revolutions: float = 1.0, measure_revolutions: float = 2.0,
+              **setup) -> DrumResult:
+    """Simulate the ball charge of a drum mill; see the module docstring. ``setup``: the
+    keywords of :func:`drum_system` (mill and ball sizes, slice length, lifters, materials,
+    time-step factor, seed) with its defaults."""
+    for name, val, lo, hi in (("settle_revolutions", settle_revolutions, -1e-12, 100.0),
+                              ("measure_revolutions", measure_revolutions, 0.0, 1000.0)):
+        if not (math.isfinite(float(val)) and lo < float(val) <= hi):
+            raise DemInputError(f"The '{name}' parameter of drum_test must be a float in "
+                                f"({lo}, {hi}]. Got {val!r}.")
+    t0 = time.perf_counter()
+    st = drum_system(speed_frac_critical, ball_filling, owner="drum_test", **setup)
+    sys_, omega, steps_rev, scale = st.system, st.omega_rad_s, st.steps_per_rev, st.length_scale
     n_settle = int(round(settle_revolutions * steps_rev))
     chunk = max(1, steps_rev // 8)
     done = 0
@@ -182,7 +210,6 @@ def drum_test(speed_frac_critical: float = 0.7, ball_filling: float = 0.35, *,
         sys_.run(k)
         done += k
     tq = np.concatenate(sys_.records.torque_Nm[start:])
-    scale = mill_length_m / section_length_m
     t_meas = n_meas * sys_.dt_s
     power = -tq * omega * scale
     nrev = max(1, int(n_meas // steps_rev))
@@ -196,8 +223,10 @@ def drum_test(speed_frac_critical: float = 0.7, ball_filling: float = 0.35, *,
     return DrumResult(power_W=float(np.mean(power)), power_per_rev_W=per_rev,
                       torque_Nm=float(np.mean(tq) * scale), collisions_per_s=float(np.sum(bb + bw)),
                       speed_frac_critical=float(speed_frac_critical), omega_rad_s=omega,
-                      critical_speed_rad_s=w_c, ball_filling=float(ball_filling), n_balls=n,
-                      n_balls_full_mill=n_full, section_length_m=float(section_length_m),
+                      critical_speed_rad_s=st.critical_speed_rad_s,
+                      ball_filling=float(ball_filling), n_balls=sys_.pos.shape[0],
+                      n_balls_full_mill=st.n_balls_full_mill,
+                      section_length_m=st.section_length_m,
                       length_scale=scale, geometry="3D periodic slice along the mill axis",
                       dt_s=sys_.dt_s, n_steps=sys_.steps, simulated_time_s=sys_.time_s,
                       wall_time_s=time.perf_counter() - t0, spectrum=spec)
