@@ -391,8 +391,9 @@ class Controller:
         """``rti_iterations`` Gauss-Newton QPs from ``x0``; the nlpsol-like result dict. The
         stats report success only if every QP solved."""
         w = np.asarray(x0, float).copy()
-        ok, status, it = True, "rti", 0
-        for it in range(1, self.settings.rti_iterations + 1):
+        n_it = min(self.settings.rti_iterations, self.settings.max_iter)
+        ok, status, it = n_it > 0, "rti" if n_it > 0 else "Maximum_Iterations_Exceeded (max_iter 0)", 0
+        for it in range(1, n_it + 1):
             H, grad, g, A = self._qp_data(w, p)
             g = np.asarray(g, float).ravel()
             sol = self._qp(h=H, g=grad, a=A, lba=lbg - g, uba=ubg - g,

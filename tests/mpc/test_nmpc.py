@@ -78,9 +78,11 @@ def test_forced_solver_failure_shifted_plan_then_hold(setup):
     assert r.success and r.fallback_used is None
 
 
-def test_max_iter_zero_fails_to_hold_input(ctrl_twin):
+@pytest.mark.parametrize("solver", ["ipopt", "rti"])
+def test_max_iter_zero_fails_to_hold_input(ctrl_twin, solver):
     ss = ctrl_twin.steady(feed_tph=27.0, speed_frac_critical=0.70, blend=[1.0, 0.0])
-    ctrl = Controller(ctrl_twin.model, NmpcSettings(horizon_steps=2, dt_h=0.05, max_iter=0))
+    ctrl = Controller(ctrl_twin.model, NmpcSettings(horizon_steps=2, dt_h=0.05, max_iter=0,
+                                                    solver=solver))
     r = ctrl.make_step(ss.x, ctrl_twin.model.d_vector([0.6, 0.4]), ss.u)
     assert not r.success and r.fallback_used == "hold_input"
     np.testing.assert_allclose(r.u_applied, ss.u)
