@@ -40,6 +40,7 @@ import numpy as np
 import pandas as pd
 
 from mpc.errors import MpcInputError
+from mpc.estimator import MEASUREMENTS
 from mpc.results import ControllerStepResult
 
 
@@ -99,7 +100,7 @@ class _SensorState:
 #: Outputs every plant's ``measure`` returns (the columns the KPIs use).
 PLANT_OUTPUTS = ("power_kw", "load_frac", "throughput_tph", "specific_energy_kwh_t", "holdup_t")
 #: Measurements the estimator can be given (order of :meth:`mpc.estimator.Ekf.make_step`).
-ESTIMATOR_MEASUREMENTS = ("p80_um", "power_kw", "load_frac")
+ESTIMATOR_MEASUREMENTS = MEASUREMENTS
 
 
 class TwinPlant:
