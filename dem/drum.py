@@ -37,7 +37,7 @@ import numpy as np
 import pandas as pd
 
 from dem.errors import DemInputError
-from dem.materials import RAYLEIGH_SAFETY_FACTOR, STEEL, Material
+from dem.materials import RAYLEIGH_SAFETY_FACTOR, Material
 from dem.system import HIST_DLOG10, HIST_LO_LOG10, HIST_NBINS, DrumGeometry, System
 
 G_M_S2 = 9.81

@@ -451,7 +451,7 @@ class Controller:
     def _initial_guess(self, x0s, u_prev):
         """Primal (and, for IPOPT, dual) start: the previous solution shifted by one sample, its
         first lifted state replaced by the new measurement; cold: everything at (x0, u_prev)."""
-        N, nx, nu, ns = self.settings.horizon_steps, self.nx, self.nu, self._n_slack
+        N, ns = self.settings.horizon_steps, self._n_slack
         first = np.r_[x0s, u_prev, np.zeros(ns)]
         if self.settings.warm_start and self._w_prev is not None:
             old = self._w_prev
@@ -486,7 +486,7 @@ class Controller:
         ``(n_d,)`` held) and the last applied input to the input to apply now.
         ``y_meas`` is accepted for a common closed-loop verb and not used."""
         s = self.settings
-        N, nx, nu = s.horizon_steps, self.nx, self.nu
+        nx, nu = self.nx, self.nu
         x = np.asarray(x_est, float).reshape(-1)
         if x.size != nx or not np.all(np.isfinite(x)):
             raise MpcInputError(f"The 'x_est' parameter must be {nx} finite values. Got {x.size}.")
