@@ -20,7 +20,7 @@ BLEND_SUM_TOL = 1e-3
 MINERAL_SUM_TOL_PCT = 0.5
 
 #: DESIGN.md's effects, used when ``twin.effects.registry`` is not importable.
-FALLBACK_EFFECTS = ("breakage", "transport", "holdup", "speed", "cushioning", "power",
+FALLBACK_EFFECTS = ("breakage", "transport", "holdup", "speed", "cushioning", "rheology", "power",
                     "classification", "slowing_down", "sensor_delay")
 #: Minerals a scene may name, used when ``twin.minerals`` is not importable (same list).
 FALLBACK_MINERALS = ("quartz", "k_feldspar", "plagioclase", "biotite", "muscovite", "chlorite",

@@ -95,7 +95,8 @@ gamma, phi) piecewise-linearly in ln F_target(mineralogy) between the reference 
 refuses ores outside the span of the reference types. One number scales all S^E: the capture
 efficiency ``dem_capture_scale`` (the fraction of captured mass that is really nipped; fitted
 in the UFRJ model too), fitted to MISSION.md's table together with the cushioning coefficients
-(twin.effects.cushioning) and the lab mill's power factor and grate cut size.
+(twin.effects.cushioning), the clay-crowding coefficient (twin.effects.rheology) and the lab
+mill's power factor, grate cut size, sharpness and discharge factor.
 """
 
 from __future__ import annotations
@@ -114,7 +115,7 @@ import scipy.optimize
 
 from .breakage import BreakageParams
 from .breakage_map import AUSTIN_SHAPE
-from .calibration import versions, write_json_atomically
+from .calibration import fit_log_ratios, lab_mill_values, versions, write_json_atomically
 from .errors import TwinError, TwinInputError
 from .fracture_energy import breakage_probability, fit_fracture_energy
 from .mineralogy import Mineralogy
@@ -454,22 +455,23 @@ def dem_breakage(ore: Mineralogy, coefficients: dict, record: dict | None = None
                           source="DEM map (twin.dem_link)")
 
 
-TABLE_START = {"dem_capture_scale": 1.0, "cushioning_rate_coeff": 1.0, "cushioning_power_coeff": 0.5,
-               "lab_power_factor": 1.2, "lab_grate_d50_um": 400.0}
+#: Start of the table fit (a starting point only; the fit moves every value).
+TABLE_START = {"dem_capture_scale": 0.02, "cushioning_rate_coeff": 0.4, "cushioning_power_coeff": 0.6,
+               "clay_crowding_coeff": 1.6, "lab_power_factor": 1.3, "lab_grate_d50_um": 450.0,
+               "lab_grate_sharpness": 6.5, "lab_discharge_factor": 1.25}
 TABLE_BOUNDS = {"dem_capture_scale": (1e-4, 1e4), "cushioning_rate_coeff": (1e-6, 20.0),
-                "cushioning_power_coeff": (1e-6, 20.0), "lab_power_factor": (0.3, 3.0),
-                "lab_grate_d50_um": (50.0, 3000.0)}
+                "cushioning_power_coeff": (1e-6, 20.0), "clay_crowding_coeff": (1e-6, 5.0),
+                "lab_power_factor": (0.3, 3.0), "lab_grate_d50_um": (10.0, 3000.0),
+                "lab_grate_sharpness": (0.5, 10.0), "lab_discharge_factor": (0.5, 50.0)}
 
 
 def twin_calibration(values: dict, record: dict | None = None) -> dict:
     """{'coefficients', 'mills'} for Twin(..., breakage_map=dem_breakage, calibration=...)."""
-    coef = {"dem_capture_scale": values["dem_capture_scale"],
-            "cushioning_rate_coeff": values["cushioning_rate_coeff"],
-            "cushioning_power_coeff": values["cushioning_power_coeff"]}
+    coef = {k: values[k] for k in ("dem_capture_scale", "cushioning_rate_coeff", "cushioning_power_coeff",
+                                   "clay_crowding_coeff")}
     if record is not None:
         coef["_dem_record"] = record
-    return {"coefficients": coef, "mills": {"lab": {"power_factor": values["lab_power_factor"],
-                                                    "grate_d50_um": values["lab_grate_d50_um"]}}}
+    return {"coefficients": coef, "mills": {"lab": lab_mill_values(values)}}
 
 
 def dem_twin_calibration() -> dict:
@@ -512,8 +514,7 @@ def fit_table(record: dict, max_nfev: int = 60) -> dict:
         return np.array([math.log(pred[o][k] / ref[o][k]) for o in ref for k in KPIS])
 
     t0 = time.perf_counter()
-    sol = scipy.optimize.least_squares(resid, np.log([TABLE_START[n] for n in names]), bounds=(lo, hi),
-                                       diff_step=1e-4, max_nfev=max_nfev)
+    sol = fit_log_ratios(resid, np.log([TABLE_START[n] for n in names]), lo, hi, max_nfev)
     values = unpack(sol.x)
     pred = predict(values, record)
     err = {o: {k: 100.0 * (pred[o][k] / ref[o][k] - 1.0) for k in KPIS} for o in ref}

@@ -20,7 +20,10 @@ class Mill:
     (a laboratory mill below the ~1 m diameters it was fitted to; Rowland & Kjos 1980); it is
     fitted by `grindtwin calibrate`, never typed in. ``powder_filling_nominal`` is Austin's U: the fraction of the ball bed's
     voids filled by powder at the nominal hold-up; ``stable_band`` the load (hold-up over
-    nominal hold-up) within which the mill is called stable."""
+    nominal hold-up) within which the mill is called stable. ``discharge_factor`` is the
+    mill's free discharge at nominal hold-up over its nominal feed, before a grate holds coarse
+    particles back (a grate mill at nominal load passes less than it could; the V_Pmo of le
+    Roux et al. 2013); fitted for the lab mill by `grindtwin calibrate`."""
 
     name: str
     diameter_m: float
@@ -34,6 +37,7 @@ class Mill:
     grate_d50_um: float = 400.0
     grate_sharpness: float = 3.0
     discharge_exponent: float = 2.0
+    discharge_factor: float = 1.0
     feed_nominal_tph: float = 0.031
     power_factor: float = 1.0
 
@@ -51,6 +55,7 @@ class Mill:
         check_range(o, "grate_d50_um", self.grate_d50_um, 0.0, 1e6)
         check_range(o, "grate_sharpness", self.grate_sharpness, 0.0, 50.0)
         check_range(o, "discharge_exponent", self.discharge_exponent, 0.0, 10.0)
+        check_range(o, "discharge_factor", self.discharge_factor, 0.0, 100.0)
         check_range(o, "feed_nominal_tph", self.feed_nominal_tph, 0.0, 1e5)
         check_range(o, "power_factor", self.power_factor, 0.0, 10.0)
 

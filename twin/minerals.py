@@ -13,6 +13,10 @@ from importlib import resources
 
 CLAY_MINERALS = ("kaolinite", "illite")
 MICA_MINERALS = ("biotite", "muscovite")
+#: The soft, platy sheet silicates that cushion impacts in a charge (MISSION.md: clay and mica):
+#: clays, micas and chlorite, a phyllosilicate as soft and platy as biotite (Deer, Howie &
+#: Zussman 2013, sheet silicates; Vickers 0.9 GPa in minerals.csv).
+CUSHIONING_MINERALS = CLAY_MINERALS + MICA_MINERALS + ("chlorite",)
 SULFIDE_MINERALS = ("pyrite", "chalcopyrite", "bornite")
 
 

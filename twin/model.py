@@ -39,7 +39,8 @@ class ModelSpec:
     feed_nominal_tph: float
     holdup_nominal_t: float
     solids_density_t_m3: float
-    soft_frac: list  # clay + mica mass fraction per component
+    soft_frac: list  # clay + mica + chlorite mass fraction per component (twin.minerals)
+    clay_frac: list  # clay (kaolinite + illite) mass fraction per component
     coefficients: dict
     n_mixers: int = 3
     p80_initial_um: float = 200.0

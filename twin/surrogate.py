@@ -12,11 +12,11 @@ steady-state KPIs of :meth:`twin.twin.Twin.steady`:
 
 Throughput: at a steady state the discharge equals the feed, so ``throughput_tph`` is the
 given ``feed_tph`` by definition, not a prediction. The other throughput, "at constant load"
-(the feed that holds nominal hold-up, :meth:`Twin.steady_at_constant_load`), is not a KPI of
-the surrogate: in the current twin it is 30.95-30.99 kg/h for every ore and speed of the
-design (the grate discharge depends on hold-up only), so there is nothing to learn.
+(the feed that holds nominal hold-up, :meth:`Twin.steady_at_constant_load`), is another
+operating mode (the feed is solved for, not given) and not a KPI of the surrogate; ask the
+twin for it.
 ``power_kw`` is ``specific_energy_kwh_t * feed_tph``; ``holdup_t`` is ``load_frac`` times the
-nominal hold-up of the ore's density; ``soft_frac`` (clay + mica) is computed exactly.
+nominal hold-up of the ore's density; ``soft_frac`` (clay + mica + chlorite) is computed exactly.
 
 Training design (seeded, :func:`generate_training_table`)
 ---------------------------------------------------------
@@ -65,7 +65,7 @@ P80 0.9989, specific energy 0.99995, load 0.999998; on 20 % held-out mineralogie
 max 1.1 %). Plain linear eq. 8 (``degree=1``) reaches CV R2 P80 0.954, specific energy 0.998,
 load 1.000: it meets the 0.95 goal, but only just for P80 (the feed x mineralogy interaction of
 P80 is not linear). Keeping 6 of the 10 PCs costs specific energy (max error 3.9 % instead of
-1.1 %): the clay + mica fraction that sets the cushioning of power sits partly in minor PCs;
+1.1 %): the clay + mica + chlorite fraction that sets the cushioning of power sits partly in minor PCs;
 so all PCs are kept (the PCA is then a rotation that decorrelates the wt%). These settings
 need the full design: trained on 128 mineralogies they reach P80 R2 0.994, on 64 0.87, and on
 32 they diverge on unseen ores; ``n_pca=6, n_components=32`` degrades more gracefully (0.998,
@@ -116,7 +116,7 @@ from sklearn.preprocessing import FunctionTransformer, PolynomialFeatures, Stand
 
 from .errors import SolverError, TwinError, TwinInputError, bad_value
 from .mineralogy import Mineralogy, Texture
-from .minerals import CLAY_MINERALS, MICA_MINERALS, mineral_table
+from .minerals import CUSHIONING_MINERALS, mineral_table
 from .ores import Blend, load_ore, reference_ores
 from .sample_library import generate_library
 from .samples import TEXTURE_COLUMNS, WT_SUFFIX, to_mineralogies
@@ -670,7 +670,7 @@ def surrogate_steady(mineralogy, feed_tph: float | None = None, speed_frac_criti
             "p80_um": float(p80), "specific_energy_kwh_t": float(se), "power_kw": float(se * feed),
             "throughput_tph": feed, "discharge_tph": feed, "load_frac": float(load),
             "holdup_t": float(load * m.nominal_holdup_t(ore.density_t_m3)),
-            "soft_frac": ore.group_fraction(CLAY_MINERALS + MICA_MINERALS),
+            "soft_frac": ore.group_fraction(CUSHIONING_MINERALS),
             "load_status": load_status(float(load), m.stable_band)}
 
 

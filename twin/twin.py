@@ -18,14 +18,14 @@ from .breakage_map import mineralogy_breakage, shipped_calibration
 from .errors import TwinInputError, bad_value
 from .mill import Mill, bond_power_kw, get_mill
 from .mineralogy import Mineralogy
-from .minerals import CLAY_MINERALS, MICA_MINERALS
+from .minerals import CLAY_MINERALS, CUSHIONING_MINERALS
 from .model import Model, ModelSpec
 from .ores import Blend, load_ore
 from .sizes import GatesGaudinSchuhmann, SizeGrid, discretise
 
-#: The effects of the reference scenes: a continuous grate-discharge mill with load dynamics,
-#: speed-dependent rates, cushioning by clay and mica, and power.
-DEFAULT_EFFECTS = ("breakage", "transport", "holdup", "speed", "cushioning", "power", "classification")
+#: The effects of the laboratory mill's calibration: a continuous grate-discharge mill with load
+#: dynamics, speed-dependent rates, cushioning by clay and mica, clay slurry rheology, and power.
+DEFAULT_EFFECTS = ("breakage", "transport", "holdup", "speed", "cushioning", "rheology", "power", "classification")
 #: Feed size of the laboratory tests (MISSION.md: feed P80 3.2 mm) and the GGS modulus of a
 #: crusher product (Gupta & Yan 2016, ch. 3: 0.7-1.0).
 FEED_P80_UM = 3200.0
@@ -64,7 +64,8 @@ class Twin:
             grid=self.grid, mill=self.mill, component_names=self.blend.names, breakage=breakage,
             feed_frac=feed, feed_nominal_tph=self.mill.feed_nominal_tph, holdup_nominal_t=holdup_nom,
             solids_density_t_m3=density,
-            soft_frac=[o.group_fraction(CLAY_MINERALS + MICA_MINERALS) for o in self.blend.ores],
+            soft_frac=[o.group_fraction(CUSHIONING_MINERALS) for o in self.blend.ores],
+            clay_frac=[o.group_fraction(CLAY_MINERALS) for o in self.blend.ores],
             coefficients=self.coefficients, n_mixers=n_mixers, effects=list(effects),
             effect_options=dict(effect_options or {}))
         self.model = Model(self.spec)

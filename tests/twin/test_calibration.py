@@ -19,8 +19,7 @@ def test_shipped_file_records_its_command_versions_and_errors():
 def test_shipped_values_reproduce_the_recorded_predictions():
     cal = shipped_calibration()
     values = dict(cal["coefficients"])
-    values["lab_power_factor"] = cal["mills"]["lab"]["power_factor"]
-    values["lab_grate_d50_um"] = cal["mills"]["lab"]["grate_d50_um"]
+    values.update({f"lab_{k}": v for k, v in cal["mills"]["lab"].items()})
     pred = calibration.predict(values)
     for ore, kpis in cal["fit"]["predicted"].items():
         for key, value in kpis.items():

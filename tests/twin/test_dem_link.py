@@ -149,4 +149,5 @@ def test_twin_with_the_dem_map_reproduces_the_recorded_table_fit(shipped):
     assert ss.p80_um == pytest.approx(tf["predicted"]["B"]["p80_um"], rel=1e-6)
     assert ss.feed_tph * 1000 == pytest.approx(tf["predicted"]["B"]["throughput_kg_h"], rel=1e-6)
     assert set(tf["parameters_fitted"]) == {"dem_capture_scale", "cushioning_rate_coeff", "cushioning_power_coeff",
-                                            "lab_power_factor", "lab_grate_d50_um"}
+                                            "clay_crowding_coeff", "lab_power_factor", "lab_grate_d50_um",
+                                            "lab_grate_sharpness", "lab_discharge_factor"}

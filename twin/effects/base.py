@@ -50,6 +50,7 @@ class Assembly:
     class_factor: np.ndarray | None = None  # discharge factor per class at the last mixer
     product_split: object = None  # callable(list of discharge vectors) -> (product, recycle)
     flow_multiplier: float = 1.0  # mill through-flow / fresh feed at nominal (recycle)
+    cut_size_factor: object = 1.0  # multiplies the classification cut size (set by rheology)
     aggregates: dict = field(default_factory=dict)  # name -> (SX symbol z, SX expression of x)
 
     # ------------------------------------------------------------------ helpers
@@ -89,6 +90,16 @@ class Assembly:
         ks = range(self.n_mixers) if k is None else [k]
         return sum(self.aggregate(f"holdup_{kk}_t", sum(ca.sum1(self.mass[c][kk]) for c in range(self.n_components)))
                    for kk in ks)
+
+    def hold_up_fraction(self, name: str, frac_per_component):
+        """Mass fraction of a mineral group in the whole hold-up (``frac_per_component`` its
+        fraction in each ore), from the states; in an empty mill, that of the feed blend."""
+        spec = self.spec
+        group = self.aggregate(name, sum(frac_per_component[c] * ca.sum1(self.mass[c][k])
+                                         for c in range(self.n_components) for k in range(self.n_mixers)))
+        feed = sum(frac_per_component[c] * self.blend(c) for c in range(self.n_components))
+        eps = 1e-6 * spec.holdup_nominal_t
+        return (group + eps * feed) / (self.holdup() + eps)
 
     def class_mass(self, k: int | None = None):
         """Mass per size class summed over components [t] (of one mixer, or of the mill)."""

@@ -6,7 +6,6 @@ factors of the other listed effects and the hardness-scale disturbance."""
 from __future__ import annotations
 
 import casadi as ca
-import numpy as np
 
 from .base import Assembly, Effect
 

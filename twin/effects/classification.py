@@ -3,6 +3,8 @@ hydrocyclone whose underflow returns to the mill feed (the industrial configurat
 
 - Grate: discharge factor c_i = 1 / (1 + (x_i / d50)^k) (Austin, Klimpel & Luckie 1984, ch. 9,
   internal classification of grate-discharge mills), d50 and k from the mill.
+- Both cut sizes are multiplied by the assembly's ``cut_size_factor`` (1 unless ``rheology``
+  is listed).
 - Hydrocyclone: Plitt (1976, CIM Bull. 69, 114-123) with the corrections of Flintoff, Plitt &
   Turak (1987, CIM Bull. 80, 39-50): corrected cut size d50c, sharpness m and volumetric flow
   split from the cyclone geometry and feed; corrected efficiency E_c = 1 - exp(-0.693 (d/d50c)^m)
@@ -78,8 +80,12 @@ class Classification(Effect):
         if kind == "grate":
             d50 = asm.param("grate_d50_um", spec.mill.grate_d50_um, "um", "mill")
             k = asm.param("grate_sharpness", spec.mill.grate_sharpness, "-", "mill")
-            c = grate_factor(x, d50, k)
-            c[-1] = 1.0
+            if isinstance(asm.cut_size_factor, float):
+                c = grate_factor(x, d50 * asm.cut_size_factor, k)
+                c[-1] = 1.0
+            else:  # a cut size that moves with the states (rheology)
+                c = 1.0 / (1.0 + ca.DM((x / d50) ** k) * asm.cut_size_factor ** -k)
+                c[-1] = 1.0
             asm.class_factor = c
             asm.note(self.name, f"grate factor on the last mixer's discharge, d50 {d50:g} um")
             return
@@ -102,7 +108,7 @@ class Classification(Effect):
         def split(discharge):
             total = sum(ca.sum1(dc) for dc in discharge)
             q_ratio = smooth_max(total / solids_nom, 1e-3, 1e-3)
-            d50 = d50_nom * q_ratio ** -0.45
+            d50 = d50_nom * q_ratio ** -0.45 * asm.cut_size_factor
             e = rf + (1.0 - rf) * (1.0 - ca.exp(-0.693 * (xs / d50) ** m))
             under = [e * dc for dc in discharge]
             over = [dc - uc for dc, uc in zip(discharge, under)]

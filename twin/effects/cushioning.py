@@ -1,15 +1,14 @@
-"""Cushioning by clay and mica: soft, platy phyllosilicates in the charge absorb impact energy
-in sliding and deformation, so every component breaks more slowly, and a lubricated, viscous
-charge draws less power (Shi & Napier-Munn 2002, Int. J. Miner. Process. 65, 195-214, mill
+"""Cushioning by clay and mica (and chlorite): soft, platy phyllosilicates in the charge absorb
+impact energy in sliding and deformation, so every component breaks more slowly, and a
+lubricated, viscous charge draws less power (Shi & Napier-Munn 2002, Int. J. Miner. Process. 65, 195-214, mill
 power and breakage against slurry rheology; MISSION.md 'physical reasons').
 
-The soft fraction is the mass fraction of clay + mica in the hold-up, computed from the
-states, so a clay-rich component slows a hard one in a blend. Coefficients come from the
+The soft fraction is the mass fraction of clay + mica + chlorite
+(twin.minerals.CUSHIONING_MINERALS) in the hold-up, computed from the states, so a clay-rich
+component slows a hard one in a blend. Coefficients come from the
 calibration file (``twin/data/calibration.json``)."""
 
 from __future__ import annotations
-
-import casadi as ca
 
 from .base import Assembly, Effect
 
@@ -25,14 +24,8 @@ class Cushioning(Effect):
                            "calibration.json")
         k_power = asm.param("cushioning_power_coeff", spec.coefficients["cushioning_power_coeff"], "-",
                             "calibration.json")
-        total = asm.holdup()
-        soft = asm.aggregate("soft_mass_t", sum(spec.soft_frac[c] * ca.sum1(asm.mass[c][k])
-                                                for c in range(asm.n_components) for k in range(asm.n_mixers)))
-        # in an empty mill the soft fraction is that of the feed blend
-        feed_soft = sum(spec.soft_frac[c] * asm.blend(c) for c in range(asm.n_components))
-        eps = 1e-6 * spec.holdup_nominal_t
-        phi_soft = (soft + eps * feed_soft) / (total + eps)
+        phi_soft = asm.hold_up_fraction("soft_mass_t", spec.soft_frac)
         asm.rate_factors.append(1.0 / (1.0 + k_rate * phi_soft))
         asm.power_factors.append(1.0 / (1.0 + k_power * phi_soft))
         asm.outputs["soft_frac"] = phi_soft
-        asm.note(self.name, "selection and power factors from the clay+mica fraction of the hold-up")
+        asm.note(self.name, "selection and power factors from the clay+mica+chlorite fraction of the hold-up")

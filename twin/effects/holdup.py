@@ -1,6 +1,7 @@
 """Mill load dynamics: discharge depends on hold-up, breakage rates on the powder filling.
 
-- Discharge: the flow out of a mixer rises with its content, Q = Q_nom (H/H_nom)^n; n = 2
+- Discharge: the flow out of a mixer rises with its content, Q = Q_nom (H/H_nom)^n, Q_nom the
+  nominal feed times the mill's ``discharge_factor``; n = 2
   follows the overflow-discharge law of the le Roux et al. (2013) circuit model, where mill
   outflow is proportional to the square of its slurry content (Minerals Engineering 43-44,
   eq. 9), and Morrell & Stephenson (1996, Powder Technol. 88, 63-69) for slurry hold-up
@@ -29,7 +30,7 @@ class Holdup(Effect):
     def apply(self, asm: Assembly) -> None:
         spec = asm.spec
         h_nom = spec.holdup_nominal_t
-        q_nom = spec.feed_nominal_tph * asm.flow_multiplier
+        q_nom = spec.feed_nominal_tph * asm.flow_multiplier * spec.mill.discharge_factor
         n = asm.param("discharge_exponent", spec.mill.discharge_exponent, "-", "le Roux et al. 2013")
         n_mix = asm.n_mixers
         h_sat = asm.param("rate_saturation_load", RATE_SATURATION_LOAD, "H/H_nom", "Austin et al. 1984")

@@ -8,6 +8,7 @@ from .classification import Classification
 from .cushioning import Cushioning
 from .holdup import Holdup
 from .power import Power
+from .rheology import Rheology
 from .sensor_delay import SensorDelay
 from .slowing_down import SlowingDown
 from .speed import Speed
@@ -15,7 +16,7 @@ from .transport import Transport
 
 #: Stage order: factors and hooks first, then the terms that use them, then outputs' effects.
 EFFECTS = {cls.name: cls for cls in (
-    Classification, Holdup, Speed, Cushioning, SlowingDown, Breakage, Transport, Power, SensorDelay)}
+    Rheology, Classification, Holdup, Speed, Cushioning, SlowingDown, Breakage, Transport, Power, SensorDelay)}
 
 
 def known_effects() -> list[str]:

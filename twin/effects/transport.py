@@ -4,7 +4,8 @@ residence-time distribution of a ball mill as a few fully mixed reactors in seri
 Fresh feed [t/h] enters mixer 0 split by the blend fractions, each component with the feed
 size distribution; mixer k discharges ``r_k m_k`` into mixer k+1; the last mixer's discharge
 (times the class factor of a grate, if listed) is the mill discharge. Without ``holdup`` the
-rate is fixed by the nominal mean residence time tau = H_nom / Q_nom."""
+rate is fixed by the nominal mean residence time tau = H_nom / Q_nom (Q_nom the nominal feed
+times the mill's ``discharge_factor``)."""
 
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ class Transport(Effect):
     def apply(self, asm: Assembly) -> None:
         spec = asm.spec
         n_mix = asm.n_mixers
-        q_mill = spec.feed_nominal_tph * asm.flow_multiplier
+        q_mill = spec.feed_nominal_tph * asm.flow_multiplier * spec.mill.discharge_factor
         tau_h = asm.param("residence_time_nominal_h", spec.holdup_nominal_t / q_mill,
                           "h", "H_nom / mill through-flow at nominal")
         if asm.discharge_rate is None:
@@ -34,7 +35,7 @@ class Transport(Effect):
                 rate = asm.discharge_rate(k, asm.holdup(k))
                 out = rate * asm.mass[c][k]
                 if k == n_mix - 1 and asm.class_factor is not None:
-                    out = out * ca.DM(asm.class_factor)
+                    out = out * (asm.class_factor if isinstance(asm.class_factor, ca.SX) else ca.DM(asm.class_factor))
                 asm.add_rhs(asm.mass[c][k], inflow - out)
                 inflow = out
             discharge.append(inflow)

@@ -1,0 +1,83 @@
+"""Slurry rheology (twin.effects.rheology) and the mill's discharge factor: present only when
+listed, exact limits, mass balance, and the direction MISSION.md's soft ores need (clay ore
+leaves coarser and faster at constant load)."""
+
+import numpy as np
+import pytest
+
+from twin.breakage_map import shipped_calibration
+from twin.effects.rheology import SLURRY_SOLIDS_VOL_FRAC, thomas_relative_viscosity
+from twin.errors import ModelError
+from twin.mill import LAB
+from twin.twin import DEFAULT_EFFECTS, Twin
+
+from .test_model import _structural_balance
+
+NO_RHEOLOGY = [e for e in DEFAULT_EFFECTS if e != "rheology"]
+
+
+def _calibration(**coefficients):
+    cal = shipped_calibration()
+    return {"coefficients": {**cal["coefficients"], **coefficients}, "mills": cal["mills"]}
+
+
+def test_rheology_is_in_the_model_only_when_listed():
+    with_it = Twin("D", effects=list(DEFAULT_EFFECTS)).model
+    without = Twin("D", effects=NO_RHEOLOGY).model
+    assert "slurry_relative_viscosity" in with_it.outputs and "clay_crowding_coeff" in with_it.parameters
+    assert "slurry_relative_viscosity" not in without.outputs and "clay_crowding_coeff" not in without.parameters
+    with pytest.raises(ModelError, match="'rheology' requires effect 'classification'"):
+        Twin("D", effects=[e for e in DEFAULT_EFFECTS if e != "classification"])
+
+
+def test_no_clay_crowding_gives_exactly_the_model_without_rheology():
+    cal = _calibration(clay_crowding_coeff=0.0)
+    a = Twin("D", effects=list(DEFAULT_EFFECTS), calibration=cal).steady_at_constant_load()
+    b = Twin("D", effects=NO_RHEOLOGY, calibration=cal).steady_at_constant_load()
+    assert a.outputs["slurry_relative_viscosity"] == pytest.approx(
+        float(thomas_relative_viscosity(SLURRY_SOLIDS_VOL_FRAC)), rel=1e-12)
+    assert a.p80_um == pytest.approx(b.p80_um, rel=1e-9)
+    assert a.feed_tph == pytest.approx(b.feed_tph, rel=1e-9)
+
+
+def test_thomas_viscosity_rises_faster_than_einstein_and_steepens():
+    phi = np.linspace(0.05, 0.55, 11)
+    mu = np.array([float(thomas_relative_viscosity(p)) for p in phi])
+    assert np.all(mu > 1.0 + 2.5 * phi)  # crowding adds to Einstein's dilute limit
+    assert np.all(np.diff(mu, 2) > 0)  # convex: thick slurries stiffen fast
+
+
+def test_clay_carries_a_coarser_product_out_faster_at_constant_load():
+    gain = {}
+    for ore in ("A", "D"):
+        with_it = Twin(ore, effects=list(DEFAULT_EFFECTS)).steady_at_constant_load()
+        without = Twin(ore, effects=NO_RHEOLOGY).steady_at_constant_load()
+        assert with_it.p80_um > without.p80_um, ore
+        gain[ore] = with_it.feed_tph / without.feed_tph
+    assert gain["D"] > gain["A"] > 1.0  # the clay-rich ore gains most
+
+
+def test_clay_fraction_is_that_of_the_hold_up_in_a_blend():
+    t = Twin(["A", "D"], effects=list(DEFAULT_EFFECTS))
+    ss = t.steady(blend=[0.5, 0.5])
+    m = np.asarray(ss.x)[: t.model.n_mass].reshape(t.model.shape)
+    held = m.sum(axis=(1, 2))
+    expected = float(np.dot(held, t.spec.clay_frac) / held.sum())
+    assert ss.outputs["clay_frac"] == pytest.approx(expected, rel=1e-6)
+
+
+@pytest.mark.parametrize("kind", ["grate", "hydrocyclone"])
+def test_mass_balance_closes_with_rheology(kind):
+    rng = np.random.default_rng(3)
+    t = Twin(["B", "D"], effects=["breakage", "transport", "holdup", "classification", "rheology"],
+             effect_options={"classification": {"kind": kind}}, n_mixers=2)
+    assert _structural_balance(t.model, rng) < 1e-12
+
+
+@pytest.mark.parametrize("factor", [0.5, 1.0, 2.3, 9.0])
+def test_discharge_factor_sets_the_load_by_the_discharge_law(factor):
+    # no grate: every mixer discharges f Q_nom (H_k / H_nom,k)^2, so at the nominal feed each
+    # mixer, and the mill, holds f^-1/2 of nominal (to the smooth floor of the empty-mill guard)
+    t = Twin("B", mill=LAB.with_(discharge_factor=factor), effects=["breakage", "transport", "holdup"])
+    ss = t.steady(feed_tph=LAB.feed_nominal_tph)
+    assert ss.outputs["load_frac"] == pytest.approx(factor ** -0.5, rel=1e-5)
