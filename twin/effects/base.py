@@ -47,7 +47,7 @@ class Assembly:
     parameters: dict = field(default_factory=dict)  # name -> (value, unit, source)
     # hooks with defaults (no effect listed -> nothing happens)
     discharge_rate: object = None  # callable(k, H_k) -> SX [1/h], set by transport/holdup
-    class_factor: np.ndarray | None = None  # discharge factor per class at the last mixer
+    class_factor: np.ndarray | ca.SX | None = None  # discharge factor per class at the last mixer
     product_split: object = None  # callable(list of discharge vectors) -> (product, recycle)
     flow_multiplier: float = 1.0  # mill through-flow / fresh feed at nominal (recycle)
     cut_size_factor: object = 1.0  # multiplies the classification cut size (set by rheology)
@@ -91,7 +91,7 @@ class Assembly:
         return sum(self.aggregate(f"holdup_{kk}_t", sum(ca.sum1(self.mass[c][kk]) for c in range(self.n_components)))
                    for kk in ks)
 
-    def hold_up_fraction(self, name: str, frac_per_component):
+    def holdup_fraction(self, name: str, frac_per_component):
         """Mass fraction of a mineral group in the whole hold-up (``frac_per_component`` its
         fraction in each ore), from the states; in an empty mill, that of the feed blend."""
         spec = self.spec

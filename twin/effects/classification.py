@@ -82,10 +82,9 @@ class Classification(Effect):
             k = asm.param("grate_sharpness", spec.mill.grate_sharpness, "-", "mill")
             if isinstance(asm.cut_size_factor, float):
                 c = grate_factor(x, d50 * asm.cut_size_factor, k)
-                c[-1] = 1.0
             else:  # a cut size that moves with the states (rheology)
                 c = 1.0 / (1.0 + ca.DM((x / d50) ** k) * asm.cut_size_factor ** -k)
-                c[-1] = 1.0
+            c[-1] = 1.0
             asm.class_factor = c
             asm.note(self.name, f"grate factor on the last mixer's discharge, d50 {d50:g} um")
             return

@@ -1,12 +1,12 @@
 """Cushioning by clay and mica (and chlorite): soft, platy phyllosilicates in the charge absorb
 impact energy in sliding and deformation, so every component breaks more slowly, and a
-lubricated, viscous charge draws less power (Shi & Napier-Munn 2002, Int. J. Miner. Process. 65, 195-214, mill
-power and breakage against slurry rheology; MISSION.md 'physical reasons').
+lubricated, viscous charge draws less power (Shi & Napier-Munn 2002, Int. J. Miner. Process.
+65, 195-214, mill power and breakage against slurry rheology; MISSION.md 'physical reasons').
 
 The soft fraction is the mass fraction of clay + mica + chlorite
 (twin.minerals.CUSHIONING_MINERALS) in the hold-up, computed from the states, so a clay-rich
-component slows a hard one in a blend. Coefficients come from the
-calibration file (``twin/data/calibration.json``)."""
+component slows a hard one in a blend. Coefficients come from the calibration file
+(``twin/data/calibration.json``)."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ class Cushioning(Effect):
                            "calibration.json")
         k_power = asm.param("cushioning_power_coeff", spec.coefficients["cushioning_power_coeff"], "-",
                             "calibration.json")
-        phi_soft = asm.hold_up_fraction("soft_mass_t", spec.soft_frac)
+        phi_soft = asm.holdup_fraction("soft_mass_t", spec.soft_frac)
         asm.rate_factors.append(1.0 / (1.0 + k_rate * phi_soft))
         asm.power_factors.append(1.0 / (1.0 + k_power * phi_soft))
         asm.outputs["soft_frac"] = phi_soft

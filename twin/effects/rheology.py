@@ -47,7 +47,7 @@ class Rheology(Effect):
         k_clay = asm.param("clay_crowding_coeff", spec.coefficients["clay_crowding_coeff"], "-",
                            "calibration.json")
         phi_v = asm.param("slurry_solids_vol_frac", SLURRY_SOLIDS_VOL_FRAC, "-", "Wills & Finch 2016 ch. 7")
-        w_clay = asm.hold_up_fraction("clay_mass_t", spec.clay_frac)
+        w_clay = asm.holdup_fraction("clay_mass_t", spec.clay_frac)
         mu_r = thomas_relative_viscosity(phi_v * (1.0 + k_clay * w_clay))
         asm.cut_size_factor = (mu_r / float(thomas_relative_viscosity(phi_v))) ** STOKES_CUT_EXPONENT
         asm.outputs["clay_frac"] = w_clay
