@@ -11,7 +11,9 @@ sample period with ``u`` and ``d`` held (zero-order hold). Two constructions:
 
 Explicit RK4 is only stable when ``h * lambda`` lies in its stability region
 ``|1 + z + z^2/2 + z^3/6 + z^4/24| <= 1`` for every eigenvalue ``lambda`` of the Jacobian;
-:func:`min_rk4_substeps` finds the fewest sub-steps that achieve that at a linearisation.
+:func:`min_rk4_substeps` finds the fewest sub-steps that achieve that at a linearisation;
+:func:`stable_rk4_substeps` does it for a model at an operating point, with the rates scaled
+by :data:`RK4_RATE_SAFETY`.
 """
 
 from __future__ import annotations
@@ -20,6 +22,10 @@ import casadi as ca
 import numpy as np
 
 from mpc.errors import MpcInputError
+
+#: Rates at the linearisation are scaled by this before the RK4 stability count: room for the
+#: faster breakage of a softer ore (estimate) or a lighter load than at the operating point.
+RK4_RATE_SAFETY = 1.4
 
 
 def _check_f(f) -> None:
@@ -100,3 +106,12 @@ def min_rk4_substeps(a, dt_h: float, n_max: int = 10_000) -> int:
         if np.all(rk4_amplification(lam * dt_h / n) <= 1.0):
             return n
     raise MpcInputError(f"No stable RK4 sub-step count up to n_max = {n_max}.")
+
+
+def stable_rk4_substeps(f, x, u, d, dt_h: float, safety: float = RK4_RATE_SAFETY) -> int:
+    """:func:`min_rk4_substeps` for the model ``f(x, u, d)`` linearised at ``(x, u, d)`` with
+    its rates times ``safety``."""
+    _check_f(f)
+    xs = ca.SX.sym("x", f.size1_in(0))
+    jac = ca.Function("rk4_jacobian", [xs], [ca.jacobian(f(xs, u, d), xs)])(np.asarray(x, float))
+    return min_rk4_substeps(float(safety) * np.asarray(jac, float), dt_h)

@@ -609,12 +609,13 @@ class MatchedTwin:
         grinds at ~120 kW/t (the reference industrial twin at ~20 kW/t), so it is stiff."""
         return float(np.max(-np.linalg.eigvals(self.jacobian).real))
 
-    def rk4_substeps(self, dt_h: float, safety: float = 1.4) -> int:
+    def rk4_substeps(self, dt_h: float, safety: float | None = None) -> int:
         """RK4 steps per sample that keep every mode stable with rates ``safety`` times those at
         :attr:`steady` (:func:`mpc.discretize.min_rk4_substeps`): room for a softer ore
         estimate or a lighter load, both of which make breakage faster."""
-        from mpc.discretize import min_rk4_substeps
+        from mpc.discretize import RK4_RATE_SAFETY, min_rk4_substeps
 
+        safety = RK4_RATE_SAFETY if safety is None else safety
         _check_positive("MatchedTwin.rk4_substeps", "safety", float(safety))
         return min_rk4_substeps(self.jacobian * float(safety), dt_h)
 

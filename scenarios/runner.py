@@ -459,7 +459,7 @@ def nmpc_settings(scene: Scene):
     lo, hi = _feed_bounds(scene)
     return nmpc.NmpcSettings(
         target_p80_um=float(c.target_p80_um), horizon_steps=c.horizon_steps,
-        dt_h=scene.scene.sample_period_h, move_block=c.move_block,
+        dt_h=scene.scene.sample_period_h, move_block=c.move_block, rk4_substeps=c.rk4_substeps,
         weight_p80=c.weights.p80, weight_du_feed=c.weights.du_feed,
         weight_du_speed=c.weights.du_speed, weight_energy=c.weights.energy,
         feed_tph_min=lo, feed_tph_max=hi, speed_min=c.bounds.speed_min, speed_max=c.bounds.speed_max,
@@ -470,6 +470,18 @@ def nmpc_settings(scene: Scene):
         load_band_frac=tuple(c.load_band_frac),
         power_max_kw=c.power_max_kw if c.power_max_kw is not None else math.inf,
         solver=c.solver, qpsol=c.qpsol, preview=c.preview_lead_h > 0)
+
+
+def _check_rk4_substeps(scene: Scene, model, css) -> None:
+    """Refuse ``controller.rk4_substeps`` below the RK4 stability count of the controller's
+    model at its initial steady state (mpc.discretize.stable_rk4_substeps)."""
+    from mpc.discretize import RK4_RATE_SAFETY, stable_rk4_substeps
+
+    need = stable_rk4_substeps(model.f, css.x, css.u, css.d, scene.scene.sample_period_h)
+    if scene.controller.rk4_substeps < need:
+        raise SceneError(f"controller.rk4_substeps = {scene.controller.rk4_substeps} is unstable for the "
+                         f"controller's model at the initial steady state: RK4 needs at least {need} "
+                         f"steps per {scene.scene.sample_period_h} h sample (rates x {RK4_RATE_SAFETY})")
 
 
 def make_controller(scene: Scene, twin):
@@ -526,6 +538,7 @@ def _closed_loop(scene, models, feed, progress):
             from mpc.estimator import Ekf
 
             css = models.control.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend[0])
+            _check_rk4_substeps(scene, models.control.model, css)
             estimator = Ekf(models.control.model, dt, css.x)
             controller = make_controller(scene, models.control)
         else:

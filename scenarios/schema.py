@@ -160,6 +160,7 @@ class Controller(Section):
     target_p80_um: float | None = Field(default=None, gt=0)
     horizon_steps: int = Field(default=30, ge=1, le=10_000)
     move_block: int = Field(default=5, ge=1)
+    rk4_substeps: int = Field(default=3, ge=1, le=100)  # RK4 steps per sample in the prediction
     preview_lead_h: float = Field(default=0.0, ge=0)
     weights: Weights = Field(default_factory=Weights)
     bounds: Bounds = Field(default_factory=Bounds)

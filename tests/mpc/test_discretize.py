@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from mpc.discretize import cvodes_map, min_rk4_substeps, rk4_amplification, rk4_map
+from mpc.discretize import (RK4_RATE_SAFETY, cvodes_map, min_rk4_substeps, rk4_amplification, rk4_map,
+                            stable_rk4_substeps)
 from mpc.errors import MpcInputError
 from mpc.leroux import LeRouxCircuit
 from mpc.linear import linearize
@@ -58,6 +59,17 @@ def test_min_rk4_substeps_is_the_stability_boundary(plant):
             for _ in range(200):
                 x = np.array(f(x, u, c.d_nominal)).ravel()
         assert bool(np.all(np.isfinite(x)) and np.max(np.abs(x - xs)) < 1.0) is bounded
+
+
+def test_stable_rk4_substeps_is_the_count_at_the_scaled_jacobian(plant):
+    c, xs = plant
+    sys, _ = linearize(c.f, c.outputs, xs, c.u_nominal, c.d_nominal, ["p80_um"])
+    for dt in (0.05, 0.25):
+        assert stable_rk4_substeps(c.f, xs, c.u_nominal, c.d_nominal, dt) == \
+            min_rk4_substeps(RK4_RATE_SAFETY * sys.A, dt)
+    # ~76.5 1/h x 1.4 x 0.25 h / 2.785 = 9.6: ten steps, where the bare rates need seven
+    assert stable_rk4_substeps(c.f, xs, c.u_nominal, c.d_nominal, 0.25) == 10
+    assert stable_rk4_substeps(c.f, xs, c.u_nominal, c.d_nominal, 0.25, safety=1.0) == 7
 
 
 def test_discretize_validation(plant):

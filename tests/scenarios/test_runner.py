@@ -250,7 +250,7 @@ def test_nmpc_settings_from_the_scene():
     from scenarios.runner import nmpc_settings
 
     s = nmpc_settings(load_scene(LIBRARY / "reference_transition.toml"))
-    assert (s.target_p80_um, s.horizon_steps, s.move_block) == (210.0, 20, 1)
+    assert (s.target_p80_um, s.horizon_steps, s.move_block, s.rk4_substeps) == (210.0, 10, 1, 2)
     assert s.dt_h == pytest.approx(0.05) and s.weight_energy == 0.01
     assert (s.feed_tph_min, s.feed_tph_max, s.speed_rate_max_per_h) == (20.0, 45.0, 0.10)
     assert tuple(s.load_band_frac) == (0.8, 1.2) and s.power_max_kw == math.inf and s.preview
@@ -340,6 +340,18 @@ def test_reference_scene_builds_a_coarse_controller_model_and_a_full_plant():
 
     models = build_models(load_scene(LIBRARY / "reference_transition.toml"))
     control, plant = models.control.model, models.plant.model
-    assert control.shape == (2, 1, 10) and plant.shape == (2, 3, 25)
+    assert control.shape == (2, 3, 7) and plant.shape == (2, 3, 25)
     assert "sensor_delay" in control.effect_names and "sensor_delay" not in plant.effect_names
     assert control.parameters["analyser_dead_time_h"][0] == 0.1
+
+
+def test_an_unstable_rk4_substep_count_is_refused_with_the_needed_one():
+    pytest.importorskip("mpc.nmpc")
+    from scenarios.errors import SceneError
+    from scenarios.loader import load_scene
+
+    scene = load_scene(LIBRARY / "reference_transition.toml")
+    scene.scene.duration_h = 0.1
+    scene.controller.rk4_substeps = 1  # the 3-mixer controller model needs 2 at 0.05 h
+    with pytest.raises(SceneError, match=r"controller.rk4_substeps = 1 is unstable.*at least 2 steps"):
+        run_scene(scene, progress=False)
