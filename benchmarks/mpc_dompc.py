@@ -395,7 +395,7 @@ def main(argv=None) -> pd.DataFrame:
     ours, dompcs = parse_configs(ours_spec), parse_configs(args.dompc)
 
     sensors = reference_sensors()
-    plant, ss, ctw, css = reference_setup(sensors)
+    plant, ss, ctw, css = reference_setup(sensors, args)
     base = dict(horizon_steps=N, dt_h=dt, target_p80_um=TARGET_UM,
                 weight_du_feed=args.weight_du_feed, weight_du_speed=args.weight_du_speed,
                 preview=True)

@@ -1,14 +1,15 @@
 """What control accuracy costs in time: NMPC per-step solve time (median, 95th percentile) and
 iterations against the solver, the horizon, the controller model's size classes and the
 discretisation (RK4 sub-steps per sample; raised to the fewest stable ones of the model,
-:func:`mpc.discretize.min_rk4_substeps`), beside the closed-loop IAE of P80, on a short version of the reference transition (Type B at 210 um, ramp to 60 % B /
-40 % D from 0.5 h to 1.0 h, preview 0.5 h; 2.5 h at 0.05 h samples; plant 25 classes x 3
-mixers; P80 noise 3 um, dead time 0.1 h).
+:func:`mpc.discretize.stable_rk4_substeps`), beside the closed-loop IAE of P80, on a short
+version of the reference transition (Type B at 210 um, ramp to 60 % B / 40 % D from 0.5 h to
+1.0 h, preview 0.5 h; 2.5 h at 0.05 h samples; plant 25 classes x 3 mixers; P80 noise 3 um,
+dead time 0.1 h).
 
 Writes benchmarks/results/mpc_nmpc_horizon.csv and .md.
 
-    PYTHONPATH=. python benchmarks/mpc_nmpc_horizon.py [--solvers rti,ipopt] [--horizons 10,20,40,60]
-        [--grids 10x2.0x1,...] [--substeps 3,6]
+    PYTHONPATH=. python benchmarks/mpc_nmpc_horizon.py [--solvers rti,ipopt] [--horizons 10,15,20,40]
+        [--grids 7x2.5x3,...] [--substeps 2,3,6]
 """
 
 from __future__ import annotations
@@ -22,9 +23,8 @@ import pandas as pd
 
 from mpc_reference_case import controller_model  # same directory (run as a script)
 from mpc.closed_loop import Sensors, run_closed_loop
-from mpc.discretize import min_rk4_substeps
+from mpc.discretize import stable_rk4_substeps
 from mpc.estimator import Ekf
-from mpc.linear import linearize
 from mpc.nmpc import Controller, NmpcSettings
 from mpc.optimize import feed_for_target
 from twin.twin import DEFAULT_EFFECTS, Twin
@@ -55,15 +55,15 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--solvers", default="rti,ipopt,fatrop",
                     help="fatrop runs on the first grid at horizons <= 20 only (~0.8 s a step)")
-    ap.add_argument("--horizons", default="10,20,40,60")
-    ap.add_argument("--ipopt-max-horizon", type=int, default=40,
+    ap.add_argument("--horizons", default="10,15,20,40")
+    ap.add_argument("--ipopt-max-horizon", type=int, default=20,
                     help="IPOPT's exact-Hessian build grows fast with the horizon (~50 s at 40)")
     ap.add_argument("--ipopt-max-classes", type=int, default=15,
                     help="and with the classes (~55 s at 15 classes and horizon 20)")
-    ap.add_argument("--grids", default="10x2.0x1,15x1.5x1,20x1.4142135623730951x1",
-                    help="count x ratio x mixers, comma separated")
-    ap.add_argument("--substeps", default="3,6", help="RK4 sub-steps per sample (the "
-                    "non-default values run on the first grid at horizon 20 only)")
+    ap.add_argument("--grids", default="7x2.5x3,7x2.5x2,10x2.0x1,10x2.0x3,15x1.5x1",
+                    help="count x ratio x mixers, comma separated (the first is the scene's)")
+    ap.add_argument("--substeps", default="2,3,6", help="RK4 sub-steps per sample (the "
+                    "non-default values run on the first grid at horizon 15 only)")
     ap.add_argument("--duration-h", type=float, default=2.5)
     args = ap.parse_args(argv)
     dt = 0.05
@@ -100,20 +100,18 @@ def main(argv=None):
             count, ratio, mixers = grid.split("x")
             ctw = controller_model(sensors.p80_dead_time_h, int(count), float(ratio), int(mixers))
             css = ctw.steady(feed_tph=feed0, speed_frac_critical=0.70, blend=[1.0, 0.0])
-            lin, _ = linearize(ctw.model.f, ctw.model.outputs, css.x, css.u, css.d, ["p80_um"],
-                               steady_tol=1e-3)
-            stable = min_rk4_substeps(lin.A, dt)
+            stable = stable_rk4_substeps(ctw.model.f, css.x, css.u, css.d, dt)
             for n in (int(v) for v in args.horizons.split(",")):
                 if solver == "ipopt" and (n > args.ipopt_max_horizon
                                           or int(count) > args.ipopt_max_classes):
                     continue
-                if solver == "fatrop" and (gi > 0 or n > 20):
+                if solver == "fatrop" and (gi > 0 or n > 15):
                     continue
                 for j, sub in enumerate(substeps):
-                    if j > 0 and (gi > 0 or n != 20):
+                    if j > 0 and (gi > 0 or n != 15):
                         continue
                     cases = [True]
-                    if solver == "ipopt" and gi == 0 and n == 20 and j == 0:
+                    if solver == "ipopt" and gi == 0 and n == 15 and j == 0:
                         cases.append(False)  # interior-point warm starts gain little: measure it
                     for warm in cases:
                         rows.append(run_one(solver, ctw, css, n, max(sub, stable), warm))

@@ -2,11 +2,14 @@
 Type B steady at 210 um, then a 0.5 h ramp to 60 % B / 40 % D at t = 3 h, mineralogy known
 0.5 h ahead. Four controllers on the same plant twin (25 classes, 3 mixers), sensors and seed:
 no control, PI feedback (SIMC from the linearised plant), NMPC without preview, NMPC with
-preview. The NMPC and the EKF use a coarse controller model (10 classes of ratio 2, 1 mixer,
-plus the analyser lag chain): the plant/model mismatch is absorbed by the estimated hardness.
+preview. The NMPC and the EKF use the scene's controller model (7 classes of ratio 2.5 and the
+plant's 3 mixers, plus the analyser lag chain; ``--count/--ratio/--mixers`` change it): the
+plant/model mismatch is absorbed by the estimated hardness. ``--seeds 1,2,3`` repeats the
+case over sensor-noise seeds and writes the per-seed IAE and its ratio to PI.
 
 Writes benchmarks/results/mpc_reference_case.csv (KPIs), .md (table) and
-mpc_reference_case_runs.csv (all runs, one row per sample).
+mpc_reference_case_runs.csv (all runs, one row per sample); with ``--seeds``,
+mpc_reference_case_seeds.csv and .md.
 
     PYTHONPATH=. python benchmarks/mpc_reference_case.py [--duration-h 8] [--dt-h 0.05]
 """
@@ -37,7 +40,7 @@ def schedule(t_h: float) -> np.ndarray:
     return np.array([1.0 - 0.4 * a, 0.4 * a])
 
 
-def controller_model(dead_time_h: float, count: int = 10, ratio: float = 2.0, n_mixers: int = 1):
+def controller_model(dead_time_h: float, count: int = 7, ratio: float = 2.5, n_mixers: int = 3):
     return Twin(["B", "D"], mill="industrial", effects=list(DEFAULT_EFFECTS) + ["sensor_delay"],
                 effect_options={"sensor_delay": {"dead_time_h": dead_time_h}},
                 grid=SizeGrid(top_um=6700.0, ratio=ratio, count=count), n_mixers=n_mixers)
@@ -47,7 +50,11 @@ def add_case_arguments(ap: argparse.ArgumentParser) -> None:
     """The command-line options of the reference case shared by its benchmarks."""
     ap.add_argument("--duration-h", type=float, default=8.0)
     ap.add_argument("--dt-h", type=float, default=0.05)
-    ap.add_argument("--horizon", type=int, default=20)
+    ap.add_argument("--horizon", type=int, default=10)
+    ap.add_argument("--rk4-substeps", type=int, default=2, help="RK4 steps per sample of the NMPC model")
+    ap.add_argument("--count", type=int, default=7, help="size classes of the controller model")
+    ap.add_argument("--ratio", type=float, default=2.5, help="sieve ratio of the controller model")
+    ap.add_argument("--mixers", type=int, default=3, help="mixers in series of the controller model")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--weight-du-feed", type=float, default=1.0)
     ap.add_argument("--weight-du-speed", type=float, default=1.0)
@@ -66,13 +73,15 @@ def reference_sensors() -> Sensors:
                    power_noise_kw=5.0, load_noise_frac=0.01)
 
 
-def reference_setup(sensors: Sensors):
+def reference_setup(sensors: Sensors, args=None):
     """Plant twin (25 classes x 3 mixers) with its steady state at the target on Type B, and the
-    controller model with its steady state at the same inputs: ``(plant, ss, ctw, css)``."""
+    controller model (``args.count/ratio/mixers``, else the defaults) with its steady state at
+    the same inputs: ``(plant, ss, ctw, css)``."""
     plant = Twin(["B", "D"], mill="industrial", effects=list(DEFAULT_EFFECTS))
     feed0 = feed_for_target(plant, [1.0, 0.0], TARGET_UM, 0.70)
     ss = plant.steady(feed_tph=feed0, speed_frac_critical=0.70, blend=[1.0, 0.0])
-    ctw = controller_model(sensors.p80_dead_time_h)
+    grid = {} if args is None else {"count": args.count, "ratio": args.ratio, "n_mixers": args.mixers}
+    ctw = controller_model(sensors.p80_dead_time_h, **grid)
     css = ctw.steady(feed_tph=feed0, speed_frac_critical=0.70, blend=[1.0, 0.0])
     return plant, ss, ctw, css
 
@@ -87,8 +96,41 @@ def main(argv=None) -> pd.DataFrame:
     add_case_arguments(ap)
     ap.add_argument("--only", default="none,pi,nmpc,nmpc_preview")
     ap.add_argument("--tag", default="", help="suffix of the result files")
+    ap.add_argument("--seeds", default="", help="comma-separated sensor-noise seeds to repeat over")
     args = ap.parse_args(argv)
+    if args.seeds:
+        return run_seeds(args)
     return run_case(args)
+
+
+def run_seeds(args) -> pd.DataFrame:
+    """The case once per seed of ``args.seeds``; IAE per controller and its ratio to PI's."""
+    rows = []
+    for seed in (int(v) for v in args.seeds.split(",")):
+        args.seed = seed
+        t = run_case(args, write=False).set_index("controller")
+        for kind, r in t.iterrows():
+            rows.append({"seed": seed, "controller": kind, "p80_iae_um_h": r.p80_iae_um_h,
+                         "iae_over_pi": r.p80_iae_um_h / t.loc["pi", "p80_iae_um_h"] if "pi" in t.index else np.nan,
+                         "solve_time_median_s": r.solve_time_median_s})
+    table = pd.DataFrame(rows)
+    OUT.mkdir(exist_ok=True)
+    table.to_csv(OUT / f"mpc_reference_case_seeds{args.tag}.csv", index=False)
+    summary = table.groupby("controller")[["p80_iae_um_h", "iae_over_pi", "solve_time_median_s"]].agg(
+        ["median", "min", "max"])
+    summary.columns = [f"{a}_{b}" for a, b in summary.columns]
+    md = [f"# Reference case over seeds {args.seeds}: P80 IAE and its ratio to PI", "",
+          f"{model_line(args)}; one run per seed (sensor noise differs), median / min / max.", "",
+          summary.reset_index().to_markdown(index=False, floatfmt=".3g")]
+    (OUT / f"mpc_reference_case_seeds{args.tag}.md").write_text("\n".join(md) + "\n")
+    print(summary, flush=True)
+    return table
+
+
+def model_line(args) -> str:
+    return (f"NMPC horizon {args.horizon}, RK4 sub-steps {args.rk4_substeps}; plant 25 classes x 3 "
+            f"mixers; controller/EKF model {args.count} classes (ratio {args.ratio:g}) x {args.mixers} "
+            "mixers + analyser lag")
 
 
 def run_case(args, plant_hardness=1.0, write: bool = True) -> pd.DataFrame:
@@ -96,7 +138,7 @@ def run_case(args, plant_hardness=1.0, write: bool = True) -> pd.DataFrame:
     t_h) is the plant's true hardness scale, unknown to the controllers."""
     dt = args.dt_h
     sensors = reference_sensors()
-    plant, ss, ctw, css = reference_setup(sensors)
+    plant, ss, ctw, css = reference_setup(sensors, args)
     rows, runs = [], []
     for kind in args.only.split(","):
         est = reference_ekf(ctw, css, dt, args.hardness_noise)
@@ -109,6 +151,7 @@ def run_case(args, plant_hardness=1.0, write: bool = True) -> pd.DataFrame:
         else:
             ctrl = Controller(ctw.model, NmpcSettings(
                 horizon_steps=args.horizon, dt_h=dt, target_p80_um=TARGET_UM,
+                rk4_substeps=args.rk4_substeps,
                 weight_du_feed=args.weight_du_feed, weight_du_speed=args.weight_du_speed,
                 weight_p80=args.weight_p80, weight_energy=args.weight_energy, solver=args.solver,
                 preview=kind == "nmpc_preview"))
@@ -139,12 +182,11 @@ def run_case(args, plant_hardness=1.0, write: bool = True) -> pd.DataFrame:
     md = [f"# Reference case: Type B -> 60 % B / 40 % D at {T_SWITCH_H} h (ramp {RAMP_H} h), "
           f"target {TARGET_UM} um, lead {LEAD_H} h",
           "",
-          f"duration {args.duration_h} h, sample {dt} h, NMPC horizon {args.horizon}, seed "
-          f"{args.seed}; solver {args.solver}; weights p80 {args.weight_p80}, du_feed "
-          f"{args.weight_du_feed}, du_speed {args.weight_du_speed}, energy {args.weight_energy}; "
-          f"EKF hardness noise {args.hardness_noise}/sqrt(h), warm-up {args.warmup_h} h "
-          "before t = 0; plant 25 classes x 3 mixers; controller/EKF model 10 classes (ratio 2) "
-          "x 1 mixer + analyser lag; sensors: P80 noise 3 um, dead time 0.1 h, sampling 0.05 h.",
+          f"duration {args.duration_h} h, sample {dt} h, seed {args.seed}; solver {args.solver}; "
+          f"weights p80 {args.weight_p80}, du_feed {args.weight_du_feed}, du_speed "
+          f"{args.weight_du_speed}, energy {args.weight_energy}; EKF hardness noise "
+          f"{args.hardness_noise}/sqrt(h), warm-up {args.warmup_h} h before t = 0; "
+          f"{model_line(args)}; sensors: P80 noise 3 um, dead time 0.1 h, sampling 0.05 h.",
           "", table[cols].to_markdown(index=False, floatfmt=".4g")]
     (OUT / f"mpc_reference_case{args.tag}.md").write_text("\n".join(md) + "\n")
     return table
