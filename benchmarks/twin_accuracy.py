@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 
 from twin.sizes import SizeGrid
+from twin.effects.registry import EFFECTS
 from twin.twin import DEFAULT_EFFECTS, Twin
 
 RESULTS = Path(__file__).parent / "results"
@@ -99,7 +100,12 @@ def effects():
     base = ["breakage", "transport"]
     full = [*DEFAULT_EFFECTS, "slowing_down", "sensor_delay"]
     variants = {"breakage+transport": base, "all": full}
-    variants |= {f"all - {e}": [x for x in full if x != e] for e in full if e not in base}
+    for e in full:
+        if e in base:
+            continue
+        needs_e = [x for x in full if e in EFFECTS[x].requires]  # leave with the effect they need
+        name = f"all - {e}" + "".join(f" - {x}" for x in needs_e)
+        variants[name] = [x for x in full if x != e and x not in needs_e]
     for name, effs in variants.items():
         tw = Twin(["B", "D"], mill="industrial", effects=effs)
         tw.steady(feed_tph=30.0)
