@@ -6,7 +6,7 @@ load for A-D): S^E_ref, the hardness and texture exponents of the breakage map, 
 cushioning coefficients, the clay-crowding coefficient of the slurry rheology
 (twin.effects.rheology), and the laboratory mill's power factor, grate cut size and sharpness
 and discharge factor (11 numbers). Nothing else. Least squares on the log-ratios, then a
-max-norm (minimax) polish (:func:`fit_log_ratios`): the table's goal is every KPI within 5 %.
+p-norm stand-in for the max-norm (:func:`fit_log_ratios`): the table's goal is every KPI within 5 %.
 The DEM calibration (a separate issue) is to replace the map's S^E by values derived from
 virtual breakage tests, leaving fewer numbers fitted to the table.
 
@@ -97,19 +97,27 @@ def _unpack(z):
 
 #: Forward-difference step of the fits' Jacobians, in the log-parameters (a 0.01 % change).
 DIFF_STEP = 1e-4
+#: The ``"pnorm"`` step minimises sum (r / r_goal)^(2 PNORM_HALF_POWER), a smooth stand-in for
+#: max |r| (p = 8); r_goal = ln 1.05 scales the residuals to order one for the tolerances.
+PNORM_HALF_POWER = 4
+PNORM_SCALE = float(np.log(1.05))
 
 
-def fit_log_ratios(residuals, z0, lo, hi, max_nfev: int, verbose: int = 0):
+def fit_log_ratios(residuals, z0, lo, hi, max_nfev: int, verbose: int = 0, final: str = "minimax"):
     """Least squares on the log-ratio residuals r(z), then their max-norm from there.
 
-    The table's goal is every KPI within 5 %, a max-norm, so step 2 solves the epigraph form of
-    ``min_z max_i |r_i(z)|`` (``min t`` subject to ``-t <= r_i(z) <= t`` and the bounds) by SLSQP
-    (Kraft 1988, scipy) with forward-difference Jacobians; a smooth p-norm stand-in (p = 8)
-    stopped ~0.4 points short of it on the DEM table fit. Step 1 runs ``max_nfev`` residual
-    evaluations, step 2 ``max_nfev`` SLSQP iterations. Returns a scipy OptimizeResult: ``x``
-    (the evaluated point with the least max |r|, so a failed step 2 never loses step 1's point),
-    ``status``/``message``/``success`` of step 2, ``nfev`` (all residual evaluations), ``cost``
+    The table's goal is every KPI within 5 %, a max-norm. ``final="minimax"`` solves its
+    epigraph form, ``min t`` subject to ``-t <= r_i(z) <= t`` and the bounds, by SLSQP (Kraft
+    1988, scipy) with forward-difference Jacobians, ``max_nfev`` iterations. ``"pnorm"`` is the
+    smooth stand-in (:data:`PNORM_HALF_POWER`) by least squares, ``max_nfev`` evaluations: it
+    stopped 0.2 points short of the max-norm on the DEM table fit (5.13 against 4.93 %), but it
+    made the shipped mineralogy-map calibration (:func:`fit`), whose valley is flat (see there).
+    Step 1 runs ``max_nfev`` evaluations. Returns a scipy OptimizeResult: ``x`` (minimax: the
+    evaluated point with the least max |r|, so a failed step 2 never loses step 1's point;
+    pnorm: step 2's), ``status``/``message``/``success``/``nfev`` of step 2, ``cost``
     (0.5 sum r^2 at x), ``max_abs_residual``."""
+    if final not in ("minimax", "pnorm"):
+        raise ValueError(f"The 'final' parameter must be 'minimax' or 'pnorm'. Got {final!r}.")
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     evaluated = {}
 
@@ -130,6 +138,11 @@ def fit_log_ratios(residuals, z0, lo, hi, max_nfev: int, verbose: int = 0):
 
     ls = scipy.optimize.least_squares(r_at, z0, bounds=(lo, hi), x_scale=1.0, diff_step=DIFF_STEP,
                                       max_nfev=max_nfev, verbose=verbose)
+    if final == "pnorm":
+        step2 = scipy.optimize.least_squares(
+            lambda z: np.sign(r_at(z)) * np.abs(r_at(z) / PNORM_SCALE) ** PNORM_HALF_POWER, ls.x,
+            bounds=(lo, hi), x_scale=1.0, diff_step=DIFF_STEP, max_nfev=max_nfev, verbose=verbose)
+        return _result(step2.x, r_at(step2.x), step2, "least squares on the p-norm")
     y0 = np.r_[ls.x, np.max(np.abs(r_at(ls.x)))]
     n = y0.size - 1
     epi = scipy.optimize.minimize(
@@ -139,21 +152,29 @@ def fit_log_ratios(residuals, z0, lo, hi, max_nfev: int, verbose: int = 0):
                       "jac": lambda y: (lambda J: np.block([[-J, np.ones((len(J), 1))],
                                                             [J, np.ones((len(J), 1))]]))(jac(y[:n]))}],
         options={"maxiter": max_nfev, "ftol": 1e-8, "disp": bool(verbose)})
-    x = min(evaluated, key=lambda k: np.max(np.abs(evaluated[k])))
-    r = evaluated[x]
+    best = min(evaluated, key=lambda k: np.max(np.abs(evaluated[k])))
+    return _result(np.array(best), evaluated[best], epi, "SLSQP")
+
+
+def _result(x, r, step2, name: str):
+    """fit_log_ratios' OptimizeResult at ``x`` (residuals ``r``) with step 2's status."""
     return scipy.optimize.OptimizeResult(
-        x=np.array(x), status=int(epi.status), message=f"SLSQP: {epi.message}", success=bool(epi.success),
-        nfev=len(evaluated), cost=0.5 * float(r @ r), max_abs_residual=float(np.max(np.abs(r))))
+        x=np.asarray(x, float), status=int(step2.status), message=f"{name}: {step2.message}",
+        success=bool(step2.success), nfev=int(step2.nfev), cost=0.5 * float(r @ r),
+        max_abs_residual=float(np.max(np.abs(r))))
 
 
 def fit(max_nfev: int = 200, verbose: int = 0) -> dict:
-    """Least squares on log-ratios of predicted to reference KPIs, then their max-norm
-    (:func:`fit_log_ratios`), each with ``max_nfev``; returns the record to save."""
+    """Least squares on log-ratios of predicted to reference KPIs, then the p-norm stand-in for
+    their max-norm (:func:`fit_log_ratios`), each with ``max_nfev``; returns the record to save."""
     ref = reference_table()
     lo = np.array([np.log(BOUNDS[n][0]) if BOUNDS[n][0] > 0 else BOUNDS[n][0] for n in NAMES])
     hi = np.array([np.log(BOUNDS[n][1]) if BOUNDS[n][0] > 0 else BOUNDS[n][1] for n in NAMES])
     t0 = time.perf_counter()
-    sol = fit_log_ratios(lambda z: _residuals(z, ref), _pack(START), lo, hi, max_nfev, verbose)
+    # "pnorm": the shipped calibration.json was made so. The minimax step reaches 3.44 % against
+    # 3.51 % but moves S^E_ref by -10 %, clay crowding by -25 % and the discharge factor by +36 %
+    # (a flat valley), which moves the industrial operating point the controller is tuned at.
+    sol = fit_log_ratios(lambda z: _residuals(z, ref), _pack(START), lo, hi, max_nfev, verbose, final="pnorm")
     values = _unpack(sol.x)
     pred = predict(values)
     errors = {o: {k: 100.0 * (pred[o][k] / ref[o][k] - 1.0) for k in KPIS} for o in ref}

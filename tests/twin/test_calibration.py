@@ -2,6 +2,7 @@
 re-predicting with its values gives back the numbers it recorded (regenerate it with the
 command when the model changes, never by editing it)."""
 
+import numpy as np
 import pytest
 
 from twin import calibration
@@ -32,3 +33,25 @@ def test_calibrated_p80_order_follows_hardness():
     energy = [pred[o]["specific_energy_kwh_t"] for o in "ABCD"]
     assert p80 == sorted(p80)  # soft ores give a coarser product ...
     assert energy[0] > energy[3]  # ... for less energy per tonne (MISSION.md reference table)
+
+
+def test_minimax_step_reaches_the_linear_programme_optimum_and_the_pnorm_does_not_beat_it():
+    """On an overdetermined linear system the max-norm optimum is a linear programme (an
+    independent reference): min t s.t. -t <= A z - b <= t, lo <= z <= hi."""
+    from scipy.optimize import linprog
+
+    from twin.calibration import fit_log_ratios
+
+    rng = np.random.default_rng(3)
+    A, b = rng.normal(size=(12, 3)), rng.normal(size=12)
+    lo, hi = np.array([-5.0, -5.0, 0.2]), np.array([5.0, 5.0, 5.0])  # the third bound is active
+    lp = linprog(np.r_[0, 0, 0, 1.0], A_ub=np.block([[A, -np.ones((12, 1))], [-A, -np.ones((12, 1))]]),
+                 b_ub=np.r_[b, -b], bounds=[*zip(lo, hi), (0, None)])
+    assert lp.success
+    res = fit_log_ratios(lambda z: A @ z - b, np.zeros(3) + 0.5, lo, hi, max_nfev=100)
+    assert res.success and np.all((res.x >= lo) & (res.x <= hi))
+    assert res.max_abs_residual == pytest.approx(lp.fun, rel=1e-5)
+    pn = fit_log_ratios(lambda z: A @ z - b, np.zeros(3) + 0.5, lo, hi, max_nfev=100, final="pnorm")
+    assert pn.max_abs_residual >= lp.fun * (1 - 1e-9)
+    with pytest.raises(ValueError, match="'final'"):
+        fit_log_ratios(lambda z: A @ z - b, np.zeros(3), lo, hi, max_nfev=5, final="max")
