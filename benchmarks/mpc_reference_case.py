@@ -40,7 +40,12 @@ def schedule(t_h: float) -> np.ndarray:
     return np.array([1.0 - 0.4 * a, 0.4 * a])
 
 
-def controller_model(dead_time_h: float, count: int = 7, ratio: float = 2.5, n_mixers: int = 3):
+#: The controller's model of scenarios/reference_transition.toml: 7 classes of ratio 2.5, 3 mixers.
+CONTROLLER_GRID = {"count": 7, "ratio": 2.5, "n_mixers": 3}
+
+
+def controller_model(dead_time_h: float, count: int = CONTROLLER_GRID["count"],
+                     ratio: float = CONTROLLER_GRID["ratio"], n_mixers: int = CONTROLLER_GRID["n_mixers"]):
     return Twin(["B", "D"], mill="industrial", effects=list(DEFAULT_EFFECTS) + ["sensor_delay"],
                 effect_options={"sensor_delay": {"dead_time_h": dead_time_h}},
                 grid=SizeGrid(top_um=6700.0, ratio=ratio, count=count), n_mixers=n_mixers)
@@ -52,9 +57,10 @@ def add_case_arguments(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--dt-h", type=float, default=0.05)
     ap.add_argument("--horizon", type=int, default=10)
     ap.add_argument("--rk4-substeps", type=int, default=2, help="RK4 steps per sample of the NMPC model")
-    ap.add_argument("--count", type=int, default=7, help="size classes of the controller model")
-    ap.add_argument("--ratio", type=float, default=2.5, help="sieve ratio of the controller model")
-    ap.add_argument("--mixers", type=int, default=3, help="mixers in series of the controller model")
+    ap.add_argument("--count", type=int, default=CONTROLLER_GRID["count"], help="size classes of the controller model")
+    ap.add_argument("--ratio", type=float, default=CONTROLLER_GRID["ratio"], help="sieve ratio of the controller model")
+    ap.add_argument("--mixers", type=int, default=CONTROLLER_GRID["n_mixers"],
+                    help="mixers in series of the controller model")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--weight-du-feed", type=float, default=1.0)
     ap.add_argument("--weight-du-speed", type=float, default=1.0)
