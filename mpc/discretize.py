@@ -108,10 +108,15 @@ def min_rk4_substeps(a, dt_h: float, n_max: int = 10_000) -> int:
     raise MpcInputError(f"No stable RK4 sub-step count up to n_max = {n_max}.")
 
 
+def state_jacobian(f, x, u, d) -> np.ndarray:
+    """``df/dx`` of the model ``f(x, u, d)`` at ``(x, u, d)``."""
+    _check_f(f)
+    xs = ca.SX.sym("x", f.size1_in(0))
+    return np.asarray(ca.Function("state_jacobian", [xs], [ca.jacobian(f(xs, u, d), xs)])(
+        np.asarray(x, float)), float)
+
+
 def stable_rk4_substeps(f, x, u, d, dt_h: float, safety: float = RK4_RATE_SAFETY) -> int:
     """:func:`min_rk4_substeps` for the model ``f(x, u, d)`` linearised at ``(x, u, d)`` with
     its rates times ``safety``."""
-    _check_f(f)
-    xs = ca.SX.sym("x", f.size1_in(0))
-    jac = ca.Function("rk4_jacobian", [xs], [ca.jacobian(f(xs, u, d), xs)])(np.asarray(x, float))
-    return min_rk4_substeps(float(safety) * np.asarray(jac, float), dt_h)
+    return min_rk4_substeps(float(safety) * state_jacobian(f, x, u, d), dt_h)

@@ -695,6 +695,7 @@ def matched_twin(circuit: LeRouxCircuit | None = None, ore: str = "B", grid=None
     h0 = float(brentq(miss, lo, hi, xtol=1e-4))
     ss = tw.steady(feed_tph=p.feed_tph, speed_frac_critical=p.speed_frac_critical,
                    hardness_scale=h0)
-    m = tw.model
-    jac = ca.Function("twin_jacobian", [m.x], [ca.jacobian(m.f(m.x, ss.u, ss.d), m.x)])(ss.x)
-    return MatchedTwin(tw, ss, h0, float(pf), float(target), x_ss, np.asarray(jac, float))
+    from mpc.discretize import state_jacobian
+
+    return MatchedTwin(tw, ss, h0, float(pf), float(target), x_ss,
+                       state_jacobian(tw.model.f, ss.x, ss.u, ss.d))

@@ -128,7 +128,8 @@ def fit_log_ratios(residuals, z0, lo, hi, max_nfev: int, verbose: int = 0, final
         return evaluated[key]
 
     def jac(z):
-        r0, J = r_at(z), np.empty((r_at(z).size, z.size))
+        r0 = r_at(z)
+        J = np.empty((r0.size, z.size))
         for j in range(z.size):
             h = DIFF_STEP if z[j] + DIFF_STEP <= hi[j] else -DIFF_STEP
             zz = z.copy()
@@ -143,14 +144,21 @@ def fit_log_ratios(residuals, z0, lo, hi, max_nfev: int, verbose: int = 0, final
             lambda z: np.sign(r_at(z)) * np.abs(r_at(z) / PNORM_SCALE) ** PNORM_HALF_POWER, ls.x,
             bounds=(lo, hi), x_scale=1.0, diff_step=DIFF_STEP, max_nfev=max_nfev, verbose=verbose)
         return _result(step2.x, r_at(step2.x), step2, "least squares on the p-norm")
-    y0 = np.r_[ls.x, np.max(np.abs(r_at(ls.x)))]
-    n = y0.size - 1
+    # epigraph variables y = [z, t]: minimise t with t - r(z) >= 0 and t + r(z) >= 0
+    n = ls.x.size
+
+    def gap(y):
+        return np.r_[y[n] - r_at(y[:n]), y[n] + r_at(y[:n])]
+
+    def gap_jac(y):
+        J = jac(y[:n])
+        ones = np.ones((len(J), 1))
+        return np.block([[-J, ones], [J, ones]])
+
     epi = scipy.optimize.minimize(
-        lambda y: y[-1], y0, jac=lambda y: np.r_[np.zeros(n), 1.0], method="SLSQP",
-        bounds=[*zip(lo, hi), (0.0, None)],
-        constraints=[{"type": "ineq", "fun": lambda y: np.r_[y[-1] - r_at(y[:n]), y[-1] + r_at(y[:n])],
-                      "jac": lambda y: (lambda J: np.block([[-J, np.ones((len(J), 1))],
-                                                            [J, np.ones((len(J), 1))]]))(jac(y[:n]))}],
+        lambda y: y[n], np.r_[ls.x, np.max(np.abs(r_at(ls.x)))], jac=lambda y: np.r_[np.zeros(n), 1.0],
+        method="SLSQP", bounds=[*zip(lo, hi), (0.0, None)],
+        constraints=[{"type": "ineq", "fun": gap, "jac": gap_jac}],
         options={"maxiter": max_nfev, "ftol": 1e-8, "disp": bool(verbose)})
     best = min(evaluated, key=lambda k: np.max(np.abs(evaluated[k])))
     return _result(np.array(best), evaluated[best], epi, "SLSQP")
