@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from mpc.closed_loop import FixedInputs, Sensors, pi_baseline, run_closed_loop
+from mpc import FixedInputs, LoopSettings, Sensors, pi_baseline, run_closed_loop
 from mpc.estimator import HARDNESS_NOISE_PER_SQRT_H, Ekf
 from mpc.nmpc import Controller, NmpcSettings
 from mpc.optimize import feed_for_target
@@ -163,10 +163,10 @@ def run_case(args, plant_hardness=1.0, write: bool = True) -> pd.DataFrame:
                 preview=kind == "nmpc_preview"))
         build_s = time.perf_counter() - t0
         t0 = time.perf_counter()
-        res = run_closed_loop(plant.model, ctrl, est, schedule, sensors, args.duration_h, dt,
-                              ss.x, ss.u, seed=args.seed,
-                              preview_lead_h=LEAD_H if kind == "nmpc_preview" else 0.0,
-                              target_p80_um=TARGET_UM, estimator_warmup_h=args.warmup_h,
+        res = run_closed_loop(plant.model, ctrl, est, schedule, sensors, ss.x, ss.u,
+                              LoopSettings(args.duration_h, dt, seed=args.seed,
+                                           preview_lead_h=LEAD_H if kind == "nmpc_preview" else 0.0,
+                                           target_p80_um=TARGET_UM, estimator_warmup_h=args.warmup_h),
                               plant_hardness=plant_hardness)
         run_s = time.perf_counter() - t0
         k = dict(controller=kind, build_s=build_s, run_s=run_s, **res.kpis)

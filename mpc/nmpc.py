@@ -82,6 +82,7 @@ import numpy as np
 from mpc.discretize import rk4_map
 from mpc.errors import MpcInputError, MpcSolverError
 from mpc.results import ControllerStepResult
+from twin import pxx_um
 
 SOLVERS = ("ipopt", "sqpmethod", "fatrop", "rti")
 QP_SOLVERS = ("hpipm", "qrqp", "osqp")
@@ -535,8 +536,6 @@ class Controller:
                                     None, states)
 
     def _plan_info(self, states, plan, D) -> dict:
-        from twin.sizes import pxx_um
-
         psd_fn = self.model.product_psd_function()
         x_end, u_end, d_end = states[-1], plan[-1], D[:, -1]
         pas, load, se, pw = (float(v) for v in self._out_fn(x_end, u_end, d_end, self._wpass))

@@ -39,7 +39,7 @@ class ModelSpec:
     feed_nominal_tph: float
     holdup_nominal_t: float
     solids_density_t_m3: float
-    soft_frac: list  # clay + mica + chlorite mass fraction per component (twin.minerals)
+    soft_frac: list  # clay + mica + chlorite mass fraction per component (twin.ore.minerals)
     clay_frac: list  # clay (kaolinite + illite) mass fraction per component
     coefficients: dict
     n_mixers: int = 3

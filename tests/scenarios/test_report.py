@@ -10,9 +10,9 @@ import pandas as pd
 import pytest
 
 from scenarios.errors import SceneError
-from scenarios.outputs import write_run
-from scenarios.report import render_report, write_report
-from scenarios.runner import RunResult
+from scenarios.output.write import write_run
+from scenarios.output.report import render_report, write_report
+from scenarios.run.runner import RunResult
 
 
 def fake_run(tmp_path):

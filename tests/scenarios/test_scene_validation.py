@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from scenarios.errors import SceneError
-from scenarios.loader import check_scene, load_scene
+from scenarios.scene.loader import check_scene, load_scene
 from tests.scenarios.conftest import BASE_SCENE
 
 LIBRARY = sorted((Path(__file__).parents[2] / "scenarios").glob("*.toml"))
@@ -143,15 +143,15 @@ def test_pyrite_surge_differs_from_type_b_by_fifteen_points_of_pyrite_for_biotit
 
 
 def test_effect_requirements_come_from_the_twin_registry(write_scene):
-    pytest.importorskip("twin.effects.registry")
     messages = check_scene(write_scene(edit('"transport", ', "")))
     assert any("effects[1]" in m and "'holdup' requires effect 'transport'" in m
                for m in messages), messages
 
 
 def test_unknown_effect_option_names_the_allowed_ones(write_scene):
-    registry = pytest.importorskip("twin.effects.registry")
-    allowed = list(registry.EFFECTS["classification"].options)
+    from twin import EFFECTS
+
+    allowed = list(EFFECTS["classification"].options)
     text = edit('"power"]', '"power", "classification"]') + \
         '\n[effect_options.classification]\nknd = "grate"\n'
     messages = check_scene(write_scene(text))

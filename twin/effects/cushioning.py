@@ -4,9 +4,9 @@ lubricated, viscous charge draws less power (Shi & Napier-Munn 2002, Int. J. Min
 65, 195-214, mill power and breakage against slurry rheology; MISSION.md 'physical reasons').
 
 The soft fraction is the mass fraction of clay + mica + chlorite
-(twin.minerals.CUSHIONING_MINERALS) in the hold-up, computed from the states, so a clay-rich
+(twin.ore.minerals.CUSHIONING_MINERALS) in the hold-up, computed from the states, so a clay-rich
 component slows a hard one in a blend. Coefficients come from the calibration file
-(``twin/data/calibration.json``)."""
+(``twin/calibration/files/table.json``)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from .base import Assembly, Effect
 
 class Cushioning(Effect):
     name = "cushioning"
-    source = "Shi & Napier-Munn (2002); coefficients from twin/data/calibration.json"
+    source = "Shi & Napier-Munn (2002); coefficients from twin/calibration/files/table.json"
     summary = "S / (1 + k_rate phi_soft); power / (1 + k_power phi_soft)"
 
     def apply(self, asm: Assembly) -> None:

@@ -45,9 +45,3 @@ class Holdup(Effect):
         asm.rate_factors.append(1.0 / smooth_max(load, h_sat, 0.05))
         asm.outputs["load_frac"] = load
         asm.note(self.name, "discharge law on every mixer; selection factor 1/max(load, 0.5)")
-
-
-def load_status(load_frac: float, band) -> str:
-    """'under', 'stable' or 'over' for a load (hold-up over nominal) and a stable band."""
-    lo, hi = band
-    return "under" if load_frac < lo else "over" if load_frac > hi else "stable"

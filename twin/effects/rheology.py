@@ -9,7 +9,7 @@
   Napier-Munn 2002, as in twin.effects.cushioning, on clay in grinding slurries).
   w_clay is the clay mass fraction of the hold-up (from the states: a clay-rich component
   thickens the slurry a hard one grinds in); phi_v the mill slurry's solids volume fraction;
-  k_clay comes from the calibration file (``twin/data/calibration.json``).
+  k_clay comes from the calibration file (``twin/calibration/files/table.json``).
 - Transport: a particle leaves with the slurry when its settling velocity is below the slurry's
   through-flow; Stokes' law, v_s = g d^2 (rho_s - rho) / (18 mu), makes the cut size grow as
   sqrt(mu). Relative to a clay-free slurry of the same solids, the grate's d50 (and a
@@ -39,7 +39,7 @@ def thomas_relative_viscosity(phi):
 class Rheology(Effect):
     name = "rheology"
     requires = ("classification",)
-    source = "Thomas (1965) viscosity; Stokes settling cut size; coefficient from twin/data/calibration.json"
+    source = "Thomas (1965) viscosity; Stokes settling cut size; coefficient from twin/calibration/files/table.json"
     summary = "cut size x sqrt(mu_r(clay) / mu_r(no clay)); mu_r by Thomas at phi_v (1 + k w_clay)"
 
     def apply(self, asm: Assembly) -> None:

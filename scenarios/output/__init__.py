@@ -1,0 +1,8 @@
+"""What a run leaves behind: its folder (time series, summary, plots), written atomically, and
+the self-contained HTML report."""
+
+from scenarios.output.plots import PLOTS, write_plots
+from scenarios.output.report import render_report, write_report
+from scenarios.output.write import INCOMPLETE_MARKER, json_safe, write_run
+
+__all__ = ["INCOMPLETE_MARKER", "PLOTS", "json_safe", "render_report", "write_plots", "write_report", "write_run"]
