@@ -2,8 +2,8 @@
 
 What the twin takes from the drum DEM (twin.calibration.dem_link, section 4) is the collision-energy
 spectrum and the power; it turns them into the energy-specific selection function S^E(d)
-(``dem_link.selection_energy_specific``) and fits Austin's form to it
-(``dem_link.fit_austin_selection``). This benchmark measures how S^E and the power move with
+(``dem_map.selection_energy_specific``) and fits Austin's form to it
+(``dem_map.fit_austin_selection``). This benchmark measures how S^E and the power move with
 the DEM's resolution knobs, each against the longest / largest / finest run as the converged
 value, with the wall time each setting costs:
 
@@ -53,7 +53,7 @@ from dem_common import write_table
 from dem.drum import SOFT_STEEL_BALL, drum_system
 from dem.materials import RAYLEIGH_SAFETY_FACTOR, Material
 from dem.system import HIST_DLOG10, HIST_LO_LOG10, HIST_NBINS
-from twin.calibration import dem_link
+from twin.calibration import dem_link, dem_map, load_calibration
 from twin.ore.ores import load_ore
 from twin.sizes import SizeGrid
 
@@ -142,13 +142,13 @@ def window(run: dict, settle_rev: float, measure_rev: float) -> dict:
 
 def selection(drum: dict) -> dict:
     """S^E of ore B from a spectrum and power, as twin.calibration.dem_link computes it."""
-    rec = dem_link.shipped_dem_calibration()["ores"][ORE]["fracture_energy"]
+    rec = load_calibration("dem").record["dem"]["ores"][ORE]["fracture_energy"]
     rho = load_ore(ORE).density_t_m3 * 1000.0
-    grid = SizeGrid()
-    sizes = grid.mid_um[(grid.mid_um >= dem_link.FIT_MIN_UM) & (grid.mid_um <= dem_link.FEED_TOP_UM)]
-    se = dem_link.selection_energy_specific(sizes, drum, rec["e50_j_kg"], rec["sigma"], rho)
-    fit = dem_link.fit_austin_selection(sizes, se)
-    se1 = float(dem_link.selection_energy_specific([1000.0], drum, rec["e50_j_kg"], rec["sigma"], rho)[0])
+    drum = {**drum, "ball_diameter_m": dem_link.DRUM["ball_diameter_m"]}
+    sizes = dem_link.fit_sizes_um(SizeGrid())
+    se = dem_map.selection_energy_specific(sizes, drum, rec["e50_j_kg"], rec["sigma"], rho)
+    fit = dem_map.fit_austin_selection(sizes, se)
+    se1 = float(dem_map.selection_energy_specific([1000.0], drum, rec["e50_j_kg"], rec["sigma"], rho)[0])
     return {"SE_1mm_t_kWh": se1, "SE1_fit_t_kWh": fit["se_1mm_t_kwh"], "alpha": fit["alpha"],
             "mu_um": fit["mu_um"], "SE_curve": se}
 
@@ -254,7 +254,7 @@ def write(cache: str) -> None:
     write_table(df, "dem_drum_accuracy",
                 "Drum DEM accuracy against time -> selection function (lab mill, 0.7 critical, J = 0.35, ore B)",
                 "Errors in % of the study's reference row (longest / most balls / finest step / seed 0 / "
-                "stiffer balls). S^E from twin.calibration.dem_link.selection_energy_specific with ore B's shipped DEM "
+                "stiffer balls). S^E from twin.calibration.dem_map.selection_energy_specific with ore B's shipped DEM "
                 "fracture energies (capture scale not applied; it cancels in the errors): SE_1mm is S^E at "
                 "1 mm; SE1_fit, alpha, mu_um the fitted Austin form S1 (d/1 mm)^alpha / (1 + (d/mu)^Lambda) the "
                 "twin uses (S1, mu and Lambda trade off in the fit, so S1 alone scatters ~10 % where the curve "

@@ -50,7 +50,8 @@ from scipy import stats
 
 from dem_common import OUT, md_table
 from dem import BondCalibrator, BondParams, compression_test, make_agglomerate
-from twin.calibration.dem_link import DEM_CALIBRATION_PATH, _material
+from twin.calibration.dem_link import _material
+from twin.calibration.files import DEM_CALIBRATION_PATH
 from twin.ore.fracture_energy import fit_fracture_energy, fit_size_dependence
 from twin.ore.ores import load_ore
 
@@ -65,7 +66,7 @@ MEASURES = {"calibration test": "", "primary fracture": "_primary"}   # column s
 
 def shipped_setup():
     """Type B bonds, material and test settings exactly as the shipped calibration used them."""
-    cal = json.loads(DEM_CALIBRATION_PATH.read_text())
+    cal = json.loads(DEM_CALIBRATION_PATH.read_text())["dem"]  # the calibration's DEM step
     s, b = cal["settings"], cal["ores"][ORE]
     ore = load_ore(ORE)
     assert math.isclose(ore.youngs_gpa, b["youngs_gpa"], rel_tol=1e-9), "ore file changed since calibration"

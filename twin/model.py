@@ -46,6 +46,10 @@ class ModelSpec:
     p80_initial_um: float = 200.0
     effects: list = field(default_factory=list)
     effect_options: dict = field(default_factory=dict)
+    #: Symbols (an SX column) appended to d, and their values: a parametric model whose
+    #: calibration parameters stay symbolic for exact sensitivities (twin.calibration.parametric).
+    parameter_symbols: object = None
+    parameter_values: tuple = ()
 
 
 class Model:
@@ -71,6 +75,8 @@ class Model:
         mass = [[xm[(c * N + k) * n:(c * N + k + 1) * n] for k in range(N)] for c in range(C)]
         self.u = ca.SX.sym("u", len(INPUT_NAMES))
         self.d = ca.SX.sym("d", C + 1)
+        if spec.parameter_symbols is not None:
+            self.d = ca.vertcat(self.d, spec.parameter_symbols)
         build = Build(spec, self.u, self.d, mass)
         for eff in effects:
             eff.apply(EffectContext(build, eff))
@@ -131,7 +137,11 @@ class Model:
         """Values of the algebraic aggregates for a state."""
         if self.z.numel() == 0:
             return np.zeros(0)
-        return np.asarray(ca.Function("zx", [self.x], [self.z_expr])(x), float).ravel()
+        return np.asarray(self._z_function(x), float).ravel()
+
+    @cached_property
+    def _z_function(self) -> ca.Function:
+        return ca.Function("zx", [self.x], [self.z_expr])
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -173,7 +183,7 @@ class Model:
         if w.shape != (C,):
             raise TwinInputError(f"The 'blend' must have {C} fraction(s), one per component "
                                  f"{self.spec.component_names}. Got {list(w)}.")
-        return np.concatenate([w, [hardness_scale]])
+        return np.concatenate([w, [hardness_scale], np.asarray(self.spec.parameter_values, float)])
 
     def u_vector(self, feed_tph: float, speed_frac_critical: float | None = None) -> np.ndarray:
         speed = self.spec.mill.speed_nominal_frac_critical if speed_frac_critical is None else speed_frac_critical

@@ -14,7 +14,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from .breakage import ore_breakage
-from .calibration import mineralogy_breakage, shipped_calibration
+from .calibration import load_calibration
 from .errors import TwinInputError, bad_value
 from .mill import Mill, bond_power_kw, get_mill
 from .model import Model, ModelSpec
@@ -36,28 +36,31 @@ class Twin:
 
     ``ores``: a reference type ('B'), a Blend, or a sequence of ores (types, TOML paths,
     Mineralogy); the nominal blend (for the nominal hold-up's density and defaults) is the
-    Blend's fractions, else equal shares. ``breakage_map(ore, coefficients)`` is the one
-    replaceable mineralogy -> BreakageParams function; ``calibration`` (default: the shipped
-    ``twin/calibration/files/table.json``) gives its coefficients and the fitted mill values.
+    Blend's fractions, else equal shares. ``calibration``: a shipped name (``"dem"``, the
+    default, or ``"table"``), a calibration file's path or a :class:`twin.calibration.Calibration`;
+    it maps each ore's mineralogy to its breakage parameters and gives the coefficients the
+    effects read and the fitted mill values. ``breakage_map(ore, coefficients)`` replaces its
+    mineralogy -> BreakageParams map.
     ``feed_psd`` overrides the feed size distribution (object with ``passing`` or class fractions).
     """
 
     def __init__(self, ores="B", mill: str | Mill = "lab", effects: Sequence[str] = DEFAULT_EFFECTS,
                  effect_options: dict | None = None, grid: SizeGrid | None = None, n_mixers: int = 3,
                  feed_p80_um: float = FEED_P80_UM, feed_modulus: float = FEED_GGS_MODULUS, feed_psd=None,
-                 breakage_map: Callable = mineralogy_breakage, calibration: dict | None = None):
+                 breakage_map: Callable | None = None, calibration=None):
         self.blend = _as_blend(ores)
-        self.calibration = calibration or shipped_calibration()
-        self.coefficients = dict(self.calibration["coefficients"])
-        self.mill = get_mill(mill, self.calibration)
+        self.calibration = load_calibration(calibration)
+        self.coefficients = dict(self.calibration.coefficients)
+        self.mill = get_mill(mill, self.calibration.record)
         self.grid = grid or SizeGrid()
         if not isinstance(n_mixers, int) or not 1 <= n_mixers <= 20:
             raise bad_value("Twin", "n_mixers", n_mixers, "an integer in [1, 20]")
         density = 1.0 / sum(f / o.density_t_m3 for o, f in zip(self.blend.ores, self.blend.fractions))
         holdup_nom = self.mill.nominal_holdup_t(density)
         power_nom = bond_power_kw(self.mill, self.mill.speed_nominal_frac_critical)
-        breakage = [ore_breakage(self.grid, breakage_map(o, self.coefficients), power_nom, holdup_nom)
-                    for o in self.blend.ores]
+        params = [breakage_map(o, self.coefficients) if breakage_map else self.calibration.breakage(o)
+                  for o in self.blend.ores]
+        breakage = [ore_breakage(self.grid, p, power_nom, holdup_nom) for p in params]
         feed = _feed_fractions(self.grid, feed_psd, feed_p80_um, feed_modulus)
         self.spec = ModelSpec(
             grid=self.grid, mill=self.mill, component_names=self.blend.names, breakage=breakage,

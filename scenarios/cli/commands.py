@@ -55,6 +55,26 @@ def _print_kpis(summary: dict, out=None) -> None:
         out.write(f"  {key:26s} {text}\n")
 
 
+def _add_calibration_option(p) -> None:
+    p.add_argument("--calibration", metavar="NAME|PATH",
+                   help="the calibration the twin runs: a shipped name (dem, the default; table) or a calibration file")
+
+
+def _calibration_arg(value):
+    """``--calibration``: a shipped name as given, a file as an absolute path (scenes resolve
+    relative paths against their own folder)."""
+    if value is None:
+        return None
+    return str(Path(value).resolve()) if Path(value).is_file() else value
+
+
+def _with_calibration(scene, value):
+    """The scene with ``--calibration`` (if given) in place of its own ``calibration``."""
+    if value is not None:
+        scene.calibration = _calibration_arg(value)
+    return scene
+
+
 def _add_output_options(p) -> None:
     p.add_argument("--out", help="write the results into this folder (created; replaced when complete)")
     p.add_argument("--csv", action="store_true", help="also write timeseries.csv")
@@ -68,6 +88,7 @@ def add_run_parser(subparsers):
                               description="Run SCENE.toml: the twin driven by the scene's feed "
                               "schedule, open loop or with its controller; KPIs on stdout.")
     p.add_argument("scene", help="scene file (TOML)")
+    _add_calibration_option(p)
     _add_output_options(p)
     p.set_defaults(func=cmd_run)
     return p
@@ -78,7 +99,7 @@ def cmd_run(args) -> int:
     from scenarios.scene import load_scene
     from scenarios.run import run_scene
 
-    scene = load_scene(args.scene)
+    scene = _with_calibration(load_scene(args.scene), args.calibration)
     result = run_scene(scene, out_dir=args.out, progress=not args.quiet, csv=args.csv,
                        plots=not args.no_plots)
     _print_kpis(result.summary)
@@ -98,6 +119,7 @@ def add_replay_parser(subparsers):
     p.add_argument("--history", required=True, help="recorded history, .csv or .parquet")
     p.add_argument("--duration-h", type=float, default=None,
                    help="replay this long [h] (default: the whole history)")
+    _add_calibration_option(p)
     _add_output_options(p)
     p.set_defaults(func=cmd_replay)
     return p
@@ -112,7 +134,7 @@ def cmd_replay(args) -> int:
         raise SceneError(f"{args.history}: history file not found")
     if args.duration_h is not None and not args.duration_h > 0:
         raise SceneError(f"--duration-h must be > 0 (got {args.duration_h:g})")
-    result = replay_scene(load_scene(args.scene), args.history, out_dir=args.out,
+    result = replay_scene(_with_calibration(load_scene(args.scene), args.calibration), args.history, out_dir=args.out,
                           progress=not args.quiet, duration_h=args.duration_h, csv=args.csv,
                           plots=not args.no_plots)
     _print_kpis(result.summary)
@@ -145,6 +167,7 @@ def add_sweep_parser(subparsers):
     g.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://host:8786")
     p.add_argument("--out", help="write sweep.csv and sweep.parquet into this folder")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_calibration_option(p)
     p.set_defaults(func=cmd_sweep)
     return p
 
@@ -163,6 +186,11 @@ def cmd_sweep(args) -> int:
         if key in vary:
             raise SceneError(f"--vary {key}: given twice")
         vary[key] = values
+    if args.calibration is not None:  # as a varied key with one value (every case runs it)
+        if "calibration" in vary:
+            raise SceneError("--calibration and --vary calibration=...: give one")
+        n = len(next(iter(vary.values()))) if args.mode == "paired" else 1
+        vary["calibration"] = [_calibration_arg(args.calibration)] * n
     table = run_sweep(args.scene, vary, sweep_case, mode=args.mode, workers=args.workers,
                       scheduler=args.scheduler, progress=not args.quiet)
     if args.out:
@@ -259,6 +287,10 @@ def add_steady_parser(subparsers):
     s.add_argument("--json", action="store_true", help="print the KPIs as JSON (unit-suffixed keys)")
     s.add_argument("--surrogate", action="store_true",
                    help="answer from the PLS surrogate (lab mill; refuses inputs outside its training domain)")
+    _add_calibration_option(s)
+    s.add_argument("--uncertainty", nargs="?", type=int, const=0, default=None, metavar="N",
+                   help="also print 90 %% intervals of P80, specific energy and throughput over the calibration's "
+                   "bootstrap replicates of the DEM's particle scatter (N replicates, default all)")
     s.set_defaults(func=cmd_steady)
     return s
 
@@ -273,34 +305,57 @@ def cmd_steady(args) -> int:
 
     from twin import Blend, Twin, load_ore
 
+    from twin.calibration import load_calibration
+
     blend = Blend.parse(args.blend) if args.blend else Blend.single(load_ore(args.ore))
+    calibration = load_calibration(_calibration_arg(args.calibration))
+    if args.uncertainty is not None and (args.surrogate or args.uncertainty < 0):
+        raise SceneError("--uncertainty N needs N >= 0 (0: all replicates) and the twin, not --surrogate.")
     if args.surrogate:
         from twin.surrogate import surrogate_steady
 
         if args.at_constant_load:
             raise SceneError("--surrogate answers at a given feed rate; it cannot be combined with --at-constant-load.")
-        kpis = surrogate_steady(blend, args.feed_tph, args.speed, mill=args.mill)
+        kpis = surrogate_steady(blend, args.feed_tph, args.speed, mill=args.mill, calibration=calibration)
         kpis = {k: v for k, v in kpis.items() if k in STEADY_KEYS or k == "source"}
     else:
-        twin = Twin(blend, mill=args.mill)
+        twin = Twin(blend, mill=args.mill, calibration=calibration)
         if args.at_constant_load:
             ss = twin.steady_at_constant_load(speed_frac_critical=args.speed)
         else:
             ss = twin.steady(feed_tph=args.feed_tph, speed_frac_critical=args.speed)
         kpis = {k: v for k, v in ss.summary().items() if k in STEADY_KEYS} | {"source": "twin"}
+    unc = None
+    if args.uncertainty is not None:
+        from twin.calibration import steady_intervals
+
+        unc = steady_intervals(blend, calibration, args.mill, args.feed_tph, args.speed,
+                               at_load=args.at_constant_load, n=args.uncertainty or None)
     if args.json:
         mineralogy = {o.name: {"wt_pct": o.wt_pct, **o.summary()} for o in blend.ores}
         print(json.dumps({"mill": args.mill, "blend": dict(zip(blend.names, blend.fractions)),
-                          **kpis, "mineralogy": mineralogy}, indent=2))
+                          "calibration": calibration.identity(), **kpis, "mineralogy": mineralogy,
+                          **({"uncertainty": unc} if unc else {})}, indent=2))
         return 0
-    print(f"Mill {args.mill}, blend " + ", ".join(f"{n} {f:.0%}" for n, f in zip(blend.names, blend.fractions)))
+    print(f"Mill {args.mill}, blend " + ", ".join(f"{n} {f:.0%}" for n, f in zip(blend.names, blend.fractions))
+          + f"; calibration {calibration.label()}")
     for key, val in kpis.items():
         print(f"  {key:24s} {val:.4g}" if isinstance(val, float) else f"  {key:24s} {val}")
+    if unc:
+        _print_intervals(unc, at_load=args.at_constant_load)
     for ore in blend.ores:
         wt = ", ".join(f"{m} {w:.1f}" for m, w in sorted(ore.wt_pct.items(), key=lambda kv: -kv[1]))
         print(f"  ore {ore.name}: H_min {ore.hardness_index_gpa:.2f} GPa, textural index "
               f"{ore.textural_index:.2f}; wt%: {wt}")
     return 0
+
+
+def _print_intervals(unc: dict, at_load: bool) -> None:
+    print(f"  {unc['level']:.0%} intervals over {unc['n']} bootstrap replicates of the DEM's particle scatter"
+          + (f" ({unc['failed']} failed steady states left out)" if unc["failed"] else "") + ":")
+    for key, (lo, mid, hi) in unc["intervals"].items():
+        note = "" if at_load or key != "throughput_tph" else "  (the given feed rate)"
+        print(f"    {key:22s} {mid:.4g}  [{lo:.4g}, {hi:.4g}]{note}")
 
 
 # --------------------------------------------------------------------------- optimize
@@ -320,6 +375,7 @@ def add_optimize_parser(subparsers):
     o.add_argument("--mode", default="both", choices=["both", "feed", "speed"], help="which answer to pick")
     o.add_argument("--objective", default="min_energy", choices=["min_energy", "max_throughput"])
     o.add_argument("--json", action="store_true", help="print the answer and the table as JSON")
+    _add_calibration_option(o)
     o.set_defaults(func=cmd_optimize)
     return o
 
@@ -332,7 +388,7 @@ def cmd_optimize(args) -> int:
     from twin import Blend, Twin, load_ore
 
     blend = Blend.parse(args.blend) if args.blend else Blend.single(load_ore(args.ore))
-    twin = Twin(blend, mill=args.mill)
+    twin = Twin(blend, mill=args.mill, calibration=_calibration_arg(args.calibration))
     lo, hi = (f * twin.mill.feed_nominal_tph for f in OPTIMIZE_FEED_RANGE)
     try:
         sp = optimal_setpoints(twin, list(blend.fractions), args.target_p80_um, mode=args.mode,
@@ -357,23 +413,22 @@ def cmd_optimize(args) -> int:
 
 # --------------------------------------------------------------------------- calibrate
 def add_calibrate_parser(subparsers):
-    c = subparsers.add_parser("calibrate", help="regenerate twin/calibration/files/table.json from the repository")
-    c.add_argument("--fast", action="store_true", help="a quick, coarser calibration (a check)")
-    c.add_argument("--out", help="write here instead of the shipped file")
-    c.add_argument("--dem", action="store_true",
-                   help="derive the breakage parameters from the DEM (twin/calibration/files/dem.json)")
-    c.add_argument("--seed", type=int, help="seed of the DEM agglomerates and tests (with --dem)")
+    from twin.calibration.calibrate import add_arguments
+
+    c = subparsers.add_parser("calibrate", help="make a calibration file (the DEM chain by default)",
+                              description="Make a calibration: the DEM step (virtual tests), the laws across ores, "
+                              "the table step and the bootstrap; or --map mineralogy. Writes to --out or a new file "
+                              "in the current directory and prints where.")
+    add_arguments(c)
     c.set_defaults(func=cmd_calibrate)
     return c
 
 
 @_exit_codes("calibrate")
 def cmd_calibrate(args) -> int:
-    from twin.calibration import main as calibrate
+    from twin.calibration.calibrate import calibrate
 
-    argv = (["--fast"] if args.fast else []) + (["--out", args.out] if args.out else [])
-    argv += (["--dem"] if args.dem else []) + (["--seed", str(args.seed)] if args.seed is not None else [])
-    return calibrate(argv)
+    return calibrate(args)
 
 
 # --------------------------------------------------------------------------- bench

@@ -52,6 +52,14 @@ def _fmt(key: str, value) -> str:
         return html.escape(str(value))
 
 
+def _calibration_text(cal) -> str | None:
+    """Name, file and hash of the calibration a run used (summary.json's ``calibration``)."""
+    if not cal:
+        return None
+    sha = f", sha256 {cal['sha256'][:12]}" if cal.get("sha256") else ""
+    return f"{cal.get('name')} ({cal.get('path') or 'in memory'}{sha})"
+
+
 def kpi_table(kpis: dict) -> str:
     """The KPIs as an HTML table (key, meaning, value); n/a for undefined ones."""
     rows = []
@@ -94,6 +102,7 @@ def render_report(run_dir) -> str:
              ("target P80 [um]", summary.get("target_p80_um")), ("seed", summary.get("seed")),
              ("effects", ", ".join(summary.get("effects", []))),
              ("components", ", ".join(summary.get("components", []))),
+             ("calibration", _calibration_text(summary.get("calibration"))),
              ("scene file", summary.get("source"))]
     parts.append("<table>" + "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
                                      for k, v in facts if v is not None) + "</table>")

@@ -1,5 +1,7 @@
 """A scene's models: the controller's twin and, where ``[plant]`` differs, the plant's twin,
-each built once from the scene's ores, mill, effects and size classes."""
+each built once from the scene's ores, mill, effects and size classes, with the scene's
+calibration (refused where a twin's effects or grid differ from it, unless the scene says
+``calibration_mismatch_ok = true``)."""
 
 from __future__ import annotations
 
@@ -9,7 +11,7 @@ from typing import Any
 from scenarios.errors import RunError, SceneError
 from scenarios.scene import Scene, ore_mineralogies
 from twin import Mineralogy, SizeGrid, Twin, TwinError, get_mill, reference_ores
-from twin.calibration import shipped_calibration
+from twin.calibration import Calibration, load_calibration
 
 
 @dataclass
@@ -20,6 +22,7 @@ class Models:
     plant: Any
     components: list[str]
     notes: list[str] = field(default_factory=list)
+    calibration: Calibration | None = None
 
 
 def is_batch(scene: Scene) -> bool:
@@ -36,33 +39,53 @@ def component_ores(scene: Scene) -> dict:
             for name, o in sorted(reference_ores().items())}
 
 
-def scene_mill(scene: Scene):
+def scene_calibration(scene: Scene) -> Calibration:
+    """The scene's calibration (``calibration``: a shipped name or a file); SceneError if missing."""
+    try:
+        return load_calibration(scene.calibration_spec())
+    except TwinError as exc:
+        raise SceneError(f"{scene.source_path or scene.scene.name}: calibration: {exc}") from None
+
+
+def scene_mill(scene: Scene, calibration: Calibration | None = None):
     """The scene's mill: its preset with the fitted values of the calibration, and the scene's
     dimensions."""
     m = scene.mill
-    return get_mill(m.preset, shipped_calibration()).with_(
+    cal = calibration or scene_calibration(scene)
+    return get_mill(m.preset, cal.record).with_(
         diameter_m=m.diameter_m, length_m=m.length_m, ball_filling_frac=m.ball_filling_frac)
 
 
-def build_twin(scene: Scene, ores: dict, effects, effect_options, size_classes, n_mixers=None):
+def build_twin(scene: Scene, ores: dict, effects, effect_options, size_classes, n_mixers=None,
+               calibration: Calibration | None = None):
     """A twin of the scene's mill and feed with the given effects and grid; SceneError if the
-    twin refuses it."""
+    twin refuses it, or if its effects or grid differ from the calibration's and the scene does
+    not say ``calibration_mismatch_ok = true``."""
+    cal = calibration or scene_calibration(scene)
+    src = scene.source_path or scene.scene.name
+    grid = SizeGrid(size_classes.top_um, size_classes.ratio, size_classes.count)
+    mismatch = cal.mismatch(effects, grid)
+    if mismatch and not scene.calibration_mismatch_ok:
+        raise SceneError(f"{src}: " + "; ".join(mismatch) + " (set calibration_mismatch_ok = true if the scene "
+                         "means it)")
     try:
-        return Twin(list(ores.values()), mill=scene_mill(scene), effects=list(effects),
-                    effect_options=dict(effect_options or {}),
-                    grid=SizeGrid(size_classes.top_um, size_classes.ratio, size_classes.count),
+        return Twin(list(ores.values()), mill=scene_mill(scene, cal), effects=list(effects),
+                    effect_options=dict(effect_options or {}), grid=grid,
                     n_mixers=int(n_mixers or scene.mill.n_mixers), feed_p80_um=scene.feed.p80_um,
-                    feed_modulus=scene.feed.ggs_modulus)
+                    feed_modulus=scene.feed.ggs_modulus, calibration=cal)
     except TwinError as exc:
-        src = scene.source_path or scene.scene.name
         raise SceneError(f"{src}: the twin refused the scene: {exc}") from None
 
 
 def build_models(scene: Scene) -> Models:
     """The controller's twin and, if ``[plant]`` differs, the plant's twin (built once)."""
     ores = component_ores(scene)
-    control = build_twin(scene, ores, scene.effects, scene.effect_options, scene.mill.size_classes)
-    notes = []
+    cal = scene_calibration(scene)
+    control = build_twin(scene, ores, scene.effects, scene.effect_options, scene.mill.size_classes, calibration=cal)
+    notes = [f"calibration {cal.label()}"]
+    grid = scene.mill.size_classes
+    for problem in cal.mismatch(scene.effects, SizeGrid(grid.top_um, grid.ratio, grid.count)):
+        notes.append(f"calibration_mismatch_ok: {problem}")
     if not scene.ores:
         notes.append("no [ores]: components are the reference types " + ", ".join(ores))
     plant = control
@@ -79,6 +102,6 @@ def build_models(scene: Scene) -> Models:
         mixers = p.n_mixers if p.n_mixers is not None else scene.mill.n_mixers
         if (list(effects), dict(options), sizes, mixers) != (
                 list(scene.effects), dict(scene.effect_options), scene.mill.size_classes, scene.mill.n_mixers):
-            plant = build_twin(scene, ores, effects, options, sizes, mixers)
+            plant = build_twin(scene, ores, effects, options, sizes, mixers, calibration=cal)
             notes.append("the plant is a separate twin (effects " + ", ".join(effects) + ")")
-    return Models(control=control, plant=plant, components=list(ores), notes=notes)
+    return Models(control=control, plant=plant, components=list(ores), notes=notes, calibration=cal)

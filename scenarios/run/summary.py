@@ -42,6 +42,7 @@ def make_summary(scene: Scene, models: Models, kpis: dict, notes: list[str], wal
         "mode": "batch" if is_batch(scene) else ("open_loop" if scene.controller.kind == "none"
                                                   else "closed_loop"),
         "effects": list(scene.effects),
+        "calibration": models.calibration.identity() if models.calibration is not None else None,
         "components": models.components,
         "kpis": kpis,
         "model": models.control.model.describe(),

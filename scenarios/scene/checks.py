@@ -16,6 +16,8 @@ from typing import Any
 from scenarios.errors import SceneError
 from scenarios.scene.history import read_history
 from scenarios.scene.keypaths import did_you_mean, format_path
+from twin import SizeGrid, TwinError
+from twin.calibration import DEFAULT_CALIBRATION, load_calibration
 from twin.effects import problems as effect_problems
 from twin.ore import mineral_names
 
@@ -63,6 +65,7 @@ def cross_check(data: dict[str, Any], base_dir: Path) -> list[str]:
     _check_controller(data, r)
     _check_sensors(data, r)
     _check_plant(data, r)
+    _check_calibration(data, base_dir, r)
     return r.messages
 
 
@@ -333,3 +336,42 @@ def _check_plant(data, r: _Report) -> None:
                                                  or plant.get("effect_options") is not None):
         _check_effect_table(plant.get("effects", data.get("effects")), plant.get("effect_options", {}),
                             ("plant",), r)
+
+
+def _grid_of(table) -> SizeGrid | None:
+    """The size grid of a ``size_classes`` table (the schema's defaults for missing keys)."""
+    table = table if isinstance(table, dict) else {}
+    try:
+        return SizeGrid(float(table.get("top_um", 6700.0)), float(table.get("ratio", 2.0 ** 0.5)),
+                        int(table.get("count", 25)))
+    except (TwinError, TypeError, ValueError):
+        return None  # the schema pass reports bad sizes
+
+
+def _check_calibration(data, base_dir: Path, r: _Report) -> None:
+    """The calibration exists, and each twin of the scene (the controller's model and a
+    separate plant) has its effects and size grid, unless ``calibration_mismatch_ok = true``."""
+    name = data.get("calibration", DEFAULT_CALIBRATION)
+    if not isinstance(name, str):
+        return
+    spec = str(base_dir / name) if name.endswith(".json") and not Path(name).is_absolute() else name
+    try:
+        cal = load_calibration(spec)
+    except TwinError as exc:
+        r.add(("calibration",), str(exc), name)
+        return
+    if data.get("calibration_mismatch_ok") is True:
+        return
+    effects = data.get("effects")
+    plant = data.get("plant") if isinstance(data.get("plant"), dict) else None
+    models = [(("effects",), effects, _get(data, "mill", "size_classes"))]
+    if plant is not None and plant.get("model", "twin") == "twin":
+        models.append((("plant", "effects"), plant.get("effects", effects),
+                       plant.get("size_classes", _get(data, "mill", "size_classes"))))
+    for loc, eff, sizes in models:
+        grid = _grid_of(sizes)
+        if not isinstance(eff, list) or grid is None:
+            continue
+        for problem in cal.mismatch(eff, grid):
+            r.add(loc, f"{problem}: the calibration's numbers were fitted with its own; use a calibration made "
+                  "with these (grindtwin calibrate) or set calibration_mismatch_ok = true if the scene means it")

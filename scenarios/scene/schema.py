@@ -193,6 +193,10 @@ class Scene(Section):
 
     ``effect_options`` maps an effect of ``effects`` to its options (option names are checked
     against those the twin's effect declares; values are passed to the twin as written).
+    ``calibration`` names the calibration the twins run (a shipped name such as ``"dem"``, the
+    default, or a calibration file, relative to the scene's folder); a model whose effects or
+    size grid differ from the calibration's is refused unless ``calibration_mismatch_ok = true``
+    says the scene means it (the check names both lists).
     ``source_path`` is the file it came from (``None`` if built from a dict); relative paths
     in the scene (``feed.history``) are resolved against its folder.
     """
@@ -206,6 +210,8 @@ class Scene(Section):
     controller: Controller = Field(default_factory=Controller)
     sensors: Sensors = Field(default_factory=Sensors)
     plant: Plant | None = None
+    calibration: str = Field(default="dem", min_length=1)
+    calibration_mismatch_ok: bool = False
 
     _source_path: Path | None = PrivateAttr(default=None)
 
@@ -213,6 +219,13 @@ class Scene(Section):
     def source_path(self) -> Path | None:
         """The scene file, or ``None``."""
         return self._source_path
+
+    def calibration_spec(self) -> str:
+        """``calibration`` as a shipped name, or its file resolved against the scene's folder."""
+        p = Path(self.calibration)
+        if p.suffix == ".json" and not p.is_absolute() and self._source_path is not None:
+            return str(self._source_path.parent / p)
+        return self.calibration
 
     def history_path(self) -> Path | None:
         """``feed.history`` resolved against the scene file's folder, or ``None``."""

@@ -20,14 +20,16 @@ LIBRARY = Path(__file__).resolve().parents[2] / "scenarios"
 
 def short_pyrite_scene(tmp_path: Path, duration_h: float = 1.0, target_p80_um: float = 250.0) -> Path:
     """The library's pyrite surge, shortened (duration d: B, pyrite-rich B from 0.3 d, B again
-    from 0.6 d), on a coarser grid (13 classes, ratio 2, one mixer) so that tests run fast."""
+    from 0.6 d), on a coarser grid (13 classes, ratio 2, one mixer) so that tests run fast (the
+    scene says it means the mismatch with its calibration's grid)."""
     text = (LIBRARY / "pyrite_surge.toml").read_text()
     for old, new in (("duration_h = 6.0", f"duration_h = {duration_h}"),
                      ("at_h = 2.0", f"at_h = {0.3 * duration_h:g}"),
                      ("at_h = 4.0", f"at_h = {0.6 * duration_h:g}"),
                      ('preset = "industrial"', 'preset = "industrial"\nn_mixers = 1\n'
                       'size_classes = { ratio = 2.0, count = 13 }'),
-                     ('kind = "none"', f'kind = "none"\ntarget_p80_um = {target_p80_um}')):
+                     ('kind = "none"', f'kind = "none"\ntarget_p80_um = {target_p80_um}'),
+                     ("\n[scene]", "\ncalibration_mismatch_ok = true  # the coarse test grid\n\n[scene]")):
         assert old in text
         text = text.replace(old, new)
     path = tmp_path / "short.toml"
@@ -164,7 +166,8 @@ def test_written_run_is_complete_and_json_has_no_nan(short_run, tmp_path):
     assert summary["kpis"]["solve_time_median_s"] is None
     assert summary["scene"] == "pyrite_surge" and summary["seed"] == 3
     assert "Effects:" in summary["model"] and summary["versions"]["numpy"]
-    assert summary["effects"] == ["breakage", "transport", "holdup", "speed", "cushioning", "power"]
+    assert summary["effects"] == ["breakage", "transport", "holdup", "speed", "cushioning", "rheology", "power",
+                                  "classification"]
     back = pd.read_parquet(out / "timeseries.parquet")
     pd.testing.assert_frame_equal(back, short_run.frame, check_dtype=False)
 
@@ -261,6 +264,7 @@ def test_mineralogy_history_without_ores_runs_on_the_reference_types(tmp_path):
     pd.DataFrame(rows).to_csv(tmp_path / "mineralogy.csv", index=False)
     scene = tmp_path / "min.toml"
     scene.write_text("""effects = ["breakage", "transport", "holdup", "power"]
+calibration_mismatch_ok = true
 [scene]
 name = "mineralogy_replay"
 duration_h = 0.25

@@ -1,46 +1,124 @@
-"""The shipped calibration file is the output of `grindtwin calibrate` for the code as it is:
-re-predicting with its values gives back the numbers it recorded (regenerate it with the
-command when the model changes, never by editing it)."""
+"""Calibrations as named objects: the shipped files say what they are and reproduce what they
+recorded (regenerate them with their command when the model changes, never by editing them);
+the table step converges and counts its solver failures; new files go where they are told and
+never over a file grindtwin did not write."""
+
+import json
+import math
 
 import numpy as np
 import pytest
 
-from twin.calibration import table as calibration
-from twin.calibration import shipped_calibration
+from twin import SizeGrid, SolverError, Twin, TwinInputError
+from twin.calibration import (DEFAULT_CALIBRATION, DEM_FITTED, DEM_NAMES, Calibration, check_writable,
+                              fit_log_ratios, load_calibration, predict_table, shipped_names)
+from twin.calibration.fitting import SOLVER_FAILURE_RESIDUAL, TableProblem
+from twin.calibration.files import default_output_path, write_calibration
+from twin.twin import DEFAULT_EFFECTS
 
 
-def test_shipped_file_records_its_command_versions_and_errors():
-    cal = shipped_calibration()
-    assert cal["provenance"]["command"].startswith("grindtwin calibrate")
+@pytest.fixture(scope="module", params=["dem", "table"])
+def shipped(request):
+    return load_calibration(request.param)
+
+
+def test_the_default_is_the_dem_chain():
+    assert DEFAULT_CALIBRATION == "dem" and {"dem", "table"} <= set(shipped_names())
+    assert Twin("B").calibration.name == "dem" and Twin("B").calibration.breakage_map == "dem"
+
+
+def test_a_shipped_file_says_what_it_is_and_where_it_came_from(shipped):
+    rec = shipped.record
+    assert rec["effects"] == list(DEFAULT_EFFECTS) and rec["mill"] == "lab" and rec["n_mixers"] == 3
+    assert SizeGrid(**rec["size_grid"]) == SizeGrid()
+    assert rec["provenance"]["command"].startswith("grindtwin calibrate")
     for key in ("python", "numpy", "scipy", "casadi", "created"):
-        assert cal["provenance"][key]
-    assert set(cal["fit"]["error_pct"]) == {"A", "B", "C", "D"}
+        assert rec["provenance"][key]
+    assert rec["fit"]["fitted_to"]["path"] == "twin/calibration/data/reference_table.csv"
+    assert set(shipped.fitted) == set(rec["fit"]["parameters_fitted"])
+    for name, item in shipped.fitted.items():
+        assert item["value"] == pytest.approx(rec["fit"]["values"][name], rel=1e-12)
+        assert len(item["why_not_derivable"]) > 30, name
 
 
-def test_shipped_values_reproduce_the_recorded_predictions():
-    cal = shipped_calibration()
-    values = dict(cal["coefficients"])
-    values.update({f"lab_{k}": v for k, v in cal["mills"]["lab"].items()})
-    pred = calibration.predict(values)
-    for ore, kpis in cal["fit"]["predicted"].items():
+def test_shipped_values_reproduce_the_recorded_predictions(shipped):
+    pred = predict_table(shipped)
+    for ore, kpis in shipped.record["fit"]["predicted"].items():
         for key, value in kpis.items():
-            assert pred[ore][key] == pytest.approx(value, rel=1e-6), (ore, key)
+            assert pred[ore][key] == pytest.approx(value, rel=1e-6), (shipped.name, ore, key)
 
 
-def test_calibrated_p80_order_follows_hardness():
-    pred = shipped_calibration()["fit"]["predicted"]
-    p80 = [pred[o]["p80_um"] for o in "ABCD"]
-    energy = [pred[o]["specific_energy_kwh_t"] for o in "ABCD"]
-    assert p80 == sorted(p80)  # soft ores give a coarser product ...
-    assert energy[0] > energy[3]  # ... for less energy per tonne (MISSION.md reference table)
+def test_the_table_step_converged_without_solver_failures(shipped):
+    opt = shipped.record["fit"]["optimizer"]
+    assert opt["success"], opt["message"]
+    assert shipped.record["fit"]["solver_failures"]["count"] == 0
+    assert "exact" in opt["jacobian"]
 
 
-def test_minimax_step_reaches_the_linear_programme_optimum_and_the_pnorm_does_not_beat_it():
+def test_the_dem_chain_fits_only_ore_independent_numbers():
+    cal = load_calibration("dem")
+    assert tuple(cal.record["fit"]["parameters_fitted"]) == DEM_NAMES == tuple(DEM_FITTED)
+    # nothing fitted is per ore: no fitted name mentions an ore, and every ore's breakage
+    # parameters come from the laws and the mineralogy alone
+    assert not any(n.endswith(("_A", "_B", "_C", "_D")) for n in DEM_NAMES)
+    assert len(DEM_NAMES) <= 8
+
+
+def test_names_paths_and_refusals(tmp_path):
+    cal = load_calibration("dem")
+    assert load_calibration(cal.path) is cal  # the same file, read once
+    with pytest.raises(TwinInputError, match="shipped name .*dem.*table"):
+        load_calibration("dme")
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"coefficients": {}}))
+    with pytest.raises(TwinInputError, match="not a grindtwin calibration file"):
+        load_calibration(bad)
+
+
+def test_mismatch_names_both_lists():
+    cal = load_calibration("dem")
+    assert cal.mismatch(DEFAULT_EFFECTS + ("sensor_delay",), SizeGrid()) == []  # a measurement effect
+    msgs = cal.mismatch(["breakage", "transport"], SizeGrid(count=7, ratio=2.5))
+    assert len(msgs) == 2
+    assert "['breakage', 'transport']" in msgs[0] and "'rheology'" in msgs[0]
+    assert "'count': 7" in msgs[1] and "'count': 25" in msgs[1]
+
+
+def test_new_files_never_overwrite_what_grindtwin_did_not_write(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    out = default_output_path("dem")
+    assert out.parent == tmp_path and not out.exists()
+    foreign = tmp_path / "notes.json"
+    foreign.write_text('{"mine": true}')
+    with pytest.raises(TwinInputError, match="Refusing to overwrite"):
+        check_writable(foreign)
+    assert foreign.read_text() == '{"mine": true}'
+    rec = dict(load_calibration("table").record, name="copy")
+    written = write_calibration(tmp_path / "copy.json", rec)
+    assert written.name == "copy" and check_writable(tmp_path / "copy.json")  # its own file: allowed
+    assert load_calibration(tmp_path / "copy.json").sha256 == written.sha256
+
+
+def test_a_failed_steady_state_is_a_counted_rejected_point(monkeypatch):
+    problem = TableProblem(load_calibration("dem"), ("dem_capture_scale",), {"dem_capture_scale": (1e-4, 1e4)},
+                           ores=("B",))
+
+    def fail(values, with_gradient=True):
+        raise SolverError("Steady state not found (test)")
+
+    monkeypatch.setattr(problem.twins["B"], "kpis", fail)
+    r, J = problem.evaluate(np.array([math.log(0.02)]))
+    assert np.all(r == SOLVER_FAILURE_RESIDUAL) and np.all(J == 0)
+    assert problem.failures == ["Steady state not found (test)"]
+    monkeypatch.setattr(problem.twins["B"], "kpis", lambda *a, **k: (_ for _ in ()).throw(ValueError("bug")))
+    with pytest.raises(ValueError, match="bug"):  # anything else is not swallowed
+        problem.evaluate(np.array([math.log(0.03)]))
+
+
+def test_minimax_step_reaches_the_linear_programme_optimum():
     """On an overdetermined linear system the max-norm optimum is a linear programme (an
     independent reference): min t s.t. -t <= A z - b <= t, lo <= z <= hi."""
     from scipy.optimize import linprog
-
-    from twin.calibration import fit_log_ratios
 
     rng = np.random.default_rng(3)
     A, b = rng.normal(size=(12, 3)), rng.normal(size=12)
@@ -48,10 +126,17 @@ def test_minimax_step_reaches_the_linear_programme_optimum_and_the_pnorm_does_no
     lp = linprog(np.r_[0, 0, 0, 1.0], A_ub=np.block([[A, -np.ones((12, 1))], [-A, -np.ones((12, 1))]]),
                  b_ub=np.r_[b, -b], bounds=[*zip(lo, hi), (0, None)])
     assert lp.success
-    res = fit_log_ratios(lambda z: A @ z - b, np.zeros(3) + 0.5, lo, hi, max_nfev=100)
+    res = fit_log_ratios(lambda z: A @ z - b, lambda z: A, np.zeros(3) + 0.5, lo, hi, max_iter=100)
     assert res.success and np.all((res.x >= lo) & (res.x <= hi))
-    assert res.max_abs_residual == pytest.approx(lp.fun, rel=1e-5)
-    pn = fit_log_ratios(lambda z: A @ z - b, np.zeros(3) + 0.5, lo, hi, max_nfev=100, final="pnorm")
-    assert pn.max_abs_residual >= lp.fun * (1 - 1e-9)
-    with pytest.raises(ValueError, match="'final'"):
-        fit_log_ratios(lambda z: A @ z - b, np.zeros(3), lo, hi, max_nfev=5, final="max")
+    assert res.max_abs_residual == pytest.approx(lp.fun, rel=1e-6)
+    ls = np.linalg.lstsq(A, b, rcond=None)[0]
+    assert np.max(np.abs(A @ ls - b)) > lp.fun * 1.05  # least squares alone would not do
+
+
+def test_a_calibration_in_memory_runs_with_its_values():
+    cal = load_calibration("dem")
+    faster = cal.with_values(coefficients={"dem_capture_scale": 2 * cal.coefficients["dem_capture_scale"]})
+    assert isinstance(faster, Calibration) and faster.sha256 is None
+    a = Twin("B", calibration=cal).steady(0.031, 0.70)
+    b = Twin("B", calibration=faster).steady(0.031, 0.70)
+    assert b.p80_um < a.p80_um  # twice the capture: faster breakage, a finer product

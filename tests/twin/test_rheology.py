@@ -5,7 +5,7 @@ leaves coarser and faster at constant load)."""
 import numpy as np
 import pytest
 
-from twin.calibration import shipped_calibration
+from twin.calibration import load_calibration
 from twin.effects.rheology import SLURRY_SOLIDS_VOL_FRAC, thomas_relative_viscosity
 from twin.errors import ModelError
 from twin.mill import LAB
@@ -17,8 +17,7 @@ NO_RHEOLOGY = [e for e in DEFAULT_EFFECTS if e != "rheology"]
 
 
 def _calibration(**coefficients):
-    cal = shipped_calibration()
-    return {"coefficients": {**cal["coefficients"], **coefficients}, "mills": cal["mills"]}
+    return load_calibration().with_values(coefficients=coefficients)
 
 
 def test_rheology_is_in_the_model_only_when_listed():

@@ -64,9 +64,20 @@ def test_shipped_metadata_and_scores(shipped):
     assert meta["failed_steady_states"] == 0
     for kpi in S.TARGETS:
         assert meta["cv_r2"][kpi] >= R2_THRESHOLD and meta["held_out_r2"][kpi] >= R2_THRESHOLD
-    assert meta["calibration_sha256"] == S.calibration_sha256(), (
-        "twin/calibration/files/table.json changed since the surrogate was trained: regenerate with "
-        "`python -m twin.surrogate --generate --train`")
+    assert meta["calibration"]["name"] == "dem" and meta["calibration_sha256"] == S.calibration_sha256(), (
+        "twin/calibration/files/dem.json (the default calibration) changed since the surrogate was trained: "
+        "regenerate with `python -m twin.surrogate --generate --train`")
+
+
+def test_refuses_a_calibration_it_was_not_trained_on(shipped):
+    from twin.calibration import load_calibration
+
+    S.check_trained_on(shipped, load_calibration("dem"))
+    with pytest.raises(TwinInputError, match="trained on calibration 'dem'.*this is calibration 'table'.*--calibration table"):
+        S.surrogate_steady("B", surrogate=shipped, calibration="table")
+    edited = load_calibration("dem").with_values(coefficients={"clay_crowding_coeff": 1.0})
+    with pytest.raises(TwinInputError, match="trained on calibration"):
+        S.check_trained_on(shipped, edited)  # a calibration in memory has no file hash
 
 
 def test_compiled_predict_equals_pipeline(split_fit):

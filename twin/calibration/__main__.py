@@ -1,7 +1,7 @@
-"""``python -m twin.calibration [--dem] [--fast] [--out PATH]``: regenerate a calibration."""
+"""``python -m twin.calibration [--map dem|mineralogy] [--from FILE] [--out PATH] ...``: as ``grindtwin calibrate``."""
 
 import sys
 
-from .table import main
+from .calibrate import run
 
-sys.exit(main())
+sys.exit(run())

@@ -1,7 +1,6 @@
-"""Mineralogy -> breakage parameters: the one replaceable function the model calls.
-
-Until the DEM calibration replaces it, the energy-specific selection at 1 mm follows the ore's
-mineralogical hardness and texture,
+"""The mineralogy map of the ``table`` calibration (the default ``dem`` calibration maps by the
+DEM laws of twin.calibration.dem_map instead): the energy-specific selection at 1 mm follows
+the ore's mineralogical hardness and texture,
 
     S^E_1 = S^E_ref (H_ref / H_min)^a_H * TI^-a_T       [t/kWh]
 
@@ -13,8 +12,8 @@ scale of a lump, so coarse lumps break easily while liberated fine grains stay s
 size effect on fracture energy of Tavares & King 1998, Int. J. Miner. Process. 54, 1-28).
 The rest of the shape of S and the breakage function B take the typical values Austin,
 Klimpel & Luckie (1984, ch. 4) report for ores ground with ~25 mm balls. S^E_ref, a_H, a_T
-and a_alpha are not typed in: `grindtwin calibrate` fits them and writes
-``twin/calibration/files/table.json``.
+and a_alpha are not typed in: ``grindtwin calibrate --map mineralogy`` fits them
+(twin.calibration.table; shipped as ``twin/calibration/files/table.json``).
 """
 
 from __future__ import annotations

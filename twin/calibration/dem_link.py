@@ -1,15 +1,6 @@
-"""The link from the DEM (``dem``) to the twin's breakage parameters (MISSION.md sections 2-4).
-
-``calibrate_from_dem(fast, seed)`` regenerates ``twin/calibration/files/dem.json`` from nothing
-but the repository; ``dem_breakage(ore, coefficients)`` is a breakage map usable as
-``Twin(ore, breakage_map=dem_breakage, calibration=dem_twin_calibration())``.
-Command line: ``python -m twin.calibration --dem [--fast] [--seed N]`` (or ``python -m twin.calibration.dem_link``;
-``--table-only`` reruns only step 5 on the file's DEM numbers). ``grindtwin calibrate`` forwards
-only ``--fast``/``--out`` to twin.calibration (scenarios/commands.py), so it still runs the
-mineralogy-map fit; forwarding ``--dem`` there is one line in scenarios (not this module's).
-The shipped twin/calibration/files/table.json (mineralogy map) stays the default of ``Twin``: the
-DEM-based table fit meets the 5 % goal with less room (see
-benchmarks/results/twin_dem_link_table.md).
+"""The DEM's virtual tests behind the default calibration (MISSION.md sections 2-4): what
+``grindtwin calibrate`` runs in its DEM step (:func:`run_dem`), before the laws across ores
+(twin.calibration.dem_map) and the table step (twin.calibration.calibrate).
 
 Units: SI inside the DEM part (N, Pa, J/kg, m); the twin's units (um, t/kWh, 1/h) at the end.
 
@@ -87,40 +78,27 @@ How hardness reaches it: a harder, stiffer ore has a larger E50 (E50 ~ sigma^2/(
 with the target force), so fewer of the same collisions break it: S^E falls from A to D in the
 opposite order of the targets. The DEM has no flaw-size population: E50 does not grow for
 finer particles (Tavares & King's size effect is absent), which is why alpha comes out near
-2 (the captured mass ~ d^2); see the report.
+2 (the captured mass ~ d^2). The capture model and the laws that carry these numbers to any
+ore are in twin.calibration.dem_map.
 
-5. The map and the remaining fit
---------------------------------
-``dem_breakage`` interpolates each DEM-derived parameter (ln S^E_1, alpha, ln mu, Lambda,
-gamma, phi) piecewise-linearly in ln F_target(mineralogy) between the reference ores and
-refuses ores outside the span of the reference types. One number scales all S^E: the capture
-efficiency ``dem_capture_scale`` (the fraction of captured mass that is really nipped; fitted
-in the UFRJ model too), fitted to MISSION.md's table together with the cushioning coefficients
-(twin.effects.cushioning), the clay-crowding coefficient (twin.effects.rheology) and the lab
-mill's power factor, grate cut size, sharpness and discharge factor.
+Every ore's particles are the same seeded packings (agglomerate k has seed ``seed + k`` for
+every ore): the ores differ by their bonds and materials only (common random numbers), and a
+bootstrap resamples packings jointly across ores (twin.calibration.uncertainty).
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import scipy.optimize
 
-from ..breakage import BreakageParams
-from .breakage_map import AUSTIN_SHAPE
-from .files import DEM_CALIBRATION_PATH, lab_mill_values, shipped_dem_calibration, versions, write_json_atomically
-from .fitting import fit_log_ratios
-from .reference import KPIS, reference_table
-from ..errors import TwinError, TwinInputError
-from ..ore.fracture_energy import breakage_probability, fit_fracture_energy
+from ..errors import TwinInputError
 from ..ore.mineralogy import Mineralogy
 from ..ore.ores import load_ore
+from ..ore.fracture_energy import fit_fracture_energy
+from .dem_map import fit_austin_B
 
 REFERENCE_ORES = ("A", "B", "C", "D")
 #: MISSION.md section 2: measured peak fracture force of a -25+19 mm Type B particle.
@@ -142,19 +120,21 @@ DROP_MAX_TIME_FACTOR = 0.6
 #: drum of the lab mill (MISSION.md) and twin.mill.LAB
 DRUM = {"speed_frac_critical": 0.70, "ball_filling": 0.35, "mill_diameter_m": 0.5, "mill_length_m": 0.3,
         "ball_diameter_m": 0.025}
-BED_POROSITY = 0.4
 FIT_MIN_UM = 20.0
 FEED_TOP_UM = 6000.0
-#: The full drum window settles 1 revolution: measured (benchmarks/results/dem_drum_accuracy.md),
+#: The DEM step's settings. ``full``: 30 particles per ore, so that E50's standard error
+#: (sigma / sqrt(n) in ln E50, sigma ~0.3-0.45) stays below 10 %; 4 drop-test packings per
+#: energy. The drum window settles 1 revolution: measured (benchmarks/results/dem_drum_accuracy.md),
 #: 0.5 revolution of settling reads power 3 % high, while 1 + 1 is within 0.1 % (power) and 1 %
-#: (S^E at 1 mm) of 10 revolutions. The fast window (0.3 + 0.3) reads S^E 20-25 % low.
+#: (S^E at 1 mm) of 10 revolutions. The fast window (0.3 + 0.3) reads S^E 20-25 % low; ``fast``
+#: is a check of the machinery, not a calibration.
 SETTINGS = {
-    "full": {"n_particles": 10, "drop_particles": 3, "drop_energy_multiples": DROP_ENERGY_MULTIPLES,
+    "full": {"n_particles": 30, "drop_particles": 4, "drop_energy_multiples": DROP_ENERGY_MULTIPLES,
              "calibration_tol_pct": 2.0, "max_iter": 5, "drum_settle_rev": 1.0, "drum_measure_rev": 1.0,
-             "drum_section_length_m": 0.1, "table_max_nfev": 60},
-    "fast": {"n_particles": 3, "drop_particles": 1, "drop_energy_multiples": (0.4, 1.2, 4.0),
+             "drum_section_length_m": 0.1},
+    "fast": {"n_particles": 4, "drop_particles": 2, "drop_energy_multiples": (0.6, 1.2, 5.0),
              "calibration_tol_pct": 4.0, "max_iter": 3, "drum_settle_rev": 0.3, "drum_measure_rev": 0.3,
-             "drum_section_length_m": 0.0625, "table_max_nfev": 3},
+             "drum_section_length_m": 0.0625},
 }
 
 
@@ -165,9 +145,9 @@ def target_peak_force_N(ore: Mineralogy, reference: Mineralogy | None = None) ->
     return TARGET_B_N * math.sqrt((ore.youngs_gpa / b.youngs_gpa) * (ore.hardness_index_gpa / b.hardness_index_gpa))
 
 
-def targets() -> dict:
+def targets(ores=REFERENCE_ORES) -> dict:
     out = {}
-    for name in REFERENCE_ORES:
+    for name in ores:
         o = load_ore(name)
         out[name] = {"target_peak_force_N": target_peak_force_N(o), "youngs_gpa": o.youngs_gpa,
                      "hardness_index_gpa": o.hardness_index_gpa, "density_t_m3": o.density_t_m3}
@@ -194,41 +174,6 @@ def calibrate_bonds(ore: Mineralogy, target_N: float, settings: dict, seed: int,
 
 
 # ---------------------------------------------------------------------- 3. fragments
-def _austin_B(y, gamma, phi, beta):
-    return phi * y ** gamma + (1.0 - phi) * y ** beta
-
-
-def fit_austin_B(y, passing, beta: float = AUSTIN_SHAPE["beta"]) -> dict:
-    """gamma, phi of Austin's B to a product size distribution (beta fixed).
-
-    ``y`` = sieve size / parent size, ``passing`` = cumulative mass fraction finer. Austin's B
-    describes the fragments that *left* the parent's size class (twin.breakage's convention:
-    B = 1 at the parent's lower size, sizes relative to it), so the product is renormalised by
-    the mass passing the first sieve below the parent, y0 = 1/sqrt(2):
-    ``B(r) = passing(y) / passing(y0)``, ``r = y / y0``, and ``t10 = passing(y0) B(0.1 / y0)``.
-    Bounds gamma in [0.3, 3], phi in [0.01, 1] (Austin et al. 1984 report gamma 0.5-1.5)."""
-    y = np.asarray(y, float)
-    p = np.asarray(passing, float)
-    y0 = 2.0 ** -0.5
-    top = np.isclose(y, y0)
-    p0 = float(np.mean(p[top])) if np.any(top) else float("nan")
-    below = y < y0 * (1 - 1e-9)
-    if not (p0 > 1e-6) or not np.any(below):
-        return {"gamma": float("nan"), "phi": float("nan"), "beta": float(beta), "rmse": float("nan"),
-                "passing_y0": p0 if np.isfinite(p0) else 0.0, "t10": 0.0}
-    r = y[below] / y0
-    b = np.clip(p[below] / p0, 0.0, 1.0)
-
-    def res(q):
-        return _austin_B(r, q[0], q[1], beta) - b
-
-    sol = scipy.optimize.least_squares(res, [1.0, 0.5], bounds=([0.3, 0.01], [3.0, 1.0]))
-    g, ph = sol.x
-    return {"gamma": float(g), "phi": float(ph), "beta": float(beta),
-            "rmse": float(np.sqrt(np.mean(sol.fun ** 2))), "passing_y0": p0,
-            "t10": float(p0 * _austin_B(0.1 / y0, g, ph, beta))}
-
-
 def fit_t10(e_kwh_t, t10) -> dict:
     """t10 = A (1 - exp(-b E)) (Narayanan & Whiten 1988); t10 as a fraction (A in %, reported)."""
     e = np.asarray(e_kwh_t, float)
@@ -247,7 +192,9 @@ def fit_t10(e_kwh_t, t10) -> dict:
             "r2": float(1.0 - np.sum(sol.fun ** 2) / ss) if ss > 0 else float("nan")}
 
 
-def drop_tests(ore: Mineralogy, bond_params, e50_j_kg: float, settings: dict, seed: int) -> dict:
+def drop_tests(ore: Mineralogy, bond_params, e50_j_kg: float, settings: dict, seed: int, tick=None) -> dict:
+    """Drop-weight tests at ``drop_energy_multiples`` x E50 on ``drop_particles`` packings; each
+    row keeps its packing index and energy multiple (for the bootstrap and the pooled B)."""
     from dem import drop_weight_test, make_agglomerate
 
     mat = _material(ore)
@@ -265,23 +212,23 @@ def drop_tests(ore: Mineralogy, bond_params, e50_j_kg: float, settings: dict, se
             keep = (sd["sieve_size_rel"] >= y_min) & (sd["sieve_size_rel"] < 1.0)
             ys.append(sd["sieve_size_rel"][keep].to_numpy())
             ps.append(sd["passing_frac"][keep].to_numpy())
-            row = {"particle": k, "specific_energy_J_kg": e,
+            row = {"particle": k, "energy_multiple": float(mult), "specific_energy_J_kg": e,
                    "sieve_size_rel": ys[-1].tolist(), "passing_frac": ps[-1].tolist()}
             row.update({key: float(v) for key, v in r.summary().items()
                         if key in ("t2", "t4", "broken_fraction", "largest_fragment_frac", "n_fragments",
                                    "absorbed_energy_J", "wall_time_s")})
             rows.append(row)
+            if tick:
+                tick()
         fit = fit_austin_B(np.concatenate(ys), np.concatenate(ps))
-        fit["n_tests"] = len(aggs)
-        fit["specific_energy_J_kg"] = e
-        fit["specific_energy_kwh_t"] = e / 3600.0
+        fit.update({"n_tests": len(aggs), "energy_multiple": float(mult), "specific_energy_J_kg": e,
+                    "specific_energy_kwh_t": e / 3600.0})
         per_energy.append(fit)
     t10 = fit_t10([p["specific_energy_kwh_t"] for p in per_energy], [p["t10"] for p in per_energy])
-    return {"tests": rows, "per_energy": per_energy, "t10_fit": t10,
-            "resolved_size_rel_min": y_min}
+    return {"tests": rows, "per_energy": per_energy, "t10_fit": t10, "resolved_size_rel_min": y_min}
 
 
-# ---------------------------------------------------------------------- 4. selection
+# ---------------------------------------------------------------------- 4. drum
 def drum_spectrum(settings: dict, seed: int) -> dict:
     from dem import drum_test
 
@@ -292,286 +239,97 @@ def drum_spectrum(settings: dict, seed: int) -> dict:
     sp = r.spectrum
     keep = sp["total_per_s"].to_numpy() > 0
     return {"power_W": r.power_W, "collisions_per_s": r.collisions_per_s, "n_balls": r.n_balls,
-            "wall_time_s": r.wall_time_s,
+            "wall_time_s": r.wall_time_s, "ball_diameter_m": DRUM["ball_diameter_m"],
             "energy_mid_J": sp["energy_mid_J"].to_numpy()[keep].tolist(),
             "collisions_per_s_by_class": sp["total_per_s"].to_numpy()[keep].tolist()}
 
 
-def captured_mass_kg(d_m, density_kg_m3: float):
-    """m_c = rho_s (1 - eps) pi R_ball d^2 (module docstring, section 4)."""
-    return density_kg_m3 * (1.0 - BED_POROSITY) * math.pi * 0.5 * DRUM["ball_diameter_m"] * np.asarray(d_m) ** 2
+def fit_sizes_um(grid) -> list:
+    """The sizes the Austin selection is fitted over: the grid's classes from FIT_MIN_UM to the feed top."""
+    return [float(x) for x in grid.mid_um if FIT_MIN_UM <= x <= FEED_TOP_UM]
 
 
-def selection_energy_specific(size_um, drum: dict, e50_j_kg: float, sigma: float, density_kg_m3: float):
-    """S^E(d) [t/kWh] = 3.6 sum_k f_k m_c P(E_k/m_c) / P_kW (per-collision capture model)."""
-    d = np.asarray(size_um, float) * 1e-6
-    e = np.asarray(drum["energy_mid_J"])
-    f = np.asarray(drum["collisions_per_s_by_class"])
-    mc = captured_mass_kg(d, density_kg_m3)
-    p = breakage_probability(e[None, :] / mc[:, None], e50_j_kg, sigma)
-    kg_per_s = np.sum(f[None, :] * mc[:, None] * p, axis=1)
-    return kg_per_s * 3.6 / (drum["power_W"] / 1000.0)   # (kg/s * 3600 / 1000) t/h per kW
+# ---------------------------------------------------------------------- the DEM step
+def _progress_total(settings: dict, n_ores: int) -> int:
+    """Simulations in the DEM step: the drum, then per ore the bond iterations' compression tests
+    (counted at the most iterations) and the drop tests."""
+    per_ore = settings["max_iter"] * settings["n_particles"] + settings["drop_particles"] * len(
+        settings["drop_energy_multiples"])
+    return 1 + n_ores * per_ore
 
 
-def fit_austin_selection(size_um, se_t_kwh) -> dict:
-    """S^E = S1 (d/1000)^alpha / (1 + (d/mu)^Lambda), least squares on ln S^E."""
-    x = np.asarray(size_um, float)
-    y = np.log(np.asarray(se_t_kwh, float))
+def run_dem(fast: bool = False, seed: int = 0, ores=REFERENCE_ORES, progress: bool = True) -> dict:
+    """Steps 1-4 on the reference ores: the DEM record of a calibration file (per ore: target,
+    bonds, per-particle fracture energies, drop tests; the drum spectrum; settings; times).
+    A progress bar (tqdm, on stderr) counts the simulations and shows the wall time."""
+    from tqdm.auto import tqdm
 
-    def model(q):
-        ls1, alpha, lmu, lam = q
-        return ls1 + alpha * np.log(x / 1000.0) - np.log1p((x / math.exp(lmu)) ** lam)
-
-    best = None
-    for lmu0 in (math.log(300.0), math.log(1000.0), math.log(3000.0)):
-        sol = scipy.optimize.least_squares(lambda q: model(q) - y, [y.max(), 1.5, lmu0, 3.0],
-                                           bounds=([-30, 0.0, math.log(10.0), 0.05], [30, 5.0, math.log(1e6), 20.0]))
-        if best is None or sol.cost < best.cost:
-            best = sol
-    ls1, alpha, lmu, lam = best.x
-    return {"se_1mm_t_kwh": float(math.exp(ls1)), "alpha": float(alpha), "mu_um": float(math.exp(lmu)),
-            "Lambda": float(lam), "rmse_ln": float(np.sqrt(np.mean(best.fun ** 2)))}
-
-
-# ---------------------------------------------------------------------- the pipeline
-def dem_part(fast: bool = False, seed: int = 0, ores=REFERENCE_ORES, verbose: bool = True) -> dict:
-    """Steps 1-4 (the DEM-derived numbers); no table fit."""
-    from twin.sizes import SizeGrid
-
+    unknown = [o for o in ores if o not in REFERENCE_ORES]
+    if unknown:
+        raise TwinInputError(f"The DEM step runs reference ores {REFERENCE_ORES}. Got {unknown}.")
     settings = SETTINGS["fast" if fast else "full"]
     t0 = time.perf_counter()
-    tg = targets()
+    tg = targets(ores)
     order = ["B"] + [o for o in ores if o != "B"] if "B" in ores else list(ores)
-    drum = drum_spectrum(settings, seed)
-    if verbose:
-        print(f"drum: {drum['power_W']:.1f} W, {drum['collisions_per_s']:.0f} collisions/s "
-              f"({drum['wall_time_s']:.0f} s)", flush=True)
-    grid = SizeGrid()
-    sizes = grid.mid_um[(grid.mid_um >= FIT_MIN_UM) & (grid.mid_um <= FEED_TOP_UM)]
     out, sigma_b = {}, None
-    for name in order:
-        ore = load_ore(name)
-        t1 = time.perf_counter()
-        target = tg[name]["target_peak_force_N"]
-        # first guess (a start only, the fit moves it): B from the particle's tensile strength
-        # 2.8 F / (pi d^2) (Hiramatsu & Oka 1966) times START_BOND_TO_PARTICLE_STRENGTH; the others
-        # from B's fitted strength scaled with the force (Potyondy & Cundall 2004 s3.2)
-        s0 = (sigma_b * target / TARGET_B_N if sigma_b else
-              START_BOND_TO_PARTICLE_STRENGTH * 2.8 * target / (math.pi * PARTICLE_DIAMETER_M ** 2))
-        cal = calibrate_bonds(ore, target, settings, seed, s0)
-        if name == "B":
-            sigma_b = cal.tensile_strength_Pa_
-        fe = fit_fracture_energy(cal.specific_fracture_energy_J_kg_)
-        drops = drop_tests(ore, cal.bond_params_, fe.e50_j_kg, settings, seed)
-        se = selection_energy_specific(sizes, drum, fe.e50_j_kg, fe.sigma, ore.density_t_m3 * 1000.0)
-        sel = fit_austin_selection(sizes, se)
-        # breakage function: the Austin B fitted at the drop energy nearest the mill's typical
-        # specific collision energy (energy-weighted mean collision energy over m_c at 1 mm)
-        e = np.asarray(drum["energy_mid_J"])
-        f = np.asarray(drum["collisions_per_s_by_class"])
-        e_typ = float(np.sum(e * e * f) / np.sum(e * f)) / float(captured_mass_kg(1e-3, ore.density_t_m3 * 1000.0))
-        pe = drops["per_energy"]
-        k = int(np.argmin([abs(math.log(p["specific_energy_J_kg"] / e_typ)) if np.isfinite(p["gamma"]) else np.inf
-                           for p in pe]))
-        out[name] = {
-            "target_peak_force_N": target, "youngs_gpa": ore.youngs_gpa,
-            "hardness_index_gpa": ore.hardness_index_gpa, "density_t_m3": ore.density_t_m3,
-            "bond": {"kn_GPa_m": cal.kn_Pa_m_ / 1e9, "ks_GPa_m": cal.ks_Pa_m_ / 1e9,
-                     "tensile_strength_MPa": cal.tensile_strength_Pa_ / 1e6, "cohesion_MPa": cal.cohesion_Pa_ / 1e6,
-                     "bond_modulus_GPa": ore.youngs_gpa},
-            "mean_peak_force_N": cal.mean_peak_force_N_, "calibration_error_pct": cal.calibration_error_pct_,
-            "peak_force_cv_pct": cal.peak_force_cv_pct_, "iterations": cal.n_iter_,
-            "n_particles": int(settings["n_particles"]),
-            "quasi_static_mismatch_rel": float(np.nanmean([r.force_mismatch_rel for r in cal.results_])),
-            "specific_fracture_energy_J_kg": cal.specific_fracture_energy_J_kg_.tolist(),
-            "fracture_energy": {"model": fe.model, "e50_j_kg": fe.e50_j_kg, "sigma": fe.sigma, "n": fe.n,
-                                "ks_statistic": fe.ks_statistic, "ks_pvalue": fe.ks_pvalue},
-            "drop_weight": drops,
-            "selection": {**sel, "sizes_um": sizes.tolist(), "se_t_kwh_per_size": se.tolist(),
-                          "typical_specific_energy_1mm_J_kg": e_typ},
-            "breakage_function": {"gamma": pe[k]["gamma"], "phi": pe[k]["phi"], "beta": pe[k]["beta"],
-                                  "at_specific_energy_J_kg": pe[k]["specific_energy_J_kg"],
-                                  "t10_there": pe[k]["t10"]},
-            "wall_time_s": time.perf_counter() - t1,
-        }
-        if verbose:
-            o = out[name]
-            print(f"{name}: target {target:.0f} N, sigma_t {o['bond']['tensile_strength_MPa']:.2f} MPa, "
-                  f"err {o['calibration_error_pct']:.2f} %, E50 {fe.e50_j_kg:.1f} J/kg s {fe.sigma:.3f}, "
-                  f"t10 A {drops['t10_fit']['A_pct']:.1f} b {drops['t10_fit']['b_t_kwh']:.3g}, "
-                  f"S^E1 {sel['se_1mm_t_kwh']:.3g} alpha {sel['alpha']:.2f} mu {sel['mu_um']:.0f} "
-                  f"L {sel['Lambda']:.2f} ({o['wall_time_s']:.0f} s)", flush=True)
+    with tqdm(total=_progress_total(settings, len(ores)), desc="DEM step", unit="sim", disable=not progress) as bar:
+        bar.set_postfix_str("drum")
+        drum = drum_spectrum(settings, seed)
+        bar.update(1)
+        for name in order:
+            bar.set_postfix_str(f"ore {name}")
+            out[name], sigma = _dem_ore(name, tg[name], settings, seed, sigma_b, bar)
+            sigma_b = sigma_b or sigma
     return {"settings": {**{k: list(v) if isinstance(v, tuple) else v for k, v in settings.items()},
                          "spheres_per_particle": SPHERES, "particle_diameter_m": PARTICLE_DIAMETER_M,
                          "platen_speed_m_s": PLATEN_SPEED_M_S, "stiffness_ratio": STIFFNESS_RATIO,
-                         "cohesion_ratio": COHESION_RATIO, "drop_mass_kg": DROP_MASS_KG, "drum": DRUM},
+                         "cohesion_ratio": COHESION_RATIO, "drop_mass_kg": DROP_MASS_KG, "drum": DRUM,
+                         "seed": seed, "fast": fast},
             "drum": drum, "ores": {n: out[n] for n in ores}, "dem_seconds": time.perf_counter() - t0}
 
 
-# ---------------------------------------------------------------------- 5. map + table fit
-MAP_KEYS = ("ln_se_1mm", "alpha", "ln_mu", "Lambda", "gamma", "phi")
+def _dem_ore(name: str, target: dict, settings: dict, seed: int, sigma_b: float | None, bar):
+    """One ore's bond calibration and drop tests; returns (record, fitted bond strength)."""
+    ore = load_ore(name)
+    t1 = time.perf_counter()
+    force = target["target_peak_force_N"]
+    # first guess (a start only, the fit moves it): B from the particle's tensile strength
+    # 2.8 F / (pi d^2) (Hiramatsu & Oka 1966) times START_BOND_TO_PARTICLE_STRENGTH; the others
+    # from B's fitted strength scaled with the force (Potyondy & Cundall 2004 s3.2)
+    s0 = (sigma_b * force / TARGET_B_N if sigma_b else
+          START_BOND_TO_PARTICLE_STRENGTH * 2.8 * force / (math.pi * PARTICLE_DIAMETER_M ** 2))
+    cal = calibrate_bonds(ore, force, settings, seed, s0)
+    bar.update(settings["max_iter"] * settings["n_particles"])  # counted at the most iterations
+    fe = fit_fracture_energy(cal.specific_fracture_energy_J_kg_)
+    drops = drop_tests(ore, cal.bond_params_, fe.e50_j_kg, settings, seed, tick=lambda: bar.update(1))
+    rec = {
+        "target_peak_force_N": force, "youngs_gpa": ore.youngs_gpa,
+        "hardness_index_gpa": ore.hardness_index_gpa, "density_t_m3": ore.density_t_m3,
+        "bond": {"kn_GPa_m": cal.kn_Pa_m_ / 1e9, "ks_GPa_m": cal.ks_Pa_m_ / 1e9,
+                 "tensile_strength_MPa": cal.tensile_strength_Pa_ / 1e6, "cohesion_MPa": cal.cohesion_Pa_ / 1e6,
+                 "bond_modulus_GPa": ore.youngs_gpa},
+        "mean_peak_force_N": cal.mean_peak_force_N_, "calibration_error_pct": cal.calibration_error_pct_,
+        "peak_force_cv_pct": cal.peak_force_cv_pct_, "iterations": cal.n_iter_,
+        "n_particles": int(settings["n_particles"]),
+        "peak_force_N": [float(v) for v in cal.peak_force_N_],
+        "quasi_static_mismatch_rel": float(np.nanmean([r.force_mismatch_rel for r in cal.results_])),
+        "specific_fracture_energy_J_kg": cal.specific_fracture_energy_J_kg_.tolist(),
+        "fracture_energy": {"model": fe.model, "e50_j_kg": fe.e50_j_kg, "sigma": fe.sigma, "n": fe.n,
+                            "ln_e50_se": fe.ln_e50_se, "ks_statistic": fe.ks_statistic, "ks_pvalue": fe.ks_pvalue},
+        "drop_weight": drops,
+        "wall_time_s": time.perf_counter() - t1,
+    }
+    return rec, cal.tensile_strength_Pa_
 
 
-def _nodes(record: dict):
-    rows = []
-    for name, o in record["ores"].items():
-        s, b = o["selection"], o["breakage_function"]
-        rows.append((math.log(o["target_peak_force_N"]),
-                     [math.log(s["se_1mm_t_kwh"]), s["alpha"], math.log(s["mu_um"]), s["Lambda"],
-                      b["gamma"], b["phi"]]))
-    rows.sort()
-    return np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
+def per_ore_selection(dem: dict, sizes_um) -> dict:
+    """Each reference ore's own S^E (its own E50 and sigma, before any law) and Austin fit: the
+    numbers the laws are checked against (benchmarks/twin_dem_link.py)."""
+    from .dem_map import fit_austin_selection, selection_energy_specific
 
-
-#: ores may lie this far (in ln F_target) outside the reference span before the map refuses
-EXTRAPOLATION_TOL_LN = 0.02
-
-
-def dem_breakage(ore: Mineralogy, coefficients: dict, record: dict | None = None) -> BreakageParams:
-    """DEM-derived breakage parameters of an ore (module docstring, section 5).
-
-    ``coefficients['dem_capture_scale']`` multiplies S^E (default 1: the DEM alone)."""
-    rec = record or coefficients.get("_dem_record") or shipped_dem_calibration()
-    x, y = _nodes(rec)
-    xi = math.log(target_peak_force_N(ore))
-    if not (x[0] - EXTRAPOLATION_TOL_LN <= xi <= x[-1] + EXTRAPOLATION_TOL_LN):
-        raise TwinInputError(
-            f"dem_breakage cannot map ore {ore.name!r}: its strength index F_target = {math.exp(xi):.0f} N "
-            f"lies outside the DEM-calibrated reference ores ({math.exp(x[0]):.0f}-{math.exp(x[-1]):.0f} N). "
-            "Use twin.calibration.breakage_map.mineralogy_breakage or add DEM calibrations for such ores.")
-    v = [float(np.interp(xi, x, y[:, j])) if len(x) > 1 else float(y[0, j]) for j in range(y.shape[1])]
-    p = dict(zip(MAP_KEYS, v))
-    return BreakageParams(se_1mm_t_kwh=math.exp(p["ln_se_1mm"]) * float(coefficients.get("dem_capture_scale", 1.0)),
-                          alpha=p["alpha"], mu_um=math.exp(p["ln_mu"]), Lambda=p["Lambda"],
-                          gamma=p["gamma"], beta=AUSTIN_SHAPE["beta"], phi=p["phi"], delta=0.0,
-                          source="DEM map (twin.calibration.dem_link)")
-
-
-#: Start of the table fit (a starting point only; the fit moves every value).
-TABLE_START = {"dem_capture_scale": 0.02, "cushioning_rate_coeff": 0.4, "cushioning_power_coeff": 0.6,
-               "clay_crowding_coeff": 1.6, "lab_power_factor": 1.3, "lab_grate_d50_um": 450.0,
-               "lab_grate_sharpness": 6.5, "lab_discharge_factor": 1.25}
-TABLE_BOUNDS = {"dem_capture_scale": (1e-4, 1e4), "cushioning_rate_coeff": (1e-6, 20.0),
-                "cushioning_power_coeff": (1e-6, 20.0), "clay_crowding_coeff": (1e-6, 5.0),
-                "lab_power_factor": (0.3, 3.0), "lab_grate_d50_um": (10.0, 3000.0),
-                "lab_grate_sharpness": (0.5, 10.0), "lab_discharge_factor": (0.5, 50.0)}
-
-
-def twin_calibration(values: dict, record: dict | None = None) -> dict:
-    """{'coefficients', 'mills'} for Twin(..., breakage_map=dem_breakage, calibration=...)."""
-    coef = {k: values[k] for k in ("dem_capture_scale", "cushioning_rate_coeff", "cushioning_power_coeff",
-                                   "clay_crowding_coeff")}
-    if record is not None:
-        coef["_dem_record"] = record
-    return {"coefficients": coef, "mills": {"lab": lab_mill_values(values)}}
-
-
-def dem_twin_calibration() -> dict:
-    """The shipped DEM-path calibration (table-fitted coefficients) for Twin(calibration=...)."""
-    rec = shipped_dem_calibration()
-    if "table_fit" not in rec:
-        raise TwinError("twin/calibration/files/dem.json has no table fit (made with table_fit=False).")
-    return twin_calibration(rec["table_fit"]["values"])
-
-
-def predict(values: dict, record: dict | None = None, ores=REFERENCE_ORES) -> dict:
-    from ..twin import Twin
-
-    cal = twin_calibration(values, record)
     out = {}
-    for ore in ores:
-        ss = Twin(ore, mill="lab", breakage_map=dem_breakage, calibration=cal) \
-            .steady_at_constant_load(speed_frac_critical=0.70)
-        out[ore] = {"p80_um": ss.p80_um, "specific_energy_kwh_t": ss.outputs["specific_energy_kwh_t"],
-                    "throughput_kg_h": ss.feed_tph * 1000.0}
+    for name, o in dem["ores"].items():
+        fe = o["fracture_energy"]
+        se = selection_energy_specific(sizes_um, dem["drum"], fe["e50_j_kg"], fe["sigma"], o["density_t_m3"] * 1000.0)
+        out[name] = {**fit_austin_selection(sizes_um, se), "se_t_kwh_per_size": se.tolist()}
     return out
-
-
-def fit_table(record: dict, max_nfev: int = 60) -> dict:
-    ref = reference_table()
-    names = tuple(TABLE_START)
-    lo = np.log([TABLE_BOUNDS[n][0] for n in names])
-    hi = np.log([TABLE_BOUNDS[n][1] for n in names])
-
-    def unpack(z):
-        return {n: float(math.exp(v)) for n, v in zip(names, z)}
-
-    def resid(z):
-        try:
-            pred = predict(unpack(z), record)
-        except Exception:
-            return np.full(len(ref) * len(KPIS), 10.0)
-        return np.array([math.log(pred[o][k] / ref[o][k]) for o in ref for k in KPIS])
-
-    t0 = time.perf_counter()
-    sol = fit_log_ratios(resid, np.log([TABLE_START[n] for n in names]), lo, hi, max_nfev)
-    values = unpack(sol.x)
-    pred = predict(values, record)
-    err = {o: {k: 100.0 * (pred[o][k] / ref[o][k] - 1.0) for k in KPIS} for o in ref}
-    return {"fitted_to": "twin/calibration/data/reference_table.csv (MISSION.md reference table)",
-            "parameters_fitted": list(names), "values": values, "predicted": pred, "error_pct": err,
-            "max_abs_error_pct": max(abs(e) for r in err.values() for e in r.values()),
-            "from_dem_alone": ["se_1mm_t_kwh ratios between ores", "alpha", "mu_um", "Lambda", "gamma", "phi"],
-            "typed_in": {"beta": AUSTIN_SHAPE["beta"], "delta": 0.0},
-            "optimizer": {"status": int(sol.status), "message": str(sol.message), "nfev": int(sol.nfev),
-                          "seconds": time.perf_counter() - t0}}
-
-
-def calibrate_from_dem(fast: bool = False, seed: int = 0, *, ores=REFERENCE_ORES, table_fit: bool = True,
-                       out: Path | str | None = DEM_CALIBRATION_PATH, verbose: bool = True) -> dict:
-    """Regenerate the DEM-derived calibration; writes ``out`` (None: do not write) and returns it."""
-    t0 = time.perf_counter()
-    record = dem_part(fast=fast, seed=seed, ores=ores, verbose=verbose)
-    if table_fit:
-        record["table_fit"] = fit_table(record, SETTINGS["fast" if fast else "full"]["table_max_nfev"])
-        if verbose:
-            print(f"table fit: max |error| {record['table_fit']['max_abs_error_pct']:.1f} %", flush=True)
-    record["provenance"] = {"command": "python -m twin.calibration --dem" + (" --fast" if fast else ""),
-                            "function": f"twin.calibration.dem_link.calibrate_from_dem(fast={fast}, seed={seed})",
-                            "seed": seed, "fast": fast, **versions(),
-                            "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-                            "seconds": time.perf_counter() - t0}
-    if out is not None:
-        out = Path(out)
-        write_json_atomically(out, record, indent=1)
-        shipped_dem_calibration.cache_clear()
-        if verbose:
-            print(f"wrote {out}", flush=True)
-    return record
-
-
-def refit_table(path: Path | str = DEM_CALIBRATION_PATH, max_nfev: int | None = None, verbose: bool = True) -> dict:
-    """Rerun only step 5 (the table fit) on a DEM calibration file's own DEM numbers; records it."""
-    path = Path(path)
-    record = json.loads(path.read_text(encoding="utf-8"))
-    for key in ("table_fit",):
-        record.pop(key, None)
-    fast = bool(record["provenance"]["fast"])
-    n = max_nfev or SETTINGS["fast" if fast else "full"]["table_max_nfev"]
-    record["table_fit"] = fit_table(record, n)
-    record["provenance"]["table_fit_rerun"] = {
-        "function": f"twin.calibration.dem_link.refit_table(max_nfev={n})", "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-    write_json_atomically(path, record, indent=1)
-    shipped_dem_calibration.cache_clear()
-    if verbose:
-        print(f"table fit: max |error| {record['table_fit']['max_abs_error_pct']:.1f} %; wrote {path}", flush=True)
-    return record
-
-
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m twin.calibration.dem_link", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--fast", action="store_true", help="fewer particles and energies (< 2 min)")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--out", type=Path, default=DEM_CALIBRATION_PATH)
-    ap.add_argument("--no-table-fit", action="store_true")
-    ap.add_argument("--table-only", action="store_true", help="rerun only the table fit on --out's DEM numbers")
-    a = ap.parse_args(argv)
-    if a.table_only:
-        refit_table(a.out)
-        return 0
-    calibrate_from_dem(a.fast, a.seed, table_fit=not a.no_table_fit, out=a.out)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,39 +1,228 @@
-"""Calibration files: where the shipped ones live, how they are read, and how a new one is
-written with its provenance (the command, the versions, the seed), never half-written."""
+"""Calibrations as named objects: the folder of calibration files, how one is found by name or
+path and checked, and how a new one is written (with its provenance, never half-written, never
+over a file the project did not write).
+
+A calibration file records what the twin needs to run it and what it came from: its breakage
+map (``"dem"``: the DEM laws of twin.calibration.dem_map; ``"mineralogy"``: the hardness/texture
+map of twin.calibration.breakage_map), the effects, size grid, mixers and mill it was fitted
+with, the coefficients the effects read, the fitted mill values, each fitted number with why
+it is not derivable, the data and the command.
+"""
 
 from __future__ import annotations
 
+import hashlib
 import json
+import math
 import platform
 import time
-from functools import cache
+from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
 
-from ..errors import TwinError
+from ..errors import TwinInputError, close_matches
 
-#: The folder of shipped calibration files, one per name.
+#: The folder of shipped calibration files, one per name (``<name>.json``).
 CALIBRATION_DIR = Path(__file__).resolve().parent / "files"
 TABLE_CALIBRATION_PATH = CALIBRATION_DIR / "table.json"
 DEM_CALIBRATION_PATH = CALIBRATION_DIR / "dem.json"
+#: What ``Twin`` and scenes run unless told otherwise: the mechanistic chain (MISSION.md s3-4).
+DEFAULT_CALIBRATION = "dem"
+#: The marker and version of a calibration file written by grindtwin.
+FILE_FORMAT = "grindtwin-calibration"
+FORMAT_VERSION = 2
+BREAKAGE_MAPS = ("dem", "mineralogy")
+#: Effects that only delay or filter what is measured (an analyser's dead time): a calibration
+#: fitted to steady states does not depend on them, so a scene may add them freely.
+MEASUREMENT_EFFECTS = ("sensor_delay",)
+REQUIRED_KEYS = ("name", "breakage_map", "effects", "size_grid", "n_mixers", "mill", "coefficients", "mills")
 
 
-def _read(path: Path, command: str) -> dict:
-    if not path.is_file():
-        raise TwinError(f"No calibration file {path}: run `{command}`.")
-    return json.loads(path.read_text(encoding="utf-8"))
+@dataclass(frozen=True, eq=False)
+class Calibration:
+    """One calibration: its record (the file's content), name, file and SHA-256 of the file
+    (``None`` for a calibration made in memory, e.g. during a fit)."""
+
+    record: dict = field(repr=False)
+    path: Path | None = None
+    sha256: str | None = None
+
+    @property
+    def name(self) -> str:
+        return self.record["name"]
+
+    @property
+    def breakage_map(self) -> str:
+        return self.record["breakage_map"]
+
+    @property
+    def coefficients(self) -> dict:
+        return self.record["coefficients"]
+
+    @property
+    def effects(self) -> list:
+        return list(self.record["effects"])
+
+    @property
+    def size_grid(self) -> dict:
+        return dict(self.record["size_grid"])
+
+    @property
+    def mill(self) -> str:
+        return self.record["mill"]
+
+    @property
+    def n_mixers(self) -> int:
+        return int(self.record["n_mixers"])
+
+    @property
+    def fitted(self) -> dict:
+        """Fitted number -> {"value", "why_not_derivable"}."""
+        return dict(self.record.get("fitted", {}))
+
+    def grid(self):
+        from ..sizes import SizeGrid
+
+        return SizeGrid(**self.size_grid)
+
+    def breakage(self, ore):
+        """Breakage parameters of an ore by this calibration's map."""
+        if self.breakage_map == "dem":
+            from .dem_map import dem_breakage
+
+            return dem_breakage(ore, self.record["law"], self.coefficients["dem_capture_scale"])
+        from .breakage_map import mineralogy_breakage
+
+        return mineralogy_breakage(ore, self.coefficients)
+
+    def label(self) -> str:
+        where = str(self.path) if self.path else "in memory"
+        sha = f", sha256 {self.sha256[:12]}" if self.sha256 else ""
+        return f"{self.name!r} ({where}{sha})"
+
+    def identity(self) -> dict:
+        """What a run records of the calibration it ran: name, file, hash, the command."""
+        return {"name": self.name, "path": str(self.path) if self.path else None, "sha256": self.sha256,
+                "breakage_map": self.breakage_map,
+                "command": self.record.get("provenance", {}).get("command")}
+
+    def mismatch(self, effects, grid) -> list[str]:
+        """What differs between a model's effects and size grid and this calibration's (empty:
+        none). Measurement effects (:data:`MEASUREMENT_EFFECTS`) are not compared."""
+        mine = [e for e in self.effects if e not in MEASUREMENT_EFFECTS]
+        theirs = [e for e in effects if e not in MEASUREMENT_EFFECTS]
+        out = []
+        if sorted(mine) != sorted(theirs):
+            out.append(f"effects {sorted(theirs)} differ from the effects of calibration {self.name!r} "
+                       f"{sorted(mine)} (missing {sorted(set(mine) - set(theirs))}, extra "
+                       f"{sorted(set(theirs) - set(mine))})")
+        g = self.size_grid
+        theirs_g = {"top_um": float(grid.top_um), "ratio": float(grid.ratio), "count": int(grid.count)}
+        if not all(math.isclose(float(g[k]), float(theirs_g[k]), rel_tol=1e-9) for k in g):
+            out.append(f"size grid {theirs_g} differs from the grid of calibration {self.name!r} {g}")
+        return out
+
+    def with_values(self, coefficients: dict | None = None, mills: dict | None = None, **record) -> "Calibration":
+        """A copy in memory with coefficients / mill values (and other record keys) replaced."""
+        rec = dict(self.record)
+        if coefficients is not None:
+            rec["coefficients"] = {**self.coefficients, **coefficients}
+        if mills is not None:
+            rec["mills"] = {**self.record["mills"], **{k: {**self.record["mills"].get(k, {}), **v}
+                                                       for k, v in mills.items()}}
+        rec.update(record)
+        return Calibration(rec)
 
 
-@cache
+def base_record(name: str, breakage_map: str, description: str) -> dict:
+    """The head of a new calibration record: what it is, and the model it is fitted with (the
+    twin's default effects, size grid and mixers, the lab mill of MISSION.md's table)."""
+    import inspect
+
+    from ..sizes import SizeGrid
+    from ..twin import DEFAULT_EFFECTS, Twin
+
+    g = SizeGrid()
+    n_mixers = inspect.signature(Twin).parameters["n_mixers"].default
+    return {"format": FILE_FORMAT, "format_version": FORMAT_VERSION, "name": name, "description": description,
+            "breakage_map": breakage_map, "effects": list(DEFAULT_EFFECTS),
+            "size_grid": {"top_um": float(g.top_um), "ratio": float(g.ratio), "count": int(g.count)},
+            "n_mixers": n_mixers, "mill": "lab"}
+
+
+def shipped_names() -> list[str]:
+    """Names of the shipped calibrations (the files of :data:`CALIBRATION_DIR`)."""
+    return sorted(p.stem for p in CALIBRATION_DIR.glob("*.json"))
+
+
+def check_record(record: dict, where: str) -> dict:
+    """The record if it is a calibration of this format, else TwinInputError naming the field."""
+    if not isinstance(record, dict) or record.get("format") != FILE_FORMAT:
+        raise TwinInputError(f"{where} is not a grindtwin calibration file (its 'format' must be "
+                             f"{FILE_FORMAT!r}); make one with `grindtwin calibrate`.")
+    if record.get("format_version") != FORMAT_VERSION:
+        raise TwinInputError(f"{where} has format version {record.get('format_version')!r}; this code reads "
+                             f"version {FORMAT_VERSION}. Regenerate it with `grindtwin calibrate`.")
+    missing = [k for k in REQUIRED_KEYS if k not in record]
+    if missing:
+        raise TwinInputError(f"{where} lacks the calibration field(s) {missing}.")
+    if record["breakage_map"] not in BREAKAGE_MAPS:
+        raise TwinInputError(f"The 'breakage_map' of {where} must be one of {BREAKAGE_MAPS}. "
+                             f"Got {record['breakage_map']!r}.")
+    if record["breakage_map"] == "dem" and "law" not in record:
+        raise TwinInputError(f"{where} has breakage_map 'dem' but no 'law' (the DEM laws).")
+    return record
+
+
+_LOADED: dict = {}
+
+
+def read_calibration(path: Path) -> Calibration:
+    """A calibration file, checked; cached by path and content hash."""
+    path = Path(path).resolve()
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise TwinInputError(f"Cannot read calibration file {path}: {exc.strerror or exc}.") from None
+    sha = hashlib.sha256(data).hexdigest()
+    key = (path, sha)
+    if key not in _LOADED:
+        try:
+            record = json.loads(data.decode("utf-8"))
+        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise TwinInputError(f"Calibration file {path} is not valid JSON: {exc}.") from None
+        _LOADED[key] = Calibration(check_record(record, str(path)), path, sha)
+    return _LOADED[key]
+
+
+def load_calibration(spec=None) -> Calibration:
+    """A Calibration from a shipped name (``"dem"``, ``"table"``), a path to a calibration file,
+    a Calibration, or a record dict; ``None`` is :data:`DEFAULT_CALIBRATION`."""
+    if spec is None:
+        spec = DEFAULT_CALIBRATION
+    if isinstance(spec, Calibration):
+        return spec
+    if isinstance(spec, dict):
+        return Calibration(check_record(spec, "the calibration record"))
+    if isinstance(spec, (str, Path)):
+        text = str(spec)
+        if text in shipped_names():
+            return read_calibration(CALIBRATION_DIR / f"{text}.json")
+        if Path(text).is_file():
+            return read_calibration(Path(text))
+        raise TwinInputError(f"The 'calibration' must be a shipped name ({', '.join(shipped_names())}) or the "
+                             f"path of a calibration file. Got {text!r}.{close_matches(text, shipped_names())}")
+    raise TwinInputError(f"The 'calibration' must be a name, a path, a Calibration or a record dict. Got {spec!r}.")
+
+
 def shipped_calibration() -> dict:
-    """The shipped mineralogy-map calibration (made by `grindtwin calibrate`)."""
-    return _read(TABLE_CALIBRATION_PATH, "grindtwin calibrate")
+    """The shipped mineralogy-map calibration's record (``table.json``)."""
+    return load_calibration("table").record
 
 
-@cache
 def shipped_dem_calibration() -> dict:
-    """The shipped DEM-derived calibration (made by `python -m twin.calibration --dem`)."""
-    return _read(DEM_CALIBRATION_PATH, "python -m twin.calibration --dem")
+    """The shipped DEM-derived calibration's record (``dem.json``)."""
+    return load_calibration("dem").record
 
 
 def lab_mill_values(values: dict) -> dict:
@@ -47,9 +236,45 @@ def versions() -> dict:
             **{pkg: metadata.version(pkg) for pkg in ("numpy", "scipy", "numba", "casadi")}}
 
 
-def provenance(command: str) -> dict:
-    return {"command": command, **versions(), "seed": None,
+def provenance(command: str, **extra) -> dict:
+    return {"command": command, **versions(), **extra,
             "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+
+
+def default_output_path(name: str) -> Path:
+    """Where ``grindtwin calibrate`` writes unless told: a new file in the current directory."""
+    return Path.cwd() / f"calibration-{name}-{time.strftime('%Y%m%dT%H%M%S')}.json"
+
+
+#: Commands that wrote calibration files before the file format had its marker (format 1).
+_LEGACY_COMMANDS = ("grindtwin calibrate", "python -m twin.calibration")
+
+
+def _written_by_grindtwin(record) -> bool:
+    if not isinstance(record, dict):
+        return False
+    if record.get("format") == FILE_FORMAT:
+        return True
+    command = str(record.get("provenance", {}).get("command", ""))
+    return command.startswith(_LEGACY_COMMANDS)
+
+
+def check_writable(path: Path) -> Path:
+    """``path`` if a calibration may be written there: a new file, or a calibration file
+    grindtwin wrote; TwinInputError before any work otherwise."""
+    path = Path(path)
+    if path.is_dir():
+        raise TwinInputError(f"The calibration output {path} is a folder; give a file path.")
+    if path.exists():
+        try:
+            record = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+            record = None
+        if not _written_by_grindtwin(record):
+            raise TwinInputError(f"Refusing to overwrite {path}: it is not a calibration file grindtwin wrote.")
+    if not path.parent.is_dir():
+        raise TwinInputError(f"The folder of the calibration output {path} does not exist.")
+    return path
 
 
 def write_json_atomically(path: Path, record: dict, indent: int = 2) -> None:
@@ -58,3 +283,12 @@ def write_json_atomically(path: Path, record: dict, indent: int = 2) -> None:
     tmp = path.with_suffix(".tmp")
     tmp.write_text(json.dumps(record, indent=indent) + "\n", encoding="utf-8")
     tmp.replace(path)
+
+
+def write_calibration(path: Path, record: dict) -> Calibration:
+    """Check and write a calibration record (refusing what :func:`check_writable` refuses)."""
+    record = {**record, "format": FILE_FORMAT, "format_version": FORMAT_VERSION}
+    check_record(record, "the new calibration")
+    path = check_writable(path)
+    write_json_atomically(path, record, indent=1)
+    return read_calibration(path)

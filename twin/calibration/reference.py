@@ -4,6 +4,7 @@ throughput at constant load for the reference ores A-D), shipped as ``data/refer
 from __future__ import annotations
 
 import csv
+import hashlib
 from pathlib import Path
 
 #: The table's KPIs, in the order of every residual vector.
@@ -16,3 +17,9 @@ def reference_table() -> dict:
     text = REFERENCE_TABLE_PATH.read_text(encoding="utf-8")
     rows = csv.DictReader([ln for ln in text.splitlines() if ln and not ln.startswith("#")])
     return {r["ore"]: {k: float(r[k]) for k in KPIS} for r in rows}
+
+
+def reference_identity() -> dict:
+    """The table a fit used: its file (relative to the repository) and SHA-256."""
+    return {"path": "twin/calibration/data/reference_table.csv", "what": "MISSION.md reference table",
+            "sha256": hashlib.sha256(REFERENCE_TABLE_PATH.read_bytes()).hexdigest()}

@@ -19,8 +19,8 @@ class Breakage(Effect):
     def apply(self, ctx: EffectContext) -> None:
         factor = ctx.factor("selection_rate_factor") / ctx.hardness_scale
         for c, ore in enumerate(ctx.spec.breakage):
-            s = ca.DM(ore.selection_per_h)
-            b = ca.DM(ore.b)
+            # S and b are numbers, or SX symbols in a parametric model (twin.calibration.parametric)
+            s, b = (v if isinstance(v, ca.SX) else ca.DM(v) for v in (ore.selection_per_h, ore.b))
             for k in range(ctx.n_mixers):
                 broken = factor * (s * ctx.mass[c][k])  # t/h leaving each class by breakage
                 ctx.add_rhs(ctx.mass[c][k], -broken + ca.mtimes(b, broken))

@@ -95,7 +95,8 @@ class Classification(Effect):
         if isinstance(cut, float):
             c = grate_factor(x, d50 * cut, k)
         else:  # a cut size that moves with the states (rheology)
-            c = 1.0 / (1.0 + ca.DM((x / d50) ** k) * cut ** -k)
+            ratio = (x / d50) ** k  # SX when d50 or k is a symbol (a parametric model)
+            c = 1.0 / (1.0 + (ratio if isinstance(ratio, ca.SX) else ca.DM(ratio)) * cut ** -k)
         c[-1] = 1.0
         ctx.provide("discharge_class_factor", c)
         ctx.note(f"grate factor on the last mixer's discharge, d50 {d50:g} um")

@@ -1,5 +1,7 @@
-"""Steady states of the continuous mill: a direct Newton solve (CasADi rootfinder) from a
-linearised guess, falling back to long integration; and the steady state at a given load."""
+"""Steady states of the continuous mill: a direct Newton solve on the sparse DAE form from a
+nominal guess, falling back to long integration; the steady state at a given load; and the
+exact sensitivities of a steady state to the disturbances and parameters (implicit function
+theorem on the same Newton system)."""
 
 from __future__ import annotations
 
@@ -45,12 +47,17 @@ class SteadyState:
         return out
 
 
+@lru_cache(maxsize=64)
+def _scalar_output_function(model) -> tuple[list, ca.Function]:
+    """The model's scalar outputs as one Function (one call instead of one per output)."""
+    names = [n for n, fn in model.outputs.items() if fn.size1_out(0) * fn.size2_out(0) == 1]
+    exprs = [model.outputs[n](model.x, model.u, model.d) for n in names]
+    return names, ca.Function("scalar_outputs", [model.x, model.u, model.d], [ca.vertcat(*exprs)])
+
+
 def _scalar_outputs(model, x, u, d) -> dict:
-    vals = {}
-    for name, fn in model.outputs.items():
-        if fn.size1_out(0) * fn.size2_out(0) == 1:
-            vals[name] = float(fn(x, u, d))
-    return vals
+    names, fn = _scalar_output_function(model)
+    return dict(zip(names, np.asarray(fn(x, u, d), float).ravel().tolist()))
 
 
 @lru_cache(maxsize=64)
@@ -67,6 +74,31 @@ def _jacobians(model) -> ca.Function:
 
 def _sparse(dm) -> scipy.sparse.csc_matrix:
     return dm.sparse() if hasattr(dm, "sparse") else scipy.sparse.csc_matrix(np.asarray(dm))
+
+
+#: Up to this many unknowns the Newton matrix is solved dense (LAPACK): for the lab twin's ~80
+#: unknowns scipy's sparse construction and solve cost ~10x a dense LU.
+DENSE_MAX_UNKNOWNS = 600
+
+
+def _newton_matrix(j_dm, ju_dm=None, jh_dm=None):
+    """The Newton matrix [[J, J_feed], [dH/dw, 0]] (or J alone), dense when small."""
+    n = j_dm.size1() + (ju_dm is not None)
+    if n <= DENSE_MAX_UNKNOWNS:
+        J = np.asarray(ca.DM(j_dm), float)
+        if ju_dm is None:
+            return J
+        return np.block([[J, np.asarray(ca.DM(ju_dm), float)], [np.asarray(ca.DM(jh_dm), float), np.zeros((1, 1))]])
+    if ju_dm is None:
+        return _sparse(j_dm).tocsc()
+    return scipy.sparse.bmat([[_sparse(j_dm), _sparse(ju_dm)], [_sparse(jh_dm), None]], format="csc")
+
+
+def _solve(A, b):
+    """A^-1 b for a dense or sparse Newton matrix (b a vector or a matrix of columns)."""
+    if isinstance(A, np.ndarray):
+        return np.linalg.solve(A, b)
+    return scipy.sparse.linalg.splu(A).solve(np.asarray(b, float))
 
 
 def _newton(model, x, u, d, load_target=None, max_iter: int = 60):
@@ -88,16 +120,14 @@ def _newton(model, x, u, d, load_target=None, max_iter: int = 60):
                     if load_target is not None else 0.0)
         if max(np.abs(r * scale).max(), abs(load_res)) < RESIDUAL_REL_TOL:
             return w[:nx], u, True
-        J = _sparse(j_dm)
         try:
             if load_target is None:
-                step = scipy.sparse.linalg.spsolve(J, -r)
+                step = _solve(_newton_matrix(j_dm), -r)
                 dfeed = 0.0
             else:
-                A = scipy.sparse.bmat([[J, _sparse(ju_dm)], [_sparse(jh_dm), None]], format="csc")
-                sol = scipy.sparse.linalg.spsolve(A, -np.concatenate([r, [load_res * h_nom]]))
+                sol = _solve(_newton_matrix(j_dm, ju_dm, jh_dm), -np.concatenate([r, [load_res * h_nom]]))
                 step, dfeed = sol[:-1], sol[-1]
-        except (RuntimeError, ValueError):
+        except (RuntimeError, ValueError, np.linalg.LinAlgError):
             return w[:nx], u, False
         if not np.all(np.isfinite(step)):
             return w[:nx], u, False  # singular Jacobian: reported by the caller as non-convergence
@@ -123,9 +153,14 @@ def _check(model, x, u, d, how: str):
     return x
 
 
+@lru_cache(maxsize=64)
+def _product_psd(model) -> ca.Function:
+    return model.product_psd_function()
+
+
 def _result(model, x, u, d, method) -> SteadyState:
     outs = _scalar_outputs(model, x, u, d)
-    psd = np.asarray(model.product_psd_function()(x, u, d)).ravel()
+    psd = np.asarray(_product_psd(model)(x, u, d)).ravel()
     p80 = pxx_um(model.spec.grid, psd) if psd.sum() > 0 else math.nan
     status = load_status(outs["load_frac"], model.spec.mill.stable_band) if "load_frac" in outs else "n/a"
     return SteadyState(x, u, d, outs, p80, status, psd, method)
@@ -143,9 +178,9 @@ def steady_state(model, u, d, x_guess=None) -> SteadyState:
     u, d = np.asarray(u, float), np.asarray(d, float)
     if u[0] <= 0.0:  # no feed: the mill empties
         x = np.zeros(model.n_x)
-        x[model.n_mass:] = model.initial_state(d[:-1])[model.n_mass:]
+        x[model.n_mass:] = model.initial_state(d[:model.n_components])[model.n_mass:]
         return _result(model, x, u, d, "empty (no feed)")
-    guess = model.initial_state(d[:-1]) if x_guess is None else np.asarray(x_guess, float)
+    guess = model.initial_state(d[:model.n_components]) if x_guess is None else np.asarray(x_guess, float)
     x, _, ok = _newton(model, guess, u, d)
     if ok:
         return _result(model, _check(model, x, u, d, "Newton"), u, d, "newton")
@@ -160,15 +195,101 @@ def steady_state(model, u, d, x_guess=None) -> SteadyState:
     return _result(model, _check(model, x, u, d, "long integration + Newton"), u, d, "integration+newton")
 
 
-def steady_state_at_load(model, u, d, load_frac: float = 1.0) -> SteadyState:
-    """Steady state whose total hold-up is ``load_frac`` x nominal; the feed rate is solved for."""
+def steady_state_at_load(model, u, d, load_frac: float = 1.0, x_guess=None) -> SteadyState:
+    """Steady state whose total hold-up is ``load_frac`` x nominal; the feed rate is solved for,
+    from ``u[0]``. Newton starts from ``x_guess`` when given (e.g. a nearby solution), else from
+    the steady state at feed ``u[0]``."""
     _require_transport(model)
     if not 0.0 < load_frac < 5.0:
         raise TwinInputError(f"The 'load_frac' must be a float in (0, 5). Got {load_frac}.")
     u, d = np.asarray(u, float), np.asarray(d, float)
-    first = steady_state(model, u, d)
-    x, uu, ok = _newton(model, first.x, u, d, load_target=load_frac)
+    start = steady_state(model, u, d).x if x_guess is None else np.asarray(x_guess, float)
+    x, uu, ok = _newton(model, start, u, d, load_target=load_frac)
     if not ok or not uu[0] > 0:
         raise SolverError(f"No positive feed rate found that holds the load at {load_frac} of nominal "
                           f"(speed {u[1]:.3f}); last feed {uu[0]:.4g} t/h.")
     return _result(model, _check(model, x, uu, d, "Newton at constant load"), uu, d, "newton-load")
+
+
+# ---------------------------------------------------------------------- sensitivities
+@lru_cache(maxsize=64)
+def _sensitivity_functions(model, n_d: int) -> ca.Function:
+    """(w, u, d) -> (d res/dd, product psd, d psd/dx, d psd/du, d psd/dd) and, for the scalar
+    outputs, their Jacobians in x, u, d (the outputs in x, aggregates substituted); derivatives
+    in the first ``n_d`` entries of d."""
+    w = ca.vertcat(model.x, model.z)
+    dd = model.d[:n_d]
+    res = ca.vertcat(model.dae["ode"], model.dae["alg"])
+    psd = model.product_psd_function()(model.x, model.u, model.d)
+    outs = [model.outputs[n](model.x, model.u, model.d) for n in SENSITIVITY_OUTPUTS if n in model.outputs]
+    y = ca.vertcat(*outs)
+    return ca.Function("steady_sensitivities", [w, model.u, model.d],
+                       [ca.jacobian(res, dd), psd, ca.jacobian(psd, model.x), ca.jacobian(psd, model.u),
+                        ca.jacobian(psd, dd), ca.jacobian(y, model.x), ca.jacobian(y, model.u), ca.jacobian(y, dd)])
+
+
+#: The scalar outputs whose sensitivities :func:`steady_sensitivities` returns (when present).
+SENSITIVITY_OUTPUTS = ("specific_energy_kwh_t", "power_kw", "throughput_tph", "load_frac")
+
+
+def pxx_gradient(grid, mass, percent: float = 80.0) -> np.ndarray:
+    """d Pxx / d mass [um per unit mass] of :func:`twin.sizes.pxx_um` (its interpolation, linear
+    in log size between class upper sizes, differentiated; tested against its differences)."""
+    m = np.asarray(mass, float)
+    f = percent / 100.0
+    total = m.sum()
+    passing = grid.cumulative_passing(m)
+    up = grid.upper_um
+    n = m.size
+    # d passing_i / d m_j = ([j >= i] - passing_i) / total
+    dpass = (np.triu(np.ones((n, n))) - passing[:, None]) / total
+    p = pxx_um(grid, m, percent)
+    if passing[-1] >= f:  # inside the sink: p = up[-1] ratio^((f - P)/P)
+        q = passing[-1]
+        return p * math.log(grid.ratio) * (-f / q ** 2) * dpass[-1]
+    k = int(np.nonzero(passing >= f)[0][-1])
+    lo, hi = passing[k + 1], passing[k]
+    dtheta = (-(dpass[k + 1]) * (hi - lo) - (f - lo) * (dpass[k] - dpass[k + 1])) / (hi - lo) ** 2
+    return p * math.log(up[k] / up[k + 1]) * dtheta
+
+
+def steady_sensitivities(model, ss: SteadyState, at_load: bool, n_d: int | None = None) -> dict:
+    """Exact derivatives of a converged steady state's KPIs with respect to the disturbance
+    vector d (blend, hardness scale and any parameter symbols of a parametric model; its first
+    ``n_d`` entries, all by default), by the
+    implicit function theorem on the Newton system of :func:`_newton`: with F(w, q; d) = 0 the
+    steady-state equations (and, ``at_load``, the hold-up equation, q the feed rate solved
+    for), dw/dd = -F_w^-1 F_d. Returns {name: gradient over d} for ``p80_um`` (exact
+    interpolation, :func:`pxx_gradient`), ``feed_tph`` (at load) and the scalar outputs of
+    :data:`SENSITIVITY_OUTPUTS` the model has."""
+    x, u, d = ss.x, ss.u, ss.d
+    w = np.concatenate([x, model.z_of(x)])
+    _, j_dm, ju_dm, jh_dm = _jacobians(model)(w, u, d)
+    n_d = model.d.numel() if n_d is None else int(n_d)
+    r_d, psd, psd_x, psd_u, psd_d, y_x, y_u, y_d = _sensitivity_functions(model, n_d)(w, u, d)
+    rhs = -np.asarray(ca.DM(r_d), float)
+    if at_load:
+        A = _newton_matrix(j_dm, ju_dm, jh_dm)
+        rhs = np.vstack([rhs, np.zeros((1, rhs.shape[1]))])
+    else:
+        A = _newton_matrix(j_dm)
+    try:
+        sol = _solve(A, rhs)
+    except (RuntimeError, np.linalg.LinAlgError) as exc:  # a singular Newton matrix
+        raise SolverError(f"Steady-state sensitivities: the Newton matrix is singular ({exc}).") from None
+    nx = model.n_x
+    dx = sol[:nx]
+    dq = sol[-1] if at_load else np.zeros(rhs.shape[1])
+
+    def total(jx, ju, jd):
+        jx, ju, jd = (np.asarray(ca.DM(a), float) for a in (jx, ju, jd))
+        return jx @ dx + np.outer(ju[:, 0], dq) + jd
+
+    dpsd = total(psd_x, psd_u, psd_d)
+    out = {"p80_um": pxx_gradient(model.spec.grid, np.asarray(psd, float).ravel()) @ dpsd}
+    if at_load:
+        out["feed_tph"] = dq
+    names = [n for n in SENSITIVITY_OUTPUTS if n in model.outputs]
+    dy = total(y_x, y_u, y_d)
+    out.update({n: dy[i] for i, n in enumerate(names)})
+    return out

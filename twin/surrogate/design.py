@@ -15,7 +15,8 @@ from scipy.stats import qmc
 
 from ..errors import SolverError, TwinError, bad_value
 from ..ore import Blend, generate_library, reference_ores, to_mineralogies
-from .files import GENERATE_COMMAND, TABLE_PATH, calibration_sha256
+from ..calibration import load_calibration
+from .files import GENERATE_COMMAND, TABLE_PATH
 from .inputs import blend_mineralogy, feature_frame
 from .model import TARGETS
 
@@ -87,13 +88,15 @@ def twin_kpis(twin, feed_tph: float, speed_frac_critical: float) -> dict:
 
 def generate_training_table(seed: int = DEFAULT_SEED, n_mineralogies: int = DEFAULT_N_MINERALOGIES,
                             points_per_mineralogy: int = DEFAULT_POINTS, mill: str = "lab",
-                            progress: bool = False) -> pd.DataFrame:
+                            progress: bool = False, calibration=None) -> pd.DataFrame:
     """Run the twin over the seeded design; one row per steady state with the input columns
     of :func:`feature_frame`, ``mineralogy_id``, ``design_kind``, the targets and
-    ``twin_seconds`` (build share + steady state). Failed steady states are counted in
-    ``attrs['failed']`` (with their inputs), never silently dropped."""
+    ``twin_seconds`` (build share + steady state), run with ``calibration`` (the default's
+    unless named). Failed steady states are counted in ``attrs['failed']`` (with their inputs),
+    never silently dropped."""
     from ..twin import Twin  # the twin imports the calibration; built here only
 
+    cal = load_calibration(calibration)
     t_start = time.perf_counter()
     design = design_mineralogies(seed, n_mineralogies)
     rng = np.random.default_rng([seed, 1])
@@ -101,7 +104,7 @@ def generate_training_table(seed: int = DEFAULT_SEED, n_mineralogies: int = DEFA
     for k, (ore, kind) in enumerate(design):
         pts = design_conditions(points_per_mineralogy, rng)
         t0 = time.perf_counter()
-        twin = Twin(ore, mill=mill)
+        twin = Twin(ore, mill=mill, calibration=cal)
         rows = []
         for feed, speed in pts:
             try:
@@ -124,7 +127,8 @@ def generate_training_table(seed: int = DEFAULT_SEED, n_mineralogies: int = DEFA
     table.attrs = {"command": GENERATE_COMMAND, "seed": seed, "n_mineralogies": n_mineralogies,
                    "points_per_mineralogy": points_per_mineralogy, "mill": mill,
                    "feed_range_tph": list(FEED_RANGE_TPH), "speed_range": list(SPEED_RANGE),
-                   "calibration_sha256": calibration_sha256(), "failed": failed, "seconds": round(time.perf_counter() - t_start, 1),
+                   "calibration": {"name": cal.name, "sha256": cal.sha256}, "calibration_sha256": cal.sha256,
+                   "failed": failed, "seconds": round(time.perf_counter() - t_start, 1),
                    "numpy": np.__version__, "pandas": pd.__version__}
     return table
 

@@ -3,7 +3,6 @@ that says what they were made from, and the refusal of a stale or foreign file."
 
 from __future__ import annotations
 
-import hashlib
 import platform
 from functools import cache
 from pathlib import Path
@@ -11,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import sklearn
 
-from ..calibration import TABLE_CALIBRATION_PATH
-from ..errors import TwinError
+from ..calibration import Calibration, load_calibration
+from ..errors import TwinError, TwinInputError
 from .model import TARGETS, Surrogate
 
 DATA_DIR = Path(__file__).resolve().parent / "data"
@@ -23,9 +22,21 @@ GENERATE_COMMAND = "python -m twin.surrogate --generate"
 TRAIN_COMMAND = "python -m twin.surrogate --train"
 
 
-def calibration_sha256() -> str:
-    """Hash of the calibration file the twin runs used (a surrogate is stale once it changes)."""
-    return hashlib.sha256(TABLE_CALIBRATION_PATH.read_bytes()).hexdigest()
+def calibration_sha256(calibration=None) -> str:
+    """Hash of a calibration's file (the default calibration's unless named): a surrogate is
+    trained on one calibration and stale once its file changes."""
+    return load_calibration(calibration).sha256
+
+
+def check_trained_on(surrogate: Surrogate, calibration: Calibration) -> None:
+    """TwinInputError unless ``surrogate`` was trained on runs of ``calibration`` (same file hash)."""
+    meta = getattr(surrogate, "metadata_", {})
+    trained = meta.get("calibration") or {"name": "?", "sha256": meta.get("calibration_sha256")}
+    if trained.get("sha256") != calibration.sha256:
+        raise TwinInputError(
+            f"The surrogate was trained on calibration {trained.get('name')!r} (sha256 "
+            f"{str(trained.get('sha256'))[:12]}); this is calibration {calibration.label()}. Retrain it on this "
+            f"calibration: `python -m twin.surrogate --generate --train --calibration {calibration.name}`.")
 
 
 def save(surrogate: Surrogate, path: str | Path, metadata: dict | None = None) -> Path:

@@ -3,16 +3,15 @@
 from __future__ import annotations
 
 import math
-from functools import cache
 
 import numpy as np
 
-from ..calibration import shipped_calibration
+from ..calibration import load_calibration
 from ..errors import TwinInputError, bad_value
 from ..mill import get_mill, load_status
 from ..ore import CUSHIONING_MINERALS
 from ..ore.samples import TEXTURE_COLUMNS
-from .files import shipped_surrogate
+from .files import check_trained_on, shipped_surrogate
 from .inputs import as_mineralogy, mineral_names
 from .model import Surrogate
 
@@ -27,28 +26,25 @@ def _number(field: str, value) -> float:
     return v
 
 
-@cache
-def _mill(name: str):
-    return get_mill(name, shipped_calibration())
-
-
 def surrogate_steady(mineralogy, feed_tph: float | None = None, speed_frac_critical: float | None = None,
-                     mill: str = "lab", surrogate: Surrogate | None = None) -> dict:
+                     mill: str = "lab", surrogate: Surrogate | None = None, calibration=None) -> dict:
     """Steady-state KPIs from the surrogate, keys as the ``steady`` command's JSON.
 
     ``mineralogy``: a Mineralogy, a Blend (taken as its mass-weighted mineralogy), a
     reference type letter or an ore TOML path. ``feed_tph`` and ``speed_frac_critical``
     default to the mill's nominal values (as :meth:`Twin.steady`). Raises TwinInputError
-    outside the training domain (field, value, trained range) or for a mill the surrogate
-    was not trained for.
+    outside the training domain (field, value, trained range), for a mill the surrogate was
+    not trained for, or for a calibration (default: the default one) it was not trained on.
     """
     sur = surrogate or shipped_surrogate()
+    cal = load_calibration(calibration)
+    check_trained_on(sur, cal)
     trained_mill = getattr(sur, "metadata_", {}).get("mill", "lab")
     if mill != trained_mill:
         raise TwinInputError(f"The 'mill' of surrogate_steady must be {trained_mill!r} (the mill the surrogate "
                              f"was trained for). Got {mill!r}.")
     ore = as_mineralogy(mineralogy)
-    m = _mill(mill)
+    m = get_mill(mill, cal.record)
     feed = _number("feed_tph", m.feed_nominal_tph if feed_tph is None else feed_tph)
     speed = _number("speed_frac_critical", m.speed_nominal_frac_critical if speed_frac_critical is None
                     else speed_frac_critical)

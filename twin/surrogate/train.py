@@ -30,7 +30,8 @@ def train_and_save(table: pd.DataFrame, params: dict | None = None, out: str | P
             "design": {k: table.attrs.get(k) for k in ("seed", "n_mineralogies", "points_per_mineralogy",
                                                         "feed_range_tph", "speed_range")},
             "n_rows": len(table), "cv_r2": cv, "held_out_r2": held, "fit_seconds": round(fit_s, 3),
-            "table_seconds": table.attrs.get("seconds"), "calibration_sha256": table.attrs.get("calibration_sha256"), "failed_steady_states": len(table.attrs.get("failed", []))}
+            "table_seconds": table.attrs.get("seconds"), "calibration": table.attrs.get("calibration"),
+            "calibration_sha256": table.attrs.get("calibration_sha256"), "failed_steady_states": len(table.attrs.get("failed", []))}
     save(sur, out or MODEL_PATH, meta)
     sur.metadata_ = meta
     return sur, meta
@@ -45,12 +46,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--points", type=int, default=DEFAULT_POINTS, help="operating points per mineralogy")
     p.add_argument("--table", help=f"training table (default {TABLE_PATH})")
     p.add_argument("--out", help=f"surrogate file (default {MODEL_PATH})")
+    p.add_argument("--calibration", default=None, help="the calibration the twin runs (default: dem)")
     args = p.parse_args(argv)
     if not (args.generate or args.train):
         p.error("give --generate and/or --train")
     table_path = Path(args.table) if args.table else TABLE_PATH
     if args.generate or (args.train and not table_path.is_file()):
-        table = generate_training_table(args.seed, args.n_mineralogies, args.points, progress=True)
+        table = generate_training_table(args.seed, args.n_mineralogies, args.points, progress=True,
+                                        calibration=args.calibration)
         table.to_parquet(table_path, index=False)
         print(f"wrote {len(table)} steady states of {args.n_mineralogies} mineralogies to {table_path} "
               f"in {table.attrs['seconds']} s ({len(table.attrs['failed'])} failed)")

@@ -1,0 +1,87 @@
+"""Calibrations from scenes and the command line: the scene key, the check that refuses a
+mismatch, the record of what ran, --calibration, --uncertainty and calibrate's refusals."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from scenarios.cli import main
+from scenarios.output import write_report
+from scenarios.run import run_scene
+from scenarios.scene.loader import check_scene
+from tests.scenarios.conftest import BASE_SCENE
+from tests.scenarios.test_runner import short_pyrite_scene
+from twin.calibration import load_calibration
+
+
+def test_check_refuses_a_scene_whose_effects_differ_from_its_calibration(write_scene):
+    lean = BASE_SCENE.replace("calibration_mismatch_ok = true", "calibration = \"dem\"")
+    messages = check_scene(write_scene(lean))
+    assert len(messages) == 1
+    m = messages[0]
+    assert "effects:" in m and "['breakage', 'cushioning', 'holdup', 'power', 'transport']" in m
+    assert "'rheology'" in m and "calibration 'dem'" in m and "calibration_mismatch_ok = true" in m
+    assert check_scene(write_scene(BASE_SCENE)) == []  # the scene that says it means it
+
+
+def test_check_refuses_an_unknown_calibration(write_scene):
+    messages = check_scene(write_scene(BASE_SCENE.replace("calibration_mismatch_ok = true",
+                                                          "calibration = \"dme\"")))
+    assert len(messages) == 1 and "calibration:" in messages[0] and "'dme'" in messages[0]
+
+
+@pytest.fixture(scope="module")
+def short_scene(tmp_path_factory):
+    return short_pyrite_scene(tmp_path_factory.mktemp("cal"), duration_h=0.25)
+
+
+def test_summary_and_report_record_which_calibration_ran(short_scene, tmp_path):
+    from scenarios.scene import load_scene
+
+    out = tmp_path / "run"
+    res = run_scene(load_scene(short_scene), out_dir=out, progress=False, plots=False)
+    cal = load_calibration("dem")
+    assert res.summary["calibration"]["name"] == "dem" and res.summary["calibration"]["sha256"] == cal.sha256
+    assert json.loads((out / "summary.json").read_text())["calibration"]["sha256"] == cal.sha256
+    html = write_report(out).read_text()
+    assert "calibration" in html and cal.sha256[:12] in html
+
+
+def test_run_with_another_calibration(short_scene, tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["run", str(short_scene), "--calibration", "table", "--out", str(out), "--no-plots", "--quiet"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["calibration"]["name"] == "table" and s["calibration"]["sha256"] == load_calibration("table").sha256
+
+
+def test_steady_calibration_by_name_and_by_path(capsys):
+    argv = ["steady", "--ore", "B", "--feed-tph", "0.031", "--json"]
+    assert main(argv) == 0
+    dem = json.loads(capsys.readouterr().out)
+    assert main(argv + ["--calibration", "table"]) == 0
+    table = json.loads(capsys.readouterr().out)
+    assert main(argv + ["--calibration", str(load_calibration("table").path)]) == 0
+    by_path = json.loads(capsys.readouterr().out)
+    assert dem["calibration"]["name"] == "dem" and table["calibration"]["name"] == "table"
+    assert table["p80_um"] == by_path["p80_um"] != dem["p80_um"]
+
+
+def test_steady_uncertainty_prints_intervals(capsys):
+    assert main(["steady", "--ore", "B", "--at-constant-load", "--uncertainty", "6"]) == 0
+    out = capsys.readouterr().out
+    assert "90% intervals over 6 bootstrap replicates" in out
+    for key in ("p80_um", "specific_energy_kwh_t", "throughput_tph"):
+        line = next(ln for ln in out.splitlines() if ln.strip().startswith(key) and "[" in ln)
+        lo, hi = (float(v) for v in line.split("[")[1].rstrip("]").split(","))
+        assert lo <= hi
+
+
+def test_calibrate_refuses_to_overwrite_a_file_it_did_not_write(tmp_path, capsys):
+    foreign = tmp_path / "notes.json"
+    foreign.write_text('{"mine": true}')
+    assert main(["calibrate", "--from", "dem", "--out", str(foreign)]) == 2
+    assert "Refusing to overwrite" in capsys.readouterr().err and foreign.read_text() == '{"mine": true}'
+    assert main(["calibrate", "--map", "mineralogy", "--from", "dem", "--out", str(tmp_path / "x.json")]) == 2
+    assert not (tmp_path / "x.json").exists()
