@@ -88,8 +88,10 @@ def _installed_matches_head(src: Path, root: Path) -> bool:
 
 
 def make_summary(scene: Scene, models: Models, kpis: dict, notes: list[str], wall_s: float) -> dict:
-    """The JSON-able summary of a run."""
-    plant_desc = None if models.plant is models.control else models.plant.model.describe()
+    """The JSON-able summary of a run. ``plant_model`` describes the model that was integrated,
+    ``controller_model`` the NMPC's or PI's (None open loop); ``schedule`` lists the feed's
+    transitions (for the plots' markers)."""
+    closed = scene.controller.kind != "none"
     return {
         "scene": scene.scene.name,
         "description": scene.scene.description,
@@ -98,14 +100,28 @@ def make_summary(scene: Scene, models: Models, kpis: dict, notes: list[str], wal
         "controller": scene.controller.kind,
         "target_p80_um": scene.controller.target_p80_um,
         "load_band_frac": list(scene.controller.load_band_frac),
-        "mode": "batch" if is_batch(scene) else ("open_loop" if scene.controller.kind == "none"
-                                                  else "closed_loop"),
+        "preview_lead_h": scene.controller.preview_lead_h,
+        "mode": "batch" if is_batch(scene) else ("closed_loop" if closed else "open_loop"),
         "effects": list(scene.effects),
         "components": models.components,
+        "schedule": [ev.model_dump() for ev in scene.feed.schedule],
         "kpis": kpis,
-        "model": models.control.model.describe(),
-        "plant_model": plant_desc,
+        "plant_model": models.plant.model.describe(),
+        "controller_model": controller_model(scene, models),
         "notes": notes,
         "wall_time_s": wall_s,
         "versions": versions(),
     }
+
+
+#: What the PI baseline knows of the mill (it has no model of its own).
+PI_MODEL_TEXT = ("PI from the analyser's P80 to the feed rate (speed held), SIMC-tuned on a first-order-plus-"
+                 "dead-time fit of the plant model linearised at its initial steady state; no model of its own.")
+
+
+def controller_model(scene: Scene, models: Models) -> str | None:
+    """The description of the controller's model: the NMPC's twin, the PI's tuning, or None."""
+    kind = scene.controller.kind
+    if kind == "nmpc":
+        return models.control.model.describe()
+    return PI_MODEL_TEXT if kind == "pi" else None

@@ -112,6 +112,8 @@ class Classification(Effect):
             under = [e * dc for dc in discharge]
             over = [dc - uc for dc, uc in zip(discharge, under)]
             asm.outputs["cyclone_d50c_um"] = d50
+            asm.outputs["cyclone_feed_tph"] = sum(discharge)  # per size class, as the two below
+            asm.outputs["cyclone_underflow_tph"] = sum(under)
             asm.outputs["circulating_load_frac"] = sum(ca.sum1(u) for u in under) / smooth_max(
                 asm.feed_tph, 1e-6 * spec.feed_nominal_tph, 1e-6 * spec.feed_nominal_tph)
             return over, under
