@@ -330,7 +330,7 @@ STEADY_KEYS = ("source", "feed_tph", "speed_frac_critical", "p80_um", "specific_
 def cmd_steady(args) -> int:
     import json
 
-    from twin import Blend, Twin, load_ore
+    from twin import Blend, load_ore  # light: the surrogate's answer needs neither CasADi nor scikit-learn
 
     blend = Blend.parse(args.blend) if args.blend else Blend.single(load_ore(args.ore))
     if args.surrogate:
@@ -341,6 +341,8 @@ def cmd_steady(args) -> int:
         kpis = surrogate_steady(blend, args.feed_tph, args.speed, mill=args.mill)
         kpis = {k: v for k, v in kpis.items() if k in STEADY_KEYS or k == "source"}
     else:
+        from twin import Twin
+
         twin = Twin(blend, mill=args.mill)
         if args.at_constant_load:
             ss = twin.steady_at_constant_load(speed_frac_critical=args.speed)

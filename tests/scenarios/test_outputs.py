@@ -68,12 +68,14 @@ def test_hydrocyclone_streams_balance_and_partition_meets_the_bypass(cyclone_run
     assert {"cyclone_d50c_um", "circulating_load_frac"} <= set(cyclone_run.frame.columns)
 
 
-def test_closed_loop_keeps_the_plant_sizes_aligned_with_its_rows(tmp_path):
+def test_closed_loop_keeps_the_plant_sizes_aligned_with_its_rows(tmp_path, capsys):
     """The PSD snapshots of a closed loop come from the plant's recorded states: their P80 is
-    the frame's plant P80 at the same sample (a shifted record would miss it)."""
+    the frame's plant P80 at the same sample (a shifted record would miss it); its progress bar
+    reaches its end (16 of 16 samples, not 15)."""
     from twin import SizeGrid, pxx_um
 
-    res = run_scene(_controlled(short_pyrite_scene(tmp_path, duration_h=0.25), "pi"), progress=False)
+    res = run_scene(_controlled(short_pyrite_scene(tmp_path, duration_h=0.25), "pi"), progress=True)
+    assert "16/16" in capsys.readouterr().err
     assert res.psd is not None and res.mill_psd is not None and set(res.streams) == {"start", "end"}
     grid = SizeGrid(6700.0, 2.0, 13)
     fr = res.frame.set_index("time_h")
