@@ -144,7 +144,7 @@ def cmd_replay(args) -> int:
 #: Key of the sweep case's result that carries its time series (popped before the table is written).
 TRACE_KEY = "trace"
 #: Columns of a case kept for the sweep's comparison (plot and workbook).
-TRACE_COLUMNS = ("time_h", "p80_um", "feed_tph", "speed_frac_critical")
+TRACE_COLUMNS = ("time_h", "p80_um", "content_p80_um", "feed_tph", "speed_frac_critical")
 
 
 def sweep_case(scene) -> dict:

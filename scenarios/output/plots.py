@@ -70,7 +70,10 @@ def plot_p80(plt, result):
     fr, s = result.frame, result.summary
     t = fr["time_h"].to_numpy(float)
     fig, (ax,) = _time_axes(plt, 1, 3.4)
-    ax.plot(t, fr["p80_um"], label="P80, plant")
+    if "p80_um" in fr:
+        ax.plot(t, fr["p80_um"], label="P80, plant")
+    else:
+        ax.plot(t, fr["content_p80_um"], label="P80 of the mill content (batch)")
     for col in ("p80_analyser_um", "p80_measured_um"):
         if col in fr:
             ax.step(t, fr[col], where="post", lw=0.7, alpha=0.7, label="P80, analyser")
@@ -302,7 +305,7 @@ def write_sweep_plot(table, traces, folder: Path, target_p80_um: float | None = 
     for (case, label), color in zip(zip(table["case"], labels), colors):
         tr = traces[traces["case"] == case] if traces is not None and len(traces) else None
         if tr is not None and len(tr):
-            top.plot(tr["time_h"], tr["p80_um"], color=color, label=label)
+            top.plot(tr["time_h"], tr["p80_um" if "p80_um" in tr else "content_p80_um"], color=color, label=label)
     if target_p80_um is not None:
         top.axhline(target_p80_um, color="k", ls="--", lw=1, label=f"target {target_p80_um:g} µm")
     top.set(xlabel="time [h]", ylabel="product P80 [µm]", title=f"sweep of {table.attrs.get('scene', '')}")

@@ -130,8 +130,10 @@ def write_workbook(result, path: Path) -> Path:
     return _write_sheets(Path(path), sheets)
 
 
-def trace_table(traces: pd.DataFrame, column: str = "p80_um") -> pd.DataFrame:
-    """Long traces (``case``, ``time_h``, ...) as one column per case, ``time [h]`` rows."""
+def trace_table(traces: pd.DataFrame, column: str | None = None) -> pd.DataFrame:
+    """Long traces (``case``, ``time_h``, ...) as one column per case, ``time [h]`` rows; by default
+    of the product P80 (of the mill content's in a batch sweep)."""
+    column = column or ("p80_um" if "p80_um" in traces else "content_p80_um")
     wide = traces.pivot(index="time_h", columns="case", values=column)
     wide.columns = [f"case {c}: {column}" for c in wide.columns]
     wide.index.name = "time [h]"
