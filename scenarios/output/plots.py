@@ -15,7 +15,7 @@ import numpy as np
 
 #: Plot files of a run: name -> what it shows (a plot whose data the run lacks is not drawn).
 PLOTS = {
-    "p80.png": "product P80 against time, with the target and its +/-10 µm band",
+    "p80.png": "product P80 against time, with the target and its ±10 µm band",
     "inputs.png": "feed rate and mill speed against time",
     "feed.png": "feed blend and ore hardness against time",
     "estimates.png": "the estimator's P80 and hardness beside the plant's",

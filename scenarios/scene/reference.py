@@ -237,6 +237,13 @@ def section_table(header: str, path: tuple, scenes: dict) -> list[str]:
     return lines + [""]
 
 
+def _option_default(value) -> str:
+    """An option's default as TOML: a dataclass (the hydrocyclone) as the table of its fields."""
+    if hasattr(value, "__dataclass_fields__"):
+        return toml_value({k: getattr(value, k) for k in value.__dataclass_fields__})
+    return toml_value(value)
+
+
 def effects_section() -> list[str]:
     from twin import EFFECTS
 
@@ -246,10 +253,13 @@ def effects_section() -> list[str]:
     for name, cls in EFFECTS.items():
         req = ", ".join(f"`{r}`" for r in cls.requires) or "nothing"
         lines += [f"### `{name}`", "", f"{cls.summary}. Requires {req}. Source: {cls.source}.", ""]
+        if cls.outputs:
+            lines += ["Adds to the model's outputs (the scalar ones are columns of a run): "
+                      + ", ".join(f"`{o}`" for o in cls.outputs) + ".", ""]
         if cls.options:
-            lines += ["| option | default | meaning |", "|---|---|---|"]
-            lines += [f"| `{k}` | `{_cell(toml_value(d) if not hasattr(d, '__dataclass_fields__') else repr(d))}` "
-                      f"| {_cell(text)} |" for k, (d, text) in cls.options.items()]
+            lines += ["| option | default | allowed | meaning |", "|---|---|---|---|"]
+            lines += [f"| `{k}` | `{_cell(_option_default(opt.default))}` | {_cell(opt.allowed())} "
+                      f"| {_cell(opt.description)} |" for k, opt in cls.options.items()]
             lines.append("")
     return lines
 

@@ -49,3 +49,21 @@ def test_the_pages_example_scene_is_valid():
     block = re.search(r"```toml\n(.*?)```", render(), re.S).group(1)
     scene = scene_from_dict(tomllib.loads(block), REPO / "scenarios" / "reference_transition.toml")
     assert scene.controller.solver == "rti" and scene.feed.schedule[0].blend == {"B": 0.6, "D": 0.4}
+
+
+def test_readme_cli_table_lists_every_command():
+    from scenarios.cli.commands import COMMANDS
+
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    table = readme[readme.index("## The CLI"):readme.index("Exit codes:")]
+    listed = set(re.findall(r"^\| `grindtwin ([a-z-]+)", table, re.M))
+    assert listed == set(COMMANDS), f"README's CLI table: missing {set(COMMANDS) - listed}, extra {listed - set(COMMANDS)}"
+
+
+def test_help_texts_have_no_doubled_percent_signs():
+    from scenarios.cli import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.choices and "run" in a.choices)
+    for name, p in sub.choices.items():
+        assert "%%" not in p.format_help(), name
