@@ -12,7 +12,8 @@ building the same function never load a half-written file).
 Modes (``mode``): ``"auto"`` compiles when a C compiler is found and otherwise returns the
 interpreted function (CasADi's virtual machine), reported by a :class:`CompileFallbackWarning`
 and counted in :data:`FALLBACKS`; ``"on"`` raises :class:`mpc.errors.MpcError` without a
-compiler; ``"off"`` never compiles. The compiler is ``$CC`` if set, else ``cc`` or ``gcc`` on
+compiler; ``"off"`` never compiles; ``$GRINDTWIN_CODEGEN`` (one of the modes) replaces
+``"auto"`` (the test suite sets it to ``"off"`` for tests that are not about compiled code). The compiler is ``$CC`` if set, else ``cc`` or ``gcc`` on
 the PATH.
 """
 
@@ -35,6 +36,7 @@ import casadi as ca
 from mpc.errors import MpcError, MpcInputError
 
 CACHE_ENV = "GRINDTWIN_CACHE_DIR"
+MODE_ENV = "GRINDTWIN_CODEGEN"
 MODES = ("auto", "on", "off")
 #: Optimisation flags of the compiled QP data. -O2 measured against -O1 and -O3 -march=native
 #: in benchmarks/mpc_compiled.py (the table says which ran fastest).
@@ -115,6 +117,10 @@ def compiled(fn: ca.Function, mode: str = "auto", cflags=DEFAULT_CFLAGS) -> tupl
     itself when ``mode`` is ``"off"``, or ``"auto"`` without a compiler (warned, counted)."""
     if mode not in MODES:
         raise MpcInputError(f"The 'mode' parameter of compiled() must be one of {MODES}. Got {mode!r}.")
+    if mode == "auto":
+        mode = os.environ.get(MODE_ENV, "auto")
+        if mode not in MODES:
+            raise MpcInputError(f"The ${MODE_ENV} environment variable must be one of {MODES}. Got {mode!r}.")
     name = fn.name()
     if mode == "off":
         return fn, CompileReport(name, False, False, 0.0, None, "codegen off")

@@ -68,8 +68,10 @@ def rk4_map(f: ca.Function, dt_h: float, n_steps: int = 1, name: str = "rk4_map"
     return ca.Function(name, [x, u, d], [xk], ["x", "u", "d"], ["x_next"])
 
 
-def rk4_sensitivity_map(model, dt_h: float, n_steps: int = 1, name: str = "rk4_sens") -> ca.Function:
-    """``F(x, u, d) -> (x_next, A, B)`` with ``A = dx_next/dx``, ``B = dx_next/du`` by ``n_steps``
+def rk4_sensitivity_map(model, dt_h: float, n_steps: int = 1, name: str = "rk4_sens",
+                        with_d: bool = False) -> ca.Function:
+    """``F(x, u, d) -> (x_next, A, B)`` with ``A = dx_next/dx``, ``B = dx_next/du`` (and
+    ``D = dx_next/dd`` as a fourth output when ``with_d``) by ``n_steps``
     RK4 steps of ``model.dae`` (forward sensitivities of the RK4 stages: ``dk = f_x S + f_z (g_x S)
     + f_u [0 I]`` at each stage, ``S`` the stage point's sensitivity; Hairer, Norsett & Wanner,
     section II.1, differentiated). Same values as AD of :func:`rk4_map`; the sparse factors make
@@ -81,12 +83,14 @@ def rk4_sensitivity_map(model, dt_h: float, n_steps: int = 1, name: str = "rk4_s
     dae, zs, g = model.dae, model.z, model.z_expr
     nx, nu, nd = model.x.numel(), model.u.numel(), model.d.numel()
     ode = dae["ode"]
+    wrt = ca.vertcat(model.u, model.d) if with_d else model.u
+    nw = wrt.numel()
     parts = [ca.substitute(e, zs, g) if zs.numel() else e
-             for e in (ode, ca.jacobian(ode, model.x), ca.jacobian(ode, zs), ca.jacobian(ode, model.u))]
+             for e in (ode, ca.jacobian(ode, model.x), ca.jacobian(ode, zs), ca.jacobian(ode, wrt))]
     point = ca.Function(f"{name}_point", [model.x, model.u, model.d],
                         [*parts, ca.jacobian(g, model.x)], ["x", "u", "d"], ["k", "fx", "fz", "fu", "gx"])
     x, u, d = ca.MX.sym("x", nx), ca.MX.sym("u", nu), ca.MX.sym("d", nd)
-    e_u = ca.horzcat(ca.DM(nu, nx), ca.DM.eye(nu))
+    e_u = ca.horzcat(ca.DM(nw, nx), ca.DM.eye(nw))
 
     def stage(xi, si):
         k, fx, fz, fu, gx = point(xi, u, d)
@@ -96,7 +100,7 @@ def rk4_sensitivity_map(model, dt_h: float, n_steps: int = 1, name: str = "rk4_s
         return k, dk
 
     h = dt_h / int(n_steps)
-    xk, s = x, ca.MX(ca.horzcat(ca.DM.eye(nx), ca.DM(nx, nu)))
+    xk, s = x, ca.MX(ca.horzcat(ca.DM.eye(nx), ca.DM(nx, nw)))
     for _ in range(int(n_steps)):
         k1, s1 = stage(xk, s)
         k2, s2 = stage(xk + 0.5 * h * k1, s + 0.5 * h * s1)
@@ -104,7 +108,8 @@ def rk4_sensitivity_map(model, dt_h: float, n_steps: int = 1, name: str = "rk4_s
         k4, s4 = stage(xk + h * k3, s + h * s3)
         xk = xk + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
         s = s + h / 6.0 * (s1 + 2 * s2 + 2 * s3 + s4)
-    return ca.Function(name, [x, u, d], [xk, s[:, :nx], s[:, nx:]], ["x", "u", "d"], ["x_next", "A", "B"])
+    outs = [xk, s[:, :nx], s[:, nx:nx + nu]] + ([s[:, nx + nu:]] if with_d else [])
+    return ca.Function(name, [x, u, d], outs, ["x", "u", "d"], ["x_next", "A", "B", "D"][:len(outs)])
 
 
 def cvodes_map(f: ca.Function, dt_h: float, abstol: float = 1e-8, reltol: float = 1e-8,
