@@ -93,6 +93,7 @@ PASSING_TARGET = 0.80
 #: meeting its tolerance in 200 iterations (measured); the decision variables here are scaled
 #: to O(1) (states) or are inputs and slacks below ~100, so 1e4 is inactive and converges in ~7.
 HPIPM_INF = 1e4
+HPIPM_MODES = ("robust", "balance", "speed")
 
 
 @dataclass
@@ -166,6 +167,9 @@ class NmpcSettings:
     """Use the disturbance preview over the horizon; False: hold the current d (feedback only)."""
     unreachable_tol_frac: float = 0.01
     """Passing-fraction miss at the horizon end above which the status says target_unreachable."""
+    hpipm_mode: str = "robust"
+    """HPIPM's preset (its ``mode``): "robust" (HPIPM's most careful iterations) or "speed"
+    (fewer, cheaper iterations to the same tolerances; benchmarks/results/mpc_compiled.md)."""
     codegen: str = "auto"
     """Compiled QP data of "rti" (:mod:`mpc.codegen`): "auto" (compiled when a C compiler is
     found, else interpreted, warned and counted), "on" (error without a compiler), "off"."""
@@ -203,6 +207,8 @@ class NmpcSettings:
             bad("load_band_frac", "a pair (lo, hi) with 0 <= lo < hi")
         if self.solver not in SOLVERS:
             bad("solver", f"one of {SOLVERS}")
+        if self.hpipm_mode not in HPIPM_MODES:
+            bad("hpipm_mode", f"one of {HPIPM_MODES}")
         if self.codegen not in CODEGEN_MODES:
             bad("codegen", f"one of {CODEGEN_MODES}")
         if self.qpsol is None:
@@ -440,7 +446,7 @@ class Controller:
         s = self.settings
         if s.qpsol == "hpipm":  # the stage dimensions of the layout, so HPIPM's Riccati applies
             return {**self._dims, "error_on_fail": False, "inf": HPIPM_INF,
-                    "hpipm": {"iter_max": 100}}
+                    "hpipm": {"iter_max": 100, "mode": s.hpipm_mode}}
         if s.qpsol == "qrqp":
             return {"print_iter": False, "print_header": False, "error_on_fail": False}
         return {"error_on_fail": False, "osqp": {"verbose": False, "eps_abs": 1e-8, "eps_rel": 1e-8}}
@@ -579,9 +585,14 @@ class Controller:
         return w0, None, None
 
     # ------------------------------------------------------------------ step
-    def make_step(self, x_est, d_preview, u_prev, y_meas=None) -> ControllerStepResult:
+    #: make_step takes the estimator's P80 bias (the closed loop passes it)
+    accepts_p80_bias = True
+
+    def make_step(self, x_est, d_preview, u_prev, y_meas=None, p80_bias_um: float = 0.0) -> ControllerStepResult:
         """One sample: from the state estimate, the disturbance preview (shape ``(n_d, N)``, or
         ``(n_d,)`` held) and the last applied input to the input to apply now.
+        ``p80_bias_um``: the estimated plant-minus-model P80 bias; the model's P80 is held at
+        ``target - p80_bias_um`` so that the plant's is at the target (offset-free).
         ``y_meas`` is accepted for a common closed-loop verb and not used."""
         s = self.settings
         nx, nu = self.nx, self.nu
@@ -594,7 +605,12 @@ class Controller:
         D = self._d_traj(d_preview)
         x0s = x / self.x_scale
         w0, lam_g0, lam_x0 = self._initial_guess(x0s, u_prev)
-        p = np.concatenate([x, D.ravel(order="F"), u_prev, self._wpass])
+        if not math.isfinite(p80_bias_um) or p80_bias_um >= s.target_p80_um:
+            raise MpcInputError(f"The 'p80_bias_um' parameter must be finite and below the target "
+                                f"{s.target_p80_um} um. Got {p80_bias_um!r}.")
+        wpass = self._wpass if p80_bias_um == 0.0 else np.asarray(
+            self.model.spec.grid.passing_weights(s.target_p80_um - p80_bias_um), float)
+        p = np.concatenate([x, D.ravel(order="F"), u_prev, wpass])
         args = dict(x0=w0, p=p, lbx=self._lbw, ubx=self._ubw, lbg=self._lbg, ubg=self._ubg)
         if lam_g0 is not None and s.solver == "ipopt":
             args["lam_g0"] = lam_g0
@@ -623,7 +639,7 @@ class Controller:
         states = np.array([wopt[i[:nx]] * self.x_scale for i in self._ix])
         self._plan_prev = plan
         self._plan_age = 0
-        info = self._plan_info(states, plan, D)
+        info = self._plan_info(states, plan, D, wpass, p80_bias_um)
         if abs(info["passing_end"] - PASSING_TARGET) > s.unreachable_tol_frac:
             status = f"target_unreachable ({status}): predicted P80 {info['p80_end_um']:.1f} um " \
                      f"at the horizon end against {s.target_p80_um:.1f} um"
@@ -632,13 +648,14 @@ class Controller:
         return ControllerStepResult(True, status, float(sol["f"]), iters, dt_solve, u0, plan,
                                     None, states)
 
-    def _plan_info(self, states, plan, D) -> dict:
+    def _plan_info(self, states, plan, D, wpass, p80_bias_um: float) -> dict:
+        """The plan's end: passing fraction (of the biased target), P80 with the bias, load..."""
         psd_fn = self.model.product_psd_function()
         x_end, u_end, d_end = states[-1], plan[-1], D[:, -1]
-        pas, load, se, pw = (float(v) for v in self._out_fn(x_end, u_end, d_end, self._wpass))
+        pas, load, se, pw = (float(v) for v in self._out_fn(x_end, u_end, d_end, wpass))
         psd = np.asarray(psd_fn(x_end, u_end, d_end), float).ravel()
-        p80_end = pxx_um(self.model.spec.grid, psd) if psd.sum() > 0 else math.nan
-        pas1 = float(self._out_fn(states[1], plan[0], D[:, 0], self._wpass)[0])
+        p80_end = pxx_um(self.model.spec.grid, psd) + p80_bias_um if psd.sum() > 0 else math.nan
+        pas1 = float(self._out_fn(states[1], plan[0], D[:, 0], wpass)[0])
         return {"passing_end": pas, "passing_next": pas1, "p80_end_um": p80_end,
                 "load_end_frac": load, "specific_energy_end_kwh_t": se, "power_end_kw": pw}
 
