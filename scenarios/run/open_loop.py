@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
-from mpc import Sensors, SensorState, feed_for_target
+from mpc import Sensors, SensorState
 from scenarios.errors import RunError
 from scenarios.run.feed import component_blend, input_series
 from scenarios.scene import Scene
@@ -94,14 +94,6 @@ def run_open_loop(scene: Scene, models, feed: pd.DataFrame, progress: bool, repl
     f, s = input_series(scene, feed, replay)
     if replay and "recorded_feed_tph" in feed:
         notes.append("replay: inputs are the recorded feed rate and speed")
-    target = scene.controller.target_p80_um
-    if not replay and target is not None and "transport" in scene.effects:
-        # no control from where the closed loops start: the feed that holds the target at t = 0
-        f0 = feed_for_target(twin, blend[0], target, float(s[0]))
-        if math.isfinite(f0):
-            f = np.full_like(f, f0)
-            notes.append(f"no control: feed held at {f0:.4g} t/h, the steady state at the target "
-                         f"{target:.4g} um with the initial blend (where the closed loops start)")
     x0 = start_state(scene, twin, (f[0], s[0]), blend[0], notes)
     frame, states = simulate_chunks(scene, twin, x0, f, s, blend, progress)
     frame["p80_analyser_um"] = analyser_trace(frame["time_h"].to_numpy(), frame["p80_um"].to_numpy(),
