@@ -19,7 +19,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr
 
-from mpc import QP_SOLVERS, SOLVERS
+from mpc import DISTURBANCE_MODELS, QP_SOLVERS, SOLVERS
 from twin import MILLS
 
 #: The twin's default number of mixers in series (twin.Twin's ``n_mixers``).
@@ -212,7 +212,8 @@ class Controller(Section):
     """``[controller]``: kind, target, horizon and tuning, bounds, solver.
 
     ``load_band_frac`` is the mill hold-up as a fraction of the nominal hold-up at the initial
-    operating point; ``preview_lead_h`` is how far ahead the feed is known (belt analyser).
+    operating point; ``preview_lead_h`` is how far ahead the feed is known (belt analyser);
+    ``disturbance_model`` what the EKF's disturbance states absorb (``mpc.DISTURBANCE_MODELS``).
     """
 
     kind: Literal["none", "pi", "nmpc"] = "none"
@@ -249,6 +250,11 @@ class Controller(Section):
     and the band of the ``load_outside_band_frac`` KPI."""
     power_max_kw: float | None = Field(default=None, gt=0, examples=[420.0])
     """Soft upper limit of mill power [kW] for the NMPC; none: no limit."""
+    disturbance_model: Literal[DISTURBANCE_MODELS] = "hardness"
+    """What the NMPC's estimator reads the plant/model mismatch as: ``"hardness"`` (everything,
+    including a coarse model's structural P80 error, is read as ore hardness), ``"p80_bias"``
+    (hardness held at 1; the analyser reads the model's P80 plus a bias) or
+    ``"hardness+p80_bias"`` (both: the bias takes the slow P80 mismatch); see mpc.estimator."""
 
 
 class Sensors(Section):
