@@ -30,6 +30,8 @@ KPI_LABELS = {
     "solve_time_median_s": ("controller solve time, median [s]", "{:.3g}"),
     "solve_time_p95_s": ("controller solve time, 95th percentile [s]", "{:.3g}"),
     "mass_balance_error": ("mass balance error [relative]", "{:.2e}"),
+    "start_feed_tph": ("feed rate at the start [t/h]", "{:.4g}"),
+    "start_p80_um": ("P80 at the start [µm]", "{:.4g}"),
     "p80_final_um": ("final P80 [µm]", "{:.4g}"),
     "p80_mean_um": ("mean P80 [µm]", "{:.4g}"),
     "energy_kwh": ("energy drawn [kWh]", "{:.4g}"),
