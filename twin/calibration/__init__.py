@@ -7,20 +7,21 @@ files/table.json).
 Command line: ``grindtwin calibrate`` (or ``python -m twin.calibration``).
 """
 
-from .breakage_map import AUSTIN_SHAPE, COEFFICIENT_NAMES, mineralogy_breakage
-from .calibrate import DEM_FITTED, DEM_NAMES, dem_record
-from .calibrate import run as main
-from .dem_map import dem_breakage, law_e50_j_kg
-from .files import (BREAKAGE_MAPS, CALIBRATION_DIR, DEFAULT_CALIBRATION, DEM_CALIBRATION_PATH, MEASUREMENT_EFFECTS,
-                    TABLE_CALIBRATION_PATH, Calibration, check_writable, load_calibration, shipped_calibration,
-                    shipped_dem_calibration, shipped_names, write_json_atomically)
-from .fitting import fit_log_ratios, fit_to_table, predict_table, table_errors
-from .reference import KPIS, reference_table
-from .uncertainty import INTERVAL_LEVEL, intervals, steady_intervals
+from .._lazy import lazy_face
 
-__all__ = ["AUSTIN_SHAPE", "BREAKAGE_MAPS", "CALIBRATION_DIR", "COEFFICIENT_NAMES", "Calibration",
-           "DEFAULT_CALIBRATION", "DEM_CALIBRATION_PATH", "DEM_FITTED", "DEM_NAMES", "INTERVAL_LEVEL", "KPIS",
-           "MEASUREMENT_EFFECTS", "TABLE_CALIBRATION_PATH", "check_writable", "dem_breakage", "dem_record",
-           "fit_log_ratios", "fit_to_table", "intervals", "law_e50_j_kg", "load_calibration", "main",
-           "mineralogy_breakage", "predict_table", "reference_table", "shipped_calibration", "steady_intervals",
-           "shipped_dem_calibration", "shipped_names", "table_errors", "write_json_atomically"]
+#: Public name -> the module that defines it, imported on first use (PEP 562).
+_API = {
+    "AUSTIN_SHAPE": ".breakage_map", "COEFFICIENT_NAMES": ".breakage_map", "mineralogy_breakage": ".breakage_map",
+    "DEM_FITTED": ".calibrate", "DEM_NAMES": ".calibrate", "dem_record": ".calibrate", "main": ".calibrate",
+    "dem_breakage": ".dem_map", "law_e50_j_kg": ".dem_map",
+    "BREAKAGE_MAPS": ".files", "CALIBRATION_DIR": ".files", "Calibration": ".files", "DEFAULT_CALIBRATION": ".files",
+    "DEM_CALIBRATION_PATH": ".files", "MEASUREMENT_EFFECTS": ".files", "TABLE_CALIBRATION_PATH": ".files",
+    "check_writable": ".files", "load_calibration": ".files", "shipped_calibration": ".files",
+    "shipped_dem_calibration": ".files", "shipped_names": ".files", "write_json_atomically": ".files",
+    "fit_log_ratios": ".fitting", "fit_to_table": ".fitting", "predict_table": ".fitting", "table_errors": ".fitting",
+    "KPIS": ".reference", "reference_table": ".reference",
+    "INTERVAL_LEVEL": ".uncertainty", "intervals": ".uncertainty", "steady_intervals": ".uncertainty",
+}
+
+__all__ = sorted(_API)
+__getattr__, __dir__ = lazy_face(__name__, _API)

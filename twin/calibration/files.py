@@ -17,7 +17,6 @@ import math
 import platform
 import time
 from dataclasses import dataclass, field
-from importlib import metadata
 from pathlib import Path
 
 from ..errors import TwinInputError, close_matches
@@ -232,6 +231,8 @@ def lab_mill_values(values: dict) -> dict:
 
 def versions() -> dict:
     """Versions of what shapes a calibration, for its provenance record."""
+    from importlib import metadata  # only when a calibration is written: slow to import
+
     return {"python": platform.python_version(),
             **{pkg: metadata.version(pkg) for pkg in ("numpy", "scipy", "numba", "casadi")}}
 

@@ -1,5 +1,7 @@
 """The shipped surrogate and its training table: paths, save and load (joblib) with the metadata
-that says what they were made from, and the refusal of a stale or foreign file."""
+that says what they were made from, and the refusal of a stale or foreign file; the compiled
+form beside it (``surrogate.npz``, :mod:`twin.surrogate.compiled`), which the command line reads
+without scikit-learn."""
 
 from __future__ import annotations
 
@@ -8,18 +10,19 @@ from functools import cache
 from pathlib import Path
 
 import numpy as np
-import sklearn
 
-from ..calibration import Calibration, load_calibration
+from ..calibration.files import Calibration, load_calibration
 from ..errors import TwinError, TwinInputError
-from .model import TARGETS, Surrogate
+from .compiled import TARGETS, CompiledSurrogate, file_sha256
 
 DATA_DIR = Path(__file__).resolve().parent / "data"
 TABLE_PATH = DATA_DIR / "surrogate_training.parquet"
 MODEL_PATH = DATA_DIR / "surrogate.joblib"
+COMPILED_PATH = DATA_DIR / "surrogate.npz"
 FORMAT_VERSION = 1
 GENERATE_COMMAND = "python -m twin.surrogate --generate"
 TRAIN_COMMAND = "python -m twin.surrogate --train"
+COMPILE_COMMAND = "python -m twin.surrogate --compile"
 
 
 def calibration_sha256(calibration=None) -> str:
@@ -28,19 +31,23 @@ def calibration_sha256(calibration=None) -> str:
     return load_calibration(calibration).sha256
 
 
-def check_trained_on(surrogate: Surrogate, calibration: Calibration) -> None:
-    """TwinInputError unless ``surrogate`` was trained on runs of ``calibration`` (same file hash)."""
-    meta = getattr(surrogate, "metadata_", {})
-    trained = meta.get("calibration") or {"name": "?", "sha256": meta.get("calibration_sha256")}
-    if trained.get("sha256") != calibration.sha256:
+def check_trained_on(surrogate, calibration: Calibration) -> None:
+    """TwinInputError unless ``surrogate`` (fitted or compiled) was trained on runs of
+    ``calibration`` (the same file hash)."""
+    meta = getattr(surrogate, "metadata_", None) or getattr(surrogate, "metadata", None) or {}
+    sha = meta.get("calibration_sha256")
+    if sha != calibration.sha256:
+        name = (meta.get("calibration") or {}).get("name", "?")
         raise TwinInputError(
-            f"The surrogate was trained on calibration {trained.get('name')!r} (sha256 "
-            f"{str(trained.get('sha256'))[:12]}); this is calibration {calibration.label()}. Retrain it on this "
-            f"calibration: `python -m twin.surrogate --generate --train --calibration {calibration.name}`.")
+            f"The surrogate was trained on another calibration than {calibration.label()}: on {name!r} (sha256 "
+            f"{str(sha)[:12]}). Retrain it on this calibration: "
+            f"`python -m twin.surrogate --generate --train --calibration {calibration.name}`.")
 
 
-def save(surrogate: Surrogate, path: str | Path, metadata: dict | None = None) -> Path:
+def save(surrogate, path: str | Path, metadata: dict | None = None) -> Path:
+    """Save a fitted Surrogate (joblib) and its compiled form beside it (same name, ``.npz``)."""
     import joblib  # only when saving or loading
+    import sklearn
 
     surrogate._check_fitted()
     meta = {"format_version": FORMAT_VERSION, "sklearn": sklearn.__version__, "numpy": np.__version__,
@@ -49,16 +56,26 @@ def save(surrogate: Surrogate, path: str | Path, metadata: dict | None = None) -
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     joblib.dump({"metadata": meta, "surrogate": surrogate}, path, compress=3)
+    save_compiled(surrogate, path, meta)
     return path
+
+
+def save_compiled(surrogate, joblib_path: str | Path, metadata: dict) -> Path:
+    """The compiled form of ``surrogate`` (saved as ``joblib_path``) beside it, ``.npz``, with the
+    metadata and the joblib file's hash (so a test can tell they belong together)."""
+    joblib_path = Path(joblib_path)
+    meta = dict(metadata, joblib_sha256=file_sha256(joblib_path), compiled_by=COMPILE_COMMAND)
+    return surrogate.compiled(meta).save(joblib_path.with_suffix(".npz"))
 
 
 def _minor(v: str) -> str:
     return ".".join(v.split(".")[:2])
 
 
-def load(path: str | Path | None = None) -> Surrogate:
-    """A saved surrogate; refuses another format version or scikit-learn minor version."""
+def load(path: str | Path | None = None):
+    """A saved Surrogate; refuses another format version or scikit-learn minor version."""
     import joblib  # only when saving or loading
+    import sklearn
 
     path = Path(path) if path else MODEL_PATH
     if not path.is_file():
@@ -77,6 +94,16 @@ def load(path: str | Path | None = None) -> Surrogate:
 
 
 @cache
-def shipped_surrogate() -> Surrogate:
+def shipped_surrogate():
     """The shipped surrogate ``twin/surrogate/data/surrogate.joblib`` (loaded once)."""
     return load()
+
+
+@cache
+def shipped_compiled() -> CompiledSurrogate:
+    """The shipped surrogate's compiled form ``twin/surrogate/data/surrogate.npz`` (loaded once,
+    numpy alone); TwinInputError if it was made from another calibration than the default one
+    (:func:`check_trained_on`; ``surrogate_steady`` checks the calibration it is asked for)."""
+    compiled = CompiledSurrogate.load(COMPILED_PATH)
+    check_trained_on(compiled, load_calibration())
+    return compiled
