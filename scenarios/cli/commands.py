@@ -476,9 +476,9 @@ def add_calibrate_parser(subparsers):
     import argparse
 
     # the options live with the calibration (twin.calibration.calibrate, `grindtwin calibrate --help`);
-    # they are passed through, so that building this parser imports nothing
+    # they are passed through untouched (no option prefix of our own), so building this parser imports nothing
     c = subparsers.add_parser("calibrate", help="make a calibration file (the DEM chain by default)", add_help=False,
-                              description="Make a calibration: see `grindtwin calibrate --help`.")
+                              prefix_chars="+", description="Make a calibration: see `grindtwin calibrate --help`.")
     c.add_argument("options", nargs=argparse.REMAINDER, help="the options of twin.calibration's command")
     c.set_defaults(func=cmd_calibrate)
     return c

@@ -2,6 +2,6 @@
 
 import sys
 
-from .calibrate import run
+from .calibrate import main
 
-sys.exit(run())
+sys.exit(main())

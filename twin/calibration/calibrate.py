@@ -126,7 +126,7 @@ def add_arguments(ap: argparse.ArgumentParser) -> argparse.ArgumentParser:
     return ap
 
 
-def main(argv=None) -> int:
+def _parse_and_calibrate(argv=None) -> int:
     ap = add_arguments(argparse.ArgumentParser(prog="grindtwin calibrate", description=__doc__.split("\n\n")[0]))
     return calibrate(ap.parse_args(argv))
 
@@ -196,10 +196,10 @@ def _print_outcome(out: Path, cal: Calibration, times: dict) -> None:
     print(f"  sha256 {cal.sha256}")
 
 
-def run(argv=None) -> int:
-    """:func:`main` with the CLI's exit codes (2 bad input, 1 a failed calibration)."""
+def main(argv=None) -> int:
+    """``python -m twin.calibration``: parse, calibrate, exit codes (2 bad input, 1 a failed calibration)."""
     try:
-        return main(argv)
+        return _parse_and_calibrate(argv)
     except TwinInputError as exc:
         sys.stderr.write(f"grindtwin calibrate: error: {exc}\n")
         return 2
@@ -209,4 +209,4 @@ def run(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(run())
+    sys.exit(main())
