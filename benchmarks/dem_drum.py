@@ -44,7 +44,7 @@ NOTES = (
     "3 revs. Speeds as fractions of the DEM's critical speed sqrt(2g/(D-d)). Models: twin.mill for "
     "the LAB mill at the same fraction of critical and J: bond_W = Bond (1961) as the twin uses it "
     "with power_factor 1 (the published equation; the twin's fitted lab power_factor 1.47 in "
-    "twin/data/calibration.json is fitted to MISSION's energies, not to this DEM), hf_W = Hogg & "
+    "twin/calibration/files/table.json is fitted to MISSION's energies, not to this DEM), hf_W = Hogg & "
     "Fuerstenau (1972) torque arm at a 35 deg dynamic angle (omega from sqrt(2g/D), 2.5 % below the "
     "DEM's omega at the same fraction; no centrifuging loss). diff_*_pct = (DEM - model) / model. "
     "E_ball_10GPa: 0.7 critical, settle 1, measure 1 rev (the 1 GPa run's same window: 360.0 W, "

@@ -1,6 +1,6 @@
 """Drum DEM accuracy against time -> the twin's selection function (lab mill, 0.7 critical, J = 0.35).
 
-What the twin takes from the drum DEM (twin.dem_link, section 4) is the collision-energy
+What the twin takes from the drum DEM (twin.calibration.dem_link, section 4) is the collision-energy
 spectrum and the power; it turns them into the energy-specific selection function S^E(d)
 (``dem_link.selection_energy_specific``) and fits Austin's form to it
 (``dem_link.fit_austin_selection``). This benchmark measures how S^E and the power move with
@@ -23,7 +23,7 @@ value, with the wall time each setting costs:
     settle 1 / measure 2 rev, 0.1 m (steel's 210 GPa would cost 14x: not run).
 
 S^E is computed for ore B with its shipped DEM fracture-energy distribution
-(twin/data/dem_calibration.json: log-normal E50, sigma) and density; S^E_1mm is S^E evaluated
+(twin/calibration/files/dem.json: log-normal E50, sigma) and density; S^E_1mm is S^E evaluated
 at 1 mm, SE1_fit / alpha the fitted Austin form (before the table-fitted capture scale, which
 multiplies all of them alike and cancels in the errors).
 
@@ -53,8 +53,8 @@ from dem_common import write_table
 from dem.drum import SOFT_STEEL_BALL, drum_system
 from dem.materials import RAYLEIGH_SAFETY_FACTOR, Material
 from dem.system import HIST_DLOG10, HIST_LO_LOG10, HIST_NBINS
-from twin import dem_link
-from twin.ores import load_ore
+from twin.calibration import dem_link
+from twin.ore.ores import load_ore
 from twin.sizes import SizeGrid
 
 SPEED, FILLING = 0.7, 0.35
@@ -141,7 +141,7 @@ def window(run: dict, settle_rev: float, measure_rev: float) -> dict:
 
 
 def selection(drum: dict) -> dict:
-    """S^E of ore B from a spectrum and power, as twin.dem_link computes it."""
+    """S^E of ore B from a spectrum and power, as twin.calibration.dem_link computes it."""
     rec = dem_link.shipped_dem_calibration()["ores"][ORE]["fracture_energy"]
     rho = load_ore(ORE).density_t_m3 * 1000.0
     grid = SizeGrid()
@@ -254,7 +254,7 @@ def write(cache: str) -> None:
     write_table(df, "dem_drum_accuracy",
                 "Drum DEM accuracy against time -> selection function (lab mill, 0.7 critical, J = 0.35, ore B)",
                 "Errors in % of the study's reference row (longest / most balls / finest step / seed 0 / "
-                "stiffer balls). S^E from twin.dem_link.selection_energy_specific with ore B's shipped DEM "
+                "stiffer balls). S^E from twin.calibration.dem_link.selection_energy_specific with ore B's shipped DEM "
                 "fracture energies (capture scale not applied; it cancels in the errors): SE_1mm is S^E at "
                 "1 mm; SE1_fit, alpha, mu_um the fitted Austin form S1 (d/1 mm)^alpha / (1 + (d/mu)^Lambda) the "
                 "twin uses (S1, mu and Lambda trade off in the fit, so S1 alone scatters ~10 % where the curve "
@@ -267,7 +267,7 @@ def write(cache: str) -> None:
                 "power. The seed rows are the run-to-run noise (power 0.3 %, S^E_1mm 4 %, curve rms 2 % at "
                 "3 revolutions): differences below that are not resolved. The (settle 1, measure 3) row "
                 "reproduces dem_drum.md's 0.7 row (359.4 W) and 'twin full' the shipped "
-                "twin/data/dem_calibration.json drum (371.6 W, S1 47.2 t/kWh for B)."
+                "twin/calibration/files/dem.json drum (371.6 W, S1 47.2 t/kWh for B)."
                 + (f" Not run: {', '.join(missing)}." if missing else ""))
     print(df.to_string(), flush=True)
 

@@ -5,18 +5,18 @@ fracture energy E50 rising as particles get smaller, ``E50(d) = E_inf (1 + (d0/d
 DEM link (twin/dem_link.py) tests only 22 mm particles of 150 bonded spheres. Here the sphere
 size is held fixed (``n = 150 (d / 22 mm)^3``: dem.make_agglomerate sets the mean radius from
 the solid fraction, so the mean radius stays that of the calibration) and particles of
-several diameters are compressed with Type B's shipped bonds (twin/data/dem_calibration.json:
-k_n, k_s, tensile strength, cohesion; contact material from twin.dem_link._material) in the
+several diameters are compressed with Type B's shipped bonds (twin/calibration/files/dem.json:
+k_n, k_s, tensile strength, cohesion; contact material from twin.calibration.dem_link._material) in the
 calibration's virtual test (dem.compression_test at the calibration's platen speed, time-step
 factor and damping, stop after the peak; seeds 0..n-1 as in dem.BondCalibrator, so the first
 ten 22 mm particles are the calibration's own).
 
 Per size: mean peak force, the point-load strength ``sigma_t = 2.8 F / (pi d^2)`` (Hiramatsu &
 Oka 1966, Int. J. Rock Mech. 3, 89), the energy absorbed to the peak per particle mass and its
-log-normal fit (twin.fracture_energy.fit_fracture_energy). Across sizes: a power law
+log-normal fit (twin.ore.fracture_energy.fit_fracture_energy). Across sizes: a power law
 ``E50 ~ d^-k`` (ordinary least squares of ln E on ln d over all particles, i.e. the
 n-weighted fit of ln E50) with its standard error, the same for strength, and
-twin.fracture_energy.fit_size_dependence (Tavares & King's form; 68 % intervals from a
+twin.ore.fracture_energy.fit_size_dependence (Tavares & King's form; 68 % intervals from a
 bootstrap over particles within each size).
 
 Primary fracture: the calibration's stop rule (force below half the peak and the platen 0.5 % of the height
@@ -50,9 +50,9 @@ from scipy import stats
 
 from dem_common import OUT, md_table
 from dem import BondCalibrator, BondParams, compression_test, make_agglomerate
-from twin.dem_link import DEM_CALIBRATION_PATH, _material
-from twin.fracture_energy import fit_fracture_energy, fit_size_dependence
-from twin.ores import load_ore
+from twin.calibration.dem_link import DEM_CALIBRATION_PATH, _material
+from twin.ore.fracture_energy import fit_fracture_energy, fit_size_dependence
+from twin.ore.ores import load_ore
 
 ORE = "B"
 FULL_PLAN = {16: 20, 22: 20, 31: 20, 44: 12}     # d [mm]: particles (~25 min on one core)
@@ -188,7 +188,7 @@ def report(df: pd.DataFrame, setup: dict, cmd: str, rng) -> str:
     repro = (f"max relative difference {np.max(np.abs(mine / ref[:len(mine)] - 1)):.1e}" if len(mine) else "not run")
     out = ["# DEM particle-size effect on fracture energy (Type B bonds, fixed sphere size)", "",
            f"Command: `{cmd}`", "",
-           f"Type B's shipped bonds (twin/data/dem_calibration.json): k_n {b.kn_Pa_m / 1e9:.4g} GPa/m, "
+           f"Type B's shipped bonds (twin/calibration/files/dem.json): k_n {b.kn_Pa_m / 1e9:.4g} GPa/m, "
            f"k_s {b.ks_Pa_m / 1e9:.4g} GPa/m, tensile {b.tensile_strength_Pa / 1e6:.4g} MPa, cohesion "
            f"{b.cohesion_Pa / 1e6:.4g} MPa; platen {t['platen_speed_m_s']} m/s, time-step factor "
            f"{t['time_step_factor']}, local damping {t['local_damping']}. Spheres per particle "
@@ -225,7 +225,7 @@ def report(df: pd.DataFrame, setup: dict, cmd: str, rng) -> str:
                 f"- Strength: sigma_t ~ d^{ps['slope']:.3f} +/- {ps['se']:.3f} (p = {ps['p']:.2g}); peak force "
                 f"~ d^{2 + ps['slope']:.2f}. Weakest-link (Weibull) reference: the strength scatter within a size "
                 f"(CV {100 * cv:.0f} %, m ~ 1.2/CV = {m:.1f}) implies sigma_t ~ d^-{3 / m:.2f}.",
-                "- Tavares & King form (twin.fracture_energy.fit_size_dependence, weights 1/SE of ln E50): "
+                "- Tavares & King form (twin.ore.fracture_energy.fit_size_dependence, weights 1/SE of ln E50): "
                 + tk_text]
         verdicts.append(f"{name}: {verdict(-pe['slope'], pe['se'], dmin, dmax)}")
         if sfx:

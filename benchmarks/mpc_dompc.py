@@ -63,7 +63,7 @@ from mpc_reference_case import (LEAD_H, OUT, TARGET_UM, add_case_arguments,  # n
                                 reference_ekf, reference_sensors, reference_setup, schedule)
 
 from mpc import nmpc as nmpc_mod  # noqa: E402
-from mpc.closed_loop import run_closed_loop  # noqa: E402
+from mpc import LoopSettings, run_closed_loop  # noqa: E402
 from mpc.discretize import rk4_map  # noqa: E402
 from mpc.errors import MpcInputError  # noqa: E402
 from mpc.nmpc import PASSING_TARGET, Controller, NmpcSettings  # noqa: E402
@@ -307,7 +307,7 @@ def realised_cost(plant_model, frame: pd.DataFrame, x_loop0, u0, s: NmpcSettings
     + w_energy SE_k + l1/quadratic penalty of the load-band violation``, with the plant's true
     passing fraction at the target, re-simulated from the recorded inputs (the plant is
     deterministic). Returns (cost, largest |P80 re-simulated - P80 recorded| [um], a check)."""
-    from twin.simulate import step
+    from twin.solve.simulate import step
     from twin.sizes import pxx_um
 
     passing = plant_model.passing_function(s.target_p80_um)
@@ -337,7 +337,7 @@ def realised_cost(plant_model, frame: pd.DataFrame, x_loop0, u0, s: NmpcSettings
 
 def plant_state_after_warmup(plant_model, x0, u0, dt_h, warmup_h):
     """The plant state the loop starts from (run_closed_loop's warm-up holds u0 on schedule(0))."""
-    from twin.simulate import step
+    from twin.solve.simulate import step
 
     x = np.asarray(x0, float).copy()
     d0 = plant_model.d_vector(np.asarray(schedule(0.0), float), 1.0)
@@ -391,7 +391,7 @@ def main(argv=None) -> pd.DataFrame:
     dt, N = args.dt_h, args.horizon
     ours_spec = args.ours
     if ours_spec == "auto":
-        ours_spec = "ipopt" + (",rti" if "rti" in getattr(nmpc_mod, "SOLVERS", ()) else "")
+        ours_spec = "ipopt,rti"
     ours, dompcs = parse_configs(ours_spec), parse_configs(args.dompc)
 
     sensors = reference_sensors()
@@ -440,9 +440,9 @@ def main(argv=None) -> pd.DataFrame:
         timer = StepTimer(ctrl)
         est = reference_ekf(ctw, css, dt, args.hardness_noise)
         t0 = time.perf_counter()
-        res = run_closed_loop(plant.model, timer, est, schedule, sensors, args.duration_h, dt,
-                              ss.x, ss.u, seed=args.seed, preview_lead_h=LEAD_H,
-                              target_p80_um=TARGET_UM, estimator_warmup_h=args.warmup_h)
+        res = run_closed_loop(plant.model, timer, est, schedule, sensors, ss.x, ss.u,
+                              LoopSettings(args.duration_h, dt, seed=args.seed, preview_lead_h=LEAD_H,
+                                           target_p80_um=TARGET_UM, estimator_warmup_h=args.warmup_h))
         run_s = time.perf_counter() - t0
         fr = res.frame
         cost, resim_err = realised_cost(plant.model, fr, x_loop0, ss.u, ref_settings, dt)

@@ -1,6 +1,6 @@
 """The twin-based controller on a plant nobody here designed (issue 5): the run-of-mine milling
 circuit of le Roux, Craig, Hulbert & Hinde (2013, Minerals Engineering 43-44, 121-134) with its
-published parameters (:class:`mpc.leroux.LeRouxCircuit`), P80 from its fines fraction PSE by a
+published parameters (:class:`mpc.plants.leroux.LeRouxCircuit`), P80 from its fines fraction PSE by a
 Gates-Gaudin-Schuhmann assumption (modulus 0.8), ore hardness as its energy per tonne of fines
 phi_f.
 
@@ -10,7 +10,7 @@ also a rock fraction 0.465 -> 0.55 at t = 4 h); 8 h, 3-min samples. Three contro
 same plant, sensors and seed: no control (survey-3 inputs held), PI P80 -> feed (SIMC on a
 FOPDT fit of the circuit's linearised feed -> P80 response, analyser delay added:
 :func:`mpc.closed_loop.pi_baseline` on the circuit), and the NMPC + EKF on the twin matched to
-the circuit (:func:`mpc.leroux.matched_twin`). The EKF is given the P80 analyser only: the
+the circuit (:func:`mpc.plants.leroux.matched_twin`). The EKF is given the P80 analyser only: the
 circuit's power (a ROM-mill power surface in filling and rheology) and its filling (balls,
 rocks and water included) do not mean what the twin's power and load (ore hold-up over
 nominal) mean, and with one integrating disturbance (the hardness) a second measurement that
@@ -36,9 +36,9 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 
-from mpc.closed_loop import FixedInputs, Sensors, pi_baseline, run_closed_loop
+from mpc import FixedInputs, LoopSettings, Sensors, pi_baseline, run_closed_loop
 from mpc.estimator import Ekf
-from mpc.leroux import LeRouxCircuit, LeRouxPlant, matched_twin
+from mpc.plants.leroux import LeRouxCircuit, LeRouxPlant, matched_twin
 from mpc.nmpc import Controller, NmpcSettings
 
 OUT = Path(__file__).parent / "results"
@@ -108,11 +108,12 @@ def run_case(args) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
             notes.append(note)
         t0 = time.perf_counter()
         res = run_closed_loop(plant, ctrl, est if kind == "nmpc" else None, lambda t: [1.0],
-                              sensors, args.duration_h, dt, mt.plant_steady_x,
+                              sensors, mt.plant_steady_x,
                               [circuit.params.feed_tph, circuit.params.speed_frac_critical],
-                              seed=args.seed, target_p80_um=target, plant_hardness=hardness,
-                              estimator_warmup_h=args.warmup_h if kind == "nmpc" else 0.0,
-                              estimator_measurements=("p80_um",))
+                              LoopSettings(args.duration_h, dt, seed=args.seed, target_p80_um=target,
+                                           estimator_warmup_h=args.warmup_h if kind == "nmpc" else 0.0,
+                                           estimator_measurements=("p80_um",)),
+                              plant_hardness=hardness)
         run_s = time.perf_counter() - t0
         f = res.frame
         err = f.p80_um - target

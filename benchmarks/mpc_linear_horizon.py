@@ -20,7 +20,7 @@ import casadi as ca
 import numpy as np
 import pandas as pd
 
-from mpc.leroux import LeRouxCircuit
+from mpc.plants.leroux import LeRouxCircuit
 from mpc.linear import LinearMPC, discretize, linearize, steady_target
 
 DT_H = 0.05

@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from mpc_reference_case import controller_model  # same directory (run as a script)
-from mpc.closed_loop import Sensors, run_closed_loop
+from mpc import LoopSettings, Sensors, run_closed_loop
 from mpc.discretize import stable_rk4_substeps
 from mpc.estimator import Ekf
 from mpc.nmpc import Controller, NmpcSettings
@@ -81,8 +81,8 @@ def main(argv=None):
             horizon_steps=n, dt_h=dt, weight_du_feed=1.0, weight_du_speed=1.0,
             rk4_substeps=sub, solver=solver, warm_start=warm_start))
         build = time.perf_counter() - t0
-        res = run_closed_loop(plant.model, ctrl, Ekf(ctw.model, dt, css.x), schedule, sensors,
-                              args.duration_h, dt, ss.x, ss.u, seed=1, preview_lead_h=0.5)
+        res = run_closed_loop(plant.model, ctrl, Ekf(ctw.model, dt, css.x), schedule, sensors, ss.x, ss.u,
+                              LoopSettings(args.duration_h, dt, seed=1, preview_lead_h=0.5))
         k = res.kpis
         return {"solver": solver, "size_classes": ctw.model.spec.grid.count,
                 "ratio": ctw.model.spec.grid.ratio, "mixers": ctw.model.spec.n_mixers,

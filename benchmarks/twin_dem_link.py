@@ -1,7 +1,7 @@
 """DEM -> twin link: what the shipped (full) DEM calibration says per ore, what the --fast path
 gives and what each costs in time; the table reproduction of the DEM-based twin.
 
-Reads twin/data/dem_calibration.json (made by ``python -m twin.calibration --dem``), runs the
+Reads twin/calibration/files/dem.json (made by ``python -m twin.calibration --dem``), runs the
 ``--fast`` DEM part (no table fit, not written) and writes
 benchmarks/results/twin_dem_link.csv/.md (one row per ore and path) and
 twin_dem_link_table.csv/.md (P80, specific energy, throughput at constant load vs MISSION.md).
@@ -18,7 +18,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 import pandas as pd
 
 from dem_common import write_table
-from twin import dem_link
+from twin.calibration import dem_link
 from twin.calibration import reference_table
 
 

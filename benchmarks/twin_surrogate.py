@@ -1,7 +1,7 @@
 """What surrogate accuracy costs: PLS components and training-set size -> R2 and fit/predict
 time, beside the PBM twin's time for the same predictions.
 
-Data: the shipped training table ``twin/data/surrogate_training.parquet`` (design in
+Data: the shipped training table ``twin/surrogate/data/surrogate_training.parquet`` (design in
 ``twin/surrogate.py``). A fixed 20 % of the mineralogies (grouped split, seed 0) is the test
 set; training sets are nested subsets of the other mineralogies. For each (degree, n_pca,
 n_components, training mineralogies): held-out R2 per KPI, fit time, predict time per row in
@@ -31,7 +31,7 @@ from sklearn.metrics import r2_score
 
 from twin.surrogate import TARGETS, Surrogate, held_out_split, load, load_training_table, split_xy, surrogate_steady
 from twin.errors import TwinInputError
-from twin.samples import to_mineralogy
+from twin.ore.samples import to_mineralogy
 from twin.twin import Twin
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"

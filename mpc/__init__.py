@@ -1,72 +1,31 @@
-"""Model predictive control, estimation and baselines on the grindtwin mill model."""
+"""Model predictive control, estimation and baselines on the grindtwin mill model: the NMPC
+(:class:`Controller`), the EKF (:class:`Ekf`), PI and no-control baselines, linear analysis, the
+steady-state optimiser, sensors, plants (:mod:`mpc.plants`) and the closed loop."""
 
-from mpc.discretize import cvodes_map, min_rk4_substeps, rk4_map
+from mpc.baselines import FixedInputs, PiFeedback, pi_baseline
+from mpc.closed_loop import ESTIMATOR_MEASUREMENTS, ClosedLoopResult, LoopSettings, run_closed_loop
+from mpc.discretize import (RK4_RATE_SAFETY, cvodes_map, min_rk4_substeps, rk4_map, rk4_sensitivity_map,
+                             stable_rk4_substeps, state_jacobian)
 from mpc.errors import MpcError, MpcInputError, MpcSolverError
-from mpc.leroux import LeRouxCircuit, LeRouxParameters, LeRouxPlant, MatchedTwin, matched_twin
-from mpc.linear import (
-    Fopdt,
-    LinearMPC,
-    OperatingPoint,
-    discretize,
-    fit_fopdt,
-    fopdt_from_model,
-    gain_table,
-    linearize,
-    steady_target,
-)
-from mpc.pi import DiscretePI, pi_from_model, simc_pi
-from mpc.results import ControllerStepResult
-from mpc.closed_loop import (
-    ClosedLoopResult,
-    FixedInputs,
-    PiFeedback,
-    Sensors,
-    TwinPlant,
-    pi_baseline,
-    run_closed_loop,
-)
-from mpc.estimator import Ekf
-from mpc.nmpc import Controller, NmpcSettings
+from mpc.codegen import CompileFallbackWarning, CompileReport, compiled
+from mpc.estimator import DISTURBANCE_MODELS, MEASUREMENTS, Ekf
+from mpc.kpis import P80_BAND_UM, cumulative, integral, loop_kpis, outside_band_frac, p80_iae_um_h, within_band_frac
+from mpc.linear import (Fopdt, LinearMPC, OperatingPoint, discretize, fit_fopdt, fopdt_from_model, gain_table,
+                        linearize, steady_target)
+from mpc.nmpc import QP_SOLVERS, SOLVERS, Controller, NmpcSettings
 from mpc.optimize import Setpoints, feed_for_target, optimal_setpoints, speed_for_target
+from mpc.pi import DiscretePI, pi_from_model, simc_pi
+from mpc.plants import LeRouxCircuit, LeRouxParameters, LeRouxPlant, MatchedTwin, TwinPlant, matched_twin
+from mpc.results import ControllerStepResult
+from mpc.sensors import Sensors, SensorState
 
 __all__ = [
-    "ControllerStepResult",
-    "DiscretePI",
-    "Fopdt",
-    "LeRouxCircuit",
-    "LeRouxParameters",
-    "LeRouxPlant",
-    "MatchedTwin",
-    "matched_twin",
-    "LinearMPC",
-    "MpcError",
-    "MpcInputError",
-    "MpcSolverError",
-    "OperatingPoint",
-    "cvodes_map",
-    "discretize",
-    "fit_fopdt",
-    "fopdt_from_model",
-    "gain_table",
-    "linearize",
-    "min_rk4_substeps",
-    "pi_from_model",
-    "rk4_map",
-    "simc_pi",
-    "steady_target",
-    # NMPC, estimation, closed loop, steady-state optimiser
-    "ClosedLoopResult",
-    "Controller",
-    "Ekf",
-    "FixedInputs",
-    "NmpcSettings",
-    "PiFeedback",
-    "TwinPlant",
-    "Sensors",
-    "Setpoints",
-    "feed_for_target",
-    "optimal_setpoints",
-    "pi_baseline",
-    "run_closed_loop",
-    "speed_for_target",
+    "ClosedLoopResult", "CompileFallbackWarning", "CompileReport", "DISTURBANCE_MODELS", "Controller", "ControllerStepResult", "DiscretePI", "ESTIMATOR_MEASUREMENTS", "Ekf",
+    "FixedInputs", "Fopdt", "LeRouxCircuit", "LeRouxParameters", "LeRouxPlant", "LinearMPC", "LoopSettings",
+    "MEASUREMENTS", "MatchedTwin", "MpcError", "MpcInputError", "MpcSolverError", "NmpcSettings", "OperatingPoint",
+    "P80_BAND_UM", "PiFeedback", "QP_SOLVERS", "SOLVERS", "RK4_RATE_SAFETY", "SensorState", "Sensors", "Setpoints", "TwinPlant",
+    "compiled", "cumulative", "cvodes_map", "discretize", "feed_for_target", "fit_fopdt", "fopdt_from_model", "gain_table",
+    "integral", "linearize", "loop_kpis", "matched_twin", "min_rk4_substeps", "optimal_setpoints",
+    "outside_band_frac", "p80_iae_um_h", "pi_baseline", "pi_from_model", "rk4_map", "rk4_sensitivity_map", "simc_pi", "speed_for_target",
+    "stable_rk4_substeps", "state_jacobian", "steady_target", "within_band_frac",
 ]

@@ -1,6 +1,6 @@
 """Linear analysis of a CasADi model and a condensed linear MPC.
 
-Works on the generic model contract of the twin (and of :mod:`mpc.leroux`): a casadi.Function
+Works on the generic model contract of the twin (and of :mod:`mpc.plants.leroux`): a casadi.Function
 ``f(x, u, d) -> xdot`` (time in hours) and output functions ``outputs[name](x, u, d) -> y``.
 
 - :func:`linearize` - Jacobians at an operating point into a continuous ``control.StateSpace``

@@ -1,15 +1,14 @@
 """Scenes, replays, what-if sweeps, reports and the grindtwin command.
 
 The Python API mirrors the CLI: ``scenarios.load_scene``, ``scenarios.check_scene``,
-``scenarios.run_scene``, ``scenarios.replay_scene``, ``scenarios.run_sweep`` (imported on
-first use, so that ``import scenarios`` stays light).
+``scenarios.run_scene``, ``scenarios.replay_scene``, ``scenarios.run_sweep``,
+``scenarios.write_report`` (imported on first use, so that ``import scenarios`` stays light).
 """
 
 _API = {
-    "load_scene": "scenarios.loader", "check_scene": "scenarios.loader",
-    "run_scene": "scenarios.runner", "replay_scene": "scenarios.runner",
-    "RunResult": "scenarios.runner", "run_sweep": "scenarios.sweep",
-    "write_report": "scenarios.report",
+    "load_scene": "scenarios.scene", "check_scene": "scenarios.scene", "Scene": "scenarios.scene",
+    "run_scene": "scenarios.run", "replay_scene": "scenarios.run", "RunResult": "scenarios.run",
+    "run_sweep": "scenarios.run", "write_report": "scenarios.output",
 }
 
 __all__ = sorted(_API)

@@ -1,24 +1,31 @@
-"""grindtwin's mill twin: mineralogy, size grid, breakage, effects, the CasADi mill model,
-solvers, calibration, and the characterisation end (samples, ore typing, indentation,
-fracture energy)."""
+"""grindtwin's mill twin: size grid, breakage, the mill, effects, the CasADi mill model and the
+``Twin`` facade; subpackages ``twin.ore`` (characterisation), ``twin.solve`` (steady states and
+runs), ``twin.calibration`` (breakage maps, DEM chain, table fits, calibration files) and
+``twin.surrogate`` (the PLS soft sensor, imported on its own: it needs scikit-learn)."""
 
-from .errors import ModelError, SolverError, TwinError, TwinInputError
-from .fracture_energy import (breakage_probability, fit_breakage_outcomes, fit_by_group, fit_fracture_energy,
-                              fit_size_dependence)
-from .indentation import AreaFunction, Indenter, oliver_pharr, synthesize_curve
-from .mill import MILLS, Mill
-from .mineralogy import Mineralogy, Texture
-from .ores import Blend, load_ore, reference_ores
-from .oretyping import OreTyper
-from .sample_library import generate_library, load_reference_samples
-from .samples import SampleTableError, read_samples, validate_samples
-from .sizes import SizeGrid, pxx_um
-from .twin import DEFAULT_EFFECTS, Twin
+from ._lazy import lazy_face
+
+#: Public name -> the module that defines it, imported on first use (PEP 562).
+_API = {
+    "BreakageParams": ".breakage", "OreBreakage": ".breakage", "austin_selection": ".breakage",
+    "ore_breakage": ".breakage",
+    "EFFECTS": ".effects", "Effect": ".effects", "known_effects": ".effects",
+    "ModelError": ".errors", "SolverError": ".errors", "TwinError": ".errors", "TwinInputError": ".errors",
+    "MILLS": ".mill", "Mill": ".mill", "bond_power_kw": ".mill", "get_mill": ".mill",
+    "hogg_fuerstenau_power_kw": ".mill", "load_status": ".mill",
+    "INPUT_NAMES": ".model", "Model": ".model", "ModelSpec": ".model",
+    "Blend": ".ore", "Mineralogy": ".ore", "Texture": ".ore", "load_ore": ".ore", "reference_ores": ".ore",
+    "GatesGaudinSchuhmann": ".sizes", "RosinRammler": ".sizes", "SizeGrid": ".sizes", "discretise": ".sizes",
+    "pxx_um": ".sizes",
+    "SteadyState": ".solve", "Trajectory": ".solve",
+    "DEFAULT_EFFECTS": ".twin", "Twin": ".twin",
+}
 
 __all__ = [
-    "AreaFunction", "Blend", "DEFAULT_EFFECTS", "Indenter", "MILLS", "Mill", "Mineralogy", "ModelError",
-    "OreTyper", "SampleTableError", "SizeGrid", "SolverError", "Texture", "Twin", "TwinError", "TwinInputError",
-    "breakage_probability", "fit_breakage_outcomes", "fit_by_group", "fit_fracture_energy", "fit_size_dependence",
-    "generate_library", "load_ore", "load_reference_samples", "oliver_pharr", "pxx_um", "read_samples",
-    "reference_ores", "synthesize_curve", "validate_samples",
+    "Blend", "BreakageParams", "DEFAULT_EFFECTS", "EFFECTS", "Effect", "GatesGaudinSchuhmann", "INPUT_NAMES", "MILLS",
+    "Mill", "Mineralogy", "Model", "ModelError", "ModelSpec", "OreBreakage", "RosinRammler", "SizeGrid", "SolverError", "SteadyState",
+    "Texture", "Trajectory", "Twin", "TwinError", "TwinInputError", "austin_selection", "bond_power_kw",
+    "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
+    "pxx_um", "reference_ores",
 ]
+__getattr__, __dir__ = lazy_face(__name__, _API)

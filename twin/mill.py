@@ -136,3 +136,9 @@ def hogg_fuerstenau_power_kw(mill: Mill, speed_frac_critical, dynamic_angle_deg:
     mass_t = J * mill.volume_m3 * mill.ball_bulk_density_t_m3
     omega = speed_frac_critical * math.sqrt(2.0 * G_M_S2 / mill.diameter_m)
     return mill.power_factor * mass_t * G_M_S2 * r_c * math.sin(math.radians(dynamic_angle_deg)) * omega
+
+
+def load_status(load_frac: float, band) -> str:
+    """'under', 'stable' or 'over' for a load (hold-up over nominal) and a stable band."""
+    lo, hi = band
+    return "under" if load_frac < lo else "over" if load_frac > hi else "stable"

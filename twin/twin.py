@@ -14,14 +14,13 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from .breakage import ore_breakage
-from .breakage_map import mineralogy_breakage, shipped_calibration
+from .calibration import mineralogy_breakage, shipped_calibration
 from .errors import TwinInputError, bad_value
 from .mill import Mill, bond_power_kw, get_mill
-from .mineralogy import Mineralogy
-from .minerals import CLAY_MINERALS, CUSHIONING_MINERALS
 from .model import Model, ModelSpec
-from .ores import Blend, load_ore
+from .ore import CLAY_MINERALS, CUSHIONING_MINERALS, Blend, Mineralogy, load_ore
 from .sizes import GatesGaudinSchuhmann, SizeGrid, discretise
+from .solve import simulate, steady_state, steady_state_at_load
 
 #: The effects of the laboratory mill's calibration: a continuous grate-discharge mill with load
 #: dynamics, speed-dependent rates, cushioning by clay and mica, clay slurry rheology, and power.
@@ -39,7 +38,7 @@ class Twin:
     Mineralogy); the nominal blend (for the nominal hold-up's density and defaults) is the
     Blend's fractions, else equal shares. ``breakage_map(ore, coefficients)`` is the one
     replaceable mineralogy -> BreakageParams function; ``calibration`` (default: the shipped
-    ``twin/data/calibration.json``) gives its coefficients and the fitted mill values.
+    ``twin/calibration/files/table.json``) gives its coefficients and the fitted mill values.
     ``feed_psd`` overrides the feed size distribution (object with ``passing`` or class fractions).
     """
 
@@ -77,8 +76,6 @@ class Twin:
     def steady(self, feed_tph: float | None = None, speed_frac_critical: float | None = None,
                blend=None, hardness_scale: float = 1.0):
         """Steady state at the given feed rate [t/h] and speed (defaults: the mill's nominal)."""
-        from .steady import steady_state
-
         feed = self.mill.feed_nominal_tph if feed_tph is None else feed_tph
         return steady_state(self.model, self._u(feed, speed_frac_critical), self._d(blend, hardness_scale))
 
@@ -86,17 +83,13 @@ class Twin:
                                 load_frac: float = 1.0, hardness_scale: float = 1.0):
         """Steady state whose hold-up is ``load_frac`` of nominal: the feed rate is solved for
         (how the laboratory reports throughput 'at constant load')."""
-        from .steady import steady_state_at_load
-
         return steady_state_at_load(self.model, self._u(self.mill.feed_nominal_tph, speed_frac_critical),
                                     self._d(blend, hardness_scale), load_frac)
 
     def simulate(self, duration_h: float, dt_h: float, feed_tph=None, speed_frac_critical=None,
                  blend=None, x0=None, **kwargs):
         """Open-loop run with inputs given as constants or callables of time [h]; returns a
-        :class:`twin.simulate.Trajectory`."""
-        from .simulate import simulate
-
+        :class:`twin.solve.simulate.Trajectory`."""
         def as_fn(v, default):
             v = default if v is None else v
             return v if callable(v) else (lambda t, v=v: v)

@@ -1,7 +1,7 @@
 """Write ``sample_history.csv``: one SYNTHETIC day of feed mineralogy at one-minute resolution.
 
 Nothing here is measured. The feed moves between the reference ore types of
-``twin/data/ores.toml`` (Type B, a ramp to 60 % B / 40 % D, an A-rich stretch, a short C
+``twin/ore/data/ores.toml`` (Type B, a ramp to 60 % B / 40 % D, an A-rich stretch, a short C
 streak, back to B); each minute's mineralogy and texture are the fraction-weighted mix of
 the types plus slow ore variability and analyser noise. The ``feed_tph``,
 ``speed_frac_critical`` and ``p80_um`` columns are made-up operator moves and a made-up
@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from twin.ores import reference_ores
+from twin import reference_ores
 
 MINUTES = 24 * 60
 START = pd.Timestamp("2026-01-15T00:00:00")
@@ -73,7 +73,7 @@ def main(argv: list[str] | None = None) -> Path:
     day = synthetic_day(args.seed)
     header = (f"# SYNTHETIC data, not measured: one day of feed mineralogy at one-minute resolution.\n"
               f"# Produced by: python scenarios/data/make_sample_history.py --seed {args.seed}\n"
-              f"# Ore types from twin/data/ores.toml; feed_tph, speed_frac_critical and p80_um "
+              f"# Ore types from twin/ore/data/ores.toml; feed_tph, speed_frac_critical and p80_um "
               f"are made up.\n")
     with args.out.open("w", encoding="utf-8", newline="") as fh:
         fh.write(header)

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mpc.closed_loop import FixedInputs, Sensors, run_closed_loop
+from mpc import FixedInputs, LoopSettings, Sensors, run_closed_loop
 from mpc.estimator import Ekf
 from mpc.nmpc import Controller, NmpcSettings
 from mpc.optimize import optimal_setpoints
@@ -24,8 +24,8 @@ def test_offset_free_against_reference(ctrl_twin, plant_twin, save_reference):
     ctrl = Controller(ctrl_twin.model, NmpcSettings(horizon_steps=4, dt_h=0.05, move_block=2))
     sensors = Sensors(p80_noise_um=1.0, p80_dead_time_h=0.1, p80_sample_period_h=0.05)
     res = run_closed_loop(plant_twin.model, ctrl, Ekf(ctrl_twin.model, dt, ss_c.x, p80_noise_um=1.0),
-                          lambda t: np.array([1.0, 0.0]), sensors, 1.2, dt, ss_p.x, ss_p.u,
-                          seed=7, plant_hardness=1.2)
+                          lambda t: np.array([1.0, 0.0]), sensors, ss_p.x, ss_p.u,
+                          LoopSettings(1.2, dt, seed=7), plant_hardness=1.2)
     f = res.frame
     assert set(COLS + ["p80_measured_um", "p80_target_um", "power_kw", "load_frac",
                        "specific_energy_kwh_t", "throughput_tph", "blend_B_frac",
@@ -35,8 +35,8 @@ def test_offset_free_against_reference(ctrl_twin, plant_twin, save_reference):
     assert (f.p80_um.iloc[-10:] - 210.0).abs().max() < 6.0
     # no control stays off target on the same plant
     res0 = run_closed_loop(plant_twin.model, FixedInputs(ss_p.u), None,
-                           lambda t: np.array([1.0, 0.0]), sensors, 1.2, dt, ss_p.x, ss_p.u,
-                           seed=7, plant_hardness=1.2)
+                           lambda t: np.array([1.0, 0.0]), sensors, ss_p.x, ss_p.u,
+                           LoopSettings(1.2, dt, seed=7), plant_hardness=1.2)
     assert res0.kpis["p80_iae_um_h"] > 1.5 * res.kpis["p80_iae_um_h"]
     if save_reference:
         REF.parent.mkdir(exist_ok=True)

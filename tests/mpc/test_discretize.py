@@ -6,7 +6,7 @@ import pytest
 from mpc.discretize import (RK4_RATE_SAFETY, cvodes_map, min_rk4_substeps, rk4_amplification, rk4_map,
                             stable_rk4_substeps)
 from mpc.errors import MpcInputError
-from mpc.leroux import LeRouxCircuit
+from mpc.plants.leroux import LeRouxCircuit
 from mpc.linear import linearize
 
 

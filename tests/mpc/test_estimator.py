@@ -3,7 +3,7 @@ import pytest
 
 from mpc.errors import MpcInputError
 from mpc.estimator import Ekf
-from twin.simulate import step
+from twin.solve.simulate import step
 
 
 def test_ekf_converges_to_a_hardness_step(ctrl_twin):

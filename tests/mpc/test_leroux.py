@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from mpc.errors import MpcInputError
-from mpc.leroux import (
+from mpc.plants.leroux import (
     NOMINAL_OUTPUTS_PUBLISHED,
     NOMINAL_STATE_PUBLISHED,
     STATE_NAMES,

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from mpc.closed_loop import FixedInputs, Sensors, run_closed_loop
+from mpc import FixedInputs, LoopSettings, Sensors, run_closed_loop
 from mpc.errors import MpcInputError
 from mpc.estimator import Ekf
-from mpc.leroux import LeRouxCircuit, LeRouxPlant, matched_twin
+from mpc.plants.leroux import LeRouxCircuit, LeRouxPlant, matched_twin
 from mpc.nmpc import Controller, NmpcSettings
 
 DT = 0.05
@@ -70,7 +70,7 @@ def test_adapter_rejects_bad_input(circuit, kwargs, field):
         plant.disturbance(0.0, [1.0], -1.0)
     with pytest.raises(MpcInputError, match="plant protocol"):
         run_closed_loop(object(), FixedInputs([65.2, 0.712]), None, lambda t: [1.0], Sensors(),
-                        1.0, DT, plant.x_steady, [65.2, 0.712])
+                        plant.x_steady, [65.2, 0.712], LoopSettings(1.0, DT))
 
 
 def test_twin_nmpc_removes_offset_after_hardness_step(circuit, mt):
@@ -90,18 +90,17 @@ def test_twin_nmpc_removes_offset_after_hardness_step(circuit, mt):
         feed_rate_max_tph_per_h=40.0, preview=False))
     est = Ekf(mt.twin.model, DT, mt.steady.x, hardness0=mt.hardness0, p80_noise_um=1.0,
               rk4_substeps=n_sub)
-    kw = dict(seed=3, target_p80_um=mt.target_p80_um, plant_hardness=1.15,
-              estimator_measurements=("p80_um",))
-    res = run_closed_loop(plant, ctrl, est, lambda t: [1.0], sensors, 3.0, DT,
-                          mt.plant_steady_x, u3, **kw)
+    settings = LoopSettings(3.0, DT, seed=3, target_p80_um=mt.target_p80_um, estimator_measurements=("p80_um",))
+    res = run_closed_loop(plant, ctrl, est, lambda t: [1.0], sensors, mt.plant_steady_x, u3, settings,
+                          plant_hardness=1.15)
     f = res.frame
     last = f[f.time_h >= 2.5]
     err = last.p80_um - mt.target_p80_um
     assert abs(err.mean()) < 2.5 and err.abs().max() < 5.0
     assert last.hardness_est.mean() / mt.hardness0 == pytest.approx(1.15, abs=0.1)
     assert last.feed_tph.mean() < 62.0  # harder ore: less feed (or more speed) holds the grind
-    res0 = run_closed_loop(plant, FixedInputs(u3), None, lambda t: [1.0], sensors, 3.0, DT,
-                           mt.plant_steady_x, u3, **kw)
+    res0 = run_closed_loop(plant, FixedInputs(u3), None, lambda t: [1.0], sensors, mt.plant_steady_x, u3,
+                           settings, plant_hardness=1.15)
     err0 = res0.frame.p80_um[res0.frame.time_h >= 2.5] - mt.target_p80_um
     assert err0.mean() > 12.0
     assert res.kpis["p80_iae_um_h"] < 0.5 * res0.kpis["p80_iae_um_h"]

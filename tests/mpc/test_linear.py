@@ -228,7 +228,7 @@ def test_results_object_validates_fallback():
 
 
 def test_le_roux_gain_table_matches_nonlinear_steady_states():
-    from mpc.leroux import DISTURBANCE_NAMES, LeRouxCircuit
+    from mpc.plants.leroux import DISTURBANCE_NAMES, LeRouxCircuit
 
     c = LeRouxCircuit()
     xs = c.steady_state()
@@ -255,7 +255,7 @@ def test_le_roux_gain_table_matches_nonlinear_steady_states():
 
 
 def test_steady_target_and_linear_mpc_move_le_roux_p80():
-    from mpc.leroux import LeRouxCircuit
+    from mpc.plants.leroux import LeRouxCircuit
     from mpc.linear import steady_target
 
     dt = 0.05

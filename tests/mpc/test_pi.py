@@ -116,7 +116,7 @@ def test_pi_input_validation():
 
 
 def test_simc_pi_from_linearised_le_roux_holds_p80_through_harder_ore():
-    from mpc.leroux import LeRouxCircuit
+    from mpc.plants.leroux import LeRouxCircuit
 
     plant = LeRouxCircuit(dt_h=0.05)
     xs = plant.steady_state()

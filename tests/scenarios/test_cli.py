@@ -8,7 +8,7 @@ import re
 import pandas as pd
 import pytest
 
-from scenarios import commands
+from scenarios.cli import commands
 from scenarios.cli import _Parser
 from tests.scenarios.test_runner import _history_csv, short_pyrite_scene
 

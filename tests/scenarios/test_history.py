@@ -11,8 +11,8 @@ import pandas as pd
 import pytest
 
 from scenarios.errors import SceneError
-from scenarios.history import read_history
-from scenarios.loader import load_scene
+from scenarios.scene import blend_at, feed_table, read_history
+from scenarios.scene.loader import load_scene
 
 ROOT = Path(__file__).parents[2]
 DT = 1 / 60
@@ -111,8 +111,8 @@ def test_ore_fraction_history_drives_blend_at(tmp_path, write_scene):
                                                             "history_max_gap_h = 0.25")
     text += BASE_SCENE[BASE_SCENE.index("[controller]"):]
     scene = load_scene(write_scene(text))
-    assert scene.blend_at(4.0) == pytest.approx({"B": 0.6, "D": 0.4})
-    table = scene.feed_table()
+    assert blend_at(scene, 4.0) == pytest.approx({"B": 0.6, "D": 0.4})
+    table = feed_table(scene)
     assert list(table.columns) == ["ore_B_frac", "ore_D_frac"] and len(table) == 33
 
 
@@ -125,7 +125,6 @@ def test_sample_history_is_a_synthetic_day_at_one_minute():
 
 
 def test_sample_history_script_reproduces_the_shipped_file(tmp_path):
-    pytest.importorskip("twin.ores")
     out = tmp_path / "again.csv"
     subprocess.run([sys.executable, str(ROOT / "scenarios" / "data" / "make_sample_history.py"),
                     "--out", str(out)], check=True, cwd=ROOT, capture_output=True,
@@ -136,8 +135,8 @@ def test_sample_history_script_reproduces_the_shipped_file(tmp_path):
 
 def test_replay_scene_feed_table_has_mineralogy_texture_and_recorded_values():
     scene = load_scene(ROOT / "scenarios" / "replay_day.toml")
-    table = scene.feed_table()
+    table = feed_table(scene)
     assert len(table) == 24 * 60 + 1
     assert {"quartz_wt_pct", "mean_grain_um", "recorded_feed_tph", "recorded_p80_um"} <= set(table)
     with pytest.raises(SceneError, match="records mineralogy"):
-        scene.blend_at(1.0)
+        blend_at(scene, 1.0)

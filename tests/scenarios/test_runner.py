@@ -12,7 +12,8 @@ import pandas as pd
 import pytest
 
 from scenarios.errors import RunError
-from scenarios.runner import (_require, mineralogy_to_blend, replay_scene, run_scene)
+from scenarios.run import replay_scene, run_scene
+from scenarios.run.feed import mineralogy_to_blend
 
 LIBRARY = Path(__file__).resolve().parents[2] / "scenarios"
 
@@ -73,11 +74,11 @@ def test_target_kpis_follow_their_definition(short_run):
 
 
 def test_no_target_means_no_p80_kpis(short_run):
-    from scenarios.runner import compute_kpis
+    from scenarios.run import compute_kpis
 
     scene = short_run.summary  # the KPIs are a function of the frame and the scene's target
     assert scene["target_p80_um"] == 250.0
-    from scenarios.loader import load_scene
+    from scenarios.scene.loader import load_scene
 
     bare = load_scene(LIBRARY / "pyrite_surge.toml")
     k = compute_kpis(bare, short_run.frame)
@@ -89,7 +90,8 @@ def test_batch_grind_refines_the_charge():
     k = res.kpis
     assert res.summary["mode"] == "batch"
     assert k["throughput_t"] == pytest.approx(0.012)
-    p80 = res.frame["p80_um"].to_numpy()
+    assert "p80_um" not in res.frame  # a batch mill has no product: its P80 is the content's
+    p80 = res.frame["content_p80_um"].to_numpy()
     assert p80[0] > 2000 and p80[-1] < 0.3 * p80[0]
     assert np.all(np.diff(p80) <= 1e-6)  # a batch grind only gets finer
     assert 1.0 < k["specific_energy_kwh_t"] < 100.0
@@ -104,7 +106,7 @@ def test_batch_grind_refines_the_charge():
 
 
 def test_mineralogy_rows_are_mapped_to_the_ores_by_nnls():
-    from twin.ores import reference_ores
+    from twin.ore.ores import reference_ores
 
     ores = {n: reference_ores()[n] for n in ("B", "D")}
     minerals = sorted(set(ores["B"].wt_pct) | set(ores["D"].wt_pct))
@@ -148,13 +150,8 @@ def test_replay_drives_the_recorded_inputs_and_compares(tmp_path):
     assert short.kpis["fed_t"] == pytest.approx(0.25 * 30)
 
 
-def test_missing_controller_module_is_a_run_error():
-    with pytest.raises(RunError, match="controller kind 'nmpc' needs mpc.no_such_module, not available"):
-        _require("mpc.no_such_module", "nmpc")
-
-
 def test_written_run_is_complete_and_json_has_no_nan(short_run, tmp_path):
-    from scenarios.outputs import write_run
+    from scenarios.output.write import write_run
 
     out = tmp_path / "run"
     assert write_run(short_run, out, csv=True, plots=False) == out
@@ -166,7 +163,7 @@ def test_written_run_is_complete_and_json_has_no_nan(short_run, tmp_path):
     assert "NaN" not in text  # strict JSON: undefined KPIs are null
     assert summary["kpis"]["solve_time_median_s"] is None
     assert summary["scene"] == "pyrite_surge" and summary["seed"] == 3
-    assert "Effects:" in summary["model"] and summary["versions"]["numpy"]
+    assert "Effects:" in summary["plant_model"] and summary["versions"]["numpy"]
     assert summary["effects"] == ["breakage", "transport", "holdup", "speed", "cushioning", "power"]
     back = pd.read_parquet(out / "timeseries.parquet")
     pd.testing.assert_frame_equal(back, short_run.frame, check_dtype=False)
@@ -174,7 +171,7 @@ def test_written_run_is_complete_and_json_has_no_nan(short_run, tmp_path):
 
 @pytest.mark.parametrize("where", ["plots", "summary"])
 def test_interrupted_write_leaves_no_complete_looking_output(short_run, tmp_path, monkeypatch, where):
-    import scenarios.outputs as outputs
+    import scenarios.output.write as outputs
 
     out = tmp_path / "run"
     outputs.write_run(short_run, out, plots=False)
@@ -195,16 +192,16 @@ def test_interrupted_write_leaves_no_complete_looking_output(short_run, tmp_path
 
 
 def test_run_interrupted_mid_simulation_writes_nothing(tmp_path, monkeypatch):
-    import scenarios.runner as runner
+    import scenarios.run.open_loop as open_loop
 
     calls = []
-    real = runner._psd_snapshots
+    real = open_loop.run_size_data
 
     def boom(*args, **kwargs):  # the run dies after the integration, before any output
         calls.append(1)
         raise RuntimeError("killed")
 
-    monkeypatch.setattr(runner, "_psd_snapshots", boom)
+    monkeypatch.setattr(open_loop, "run_size_data", boom)
     scene = short_pyrite_scene(tmp_path, 0.25)
     with pytest.raises(RuntimeError, match="killed"):
         run_scene(scene, out_dir=tmp_path / "run", progress=False)
@@ -235,19 +232,9 @@ def test_closed_loop_through_the_real_loop(tmp_path, kind):
     assert k["mass_balance_error"] < 1e-6  # the plant's fed and produced mass close with its hold-up
 
 
-def test_closed_loop_without_mpc_closed_loop_is_a_run_error(tmp_path, monkeypatch):
-    import sys
-
-    monkeypatch.setitem(sys.modules, "mpc.closed_loop", None)  # import of it fails
-    path = _controlled(short_pyrite_scene(tmp_path, duration_h=0.25), "pi")
-    with pytest.raises(RunError, match="controller kind 'pi' needs mpc.closed_loop, not available"):
-        run_scene(path, progress=False)
-
-
 def test_nmpc_settings_from_the_scene():
-    pytest.importorskip("mpc.nmpc")
-    from scenarios.loader import load_scene
-    from scenarios.runner import nmpc_settings
+    from scenarios.run.closed_loop import nmpc_settings
+    from scenarios.scene import load_scene
 
     s = nmpc_settings(load_scene(LIBRARY / "reference_transition.toml"))
     assert (s.target_p80_um, s.horizon_steps, s.move_block, s.rk4_substeps) == (210.0, 10, 1, 2)
@@ -259,7 +246,7 @@ def test_nmpc_settings_from_the_scene():
 def test_mineralogy_history_without_ores_runs_on_the_reference_types(tmp_path):
     """replay_day's form: mineral wt% and texture per minute, no [ores]: the components are the
     reference types A-D and each minute is their NNLS mix (here exactly B, then 60 % B / 40 % D)."""
-    from twin.ores import reference_ores
+    from twin.ore.ores import reference_ores
 
     ref = reference_ores()
     minerals = sorted(set(ref["B"].wt_pct) | set(ref["D"].wt_pct))
@@ -304,7 +291,7 @@ def test_a_different_plant_is_built_and_simulated(tmp_path):
                     "size_classes = { ratio = 2.0, count = 11 }\n")
     res = run_scene(path, progress=False)
     assert res.summary["plant_model"] is not None and "11 size classes" in res.summary["plant_model"]
-    assert "13 size classes" in res.summary["model"]
+    assert res.summary["controller_model"] is None  # open loop: the scene's own model is not run
     assert res.psd.shape[1] == 11  # the plant's grid is what ran
     assert any("plant is a separate twin" in n for n in res.summary["notes"])
 
@@ -312,20 +299,20 @@ def test_a_different_plant_is_built_and_simulated(tmp_path):
 def test_analyser_trace_delays_samples_holds_and_adds_seeded_noise():
     import types
 
-    from scenarios.runner import analyser_trace
+    from scenarios.run.open_loop import analyser_trace
 
     t = np.arange(13) / 12  # 5-min grid over 1 h
     p80 = 200 + 60 * t  # a ramp
     quiet = types.SimpleNamespace(p80_noise_um=0.0, p80_dead_time_h=0.25, p80_sample_period_h=0.25)
     y = analyser_trace(t, p80, quiet, seed=1)
-    np.testing.assert_allclose(y[:3], 200.0)  # nothing seen before the dead time has passed
+    assert np.all(np.isnan(y[:3]))  # nothing reported before the first sample's dead time has passed
     np.testing.assert_allclose(y[3:6], 200.0)  # sample at 0.25 h sees t = 0
     np.testing.assert_allclose(y[6:9], 215.0)  # sample at 0.5 h sees t = 0.25 h, held
     noisy = types.SimpleNamespace(p80_noise_um=3.0, p80_dead_time_h=0.25, p80_sample_period_h=0.25)
     a, b = analyser_trace(t, p80, noisy, seed=7), analyser_trace(t, p80, noisy, seed=7)
     np.testing.assert_array_equal(a, b)  # reproducible from the seed
     assert not np.allclose(a, analyser_trace(t, p80, noisy, seed=8))
-    assert np.all(a[:3] == a[0]) and 0 < np.std(a - y) < 10  # held between samples, noise ~ 3 um
+    assert np.all(a[3:6] == a[3]) and 0 < np.nanstd(a - y) < 10  # held between samples, noise ~ 3 um
 
 
 def test_open_loop_frame_has_the_analyser(short_run):
@@ -335,8 +322,8 @@ def test_open_loop_frame_has_the_analyser(short_run):
 
 
 def test_reference_scene_builds_a_coarse_controller_model_and_a_full_plant():
-    from scenarios.loader import load_scene
-    from scenarios.runner import build_models
+    from scenarios.scene.loader import load_scene
+    from scenarios.run import build_models
 
     models = build_models(load_scene(LIBRARY / "reference_transition.toml"))
     control, plant = models.control.model, models.plant.model
@@ -346,9 +333,8 @@ def test_reference_scene_builds_a_coarse_controller_model_and_a_full_plant():
 
 
 def test_an_unstable_rk4_substep_count_is_refused_with_the_needed_one():
-    pytest.importorskip("mpc.nmpc")
     from scenarios.errors import SceneError
-    from scenarios.loader import load_scene
+    from scenarios.scene.loader import load_scene
 
     scene = load_scene(LIBRARY / "reference_transition.toml")
     scene.scene.duration_h = 0.1

@@ -6,8 +6,8 @@ import pandas as pd
 import pytest
 
 from scenarios.errors import RunError, SceneError
-from scenarios.loader import read_toml
-from scenarios.sweep import expand_cases, parse_vary, run_sweep
+from scenarios.scene.loader import read_toml
+from scenarios.run.sweep import expand_cases, parse_vary, run_sweep
 
 VARY = {"feed.feed_tph": [25.0, 30.0, 44.0], "controller.weights.p80": [1.0, 2.0]}
 

@@ -4,7 +4,7 @@ order of a fixed-step scheme."""
 import numpy as np
 import pytest
 
-from twin.simulate import batch_exact, integrate_constant, rk4_simulate
+from twin.solve.simulate import batch_exact, integrate_constant, rk4_simulate
 
 
 def _exact(batch, t_h, x0):

@@ -6,7 +6,7 @@ from hypothesis import strategies as st
 from twin.breakage import (austin_selection, austin_speed_factor, breakage_matrix, check_breakage_matrix,
                            cumulative_breakage, selection_maximum_um)
 from twin.errors import ModelError
-from twin.simulate import batch_exact
+from twin.solve.simulate import batch_exact
 from twin.sizes import SizeGrid
 
 

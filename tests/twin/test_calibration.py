@@ -5,8 +5,8 @@ command when the model changes, never by editing it)."""
 import numpy as np
 import pytest
 
-from twin import calibration
-from twin.breakage_map import shipped_calibration
+from twin.calibration import table as calibration
+from twin.calibration import shipped_calibration
 
 
 def test_shipped_file_records_its_command_versions_and_errors():

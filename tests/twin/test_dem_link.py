@@ -1,4 +1,4 @@
-"""The DEM -> twin link (twin.dem_link): targets, the shipped DEM calibration, the fits made from
+"""The DEM -> twin link (twin.calibration.dem_link): targets, the shipped DEM calibration, the fits made from
 the DEM samples, the DEM breakage map, and the --fast path against the shipped file."""
 
 import math
@@ -6,12 +6,12 @@ import math
 import numpy as np
 import pytest
 
-from twin import dem_link
+from twin.calibration import dem_link
 from twin.breakage import austin_selection, breakage_matrix, cumulative_breakage
 from twin.errors import TwinInputError
-from twin.fracture_energy import fit_fracture_energy
-from twin.mineralogy import Mineralogy, Texture
-from twin.ores import load_ore
+from twin.ore.fracture_energy import fit_fracture_energy
+from twin.ore.mineralogy import Mineralogy, Texture
+from twin.ore.ores import load_ore
 from twin.sizes import SizeGrid
 
 #: the --fast path (3 particles, 1 drop particle per energy, short drum) against the shipped full run

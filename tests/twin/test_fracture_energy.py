@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from twin.errors import TwinInputError
-from twin.fracture_energy import (SizeDependence, breakage_probability, fit_by_group,
+from twin.ore.fracture_energy import (SizeDependence, breakage_probability, fit_by_group,
                                   fit_fracture_energy, fit_size_dependence, read_single_particle,
                                   sample_fracture_energies)
 
@@ -109,7 +109,7 @@ def test_bad_single_particle_rows_reported(tmp_path):
 
 def test_drop_weight_outcomes_recover_distribution():
     """Particles with log-normal fracture energies, each hit once at one of six set energies."""
-    from twin.fracture_energy import fit_breakage_outcomes
+    from twin.ore.fracture_energy import fit_breakage_outcomes
     rng = np.random.default_rng(21)
     levels = np.array([40.0, 70.0, 110.0, 170.0, 260.0, 400.0])
     applied = np.repeat(levels, 80)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from twin.breakage import BreakageParams
-from twin.breakage_map import mineralogy_breakage
+from twin.calibration.breakage_map import mineralogy_breakage
 from twin.sizes import SizeGrid
 from twin.twin import DEFAULT_EFFECTS, Twin
 
@@ -100,7 +100,7 @@ def test_sixty_size_classes():
 
 
 def test_extreme_mineralogy_all_quartz_and_all_clay():
-    from twin.mineralogy import Mineralogy, Texture
+    from twin.ore.mineralogy import Mineralogy, Texture
 
     quartz = Mineralogy({"quartz": 100.0}, Texture(1000.0, 1.0, 0.0), name="quartzite")
     clay = Mineralogy({"kaolinite": 100.0}, Texture(2.0, 0.2, 1.0), name="kaolin")

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from twin.errors import TwinInputError
-from twin.indentation import (AreaFunction, Indenter, analyse_curves, oliver_pharr, read_curves,
+from twin.ore.indentation import (AreaFunction, Indenter, analyse_curves, oliver_pharr, read_curves,
                               reduced_modulus_gpa, synthesize_curve, youngs_from_reduced_gpa)
 
 

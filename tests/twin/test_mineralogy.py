@@ -4,9 +4,9 @@ import pytest
 
 from twin.errors import TwinInputError
 from twin.mill import LAB, bond_power_kw
-from twin.mineralogy import Mineralogy, Texture
-from twin.minerals import mineral_table, source_table
-from twin.ores import Blend, load_ore, reference_ores
+from twin.ore.mineralogy import Mineralogy, Texture
+from twin.ore.minerals import mineral_table, source_table
+from twin.ore.ores import Blend, load_ore, reference_ores
 
 REQUIRED = ["quartz", "k_feldspar", "plagioclase", "biotite", "muscovite", "chlorite", "kaolinite",
             "illite", "pyrite", "chalcopyrite", "bornite", "magnetite", "calcite"]

@@ -6,8 +6,8 @@ import pytest
 from sklearn.metrics import adjusted_rand_score
 
 from twin.errors import TwinInputError
-from twin.oretyping import OreTyper, plot_scores, plot_ternary, ternary_coordinates
-from twin.sample_library import generate_library, load_reference_samples
+from twin.ore.oretyping import OreTyper, plot_scores, plot_ternary, ternary_coordinates
+from twin.ore.sample_library import generate_library, load_reference_samples
 
 
 @pytest.fixture(scope="module")
@@ -99,7 +99,7 @@ def test_plots_are_written(reference, tmp_path):
 def test_command_line_writes_report(tmp_path):
     import json
 
-    from twin.oretyping import main
+    from twin.ore.oretyping import main
     assert main(["--out", str(tmp_path)]) == 0
     rep = json.loads((tmp_path / "oretyping.json").read_text())
     assert rep["n_types"] == 4 and rep["criterion"] == "silhouette"

@@ -5,7 +5,7 @@ leaves coarser and faster at constant load)."""
 import numpy as np
 import pytest
 
-from twin.breakage_map import shipped_calibration
+from twin.calibration import shipped_calibration
 from twin.effects.rheology import SLURRY_SOLIDS_VOL_FRAC, thomas_relative_viscosity
 from twin.errors import ModelError
 from twin.mill import LAB

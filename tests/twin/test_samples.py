@@ -5,9 +5,9 @@ import pandas as pd
 import pytest
 
 from twin.errors import TwinInputError
-from twin.sample_library import (COUNTS, DEPOSIT_RANGES, TABLE1_RANGES, generate_library,
+from twin.ore.sample_library import (COUNTS, DEPOSIT_RANGES, TABLE1_RANGES, generate_library,
                                  load_reference_samples, main)
-from twin.samples import (SampleTableError, read_header_comments, read_samples, to_mineralogies,
+from twin.ore.samples import (SampleTableError, read_header_comments, read_samples, to_mineralogies,
                           validate_samples)
 
 

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from twin.errors import TwinInputError
-from twin.simulate import integrate_constant
+from twin.solve.simulate import integrate_constant
 
 
 def test_newton_steady_state_agrees_with_long_integration(twin_b):

@@ -7,10 +7,10 @@ import pytest
 
 from twin import surrogate as S
 from twin.errors import TwinError, TwinInputError
-from twin.mineralogy import Mineralogy, Texture
-from twin.ores import Blend, reference_ores
-from twin.sample_library import generate_library
-from twin.samples import to_mineralogies
+from twin.ore.mineralogy import Mineralogy, Texture
+from twin.ore.ores import Blend, reference_ores
+from twin.ore.sample_library import generate_library
+from twin.ore.samples import to_mineralogies
 from twin.twin import Twin
 
 #: Acceptance threshold of R2 per KPI on unseen mineralogies (MISSION goal 0.95; the shipped
@@ -65,7 +65,7 @@ def test_shipped_metadata_and_scores(shipped):
     for kpi in S.TARGETS:
         assert meta["cv_r2"][kpi] >= R2_THRESHOLD and meta["held_out_r2"][kpi] >= R2_THRESHOLD
     assert meta["calibration_sha256"] == S.calibration_sha256(), (
-        "twin/data/calibration.json changed since the surrogate was trained: regenerate with "
+        "twin/calibration/files/table.json changed since the surrogate was trained: regenerate with "
         "`python -m twin.surrogate --generate --train`")
 
 

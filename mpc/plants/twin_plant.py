@@ -1,0 +1,52 @@
+"""The twin as a plant: the plant protocol (:mod:`mpc.plants`) on a twin's mill model."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from mpc.errors import MpcInputError
+from twin import pxx_um
+from twin.solve import step
+
+
+#: Outputs every plant's ``measure`` returns (the columns the KPIs use).
+PLANT_OUTPUTS = ("power_kw", "load_frac", "throughput_tph", "specific_energy_kwh_t", "holdup_t")
+
+
+class TwinPlant:
+    """The plant protocol (:mod:`mpc.plants`) on a twin's :class:`twin.model.Model`: P80 from the
+    product size distribution (:func:`twin.sizes.pxx_um`, nan for an empty product), the
+    outputs :data:`PLANT_OUTPUTS` of the model, and :func:`twin.solve.simulate.step`."""
+
+    def __init__(self, model):
+        self.model = model
+        self.component_names = tuple(model.spec.component_names)
+        self._psd_fn = model.product_psd_function()
+        self._outs = {k: model.outputs[k] for k in PLANT_OUTPUTS}
+
+    def disturbance(self, t_h: float, blend, hardness: float) -> np.ndarray:
+        return self.model.d_vector(blend, hardness)
+
+    def measure(self, x, u, d) -> dict:
+        psd = np.asarray(self._psd_fn(x, u, d), float).ravel()
+        vals = {"p80_um": pxx_um(self.model.spec.grid, psd) if psd.sum() > 0 else math.nan}
+        vals.update({key: float(fn(x, u, d)) for key, fn in self._outs.items()})
+        return vals
+
+    def step(self, x, u, d, dt_h: float):
+        return step(self.model, x, u, d, dt_h)
+
+
+def as_plant(plant):
+    """``plant`` itself if it follows the plant protocol, a :class:`TwinPlant` if it is a
+    twin's model; else an :class:`MpcInputError` naming what is missing."""
+    needed = ("component_names", "disturbance", "measure", "step")
+    if all(hasattr(plant, a) for a in needed):
+        return plant
+    if hasattr(plant, "product_psd_function") and hasattr(plant, "spec"):
+        return TwinPlant(plant)
+    raise MpcInputError(f"The 'plant_model' parameter of run_closed_loop must be a twin Model or "
+                        f"have {', '.join(needed)} (the plant protocol of mpc.plants). "
+                        f"Got {type(plant).__name__}.")

@@ -1,0 +1,36 @@
+"""The ``grindtwin`` command: a parser whose subcommands live in :mod:`scenarios.cli.commands`.
+
+Exit codes: 0 success, 2 bad input (one clear line, no traceback), 1 a run that failed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .commands import COMMANDS
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports a bad argument in one line and exits 2."""
+
+    def error(self, message):
+        sys.stderr.write(f"grindtwin: error: {message}\n")
+        raise SystemExit(2)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="grindtwin", description="Digital twin of ore grinding and its model predictive controller.")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for add, _ in COMMANDS.values():
+        add(sub)
+    return p
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,484 @@
+"""The ``grindtwin`` subcommands: run, replay, sweep, check, report, steady, calibrate.
+
+Each command is a pair ``add_<name>_parser(subparsers)`` / ``cmd_<name>(args) -> int``, to be
+registered in :mod:`scenarios.cli`. Every ``cmd_*`` returns its exit code itself: 0 success,
+2 bad input (one clear message on stderr, no traceback), 1 a run that failed (with the
+reason), so it behaves the same however it is called.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import sys
+from pathlib import Path
+
+from scenarios.errors import RunError, SceneError
+
+
+def _fail(kind: str, command: str, exc: BaseException) -> int:
+    if kind == "input":
+        sys.stderr.write(f"grindtwin: error: {exc}\n")
+        return 2
+    sys.stderr.write(f"grindtwin: {command} failed: {exc}\n")
+    return 1
+
+
+def _exit_codes(command: str):
+    """Map the exception families to exit codes (2 bad input, 1 failed run)."""
+
+    def wrap(fn):
+        @functools.wraps(fn)
+        def inner(args) -> int:
+            from twin import TwinError, TwinInputError
+
+            try:
+                return fn(args)
+            except (SceneError, TwinInputError) as exc:
+                return _fail("input", command, exc)
+            except (RunError, TwinError) as exc:
+                return _fail("run", command, exc)
+            except OSError as exc:
+                return _fail("run", command, exc)
+        return inner
+    return wrap
+
+
+def _print_kpis(summary: dict, out=None) -> None:
+    out = out or sys.stdout
+    out.write(f"{summary['scene']} ({summary.get('mode')}, controller {summary.get('controller')})\n")
+    for key, value in summary["kpis"].items():
+        if value is None or (isinstance(value, float) and not math.isfinite(value)):
+            text = "n/a"
+        else:
+            text = f"{value:.4g}"
+        out.write(f"  {key:26s} {text}\n")
+
+
+def _where_results_went(result) -> None:
+    """Say where the results are, or that nothing was written (no --out)."""
+    if result.out_dir is not None:
+        print(f"results in {result.out_dir}")
+    else:
+        sys.stderr.write("grindtwin: no --out DIR given: the time series, plots and summary were not written\n")
+
+
+def _check_output_options(args) -> None:
+    """--csv and --xlsx write into --out: refuse them without it, before any work."""
+    asked = [f"--{name}" for name in ("csv", "xlsx") if getattr(args, name, False)]
+    if asked and not args.out:
+        raise SceneError(f"{' and '.join(asked)} write into the results folder: give --out DIR")
+
+
+def _add_output_options(p) -> None:
+    p.add_argument("--out", help="write the results into this folder (created; replaced when complete)")
+    p.add_argument("--csv", action="store_true", help="also write timeseries.csv")
+    p.add_argument("--xlsx", action="store_true", help="also write run.xlsx: KPIs, time series, every stream "
+                   "size by size, the scene")
+    p.add_argument("--no-plots", action="store_true", help="do not draw the PNG plots")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+# --------------------------------------------------------------------------- run
+def add_run_parser(subparsers):
+    p = subparsers.add_parser("run", help="run a scene (open or closed loop) and write its results",
+                              description="Run SCENE.toml: the twin driven by the scene's feed "
+                              "schedule, open loop or with its controller; KPIs on stdout.")
+    p.add_argument("scene", help="scene file (TOML)")
+    _add_output_options(p)
+    p.set_defaults(func=cmd_run)
+    return p
+
+
+@_exit_codes("run")
+def cmd_run(args) -> int:
+    from scenarios.scene import load_scene
+    from scenarios.run import run_scene
+
+    _check_output_options(args)
+    scene = load_scene(args.scene)
+    result = run_scene(scene, out_dir=args.out, progress=not args.quiet, csv=args.csv,
+                       plots=not args.no_plots, xlsx=args.xlsx)
+    _print_kpis(result.summary)
+    _where_results_went(result)
+    return 0
+
+
+# --------------------------------------------------------------------------- replay
+def add_replay_parser(subparsers):
+    p = subparsers.add_parser("replay", help="drive a scene with recorded plant data",
+                              description="Replay a recorded history (CSV or Parquet: timestamp, "
+                              "mineral wt% or ore fractions, optionally recorded feed_tph, "
+                              "speed_frac_critical, p80_um) through SCENE.toml; the run's inputs and "
+                              "P80 sit beside the recorded ones.")
+    p.add_argument("scene", help="scene file (TOML)")
+    p.add_argument("--history", required=True, help="recorded history, .csv or .parquet")
+    p.add_argument("--duration-h", type=float, default=None,
+                   help="replay this long [h] (default: the whole history)")
+    _add_output_options(p)
+    p.set_defaults(func=cmd_replay)
+    return p
+
+
+@_exit_codes("replay")
+def cmd_replay(args) -> int:
+    from scenarios.scene import load_scene
+    from scenarios.run import replay_scene
+
+    _check_output_options(args)
+    if not Path(args.history).is_file():
+        raise SceneError(f"{args.history}: history file not found")
+    if args.duration_h is not None and not args.duration_h > 0:
+        raise SceneError(f"--duration-h must be > 0 (got {args.duration_h:g})")
+    result = replay_scene(load_scene(args.scene), args.history, out_dir=args.out,
+                          progress=not args.quiet, duration_h=args.duration_h, csv=args.csv,
+                          plots=not args.no_plots, xlsx=args.xlsx)
+    _print_kpis(result.summary)
+    for key, value in result.summary.get("replay", {}).get("run_minus_recorded", {}).items():
+        print(f"  {key:26s} {value:.4g}")
+    _where_results_went(result)
+    return 0
+
+
+# --------------------------------------------------------------------------- sweep
+#: Key of the sweep case's result that carries its time series (popped before the table is written).
+TRACE_KEY = "trace"
+#: Columns of a case kept for the sweep's comparison (plot and workbook).
+TRACE_COLUMNS = ("time_h", "p80_um", "content_p80_um", "feed_tph", "speed_frac_critical")
+
+
+def sweep_case(scene) -> dict:
+    """The sweep's ``run_case``: run the scene quietly, return its KPIs and, under
+    :data:`TRACE_KEY`, its :data:`TRACE_COLUMNS` (picklable: module level)."""
+    from scenarios.run import run_scene
+
+    res = run_scene(scene, out_dir=None, progress=False)
+    trace = {c: res.frame[c].to_numpy(float).tolist() for c in TRACE_COLUMNS if c in res.frame}
+    return dict(res.kpis) | {TRACE_KEY: trace}
+
+
+def _pop_traces(table):
+    """The cases' traces as one long table (``case`` + :data:`TRACE_COLUMNS`), removed from ``table``."""
+    import pandas as pd
+
+    if TRACE_KEY not in table:
+        return None
+    parts = [pd.DataFrame(tr).assign(case=case) for case, tr in zip(table["case"], table.pop(TRACE_KEY))
+             if isinstance(tr, dict)]
+    return pd.concat(parts, ignore_index=True) if parts else None
+
+
+def add_sweep_parser(subparsers):
+    p = subparsers.add_parser("sweep", help="what-if study: vary scene keys, one row per case",
+                              description="Run SCENE.toml for every combination (cartesian) or "
+                              "every i-th tuple (paired) of the varied keys; a local process pool "
+                              "by default, a Dask cluster with --scheduler.")
+    p.add_argument("scene", help="scene file (TOML)")
+    p.add_argument("--vary", action="append", required=True, metavar="KEY=v1,v2,...",
+                   help="a scene key path and its values (or start:stop:step); repeatable")
+    p.add_argument("--mode", choices=["cartesian", "paired"], default="cartesian")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--workers", type=int, default=None, help="local processes (default: all cores)")
+    g.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://host:8786")
+    p.add_argument("--out", help="write sweep.csv, sweep.parquet, sweep_traces.csv and sweep.png into this folder")
+    p.add_argument("--xlsx", action="store_true", help="also write sweep.xlsx (with --out)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_sweep)
+    return p
+
+
+@_exit_codes("sweep")
+def cmd_sweep(args) -> int:
+    import pandas as pd
+
+    from scenarios.run import parse_vary, run_sweep
+
+    if args.workers is not None and args.workers < 1:
+        raise SceneError(f"--workers must be >= 1 (got {args.workers})")
+    if args.xlsx and not args.out:
+        raise SceneError("--xlsx writes into the results folder: give --out DIR")
+    vary = {}
+    for text in args.vary:
+        key, values = parse_vary(text)
+        if key in vary:
+            raise SceneError(f"--vary {key}: given twice")
+        vary[key] = values
+    table = run_sweep(args.scene, vary, sweep_case, mode=args.mode, workers=args.workers,
+                      scheduler=args.scheduler, progress=not args.quiet)
+    traces = _pop_traces(table)
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        tmp = out / "sweep.csv.partial"
+        table.to_csv(tmp, index=False)
+        tmp.replace(out / "sweep.csv")
+        flat = table.copy()
+        for c in flat.columns:  # blends etc. are dicts: parquet wants plain columns
+            if flat[c].map(lambda v: isinstance(v, (dict, list))).any():
+                flat[c] = flat[c].map(str)
+        tmp = out / "sweep.parquet.partial"
+        flat.to_parquet(tmp, index=False)
+        tmp.replace(out / "sweep.parquet")
+        _write_sweep_comparison(out, table, traces, args.scene, args.xlsx)
+    else:
+        sys.stderr.write("grindtwin: no --out DIR given: the sweep's table was not written\n")
+    cols = ["case", *vary, "p80_iae_um_h", "specific_energy_kwh_t", "throughput_tph", "error"]
+    with pd.option_context("display.width", 160, "display.max_columns", 20):
+        print(table[[c for c in cols if c in table.columns]].to_string(index=False))
+    failed = int(table["error"].notna().sum())
+    if failed:
+        sys.stderr.write(f"grindtwin: sweep: {failed} of {len(table)} cases failed (see the error column)\n")
+        return 1 if failed == len(table) else 0
+    return 0
+
+
+def _write_sweep_comparison(out: Path, table, traces, scene_path, xlsx: bool) -> None:
+    """sweep_traces.csv and sweep.png (P80 of every case, KPIs per case); sweep.xlsx on request."""
+    from scenarios.output import write_sweep_plot, write_sweep_workbook
+    from scenarios.scene import load_scene
+
+    scene = load_scene(scene_path)
+    if traces is not None:
+        tmp = out / "sweep_traces.csv.partial"
+        traces.to_csv(tmp, index=False)
+        tmp.replace(out / "sweep_traces.csv")
+    write_sweep_plot(table, traces, out, scene.controller.target_p80_um)
+    if xlsx:
+        write_sweep_workbook(table, traces, scene, out / "sweep.xlsx")
+
+
+# --------------------------------------------------------------------------- check
+def add_check_parser(subparsers):
+    p = subparsers.add_parser("check", help="validate scene files only (exit 2 listing every problem)")
+    p.add_argument("scenes", nargs="+", metavar="SCENE", help="scene file(s) (TOML)")
+    p.set_defaults(func=cmd_check)
+    return p
+
+
+def cmd_check(args) -> int:
+    from scenarios.scene import check_scene
+
+    bad = 0
+    for path in args.scenes:
+        messages = check_scene(path)
+        if messages:
+            bad += 1
+            for m in messages:
+                sys.stderr.write(f"{m}\n")
+        else:
+            print(f"{path}: OK")
+    return 2 if bad else 0
+
+
+# --------------------------------------------------------------------------- report
+def add_report_parser(subparsers):
+    p = subparsers.add_parser("report", help="write RUN_DIR/report.html: KPI table and plots, self-contained")
+    p.add_argument("run_dir", help="a folder written by grindtwin run --out")
+    p.set_defaults(func=cmd_report)
+    return p
+
+
+@_exit_codes("report")
+def cmd_report(args) -> int:
+    from scenarios.output import write_report
+
+    print(write_report(args.run_dir))
+    return 0
+
+
+# --------------------------------------------------------------------------- steady
+def _float_in(name, lo, hi, lo_open=False, hi_open=False):
+    """argparse type: a float in an interval, the message naming the option and the interval."""
+    import argparse
+
+    def parse(text):
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number. Got {text!r}.") from None
+        ok = (v > lo if lo_open else v >= lo) and (v < hi if hi_open else v <= hi)
+        if not ok:
+            br = ("(" if lo_open else "[") + f"{lo:g}, {hi:g}" + (")" if hi_open else "]")
+            raise argparse.ArgumentTypeError(f"{name} must be in {br}. Got {text}.")
+        return v
+    return parse
+
+
+def add_steady_parser(subparsers):
+    s = subparsers.add_parser("steady", help="steady-state KPIs of the mill for an ore or a blend")
+    s.add_argument("--ore", default="B", help="reference type A-D or a TOML file with [mineralogy] and [texture]")
+    s.add_argument("--blend", help="blend of ores, e.g. B=0.6,D=0.4 (overrides --ore)")
+    g = s.add_mutually_exclusive_group()
+    g.add_argument("--feed-tph", type=_float_in("--feed-tph", 0, 1e5), help="fresh feed rate [t/h]")
+    g.add_argument("--at-constant-load", action="store_true",
+                   help="solve for the feed rate that holds the nominal hold-up")
+    s.add_argument("--speed", type=_float_in("--speed", 0, 1, True, True), default=None,
+                   help="mill speed as a fraction of critical (0.70, not 70)")
+    s.add_argument("--mill", default="lab", choices=["lab", "industrial"])
+    s.add_argument("--json", action="store_true", help="print the KPIs as JSON (unit-suffixed keys)")
+    s.add_argument("--surrogate", action="store_true",
+                   help="answer from the PLS surrogate (lab mill; refuses inputs outside its training domain)")
+    s.set_defaults(func=cmd_steady)
+    return s
+
+
+STEADY_KEYS = ("source", "feed_tph", "speed_frac_critical", "p80_um", "specific_energy_kwh_t", "power_kw",
+               "throughput_tph", "holdup_t", "load_frac", "load_status")
+
+
+@_exit_codes("steady")
+def cmd_steady(args) -> int:
+    import json
+
+    from twin import Blend, load_ore  # light: the surrogate's answer needs neither CasADi nor scikit-learn
+
+    blend = Blend.parse(args.blend) if args.blend else Blend.single(load_ore(args.ore))
+    if args.surrogate:
+        from twin.surrogate import surrogate_steady
+
+        if args.at_constant_load:
+            raise SceneError("--surrogate answers at a given feed rate; it cannot be combined with --at-constant-load.")
+        kpis = surrogate_steady(blend, args.feed_tph, args.speed, mill=args.mill)
+        kpis = {k: v for k, v in kpis.items() if k in STEADY_KEYS or k == "source"}
+    else:
+        from twin import Twin
+
+        twin = Twin(blend, mill=args.mill)
+        if args.at_constant_load:
+            ss = twin.steady_at_constant_load(speed_frac_critical=args.speed)
+        else:
+            ss = twin.steady(feed_tph=args.feed_tph, speed_frac_critical=args.speed)
+        kpis = {k: v for k, v in ss.summary().items() if k in STEADY_KEYS} | {"source": "twin"}
+    if args.json:
+        mineralogy = {o.name: {"wt_pct": o.wt_pct, **o.summary()} for o in blend.ores}
+        print(json.dumps({"mill": args.mill, "blend": dict(zip(blend.names, blend.fractions)),
+                          **kpis, "mineralogy": mineralogy}, indent=2))
+        return 0
+    print(f"Mill {args.mill}, blend " + ", ".join(f"{n} {f:.0%}" for n, f in zip(blend.names, blend.fractions)))
+    for key, val in kpis.items():
+        print(f"  {key:24s} {val:.4g}" if isinstance(val, float) else f"  {key:24s} {val}")
+    for ore in blend.ores:
+        wt = ", ".join(f"{m} {w:.1f}" for m, w in sorted(ore.wt_pct.items(), key=lambda kv: -kv[1]))
+        print(f"  ore {ore.name}: H_min {ore.hardness_index_gpa:.2f} GPa, textural index "
+              f"{ore.textural_index:.2f}; wt%: {wt}")
+    return 0
+
+
+# --------------------------------------------------------------------------- optimize
+#: The feed search range of `optimize`, as multiples of the mill's nominal feed rate.
+OPTIMIZE_FEED_RANGE = (0.2, 2.0)
+
+
+def add_optimize_parser(subparsers):
+    o = subparsers.add_parser("optimize", help="feed rate and speed that hold a target P80 at least energy",
+                              description="Steady set points for an ore or blend that hold the target P80 with "
+                              "the load in its stable band; a table of alternatives (feed only, speed only, both "
+                              "for least energy, both for most throughput).")
+    o.add_argument("--ore", default="B", help="reference type A-D or a TOML file with [mineralogy] and [texture]")
+    o.add_argument("--blend", help="blend of ores, e.g. B=0.6,D=0.4 (overrides --ore)")
+    o.add_argument("--target-p80-um", required=True, type=_float_in("--target-p80-um", 1.0, 1e4))
+    o.add_argument("--mill", default="lab", choices=["lab", "industrial"])
+    o.add_argument("--mode", default="both", choices=["both", "feed", "speed"], help="which answer to pick")
+    o.add_argument("--objective", default="min_energy", choices=["min_energy", "max_throughput"])
+    o.add_argument("--json", action="store_true", help="print the answer and the table as JSON")
+    o.set_defaults(func=cmd_optimize)
+    return o
+
+
+@_exit_codes("optimize")
+def cmd_optimize(args) -> int:
+    import json
+
+    from mpc import MpcInputError, optimal_setpoints
+    from twin import Blend, Twin, load_ore
+
+    blend = Blend.parse(args.blend) if args.blend else Blend.single(load_ore(args.ore))
+    twin = Twin(blend, mill=args.mill)
+    lo, hi = (f * twin.mill.feed_nominal_tph for f in OPTIMIZE_FEED_RANGE)
+    try:
+        sp = optimal_setpoints(twin, list(blend.fractions), args.target_p80_um, mode=args.mode,
+                               objective=args.objective, feed_bounds_tph=(lo, hi))
+    except MpcInputError as exc:
+        raise SceneError(str(exc)) from None
+    table = sp.table
+    if args.json:
+        print(json.dumps({"feasible": sp.feasible, "message": sp.message, "mode": sp.mode,
+                          "objective": sp.objective, "feed_tph": sp.feed_tph,
+                          "speed_frac_critical": sp.speed_frac_critical, "p80_um": sp.p80_um,
+                          "specific_energy_kwh_t": sp.specific_energy_kwh_t, "load_frac": sp.load_frac,
+                          "power_kw": sp.power_kw, "table": json.loads(table.to_json(orient="records"))},
+                         indent=2))
+    else:
+        print(f"Target P80 {args.target_p80_um:g} um, mill {args.mill}, blend "
+              + ", ".join(f"{n} {f:.0%}" for n, f in zip(blend.names, blend.fractions)))
+        print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+        print(("answer: " if sp.feasible else "no feasible answer: ") + sp.message)
+    return 0 if sp.feasible else 1
+
+
+# --------------------------------------------------------------------------- calibrate
+def add_calibrate_parser(subparsers):
+    c = subparsers.add_parser("calibrate", help="regenerate twin/calibration/files/table.json from the repository")
+    c.add_argument("--fast", action="store_true", help="a quick, coarser calibration (a check)")
+    c.add_argument("--out", help="write here instead of the shipped file")
+    c.add_argument("--dem", action="store_true",
+                   help="derive the breakage parameters from the DEM (twin/calibration/files/dem.json)")
+    c.add_argument("--seed", type=int, help="seed of the DEM agglomerates and tests (with --dem)")
+    c.set_defaults(func=cmd_calibrate)
+    return c
+
+
+@_exit_codes("calibrate")
+def cmd_calibrate(args) -> int:
+    from twin.calibration import main as calibrate
+
+    argv = (["--fast"] if args.fast else []) + (["--out", args.out] if args.out else [])
+    argv += (["--dem"] if args.dem else []) + (["--seed", str(args.seed)] if args.seed is not None else [])
+    return calibrate(argv)
+
+
+# --------------------------------------------------------------------------- bench
+BENCH_LAYERS = ("dem", "twin", "mpc")
+
+
+def add_bench_parser(subparsers):
+    b = subparsers.add_parser("bench", help="accuracy-against-time benchmarks (run from a checkout)",
+                              description="Run benchmarks/<LAYER>_*.py from the repository checkout in the "
+                              "current directory; each writes its table to benchmarks/results/.")
+    b.add_argument("layer", nargs="?", choices=BENCH_LAYERS, help="one layer (default: all)")
+    b.add_argument("--list", action="store_true", help="list the scripts only")
+    b.set_defaults(func=cmd_bench)
+    return b
+
+
+@_exit_codes("bench")
+def cmd_bench(args) -> int:
+    import subprocess
+
+    root = Path("benchmarks")
+    if not root.is_dir():
+        raise SceneError("grindtwin bench runs from a checkout of the repository: no benchmarks/ folder in "
+                         f"{Path.cwd()}.")
+    layers = [args.layer] if args.layer else list(BENCH_LAYERS)
+    # a benchmark is a script with a __main__ block (helper modules and Yade-side scripts are not)
+    scripts = sorted(p for layer in layers for p in root.glob(f"{layer}_*.py")
+                     if '__name__ == "__main__"' in p.read_text(encoding="utf-8"))
+    for script in scripts:
+        print(script)
+        if not args.list and subprocess.call([sys.executable, str(script)]) != 0:
+            raise RunError(f"benchmark {script} failed")
+    return 0
+
+
+#: name -> (add_parser, cmd) for registration in scenarios.cli.
+COMMANDS = {
+    "steady": (add_steady_parser, cmd_steady),
+    "optimize": (add_optimize_parser, cmd_optimize),
+    "calibrate": (add_calibrate_parser, cmd_calibrate),
+    "bench": (add_bench_parser, cmd_bench),
+    "run": (add_run_parser, cmd_run),
+    "replay": (add_replay_parser, cmd_replay),
+    "sweep": (add_sweep_parser, cmd_sweep),
+    "check": (add_check_parser, cmd_check),
+    "report": (add_report_parser, cmd_report),
+}

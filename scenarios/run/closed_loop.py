@@ -1,0 +1,158 @@
+"""A scene's closed loop: the plant twin, the scene's sensors, and the NMPC (with an EKF) or
+the PI baseline, wired as the reference-case benchmark wires them."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from mpc import (RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, NmpcSettings, Sensors, TwinPlant,
+                 feed_for_target, pi_baseline, run_closed_loop, stable_rk4_substeps)
+from scenarios.errors import RunError, SceneError
+from scenarios.run.feed import component_blend
+from scenarios.run.streams import Samples, run_size_data
+from scenarios.scene import Scene
+
+#: Scalar outputs of the plant's model recorded beside the loop's columns when the model has
+#: them (the hydrocyclone's cut size and circulating load).
+EXTRA_OUTPUTS = ("cyclone_d50c_um", "circulating_load_frac")
+
+
+class RecordingPlant(TwinPlant):
+    """The plant twin, keeping the (x, u, d) of every measurement (the loop measures once a
+    sample, after the estimator's warm-up has measured its own) and adding
+    :data:`EXTRA_OUTPUTS` to the measured values."""
+
+    def __init__(self, model):
+        super().__init__(model)
+        self.seen: list[tuple] = []
+        self._extra = {k: model.outputs[k] for k in EXTRA_OUTPUTS if k in model.outputs}
+
+    def measure(self, x, u, d) -> dict:
+        self.seen.append((np.array(x, float), np.array(u, float), np.array(d, float)))
+        return super().measure(x, u, d) | {k: float(fn(x, u, d)) for k, fn in self._extra.items()}
+
+    def samples(self, time_h: np.ndarray) -> Samples:
+        """The last ``len(time_h)`` measurements: the loop's samples."""
+        x, u, d = (np.array(a) for a in zip(*self.seen[-len(time_h):]))
+        return Samples(np.asarray(time_h, float), x, u, d)
+
+
+def feed_bounds(scene: Scene) -> tuple[float, float]:
+    """Feed-rate bounds: the scene's, else half and one and a half times its feed rate."""
+    b = scene.controller.bounds
+    f = float(scene.feed.feed_tph)
+    return (b.feed_tph_min if b.feed_tph_min is not None else 0.5 * f,
+            b.feed_tph_max if b.feed_tph_max is not None else 1.5 * f)
+
+
+def nmpc_settings(scene: Scene):
+    """``mpc.nmpc.NmpcSettings`` from ``[controller]``: names map one to one (weights prefixed
+    ``weight_``); unset feed bounds are 0.5x and 1.5x ``feed.feed_tph``; unset rate limits
+    and power limit are infinite; ``dt_h`` is the scene's sample period."""
+    c = scene.controller
+    lo, hi = feed_bounds(scene)
+    return NmpcSettings(
+        target_p80_um=float(c.target_p80_um), horizon_steps=c.horizon_steps,
+        dt_h=scene.scene.sample_period_h, move_block=c.move_block, rk4_substeps=c.rk4_substeps,
+        weight_p80=c.weights.p80, weight_du_feed=c.weights.du_feed,
+        weight_du_speed=c.weights.du_speed, weight_energy=c.weights.energy,
+        feed_tph_min=lo, feed_tph_max=hi, speed_min=c.bounds.speed_min, speed_max=c.bounds.speed_max,
+        feed_rate_max_tph_per_h=(c.bounds.feed_rate_max_tph_per_h
+                                 if c.bounds.feed_rate_max_tph_per_h is not None else math.inf),
+        speed_rate_max_per_h=(c.bounds.speed_rate_max_per_h
+                              if c.bounds.speed_rate_max_per_h is not None else math.inf),
+        load_band_frac=tuple(c.load_band_frac),
+        power_max_kw=c.power_max_kw if c.power_max_kw is not None else math.inf,
+        solver=c.solver, qpsol=c.qpsol, preview=c.preview_lead_h > 0)
+
+
+def check_rk4_substeps(scene: Scene, model, css) -> None:
+    """Refuse ``controller.rk4_substeps`` below the RK4 stability count of the controller's
+    model at its initial steady state (mpc.discretize.stable_rk4_substeps)."""
+    need = stable_rk4_substeps(model.f, css.x, css.u, css.d, scene.scene.sample_period_h)
+    if scene.controller.rk4_substeps < need:
+        raise SceneError(f"controller.rk4_substeps = {scene.controller.rk4_substeps} is unstable for the "
+                         f"controller's model at the initial steady state: RK4 needs at least {need} "
+                         f"steps per {scene.scene.sample_period_h} h sample (rates x {RK4_RATE_SAFETY})")
+
+
+def make_controller(scene: Scene, twin):
+    """The scene's NMPC on the controller's twin: ``mpc.nmpc.Controller`` with
+    :func:`nmpc_settings` (the PI baseline is built by the closed loop itself)."""
+    return Controller(twin.model, nmpc_settings(scene))
+
+
+#: The estimator runs this long on the steady plant before the loop closes (as on a plant that
+#: was running before; the same as the reference-case benchmark).
+ESTIMATOR_WARMUP_H = 2.0
+
+
+def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
+    """Closed loop through :func:`mpc.closed_loop.run_closed_loop`.
+
+    Wiring (the same as benchmarks/mpc_reference_case.py): the plant starts at the steady state
+    that holds the target P80 at the scene's speed and initial blend (feed solved by
+    :func:`mpc.optimize.feed_for_target`; the scene's ``feed_tph`` if it has no target); the
+    sensors are the scene's ``[sensors]``; the NMPC gets an EKF on the controller's model
+    (hardness as a random walk), warmed up on the steady plant for ``ESTIMATOR_WARMUP_H``; PI is
+    :func:`mpc.closed_loop.pi_baseline` (SIMC on the linearised plant twin, analyser delay
+    added). ``schedule(t)`` holds the blend of the sample at or before t (clamped at the end).
+    Any failure inside the loop is a RunError with its reason.
+    """
+    kind = scene.controller.kind
+    c = scene.controller
+    blend = component_blend(feed, models.components)
+    times = feed["time_h"].to_numpy(float)
+    dt = scene.scene.sample_period_h
+    speed0 = scene.feed.speed_frac_critical
+    notes: list[str] = []
+    try:
+        feed0 = (feed_for_target(models.plant, blend[0], c.target_p80_um, speed0)
+                 if c.target_p80_um is not None else scene.feed.feed_tph)
+        if not math.isfinite(feed0):
+            raise RunError(f"scene {scene.scene.name}: no feed rate in 5-60 t/h holds the target P80 "
+                           f"{c.target_p80_um} um at speed {speed0} with the initial blend")
+        ss = models.plant.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend[0])
+        notes.append(f"the plant starts at steady state, feed {feed0:.4g} t/h, speed {speed0:.3g}")
+        sensors = Sensors(**{k: v for k, v in scene.sensors.model_dump().items() if k in Sensors.__dataclass_fields__})
+
+        def schedule(t_h):
+            k = min(max(int(np.searchsorted(times, t_h + 1e-9 * dt, side="right")) - 1, 0), len(times) - 1)
+            return blend[k]
+
+        estimator = None
+        if kind == "nmpc":
+            css = models.control.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend[0])
+            check_rk4_substeps(scene, models.control.model, css)
+            estimator = Ekf(models.control.model, dt, css.x, disturbance_model=c.disturbance_model)
+            controller = make_controller(scene, models.control)
+        else:
+            b = c.bounds
+            controller, _ = pi_baseline(
+                models.plant.model, ss, sensors, dt, c.target_p80_um,
+                feed_tph_min=b.feed_tph_min, feed_tph_max=b.feed_tph_max,
+                feed_rate_max_tph_per_h=(b.feed_rate_max_tph_per_h if b.feed_rate_max_tph_per_h is not None
+                                         else math.inf))
+        settings = LoopSettings(
+            scene.scene.duration_h, dt, seed=scene.scene.seed, preview_lead_h=c.preview_lead_h,
+            target_p80_um=c.target_p80_um if c.target_p80_um is not None else math.nan,
+            load_band=tuple(c.load_band_frac), progress=progress,
+            estimator_warmup_h=ESTIMATOR_WARMUP_H if estimator is not None else 0.0)
+        plant = RecordingPlant(models.plant.model)
+        res = run_closed_loop(plant, controller, estimator, schedule, sensors, ss.x, ss.u, settings)
+    except (RunError, SceneError):
+        raise
+    except Exception as exc:  # noqa: BLE001 - the loop's failure is the run's failure
+        raise RunError(f"scene {scene.scene.name}: the closed loop failed: "
+                       f"{type(exc).__name__}: {exc}") from None
+    frame = res.frame.copy()
+    sizes = run_size_data(models.plant.model, plant.samples(frame["time_h"].to_numpy(float)), batch=False)
+    k = dict(res.kpis)
+    extra = {"notes": notes,
+             "solve_times_s": frame["solve_time_s"].dropna().to_numpy() if "solve_time_s" in frame else None,
+             "solve_time_median_s": k.get("solve_time_median_s", math.nan),
+             "solve_time_p95_s": k.get("solve_time_p95_s", math.nan)}
+    return frame, sizes, extra

@@ -1,0 +1,95 @@
+"""The feed on a run's sample grid: blend fractions of the scene's components (a recorded
+mineralogy mapped onto them), and the recorded plant inputs of a history."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import nnls
+
+from scenarios.scene import Scene, feed_table, load_history, ore_column
+from scenarios.run.models import component_ores
+
+#: Weight of the "fractions sum to 1" row in the NNLS fit of a mineralogy to the ores (wt%).
+SUM_ROW_WEIGHT = 100.0
+
+
+def mineralogy_to_blend(wt_pct: pd.DataFrame, ores: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Each row of mineral wt% as a mix of the ores: ``(fractions (n, n_ores), residual_wt_pct (n,))``.
+
+    Rule: non-negative least squares of the row's wt% vector on the ores' wt% vectors, with a
+    row of weight ``SUM_ROW_WEIGHT`` asking the fractions to sum to 1; the fractions are then
+    rescaled to sum exactly to 1. The residual is the Euclidean distance (wt%) between the row
+    and the mix, reported per sample: a large residual means the recorded feed is not a mix of
+    the scene's ores and the run can only approximate it. Minerals absent from every ore and
+    the texture columns of the history do not enter the fit except through the residual.
+    """
+    minerals = [c[: -len("_wt_pct")] for c in wt_pct.columns if c.endswith("_wt_pct")]
+    all_minerals = sorted(set(minerals) | {m for o in ores.values() for m in o.wt_pct})
+    A = np.array([[ores[n].wt_pct.get(m, 0.0) for n in ores] for m in all_minerals], float)
+    A_aug = np.vstack([A, SUM_ROW_WEIGHT * np.ones(len(ores))])
+    Y = np.zeros((len(wt_pct), len(all_minerals)))
+    for j, m in enumerate(all_minerals):
+        if m in minerals:
+            Y[:, j] = wt_pct[f"{m}_wt_pct"].to_numpy(float)
+    fracs = np.empty((len(wt_pct), len(ores)))
+    resid = np.empty(len(wt_pct))
+    cache: dict[bytes, tuple] = {}
+    for i, y in enumerate(Y):
+        key = y.tobytes()
+        if key not in cache:
+            w, _ = nnls(A_aug, np.append(y, SUM_ROW_WEIGHT))
+            w = w / w.sum() if w.sum() > 0 else np.ones(len(ores)) / len(ores)
+            cache[key] = (w, float(np.linalg.norm(A @ w - y)))
+        fracs[i], resid[i] = cache[key]
+    return fracs, resid
+
+
+def feed_schedule(scene: Scene, components: list[str], times_h: np.ndarray, ores: dict | None = None
+                  ) -> tuple[pd.DataFrame, list[str]]:
+    """The feed on the sample grid: columns ``ore_<c>_frac`` per component, the recorded
+    plant values (``recorded_*``) if the history has them, ``history_fit_residual_wt_pct`` for
+    a mineralogy history. Returns ``(table, notes)``."""
+    notes: list[str] = []
+    table = feed_table(scene, times_h).reset_index()
+    history = load_history(scene)
+    if history is not None:
+        notes += [f"history {history.source.name}: {line}" for line in history.report]
+    if history is not None and history.kind == "mineralogy":
+        ores = ores if ores is not None else component_ores(scene)
+        comp_cols = [c for c in table.columns if c.endswith("_wt_pct")]
+        fracs, resid = mineralogy_to_blend(table[comp_cols], ores)
+        out = pd.DataFrame({"time_h": table["time_h"]})
+        for j, c in enumerate(components):
+            out[ore_column(c)] = fracs[:, j]
+        out["history_fit_residual_wt_pct"] = resid
+        notes.append(f"mineralogy history mapped to ores {', '.join(components)} by NNLS: residual "
+                     f"mean {resid.mean():.3g} wt%, max {resid.max():.3g} wt%")
+        for c in table.columns:
+            if c.startswith("recorded_"):
+                out[c] = table[c]
+        return out, notes
+    for c in components:
+        if ore_column(c) not in table.columns:
+            table[ore_column(c)] = 0.0
+    return table, notes
+
+
+def component_blend(feed: pd.DataFrame, components: list[str]) -> np.ndarray:
+    """Blend fractions of the components at every sample (rows sum to 1)."""
+    B = feed[[ore_column(c) for c in components]].to_numpy(float)
+    B = np.clip(B, 0.0, None)
+    return B / B.sum(axis=1, keepdims=True)
+
+
+def input_series(scene: Scene, feed: pd.DataFrame, replay: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Feed rate [t/h] and speed at every sample: the scene's, or in a replay the recorded ones."""
+    n = len(feed)
+    f = np.full(n, float(scene.feed.feed_tph))
+    s = np.full(n, float(scene.feed.speed_frac_critical))
+    if replay:
+        if "recorded_feed_tph" in feed:
+            f = feed["recorded_feed_tph"].to_numpy(float)
+        if "recorded_speed_frac_critical" in feed:
+            s = feed["recorded_speed_frac_critical"].to_numpy(float)
+    return f, s

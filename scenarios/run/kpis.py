@@ -1,0 +1,87 @@
+"""The KPIs of a scene's run, from its frame (one row per sample). Keys carry their units.
+
+- ``p80_iae_um_h``: integral of |P80 - target| (plant P80 as the model computes it, not the
+  analyser's; :func:`mpc.p80_iae_um_h`); NaN without ``controller.target_p80_um``.
+- ``p80_within_10um_frac``: share of samples with |P80 - target| <= 10 um; NaN without target.
+- ``specific_energy_kwh_t``: energy drawn / fresh feed; for a batch grind, / the charge.
+- ``throughput_t``: product discharged over the run [t]; for a batch grind the charge ground.
+- ``throughput_tph``: mean product rate over the run [t/h] (``throughput_t / duration_h``);
+  NaN for a batch grind (no product flow).
+- ``load_outside_band_frac``: share of samples whose load is outside
+  ``controller.load_band_frac``; NaN for a batch grind (no load dynamics).
+- ``solve_time_median_s``, ``solve_time_p95_s``: controller solve times; NaN in open loop.
+- ``mass_balance_error``: max |fed - produced - (H - H0)| / (fed + H0) over the run.
+- Also ``p80_final_um``, ``p80_mean_um``, ``energy_kwh``, ``fed_t``, ``duration_h``.
+Integrals are trapezoidal over the samples (:mod:`mpc.kpis`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from mpc import cumulative, integral, outside_band_frac, p80_iae_um_h, within_band_frac
+from scenarios.run.models import is_batch
+from scenarios.scene import Scene
+
+KPI_KEYS = ("p80_iae_um_h", "p80_within_10um_frac", "specific_energy_kwh_t", "throughput_t", "throughput_tph",
+            "load_outside_band_frac", "solve_time_median_s", "solve_time_p95_s",
+            "mass_balance_error")
+
+
+def compute_kpis(scene: Scene, frame: pd.DataFrame, solve_times_s=None, batch_charge_t=None,
+                 solve_time_median_s=None, solve_time_p95_s=None) -> dict:
+    """The KPIs of a run from its frame (definitions in the module docstring)."""
+    t = frame["time_h"].to_numpy(float)
+    p80 = frame["p80_um" if "p80_um" in frame else "content_p80_um"].to_numpy(float)  # batch: the content
+    target = scene.controller.target_p80_um
+    k: dict[str, Any] = {}
+    if target is not None and not is_batch(scene):
+        k["p80_iae_um_h"] = p80_iae_um_h(t, p80, target)
+        k["p80_within_10um_frac"] = within_band_frac(p80, target)
+    else:
+        k["p80_iae_um_h"] = math.nan
+        k["p80_within_10um_frac"] = math.nan
+    energy = integral(t, frame["power_kw"]) if "power_kw" in frame else math.nan
+    if "fed_t" not in frame and "feed_tph" in frame:  # e.g. a closed-loop frame: integrate
+        frame["fed_t"] = cumulative(t, frame["feed_tph"])
+    if "produced_t" not in frame and "throughput_tph" in frame:
+        frame["produced_t"] = cumulative(t, frame["throughput_tph"])
+    fed = float(frame["fed_t"].iloc[-1]) if "fed_t" in frame else math.nan
+    if batch_charge_t is not None:
+        k["specific_energy_kwh_t"] = float(energy / batch_charge_t)
+        k["throughput_t"] = float(batch_charge_t)
+    else:
+        k["specific_energy_kwh_t"] = float(energy / fed) if fed > 0 else math.nan
+        k["throughput_t"] = float(frame["produced_t"].iloc[-1]) if "produced_t" in frame else math.nan
+    k["throughput_tph"] = (k["throughput_t"] / float(t[-1] - t[0])
+                           if batch_charge_t is None and t[-1] > t[0] else math.nan)
+    k["load_outside_band_frac"] = (outside_band_frac(frame["load_frac"], scene.controller.load_band_frac)
+                                   if "load_frac" in frame else math.nan)
+    if solve_times_s is not None and len(solve_times_s):
+        k["solve_time_median_s"] = float(np.median(solve_times_s))
+        k["solve_time_p95_s"] = float(np.percentile(solve_times_s, 95))
+    else:
+        k["solve_time_median_s"] = math.nan if solve_time_median_s is None else float(solve_time_median_s)
+        k["solve_time_p95_s"] = math.nan if solve_time_p95_s is None else float(solve_time_p95_s)
+    k["mass_balance_error"] = mass_balance_error(frame)
+    k["start_feed_tph"] = float(frame["feed_tph"].iloc[0]) if "feed_tph" in frame else math.nan
+    k["start_p80_um"] = float(p80[0])  # what the case started from (sweep tables compare cases)
+    k["p80_final_um"] = float(p80[-1])
+    k["p80_mean_um"] = float(np.nanmean(p80))
+    k["energy_kwh"] = float(energy)
+    k["fed_t"] = fed
+    k["duration_h"] = float(t[-1])
+    return k
+
+
+def mass_balance_error(frame: pd.DataFrame) -> float:
+    """max |fed - produced - (H - H0)| / (fed + H0) over a frame; NaN without those columns."""
+    if not {"fed_t", "produced_t", "holdup_t"} <= set(frame.columns):
+        return math.nan
+    h = frame["holdup_t"].to_numpy(float)
+    err = frame["fed_t"].to_numpy(float) - frame["produced_t"].to_numpy(float) - (h - h[0])
+    return float(np.abs(err).max() / (frame["fed_t"].iloc[-1] + h[0] + 1e-300))

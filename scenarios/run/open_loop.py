@@ -1,0 +1,91 @@
+"""Open-loop runs: the plant twin integrated under inputs known in advance (the scene's, or
+a history's recorded ones), read by the scene's analyser."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+from tqdm.auto import tqdm
+
+from mpc import Sensors, SensorState
+from scenarios.errors import RunError
+from scenarios.run.feed import component_blend, input_series
+from scenarios.run.streams import Samples, run_size_data
+from scenarios.scene import Scene
+from twin import TwinError
+
+#: Samples integrated per call (one progress-bar tick).
+PROGRESS_CHUNK_STEPS = 60
+
+
+def start_state(scene: Scene, twin, u0, blend0, notes: list[str]):
+    """The steady state of the initial inputs (so that a run shows the schedule, not a start-up
+    transient), else the nominal hold-up filled with feed; the note says which."""
+    try:
+        ss = twin.steady(feed_tph=float(u0[0]), speed_frac_critical=float(u0[1]), blend=list(blend0))
+        notes.append(f"started at the steady state of the initial inputs (P80 {ss.p80_um:.4g} um)")
+        return ss.x
+    except (TwinError, RuntimeError) as exc:
+        notes.append(f"no steady state at the initial inputs ({exc}); started at nominal hold-up")
+        return twin.model.initial_state(list(blend0))
+
+
+def simulate_chunks(scene: Scene, twin, x0, feed_tph, speed, blend, progress: bool):
+    """Integrate over the grid in stretches; returns (frame, states) with cumulative fed/produced."""
+    dt = scene.scene.sample_period_h
+    n = len(feed_tph) - 1
+    frames, states = [], [np.asarray(x0, float)[None, :]]
+    fed0 = prod0 = 0.0
+    x = x0
+    with tqdm(total=n, desc=scene.scene.name, unit="sample", disable=not progress) as bar:
+        for a in range(0, n, PROGRESS_CHUNK_STEPS):
+            b = min(a + PROGRESS_CHUNK_STEPS, n)
+            try:
+                tr = twin.simulate((b - a) * dt, dt, feed_tph=lambda t, a=a: feed_tph[a + int(round(t / dt))],
+                                   speed_frac_critical=lambda t, a=a: speed[a + int(round(t / dt))],
+                                   blend=lambda t, a=a: blend[a + int(round(t / dt))], x0=x)
+            except TwinError as exc:
+                raise RunError(f"scene {scene.scene.name}: the plant integration failed between "
+                               f"t = {a * dt:.4g} h and {b * dt:.4g} h: {exc}") from None
+            fr = tr.frame.copy()
+            fr["time_h"] = fr["time_h"] + a * dt
+            fr["fed_t"] = fr["fed_t"] + fed0
+            fr["produced_t"] = fr["produced_t"] + prod0
+            fed0, prod0 = float(fr["fed_t"].iloc[-1]), float(fr["produced_t"].iloc[-1])
+            frames.append(fr if a == 0 else fr.iloc[1:])
+            states.append(tr.states[1:])
+            x = tr.states[-1]
+            bar.update(b - a)
+    frame = pd.concat(frames, ignore_index=True)
+    frame["time_h"] = np.arange(len(frame)) * dt  # exact grid, no drift
+    return frame, np.vstack(states)
+
+
+def run_open_loop(scene: Scene, models, feed: pd.DataFrame, progress: bool, replay: bool):
+    """The plant under the scene's (or, in a replay, the recorded) inputs; returns
+    ``(frame, size data of scenarios.run.streams.run_size_data, extra)``."""
+    notes: list[str] = []
+    twin = models.plant
+    blend = component_blend(feed, models.components)
+    f, s = input_series(scene, feed, replay)
+    if replay and "recorded_feed_tph" in feed:
+        notes.append("replay: inputs are the recorded feed rate and speed")
+    x0 = start_state(scene, twin, (f[0], s[0]), blend[0], notes)
+    frame, states = simulate_chunks(scene, twin, x0, f, s, blend, progress)
+    frame["p80_analyser_um"] = analyser_trace(frame["time_h"].to_numpy(), frame["p80_um"].to_numpy(),
+                                              scene.sensors, scene.scene.seed)
+    sizes = run_size_data(twin.model, Samples.from_frame(twin.model, states, frame, models.components), batch=False)
+    return frame, sizes, {"notes": notes, "solve_times_s": None}
+
+
+def analyser_trace(time_h: np.ndarray, p80_um: np.ndarray, sensors, seed: int) -> np.ndarray:
+    """What the scene's P80 analyser reports along a trace, read through the one analyser model
+    (:class:`mpc.SensorState`: sampled every ``p80_sample_period_h``, reported
+    ``p80_dead_time_h`` later and held, with noise; seeded by ``seed``). NaN before the first
+    report."""
+    s = Sensors(p80_noise_um=sensors.p80_noise_um, p80_dead_time_h=sensors.p80_dead_time_h,
+                p80_sample_period_h=sensors.p80_sample_period_h, power_noise_kw=0.0, load_noise_frac=0.0)
+    state = SensorState(s, np.random.default_rng(seed))
+    return np.array([state.make_step(float(t), float(p), math.nan, math.nan)[1] for t, p in zip(time_h, p80_um)])

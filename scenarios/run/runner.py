@@ -1,0 +1,165 @@
+"""Turn a scene into a run: build the twin(s) once, drive the feed, compute the KPIs.
+
+    >>> from scenarios import run_scene
+    >>> result = run_scene("scenarios/pyrite_surge.toml", out_dir="runs/pyrite")  # doctest: +SKIP
+    >>> result.kpis["specific_energy_kwh_t"]                                    # doctest: +SKIP
+
+Units as everywhere in grindtwin: t, h, um, kW, fraction of critical speed.
+
+What a run does
+- **Models.** The controller's model is the twin built from the scene (its effects, size
+  classes, mill, ores). When ``[plant]`` differs, a second twin is the simulated plant; else
+  the plant is the same model. Open loop only the plant is integrated.
+- **Components.** The scene's ores. A history of mineral wt% (``feed.history``) is mapped to
+  ore fractions (see :func:`scenarios.run.feed.mineralogy_to_blend`); a scene with such a history and no
+  ``[ores]`` uses the reference types A-D as its components.
+- **Start.** A continuous mill (``transport`` effect) starts at the steady state of the initial
+  feed rate, speed and blend (so that a run shows the schedule, not a start-up transient); if
+  that steady state cannot be found the mill starts at its nominal hold-up filled with feed.
+  A batch mill (no ``transport``) starts with ``feed.batch_charge_kg`` of feed of the initial
+  blend and grinds it for ``scene.duration_h`` with no feed.
+- **Inputs.** Held over each sample period. Controller ``"none"``: the scene's ``feed_tph``
+  and ``speed_frac_critical`` throughout (in a replay, the recorded ones where recorded).
+  ``"pi"`` and ``"nmpc"`` need the ``mpc`` package's modules (see :mod:`scenarios.run.closed_loop`).
+- **Analyser.** Open loop, ``p80_analyser_um`` is what the scene's P80 analyser would report
+  (:func:`scenarios.run.open_loop.analyser_trace`); the KPIs use
+  the plant's ``p80_um``.
+- **Progress.** The run is integrated in stretches of ``PROGRESS_CHUNK_STEPS`` samples with a
+  tqdm bar; the integrator restarts at each stretch (as at every input change).
+
+KPIs: :mod:`scenarios.run.kpis`.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from scenarios.errors import SceneError
+from scenarios.output import write_run
+from scenarios.run.batch import run_batch
+from scenarios.run.closed_loop import run_closed
+from scenarios.run.feed import feed_schedule
+from scenarios.run.kpis import compute_kpis
+from scenarios.run.models import build_models, component_ores, is_batch
+from scenarios.run.open_loop import run_open_loop
+from scenarios.run.summary import make_summary
+from scenarios.scene import Scene, load_scene, read_history, scene_from_dict
+
+
+@dataclass
+class RunResult:
+    """One run: ``frame`` (one row per sample, unit-suffixed columns), ``summary`` (JSON-able:
+    scene, kpis, model description, effects, versions, seed, notes), ``psd`` (product size
+    distribution snapshots, the mill content's for a batch grind: rows = times, columns = class
+    upper sizes in um, values = cumulative fraction passing), ``mill_psd`` (the same of the mill
+    content of a continuous mill), ``streams`` (size-by-size tables of every stream at the
+    "start" and "end" of the run, :func:`scenarios.run.streams.size_by_size`), ``scene`` (the
+    validated scene) and ``out_dir`` (where it was written, or ``None``)."""
+
+    frame: pd.DataFrame
+    summary: dict
+    out_dir: Path | None = None
+    psd: pd.DataFrame | None = None
+    mill_psd: pd.DataFrame | None = None
+    streams: dict = field(default_factory=dict)
+    scene: Scene | None = None
+
+    @property
+    def kpis(self) -> dict:
+        return self.summary["kpis"]
+
+
+def _as_scene(scene_or_path) -> Scene:
+    return scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path)
+
+
+def run_scene(scene_or_path, out_dir=None, progress: bool = True, *, csv: bool = False,
+              plots: bool = True, xlsx: bool = False, replay: bool = False) -> RunResult:
+    """Run a scene (a ``Scene`` or a path) and, with ``out_dir``, write its outputs there.
+
+    ``xlsx=True`` adds the workbook ``run.xlsx`` (:mod:`scenarios.output.workbook`).
+    ``replay=True`` drives the inputs with the recorded feed rate and speed of the history (open
+    loop) where the history records them. Raises SceneError for a scene the twin refuses and
+    RunError when the run fails. See the module docstring for what a run does and the KPIs.
+    """
+    scene = _as_scene(scene_or_path)
+    t_start = time.perf_counter()
+    models = build_models(scene)
+    times = scene.time_grid_h()
+    ores = component_ores(scene)
+    feed, notes = feed_schedule(scene, models.components, times, ores)
+    notes = models.notes + notes
+    if is_batch(scene):
+        frame, sizes, extra = run_batch(scene, models, feed, progress)
+    elif scene.controller.kind == "none":
+        frame, sizes, extra = run_open_loop(scene, models, feed, progress, replay)
+    else:
+        frame, sizes, extra = run_closed(scene, models, feed, progress)
+    psd = sizes["psd"]
+    notes += extra.pop("notes", [])
+    for c in feed.columns:
+        if c.startswith("recorded_") or c == "history_fit_residual_wt_pct":
+            frame[c] = feed[c].to_numpy()
+    kpis = compute_kpis(scene, frame, **extra)
+    summary = make_summary(scene, models, kpis, notes, time.perf_counter() - t_start)
+    if psd is not None:
+        summary["final_psd"] = {"what": psd.attrs.get("what", "product"), "time_h": float(psd.index[-1]),
+                                "size_um": [float(x) for x in psd.columns],
+                                "passing_frac": [float(v) for v in psd.iloc[-1]]}
+    result = RunResult(frame=frame, summary=summary, psd=psd, mill_psd=sizes["mill_psd"], streams=sizes["streams"],
+                       scene=scene)
+    if out_dir is not None:
+        result.out_dir = write_run(result, out_dir, csv=csv, plots=plots, xlsx=xlsx)
+    return result
+
+
+def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True, *,
+                 duration_h: float | None = None, csv: bool = False, plots: bool = True,
+                 xlsx: bool = False) -> RunResult:
+    """Drive a scene with a recorded history (CSV or Parquet; format in :mod:`scenarios.scene.history`).
+
+    The scene's ``feed.history`` is set to ``history_csv`` (its ``feed.blend`` and schedule are
+    dropped) and the scene validated again, so the file is checked by the same rules.
+    ``duration_h`` defaults to the history's span (the whole recording, on the scene's sample
+    grid). Open loop (controller ``"none"``) the inputs are the recorded feed rate and speed
+    where recorded; with a controller the controller chooses them. Either way the recorded
+    columns (``recorded_feed_tph``, ``recorded_speed_frac_critical``, ``recorded_p80_um``) sit
+    beside the run's own in the frame, and the summary's ``replay`` block compares them
+    (mean and mean absolute differences, run minus recorded).
+    """
+    scene = _as_scene(scene_or_path)
+    history_path = Path(history_csv).resolve()
+    data = scene.model_dump(exclude_none=True)
+    data["feed"].pop("blend", None)
+    data["feed"].pop("schedule", None)
+    data["feed"]["history"] = str(history_path)
+    if duration_h is None:
+        dt = scene.scene.sample_period_h
+        span = read_history(history_path, sample_period_h=dt,
+                            max_gap_h=scene.feed.history_max_gap_h).span_h
+        n = int(np.floor(span / dt + 1e-9))
+        if n < 1:
+            raise SceneError(f"{history_csv}: the history spans {span:g} h, less than one sample "
+                             f"period ({dt:g} h) of the scene")
+        duration_h = n * dt
+    data["scene"]["duration_h"] = float(duration_h)
+    src = scene.source_path
+    new = scene_from_dict(data, src if src is not None else Path.cwd() / "scene.toml")
+    result = run_scene(new, out_dir=None, progress=progress, replay=True)
+    frame = result.frame
+    cmp = {}
+    for col in ("feed_tph", "speed_frac_critical", "p80_um"):
+        rec = f"recorded_{col}"
+        if rec in frame:
+            diff = frame[col].to_numpy(float) - frame[rec].to_numpy(float)
+            cmp[f"{col}_mean_diff"] = float(np.nanmean(diff))
+            cmp[f"{col}_mean_abs_diff"] = float(np.nanmean(np.abs(diff)))
+    result.summary["replay"] = {"history": str(history_csv), "run_minus_recorded": cmp}
+    if out_dir is not None:
+        result.out_dir = write_run(result, out_dir, csv=csv, plots=plots, xlsx=xlsx)
+    return result

@@ -1,0 +1,262 @@
+"""What-if sweeps: vary scene keys, run every case, one table of results.
+
+``vary`` maps a key path (``"feed.feed_tph"``, ``"controller.weights.p80"``,
+``"feed.schedule[0].blend"``) to a list of values. ``cartesian`` runs every combination,
+``paired`` runs the i-th value of every key together (lists of equal length). Every path is
+checked against the scene schema and every case is validated as a whole scene before any
+case runs. A case that fails while running is reported in the ``error`` column; the other
+cases are kept.
+
+Cases run in a local process pool (``workers``; 1 runs in this process) or, when
+``scheduler`` is given (an address such as ``"tcp://host:8786"``, a ``distributed.Client``
+or a cluster object such as ``LocalCluster``), on a Dask distributed cluster; that needs the
+optional extra ``grindtwin[distributed]``.
+"""
+
+from __future__ import annotations
+
+import copy
+import itertools
+import os
+import pickle
+import tomllib
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Literal
+
+import numpy as np
+import pandas as pd
+from tqdm.auto import tqdm
+
+from scenarios.errors import RunError, SceneError
+from scenarios.scene.keypaths import did_you_mean, format_path, parse_path, type_at
+from scenarios.scene.loader import read_toml, validate_scene_dict
+from scenarios.scene.schema import Scene
+
+RunCase = Callable[[Scene], dict]
+
+
+@dataclass
+class Case:
+    """One case of a sweep: its number, the values set (key path -> value), the raw scene table."""
+
+    index: int
+    values: dict[str, Any]
+    data: dict[str, Any]
+
+
+def parse_vary(text: str) -> tuple[str, list]:
+    """``"KEY=v1,v2,..."`` or ``"KEY=start:stop:step"`` (stop included) -> ``(KEY, values)``.
+
+    Values are read as TOML (``30``, ``0.7``, ``"nmpc"``, ``{ B = 0.6, D = 0.4 }``); a bare
+    word is a string.
+    """
+    if "=" not in text:
+        raise SceneError(f"--vary {text!r}: expected KEY=v1,v2,... or KEY=start:stop:step")
+    key, spec = (s.strip() for s in text.split("=", 1))
+    parts = spec.split(":")
+    if len(parts) == 3 and "{" not in spec and '"' not in spec:
+        try:
+            start, stop, step = (float(p) for p in parts)
+        except ValueError:
+            raise SceneError(f"--vary {text!r}: start:stop:step must be numbers") from None
+        if step <= 0 or stop < start:
+            raise SceneError(f"--vary {text!r}: need step > 0 and stop >= start")
+        n = int(np.floor((stop - start) / step + 1e-9)) + 1
+        values = [start + i * step for i in range(n)]
+        if all(float(p).is_integer() for p in parts):
+            values = [int(round(v)) for v in values]
+        return key, values
+    try:
+        return key, tomllib.loads(f"v = [{spec}]")["v"]
+    except tomllib.TOMLDecodeError:
+        pass
+    values = []
+    for item in (s.strip() for s in spec.split(",")):
+        try:
+            values.append(tomllib.loads(f"v = {item}")["v"])
+        except tomllib.TOMLDecodeError:
+            values.append(item)
+    return key, values
+
+
+def expand_cases(scene_dict: dict[str, Any], vary: dict[str, list],
+                 mode: Literal["cartesian", "paired"] = "cartesian") -> list[Case]:
+    """The sweep's cases: a deep copy of ``scene_dict`` per case with the varied keys set."""
+    if mode not in ("cartesian", "paired"):
+        raise SceneError(f"sweep mode: must be 'cartesian' or 'paired' (got {mode!r})")
+    if not vary:
+        raise SceneError("sweep: nothing to vary; give at least one KEY and its values")
+    paths = {key: _checked_path(scene_dict, key) for key in vary}
+    lists = {key: list(values) for key, values in vary.items()}
+    for key, values in lists.items():
+        if not values:
+            raise SceneError(f"sweep: {key}: no values given")
+    if mode == "paired":
+        lengths = {key: len(v) for key, v in lists.items()}
+        if len(set(lengths.values())) > 1:
+            raise SceneError(f"sweep: paired mode needs lists of equal length (got {lengths})")
+        combos = list(zip(*lists.values()))
+    else:
+        combos = list(itertools.product(*lists.values()))
+    cases = []
+    for i, combo in enumerate(combos):
+        data = copy.deepcopy(scene_dict)
+        values = dict(zip(lists, combo))
+        for key, value in values.items():
+            _set(data, paths[key], copy.deepcopy(value))
+        cases.append(Case(i, values, data))
+    return cases
+
+
+def validate_cases(cases: list[Case], source_path: str | Path | None) -> list[Scene]:
+    """Every case as a validated Scene; SceneError naming each invalid case and its problems."""
+    scenes, problems = [], []
+    for case in cases:
+        scene, errors = validate_scene_dict(case.data, source_path)
+        if errors:
+            setting = ", ".join(f"{k}={v!r}" for k, v in case.values.items())
+            problems += [f"case {case.index} ({setting}): {e}" for e in errors]
+        scenes.append(scene)
+    if problems:
+        raise SceneError(f"sweep of {source_path}: {len(problems)} problems\n  "
+                         + "\n  ".join(problems))
+    return scenes
+
+
+def run_sweep(scene_path: str | Path, vary: dict[str, list], run_case: RunCase, *,
+              mode: Literal["cartesian", "paired"] = "cartesian", workers: int | None = None,
+              scheduler: Any = None, progress: bool = True) -> pd.DataFrame:
+    """Run ``run_case(scene) -> dict of KPIs`` for every case; one row per case.
+
+    Columns: ``case``, the varied key paths, the KPIs (union over cases), ``error`` (``None``
+    for a case that ran). ``run_case`` must be picklable (a module-level function).
+    """
+    cases = expand_cases(read_toml(scene_path), vary, mode)
+    scenes = validate_cases(cases, scene_path)
+    if scheduler is not None:
+        outcomes = _run_dask(run_case, scenes, scheduler, progress)
+    else:
+        outcomes = _run_local(run_case, scenes, workers, progress)
+    rows = []
+    for case, (kpis, error) in zip(cases, outcomes):
+        rows.append({"case": case.index, **case.values, **(kpis or {}), "error": error})
+    table = pd.DataFrame(rows)
+    table.attrs.update(scene=str(scene_path), mode=mode, varied=list(vary))
+    return table
+
+
+def run_one(run_case: RunCase, scene: Scene) -> tuple[dict | None, str | None]:
+    """``(kpis, None)`` or ``(None, "ErrorType: message")``: a failing case never raises."""
+    try:
+        kpis = run_case(scene)
+    except Exception as exc:  # noqa: BLE001 - the case's failure is the result
+        return None, f"{type(exc).__name__}: {exc}"
+    if not isinstance(kpis, dict):
+        return None, f"TypeError: run_case returned {type(kpis).__name__}, expected a dict of KPIs"
+    return kpis, None
+
+
+def _run_local(run_case: RunCase, scenes: list[Scene], workers: int | None, progress: bool):
+    workers = min(workers or os.cpu_count() or 1, len(scenes))
+    if workers > 1:
+        _check_picklable(run_case)
+    bar = tqdm(total=len(scenes), desc="sweep", unit="case", disable=not progress)
+    outcomes: list = [None] * len(scenes)
+    with bar:
+        if workers <= 1:
+            for i, scene in enumerate(scenes):
+                outcomes[i] = run_one(run_case, scene)
+                bar.update()
+            return outcomes
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            futures = {pool.submit(run_one, run_case, s): i for i, s in enumerate(scenes)}
+            for fut in as_completed(futures):
+                outcomes[futures[fut]] = _outcome(fut)
+                bar.update()
+    return outcomes
+
+
+def _check_picklable(run_case: RunCase) -> None:
+    try:
+        pickle.dumps(run_case)
+    except Exception as exc:  # noqa: BLE001 - any pickling failure means the same thing
+        raise RunError(f"run_case {run_case!r} cannot be sent to worker processes ({exc}); "
+                       "use a module-level function, or workers=1") from None
+
+
+def _run_dask(run_case: RunCase, scenes: list[Scene], scheduler: Any, progress: bool):
+    try:
+        from distributed import Client
+        from distributed import as_completed as dask_completed
+    except ImportError:
+        raise RunError("a Dask scheduler was given but dask.distributed is not installed; "
+                       "install the optional extra: pip install 'grindtwin[distributed]'") from None
+    own = not isinstance(scheduler, Client)
+    client = Client(scheduler) if own else scheduler
+    try:
+        futures = [client.submit(run_one, run_case, s, pure=False) for s in scenes]
+        index = {f.key: i for i, f in enumerate(futures)}
+        outcomes: list = [None] * len(scenes)
+        with tqdm(total=len(scenes), desc="sweep", unit="case", disable=not progress) as bar:
+            for fut in dask_completed(futures):
+                outcomes[index[fut.key]] = _outcome(fut)
+                bar.update()
+        return outcomes
+    finally:
+        if own:
+            client.close()
+
+
+def _outcome(fut) -> tuple[dict | None, str | None]:
+    try:
+        return fut.result()
+    except Exception as exc:  # noqa: BLE001 - a lost worker fails its case, not the sweep
+        return None, f"{type(exc).__name__}: {exc}"
+
+
+def _checked_path(scene_dict: dict, key: str) -> tuple:
+    try:
+        loc = parse_path(key)
+    except ValueError as exc:
+        raise SceneError(f"sweep: {exc}") from None
+    for n in range(1, len(loc) + 1):
+        try:
+            type_at(Scene, loc[:n])
+        except KeyError as exc:
+            step, allowed = exc.args
+            where = format_path(loc[:n - 1]) if n > 1 else "the scene"
+            raise SceneError(f"sweep: unknown key path {key!r}: {step!r} is not a key of {where}"
+                             f"{did_you_mean(step, allowed)}; allowed: {', '.join(allowed)}") from None
+        if isinstance(loc[n - 1], int):
+            seq = _lookup(scene_dict, loc[:n - 1])
+            if not isinstance(seq, list) or loc[n - 1] >= len(seq):
+                size = len(seq) if isinstance(seq, list) else 0
+                raise SceneError(f"sweep: key path {key!r}: {format_path(loc[:n - 1])} has "
+                                 f"{size} entries in the scene file; index {loc[n - 1]} is not one")
+    return loc
+
+
+def _lookup(data: Any, loc: tuple) -> Any:
+    for step in loc:
+        if isinstance(data, dict) and step in data:
+            data = data[step]
+        elif isinstance(data, list) and isinstance(step, int) and step < len(data):
+            data = data[step]
+        else:
+            return None
+    return data
+
+
+def _set(data: dict, loc: tuple, value: Any) -> None:
+    node = data
+    for step in loc[:-1]:
+        if isinstance(node, list):
+            node = node[step]
+            continue
+        if not isinstance(node.get(step), (dict, list)):
+            node[step] = {}
+        node = node[step]
+    node[loc[-1]] = value
+

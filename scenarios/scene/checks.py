@@ -1,0 +1,335 @@
+"""Checks that relate several fields of a scene, run on the raw TOML table.
+
+They run even when the schema pass found errors, so they read the table defensively: a
+check whose inputs have the wrong type is skipped (the schema pass reports those). Each
+message is ``key.path: what is wrong and what is allowed (got VALUE)``.
+
+Tolerances: blend fractions must sum to 1 within ``BLEND_SUM_TOL``; explicit mineralogy
+must sum to 100 wt% within ``MINERAL_SUM_TOL_PCT``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from scenarios.errors import SceneError
+from scenarios.scene.history import read_history
+from scenarios.scene.keypaths import did_you_mean, format_path
+from twin.effects import problems as effect_problems
+from twin.ore import mineral_names
+
+BLEND_SUM_TOL = 1e-3
+MINERAL_SUM_TOL_PCT = 0.5
+
+TEXTURE_KEYS = ("mean_grain_um", "uniformity", "association_entropy")
+
+
+def _get(data: Any, *loc) -> Any:
+    for step in loc:
+        if isinstance(data, dict) and isinstance(step, str) and step in data:
+            data = data[step]
+        elif isinstance(data, list) and isinstance(step, int) and 0 <= step < len(data):
+            data = data[step]
+        else:
+            return None
+    return data
+
+
+def _num(x: Any) -> float | None:
+    return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else None
+
+
+class _Report:
+    def __init__(self) -> None:
+        self.messages: list[str] = []
+
+    def add(self, loc: tuple, problem: str, value: Any = ..., ) -> None:
+        got = "" if value is ... else f" (got {value!r})"
+        self.messages.append(f"{format_path(loc)}: {problem}{got}")
+
+
+def cross_check(data: dict[str, Any], base_dir: Path) -> list[str]:
+    """Every cross-field problem of a raw scene table (``base_dir`` resolves relative paths)."""
+    r = _Report()
+    if not isinstance(data, dict):
+        return ["(top level): a scene must be a TOML table"]
+    _check_time(data, r)
+    _check_effects(data, r)
+    ore_names = _check_ores(data, r)
+    _check_feed(data, ore_names, r)
+    _check_schedule(data, ore_names, r)
+    _check_history(data, ore_names, base_dir, r)
+    _check_controller(data, r)
+    _check_sensors(data, r)
+    _check_plant(data, r)
+    return r.messages
+
+
+def _check_time(data, r: _Report) -> None:
+    dur, dt = _num(_get(data, "scene", "duration_h")), _num(_get(data, "scene", "sample_period_h"))
+    if dur and dt and dur > 0 and dt > 0:
+        if dt >= dur:
+            r.add(("scene", "sample_period_h"), f"must be shorter than scene.duration_h = {dur:g}", dt)
+        elif abs(dur / dt - round(dur / dt)) > 1e-6 * dur / dt:
+            r.add(("scene", "duration_h"), f"must be a whole number of sample periods ({dt:g} h)", dur)
+
+
+def _check_effects(data, r: _Report) -> None:
+    _check_effect_table(data.get("effects"), data.get("effect_options", {}), (), r)
+
+
+def _check_effect_table(effects, options, prefix: tuple, r: _Report) -> None:
+    """Effects and their options (under ``prefix``), by the twin's own validation
+    (:func:`twin.effects.problems`): names, requirements, exclusions, needed variables,
+    option names and values."""
+    if not isinstance(effects, list) or not isinstance(options, dict):
+        return  # the schema pass reports the types
+    bad = [name for name, table in options.items() if not isinstance(table, dict)]
+    for name in bad:
+        r.add(prefix + ("effect_options", name), "must be a table of options", options[name])
+    if not bad:
+        for p in effect_problems(effects, options):
+            r.add(prefix + p.loc, p.message)
+
+
+def _check_ores(data, r: _Report) -> list[str]:
+    ores = data.get("ores", {})
+    if not isinstance(ores, dict):
+        return []
+    if not ores and _get(data, "feed", "history") is None:
+        r.add(("ores",), "define at least one ore (only a scene with feed.history may have none)")
+    minerals = mineral_names()
+    for name, ore in ores.items():
+        if not isinstance(ore, dict):
+            continue
+        has_type = "type" in ore
+        has_explicit = "mineralogy" in ore or "texture" in ore
+        if has_type and has_explicit:
+            r.add(("ores", name), "give either `type` or an explicit mineralogy and texture, "
+                  "not both")
+        elif not has_type:
+            for part in ("mineralogy", "texture"):
+                if part not in ore:
+                    r.add(("ores", name, part), "required for an ore without `type` "
+                          "(or give type = \"A\"..\"D\")")
+        mineralogy = ore.get("mineralogy")
+        if isinstance(mineralogy, dict):
+            _check_mineralogy(mineralogy, ("ores", name, "mineralogy"), minerals, r)
+    return list(ores)
+
+
+def _check_mineralogy(mineralogy: dict, loc: tuple, minerals: list[str], r: _Report) -> None:
+    total = 0.0
+    for mineral, wt in mineralogy.items():
+        if mineral not in minerals:
+            r.add(loc + (mineral,), f"unknown mineral{did_you_mean(mineral, minerals)}; known: "
+                  + ", ".join(minerals))
+        v = _num(wt)
+        if v is not None and v < 0:
+            r.add(loc + (mineral,), "wt% must be >= 0", wt)
+        total += v or 0.0
+    if mineralogy and abs(total - 100.0) > MINERAL_SUM_TOL_PCT:
+        r.add(loc, f"wt% must sum to 100 within {MINERAL_SUM_TOL_PCT:g}", round(total, 6))
+
+
+def _check_blend(blend: Any, loc: tuple, ore_names: list[str], r: _Report) -> None:
+    if not isinstance(blend, dict):
+        return
+    if not blend:
+        r.add(loc, "a blend needs at least one ore")
+        return
+    total = 0.0
+    for ore, frac in blend.items():
+        if ore_names and ore not in ore_names:
+            r.add(loc + (ore,), f"ore not defined in [ores]{did_you_mean(ore, ore_names)}; "
+                  "defined: " + ", ".join(ore_names), ore)
+        v = _num(frac)
+        if v is not None and not 0.0 <= v <= 1.0:
+            r.add(loc + (ore,), "fraction must be in [0, 1]", frac)
+        total += v or 0.0
+    if abs(total - 1.0) > BLEND_SUM_TOL:
+        r.add(loc, f"fractions must sum to 1 within {BLEND_SUM_TOL:g}", round(total, 6))
+
+
+def _check_feed(data, ore_names: list[str], r: _Report) -> None:
+    feed = data.get("feed")
+    if not isinstance(feed, dict):
+        return
+    has_history = feed.get("history") is not None
+    if feed.get("blend") is None and not has_history:
+        r.add(("feed", "blend"), "required key is missing (the initial blend, e.g. "
+              "{ B = 1.0 }); only a scene with feed.history has none")
+    elif feed.get("blend") is not None and has_history:
+        r.add(("feed", "blend"), "the history gives the feed from t = 0; remove feed.blend")
+    _check_blend(feed.get("blend"), ("feed", "blend"), ore_names, r)
+    effects = data.get("effects") if isinstance(data.get("effects"), list) else []
+    continuous = "transport" in effects
+    if continuous and feed.get("feed_tph") is None:
+        r.add(("feed", "feed_tph"), "required with the `transport` effect (continuous mill)")
+    if continuous and feed.get("batch_charge_kg") is not None:
+        r.add(("feed", "batch_charge_kg"), "only for batch scenes (effects without `transport`)")
+    if not continuous and isinstance(data.get("effects"), list):
+        if feed.get("batch_charge_kg") is None:
+            r.add(("feed", "batch_charge_kg"), "required for a batch scene (effects without "
+                  "`transport`); or add `transport` to effects for a continuous mill")
+        if feed.get("feed_tph") is not None:
+            r.add(("feed", "feed_tph"), "a batch scene (effects without `transport`) has no "
+                  "feed rate; use batch_charge_kg")
+        if _get(data, "controller", "kind") not in (None, "none"):
+            r.add(("controller", "kind"), "a batch scene (effects without `transport`) has "
+                  "nothing to control; use kind = \"none\"", _get(data, "controller", "kind"))
+    p80 = _num(feed.get("p80_um", 3200.0))
+    top = _num(_get(data, "mill", "size_classes", "top_um") or 6700.0)
+    if p80 is not None and top is not None and p80 >= top:
+        r.add(("feed", "p80_um"), f"must be below the top size class mill.size_classes.top_um "
+              f"= {top:g}", p80)
+
+
+def _check_schedule(data, ore_names: list[str], r: _Report) -> None:
+    events = _get(data, "feed", "schedule")
+    if not isinstance(events, list):
+        return
+    dur = _num(_get(data, "scene", "duration_h"))
+    prev_at, prev_end = None, None
+    for i, ev in enumerate(events):
+        if not isinstance(ev, dict):
+            continue
+        loc = ("feed", "schedule", i)
+        _check_blend(ev.get("blend"), loc + ("blend",), ore_names, r)
+        at, ramp = _num(ev.get("at_h")), _num(ev.get("ramp_h", 0.0))
+        kind = ev.get("kind", "step")
+        if kind == "ramp" and ramp is not None and ramp <= 0:
+            r.add(loc + ("ramp_h",), "a ramp needs ramp_h > 0", ramp)
+        if kind == "step" and ramp:
+            r.add(loc + ("ramp_h",), "ramp_h is only for kind = \"ramp\"", ramp)
+        if at is None:
+            continue
+        if prev_at is not None and at <= prev_at:
+            r.add(loc + ("at_h",), f"events must be in increasing time; previous event at "
+                  f"{prev_at:g} h", at)
+        elif prev_end is not None and at < prev_end:
+            r.add(loc + ("at_h",), f"starts before the previous ramp ends at {prev_end:g} h", at)
+        end = at + (ramp or 0.0)
+        if dur is not None and end > dur:
+            r.add(loc + ("at_h",), f"event ends at {end:g} h, after scene.duration_h = {dur:g}", at)
+        prev_at, prev_end = at, end
+
+
+def _check_history(data, ore_names: list[str], base_dir: Path, r: _Report) -> None:
+    feed = data.get("feed")
+    if not isinstance(feed, dict):
+        return
+    hist = feed.get("history")
+    if hist is None:
+        if feed.get("history_texture") is not None:
+            r.add(("feed", "history_texture"), "only used with feed.history")
+        return
+    if not isinstance(hist, str):
+        return
+    if feed.get("schedule"):
+        r.add(("feed", "schedule"), "give either a schedule or a history, not both")
+    path = Path(hist) if Path(hist).is_absolute() else base_dir / hist
+    dt = _num(_get(data, "scene", "sample_period_h"))
+    if not path.is_file():
+        r.add(("feed", "history"), f"file not found (looked for {path})", hist)
+        return
+    if dt is None or dt <= 0:
+        return
+    try:
+        gap = _num(feed.get("history_max_gap_h", 10 / 60))
+        history = read_history(path, sample_period_h=dt, max_gap_h=gap if gap and gap > 0 else 10 / 60)
+    except SceneError as exc:
+        for line in str(exc).splitlines():
+            r.add(("feed", "history"), line.strip())
+        return
+    if history.kind == "blend":
+        if not ore_names:
+            r.add(("ores",), "the history gives ore fractions; define those ores in [ores]")
+        for ore in history.ores:
+            if ore_names and ore not in ore_names:
+                r.add(("feed", "history"), f"column ore_{ore}_frac names an ore not defined in "
+                      f"[ores]{did_you_mean(ore, ore_names)}; defined: " + ", ".join(ore_names))
+    else:
+        has_cols = all(k in history.frame.columns for k in TEXTURE_KEYS)
+        if has_cols and feed.get("history_texture") is not None:
+            r.add(("feed", "history_texture"), "the history already has texture columns; give "
+                  "the texture in one place only")
+        if not has_cols and feed.get("history_texture") is None:
+            r.add(("feed", "history_texture"), "required: the history gives mineralogy without "
+                  "texture columns (" + ", ".join(TEXTURE_KEYS) + ")")
+    dur = _num(_get(data, "scene", "duration_h"))
+    if dur is not None and history.span_h + dt < dur - 1e-9:
+        r.add(("feed", "history"), f"covers {history.span_h:g} h, the scene lasts {dur:g} h "
+              "(shorten scene.duration_h)")
+
+
+def _check_controller(data, r: _Report) -> None:
+    ctl = data.get("controller")
+    if not isinstance(ctl, dict):
+        return
+    kind = ctl.get("kind", "none")
+    bounds = ctl.get("bounds") if isinstance(ctl.get("bounds"), dict) else {}
+    if kind in ("pi", "nmpc"):
+        if ctl.get("target_p80_um") is None:
+            r.add(("controller", "target_p80_um"), f"required when kind = {kind!r}")
+        for key in ("feed_tph_min", "feed_tph_max"):
+            if bounds.get(key) is None:
+                r.add(("controller", "bounds", key), f"required when kind = {kind!r}")
+    fmin, fmax = _num(bounds.get("feed_tph_min")), _num(bounds.get("feed_tph_max"))
+    smin, smax = _num(bounds.get("speed_min", 0.60)), _num(bounds.get("speed_max", 0.85))
+    if fmin is not None and fmax is not None and fmin >= fmax:
+        r.add(("controller", "bounds", "feed_tph_max"), f"must be above feed_tph_min = {fmin:g}",
+              fmax)
+    if smin is not None and smax is not None and smin >= smax:
+        r.add(("controller", "bounds", "speed_max"), f"must be above speed_min = {smin:g}", smax)
+    if kind != "none":
+        feed, speed = _num(_get(data, "feed", "feed_tph")), _num(_get(data, "feed", "speed_frac_critical"))
+        if feed is not None and fmin is not None and fmax is not None and fmin < fmax \
+                and not fmin <= feed <= fmax:
+            r.add(("feed", "feed_tph"), f"initial feed outside controller.bounds "
+                  f"[{fmin:g}, {fmax:g}]", feed)
+        if speed is not None and smin is not None and smax is not None and smin < smax \
+                and not smin <= speed <= smax:
+            r.add(("feed", "speed_frac_critical"), f"initial speed outside controller.bounds "
+                  f"[{smin:g}, {smax:g}]", speed)
+    hor, block = _num(ctl.get("horizon_steps", 30)), _num(ctl.get("move_block", 5))
+    if hor is not None and block is not None and block > hor:
+        r.add(("controller", "move_block"), f"must not exceed horizon_steps = {hor:g}", block)
+    band = ctl.get("load_band_frac")
+    if isinstance(band, list) and len(band) == 2 and all(_num(b) is not None for b in band):
+        if not 0 < band[0] < 1 < band[1]:
+            r.add(("controller", "load_band_frac"), "must be [low, high] with 0 < low < 1 < high "
+                  "(hold-up over nominal hold-up)", band)
+    dur, lead = _num(_get(data, "scene", "duration_h")), _num(ctl.get("preview_lead_h"))
+    if dur is not None and lead is not None and lead > dur:
+        r.add(("controller", "preview_lead_h"), f"longer than the scene ({dur:g} h)", lead)
+
+
+def _check_sensors(data, r: _Report) -> None:
+    dt = _num(_get(data, "scene", "sample_period_h"))
+    p80_dt = _num(_get(data, "sensors", "p80_sample_period_h"))
+    if dt is not None and p80_dt is not None and p80_dt < dt - 1e-12:
+        r.add(("sensors", "p80_sample_period_h"), f"must be >= scene.sample_period_h = {dt:g}",
+              p80_dt)
+    dur, dead = _num(_get(data, "scene", "duration_h")), _num(_get(data, "sensors", "p80_dead_time_h"))
+    if dur is not None and dead is not None and dead >= dur:
+        r.add(("sensors", "p80_dead_time_h"), f"must be shorter than the scene ({dur:g} h)", dead)
+
+
+def _check_plant(data, r: _Report) -> None:
+    plant = data.get("plant")
+    if not isinstance(plant, dict):
+        return
+    if plant.get("model") == "leroux2013":
+        # the circuit needs a matched controller twin and its own disturbances (phi_f, rock
+        # fraction), which scenes do not describe yet: say so before a run fails on it
+        r.add(("plant", "model"), "\"leroux2013\" is not run by scenes yet; the le Roux case "
+              "runs from benchmarks/mpc_leroux_case.py (allowed here: \"twin\")", "leroux2013")
+        for key in ("effects", "size_classes", "effect_options"):
+            if key in plant:
+                r.add(("plant", key), "not used with model = \"leroux2013\"; remove it")
+    if plant.get("model", "twin") == "twin" and (plant.get("effects") is not None
+                                                 or plant.get("effect_options") is not None):
+        _check_effect_table(plant.get("effects", data.get("effects")), plant.get("effect_options", {}),
+                            ("plant",), r)

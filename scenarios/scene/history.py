@@ -1,0 +1,258 @@
+"""Recorded feed histories (CSV or Parquet) turned into a regular time series.
+
+File format. One row per record, a header row; lines starting with ``#`` are comments.
+- time: ``timestamp`` (ISO 8601) or ``time_h`` (hours, any origin); time 0 is the first record;
+- composition, one family: mineral wt% columns ``<mineral>_wt_pct`` (e.g. ``quartz_wt_pct``)
+  or ore fractions ``ore_<name>_frac`` (``<name>`` an ore of the scene);
+- optional: ``feed_tph``, ``speed_frac_critical``, ``p80_um`` (what the plant did) and the
+  texture ``mean_grain_um``, ``uniformity``, ``association_entropy``.
+Any other column is refused.
+
+Rules, applied in this order; each action is written to ``History.report``:
+1. Out-of-order rows are sorted by time (stable); the report names how many and the first.
+2. Duplicated timestamps: the last row in file order is kept, the others dropped and named.
+3. NaN: a missing value is replaced by the previous valid value of its column (a row with any
+   missing composition value has its whole composition replaced). A recorded column that is
+   empty throughout is dropped.
+4. Gaps: a value may be held for at most ``max_gap_h`` (default 10 min), whether the rows are
+   missing or present with NaN. A longer stretch, or missing values in the first row, is
+   refused, naming the data rows (1 = first row after the header).
+5. Negative values are refused, naming the rows.
+6. Composition rows must sum to 100 wt% (or 1) within ``sum_tol_frac`` (relative, default 2 %);
+   they are rescaled to sum exactly; rows further off are refused, naming them.
+7. Resampling to the scene's sample period: the value at grid time t_k = k*dt is the
+   time-weighted mean over [t_k, t_k + dt) of the held (previous-value) signal; finer records
+   are averaged, coarser ones repeated. Grid: 0 .. the last record, the last value held.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import pandas as pd
+
+from scenarios.errors import SceneError
+from scenarios.scene.keypaths import did_you_mean
+from twin.ore import mineral_names
+
+DEFAULT_MAX_GAP_H = 10 / 60
+RECORDED_COLUMNS = ("feed_tph", "speed_frac_critical", "p80_um")
+TEXTURE_COLUMNS = ("mean_grain_um", "uniformity", "association_entropy")
+_MINERAL = re.compile(r"^(.+)_wt_pct$")
+_ORE = re.compile(r"^ore_(.+)_frac$")
+_MAX_NAMED = 10
+
+
+@dataclass
+class History:
+    """A recorded history on a regular grid: ``frame`` indexed by ``time_h``."""
+
+    frame: pd.DataFrame
+    kind: Literal["mineralogy", "blend"]
+    report: list[str]
+    source: Path
+    start: pd.Timestamp | None = None
+    span_h: float = 0.0
+    composition_columns: list[str] = field(default_factory=list)
+
+    @property
+    def ores(self) -> list[str]:
+        """Ore names of a ``blend`` history."""
+        return [_ORE.match(c).group(1) for c in self.composition_columns] if self.kind == "blend" else []
+
+    @property
+    def minerals(self) -> list[str]:
+        """Mineral names of a ``mineralogy`` history."""
+        return [_MINERAL.match(c).group(1) for c in self.composition_columns] \
+            if self.kind == "mineralogy" else []
+
+
+def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float = DEFAULT_MAX_GAP_H,
+                 sum_tol_frac: float = 0.02) -> History:
+    """Read, clean and resample a recorded history by the rules of this module's docstring."""
+    path = Path(path)
+    raw = _read_table(path)
+    where = str(path)
+    report: list[str] = []
+    raw = raw.assign(_row=np.arange(1, len(raw) + 1))
+    time_h, start = _time_column(raw, where)
+    raw = raw.assign(_t=time_h)
+    comp_cols, kind, other_cols = _classify_columns(raw, where)
+
+    order = np.argsort(raw["_t"].to_numpy(), kind="stable")
+    if np.any(np.diff(raw["_t"].to_numpy()) < 0):
+        first = int(raw["_row"].iloc[np.argmax(np.diff(raw["_t"].to_numpy()) < 0) + 1])
+        moved = int(np.sum(order != np.arange(len(raw))))
+        report.append(f"{moved} rows were out of time order (first: data row {first}); sorted by time")
+    df = raw.iloc[order].reset_index(drop=True)
+
+    dup = df["_t"].duplicated(keep="last").to_numpy()
+    if dup.any():
+        report.append(f"repeated timestamps: dropped data rows {_names(df['_row'][dup])}, "
+                      "keeping the last row of each time")
+        df = df[~dup].reset_index(drop=True)
+    if len(df) < 1:
+        raise SceneError(f"{where}: no data rows")
+
+    t = df["_t"].to_numpy() - df["_t"].iloc[0]
+    if start is not None:
+        start = start + pd.Timedelta(hours=float(df["_t"].iloc[0]))
+    values = df[comp_cols + other_cols].astype(float)
+    neg = (values < 0).any(axis=1).to_numpy()
+    if neg.any():
+        raise SceneError(f"{where}: negative values in data rows {_names(df['_row'][neg])}")
+
+    comp = values[comp_cols]
+    comp_missing = comp.isna().any(axis=1).to_numpy()
+    comp = comp.mask(comp_missing[:, None].repeat(len(comp_cols), axis=1))
+    errors: list[str] = []
+    _check_holds(t, comp_missing, df["_row"], "composition", max_gap_h, errors)
+    kept_other = []
+    for col in other_cols:
+        missing = values[col].isna().to_numpy()
+        if missing.all():
+            report.append(f"column {col} is empty; dropped")
+            continue
+        _check_holds(t, missing, df["_row"], col, max_gap_h, errors)
+        kept_other.append(col)
+    if errors:
+        raise SceneError(f"{where}: " + f"\n{where}: ".join(errors))
+    n_filled = int(comp_missing.sum() + sum(values[c].isna().sum() for c in kept_other))
+    if n_filled:
+        report.append(f"{n_filled} missing values held from the previous row (max gap "
+                      f"{max_gap_h * 60:g} min)")
+    filled = pd.concat([comp, values[kept_other]], axis=1).ffill()
+
+    target = 100.0 if kind == "mineralogy" else 1.0
+    sums = filled[comp_cols].sum(axis=1).to_numpy()
+    off = np.abs(sums / target - 1) > sum_tol_frac
+    if off.any():
+        rows = df["_row"][off]
+        raise SceneError(f"{where}: composition does not sum to {target:g} within "
+                         f"{sum_tol_frac:.0%} in data rows {_names(rows)} (sums "
+                         f"{', '.join(f'{s:.4g}' for s in sums[off][:_MAX_NAMED])})")
+    rel = np.abs(sums / target - 1)
+    rescaled = int(np.sum(rel > 1e-9))
+    if rescaled:
+        report.append(f"{rescaled} rows rescaled so that the composition sums to {target:g} "
+                      f"(largest correction {rel.max() * 100:.2g} %)")
+    filled[comp_cols] = filled[comp_cols].to_numpy() * (target / sums)[:, None]
+
+    grid = np.arange(int(np.floor(t[-1] / sample_period_h + 1e-9)) + 1) * sample_period_h
+    data = _time_average(t, filled.to_numpy(), grid, sample_period_h)
+    frame = pd.DataFrame(data, columns=list(filled.columns), index=pd.Index(grid, name="time_h"))
+    steps = np.diff(t)
+    if len(steps) and (steps.max() - steps.min()) > 1e-9:
+        report.append(f"irregular records (intervals {steps.min() * 60:.3g} to {steps.max() * 60:.3g}"
+                      f" min) resampled to {len(grid)} samples every {sample_period_h * 60:g} min")
+    else:
+        report.append(f"{len(df)} records resampled to {len(grid)} samples every "
+                      f"{sample_period_h * 60:g} min")
+    return History(frame=frame, kind=kind, report=report, source=path, start=start,
+                   span_h=float(t[-1]), composition_columns=comp_cols)
+
+
+def _read_table(path: Path) -> pd.DataFrame:
+    if not path.is_file():
+        raise SceneError(f"{path}: history file not found")
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".csv":
+            return pd.read_csv(path, comment="#", skipinitialspace=True)
+        if suffix in (".parquet", ".pq"):
+            return pd.read_parquet(path)
+    except (ValueError, OSError, pd.errors.ParserError) as exc:
+        raise SceneError(f"{path}: cannot read the history: {exc}") from None
+    raise SceneError(f"{path}: history must be .csv or .parquet (got {suffix or 'no suffix'!r})")
+
+
+def _time_column(raw: pd.DataFrame, where: str) -> tuple[np.ndarray, pd.Timestamp | None]:
+    has_ts, has_h = "timestamp" in raw.columns, "time_h" in raw.columns
+    if has_ts == has_h:
+        raise SceneError(f"{where}: needs exactly one time column, `timestamp` (ISO 8601) or "
+                         f"`time_h` (got columns {list(raw.columns)})")
+    if has_h:
+        t = pd.to_numeric(raw["time_h"], errors="coerce").to_numpy(dtype=float)
+        start = None
+    else:
+        ts = pd.to_datetime(raw["timestamp"], errors="coerce", format="ISO8601")
+        if ts.notna().any():
+            start = ts.min()
+            t = ((ts - start) / pd.Timedelta(hours=1)).to_numpy(dtype=float)
+        else:
+            start, t = None, np.full(len(raw), np.nan)
+    bad = ~np.isfinite(t)
+    if bad.any():
+        raise SceneError(f"{where}: unreadable or missing time in data rows "
+                         f"{_names(raw['_row'][bad])}")
+    return t, start
+
+
+def _classify_columns(raw: pd.DataFrame, where: str) -> tuple[list[str], str, list[str]]:
+    minerals = mineral_names()
+    cols = [c for c in raw.columns if c not in ("timestamp", "time_h", "_row", "_t")]
+    mineral_cols = [c for c in cols if _MINERAL.match(c)]
+    ore_cols = [c for c in cols if _ORE.match(c)]
+    other = [c for c in cols if c not in mineral_cols and c not in ore_cols]
+    problems = []
+    allowed_other = RECORDED_COLUMNS + TEXTURE_COLUMNS
+    for c in other:
+        if c not in allowed_other:
+            hint = did_you_mean(c, list(allowed_other) + [f"{m}_wt_pct" for m in minerals])
+            problems.append(f"unknown column {c!r}{hint}; allowed: <mineral>_wt_pct, "
+                            f"ore_<name>_frac, {', '.join(allowed_other)}")
+    for c in mineral_cols:
+        m = _MINERAL.match(c).group(1)
+        if m not in minerals:
+            problems.append(f"column {c!r}: unknown mineral{did_you_mean(m, minerals)}")
+    if bool(mineral_cols) == bool(ore_cols):
+        problems.append("needs one composition family: <mineral>_wt_pct columns or "
+                        "ore_<name>_frac columns (not both, not neither)")
+    if problems:
+        raise SceneError(f"{where}: " + f"\n{where}: ".join(problems))
+    kind = "mineralogy" if mineral_cols else "blend"
+    return (mineral_cols or ore_cols), kind, other
+
+
+def _check_holds(t: np.ndarray, missing: np.ndarray, rows: pd.Series, what: str,
+                 max_gap_h: float, errors: list[str]) -> None:
+    """Refuse a value held longer than ``max_gap_h`` or missing in the first row."""
+    valid = np.flatnonzero(~missing)
+    if len(valid) == 0 or valid[0] != 0:
+        errors.append(f"{what}: missing in the first data row {int(rows.iloc[0])}; no earlier "
+                      "value to hold")
+        return
+    ends = np.append(t[valid[1:]], t[-1])
+    held = ends - t[valid]
+    too_long = np.flatnonzero(held > max_gap_h + 1e-12)
+    for i in too_long[:_MAX_NAMED]:
+        a = valid[i]
+        b = valid[i + 1] if i + 1 < len(valid) else len(t) - 1
+        errors.append(f"{what}: no valid value for {held[i] * 60:.4g} min between data rows "
+                      f"{int(rows.iloc[a])} and {int(rows.iloc[b])} (limit {max_gap_h * 60:g} min)")
+    if len(too_long) > _MAX_NAMED:
+        errors.append(f"{what}: and {len(too_long) - _MAX_NAMED} more gaps longer than "
+                      f"{max_gap_h * 60:g} min")
+
+
+def _time_average(t: np.ndarray, values: np.ndarray, grid: np.ndarray, dt: float) -> np.ndarray:
+    """Mean of the zero-order-hold signal (values held from t_i) over [g, g + dt)."""
+    seg = np.diff(t)
+    cum = np.vstack([np.zeros((1, values.shape[1])),
+                     np.cumsum(values[:-1] * seg[:, None], axis=0)])
+
+    def integral(x: np.ndarray) -> np.ndarray:
+        j = np.clip(np.searchsorted(t, x, side="right") - 1, 0, len(t) - 1)
+        return cum[j] + values[j] * (x - t[j])[:, None]
+
+    return (integral(grid + dt) - integral(grid)) / dt
+
+
+def _names(rows: pd.Series) -> str:
+    rows = [int(r) for r in rows]
+    text = ", ".join(str(r) for r in rows[:_MAX_NAMED])
+    return text + (f" and {len(rows) - _MAX_NAMED} more" if len(rows) > _MAX_NAMED else "")

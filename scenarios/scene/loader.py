@@ -1,0 +1,131 @@
+"""Load and validate scene files as a whole, reporting every error at once.
+
+Two passes over the file: the pydantic schema (:mod:`scenarios.scene.schema`) checks each field,
+then :mod:`scenarios.scene.checks` checks what relates fields to each other. Both passes always
+run, so a file with five mistakes gets five messages. Each message reads
+``FILE: key.path: what is wrong and what is allowed (got VALUE)``.
+
+After validation, defaults that depend on other fields are filled in visibly (the returned
+``Scene`` shows them): mill dimensions and ``n_mixers`` from the preset, the P80 analyser's
+sample period (the scene's), and blends are rescaled to sum exactly to 1 (they must already
+sum to 1 within ``checks.BLEND_SUM_TOL``).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Any, Literal, get_args, get_origin
+
+from pydantic import ValidationError
+
+from scenarios.scene.checks import cross_check
+from scenarios.errors import SceneError
+from scenarios.scene.keypaths import allowed_keys, did_you_mean, format_path, type_at
+from scenarios.scene.schema import Scene, mill_preset
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """The raw TOML table of a scene file; SceneError if missing or not TOML."""
+    path = Path(path)
+    try:
+        with path.open("rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise SceneError(f"{path}: scene file not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{path}: not valid TOML: {exc}") from None
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read the scene file: {exc.strerror or exc}") from None
+
+
+def validate_scene_dict(data: dict[str, Any], source_path: str | Path | None = None,
+                        ) -> tuple[Scene | None, list[str]]:
+    """Validate a raw scene table; return ``(scene, [])`` or ``(None, messages)``."""
+    source = Path(source_path) if source_path is not None else None
+    label = str(source) if source is not None else "<scene>"
+    errors: list[str] = []
+    scene: Scene | None = None
+    try:
+        scene = Scene.model_validate(data)
+    except ValidationError as exc:
+        errors += [_pydantic_message(label, e) for e in exc.errors()]
+    base_dir = source.parent if source is not None else Path.cwd()
+    errors += [f"{label}: {m}" for m in cross_check(data, base_dir)]
+    errors = list(dict.fromkeys(errors))  # keep order, drop repeats
+    if errors:
+        return None, errors
+    assert scene is not None
+    scene._source_path = source
+    _fill_defaults(scene)
+    return scene, []
+
+
+def scene_from_dict(data: dict[str, Any], source_path: str | Path | None = None) -> Scene:
+    """Validated ``Scene`` from a raw table; SceneError listing every problem otherwise."""
+    scene, errors = validate_scene_dict(data, source_path)
+    if errors:
+        raise SceneError(_summary(source_path, errors))
+    return scene
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read, validate and complete a scene file; SceneError listing every problem."""
+    return scene_from_dict(read_toml(path), path)
+
+
+def check_scene(path: str | Path) -> list[str]:
+    """Every problem in a scene file, one message each; empty list when it is valid."""
+    try:
+        data = read_toml(path)
+    except SceneError as exc:
+        return [str(exc)]
+    return validate_scene_dict(data, path)[1]
+
+
+def _summary(source_path, errors: list[str]) -> str:
+    where = source_path if source_path is not None else "scene"
+    head = f"{where}: {len(errors)} problem{'s' if len(errors) > 1 else ''} in the scene"
+    return head + "\n  " + "\n  ".join(errors)
+
+
+def _pydantic_message(label: str, err: dict) -> str:
+    loc = tuple(err["loc"])
+    path = format_path(loc)
+    kind = err["type"]
+    if kind == "missing":
+        return f"{label}: {path}: required key is missing"
+    if kind == "extra_forbidden":
+        key = loc[-1]
+        allowed = allowed_keys(Scene, loc[:-1])
+        hint = ""
+        if len(loc) > 1 and key in Scene.model_fields:
+            hint = (f" ({key!r} is a top-level key: in TOML it must come before the first "
+                    "[table], else it belongs to that table)")
+        return (f"{label}: {path}: unknown key {key!r}{did_you_mean(key, allowed)}; "
+                f"allowed keys: {', '.join(allowed)}{hint}")
+    hint = ""
+    if kind == "literal_error":
+        try:
+            ann = type_at(Scene, loc)
+        except KeyError:
+            ann = None
+        if get_origin(ann) is Literal:
+            hint = did_you_mean(err["input"], get_args(ann))
+    return f"{label}: {path}: {err['msg']}{hint} (got {err['input']!r})"
+
+
+def _fill_defaults(scene: Scene) -> None:
+    mill = scene.mill
+    for key, value in mill_preset(mill.preset).items():
+        if getattr(mill, key) is None:
+            setattr(mill, key, value)
+    if scene.sensors.p80_sample_period_h is None:
+        scene.sensors.p80_sample_period_h = scene.scene.sample_period_h
+    blends = [ev.blend for ev in scene.feed.schedule]
+    if scene.feed.blend is not None:
+        blends.append(scene.feed.blend)
+    for blend in blends:
+        total = sum(blend.values())
+        for ore in blend:
+            blend[ore] = blend[ore] / total

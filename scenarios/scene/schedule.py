@@ -1,0 +1,108 @@
+"""What the feed is at any time of a scene: blend fractions, or a recorded mineralogy.
+
+A runner asks either
+- :func:`blend_at(scene, t_h) <blend_at>`: ore name -> fraction at one time (every ore of the
+  scene, zeros included); for schedules and for histories of ore fractions; or
+- :func:`feed_table(scene, times_h) <feed_table>`: a DataFrame indexed by ``time_h`` on the
+  scene's grid (or the given times), the form to use for previews (``t + preview_lead_h``)
+  and for mineralogy histories.
+
+Schedule semantics: before the first event the feed is ``feed.blend``. A ``step`` event sets
+its blend at ``at_h``. A ``ramp`` moves linearly from the blend in force at ``at_h`` to its
+blend, reached at ``at_h + ramp_h``. Histories are held sample to sample (previous value on
+the history's grid); after the last record the last value holds.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from scenarios.errors import SceneError
+from scenarios.scene.history import RECORDED_COLUMNS, TEXTURE_COLUMNS, History, read_history
+from scenarios.scene.schema import Scene
+from twin import Mineralogy, Texture, reference_ores
+
+
+def ore_column(ore: str) -> str:
+    """Column name of an ore's fraction in feed tables and histories: ``ore_<name>_frac``."""
+    return f"ore_{ore}_frac"
+
+
+def ore_mineralogies(scene: Scene) -> dict:
+    """Each ore of the scene as a ``twin.Mineralogy`` (reference types from ``twin.reference_ores``)."""
+    out = {}
+    for name, ore in scene.ores.items():
+        if ore.type is not None:
+            ref = reference_ores()[ore.type]
+            out[name] = Mineralogy(dict(ref.wt_pct), ref.texture, name=name)
+        else:
+            out[name] = Mineralogy(dict(ore.mineralogy), Texture(**ore.texture.model_dump()),
+                                   name=name)
+    return out
+
+
+def load_history(scene: Scene) -> History | None:
+    """The scene's recorded history on its sample grid (cached per file), or ``None``."""
+    path = scene.history_path()
+    if path is None:
+        return None
+    return _cached_history(str(path), path.stat().st_mtime_ns, scene.scene.sample_period_h,
+                           scene.feed.history_max_gap_h)
+
+
+@lru_cache(maxsize=8)
+def _cached_history(path: str, _mtime: int, dt: float, max_gap_h: float) -> History:
+    return read_history(Path(path), sample_period_h=dt, max_gap_h=max_gap_h)
+
+
+def blend_at(scene: Scene, t_h: float) -> dict[str, float]:
+    """Blend (every ore of the scene -> fraction) at time ``t_h``."""
+    history = load_history(scene)
+    if history is not None:
+        if history.kind != "blend":
+            raise SceneError(f"{scene.history_path()}: the history records mineralogy, not ore "
+                             "fractions; use feed_table(scene)")
+        row = _rows_at(history, np.array([float(t_h)])).iloc[0]
+        return {ore: float(row.get(ore_column(ore), 0.0)) for ore in scene.ores}
+    blend = {ore: scene.feed.blend.get(ore, 0.0) for ore in scene.ores}
+    for ev in scene.feed.schedule:
+        if t_h < ev.at_h:
+            break
+        target = {ore: ev.blend.get(ore, 0.0) for ore in scene.ores}
+        if ev.kind == "step" or t_h >= ev.at_h + ev.ramp_h:
+            blend = target
+        else:
+            w = (t_h - ev.at_h) / ev.ramp_h
+            blend = {ore: (1 - w) * blend[ore] + w * target[ore] for ore in scene.ores}
+    return blend
+
+
+def feed_table(scene: Scene, times_h=None) -> pd.DataFrame:
+    """Feed over time, indexed by ``time_h`` (default: the scene's grid).
+
+    Columns: ``ore_<name>_frac`` for schedules and ore-fraction histories; for mineralogy
+    histories ``<mineral>_wt_pct`` plus the texture (``mean_grain_um``, ``uniformity``,
+    ``association_entropy``); for any history the recorded plant values prefixed
+    ``recorded_`` (``recorded_feed_tph``, ...) when the file has them.
+    """
+    times = scene.time_grid_h() if times_h is None else np.asarray(times_h, dtype=float)
+    index = pd.Index(times, name="time_h")
+    history = load_history(scene)
+    if history is None:
+        rows = [blend_at(scene, t) for t in times]
+        return pd.DataFrame({ore_column(o): [r[o] for r in rows] for o in scene.ores}, index=index)
+    table = _rows_at(history, times).set_index(index)
+    if history.kind == "mineralogy" and scene.feed.history_texture is not None:
+        for key in TEXTURE_COLUMNS:
+            table[key] = getattr(scene.feed.history_texture, key)
+    return table.rename(columns={c: f"recorded_{c}" for c in RECORDED_COLUMNS})
+
+
+def _rows_at(history: History, times: np.ndarray) -> pd.DataFrame:
+    grid = history.frame.index.to_numpy()
+    j = np.clip(np.searchsorted(grid, times + 1e-9, side="right") - 1, 0, len(grid) - 1)
+    return history.frame.iloc[j].reset_index(drop=True)

@@ -1,0 +1,150 @@
+"""Modal mineralogy and texture of an ore, and the indices derived from them.
+
+- Mineralogical hardness index ``H_min = sum_i w_i H_i`` (MISSION.md eq. 1), w_i weight
+  fraction, H_i Vickers micro-hardness [GPa] from ``minerals.csv``.
+- Textural index: grain-size strengthening after Brace (1961, J. Geophys. Res. 66, 3477,
+  strength of rocks ~ d^-1/2) scaled by the mineral-association entropy (intergrown textures
+  resist breakage and liberation; Lund et al. 2015, Minerals Engineering 82, 61-77).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from ..errors import TwinInputError, bad_value, check_range, close_matches
+from .minerals import CLAY_MINERALS, MICA_MINERALS, SULFIDE_MINERALS, mineral_table
+
+#: A modal analysis must sum to 100 wt% within this tolerance (QEMSCAN/XRD reconciliations
+#: are reported to 0.1 wt% per phase; 0.5 wt% allows rounding over ~10 phases).
+SUM_TOLERANCE_WT_PCT = 0.5
+
+#: Column names of sample tables (and the surrogate's inputs): ``<mineral>_wt_pct`` and the texture.
+WT_SUFFIX = "_wt_pct"
+TEXTURE_COLUMNS = ("mean_grain_um", "uniformity", "association_entropy")
+
+#: Reference grain size of the textural index [um]: the coarse, equigranular Type A texture.
+TEXTURE_REFERENCE_GRAIN_UM = 200.0
+
+
+@dataclass(frozen=True)
+class Texture:
+    """Texture of an ore: mean grain size [um], grain-size uniformity in (0, 1]
+    (1 = equigranular), mineral-association entropy normalised to [0, 1]
+    (0 = each mineral touches only itself, 1 = fully intergrown)."""
+
+    mean_grain_um: float
+    uniformity: float = 0.6
+    association_entropy: float = 0.5
+
+    def __post_init__(self):
+        check_range("Texture", "mean_grain_um", self.mean_grain_um, 0.0, 1e5)
+        check_range("Texture", "uniformity", self.uniformity, 0.0, 1.0, hi_open=False)
+        check_range("Texture", "association_entropy", self.association_entropy, 0.0, 1.0,
+                    lo_open=False, hi_open=False)
+
+    @property
+    def textural_index(self) -> float:
+        """Dimensionless; 1 for the reference texture, > 1 for finer, more intergrown ones."""
+        grain = (TEXTURE_REFERENCE_GRAIN_UM / self.mean_grain_um) ** 0.5
+        return grain * (0.5 + 0.5 * self.association_entropy) / 0.75
+
+
+@dataclass(frozen=True)
+class Mineralogy:
+    """Modal mineralogy in wt% by mineral name, validated on construction."""
+
+    wt_pct: dict
+    texture: Texture = field(default_factory=lambda: Texture(mean_grain_um=150.0))
+    name: str = ""
+
+    def __post_init__(self):
+        known = mineral_table()
+        clean = {}
+        for mineral, value in dict(self.wt_pct).items():
+            if mineral not in known:
+                raise TwinInputError(
+                    f"Unknown mineral {mineral!r} in Mineralogy."
+                    f"{close_matches(mineral, known)} Known minerals: {', '.join(known)}.")
+            try:
+                v = float(value)
+            except (TypeError, ValueError):
+                raise bad_value("Mineralogy", f"wt_pct[{mineral}]", value, "a number >= 0") from None
+            if not v >= 0.0 or math.isinf(v):
+                raise bad_value("Mineralogy", f"wt_pct[{mineral}]", value, "a finite number >= 0")
+            clean[mineral] = v
+        total = sum(clean.values())
+        if abs(total - 100.0) > SUM_TOLERANCE_WT_PCT:
+            raise TwinInputError(
+                f"The wt% of Mineralogy {self.name or ''} must sum to 100 within "
+                f"{SUM_TOLERANCE_WT_PCT} wt%. Got {total:.3f}.")
+        # renormalise the rounding residue so fractions sum to exactly 1
+        object.__setattr__(self, "wt_pct", {k: v * 100.0 / total for k, v in clean.items() if v > 0})
+
+    def fraction(self, mineral: str) -> float:
+        return self.wt_pct.get(mineral, 0.0) / 100.0
+
+    def group_fraction(self, minerals) -> float:
+        return sum(self.fraction(m) for m in minerals)
+
+    @property
+    def clay_frac(self) -> float:
+        return self.group_fraction(CLAY_MINERALS)
+
+    @property
+    def mica_frac(self) -> float:
+        return self.group_fraction(MICA_MINERALS)
+
+    @property
+    def sulfide_frac(self) -> float:
+        return self.group_fraction(SULFIDE_MINERALS)
+
+    @property
+    def hardness_index_gpa(self) -> float:
+        """H_min = sum_i w_i H_i [GPa] (MISSION.md eq. 1)."""
+        table = mineral_table()
+        return sum(self.fraction(m) * table[m].vickers_gpa for m in self.wt_pct)
+
+    @property
+    def density_t_m3(self) -> float:
+        """Solid density of the ore [t/m3]: harmonic mean of mineral densities by mass."""
+        table = mineral_table()
+        return 1.0 / sum(self.fraction(m) / table[m].density_t_m3 for m in self.wt_pct)
+
+    @property
+    def youngs_gpa(self) -> float:
+        """Voigt-Reuss-Hill estimate of the aggregate Young's modulus [GPa] by volume fraction."""
+        table = mineral_table()
+        rho = self.density_t_m3
+        vol = {m: self.fraction(m) * rho / table[m].density_t_m3 for m in self.wt_pct}
+        voigt = sum(v * table[m].youngs_gpa for m, v in vol.items())
+        reuss = 1.0 / sum(v / table[m].youngs_gpa for m, v in vol.items())
+        return 0.5 * (voigt + reuss)
+
+    @property
+    def textural_index(self) -> float:
+        return self.texture.textural_index
+
+    def mix(self, other: "Mineralogy", frac_self: float) -> "Mineralogy":
+        """Mass-weighted mixture (for blends): frac_self of this ore, the rest of ``other``."""
+        f = check_range("Mineralogy.mix", "frac_self", frac_self, 0.0, 1.0, False, False)
+        names = set(self.wt_pct) | set(other.wt_pct)
+        wt = {m: f * self.wt_pct.get(m, 0.0) + (1 - f) * other.wt_pct.get(m, 0.0) for m in names}
+        g = f * self.texture.mean_grain_um ** -1 + (1 - f) * other.texture.mean_grain_um ** -1
+        tex = Texture(1.0 / g,
+                      f * self.texture.uniformity + (1 - f) * other.texture.uniformity,
+                      f * self.texture.association_entropy + (1 - f) * other.texture.association_entropy)
+        return Mineralogy(wt, tex, name=f"{self.name}{f:.2f}+{other.name}{1 - f:.2f}")
+
+    def summary(self) -> dict:
+        """Derived indices, unit-suffixed, for reports and the CLI."""
+        return {
+            "hardness_index_gpa": self.hardness_index_gpa,
+            "textural_index": self.textural_index,
+            "density_t_m3": self.density_t_m3,
+            "youngs_gpa": self.youngs_gpa,
+            "clay_frac": self.clay_frac,
+            "mica_frac": self.mica_frac,
+            "sulfide_frac": self.sulfide_frac,
+            "mean_grain_um": self.texture.mean_grain_um,
+        }

@@ -1,0 +1,92 @@
+"""Reference ore types A-D (``twin/ore/data/ores.toml``), ores from TOML files, and blends."""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from functools import cache
+from importlib import resources
+from pathlib import Path
+
+from ..errors import TwinInputError, close_matches
+from .mineralogy import Mineralogy, Texture
+
+#: A blend's fractions must sum to 1 within this tolerance.
+BLEND_SUM_TOLERANCE = 1e-6
+
+
+@cache
+def reference_ores() -> dict[str, Mineralogy]:
+    """The four reference ore types by letter."""
+    text = resources.files("twin.ore").joinpath("data", "ores.toml").read_text(encoding="utf-8")
+    return {k: _from_table(v, name=k) for k, v in tomllib.loads(text).items()}
+
+
+def _from_table(table: dict, name: str, where: str = "ores.toml") -> Mineralogy:
+    for key in ("mineralogy", "texture"):
+        if key not in table:
+            raise TwinInputError(f"{where}: ore {name!r} needs a [{key}] table.")
+    try:
+        texture = Texture(**table["texture"])
+    except TypeError as exc:
+        raise TwinInputError(f"{where}: [texture] of ore {name!r}: {exc}. Allowed keys: "
+                             "mean_grain_um, uniformity, association_entropy.") from None
+    return Mineralogy(dict(table["mineralogy"]), texture, name=name)
+
+
+def load_ore(spec: str | Path | Mineralogy) -> Mineralogy:
+    """A reference type letter ('A'..'D'), a TOML file with [mineralogy] and [texture], or a Mineralogy."""
+    if isinstance(spec, Mineralogy):
+        return spec
+    refs = reference_ores()
+    if isinstance(spec, str) and spec in refs:
+        return refs[spec]
+    path = Path(spec)
+    if path.suffix == ".toml" and path.is_file():
+        with path.open("rb") as fh:
+            return _from_table(tomllib.load(fh), name=path.stem, where=str(path))
+    raise TwinInputError(
+        f"The 'ore' must be a reference type ({', '.join(refs)}) or a TOML file with "
+        f"[mineralogy] and [texture] tables. Got {str(spec)!r}.{close_matches(str(spec), refs)}")
+
+
+@dataclass(frozen=True)
+class Blend:
+    """Feed blend: ore components and their mass fractions (sum 1)."""
+
+    ores: tuple  # tuple[Mineralogy, ...]
+    fractions: tuple  # tuple[float, ...]
+
+    def __post_init__(self):
+        if len(self.ores) != len(self.fractions) or not self.ores:
+            raise TwinInputError("A Blend needs one fraction per ore and at least one ore.")
+        for ore, f in zip(self.ores, self.fractions):
+            if not 0.0 <= f <= 1.0:
+                raise TwinInputError(
+                    f"The fraction of ore {ore.name!r} in Blend must be a float in [0, 1]. Got {f}.")
+        total = sum(self.fractions)
+        if abs(total - 1.0) > BLEND_SUM_TOLERANCE:
+            raise TwinInputError(f"Blend fractions must sum to 1 within {BLEND_SUM_TOLERANCE}. Got {total}.")
+
+    @classmethod
+    def parse(cls, text: str) -> "Blend":
+        """'B=0.6,D=0.4' -> Blend of reference ores (or ore TOML paths)."""
+        ores, fracs = [], []
+        for item in filter(None, (s.strip() for s in text.split(","))):
+            if "=" not in item:
+                raise TwinInputError(f"The 'blend' must look like 'B=0.6,D=0.4'. Got {text!r}.")
+            key, value = item.split("=", 1)
+            ores.append(load_ore(key.strip()))
+            try:
+                fracs.append(float(value))
+            except ValueError:
+                raise TwinInputError(f"The fraction of {key!r} in 'blend' must be a number. Got {value!r}.") from None
+        return cls(tuple(ores), tuple(fracs))
+
+    @classmethod
+    def single(cls, ore) -> "Blend":
+        return cls((load_ore(ore),), (1.0,))
+
+    @property
+    def names(self) -> list[str]:
+        return [o.name for o in self.ores]

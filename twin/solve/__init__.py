@@ -1,0 +1,10 @@
+"""Solvers of a built mill model: steady states (Newton on the sparse DAE form) and time
+integration (IDAS/CVODES, fixed-step RK4, the exact batch solution)."""
+
+from .simulate import (ATOL_REL, RTOL, Trajectory, batch_exact, integrate_constant, outputs_frame, rk4_simulate,
+                       simulate, step, step_integrator)
+from .steady import RESIDUAL_REL_TOL, SteadyState, steady_state, steady_state_at_load
+
+__all__ = ["ATOL_REL", "RESIDUAL_REL_TOL", "RTOL", "SteadyState", "Trajectory", "batch_exact", "integrate_constant",
+           "outputs_frame", "rk4_simulate", "simulate", "steady_state", "steady_state_at_load", "step",
+           "step_integrator"]
