@@ -1,4 +1,7 @@
-# Yade script (run inside Yade: ``yade -n -x benchmarks/dem_yade_compression.py PACK OUT [DT_FACTOR]``).
+# Yade script (run inside Yade: ``yade -n -x benchmarks/dem_yade_compression.py PACK OUT [DT_FACTOR]
+# [dt=DT_S] [steps=N] [every=K]``): dt= sets the time step in seconds (else DT_FACTOR x
+# PWaveTimeStep); steps=N times N steps of the loading phase recording nothing and writes one JSON
+# line (steps, wall_s, cpu_s) to OUT; otherwise the full test, recorded every K (20) steps.
 # Yade is a benchmark peer only, never a dependency of grindtwin.
 # The test: sphere D = 22 mm of dense random packing (read from PACK, the same packing
 # as the grindtwin run), radii r(1 +- 0.25), bonds between neighbours within 1.3 (R1 + R2),
@@ -7,12 +10,15 @@
 # Yade's bonded rock model JCFpm (Scholtes & Donze 2012): linear bonds kn = 2 E R1 R2/(R1+R2),
 # ks = poisson * kn = 0.4 kn, strengths times pi min(R)^2, stress-free at creation (initD),
 # no bond moments; broken bonds become frictional linear contacts.
+import json
 import math
 import sys
 import time
 
 pack, out = sys.argv[1], sys.argv[2]
-dt_factor = float(sys.argv[3]) if len(sys.argv) > 3 else 0.5  # O.dt = dt_factor * PWaveTimeStep()
+opts = dict(a.split("=", 1) for a in sys.argv[3:] if "=" in a)
+plain = [a for a in sys.argv[3:] if "=" not in a]
+dt_factor = float(plain[0]) if plain else 0.5  # O.dt = dt_factor * PWaveTimeStep()
 rows = [list(map(float, l.split())) for l in open(pack) if l.strip() and not l.startswith("#")]
 solid = float(open(pack).readline().split()[-1])
 mat = O.materials.append(JCFpmMat(young=30e9, poisson=0.4, frictionAngle=math.radians(30),
@@ -38,16 +44,24 @@ O.engines = [
         [Law2_ScGeom_JCFpmPhys_JointedCohesiveFrictionalPM(label="jcf"), Law2_ScGeom_FrictPhys_CundallStrack()]),
     NewtonIntegrator(damping=0.7),
 ]
-O.dt = dt_factor * PWaveTimeStep()
+O.dt = float(opts["dt"]) if "dt" in opts else dt_factor * PWaveTimeStep()
 O.step()
 aabb.aabbEnlargeFactor = 1.0
 ig2.interactionDetectionFactor = 1.0
 n_bonds = sum(1 for i in O.interactions if isinstance(i.phys, JCFpmPhys) and i.phys.isCohesive)
+if "steps" in opts:
+    O.run(20, True)
+    t0, c0 = time.time(), time.process_time()
+    O.run(int(opts["steps"]), True)
+    with open(out, "w") as fh:
+        fh.write(json.dumps({"steps": int(opts["steps"]), "wall_s": time.time() - t0,
+                             "cpu_s": time.process_time() - c0, "dt_s": O.dt, "n_bonds": n_bonds}))
+    sys.exit(0)
 rec = []
 peak = 0.0
 t0 = time.time()
 steps = 0
-every = 20  # record often enough to catch the peak (every 200 steps read 3543 N for 3611 N)
+every = int(opts.get("every", 20))  # often enough to catch the peak (every 200 steps read 3543 N for 3611 N)
 while True:
     O.run(every, True)
     steps += every

@@ -9,7 +9,7 @@ overlaps. This is a simple relative of the Lubachevsky–Stillinger growth algor
 spheres fill ``target_solid_fraction`` of the container; the achieved solid fraction and
 the largest remaining overlap are reported. Bonds join neighbours whose centre distance is
 at most ``bond_distance_factor (R1 + R2)`` (default 1.3, Yade's interaction factor).
-Everything is seeded.
+Spheres are numbered along a Z-order curve (:func:`morton_order`). Everything is seeded.
 """
 
 from __future__ import annotations
@@ -112,6 +112,18 @@ def _relax(pos, rad, scale, axes, pi, pj, n_pass):
     return worst
 
 
+def morton_order(pos_m: np.ndarray, cell_m: float) -> np.ndarray:
+    """Sphere order along a Z-order (Morton) curve through cells of edge ``cell_m``: spheres near
+    in space get near indices, so the bonds and contacts of neighbours touch nearby memory (the
+    kernels' locality; the packing itself is unchanged, only numbered anew)."""
+    q = np.floor((pos_m - pos_m.min(axis=0)) / cell_m).astype(np.int64)
+    key = np.zeros(pos_m.shape[0], dtype=np.int64)
+    for bit in range(20):
+        for d in range(3):
+            key |= ((q[:, d] >> bit) & 1) << (3 * bit + d)
+    return np.argsort(key, kind="stable")
+
+
 def _validate(diameter_m, n_spheres, radius_spread, target_solid_fraction, aspect,
               bond_distance_factor):
     if not (math.isfinite(diameter_m) and diameter_m > 0):
@@ -178,6 +190,8 @@ def make_agglomerate(diameter_m: float = 0.022, n_spheres: int = 250, *, radius_
         elif worst < 1e-3 * r_mean:
             break
     solid = float(np.sum(4.0 / 3.0 * math.pi * rad**3) / volume)
+    order = morton_order(pos, 2.0 * r_mean)
+    pos, rad = pos[order], rad[order]
     pairs = find_bond_pairs(pos, rad, bond_distance_factor)
     return Agglomerate(pos_m=pos, radius_m=rad, bond_pairs=pairs, diameter_m=float(diameter_m),
                        semi_axes_m=tuple(float(a) for a in axes), volume_m3=volume,

@@ -30,8 +30,9 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from dem.contacts import add_pair_load, rotate_into_plane
 from dem.errors import DemInputError
+from dem.state import (LOAD_TI, LOAD_TJ, N_LOAD, BondArrays, add_rows, csr_of_rows,
+                       rotate_into_plane, write_pair_load)
 
 #: bond state codes
 INTACT = 0
@@ -42,9 +43,13 @@ BROKEN_SHEAR = 2
 #: pair moves apart beyond that length; then BROKEN_SHEAR
 BROKEN_SHEAR_SLIDING = 3
 
-# columns of the bond property table
-P_AREA, P_RBAR, P_KN, P_KS, P_SIGT, P_COH, P_TANPHI, P_OVERLAP0, P_SIGNED_MC = range(9)
-N_PROPS = 9
+# columns of the bond property table (one row per bond; those the kernel reads every step
+# first, so that they share a cache line): k_n A, k_s A (N/m), 1/A, tensile strength, cohesion,
+# tan(phi_b), 1 for JCFpm's signed Mohr-Coulomb, overlap at bonding (m); k_n I, k_s J (N m/rad),
+# R_b/I, R_b/J; A, R_b, k_n, k_s (Pa/m), length at bonding
+(P_KN_A, P_KS_A, P_INV_AREA, P_SIGT, P_COH, P_TANPHI, P_SIGNED_MC, P_OVERLAP0, P_KN_I, P_KS_J,
+ P_RB_I, P_RB_J, P_AREA, P_RBAR, P_KN, P_KS, P_LENGTH0) = range(17)
+N_PROPS = 17
 
 #: bond conventions of :class:`BondParams`
 CONVENTIONS = ("parallel", "yade_jcfpm")
@@ -160,59 +165,32 @@ def find_bond_pairs(pos_m: np.ndarray, radius_m: np.ndarray, factor: float = 1.3
 
 
 class BondSet:
-    """Arrays of the bonds of one system (intact and broken), created stress-free."""
+    """Arrays of the bonds of one system (intact and broken), created stress-free.
+
+    ``arrays`` is the :class:`dem.state.BondArrays` bundle the kernels take; ``ij``, ``props``,
+    ``fn``, ``fs``, ``mb``, ``mt``, ``length`` and ``state`` are the same arrays.
+    """
 
     def __init__(self, pairs: np.ndarray, pos_m: np.ndarray, radius_m: np.ndarray,
                  params: BondParams) -> None:
         pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
         nbnd = pairs.shape[0]
+        n = pos_m.shape[0]
         self.params = params
+        self.beta = float(params.moment_factor)
         self.ij = pairs
-        rbar = params.radius_multiplier * np.minimum(radius_m[pairs[:, 0]], radius_m[pairs[:, 1]])
-        self.props = np.zeros((nbnd, N_PROPS))
-        self.props[:, P_AREA] = math.pi * rbar**2
-        self.props[:, P_RBAR] = rbar
-        if params.convention == "yade_jcfpm":
-            r1 = radius_m[pairs[:, 0]]
-            r2 = radius_m[pairs[:, 1]]
-            kn_area = params.youngs_modulus_Pa * 2.0 * r1 * r2 / (r1 + r2)  # N/m, Yade's kn
-            self.props[:, P_KN] = kn_area / (math.pi * rbar**2) if nbnd else 0.0
-            self.props[:, P_KS] = self.props[:, P_KN] * (params.ks_Pa_m / params.kn_Pa_m)
-            self.props[:, P_SIGNED_MC] = 1.0
-        else:
-            self.props[:, P_KN] = params.kn_Pa_m
-            self.props[:, P_KS] = params.ks_Pa_m
-        self.props[:, P_SIGT] = params.tensile_strength_Pa
-        self.props[:, P_COH] = params.cohesion_Pa
-        self.props[:, P_TANPHI] = math.tan(math.radians(params.friction_angle_deg))
+        self.props = _property_table(pairs, pos_m, radius_m, params)
+        self.length = self.props[:, P_LENGTH0].copy()
         self.fn = np.zeros(nbnd)
         self.fs = np.zeros((nbnd, 3))
         self.mb = np.zeros((nbnd, 3))
         self.mt = np.zeros(nbnd)
         self.state = np.zeros(nbnd, dtype=np.int8)
-        self.length = (np.linalg.norm(pos_m[pairs[:, 1]] - pos_m[pairs[:, 0]], axis=1)
-                       if nbnd else np.zeros(0))
-        # overlap at bonding (packings leave small overlaps): after the bond breaks, the Hertz
-        # contact counts only overlap beyond it, so breaking releases no stored contact force
-        self.props[:, P_OVERLAP0] = np.maximum(
-            0.0, radius_m[pairs[:, 0]] + radius_m[pairs[:, 1]] - self.length) if nbnd else 0.0
-        # "yade_jcfpm": P_OVERLAP0 becomes Yade's initD of the frictional contact that follows
-        # the bond; it is set at breakage and lowered as the pair separates (bond_forces and
-        # kernels.compute_forces)
-        self.beta = float(params.moment_factor)
-        n = pos_m.shape[0]
-        counts = np.bincount(pairs.ravel(), minlength=n) if nbnd else np.zeros(n, dtype=np.int64)
-        maxb = max(1, int(counts.max()) if n else 1)
-        self.partner = np.full((n, maxb), -1, dtype=np.int64)
-        self.index = np.full((n, maxb), -1, dtype=np.int64)
-        fill = np.zeros(n, dtype=np.int64)
-        for b, (i, j) in enumerate(pairs):
-            self.partner[i, fill[i]] = j
-            self.index[i, fill[i]] = b
-            fill[i] += 1
-            self.partner[j, fill[j]] = i
-            self.index[j, fill[j]] = b
-            fill[j] += 1
+        self.partner, self.index = _bond_partners(pairs, n)
+        start, entry = csr_of_rows(pairs[:, 0].copy(), pairs[:, 1].copy(), n)
+        self.arrays = BondArrays(self.ij, self.props, self.fn, self.fs, self.mb, self.mt,
+                                 self.length, self.state, np.zeros((nbnd, N_LOAD)), start, entry,
+                                 self.partner, self.index)
 
     @property
     def n_bonds(self) -> int:
@@ -231,12 +209,8 @@ class BondSet:
 
     def stiffness_sums(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         """Per-sphere sums of translational (N/m) and rotational (N m/rad) bond stiffness."""
-        a = self.props[:, P_AREA]
-        rb = self.props[:, P_RBAR]
-        kt = np.maximum(self.props[:, P_KN], self.props[:, P_KS]) * a
-        inertia = math.pi * rb**4 / 4.0
-        kr = self.beta * np.maximum(self.props[:, P_KN] * inertia,
-                                    self.props[:, P_KS] * 2.0 * inertia)
+        kt = np.maximum(self.props[:, P_KN_A], self.props[:, P_KS_A])
+        kr = self.beta * np.maximum(self.props[:, P_KN_I], self.props[:, P_KS_J])
         k_sum = np.zeros(n)
         r_sum = np.zeros(n)
         for col in (0, 1):
@@ -247,15 +221,11 @@ class BondSet:
     def elastic_energy_J(self) -> float:
         """Strain energy stored in the intact bonds."""
         ok = self.state == INTACT
-        a = self.props[ok, P_AREA]
-        rb = self.props[ok, P_RBAR]
-        kn = self.props[ok, P_KN]
-        ks = self.props[ok, P_KS]
-        inertia = math.pi * rb**4 / 4.0
-        e = (self.fn[ok] ** 2 / (2 * kn * a) + np.sum(self.fs[ok] ** 2, axis=1) / (2 * ks * a))
+        pr = self.props[ok]
+        e = self.fn[ok] ** 2 / (2 * pr[:, P_KN_A]) + np.sum(self.fs[ok] ** 2, axis=1) / (2 * pr[:, P_KS_A])
         if self.beta > 0:
-            e = e + (np.sum(self.mb[ok] ** 2, axis=1) / (2 * kn * inertia)
-                     + self.mt[ok] ** 2 / (2 * ks * 2 * inertia))
+            e = e + (np.sum(self.mb[ok] ** 2, axis=1) / (2 * pr[:, P_KN_I])
+                     + self.mt[ok] ** 2 / (2 * pr[:, P_KS_J]))
         return float(np.sum(e))
 
     def damage(self) -> np.ndarray:
@@ -269,160 +239,261 @@ class BondSet:
         return out
 
 
-@nb.njit(cache=True)
-def bond_stresses(b, props, b_fn, b_fs, b_mb, b_mt, beta):
+def _property_table(pairs, pos_m, radius_m, params: BondParams) -> np.ndarray:
+    """One row of constants per bond (columns ``P_*``), the products the kernel needs precomputed."""
+    nbnd = pairs.shape[0]
+    r1 = radius_m[pairs[:, 0]]
+    r2 = radius_m[pairs[:, 1]]
+    rbar = params.radius_multiplier * np.minimum(r1, r2)
+    area = math.pi * rbar**2
+    inertia = math.pi * rbar**4 / 4.0        # second moment of the bond disc, I
+    polar = 2.0 * inertia                      # polar moment, J
+    props = np.zeros((nbnd, N_PROPS))
+    if params.convention == "yade_jcfpm":
+        kn_area = params.youngs_modulus_Pa * 2.0 * r1 * r2 / (r1 + r2)  # N/m, Yade's kn
+        kn = kn_area / area
+        ks = kn * (params.ks_Pa_m / params.kn_Pa_m)
+        props[:, P_SIGNED_MC] = 1.0
+    else:
+        kn = np.full(nbnd, params.kn_Pa_m)
+        ks = np.full(nbnd, params.ks_Pa_m)
+    props[:, P_AREA] = area
+    props[:, P_INV_AREA] = 1.0 / area
+    props[:, P_RBAR] = rbar
+    props[:, P_KN] = kn
+    props[:, P_KS] = ks
+    props[:, P_KN_A] = kn * area
+    props[:, P_KS_A] = ks * area
+    props[:, P_KN_I] = kn * inertia
+    props[:, P_KS_J] = ks * polar
+    props[:, P_RB_I] = rbar / inertia
+    props[:, P_RB_J] = rbar / polar
+    props[:, P_SIGT] = params.tensile_strength_Pa
+    props[:, P_COH] = params.cohesion_Pa
+    props[:, P_TANPHI] = math.tan(math.radians(params.friction_angle_deg))
+    length = np.linalg.norm(pos_m[pairs[:, 1]] - pos_m[pairs[:, 0]], axis=1)
+    props[:, P_LENGTH0] = length
+    # overlap at bonding (packings leave small overlaps): after the bond breaks, the Hertz
+    # contact counts only overlap beyond it, so breaking releases no stored contact force.
+    # "yade_jcfpm": it becomes Yade's initD of the frictional contact that follows the bond; it
+    # is set at breakage and lowered as the pair separates (bond kernel and dem.contacts)
+    props[:, P_OVERLAP0] = np.maximum(0.0, r1 + r2 - length)
+    return props
+
+
+def _bond_partners(pairs, n):
+    """(partner, index) tables (n, max bonds of a sphere): the bonded neighbours of each sphere and
+    the bond indices, -1 padded (the neighbour search marks bonded pairs with them)."""
+    counts = np.bincount(pairs.ravel(), minlength=n) if pairs.shape[0] else np.zeros(n, dtype=np.int64)
+    maxb = max(1, int(counts.max()) if n else 1)
+    partner = np.full((n, maxb), -1, dtype=np.int64)
+    index = np.full((n, maxb), -1, dtype=np.int64)
+    fill = np.zeros(n, dtype=np.int64)
+    for b, (i, j) in enumerate(pairs):
+        partner[i, fill[i]] = j
+        index[i, fill[i]] = b
+        fill[i] += 1
+        partner[j, fill[j]] = i
+        index[j, fill[j]] = b
+        fill[j] += 1
+    return partner, index
+
+
+# ---------------------------------------------------------------------------------- kernels
+# Element functions take plain arrays: a NamedTuple bundle passed into a function called once
+# per bond costs reference counting of every array in it (measured: ~10x the bond's own work).
+
+@nb.njit(cache=True, inline="always")
+def bond_stresses(b, props, fn, fs, mb, mt, beta):
     """(sigma, tau, tensile strength, shear strength) of bond b, tension positive."""
-    a = props[b, P_AREA]
-    rb = props[b, P_RBAR]
-    inertia = math.pi * rb**4 / 4.0
-    polar = 2.0 * inertia
-    fs = math.sqrt(b_fs[b, 0] ** 2 + b_fs[b, 1] ** 2 + b_fs[b, 2] ** 2)
-    mb = math.sqrt(b_mb[b, 0] ** 2 + b_mb[b, 1] ** 2 + b_mb[b, 2] ** 2)
-    sigma = b_fn[b] / a + beta * mb * rb / inertia
-    tau = fs / a + beta * abs(b_mt[b]) * rb / polar
-    comp = -b_fn[b] / a
+    fsm = math.sqrt(fs[b, 0] ** 2 + fs[b, 1] ** 2 + fs[b, 2] ** 2)
+    inv_a = props[b, P_INV_AREA]
+    sigma = fn[b] * inv_a
+    tau = fsm * inv_a
+    if beta > 0.0:
+        mbm = math.sqrt(mb[b, 0] ** 2 + mb[b, 1] ** 2 + mb[b, 2] ** 2)
+        sigma += beta * mbm * props[b, P_RB_I]
+        tau += beta * abs(mt[b]) * props[b, P_RB_J]
+    comp = -fn[b] * inv_a
     if comp < 0.0 and props[b, P_SIGNED_MC] == 0.0:
         comp = 0.0
     return sigma, tau, props[b, P_SIGT], props[b, P_COH] + comp * props[b, P_TANPHI]
 
 
-@nb.njit(cache=True)
-def bond_forces(pos, vel, omega, rad, force, torque, lz, dt, b_ij, props, b_fn, b_fs, b_mb,
-                b_mt, b_len, b_state, beta):
-    """Update every intact bond incrementally, test it for failure and apply its loads.
+@nb.njit(cache=True, inline="always")
+def _axis(i, j, pos, rad, lz):
+    """Centre distance d, unit axis n from i to j, lever arms ai, aj to the bond centre (midway
+    across the gap between the surfaces)."""
+    dx = pos[j, 0] - pos[i, 0]
+    dy = pos[j, 1] - pos[i, 1]
+    dz = pos[j, 2] - pos[i, 2]
+    if lz > 0.0:
+        dz -= lz * math.floor(dz / lz + 0.5)
+    d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    inv_d = 1.0 / d
+    half_gap = 0.5 * (d - rad[i] - rad[j])
+    return d, dx * inv_d, dy * inv_d, dz * inv_d, rad[i] + half_gap, rad[j] + half_gap
 
-    Velocities must be mid-step values (those that moved the spheres over the last ``dt``).
-    Returns the number of bonds that broke during this call.
-    """
+
+@nb.njit(cache=True, inline="always")
+def _relative_velocity(i, j, vel, om, rad, d, nx, ny, nz, ai, aj, yade):
+    """Velocity of j relative to i at the bond centre (mid-step velocities). ``yade``: Yade's
+    ScGeom::getIncidentVel (avoidGranularRatcheting): centre velocities scaled by (R1+R2)/d,
+    spins times the sphere radii."""
+    if yade:
+        alpha = (rad[i] + rad[j]) / d
+        qi = rad[i]
+        qj = rad[j]
+    else:
+        alpha = 1.0
+        qi = ai
+        qj = aj
+    vrx = alpha * (vel[j, 0] - vel[i, 0]) - qj * (om[j, 1] * nz - om[j, 2] * ny) - qi * (om[i, 1] * nz - om[i, 2] * ny)
+    vry = alpha * (vel[j, 1] - vel[i, 1]) - qj * (om[j, 2] * nx - om[j, 0] * nz) - qi * (om[i, 2] * nx - om[i, 0] * nz)
+    vrz = alpha * (vel[j, 2] - vel[i, 2]) - qj * (om[j, 0] * ny - om[j, 1] * nx) - qi * (om[i, 0] * ny - om[i, 1] * nx)
+    return vrx, vry, vrz
+
+
+@nb.njit(cache=True, inline="always")
+def _update_springs(b, i, j, props, fn, fs, mb, mt, length, om, d, nx, ny, nz, vrx, vry, vrz,
+                    dt, beta):
+    """Incremental update (Potyondy & Cundall 2004, eqs. 5-8): dF_n = k_n A du_n with du_n the
+    exact change of the centre distance; the stored shear force (and bending moment) rotated
+    into the new tangent plane, then dF_s = -k_s A du_s, dM_t = -k_s J dtheta_t,
+    dM_b = -k_n I dtheta_b."""
+    fn[b] += props[b, P_KN_A] * (d - length[b])
+    length[b] = d
+    vn = vrx * nx + vry * ny + vrz * nz
+    rotate_into_plane(fs, b, nx, ny, nz)
+    ksa_dt = props[b, P_KS_A] * dt
+    fs[b, 0] -= ksa_dt * (vrx - vn * nx)
+    fs[b, 1] -= ksa_dt * (vry - vn * ny)
+    fs[b, 2] -= ksa_dt * (vrz - vn * nz)
+    if beta > 0.0:
+        wx = (om[j, 0] - om[i, 0]) * dt
+        wy = (om[j, 1] - om[i, 1]) * dt
+        wz = (om[j, 2] - om[i, 2]) * dt
+        wt = wx * nx + wy * ny + wz * nz
+        mt[b] -= props[b, P_KS_J] * wt
+        rotate_into_plane(mb, b, nx, ny, nz)
+        kni = props[b, P_KN_I]
+        mb[b, 0] -= kni * (wx - wt * nx)
+        mb[b, 1] -= kni * (wy - wt * ny)
+        mb[b, 2] -= kni * (wz - wt * nz)
+
+
+@nb.njit(cache=True, inline="always")
+def _scale_shear(fs, b, limit_N):
+    """Cut the stored shear force to ``limit_N`` (Coulomb or strength limit) if above it."""
+    fsm = math.sqrt(fs[b, 0] ** 2 + fs[b, 1] ** 2 + fs[b, 2] ** 2)
+    if fsm > limit_N:
+        sc = limit_N / fsm
+        fs[b, 0] *= sc
+        fs[b, 1] *= sc
+        fs[b, 2] *= sc
+
+
+@nb.njit(cache=True, inline="always")
+def _failure(b, props, fn, fs, mb, mt, state, beta, pen):
+    """Test an intact bond (sigma > tensile strength: tension, else tau > shear strength: shear)
+    and set its state. Returns True if it broke. JCFpm erases the interaction of a broken bond;
+    a new stress-free contact forms at the current overlap ``pen`` if the spheres still
+    overlap (its initD)."""
+    sigma, tau, smax, tmax = bond_stresses(b, props, fn, fs, mb, mt, beta)
+    jcfpm = props[b, P_SIGNED_MC] != 0.0
+    if sigma > smax:
+        state[b] = BROKEN_TENSION
+    elif tau > tmax:
+        if jcfpm and fn[b] <= 0.0:
+            # JCFpm: the pair stays in frictional contact about its bonding distance; this
+            # step the shear force is cut to the strength it exceeded
+            state[b] = BROKEN_SHEAR_SLIDING
+            _scale_shear(fs, b, tmax * props[b, P_AREA])
+            return True
+        state[b] = BROKEN_SHEAR
+    else:
+        return False
+    if jcfpm:
+        props[b, P_OVERLAP0] = pen if pen > 0.0 else 0.0
+    return True
+
+
+@nb.njit(cache=True, inline="always")
+def _clear(b, fn, fs, mb, mt, load):
+    """A broken bond carries nothing from now on."""
+    fn[b] = 0.0
+    for c in range(3):
+        fs[b, c] = 0.0
+        mb[b, c] = 0.0
+    mt[b] = 0.0
+    for c in range(N_LOAD):
+        load[b, c] = 0.0
+
+
+@nb.njit(cache=True, inline="always")
+def _write_load(b, fn, fs, mb, mt, load, nx, ny, nz, ai, aj, beta):
+    """Loads of bond b into its row: on j the force -F_n n (tension pulls j back) + F_s at the
+    bond centre and the moment M = M_b + M_t n; on i their opposites."""
+    fx = -fn[b] * nx + fs[b, 0]
+    fy = -fn[b] * ny + fs[b, 1]
+    fz = -fn[b] * nz + fs[b, 2]
+    write_pair_load(load, b, fx, fy, fz, nx, ny, nz, ai, aj)
+    if beta > 0.0:
+        mx = mb[b, 0] + mt[b] * nx
+        my = mb[b, 1] + mt[b] * ny
+        mz = mb[b, 2] + mt[b] * nz
+        load[b, LOAD_TI] -= mx
+        load[b, LOAD_TI + 1] -= my
+        load[b, LOAD_TI + 2] -= mz
+        load[b, LOAD_TJ] += mx
+        load[b, LOAD_TJ + 1] += my
+        load[b, LOAD_TJ + 2] += mz
+
+
+@nb.njit(cache=True, inline="always")
+def bond_step(b, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om, rad, lz, dt, beta):
+    """Update bond b incrementally, test it for failure, write its loads. Returns 1 if it broke
+    (a JCFpm bond that starts to slide counts), else 0."""
+    st = state[b]
+    if st != INTACT and st != BROKEN_SHEAR_SLIDING:
+        return 0
+    i = ij[b, 0]
+    j = ij[b, 1]
+    d, nx, ny, nz, ai, aj = _axis(i, j, pos, rad, lz)
+    vrx, vry, vrz = _relative_velocity(i, j, vel, om, rad, d, nx, ny, nz, ai, aj,
+                                       props[b, P_SIGNED_MC] != 0.0)
+    _update_springs(b, i, j, props, fn, fs, mb, mt, length, om, d, nx, ny, nz, vrx, vry, vrz,
+                    dt, beta)
+    pen = rad[i] + rad[j] - d
+    broke = 0
+    if st == BROKEN_SHEAR_SLIDING:
+        # JCFpm after a shear break: no tension (the interaction is erased when the pair is
+        # farther apart than at bonding), Coulomb friction |F_s| <= -F_n tan(phi)
+        if fn[b] > 0.0:
+            state[b] = BROKEN_SHEAR
+            props[b, P_OVERLAP0] = pen if pen > 0.0 else 0.0
+            _clear(b, fn, fs, mb, mt, load)
+            return 0
+        _scale_shear(fs, b, -fn[b] * props[b, P_TANPHI])
+    elif _failure(b, props, fn, fs, mb, mt, state, beta, pen):
+        broke = 1
+        if state[b] != BROKEN_SHEAR_SLIDING:
+            _clear(b, fn, fs, mb, mt, load)
+            return 1
+    _write_load(b, fn, fs, mb, mt, load, nx, ny, nz, ai, aj, beta)
+    return broke
+
+
+@nb.njit(cache=True, parallel=True)
+def bond_forces(sp, bd, lz, dt, beta):
+    """Update every active bond (in parallel, each writing only its own row). Velocities must be
+    mid-step values (those that moved the spheres over the last ``dt``). Returns the number of
+    bonds that broke. The loads are summed per sphere by :func:`dem.kernels.compute_forces`."""
+    ij, props, fn, fs, mb, mt = bd.ij, bd.props, bd.fn, bd.fs, bd.mb, bd.mt
+    length, state, load = bd.length, bd.state, bd.load
+    pos, vel, om, rad = sp.pos, sp.vel, sp.omega, sp.rad
     nbroken = 0
-    for b in range(b_ij.shape[0]):
-        if b_state[b] != INTACT and b_state[b] != BROKEN_SHEAR_SLIDING:
-            continue
-        i = b_ij[b, 0]
-        j = b_ij[b, 1]
-        dx = pos[j, 0] - pos[i, 0]
-        dy = pos[j, 1] - pos[i, 1]
-        dz = pos[j, 2] - pos[i, 2]
-        if lz > 0.0:
-            dz -= lz * math.floor(dz / lz + 0.5)
-        d = math.sqrt(dx * dx + dy * dy + dz * dz)
-        nx = dx / d
-        ny = dy / d
-        nz = dz / d
-        a = props[b, P_AREA]
-        rb = props[b, P_RBAR]
-        kn = props[b, P_KN]
-        ks = props[b, P_KS]
-        inertia = math.pi * rb**4 / 4.0
-        polar = 2.0 * inertia
-        # bond centre: midway across the gap between the surfaces
-        gap = d - rad[i] - rad[j]
-        ai = rad[i] + 0.5 * gap
-        aj = rad[j] + 0.5 * gap
-        if props[b, P_SIGNED_MC] != 0.0:
-            # "yade_jcfpm": Yade's ScGeom::getIncidentVel (avoidGranularRatcheting): centre
-            # velocities scaled by (R1+R2)/d, spins times the sphere radii
-            alpha = (rad[i] + rad[j]) / d
-            qi = rad[i]
-            qj = rad[j]
-        else:
-            alpha = 1.0
-            qi = ai
-            qj = aj
-        vix = alpha * vel[i, 0] + qi * (omega[i, 1] * nz - omega[i, 2] * ny)
-        viy = alpha * vel[i, 1] + qi * (omega[i, 2] * nx - omega[i, 0] * nz)
-        viz = alpha * vel[i, 2] + qi * (omega[i, 0] * ny - omega[i, 1] * nx)
-        vjx = alpha * vel[j, 0] - qj * (omega[j, 1] * nz - omega[j, 2] * ny)
-        vjy = alpha * vel[j, 1] - qj * (omega[j, 2] * nx - omega[j, 0] * nz)
-        vjz = alpha * vel[j, 2] - qj * (omega[j, 0] * ny - omega[j, 1] * nx)
-        vrx = vjx - vix
-        vry = vjy - viy
-        vrz = vjz - viz
-        vn = vrx * nx + vry * ny + vrz * nz
-        # normal: dF_n = k_n A du_n with du_n the exact change of the centre distance
-        b_fn[b] += kn * a * (d - b_len[b])
-        b_len[b] = d
-        # shear: rotate the stored force into the new tangent plane, then dF_s = -k_s A du_s
-        rotate_into_plane(b_fs, b, nx, ny, nz)
-        b_fs[b, 0] -= ks * a * (vrx - vn * nx) * dt
-        b_fs[b, 1] -= ks * a * (vry - vn * ny) * dt
-        b_fs[b, 2] -= ks * a * (vrz - vn * nz) * dt
-        if beta > 0.0:
-            wx = (omega[j, 0] - omega[i, 0]) * dt
-            wy = (omega[j, 1] - omega[i, 1]) * dt
-            wz = (omega[j, 2] - omega[i, 2]) * dt
-            wt = wx * nx + wy * ny + wz * nz
-            b_mt[b] -= ks * polar * wt
-            rotate_into_plane(b_mb, b, nx, ny, nz)
-            b_mb[b, 0] -= kn * inertia * (wx - wt * nx)
-            b_mb[b, 1] -= kn * inertia * (wy - wt * ny)
-            b_mb[b, 2] -= kn * inertia * (wz - wt * nz)
-        if b_state[b] == BROKEN_SHEAR_SLIDING:
-            # JCFpm after a shear break: no tension (the interaction is erased when the pair
-            # is farther apart than at bonding), Coulomb friction |F_s| <= -F_n tan(phi)
-            if b_fn[b] > 0.0:
-                b_state[b] = BROKEN_SHEAR
-                pen = rad[i] + rad[j] - d
-                props[b, P_OVERLAP0] = pen if pen > 0.0 else 0.0
-                b_fn[b] = 0.0
-                b_fs[b, 0] = 0.0
-                b_fs[b, 1] = 0.0
-                b_fs[b, 2] = 0.0
-                continue
-            fsm = math.sqrt(b_fs[b, 0] ** 2 + b_fs[b, 1] ** 2 + b_fs[b, 2] ** 2)
-            lim = -b_fn[b] * props[b, P_TANPHI]
-            if fsm > lim:
-                sc = lim / fsm
-                b_fs[b, 0] *= sc
-                b_fs[b, 1] *= sc
-                b_fs[b, 2] *= sc
-        else:
-            sigma, tau, smax, tmax = bond_stresses(b, props, b_fn, b_fs, b_mb, b_mt, beta)
-            if sigma > smax:
-                b_state[b] = BROKEN_TENSION
-            elif tau > tmax:
-                b_state[b] = BROKEN_SHEAR
-                if props[b, P_SIGNED_MC] != 0.0 and b_fn[b] <= 0.0:
-                    # JCFpm: the pair stays in frictional contact about its bonding distance;
-                    # this step the shear force is cut to the strength it exceeded
-                    b_state[b] = BROKEN_SHEAR_SLIDING
-                    fsm = math.sqrt(b_fs[b, 0] ** 2 + b_fs[b, 1] ** 2 + b_fs[b, 2] ** 2)
-                    sc = tmax * a / fsm
-                    b_fs[b, 0] *= sc
-                    b_fs[b, 1] *= sc
-                    b_fs[b, 2] *= sc
-                    nbroken += 1
-            if b_state[b] == BROKEN_SHEAR_SLIDING:
-                pass
-            elif b_state[b] != INTACT and props[b, P_SIGNED_MC] != 0.0:
-                # JCFpm erases the interaction; a new (stress-free) contact forms at the
-                # current overlap if the spheres still overlap
-                pen = rad[i] + rad[j] - d
-                props[b, P_OVERLAP0] = pen if pen > 0.0 else 0.0
-        if b_state[b] != INTACT and b_state[b] != BROKEN_SHEAR_SLIDING:
-            nbroken += 1
-            b_fn[b] = 0.0
-            b_fs[b, 0] = 0.0
-            b_fs[b, 1] = 0.0
-            b_fs[b, 2] = 0.0
-            b_mb[b, 0] = 0.0
-            b_mb[b, 1] = 0.0
-            b_mb[b, 2] = 0.0
-            b_mt[b] = 0.0
-            continue
-        # loads on j: -F_n n (tension pulls j back) + F_s ; on i the opposite
-        fx = -b_fn[b] * nx + b_fs[b, 0]
-        fy = -b_fn[b] * ny + b_fs[b, 1]
-        fz = -b_fn[b] * nz + b_fs[b, 2]
-        add_pair_load(force, torque, i, j, fx, fy, fz, nx, ny, nz, ai, aj)
-        if beta > 0.0:
-            mx = b_mb[b, 0] + b_mt[b] * nx
-            my = b_mb[b, 1] + b_mt[b] * ny
-            mz = b_mb[b, 2] + b_mt[b] * nz
-            torque[j, 0] += mx
-            torque[j, 1] += my
-            torque[j, 2] += mz
-            torque[i, 0] -= mx
-            torque[i, 1] -= my
-            torque[i, 2] -= mz
+    for b in nb.prange(ij.shape[0]):
+        nbroken += bond_step(b, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om,
+                             rad, lz, dt, beta)
     return nbroken

@@ -13,8 +13,9 @@ Model (sources in :mod:`dem.materials`):
 
 Conventions: ``n`` points from particle i to particle j (or from a wall into the domain),
 ``v_rel`` is the velocity of j (or of the particle) relative to i (or the wall) at the
-contact point. Contact history lives in per-particle slot tables ``c_partner[N, MAXC]`` and
-``c_xi[N, MAXC, 3]`` keyed by the smaller index of the pair.
+contact point. The history of a sphere pair lives in its row of the Verlet list
+(:class:`dem.state.PairArrays`, carried over when the list is rebuilt), that of a sphere and a
+wall in per-sphere tables; each kernel writes only its own rows (see :mod:`dem.state`).
 """
 
 from __future__ import annotations
@@ -22,10 +23,8 @@ from __future__ import annotations
 import math
 
 import numba as nb
-import numpy as np
 
-#: contact-table overflow flag returned by kernels
-STATUS_CONTACT_TABLE_FULL = 1
+from dem.state import N_LOAD, write_pair_load
 
 #: contact laws (``law`` argument of the kernels): Hertz–Mindlin (default) and the linear
 #: spring of Yade (``Ip2_FrictMat_FrictMat_FrictPhys`` + ``Law2_ScGeom_FrictPhys_CundallStrack``,
@@ -40,66 +39,7 @@ CONTACT_LAW_HERTZ_MINDLIN = 0
 CONTACT_LAW_LINEAR_YADE = 1
 
 
-@nb.njit(cache=True, inline="always")
-def slot_find(c_partner, i, j):
-    for s in range(c_partner.shape[1]):
-        if c_partner[i, s] == j:
-            return s
-    return -1
-
-
-@nb.njit(cache=True, inline="always")
-def slot_insert(c_partner, c_xi, i, j):
-    for s in range(c_partner.shape[1]):
-        if c_partner[i, s] < 0:
-            c_partner[i, s] = j
-            c_xi[i, s, 0] = 0.0
-            c_xi[i, s, 1] = 0.0
-            c_xi[i, s, 2] = 0.0
-            return s
-    return -1
-
-
-@nb.njit(cache=True, inline="always")
-def add_pair_load(force, torque, i, j, fx, fy, fz, nx, ny, nz, ai, aj):
-    """Force f on sphere j and -f on sphere i at their contact point (unit normal n from i to j,
-    lever arms ai, aj from the centres), with the torques: arm_j = -aj n, arm_i = +ai n."""
-    force[j, 0] += fx
-    force[j, 1] += fy
-    force[j, 2] += fz
-    force[i, 0] -= fx
-    force[i, 1] -= fy
-    force[i, 2] -= fz
-    tx = ny * fz - nz * fy
-    ty = nz * fx - nx * fz
-    tz = nx * fy - ny * fx
-    torque[j, 0] -= aj * tx
-    torque[j, 1] -= aj * ty
-    torque[j, 2] -= aj * tz
-    torque[i, 0] -= ai * tx
-    torque[i, 1] -= ai * ty
-    torque[i, 2] -= ai * tz
-
-
-@nb.njit(cache=True, inline="always")
-def rotate_into_plane(vec, b, nx, ny, nz):
-    """Rotate the stored vector vec[b] into the plane normal to n, keeping its magnitude (the
-    incremental update of a bond's shear force or bending moment as the bond turns;
-    Potyondy & Cundall 2004, sec. 2.2)."""
-    old = math.sqrt(vec[b, 0] ** 2 + vec[b, 1] ** 2 + vec[b, 2] ** 2)
-    along = vec[b, 0] * nx + vec[b, 1] * ny + vec[b, 2] * nz
-    vec[b, 0] -= along * nx
-    vec[b, 1] -= along * ny
-    vec[b, 2] -= along * nz
-    new = math.sqrt(vec[b, 0] ** 2 + vec[b, 1] ** 2 + vec[b, 2] ** 2)
-    if new > 0.0:
-        sc = old / new
-        vec[b, 0] *= sc
-        vec[b, 1] *= sc
-        vec[b, 2] *= sc
-
-
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def hist_add(hist, lo_log10, dlog10, energy_J):
     if energy_J <= 0.0:
         k = 0
@@ -137,14 +77,14 @@ def hertz_mindlin(delta, nx, ny, nz, vrx, vry, vrz, r_eff, m_eff, e_star, g_star
     vty = vry - vn * ny
     vtz = vrz - vn * nz
     # rotate the spring into the current tangent plane, keeping its length
-    old = math.sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2])
+    old2 = xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]
     xn = xi[0] * nx + xi[1] * ny + xi[2] * nz
     xi[0] -= xn * nx
     xi[1] -= xn * ny
     xi[2] -= xn * nz
-    new = math.sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2])
-    if new > 0.0:
-        sc = old / new
+    new2 = xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]
+    if new2 > 0.0:
+        sc = math.sqrt(old2 / new2)
         xi[0] *= sc
         xi[1] *= sc
         xi[2] *= sc
@@ -177,15 +117,18 @@ def hertz_mindlin(delta, nx, ny, nz, vrx, vry, vrz, r_eff, m_eff, e_star, g_star
 
 
 @nb.njit(cache=True)
-def pair_contact(i, j, pos, vel, omega, rad, mass, force, torque, lz, e_star, g_star, mu, eta,
-                 dt, c_partner, c_xi, hist, lo_log10, dlog10, overlap0, law=0.0):
-    """Hertz–Mindlin contact between spheres i < j; updates forces, torques and history.
+def pair_contact(k, pi, pj, xi, touch, load, impact, pos, vel, om, rad, mass, lz, e_star, g_star,
+                 mu, eta, dt, overlap0, law=0.0):
+    """Hertz–Mindlin contact of pair k (spheres i < j of the Verlet list): updates its history
+    (``xi``, ``touch``) and writes its loads into row k of ``load`` (zeros when apart) and, if
+    the contact began this step, its impact energy into ``impact[k]`` (else -1).
 
     ``overlap0`` is subtracted from the geometric overlap (the overlap at bonding of a pair
     whose bond has broken, else 0).
-
-    Returns 0, or STATUS_CONTACT_TABLE_FULL if a new contact found no free slot.
     """
+    i = pi[k]
+    j = pj[k]
+    impact[k] = -1.0
     dx = pos[j, 0] - pos[i, 0]
     dy = pos[j, 1] - pos[i, 1]
     dz = pos[j, 2] - pos[i, 2]
@@ -193,180 +136,166 @@ def pair_contact(i, j, pos, vel, omega, rad, mass, force, torque, lz, e_star, g_
         dz -= lz * math.floor(dz / lz + 0.5)
     rs = rad[i] + rad[j] - overlap0
     d2 = dx * dx + dy * dy + dz * dz
-    s = slot_find(c_partner, i, j)
     if d2 >= rs * rs:
-        if s >= 0:
-            c_partner[i, s] = -1
-        return 0
+        touch[k] = 0
+        for c in range(N_LOAD):
+            load[k, c] = 0.0
+        return
     d = math.sqrt(d2)
     delta = rs - d
-    nx = dx / d
-    ny = dy / d
-    nz = dz / d
-    new = False
-    if s < 0:
-        s = slot_insert(c_partner, c_xi, i, j)
-        new = True
-        if s < 0:
-            return STATUS_CONTACT_TABLE_FULL
-    # contact point arms
+    inv_d = 1.0 / d
+    nx = dx * inv_d
+    ny = dy * inv_d
+    nz = dz * inv_d
+    new = touch[k] == 0
+    if new:
+        touch[k] = 1
+        xi[k, 0] = 0.0
+        xi[k, 1] = 0.0
+        xi[k, 2] = 0.0
+    # contact point arms: of i +ai n, of j -aj n; contact-point velocities v + w x r
     ai = rad[i] - 0.5 * (delta + overlap0)
     aj = rad[j] - 0.5 * (delta + overlap0)
-    # velocities of the contact point on each body: v + w x r
-    # arm of i: +ai n ; arm of j: -aj n
-    wix = omega[i, 0]
-    wiy = omega[i, 1]
-    wiz = omega[i, 2]
-    wjx = omega[j, 0]
-    wjy = omega[j, 1]
-    wjz = omega[j, 2]
-    vix = vel[i, 0] + ai * (wiy * nz - wiz * ny)
-    viy = vel[i, 1] + ai * (wiz * nx - wix * nz)
-    viz = vel[i, 2] + ai * (wix * ny - wiy * nx)
-    vjx = vel[j, 0] - aj * (wjy * nz - wjz * ny)
-    vjy = vel[j, 1] - aj * (wjz * nx - wjx * nz)
-    vjz = vel[j, 2] - aj * (wjx * ny - wjy * nx)
+    vrx = vel[j, 0] - vel[i, 0] - aj * (om[j, 1] * nz - om[j, 2] * ny) - ai * (om[i, 1] * nz - om[i, 2] * ny)
+    vry = vel[j, 1] - vel[i, 1] - aj * (om[j, 2] * nx - om[j, 0] * nz) - ai * (om[i, 2] * nx - om[i, 0] * nz)
+    vrz = vel[j, 2] - vel[i, 2] - aj * (om[j, 0] * ny - om[j, 1] * nx) - ai * (om[i, 0] * ny - om[i, 1] * nx)
     r_eff = rad[i] * rad[j] / (rad[i] + rad[j])
     m_eff = mass[i] * mass[j] / (mass[i] + mass[j])
-    fx, fy, fz, fn, vn = hertz_mindlin(delta, nx, ny, nz, vjx - vix, vjy - viy, vjz - viz,
-                                       r_eff, m_eff, e_star, g_star, mu, eta, c_xi[i, s], dt,
-                                       law)
+    fx, fy, fz, fn, vn = hertz_mindlin(delta, nx, ny, nz, vrx, vry, vrz, r_eff, m_eff, e_star,
+                                       g_star, mu, eta, xi[k], dt, law)
     if new:
-        hist_add(hist, lo_log10, dlog10, 0.5 * m_eff * vn * vn)
-    add_pair_load(force, torque, i, j, fx, fy, fz, nx, ny, nz, ai, aj)
-    return 0
+        impact[k] = 0.5 * m_eff * vn * vn
+    write_pair_load(load, k, fx, fy, fz, nx, ny, nz, ai, aj)
 
 
 @nb.njit(cache=True)
-def wall_contact(i, delta, nx, ny, nz, cx, cy, cz, wvx, wvy, wvz, pos, vel, omega, rad, mass,
-                 force, torque, e_star, g_star, mu, eta, dt, xi, active, k, hist, lo_log10,
-                 dlog10, law=0.0):
-    """Hertz–Mindlin contact of sphere i with a wall element at contact point c.
+def wall_contact(i, k, delta, nx, ny, nz, cx, cy, cz, wvx, wvy, wvz, pos, vel, om, rad, mass,
+                 force, torque, xi, touch, impact, e_star, g_star, mu, eta, dt, law=0.0):
+    """Hertz–Mindlin contact of sphere i with wall element k at contact point c.
 
     ``n`` points from the wall into the particle; ``(wvx, wvy, wvz)`` is the wall velocity at c;
-    ``xi``/``active[i, k]`` are the tangential history and contact flag of this wall element.
-    Returns the force on the particle (the wall receives its opposite).
+    ``xi[i, k]``/``touch[i, k]`` are the tangential history and contact flag, ``impact[i, k]``
+    receives the impact energy of a contact that begins now. Adds the force and torque to
+    sphere i and returns the force on the particle (the wall receives its opposite).
     """
-    if active[i, k] == 0:
-        xi[0] = 0.0
-        xi[1] = 0.0
-        xi[2] = 0.0
+    new = touch[i, k] == 0
+    if new:
+        xi[i, k, 0] = 0.0
+        xi[i, k, 1] = 0.0
+        xi[i, k, 2] = 0.0
+        touch[i, k] = 1
     rx = cx - pos[i, 0]
     ry = cy - pos[i, 1]
     rz = cz - pos[i, 2]
-    vx = vel[i, 0] + omega[i, 1] * rz - omega[i, 2] * ry - wvx
-    vy = vel[i, 1] + omega[i, 2] * rx - omega[i, 0] * rz - wvy
-    vz = vel[i, 2] + omega[i, 0] * ry - omega[i, 1] * rx - wvz
+    vx = vel[i, 0] + om[i, 1] * rz - om[i, 2] * ry - wvx
+    vy = vel[i, 1] + om[i, 2] * rx - om[i, 0] * rz - wvy
+    vz = vel[i, 2] + om[i, 0] * ry - om[i, 1] * rx - wvz
     # the particle plays the role of j (n from wall to particle, v_rel = particle - wall)
     fx, fy, fz, fn, vn = hertz_mindlin(delta, nx, ny, nz, vx, vy, vz, rad[i], mass[i], e_star,
-                                       g_star, mu, eta, xi, dt, law)
-    if active[i, k] == 0:
-        hist_add(hist, lo_log10, dlog10, 0.5 * mass[i] * vn * vn)
-        active[i, k] = 1
-    force[i, 0] += fx
-    force[i, 1] += fy
-    force[i, 2] += fz
-    torque[i, 0] += ry * fz - rz * fy
-    torque[i, 1] += rz * fx - rx * fz
-    torque[i, 2] += rx * fy - ry * fx
+                                       g_star, mu, eta, xi[i, k], dt, law)
+    if new:
+        impact[i, k] = 0.5 * mass[i] * vn * vn
+    f = force
+    t = torque
+    f[i, 0] += fx
+    f[i, 1] += fy
+    f[i, 2] += fz
+    t[i, 0] += ry * fz - rz * fy
+    t[i, 1] += rz * fx - rx * fz
+    t[i, 2] += rx * fy - ry * fx
     return fx, fy, fz
 
 
 @nb.njit(cache=True)
-def plane_walls(pos, vel, omega, rad, mass, force, torque, w_p, w_n, w_v, w_f, w_xi, w_in,
-                e_star, g_star, mu, eta, dt, hist, lo_log10, dlog10, law=0.0):
-    """Contacts of all spheres with infinite planes (point ``w_p``, unit normal ``w_n`` into the domain)."""
-    nw = w_p.shape[0]
-    for k in range(nw):
-        w_f[k, 0] = 0.0
-        w_f[k, 1] = 0.0
-        w_f[k, 2] = 0.0
-    for i in range(pos.shape[0]):
-        for k in range(nw):
-            h = ((pos[i, 0] - w_p[k, 0]) * w_n[k, 0] + (pos[i, 1] - w_p[k, 1]) * w_n[k, 1]
-                 + (pos[i, 2] - w_p[k, 2]) * w_n[k, 2])
-            delta = rad[i] - h
-            if delta <= 0.0:
-                w_in[i, k] = 0
-                continue
-            cx = pos[i, 0] - h * w_n[k, 0]
-            cy = pos[i, 1] - h * w_n[k, 1]
-            cz = pos[i, 2] - h * w_n[k, 2]
-            fx, fy, fz = wall_contact(i, delta, w_n[k, 0], w_n[k, 1], w_n[k, 2], cx, cy, cz,
-                                      w_v[k, 0], w_v[k, 1], w_v[k, 2], pos, vel, omega, rad,
-                                      mass, force, torque, e_star, g_star, mu, eta, dt,
-                                      w_xi[i, k], w_in, k, hist, lo_log10, dlog10, law)
-            w_f[k, 0] -= fx
-            w_f[k, 1] -= fy
-            w_f[k, 2] -= fz
+def _apart(touch, impact, i, k):
+    touch[i, k] = 0
+    impact[i, k] = -1.0
 
 
 @nb.njit(cache=True)
-def drum_walls(pos, vel, omega, rad, mass, force, torque, drum_radius, drum_omega, drum_angle,
-               lifter_angles, lifter_height, lifter_half_width, d_xi, d_in, e_star, g_star, mu,
-               eta, dt, hist, lo_log10, dlog10, law=0.0):
-    """Contacts with a drum shell (axis z through the origin, rotating at ``drum_omega`` rad/s).
+def plane_walls(i, pos, vel, om, rad, mass, force, torque, w_p, w_n, w_v, w_xi, w_touch,
+                w_force, w_impact, e_star, g_star, mu, eta, dt, law=0.0):
+    """Contacts of sphere i with the infinite planes (point ``w_p``, unit normal ``w_n`` into
+    the domain, velocity ``w_v``); the sphere's force on each wall goes into ``w_force[i]``."""
+    for k in range(w_p.shape[0]):
+        w_impact[i, k] = -1.0
+        h = ((pos[i, 0] - w_p[k, 0]) * w_n[k, 0] + (pos[i, 1] - w_p[k, 1]) * w_n[k, 1]
+             + (pos[i, 2] - w_p[k, 2]) * w_n[k, 2])
+        delta = rad[i] - h
+        if delta <= 0.0:
+            w_touch[i, k] = 0
+            continue
+        cx = pos[i, 0] - h * w_n[k, 0]
+        cy = pos[i, 1] - h * w_n[k, 1]
+        cz = pos[i, 2] - h * w_n[k, 2]
+        fx, fy, fz = wall_contact(i, k, delta, w_n[k, 0], w_n[k, 1], w_n[k, 2], cx, cy, cz,
+                                  w_v[k, 0], w_v[k, 1], w_v[k, 2], pos, vel, om, rad, mass,
+                                  force, torque, w_xi, w_touch, w_impact, e_star, g_star, mu,
+                                  eta, dt, law)
+        w_force[i, k, 0] = -fx
+        w_force[i, k, 1] = -fy
+        w_force[i, k, 2] = -fz
+
+
+@nb.njit(cache=True)
+def drum_walls(i, pos, vel, om, rad, mass, force, torque, lifter_angles, d_xi, d_touch, d_impact,
+               drum_radius, drum_omega, drum_angle, lifter_height, lifter_half_width, e_star,
+               g_star, mu, eta, dt, law=0.0):
+    """Contacts of sphere i with a drum shell (axis z through the origin, rotating at
+    ``drum_omega`` rad/s) and its lifters.
 
     Element 0 is the cylindrical shell (spheres inside); elements 1..K are lifters: radial bars
     from the shell inwards of height ``lifter_height``, rounded with half width
-    ``lifter_half_width`` (a capsule section, infinite along z). Returns the torque (N m, about
-    +z) that the spheres exert on the drum.
+    ``lifter_half_width`` (a capsule section, infinite along z). The torque (N m, about +z) that
+    the sphere exerts on the drum is returned.
     """
     tq = 0.0
     nl = lifter_angles.shape[0]
-    for i in range(pos.shape[0]):
-        x = pos[i, 0]
-        y = pos[i, 1]
-        rho = math.sqrt(x * x + y * y)
-        delta = rad[i] + rho - drum_radius
-        if delta > 0.0 and rho > 0.0:
-            nx = -x / rho
-            ny = -y / rho
-            cx = -nx * drum_radius
-            cy = -ny * drum_radius
-            fx, fy, fz = wall_contact(i, delta, nx, ny, 0.0, cx, cy, pos[i, 2],
-                                      -drum_omega * cy, drum_omega * cx, 0.0, pos, vel, omega,
-                                      rad, mass, force, torque, e_star, g_star, mu, eta, dt,
-                                      d_xi[i, 0], d_in, 0, hist, lo_log10, dlog10, law)
-            tq -= cx * fy - cy * fx
-        else:
-            d_in[i, 0] = 0
-        if rho < drum_radius - lifter_height - lifter_half_width - rad[i]:
-            for k in range(nl):
-                d_in[i, k + 1] = 0
-            continue
+    x = pos[i, 0]
+    y = pos[i, 1]
+    rho = math.sqrt(x * x + y * y)
+    delta = rad[i] + rho - drum_radius
+    for k in range(nl + 1):
+        d_impact[i, k] = -1.0
+    if delta > 0.0 and rho > 0.0:
+        nx = -x / rho
+        ny = -y / rho
+        cx = -nx * drum_radius
+        cy = -ny * drum_radius
+        fx, fy, fz = wall_contact(i, 0, delta, nx, ny, 0.0, cx, cy, pos[i, 2], -drum_omega * cy,
+                                  drum_omega * cx, 0.0, pos, vel, om, rad, mass, force, torque, d_xi, d_touch,
+                                  d_impact, e_star, g_star, mu, eta, dt, law)
+        tq -= cx * fy - cy * fx
+    else:
+        d_touch[i, 0] = 0
+    if rho < drum_radius - lifter_height - lifter_half_width - rad[i]:
         for k in range(nl):
-            a = lifter_angles[k] + drum_angle
-            ux = math.cos(a)
-            uy = math.sin(a)
-            s = drum_radius - (x * ux + y * uy)
-            if s < 0.0:
-                s = 0.0
-            if s > lifter_height:
-                s = lifter_height
-            qx = (drum_radius - s) * ux
-            qy = (drum_radius - s) * uy
-            dx = x - qx
-            dy = y - qy
-            dist = math.sqrt(dx * dx + dy * dy)
-            delta = rad[i] + lifter_half_width - dist
-            if delta <= 0.0 or dist <= 0.0:
-                d_in[i, k + 1] = 0
-                continue
-            nx = dx / dist
-            ny = dy / dist
-            cx = qx + nx * lifter_half_width
-            cy = qy + ny * lifter_half_width
-            fx, fy, fz = wall_contact(i, delta, nx, ny, 0.0, cx, cy, pos[i, 2],
-                                      -drum_omega * cy, drum_omega * cx, 0.0, pos, vel, omega,
-                                      rad, mass, force, torque, e_star, g_star, mu, eta, dt,
-                                      d_xi[i, k + 1], d_in, k + 1, hist, lo_log10, dlog10,
-                                      law)
-            tq -= cx * fy - cy * fx
+            d_touch[i, k + 1] = 0
+        return tq
+    for k in range(nl):
+        a = lifter_angles[k] + drum_angle
+        ux = math.cos(a)
+        uy = math.sin(a)
+        s = drum_radius - (x * ux + y * uy)
+        if s < 0.0:
+            s = 0.0
+        if s > lifter_height:
+            s = lifter_height
+        qx = (drum_radius - s) * ux
+        qy = (drum_radius - s) * uy
+        dx = x - qx
+        dy = y - qy
+        dist = math.sqrt(dx * dx + dy * dy)
+        delta = rad[i] + lifter_half_width - dist
+        if delta <= 0.0 or dist <= 0.0:
+            d_touch[i, k + 1] = 0
+            continue
+        nx = dx / dist
+        ny = dy / dist
+        cx = qx + nx * lifter_half_width
+        cy = qy + ny * lifter_half_width
+        fx, fy, fz = wall_contact(i, k + 1, delta, nx, ny, 0.0, cx, cy, pos[i, 2],
+                                  -drum_omega * cy, drum_omega * cx, 0.0, pos, vel, om, rad, mass, force, torque,
+                                  d_xi, d_touch, d_impact, e_star, g_star, mu, eta, dt, law)
+        tq -= cx * fy - cy * fx
     return tq
-
-
-def new_contact_tables(n: int, max_contacts: int = 24) -> tuple[np.ndarray, np.ndarray]:
-    """Empty contact-history tables (partner ids, tangential springs)."""
-    return (np.full((n, max_contacts), -1, dtype=np.int64),
-            np.zeros((n, max_contacts, 3), dtype=np.float64))

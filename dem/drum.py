@@ -35,12 +35,14 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
+import scipy.constants
 
 from dem.errors import DemInputError
 from dem.materials import RAYLEIGH_SAFETY_FACTOR, Material
 from dem.system import HIST_DLOG10, HIST_LO_LOG10, HIST_NBINS, DrumGeometry, System
 
-G_M_S2 = 9.81
+#: standard gravity (scipy.constants.g, 9.80665 m/s^2: the one value of g in the project)
+G_M_S2 = scipy.constants.g
 BED_POROSITY = 0.4
 
 #: default ball material: steel with a reduced Young's modulus (see the module docstring)
@@ -173,7 +175,7 @@ def drum_system(speed_frac_critical: float = 0.7, ball_filling: float = 0.35, *,
     drum = DrumGeometry(drum_r, omega, int(n_lifters), float(lifter_height_m), float(lifter_width_m))
     sys_ = System(pos, np.full(n, r), ball_material, wall_material=shell_material or ball_material,
                   drum=drum, gravity_m_s2=(0.0, -G_M_S2, 0.0), periodic_z_m=section_length_m,
-                  time_step_factor=time_step_factor, max_contacts=16)
+                  time_step_factor=time_step_factor)
     sys_.vel[:] = rng.normal(0.0, 1e-3, sys_.vel.shape)
     return DrumSetup(sys_, omega, w_c, int(math.ceil(2.0 * math.pi / omega / sys_.dt_s)), n_full,
                      float(section_length_m), mill_length_m / section_length_m)

@@ -3,7 +3,11 @@
 - Neighbour search: sort-based linked cells (cell edge = largest diameter + skin) building a
   Verlet list of pairs within ``R_i + R_j + skin``; rebuilt when any sphere has moved more than
   half the skin since the last build (Allen & Tildesley, *Computer Simulation of Liquids*,
-  §5.3). Optional periodicity along z (drum slice).
+  §5.3), the contact histories carried over pair by pair. Optional periodicity along z (drum
+  slice).
+- Parallel (numba ``prange``) over bonds, pairs and spheres (the neighbour search is serial), each writing only its own rows;
+  per-sphere sums in a fixed order (:mod:`dem.state`), so the results do not depend on the
+  number of threads (``NUMBA_NUM_THREADS`` or ``numba.set_num_threads``).
 - Integration: velocity Verlet (kick–drift–kick), the standard explicit DEM scheme
   (Allen & Tildesley §3.2); forces use the mid-step velocities for damping and incremental
   springs.
@@ -24,8 +28,9 @@ import math
 import numba as nb
 import numpy as np
 
-from dem.bonds import BROKEN_SHEAR_SLIDING, P_OVERLAP0, P_SIGNED_MC, bond_forces
-from dem.contacts import drum_walls, pair_contact, plane_walls
+from dem.bonds import BROKEN_SHEAR_SLIDING, INTACT, P_OVERLAP0, P_SIGNED_MC, bond_forces
+from dem.contacts import drum_walls, hist_add, pair_contact, plane_walls
+from dem.state import N_LOAD, PairArrays, add_rows, csr_of_rows
 
 # indices of the scalar parameter vector ``cp``
 (CP_ESTAR_PP, CP_GSTAR_PP, CP_MU_PP, CP_ETA_PP, CP_ESTAR_PW, CP_GSTAR_PW, CP_MU_PW, CP_ETA_PW,
@@ -34,17 +39,13 @@ from dem.contacts import drum_walls, pair_contact, plane_walls
 N_CP = 23
 
 STATUS_OK = 0
-STATUS_CONTACT_TABLE_FULL = 1
 STATUS_NONFINITE = 2
 
 
 @nb.njit(cache=True)
-def build_neighbour_list(pos, rad, skin, lz, b_partner, b_index):
-    """Pairs (i < j) within ``R_i + R_j + skin`` by sorted linked cells.
-
-    Returns (pair_i, pair_j, pair_bond, n_pairs); ``pair_bond`` is the bond index of a bonded
-    pair or -1.
-    """
+def _cell_grid(pos, rad, skin, lz):
+    """Linked cells of edge >= largest diameter + skin: (lower corner, cell sizes, counts,
+    cell of each sphere (n, 3), spheres sorted by cell, first sorted index of each cell)."""
     n = pos.shape[0]
     cell = 2.0 * np.max(rad) + skin
     lo = np.empty(3)
@@ -66,83 +67,132 @@ def build_neighbour_list(pos, rad, skin, lz, b_partner, b_index):
         cell *= 1.5
     if periodic and nz < 3:
         nz = 1
-    cx = (hi[0] - lo[0]) / nx
-    cy = (hi[1] - lo[1]) / ny
-    cz = (hi[2] - lo[2]) / nz
+    size = np.array([(hi[0] - lo[0]) / nx, (hi[1] - lo[1]) / ny, (hi[2] - lo[2]) / nz])
+    counts = np.array([nx, ny, nz])
     cid = np.empty(n, dtype=np.int64)
     ci = np.empty((n, 3), dtype=np.int64)
     for i in range(n):
-        a = min(nx - 1, max(0, int((pos[i, 0] - lo[0]) / cx)))
-        b = min(ny - 1, max(0, int((pos[i, 1] - lo[1]) / cy)))
+        a = min(nx - 1, max(0, int((pos[i, 0] - lo[0]) / size[0])))
+        b = min(ny - 1, max(0, int((pos[i, 1] - lo[1]) / size[1])))
         zz = pos[i, 2]
         if periodic:
             zz -= lz * math.floor(zz / lz)
-        c = min(nz - 1, max(0, int((zz - lo[2]) / cz)))
+        c = min(nz - 1, max(0, int((zz - lo[2]) / size[2])))
         ci[i, 0] = a
         ci[i, 1] = b
         ci[i, 2] = c
         cid[i] = (a * ny + b) * nz + c
     order = np.argsort(cid)
-    ncell = nx * ny * nz
-    start = np.zeros(ncell + 1, dtype=np.int64)
+    start = np.zeros(nx * ny * nz + 1, dtype=np.int64)
     for i in range(n):
         start[cid[i] + 1] += 1
-    for c in range(ncell):
+    for c in range(nx * ny * nz):
         start[c + 1] += start[c]
-    cap = 16 * n + 16
-    pi = np.empty(cap, dtype=np.int64)
-    pj = np.empty(cap, dtype=np.int64)
-    npair = 0
+    return counts, ci, order, start
+
+
+@nb.njit(cache=True)
+def _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, out_j, at):
+    """Neighbours j > i of sphere i within ``R_i + R_j + skin`` in the 27 (9 if the periodic
+    slice is one cell thick) surrounding cells; written to ``out_j[at:]`` when ``at >= 0``.
+    Returns their number."""
+    nx, ny, nz = counts[0], counts[1], counts[2]
+    periodic = lz > 0.0
     dzr = 1 if nz > 1 else 0
-    for i in range(n):
-        for ox in range(-1, 2):
-            a = ci[i, 0] + ox
-            if a < 0 or a >= nx:
+    found = 0
+    for ox in range(-1, 2):
+        a = ci[i, 0] + ox
+        if a < 0 or a >= nx:
+            continue
+        for oy in range(-1, 2):
+            b = ci[i, 1] + oy
+            if b < 0 or b >= ny:
                 continue
-            for oy in range(-1, 2):
-                b = ci[i, 1] + oy
-                if b < 0 or b >= ny:
+            for oz in range(-dzr, dzr + 1):
+                c = ci[i, 2] + oz
+                if periodic:
+                    c = c % nz
+                elif c < 0 or c >= nz:
                     continue
-                for oz in range(-dzr, dzr + 1):
-                    c = ci[i, 2] + oz
-                    if periodic:
-                        c = c % nz
-                    elif c < 0 or c >= nz:
+                cc = (a * ny + b) * nz + c
+                for q in range(start[cc], start[cc + 1]):
+                    j = order[q]
+                    if j <= i:
                         continue
-                    cc = (a * ny + b) * nz + c
-                    for q in range(start[cc], start[cc + 1]):
-                        j = order[q]
-                        if j <= i:
-                            continue
-                        dx = pos[j, 0] - pos[i, 0]
-                        dy = pos[j, 1] - pos[i, 1]
-                        dz = pos[j, 2] - pos[i, 2]
-                        if periodic:
-                            dz -= lz * math.floor(dz / lz + 0.5)
-                        rc = rad[i] + rad[j] + skin
-                        if dx * dx + dy * dy + dz * dz < rc * rc:
-                            if npair == cap:
-                                cap *= 2
-                                ni = np.empty(cap, dtype=np.int64)
-                                nj = np.empty(cap, dtype=np.int64)
-                                ni[:npair] = pi[:npair]
-                                nj[:npair] = pj[:npair]
-                                pi = ni
-                                pj = nj
-                            pi[npair] = i
-                            pj[npair] = j
-                            npair += 1
+                    dx = pos[j, 0] - pos[i, 0]
+                    dy = pos[j, 1] - pos[i, 1]
+                    dz = pos[j, 2] - pos[i, 2]
+                    if periodic:
+                        dz -= lz * math.floor(dz / lz + 0.5)
+                    rc = rad[i] + rad[j] + skin
+                    if dx * dx + dy * dy + dz * dz < rc * rc:
+                        if at >= 0:
+                            out_j[at + found] = j
+                        found += 1
+    return found
+
+
+@nb.njit(cache=True)
+def build_neighbour_list(pos, rad, skin, lz, b_partner, b_index):
+    """Pairs (i < j) within ``R_i + R_j + skin`` by sorted linked cells, grouped by i (a count
+    pass and a fill pass; serial: rebuilds are rare, every ~1e3-1e4 steps in the compression
+    test, and a parallel version doubled the kernels' compile time).
+
+    Returns (pair_i, pair_j, pair_bond, first): ``pair_bond`` is the bond index of a bonded pair
+    or -1; the pairs of sphere i are ``first[i]:first[i+1]``.
+    """
+    n = pos.shape[0]
+    counts, ci, order, start = _cell_grid(pos, rad, skin, lz)
+    dummy = np.empty(0, dtype=np.int64)
+    first = np.zeros(n + 1, dtype=np.int64)
+    for i in range(n):
+        first[i + 1] = _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, dummy, -1)
+    for i in range(n):
+        first[i + 1] += first[i]
+    npair = first[n]
+    pi = np.empty(npair, dtype=np.int64)
+    pj = np.empty(npair, dtype=np.int64)
     pb = np.full(npair, -1, dtype=np.int64)
-    for k in range(npair):
-        i = pi[k]
-        for s in range(b_partner.shape[1]):
-            if b_partner[i, s] == pj[k]:
-                pb[k] = b_index[i, s]
-                break
-    return pi[:npair], pj[:npair], pb, npair
+    for i in range(n):
+        _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, pj, first[i])
+        for k in range(first[i], first[i + 1]):
+            pi[k] = i
+            for s in range(b_partner.shape[1]):
+                if b_partner[i, s] == pj[k]:
+                    pb[k] = b_index[i, s]
+                    break
+    return pi, pj, pb, first
 
 
-@nb.njit(inline="always", cache=True)
+@nb.njit(cache=True)
+def new_pair_arrays(pi, pj, pb, first):
+    """A :class:`dem.state.PairArrays` on a fresh neighbour list, no contact history."""
+    npair = pi.shape[0]
+    start, entry = csr_of_rows(pi, pj, first.shape[0] - 1)
+    return PairArrays(pi, pj, pb, first, np.zeros((npair, 3)), np.zeros(npair, dtype=np.int8),
+                      np.zeros((npair, N_LOAD)), np.full(npair, -1.0), start, entry)
+
+
+@nb.njit(cache=True)
+def rebuild_pairs(sp, bd, old, skin, lz):
+    """A new neighbour list at the current positions with the contact histories of the pairs
+    that were already listed (matched within each sphere's group)."""
+    pi, pj, pb, first = build_neighbour_list(sp.pos, sp.rad, skin, lz, bd.partner, bd.index)
+    pr = new_pair_arrays(pi, pj, pb, first)
+    xi, touch = pr.xi, pr.touch
+    o_first, o_j, o_xi, o_touch = old.first, old.j, old.xi, old.touch
+    for i in range(first.shape[0] - 1):
+        for k in range(first[i], first[i + 1]):
+            for q in range(o_first[i], o_first[i + 1]):
+                if o_j[q] == pj[k]:
+                    touch[k] = o_touch[q]
+                    for c in range(3):
+                        xi[k, c] = o_xi[q, c]
+                    break
+    return pr
+
+
+@nb.njit(cache=True)
 def _cundall_damped(f, v, alpha):
     """Cundall's local non-viscous damping ``f - alpha |f| sign(v)`` (Cundall 1987; Potyondy &
     Cundall 2004, eq. 2); ``f`` unchanged when ``v = 0``."""
@@ -154,159 +204,235 @@ def _cundall_damped(f, v, alpha):
     return f
 
 
-@nb.njit(cache=True)
-def compute_forces(pos, vel, omega, rad, mass, force, torque, cp, dt, pi, pj, pb, c_partner,
-                   c_xi, b_ij, b_props, b_fn, b_fs, b_mb, b_mt, b_len, b_state, w_p, w_n, w_v,
-                   w_f, w_xi, w_in, drum_angle, lifter_angles, d_xi, d_in, hist_pp, hist_pw):
-    """All forces and torques at the current positions (mid-step velocities).
+@nb.njit(cache=True, inline="always")
+def _contact_overlap0(k, pi, pj, pb, b_state, b_props, pos, rad, lz):
+    """Overlap subtracted from pair k's geometric overlap, or -1 while an intact (or JCFpm
+    sliding) bond carries the pair."""
+    b = pb[k]
+    if b < 0:
+        return 0.0
+    st = b_state[b]
+    if st == INTACT or st == BROKEN_SHEAR_SLIDING:
+        return -1.0
+    ov0 = b_props[b, P_OVERLAP0]
+    if b_props[b, P_SIGNED_MC] != 0.0:
+        # "yade_jcfpm": the contact of a broken bond is erased while the spheres are apart by
+        # more than its initD, and re-created stress-free at the overlap they then have (Yade
+        # JCFpm: initD = penetration depth at creation)
+        i = pi[k]
+        j = pj[k]
+        ex = pos[j, 0] - pos[i, 0]
+        ey = pos[j, 1] - pos[i, 1]
+        ez = pos[j, 2] - pos[i, 2]
+        if lz > 0.0:
+            ez -= lz * math.floor(ez / lz + 0.5)
+        pen = rad[i] + rad[j] - math.sqrt(ex * ex + ey * ey + ez * ez)
+        if pen < ov0:
+            ov0 = pen if pen > 0.0 else 0.0
+            b_props[b, P_OVERLAP0] = ov0
+    return ov0
 
-    Returns (status, drum torque N m, number of bonds broken in this call).
-    """
-    n = pos.shape[0]
-    for i in range(n):
-        force[i, 0] = mass[i] * cp[CP_GX]
-        force[i, 1] = mass[i] * cp[CP_GY]
-        force[i, 2] = mass[i] * cp[CP_GZ]
-        torque[i, 0] = 0.0
-        torque[i, 1] = 0.0
-        torque[i, 2] = 0.0
-    status = 0
-    lz = cp[CP_LZ]
-    for k in range(pi.shape[0]):
-        b = pb[k]
-        ov0 = 0.0
-        if b >= 0:
-            if b_state[b] == 0 or b_state[b] == BROKEN_SHEAR_SLIDING:
-                continue  # carried by bond_forces
-            ov0 = b_props[b, P_OVERLAP0]
-            if b_props[b, P_SIGNED_MC] != 0.0:
-                # "yade_jcfpm": the contact of a broken bond is erased while the spheres are
-                # apart by more than its initD, and re-created stress-free at the overlap
-                # they then have (Yade JCFpm: initD = penetration depth at creation)
-                ex = pos[pj[k], 0] - pos[pi[k], 0]
-                ey = pos[pj[k], 1] - pos[pi[k], 1]
-                ez = pos[pj[k], 2] - pos[pi[k], 2]
-                if lz > 0.0:
-                    ez -= lz * math.floor(ez / lz + 0.5)
-                pen = rad[pi[k]] + rad[pj[k]] - math.sqrt(ex * ex + ey * ey + ez * ez)
-                if pen < ov0:
-                    ov0 = pen if pen > 0.0 else 0.0
-                    b_props[b, P_OVERLAP0] = ov0
-        st = pair_contact(pi[k], pj[k], pos, vel, omega, rad, mass, force, torque, lz,
-                          cp[CP_ESTAR_PP], cp[CP_GSTAR_PP], cp[CP_MU_PP], cp[CP_ETA_PP], dt,
-                          c_partner, c_xi, hist_pp, cp[CP_HIST_LO], cp[CP_HIST_DLOG], ov0,
-                          cp[CP_CONTACT_LAW])
-        if st != 0:
-            status = STATUS_CONTACT_TABLE_FULL
-    nbroken = bond_forces(pos, vel, omega, rad, force, torque, lz, dt, b_ij, b_props, b_fn, b_fs,
-                          b_mb, b_mt, b_len, b_state, cp[CP_BETA])
-    if w_p.shape[0] > 0:
-        plane_walls(pos, vel, omega, rad, mass, force, torque, w_p, w_n, w_v, w_f, w_xi, w_in,
-                    cp[CP_ESTAR_PW], cp[CP_GSTAR_PW], cp[CP_MU_PW], cp[CP_ETA_PW], dt, hist_pw,
-                    cp[CP_HIST_LO], cp[CP_HIST_DLOG], cp[CP_CONTACT_LAW])
+
+@nb.njit(cache=True, inline="always")
+def _damp(i, force, torque, vel, om, mass, inertia, alpha, hdt):
+    """Cundall local damping of sphere i; ``hdt`` 0 (mid-step velocity) or dt/2 (Yade's
+    NewtonIntegrator::cundallDamp2nd: the velocity at the time of the force,
+    v(t) ~ v(t - dt/2) + dt/2 F/m)."""
+    im = 1.0 / mass[i]
+    ii = 1.0 / inertia[i]
+    for d in range(3):
+        fd = force[i, d]
+        force[i, d] = _cundall_damped(fd, vel[i, d] + hdt * fd * im, alpha)
+        td = torque[i, d]
+        torque[i, d] = _cundall_damped(td, om[i, d] + hdt * td * ii, alpha)
+
+
+@nb.njit(cache=True, parallel=True)
+def sphere_loads(sp, bd, pr, wl, dr, cp, dt, drum_angle):
+    """Total force and torque on each sphere (parallel over spheres): gravity, its bond and
+    contact rows in a fixed order, walls and drum, then Cundall damping."""
+    pos, vel, om, rad, mass, inertia, f, t = sp
+    b_load, b_start, b_entry = bd.load, bd.sphere_start, bd.sphere_entry
+    p_load, p_start, p_entry = pr.load, pr.sphere_start, pr.sphere_entry
+    w_p, w_n, w_v, w_xi, w_touch, w_force, w_impact = wl.p, wl.n, wl.v, wl.xi, wl.touch, wl.f_sphere, wl.impact_J
+    lifters, d_xi, d_touch, d_impact, d_torque = dr
+    law = cp[CP_CONTACT_LAW]
+    ew, gw, muw, etaw = cp[CP_ESTAR_PW], cp[CP_GSTAR_PW], cp[CP_MU_PW], cp[CP_ETA_PW]
+    gx, gy, gz = cp[CP_GX], cp[CP_GY], cp[CP_GZ]
+    alpha = cp[CP_LOCAL_DAMPING]
+    hdt = 0.5 * dt if cp[CP_DAMP_AT_STEP] != 0.0 else 0.0
+    drum_r = cp[CP_DRUM_R]
+    nw = w_p.shape[0]
+    for i in nb.prange(pos.shape[0]):
+        f[i, 0] = mass[i] * gx
+        f[i, 1] = mass[i] * gy
+        f[i, 2] = mass[i] * gz
+        t[i, 0] = 0.0
+        t[i, 1] = 0.0
+        t[i, 2] = 0.0
+        add_rows(b_load, b_start, b_entry, i, f, t)
+        add_rows(p_load, p_start, p_entry, i, f, t)
+        if nw > 0:
+            plane_walls(i, pos, vel, om, rad, mass, f, t, w_p, w_n, w_v, w_xi, w_touch, w_force,
+                        w_impact, ew, gw, muw, etaw, dt, law)
+        if drum_r > 0.0:
+            d_torque[i] = drum_walls(i, pos, vel, om, rad, mass, f, t, lifters, d_xi, d_touch,
+                                     d_impact, drum_r, cp[CP_DRUM_OMEGA], drum_angle,
+                                     cp[CP_LIFTER_H], cp[CP_LIFTER_HW], ew, gw, muw, etaw, dt,
+                                     law)
+        if alpha > 0.0:
+            _damp(i, f, t, vel, om, mass, inertia, alpha, hdt)
+
+
+@nb.njit(cache=True)
+def _collect(pr, wl, dr, cp, hist_pp, hist_pw):
+    """The serial end of a force evaluation, in sphere order: wall reactions, drum torque,
+    impact energies of new contacts into the histograms. Returns the drum torque."""
+    lo = cp[CP_HIST_LO]
+    dl = cp[CP_HIST_DLOG]
+    p_impact = pr.impact_J
+    for k in range(p_impact.shape[0]):
+        if p_impact[k] >= 0.0:
+            hist_add(hist_pp, lo, dl, p_impact[k])
+    w_touch, w_force, w_impact, w_f = wl.touch, wl.f_sphere, wl.impact_J, wl.f
+    n = w_touch.shape[0]
+    for k in range(w_f.shape[0]):
+        fx = fy = fz = 0.0
+        for i in range(n):
+            if w_touch[i, k]:
+                fx += w_force[i, k, 0]
+                fy += w_force[i, k, 1]
+                fz += w_force[i, k, 2]
+                if w_impact[i, k] >= 0.0:
+                    hist_add(hist_pw, lo, dl, w_impact[i, k])
+        w_f[k, 0] = fx
+        w_f[k, 1] = fy
+        w_f[k, 2] = fz
     tq = 0.0
     if cp[CP_DRUM_R] > 0.0:
-        tq = drum_walls(pos, vel, omega, rad, mass, force, torque, cp[CP_DRUM_R],
-                        cp[CP_DRUM_OMEGA], drum_angle, lifter_angles, cp[CP_LIFTER_H],
-                        cp[CP_LIFTER_HW], d_xi, d_in, cp[CP_ESTAR_PW], cp[CP_GSTAR_PW],
-                        cp[CP_MU_PW], cp[CP_ETA_PW], dt, hist_pw, cp[CP_HIST_LO],
-                        cp[CP_HIST_DLOG], cp[CP_CONTACT_LAW])
-    alpha = cp[CP_LOCAL_DAMPING]
-    if alpha > 0.0:
-        # the velocity whose sign the damping opposes: the mid-step one, or with
-        # CP_DAMP_AT_STEP Yade's NewtonIntegrator::cundallDamp2nd, the velocity at the time of
-        # the force, v(t) ~ v(t - dt/2) + dt/2 F/m
-        hdt = 0.5 * dt if cp[CP_DAMP_AT_STEP] != 0.0 else 0.0
+        d_impact, d_torque = dr.impact_J, dr.torque_sphere
         for i in range(n):
-            im = 1.0 / mass[i]
-            ii = 1.0 / (0.4 * mass[i] * rad[i] * rad[i])
-            for d in range(3):
-                fd = force[i, d]
-                force[i, d] = _cundall_damped(fd, vel[i, d] + hdt * fd * im, alpha)
-                td = torque[i, d]
-                torque[i, d] = _cundall_damped(td, omega[i, d] + hdt * td * ii, alpha)
-    return status, tq, nbroken
+            tq += d_torque[i]
+            for k in range(d_impact.shape[1]):
+                if d_impact[i, k] >= 0.0:
+                    hist_add(hist_pw, lo, dl, d_impact[i, k])
+    return tq
 
 
-@nb.njit(cache=True)
-def run_steps(n_steps, dt, pos, vel, omega, rad, mass, inertia, force, torque, cp, pos_ref,
-              pi, pj, pb, c_partner, c_xi, b_ij, b_props, b_fn, b_fs, b_mb, b_mt, b_len, b_state,
-              b_partner, b_index, w_p, w_n, w_v, w_mass, w_f, w_xi, w_in, drum_angle,
-              lifter_angles, d_xi, d_in, hist_pp, hist_pw, rec_wall_f, rec_wall_pos,
-              rec_torque, rec_broken):
-    """Advance ``n_steps`` velocity-Verlet steps; ``force``/``torque`` must hold the forces at entry.
+@nb.njit(cache=True, parallel=True)
+def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw):
+    """All forces and torques at the current positions (mid-step velocities): contacts (every
+    pair of the Verlet list not held by a bond, in parallel, each writing its own row), then
+    bonds (a bond that breaks now leaves its contact to the next step), then per sphere.
 
-    Planar walls move with ``w_v``; a wall with ``w_mass > 0`` is free along its normal and is
-    accelerated by the spheres' reaction and gravity (drop weight). Records per step: wall
-    forces (N, along each wall normal, positive = pushed outwards), wall positions along the
-    normals, drum torque, bonds broken.
-    Returns (status, steps done, drum angle, pair_i, pair_j, pair_bond).
+    Returns (drum torque N m, number of bonds broken in this call). A caller of this (and of
+    any parallel kernel) must itself be compiled with ``parallel=True``: called from a plain
+    njit function the parallel loops run 2-3x slower even on one thread (measured).
     """
-    n = pos.shape[0]
+    pi, pj, pb, xi, touch, load, impact = pr.i, pr.j, pr.bond, pr.xi, pr.touch, pr.load, pr.impact_J
+    pos, vel, om, rad, mass = sp.pos, sp.vel, sp.omega, sp.rad, sp.mass
+    b_state, b_props = bd.state, bd.props
     lz = cp[CP_LZ]
-    skin = cp[CP_SKIN]
-    half = 0.5 * dt
-    status = 0
-    ang = drum_angle
-    done = 0
-    for step in range(n_steps):
-        # kick + drift
-        for i in range(n):
-            im = 1.0 / mass[i]
-            ii = 1.0 / inertia[i]
+    law = cp[CP_CONTACT_LAW]
+    e_star, g_star, mu, eta = cp[CP_ESTAR_PP], cp[CP_GSTAR_PP], cp[CP_MU_PP], cp[CP_ETA_PP]
+    for k in nb.prange(pi.shape[0]):
+        ov0 = _contact_overlap0(k, pi, pj, pb, b_state, b_props, pos, rad, lz)
+        if ov0 < 0.0:
+            impact[k] = -1.0
+            for c in range(N_LOAD):
+                load[k, c] = 0.0
+            continue
+        pair_contact(k, pi, pj, xi, touch, load, impact, pos, vel, om, rad, mass, lz, e_star,
+                     g_star, mu, eta, dt, ov0, law)
+    nbroken = bond_forces(sp, bd, lz, dt, cp[CP_BETA])
+    sphere_loads(sp, bd, pr, wl, dr, cp, dt, drum_angle)
+    return _collect(pr, wl, dr, cp, hist_pp, hist_pw), nbroken
+
+
+@nb.njit(cache=True, parallel=True)
+def _kick(sp, half, dt, lz, drift):
+    """Half-step velocity update from the current forces; with ``drift`` then a full position
+    step (wrapped into the periodic slice)."""
+    pos, vel, om, _, mass, inertia, force, torque = sp
+    for i in nb.prange(pos.shape[0]):
+        im = 1.0 / mass[i]
+        ii = 1.0 / inertia[i]
+        for d in range(3):
+            vel[i, d] += half * force[i, d] * im
+            om[i, d] += half * torque[i, d] * ii
+        if drift:
             for d in range(3):
-                vel[i, d] += half * force[i, d] * im
-                omega[i, d] += half * torque[i, d] * ii
                 pos[i, d] += dt * vel[i, d]
             if lz > 0.0:
                 pos[i, 2] -= lz * math.floor(pos[i, 2] / lz)
-        for k in range(w_p.shape[0]):
+
+
+@nb.njit(cache=True)
+def _move_walls(wl, cp, dt, after_forces):
+    """Planar walls: before the forces, a position step at their velocity; after, a free wall
+    (``mass > 0``) is accelerated along its normal by the spheres' reaction and gravity."""
+    for k in range(wl.p.shape[0]):
+        if not after_forces:
             for d in range(3):
-                w_p[k, d] += dt * w_v[k, d]
+                wl.p[k, d] += dt * wl.v[k, d]
+        elif wl.mass[k] > 0.0:
+            fnrm = wl.f[k, 0] * wl.n[k, 0] + wl.f[k, 1] * wl.n[k, 1] + wl.f[k, 2] * wl.n[k, 2]
+            gn = cp[CP_GX] * wl.n[k, 0] + cp[CP_GY] * wl.n[k, 1] + cp[CP_GZ] * wl.n[k, 2]
+            acc = fnrm / wl.mass[k] + gn
+            for d in range(3):
+                wl.v[k, d] += dt * acc * wl.n[k, d]
+
+
+@nb.njit(cache=True, parallel=True)
+def run_steps(n_steps, dt, sp, bd, pr, wl, dr, cp, pos_ref, drum_angle, hist_pp, hist_pw,
+              rec_wall_f, rec_wall_pos, rec_torque, rec_broken):
+    """Advance ``n_steps`` velocity-Verlet steps; ``sp.force``/``sp.torque`` must hold the forces
+    at entry.
+
+    Planar walls move with their velocity; a wall with ``mass > 0`` is free along its normal
+    (drop weight). Records per step: wall forces (N, along each wall normal, positive = pushed
+    outwards), wall positions along the normals, drum torque, bonds broken.
+    Returns (status, steps done, drum angle, pair arrays).
+    """
+    pos = sp.pos
+    n = pos.shape[0]
+    lz = cp[CP_LZ]
+    skin = cp[CP_SKIN]
+    lim2 = (0.5 * skin) ** 2
+    half = 0.5 * dt
+    status = STATUS_OK
+    ang = drum_angle
+    done = 0
+    for step in range(n_steps):
+        _kick(sp, half, dt, lz, True)
+        _move_walls(wl, cp, dt, False)
         ang += cp[CP_DRUM_OMEGA] * dt
-        # neighbour list
-        mx = 0.0
-        for i in range(n):
+        # rebuild the list once a sphere has moved more than half the skin (an integer count,
+        # the same whatever the thread count)
+        moved = 0
+        for i in nb.prange(n):
             dx = pos[i, 0] - pos_ref[i, 0]
             dy = pos[i, 1] - pos_ref[i, 1]
             dz = pos[i, 2] - pos_ref[i, 2]
             if lz > 0.0:
                 dz -= lz * math.floor(dz / lz + 0.5)
-            r2 = dx * dx + dy * dy + dz * dz
-            if r2 > mx:
-                mx = r2
-        if math.sqrt(mx) > 0.5 * skin:
-            pi, pj, pb, npair = build_neighbour_list(pos, rad, skin, lz, b_partner, b_index)
+            if dx * dx + dy * dy + dz * dz > lim2:
+                moved += 1
+        if moved > 0:
+            pr = rebuild_pairs(sp, bd, pr, skin, lz)
             pos_ref[:, :] = pos
-        st, tq, nbr = compute_forces(pos, vel, omega, rad, mass, force, torque, cp, dt, pi, pj,
-                                     pb, c_partner, c_xi, b_ij, b_props, b_fn, b_fs, b_mb, b_mt,
-                                     b_len, b_state, w_p, w_n, w_v, w_f, w_xi, w_in, ang,
-                                     lifter_angles, d_xi, d_in, hist_pp, hist_pw)
-        if st != 0:
-            status = st
-        # kick
-        for i in range(n):
-            im = 1.0 / mass[i]
-            ii = 1.0 / inertia[i]
-            for d in range(3):
-                vel[i, d] += half * force[i, d] * im
-                omega[i, d] += half * torque[i, d] * ii
-        for k in range(w_p.shape[0]):
-            if w_mass[k] > 0.0:
-                fnrm = (w_f[k, 0] * w_n[k, 0] + w_f[k, 1] * w_n[k, 1] + w_f[k, 2] * w_n[k, 2])
-                gn = cp[CP_GX] * w_n[k, 0] + cp[CP_GY] * w_n[k, 1] + cp[CP_GZ] * w_n[k, 2]
-                acc = fnrm / w_mass[k] + gn
-                for d in range(3):
-                    w_v[k, d] += dt * acc * w_n[k, d]
-        for k in range(w_p.shape[0]):
-            rec_wall_f[step, k] = -(w_f[k, 0] * w_n[k, 0] + w_f[k, 1] * w_n[k, 1]
-                                    + w_f[k, 2] * w_n[k, 2])
-            rec_wall_pos[step, k] = (w_p[k, 0] * w_n[k, 0] + w_p[k, 1] * w_n[k, 1]
-                                     + w_p[k, 2] * w_n[k, 2])
+        tq, nbr = compute_forces(sp, bd, pr, wl, dr, cp, dt, ang, hist_pp, hist_pw)
+        _kick(sp, half, dt, lz, False)
+        _move_walls(wl, cp, dt, True)
+        for k in range(wl.p.shape[0]):
+            rec_wall_f[step, k] = -(wl.f[k, 0] * wl.n[k, 0] + wl.f[k, 1] * wl.n[k, 1]
+                                    + wl.f[k, 2] * wl.n[k, 2])
+            rec_wall_pos[step, k] = (wl.p[k, 0] * wl.n[k, 0] + wl.p[k, 1] * wl.n[k, 1]
+                                     + wl.p[k, 2] * wl.n[k, 2])
         rec_torque[step] = tq
         rec_broken[step] = nbr
         done = step + 1
-        if not math.isfinite(vel[0, 0] + force[n - 1, 2] + pos[n // 2, 0]):
+        if not math.isfinite(sp.vel[0, 0] + sp.force[n - 1, 2] + pos[n // 2, 0]):
             status = STATUS_NONFINITE
             break
-    return status, done, ang, pi, pj, pb
+    return status, done, ang, pr

@@ -6,10 +6,16 @@
   after ~1 ms, so the test is quasi-static; the result reports how well top and bottom platen
   forces agree before the peak). Cundall local damping (default 0.7, Potyondy & Cundall 2004)
   removes kinetic energy as in a servo-controlled lab test. The test stops after the primary
-  fracture: when the force is below ``stop_force_fraction`` (default 0.5) of the peak so far
-  and the platen has moved ``post_peak_strain`` (default 0.5 %) of the height past that peak
-  without the force recovering above it (a sphere breaking off at a platen contact is a
-  local drop, the load comes back); or at ``max_strain`` (default 8 %).
+  fracture, when three things hold at once: the force is below ``stop_force_fraction``
+  (default 0.5) of the peak so far; the platen has moved past that peak by the post-peak
+  window, the larger of ``post_peak_strain`` (default 0.5 %) of the height and
+  ``post_peak_radii`` (default 1) mean sphere radii, without the force recovering above it;
+  and the particle has split: its largest fragment (:func:`dem.fragments.find_fragments`)
+  holds less than ``split_largest_fraction`` (default 0.9; 1 leaves this out) of its mass. A sphere breaking
+  off at a platen contact is a local drop: the load comes back, or the particle is still
+  whole, and the test goes on (with the old end, the first two conditions at a 0.5 % window,
+  6 of 20 particles of 22 mm ended on such a chip, benchmarks/results/dem_size_effect.md).
+  Otherwise it ends at ``max_strain`` (default 8 %).
   ``time_step_factor`` defaults to 0.5 of the critical step, which for bonded agglomerates is
   the bond-spring step ``sqrt(m / sum k)`` (already a factor sqrt(2) inside the stability
   limit; benchmarks/dem_accuracy.py measures the effect).
@@ -155,11 +161,33 @@ def _counts(bonds: BondSet) -> dict:
     return {"tension": c["broken_tension"], "shear": c["broken_shear"]}
 
 
+def _load_until_split(sys_: System, bset: BondSet, v: float, max_disp: float, ended,
+                      chunk_steps: int) -> tuple[float, dict]:
+    """Run the platen in chunks until ``ended(peak, disp_at_peak, last force, disp)`` or the
+    platen has travelled ``max_disp``. Returns (peak force, broken-bond counts at the peak)."""
+    peak = 0.0
+    disp_peak = 0.0
+    broken_at_peak = _counts(bset)
+    while True:
+        first = sys_.steps
+        sys_.run(chunk_steps)
+        f_top = sys_.records.wall_force_N[-1][:, 1]
+        k = int(np.argmax(f_top))
+        disp_now = v * sys_.time_s
+        if f_top[k] > peak:
+            peak = float(f_top[k])
+            disp_peak = v * (first + k + 1) * sys_.dt_s
+            broken_at_peak = _counts(bset)
+        if disp_now >= max_disp or ended(peak, disp_peak, float(f_top[-1]), disp_now):
+            return peak, broken_at_peak
+
+
 def compression_test(agglomerate: Agglomerate, bonds: BondParams, *, material: Material = Material(),
                      platen_material: Material = STEEL, platen_speed_m_s: float = 0.1,
                      local_damping: float = 0.7,
                      time_step_factor: float = 0.5, max_strain: float = 0.08,
                      stop_force_fraction: float = 0.5, post_peak_strain: float = 0.005,
+                     post_peak_radii: float = 1.0, split_largest_fraction: float = 0.9,
                      chunk_steps: int = 250, contact_law: str = "hertz_mindlin",
                      damping_velocity: str = "mid_step") -> CompressionResult:
     """Slow compression of one agglomerate between flat platens; see the module docstring.
@@ -173,6 +201,8 @@ def compression_test(agglomerate: Agglomerate, bonds: BondParams, *, material: M
     _check("max_strain", max_strain, 0.0, 0.9, owner)
     _check("stop_force_fraction", stop_force_fraction, 0.0, 1.0, owner)
     _check("post_peak_strain", post_peak_strain, -1e-12, 0.5, owner)
+    _check("post_peak_radii", post_peak_radii, -1e-12, 100.0, owner)
+    _check("split_largest_fraction", split_largest_fraction, 0.0, 1.0, owner)
     t0 = time.perf_counter()
     agg = agglomerate
     pos = agg.pos_m.copy()
@@ -187,25 +217,16 @@ def compression_test(agglomerate: Agglomerate, bonds: BondParams, *, material: M
                   time_step_factor=time_step_factor, contact_law=contact_law,
                   damping_velocity=damping_velocity)
     height = z_hi - z_lo
-    max_disp = max_strain * height
-    peak = 0.0
-    disp_peak = 0.0
-    broken_at_peak = _counts(bset)
-    while True:
-        first = sys_.steps
-        sys_.run(chunk_steps)
-        f_top = sys_.records.wall_force_N[-1][:, 1]
-        k = int(np.argmax(f_top))
-        disp_now = v * sys_.time_s
-        if f_top[k] > peak:
-            peak = float(f_top[k])
-            disp_peak = v * (first + k + 1) * sys_.dt_s
-            broken_at_peak = _counts(bset)
-        if (peak > 0 and f_top[-1] < stop_force_fraction * peak
-                and disp_now > disp_peak + post_peak_strain * height):
-            break
-        if disp_now >= max_disp:
-            break
+    window = max(post_peak_strain * height, post_peak_radii * agg.mean_radius_m)
+    volumes = 4.0 / 3.0 * math.pi * rad**3
+
+    def split(peak, disp_peak, f_last, disp):
+        if not (peak > 0 and f_last < stop_force_fraction * peak and disp > disp_peak + window):
+            return False
+        return split_largest_fraction >= 1.0 or find_fragments(
+            agg.bond_pairs, bset.intact, volumes, agg.diameter_m).largest_mass_fraction < split_largest_fraction
+
+    peak, broken_at_peak = _load_until_split(sys_, bset, v, max_strain * height, split, chunk_steps)
     rec = sys_.record_arrays()
     f_top = rec["wall_force_N"][:, 1]
     f_bot = rec["wall_force_N"][:, 0]
@@ -223,7 +244,7 @@ def compression_test(agglomerate: Agglomerate, bonds: BondParams, *, material: M
     curve = pd.DataFrame({"time_s": t[::every], "displacement_m": disp[::every],
                           "force_top_N": f_top[::every], "force_bottom_N": f_bot[::every],
                           "broken_bonds": np.cumsum(rec["broken"])[::every]})
-    frags = find_fragments(agg.bond_pairs, bset.intact, 4.0 / 3.0 * math.pi * rad**3, agg.diameter_m)
+    frags = find_fragments(agg.bond_pairs, bset.intact, volumes, agg.diameter_m)
     return CompressionResult(peak_force_N=peak, displacement_at_peak_m=float(disp[kp]),
                              fracture_energy_J=e_frac, specific_fracture_energy_J_kg=e_frac / mass,
                              stiffness_N_m=stiff, force_mismatch_rel=mismatch,

@@ -14,13 +14,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dem.bonds import P_OVERLAP0, BondSet
-from dem.contacts import CONTACT_LAW_HERTZ_MINDLIN, CONTACT_LAW_LINEAR_YADE, new_contact_tables
-from dem.errors import DemInputError, DemInstabilityError, DemError
 from dem import kernels as K
+from dem.bonds import BROKEN_SHEAR_SLIDING, INTACT, P_OVERLAP0, BondParams, BondSet
+from dem.contacts import CONTACT_LAW_HERTZ_MINDLIN, CONTACT_LAW_LINEAR_YADE
+from dem.errors import DemInputError, DemInstabilityError
 from dem.materials import (RAYLEIGH_SAFETY_FACTOR, STEEL, Material, bond_time_step_s,
                            damping_coefficient, effective_shear_Pa, effective_youngs_Pa,
                            rayleigh_time_step_s)
+from dem.state import DrumArrays, SphereArrays, WallArrays
 
 #: default energy classes of the collision histograms: log10(E/J) from -9 to 2 in 0.25 steps
 HIST_LO_LOG10 = -9.0
@@ -73,7 +74,13 @@ class Records:
 
 
 class System:
-    """State of one DEM run; see the module docstring."""
+    """State of one DEM run; see the module docstring.
+
+    The kernels' bundles (:mod:`dem.state`): ``spheres``, ``bonds.arrays``, ``pairs``,
+    ``walls``, ``drum_arrays``; ``pos``, ``vel``, ``omega``, ``rad``, ``mass``, ``inertia``,
+    ``force``, ``torque`` and ``w_p``, ``w_n``, ``w_v``, ``w_mass``, ``w_f``, ``w_xi``,
+    ``w_in`` name the same arrays.
+    """
 
     def __init__(self, pos_m, radius_m, material: Material, *, density_kg_m3=None,
                  bonds: BondSet | None = None, wall_material: Material = STEEL,
@@ -81,144 +88,91 @@ class System:
                  gravity_m_s2=(0.0, 0.0, 0.0), periodic_z_m: float = 0.0,
                  local_damping: float = 0.0, time_step_factor: float = RAYLEIGH_SAFETY_FACTOR,
                  dt_s: float | None = None, skin_fraction: float = 0.3,
-                 max_contacts: int = 24, contact_law: str = "hertz_mindlin",
-                 damping_velocity: str = "mid_step") -> None:
-        pos = np.array(pos_m, dtype=np.float64).reshape(-1, 3)
-        rad = np.array(radius_m, dtype=np.float64).reshape(-1)
+                 contact_law: str = "hertz_mindlin", damping_velocity: str = "mid_step") -> None:
+        pos, rad = _checked_spheres(pos_m, radius_m)
+        _check_options(local_damping, time_step_factor, contact_law, damping_velocity)
         n = pos.shape[0]
-        if n < 1 or rad.shape[0] != n:
-            raise DemInputError(
-                f"The 'radius_m' parameter of System must have one entry per sphere ({n}). Got {rad.shape[0]}.")
-        if not np.all(np.isfinite(pos)):
-            raise DemInputError("The 'pos_m' parameter of System must be finite. Got non-finite entries.")
-        if np.any(rad <= 0) or not np.all(np.isfinite(rad)):
-            raise DemInputError(
-                f"The 'radius_m' parameter of System must be finite and > 0. Got min {rad.min()!r}.")
-        if not (0.0 <= local_damping < 1.0):
-            raise DemInputError(
-                f"The 'local_damping' parameter of System must be a float in [0, 1). Got {local_damping!r}.")
-        if not (0.0 < time_step_factor <= 1.0):
-            raise DemInputError(
-                f"The 'time_step_factor' parameter of System must be a float in (0, 1]. Got {time_step_factor!r}.")
-        if contact_law not in CONTACT_LAWS:
-            raise DemInputError(
-                f"The 'contact_law' parameter of System must be one of {sorted(CONTACT_LAWS)}. Got {contact_law!r}.")
-        self.contact_law = contact_law
-        if damping_velocity not in ("mid_step", "at_force"):
-            raise DemInputError(
-                "The 'damping_velocity' parameter of System must be 'mid_step' or 'at_force'. "
-                f"Got {damping_velocity!r}.")
         self.n = n
+        self.contact_law = contact_law
         self.material = material
         self.wall_material = wall_material
         rho = material.density_kg_m3 if density_kg_m3 is None else float(density_kg_m3)
         self.density_kg_m3 = rho
-        self.pos = pos
-        self.rad = rad
-        self.vel = np.zeros((n, 3))
-        self.omega = np.zeros((n, 3))
-        self.mass = rho * 4.0 / 3.0 * math.pi * rad**3
-        self.inertia = 0.4 * self.mass * rad**2
-        self.force = np.zeros((n, 3))
-        self.torque = np.zeros((n, 3))
-        self.bonds = bonds if bonds is not None else BondSet(np.zeros((0, 2), dtype=np.int64),
-                                                              pos, rad, _dummy_bond_params())
-        # walls
-        walls = walls or []
-        nw = len(walls)
-        self.w_p = np.array([w.point_m for w in walls], dtype=np.float64).reshape(nw, 3)
-        wn = np.array([w.normal for w in walls], dtype=np.float64).reshape(nw, 3)
-        if nw:
-            wn /= np.linalg.norm(wn, axis=1)[:, None]
-        self.w_n = wn
-        self.w_v = np.array([w.velocity_m_s for w in walls], dtype=np.float64).reshape(nw, 3)
-        self.w_mass = np.array([w.mass_kg for w in walls], dtype=np.float64).reshape(nw)
-        self.w_f = np.zeros((nw, 3))
-        self.w_xi = np.zeros((n, nw, 3))
-        self.w_in = np.zeros((n, nw), dtype=np.int8)
-        # drum
+        mass = rho * 4.0 / 3.0 * math.pi * rad**3
+        self.spheres = SphereArrays(pos, np.zeros((n, 3)), np.zeros((n, 3)), rad, mass,
+                                    0.4 * mass * rad**2, np.zeros((n, 3)), np.zeros((n, 3)))
+        (self.pos, self.vel, self.omega, self.rad, self.mass, self.inertia, self.force,
+         self.torque) = self.spheres
+        self.bonds = bonds if bonds is not None else BondSet(
+            np.zeros((0, 2), dtype=np.int64), pos, rad, BondParams(moment_factor=0.0))
+        self.walls = _wall_arrays(walls or [], n)
+        (self.w_p, self.w_n, self.w_v, self.w_mass, self.w_f, self.w_xi, self.w_in, _, _) = self.walls
         self.drum = drum
         nl = drum.n_lifters if drum is not None else 0
-        self.lifter_angles = np.arange(nl) * (2.0 * math.pi / max(nl, 1))
-        self.d_xi = np.zeros((n, 1 + nl, 3))
-        self.d_in = np.zeros((n, 1 + nl), dtype=np.int8)
+        self.drum_arrays = DrumArrays(np.arange(nl) * (2.0 * math.pi / max(nl, 1)),
+                                      np.zeros((n, 1 + nl, 3)), np.zeros((n, 1 + nl), dtype=np.int8),
+                                      np.full((n, 1 + nl), -1.0), np.zeros(n))
         self.drum_angle = 0.0
-        # contact parameters
-        cp = np.zeros(K.N_CP)
-        cp[K.CP_ESTAR_PP] = effective_youngs_Pa(material, material)
-        cp[K.CP_GSTAR_PP] = effective_shear_Pa(material, material)
-        cp[K.CP_MU_PP] = material.friction_coef
-        cp[K.CP_ETA_PP] = damping_coefficient(material.restitution)
-        cp[K.CP_ESTAR_PW] = effective_youngs_Pa(material, wall_material)
-        cp[K.CP_GSTAR_PW] = effective_shear_Pa(material, wall_material)
-        cp[K.CP_MU_PW] = min(material.friction_coef, wall_material.friction_coef)
-        cp[K.CP_ETA_PW] = damping_coefficient(math.sqrt(material.restitution * wall_material.restitution))
-        if contact_law == "linear_yade":
-            # Yade's linear spring (see dem.contacts.CONTACT_LAW_LINEAR_YADE): k = 2 e_star r_eff
-            es, ew = material.youngs_modulus_Pa, wall_material.youngs_modulus_Pa
-            gs, gw = es * material.poisson_ratio, ew * wall_material.poisson_ratio
-            cp[K.CP_ESTAR_PP] = es
-            cp[K.CP_GSTAR_PP] = gs
-            cp[K.CP_ESTAR_PW] = es * ew / (es + ew)
-            cp[K.CP_GSTAR_PW] = gs * gw / (gs + gw) if gs + gw > 0 else 0.0
-        cp[K.CP_CONTACT_LAW] = CONTACT_LAWS[contact_law]
-        cp[K.CP_LOCAL_DAMPING] = local_damping
-        cp[K.CP_DAMP_AT_STEP] = 1.0 if damping_velocity == "at_force" else 0.0
-        cp[K.CP_GX:K.CP_GZ + 1] = np.asarray(gravity_m_s2, dtype=float)
-        cp[K.CP_LZ] = float(periodic_z_m)
-        cp[K.CP_SKIN] = skin_fraction * float(np.min(rad))
-        cp[K.CP_BETA] = self.bonds.beta
-        if drum is not None:
-            cp[K.CP_DRUM_R] = drum.radius_m
-            cp[K.CP_DRUM_OMEGA] = drum.omega_rad_s
-            cp[K.CP_LIFTER_H] = drum.lifter_height_m
-            cp[K.CP_LIFTER_HW] = 0.5 * drum.lifter_width_m
-        cp[K.CP_HIST_LO] = HIST_LO_LOG10
-        cp[K.CP_HIST_DLOG] = HIST_DLOG10
-        self.cp = cp
+        self.cp = _contact_parameters(material, wall_material, contact_law, local_damping,
+                                      damping_velocity, gravity_m_s2, periodic_z_m,
+                                      skin_fraction * float(np.min(rad)), self.bonds.beta, drum)
         self.hist_pp = np.zeros(HIST_NBINS)
         self.hist_pw = np.zeros(HIST_NBINS)
-        self.c_partner, self.c_xi = new_contact_tables(n, max_contacts)
-        # time step
-        mat_for_dt = Material(material.youngs_modulus_Pa, material.poisson_ratio, rho,
-                              material.friction_coef, material.restitution)
-        dt_r = rayleigh_time_step_s(float(np.min(rad)), mat_for_dt)
-        if contact_law == "linear_yade":
-            # linear springs: no Rayleigh step; a sphere on one platen and one sphere contact
-            k_c = 2.0 * (cp[K.CP_ESTAR_PW] + 0.5 * cp[K.CP_ESTAR_PP]) * rad
+        self._set_time_step(time_step_factor, dt_s)
+        self.time_s = 0.0
+        self.steps = 0
+        self.records = Records()
+        self.pos_ref = self.pos.copy()
+        self.pairs = K.new_pair_arrays(*K.build_neighbour_list(
+            self.pos, self.rad, self.cp[K.CP_SKIN], self.cp[K.CP_LZ], self.bonds.partner,
+            self.bonds.index))
+        self._forces(0.0)
+
+    def _set_time_step(self, time_step_factor: float, dt_s: float | None) -> None:
+        """Critical step: the smaller of the contact step (Rayleigh, or for linear springs
+        ``sqrt(m / k)`` of a sphere on one platen and one sphere) and the bond-spring step."""
+        m = self.material
+        cp = self.cp
+        if self.contact_law == "linear_yade":
+            k_c = 2.0 * (cp[K.CP_ESTAR_PW] + 0.5 * cp[K.CP_ESTAR_PP]) * self.rad
             dt_r = float(np.min(np.sqrt(self.mass / k_c)))
-        k_sum, r_sum = self.bonds.stiffness_sums(n)
+        else:
+            mat_for_dt = Material(m.youngs_modulus_Pa, m.poisson_ratio, self.density_kg_m3,
+                                  m.friction_coef, m.restitution)
+            dt_r = rayleigh_time_step_s(float(np.min(self.rad)), mat_for_dt)
+        k_sum, r_sum = self.bonds.stiffness_sums(self.n)
         dt_b = bond_time_step_s(self.mass, self.inertia, k_sum, r_sum)
         self.critical_dt_s = min(dt_r, dt_b)
         self.rayleigh_dt_s = dt_r
         self.bond_dt_s = dt_b
         if dt_s is None:
             self.dt_s = time_step_factor * self.critical_dt_s
-        else:
-            dt_s = float(dt_s)
-            if not (0.0 < dt_s <= self.critical_dt_s):
-                raise DemInputError(
-                    f"The 'dt_s' parameter of System must be a float in (0, {self.critical_dt_s:.4g}] "
-                    f"(the critical time step). Got {dt_s!r}.")
-            self.dt_s = dt_s
-        self.time_s = 0.0
-        self.steps = 0
-        self.records = Records()
-        self.pos_ref = self.pos.copy()
-        self.pi, self.pj, self.pb, _ = K.build_neighbour_list(
-            self.pos, self.rad, cp[K.CP_SKIN], cp[K.CP_LZ], self.bonds.partner, self.bonds.index)
-        self._forces(0.0)
+            return
+        dt_s = float(dt_s)
+        if not (0.0 < dt_s <= self.critical_dt_s):
+            raise DemInputError(
+                f"The 'dt_s' parameter of System must be a float in (0, {self.critical_dt_s:.4g}] "
+                f"(the critical time step). Got {dt_s!r}.")
+        self.dt_s = dt_s
 
     # ------------------------------------------------------------------
+    @property
+    def pi(self) -> np.ndarray:
+        return self.pairs.i
+
+    @property
+    def pj(self) -> np.ndarray:
+        return self.pairs.j
+
+    @property
+    def pb(self) -> np.ndarray:
+        return self.pairs.bond
+
     def _forces(self, dt: float):
-        b = self.bonds
-        st, tq, nbr = K.compute_forces(
-            self.pos, self.vel, self.omega, self.rad, self.mass, self.force, self.torque, self.cp,
-            dt, self.pi, self.pj, self.pb, self.c_partner, self.c_xi, b.ij, b.props, b.fn, b.fs,
-            b.mb, b.mt, b.length, b.state, self.w_p, self.w_n, self.w_v, self.w_f, self.w_xi,
-            self.w_in, self.drum_angle, self.lifter_angles, self.d_xi, self.d_in, self.hist_pp,
-            self.hist_pw)
-        return st, tq, nbr
+        """Evaluate the forces at the current state; returns (drum torque, bonds broken)."""
+        return K.compute_forces(self.spheres, self.bonds.arrays, self.pairs, self.walls,
+                                self.drum_arrays, self.cp, dt, self.drum_angle, self.hist_pp,
+                                self.hist_pw)
 
     def run(self, n_steps: int) -> None:
         """Advance ``n_steps`` steps and append the per-step records."""
@@ -230,14 +184,10 @@ class System:
         rec_p = np.zeros((n_steps, nw))
         rec_t = np.zeros(n_steps)
         rec_b = np.zeros(n_steps, dtype=np.int64)
-        b = self.bonds
-        status, done, ang, self.pi, self.pj, self.pb = K.run_steps(
-            n_steps, self.dt_s, self.pos, self.vel, self.omega, self.rad, self.mass, self.inertia,
-            self.force, self.torque, self.cp, self.pos_ref, self.pi, self.pj, self.pb,
-            self.c_partner, self.c_xi, b.ij, b.props, b.fn, b.fs, b.mb, b.mt, b.length, b.state,
-            b.partner, b.index, self.w_p, self.w_n, self.w_v, self.w_mass, self.w_f, self.w_xi,
-            self.w_in, self.drum_angle, self.lifter_angles, self.d_xi, self.d_in, self.hist_pp,
-            self.hist_pw, rec_f, rec_p, rec_t, rec_b)
+        status, done, ang, self.pairs = K.run_steps(
+            n_steps, self.dt_s, self.spheres, self.bonds.arrays, self.pairs, self.walls,
+            self.drum_arrays, self.cp, self.pos_ref, self.drum_angle, self.hist_pp, self.hist_pw,
+            rec_f, rec_p, rec_t, rec_b)
         self.drum_angle = ang
         self.steps += done
         self.time_s += done * self.dt_s
@@ -249,10 +199,6 @@ class System:
             raise DemInstabilityError(
                 f"Non-finite state at step {self.steps} (t = {self.time_s:.4g} s, dt = {self.dt_s:.3g} s); "
                 "reduce time_step_factor or check the material parameters.")
-        if status == K.STATUS_CONTACT_TABLE_FULL:
-            raise DemError(
-                f"Contact table overflow at step {self.steps}: a sphere touched more than "
-                f"{self.c_partner.shape[1]} others; raise max_contacts or check for collapse.")
 
     def set_wall_velocity(self, k: int, velocity_m_s) -> None:
         self.w_v[k, :] = velocity_m_s
@@ -280,7 +226,7 @@ class System:
             b = self.pb[k]
             ov0 = 0.0
             if b >= 0:
-                if self.bonds.state[b] in (0, 3):  # intact or JCFpm sliding: held by the bond
+                if self.bonds.state[b] in (INTACT, BROKEN_SHEAR_SLIDING):  # held by the bond
                     continue
                 ov0 = self.bonds.props[b, P_OVERLAP0]
             i, j = self.pi[k], self.pj[k]
@@ -300,7 +246,81 @@ class System:
         return self.kinetic_energy_J() + self.contact_energy_J() + self.bonds.elastic_energy_J()
 
 
-def _dummy_bond_params():
-    from dem.bonds import BondParams
+def _checked_spheres(pos_m, radius_m) -> tuple[np.ndarray, np.ndarray]:
+    pos = np.array(pos_m, dtype=np.float64).reshape(-1, 3)
+    rad = np.array(radius_m, dtype=np.float64).reshape(-1)
+    n = pos.shape[0]
+    if n < 1 or rad.shape[0] != n:
+        raise DemInputError(
+            f"The 'radius_m' parameter of System must have one entry per sphere ({n}). Got {rad.shape[0]}.")
+    if not np.all(np.isfinite(pos)):
+        raise DemInputError("The 'pos_m' parameter of System must be finite. Got non-finite entries.")
+    if np.any(rad <= 0) or not np.all(np.isfinite(rad)):
+        raise DemInputError(
+            f"The 'radius_m' parameter of System must be finite and > 0. Got min {rad.min()!r}.")
+    return pos, rad
 
-    return BondParams(moment_factor=0.0)
+
+def _check_options(local_damping, time_step_factor, contact_law, damping_velocity) -> None:
+    if not (0.0 <= local_damping < 1.0):
+        raise DemInputError(
+            f"The 'local_damping' parameter of System must be a float in [0, 1). Got {local_damping!r}.")
+    if not (0.0 < time_step_factor <= 1.0):
+        raise DemInputError(
+            f"The 'time_step_factor' parameter of System must be a float in (0, 1]. Got {time_step_factor!r}.")
+    if contact_law not in CONTACT_LAWS:
+        raise DemInputError(
+            f"The 'contact_law' parameter of System must be one of {sorted(CONTACT_LAWS)}. Got {contact_law!r}.")
+    if damping_velocity not in ("mid_step", "at_force"):
+        raise DemInputError(
+            "The 'damping_velocity' parameter of System must be 'mid_step' or 'at_force'. "
+            f"Got {damping_velocity!r}.")
+
+
+def _wall_arrays(walls: list[PlaneWall], n: int) -> WallArrays:
+    nw = len(walls)
+    wn = np.array([w.normal for w in walls], dtype=np.float64).reshape(nw, 3)
+    if nw:
+        wn /= np.linalg.norm(wn, axis=1)[:, None]
+    return WallArrays(np.array([w.point_m for w in walls], dtype=np.float64).reshape(nw, 3), wn,
+                      np.array([w.velocity_m_s for w in walls], dtype=np.float64).reshape(nw, 3),
+                      np.array([w.mass_kg for w in walls], dtype=np.float64).reshape(nw),
+                      np.zeros((nw, 3)), np.zeros((n, nw, 3)), np.zeros((n, nw), dtype=np.int8),
+                      np.zeros((n, nw, 3)), np.full((n, nw), -1.0))
+
+
+def _contact_parameters(material, wall_material, contact_law, local_damping, damping_velocity,
+                        gravity_m_s2, periodic_z_m, skin_m, beta, drum) -> np.ndarray:
+    """The kernels' scalar parameter vector (indices ``kernels.CP_*``)."""
+    cp = np.zeros(K.N_CP)
+    cp[K.CP_ESTAR_PP] = effective_youngs_Pa(material, material)
+    cp[K.CP_GSTAR_PP] = effective_shear_Pa(material, material)
+    cp[K.CP_MU_PP] = material.friction_coef
+    cp[K.CP_ETA_PP] = damping_coefficient(material.restitution)
+    cp[K.CP_ESTAR_PW] = effective_youngs_Pa(material, wall_material)
+    cp[K.CP_GSTAR_PW] = effective_shear_Pa(material, wall_material)
+    cp[K.CP_MU_PW] = min(material.friction_coef, wall_material.friction_coef)
+    cp[K.CP_ETA_PW] = damping_coefficient(math.sqrt(material.restitution * wall_material.restitution))
+    if contact_law == "linear_yade":
+        # Yade's linear spring (see dem.contacts.CONTACT_LAW_LINEAR_YADE): k = 2 e_star r_eff
+        es, ew = material.youngs_modulus_Pa, wall_material.youngs_modulus_Pa
+        gs, gw = es * material.poisson_ratio, ew * wall_material.poisson_ratio
+        cp[K.CP_ESTAR_PP] = es
+        cp[K.CP_GSTAR_PP] = gs
+        cp[K.CP_ESTAR_PW] = es * ew / (es + ew)
+        cp[K.CP_GSTAR_PW] = gs * gw / (gs + gw) if gs + gw > 0 else 0.0
+    cp[K.CP_CONTACT_LAW] = CONTACT_LAWS[contact_law]
+    cp[K.CP_LOCAL_DAMPING] = local_damping
+    cp[K.CP_DAMP_AT_STEP] = 1.0 if damping_velocity == "at_force" else 0.0
+    cp[K.CP_GX:K.CP_GZ + 1] = np.asarray(gravity_m_s2, dtype=float)
+    cp[K.CP_LZ] = float(periodic_z_m)
+    cp[K.CP_SKIN] = skin_m
+    cp[K.CP_BETA] = beta
+    if drum is not None:
+        cp[K.CP_DRUM_R] = drum.radius_m
+        cp[K.CP_DRUM_OMEGA] = drum.omega_rad_s
+        cp[K.CP_LIFTER_H] = drum.lifter_height_m
+        cp[K.CP_LIFTER_HW] = 0.5 * drum.lifter_width_m
+    cp[K.CP_HIST_LO] = HIST_LO_LOG10
+    cp[K.CP_HIST_DLOG] = HIST_DLOG10
+    return cp

@@ -5,11 +5,12 @@ import math
 import numpy as np
 import pytest
 
-from dem.bonds import (BROKEN_SHEAR, BROKEN_TENSION, INTACT, BondParams, BondSet, bond_forces,
-                       find_bond_pairs)
+from dem.bonds import (BROKEN_SHEAR, BROKEN_TENSION, INTACT, P_AREA, BondParams, BondSet,
+                       bond_step, find_bond_pairs)
 from dem.errors import DemInputError
 from dem.materials import Material
 from dem.reference import reference_bond
+from dem.state import LOAD_F, LOAD_TI, LOAD_TJ
 from dem.system import System
 
 R = 1e-3
@@ -24,13 +25,15 @@ def _pair(params, gap=0.0):
 
 
 def _apply(pos, rad, bs, vel, omega=None, dt=1e-7):
-    """Move by vel*dt and update the bond (what the integrator does), return forces, torques."""
+    """Move by vel*dt and update the bond (what the integrator does), return forces, torques
+    (from the bond's load row: force on j, torque on i, torque on j; see dem.state)."""
     omega = np.zeros((2, 3)) if omega is None else omega
     pos += vel * dt
-    f = np.zeros((2, 3))
-    t = np.zeros((2, 3))
-    nbr = bond_forces(pos, vel, omega, rad, f, t, 0.0, dt, bs.ij, bs.props, bs.fn, bs.fs, bs.mb,
-                      bs.mt, bs.length, bs.state, bs.beta)
+    nbr = bond_step(0, bs.ij, bs.props, bs.fn, bs.fs, bs.mb, bs.mt, bs.length, bs.state,
+                    bs.arrays.load, pos, vel, omega, rad, 0.0, dt, bs.beta)
+    row = bs.arrays.load[0]
+    f = np.array([-row[LOAD_F:LOAD_F + 3], row[LOAD_F:LOAD_F + 3]])
+    t = np.array([row[LOAD_TI:LOAD_TI + 3], row[LOAD_TJ:LOAD_TJ + 3]])
     return f, t, nbr
 
 
@@ -126,7 +129,7 @@ def test_bond_kernel_matches_reference(seed):
     pos, rad, bs = _pair(p, gap=2e-5)
     pos[1] += rng.normal(0, 1e-4, 3)
     bs = BondSet(np.array([[0, 1]]), pos, rad, p)
-    area = bs.props[0, 0]
+    area = bs.props[0, P_AREA]
     state = {"fn": 0.0, "fs": np.zeros(3), "mb": np.zeros(3), "mt": 0.0, "length": bs.length[0]}
     for _ in range(40):
         vel = rng.normal(0, 2e-3, (2, 3))

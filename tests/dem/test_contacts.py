@@ -68,7 +68,7 @@ def _random_system(seed, n=8):
     s.vel[:] = rng.normal(0, 0.3, (n, 3))
     s.omega[:] = rng.normal(0, 300.0, (n, 3))
     # put some history on existing contacts
-    s.c_xi[:] = rng.normal(0, 1e-7, s.c_xi.shape)
+    s.pairs.xi[:] = rng.normal(0, 1e-7, s.pairs.xi.shape)
     s.w_xi[:] = rng.normal(0, 1e-7, s.w_xi.shape)
     return s
 
@@ -76,12 +76,8 @@ def _random_system(seed, n=8):
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_numba_forces_match_plain_python_reference(seed):
     s = _random_system(seed)
-    hist = {}
-    for i in range(s.n):
-        for k in range(s.c_partner.shape[1]):
-            j = s.c_partner[i, k]
-            if j >= 0:
-                hist[(i, int(j))] = s.c_xi[i, k].copy()
+    pr = s.pairs
+    hist = {(int(pr.i[k]), int(pr.j[k])): pr.xi[k].copy() for k in range(pr.i.shape[0]) if pr.touch[k]}
     wh = {(i, 0): s.w_xi[i, 0].copy() for i in range(s.n) if s.w_in[i, 0]}
     assert len(hist) >= 3 and len(wh) >= 2
     cp = s.cp
@@ -97,8 +93,8 @@ def test_numba_forces_match_plain_python_reference(seed):
     np.testing.assert_allclose(s.force, f_ref, rtol=1e-9, atol=1e-9 * scale)
     np.testing.assert_allclose(s.torque, t_ref, rtol=1e-9, atol=1e-9 * np.max(np.abs(t_ref)))
     for (i, j), xi in h_ref.items():
-        k = int(np.nonzero(s.c_partner[i] == j)[0][0])
-        np.testing.assert_allclose(s.c_xi[i, k], xi, rtol=1e-9, atol=1e-15)
+        k = int(np.nonzero((pr.i == i) & (pr.j == j))[0][0])
+        np.testing.assert_allclose(pr.xi[k], xi, rtol=1e-9, atol=1e-15)
     for (i, _), xi in wh_ref.items():
         np.testing.assert_allclose(s.w_xi[i, 0], xi, rtol=1e-9, atol=1e-15)
 

@@ -4,13 +4,14 @@ import math
 
 import numpy as np
 import pytest
+import scipy.constants
 
 from dem.drum import critical_speed_rad_s, drum_test
 from dem.errors import DemInputError
 
 
 def test_critical_speed_formula():
-    assert critical_speed_rad_s(0.5, 0.025) == pytest.approx(math.sqrt(2 * 9.81 / 0.475))
+    assert critical_speed_rad_s(0.5, 0.025) == pytest.approx(math.sqrt(2 * scipy.constants.g / 0.475))
     with pytest.raises(DemInputError, match="ball_diameter_m"):
         critical_speed_rad_s(0.5, 0.6)
 
@@ -27,7 +28,7 @@ def test_drum_power_and_spectrum_are_physical(short_run):
     assert r.power_W > 0 and r.torque_Nm < 0
     # power is bounded by lifting the whole charge's weight at the shell speed
     m_charge = r.n_balls_full_mill * 7800 * math.pi * 0.04**3 / 6
-    assert r.power_W < m_charge * 9.81 * 0.25 * r.omega_rad_s
+    assert r.power_W < m_charge * scipy.constants.g * 0.25 * r.omega_rad_s
     sp = r.spectrum
     assert list(sp.columns) == ["energy_lo_J", "energy_hi_J", "energy_mid_J", "ball_ball_per_s",
                                 "ball_wall_per_s", "total_per_s"]

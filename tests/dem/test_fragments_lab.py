@@ -141,3 +141,32 @@ def test_drop_weight_breaks_more_at_higher_energy(small_agg):
     assert 0 < lo.absorbed_energy_J <= 0.5 * lo.drop_mass_kg * lo.impact_speed_m_s**2 * (1 + 1e-9)
     with pytest.raises(DemInputError, match="specific_energy_J_kg"):
         drop_weight_test(small_agg, _bonds(small_agg), -1.0)
+
+
+def _with_chip(agg):
+    """The agglomerate with one extra sphere on its top sphere, 45 degrees off the axis and held
+    by a single bond across a gap of 0.2 (R1 + R2): the top platen meets it first, shears its
+    bond off long before the particle breaks, and it slides away (friction tan 30 < tan 45)."""
+    import dataclasses
+
+    top = int(np.argmax(agg.pos_m[:, 2] + agg.radius_m))
+    r = agg.radius_m[top]
+    chip = agg.pos_m[top] + 1.2 * 2 * r * np.array([math.sqrt(0.5), 0.0, math.sqrt(0.5)])
+    return dataclasses.replace(agg, pos_m=np.vstack([agg.pos_m, chip]),
+                               radius_m=np.r_[agg.radius_m, r],
+                               bond_pairs=np.vstack([agg.bond_pairs, [[top, agg.n_spheres]]]))
+
+
+def test_a_particle_that_chips_first_is_followed_to_its_split():
+    agg = _with_chip(make_agglomerate(0.016, 58, random_state=3))
+    bonds = _bonds(agg, 10e6)
+    # the old end (0.5 % of the height past the peak, no fragment check) stops on the chip
+    old = compression_test(agg, bonds, platen_speed_m_s=0.5, post_peak_radii=0.0,
+                           split_largest_fraction=1.0)
+    assert old.fragments.largest_mass_fraction > 0.95
+    new = compression_test(agg, bonds, platen_speed_m_s=0.5)
+    assert new.fragments.largest_mass_fraction < 0.9          # split
+    assert new.n_steps > old.n_steps
+    assert new.peak_force_N > 3.0 * old.peak_force_N            # the particle's peak, not the chip's
+    with pytest.raises(DemInputError, match="split_largest_fraction"):
+        compression_test(agg, bonds, split_largest_fraction=0.0)

@@ -1,0 +1,79 @@
+"""One timed grindtwin run for benchmarks/dem_parallel.py (a subprocess, so that the thread count
+is set by NUMBA_NUM_THREADS before numba starts).
+
+``python benchmarks/dem_parallel_worker.py PACK DT_S STEPS`` runs the compression test's loading
+phase on the packing PACK (x y z r per line, as written for Yade) with the Yade-JCFpm mirror
+physics and prints one JSON line: steps, wall and CPU seconds of the stepping alone.
+``... PACK DT_S full`` runs the whole compression test instead and prints its peak force and energy.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import time
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+import numba
+import numpy as np
+
+from dem.agglomerate import Agglomerate
+from dem.bonds import BondParams, BondSet, find_bond_pairs
+from dem.lab import compression_test
+from dem.materials import Material
+from dem.system import PlaneWall, System
+
+BONDS = BondParams.yade_jcfpm(30e9, 0.4, 10e6, 20e6, 30.0)
+ROCK = Material(youngs_modulus_Pa=30e9, poisson_ratio=0.4, density_kg_m3=2700.0,
+                friction_coef=math.tan(math.radians(30)), restitution=1.0)
+PLATEN = Material(youngs_modulus_Pa=210e9, poisson_ratio=0.3, density_kg_m3=7800.0,
+                  friction_coef=math.tan(math.radians(30)), restitution=1.0)
+MIRROR = dict(material=ROCK, platen_material=PLATEN, contact_law="linear_yade",
+              damping_velocity="at_force", local_damping=0.7, platen_speed_m_s=0.1)
+
+
+def read_pack(path: str) -> Agglomerate:
+    solid = float(open(path).readline().split()[-1])
+    a = np.loadtxt(path, comments="#")
+    pos, rad = a[:, :3], a[:, 3]
+    d = 2.0 * float(np.max(np.linalg.norm(pos, axis=1) + rad))
+    return Agglomerate(pos, rad, find_bond_pairs(pos, rad, 1.3), d, (d / 2,) * 3,
+                       math.pi / 6 * d**3, solid, 0.0, 0)
+
+
+def loading_system(agg: Agglomerate, dt_s: float) -> System:
+    pos = agg.pos_m.copy()
+    bs = BondSet(agg.bond_pairs, pos, agg.radius_m, BONDS)
+    z_lo = float(np.min(pos[:, 2] - agg.radius_m))
+    z_hi = float(np.max(pos[:, 2] + agg.radius_m))
+    walls = [PlaneWall((0, 0, z_lo), (0, 0, 1)), PlaneWall((0, 0, z_hi), (0, 0, -1), (0, 0, -0.1))]
+    return System(pos, agg.radius_m, ROCK, density_kg_m3=2700.0 / agg.solid_fraction, bonds=bs,
+                  wall_material=PLATEN, walls=walls, local_damping=0.7, dt_s=dt_s,
+                  contact_law="linear_yade", damping_velocity="at_force")
+
+
+def main():
+    agg = read_pack(sys.argv[1])
+    dt = float(sys.argv[2])
+    if sys.argv[3] == "full":
+        s = loading_system(agg, dt)          # only for the critical step of this packing
+        r = compression_test(agg, BONDS, time_step_factor=dt / s.critical_dt_s, **MIRROR)
+        print(json.dumps({"peak_force_N": r.peak_force_N, "fracture_energy_J": r.fracture_energy_J,
+                          "steps": r.n_steps, "wall_s": r.wall_time_s, "dt_s": r.dt_s,
+                          "threads": numba.get_num_threads()}))
+        return
+    steps = int(sys.argv[3])
+    s = loading_system(agg, dt)
+    s.run(20)                                # kernels from the cache
+    w0, c0 = time.perf_counter(), time.process_time()
+    s.run(steps)
+    print(json.dumps({"steps": steps, "wall_s": time.perf_counter() - w0,
+                      "cpu_s": time.process_time() - c0, "threads": numba.get_num_threads(),
+                      "n_spheres": agg.n_spheres, "n_bonds": agg.n_bonds}))
+
+
+if __name__ == "__main__":
+    main()
