@@ -16,6 +16,7 @@ from typing import Any
 from scenarios.errors import SceneError
 from scenarios.scene.history import read_history
 from scenarios.scene.keypaths import did_you_mean, format_path
+from scenarios.scene.ranges import feed_problem, nominal_feed_tph
 from twin import EFFECTS, known_effects
 from twin.ore import mineral_names
 
@@ -222,6 +223,12 @@ def _check_feed(data, ore_names: list[str], r: _Report) -> None:
         if _get(data, "controller", "kind") not in (None, "none"):
             r.add(("controller", "kind"), "a batch scene (effects without `transport`) has "
                   "nothing to control; use kind = \"none\"", _get(data, "controller", "kind"))
+    nominal = nominal_feed_tph(_get(data, "mill", "preset"))
+    for loc in (("feed", "feed_tph"), ("controller", "bounds", "feed_tph_max")):
+        v = _num(_get(data, *loc))
+        problem = feed_problem(v, nominal) if v is not None and v > 0 else None
+        if problem:
+            r.add(loc, problem, v)
     p80 = _num(feed.get("p80_um", 3200.0))
     top = _num(_get(data, "mill", "size_classes", "top_um") or 6700.0)
     if p80 is not None and top is not None and p80 >= top:
@@ -281,7 +288,8 @@ def _check_history(data, ore_names: list[str], base_dir: Path, r: _Report) -> No
         return
     try:
         gap = _num(feed.get("history_max_gap_h", 10 / 60))
-        history = read_history(path, sample_period_h=dt, max_gap_h=gap if gap and gap > 0 else 10 / 60)
+        history = read_history(path, sample_period_h=dt, max_gap_h=gap if gap and gap > 0 else 10 / 60,
+                               feed_nominal_tph=nominal_feed_tph(_get(data, "mill", "preset")))
     except SceneError as exc:
         for line in str(exc).splitlines():
             r.add(("feed", "history"), line.strip())
@@ -377,4 +385,11 @@ def _check_plant(data, r: _Report) -> None:
         effects = [e for e in data.get("effects") or [] if isinstance(e, str)]
     if plant.get("effects") is not None:
         _check_requirements(effects, ("plant", "effects"), r)
+        scene_effects = data.get("effects") if isinstance(data.get("effects"), list) else []
+        continuous = "transport" in scene_effects
+        if continuous != ("transport" in effects):
+            kind = "a continuous mill (effects has `transport`)" if continuous else \
+                "a batch grind (effects without `transport`)"
+            r.add(("plant", "effects"), f"the scene is {kind}; the plant must be the same kind of "
+                  f"mill: {'add' if continuous else 'remove'} `transport` here", plant.get("effects"))
     _check_effect_options(plant.get("effect_options"), effects, ("plant", "effect_options"), r)

@@ -33,9 +33,10 @@ def mill_preset(name: str) -> dict[str, float | int]:
 
 class Section(BaseModel):
     """Base of every section: unknown keys are errors; values are not coerced (strict), except
-    that an integer is accepted where a float is expected."""
+    that an integer is accepted where a float is expected; NaN and infinities are refused
+    wherever a number is expected (TOML allows ``nan`` and ``inf``, no quantity here is)."""
 
-    model_config = ConfigDict(extra="forbid", strict=True)
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
 
 class SceneInfo(Section):
@@ -131,7 +132,7 @@ class Weights(Section):
 class Bounds(Section):
     """``[controller.bounds]``: input bounds and rate limits (``None`` = no rate limit)."""
 
-    feed_tph_min: float | None = Field(default=None, ge=0)
+    feed_tph_min: float | None = Field(default=None, gt=0)
     feed_tph_max: float | None = Field(default=None, gt=0)
     speed_min: float = Field(default=0.60, gt=0, lt=1)
     speed_max: float = Field(default=0.85, gt=0, lt=1)
