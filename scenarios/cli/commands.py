@@ -8,12 +8,15 @@ reason), so it behaves the same however it is called.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
+import signal
 import sys
+import threading
 from pathlib import Path
 
-from scenarios.errors import RunError, SceneError
+from scenarios.errors import Interrupted, RunError, SceneError
 
 
 def _fail(kind: str, command: str, exc: BaseException) -> int:
@@ -24,22 +27,68 @@ def _fail(kind: str, command: str, exc: BaseException) -> int:
     return 1
 
 
+#: Packages whose exception families the commands map to exit codes: (module, input error, any error).
+ERROR_FAMILIES = (("twin.errors", "TwinInputError", "TwinError"), ("mpc.errors", "MpcInputError", "MpcError"),
+                  ("dem.errors", "DemInputError", "DemError"))
+
+
+def _families() -> tuple[tuple, tuple]:
+    """(bad-input classes, failed-run classes) of the packages loaded so far: a package that was
+    never imported raised nothing (so the CLI imports none of them for this)."""
+    bad, failed = [SceneError], [RunError, OSError]
+    for module, input_name, base_name in ERROR_FAMILIES:
+        mod = sys.modules.get(module)
+        if mod is not None:
+            bad.append(getattr(mod, input_name))
+            failed.append(getattr(mod, base_name))
+    return tuple(bad), tuple(failed)
+
+
+@contextlib.contextmanager
+def _sigterm_unwinds():
+    """SIGTERM raises :class:`Interrupted` (as Ctrl-C raises KeyboardInterrupt), so that the
+    run unwinds and removes its partial output; the previous handler is restored after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        raise Interrupted(signum)
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _interrupted(command: str, signum: int) -> int:
+    sys.stderr.write(f"grindtwin: {command} interrupted by {signal.Signals(signum).name}; no results "
+                     "were written (a partial folder, if any, was removed)\n")
+    return 128 + signum  # the shell's convention: 130 for SIGINT, 143 for SIGTERM
+
+
 def _exit_codes(command: str):
-    """Map the exception families to exit codes (2 bad input, 1 failed run)."""
+    """Map the exception families to exit codes: 2 bad input, 1 failed run, 128 + signal number
+    when interrupted (SIGINT, SIGTERM); one line on stderr, no traceback."""
 
     def wrap(fn):
         @functools.wraps(fn)
         def inner(args) -> int:
-            from twin import TwinError, TwinInputError
-
             try:
-                return fn(args)
-            except (SceneError, TwinInputError) as exc:
-                return _fail("input", command, exc)
-            except (RunError, TwinError) as exc:
-                return _fail("run", command, exc)
-            except OSError as exc:
-                return _fail("run", command, exc)
+                with _sigterm_unwinds():
+                    return fn(args)
+            except KeyboardInterrupt:
+                return _interrupted(command, signal.SIGINT)
+            except Interrupted as exc:
+                return _interrupted(command, exc.signum)
+            except Exception as exc:  # noqa: BLE001 - sorted by family below, others re-raised
+                bad, failed = _families()
+                if isinstance(exc, bad):
+                    return _fail("input", command, exc)
+                if isinstance(exc, failed):
+                    return _fail("run", command, exc)
+                raise
         return inner
     return wrap
 
@@ -53,6 +102,8 @@ def _print_kpis(summary: dict, out=None) -> None:
         else:
             text = f"{value:.4g}"
         out.write(f"  {key:26s} {text}\n")
+    for warning in summary.get("warnings") or []:
+        sys.stderr.write(f"grindtwin: warning: {warning}\n")
 
 
 def _add_output_options(p) -> None:
@@ -143,7 +194,9 @@ def add_sweep_parser(subparsers):
     g = p.add_mutually_exclusive_group()
     g.add_argument("--workers", type=int, default=None, help="local processes (default: all cores)")
     g.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://host:8786")
-    p.add_argument("--out", help="write sweep.csv and sweep.parquet into this folder")
+    p.add_argument("--out", help="write sweep.csv and sweep.parquet into this folder (created; replaced when complete)")
+    p.add_argument("--max-cases", type=int, default=None, metavar="N",
+                   help="allow up to N cases (default: scenarios.run.sweep.MAX_CASES, 1000)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_sweep)
     return p
@@ -153,51 +206,65 @@ def add_sweep_parser(subparsers):
 def cmd_sweep(args) -> int:
     import pandas as pd
 
-    from scenarios.run import parse_vary, run_sweep
+    from scenarios.output import claim_output
+    from scenarios.run import MAX_CASES, parse_vary, run_sweep
 
     if args.workers is not None and args.workers < 1:
         raise SceneError(f"--workers must be >= 1 (got {args.workers})")
+    if args.max_cases is not None and args.max_cases < 1:
+        raise SceneError(f"--max-cases must be >= 1 (got {args.max_cases})")
     vary = {}
     for text in args.vary:
         key, values = parse_vary(text)
         if key in vary:
             raise SceneError(f"--vary {key}: given twice")
         vary[key] = values
-    table = run_sweep(args.scene, vary, sweep_case, mode=args.mode, workers=args.workers,
-                      scheduler=args.scheduler, progress=not args.quiet)
-    if args.out:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        tmp = out / "sweep.csv.partial"
-        table.to_csv(tmp, index=False)
-        tmp.replace(out / "sweep.csv")
-        flat = table.copy()
-        for c in flat.columns:  # blends etc. are dicts: parquet wants plain columns
-            if flat[c].map(lambda v: isinstance(v, (dict, list))).any():
-                flat[c] = flat[c].map(str)
-        tmp = out / "sweep.parquet.partial"
-        flat.to_parquet(tmp, index=False)
-        tmp.replace(out / "sweep.parquet")
+    with claim_output(args.out, protect=(Path(args.scene),)) as claim:
+        table = run_sweep(args.scene, vary, sweep_case, mode=args.mode, workers=args.workers,
+                          scheduler=args.scheduler, progress=not args.quiet,
+                          max_cases=args.max_cases or MAX_CASES)
+        if claim is not None:
+            claim.commit(lambda folder: _write_sweep(table, folder), kind="sweep")
     cols = ["case", *vary, "p80_iae_um_h", "specific_energy_kwh_t", "throughput_t", "error"]
     with pd.option_context("display.width", 160, "display.max_columns", 20):
         print(table[[c for c in cols if c in table.columns]].to_string(index=False))
-    failed = int(table["error"].notna().sum())
-    if failed:
-        sys.stderr.write(f"grindtwin: sweep: {failed} of {len(table)} cases failed (see the error column)\n")
-        return 1 if failed == len(table) else 0
+    failed = table[table["error"].notna()]
+    if len(failed):
+        sys.stderr.write(f"grindtwin: sweep: {len(failed)} of {len(table)} cases failed:\n")
+        for _, row in failed.head(SWEEP_FAILURES_SHOWN).iterrows():
+            setting = ", ".join(f"{k}={row[k]!r}" for k in vary)
+            sys.stderr.write(f"  case {row['case']} ({setting}): {row['error']}\n")
+        if len(failed) > SWEEP_FAILURES_SHOWN:
+            sys.stderr.write(f"  and {len(failed) - SWEEP_FAILURES_SHOWN} more (see the error column)\n")
+        return 1
     return 0
+
+
+#: Failed cases listed on stderr by ``grindtwin sweep`` (the rest are in the table's error column).
+SWEEP_FAILURES_SHOWN = 10
+
+
+def _write_sweep(table, folder: Path) -> None:
+    table.to_csv(folder / "sweep.csv", index=False)
+    flat = table.copy()
+    for c in flat.columns:  # blends etc. are dicts: parquet wants plain columns
+        if flat[c].map(lambda v: isinstance(v, (dict, list))).any():
+            flat[c] = flat[c].map(str)
+    flat.to_parquet(folder / "sweep.parquet", index=False)
 
 
 # --------------------------------------------------------------------------- check
 def add_check_parser(subparsers):
-    p = subparsers.add_parser("check", help="validate scene files only (exit 2 listing every problem)")
+    p = subparsers.add_parser("check", help="validate scene files: everything run would refuse, "
+                              "without running (exit 2 listing every problem)")
     p.add_argument("scenes", nargs="+", metavar="SCENE", help="scene file(s) (TOML)")
     p.set_defaults(func=cmd_check)
     return p
 
 
+@_exit_codes("check")
 def cmd_check(args) -> int:
-    from scenarios.scene import check_scene
+    from scenarios.run import check_scene
 
     bad = 0
     for path in args.scenes:

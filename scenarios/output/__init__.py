@@ -3,6 +3,7 @@ the self-contained HTML report."""
 
 from scenarios.output.plots import PLOTS, write_plots
 from scenarios.output.report import render_report, write_report
-from scenarios.output.write import INCOMPLETE_MARKER, json_safe, write_run
+from scenarios.output.write import INCOMPLETE_MARKER, MANIFEST, OutputClaim, claim_output, json_safe, write_files, write_run
 
-__all__ = ["INCOMPLETE_MARKER", "PLOTS", "json_safe", "render_report", "write_plots", "write_report", "write_run"]
+__all__ = ["INCOMPLETE_MARKER", "MANIFEST", "OutputClaim", "PLOTS", "claim_output", "json_safe", "render_report",
+           "write_files", "write_plots", "write_report", "write_run"]
