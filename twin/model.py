@@ -16,9 +16,9 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
-from .effects.base import Assembly
-from .effects.registry import resolve
-from .errors import TwinInputError
+from .effects.base import Build, EffectContext
+from .effects.registry import EFFECTS, resolve
+from .errors import ModelError, SolverError, TwinInputError, close_matches
 from .sizes import SizeGrid, smooth_pxx
 
 INPUT_NAMES = ("feed_tph", "speed_frac_critical")
@@ -50,7 +50,16 @@ class ModelSpec:
 
 class Model:
     """A built mill model: symbols, the ODE right-hand side and named outputs as CasADi
-    Functions of (x, u, d). The same object serves plant, estimator and controller."""
+    Functions of (x, u, d). The same object serves plant, estimator and controller.
+
+    It holds exactly what its effects provide: the mass states, the states, algebraic
+    aggregates and outputs its effects add (``effect_of`` names the effect of each), and the
+    model's own outputs ``holdup_t`` (total hold-up [t]), ``content_p80_um`` and
+    ``content_psd_frac`` (the mill content's size distribution). ``p80_um`` is the product's
+    P80 and exists only with ``transport``: a batch mill has no product."""
+
+    #: Outputs of every model, whatever its effects.
+    CORE_OUTPUTS = ("holdup_t", "content_p80_um", "content_psd_frac")
 
     def __init__(self, spec: ModelSpec):
         self.spec = spec
@@ -62,42 +71,42 @@ class Model:
         mass = [[xm[(c * N + k) * n:(c * N + k + 1) * n] for k in range(N)] for c in range(C)]
         self.u = ca.SX.sym("u", len(INPUT_NAMES))
         self.d = ca.SX.sym("d", C + 1)
-        asm = Assembly(spec, self.u, self.d, mass)
+        build = Build(spec, self.u, self.d, mass)
         for eff in effects:
-            if not getattr(eff, "after_outputs", False):
-                eff.apply(asm)
-        psd = asm.outputs.get("product_tph", asm.class_mass())
-        asm.outputs["holdup_t"] = asm.holdup()
-        asm.outputs["p80_um"] = smooth_pxx(spec.grid, psd)
-        asm.outputs["psd_frac"] = psd / (ca.sum1(psd) + 1e-12 * spec.holdup_nominal_t)
-        for eff in effects:
-            if getattr(eff, "after_outputs", False):
-                eff.apply(asm)
-        self._asm = asm
-        blocks = [asm.rhs.get(id(mass[c][k]), ca.SX.zeros(n)) for c in range(C) for k in range(N)]
-        extra = list(asm.extra_states.items())
-        self.x = ca.vertcat(xm, *[sym for _, (sym, _) in extra])
-        xdot_dae = ca.vertcat(*blocks, *[asm.rhs.get(id(sym), ca.SX.zeros(sym.numel()))
-                                         for _, (sym, _) in extra])
+            eff.apply(EffectContext(build, eff))
+        content = sum(mass[c][k] for c in range(C) for k in range(N))
+        build.outputs["holdup_t"] = ca.sum1(content)
+        build.outputs["content_p80_um"] = smooth_pxx(spec.grid, content)
+        build.outputs["content_psd_frac"] = content / (ca.sum1(content) + 1e-12 * spec.holdup_nominal_t)
+        self._build = build
+        self.effect_of = {name: build.provider.get(name, "model") for name in build.outputs}
+        self.effect_of |= {name: eff for name, (_, _, eff) in build.extra_states.items()}
+        blocks = [build.rhs_of(mass[c][k]) for c in range(C) for k in range(N)]
+        extra = list(build.extra_states.items())
+        self.x = ca.vertcat(xm, *[sym for _, (sym, _, _) in extra])
+        xdot_dae = ca.vertcat(*blocks, *[build.rhs_of(sym) for _, (sym, _, _) in extra])
         # aggregates (hold-ups, soft mass, fines) as algebraic variables z = g(x): the DAE form
         # keeps the integrator's Jacobian sparse; substituting z = g(x) gives the plain ODE
-        self.z = ca.vertcat(*[z for z, _ in asm.aggregates.values()]) if asm.aggregates else ca.SX(0, 1)
-        self.z_expr = ca.vertcat(*[e for _, e in asm.aggregates.values()]) if asm.aggregates else ca.SX(0, 1)
-        self.z_names = list(asm.aggregates)
+        agg = build.aggregates
+        self.z = ca.vertcat(*[z for z, _ in agg.values()]) if agg else ca.SX(0, 1)
+        self.z_expr = ca.vertcat(*[e for _, e in agg.values()]) if agg else ca.SX(0, 1)
+        self.z_names = list(agg)
+        self.aggregate_users = {name: sorted(users) for name, users in build.aggregate_users.items()}
         self.dae = {"x": self.x, "z": self.z, "ode": xdot_dae, "alg": self.z - self.z_expr}
         self.xdot = self._substitute(xdot_dae)
-        self._psd_dae = psd
-        self._psd = self._substitute(psd)
-        self.output_exprs_dae = dict(asm.outputs)
+        self.psd_what = "product" if "product_tph" in build.outputs else "content"
+        self._psd_dae = build.outputs["product_tph"] if self.psd_what == "product" else content
+        self._psd = self._substitute(self._psd_dae)
+        self.output_exprs_dae = dict(build.outputs)
         self.n_mass = C * N * n
-        self.state_groups = [("mass [t]", self.n_mass)] + [(name, sym.numel()) for name, (sym, _) in extra]
-        self._extra_initial = [init for _, (_, init) in extra]
+        self.state_groups = [("mass [t]", self.n_mass)] + [(name, sym.numel()) for name, (sym, _, _) in extra]
+        self._extra_initial = [init for _, (_, init, _) in extra]
         self.f = ca.Function("f", [self.x, self.u, self.d], [self.xdot], ["x", "u", "d"], ["xdot"])
         self.outputs = {name: ca.Function(name, [self.x, self.u, self.d], [self._substitute(expr)],
                                           ["x", "u", "d"], [name])
-                        for name, expr in asm.outputs.items()}
-        self.parameters = asm.parameters
-        self.terms = asm.terms
+                        for name, expr in build.outputs.items()}
+        self.parameters = build.parameters
+        self.terms = build.terms
 
     def _substitute(self, expr):
         if self.z.numel() == 0:
@@ -107,8 +116,6 @@ class Model:
     def checked_state(self, x, where: str) -> np.ndarray:
         """``x`` with round-off negative masses set to zero; SolverError if it is not finite or a
         mass is negative beyond round-off (mass is never negative)."""
-        from .errors import SolverError
-
         x = np.array(x, dtype=float)
         if not np.all(np.isfinite(x)):
             raise SolverError(f"Non-finite state in {where}.")
@@ -139,9 +146,17 @@ class Model:
         """Mass states as an array (component, mixer, class) [t]."""
         return np.asarray(x, dtype=float).ravel()[: self.n_mass].reshape(self.shape)
 
-    def product_psd_function(self) -> ca.Function:
-        """Product flow per size class [t/h] (or mill content per class [t] in a batch model)."""
+    def psd_function(self) -> ca.Function:
+        """The model's size distribution per class: product flow [t/h], or in a batch model
+        (no ``transport``, :attr:`psd_what` ``"content"``) the mill content [t]."""
         return ca.Function("psd", [self.x, self.u, self.d], [self._psd], ["x", "u", "d"], ["psd"])
+
+    def product_psd_function(self) -> ca.Function:
+        """Product flow per size class [t/h]; a ModelError in a batch model, which has no product."""
+        if self.psd_what != "product":
+            raise ModelError("A batch model (no 'transport' effect) has no product; use psd_function() "
+                             "for the mill content.")
+        return self.psd_function()
 
     def passing_function(self, size_um: float) -> ca.Function:
         """Fraction of the product passing ``size_um``: linear in the states' flows, so a smooth
@@ -175,7 +190,6 @@ class Model:
 
     def evaluate(self, name: str, x, u, d) -> np.ndarray | float:
         if name not in self.outputs:
-            from .errors import close_matches
             raise TwinInputError(f"Unknown output {name!r} of this model.{close_matches(name, self.outputs)} "
                                  f"Outputs: {', '.join(self.outputs)}.")
         val = np.asarray(self.outputs[name](x, u, d), dtype=float).ravel()
@@ -189,8 +203,6 @@ class Model:
     # ------------------------------------------------------------------ report
     def describe(self) -> str:
         """The effects, states, inputs, outputs, parameters and sources actually in the model."""
-        from .effects.registry import EFFECTS
-
         lines = [f"Model: {len(self.effect_names)} effect(s), {self.n_x} states, "
                  f"{self.n_instructions} RHS operations"]
         lines.append("Effects:")
@@ -204,7 +216,10 @@ class Model:
         lines.append("Inputs: " + ", ".join(INPUT_NAMES))
         lines.append("Disturbances: " + ", ".join([f"blend_{c}" for c in self.spec.component_names]
                                                    + ["hardness_scale"]))
-        lines.append("Outputs: " + ", ".join(self.outputs))
+        lines.append("Outputs: " + ", ".join(f"{name} ({self.effect_of[name]})" for name in self.outputs))
+        if self.z_names:
+            lines.append("Algebraic aggregates: " + ", ".join(
+                f"{name} ({', '.join(self.aggregate_users[name])})" for name in self.z_names))
         if self.parameters:
             lines.append("Parameters:")
             for name, (val, unit, src) in self.parameters.items():

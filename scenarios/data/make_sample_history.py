@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from twin.ore.ores import reference_ores
+from twin import reference_ores
 
 MINUTES = 24 * 60
 START = pd.Timestamp("2026-01-15T00:00:00")

@@ -41,7 +41,10 @@ def write_plots(result, folder: Path) -> list[Path]:
         written.append(path)
 
     fig, ax = plt.subplots(figsize=(8, 3.2))
-    ax.plot(t, fr["p80_um"], label="P80 (plant)")
+    if "p80_um" in fr:
+        ax.plot(t, fr["p80_um"], label="P80 (plant)")
+    else:
+        ax.plot(t, fr["content_p80_um"], label="P80 of the mill content (batch)")
     for col in ("p80_analyser_um", "p80_measured_um"):
         if col in fr:
             ax.step(t, fr[col], where="post", lw=0.7, alpha=0.6, label="P80 (analyser)")

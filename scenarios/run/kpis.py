@@ -41,7 +41,7 @@ def compute_kpis(scene: Scene, frame: pd.DataFrame, solve_times_s=None, batch_ch
                  solve_time_median_s=None, solve_time_p95_s=None, controller_health=None) -> dict:
     """The KPIs of a run from its frame (definitions in the module docstring)."""
     t = frame["time_h"].to_numpy(float)
-    p80 = frame["p80_um"].to_numpy(float)
+    p80 = frame["p80_um" if "p80_um" in frame else "content_p80_um"].to_numpy(float)  # batch: the content
     target = scene.controller.target_p80_um
     k: dict[str, Any] = {}
     if target is not None and not is_batch(scene):

@@ -104,7 +104,7 @@ def psd_snapshots(twin, states, frame, components, batch: bool) -> pd.DataFrame:
     ``N_PSD_SNAPSHOTS`` evenly spaced samples (first and last included)."""
     model = twin.model
     grid = model.spec.grid
-    fn = model.product_psd_function()
+    fn = model.psd_function()
     idx = np.unique(np.linspace(0, len(frame) - 1, N_PSD_SNAPSHOTS).round().astype(int))
     rows = {}
     for i in idx:

@@ -17,7 +17,7 @@ from scenarios.errors import SceneError
 from scenarios.scene.history import read_history
 from scenarios.scene.keypaths import did_you_mean, format_path
 from scenarios.scene.ranges import feed_problem, nominal_feed_tph
-from twin import EFFECTS, known_effects
+from twin.effects import problems as effect_problems
 from twin.ore import mineral_names
 
 BLEND_SUM_TOL = 1e-3
@@ -76,65 +76,22 @@ def _check_time(data, r: _Report) -> None:
             r.add(("scene", "duration_h"), f"must be a whole number of sample periods ({dt:g} h)", dur)
 
 
-def _check_effect_list(effects: Any, loc: tuple, r: _Report) -> list[str]:
-    if not isinstance(effects, list):
-        return []
-    known = known_effects()
-    seen: set[str] = set()
-    for i, name in enumerate(effects):
-        if not isinstance(name, str):
-            continue
-        if name not in known:
-            r.add(loc + (i,), f"unknown effect{did_you_mean(name, known)}; known effects: "
-                  + ", ".join(known), name)
-        elif name in seen:
-            r.add(loc + (i,), "effect listed twice", name)
-        seen.add(name)
-    return [e for e in effects if isinstance(e, str)]
-
-
-def _check_requirements(effects: list[str], loc: tuple, r: _Report) -> None:
-    classes = EFFECTS
-    for i, name in enumerate(effects):
-        cls = classes.get(name)
-        for req in getattr(cls, "requires", ()):
-            if req not in effects:
-                r.add(loc + (i,), f"effect {name!r} requires effect {req!r}; add it to the list")
-        for exc in getattr(cls, "excludes", ()):
-            if exc in effects:
-                r.add(loc + (i,), f"effect {name!r} cannot be combined with {exc!r}")
-
-
-def _check_effect_options(options: Any, effects: list[str], loc: tuple, r: _Report) -> None:
-    if not isinstance(options, dict):
-        return
-    known, classes = known_effects(), EFFECTS
-    for name, table in options.items():
-        if name not in known:
-            r.add(loc + (name,), f"options for an unknown effect{did_you_mean(name, known)}; "
-                  "known effects: " + ", ".join(known))
-            continue
-        if name not in effects:
-            r.add(loc + (name,), "options for an effect that is not in `effects`; add it there "
-                  "or remove these options")
-        if not isinstance(table, dict):
-            r.add(loc + (name,), "must be a table of options", table)
-            continue
-        allowed = getattr(classes.get(name), "options", None)
-        if allowed is None:
-            continue
-        for key in table:
-            if key not in allowed:
-                where = " (the number of mixers is mill.n_mixers)" if key == "n_mixers" else ""
-                r.add(loc + (name, key), f"unknown option of effect {name!r}"
-                      f"{did_you_mean(key, allowed)}; allowed: {', '.join(allowed) or 'none'}"
-                      + where)
-
-
 def _check_effects(data, r: _Report) -> None:
-    effects = _check_effect_list(data.get("effects"), ("effects",), r)
-    _check_requirements(effects, ("effects",), r)
-    _check_effect_options(data.get("effect_options"), effects, ("effect_options",), r)
+    _check_effect_table(data.get("effects"), data.get("effect_options", {}), (), r)
+
+
+def _check_effect_table(effects, options, prefix: tuple, r: _Report) -> None:
+    """Effects and their options (under ``prefix``), by the twin's own validation
+    (:func:`twin.effects.problems`): names, requirements, exclusions, needed variables,
+    option names and values."""
+    if not isinstance(effects, list) or not isinstance(options, dict):
+        return  # the schema pass reports the types
+    bad = [name for name, table in options.items() if not isinstance(table, dict)]
+    for name in bad:
+        r.add(prefix + ("effect_options", name), "must be a table of options", options[name])
+    if not bad:
+        for p in effect_problems(effects, options):
+            r.add(prefix + p.loc, p.message)
 
 
 def _check_ores(data, r: _Report) -> list[str]:
@@ -380,16 +337,16 @@ def _check_plant(data, r: _Report) -> None:
         for key in ("effects", "size_classes", "effect_options"):
             if key in plant:
                 r.add(("plant", key), "not used with model = \"leroux2013\"; remove it")
-    effects = _check_effect_list(plant.get("effects"), ("plant", "effects"), r)
-    if plant.get("effects") is None:
-        effects = [e for e in data.get("effects") or [] if isinstance(e, str)]
-    if plant.get("effects") is not None:
-        _check_requirements(effects, ("plant", "effects"), r)
-        scene_effects = data.get("effects") if isinstance(data.get("effects"), list) else []
+    if plant.get("model", "twin") == "twin" and (plant.get("effects") is not None
+                                                 or plant.get("effect_options") is not None):
+        _check_effect_table(plant.get("effects", data.get("effects")), plant.get("effect_options", {}),
+                            ("plant",), r)
+    scene_effects, effects = data.get("effects"), plant.get("effects")
+    if isinstance(scene_effects, list) and isinstance(effects, list) \
+            and ("transport" in scene_effects) != ("transport" in effects):
         continuous = "transport" in scene_effects
-        if continuous != ("transport" in effects):
-            kind = "a continuous mill (effects has `transport`)" if continuous else \
-                "a batch grind (effects without `transport`)"
-            r.add(("plant", "effects"), f"the scene is {kind}; the plant must be the same kind of "
-                  f"mill: {'add' if continuous else 'remove'} `transport` here", plant.get("effects"))
-    _check_effect_options(plant.get("effect_options"), effects, ("plant", "effect_options"), r)
+        kind = "a continuous mill (effects has `transport`)" if continuous else \
+            "a batch grind (effects without `transport`)"
+        r.add(("plant", "effects"), f"the scene is {kind}; the plant must be the same kind of mill, "
+              f"not a {'batch grind' if continuous else 'continuous mill'}: "
+              f"{'add' if continuous else 'remove'} `transport` here", effects)

@@ -24,6 +24,7 @@ import pandas as pd
 from scenarios.errors import SceneError
 from scenarios.scene.history import RECORDED_COLUMNS, TEXTURE_COLUMNS, History, read_history
 from scenarios.scene.schema import Scene
+from twin import Mineralogy, Texture, reference_ores
 
 
 def ore_column(ore: str) -> str:
@@ -32,10 +33,7 @@ def ore_column(ore: str) -> str:
 
 
 def ore_mineralogies(scene: Scene) -> dict:
-    """Each ore of the scene as a ``twin.Mineralogy`` (reference types from ``twin.ore.ores``)."""
-    from twin.ore.mineralogy import Mineralogy, Texture
-    from twin.ore.ores import reference_ores
-
+    """Each ore of the scene as a ``twin.Mineralogy`` (reference types from ``twin.reference_ores``)."""
     out = {}
     for name, ore in scene.ores.items():
         if ore.type is not None:

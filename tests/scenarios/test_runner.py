@@ -90,7 +90,8 @@ def test_batch_grind_refines_the_charge():
     k = res.kpis
     assert res.summary["mode"] == "batch"
     assert k["throughput_t"] == pytest.approx(0.012)
-    p80 = res.frame["p80_um"].to_numpy()
+    assert "p80_um" not in res.frame  # a batch mill has no product: its P80 is the content's
+    p80 = res.frame["content_p80_um"].to_numpy()
     assert p80[0] > 2000 and p80[-1] < 0.3 * p80[0]
     assert np.all(np.diff(p80) <= 1e-6)  # a batch grind only gets finer
     assert 1.0 < k["specific_energy_kwh_t"] < 100.0

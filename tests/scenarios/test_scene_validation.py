@@ -30,7 +30,7 @@ BROKEN = [
     ("misspelt word", edit('preset = "industrial"', 'preset = "industral"'),
      ["mill.preset", "'lab' or 'industrial'", "did you mean 'industrial'", "'industral'"]),
     ("unknown effect", edit('"cushioning"', '"cushoning"'),
-     ["effects[3]", "unknown effect", "did you mean 'cushioning'", "'cushoning'"]),
+     ["effects[3]", "Unknown effect", "Did you mean 'cushioning'", "'cushoning'"]),
     ("unknown ore", edit("blend = { B = 0.6, D = 0.4 }", "blend = { B = 0.6, E = 0.4 }"),
      ["feed.schedule[0].blend.E", "not defined in [ores]", "'E'"]),
     ("blend sum", edit("blend = { B = 0.6, D = 0.4 }", "blend = { B = 0.6, D = 0.3 }"),
@@ -50,7 +50,7 @@ BROKEN = [
     ("controller without target", edit("target_p80_um = 210.0\n", ""),
      ["controller.target_p80_um", "required when kind = 'nmpc'"]),
     ("options for an effect not used", BASE_SCENE + '\n[effect_options.classification]\nkind = "grate"\n',
-     ["effect_options.classification", "not in `effects`"]),
+     ["effect_options.classification", "which is not in the list", "Add it to the effects or remove"]),
     ("unknown mineral", edit('[ores.D]\ntype = "D"',
                              "[ores.D.mineralogy]\nquartz = 60.0\npyrit = 40.0\n"
                              "[ores.D.texture]\nmean_grain_um = 50.0\nuniformity = 0.4\n"
@@ -155,5 +155,5 @@ def test_unknown_effect_option_names_the_allowed_ones(write_scene):
     text = edit('"power"]', '"power", "classification"]') + \
         '\n[effect_options.classification]\nknd = "grate"\n'
     messages = check_scene(write_scene(text))
-    assert any("effect_options.classification.knd" in m and "did you mean 'kind'" in m
+    assert any("effect_options.classification.knd" in m and "Did you mean 'kind'" in m
                and ", ".join(allowed) in m for m in messages), messages

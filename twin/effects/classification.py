@@ -19,9 +19,10 @@ from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
+from scipy.constants import g as G_M_S2
 
 from ..errors import ModelError
-from .base import Assembly, Effect, smooth_max
+from .base import Effect, EffectContext, Option, smooth_max
 
 
 @dataclass(frozen=True)
@@ -50,7 +51,7 @@ class Hydrocyclone:
         p_kpa = 1.88 * q ** 1.78 * math.exp(0.0055 * phi) / (
             dc ** 0.37 * di ** 0.94 * h ** 0.28 * (du ** 2 + do ** 2) ** 0.87)
         rho_slurry = 1.0 + phi / 100.0 * (solids_density_t_m3 - 1.0)
-        head_m = p_kpa / (9.81 * rho_slurry)
+        head_m = p_kpa / (G_M_S2 * rho_slurry)
         split = (1.9 * (du / do) ** 3.31 * h ** 0.54 * (du ** 2 + do ** 2) ** 0.36
                  * math.exp(0.0054 * phi) / (head_m ** 0.24 * dc ** 1.11))
         m = 1.94 * math.exp(-1.58 * split / (1 + split)) * (dc ** 2 * h / q) ** 0.15
@@ -65,57 +66,74 @@ def grate_factor(size_um: np.ndarray, d50_um: float, sharpness: float) -> np.nda
 class Classification(Effect):
     name = "classification"
     requires = ("transport",)
+    provides = ("discharge_class_factor", "product_split", "flow_multiplier")
+    outputs = ("cyclone_d50c_um", "circulating_load_frac")
+    uses = ("cut_size_factor",)
     source = "Austin et al. (1984) ch. 9 (grate); Plitt (1976), Flintoff et al. (1987) (hydrocyclone)"
     summary = "grate discharge factor, or hydrocyclone closed circuit with recycle to the feed"
     options = {
-        "kind": ("grate", "'grate' or 'hydrocyclone'"),
-        "circulating_load_nominal": (2.5, "underflow / fresh feed at nominal (hydrocyclone)"),
-        "cyclone": (Hydrocyclone(), "Hydrocyclone geometry and feed (hydrocyclone)"),
+        "kind": Option("grate", "'grate' (internal classification at the discharge) or 'hydrocyclone' "
+                       "(closed circuit, underflow to the mill feed)", choices=("grate", "hydrocyclone")),
+        "circulating_load_nominal": Option(2.5, "underflow / fresh feed at nominal (hydrocyclone)", float,
+                                           lo=0.0, hi=50.0),
+        "cyclone": Option(Hydrocyclone(), "hydrocyclone geometry and feed (hydrocyclone): a Hydrocyclone or a "
+                          "table of its fields", (Hydrocyclone, dict)),
     }
 
-    def apply(self, asm: Assembly) -> None:
-        kind = self.settings["kind"]
-        spec = asm.spec
+    def apply(self, ctx: EffectContext) -> None:
+        if self.settings["kind"] == "grate":
+            self._grate(ctx)
+        else:
+            self._hydrocyclone(ctx)
+
+    def _grate(self, ctx: EffectContext) -> None:
+        spec = ctx.spec
         x = spec.grid.mid_um
-        if kind == "grate":
-            d50 = asm.param("grate_d50_um", spec.mill.grate_d50_um, "um", "mill")
-            k = asm.param("grate_sharpness", spec.mill.grate_sharpness, "-", "mill")
-            if isinstance(asm.cut_size_factor, float):
-                c = grate_factor(x, d50 * asm.cut_size_factor, k)
-            else:  # a cut size that moves with the states (rheology)
-                c = 1.0 / (1.0 + ca.DM((x / d50) ** k) * asm.cut_size_factor ** -k)
-            c[-1] = 1.0
-            asm.class_factor = c
-            asm.note(self.name, f"grate factor on the last mixer's discharge, d50 {d50:g} um")
-            return
-        if kind != "hydrocyclone":
-            raise ModelError(f"The 'kind' option of effect 'classification' must be 'grate' or "
-                             f"'hydrocyclone'. Got {kind!r}.")
+        d50 = ctx.param("grate_d50_um", spec.mill.grate_d50_um, "um", "mill")
+        k = ctx.param("grate_sharpness", spec.mill.grate_sharpness, "-", "mill")
+        cut = ctx.get("cut_size_factor", 1.0)
+        if isinstance(cut, float):
+            c = grate_factor(x, d50 * cut, k)
+        else:  # a cut size that moves with the states (rheology)
+            c = 1.0 / (1.0 + ca.DM((x / d50) ** k) * cut ** -k)
+        c[-1] = 1.0
+        ctx.provide("discharge_class_factor", c)
+        ctx.note(f"grate factor on the last mixer's discharge, d50 {d50:g} um")
+
+    def _hydrocyclone(self, ctx: EffectContext) -> None:
+        spec = ctx.spec
         cl = self.settings["circulating_load_nominal"]
-        cyc: Hydrocyclone = self.settings["cyclone"]
+        cyc = self.settings["cyclone"]
+        if isinstance(cyc, dict):
+            try:
+                cyc = Hydrocyclone(**cyc)
+            except TypeError as exc:
+                raise ModelError(f"The 'cyclone' option of effect 'classification': {exc}. Fields: "
+                                 f"{', '.join(Hydrocyclone.__dataclass_fields__)}.") from None
         rho = spec.solids_density_t_m3
         solids_nom = spec.feed_nominal_tph * (1.0 + cl)  # cyclone feed solids at nominal
         phi = cyc.feed_solids_vol_pct / 100.0
         slurry_nom = solids_nom / rho / phi  # m3/h
         plitt = cyc.plitt(slurry_nom, rho)
         for key, val in plitt.items():
-            asm.param(f"cyclone_{key}", val, "", "Plitt (1976) at nominal cyclone feed")
-        asm.flow_multiplier = 1.0 + cl
+            ctx.param(f"cyclone_{key}", val, "", "Plitt (1976) at nominal cyclone feed")
+        ctx.provide("flow_multiplier", 1.0 + cl)
         rf, m, d50_nom = plitt["water_bypass_frac"], plitt["sharpness_m"], plitt["d50c_um"]
-        xs = ca.DM(x)
+        xs = ca.DM(spec.grid.mid_um)
+        cut = ctx.get("cut_size_factor", 1.0)
 
         def split(discharge):
             total = sum(ca.sum1(dc) for dc in discharge)
             q_ratio = smooth_max(total / solids_nom, 1e-3, 1e-3)
-            d50 = d50_nom * q_ratio ** -0.45 * asm.cut_size_factor
+            d50 = d50_nom * q_ratio ** -0.45 * cut
             e = rf + (1.0 - rf) * (1.0 - ca.exp(-0.693 * (xs / d50) ** m))
             under = [e * dc for dc in discharge]
             over = [dc - uc for dc, uc in zip(discharge, under)]
-            asm.outputs["cyclone_d50c_um"] = d50
-            asm.outputs["circulating_load_frac"] = sum(ca.sum1(u) for u in under) / smooth_max(
-                asm.feed_tph, 1e-6 * spec.feed_nominal_tph, 1e-6 * spec.feed_nominal_tph)
+            ctx.output("cyclone_d50c_um", d50)
+            ctx.output("circulating_load_frac", sum(ca.sum1(u) for u in under) / smooth_max(
+                ctx.feed_tph, 1e-6 * spec.feed_nominal_tph, 1e-6 * spec.feed_nominal_tph))
             return over, under
 
-        asm.product_split = split
-        asm.note(self.name, f"hydrocyclone (Plitt): d50c {d50_nom:.0f} um, m {m:.2f}, "
-                            f"bypass {rf:.2f} at nominal; underflow to mixer 0")
+        ctx.provide("product_split", split)
+        ctx.note(f"hydrocyclone (Plitt): d50c {d50_nom:.0f} um, m {m:.2f}, bypass {rf:.2f} at nominal; "
+                 "underflow to mixer 0")

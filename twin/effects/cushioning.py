@@ -4,28 +4,27 @@ lubricated, viscous charge draws less power (Shi & Napier-Munn 2002, Int. J. Min
 65, 195-214, mill power and breakage against slurry rheology; MISSION.md 'physical reasons').
 
 The soft fraction is the mass fraction of clay + mica + chlorite
-(twin.ore.minerals.CUSHIONING_MINERALS) in the hold-up, computed from the states, so a clay-rich
-component slows a hard one in a blend. Coefficients come from the calibration file
-(``twin/calibration/files/table.json``)."""
+(twin.ore.CUSHIONING_MINERALS) in the hold-up, computed from the states, so a clay-rich
+component slows a hard one in a blend. Coefficients come from the calibration."""
 
 from __future__ import annotations
 
-from .base import Assembly, Effect
+from .base import Effect, EffectContext
 
 
 class Cushioning(Effect):
     name = "cushioning"
-    source = "Shi & Napier-Munn (2002); coefficients from twin/calibration/files/table.json"
+    contributes = ("selection_rate_factor", "power_factor")
+    outputs = ("soft_frac",)
+    source = "Shi & Napier-Munn (2002); coefficients from the calibration"
     summary = "S / (1 + k_rate phi_soft); power / (1 + k_power phi_soft)"
 
-    def apply(self, asm: Assembly) -> None:
-        spec = asm.spec
-        k_rate = asm.param("cushioning_rate_coeff", spec.coefficients["cushioning_rate_coeff"], "-",
-                           "calibration.json")
-        k_power = asm.param("cushioning_power_coeff", spec.coefficients["cushioning_power_coeff"], "-",
-                            "calibration.json")
-        phi_soft = asm.holdup_fraction("soft_mass_t", spec.soft_frac)
-        asm.rate_factors.append(1.0 / (1.0 + k_rate * phi_soft))
-        asm.power_factors.append(1.0 / (1.0 + k_power * phi_soft))
-        asm.outputs["soft_frac"] = phi_soft
-        asm.note(self.name, "selection and power factors from the clay+mica+chlorite fraction of the hold-up")
+    def apply(self, ctx: EffectContext) -> None:
+        coef = ctx.spec.coefficients
+        k_rate = ctx.param("cushioning_rate_coeff", coef["cushioning_rate_coeff"], "-", "calibration")
+        k_power = ctx.param("cushioning_power_coeff", coef["cushioning_power_coeff"], "-", "calibration")
+        phi_soft = ctx.holdup_fraction("soft_mass_t", ctx.spec.soft_frac)
+        ctx.contribute("selection_rate_factor", 1.0 / (1.0 + k_rate * phi_soft))
+        ctx.contribute("power_factor", 1.0 / (1.0 + k_power * phi_soft))
+        ctx.output("soft_frac", phi_soft)
+        ctx.note("selection and power factors from the clay+mica+chlorite fraction of the hold-up")

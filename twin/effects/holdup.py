@@ -14,34 +14,38 @@
 
 from __future__ import annotations
 
-from .base import Assembly, Effect, smooth_max
+from .base import Effect, EffectContext, smooth_max
 
-#: Powder filling (fraction of nominal hold-up) below which rates stop rising (Austin et al.
-#: 1984: rates roughly constant for U below ~0.5 of full void filling).
+#: Load (hold-up over nominal) below which selection rates stop rising: Austin et al. (1984),
+#: fig. 8.3, rates per unit power level off below a powder filling of ~0.5 of the bed voids.
 RATE_SATURATION_LOAD = 0.5
 
 
 class Holdup(Effect):
     name = "holdup"
     requires = ("transport",)
+    provides = ("discharge_rate_law",)
+    contributes = ("selection_rate_factor",)
+    outputs = ("load_frac",)
+    uses = ("flow_multiplier",)
     source = "Herbst & Fuerstenau (1980); le Roux et al. (2013) eq. 9; Austin et al. (1984) fig. 8.3"
     summary = "discharge Q_nom (H/H_nom)^n; S ~ H_nom / max(H, H_sat); load status"
 
-    def apply(self, asm: Assembly) -> None:
-        spec = asm.spec
+    def apply(self, ctx: EffectContext) -> None:
+        spec = ctx.spec
         h_nom = spec.holdup_nominal_t
-        q_nom = spec.feed_nominal_tph * asm.flow_multiplier * spec.mill.discharge_factor
-        n = asm.param("discharge_exponent", spec.mill.discharge_exponent, "-", "le Roux et al. 2013")
-        n_mix = asm.n_mixers
-        h_sat = asm.param("rate_saturation_load", RATE_SATURATION_LOAD, "H/H_nom", "Austin et al. 1984")
+        q_nom = spec.feed_nominal_tph * ctx.get("flow_multiplier", 1.0) * spec.mill.discharge_factor
+        n = ctx.param("discharge_exponent", spec.mill.discharge_exponent, "-", "le Roux et al. 2013")
+        n_mix = ctx.n_mixers
+        h_sat = ctx.param("rate_saturation_load", RATE_SATURATION_LOAD, "H/H_nom", "Austin et al. 1984")
 
-        def rate(k, h_k):
+        def rate(k):
             # mixer k holds 1/N of the nominal hold-up at nominal flow
-            load_k = smooth_max(n_mix * h_k / h_nom, 0.0, 1e-3)
+            load_k = smooth_max(n_mix * ctx.holdup(k) / h_nom, 0.0, 1e-3)
             return n_mix * q_nom / h_nom * load_k ** (n - 1.0)
 
-        asm.discharge_rate = rate
-        load = asm.holdup() / h_nom
-        asm.rate_factors.append(1.0 / smooth_max(load, h_sat, 0.05))
-        asm.outputs["load_frac"] = load
-        asm.note(self.name, "discharge law on every mixer; selection factor 1/max(load, 0.5)")
+        ctx.provide("discharge_rate_law", rate)
+        load = ctx.holdup() / h_nom
+        ctx.contribute("selection_rate_factor", 1.0 / smooth_max(load, h_sat, 0.05))
+        ctx.output("load_frac", load)
+        ctx.note("discharge law on every mixer; selection factor 1/max(load, 0.5)")

@@ -9,7 +9,7 @@
   Napier-Munn 2002, as in twin.effects.cushioning, on clay in grinding slurries).
   w_clay is the clay mass fraction of the hold-up (from the states: a clay-rich component
   thickens the slurry a hard one grinds in); phi_v the mill slurry's solids volume fraction;
-  k_clay comes from the calibration file (``twin/calibration/files/table.json``).
+  k_clay comes from the calibration.
 - Transport: a particle leaves with the slurry when its settling velocity is below the slurry's
   through-flow; Stokes' law, v_s = g d^2 (rho_s - rho) / (18 mu), makes the cut size grow as
   sqrt(mu). Relative to a clay-free slurry of the same solids, the grate's d50 (and a
@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from .base import Assembly, Effect
+from .base import Effect, EffectContext
 
 #: Solids volume fraction of the mill slurry: ball-mill pulps run at 65-75 wt % solids (Wills &
 #: Finch 2016, Mineral Processing Technology, 8th ed., ch. 7); 70 wt % at 2.7 t/m3 is 0.46.
@@ -39,17 +39,18 @@ def thomas_relative_viscosity(phi):
 class Rheology(Effect):
     name = "rheology"
     requires = ("classification",)
-    source = "Thomas (1965) viscosity; Stokes settling cut size; coefficient from twin/calibration/files/table.json"
+    provides = ("cut_size_factor",)
+    outputs = ("clay_frac", "slurry_relative_viscosity")
+    source = "Thomas (1965) viscosity; Stokes settling cut size; coefficient from the calibration"
     summary = "cut size x sqrt(mu_r(clay) / mu_r(no clay)); mu_r by Thomas at phi_v (1 + k w_clay)"
 
-    def apply(self, asm: Assembly) -> None:
-        spec = asm.spec
-        k_clay = asm.param("clay_crowding_coeff", spec.coefficients["clay_crowding_coeff"], "-",
-                           "calibration.json")
-        phi_v = asm.param("slurry_solids_vol_frac", SLURRY_SOLIDS_VOL_FRAC, "-", "Wills & Finch 2016 ch. 7")
-        w_clay = asm.holdup_fraction("clay_mass_t", spec.clay_frac)
+    def apply(self, ctx: EffectContext) -> None:
+        spec = ctx.spec
+        k_clay = ctx.param("clay_crowding_coeff", spec.coefficients["clay_crowding_coeff"], "-", "calibration")
+        phi_v = ctx.param("slurry_solids_vol_frac", SLURRY_SOLIDS_VOL_FRAC, "-", "Wills & Finch 2016 ch. 7")
+        w_clay = ctx.holdup_fraction("clay_mass_t", spec.clay_frac)
         mu_r = thomas_relative_viscosity(phi_v * (1.0 + k_clay * w_clay))
-        asm.cut_size_factor = (mu_r / float(thomas_relative_viscosity(phi_v))) ** STOKES_CUT_EXPONENT
-        asm.outputs["clay_frac"] = w_clay
-        asm.outputs["slurry_relative_viscosity"] = mu_r
-        asm.note(self.name, "classification cut size x sqrt(relative slurry viscosity) from the hold-up's clay")
+        ctx.provide("cut_size_factor", (mu_r / float(thomas_relative_viscosity(phi_v))) ** STOKES_CUT_EXPONENT)
+        ctx.output("clay_frac", w_clay)
+        ctx.output("slurry_relative_viscosity", mu_r)
+        ctx.note("classification cut size x sqrt(relative slurry viscosity) from the hold-up's clay")

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from .base import Assembly, Effect, smooth_max
+from .base import Effect, EffectContext, smooth_max
 
 #: Fines fraction below which breakage stays first order, and the slope above it (Austin et al.
 #: 1984, ch. 10: in dry batch grinding rates fall by about half as the powder passes ~70 %
@@ -19,17 +19,19 @@ SLOPE = 2.5
 
 class SlowingDown(Effect):
     name = "slowing_down"
+    contributes = ("selection_rate_factor",)
+    outputs = ("fines_75um_frac",)
     source = "Austin, Klimpel & Luckie (1984) ch. 10; Austin & Bagga (1981)"
     summary = "S / (1 + k max(F75 - F0, 0))"
 
-    def apply(self, asm: Assembly) -> None:
-        grid = asm.spec.grid
+    def apply(self, ctx: EffectContext) -> None:
+        grid = ctx.spec.grid
         w = ca.DM(grid.passing_weights(FINES_SIZE_UM))
-        m = asm.class_mass()
+        m = ctx.class_mass()
         eps = 1e-9
-        fines = asm.aggregate("fines_mass_t", ca.dot(w, m)) / (asm.holdup() + eps)
-        k = asm.param("slowing_down_slope", SLOPE, "-", "Austin et al. 1984")
-        f0 = asm.param("slowing_down_onset_frac", ONSET_FINES_FRAC, "-", "Austin et al. 1984")
-        asm.rate_factors.append(1.0 / (1.0 + k * smooth_max(fines - f0, 0.0, 0.02)))
-        asm.outputs["fines_75um_frac"] = fines
-        asm.note(self.name, "selection factor from the fraction of the hold-up below 75 um")
+        fines = ctx.aggregate("fines_mass_t", ca.dot(w, m)) / (ctx.holdup() + eps)
+        k = ctx.param("slowing_down_slope", SLOPE, "-", "Austin et al. 1984")
+        f0 = ctx.param("slowing_down_onset_frac", ONSET_FINES_FRAC, "-", "Austin et al. 1984")
+        ctx.contribute("selection_rate_factor", 1.0 / (1.0 + k * smooth_max(fines - f0, 0.0, 0.02)))
+        ctx.output("fines_75um_frac", fines)
+        ctx.note("selection factor from the fraction of the hold-up below 75 um")

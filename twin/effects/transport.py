@@ -3,50 +3,57 @@ residence-time distribution of a ball mill as a few fully mixed reactors in seri
 
 Fresh feed [t/h] enters mixer 0 split by the blend fractions, each component with the feed
 size distribution; mixer k discharges ``r_k m_k`` into mixer k+1; the last mixer's discharge
-(times the class factor of a grate, if listed) is the mill discharge. Without ``holdup`` the
-rate is fixed by the nominal mean residence time tau = H_nom / Q_nom (Q_nom the nominal feed
-times the mill's ``discharge_factor``)."""
+(times the class factor of a grate, if listed) is the mill discharge, split by a classifier
+into product and recycle when one is listed. Without ``holdup`` the rate is fixed by the
+nominal mean residence time tau = H_nom / Q_nom (Q_nom the nominal feed times the mill's
+``discharge_factor`` and the circuit's flow multiplier). The product's size distribution gives
+the product P80 (a smooth interpolation, :func:`twin.sizes.smooth_pxx`)."""
 
 from __future__ import annotations
 
 import casadi as ca
 
-from .base import Assembly, Effect
+from ..sizes import smooth_pxx
+from .base import Effect, EffectContext
 
 
 class Transport(Effect):
     name = "transport"
+    uses = ("discharge_rate_law", "discharge_class_factor", "product_split", "flow_multiplier")
+    outputs = ("product_tph", "throughput_tph", "discharge_tph", "p80_um", "psd_frac")
     source = "Austin, Klimpel & Luckie (1984), ch. 9 (mixers in series)"
-    summary = "feed in, discharge out, N mixers in series"
+    summary = "feed in, discharge out, N mixers in series; product P80"
 
-    def apply(self, asm: Assembly) -> None:
-        spec = asm.spec
-        n_mix = asm.n_mixers
-        q_mill = spec.feed_nominal_tph * asm.flow_multiplier * spec.mill.discharge_factor
-        tau_h = asm.param("residence_time_nominal_h", spec.holdup_nominal_t / q_mill,
+    def apply(self, ctx: EffectContext) -> None:
+        spec = ctx.spec
+        n_mix = ctx.n_mixers
+        q_mill = spec.feed_nominal_tph * ctx.get("flow_multiplier", 1.0) * spec.mill.discharge_factor
+        tau_h = ctx.param("residence_time_nominal_h", spec.holdup_nominal_t / q_mill,
                           "h", "H_nom / mill through-flow at nominal")
-        if asm.discharge_rate is None:
-            asm.discharge_rate = lambda k, h_k: n_mix / tau_h
+        rate = ctx.get("discharge_rate_law", lambda k: n_mix / tau_h)
+        class_factor = ctx.get("discharge_class_factor")
         feed = ca.DM(spec.feed_frac)
         discharge = []
-        for c in range(asm.n_components):
-            inflow = asm.feed_tph * asm.blend(c) * feed
+        for c in range(ctx.n_components):
+            inflow = ctx.feed_tph * ctx.blend(c) * feed
             for k in range(n_mix):
-                rate = asm.discharge_rate(k, asm.holdup(k))
-                out = rate * asm.mass[c][k]
-                if k == n_mix - 1 and asm.class_factor is not None:
-                    out = out * (asm.class_factor if isinstance(asm.class_factor, ca.SX) else ca.DM(asm.class_factor))
-                asm.add_rhs(asm.mass[c][k], inflow - out)
+                out = rate(k) * ctx.mass[c][k]
+                if k == n_mix - 1 and class_factor is not None:
+                    out = out * (class_factor if isinstance(class_factor, ca.SX) else ca.DM(class_factor))
+                ctx.add_rhs(ctx.mass[c][k], inflow - out)
                 inflow = out
             discharge.append(inflow)
-        if asm.product_split is not None:
-            product, recycle = asm.product_split(discharge)
-            for c in range(asm.n_components):
-                asm.add_rhs(asm.mass[c][0], recycle[c])
+        split = ctx.get("product_split")
+        if split is not None:
+            product, recycle = split(discharge)
+            for c in range(ctx.n_components):
+                ctx.add_rhs(ctx.mass[c][0], recycle[c])
         else:
             product = discharge
         product_tph = sum(product)
-        asm.outputs["product_tph"] = product_tph  # per size class
-        asm.outputs["throughput_tph"] = ca.sum1(product_tph)
-        asm.outputs["discharge_tph"] = ca.sum1(sum(discharge))
-        asm.note(self.name, f"{n_mix} mixer(s) in series; feed, inter-mixer flow, discharge")
+        ctx.output("product_tph", product_tph)  # per size class
+        ctx.output("throughput_tph", ca.sum1(product_tph))
+        ctx.output("discharge_tph", ca.sum1(sum(discharge)))
+        ctx.output("p80_um", smooth_pxx(spec.grid, product_tph))
+        ctx.output("psd_frac", product_tph / (ca.sum1(product_tph) + 1e-12 * spec.holdup_nominal_t))
+        ctx.note(f"{n_mix} mixer(s) in series; feed, inter-mixer flow, discharge, product P80")

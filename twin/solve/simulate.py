@@ -183,7 +183,8 @@ def _trajectory_outputs(model, n: int):
     """One Function evaluating every scalar output and the product PSD at n samples at once."""
     names = [name for name, fn in model.outputs.items() if fn.size1_out(0) == 1]
     fn = ca.Function("trajectory_outputs", [model.x, model.u, model.d],
-                     [ca.vertcat(*[model.outputs[k](model.x, model.u, model.d) for k in names]), model._psd])
+                     [ca.vertcat(*[model.outputs[k](model.x, model.u, model.d) for k in names]),
+                      model.psd_function()(model.x, model.u, model.d)])
     return names, fn.map(n)
 
 
@@ -196,8 +197,8 @@ def outputs_frame(model, xs, us, ds, time_h, exact_p80=True) -> pd.DataFrame:
     names, fn = _trajectory_outputs(model, len(time_h))
     scalars, psd = (np.asarray(v) for v in fn(xs.T, us.T, ds.T))
     cols |= {name: scalars[i] for i, name in enumerate(names)}
-    if exact_p80:
-        cols["p80_exact_um"] = [pxx_um(model.spec.grid, psd[:, j]) if psd[:, j].sum() > 0 else math.nan
+    if exact_p80:  # of the product, or of the mill content in a batch model
+        cols["p80_exact_um" if model.psd_what == "product" else "content_p80_exact_um"] = [pxx_um(model.spec.grid, psd[:, j]) if psd[:, j].sum() > 0 else math.nan
                                 for j in range(psd.shape[1])]
     return pd.DataFrame(cols)
 
