@@ -45,21 +45,25 @@ def _families() -> tuple[tuple, tuple]:
 
 
 @contextlib.contextmanager
-def _sigterm_unwinds():
-    """SIGTERM raises :class:`Interrupted` (as Ctrl-C raises KeyboardInterrupt), so that the
-    run unwinds and removes its partial output; the previous handler is restored after."""
+def _signals_unwind(received: list):
+    """SIGINT raises KeyboardInterrupt and SIGTERM :class:`Interrupted`, so that a run unwinds
+    and removes its partial output; each signal is also appended to ``received``, because a
+    signal that lands inside a CasADi call comes out of it as some other exception. The previous
+    handlers are restored after."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
     def handler(signum, frame):
-        raise Interrupted(signum)
+        received.append(signum)
+        raise KeyboardInterrupt if signum == signal.SIGINT else Interrupted(signum)
 
-    previous = signal.signal(signal.SIGTERM, handler)
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, old in previous.items():
+            signal.signal(sig, old)
 
 
 def _interrupted(command: str, signum: int) -> int:
@@ -75,14 +79,15 @@ def _exit_codes(command: str):
     def wrap(fn):
         @functools.wraps(fn)
         def inner(args) -> int:
+            received: list[int] = []
             try:
-                with _sigterm_unwinds():
+                with _signals_unwind(received):
                     return fn(args)
-            except KeyboardInterrupt:
-                return _interrupted(command, signal.SIGINT)
-            except Interrupted as exc:
-                return _interrupted(command, exc.signum)
-            except Exception as exc:  # noqa: BLE001 - sorted by family below, others re-raised
+            except BaseException as exc:  # noqa: BLE001 - sorted below, anything else re-raised
+                if received or isinstance(exc, KeyboardInterrupt):
+                    return _interrupted(command, received[0] if received else signal.SIGINT)
+                if isinstance(exc, Interrupted):
+                    return _interrupted(command, exc.signum)
                 bad, failed = _families()
                 if isinstance(exc, bad):
                     return _fail("input", command, exc)

@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.errors import SceneError
+from scenarios.errors import RunError, SceneError
 from scenarios.output.plots import PLOTS, write_plots
 
 INCOMPLETE_MARKER = "_INCOMPLETE"
@@ -142,7 +142,8 @@ class OutputClaim:
     """
 
     def __init__(self, out_dir, protect=()):
-        self.final = Path(out_dir)
+        self.given = Path(out_dir)
+        self.final = Path(os.path.abspath(out_dir))  # "." and ".." get a name of their own
         self.partial = self.final.with_name(self.final.name + ".partial")
         self.lock_path = self.final.with_name(self.final.name + ".lock")
         self._protect = tuple(Path(p) for p in protect if p is not None)
@@ -152,7 +153,7 @@ class OutputClaim:
 
     # ------------------------------------------------------------------ claim
     def __enter__(self) -> OutputClaim:
-        _check_place(self.final, self._protect)
+        _check_place(self.given, self._protect)
         parent = self.final.parent
         try:
             parent.mkdir(parents=True, exist_ok=True)
@@ -229,8 +230,9 @@ class OutputClaim:
         if self.final.exists():
             if strangers(self.final):  # a file was added while this run was computing
                 self._keep_partial = True
-                raise _refuse(self.final, "files grindtwin did not write appeared in the folder "
-                              f"during the run; the results are in {self.partial.name}")
+                raise RunError(f"--out {self.final}: files grindtwin did not write appeared in the "
+                               f"folder during the run; it was left alone and the results are in "
+                               f"{self.partial}")
             listed = (_manifest_files(self.final) or []) + [MANIFEST, *LATER_FILES]
             if not any(self.final.iterdir()):
                 self.final.rmdir()

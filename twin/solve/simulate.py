@@ -37,15 +37,16 @@ IDAS_OPTIONS = {"calc_ic": True, "suppress_algebraic": True, "linear_solver": "c
 
 #: An open-loop input's value just before a sample is read this many sample periods before it.
 JUMP_PROBE_FRAC = 1e-9
-#: An input jumps at a sample when its value just before differs from its value at the sample by
-#: more than this (relative to the larger magnitude, plus JUMP_ATOL): a probe 1e-9 of a sample
-#: before a ramp's sample differs by ~1e-9 of the change per sample, a step by all of it.
+#: An input jumps at a sample when its value just before differs from its value at the sample,
+#: and bends there when its change over the sample after differs from its change over the one
+#: before, by more than this (relative to the largest magnitude involved, plus JUMP_ATOL): a
+#: probe 1e-9 of a sample before a ramp's sample differs by ~1e-9 of the change per sample, a
+#: step by all of it.
 JUMP_RTOL = 1e-6
 JUMP_ATOL = 1e-9
-#: Longest stretch of samples in one integrator call: the inputs enter the DAE as a linear
-#: interpolation over the stretch's samples (one hat function each), so every right-hand-side
-#: evaluation costs O(stretch); a restart every 120 samples costs ~20 BDF steps.
-MAX_STRETCH_SAMPLES = 120
+#: Longest stretch of samples in one integrator call (one integrator is built per stretch
+#: length, so this bounds the lengths; a restart on a steady solution costs ~20 BDF steps).
+MAX_STRETCH_SAMPLES = 240
 
 
 def _dae(model, rtol: float, extra: dict) -> tuple[str, dict]:
@@ -103,36 +104,43 @@ class Trajectory:
         return float(np.abs(err).max() / (self.fed_t[-1] + h[0] + 1e-300))
 
 
-@lru_cache(maxsize=32)
+@lru_cache(maxsize=64)
 def stretch_integrator(model, dt_h: float, n_steps: int, rtol: float = RTOL, atol_rel: float = ATOL_REL):
-    """IDAS over ``n_steps`` sample periods in one call, the inputs linear in time between the
-    samples: (x0, z0, p = vec(V)) -> states at every sample and the cumulative quadratures,
-    where V (n_u + n_d, n_steps + 1) holds the inputs [u; d] at the samples 0..n_steps (its last
-    column the value just before the stretch's end). Constant or linear inputs (steps between
-    stretches, ramps) are reproduced exactly; the BDF history is kept across the samples."""
+    """IDAS over ``n_steps`` sample periods in one call with the inputs linear in time:
+    (x0, z0, p = [w0; slope]) -> states at every sample and the cumulative quadratures, where
+    the inputs are w(t) = w0 + slope t ([u; d], slope per hour, t from the stretch's start; held
+    beyond its end). Constant inputs and ramps are integrated exactly without a restart."""
     t = ca.SX.sym("t")
-    V = ca.SX.sym("V", model.u.numel() + model.d.numel(), n_steps + 1)
-    k = ca.fmin(ca.fmax(t / dt_h, 0.0), float(n_steps))  # held beyond the ends (step overshoot)
-    hats = ca.vertcat(*[ca.fmax(0.0, 1.0 - ca.fabs(k - j)) for j in range(n_steps + 1)])
+    n_w = model.u.numel() + model.d.numel()
+    w0, slope = ca.SX.sym("w0", n_w), ca.SX.sym("slope", n_w)
+    w = w0 + slope * ca.fmin(ca.fmax(t, 0.0), n_steps * dt_h)  # held beyond the end (step overshoot)
     produced = model.output_exprs_dae.get("throughput_tph", ca.SX(0))
-    solver, dae = _dae(model, rtol, {"t": t, "p": ca.vec(V), "quad_dae": ca.vertcat(model.u[0], produced)})
+    solver, dae = _dae(model, rtol, {"t": t, "p": ca.vertcat(w0, slope),
+                                     "quad_dae": ca.vertcat(model.u[0], produced)})
     exprs = [key for key in ("ode", "alg", "quad") if key in dae]
-    subst = ca.substitute([dae[key] for key in exprs], [ca.vertcat(model.u, model.d)], [ca.mtimes(V, hats)])
-    dae |= dict(zip(exprs, subst))
+    dae |= dict(zip(exprs, ca.substitute([dae[key] for key in exprs], [ca.vertcat(model.u, model.d)], [w])))
     opts = {"reltol": rtol, "abstol": atol_rel * model.spec.holdup_nominal_t, "max_num_steps": 1000000}
     opts |= IDAS_OPTIONS if solver == "idas" else {}
     return ca.integrator("G", solver, dae, 0.0, dt_h * np.arange(1, n_steps + 1), opts)
 
 
 def input_stretches(values: np.ndarray, before: np.ndarray) -> list[tuple[int, int]]:
-    """Stretches ``(a, b)`` of samples integrated in one call: cut where an input jumps
-    (``before[k - 1]``, its value just before sample k, differs from ``values[k]``) and every
-    :data:`MAX_STRETCH_SAMPLES`."""
+    """Stretches ``(a, b)`` of samples over which every input is linear in time, each one
+    integrator call: cut where an input jumps (``before[k - 1]``, its value just before sample
+    k, differs from ``values[k]``), where it bends (its change per sample differs on the two
+    sides of k) and every :data:`MAX_STRETCH_SAMPLES`."""
     n = len(values) - 1
-    gap = np.abs(before - values[1:])
-    scale = np.maximum(np.abs(before), np.abs(values[1:]))
-    jumps = np.nonzero(np.any(gap > JUMP_RTOL * scale + JUMP_ATOL, axis=1))[0] + 1
-    cuts = sorted(set(jumps.tolist()) | set(range(MAX_STRETCH_SAMPLES, n, MAX_STRETCH_SAMPLES)))
+
+    def differs(a, b, scale):
+        return np.any(np.abs(a - b) > JUMP_RTOL * scale + JUMP_ATOL, axis=1)
+
+    after = before - values[:-1]  # change over [k - 1, k], up to just before k
+    jumps = differs(before, values[1:], np.maximum(np.abs(before), np.abs(values[1:])))
+    scale = np.maximum(np.abs(values[:-2]), np.maximum(np.abs(values[1:-1]), np.abs(before[1:])))
+    bends = differs(after[1:], after[:-1], scale) if n > 1 else np.zeros(0, bool)
+    cuts = set((np.nonzero(jumps[:-1])[0] + 1).tolist()) | set((np.nonzero(bends)[0] + 1).tolist())
+    cuts |= set(range(MAX_STRETCH_SAMPLES, n, MAX_STRETCH_SAMPLES))
+    cuts = sorted(cuts)
     return list(zip([0, *cuts], [*cuts, n]))
 
 
@@ -141,10 +149,11 @@ def simulate(model, x0, duration_h: float, dt_h: float, u_fn, d_fn, rtol=RTOL, a
     """Open-loop run with the inputs ``u_fn(t)``, ``d_fn(t)`` (functions of time [h], state-free).
 
     The inputs are read at every sample and just before it (``JUMP_PROBE_FRAC`` of a sample
-    earlier); between samples they are linear (so steps on the sample grid and ramps are what
-    the functions say), inside one IDAS call per stretch (:func:`input_stretches`). Where an
-    input jumps the integrator restarts (SUNDIALS' BDF history must not straddle a jump: across
-    one a feed step fails the error test), the value just before held up to the jump."""
+    earlier) and are linear between samples, so steps on the sample grid and ramps are exactly
+    what the functions say. Each stretch over which they are linear is one IDAS call
+    (:func:`input_stretches`); the integrator restarts only where an input jumps or bends
+    (SUNDIALS' BDF history must not straddle a jump: across one a feed step fails the error
+    test), the value just before held up to a jump."""
     if not duration_h > 0 or not dt_h > 0:
         raise TwinInputError(f"The 'duration_h' and 'dt_h' of simulate must be > 0. Got {duration_h}, {dt_h}.")
     n = int(round(duration_h / dt_h))
@@ -160,11 +169,10 @@ def simulate(model, x0, duration_h: float, dt_h: float, u_fn, d_fn, rtol=RTOL, a
     xs[0] = x0
     q = np.zeros((n + 1, 2))
     for a, b in input_stretches(values, before):
-        V = values[a:b + 1].T.copy()
-        V[:, -1] = before[b - 1]
+        slope = (before[b - 1] - values[a]) / ((b - a) * dt_h)
         G = stretch_integrator(model, float(dt_h), int(b - a), rtol, atol_rel)
         try:
-            out = G(x0=xs[a], z0=_z0(G, model, xs[a]), p=V.ravel(order="F"))
+            out = G(x0=xs[a], z0=_z0(G, model, xs[a]), p=np.concatenate([values[a], slope]))
         except RuntimeError as exc:
             raise SolverError(f"The integrator failed between t = {a * dt_h:.4g} h and {b * dt_h:.4g} h: "
                               f"{exc}") from exc
