@@ -109,7 +109,7 @@ class Twin:
         if not 0.0 <= float(feed_tph) < 1e5:
             raise bad_value("Twin", "feed_tph", feed_tph, "a float in [0, 1e5)")
         if not 0.0 < float(speed) < 1.0:
-            percent = " (a fraction of critical speed, not percent)" if 1.0 < float(speed) <= 100.0 else ""
+            percent = " (a fraction of critical speed, not percent)" if 10.0 <= float(speed) <= 100.0 else ""
             raise bad_value("Twin", "speed_frac_critical", speed, f"a float in (0, 1){percent}")
         return np.array([feed_tph, speed], float)
 
@@ -125,7 +125,7 @@ class Twin:
         else:
             fr = np.asarray(blend, float)
         if not np.all(np.isfinite(fr)) or abs(fr.sum() - 1.0) > 1e-6 or np.any(fr < 0):
-            raise bad_value("Twin", "blend", list(fr), "non-negative fractions summing to 1")
+            raise bad_value("Twin", "blend", [float(v) for v in fr], "non-negative fractions summing to 1")
         return self.model.d_vector(fr, hardness_scale)
 
 

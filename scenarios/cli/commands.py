@@ -360,14 +360,22 @@ def cmd_steady(args) -> int:
         else:
             ss = twin.steady(feed_tph=args.feed_tph, speed_frac_critical=args.speed)
         kpis = {k: v for k, v in ss.summary().items() if k in STEADY_KEYS} | {"source": "twin"}
+    notes = []
+    if kpis.get("feed_tph") == 0 and "specific_energy_kwh_t" in kpis:
+        # energy per tonne of feed has no value without feed (the model's floor gives ~1e7)
+        kpis["specific_energy_kwh_t"] = None
+        notes.append("specific_energy_kwh_t is undefined at zero feed")
     if args.json:
         mineralogy = {o.name: {"wt_pct": o.wt_pct, **o.summary()} for o in blend.ores}
         print(json.dumps({"mill": args.mill, "blend": dict(zip(blend.names, blend.fractions)),
-                          **kpis, "mineralogy": mineralogy}, indent=2))
+                          **kpis, "mineralogy": mineralogy, "notes": notes}, indent=2))
         return 0
     print(f"Mill {args.mill}, blend " + ", ".join(f"{n} {f:.0%}" for n, f in zip(blend.names, blend.fractions)))
     for key, val in kpis.items():
-        print(f"  {key:24s} {val:.4g}" if isinstance(val, float) else f"  {key:24s} {val}")
+        text = "undefined" if val is None else f"{val:.4g}" if isinstance(val, float) else val
+        print(f"  {key:24s} {text}")
+    for note in notes:
+        print(f"  note: {note}")
     for ore in blend.ores:
         wt = ", ".join(f"{m} {w:.1f}" for m, w in sorted(ore.wt_pct.items(), key=lambda kv: -kv[1]))
         print(f"  ore {ore.name}: H_min {ore.hardness_index_gpa:.2f} GPa, textural index "

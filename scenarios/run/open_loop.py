@@ -37,10 +37,13 @@ def start_state(scene: Scene, twin, u0, blend0, notes: list[str]):
 
 
 def step_samples(scene: Scene, n_samples: int) -> np.ndarray:
-    """True at the samples where a ``step`` event of the schedule takes effect (its first
-    sample at or after ``at_h``): the inputs jump there; everywhere else they are continuous
-    (ramps, and histories, whose sample values are joined linearly)."""
+    """Where the inputs may jump: at the samples where a ``step`` event of the schedule takes
+    effect (its first sample at or after ``at_h``); between the others a schedule is linear
+    (ramps are ramps). A recorded history is held sample to sample (its rule,
+    :mod:`scenarios.scene.schedule`), so every one of its samples may jump."""
     dt = scene.scene.sample_period_h
+    if scene.feed.history is not None:
+        return np.ones(n_samples, bool)
     jumps = np.zeros(n_samples, bool)
     for ev in scene.feed.schedule:
         k = int(np.ceil(ev.at_h / dt - 1e-9))

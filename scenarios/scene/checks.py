@@ -10,6 +10,7 @@ must sum to 100 wt% within ``MINERAL_SUM_TOL_PCT``.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -38,7 +39,9 @@ def _get(data: Any, *loc) -> Any:
 
 
 def _num(x: Any) -> float | None:
-    return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else None
+    """A finite number, else None (NaN and infinities are the schema pass's to report)."""
+    ok = isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+    return float(x) if ok else None
 
 
 class _Report:

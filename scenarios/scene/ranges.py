@@ -12,8 +12,9 @@ from twin import MILLS
 #: magnitude above nominal is no operating point of that mill (its hold-up would be many
 #: times its volume), while a feed in kg/h typed as t/h is 1000x.
 FEED_MAX_NOMINAL_MULTIPLE = 10.0
-#: Recorded speeds above 1 and up to this are read as "percent of critical" in the hint.
-PERCENT_MAX = 100.0
+#: Speeds in this range are named as "percent of critical" in the hint: ball mills run at
+#: 10-100 % of critical (0.65-0.80 typically), so 72 reads as 72 %, but 1.2 as a fraction.
+PERCENT_RANGE = (10.0, 100.0)
 
 
 def nominal_feed_tph(preset) -> float | None:
@@ -27,7 +28,7 @@ def speed_problem(value: float) -> str | None:
     if math.isfinite(value) and 0.0 < value < 1.0:
         return None
     hint = ""
-    if 1.0 < value <= PERCENT_MAX:
+    if PERCENT_RANGE[0] <= value <= PERCENT_RANGE[1]:
         hint = f": fraction of critical expected, not percent ({value:g} % is {value / 100:g})"
     return f"speed {value:g} is outside (0, 1){hint}"
 
