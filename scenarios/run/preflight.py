@@ -41,7 +41,7 @@ NMPC_KEYS = {
 #: x RK4 steps per sample x horizon stages), in bytes, by solver: the shooting constraints are
 #: expanded to scalar expressions and differentiated (RTI: a Gauss-Newton Jacobian; the others
 #: an exact Hessian). Measured by benchmarks/mpc_nmpc_build.py (results/mpc_nmpc_build.md):
-#: the largest ratio over the models measured, rounded up.
+#: the largest ratio over the models measured, with ~15 % margin for models between them.
 NMPC_BUILD_BYTES_PER_UNIT = {"rti": 600, "ipopt": 1400, "sqpmethod": 1400, "fatrop": 1400}
 #: A controller whose build is estimated above this is refused before it is built: IPOPT on the
 #: full 25-class grid at horizon 60 asked for more than 20 GB and was killed (issue 14).
