@@ -18,14 +18,20 @@ What a run does
   that steady state cannot be found the mill starts at its nominal hold-up filled with feed.
   A batch mill (no ``transport``) starts with ``feed.batch_charge_kg`` of feed of the initial
   blend and grinds it for ``scene.duration_h`` with no feed.
-- **Inputs.** Held over each sample period. Controller ``"none"``: the scene's ``feed_tph``
+- **Inputs.** Open loop, a schedule is linear between samples (a ramp is the ramp, a step
+  event a step at its sample) and a history is held sample to sample; closed loop, the
+  controller's input is held over each sample period. Controller ``"none"``: the scene's ``feed_tph``
   and ``speed_frac_critical`` throughout (in a replay, the recorded ones where recorded).
   ``"pi"`` and ``"nmpc"`` need the ``mpc`` package's modules (see :mod:`scenarios.run.closed_loop`).
 - **Analyser.** Open loop, ``p80_analyser_um`` is what the scene's P80 analyser would report
   (:func:`scenarios.run.open_loop.analyser_trace`); the KPIs use
   the plant's ``p80_um``.
 - **Progress.** The run is integrated in stretches of ``PROGRESS_CHUNK_STEPS`` samples with a
-  tqdm bar; the integrator restarts at each stretch (as at every input change).
+  tqdm bar; the integrator restarts at each stretch and where an input jumps or bends.
+- **Refusals first.** What the run would refuse is refused before it starts
+  (:mod:`scenarios.run.preflight`: the controller's settings, then, once the models are built,
+  a controller too large to build); the output folder is claimed before any work
+  (:mod:`scenarios.output.write`).
 
 KPIs: :mod:`scenarios.run.kpis`.
 """

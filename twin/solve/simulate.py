@@ -205,6 +205,8 @@ def outputs_frame(model, xs, us, ds, time_h, exact_p80=True) -> pd.DataFrame:
     names, fn = _trajectory_outputs(model, len(time_h))
     scalars, psd = (np.asarray(v) for v in fn(xs.T, us.T, ds.T))
     cols |= {name: scalars[i] for i, name in enumerate(names)}
+    if "specific_energy_kwh_t" in cols:  # undefined without feed (the model's floor gives ~1e7)
+        cols["specific_energy_kwh_t"] = np.where(us[:, 0] > 0, cols["specific_energy_kwh_t"], np.nan)
     if exact_p80:  # of the product, or of the mill content in a batch model
         cols["p80_exact_um" if model.psd_what == "product" else "content_p80_exact_um"] = [pxx_um(model.spec.grid, psd[:, j]) if psd[:, j].sum() > 0 else math.nan
                                 for j in range(psd.shape[1])]
