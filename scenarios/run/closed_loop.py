@@ -106,7 +106,6 @@ def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
     reason; the controller's failures, fallbacks and the estimator's resets are counted in the
     returned ``extra["controller_health"]``.
     """
-    kind = scene.controller.kind
     c = scene.controller
     blend = component_blend(feed, models.components)
     times = feed["time_h"].to_numpy(float)
@@ -124,17 +123,7 @@ def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
             k = min(max(int(np.searchsorted(times, t_h + 1e-9 * dt, side="right")) - 1, 0), len(times) - 1)
             return blend[k]
 
-        if kind == "nmpc":
-            check_rk4_substeps(scene, models.control.model, start.control)
-            estimator = CountingEstimator(Ekf(models.control.model, dt, start.control.x))
-            controller = make_controller(scene, models.control)
-        else:
-            b = c.bounds
-            controller, _ = pi_baseline(
-                models.plant.model, ss, sensors, dt, c.target_p80_um,
-                feed_tph_min=b.feed_tph_min, feed_tph_max=b.feed_tph_max,
-                feed_rate_max_tph_per_h=(b.feed_rate_max_tph_per_h if b.feed_rate_max_tph_per_h is not None
-                                         else math.inf))
+        controller, estimator = _controller_and_estimator(scene, models, start, sensors)
         settings = LoopSettings(
             scene.scene.duration_h, dt, seed=scene.scene.seed, preview_lead_h=c.preview_lead_h,
             target_p80_um=c.target_p80_um if c.target_p80_um is not None else math.nan,
@@ -156,6 +145,22 @@ def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
              "solve_time_median_s": k.get("solve_time_median_s", math.nan),
              "solve_time_p95_s": k.get("solve_time_p95_s", math.nan)}
     return frame, None, extra
+
+
+def _controller_and_estimator(scene: Scene, models, start: LoopStart, sensors):
+    """The NMPC with its EKF (on the controller's model, RK4 sub-steps checked first), or the PI
+    baseline without one."""
+    c, dt = scene.controller, scene.scene.sample_period_h
+    if c.kind == "nmpc":
+        check_rk4_substeps(scene, models.control.model, start.control)
+        estimator = CountingEstimator(Ekf(models.control.model, dt, start.control.x))
+        return make_controller(scene, models.control), estimator
+    b = c.bounds
+    controller, _ = pi_baseline(
+        models.plant.model, start.plant, sensors, dt, c.target_p80_um,
+        feed_tph_min=b.feed_tph_min, feed_tph_max=b.feed_tph_max,
+        feed_rate_max_tph_per_h=b.feed_rate_max_tph_per_h if b.feed_rate_max_tph_per_h is not None else math.inf)
+    return controller, None
 
 
 class CountingEstimator:
