@@ -5,7 +5,10 @@ Layout of a run directory::
 
     DIR/timeseries.parquet   one row per sample, unit-suffixed columns
     DIR/timeseries.csv       the same, on request (``csv=True``)
-    DIR/product_psd.csv      cumulative passing at a few times (rows) per size (columns, um)
+    DIR/product_psd.csv      cumulative % passing at a few times (rows) per size (columns, um);
+                             mill_psd.csv the same of the mill content, streams.csv every
+                             stream size by size at the end (scenarios.output.workbook)
+    DIR/run.xlsx             the workbook, on request (``xlsx=True``)
     DIR/summary.json         scene, KPIs (unit-suffixed keys; NaN written as null), model
                              description, effects, versions, seed, notes
     DIR/*.png                plots (see :data:`scenarios.output.plots.PLOTS`)
@@ -27,8 +30,9 @@ The folder is claimed before any work (:func:`claim_output`), so a bad ``DIR`` c
   marker removed and the folder renamed to ``DIR``. If the run fails or is interrupted the
   partial folder is removed; if the process is killed outright, what remains is
   ``DIR.partial`` with its marker, never a ``DIR`` that looks complete.
-Removing is always by name: only the files a run writes are unlinked, then the folder is
-removed with ``os.rmdir``, which fails rather than delete anything else.
+Removing: a partial folder this run made is emptied and removed; a stale one (with the
+marker) and a previous result only by name (the names a run writes, or the ones its manifest
+lists), then with ``os.rmdir``, which fails rather than delete anything else.
 """
 
 from __future__ import annotations
@@ -45,15 +49,17 @@ from pathlib import Path
 import numpy as np
 
 from scenarios.errors import RunError, SceneError
-from scenarios.output.plots import PLOTS, write_plots
+from scenarios.output.plots import PLOTS, SWEEP_PLOT, write_plots
+from scenarios.output.workbook import PSD_FILES, RUN_WORKBOOK, STREAMS_FILE, SWEEP_WORKBOOK, write_size_csvs, write_workbook
 
 INCOMPLETE_MARKER = "_INCOMPLETE"
 MANIFEST = "grindtwin-manifest.json"
 #: Files grindtwin may add to a finished run folder later (``grindtwin report``).
 LATER_FILES = ("report.html", "report.html.partial")
-#: Every name a run or a sweep can write, so that a stale partial folder is removed by name.
-RUN_FILES = ("timeseries.parquet", "timeseries.csv", "product_psd.csv", "summary.json", *PLOTS,
-             "sweep.csv", "sweep.parquet", MANIFEST, INCOMPLETE_MARKER)
+#: Every name a run or a sweep writes, so that a stale partial folder is removed by name.
+RUN_FILES = ("timeseries.parquet", "timeseries.csv", *PSD_FILES.values(), STREAMS_FILE, RUN_WORKBOOK,
+             "summary.json", *PLOTS, "sweep.csv", "sweep.parquet", "sweep_traces.csv", SWEEP_PLOT, SWEEP_WORKBOOK,
+             MANIFEST, INCOMPLETE_MARKER)
 
 
 def json_safe(obj):
@@ -102,9 +108,11 @@ def strangers(folder: Path) -> list[str] | None:
     return [n for n in names if n not in allowed]
 
 
-def _remove_ours(folder: Path, names) -> bool:
-    """Unlink ``names`` in ``folder`` (those that exist), then rmdir it; False if anything
-    else is left (then the folder stays)."""
+def _remove_ours(folder: Path, names=None) -> bool:
+    """Unlink ``names`` in ``folder`` (those that exist; None: every file in it), then rmdir it;
+    False if anything else is left (then the folder stays)."""
+    if names is None:
+        names = [p.name for p in folder.iterdir()]
     for name in names:
         p = folder / name
         if p.is_file() or p.is_symlink():
@@ -169,7 +177,7 @@ class OutputClaim:
 
     def __exit__(self, exc_type, exc, tb) -> None:
         if self.partial.exists() and not self._keep_partial:
-            _remove_ours(self.partial, RUN_FILES)
+            _remove_ours(self.partial)  # this run made it: everything in it is this run's
         self._unlock()
 
     def _lock(self) -> None:
@@ -205,9 +213,12 @@ class OutputClaim:
         self._lock_fd = None
 
     def _fresh_partial(self) -> None:
-        if self.partial.exists() and not _remove_ours(self.partial, RUN_FILES):
-            raise _refuse(self.final, f"{self.partial.name} is left from an earlier run and holds "
-                          "files grindtwin did not write")
+        if self.partial.exists():  # left by a killed run: ours if marked, or as far as its manifest says
+            marked = (self.partial / INCOMPLETE_MARKER).exists()
+            names = RUN_FILES if marked else [*(_manifest_files(self.partial) or []), MANIFEST]
+            if not _remove_ours(self.partial, names):
+                raise _refuse(self.final, f"{self.partial.name} is left from an earlier run and holds "
+                              "files grindtwin did not write")
         self.partial.mkdir()
         (self.partial / INCOMPLETE_MARKER).write_text("this run was interrupted while its results "
                                                       "were written; do not use these files\n")
@@ -250,14 +261,15 @@ def claim_output(out_dir, protect=()):
     return nullcontext(None) if out_dir is None else OutputClaim(out_dir, protect)
 
 
-def write_files(result, folder: Path, csv: bool = False, plots: bool = True) -> None:
+def write_files(result, folder: Path, csv: bool = False, plots: bool = True, xlsx: bool = False) -> None:
     """The files of ``result`` (a :class:`scenarios.run.runner.RunResult`) into ``folder``."""
     frame = result.frame
     frame.to_parquet(folder / "timeseries.parquet", index=False)
     if csv:
         frame.to_csv(folder / "timeseries.csv", index=False)
-    if result.psd is not None:
-        result.psd.to_csv(folder / "product_psd.csv")
+    write_size_csvs(result, folder)
+    if xlsx:
+        write_workbook(result, folder / RUN_WORKBOOK)
     if plots:
         write_plots(result, folder)
     summary = dict(result.summary)
@@ -266,7 +278,7 @@ def write_files(result, folder: Path, csv: bool = False, plots: bool = True) -> 
     (folder / "summary.json").write_text(json.dumps(json_safe(summary), indent=2) + "\n")
 
 
-def write_run(result, out_dir, csv: bool = False, plots: bool = True, protect=()) -> Path:
+def write_run(result, out_dir, csv: bool = False, plots: bool = True, xlsx: bool = False, protect=()) -> Path:
     """Claim ``out_dir`` and write ``result`` there atomically (see the module docstring)."""
     with OutputClaim(out_dir, protect) as claim:
-        return claim.commit(lambda folder: write_files(result, folder, csv, plots))
+        return claim.commit(lambda folder: write_files(result, folder, csv, plots, xlsx))

@@ -9,11 +9,36 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from mpc import (RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, MpcInputError, NmpcSettings, Sensors,
+from mpc import (RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, MpcInputError, NmpcSettings, Sensors, TwinPlant,
                  feed_for_target, pi_baseline, run_closed_loop, stable_rk4_substeps)
 from scenarios.errors import RunError, SceneError
 from scenarios.run.feed import component_blend
+from scenarios.run.streams import Samples, run_size_data
 from scenarios.scene import Scene
+
+#: Scalar outputs of the plant's model recorded beside the loop's columns when the model has
+#: them (the hydrocyclone's cut size and circulating load).
+EXTRA_OUTPUTS = ("cyclone_d50c_um", "circulating_load_frac")
+
+
+class RecordingPlant(TwinPlant):
+    """The plant twin, keeping the (x, u, d) of every measurement (the loop measures once a
+    sample, after the estimator's warm-up has measured its own) and adding
+    :data:`EXTRA_OUTPUTS` to the measured values."""
+
+    def __init__(self, model):
+        super().__init__(model)
+        self.seen: list[tuple] = []
+        self._extra = {k: model.outputs[k] for k in EXTRA_OUTPUTS if k in model.outputs}
+
+    def measure(self, x, u, d) -> dict:
+        self.seen.append((np.array(x, float), np.array(u, float), np.array(d, float)))
+        return super().measure(x, u, d) | {k: float(fn(x, u, d)) for k, fn in self._extra.items()}
+
+    def samples(self, time_h: np.ndarray) -> Samples:
+        """The last ``len(time_h)`` measurements: the loop's samples."""
+        x, u, d = (np.array(a) for a in zip(*self.seen[-len(time_h):]))
+        return Samples(np.asarray(time_h, float), x, u, d)
 
 
 def feed_bounds(scene: Scene) -> tuple[float, float]:
@@ -129,7 +154,8 @@ def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
             target_p80_um=c.target_p80_um if c.target_p80_um is not None else math.nan,
             load_band=tuple(c.load_band_frac), progress=progress,
             estimator_warmup_h=ESTIMATOR_WARMUP_H if estimator is not None else 0.0)
-        res = run_closed_loop(models.plant.model, controller, estimator, schedule, sensors, ss.x, ss.u, settings)
+        plant = RecordingPlant(models.plant.model)
+        res = run_closed_loop(plant, controller, estimator, schedule, sensors, ss.x, ss.u, settings)
     except (RunError, SceneError):
         raise
     except MpcInputError as exc:  # a setting the controller refuses: bad input, not a failed run
@@ -138,13 +164,14 @@ def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
         raise RunError(f"scene {scene.scene.name}: the closed loop failed: "
                        f"{type(exc).__name__}: {exc}") from None
     frame = res.frame.copy()
+    sizes = run_size_data(models.plant.model, plant.samples(frame["time_h"].to_numpy(float)), batch=False)
     k = dict(res.kpis)
     health = controller_health(frame, estimator)
     extra = {"notes": notes, "warnings": health_notes(health), "controller_health": health,
              "solve_times_s": frame["solve_time_s"].dropna().to_numpy() if "solve_time_s" in frame else None,
              "solve_time_median_s": k.get("solve_time_median_s", math.nan),
              "solve_time_p95_s": k.get("solve_time_p95_s", math.nan)}
-    return frame, None, extra
+    return frame, sizes, extra
 
 
 def _controller_and_estimator(scene: Scene, models, start: LoopStart, sensors):
@@ -153,7 +180,8 @@ def _controller_and_estimator(scene: Scene, models, start: LoopStart, sensors):
     c, dt = scene.controller, scene.scene.sample_period_h
     if c.kind == "nmpc":
         check_rk4_substeps(scene, models.control.model, start.control)
-        estimator = CountingEstimator(Ekf(models.control.model, dt, start.control.x))
+        estimator = CountingEstimator(Ekf(models.control.model, dt, start.control.x,
+                                          disturbance_model=c.disturbance_model))
         return make_controller(scene, models.control), estimator
     b = c.bounds
     controller, _ = pi_baseline(

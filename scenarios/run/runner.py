@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -63,13 +63,19 @@ from scenarios.scene import Scene, load_scene, read_history, scene_from_dict
 class RunResult:
     """One run: ``frame`` (one row per sample, unit-suffixed columns), ``summary`` (JSON-able:
     scene, kpis, model description, effects, versions, seed, notes), ``psd`` (product size
-    distribution snapshots: rows = times, columns = class upper sizes in um, values = cumulative
-    fraction passing) and ``out_dir`` (where it was written, or ``None``)."""
+    distribution snapshots, the mill content's for a batch grind: rows = times, columns = class
+    upper sizes in um, values = cumulative fraction passing), ``mill_psd`` (the same of the mill
+    content of a continuous mill), ``streams`` (size-by-size tables of every stream at the
+    "start" and "end" of the run, :func:`scenarios.run.streams.size_by_size`), ``scene`` (the
+    validated scene) and ``out_dir`` (where it was written, or ``None``)."""
 
     frame: pd.DataFrame
     summary: dict
     out_dir: Path | None = None
     psd: pd.DataFrame | None = None
+    mill_psd: pd.DataFrame | None = None
+    streams: dict = field(default_factory=dict)
+    scene: Scene | None = None
 
     @property
     def kpis(self) -> dict:
@@ -81,9 +87,10 @@ def _as_scene(scene_or_path) -> Scene:
 
 
 def run_scene(scene_or_path, out_dir=None, progress: bool = True, *, csv: bool = False,
-              plots: bool = True, replay: bool = False) -> RunResult:
+              plots: bool = True, xlsx: bool = False, replay: bool = False) -> RunResult:
     """Run a scene (a ``Scene`` or a path) and, with ``out_dir``, write its outputs there.
 
+    ``xlsx=True`` adds the workbook ``run.xlsx`` (:mod:`scenarios.output.workbook`).
     ``replay=True`` drives the inputs with the recorded feed rate and speed of the history (open
     loop) where the history records them. Raises SceneError for a scene the twin refuses (or an
     ``out_dir`` that cannot be used: checked before any work, see :mod:`scenarios.output.write`)
@@ -93,7 +100,7 @@ def run_scene(scene_or_path, out_dir=None, progress: bool = True, *, csv: bool =
     refuse(scene, settings_problems(scene))
     with claim_output(out_dir, protect=_scene_files(scene)) as claim:
         result = _run(scene, progress, replay)
-        _commit(claim, result, csv, plots)
+        _commit(claim, result, csv, plots, xlsx)
     return result
 
 
@@ -102,9 +109,9 @@ def _scene_files(scene: Scene) -> tuple:
     return tuple(p for p in (scene.source_path, scene.history_path()) if p is not None)
 
 
-def _commit(claim, result: RunResult, csv: bool, plots: bool) -> None:
+def _commit(claim, result: RunResult, csv: bool, plots: bool, xlsx: bool) -> None:
     if claim is not None:
-        result.out_dir = claim.commit(lambda folder: write_files(result, folder, csv, plots))
+        result.out_dir = claim.commit(lambda folder: write_files(result, folder, csv, plots, xlsx))
         for note in claim.notes:
             warnings.warn(note, stacklevel=3)
 
@@ -118,11 +125,12 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
     feed, notes = feed_schedule(scene, models.components, times, ores)
     notes = models.notes + notes
     if is_batch(scene):
-        frame, psd, extra = run_batch(scene, models, feed, progress)
+        frame, sizes, extra = run_batch(scene, models, feed, progress)
     elif scene.controller.kind == "none":
-        frame, psd, extra = run_open_loop(scene, models, feed, progress, replay)
+        frame, sizes, extra = run_open_loop(scene, models, feed, progress, replay)
     else:
-        frame, psd, extra = run_closed(scene, models, feed, progress)
+        frame, sizes, extra = run_closed(scene, models, feed, progress)
+    psd = sizes["psd"]
     notes += extra.pop("notes", [])
     warnings_ = extra.pop("warnings", [])
     health = extra.get("controller_health")
@@ -142,11 +150,13 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
         summary["final_psd"] = {"what": psd.attrs.get("what", "product"), "time_h": float(psd.index[-1]),
                                 "size_um": [float(x) for x in psd.columns],
                                 "passing_frac": [float(v) for v in psd.iloc[-1]]}
-    return RunResult(frame=frame, summary=summary, psd=psd)
+    return RunResult(frame=frame, summary=summary, psd=psd, mill_psd=sizes["mill_psd"], streams=sizes["streams"],
+                     scene=scene)
 
 
 def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True, *,
-                 duration_h: float | None = None, csv: bool = False, plots: bool = True) -> RunResult:
+                 duration_h: float | None = None, csv: bool = False, plots: bool = True,
+                 xlsx: bool = False) -> RunResult:
     """Drive a scene with a recorded history (CSV or Parquet; format in :mod:`scenarios.scene.history`).
 
     The scene's ``feed.history`` is set to ``history_csv`` (its ``feed.blend`` and schedule are
@@ -163,7 +173,7 @@ def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True
     history_path = Path(history_csv).resolve()
     with claim_output(out_dir, protect=(*_scene_files(scene), history_path)) as claim:
         result = _replay(scene, history_path, progress, duration_h)
-        _commit(claim, result, csv, plots)
+        _commit(claim, result, csv, plots, xlsx)
     return result
 
 

@@ -48,7 +48,7 @@ for path in sys.argv[4:]:
     try:
         result = run(path, out_root / name, short_h)
         results[name] = {"kpis": result.kpis, "mode": result.summary["mode"],
-                         "health": result.summary["controller_health"]}
+                         "health": result.summary.get("controller_health")}
     except Exception:
         results[name] = {"error": traceback.format_exc()[-3000:]}
     results[name]["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
