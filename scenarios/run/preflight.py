@@ -8,7 +8,8 @@ built, before any simulation.
   assemble); the controller's NLP must fit in memory (:func:`nmpc_build_bytes` against
   :data:`NMPC_BUILD_MEMORY_LIMIT_GB`: a model too large is refused with its size and the fix);
   the closed loop's start exists (a feed rate that holds the target) and the RK4 sub-steps are
-  stable there.
+  stable there. The memory estimate is for the NMPC as built now (RTI's stage-wise compiled QP
+  data, the exact-Hessian NLP of the others): benchmarks/mpc_nmpc_build.py measures it.
 """
 
 from __future__ import annotations
@@ -37,12 +38,17 @@ NMPC_KEYS = {
     "load_band_frac": "controller.load_band_frac", "power_max_kw": "controller.power_max_kw",
     "solver": "controller.solver", "qpsol": "controller.qpsol"}
 
-#: Memory the NMPC's build takes per unit of (operations of the model's right-hand side x states
-#: x RK4 steps per sample x horizon stages), in bytes, by solver: the shooting constraints are
-#: expanded to scalar expressions and differentiated (RTI: a Gauss-Newton Jacobian; the others
-#: an exact Hessian). Measured by benchmarks/mpc_nmpc_build.py (results/mpc_nmpc_build.md):
-#: the largest ratio over the models measured, with ~15 % margin for models between them.
-NMPC_BUILD_BYTES_PER_UNIT = {"rti": 600, "ipopt": 1400, "sqpmethod": 1400, "fatrop": 1400}
+#: Memory the build of IPOPT, SQP and fatrop takes per unit of (operations of the model's
+#: right-hand side x states x RK4 steps per sample x horizon stages) [bytes]: the whole
+#: horizon's shooting constraints are expanded to scalar expressions and differentiated twice.
+#: Measured by benchmarks/mpc_nmpc_build.py (results/mpc_nmpc_build.md): the largest ratio,
+#: 1221, with ~15 % margin for models between those measured.
+NLP_BUILD_BYTES_PER_UNIT = 1400
+#: RTI builds one stage's QP data (compiled, mpc.codegen) and maps it over the horizon: bytes
+#: per (operations x states x RK4 steps) for the stage and per (states^2 x horizon stage) for the
+#: QP's matrices; the same benchmark's largest values (85 and 362) with ~10-20 % margin.
+RTI_STAGE_BYTES_PER_UNIT = 100
+RTI_BYTES_PER_STATE2_STAGE = 400
 #: A controller whose build is estimated above this is refused before it is built: IPOPT on the
 #: full 25-class grid at horizon 60 asked for more than 20 GB and was killed (issue 14).
 NMPC_BUILD_MEMORY_LIMIT_GB = 4.0
@@ -50,8 +56,10 @@ NMPC_BUILD_MEMORY_LIMIT_GB = 4.0
 
 def nmpc_build_bytes(model, horizon_steps: int, rk4_substeps: int, solver: str) -> float:
     """Estimated memory [bytes] the NMPC's build takes for ``model`` (see the module docstring)."""
-    units = model.n_instructions * model.n_x * rk4_substeps * horizon_steps
-    return NMPC_BUILD_BYTES_PER_UNIT[solver] * units
+    stage = model.n_instructions * model.n_x * rk4_substeps
+    if solver == "rti":
+        return RTI_STAGE_BYTES_PER_UNIT * stage + RTI_BYTES_PER_STATE2_STAGE * model.n_x ** 2 * horizon_steps
+    return NLP_BUILD_BYTES_PER_UNIT * stage * horizon_steps
 
 
 def settings_problems(scene: Scene) -> list[str]:
@@ -81,8 +89,8 @@ def model_size_problems(scene: Scene, models) -> list[str]:
            "fewer mill.n_mixers) and keep the full grid for the plant in [plant]",
            "shorten controller.horizon_steps"]
     if c.solver != "rti":
-        fix.append('use controller.solver = "rti" (a Gauss-Newton QP per sample, '
-                   f"{NMPC_BUILD_BYTES_PER_UNIT['rti'] / NMPC_BUILD_BYTES_PER_UNIT[c.solver]:.2g}x the memory)")
+        rti = nmpc_build_bytes(m, c.horizon_steps, c.rk4_substeps, "rti")
+        fix.append(f'use controller.solver = "rti" (a Gauss-Newton QP per sample: about {rti / 2**30:.2g} GB)')
     return [f"controller: the NMPC's model is too large to build: {m.n_x} states ({m.n_components} ores x "
             f"{m.spec.n_mixers} mixers x {grid.count} size classes, {m.n_instructions} operations) x "
             f"horizon {c.horizon_steps} x {c.rk4_substeps} RK4 steps with solver {c.solver!r} needs about "

@@ -101,6 +101,8 @@ def test_a_file_of_that_name_is_refused(tmp_path):
 def test_a_second_run_to_a_locked_folder_is_refused_at_once(tmp_path, capsys, no_work):
     """Two runs to one --out cannot mix: while one holds DIR.lock another is refused before it
     starts (flock: a separate open file description conflicts even in the same process)."""
+    from scenarios.output.write import MANIFEST, OutputClaim
+
     out = tmp_path / "out"
     scene = short_pyrite_scene(tmp_path, duration_h=0.25)
     with OutputClaim(out) as first:
