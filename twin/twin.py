@@ -88,8 +88,10 @@ class Twin:
 
     def simulate(self, duration_h: float, dt_h: float, feed_tph=None, speed_frac_critical=None,
                  blend=None, x0=None, **kwargs):
-        """Open-loop run with inputs given as constants or callables of time [h]; returns a
-        :class:`twin.solve.simulate.Trajectory`."""
+        """Open-loop run with inputs given as constants or callables of time [h] (read at every
+        sample and just before it, linear in between: :func:`twin.solve.simulate`); returns a
+        :class:`twin.solve.simulate.Trajectory`. Every value read is checked as
+        :meth:`steady` checks its inputs; the error names the time."""
         def as_fn(v, default):
             v = default if v is None else v
             return v if callable(v) else (lambda t, v=v: v)
@@ -99,15 +101,16 @@ class Twin:
         blend_fn = as_fn(blend, self.nominal_blend)
         x0 = self.model.initial_state(self.nominal_blend) if x0 is None else x0
         return simulate(self.model, x0, duration_h, dt_h,
-                        u_fn=lambda t: [feed_fn(t), speed_fn(t)],
-                        d_fn=lambda t: self.model.d_vector(blend_fn(t)), **kwargs)
+                        u_fn=_at_time(lambda t: self._u(feed_fn(t), speed_fn(t))),
+                        d_fn=_at_time(lambda t: self._d(blend_fn(t), 1.0)), **kwargs)
 
     def _u(self, feed_tph, speed):
         speed = self.mill.speed_nominal_frac_critical if speed is None else speed
         if not 0.0 <= float(feed_tph) < 1e5:
             raise bad_value("Twin", "feed_tph", feed_tph, "a float in [0, 1e5)")
         if not 0.0 < float(speed) < 1.0:
-            raise bad_value("Twin", "speed_frac_critical", speed, "a float in (0, 1)")
+            percent = " (a fraction of critical speed, not percent)" if 10.0 <= float(speed) <= 100.0 else ""
+            raise bad_value("Twin", "speed_frac_critical", speed, f"a float in (0, 1){percent}")
         return np.array([feed_tph, speed], float)
 
     def _d(self, blend, hardness_scale):
@@ -121,9 +124,19 @@ class Twin:
                                      f"{self.blend.names}.")
         else:
             fr = np.asarray(blend, float)
-        if abs(fr.sum() - 1.0) > 1e-6 or np.any(fr < 0):
-            raise bad_value("Twin", "blend", list(fr), "non-negative fractions summing to 1")
+        if not np.all(np.isfinite(fr)) or abs(fr.sum() - 1.0) > 1e-6 or np.any(fr < 0):
+            raise bad_value("Twin", "blend", [float(v) for v in fr], "non-negative fractions summing to 1")
         return self.model.d_vector(fr, hardness_scale)
+
+
+def _at_time(fn):
+    """``fn(t)`` with the time [h] added to an input error's message."""
+    def checked(t):
+        try:
+            return fn(t)
+        except TwinInputError as exc:
+            raise TwinInputError(f"{exc} (at t = {t:.6g} h)") from None
+    return checked
 
 
 def _feed_fractions(grid, feed_psd, feed_p80_um, feed_modulus) -> np.ndarray:

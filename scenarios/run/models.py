@@ -72,6 +72,10 @@ def build_models(scene: Scene) -> Models:
             raise RunError(f"plant model {p.model!r} is not supported by the runner yet; use "
                            "plant.model = 'twin'")
         effects = p.effects if p.effects is not None else scene.effects
+        if ("transport" in effects) != ("transport" in scene.effects):
+            raise SceneError(f"{scene.source_path or scene.scene.name}: plant.effects: the plant must be "
+                             "the same kind of mill as the scene (continuous with `transport`, or a "
+                             f"batch grind without); got {list(effects)}")
         # the scene's options apply to the plant's effects that have them
         options = p.effect_options if p.effect_options is not None else {
             k: v for k, v in scene.effect_options.items() if k in effects}

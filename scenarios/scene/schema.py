@@ -37,9 +37,10 @@ def mill_preset(name: str) -> dict[str, float | int]:
 
 class Section(BaseModel):
     """Base of every section: unknown keys are errors; values are not coerced (strict), except
-    that an integer is accepted where a float is expected."""
+    that an integer is accepted where a float is expected; NaN and infinities are refused
+    wherever a number is expected (TOML allows ``nan`` and ``inf``, no quantity here is)."""
 
-    model_config = ConfigDict(extra="forbid", strict=True, use_attribute_docstrings=True)
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, use_attribute_docstrings=True)
 
 
 class SceneInfo(Section):
@@ -193,8 +194,8 @@ class Weights(Section):
 class Bounds(Section):
     """``[controller.bounds]``: input bounds and rate limits (``None`` = no rate limit)."""
 
-    feed_tph_min: float | None = Field(default=None, ge=0)
-    """Lowest feed rate [t/h]; required for ``pi`` and ``nmpc``."""
+    feed_tph_min: float | None = Field(default=None, gt=0)
+    """Lowest feed rate [t/h], above 0; required for ``pi`` and ``nmpc``."""
     feed_tph_max: float | None = Field(default=None, gt=0)
     """Highest feed rate [t/h], above ``feed_tph_min``; required for ``pi`` and ``nmpc``."""
     speed_min: float = Field(default=0.60, gt=0, lt=1, json_schema_extra={"unit": "fraction of critical"})
