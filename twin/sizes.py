@@ -5,6 +5,11 @@ Sizes in um. Classes form a geometric series, coarsest first (Austin, Klimpel & 
 size ``upper_um[i] = top_um / ratio**i`` and the next class's upper size; the last class is a
 sink holding everything below its upper size. Cumulative passing at an upper size is the mass
 in that class and every finer one.
+
+A grid also names how the breakage terms are discretised on it (``scheme``, see
+:mod:`twin.breakage`): ``"cell_average"`` (the default, second order in the class width) or
+``"austin"`` (the classical discrete form of Austin et al. 1984 and Moly-Cop Tools, first order,
+for parameters defined on a tool's own sieve series).
 """
 
 from __future__ import annotations
@@ -21,21 +26,33 @@ from .errors import TwinInputError, bad_value, check_range
 #: kinks of the exact piecewise-linear interpolation; the error this causes is stated in
 #: :func:`smooth_pxx` and tested.
 SMOOTH_PXX_SHARPNESS = 0.05
+#: Discretisations of the breakage terms a grid may name (twin.breakage).
+SCHEMES = ("cell_average", "austin")
 
 
 @dataclass(frozen=True)
 class SizeGrid:
-    """Geometric size classes: ``count`` classes from ``top_um`` down by ``ratio`` (last is a sink)."""
+    """Geometric size classes: ``count`` classes from ``top_um`` down by ``ratio`` (last is a sink);
+    ``scheme`` the discretisation of breakage on them (one of :data:`SCHEMES`)."""
 
     top_um: float = 6700.0
     ratio: float = math.sqrt(2.0)
     count: int = 25
+    scheme: str = "cell_average"
 
     def __post_init__(self):
         check_range("SizeGrid", "top_um", self.top_um, 0.0, 1e7)
         check_range("SizeGrid", "ratio", self.ratio, 1.0, 10.0, hi_open=False)
-        if not isinstance(self.count, int) or not 3 <= self.count <= 200:
-            raise bad_value("SizeGrid", "count", self.count, "an integer in [3, 200]")
+        if not isinstance(self.count, int) or not 3 <= self.count <= 400:
+            raise bad_value("SizeGrid", "count", self.count, "an integer in [3, 400]")
+        if self.scheme not in SCHEMES:
+            raise bad_value("SizeGrid", "scheme", self.scheme, "one of " + ", ".join(map(repr, SCHEMES)))
+
+    @classmethod
+    def spanning(cls, top_um: float, bottom_um: float, count: int, scheme: str = "cell_average") -> "SizeGrid":
+        """``count`` classes whose upper sizes run from ``top_um`` to ``bottom_um`` (the sink's)."""
+        check_range("SizeGrid.spanning", "bottom_um", bottom_um, 0.0, top_um)
+        return cls(top_um, (top_um / bottom_um) ** (1.0 / (count - 1)), count, scheme)
 
     @property
     def upper_um(self) -> np.ndarray:
