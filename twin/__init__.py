@@ -5,17 +5,18 @@ runs), ``twin.calibration`` (breakage maps, DEM chain, table fits, calibration f
 
 from .breakage import BreakageParams, OreBreakage, austin_selection, ore_breakage
 from .effects import EFFECTS, Effect, known_effects
+from .effects.classification import Hydrocyclone
 from .errors import ModelError, SolverError, TwinError, TwinInputError
-from .mill import MILLS, Mill, bond_power_kw, get_mill, hogg_fuerstenau_power_kw, load_status
+from .mill import MILLS, POWER_MODELS, Mill, bond_power_kw, get_mill, hogg_fuerstenau_power_kw, load_status, power_kw
 from .model import INPUT_NAMES, Model, ModelSpec
 from .ore import Blend, Mineralogy, Texture, load_ore, reference_ores
-from .sizes import GatesGaudinSchuhmann, SizeGrid, discretise, pxx_um
+from .sizes import GatesGaudinSchuhmann, SizeGrid, TabulatedPSD, discretise, pxx_um
 from .solve import SteadyState, Trajectory
 from .twin import DEFAULT_EFFECTS, Twin
 
 __all__ = [
     "Blend", "BreakageParams", "DEFAULT_EFFECTS", "EFFECTS", "Effect", "GatesGaudinSchuhmann", "INPUT_NAMES", "MILLS",
-    "Mill", "Mineralogy", "Model", "ModelError", "ModelSpec", "OreBreakage", "SizeGrid", "SolverError", "SteadyState",
+    "Mill", "Mineralogy", "POWER_MODELS", "TabulatedPSD", "power_kw", "Hydrocyclone", "Model", "ModelError", "ModelSpec", "OreBreakage", "SizeGrid", "SolverError", "SteadyState",
     "Texture", "Trajectory", "Twin", "TwinError", "TwinInputError", "austin_selection", "bond_power_kw",
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
     "pxx_um", "reference_ores",

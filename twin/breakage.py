@@ -74,6 +74,34 @@ class BreakageParams:
         check_range(o, "phi", self.phi, 0.0, 1.0, lo_open=False, hi_open=False)
         check_range(o, "delta", self.delta, -1.0, 5.0, lo_open=False)
 
+    @classmethod
+    def energy_specific(cls, alpha0_t_kwh: float, alpha1: float, alpha2: float, critical_size_um: float,
+                        beta0: float, beta1: float, beta2: float, source: str = "") -> "BreakageParams":
+        """The energy-specific selection and breakage of Moly-Cop Tools (Sepulveda; Herbst &
+        Fuerstenau 1980): S^E = alpha0 d^alpha1 / (1 + (d/d_crit)^alpha2) [t/kWh] with d in um,
+        and B = beta0 (x/y)^beta1 + (1 - beta0)(x/y)^beta2, i.e. Austin's phi = beta0,
+        gamma = beta1, beta = beta2. Sizes in um: the published BallSim base case (alpha0 0.009686)
+        grinds to its published product only so (in mm its mill could not break its feed)."""
+        o = "BreakageParams.energy_specific"
+        check_range(o, "alpha0_t_kwh", alpha0_t_kwh, 0.0, 1e6)
+        check_range(o, "alpha1", alpha1, 0.0, 5.0)
+        return cls(se_1mm_t_kwh=alpha0_t_kwh * SELECTION_REFERENCE_UM ** alpha1, alpha=alpha1,
+                   mu_um=critical_size_um, Lambda=alpha2, gamma=beta1, beta=beta2, phi=beta0,
+                   source=source or "energy-specific (Moly-Cop) parameters")
+
+    @classmethod
+    def austin_rate(cls, a_per_min: float, alpha: float, mu_um: float, Lambda: float, gamma: float, beta: float,
+                    phi: float, power_kw: float, holdup_t: float, delta: float = 0.0,
+                    source: str = "") -> "BreakageParams":
+        """Austin's form with its rate constant A [1/min] at 1 mm, measured at a net power [kW] and
+        hold-up [t]: S^E(1 mm) = 60 A H / P (Herbst & Fuerstenau 1980), the rest as given."""
+        o = "BreakageParams.austin_rate"
+        check_range(o, "a_per_min", a_per_min, 0.0, 1e6)
+        check_range(o, "power_kw", power_kw, 0.0, math.inf)
+        check_range(o, "holdup_t", holdup_t, 0.0, math.inf)
+        return cls(se_1mm_t_kwh=60.0 * a_per_min * holdup_t / power_kw, alpha=alpha, mu_um=mu_um, Lambda=Lambda,
+                   gamma=gamma, beta=beta, phi=phi, delta=delta, source=source or "Austin parameters (rate form)")
+
 
 def austin_selection(grid: SizeGrid, a_per_h: float, alpha: float, mu_um: float, Lambda: float) -> np.ndarray:
     """Austin selection function [1/h] at each class's representative size (eq. 4.5).

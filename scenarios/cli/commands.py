@@ -259,6 +259,8 @@ def add_steady_parser(subparsers):
     s.add_argument("--json", action="store_true", help="print the KPIs as JSON (unit-suffixed keys)")
     s.add_argument("--surrogate", action="store_true",
                    help="answer from the PLS surrogate (lab mill; refuses inputs outside its training domain)")
+    s.add_argument("--scene", help="a scene file: its plant twin at the scene's initial feed and speed "
+                   "(--feed-tph and --speed override them; --ore, --blend and --mill do not apply)")
     s.set_defaults(func=cmd_steady)
     return s
 
@@ -267,12 +269,41 @@ STEADY_KEYS = ("source", "feed_tph", "speed_frac_critical", "p80_um", "specific_
                "throughput_tph", "holdup_t", "load_frac", "load_status")
 
 
+def _steady_scene(args) -> int:
+    """`grindtwin steady --scene FILE`: the scene's plant twin at its initial operating point."""
+    import json
+
+    from scenarios.run.models import build_models
+    from scenarios.scene import load_scene
+
+    if args.surrogate or args.at_constant_load or args.blend:
+        raise SceneError("--scene runs the scene's own twin: --surrogate, --at-constant-load and --blend do not apply.")
+    scene = load_scene(args.scene)
+    models = build_models(scene)
+    feed = args.feed_tph if args.feed_tph is not None else scene.feed.feed_tph
+    if feed is None:
+        raise SceneError(f"{args.scene}: a batch scene (no feed.feed_tph) has no steady state.")
+    speed = args.speed if args.speed is not None else scene.feed.speed_frac_critical
+    blend = [scene.feed.blend.get(n, 0.0) for n in models.components] if scene.feed.blend else None
+    ss = models.plant.steady(feed_tph=feed, speed_frac_critical=speed, blend=blend)
+    kpis = {"scene": scene.scene.name, **ss.summary()}
+    if args.json:
+        print(json.dumps(kpis, indent=2))
+        return 0
+    print(f"Scene {scene.scene.name} ({args.scene}), steady state")
+    for key, val in kpis.items():
+        print(f"  {key:28s} {val:.4g}" if isinstance(val, float) else f"  {key:28s} {val}")
+    return 0
+
+
 @_exit_codes("steady")
 def cmd_steady(args) -> int:
     import json
 
     from twin import Blend, Twin, load_ore
 
+    if args.scene:
+        return _steady_scene(args)
     blend = Blend.parse(args.blend) if args.blend else Blend.single(load_ore(args.ore))
     if args.surrogate:
         from twin.surrogate import surrogate_steady

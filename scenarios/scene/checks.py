@@ -57,7 +57,7 @@ def cross_check(data: dict[str, Any], base_dir: Path) -> list[str]:
     _check_time(data, r)
     _check_effects(data, r)
     ore_names = _check_ores(data, r)
-    _check_feed(data, ore_names, r)
+    _check_feed(data, ore_names, r, base_dir)
     _check_schedule(data, ore_names, r)
     _check_history(data, ore_names, base_dir, r)
     _check_controller(data, r)
@@ -152,7 +152,7 @@ def _check_blend(blend: Any, loc: tuple, ore_names: list[str], r: _Report) -> No
         r.add(loc, f"fractions must sum to 1 within {BLEND_SUM_TOL:g}", round(total, 6))
 
 
-def _check_feed(data, ore_names: list[str], r: _Report) -> None:
+def _check_feed(data, ore_names: list[str], r: _Report, base_dir: Path = Path(".")) -> None:
     feed = data.get("feed")
     if not isinstance(feed, dict):
         return
@@ -179,6 +179,9 @@ def _check_feed(data, ore_names: list[str], r: _Report) -> None:
         if _get(data, "controller", "kind") not in (None, "none"):
             r.add(("controller", "kind"), "a batch scene (effects without `transport`) has "
                   "nothing to control; use kind = \"none\"", _get(data, "controller", "kind"))
+    csv = feed.get("psd_csv")
+    if isinstance(csv, str) and not (Path(csv) if Path(csv).is_absolute() else base_dir / csv).is_file():
+        r.add(("feed", "psd_csv"), "file not found (a CSV with columns size_um, passing_pct)", csv)
     p80 = _num(feed.get("p80_um", 3200.0))
     top = _num(_get(data, "mill", "size_classes", "top_um") or 6700.0)
     if p80 is not None and top is not None and p80 >= top:

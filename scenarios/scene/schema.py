@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 
 from mpc import QP_SOLVERS, SOLVERS
 from twin import MILLS
@@ -54,6 +54,7 @@ class SizeClasses(Section):
     top_um: float = Field(default=6700.0, gt=0, le=1e6)
     ratio: float = Field(default=math.sqrt(2), gt=1, le=10)
     count: int = Field(default=25, ge=3, le=200)
+    scheme: Literal["cell_average", "austin"] = "cell_average"  # twin.breakage: 2nd-order default
 
 
 class Mill(Section):
@@ -65,6 +66,59 @@ class Mill(Section):
     ball_filling_frac: float | None = Field(default=None, gt=0, lt=0.5)
     n_mixers: int | None = Field(default=None, ge=1, le=20)
     size_classes: SizeClasses = Field(default_factory=SizeClasses)
+    # the mixers' shares of the hold-up, e.g. Whiten's one large and two small [0.7, 0.15, 0.15]
+    mixer_volume_fracs: list[float] | None = Field(default=None, min_length=1, max_length=20)
+    ball_size_mm: float | None = Field(default=None, gt=0, le=200)
+    discharge_solids_frac: float | None = Field(default=None, gt=0, lt=1)  # 0.72, not 72
+    power_model: Literal["bond", "hogg_fuerstenau"] | None = None
+    net_power_kw: float | None = Field(default=None, gt=0, le=1e5)  # given net power at the nominal speed
+
+    @model_validator(mode="after")
+    def _mixers_agree(self):
+        fracs = self.mixer_volume_fracs
+        if fracs is not None:
+            if any(not f > 0 for f in fracs):
+                raise ValueError(f"mixer_volume_fracs must be positive shares of the hold-up (got {fracs})")
+            if self.n_mixers is not None and self.n_mixers != len(fracs):
+                raise ValueError(f"n_mixers = {self.n_mixers} but mixer_volume_fracs has {len(fracs)} shares: "
+                                 "give one of them, or both agreeing")
+        return self
+
+
+class OreBreakage(Section):
+    """``[ores.NAME.breakage]``: the ore's selection and breakage parameters given directly (they
+    replace the calibration's mineralogy map for this ore; twin.BreakageParams).
+
+    ``form = "energy_specific"`` (Moly-Cop Tools, Herbst & Fuerstenau): S^E = alpha0_t_kwh
+    d^alpha1 / (1 + (d / critical_size_um)^alpha2), d in um. ``form = "austin"``: Austin's rate
+    S = a_per_min (d/1 mm)^alpha / (1 + (d/mu_um)^Lambda) [1/min], measured at the scene mill's
+    nominal power and hold-up. Breakage B = beta0 (x/y)^beta1 + (1 - beta0)(x/y)^beta2 (Austin's
+    phi, gamma, beta) for both."""
+
+    form: Literal["energy_specific", "austin"] = "energy_specific"
+    alpha0_t_kwh: float | None = Field(default=None, gt=0, le=1e6)
+    alpha1: float | None = Field(default=None, ge=0, le=5)
+    alpha2: float | None = Field(default=None, ge=0, le=20)
+    critical_size_um: float | None = Field(default=None, gt=0, le=1e7)
+    a_per_min: float | None = Field(default=None, gt=0, le=1e6)
+    alpha: float | None = Field(default=None, ge=0, le=5)
+    mu_um: float | None = Field(default=None, gt=0, le=1e7)
+    Lambda: float | None = Field(default=None, ge=0, le=20)
+    beta0: float = Field(ge=0, le=1)
+    beta1: float = Field(gt=0, le=5)
+    beta2: float = Field(gt=0, le=20)
+
+    @model_validator(mode="after")
+    def _form_complete(self):
+        need = {"energy_specific": ("alpha0_t_kwh", "alpha1", "alpha2", "critical_size_um"),
+                "austin": ("a_per_min", "alpha", "mu_um", "Lambda")}
+        missing = [k for k in need[self.form] if getattr(self, k) is None]
+        extra = [k for f, keys in need.items() if f != self.form for k in keys if getattr(self, k) is not None]
+        if missing:
+            raise ValueError(f"form = {self.form!r} needs {', '.join(missing)}")
+        if extra:
+            raise ValueError(f"{', '.join(extra)} belong to the other form, not form = {self.form!r}")
+        return self
 
 
 class Texture(Section):
@@ -83,6 +137,8 @@ class Ore(Section):
     type: Literal["A", "B", "C", "D"] | None = None
     mineralogy: dict[str, float] | None = None
     texture: Texture | None = None
+    breakage: OreBreakage | None = None  # given parameters instead of the calibration's map
+    density_t_m3: float | None = Field(default=None, gt=1, le=25)  # instead of the minerals' density
 
 
 class ScheduleEvent(Section):
@@ -94,11 +150,32 @@ class ScheduleEvent(Section):
     ramp_h: float = Field(default=0.0, ge=0)
 
 
+class FeedPSD(Section):
+    """``[feed.psd]``: a screen analysis: sieve sizes [um] and cumulative % passing (94.43, not
+    0.9443), any order (twin.sizes.TabulatedPSD)."""
+
+    sizes_um: list[float] = Field(min_length=2)
+    passing_pct: list[float] = Field(min_length=2)
+
+    @model_validator(mode="after")
+    def _paired(self):
+        if len(self.sizes_um) != len(self.passing_pct):
+            raise ValueError(f"{len(self.sizes_um)} sizes_um but {len(self.passing_pct)} passing_pct: one each")
+        if any(not s > 0 for s in self.sizes_um) or len(set(self.sizes_um)) != len(self.sizes_um):
+            raise ValueError("sizes_um must be distinct positive sieve sizes")
+        if any(not 0 <= v <= 100 for v in self.passing_pct):
+            raise ValueError("passing_pct must be percentages in [0, 100]")
+        pairs = sorted(zip(self.sizes_um, self.passing_pct))
+        if any(b[1] < a[1] for a, b in zip(pairs, pairs[1:])):
+            raise ValueError("passing_pct must not fall as the sieve size rises")
+        return self
+
+
 class Feed(Section):
     """``[feed]``: initial blend and operating point, feed size, then a schedule or a history.
 
     Feed size: Gates-Gaudin-Schuhmann distribution with ``p80_um`` and ``ggs_modulus`` (as the
-    twin's feed). ``blend`` is required unless a ``history`` gives the feed from t = 0.
+    twin's feed), or a screen analysis as ``[feed.psd]`` or ``psd_csv`` (then not ``p80_um``). ``blend`` is required unless a ``history`` gives the feed from t = 0.
     ``feed_tph`` is required with the ``transport`` effect (continuous mill); without it the
     scene is a batch grind of ``batch_charge_kg``.
 
@@ -113,10 +190,21 @@ class Feed(Section):
     speed_frac_critical: float = Field(gt=0, lt=1)
     p80_um: float = Field(default=3200.0, gt=0, le=1e6)
     ggs_modulus: float = Field(default=0.8, gt=0, le=5)
+    psd: FeedPSD | None = None
+    psd_csv: str | None = None  # columns size_um, passing_pct; path relative to the scene file
     schedule: list[ScheduleEvent] = Field(default_factory=list)
     history: str | None = None
     history_texture: Texture | None = None
     history_max_gap_h: float = Field(default=10 / 60, gt=0)
+
+    @model_validator(mode="after")
+    def _one_size_distribution(self):
+        given = [k for k in ("psd", "psd_csv") if getattr(self, k) is not None]
+        ggs = [k for k in ("p80_um", "ggs_modulus") if k in self.model_fields_set]
+        if len(given) > 1 or (given and ggs):
+            raise ValueError("give the feed size once: " + " or ".join(given + ggs) + " (psd, psd_csv, "
+                             "or p80_um with ggs_modulus)")
+        return self
 
 
 class Weights(Section):
@@ -218,7 +306,11 @@ class Scene(Section):
         """``feed.history`` resolved against the scene file's folder, or ``None``."""
         if self.feed.history is None:
             return None
-        p = Path(self.feed.history)
+        return self.resolve_path(self.feed.history)
+
+    def resolve_path(self, path: str) -> Path:
+        """A path of the scene resolved against the scene file's folder."""
+        p = Path(path)
         if not p.is_absolute() and self._source_path is not None:
             p = self._source_path.parent / p
         return p
