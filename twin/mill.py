@@ -6,8 +6,11 @@ Units: m, t, t/m3, t/h, fraction of critical speed.
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, replace
+from functools import cache
+from pathlib import Path
 
 from .errors import TwinInputError, bad_value, check_range, close_matches
 
@@ -32,7 +35,9 @@ class Mill:
     the mill's feed water holds (the circuit's water balance, twin.effects.classification).
     ``power_model`` names the net-power model (:data:`POWER_MODELS`); ``net_power_kw``, when
     given, is the net power at the nominal speed (a measured or published draw), and the model
-    then only shapes how power moves with speed."""
+    then only shapes how power moves with speed. ``cyclone`` is the hydrocyclone cluster the mill
+    is sized with (its twin.Hydrocyclone fields as (name, value) pairs; the classification effect's
+    default when it runs a hydrocyclone circuit), empty when none."""
 
     name: str
     diameter_m: float
@@ -53,6 +58,7 @@ class Mill:
     discharge_solids_frac: float = 0.70
     power_model: str = "bond"
     net_power_kw: float | None = None
+    cyclone: tuple = ()
 
     def __post_init__(self):
         o = f"Mill {self.name!r}"
@@ -105,11 +111,27 @@ class Mill:
 #: The laboratory mill of MISSION.md: 0.5 m x 0.3 m, 70 % of critical, 25 mm balls (the ball size
 #: Austin et al. 1984 ch. 4 report the typical shape parameters for; twin.calibration.breakage_map).
 LAB = Mill("lab", diameter_m=0.5, length_m=0.3, feed_nominal_tph=0.031, ball_size_mm=25.0)
-#: An industrial overflow ball mill sized (Bond power at 35 % balls, 70 % critical) for about
-#: 30 t/h of Type B at 12.8 kWh/t: 3.2 m x 4.8 m draws ~0.38 MW.
-INDUSTRIAL = Mill("industrial", diameter_m=3.2, length_m=4.8, feed_nominal_tph=30.0)
+#: The shape of the industrial mill (length 1.5 diameters, 35 % balls, 70 % critical, 25 mm balls),
+#: from which `grindtwin size-mill` sizes the ``industrial`` preset.
+INDUSTRIAL_BASE = Mill("industrial", diameter_m=3.2, length_m=4.8, feed_nominal_tph=30.0, ball_size_mm=25.0)
+#: The ``industrial`` preset: the base shape at the size `grindtwin size-mill --ore B --feed-tph 31
+#: --target-p80-um 210 --write-preset` found (twin.sizing), with its hydrocyclones.
+INDUSTRIAL_PRESET_PATH = Path(__file__).resolve().parent / "data" / "industrial_mill.json"
 
-MILLS = {"lab": LAB, "industrial": INDUSTRIAL}
+
+@cache
+def industrial_preset() -> Mill:
+    """The sized industrial mill (INDUSTRIAL_PRESET_PATH); TwinError naming the command if absent."""
+    from .errors import TwinError
+
+    if not INDUSTRIAL_PRESET_PATH.is_file():
+        raise TwinError(f"No industrial mill preset {INDUSTRIAL_PRESET_PATH}: run "
+                        "`grindtwin size-mill --ore B --feed-tph 31 --target-p80-um 210 --write-preset`.")
+    record = json.loads(INDUSTRIAL_PRESET_PATH.read_text(encoding="utf-8"))
+    return INDUSTRIAL_BASE.with_(**record["mill"], cyclone=tuple(sorted(record["cyclone"].items())))
+
+
+MILLS = {"lab": LAB, "industrial": INDUSTRIAL_BASE}
 
 
 def get_mill(spec, calibration: dict | None = None) -> Mill:
@@ -119,7 +141,8 @@ def get_mill(spec, calibration: dict | None = None) -> Mill:
         return spec
     if spec in MILLS:
         fitted = (calibration or {}).get("mills", {}).get(spec, {})
-        return MILLS[spec].with_(**fitted)
+        preset = industrial_preset() if spec == "industrial" else MILLS[spec]
+        return preset.with_(**fitted)
     raise TwinInputError(f"The 'mill' must be one of {', '.join(MILLS)}. Got {spec!r}.{close_matches(str(spec), MILLS)}")
 
 

@@ -19,6 +19,7 @@ from .calibration import mineralogy_breakage, shipped_calibration
 from .errors import TwinInputError, bad_value, check_range
 from .mill import Mill, get_mill, power_kw
 from .model import Model, ModelSpec
+from .scaleup import scale_breakage
 from .ore import CLAY_MINERALS, CUSHIONING_MINERALS, Blend, Mineralogy, load_ore
 from .sizes import GatesGaudinSchuhmann, SizeGrid, discretise
 from .solve import simulate, steady_state, steady_state_at_load
@@ -45,7 +46,10 @@ class Twin:
     ore's published energy-specific parameters), which replace the map for those ores;
     ``solids_density_t_m3`` replaces the blend's mineral density; ``mixer_volume_fracs`` gives the
     mixers' shares of the hold-up (e.g. Whiten's one large and two small, (0.7, 0.15, 0.15)) in
-    place of ``n_mixers`` equal ones.
+    place of ``n_mixers`` equal ones. The map's parameters describe the calibration's mill
+    (``calibrated_mill``, the laboratory mill): on another mill they are scaled to it by
+    :func:`twin.scaleup.scale_breakage` (Austin's diameter and ball-size rules); parameters given
+    in ``ore_breakage`` are taken as this mill's own.
     """
 
     def __init__(self, ores="B", mill: str | Mill = "lab", effects: Sequence[str] = DEFAULT_EFFECTS,
@@ -53,7 +57,7 @@ class Twin:
                  feed_p80_um: float = FEED_P80_UM, feed_modulus: float = FEED_GGS_MODULUS, feed_psd=None,
                  breakage_map: Callable = mineralogy_breakage, calibration: dict | None = None,
                  ore_breakage: dict | None = None, solids_density_t_m3: float | None = None,
-                 mixer_volume_fracs: Sequence[float] | None = None):
+                 mixer_volume_fracs: Sequence[float] | None = None, calibrated_mill: str | Mill = "lab"):
         self.blend = _as_blend(ores)
         self.calibration = calibration or shipped_calibration()
         self.coefficients = dict(self.calibration["coefficients"])
@@ -67,8 +71,10 @@ class Twin:
             density = check_range("Twin", "solids_density_t_m3", solids_density_t_m3, 1.0, 25.0)
         holdup_nom = self.mill.nominal_holdup_t(density)
         power_nom = power_kw(self.mill, self.mill.speed_nominal_frac_critical)
-        breakage = [_ore_breakage(self.grid, given.get(o.name) or breakage_map(o, self.coefficients),
-                                  power_nom, holdup_nom) for o in self.blend.ores]
+        from_mill = get_mill(calibrated_mill, self.calibration)
+        params = [given.get(o.name) or scale_breakage(breakage_map(o, self.coefficients), from_mill, self.mill, density)
+                  for o in self.blend.ores]
+        breakage = [_ore_breakage(self.grid, p, power_nom, holdup_nom) for p in params]
         feed = _feed_fractions(self.grid, feed_psd, feed_p80_um, feed_modulus)
         self.spec = ModelSpec(
             grid=self.grid, mill=self.mill, component_names=self.blend.names, breakage=breakage,

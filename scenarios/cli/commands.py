@@ -386,6 +386,51 @@ def cmd_optimize(args) -> int:
     return 0 if sp.feasible else 1
 
 
+# --------------------------------------------------------------------------- size-mill
+def add_size_mill_parser(subparsers):
+    z = subparsers.add_parser("size-mill", help="size a ball mill in closed circuit for an ore, feed and target P80",
+                              description="The mill diameter (length 1.5 diameters, 35 %% balls) and hydrocyclone "
+                              "count at which the twin's steady overflow P80 meets the target, rates scaled from the "
+                              "laboratory calibration by Austin's rules (twin.sizing, twin.scaleup).")
+    z.add_argument("--ore", default="B", help="reference type A-D or a TOML file with [mineralogy] and [texture]")
+    z.add_argument("--feed-tph", required=True, type=_float_in("--feed-tph", 0, 1e5, lo_open=True))
+    z.add_argument("--target-p80-um", required=True, type=_float_in("--target-p80-um", 1.0, 1e4))
+    z.add_argument("--speed", type=_float_in("--speed", 0.3, 0.95), default=0.70,
+                   help="mill speed as a fraction of critical (0.70, not 70)")
+    z.add_argument("--write-preset", action="store_true",
+                   help="write the answer as the `industrial` preset (twin/data/industrial_mill.json)")
+    z.add_argument("--json", action="store_true", help="print the answer as JSON")
+    z.set_defaults(func=cmd_size_mill)
+    return z
+
+
+@_exit_codes("size-mill")
+def cmd_size_mill(args) -> int:
+    import json
+
+    from twin import load_ore
+    from twin.sizing import size_mill, write_preset
+
+    sized = size_mill(load_ore(args.ore), args.feed_tph, args.target_p80_um, args.speed)
+    command = (f"grindtwin size-mill --ore {args.ore} --feed-tph {args.feed_tph:g} --target-p80-um "
+               f"{args.target_p80_um:g} --speed {args.speed:g}")
+    record = sized.record(command)
+    if args.write_preset:
+        print(f"wrote {write_preset(sized, command + ' --write-preset')}")
+    if args.json:
+        print(json.dumps(record, indent=2))
+        return 0
+    m, z = sized.mill, record["sizing"]
+    print(f"Mill for ore {args.ore} at {args.feed_tph:g} t/h, P80 {args.target_p80_um:g} um, {args.speed:.2f} of critical:")
+    print(f"  diameter_m                {m.diameter_m:.3f}\n  length_m                  {m.length_m:.3f}\n"
+          f"  ball_filling_frac         {m.ball_filling_frac:.2f}\n  ball_size_mm              {m.ball_size_mm:g}\n"
+          f"  power_model               {m.power_model}\n  hydrocyclones             {sized.cyclone['count']} x "
+          f"{sized.cyclone['diameter_cm']:g} cm")
+    for key in ("p80_um", "circulating_load_frac", "power_kw", "specific_energy_kwh_t", "load_frac", "load_status"):
+        print(f"  {key:25s} {z[key]:.4g}" if isinstance(z[key], float) else f"  {key:25s} {z[key]}")
+    return 0
+
+
 # --------------------------------------------------------------------------- calibrate
 def add_calibrate_parser(subparsers):
     c = subparsers.add_parser("calibrate", help="regenerate twin/calibration/files/table.json from the repository")
@@ -445,6 +490,7 @@ COMMANDS = {
     "steady": (add_steady_parser, cmd_steady),
     "optimize": (add_optimize_parser, cmd_optimize),
     "calibrate": (add_calibrate_parser, cmd_calibrate),
+    "size-mill": (add_size_mill_parser, cmd_size_mill),
     "bench": (add_bench_parser, cmd_bench),
     "run": (add_run_parser, cmd_run),
     "replay": (add_replay_parser, cmd_replay),

@@ -165,8 +165,9 @@ class Classification(Effect):
                        "(closed circuit, underflow to the mill feed)", choices=("grate", "hydrocyclone")),
         "circulating_load_nominal": Option(2.5, "underflow / fresh feed at nominal (hydrocyclone)", float,
                                            lo=0.0, hi=50.0),
-        "cyclone": Option(Hydrocyclone(), "hydrocyclone geometry and feed (hydrocyclone): a Hydrocyclone or a "
-                          "table of its fields", (Hydrocyclone, dict)),
+        "cyclone": Option(None, "hydrocyclone geometry, feed dilution and model (hydrocyclone): a Hydrocyclone "
+                          "or a table of its fields; None: the mill's own (Mill.cyclone), else Hydrocyclone()",
+                          (Hydrocyclone, dict, type(None))),
     }
 
     def apply(self, ctx: EffectContext) -> None:
@@ -192,7 +193,8 @@ class Classification(Effect):
     def _hydrocyclone(self, ctx: EffectContext) -> None:
         spec = ctx.spec
         cl = self.settings["circulating_load_nominal"]
-        cyc = hydrocyclone_from(self.settings["cyclone"])
+        given = self.settings["cyclone"]
+        cyc = hydrocyclone_from(dict(spec.mill.cyclone) if given is None else given)
         rho = spec.solids_density_t_m3
         solids_nom = spec.feed_nominal_tph * (1.0 + cl)  # cyclone feed solids at nominal
         at_nominal = cyc.plitt(_slurry_m3_h(cyc, solids_nom, rho), rho)
