@@ -122,7 +122,7 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
                           f"stable load (tried: {tried}).")
     _, count, mill, ss, cyc = min(stable, key=lambda f: f[0])
     o = ss.outputs
-    return SizedMill(mill, cyc, str(ore), feed_tph, target_p80_um, ss.p80_um, o["circulating_load_frac"],
+    return SizedMill(mill, cyc, getattr(ore, "name", str(ore)), feed_tph, target_p80_um, ss.p80_um, o["circulating_load_frac"],
                      o["power_kw"], o["specific_energy_kwh_t"], o["load_frac"], ss.load_status, tried)
 
 

@@ -1,7 +1,7 @@
 """Mill power draw and specific energy: the mill's net-power model (:func:`twin.mill.power_kw`:
 Bond's equation for overflow ball mills, the calibrated default, or the torque-arm model of Hogg &
 Fuerstenau; a given net power shaped with speed by the model), or the model the ``model`` option
-names, times the power factor of other listed effects (cushioning). Specific energy is net power
+names, times the power factor of other listed effects (cushioning; a given net power too). Specific energy is net power
 per tonne of fresh feed [kWh/t]. The model used is a parameter of the built model (describe())."""
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ class Power(Effect):
     outputs = ("power_kw", "specific_energy_kwh_t")
     source = "Bond (1961) in metric form, Gupta & Yan (2016) eq. 9.28; Hogg & Fuerstenau (1972)"
     summary = "power_kw(speed) x power factor; specific_energy_kwh_t = power / feed"
-    options = {"model": Option(None, "net-power model instead of the mill's own (None): 'bond' (the "
-                               "calibrated default) or 'hogg_fuerstenau'", choices=(None, *POWER_MODELS))}
+    options = {"model": Option(None, "net-power model instead of the mill's own (default: the mill's): 'bond' "
+                               "(the calibrated default) or 'hogg_fuerstenau'", choices=tuple(POWER_MODELS))}
 
     def apply(self, ctx: EffectContext) -> None:
         spec = ctx.spec
