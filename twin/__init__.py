@@ -13,11 +13,12 @@ from .ore import Blend, Mineralogy, Texture, load_ore, reference_ores
 from .sizes import GatesGaudinSchuhmann, SizeGrid, TabulatedPSD, discretise, pxx_um
 from .solve import SteadyState, Trajectory
 from .twin import DEFAULT_EFFECTS, Twin
+from .sizing import SizedMill, size_mill, write_preset
 
 __all__ = [
     "Blend", "BreakageParams", "DEFAULT_EFFECTS", "EFFECTS", "Effect", "GatesGaudinSchuhmann", "INPUT_NAMES", "MILLS",
     "Mill", "Mineralogy", "POWER_MODELS", "TabulatedPSD", "power_kw", "Hydrocyclone", "Model", "ModelError", "ModelSpec", "OreBreakage", "SizeGrid", "SolverError", "SteadyState",
-    "Texture", "Trajectory", "Twin", "TwinError", "TwinInputError", "austin_selection", "bond_power_kw",
+    "SizedMill", "Texture", "Trajectory", "Twin", "size_mill", "write_preset", "TwinError", "TwinInputError", "austin_selection", "bond_power_kw",
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
     "pxx_um", "reference_ores",
 ]

@@ -408,8 +408,7 @@ def add_size_mill_parser(subparsers):
 def cmd_size_mill(args) -> int:
     import json
 
-    from twin import load_ore
-    from twin.sizing import size_mill, write_preset
+    from twin import load_ore, size_mill, write_preset
 
     sized = size_mill(load_ore(args.ore), args.feed_tph, args.target_p80_um, args.speed)
     command = (f"grindtwin size-mill --ore {args.ore} --feed-tph {args.feed_tph:g} --target-p80-um "

@@ -48,6 +48,7 @@ def _p80_error(run, ref):
 
 @pytest.mark.parametrize("measure", [_psd_error, _p80_error], ids=["passing", "p80"])
 def test_cell_average_scheme_converges_at_second_order(measure):
+    """Cumulative passing on the coarsest grid's bounds, and P80 (interpolated in ln size)."""
     orders = observed_orders("cell_average", measure)
     assert min(orders) >= 1.8, orders
 
@@ -77,9 +78,16 @@ def test_gauss_nodes_integrate_the_interval_to_round_off(monkeypatch):
 
 def test_controller_grid_predicts_the_plant_mill():
     """The reference scene's controller model (7 classes of ratio 2.5) and plant (25 of sqrt 2),
-    same calibration: the same mill within the issue's 5 %."""
+    same calibration: the same product on the controller's class bounds within 1 point of
+    passing and the same load within 1 %. (Its P80, interpolated inside one class of ratio 2.5,
+    is 5-6 % coarser: benchmarks/results/twin_grid.md.)"""
     kw = dict(mill="industrial", n_mixers=3)
-    plant = Twin(["B", "D"], grid=SizeGrid(6700.0, math.sqrt(2.0), 25), **kw).steady(feed_tph=30.0, blend=[1, 0])
-    ctl = Twin(["B", "D"], grid=SizeGrid(6700.0, 2.5, 7), **kw).steady(feed_tph=30.0, blend=[1, 0])
-    assert ctl.p80_um == pytest.approx(plant.p80_um, rel=0.05)
-    assert ctl.outputs["load_frac"] == pytest.approx(plant.outputs["load_frac"], rel=0.05)
+    coarse = SizeGrid(6700.0, 2.5, 7)
+    plant_twin = Twin(["B", "D"], grid=SizeGrid(6700.0, math.sqrt(2.0), 25), **kw)
+    plant = plant_twin.steady(feed_tph=30.0, blend=[1, 0])
+    ctl = Twin(["B", "D"], grid=coarse, **kw).steady(feed_tph=30.0, blend=[1, 0])
+    fine = plant_twin.grid
+    plant_on_coarse = np.interp(np.log(coarse.upper_um), np.log(fine.upper_um[::-1]),
+                                fine.cumulative_passing(plant.psd)[::-1])
+    assert np.max(np.abs(coarse.cumulative_passing(ctl.psd) - plant_on_coarse)) < 0.01
+    assert ctl.outputs["load_frac"] == pytest.approx(plant.outputs["load_frac"], rel=0.01)
