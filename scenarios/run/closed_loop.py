@@ -102,7 +102,7 @@ def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
         if kind == "nmpc":
             css = models.control.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend[0])
             check_rk4_substeps(scene, models.control.model, css)
-            estimator = Ekf(models.control.model, dt, css.x)
+            estimator = Ekf(models.control.model, dt, css.x, disturbance_model=c.disturbance_model)
             controller = make_controller(scene, models.control)
         else:
             b = c.bounds

@@ -15,7 +15,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 
-from mpc import QP_SOLVERS, SOLVERS
+from mpc import DISTURBANCE_MODELS, QP_SOLVERS, SOLVERS
 from twin import MILLS
 
 #: The twin's default number of mixers in series (twin.Twin's ``n_mixers``).
@@ -231,7 +231,8 @@ class Controller(Section):
     """``[controller]``: kind, target, horizon and tuning, bounds, solver.
 
     ``load_band_frac`` is the mill hold-up as a fraction of the nominal hold-up at the initial
-    operating point; ``preview_lead_h`` is how far ahead the feed is known (belt analyser).
+    operating point; ``preview_lead_h`` is how far ahead the feed is known (belt analyser);
+    ``disturbance_model`` what the EKF's disturbance states absorb (``mpc.DISTURBANCE_MODELS``).
     """
 
     kind: Literal["none", "pi", "nmpc"] = "none"
@@ -247,6 +248,8 @@ class Controller(Section):
     load_band_frac: list[float] = Field(default_factory=lambda: [0.8, 1.2], min_length=2,
                                         max_length=2)
     power_max_kw: float | None = Field(default=None, gt=0)
+    # what the NMPC's estimator reads the plant/model mismatch as (mpc.estimator)
+    disturbance_model: Literal[DISTURBANCE_MODELS] = "hardness"
 
 
 class Sensors(Section):
