@@ -9,9 +9,11 @@ powder filling and fraction of critical speed:
 - ball size: A falls as 1/d (fewer contacts per unit ball mass) and mu grows as d^2 (bigger
   balls break bigger particles: Austin's x_m ~ d^2).
 The twin's rates are energy-specific, S = S^E P / H, so S^E carries Austin's factor on A over the
-change of net power per unit hold-up, (P/H)_to / (P/H)_from, from the mills' own power models:
-with Bond's D^2.3 power, S^E grows as D^0.2; with Hogg-Fuerstenau's D^2.5, S^E is invariant
-(Herbst & Fuerstenau's 1980 scale-up claim). The breakage function B does not change.
+change of net power per unit hold-up, (P/H)_to / (P/H)_from, of the mills' power models without
+their corrections (``power_factor``, a given ``net_power_kw``): with Bond's D^2.3 power, S^E
+grows as D^0.2; with Hogg-Fuerstenau's D^2.5, S^E is invariant (Herbst & Fuerstenau's 1980
+scale-up claim). A mill that draws more than its model (a fitted power factor, a measured
+power) breaks faster in proportion, as the energy-specific form has it. B does not change.
 """
 
 from __future__ import annotations
@@ -41,8 +43,10 @@ def diameter_factor_a(d_from_m: float, d_to_m: float) -> float:
 
 
 def power_per_holdup(mill: Mill, solids_density_t_m3: float) -> float:
-    """Net power per tonne of nominal hold-up [kW/t] at the mill's nominal speed."""
-    return power_kw(mill, mill.speed_nominal_frac_critical) / mill.nominal_holdup_t(solids_density_t_m3)
+    """Net power of the mill's power model (no power factor, no given power) per tonne of nominal
+    hold-up [kW/t] at its nominal speed: the geometric part of the energy input."""
+    model = replace(mill, power_factor=1.0, net_power_kw=None)
+    return power_kw(model, mill.speed_nominal_frac_critical) / mill.nominal_holdup_t(solids_density_t_m3)
 
 
 def scale_breakage(params: BreakageParams, from_mill: Mill, to_mill: Mill, solids_density_t_m3: float) -> BreakageParams:
