@@ -5,7 +5,7 @@ runs), ``twin.calibration`` (breakage maps, DEM chain, table fits, calibration f
 
 from .breakage import BreakageParams, OreBreakage, austin_selection, ore_breakage
 from .effects import EFFECTS, Effect, known_effects
-from .effects.classification import Hydrocyclone
+from .effects.classification import Hydrocyclone, hydrocyclone_from
 from .errors import ModelError, SolverError, TwinError, TwinInputError
 from .mill import MILLS, POWER_MODELS, Mill, bond_power_kw, get_mill, hogg_fuerstenau_power_kw, load_status, power_kw
 from .model import INPUT_NAMES, Model, ModelSpec
@@ -17,7 +17,7 @@ from .sizing import SizedMill, size_mill, write_preset
 
 __all__ = [
     "Blend", "BreakageParams", "DEFAULT_EFFECTS", "EFFECTS", "Effect", "GatesGaudinSchuhmann", "INPUT_NAMES", "MILLS",
-    "Mill", "Mineralogy", "POWER_MODELS", "TabulatedPSD", "power_kw", "Hydrocyclone", "Model", "ModelError", "ModelSpec", "OreBreakage", "SizeGrid", "SolverError", "SteadyState",
+    "Mill", "Mineralogy", "POWER_MODELS", "hydrocyclone_from", "TabulatedPSD", "power_kw", "Hydrocyclone", "Model", "ModelError", "ModelSpec", "OreBreakage", "SizeGrid", "SolverError", "SteadyState",
     "SizedMill", "Texture", "Trajectory", "Twin", "size_mill", "write_preset", "TwinError", "TwinInputError", "austin_selection", "bond_power_kw",
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
     "pxx_um", "reference_ores",

@@ -16,6 +16,7 @@ from typing import Any
 from scenarios.errors import SceneError
 from scenarios.scene.history import read_history
 from scenarios.scene.keypaths import did_you_mean, format_path
+from twin import TwinError, hydrocyclone_from
 from twin.effects import problems as effect_problems
 from twin.ore import mineral_names
 
@@ -91,6 +92,17 @@ def _check_effect_table(effects, options, prefix: tuple, r: _Report) -> None:
     if not bad:
         for p in effect_problems(effects, options):
             r.add(prefix + p.loc, p.message)
+        _check_cyclone(options, prefix, r)
+
+
+def _check_cyclone(options: dict, prefix: tuple, r: _Report) -> None:
+    """A hydrocyclone table's fields, by the twin's own Hydrocyclone validation."""
+    cyc = options.get("classification", {}).get("cyclone")
+    if isinstance(cyc, dict):
+        try:
+            hydrocyclone_from(cyc)
+        except TwinError as exc:
+            r.add(prefix + ("effect_options", "classification", "cyclone"), str(exc))
 
 
 def _check_ores(data, r: _Report) -> list[str]:

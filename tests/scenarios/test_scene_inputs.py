@@ -74,3 +74,11 @@ def test_scene_inputs_reach_the_twin_as_written(write_scene, tmp_path):
     out = twin.steady(feed_tph=30.0).outputs  # the given draw, times the cushioning the scene lists
     k_power = twin.coefficients["cushioning_power_coeff"]
     assert out["power_kw"] == pytest.approx(500.0 / (1.0 + k_power * out["soft_frac"]), rel=1e-9)
+
+
+def test_bad_cyclone_field_is_named_by_check(write_scene):
+    text = BASE_SCENE.replace('effects = ["breakage", "transport", "holdup", "cushioning", "power"]',
+                              'effects = ["breakage", "transport", "holdup", "cushioning", "power", "classification"]')
+    text += '\n[effect_options.classification]\nkind = "hydrocyclone"\ncyclone = { count = 4, d50c_um = 150.0 }\n'
+    messages = "\n".join(check_scene(write_scene(text)))
+    assert "effect_options.classification.cyclone" in messages and "sharpness" in messages, messages
