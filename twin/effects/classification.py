@@ -154,9 +154,10 @@ class Classification(Effect):
     name = "classification"
     requires = ("transport",)
     provides = ("discharge_class_factor", "product_split", "flow_multiplier")
-    outputs = ("cyclone_d50c_um", "circulating_load_frac", "cyclone_pressure_kpa", "cyclone_sharpness",
-               "cyclone_water_bypass_frac", "cyclone_feed_solids_frac", "overflow_solids_frac",
-               "underflow_solids_frac", "overflow_water_m3_h", "sump_water_m3_h", "mill_water_m3_h")
+    outputs = ("cyclone_d50c_um", "circulating_load_frac", "cyclone_feed_tph", "cyclone_underflow_tph",
+               "cyclone_pressure_kpa", "cyclone_sharpness", "cyclone_water_bypass_frac", "cyclone_feed_solids_frac",
+               "overflow_solids_frac", "underflow_solids_frac", "overflow_water_m3_h", "sump_water_m3_h",
+               "mill_water_m3_h")
     uses = ("cut_size_factor",)
     source = "Austin et al. (1984) ch. 9 (grate); Plitt (1976), Flintoff et al. (1987) (hydrocyclone)"
     summary = "grate discharge factor, or hydrocyclone closed circuit with recycle to the feed"
@@ -217,6 +218,8 @@ class Classification(Effect):
             over = [dc - uc for dc, uc in zip(discharge, under)]
             _water_balance(ctx, cyc, solids, sum(ca.sum1(u) for u in under), rf, rho, s_d, feed_floor)
             ctx.output("cyclone_d50c_um", d50)
+            ctx.output("cyclone_feed_tph", sum(discharge))  # per size class, as the underflow below
+            ctx.output("cyclone_underflow_tph", sum(under))
             ctx.output("cyclone_pressure_kpa", state["pressure_kpa"])
             ctx.output("cyclone_sharpness", state["sharpness_m"])
             ctx.output("cyclone_water_bypass_frac", rf)
