@@ -386,6 +386,8 @@ def add_steady_parser(subparsers):
     s.add_argument("--json", action="store_true", help="print the KPIs as JSON (unit-suffixed keys)")
     s.add_argument("--surrogate", action="store_true",
                    help="answer from the PLS surrogate (lab mill; refuses inputs outside its training domain)")
+    s.add_argument("--scene", help="a scene file: its plant twin at the scene's initial feed and speed "
+                   "(--feed-tph and --speed override them; --ore, --blend and --mill do not apply)")
     s.set_defaults(func=cmd_steady)
     return s
 
@@ -394,12 +396,41 @@ STEADY_KEYS = ("source", "feed_tph", "speed_frac_critical", "p80_um", "specific_
                "throughput_tph", "holdup_t", "load_frac", "load_status")
 
 
+def _steady_scene(args) -> int:
+    """`grindtwin steady --scene FILE`: the scene's plant twin at its initial operating point."""
+    import json
+
+    from scenarios.run.models import build_models
+    from scenarios.scene import load_scene
+
+    if args.surrogate or args.at_constant_load or args.blend:
+        raise SceneError("--scene runs the scene's own twin: --surrogate, --at-constant-load and --blend do not apply.")
+    scene = load_scene(args.scene)
+    models = build_models(scene)
+    feed = args.feed_tph if args.feed_tph is not None else scene.feed.feed_tph
+    if feed is None:
+        raise SceneError(f"{args.scene}: a batch scene (no feed.feed_tph) has no steady state.")
+    speed = args.speed if args.speed is not None else scene.feed.speed_frac_critical
+    blend = [scene.feed.blend.get(n, 0.0) for n in models.components] if scene.feed.blend else None
+    ss = models.plant.steady(feed_tph=feed, speed_frac_critical=speed, blend=blend)
+    kpis = {"scene": scene.scene.name, **ss.summary()}
+    if args.json:
+        print(json.dumps(kpis, indent=2))
+        return 0
+    print(f"Scene {scene.scene.name} ({args.scene}), steady state")
+    for key, val in kpis.items():
+        print(f"  {key:28s} {val:.4g}" if isinstance(val, float) else f"  {key:28s} {val}")
+    return 0
+
+
 @_exit_codes("steady")
 def cmd_steady(args) -> int:
     import json
 
     from twin import Blend, load_ore  # light: the surrogate's answer needs neither CasADi nor scikit-learn
 
+    if args.scene:
+        return _steady_scene(args)
     blend = Blend.parse(args.blend) if args.blend else Blend.single(load_ore(args.ore))
     if args.surrogate:
         from twin.surrogate import surrogate_steady
@@ -492,6 +523,50 @@ def cmd_optimize(args) -> int:
     return 0 if sp.feasible else 1
 
 
+# --------------------------------------------------------------------------- size-mill
+def add_size_mill_parser(subparsers):
+    z = subparsers.add_parser("size-mill", help="size a ball mill in closed circuit for an ore, feed and target P80",
+                              description="The mill diameter (length 1.5 diameters, 35 %% balls) and hydrocyclone "
+                              "count at which the twin's steady overflow P80 meets the target, rates scaled from the "
+                              "laboratory calibration by Austin's rules (twin.sizing, twin.scaleup).")
+    z.add_argument("--ore", default="B", help="reference type A-D or a TOML file with [mineralogy] and [texture]")
+    z.add_argument("--feed-tph", required=True, type=_float_in("--feed-tph", 0, 1e5, lo_open=True))
+    z.add_argument("--target-p80-um", required=True, type=_float_in("--target-p80-um", 1.0, 1e4))
+    z.add_argument("--speed", type=_float_in("--speed", 0.3, 0.95), default=0.70,
+                   help="mill speed as a fraction of critical (0.70, not 70)")
+    z.add_argument("--write-preset", action="store_true",
+                   help="write the answer as the `industrial` preset (twin/data/industrial_mill.json)")
+    z.add_argument("--json", action="store_true", help="print the answer as JSON")
+    z.set_defaults(func=cmd_size_mill)
+    return z
+
+
+@_exit_codes("size-mill")
+def cmd_size_mill(args) -> int:
+    import json
+
+    from twin import load_ore, size_mill, write_preset
+
+    sized = size_mill(load_ore(args.ore), args.feed_tph, args.target_p80_um, args.speed)
+    command = (f"grindtwin size-mill --ore {args.ore} --feed-tph {args.feed_tph:g} --target-p80-um "
+               f"{args.target_p80_um:g} --speed {args.speed:g}")
+    record = sized.record(command)
+    if args.write_preset:
+        print(f"wrote {write_preset(sized, command + ' --write-preset')}")
+    if args.json:
+        print(json.dumps(record, indent=2))
+        return 0
+    m, z = sized.mill, record["sizing"]
+    print(f"Mill for ore {args.ore} at {args.feed_tph:g} t/h, P80 {args.target_p80_um:g} um, {args.speed:.2f} of critical:")
+    print(f"  diameter_m                {m.diameter_m:.3f}\n  length_m                  {m.length_m:.3f}\n"
+          f"  ball_filling_frac         {m.ball_filling_frac:.2f}\n  ball_size_mm              {m.ball_size_mm:g}\n"
+          f"  power_model               {m.power_model}\n  hydrocyclones             {sized.cyclone['count']} x "
+          f"{sized.cyclone['diameter_cm']:g} cm")
+    for key in ("p80_um", "circulating_load_frac", "power_kw", "specific_energy_kwh_t", "load_frac", "load_status"):
+        print(f"  {key:25s} {z[key]:.4g}" if isinstance(z[key], float) else f"  {key:25s} {z[key]}")
+    return 0
+
+
 # --------------------------------------------------------------------------- calibrate
 def add_calibrate_parser(subparsers):
     c = subparsers.add_parser("calibrate", help="regenerate twin/calibration/files/table.json from the repository")
@@ -551,6 +626,7 @@ COMMANDS = {
     "steady": (add_steady_parser, cmd_steady),
     "optimize": (add_optimize_parser, cmd_optimize),
     "calibrate": (add_calibrate_parser, cmd_calibrate),
+    "size-mill": (add_size_mill_parser, cmd_size_mill),
     "bench": (add_bench_parser, cmd_bench),
     "run": (add_run_parser, cmd_run),
     "replay": (add_replay_parser, cmd_replay),

@@ -131,6 +131,8 @@ def _pydantic_message(label: str, err: dict) -> str:
 
 def _fill_defaults(scene: Scene) -> None:
     mill = scene.mill
+    if mill.n_mixers is None and mill.mixer_volume_fracs is not None:
+        mill.n_mixers = len(mill.mixer_volume_fracs)
     for key, value in mill_preset(mill.preset).items():
         if getattr(mill, key) is None:
             setattr(mill, key, value)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 
-from twin import MILLS
+from twin import MILLS, power_kw
 
 #: A feed rate above this multiple of the mill's nominal feed rate is refused: an order of
 #: magnitude above nominal is no operating point of that mill (its hold-up would be many
@@ -17,10 +17,18 @@ FEED_MAX_NOMINAL_MULTIPLE = 10.0
 PERCENT_RANGE = (10.0, 100.0)
 
 
-def nominal_feed_tph(preset) -> float | None:
-    """The nominal feed rate [t/h] of a mill preset of ``twin.MILLS`` (None if unknown)."""
+def nominal_feed_tph(preset, net_power_kw=None) -> float | None:
+    """The nominal feed rate [t/h] of a mill preset of ``twin.MILLS`` (None if unknown). A scene
+    that gives the mill's net power draws that power from the preset's geometry: its nominal
+    feed is the preset's scaled by the power ratio (throughput ~ power at a given specific
+    energy, Bond's law)."""
     mill = MILLS.get(preset) if isinstance(preset, str) else None
-    return None if mill is None else float(mill.feed_nominal_tph)
+    if mill is None:
+        return None
+    scale = 1.0
+    if isinstance(net_power_kw, (int, float)) and math.isfinite(net_power_kw) and net_power_kw > 0:
+        scale = float(net_power_kw) / float(power_kw(mill, mill.speed_nominal_frac_critical))
+    return float(mill.feed_nominal_tph) * scale
 
 
 def speed_problem(value: float) -> str | None:
