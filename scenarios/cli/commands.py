@@ -582,7 +582,7 @@ def cmd_optimize(args) -> int:
 # --------------------------------------------------------------------------- size-mill
 def add_size_mill_parser(subparsers):
     z = subparsers.add_parser("size-mill", help="size a ball mill in closed circuit for an ore, feed and target P80",
-                              description="The mill diameter (length 1.5 diameters, 35 %% balls) and hydrocyclone "
+                              description="The mill diameter (length 1.5 diameters, 35 % balls) and hydrocyclone "
                               "count at which the twin's steady overflow P80 meets the target, rates scaled from the "
                               "laboratory calibration by Austin's rules (twin.sizing, twin.scaleup).")
     z.add_argument("--ore", default="B", help="reference type A-D or a TOML file with [mineralogy] and [texture]")

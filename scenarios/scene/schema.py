@@ -95,16 +95,16 @@ class Mill(Section):
     unless ``[plant]`` says otherwise, of the plant; default 3."""
     size_classes: SizeClasses = Field(default_factory=SizeClasses)
     """The size grid of the controller's model and, unless ``[plant]`` says otherwise, of the plant."""
-    mixer_volume_fracs: list[float] | None = Field(default=None, min_length=1, max_length=20,
+    mixer_volume_fracs: list[float] | None = Field(default=None, min_length=1, max_length=20, examples=[[0.7, 0.15, 0.15]],
                                                    json_schema_extra={"unit": "fraction of hold-up"})
     """The mixers' shares of the hold-up, e.g. Whiten's one large and two small [0.7, 0.15, 0.15];
     sets ``n_mixers`` (which must agree if given); default: equal shares."""
-    ball_size_mm: float | None = Field(default=None, gt=0, le=200, json_schema_extra={"unit": "mm"})
+    ball_size_mm: float | None = Field(default=None, gt=0, le=200, examples=[25.0], json_schema_extra={"unit": "mm"})
     """Make-up ball size [mm] (Austin's scale-up factors on S); default: the preset's (25)."""
     discharge_solids_frac: float | None = Field(default=None, gt=0, lt=1)
     """Solids mass fraction of the mill discharge (0.72, not 72), held by the mill's feed water;
     default 0.70."""
-    power_model: Literal["bond", "hogg_fuerstenau"] | None = None
+    power_model: Literal["bond", "hogg_fuerstenau"] | None = Field(default=None, examples=["hogg_fuerstenau"])
     """Net-power model of the mill; default: the preset's (``"bond"``)."""
     net_power_kw: float | None = Field(default=None, gt=0, le=1e5)
     """A given (measured or published) net power at the nominal speed [kW]; the power model then
@@ -141,13 +141,13 @@ class OreBreakage(Section):
     """Exponent of the fall of the selection above the critical size (energy_specific)."""
     critical_size_um: float | None = Field(default=None, gt=0, le=1e7)
     """Critical size of the selection [um] (energy_specific)."""
-    a_per_min: float | None = Field(default=None, gt=0, le=1e6, json_schema_extra={"unit": "1/min"})
+    a_per_min: float | None = Field(default=None, gt=0, le=1e6, examples=[0.7], json_schema_extra={"unit": "1/min"})
     """Austin's rate constant at 1 mm [1/min] (austin)."""
-    alpha: float | None = Field(default=None, ge=0, le=5, json_schema_extra={"unit": "-"})
+    alpha: float | None = Field(default=None, ge=0, le=5, examples=[1.0], json_schema_extra={"unit": "-"})
     """Austin's size exponent (austin)."""
-    mu_um: float | None = Field(default=None, gt=0, le=1e7)
+    mu_um: float | None = Field(default=None, gt=0, le=1e7, examples=[3000.0])
     """Austin's mu, the size where the rate falls to half its power law [um] (austin)."""
-    Lambda: float | None = Field(default=None, ge=0, le=20, json_schema_extra={"unit": "-"})
+    Lambda: float | None = Field(default=None, ge=0, le=20, examples=[3.0], json_schema_extra={"unit": "-"})
     """Austin's Lambda, the steepness of that fall (austin)."""
     beta0: float = Field(ge=0, le=1, json_schema_extra={"unit": "-"})
     """Share of the fine-fragment term of B (Austin's phi)."""
@@ -269,7 +269,7 @@ class Feed(Section):
     x_max from ``p80_um``."""
     psd: FeedPSD | None = None
     """A screen analysis of the fresh feed (``[feed.psd]``), in place of ``p80_um``."""
-    psd_csv: str | None = None
+    psd_csv: str | None = Field(default=None, examples=["data/feed_screen.csv"])
     """A CSV of the fresh feed's screen analysis (columns ``size_um``, ``passing_pct``; path
     relative to the scene file), in place of ``p80_um``."""
     schedule: list[ScheduleEvent] = Field(default_factory=list)
@@ -290,7 +290,10 @@ class Feed(Section):
     @model_validator(mode="after")
     def _one_size_distribution(self):
         given = [k for k in ("psd", "psd_csv") if getattr(self, k) is not None]
-        ggs = [k for k in ("p80_um", "ggs_modulus") if k in self.model_fields_set]
+        # a GGS key at its default is not a second size (a scene dumped with its defaults and
+        # loaded again, as replays and the shipped-scene runs do, keeps its screen analysis)
+        ggs = [k for k in ("p80_um", "ggs_modulus")
+               if k in self.model_fields_set and getattr(self, k) != type(self).model_fields[k].default]
         if len(given) > 1 or (given and ggs):
             raise ValueError("give the feed size once: " + " or ".join(given + ggs) + " (psd, psd_csv, "
                              "or p80_um with ggs_modulus)")

@@ -51,7 +51,7 @@ def test_replay_guide(tmp_path, monkeypatch):
     ns = run_page("guide_replay.md", tmp_path, monkeypatch, SCENE=str(REPO / "scenarios" / "replay_day.toml"),
                   HISTORY=str(REPO / "scenarios" / "data" / "sample_history.csv"), HOURS=0.25)
     fr = ns["result"].frame
-    assert len(fr) == 16  # 0.25 h at one-minute samples
+    assert len(fr) == 6  # 0.25 h at the scene's 3-minute samples (the one-minute records averaged)
     np.testing.assert_array_equal(fr["feed_tph"], fr["recorded_feed_tph"])  # open loop: the recorded inputs
     assert ns["result"].kpis["mass_balance_error"] < 1e-6
     assert ns["gap"].abs().mean() == pytest.approx(ns["result"].summary["replay"]["run_minus_recorded"]
@@ -65,7 +65,6 @@ def test_tuning_guide(tmp_path, monkeypatch):
     table = ns["table"]
     assert list(table.index) == list(ns["TUNINGS"])
     nmpc = table.filter(like="NMPC", axis=0)
-    assert (nmpc["step p95 [s]"] > 10 * table.loc["PI (feed only)", "step p95 [s]"]).all()  # PI solves nothing
     assert nmpc.loc["NMPC, cheap moves", "feed moves [t/h]"] > nmpc.loc["NMPC, the scene's weights", "feed moves [t/h]"]
     assert (table["IAE [um h]"] >= 0).all() and table["t/h"].between(20.0, 45.0).all()  # the scene's bounds
 
