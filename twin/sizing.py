@@ -53,6 +53,7 @@ class SizedMill:
     load_frac: float
     load_status: str
     tried: list = field(default_factory=list)  # (cyclones, diameter_m or None, circulating load)
+    calibration: dict = field(default_factory=dict)  # the identity of the calibration it was sized with
 
     def record(self, command: str) -> dict:
         mill = {k: v for k, v in asdict(self.mill).items() if k in PRESET_FIELDS}
@@ -61,7 +62,7 @@ class SizedMill:
                            "p80_um": self.p80_um, "circulating_load_frac": self.circulating_load_frac,
                            "power_kw": self.power_kw, "specific_energy_kwh_t": self.specific_energy_kwh_t,
                            "load_frac": self.load_frac, "load_status": self.load_status, "tried": self.tried},
-                "command": command}
+                "calibration": self.calibration, "command": command}
 
 
 #: The Mill fields a sized preset records (the rest are the base mill's).
@@ -76,17 +77,23 @@ def circuit_twin(ore, mill: Mill, cyclone: dict, **kwargs) -> Twin:
     return Twin(ore, mill=mill, effects=list(DEFAULT_EFFECTS), effect_options=options, **kwargs)
 
 
-def _at(ore, base: Mill, diameter_m: float, cyclone: dict, feed_tph: float, speed: float):
+def _at(ore, base: Mill, diameter_m: float, cyclone: dict, feed_tph: float, speed: float, calibration):
     aspect = base.length_m / base.diameter_m
     mill = base.with_(diameter_m=diameter_m, length_m=aspect * diameter_m, feed_nominal_tph=feed_tph,
                       speed_nominal_frac_critical=speed, cyclone=tuple(sorted(cyclone.items())))
-    return mill, circuit_twin(ore, mill, cyclone).steady(feed_tph=feed_tph, speed_frac_critical=speed)
+    return mill, circuit_twin(ore, mill, cyclone, calibration=calibration).steady(
+        feed_tph=feed_tph, speed_frac_critical=speed)
 
 
 def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, speed_frac_critical: float = 0.70,
-              base: str | Mill = INDUSTRIAL_BASE, cyclone: Hydrocyclone | None = None) -> SizedMill:
-    """Size the mill (module docstring); TwinInputError for bad inputs, SolverError if no cyclone
-    count and diameter in range meet the target with a stable load."""
+              base: str | Mill = INDUSTRIAL_BASE, cyclone: Hydrocyclone | None = None,
+              calibration=None) -> SizedMill:
+    """Size the mill (module docstring) with ``calibration`` (default: the default calibration);
+    TwinInputError for bad inputs, SolverError if no cyclone count and diameter in range meet
+    the target with a stable load."""
+    from .calibration import load_calibration
+
+    calibration = load_calibration(calibration)
     check_range("size_mill", "feed_tph", feed_tph, 0.0, 1e5)
     check_range("size_mill", "target_p80_um", target_p80_um, 1.0, 1e4)
     check_range("size_mill", "speed_frac_critical", speed_frac_critical, 0.3, 0.95)
@@ -100,7 +107,7 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
             try:
                 with warnings.catch_warnings():  # Newton on an overloading trial mill: failure is the answer
                     warnings.simplefilter("ignore", scipy.sparse.linalg.MatrixRankWarning)
-                    ss = _at(ore, base, math.exp(log_d), cyc, feed_tph, speed_frac_critical)[1]
+                    ss = _at(ore, base, math.exp(log_d), cyc, feed_tph, speed_frac_critical, calibration)[1]
                 return math.log(ss.p80_um / target_p80_um)
             except SolverError:  # no steady state (the circuit overloads): the mill is too small
                 return 1.0
@@ -109,7 +116,7 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
             tried.append((count, None, None))
             continue
         d = math.exp(scipy.optimize.brentq(gap, lo, hi, xtol=1e-4))
-        mill, ss = _at(ore, base, d, cyc, feed_tph, speed_frac_critical)
+        mill, ss = _at(ore, base, d, cyc, feed_tph, speed_frac_critical, calibration)
         cl = ss.outputs["circulating_load_frac"]
         tried.append((count, d, cl))
         found.append((abs(cl - DESIGN_CIRCULATING_LOAD), count, mill, ss, cyc))
@@ -123,7 +130,8 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
     _, count, mill, ss, cyc = min(stable, key=lambda f: f[0])
     o = ss.outputs
     return SizedMill(mill, cyc, getattr(ore, "name", str(ore)), feed_tph, target_p80_um, ss.p80_um, o["circulating_load_frac"],
-                     o["power_kw"], o["specific_energy_kwh_t"], o["load_frac"], ss.load_status, tried)
+                     o["power_kw"], o["specific_energy_kwh_t"], o["load_frac"], ss.load_status, tried,
+                     calibration.identity())
 
 
 def write_preset(sized: SizedMill, command: str, path: Path = INDUSTRIAL_PRESET_PATH) -> Path:

@@ -12,6 +12,7 @@ from twin import (BreakageParams, Hydrocyclone, SizeGrid, TabulatedPSD, Twin, Tw
 from twin.errors import TwinError
 from twin.mill import INDUSTRIAL_PRESET_PATH, LAB, POWER_MODELS
 from twin.scaleup import diameter_factor_a, scale_breakage
+from twin.calibration import load_calibration
 
 LEAN = ["breakage", "transport"]
 
@@ -140,6 +141,7 @@ def test_industrial_preset_is_the_sized_mill_and_meets_its_sizing_target():
     record = json.loads(INDUSTRIAL_PRESET_PATH.read_text())
     mill = get_mill("industrial")
     assert mill.diameter_m == record["mill"]["diameter_m"] and dict(mill.cyclone) == record["cyclone"]
+    assert record["calibration"]["sha256"] == load_calibration().sha256, "sized with another calibration"
     z = record["sizing"]
     tw = Twin(z["ore"], mill="industrial", effect_options={"classification": {"kind": "hydrocyclone"}})
     ss = tw.steady(feed_tph=z["feed_tph"])
