@@ -63,7 +63,9 @@ def controllers(args, circuit, mt, sensors, dt):
         est = Ekf(mt.twin.model, dt, mt.steady.x, hardness0=mt.hardness0,
                   rk4_substeps=mt.rk4_substeps(dt),
                   p80_noise_um=sensors.p80_noise_um,
-                  hardness_noise_per_sqrt_h=args.hardness_noise)
+                  hardness_noise_per_sqrt_h=args.hardness_noise,
+                  disturbance_model=args.disturbance_model,
+                  p80_bias_noise_um_per_sqrt_h=args.p80_bias_noise)
         if kind == "none":
             yield kind, FixedInputs(u3), est, None
         elif kind == "pi":
@@ -82,7 +84,8 @@ def controllers(args, circuit, mt, sensors, dt):
                 horizon_steps=args.horizon, dt_h=dt, target_p80_um=mt.target_p80_um,
                 weight_du_feed=args.weight_du_feed, weight_du_speed=args.weight_du_speed,
                 feed_tph_min=FEED_MIN, feed_tph_max=FEED_MAX, feed_rate_max_tph_per_h=FEED_RATE,
-                rk4_substeps=mt.rk4_substeps(dt), solver=args.solver, preview=False))
+                rk4_substeps=mt.rk4_substeps(dt), solver=args.solver, qpsol=args.qpsol,
+                weight_p80=args.weight_p80, preview=False))
             print(f"NMPC built in {time.perf_counter() - t0:.1f} s, "
                   f"{mt.rk4_substeps(dt)} RK4 steps per sample")
             yield kind, ctrl, est, None
@@ -147,6 +150,11 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--weight-du-feed", type=float, default=1.0)
     ap.add_argument("--weight-du-speed", type=float, default=1.0)
     ap.add_argument("--solver", default="rti", help="NmpcSettings.solver of the NMPC")
+    ap.add_argument("--qpsol", default="condensed", help="NmpcSettings.qpsol of the NMPC")
+    ap.add_argument("--weight-p80", type=float, default=1.0)
+    ap.add_argument("--disturbance-model", default="hardness", help="EKF disturbance model (mpc.DISTURBANCE_MODELS)")
+    ap.add_argument("--p80-bias-noise", type=float, default=5.0,
+                    help="EKF random-walk intensity of the P80 bias [um/sqrt(h)]")
     ap.add_argument("--hardness-noise", type=float, default=0.1,
                     help="EKF random-walk intensity of the twin's hardness scale [1/sqrt(h)]")
     ap.add_argument("--p80-noise", type=float, default=3.0, help="analyser noise [um]")

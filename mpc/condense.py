@@ -174,6 +174,7 @@ class RtiLibrary:
         lib.gt_rti_free.argtypes = [ctypes.c_void_p]
         lib.gt_rti_sizes.argtypes = [ctypes.c_void_p, ip, ip, ip, ip]
         lib.gt_rti_step.argtypes = [ctypes.c_void_p, dp, dp, dp, ip]
+        lib.gt_rti_last_seconds.argtypes = [ctypes.c_void_p, dp, dp]
         self._lib, self._h = lib, lib.gt_rti_new()
         if not self._h:
             raise MpcInputError(f"gt_rti_new failed (out of memory) in {path}.")
@@ -193,6 +194,12 @@ class RtiLibrary:
         st = self._lib.gt_rti_step(self._h, w.ctypes.data_as(self._dp), p.ctypes.data_as(self._dp),
                                    out.ctypes.data_as(self._dp), ctypes.byref(self._it))
         return out, int(st), int(self._it.value)
+
+    def last_seconds(self) -> tuple[float, float]:
+        """Wall time of the last step's QP data and QP solve [s] (measured in C)."""
+        a, b = ctypes.c_double(), ctypes.c_double()
+        self._lib.gt_rti_last_seconds(self._h, ctypes.byref(a), ctypes.byref(b))
+        return a.value, b.value
 
     def __del__(self):
         if getattr(self, "_h", None):

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pandas as pd
 
-from mpc import (RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, NmpcSettings, Sensors, feed_for_target,
-                 pi_baseline, run_closed_loop, stable_rk4_substeps)
+from mpc import (RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, MpcInputError, NmpcSettings, Sensors,
+                 export_controller, feed_for_target, pi_baseline, run_closed_loop, stable_rk4_substeps)
 from scenarios.errors import RunError, SceneError
 from scenarios.run.feed import component_blend
 from scenarios.scene import Scene
@@ -54,10 +54,65 @@ def check_rk4_substeps(scene: Scene, model, css) -> None:
                          f"steps per {scene.scene.sample_period_h} h sample (rates x {RK4_RATE_SAFETY})")
 
 
-def make_controller(scene: Scene, twin):
+def make_controller(scene: Scene, twin, codegen: str = "auto"):
     """The scene's NMPC on the controller's twin: ``mpc.nmpc.Controller`` with
     :func:`nmpc_settings` (the PI baseline is built by the closed loop itself)."""
-    return Controller(twin.model, nmpc_settings(scene))
+    settings = nmpc_settings(scene)
+    settings.codegen = codegen
+    return Controller(twin.model, settings)
+
+
+def start_mode(scene: Scene) -> str:
+    """``feed.start`` with its default: "target" for a closed loop, "scene" for an open loop."""
+    if scene.feed.start is not None:
+        return scene.feed.start
+    return "scene" if scene.controller.kind == "none" else "target"
+
+
+def start_feed_tph(scene: Scene, models, blend0) -> float:
+    """The run's initial feed rate (``feed.start``, :func:`start_mode`): the steady state holding
+    the target P80 at the scene's speed and initial blend (:func:`mpc.optimize.feed_for_target`)
+    for "target" (or a scene without a target's feed_tph), the scene's ``feed_tph`` for "scene"."""
+    c = scene.controller
+    if c.target_p80_um is None or start_mode(scene) == "scene":
+        return float(scene.feed.feed_tph)
+    feed0 = feed_for_target(models.plant, blend0, c.target_p80_um, scene.feed.speed_frac_critical)
+    if not math.isfinite(feed0):
+        raise RunError(f"scene {scene.scene.name}: no feed rate in 5-60 t/h holds the target P80 "
+                       f"{c.target_p80_um} um at speed {scene.feed.speed_frac_critical} with the initial blend")
+    return float(feed0)
+
+
+def nmpc_parts(scene: Scene, models, blend0, feed0: float, codegen: str = "auto"):
+    """The NMPC's EKF (started at the controller model's steady state of the initial inputs) and
+    the NMPC itself, after the RK4 stability check."""
+    speed0 = scene.feed.speed_frac_critical
+    css = models.control.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend0)
+    check_rk4_substeps(scene, models.control.model, css)
+    estimator = Ekf(models.control.model, scene.scene.sample_period_h, css.x,
+                    disturbance_model=scene.controller.disturbance_model, codegen=codegen)
+    return estimator, make_controller(scene, models.control, codegen)
+
+
+def export_scene_controller(scene: Scene, out_dir, source: str = "") -> list[str]:
+    """The scene's NMPC and EKF as C source in ``out_dir`` (:func:`mpc.export_controller`), at the
+    closed loop's initial state; returns the files written."""
+    from scenarios.run.feed import feed_schedule
+    from scenarios.run.models import build_models, component_ores
+
+    if scene.controller.kind != "nmpc":
+        raise SceneError(f"controller.kind = {scene.controller.kind!r}: export-controller exports an NMPC "
+                         f"(controller.kind = 'nmpc')")
+    models = build_models(scene)
+    feed, _ = feed_schedule(scene, models.components, scene.time_grid_h(), component_ores(scene))
+    blend0 = component_blend(feed, models.components)[0]
+    feed0 = start_feed_tph(scene, models, blend0)
+    estimator, controller = nmpc_parts(scene, models, blend0, feed0, codegen="off")
+    try:
+        return export_controller(controller, estimator, [feed0, scene.feed.speed_frac_critical], out_dir,
+                                 source=source)
+    except MpcInputError as exc:
+        raise SceneError(str(exc)) from None
 
 
 #: The estimator runs this long on the steady plant before the loop closes (as on a plant that
@@ -85,11 +140,7 @@ def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
     speed0 = scene.feed.speed_frac_critical
     notes: list[str] = []
     try:
-        feed0 = (feed_for_target(models.plant, blend[0], c.target_p80_um, speed0)
-                 if c.target_p80_um is not None else scene.feed.feed_tph)
-        if not math.isfinite(feed0):
-            raise RunError(f"scene {scene.scene.name}: no feed rate in 5-60 t/h holds the target P80 "
-                           f"{c.target_p80_um} um at speed {speed0} with the initial blend")
+        feed0 = start_feed_tph(scene, models, blend[0])
         ss = models.plant.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend[0])
         notes.append(f"the plant starts at steady state, feed {feed0:.4g} t/h, speed {speed0:.3g}")
         sensors = Sensors(**{k: v for k, v in scene.sensors.model_dump().items() if k in Sensors.__dataclass_fields__})
@@ -100,10 +151,7 @@ def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
 
         estimator = None
         if kind == "nmpc":
-            css = models.control.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend[0])
-            check_rk4_substeps(scene, models.control.model, css)
-            estimator = Ekf(models.control.model, dt, css.x, disturbance_model=c.disturbance_model)
-            controller = make_controller(scene, models.control)
+            estimator, controller = nmpc_parts(scene, models, blend[0], feed0)
         else:
             b = c.bounds
             controller, _ = pi_baseline(

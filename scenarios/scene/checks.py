@@ -179,6 +179,9 @@ def _check_feed(data, ore_names: list[str], r: _Report) -> None:
         if _get(data, "controller", "kind") not in (None, "none"):
             r.add(("controller", "kind"), "a batch scene (effects without `transport`) has "
                   "nothing to control; use kind = \"none\"", _get(data, "controller", "kind"))
+    if feed.get("start") == "target" and _get(data, "controller", "target_p80_um") is None:
+        r.add(("feed", "start"), "\"target\" needs controller.target_p80_um (the P80 whose steady "
+              "state the run starts at)", "target")
     p80 = _num(feed.get("p80_um", 3200.0))
     top = _num(_get(data, "mill", "size_classes", "top_um") or 6700.0)
     if p80 is not None and top is not None and p80 >= top:

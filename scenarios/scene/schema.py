@@ -105,9 +105,16 @@ class Feed(Section):
     ``history`` is a recorded file (path relative to the scene file) read by
     :mod:`scenarios.scene.history`; ``history_texture`` is required when it records mineralogy
     without texture columns; ``history_max_gap_h`` is how long a value may be held.
+
+    ``start`` is where a continuous run starts: ``"scene"`` at the steady state of ``feed_tph``;
+    ``"target"`` at the steady state whose feed rate holds ``controller.target_p80_um`` at the
+    initial blend and speed, and an open loop then holds that feed rate. Default (``None``):
+    ``"target"`` for a closed loop (controller ``pi`` or ``nmpc``), ``"scene"`` for an open loop
+    (controller ``none``: a scene runs at its own feed rate unless it says ``start = "target"``).
     """
 
     blend: dict[str, float] | None = None
+    start: Literal["scene", "target"] | None = None
     feed_tph: float | None = Field(default=None, gt=0, le=1e4)
     batch_charge_kg: float | None = Field(default=None, gt=0, le=1e6)
     speed_frac_critical: float = Field(gt=0, lt=1)
