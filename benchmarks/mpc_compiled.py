@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import shutil
 import sys
 import tempfile
@@ -69,13 +70,22 @@ def build_times(model, horizon: int, qpsol: str) -> tuple[dict, Controller]:
     the cache folder stays set for the rest of the run, so the timed controller is the cached one."""
     os.environ[CACHE_ENV] = tempfile.mkdtemp(prefix="grindtwin-bench-")
     CACHE_FOLDERS.append(os.environ[CACHE_ENV])
+    cpu0 = _cpu_s()
     t0 = time.perf_counter()
     c = Controller(model, settings(horizon, "on", qpsol))
     cold = time.perf_counter() - t0
+    cold_cpu = _cpu_s() - cpu0
     t0 = time.perf_counter()
     c = Controller(model, settings(horizon, "on", qpsol))
     cached = time.perf_counter() - t0
-    return {"build_cold_s": cold, "build_cached_s": cached, "cached_hit": c.build_report["qp_data"].cache_hit}, c
+    return {"build_cold_s": cold, "build_cold_cpu_s": cold_cpu, "build_cached_s": cached,
+            "cached_hit": c.build_report["qp_data"].cache_hit}, c
+
+
+def _cpu_s() -> float:
+    """CPU time of this process and of its finished children (the C compiler) [s]."""
+    a, b = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return a.ru_utime + a.ru_stime + b.ru_utime + b.ru_stime
 
 
 def lockstep(plant_model, ctw, css, ss, ctrls: dict, duration_h: float, dt: float, seed: int):
@@ -107,9 +117,11 @@ def lockstep(plant_model, ctw, css, ss, ctrls: dict, duration_h: float, dt: floa
             if name in timers:
                 qd, qp = timers[name]
                 qd.total = qp.total = 0.0
+            cpu0 = time.thread_time()
             r = res[name] = c.make_step(est.x_est, preview, u_prev)
+            cpu = time.thread_time() - cpu0
             data_s, qp_s = c._rti_c.last_seconds() if name not in timers else (qd.total, qp.total)
-            rows.append({"time_h": t, "controller": name, "step_s": r.solve_time_s, "qp_data_s": data_s,
+            rows.append({"time_h": t, "controller": name, "step_s": r.solve_time_s, "step_cpu_s": cpu, "qp_data_s": data_s,
                          "qp_s": qp_s, "iterations": c.qp_iterations, "load_1min": os.getloadavg()[0],
                          "success": r.success, "u_feed": r.u_applied[0], "u_speed": r.u_applied[1]})
         x, _, _ = plant.step(x, res[lead].u_applied, d_plant, dt)
@@ -139,7 +151,9 @@ def main(argv=None) -> pd.DataFrame:
             du = np.max(np.abs(g[["u_feed", "u_speed"]].to_numpy() / ref[["u_feed", "u_speed"]].to_numpy() - 1))
             row = {"horizon": n, "controller": name, **builds.get(name, {}), "steps": len(g),
                    "step_median_s": g.step_s.median(), "step_p95_s": g.step_s.quantile(0.95),
-                   "step_max_s": g.step_s.max(), "hpipm_over_this": (ref.step_s / g.step_s).median(),
+                   "step_max_s": g.step_s.max(), "step_cpu_median_s": g.step_cpu_s.median(),
+                   "step_cpu_p95_s": g.step_cpu_s.quantile(0.95),
+                   "hpipm_over_this": (ref.step_s / g.step_s).median(),
                    "qp_data_median_s": g.qp_data_s.median(), "qp_median_s": g.qp_s.median(),
                    "rest_median_s": (g.step_s - g.qp_data_s - g.qp_s).median(),
                    "qp_iterations_median": g.iterations.median(),
@@ -157,7 +171,8 @@ def main(argv=None) -> pd.DataFrame:
           "(reference scene's controller model, 45 states)", "",
           f"Lock-step on the reference transition ({args.duration_h} h, 3-min samples, seed {args.seed}); the "
           "controllers' steps alternate (A, B, A, B...; the condensed one drives the plant); medians over the "
-          "steps. gcc -O2; HPIPM in OCP form (N, nx, nu, ng given), robust mode. `hpipm_over_this`: median of the "
+          "steps. `step_cpu`: the thread's CPU time of the step (make_step), what the step costs whatever the load; "
+          "`build_cold_cpu_s`: CPU time of the cold build, the C compiler included. gcc -O2; HPIPM in OCP form (N, nx, nu, ng given), robust mode. `hpipm_over_this`: median of the "
           "per-sample ratio of HPIPM's step to this one's. `move_rel_diff_max_vs_hpipm`: largest relative "
           "difference of the applied moves. `qp_data`/`qp`: the condensed step's are timed inside its C call. "
           "Build: cold = empty cache folder (generation + compilation), cached = a second build. "

@@ -58,7 +58,7 @@ def _propagators(ctrl):
     while that is at most ``n_x``, else the full ``A_k`` times the directions)."""
     s, m = ctrl.settings, ctrl.model
     point = _sensitivity_point(m, m.u, "cond_F")
-    full = rk4_sensitivity_map(m, s.dt_h, s.rk4_substeps, name="cond_F_full")
+    full = rk4_sensitivity_map(m, s.dt_h, s.rk4_substeps, name="cond_F_full", point=point)
     cache = {}
 
     def prop(k: int):
@@ -89,6 +89,7 @@ def condensed_qp_function(ctrl) -> ca.Function:
     n = N * nul
     scale = ctrl.x_scale
     inv_s = ca.DM(1.0 / scale)
+    diag_inv_s, diag_s = ca.diag(inv_s), ca.diag(ca.DM(scale))
     w = ca.MX.sym("w", ctrl._nw)
     p_x0, p_d = ca.MX.sym("x0", nx), ca.MX.sym("D", nd, N)
     p_uprev, p_wpass = ca.MX.sym("u_prev", nu), ca.MX.sym("wpass", ctrl.model.spec.grid.count)
@@ -134,11 +135,11 @@ def condensed_qp_function(ctrl) -> ca.Function:
         hw_rows.append(ca.MX(nul, 1))
         # dynamics: dX~_{k+1} = T_{k+1} dV + t_{k+1}
         xk = X[k][:nx] * ca.DM(scale)
-        dirs = ca.horzcat(t_k[:nx], *Tx) * ca.repmat(ca.DM(scale), 1, 1 + nu * k)
+        dirs = ca.mtimes(diag_s, ca.horzcat(t_k[:nx], *Tx))  # unscaled directions
         x_next, AS, B = prop(k)(xk, Uk[:nu], p_d[:, k], dirs)
-        t_next_x = AS[:, 0] * inv_s + x_next * inv_s - X[k + 1][:nx]
-        Tx = [AS[:, 1 + nu * j:1 + nu * (j + 1)] * ca.repmat(inv_s, 1, nu) for j in range(k)]
-        Tx.append(B * ca.repmat(inv_s, 1, nu))
+        AS, B = ca.mtimes(diag_inv_s, AS), ca.mtimes(diag_inv_s, B)  # scaled again
+        t_next_x = AS[:, 0] + x_next * inv_s - X[k + 1][:nx]
+        Tx = [AS[:, 1 + nu * j:1 + nu * (j + 1)] for j in range(k)] + [B]
         blocks = [ca.vertcat(Tx[j], ca.MX(nxl - nx, nu)) for j in range(k + 1)]
         cols = [ca.horzcat(blocks[j], ca.MX(nxl, nul - nu)) for j in range(k)]
         cols.append(ca.horzcat(blocks[k], ca.MX(nxl, nul - nu)) + ca.vertcat(ca.MX(nx, nul), eye_l))

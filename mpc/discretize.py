@@ -113,19 +113,20 @@ def _check_steps(n_steps, fn: str) -> None:
 
 
 def rk4_sensitivity_map(model, dt_h: float, n_steps: int = 1, name: str = "rk4_sens",
-                        with_d: bool = False) -> ca.Function:
+                        with_d: bool = False, point: ca.Function | None = None) -> ca.Function:
     """``F(x, u, d) -> (x_next, A, B)`` with ``A = dx_next/dx``, ``B = dx_next/du`` (and
     ``D = dx_next/dd`` as a fourth output when ``with_d``) by ``n_steps``
     RK4 steps of ``model.dae`` (forward sensitivities of the RK4 stages: ``dk = f_x S + f_z (g_x S)
     + f_u [0 I]`` at each stage, ``S`` the stage point's sensitivity; Hairer, Norsett & Wanner,
     section II.1, differentiated). Same values as AD of :func:`rk4_map`; the sparse factors make
-    each stage product ``(nnz f_x + nnz f_z + nnz g_x) (n_x + n_u)`` multiply-adds."""
+    each stage product ``(nnz f_x + nnz f_z + nnz g_x) (n_x + n_u)`` multiply-adds. ``point``
+    (:func:`_sensitivity_point` wrt ``u``, or ``(u, d)`` with ``with_d``) may be shared."""
     dt_h = _check_dt(dt_h)
     _check_steps(n_steps, "rk4_sensitivity_map")
     nx, nu, nd = model.x.numel(), model.u.numel(), model.d.numel()
     wrt = ca.vertcat(model.u, model.d) if with_d else model.u
     nw = wrt.numel()
-    point = _sensitivity_point(model, wrt, name)
+    point = point or _sensitivity_point(model, wrt, name)
     x, u, d = ca.MX.sym("x", nx), ca.MX.sym("u", nu), ca.MX.sym("d", nd)
     e_u = ca.horzcat(ca.DM(nw, nx), ca.DM.eye(nw))
     xk, s = _rk4_forward(model, point, x, u, d, ca.MX(ca.horzcat(ca.DM.eye(nx), ca.DM(nx, nw))), e_u,

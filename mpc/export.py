@@ -116,8 +116,9 @@ def _generate(fn: ca.Function, name: str, folder: Path) -> None:
     gen.generate(str(folder) + "/")
 
 
-def _prepare(out: Path) -> None:
+def check_out_dir(out) -> None:
     """Refuse a folder that is not empty and not a previous export (nothing written)."""
+    out = Path(out)
     if out.exists() and not out.is_dir():
         raise MpcInputError(f"--out {out}: exists and is not a folder.")
     if out.is_dir() and any(out.iterdir()):
@@ -137,7 +138,7 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "") -> l
     the names of the files written. ``u0``: the input applied before the first step."""
     _check(controller, estimator)
     out = Path(out_dir)
-    _prepare(out)
+    check_out_dir(out)
     partial = out.with_name(out.name + ".partial")
     if partial.exists():
         shutil.rmtree(partial)
@@ -160,6 +161,6 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "") -> l
         shutil.rmtree(partial, ignore_errors=True)
         raise
     if out.exists():
-        shutil.rmtree(out)  # a previous export of ours and nothing else (_prepare)
+        shutil.rmtree(out)  # a previous export of ours and nothing else (check_out_dir)
     partial.rename(out)
     return files

@@ -33,11 +33,11 @@ static long ekf_bytes(void) {
                   sizeof(casadi_real) * (size_t)w) + 16;
 }
 
-long gt_controller_bytes(void) { return (long)sizeof(gt_controller) + ekf_bytes(); }
+long gt_controller_bytes(void) { return (long)sizeof(gt_controller) + ekf_bytes() + gt_rti_bytes(); }
 
 gt_controller *gt_controller_new(void) {
     casadi_int a, r, i, w;
-    char *mem = (char *)calloc(1, (size_t)gt_controller_bytes());
+    char *mem = (char *)calloc(1, (size_t)(gt_controller_bytes() - gt_rti_bytes()));
     gt_controller *c = (gt_controller *)mem;
     long off = (long)sizeof(gt_controller);
     if (!c) return NULL;

@@ -4,7 +4,7 @@
  * One sample of a DCS task:
  *   gt_controller_estimate(c, y, u_applied, blend);   the EKF over the last period
  *   st = gt_controller_step(c, preview, u_applied, u); the moves to apply now
- * gt_controller_new allocates everything (one block, see gt_controller_bytes); estimate and step
+ * gt_controller_new allocates everything (two blocks, see gt_controller_bytes); estimate and step
  * allocate nothing. Dimensions and tuning are in gt_controller_config.h.
  */
 #ifndef GT_CONTROLLER_H
@@ -38,7 +38,8 @@ const double *gt_controller_estimate_state(const gt_controller *c);
 /* active-set changes of the last step's QPs, and its QP status (gt_qp.h) */
 int gt_controller_qp_iterations(const gt_controller *c);
 int gt_controller_qp_status(const gt_controller *c);
-/* bytes allocated by gt_controller_new */
+/* bytes allocated by gt_controller_new (two blocks: the controller with the EKF's work, and the
+ * RTI's: QP data and solver work) */
 long gt_controller_bytes(void);
 
 #endif

@@ -42,28 +42,26 @@ static long nnz_of(const casadi_int *sp) {
     return (long)sp[2 + sp[1]];
 }
 
+static size_t block_bytes(void);
+
+long gt_rti_bytes(void) { return (long)block_bytes(); }
+
 gt_rti *gt_rti_new(void) {
     casadi_int sz_arg, sz_res, sz_iw, sz_w;
-    long n_real = 0, k, off;
+    long k, off;
     int i;
     gt_rti *r;
     char *mem;
     size_t bytes;
     nmpc_condensed_qp_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
-    {
-        const casadi_int *sw = nmpc_condensed_qp_sparsity_in(0), *sp = nmpc_condensed_qp_sparsity_in(1);
-        const casadi_int *sh = nmpc_condensed_qp_sparsity_out(O_H), *sa = nmpc_condensed_qp_sparsity_out(O_A);
-        long nw = (long)sw[0], np = (long)sp[0], nv = (long)sh[0], m = (long)sa[0];
-        for (i = 0; i < N_OUT; ++i) n_real += nnz_of(nmpc_condensed_qp_sparsity_out(i));
-        n_real += (long)sz_w + nv + (nv + m) + gt_qp_work_size((int)nv, (int)m);
-        bytes = sizeof(gt_rti) + sizeof(casadi_real *) * (size_t)(sz_arg + sz_res) +
-                sizeof(casadi_int) * (size_t)sz_iw + sizeof(double) * (size_t)n_real +
-                sizeof(int) * (size_t)gt_qp_iwork_size((int)nv, (int)m) + 64;
-        mem = (char *)calloc(1, bytes); /* the only allocation */
-        if (!mem) return NULL;
-        r = (gt_rti *)mem;
-        r->nw = (int)nw; r->np = (int)np; r->nv = (int)nv; r->m = (int)m;
-    }
+    bytes = block_bytes();
+    mem = (char *)calloc(1, bytes); /* the only allocation */
+    if (!mem) return NULL;
+    r = (gt_rti *)mem;
+    r->nw = (int)nmpc_condensed_qp_sparsity_in(0)[0];
+    r->np = (int)nmpc_condensed_qp_sparsity_in(1)[0];
+    r->nv = (int)nmpc_condensed_qp_sparsity_out(O_H)[0];
+    r->m = (int)nmpc_condensed_qp_sparsity_out(O_A)[0];
     off = sizeof(gt_rti);
     off = (off + 7) & ~7L;
     r->arg = (const casadi_real **)(mem + off); off += sizeof(casadi_real *) * sz_arg;
@@ -84,6 +82,20 @@ gt_rti *gt_rti_new(void) {
 }
 
 void gt_rti_free(gt_rti *r) { free(r); }
+
+/* the block of gt_rti_new: the struct, CasADi's work, the QP data, the solver's work */
+static size_t block_bytes(void) {
+    casadi_int sz_arg, sz_res, sz_iw, sz_w;
+    long n_real = 0, nv = (long)nmpc_condensed_qp_sparsity_out(O_H)[0];
+    long m = (long)nmpc_condensed_qp_sparsity_out(O_A)[0];
+    int i;
+    nmpc_condensed_qp_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
+    for (i = 0; i < N_OUT; ++i) n_real += nnz_of(nmpc_condensed_qp_sparsity_out(i));
+    n_real += (long)sz_w + nv + (nv + m) + gt_qp_work_size((int)nv, (int)m);
+    return sizeof(gt_rti) + sizeof(casadi_real *) * (size_t)(sz_arg + sz_res) +
+           sizeof(casadi_int) * (size_t)sz_iw + sizeof(double) * (size_t)n_real +
+           sizeof(int) * (size_t)gt_qp_iwork_size((int)nv, (int)m) + 64;
+}
 
 void gt_rti_sizes(const gt_rti *r, int *nw, int *np, int *nv, int *m) {
     *nw = r->nw; *np = r->np; *nv = r->nv; *m = r->m;

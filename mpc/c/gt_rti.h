@@ -9,6 +9,8 @@ typedef struct gt_rti gt_rti;
 
 gt_rti *gt_rti_new(void);
 void gt_rti_free(gt_rti *r);
+/* bytes gt_rti_new allocates (one block) */
+long gt_rti_bytes(void);
 /* sizes: variables w, parameters p, condensed variables, condensed rows */
 void gt_rti_sizes(const gt_rti *r, int *nw, int *np, int *nv, int *m);
 /* w_out = w + step; returns the QP status (gt_qp.h: 0 = solved), *iter its active-set changes */

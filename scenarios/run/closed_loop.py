@@ -9,7 +9,8 @@ import numpy as np
 import pandas as pd
 
 from mpc import (RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, MpcInputError, NmpcSettings, Sensors,
-                 export_controller, feed_for_target, pi_baseline, run_closed_loop, stable_rk4_substeps)
+                 check_out_dir, export_controller, feed_for_target, pi_baseline, run_closed_loop,
+                 stable_rk4_substeps)
 from scenarios.errors import RunError, SceneError
 from scenarios.run.feed import component_blend
 from scenarios.scene import Scene
@@ -103,6 +104,10 @@ def export_scene_controller(scene: Scene, out_dir, source: str = "") -> list[str
     if scene.controller.kind != "nmpc":
         raise SceneError(f"controller.kind = {scene.controller.kind!r}: export-controller exports an NMPC "
                          f"(controller.kind = 'nmpc')")
+    try:
+        check_out_dir(out_dir)  # before any work
+    except MpcInputError as exc:
+        raise SceneError(str(exc)) from None
     models = build_models(scene)
     feed, _ = feed_schedule(scene, models.components, scene.time_grid_h(), component_ores(scene))
     blend0 = component_blend(feed, models.components)[0]
