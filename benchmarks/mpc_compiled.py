@@ -98,7 +98,7 @@ def lockstep(plant_model, ctw, css, ss, ctrls: dict, duration_h: float, dt: floa
     sens = SensorState(sensors, rng)
     timers = {}
     for name, c in ctrls.items():
-        if c._rti_c is None:
+        if getattr(c, "_rti_c", False) is None:  # our RTI on the sparse QP (others: no split)
             timers[name] = (Timed(c._qp_data), Timed(c._qp))
             c._qp_data, c._qp = timers[name]
     x, u_prev, rows = ss.x.copy(), ss.u.copy(), []
@@ -120,9 +120,14 @@ def lockstep(plant_model, ctw, css, ss, ctrls: dict, duration_h: float, dt: floa
             cpu0 = time.thread_time()
             r = res[name] = c.make_step(est.x_est, preview, u_prev)
             cpu = time.thread_time() - cpu0
-            data_s, qp_s = c._rti_c.last_seconds() if name not in timers else (qd.total, qp.total)
+            if name in timers:
+                data_s, qp_s = qd.total, qp.total
+            elif getattr(c, "_rti_c", None) is not None:
+                data_s, qp_s = c._rti_c.last_seconds()
+            else:
+                data_s = qp_s = np.nan
             rows.append({"time_h": t, "controller": name, "step_s": r.solve_time_s, "step_cpu_s": cpu, "qp_data_s": data_s,
-                         "qp_s": qp_s, "iterations": c.qp_iterations, "load_1min": os.getloadavg()[0],
+                         "qp_s": qp_s, "iterations": getattr(c, "qp_iterations", r.iterations), "load_1min": os.getloadavg()[0],
                          "success": r.success, "u_feed": r.u_applied[0], "u_speed": r.u_applied[1]})
         x, _, _ = plant.step(x, res[lead].u_applied, d_plant, dt)
         u_prev = res[lead].u_applied
@@ -135,6 +140,7 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--duration-h", type=float, default=8.0)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--interpreted", action="store_true", help="also HPIPM with interpreted QP data")
+    ap.add_argument("--tag", default="", help="suffix of the result files (e.g. _h40)")
     args = ap.parse_args(argv)
     plant, ss, ctw, css = reference_setup(reference_sensors())
     rows = []
@@ -165,7 +171,7 @@ def main(argv=None) -> pd.DataFrame:
         shutil.rmtree(folder, ignore_errors=True)
     table = pd.DataFrame(rows)
     OUT.mkdir(exist_ok=True)
-    table.to_csv(OUT / "mpc_compiled.csv", index=False)
+    table.to_csv(OUT / f"mpc_compiled{args.tag}.csv", index=False)
     load = os.getloadavg()
     md = ["# The RTI's QP condensed (Goldfarb-Idnani in C) against sparse (HPIPM), both compiled "
           "(reference scene's controller model, 45 states)", "",
@@ -179,8 +185,9 @@ def main(argv=None) -> pd.DataFrame:
           f"Load average (1 min) at the end {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} (1/5/15 min) on 2 cores "
           "(shared with other jobs); `load_1min_median` over the run.", "",
           table.to_markdown(index=False, floatfmt=".4g"), "",
-          "Reproduce: `PYTHONPATH=. python benchmarks/mpc_compiled.py`."]
-    (OUT / "mpc_compiled.md").write_text("\n".join(md) + "\n")
+          f"Reproduce: `PYTHONPATH=. python benchmarks/mpc_compiled.py --horizons {args.horizons} "
+          f"--duration-h {args.duration_h:g}" + (f" --tag {args.tag}`." if args.tag else "`.")]
+    (OUT / f"mpc_compiled{args.tag}.md").write_text("\n".join(md) + "\n")
     return table
 
 

@@ -178,7 +178,8 @@ def cmd_sweep(args) -> int:
         tmp = out / "sweep.parquet.partial"
         flat.to_parquet(tmp, index=False)
         tmp.replace(out / "sweep.parquet")
-    cols = ["case", *vary, "p80_iae_um_h", "specific_energy_kwh_t", "throughput_t", "error"]
+    cols = ["case", *vary, "start_feed_tph", "start_p80_um", "p80_iae_um_h", "specific_energy_kwh_t",
+            "throughput_t", "error"]  # what each case started from, beside what it did
     with pd.option_context("display.width", 160, "display.max_columns", 20):
         print(table[[c for c in cols if c in table.columns]].to_string(index=False))
     failed = int(table["error"].notna().sum())
