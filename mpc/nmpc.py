@@ -61,7 +61,10 @@ Solvers (``NmpcSettings.solver``), built once and reused:
 - ``"rti"``: the real-time iteration (Diehl, Bock & Schloeder 2005) with a Gauss-Newton Hessian,
   one structured QP per sample by HPIPM (Frison & Diehl 2020, "HPIPM: a high-performance
   quadratic programming framework for model predictive control", IFAC-PapersOnLine 53, 6563),
-  qrqp or OSQP. Iterations are counted per QP.
+  qrqp or OSQP, or (``qpsol = "condensed"``) the same QP condensed onto the inputs
+  (:mod:`mpc.condense`) and solved by the dense dual active-set method of Goldfarb & Idnani
+  (mpc/c/gt_qp.c) in one compiled C call with its data (mpc/c/gt_rti.c), the code that
+  ``grindtwin export-controller`` writes out (:mod:`mpc.export`). Iterations are counted per QP.
 
 Failure handling: if the solver does not converge the controller applies the previous plan
 shifted by one sample (``fallback_used="shifted_plan"``) while the old plan lasts, then holds the
