@@ -138,7 +138,7 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
         row |= _estimate_columns(estimator, x_est, u, d_est) | _controller_columns(controller, res)
         rows.append(row)
         if k == settings.n_steps:
-            break
+            continue  # the last row has no step after it (continue, not break: the bar reaches its end)
         # apply u over [t, t + dt): the throughput/power rows above are at the sample instant
         x, fed, produced = plant.step(x, u, d_plant, settings.dt_h)
         fed_t, produced_t = fed_t + fed, produced_t + produced
