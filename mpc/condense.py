@@ -166,7 +166,10 @@ class RtiLibrary:
     (mpc/c/gt_qp.h names the others). Allocates its C memory once, here."""
 
     STATUS = {0: "solved", 1: "infeasible", 2: "Hessian not positive definite", 3: "iteration limit",
-              4: "dependent equality constraints", -1: "QP data evaluation failed"}
+              4: "dependent equality constraints", 5: "solved with a regularised Hessian",
+              -1: "QP data evaluation failed"}
+    REGULARISED = 5  # solved on H + GT_QP_REG max(diag H) I (mpc/c/gt_qp.h)
+    SOLVED = (0, REGULARISED)
 
     def __init__(self, path):
         lib = ctypes.CDLL(str(path))

@@ -524,6 +524,7 @@ class Controller:
         n_it = min(self.settings.rti_iterations, self.settings.max_iter)
         ok, status, it = n_it > 0, "rti" if n_it > 0 else "Maximum_Iterations_Exceeded (max_iter 0)", 0
         self.qp_iterations = 0
+        self.qp_regularised = 0
         for it in range(1, n_it + 1):
             step, failure = self._rti_qp_step(w, p, lbx, ubx, lbg, ubg)
             if failure:
@@ -532,6 +533,8 @@ class Controller:
             w += step
             if np.max(np.abs(step)) < self.settings.tol:
                 break
+        if ok and self.qp_regularised:
+            status = "rti (QP Hessian regularised)"
         self._rti_stats = {"success": ok, "return_status": status, "iter_count": it}
         f = float(self._cost(w, p)) if ok else math.nan
         n_g = self._lbg.size
@@ -542,7 +545,8 @@ class Controller:
         if self._rti_c is not None:
             w_next, st, it = self._rti_c.step(w, p)
             self.qp_iterations += it
-            return (w_next - w, None) if st == 0 else (None, RtiLibrary.STATUS.get(st, str(st)))
+            self.qp_regularised += st == RtiLibrary.REGULARISED  # H semi-definite to rounding, counted
+            return (w_next - w, None) if st in RtiLibrary.SOLVED else (None, RtiLibrary.STATUS.get(st, str(st)))
         if self.settings.qpsol == "condensed":
             H, grad, A, lba, uba, lbv, ubv, Gw, hw = self._qp_data(w, p)
             sol = self._qp(h=H, g=grad, a=A, lba=lba, uba=uba, lbx=lbv, ubx=ubv)

@@ -10,6 +10,7 @@
 
 #include "gt_controller_config.h"
 #include "gt_ekf_data.h"
+#include "gt_qp.h"
 #include "gt_rti.h"
 
 #define GT_STRIDE (GT_NXL + GT_NUL) /* variables of one stage: X~_k then U~_k */
@@ -167,7 +168,8 @@ int gt_controller_step(gt_controller *c, const double *preview, const double *u_
         double step_max = 0.0;
         int qi = 0, st = gt_rti_step(c->rti, c->w, p, c->w_next, &qi);
         c->qp_iter += qi;
-        if (st) { ok = 0; c->qp_status = st; break; }
+        if (st) c->qp_status = st; /* a regularised QP stays reported after a clean one */
+        if (st && st != GT_QP_REGULARISED) { ok = 0; break; }
         for (i = 0; i < GT_NW; ++i) {
             double s = c->w_next[i] - c->w[i];
             c->w[i] += s;

@@ -35,7 +35,8 @@ int gt_controller_step(gt_controller *c, const double *preview, const double *u_
 const double *gt_controller_plan(const gt_controller *c);
 /* the estimate: the EKF's augmented state (model states, then hardness and/or P80 bias) */
 const double *gt_controller_estimate_state(const gt_controller *c);
-/* active-set changes of the last step's QPs, and its QP status (gt_qp.h) */
+/* active-set changes of the last step's QPs, and its QP status (gt_qp.h: 0 solved, or the
+ * failure that stopped it, or GT_QP_REGULARISED if a QP was solved on a regularised Hessian) */
 int gt_controller_qp_iterations(const gt_controller *c);
 int gt_controller_qp_status(const gt_controller *c);
 /* bytes allocated by gt_controller_new (two blocks: the controller with the EKF's work, and the

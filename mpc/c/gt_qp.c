@@ -69,11 +69,11 @@ static double cons_slack(const prob_t *P, int c, const double *x, const double *
     return (c % 2 ? -v : v) - cons_b(P, c);
 }
 
-/* Cholesky H = L L' (lower, column-major in l); returns 0 unless H is not positive definite */
-static int cholesky(int n, const double *H, double *l) {
+/* Cholesky H + reg I = L L' (lower, column-major in l); returns 0 unless not positive definite */
+static int cholesky(int n, const double *H, double reg, double *l) {
     int i, j, k;
     for (j = 0; j < n; ++j) {
-        double s = H[j + n * j];
+        double s = H[j + n * j] + reg;
         for (k = 0; k < j; ++k) s -= l[j + n * k] * l[j + n * k];
         if (!(s > 0.0)) return 1;
         l[j + n * j] = sqrt(s);
@@ -168,9 +168,14 @@ int gt_qp_solve(int n, int m, const double *H, const double *g, const double *A,
     double *J = work, *R = J + (long)n * n, *d = R + (long)n * n, *z = d + n, *r = z + n;
     double *np_ = r + n, *u = np_ + n, *ax = u + n + 1, *cnorm = ax + m;
     int *act = iwork, *act_flip = act + n, *is_active = act_flip + n;
-    if (cholesky(n, H, J)) {
-        if (iter) *iter = 0;
-        return GT_QP_NOT_CONVEX;
+    if (cholesky(n, H, 0.0, J)) { /* semi-definite to rounding: regularise once, reported */
+        double dmax = 0.0;
+        for (i = 0; i < n; ++i) dmax = H[i + n * i] > dmax ? H[i + n * i] : dmax;
+        if (!(dmax > 0.0) || cholesky(n, H, GT_QP_REG * dmax, J)) {
+            if (iter) *iter = 0;
+            return GT_QP_NOT_CONVEX;
+        }
+        status = GT_QP_REGULARISED;
     }
     inverse_transpose(n, J, R); /* R's space is the scratch of the inverse */
     memset(R, 0, sizeof(double) * n * n);

@@ -16,8 +16,12 @@ enum gt_qp_status {
     GT_QP_INFEASIBLE = 1,   /* no step reduces a violated constraint (the QP has no solution) */
     GT_QP_NOT_CONVEX = 2,   /* the Cholesky factorisation of H failed (H not positive definite) */
     GT_QP_MAX_ITER = 3,     /* iteration limit */
-    GT_QP_DEPENDENT = 4     /* an equality constraint is linearly dependent on the active ones */
+    GT_QP_DEPENDENT = 4,    /* an equality constraint is linearly dependent on the active ones */
+    GT_QP_REGULARISED = 5   /* solved, but H's Cholesky failed (H semi-definite to rounding) and
+                               H + GT_QP_REG max(diag H) I was factorised instead */
 };
+
+#define GT_QP_REG 1e-10
 
 long gt_qp_work_size(int n, int m);
 long gt_qp_iwork_size(int n, int m);

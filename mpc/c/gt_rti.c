@@ -114,7 +114,7 @@ int gt_rti_step(gt_rti *r, const double *w, const double *p, double *w_out, int 
                      r->dv, r->lam, iter, GT_QP_MAX_ITER, r->qp_w, r->qp_iw);
     r->data_s = t1 - t0;
     r->qp_s = now_s() - t1;
-    if (st != GT_QP_OK) return st;
+    if (st != GT_QP_OK && st != GT_QP_REGULARISED) return st;
     for (i = 0; i < r->nw; ++i) w_out[i] = w[i] + o[O_HW][i];
     if (sp[2] == 1) { /* dense Gw */
         for (j = 0; j < r->nv; ++j)
@@ -124,5 +124,5 @@ int gt_rti_step(gt_rti *r, const double *w, const double *p, double *w_out, int 
         for (j = 0; j < r->nv; ++j)
             for (i = (int)colind[j]; i < (int)colind[j + 1]; ++i) w_out[row[i]] += o[O_GW][i] * r->dv[j];
     }
-    return 0;
+    return st;
 }

@@ -13,7 +13,8 @@ void gt_rti_free(gt_rti *r);
 long gt_rti_bytes(void);
 /* sizes: variables w, parameters p, condensed variables, condensed rows */
 void gt_rti_sizes(const gt_rti *r, int *nw, int *np, int *nv, int *m);
-/* w_out = w + step; returns the QP status (gt_qp.h: 0 = solved), *iter its active-set changes */
+/* w_out = w + step; returns the QP status (gt_qp.h: 0 = solved, GT_QP_REGULARISED = solved with
+ * a regularised Hessian, w_out set for both), *iter its active-set changes */
 int gt_rti_step(gt_rti *r, const double *w, const double *p, double *w_out, int *iter);
 /* wall time of the last step's QP data and QP solve [s] */
 void gt_rti_last_seconds(const gt_rti *r, double *data_s, double *qp_s);

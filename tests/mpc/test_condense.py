@@ -122,3 +122,7 @@ def test_goldfarb_idnani_reports_infeasible_and_nonconvex(gi):
     assert st == 1  # x0 >= 1 and x0 <= 0
     st, _, _ = gi(np.diag([1.0, -1.0]), g, np.zeros((0, 2)), np.zeros(0), np.zeros(0), -np.ones(2), np.ones(2))
     assert st == 2
+    # semi-definite (exactly singular): solved on H + 1e-10 max(diag H) I, and said so
+    st, x, _ = gi(np.ones((2, 2)), np.array([-1.0, -1.0]), np.zeros((0, 2)), np.zeros(0), np.zeros(0),
+                  -np.ones(2), np.ones(2))
+    assert st == 5 and x[0] + x[1] == pytest.approx(1.0, abs=1e-6)
