@@ -15,8 +15,9 @@ RTI's block: QP data, solver work); estimate and step allocate nothing (counted 
 ``gt_malloc_count.so`` under ``LD_PRELOAD``).
 
 The folder: created if absent; an existing folder is used only if it holds a previous export
-and nothing else (its manifest names every file), which is then replaced; anything else is
-refused, nothing written. Files are written into ``DIR.partial`` and renamed when complete.
+and nothing else (its manifest names every file it wrote and every file its Makefile builds),
+which is then replaced; anything else is refused, nothing written. Files are written into
+``DIR.partial`` and renamed when complete.
 """
 
 from __future__ import annotations
@@ -36,6 +37,9 @@ from mpc.errors import MpcInputError
 MANIFEST = "grindtwin_export.json"
 C_FILES = ("gt_qp.c", "gt_qp.h", "gt_rti.c", "gt_rti.h", "gt_controller.c", "gt_controller.h",
            "gt_replay.c", "gt_malloc_count.c")
+#: What the Makefile builds in the folder (a re-export may replace these too).
+BUILD_PRODUCTS = ("gt_rti_data.o", "gt_ekf_data.o", "gt_qp.o", "gt_rti.o", "gt_controller.o", "gt_replay.o",
+                  "libgtcontroller.a", "gt_replay", "gt_malloc_count.so")
 MAKEFILE = """\
 # grindtwin's exported NMPC: `make` builds libgtcontroller.a, the replay harness gt_replay and
 # the allocation counter gt_malloc_count.so (LD_PRELOAD=./gt_malloc_count.so ./gt_replay < log).
@@ -126,7 +130,8 @@ def check_out_dir(out) -> None:
         if not man.is_file():
             raise MpcInputError(f"--out {out}: the folder is not empty and holds no {MANIFEST} (not an "
                                 f"export of ours); choose an empty or new folder.")
-        listed = set(json.loads(man.read_text()).get("files", []))
+        data = json.loads(man.read_text())
+        listed = set(data.get("files", [])) | set(data.get("build_products", []))
         foreign = sorted(p.name for p in out.iterdir() if p.name not in listed)
         if foreign:
             raise MpcInputError(f"--out {out}: holds files this export did not write ({', '.join(foreign[:5])}); "
@@ -153,6 +158,7 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "") -> l
         files = sorted(p.name for p in partial.iterdir()) + [MANIFEST]
         s = controller.settings
         manifest = {"source": source, "casadi": ca.__version__, "files": files,
+                    "build_products": list(BUILD_PRODUCTS),
                     "horizon_steps": s.horizon_steps, "dt_h": s.dt_h, "n_x": controller.nx,
                     "estimator_state": int(estimator.z.size), "disturbance_model": estimator.disturbance_model,
                     "api": "gt_controller.h", "build": "make"}

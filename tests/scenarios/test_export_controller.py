@@ -89,10 +89,11 @@ def test_exported_controller_replays_the_reference_hour_like_python(tmp_path, mo
     assert np.ptp(py[:, 0]) > 1e-3  # the hour moves the feed: the comparison can fail
     assert allocs == [0]  # no heap in estimate and step (counted by the LD_PRELOAD shim)
 
-    # a second export replaces the first (all its files were ours); a user's file stops a third
-    first = sorted(p.name for p in out.iterdir())
+    # a second export replaces the first and its build (all ours); a user's file stops a third
+    written = _export_files(out)
+    assert (out / "gt_replay").exists()
     assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 0
-    assert sorted(p.name for p in out.iterdir()) == sorted(set(first) & set(_export_files(out)))
+    assert sorted(p.name for p in out.iterdir()) == sorted(written)
     (out / "mine.c").write_text("/* a user's file */")
     assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 2
     assert (out / "mine.c").exists()
