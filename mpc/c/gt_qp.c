@@ -160,6 +160,26 @@ static void drop_constraint(int n, double *J, double *R, int *act, int *flip, do
     for (k = 0; k < n; ++k) R[k + n * (q - 1)] = 0.0;
 }
 
+/* d = J' v (J: n x n, column-major) */
+static void jt_times(int n, const double *J, const double *v, double *d) {
+    int i, j;
+    for (j = 0; j < n; ++j) {
+        double s = 0.0;
+        for (i = 0; i < n; ++i) s += J[i + n * j] * v[i];
+        d[j] = s;
+    }
+}
+
+/* out = J[:, q:] d[q:] */
+static void j_times_from(int n, const double *J, const double *d, int q, double *out) {
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        double s = 0.0;
+        for (j = q; j < n; ++j) s += J[i + n * j] * d[j];
+        out[i] = s;
+    }
+}
+
 int gt_qp_solve(int n, int m, const double *H, const double *g, const double *A,
                 const double *lba, const double *uba, const double *lbx, const double *ubx,
                 double *x, double *lam, int *iter, int max_iter, double *work, int *iwork) {
@@ -180,16 +200,9 @@ int gt_qp_solve(int n, int m, const double *H, const double *g, const double *A,
     inverse_transpose(n, J, R); /* R's space is the scratch of the inverse */
     memset(R, 0, sizeof(double) * n * n);
     /* unconstrained minimum x = -J J' g */
-    for (j = 0; j < n; ++j) {
-        double s = 0.0;
-        for (i = 0; i < n; ++i) s += J[i + n * j] * g[i];
-        d[j] = s;
-    }
-    for (i = 0; i < n; ++i) {
-        double s = 0.0;
-        for (j = 0; j < n; ++j) s += J[i + n * j] * d[j];
-        x[i] = -s;
-    }
+    jt_times(n, J, g, d);
+    j_times_from(n, J, d, 0, x);
+    for (i = 0; i < n; ++i) x[i] = -x[i];
     for (k = 0; k < nc; ++k) {
         is_active[k] = 0;
         if (k / 2 < n) cnorm[k] = 1.0;
@@ -233,16 +246,8 @@ int gt_qp_solve(int n, int m, const double *H, const double *g, const double *A,
             double t1 = INFINITY, t2 = INFINITY, t, zn = 0.0;
             int l = -1;
             if (++it > max_iter) { status = GT_QP_MAX_ITER; goto done; }
-            for (j = 0; j < n; ++j) {
-                double s = 0.0;
-                for (i = 0; i < n; ++i) s += J[i + n * j] * np_[i];
-                d[j] = s;
-            }
-            for (i = 0; i < n; ++i) {
-                double s = 0.0;
-                for (j = q; j < n; ++j) s += J[i + n * j] * d[j];
-                z[i] = s;
-            }
+            jt_times(n, J, np_, d);
+            j_times_from(n, J, d, q, z); /* primal direction z = J2 J2' n+ */
             for (j = q - 1; j >= 0; --j) { /* r = R^-1 d[0..q) */
                 double s = d[j];
                 for (k = j + 1; k < q; ++k) s -= R[j + n * k] * r[k];
