@@ -1,13 +1,16 @@
-"""Compiled against interpreted QP data of the real-time iteration (RTI + HPIPM), on the reference
-scene's controller model (7 classes x 3 mixers + analyser lag, 45 states), in one run.
+"""The real-time iteration's QP, condensed onto the inputs against sparse (HPIPM), both compiled,
+on the reference scene's controller model (7 classes x 3 mixers + analyser lag, 45 states), in
+one run.
 
-For each horizon, two controllers with the same settings, one whose QP data and cost run as
-compiled C (``codegen="on"``, :mod:`mpc.codegen`) and one in CasADi's virtual machine
-(``codegen="off"``), are stepped in lock-step on the same closed loop (the reference transition:
-plant twin 25 classes x 3 mixers, EKF, sensors; the compiled controller's moves drive the plant).
-Their steps alternate (A, B, A, B, ...), and their moves are compared at every sample (the same
-moves are the same closed loop). The compiled controller's step is split into QP data, QP
-(HPIPM) and the rest (Python). Build times: cold in an empty cache folder, then cached.
+For each horizon, controllers with the same settings but their QP (``NmpcSettings.qpsol``):
+"condensed" (:mod:`mpc.condense`: the condensed QP data and the Goldfarb-Idnani solve in one
+compiled C call, mpc/c) and "hpipm" (the stage-wise sparse QP data compiled, HPIPM in OCP form;
+with ``--interpreted`` also its QP data in CasADi's virtual machine), are stepped in lock-step on
+the same closed loop (the reference transition: plant twin 25 classes x 3 mixers, EKF, sensors;
+the first controller's moves drive the plant). Their steps alternate (A, B, A, B, ...), and
+their moves are compared at every sample (the same moves are the same closed loop). Each step is
+split into QP data, QP and the rest (Python). Build times: cold in an empty cache folder, then
+cached. The load average is read at every sample.
 
 Writes benchmarks/results/mpc_compiled.csv and .md.
 
@@ -18,6 +21,8 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
+import shutil
 import sys
 import tempfile
 import time
@@ -34,13 +39,14 @@ from mpc.codegen import CACHE_ENV  # noqa: E402
 from mpc.plants import as_plant  # noqa: E402
 
 OUT = Path(__file__).parent / "results"
+CACHE_FOLDERS: list[str] = []  # removed at the end of the run
 
 
-def settings(horizon: int, codegen: str, hpipm_mode: str = "robust") -> NmpcSettings:
+def settings(horizon: int, codegen: str, qpsol: str = "condensed") -> NmpcSettings:
     """The reference scene's NMPC (scenarios/reference_transition.toml) at ``horizon``."""
     return NmpcSettings(horizon_steps=horizon, dt_h=0.05, target_p80_um=TARGET_UM, rk4_substeps=2,
                         weight_du_feed=1.0, weight_du_speed=1.0, weight_energy=0.01, solver="rti",
-                        codegen=codegen, hpipm_mode=hpipm_mode)
+                        codegen=codegen, qpsol=qpsol)
 
 
 class Timed:
@@ -59,25 +65,27 @@ class Timed:
         return self.fn.stats()
 
 
-def build_times(model, horizon: int) -> dict:
-    """Build time of the compiled controller in an empty cache (cold) and again (cached)."""
-    old = os.environ.get(CACHE_ENV)
-    with tempfile.TemporaryDirectory() as tmp:
-        os.environ[CACHE_ENV] = tmp
-        try:
-            t0 = time.perf_counter()
-            c = Controller(model, settings(horizon, "on"))
-            cold = time.perf_counter() - t0
-            t0 = time.perf_counter()
-            Controller(model, settings(horizon, "on"))
-            cached = time.perf_counter() - t0
-        finally:
-            if old is None:
-                os.environ.pop(CACHE_ENV)
-            else:
-                os.environ[CACHE_ENV] = old
-    return {"build_cold_s": cold, "compile_s": c.build_report["qp_data"].seconds + c.build_report["cost"].seconds,
-            "build_cached_s": cached}
+def build_times(model, horizon: int, qpsol: str) -> tuple[dict, Controller]:
+    """Build time of the compiled controller in an empty cache folder (cold) and again (cached);
+    the cache folder stays set for the rest of the run, so the timed controller is the cached one."""
+    os.environ[CACHE_ENV] = tempfile.mkdtemp(prefix="grindtwin-bench-")
+    CACHE_FOLDERS.append(os.environ[CACHE_ENV])
+    cpu0 = _cpu_s()
+    t0 = time.perf_counter()
+    c = Controller(model, settings(horizon, "on", qpsol))
+    cold = time.perf_counter() - t0
+    cold_cpu = _cpu_s() - cpu0
+    t0 = time.perf_counter()
+    c = Controller(model, settings(horizon, "on", qpsol))
+    cached = time.perf_counter() - t0
+    return {"build_cold_s": cold, "build_cold_cpu_s": cold_cpu, "build_cached_s": cached,
+            "cached_hit": c.build_report["qp_data"].cache_hit}, c
+
+
+def _cpu_s() -> float:
+    """CPU time of this process and of its finished children (the C compiler) [s]."""
+    a, b = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return a.ru_utime + a.ru_stime + b.ru_utime + b.ru_stime
 
 
 def lockstep(plant_model, ctw, css, ss, ctrls: dict, duration_h: float, dt: float, seed: int):
@@ -90,8 +98,9 @@ def lockstep(plant_model, ctw, css, ss, ctrls: dict, duration_h: float, dt: floa
     sens = SensorState(sensors, rng)
     timers = {}
     for name, c in ctrls.items():
-        timers[name] = (Timed(c._qp_data), Timed(c._qp))
-        c._qp_data, c._qp = timers[name]
+        if getattr(c, "_rti_c", False) is None:  # our RTI on the sparse QP (others: no split)
+            timers[name] = (Timed(c._qp_data), Timed(c._qp))
+            c._qp_data, c._qp = timers[name]
     x, u_prev, rows = ss.x.copy(), ss.u.copy(), []
     lead = next(iter(ctrls))
     for k in range(int(round(duration_h / dt))):
@@ -105,11 +114,20 @@ def lockstep(plant_model, ctw, css, ss, ctrls: dict, duration_h: float, dt: floa
         preview = np.array([np.r_[schedule(min(tt, t + LEAD_H)), est.hardness_est] for tt in times]).T
         res = {}
         for name, c in ctrls.items():
-            qd, qp = timers[name]
-            qd.total = qp.total = 0.0
+            if name in timers:
+                qd, qp = timers[name]
+                qd.total = qp.total = 0.0
+            cpu0 = time.thread_time()
             r = res[name] = c.make_step(est.x_est, preview, u_prev)
-            rows.append({"time_h": t, "controller": name, "step_s": r.solve_time_s, "qp_data_s": qd.total,
-                         "qp_s": qp.total, "iterations": c._qp.stats().get("iter_count", np.nan),
+            cpu = time.thread_time() - cpu0
+            if name in timers:
+                data_s, qp_s = qd.total, qp.total
+            elif getattr(c, "_rti_c", None) is not None:
+                data_s, qp_s = c._rti_c.last_seconds()
+            else:
+                data_s = qp_s = np.nan
+            rows.append({"time_h": t, "controller": name, "step_s": r.solve_time_s, "step_cpu_s": cpu, "qp_data_s": data_s,
+                         "qp_s": qp_s, "iterations": getattr(c, "qp_iterations", r.iterations), "load_1min": os.getloadavg()[0],
                          "success": r.success, "u_feed": r.u_applied[0], "u_speed": r.u_applied[1]})
         x, _, _ = plant.step(x, res[lead].u_applied, d_plant, dt)
         u_prev = res[lead].u_applied
@@ -121,41 +139,55 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--horizons", default="10,40")
     ap.add_argument("--duration-h", type=float, default=8.0)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--interpreted", action="store_true", help="also HPIPM with interpreted QP data")
+    ap.add_argument("--tag", default="", help="suffix of the result files (e.g. _h40)")
     args = ap.parse_args(argv)
     plant, ss, ctw, css = reference_setup(reference_sensors())
     rows = []
     for n in (int(v) for v in args.horizons.split(",")):
-        b = build_times(ctw.model, n)
-        ctrls = {"compiled": Controller(ctw.model, settings(n, "on")),
-                 "interpreted": Controller(ctw.model, settings(n, "off")),
-                 "compiled_hpipm_speed": Controller(ctw.model, settings(n, "on", "speed"))}
+        builds, ctrls = {}, {}
+        for q in ("condensed", "hpipm"):
+            builds[q], ctrls[q] = build_times(ctw.model, n, q)
+        if args.interpreted:
+            ctrls["hpipm_interpreted"] = Controller(ctw.model, settings(n, "off", "hpipm"))
         fr = lockstep(plant.model, ctw, css, ss, ctrls, args.duration_h, 0.05, args.seed)
-        ref = fr[fr.controller == "interpreted"].set_index("time_h")
+        ref = fr[fr.controller == "hpipm"].set_index("time_h")
         for name, g in fr.groupby("controller", sort=False):
             g = g.set_index("time_h")
             du = np.max(np.abs(g[["u_feed", "u_speed"]].to_numpy() / ref[["u_feed", "u_speed"]].to_numpy() - 1))
-            row = {"horizon": n, "controller": name, **(b if name == "compiled" else {}), "steps": len(g),
+            row = {"horizon": n, "controller": name, **builds.get(name, {}), "steps": len(g),
                    "step_median_s": g.step_s.median(), "step_p95_s": g.step_s.quantile(0.95),
-                   "interpreted_over_this": (ref.step_s / g.step_s).median(),
-                   "qp_data_median_s": g.qp_data_s.median(), "hpipm_median_s": g.qp_s.median(),
+                   "step_max_s": g.step_s.max(), "step_cpu_median_s": g.step_cpu_s.median(),
+                   "step_cpu_p95_s": g.step_cpu_s.quantile(0.95),
+                   "hpipm_over_this": (ref.step_s / g.step_s).median(),
+                   "qp_data_median_s": g.qp_data_s.median(), "qp_median_s": g.qp_s.median(),
                    "rest_median_s": (g.step_s - g.qp_data_s - g.qp_s).median(),
-                   "hpipm_iterations_median": g.iterations.median(),
-                   "move_rel_diff_max_vs_interpreted": du, "failed_steps": int((~g.success.astype(bool)).sum())}
+                   "qp_iterations_median": g.iterations.median(),
+                   "move_rel_diff_max_vs_hpipm": du, "failed_steps": int((~g.success.astype(bool)).sum()),
+                   "load_1min_median": g.load_1min.median()}
             print(row, flush=True)
             rows.append(row)
+    for folder in CACHE_FOLDERS:
+        shutil.rmtree(folder, ignore_errors=True)
     table = pd.DataFrame(rows)
     OUT.mkdir(exist_ok=True)
-    table.to_csv(OUT / "mpc_compiled.csv", index=False)
+    table.to_csv(OUT / f"mpc_compiled{args.tag}.csv", index=False)
     load = os.getloadavg()
-    md = ["# Compiled against interpreted RTI QP data (reference scene's controller model, 45 states)", "",
-          f"Lock-step on the reference transition ({args.duration_h} h, 3-min samples, seed {args.seed}); the two "
-          "controllers' steps alternate (A, B, C, A, B, C...; the compiled one drives the plant); medians over the "
-          "steps. gcc -O2; HPIPM in OCP form (N, nx, nu, ng given), robust mode unless named. `move_rel_diff_max`: largest relative difference of the applied moves. Build: "
-          "cold = empty cache folder (generation + compilation), cached = a second build. "
-          f"Load average at the end {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} on 2 cores (shared).", "",
+    md = ["# The RTI's QP condensed (Goldfarb-Idnani in C) against sparse (HPIPM), both compiled "
+          "(reference scene's controller model, 45 states)", "",
+          f"Lock-step on the reference transition ({args.duration_h} h, 3-min samples, seed {args.seed}); the "
+          "controllers' steps alternate (A, B, A, B...; the condensed one drives the plant); medians over the "
+          "steps. `step_cpu`: the thread's CPU time of the step (make_step), what the step costs whatever the load; "
+          "`build_cold_cpu_s`: CPU time of the cold build, the C compiler included. gcc -O2; HPIPM in OCP form (N, nx, nu, ng given), robust mode. `hpipm_over_this`: median of the "
+          "per-sample ratio of HPIPM's step to this one's. `move_rel_diff_max_vs_hpipm`: largest relative "
+          "difference of the applied moves. `qp_data`/`qp`: the condensed step's are timed inside its C call. "
+          "Build: cold = empty cache folder (generation + compilation), cached = a second build. "
+          f"Load average (1 min) at the end {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} (1/5/15 min) on 2 cores "
+          "(shared with other jobs); `load_1min_median` over the run.", "",
           table.to_markdown(index=False, floatfmt=".4g"), "",
-          "Reproduce: `PYTHONPATH=. python benchmarks/mpc_compiled.py`."]
-    (OUT / "mpc_compiled.md").write_text("\n".join(md) + "\n")
+          f"Reproduce: `PYTHONPATH=. python benchmarks/mpc_compiled.py --horizons {args.horizons} "
+          f"--duration-h {args.duration_h:g}" + (f" --tag {args.tag}`." if args.tag else "`.")]
+    (OUT / f"mpc_compiled{args.tag}.md").write_text("\n".join(md) + "\n")
     return table
 
 

@@ -29,6 +29,7 @@ Writes benchmarks/results/mpc_leroux_case.csv (KPIs), .md (table) and mpc_leroux
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 from types import SimpleNamespace
@@ -63,7 +64,9 @@ def controllers(args, circuit, mt, sensors, dt):
         est = Ekf(mt.twin.model, dt, mt.steady.x, hardness0=mt.hardness0,
                   rk4_substeps=mt.rk4_substeps(dt),
                   p80_noise_um=sensors.p80_noise_um,
-                  hardness_noise_per_sqrt_h=args.hardness_noise)
+                  hardness_noise_per_sqrt_h=args.hardness_noise,
+                  disturbance_model=args.disturbance_model,
+                  p80_bias_noise_um_per_sqrt_h=args.p80_bias_noise)
         if kind == "none":
             yield kind, FixedInputs(u3), est, None
         elif kind == "pi":
@@ -82,7 +85,8 @@ def controllers(args, circuit, mt, sensors, dt):
                 horizon_steps=args.horizon, dt_h=dt, target_p80_um=mt.target_p80_um,
                 weight_du_feed=args.weight_du_feed, weight_du_speed=args.weight_du_speed,
                 feed_tph_min=FEED_MIN, feed_tph_max=FEED_MAX, feed_rate_max_tph_per_h=FEED_RATE,
-                rk4_substeps=mt.rk4_substeps(dt), solver=args.solver, preview=False))
+                rk4_substeps=mt.rk4_substeps(dt), solver=args.solver, qpsol=args.qpsol,
+                weight_p80=args.weight_p80, preview=False))
             print(f"NMPC built in {time.perf_counter() - t0:.1f} s, "
                   f"{mt.rk4_substeps(dt)} RK4 steps per sample")
             yield kind, ctrl, est, None
@@ -147,6 +151,11 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--weight-du-feed", type=float, default=1.0)
     ap.add_argument("--weight-du-speed", type=float, default=1.0)
     ap.add_argument("--solver", default="rti", help="NmpcSettings.solver of the NMPC")
+    ap.add_argument("--qpsol", default="condensed", help="NmpcSettings.qpsol of the NMPC")
+    ap.add_argument("--weight-p80", type=float, default=1.0)
+    ap.add_argument("--disturbance-model", default="hardness", help="EKF disturbance model (mpc.DISTURBANCE_MODELS)")
+    ap.add_argument("--p80-bias-noise", type=float, default=5.0,
+                    help="EKF random-walk intensity of the P80 bias [um/sqrt(h)]")
     ap.add_argument("--hardness-noise", type=float, default=0.1,
                     help="EKF random-walk intensity of the twin's hardness scale [1/sqrt(h)]")
     ap.add_argument("--p80-noise", type=float, default=3.0, help="analyser noise [um]")
@@ -155,6 +164,7 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--rock-step", action="store_true",
                     help=f"also step the rock fraction to {ROCK_FRAC} at t = {T_ROCK_H} h")
     ap.add_argument("--tag", default="", help="suffix of the result files")
+    argv = sys.argv[1:] if argv is None else list(argv)
     args = ap.parse_args(argv)
     table, runs, notes = run_case(args)
     OUT.mkdir(exist_ok=True)
@@ -170,16 +180,18 @@ def main(argv=None) -> pd.DataFrame:
     md = [f"# le Roux et al. (2013) circuit: phi_f x {PHI_F_STEP} at {T_STEP_H} h{rock}; "
           "twin-based NMPC + EKF against PI and no control",
           "",
-          f"duration {args.duration_h} h, sample {args.dt_h} h, NMPC horizon {args.horizon} ({args.solver}) "
-          f"(no preview), seed {args.seed}; weights du_feed {args.weight_du_feed}, du_speed "
-          f"{args.weight_du_speed}; EKF on the P80 analyser only, hardness noise "
+          f"duration {args.duration_h} h, sample {args.dt_h} h, NMPC horizon {args.horizon} ({args.solver}, "
+          f"qpsol {args.qpsol}, no preview), seed {args.seed}; weights p80 {args.weight_p80}, du_feed "
+          f"{args.weight_du_feed}, du_speed {args.weight_du_speed}; EKF on the P80 analyser only, "
+          f"disturbance model {args.disturbance_model}, hardness noise "
           f"{args.hardness_noise}/sqrt(h), warm-up {args.warmup_h} h; sensors: P80 noise "
           f"{args.p80_noise} um, dead time 0.1 h, sampling 0.05 h. Band: +-{BAND_REL:.0%} of "
           "target. final_offset_um: mean (P80 - target) over the last hour; "
           "hardness_est_final_rel: the EKF's hardness over its survey-3 value (plant: "
           f"{PHI_F_STEP}).",
           "", *[f"- {n}" for n in notes], "",
-          table[cols].to_markdown(index=False, floatfmt=".4g")]
+          table[cols].to_markdown(index=False, floatfmt=".4g"), "",
+          f"Reproduce: `{' '.join(['PYTHONPATH=. python benchmarks/mpc_leroux_case.py', *argv])}`."]
     (OUT / f"{name}.md").write_text("\n".join(md) + "\n")
     return table
 

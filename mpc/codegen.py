@@ -86,13 +86,17 @@ def _compiler_identity(cc: str) -> str:
     return f"{cc}|{out.stdout.splitlines()[0] if out.stdout else ''}"
 
 
-def function_key(fn: ca.Function, cc: str, cflags) -> str:
-    """Hash naming the library of ``fn`` compiled by ``cc`` with ``cflags``."""
+def _key(parts, cc: str, cflags) -> str:
     h = hashlib.sha256()
-    for part in (fn.serialize(), ca.__version__, _compiler_identity(cc), " ".join(cflags)):
+    for part in (*parts, ca.__version__, _compiler_identity(cc), " ".join(cflags)):
         h.update(part.encode())
         h.update(b"\0")
     return h.hexdigest()[:20]
+
+
+def function_key(fn: ca.Function, cc: str, cflags) -> str:
+    """Hash naming the library of ``fn`` compiled by ``cc`` with ``cflags``."""
+    return _key([fn.serialize()], cc, cflags)
 
 
 def compile_library(fn: ca.Function, path: Path, cc: str, cflags) -> None:
@@ -112,18 +116,17 @@ def compile_library(fn: ca.Function, path: Path, cc: str, cflags) -> None:
         os.replace(lib, path)
 
 
-def compiled(fn: ca.Function, mode: str = "auto", cflags=DEFAULT_CFLAGS) -> tuple[ca.Function, CompileReport]:
-    """``fn`` compiled (from the cache when it is there) and loaded, with a report; or ``fn``
-    itself when ``mode`` is ``"off"``, or ``"auto"`` without a compiler (warned, counted)."""
+def _resolve(name: str, mode: str) -> tuple[str | None, CompileReport | None]:
+    """The compiler to use for ``name`` under ``mode``, or None and the report of the
+    interpreted fallback (warned and counted for ``"auto"``, an error for ``"on"``)."""
     if mode not in MODES:
         raise MpcInputError(f"The 'mode' parameter of compiled() must be one of {MODES}. Got {mode!r}.")
     if mode == "auto":
         mode = os.environ.get(MODE_ENV, "auto")
         if mode not in MODES:
             raise MpcInputError(f"The ${MODE_ENV} environment variable must be one of {MODES}. Got {mode!r}.")
-    name = fn.name()
     if mode == "off":
-        return fn, CompileReport(name, False, False, 0.0, None, "codegen off")
+        return None, CompileReport(name, False, False, 0.0, None, "codegen off")
     cc = find_compiler()
     if cc is None:
         reason = ("no C compiler found ($CC, cc, gcc); install one (e.g. apt-get install gcc) "
@@ -131,8 +134,18 @@ def compiled(fn: ca.Function, mode: str = "auto", cflags=DEFAULT_CFLAGS) -> tupl
         if mode == "on":
             raise MpcError(f"Cannot compile '{name}': {reason}.")
         FALLBACKS[reason] += 1
-        warnings.warn(f"'{name}' runs interpreted (slower): {reason}.", CompileFallbackWarning, stacklevel=2)
-        return fn, CompileReport(name, False, False, 0.0, None, reason)
+        warnings.warn(f"'{name}' runs interpreted (slower): {reason}.", CompileFallbackWarning, stacklevel=3)
+        return None, CompileReport(name, False, False, 0.0, None, reason)
+    return cc, None
+
+
+def compiled(fn: ca.Function, mode: str = "auto", cflags=DEFAULT_CFLAGS) -> tuple[ca.Function, CompileReport]:
+    """``fn`` compiled (from the cache when it is there) and loaded, with a report; or ``fn``
+    itself when ``mode`` is ``"off"``, or ``"auto"`` without a compiler (warned, counted)."""
+    name = fn.name()
+    cc, fallback = _resolve(name, mode)
+    if cc is None:
+        return fn, fallback
     t0 = time.perf_counter()
     path = cache_dir() / f"{name}_{function_key(fn, cc, cflags)}.so"
     hit = path.exists()
@@ -140,3 +153,39 @@ def compiled(fn: ca.Function, mode: str = "auto", cflags=DEFAULT_CFLAGS) -> tupl
         compile_library(fn, path, cc, cflags)
     ext = ca.external(name, str(path))
     return ext, CompileReport(name, True, hit, time.perf_counter() - t0, str(path))
+
+
+#: C sources shipped with the package (mpc/c): the dense QP solver and the RTI step.
+C_DIR = Path(__file__).parent / "c"
+
+
+def c_library(name: str, fns, sources, mode: str = "auto",
+              cflags=DEFAULT_CFLAGS) -> tuple[Path | None, CompileReport]:
+    """A shared library of the CasADi functions ``fns`` (generated together as
+    ``{name}_data.c`` with its header) and the C ``sources`` of :data:`C_DIR` that call them,
+    cached like :func:`compiled` (the key also covers the sources' text); ``None`` and the
+    fallback's report when nothing may or can be compiled."""
+    cc, fallback = _resolve(name, mode)
+    if cc is None:
+        return None, fallback
+    t0 = time.perf_counter()
+    texts = [(C_DIR / f).read_text() for src in sources
+             for f in (src, Path(src).with_suffix(".h")) if (C_DIR / f).exists()]
+    key = _key([f.serialize() for f in fns] + texts, cc, cflags)
+    path = cache_dir() / f"{name}_{key}.so"
+    hit = path.exists()
+    if not hit:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=path.parent, prefix=".build-") as tmp:
+            gen = ca.CodeGenerator(f"{name}_data.c", {"with_header": True})
+            for f in fns:
+                gen.add(f)
+            gen.generate(tmp + os.sep)
+            srcs = [str(Path(tmp) / f"{name}_data.c")] + [str(C_DIR / src) for src in sources]
+            lib = Path(tmp) / path.name
+            cmd = [cc, *cflags, "-shared", "-fPIC", f"-I{tmp}", f"-I{C_DIR}", *srcs, "-o", str(lib), "-lm"]
+            run = subprocess.run(cmd, capture_output=True, text=True, check=False)
+            if run.returncode != 0:
+                raise MpcError(f"The C compiler failed on '{name}' ({' '.join(cmd)}): {run.stderr[-800:]}")
+            os.replace(lib, path)
+    return path, CompileReport(name, True, hit, time.perf_counter() - t0, str(path))

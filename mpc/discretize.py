@@ -10,6 +10,8 @@ sample period with ``u`` and ``d`` held (zero-order hold). Two constructions:
   propagated through the model's sparse DAE form (its aggregates ``z = g(x)`` kept, not
   substituted: ``df/dx = f_x + f_z g_x`` with sparse factors), as mixed MX/SX code that
   compiles to small C with loops (:mod:`mpc.codegen`);
+- :func:`rk4_directional_map` - the same with ``dF/dx`` applied to given directions (the
+  condensed QP's propagation, :mod:`mpc.condense`);
 - :func:`cvodes_map` - SUNDIALS CVODES through ``casadi.integrator`` (variable order BDF,
   error-controlled), the reference for accuracy, slower to embed.
 
@@ -68,39 +70,33 @@ def rk4_map(f: ca.Function, dt_h: float, n_steps: int = 1, name: str = "rk4_map"
     return ca.Function(name, [x, u, d], [xk], ["x", "u", "d"], ["x_next"])
 
 
-def rk4_sensitivity_map(model, dt_h: float, n_steps: int = 1, name: str = "rk4_sens",
-                        with_d: bool = False) -> ca.Function:
-    """``F(x, u, d) -> (x_next, A, B)`` with ``A = dx_next/dx``, ``B = dx_next/du`` (and
-    ``D = dx_next/dd`` as a fourth output when ``with_d``) by ``n_steps``
-    RK4 steps of ``model.dae`` (forward sensitivities of the RK4 stages: ``dk = f_x S + f_z (g_x S)
-    + f_u [0 I]`` at each stage, ``S`` the stage point's sensitivity; Hairer, Norsett & Wanner,
-    section II.1, differentiated). Same values as AD of :func:`rk4_map`; the sparse factors make
-    each stage product ``(nnz f_x + nnz f_z + nnz g_x) (n_x + n_u)`` multiply-adds."""
-    dt_h = _check_dt(dt_h)
-    if not (isinstance(n_steps, (int, np.integer)) and n_steps >= 1):
-        raise MpcInputError(f"The 'n_steps' parameter of rk4_sensitivity_map must be an int >= 1. "
-                            f"Got {n_steps!r}.")
+def _sensitivity_point(model, wrt, name: str) -> ca.Function:
+    """``(x, u, d) -> (f, f_x, f_z, f_w, g_x)`` of the model's sparse DAE form at one point, the
+    aggregates ``z = g(x)`` substituted in the values but kept as factors of the Jacobian
+    (``df/dx = f_x + f_z g_x``); common subexpressions eliminated."""
     dae, zs, g = model.dae, model.z, model.z_expr
-    nx, nu, nd = model.x.numel(), model.u.numel(), model.d.numel()
     ode = dae["ode"]
-    wrt = ca.vertcat(model.u, model.d) if with_d else model.u
-    nw = wrt.numel()
     parts = [ca.substitute(e, zs, g) if zs.numel() else e
              for e in (ode, ca.jacobian(ode, model.x), ca.jacobian(ode, zs), ca.jacobian(ode, wrt))]
-    point = ca.Function(f"{name}_point", [model.x, model.u, model.d],
-                        [*parts, ca.jacobian(g, model.x)], ["x", "u", "d"], ["k", "fx", "fz", "fu", "gx"])
-    x, u, d = ca.MX.sym("x", nx), ca.MX.sym("u", nu), ca.MX.sym("d", nd)
-    e_u = ca.horzcat(ca.DM(nw, nx), ca.DM.eye(nw))
+    return ca.Function(f"{name}_point", [model.x, model.u, model.d], [*parts, ca.jacobian(g, model.x)],
+                       ["x", "u", "d"], ["k", "fx", "fz", "fu", "gx"], {"cse": True})
+
+
+def _rk4_forward(model, point, x, u, d, s, e_u, dt_h: float, n_steps: int):
+    """``n_steps`` RK4 steps of ``x`` with the forward sensitivity ``s`` (columns: directions)
+    carried along: ``dk = f_x S + f_z (g_x S) + f_u E`` at each stage (``E = e_u`` the input
+    directions); returns ``(x_next, s_next)``."""
+    has_z = model.z.numel() > 0
 
     def stage(xi, si):
         k, fx, fz, fu, gx = point(xi, u, d)
         dk = ca.mtimes(fx, si) + ca.mtimes(fu, e_u)
-        if zs.numel():
+        if has_z:
             dk = dk + ca.mtimes(fz, ca.mtimes(gx, si))
         return k, dk
 
     h = dt_h / int(n_steps)
-    xk, s = x, ca.MX(ca.horzcat(ca.DM.eye(nx), ca.DM(nx, nw)))
+    xk = x
     for _ in range(int(n_steps)):
         k1, s1 = stage(xk, s)
         k2, s2 = stage(xk + 0.5 * h * k1, s + 0.5 * h * s1)
@@ -108,8 +104,53 @@ def rk4_sensitivity_map(model, dt_h: float, n_steps: int = 1, name: str = "rk4_s
         k4, s4 = stage(xk + h * k3, s + h * s3)
         xk = xk + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
         s = s + h / 6.0 * (s1 + 2 * s2 + 2 * s3 + s4)
+    return xk, s
+
+
+def _check_steps(n_steps, fn: str) -> None:
+    if not (isinstance(n_steps, (int, np.integer)) and n_steps >= 1):
+        raise MpcInputError(f"The 'n_steps' parameter of {fn} must be an int >= 1. Got {n_steps!r}.")
+
+
+def rk4_sensitivity_map(model, dt_h: float, n_steps: int = 1, name: str = "rk4_sens",
+                        with_d: bool = False, point: ca.Function | None = None) -> ca.Function:
+    """``F(x, u, d) -> (x_next, A, B)`` with ``A = dx_next/dx``, ``B = dx_next/du`` (and
+    ``D = dx_next/dd`` as a fourth output when ``with_d``) by ``n_steps``
+    RK4 steps of ``model.dae`` (forward sensitivities of the RK4 stages: ``dk = f_x S + f_z (g_x S)
+    + f_u [0 I]`` at each stage, ``S`` the stage point's sensitivity; Hairer, Norsett & Wanner,
+    section II.1, differentiated). Same values as AD of :func:`rk4_map`; the sparse factors make
+    each stage product ``(nnz f_x + nnz f_z + nnz g_x) (n_x + n_u)`` multiply-adds. ``point``
+    (:func:`_sensitivity_point` wrt ``u``, or ``(u, d)`` with ``with_d``) may be shared."""
+    dt_h = _check_dt(dt_h)
+    _check_steps(n_steps, "rk4_sensitivity_map")
+    nx, nu, nd = model.x.numel(), model.u.numel(), model.d.numel()
+    wrt = ca.vertcat(model.u, model.d) if with_d else model.u
+    nw = wrt.numel()
+    point = point or _sensitivity_point(model, wrt, name)
+    x, u, d = ca.MX.sym("x", nx), ca.MX.sym("u", nu), ca.MX.sym("d", nd)
+    e_u = ca.horzcat(ca.DM(nw, nx), ca.DM.eye(nw))
+    xk, s = _rk4_forward(model, point, x, u, d, ca.MX(ca.horzcat(ca.DM.eye(nx), ca.DM(nx, nw))), e_u,
+                         dt_h, n_steps)
     outs = [xk, s[:, :nx], s[:, nx:nx + nu]] + ([s[:, nx + nu:]] if with_d else [])
     return ca.Function(name, [x, u, d], outs, ["x", "u", "d"], ["x_next", "A", "B", "D"][:len(outs)])
+
+
+def rk4_directional_map(model, dt_h: float, n_steps: int, n_dir: int, name: str = "rk4_dir",
+                        point: ca.Function | None = None) -> ca.Function:
+    """``F(x, u, d, S) -> (x_next, A S, B)``: the RK4 map of :func:`rk4_sensitivity_map` with
+    ``dx_next/dx`` applied to ``n_dir`` given directions ``S`` (``n_x x n_dir``) instead of
+    formed, and ``B = dx_next/du``. Condensing a horizon needs ``A_k`` only on the directions
+    ``dx_k`` spans (``2k + 1`` at stage k for two inputs), fewer than ``n_x`` early in the
+    horizon. ``point`` (:func:`_sensitivity_point` of the model wrt ``u``) may be shared."""
+    dt_h = _check_dt(dt_h)
+    _check_steps(n_steps, "rk4_directional_map")
+    nx, nu, nd = model.x.numel(), model.u.numel(), model.d.numel()
+    point = point or _sensitivity_point(model, model.u, name)
+    x, u, d, s0 = ca.MX.sym("x", nx), ca.MX.sym("u", nu), ca.MX.sym("d", nd), ca.MX.sym("S", nx, n_dir)
+    e_u = ca.horzcat(ca.DM(nu, n_dir), ca.DM.eye(nu))
+    xk, s = _rk4_forward(model, point, x, u, d, ca.horzcat(s0, ca.MX(nx, nu)), e_u, dt_h, n_steps)
+    return ca.Function(name, [x, u, d, s0], [xk, s[:, :n_dir], s[:, n_dir:]],
+                       ["x", "u", "d", "S"], ["x_next", "AS", "B"])
 
 
 def cvodes_map(f: ca.Function, dt_h: float, abstol: float = 1e-8, reltol: float = 1e-8,

@@ -61,7 +61,10 @@ Solvers (``NmpcSettings.solver``), built once and reused:
 - ``"rti"``: the real-time iteration (Diehl, Bock & Schloeder 2005) with a Gauss-Newton Hessian,
   one structured QP per sample by HPIPM (Frison & Diehl 2020, "HPIPM: a high-performance
   quadratic programming framework for model predictive control", IFAC-PapersOnLine 53, 6563),
-  qrqp or OSQP. Iterations are counted per QP.
+  qrqp or OSQP, or (``qpsol = "condensed"``) the same QP condensed onto the inputs
+  (:mod:`mpc.condense`) and solved by the dense dual active-set method of Goldfarb & Idnani
+  (mpc/c/gt_qp.c) in one compiled C call with its data (mpc/c/gt_rti.c), the code that
+  ``grindtwin export-controller`` writes out (:mod:`mpc.export`). Iterations are counted per QP.
 
 Failure handling: if the solver does not converge the controller applies the previous plan
 shifted by one sample (``fallback_used="shifted_plan"``) while the old plan lasts, then holds the
@@ -80,14 +83,15 @@ import casadi as ca
 import numpy as np
 
 from mpc.codegen import MODES as CODEGEN_MODES
-from mpc.codegen import compiled
+from mpc.codegen import c_library, compiled
+from mpc.condense import RtiLibrary, condensed_qp_function
 from mpc.discretize import rk4_map, rk4_sensitivity_map
 from mpc.errors import MpcInputError, MpcSolverError
 from mpc.results import ControllerStepResult
 from twin import pxx_um
 
 SOLVERS = ("ipopt", "sqpmethod", "fatrop", "rti")
-QP_SOLVERS = ("hpipm", "qrqp", "osqp")
+QP_SOLVERS = ("hpipm", "qrqp", "osqp", "condensed")
 PASSING_TARGET = 0.80
 #: HPIPM's stand-in for an infinite bound. Its default (1e8) keeps the interior point from
 #: meeting its tolerance in 200 iterations (measured); the decision variables here are scaled
@@ -148,8 +152,10 @@ class NmpcSettings:
     ``rti_iterations`` Gauss-Newton QPs per sample by ``qpsol``)."""
     qpsol: str | None = None
     """QP solver of "rti": "hpipm" (Riccati-based interior point on the stage structure; the
-    default), "qrqp" (CasADi's sparse active set) or "osqp" (ADMM); of "sqpmethod": "qrqp"
-    (the default and only choice, see the module docstring)."""
+    default), "qrqp" (CasADi's sparse active set), "osqp" (ADMM) or "condensed" (the QP condensed
+    onto the inputs, :mod:`mpc.condense`, solved by the dense dual active-set method of Goldfarb
+    & Idnani in compiled C, mpc/c; by qrqp on the same condensed QP when nothing may be
+    compiled); of "sqpmethod": "qrqp" (the default and only choice, see the module docstring)."""
     rti_iterations: int = 1
     """Gauss-Newton iterations per sample of "rti" (1 = the real-time iteration; more iterate
     towards the Gauss-Newton solution, stopping early when the step is below ``tol``)."""
@@ -215,6 +221,14 @@ class NmpcSettings:
             self.qpsol = "qrqp" if self.solver == "sqpmethod" else "hpipm"
         if self.qpsol not in QP_SOLVERS:
             bad("qpsol", f"one of {QP_SOLVERS}")
+        if self.qpsol == "condensed" and self.solver != "rti":
+            bad("qpsol", "'condensed' only with solver 'rti'")
+        if self.qpsol == "condensed":  # Goldfarb-Idnani needs a positive definite Hessian
+            for name in ("weight_du_feed", "weight_du_speed", "load_penalty_quad") + (
+                    ("power_penalty_quad",) if math.isfinite(self.power_max_kw) else ()):
+                if not getattr(self, name) > 0:
+                    bad(name, "> 0 with qpsol 'condensed' (its dense QP solver needs a strictly "
+                        "convex QP: every input move and slack must carry a quadratic weight)")
         if self.solver == "sqpmethod" and self.qpsol != "qrqp":
             bad("qpsol", "'qrqp' with solver 'sqpmethod' (HPIPM and OSQP fail inside this SQP, "
                 "see mpc.nmpc; use solver 'rti' for them)")
@@ -447,7 +461,7 @@ class Controller:
         if s.qpsol == "hpipm":  # the stage dimensions of the layout, so HPIPM's Riccati applies
             return {**self._dims, "error_on_fail": False, "inf": HPIPM_INF,
                     "hpipm": {"iter_max": 100, "mode": s.hpipm_mode}}
-        if s.qpsol == "qrqp":
+        if s.qpsol in ("qrqp", "condensed"):
             return {"print_iter": False, "print_header": False, "error_on_fail": False}
         return {"error_on_fail": False, "osqp": {"verbose": False, "eps_abs": 1e-8, "eps_rel": 1e-8}}
 
@@ -483,13 +497,25 @@ class Controller:
         positive semi-definite without regularisation; the QP goes to ``qpsol``. The QP data
         and the cost are compiled (:mod:`mpc.codegen`, ``NmpcSettings.codegen``)."""
         mode = self.settings.codegen
+        self._cost, rep_cost = compiled(cost_fn.expand(), mode)
+        self._solver = self._rti_solve
+        self._rti_c = None
+        if self.settings.qpsol == "condensed":
+            cond = condensed_qp_function(self)
+            path, rep_qp = c_library("gt_rti", [cond], ["gt_qp.c", "gt_rti.c"], mode)
+            self.build_report = {"qp_data": rep_qp, "cost": rep_cost}
+            if path is not None:
+                self._rti_c = RtiLibrary(path)
+                return
+            self._qp_data = cond  # interpreted, solved by qrqp (dense patterns)
+            self._qp = ca.conic("rti_qp", "qrqp", {"h": cond.sparsity_out("H"), "a": cond.sparsity_out("A")},
+                                self._qp_options())
+            return
         qp_fn = self._rti_qp_function()
         self._qp_data, rep_qp = compiled(qp_fn, mode)
-        self._cost, rep_cost = compiled(cost_fn.expand(), mode)
         self.build_report = {"qp_data": rep_qp, "cost": rep_cost}
         self._qp = ca.conic("rti_qp", self.settings.qpsol,
                             {"h": qp_fn.sparsity_out("H"), "a": qp_fn.sparsity_out("A")}, self._qp_options())
-        self._solver = self._rti_solve
 
     def _rti_solve(self, x0, p, lbx, ubx, lbg, ubg, **_):
         """``rti_iterations`` Gauss-Newton QPs from ``x0``; the nlpsol-like result dict. The
@@ -497,23 +523,44 @@ class Controller:
         w = np.asarray(x0, float).copy()
         n_it = min(self.settings.rti_iterations, self.settings.max_iter)
         ok, status, it = n_it > 0, "rti" if n_it > 0 else "Maximum_Iterations_Exceeded (max_iter 0)", 0
+        self.qp_iterations = 0
+        self.qp_regularised = 0
         for it in range(1, n_it + 1):
-            H, grad, g, A = self._qp_data(w, p)
-            g = np.asarray(g, float).ravel()
-            sol = self._qp(h=H, g=grad, a=A, lba=lbg - g, uba=ubg - g,
-                           lbx=lbx - w, ubx=ubx - w)
-            st = self._qp.stats()
-            if not st.get("success", False):
-                ok, status = False, f"rti QP failed: {st.get('return_status', 'unknown')}"
+            step, failure = self._rti_qp_step(w, p, lbx, ubx, lbg, ubg)
+            if failure:
+                ok, status = False, f"rti QP failed: {failure}"
                 break
-            step = np.asarray(sol["x"], float).ravel()
             w += step
             if np.max(np.abs(step)) < self.settings.tol:
                 break
+        if ok and self.qp_regularised:
+            status = "rti (QP Hessian regularised)"
         self._rti_stats = {"success": ok, "return_status": status, "iter_count": it}
         f = float(self._cost(w, p)) if ok else math.nan
         n_g = self._lbg.size
         return {"x": w, "f": f, "lam_g": np.zeros(n_g), "lam_x": np.zeros(w.size)}
+
+    def _rti_qp_step(self, w, p, lbx, ubx, lbg, ubg):
+        """One Gauss-Newton QP at ``w``: ``(step, None)``, or ``(None, reason)`` if it failed."""
+        if self._rti_c is not None:
+            w_next, st, it = self._rti_c.step(w, p)
+            self.qp_iterations += it
+            self.qp_regularised += st == RtiLibrary.REGULARISED  # H semi-definite to rounding, counted
+            return (w_next - w, None) if st in RtiLibrary.SOLVED else (None, RtiLibrary.STATUS.get(st, str(st)))
+        if self.settings.qpsol == "condensed":
+            H, grad, A, lba, uba, lbv, ubv, Gw, hw = self._qp_data(w, p)
+            sol = self._qp(h=H, g=grad, a=A, lba=lba, uba=uba, lbx=lbv, ubx=ubv)
+        else:
+            H, grad, g, A = self._qp_data(w, p)
+            g = np.asarray(g, float).ravel()
+            sol = self._qp(h=H, g=grad, a=A, lba=lbg - g, uba=ubg - g, lbx=lbx - w, ubx=ubx - w)
+        st = self._qp.stats()
+        self.qp_iterations += int(st.get("iter_count", 0))
+        if not st.get("success", False):
+            return None, st.get("return_status", "unknown")
+        if self.settings.qpsol == "condensed":
+            return np.asarray(ca.mtimes(Gw, sol["x"]) + hw, float).ravel(), None
+        return np.asarray(sol["x"], float).ravel(), None
 
     # ------------------------------------------------------------------ state
     def reset(self, u_prev=None) -> None:

@@ -302,7 +302,8 @@ def cmd_sweep(args) -> int:
             claim.commit(lambda folder: _write_sweep(folder, table, traces, args.scene, args.xlsx), kind="sweep")
     if claim is None:
         sys.stderr.write("grindtwin: no --out DIR given: the sweep's table was not written\n")
-    cols = ["case", *vary, "p80_iae_um_h", "specific_energy_kwh_t", "throughput_tph", "error"]
+    cols = ["case", *vary, "start_feed_tph", "start_p80_um", "p80_iae_um_h", "specific_energy_kwh_t",
+            "throughput_tph", "error"]  # what each case started from, beside what it did
     with pd.option_context("display.width", 160, "display.max_columns", 20):
         print(table[[c for c in cols if c in table.columns]].to_string(index=False))
     failed = table[table["error"].notna()]
@@ -675,6 +676,28 @@ def cmd_bench(args) -> int:
     return 0
 
 
+# --------------------------------------------------------------------------- export-controller
+def add_export_controller_parser(subparsers):
+    p = subparsers.add_parser("export-controller", help="the scene's NMPC and EKF as C source with a small API",
+                              description="Write SCENE.toml's controller (EKF step and real-time iteration "
+                              "on the condensed QP) as C source with a C API (gt_controller.h), a Makefile "
+                              "and a replay harness into DIR. DIR must be new, empty or a previous export.")
+    p.add_argument("scene", help="scene file (TOML) with controller.kind = 'nmpc'")
+    p.add_argument("--out", required=True, help="folder for the C source (created)")
+    p.set_defaults(func=cmd_export_controller)
+    return p
+
+
+@_exit_codes("export-controller")
+def cmd_export_controller(args) -> int:
+    from scenarios.scene import load_scene
+    from scenarios.run import export_scene_controller
+
+    files = export_scene_controller(load_scene(args.scene), args.out, source=str(args.scene))
+    print(f"{len(files)} files in {args.out}: build with `make -C {args.out}`; API in gt_controller.h")
+    return 0
+
+
 #: name -> (add_parser, cmd) for registration in scenarios.cli.
 COMMANDS = {
     "steady": (add_steady_parser, cmd_steady),
@@ -687,4 +710,5 @@ COMMANDS = {
     "sweep": (add_sweep_parser, cmd_sweep),
     "check": (add_check_parser, cmd_check),
     "report": (add_report_parser, cmd_report),
+    "export-controller": (add_export_controller_parser, cmd_export_controller),
 }

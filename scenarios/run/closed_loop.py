@@ -9,8 +9,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from mpc import (RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, MpcInputError, NmpcSettings, Sensors, TwinPlant,
-                 feed_for_target, pi_baseline, run_closed_loop, stable_rk4_substeps)
+from mpc import (RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, MpcInputError, NmpcSettings, Sensors,
+                 TwinPlant, check_out_dir, export_controller, feed_for_target, pi_baseline, run_closed_loop,
+                 stable_rk4_substeps)
 from scenarios.errors import RunError, SceneError
 from scenarios.run.feed import component_blend
 from scenarios.run.streams import Samples, run_size_data
@@ -80,10 +81,33 @@ def check_rk4_substeps(scene: Scene, model, css) -> None:
                          f"steps per {scene.scene.sample_period_h} h sample (rates x {RK4_RATE_SAFETY})")
 
 
-def make_controller(scene: Scene, twin):
+def make_controller(scene: Scene, twin, codegen: str = "auto"):
     """The scene's NMPC on the controller's twin: ``mpc.nmpc.Controller`` with
     :func:`nmpc_settings` (the PI baseline is built by the closed loop itself)."""
-    return Controller(twin.model, nmpc_settings(scene))
+    settings = nmpc_settings(scene)
+    settings.codegen = codegen
+    return Controller(twin.model, settings)
+
+
+def start_mode(scene: Scene) -> str:
+    """``feed.start`` with its default: "target" for a closed loop, "scene" for an open loop."""
+    if scene.feed.start is not None:
+        return scene.feed.start
+    return "scene" if scene.controller.kind == "none" else "target"
+
+
+def start_feed_tph(scene: Scene, models, blend0) -> float:
+    """The run's initial feed rate (``feed.start``, :func:`start_mode`): the steady state holding
+    the target P80 at the scene's speed and initial blend (:func:`mpc.optimize.feed_for_target`)
+    for "target" (or a scene without a target's feed_tph), the scene's ``feed_tph`` for "scene"."""
+    c = scene.controller
+    if c.target_p80_um is None or start_mode(scene) == "scene":
+        return float(scene.feed.feed_tph)
+    feed0 = feed_for_target(models.plant, blend0, c.target_p80_um, scene.feed.speed_frac_critical)
+    if not math.isfinite(feed0):
+        raise RunError(f"scene {scene.scene.name}: no feed rate in 5-60 t/h holds the target P80 "
+                       f"{c.target_p80_um} um at speed {scene.feed.speed_frac_critical} with the initial blend")
+    return float(feed0)
 
 
 #: The estimator runs this long on the steady plant before the loop closes (as on a plant that
@@ -102,27 +126,55 @@ class LoopStart:
 
 
 def loop_start(scene: Scene, models, blend0) -> LoopStart:
-    """The steady state that holds the target P80 at the scene's speed and initial blend (feed
-    solved by :func:`mpc.optimize.feed_for_target`; the scene's ``feed_tph`` if it has no
-    target); RunError if no feed rate holds it."""
+    """The steady state at :func:`start_feed_tph` (``feed.start``), the scene's speed and initial
+    blend; RunError if no feed rate holds the target."""
     c = scene.controller
     speed0 = scene.feed.speed_frac_critical
-    feed0 = (feed_for_target(models.plant, blend0, c.target_p80_um, speed0)
-             if c.target_p80_um is not None else scene.feed.feed_tph)
-    if not math.isfinite(feed0):
-        raise RunError(f"scene {scene.scene.name}: no feed rate in 5-60 t/h holds the target P80 "
-                       f"{c.target_p80_um} um at speed {speed0} with the initial blend")
+    feed0 = start_feed_tph(scene, models, blend0)
     ss = models.plant.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend0)
     css = (models.control.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend0)
            if c.kind == "nmpc" else None)
     return LoopStart(feed0, ss, css)
 
 
+def nmpc_parts(scene: Scene, models, start: LoopStart, codegen: str = "auto"):
+    """The NMPC's EKF (started at the controller model's steady state ``start.control``) and the
+    NMPC itself, after the RK4 stability check."""
+    check_rk4_substeps(scene, models.control.model, start.control)
+    estimator = Ekf(models.control.model, scene.scene.sample_period_h, start.control.x,
+                    disturbance_model=scene.controller.disturbance_model, codegen=codegen)
+    return estimator, make_controller(scene, models.control, codegen)
+
+
+def export_scene_controller(scene: Scene, out_dir, source: str = "") -> list[str]:
+    """The scene's NMPC and EKF as C source in ``out_dir`` (:func:`mpc.export_controller`), at the
+    closed loop's initial state; returns the files written."""
+    from scenarios.run.feed import feed_schedule
+    from scenarios.run.models import build_models, component_ores
+
+    if scene.controller.kind != "nmpc":
+        raise SceneError(f"controller.kind = {scene.controller.kind!r}: export-controller exports an NMPC "
+                         f"(controller.kind = 'nmpc')")
+    try:
+        check_out_dir(out_dir)  # before any work
+    except MpcInputError as exc:
+        raise SceneError(str(exc)) from None
+    models = build_models(scene)
+    feed, _ = feed_schedule(scene, models.components, scene.time_grid_h(), component_ores(scene))
+    start = loop_start(scene, models, component_blend(feed, models.components)[0])
+    estimator, controller = nmpc_parts(scene, models, start, codegen="off")
+    try:
+        return export_controller(controller, estimator, [start.feed_tph, scene.feed.speed_frac_critical],
+                                 out_dir, source=source)
+    except MpcInputError as exc:
+        raise SceneError(str(exc)) from None
+
+
 def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
     """Closed loop through :func:`mpc.closed_loop.run_closed_loop`.
 
     Wiring (the same as benchmarks/mpc_reference_case.py): the plant starts at
-    :func:`loop_start`; the sensors are the scene's ``[sensors]``; the NMPC gets an EKF on the
+    :func:`loop_start` (``feed.start``); the sensors are the scene's ``[sensors]``; the NMPC gets an EKF on the
     controller's model (hardness as a random walk), warmed up on the steady plant for
     ``ESTIMATOR_WARMUP_H`` and reset where its estimate stops being finite
     (:class:`CountingEstimator`); PI is :func:`mpc.closed_loop.pi_baseline` (SIMC on the
@@ -179,10 +231,8 @@ def _controller_and_estimator(scene: Scene, models, start: LoopStart, sensors):
     baseline without one."""
     c, dt = scene.controller, scene.scene.sample_period_h
     if c.kind == "nmpc":
-        check_rk4_substeps(scene, models.control.model, start.control)
-        estimator = CountingEstimator(Ekf(models.control.model, dt, start.control.x,
-                                          disturbance_model=c.disturbance_model))
-        return make_controller(scene, models.control), estimator
+        estimator, controller = nmpc_parts(scene, models, start)
+        return controller, CountingEstimator(estimator)
     b = c.bounds
     controller, _ = pi_baseline(
         models.plant.model, start.plant, sensors, dt, c.target_p80_um,

@@ -11,6 +11,7 @@ from tqdm.auto import tqdm
 
 from mpc import Sensors, SensorState
 from scenarios.errors import RunError
+from scenarios.run.closed_loop import start_feed_tph, start_mode
 from scenarios.run.feed import component_blend, input_series
 from scenarios.run.streams import Samples, run_size_data
 from scenarios.scene import Scene
@@ -110,6 +111,10 @@ def run_open_loop(scene: Scene, models, feed: pd.DataFrame, progress: bool, repl
     f, s = input_series(scene, feed, replay)
     if replay and "recorded_feed_tph" in feed:
         notes.append("replay: inputs are the recorded feed rate and speed")
+    elif start_mode(scene) == "target":  # feed.start = "target": hold the feed rate of the target
+        f = np.full_like(f, start_feed_tph(scene, models, blend[0]))
+        notes.append(f"feed.start = \"target\": the feed rate holding the target P80 "
+                     f"{scene.controller.target_p80_um:g} um at the initial blend, {f[0]:.4g} t/h, held")
     x0 = start_state(scene, twin, (f[0], s[0]), blend[0], notes)
     frame, states = simulate_chunks(scene, twin, x0, f, s, blend, progress, step_samples(scene, len(f)))
     frame["p80_analyser_um"] = analyser_trace(frame["time_h"].to_numpy(), frame["p80_um"].to_numpy(),

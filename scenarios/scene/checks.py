@@ -197,6 +197,9 @@ def _check_feed(data, ore_names: list[str], r: _Report, base_dir: Path = Path(".
         if _get(data, "controller", "kind") not in (None, "none"):
             r.add(("controller", "kind"), "a batch scene (effects without `transport`) has "
                   "nothing to control; use kind = \"none\"", _get(data, "controller", "kind"))
+    if feed.get("start") == "target" and _get(data, "controller", "target_p80_um") is None:
+        r.add(("feed", "start"), "\"target\" needs controller.target_p80_um (the P80 whose steady "
+              "state the run starts at)", "target")
     nominal = nominal_feed_tph(_get(data, "mill", "preset"), _get(data, "mill", "net_power_kw"))
     for loc in (("feed", "feed_tph"), ("controller", "bounds", "feed_tph_max")):
         v = _num(_get(data, *loc))

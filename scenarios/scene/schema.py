@@ -253,10 +253,16 @@ class Feed(Section):
     blend: dict[str, float] | None = Field(default=None, json_schema_extra={"unit": "mass fraction"})
     """Blend at t = 0, ore -> mass fraction (ores of ``[ores]``, summing to 1 within 0.001);
     required unless ``history`` gives the feed from t = 0."""
+    start: Literal["scene", "target"] | None = None
+    """Where a continuous run starts: ``"scene"`` at the steady state of ``feed_tph``;
+    ``"target"`` at the steady state whose feed rate holds ``controller.target_p80_um`` at the
+    initial blend and speed (an open loop then holds that feed rate; needs the target). Unset:
+    ``"target"`` for a closed loop (``controller.kind`` pi or nmpc), ``"scene"`` for an open
+    loop (a scene runs at its own feed rate unless it says ``start = "target"``)."""
     feed_tph: float | None = Field(default=None, gt=0, le=1e4)
     """Fresh feed rate [t/h] (dry solids); required with the ``transport`` effect. Open loop it is
-    held throughout; a controller with a target starts the plant at the feed rate that holds
-    the target instead (the run's notes say which)."""
+    held throughout unless ``start = "target"``; a closed loop starts the plant at the feed rate
+    that holds the target unless ``start = "scene"`` (the run's notes say which)."""
     batch_charge_kg: float | None = Field(default=None, gt=0, le=1e6)
     """Charge of a batch grind [kg] (a scene without ``transport``); only for batch scenes."""
     speed_frac_critical: float = Field(gt=0, lt=1)
@@ -366,7 +372,9 @@ class Controller(Section):
     (SQP), ``"fatrop"`` (structure-exploiting interior point), ``"rti"`` (real-time iteration:
     one Gauss-Newton QP a sample; the reference scene's choice)."""
     qpsol: Literal[QP_SOLVERS] | None = Field(default=None, examples=["hpipm"])
-    """QP solver of ``rti`` (default ``"hpipm"``) or ``sqpmethod`` (``"qrqp"``, its only choice)."""
+    """QP solver of ``rti`` (default ``"hpipm"``; ``"condensed"``: the same QP condensed onto the
+    inputs and solved in compiled C, what ``grindtwin export-controller`` exports) or
+    ``sqpmethod`` (``"qrqp"``, its only choice)."""
     load_band_frac: list[float] = Field(default_factory=lambda: [0.8, 1.2], min_length=2,
                                         max_length=2, json_schema_extra={"unit": "hold-up / nominal"})
     """Stable band of the mill load [low, high], 0 < low < 1 < high: a soft constraint of the NMPC

@@ -98,6 +98,28 @@ def test_compiled_controller_moves_equal_interpreted(ctrl_twin):
     assert abs(ua[0] - ss.u[0]) > 0.1  # it moved towards the finer target
 
 
+@pytest.mark.slow
+def test_condensed_compiled_controller_moves_equal_hpipm(ctrl_twin):
+    """The RTI on the condensed QP in compiled C (Goldfarb-Idnani) takes HPIPM's moves on the
+    sparse QP (the same QP), step after step, including a power limit and move blocking."""
+    if codegen.find_compiler() is None:
+        pytest.skip("no C compiler on this machine")
+    m = ctrl_twin.model
+    ss = ctrl_twin.steady(feed_tph=27.0, speed_frac_critical=0.70, blend=[1.0, 0.0])
+    kw = dict(horizon_steps=4, dt_h=0.05, solver="rti", move_block=2, target_p80_um=0.9 * ss.p80_um,
+              power_max_kw=1.02 * float(m.outputs["power_kw"](ss.x, ss.u, ss.d)))
+    a = Controller(m, NmpcSettings(**kw, qpsol="condensed", codegen="on"))
+    b = Controller(m, NmpcSettings(**kw, qpsol="hpipm", codegen="off"))
+    assert a._rti_c is not None and a.build_report["qp_data"].compiled
+    d, u = m.d_vector([0.6, 0.4]), ss.u
+    for _ in range(4):
+        ra, rb = a.make_step(ss.x, d, u), b.make_step(ss.x, d, u)
+        assert ra.success and rb.success
+        assert np.allclose(ra.u_applied, rb.u_applied, rtol=1e-7, atol=0)
+        u = ra.u_applied
+    assert abs(u[0] - ss.u[0]) > 0.1  # it moved towards the finer target
+
+
 def test_p80_bias_model_reads_a_bias_as_a_bias(ctrl_twin):
     """Plant = the model with its P80 analyser reading 15 um high: the p80_bias EKF finds the
     15 um and leaves hardness at 1; the hardness-only EKF reads it as a harder ore."""

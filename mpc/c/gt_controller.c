@@ -1,0 +1,199 @@
+/* grindtwin's exported NMPC (gt_controller.h): the same arithmetic as mpc.Ekf.make_step and
+ * mpc.Controller.make_step with qpsol "condensed" (the warm start shifted by one sample, the
+ * real-time iterations of gt_rti.c, the plan clipped to the input bounds, the shifted-plan and
+ * hold-input fallbacks), on the CasADi-generated ekf_step and nmpc_condensed_qp. */
+#include "gt_controller.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "gt_controller_config.h"
+#include "gt_ekf_data.h"
+#include "gt_qp.h"
+#include "gt_rti.h"
+
+#define GT_STRIDE (GT_NXL + GT_NUL) /* variables of one stage: X~_k then U~_k */
+
+struct gt_controller {
+    gt_rti *rti;
+    double z[GT_NZ], P[GT_NZ * GT_NZ], P_next[GT_NZ * GT_NZ], innovation[3];
+    double w[GT_NW], w_prev[GT_NW], w_next[GT_NW], p[GT_NP];
+    double plan[GT_N * 2], plan_prev[GT_N * 2];
+    int have_w_prev, have_plan, plan_age, qp_iter, qp_status;
+    const casadi_real **ekf_arg;
+    casadi_real **ekf_res;
+    casadi_int *ekf_iw;
+    casadi_real *ekf_w;
+};
+
+static long ekf_bytes(void) {
+    casadi_int a, r, i, w;
+    ekf_step_work(&a, &r, &i, &w);
+    return (long)(sizeof(casadi_real *) * (size_t)(a + r) + sizeof(casadi_int) * (size_t)i +
+                  sizeof(casadi_real) * (size_t)w) + 16;
+}
+
+long gt_controller_bytes(void) { return (long)sizeof(gt_controller) + ekf_bytes() + gt_rti_bytes(); }
+
+gt_controller *gt_controller_new(void) {
+    casadi_int a, r, i, w;
+    char *mem = (char *)calloc(1, (size_t)(gt_controller_bytes() - gt_rti_bytes()));
+    gt_controller *c = (gt_controller *)mem;
+    long off = (long)sizeof(gt_controller);
+    if (!c) return NULL;
+    c->rti = gt_rti_new();
+    if (!c->rti) { free(mem); return NULL; }
+    ekf_step_work(&a, &r, &i, &w);
+    off = (off + 7) & ~7L;
+    c->ekf_arg = (const casadi_real **)(mem + off); off += (long)sizeof(casadi_real *) * a;
+    c->ekf_res = (casadi_real **)(mem + off); off += (long)sizeof(casadi_real *) * r;
+    c->ekf_w = (casadi_real *)(mem + off); off += (long)sizeof(casadi_real) * w;
+    c->ekf_iw = (casadi_int *)(mem + off);
+    gt_controller_reset(c);
+    return c;
+}
+
+void gt_controller_free(gt_controller *c) {
+    if (!c) return;
+    gt_rti_free(c->rti);
+    free(c);
+}
+
+void gt_controller_reset(gt_controller *c) {
+    memcpy(c->z, gt_z0, sizeof(c->z));
+    memcpy(c->P, gt_p0, sizeof(c->P));
+    c->have_w_prev = c->have_plan = c->plan_age = 0;
+    c->qp_iter = 0;
+    c->qp_status = 0;
+}
+
+void gt_controller_estimate(gt_controller *c, const double *y, const double *u_applied,
+                            const double *blend) {
+    double yy[3], mask[3], z[GT_NZ];
+    int i;
+    for (i = 0; i < 3; ++i) {
+        int ok = isfinite(y[i]);
+        yy[i] = ok ? y[i] : 0.0;
+        mask[i] = ok ? 1.0 : 0.0;
+    }
+    memcpy(z, c->z, sizeof(z));
+    c->ekf_arg[0] = z;
+    c->ekf_arg[1] = c->P;
+    c->ekf_arg[2] = u_applied;
+    c->ekf_arg[3] = blend;
+    c->ekf_arg[4] = yy;
+    c->ekf_arg[5] = mask;
+    c->ekf_res[0] = c->z;
+    c->ekf_res[1] = c->P_next;
+    c->ekf_res[2] = c->innovation;
+    ekf_step(c->ekf_arg, c->ekf_res, c->ekf_iw, c->ekf_w, 0);
+    memcpy(c->P, c->P_next, sizeof(c->P));
+    for (i = 0; i < 3; ++i)
+        if (!mask[i]) c->innovation[i] = NAN;
+}
+
+/* mpc.Controller._initial_guess: the previous solution shifted by one sample, its first lifted
+ * state replaced by [x/scale; u_prev; 0]; cold: everything at (x, u_prev) */
+static void initial_guess(gt_controller *c, const double *x0s, const double *u_prev) {
+    double first[GT_NXL];
+    int k, i;
+    for (i = 0; i < GT_NX; ++i) first[i] = x0s[i];
+    for (i = 0; i < GT_NU; ++i) first[GT_NX + i] = u_prev[i];
+    for (i = GT_NX + GT_NU; i < GT_NXL; ++i) first[i] = 0.0;
+    if (GT_WARM_START && c->have_w_prev) {
+        for (k = 0; k <= GT_N; ++k) {
+            int src = (k + 1 < GT_N ? k + 1 : GT_N);
+            memcpy(c->w + k * GT_STRIDE, c->w_prev + src * GT_STRIDE, sizeof(double) * GT_NXL);
+        }
+        for (k = 0; k < GT_N; ++k) {
+            int src = (k + 1 < GT_N - 1 ? k + 1 : GT_N - 1);
+            memcpy(c->w + k * GT_STRIDE + GT_NXL, c->w_prev + src * GT_STRIDE + GT_NXL,
+                   sizeof(double) * GT_NUL);
+        }
+        memcpy(c->w, first, sizeof(first));
+        return;
+    }
+    for (k = 0; k <= GT_N; ++k) memcpy(c->w + k * GT_STRIDE, first, sizeof(first));
+    for (k = 0; k < GT_N; ++k) {
+        double *uk = c->w + k * GT_STRIDE + GT_NXL;
+        for (i = 0; i < GT_NU; ++i) uk[i] = u_prev[i];
+        for (i = GT_NU; i < GT_NUL; ++i) uk[i] = 0.0;
+    }
+}
+
+static double clip(double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); }
+
+/* mpc.Controller._fallback */
+static int fallback(gt_controller *c, const double *u_prev, double *u) {
+    int k, i;
+    c->have_w_prev = 0;
+    if (c->have_plan && c->plan_age + 1 < GT_N) {
+        c->plan_age += 1;
+        for (k = 0; k < GT_N; ++k) {
+            int src = k + c->plan_age < GT_N ? k + c->plan_age : GT_N - 1;
+            for (i = 0; i < 2; ++i) c->plan[2 * k + i] = c->plan_prev[2 * src + i];
+        }
+        for (i = 0; i < 2; ++i) u[i] = clip(c->plan[i], u_prev[i] - gt_du_max[i], u_prev[i] + gt_du_max[i]);
+        return GT_STEP_SHIFTED_PLAN;
+    }
+    c->have_plan = 0;
+    for (k = 0; k < GT_N; ++k)
+        for (i = 0; i < 2; ++i) c->plan[2 * k + i] = u_prev[i];
+    u[0] = u_prev[0];
+    u[1] = u_prev[1];
+    return GT_STEP_HOLD_INPUT;
+}
+
+int gt_controller_step(gt_controller *c, const double *preview, const double *u_applied, double *u) {
+    double x0s[GT_NX], h = GT_HAS_HARDNESS ? c->z[GT_NX] : GT_HARDNESS0;
+    double *p = c->p;
+    int k, i, it, n_it = GT_RTI_ITERATIONS, ok = n_it > 0;
+    /* p = [x; vec(D); u_prev; wpass], D = [blend preview; hardness] per stage */
+    for (i = 0; i < GT_NX; ++i) {
+        p[i] = c->z[i];
+        x0s[i] = c->z[i] / gt_x_scale[i];
+    }
+    for (k = 0; k < GT_N; ++k) {
+        const double *b = preview + (GT_PREVIEW ? k : 0) * GT_NB;
+        for (i = 0; i < GT_NB; ++i) p[GT_NX + k * GT_ND + i] = b[i];
+        p[GT_NX + k * GT_ND + GT_NB] = h;
+    }
+    for (i = 0; i < GT_NU; ++i) p[GT_NX + GT_N * GT_ND + i] = u_applied[i];
+    for (i = 0; i < GT_NPASS; ++i) p[GT_NX + GT_N * GT_ND + GT_NU + i] = gt_wpass[i];
+    initial_guess(c, x0s, u_applied);
+    c->qp_iter = 0;
+    c->qp_status = 0;
+    for (it = 1; it <= n_it; ++it) { /* mpc.Controller._rti_solve */
+        double step_max = 0.0;
+        int qi = 0, st = gt_rti_step(c->rti, c->w, p, c->w_next, &qi);
+        c->qp_iter += qi;
+        if (st) c->qp_status = st; /* a regularised QP stays reported after a clean one */
+        if (st && st != GT_QP_REGULARISED) { ok = 0; break; }
+        for (i = 0; i < GT_NW; ++i) {
+            double s = c->w_next[i] - c->w[i];
+            c->w[i] += s;
+            if (fabs(s) > step_max) step_max = fabs(s);
+        }
+        if (step_max < GT_TOL) break;
+    }
+    for (i = 0; ok && i < GT_NW; ++i)
+        if (!isfinite(c->w[i])) ok = 0;
+    if (!ok) return fallback(c, u_applied, u);
+    memcpy(c->w_prev, c->w, sizeof(c->w));
+    c->have_w_prev = 1;
+    for (k = 0; k < GT_N; ++k)
+        for (i = 0; i < 2; ++i)
+            c->plan[2 * k + i] = clip(c->w[k * GT_STRIDE + GT_NXL + i], gt_u_lo[i], gt_u_hi[i]);
+    memcpy(c->plan_prev, c->plan, sizeof(c->plan));
+    c->have_plan = 1;
+    c->plan_age = 0;
+    u[0] = c->plan[0];
+    u[1] = c->plan[1];
+    return GT_STEP_OK;
+}
+
+const double *gt_controller_plan(const gt_controller *c) { return c->plan; }
+const double *gt_controller_estimate_state(const gt_controller *c) { return c->z; }
+int gt_controller_qp_iterations(const gt_controller *c) { return c->qp_iter; }
+int gt_controller_qp_status(const gt_controller *c) { return c->qp_status; }

@@ -1,0 +1,68 @@
+/* Replays a recorded sequence of estimator and controller calls through the exported controller
+ * (a test and timing harness; a DCS calls gt_controller.h itself). Input lines on stdin:
+ *   E y0 y1 y2 u0 u1 b_1 .. b_NB         gt_controller_estimate (nan for an absent y)
+ *   C u0 u1 b_1 .. b_(NB*N)              gt_controller_step with u_applied = (u0, u1)
+ * Output on stdout, one line per C: "U status u_feed u_speed qp_iterations step_s step_cpu_s"
+ * (%.17g), and at the end "M allocations_during_calls" (counted when gt_malloc_count.so is
+ * preloaded, else -1) and "B bytes_allocated_by_new". */
+#define _POSIX_C_SOURCE 199309L
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "gt_controller.h"
+#include "gt_controller_config.h"
+
+extern long gt_malloc_calls(void) __attribute__((weak));
+
+static double clock_s(clockid_t id) {
+    struct timespec t;
+    clock_gettime(id, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+static int read_doubles(char *s, double *v, int n) {
+    int i;
+    char *end;
+    for (i = 0; i < n; ++i) {
+        v[i] = strtod(s, &end);
+        if (end == s) return 0;
+        s = end;
+    }
+    return 1;
+}
+
+int main(void) {
+    static char line[1 << 16];
+    static double v[3 + 2 + GT_NB * GT_N];
+    long allocs = 0;
+    int counted = gt_malloc_calls != NULL;
+    gt_controller *c = gt_controller_new();
+    if (!c) { fprintf(stderr, "gt_controller_new failed\n"); return 1; }
+    while (fgets(line, sizeof line, stdin)) {
+        long before;
+        if (line[0] == 'E') {
+            if (!read_doubles(line + 1, v, 5 + GT_NB)) { fprintf(stderr, "bad E line\n"); return 1; }
+            before = counted ? gt_malloc_calls() : 0;
+            gt_controller_estimate(c, v, v + 3, v + 5);
+            allocs += counted ? gt_malloc_calls() - before : 0;
+        } else if (line[0] == 'C') {
+            double u[2], t0, c0, dt, dc;
+            int st;
+            if (!read_doubles(line + 1, v, 2 + GT_NB * GT_N)) { fprintf(stderr, "bad C line\n"); return 1; }
+            before = counted ? gt_malloc_calls() : 0;
+            t0 = clock_s(CLOCK_MONOTONIC);
+            c0 = clock_s(CLOCK_PROCESS_CPUTIME_ID);
+            st = gt_controller_step(c, v + 2, v, u);
+            dc = clock_s(CLOCK_PROCESS_CPUTIME_ID) - c0;
+            dt = clock_s(CLOCK_MONOTONIC) - t0;
+            allocs += counted ? gt_malloc_calls() - before : 0;
+            printf("U %d %.17g %.17g %d %.9g %.9g\n", st, u[0], u[1], gt_controller_qp_iterations(c), dt, dc);
+            fflush(stdout); /* one answer per C line: the harness can be driven through a pipe */
+        }
+    }
+    printf("M %ld\nB %ld\n", counted ? allocs : -1L, gt_controller_bytes());
+    gt_controller_free(c);
+    return 0;
+}

@@ -1,0 +1,172 @@
+"""The controller as C source for a DCS: the EKF step and the real-time iteration on the condensed
+QP, with a small C API (mpc/c/gt_controller.h: new, estimate, step, plan).
+
+What is written (``export_controller``): CasADi's generated C of the estimator's step
+(:attr:`mpc.estimator.Ekf.step_function`, ``gt_ekf_data.c``) and of the condensed QP data
+(:func:`mpc.condense.condensed_qp_function`, ``gt_rti_data.c``), with their headers; the
+hand-written C of mpc/c (the Goldfarb-Idnani QP solver, the RTI step, the controller API, a
+replay harness and an allocation counter); ``gt_controller_config.h`` (dimensions, scales, bounds,
+passing weights, the initial estimate); a Makefile; and ``grindtwin_export.json`` listing every
+file written. The Python controller with ``qpsol = "condensed"`` runs the same generated code and
+the same solver, so the moves agree to rounding.
+
+Memory: ``gt_controller_new`` makes two allocations (the controller with the EKF's work, and the
+RTI's block: QP data, solver work); estimate and step allocate nothing (counted by
+``gt_malloc_count.so`` under ``LD_PRELOAD``).
+
+The folder: created if absent; an existing folder is used only if it holds a previous export
+and nothing else (its manifest names every file it wrote and every file its Makefile builds),
+which is then replaced; anything else is refused, nothing written. Files are written into
+``DIR.partial`` and renamed when complete.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from mpc.codegen import C_DIR
+from mpc.condense import condensed_qp_function
+from mpc.errors import MpcInputError
+
+MANIFEST = "grindtwin_export.json"
+C_FILES = ("gt_qp.c", "gt_qp.h", "gt_rti.c", "gt_rti.h", "gt_controller.c", "gt_controller.h",
+           "gt_replay.c", "gt_malloc_count.c")
+#: What the Makefile builds in the folder (a re-export may replace these too).
+BUILD_PRODUCTS = ("gt_rti_data.o", "gt_ekf_data.o", "gt_qp.o", "gt_rti.o", "gt_controller.o", "gt_replay.o",
+                  "libgtcontroller.a", "gt_replay", "gt_malloc_count.so")
+MAKEFILE = """\
+# grindtwin's exported NMPC: `make` builds libgtcontroller.a, the replay harness gt_replay and
+# the allocation counter gt_malloc_count.so (LD_PRELOAD=./gt_malloc_count.so ./gt_replay < log).
+CC ?= cc
+CFLAGS ?= -O2
+OBJS = gt_rti_data.o gt_ekf_data.o gt_qp.o gt_rti.o gt_controller.o
+
+all: libgtcontroller.a gt_replay gt_malloc_count.so
+
+libgtcontroller.a: $(OBJS)
+\tar rcs $@ $(OBJS)
+
+gt_replay: gt_replay.o libgtcontroller.a
+\t$(CC) $(CFLAGS) -o $@ gt_replay.o libgtcontroller.a -lm
+
+gt_malloc_count.so: gt_malloc_count.c
+\t$(CC) -O2 -shared -fPIC -o $@ gt_malloc_count.c -ldl
+
+%.o: %.c
+\t$(CC) $(CFLAGS) -c $< -o $@
+
+clean:
+\trm -f *.o libgtcontroller.a gt_replay gt_malloc_count.so
+
+.PHONY: all clean
+"""
+
+
+def _c_array(name: str, values) -> str:
+    vals = ", ".join("INFINITY" if v == math.inf else ("-INFINITY" if v == -math.inf else repr(float(v)))
+                     for v in np.asarray(values, float).ravel(order="F"))
+    return f"static const double {name}[{max(len(np.ravel(values)), 1)}] = {{{vals}}};"
+
+
+def _check(controller, estimator) -> None:
+    s = controller.settings
+    if s.solver != "rti" or s.qpsol != "condensed":
+        raise MpcInputError(f"export-controller exports the real-time iteration on the condensed QP: the "
+                            f"controller needs solver 'rti' and qpsol 'condensed' (the same QP as HPIPM's). "
+                            f"Got solver {s.solver!r}, qpsol {s.qpsol!r}.")
+    if estimator.has_p80_bias:
+        raise MpcInputError(f"export-controller supports the disturbance model 'hardness' only (the P80 "
+                            f"bias moves the passing weights, not exported yet). Got "
+                            f"{estimator.disturbance_model!r}.")
+    if estimator.model is not controller.model:
+        raise MpcInputError("export-controller needs the estimator and the controller on one model.")
+    stride = controller._nxl + controller._nul
+    for k, (ix, iu) in enumerate(zip(controller._ix, controller._iu)):
+        if ix[0] != k * stride or iu[0] != k * stride + controller._nxl:
+            raise MpcInputError("export-controller: the NLP's variable layout is not stage by stage.")
+
+
+def config_header(controller, estimator, u0) -> str:
+    """gt_controller_config.h: dimensions, scales, bounds and the initial estimate."""
+    c, s, e = controller, controller.settings, estimator
+    du_max = np.array([s.feed_rate_max_tph_per_h, s.speed_rate_max_per_h]) * s.dt_h
+    dims = {"GT_NX": c.nx, "GT_NU": c.nu, "GT_ND": c.nd, "GT_NB": c.nd - 1, "GT_N": s.horizon_steps,
+            "GT_NXL": c._nxl, "GT_NUL": c._nul, "GT_NW": c._nw,
+            "GT_NP": c.nx + c.nd * s.horizon_steps + c.nu + c._wpass.size, "GT_NPASS": c._wpass.size,
+            "GT_NZ": e.z.size, "GT_HAS_HARDNESS": int(e.has_hardness), "GT_PREVIEW": int(s.preview),
+            "GT_WARM_START": int(s.warm_start), "GT_RTI_ITERATIONS": min(s.rti_iterations, s.max_iter)}
+    lines = ["/* generated by grindtwin export-controller: the controller's dimensions and constants */",
+             "#ifndef GT_CONTROLLER_CONFIG_H", "#define GT_CONTROLLER_CONFIG_H", "#include <math.h>", ""]
+    lines += [f"#define {k} {v}" for k, v in dims.items()]
+    lines += [f"#define GT_TOL {s.tol!r}", f"#define GT_HARDNESS0 {e.hardness_est!r}", "",
+              "/* state scales, input bounds, largest move per sample, passing weights of the target */",
+              _c_array("gt_x_scale", c.x_scale),
+              _c_array("gt_u_lo", [s.feed_tph_min, s.speed_min]), _c_array("gt_u_hi", [s.feed_tph_max, s.speed_max]),
+              _c_array("gt_du_max", du_max), _c_array("gt_wpass", c._wpass),
+              "/* the estimator's initial augmented state and covariance (column-major), the initial input */",
+              _c_array("gt_z0", e.z), _c_array("gt_p0", e.P), _c_array("gt_u0", u0), "", "#endif", ""]
+    return "\n".join(lines)
+
+
+def _generate(fn: ca.Function, name: str, folder: Path) -> None:
+    gen = ca.CodeGenerator(f"{name}.c", {"with_header": True})
+    gen.add(fn)
+    gen.generate(str(folder) + "/")
+
+
+def check_out_dir(out) -> None:
+    """Refuse a folder that is not empty and not a previous export (nothing written)."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise MpcInputError(f"--out {out}: exists and is not a folder.")
+    if out.is_dir() and any(out.iterdir()):
+        man = out / MANIFEST
+        if not man.is_file():
+            raise MpcInputError(f"--out {out}: the folder is not empty and holds no {MANIFEST} (not an "
+                                f"export of ours); choose an empty or new folder.")
+        data = json.loads(man.read_text())
+        listed = set(data.get("files", [])) | set(data.get("build_products", []))
+        foreign = sorted(p.name for p in out.iterdir() if p.name not in listed)
+        if foreign:
+            raise MpcInputError(f"--out {out}: holds files this export did not write ({', '.join(foreign[:5])}); "
+                                f"move them away or choose another folder.")
+
+
+def export_controller(controller, estimator, u0, out_dir, source: str = "") -> list[str]:
+    """Write the controller and its estimator as C into ``out_dir`` (module docstring); returns
+    the names of the files written. ``u0``: the input applied before the first step."""
+    _check(controller, estimator)
+    out = Path(out_dir)
+    check_out_dir(out)
+    partial = out.with_name(out.name + ".partial")
+    if partial.exists():
+        shutil.rmtree(partial)
+    partial.mkdir(parents=True)
+    try:
+        _generate(condensed_qp_function(controller), "gt_rti_data", partial)
+        _generate(estimator.step_function, "gt_ekf_data", partial)
+        for name in C_FILES:
+            shutil.copyfile(C_DIR / name, partial / name)
+        (partial / "gt_controller_config.h").write_text(config_header(controller, estimator, u0))
+        (partial / "Makefile").write_text(MAKEFILE)
+        files = sorted(p.name for p in partial.iterdir()) + [MANIFEST]
+        s = controller.settings
+        manifest = {"source": source, "casadi": ca.__version__, "files": files,
+                    "build_products": list(BUILD_PRODUCTS),
+                    "horizon_steps": s.horizon_steps, "dt_h": s.dt_h, "n_x": controller.nx,
+                    "estimator_state": int(estimator.z.size), "disturbance_model": estimator.disturbance_model,
+                    "api": "gt_controller.h", "build": "make"}
+        (partial / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
+    except BaseException:
+        shutil.rmtree(partial, ignore_errors=True)
+        raise
+    if out.exists():
+        shutil.rmtree(out)  # a previous export of ours and nothing else (check_out_dir)
+    partial.rename(out)
+    return files
