@@ -60,6 +60,39 @@ def make_controller(scene: Scene, twin):
     return Controller(twin.model, nmpc_settings(scene))
 
 
+def make_estimator(scene: Scene, twin, css):
+    """The NMPC's EKF on the controller's twin, started at the steady state ``css``."""
+    return Ekf(twin.model, scene.scene.sample_period_h, css.x)
+
+
+def scene_sensors(scene: Scene) -> Sensors:
+    """``mpc.Sensors`` from the scene's ``[sensors]``."""
+    return Sensors(**{k: v for k, v in scene.sensors.model_dump().items() if k in Sensors.__dataclass_fields__})
+
+
+def hold_schedule(times_h, blend, dt_h: float):
+    """``schedule(t)``: the blend of the sample at or before t (clamped at the ends)."""
+    times_h = np.asarray(times_h, float)
+
+    def schedule(t_h):
+        k = min(max(int(np.searchsorted(times_h, t_h + 1e-9 * dt_h, side="right")) - 1, 0), len(times_h) - 1)
+        return blend[k]
+    return schedule
+
+
+def plant_start(scene: Scene, models, blend0):
+    """Where a closed loop starts: the plant's steady state holding the target P80 at the scene's
+    speed and ``blend0`` (feed by :func:`mpc.optimize.feed_for_target`; the scene's ``feed_tph``
+    if it has no target). RunError if no feed rate holds the target."""
+    c, speed0 = scene.controller, scene.feed.speed_frac_critical
+    feed0 = (feed_for_target(models.plant, blend0, c.target_p80_um, speed0)
+             if c.target_p80_um is not None else scene.feed.feed_tph)
+    if not math.isfinite(feed0):
+        raise RunError(f"scene {scene.scene.name}: no feed rate in 5-60 t/h holds the target P80 "
+                       f"{c.target_p80_um} um at speed {speed0} with the initial blend")
+    return models.plant.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend0)
+
+
 #: The estimator runs this long on the steady plant before the loop closes (as on a plant that
 #: was running before; the same as the reference-case benchmark).
 ESTIMATOR_WARMUP_H = 2.0
@@ -85,24 +118,16 @@ def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
     speed0 = scene.feed.speed_frac_critical
     notes: list[str] = []
     try:
-        feed0 = (feed_for_target(models.plant, blend[0], c.target_p80_um, speed0)
-                 if c.target_p80_um is not None else scene.feed.feed_tph)
-        if not math.isfinite(feed0):
-            raise RunError(f"scene {scene.scene.name}: no feed rate in 5-60 t/h holds the target P80 "
-                           f"{c.target_p80_um} um at speed {speed0} with the initial blend")
-        ss = models.plant.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend[0])
+        ss = plant_start(scene, models, blend[0])
+        feed0 = float(ss.u[0])
         notes.append(f"the plant starts at steady state, feed {feed0:.4g} t/h, speed {speed0:.3g}")
-        sensors = Sensors(**{k: v for k, v in scene.sensors.model_dump().items() if k in Sensors.__dataclass_fields__})
-
-        def schedule(t_h):
-            k = min(max(int(np.searchsorted(times, t_h + 1e-9 * dt, side="right")) - 1, 0), len(times) - 1)
-            return blend[k]
-
+        sensors = scene_sensors(scene)
+        schedule = hold_schedule(times, blend, dt)
         estimator = None
         if kind == "nmpc":
             css = models.control.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend[0])
             check_rk4_substeps(scene, models.control.model, css)
-            estimator = Ekf(models.control.model, dt, css.x)
+            estimator = make_estimator(scene, models.control, css)
             controller = make_controller(scene, models.control)
         else:
             b = c.bounds

@@ -1,0 +1,88 @@
+"""The virtual plant without the network: a setpoint takes effect when it is written (the input
+piecewise constant), the analyser is mpc.SensorState with the scene's seed, the belt analyser
+reports the blend lead_h ahead, and the record's KPIs are mpc.loop_kpis of its frame."""
+
+import asyncio
+import math
+
+import numpy as np
+import pytest
+
+import scenarios.online as online
+from mpc import SensorState, loop_kpis
+from scenarios.run.closed_loop import scene_sensors
+
+
+@pytest.fixture
+def plant(small_scene, small_tags, small_parts):
+    clock = online.ManualClock(speedup=3600.0)
+    p = online.PlantServer(small_scene, small_tags, online.PlantServerSettings(
+        "opc.tcp://127.0.0.1:1", online.ServerSecurity(insecure=True)), models=small_parts.models, clock=clock)
+    return p, clock
+
+
+def ticks(p, clock, n):
+    async def go():
+        for _ in range(n):
+            clock.advance(p.dt_h)
+            await p.tick()
+    asyncio.run(go())
+
+
+def test_a_setpoint_takes_effect_at_the_time_it_was_written(plant):
+    p, clock = plant
+    dt = p.dt_h
+    x0, u0, d = p.x.copy(), p.u.copy(), p.plant.disturbance(0.0, p.schedule(0.0), 1.0)
+    clock.advance(dt / 4)  # a quarter into the sample the feed setpoint changes
+    p._apply_write("setpoints.feed_tph", 12.0, p.plant_time(clock.now()), "test")
+    clock.advance(3 * dt / 4)
+    asyncio.run(p.tick())
+    x1, _, _ = p.plant.step(x0, u0, d, dt / 4)
+    x2, _, _ = p.plant.step(x1, np.array([12.0, u0[1]]), d, 3 * dt / 4)
+    np.testing.assert_allclose(p.x, x2, rtol=1e-9)
+    held, _, _ = p.plant.step(x0, np.array([12.0, u0[1]]), d, dt)  # the test can fail: the timing matters
+    assert np.max(np.abs(p.x - held) / (np.abs(held) + 1e-9)) > 1e-4
+    assert p.published["feed_tph"].Value.Value == 12.0
+
+
+def test_non_physical_setpoints_are_ignored(plant):
+    p, _ = plant
+    for value in (math.nan, -3.0, "20"):
+        p._apply_write("setpoints.feed_tph", value, 0.0, "test")
+    p._apply_write("setpoints.speed_frac_critical", 1.2, 0.0, "test")
+    assert p.writes == []
+
+
+def test_the_analyser_is_sensor_state_with_the_scenes_seed(plant, small_scene):
+    p, clock = plant
+    ticks(p, clock, 12)
+    f = p.frame()
+    ref = SensorState(scene_sensors(small_scene), np.random.default_rng(small_scene.scene.seed))
+    for row in f.itertuples():
+        _, held, pw, ld = ref.make_step(row.time_h - p.t_start_h, row.p80_um, row.power_kw, row.load_frac)
+        assert (held, pw, ld) == (row.p80_measured_um, row.power_meas_kw, row.load_meas_frac) or (
+            math.isnan(held) and math.isnan(row.p80_measured_um))
+    reports = f["p80_measured_um"].dropna()
+    assert reports.nunique() >= 8  # a live analyser (a report every sample after the dead time)
+    assert (reports - f.loc[reports.index, "p80_um"]).abs().max() > 0.5  # with noise
+
+
+def test_the_belt_analyser_reports_the_blend_lead_h_ahead(plant, small_scene):
+    p, clock = plant
+    p.t_h = p.t_start_h = 0.5  # near the ramp at 1.0 h
+    belt = []
+    for _ in range(10):
+        ticks(p, clock, 1)
+        belt.append(p.published["blend.D"].Value.Value)
+    lead = small_scene.controller.preview_lead_h
+    t = p.frame()["time_h"].to_numpy()
+    np.testing.assert_allclose(belt, [p.schedule(tt + lead)[1] for tt in t])
+    assert belt[-1] > 0 and p.frame()["blend_D_frac"].iloc[-1] < belt[-1]  # the belt sees D before the mill
+
+
+def test_the_record_kpis_are_loop_kpis(plant):
+    p, clock = plant
+    ticks(p, clock, 10)
+    k = p.kpis()
+    ref = loop_kpis(p.frame(), tuple(p.scene.controller.load_band_frac))
+    assert k["p80_iae_um_h"] == ref["p80_iae_um_h"] > 0 and k["throughput_t"] == ref["throughput_t"]
