@@ -3,6 +3,7 @@ real plant; more on a virtual plant run faster than real time)."""
 
 from __future__ import annotations
 
+import asyncio
 import math
 from datetime import datetime, timedelta, timezone
 
@@ -39,3 +40,17 @@ class ManualClock(Clock):
 
     def advance(self, plant_h: float) -> None:
         self._now += timedelta(seconds=self.wall_seconds(plant_h))
+
+
+async def sleep_until(loop_time: float, wake: asyncio.Event) -> bool:
+    """Sleep until the event loop's time reaches ``loop_time``; True if ``wake`` was set first."""
+    delay = loop_time - asyncio.get_running_loop().time()
+    if wake.is_set():
+        return True
+    if delay <= 0:
+        return False
+    try:
+        await asyncio.wait_for(wake.wait(), timeout=delay)
+        return True
+    except asyncio.TimeoutError:
+        return False

@@ -38,7 +38,7 @@ from asyncua.common.callback import CallbackType
 
 from mpc import SensorState, TwinPlant, loop_kpis
 from scenarios.errors import SceneError
-from scenarios.online.clock import Clock
+from scenarios.online.clock import Clock, sleep_until
 from scenarios.online.security import ServerSecurity, make_server
 from scenarios.online.tags import TagMap
 from scenarios.run import build_models
@@ -53,9 +53,10 @@ NAMESPACE_URI = "urn:grindtwin:virtual-plant"
 NAMESPACE_INDEX = 2  # the first namespace a server registers
 #: The service is shed after this many sample periods without a heartbeat (default watchdog).
 WATCHDOG_SAMPLES = 3
-#: Setpoint changes closer than this to a sample boundary take effect at the boundary [h]
-#: (3.6 ms of plant time: below it an integrator restart costs more than it resolves).
-MIN_PIECE_H = 1e-6
+#: Setpoint changes closer than this share of a sample to the previous change take effect
+#: together with it: each piece restarts the integrator (as costly as a whole sample), and a
+#: client writing many times a sample must not stall the plant (5 %: 9 s of a 3-minute sample).
+MIN_PIECE_FRAC = 0.05
 FAULTS = ("none", "bad", "uncertain", "frozen", "stale")
 #: Nodes of the simulator itself, beside the tag map's.
 SIM_NODES = {"time_h": "Simulation.Time_h", "p80_true_um": "Simulation.P80True_um",
@@ -237,23 +238,24 @@ class PlantServer:
 
     # ------------------------------------------------------------------ time
     def plant_time(self, wall: datetime) -> float:
+        """Plant time at a wall-clock time (standing still while frozen)."""
         w0, t0 = self.anchor
-        return t0 + self.clock.hours_between(w0, wall)
+        return t0 + self.clock.hours_between(w0, wall) if self.running else self.t_h
 
     async def tick(self, wall: datetime | None = None) -> None:
         """Advance one sample (``wall``: the wall-clock time of the new sample instant)."""
         t0, t1 = self.t_h, self.t_h + self.dt_h
         d = self.plant.disturbance(t0, self.schedule(max(t0, 0.0)), 1.0)
-        t = t0
-        pending = sorted((w for w in self.writes if w[0] < t1), key=lambda w: w[0])  # stable: in write order
-        self.writes = [w for w in self.writes if w[0] >= t1]
+        t, gap = t0, MIN_PIECE_FRAC * self.dt_h
+        # writes in the last gap before t1 wait for the next sample (applied at t1, not before they came)
+        pending = sorted((w for w in self.writes if w[0] < t1 - gap), key=lambda w: w[0])  # stable: write order
+        self.writes = [w for w in self.writes if w[0] >= t1 - gap]
         for tw, i, value in pending:
-            if tw - t > MIN_PIECE_H:
-                self._step(d, tw - t)
+            if tw - t > gap:
+                await self._step(d, tw - t)
                 t = tw
             self.u[i] = value
-        if t1 - t > 0:
-            self._step(d, t1 - t)
+        await self._step(d, t1 - t)
         wall = wall or self.clock.now()
         self.t_h, self.anchor = t1, (wall, t1)
         vals = self._measure()
@@ -264,8 +266,10 @@ class PlantServer:
             await self._watchdog()
         self._record(vals)
 
-    def _step(self, d, dt_h: float) -> None:
-        self.x, fed, produced = self.plant.step(self.x, self.u.copy(), d, dt_h)
+    async def _step(self, d, dt_h: float) -> None:
+        """Integrate in a worker thread (CasADi's integrator releases the GIL), so that the server
+        answers reads while the plant moves."""
+        self.x, fed, produced = await asyncio.to_thread(self.plant.step, self.x, self.u.copy(), d, dt_h)
         self.fed_t += fed
         self.produced_t += produced
 
@@ -385,19 +389,19 @@ class PlantServer:
             await self.start()
             next_t, wall = loop.time() + period, self.clock.now()
             while self.stop_reason is None:
-                try:
-                    await asyncio.wait_for(self._wake.wait(), timeout=max(0.0, next_t - loop.time()))
-                    break
-                except asyncio.TimeoutError:
-                    pass
-                late = loop.time() - next_t
-                wall = self._next_wall(wall, period, late)
+                if await sleep_until(next_t, self._wake):
+                    continue  # woken: stop requested
+                if loop.time() - next_t > period:
+                    log.warning("the virtual plant fell %.2f s behind real time (x%g); its clock restarts from now",
+                                loop.time() - next_t, self.s.speedup)
+                    next_t, wall = loop.time(), self.clock.now()
+                else:
+                    wall += timedelta(seconds=period)
+                next_t += period
                 if not self.running:  # frozen: plant time stands still
                     self.anchor = (wall, self.t_h)
-                    next_t += period
                     continue
                 await self.tick(wall)
-                next_t = max(next_t + period, loop.time()) if late > period else next_t + period
                 if self.s.duration_h is not None and self.t_h >= self.s.duration_h - 1e-9:
                     self.request_stop(f"duration {self.s.duration_h:g} h reached")
         finally:
@@ -407,11 +411,3 @@ class PlantServer:
             if self.s.record_dir is not None:
                 self.write_record()
             log.info("virtual plant stopped (%s) at plant time %.3f h", self.stop_reason or "ended", self.t_h)
-
-    def _next_wall(self, wall: datetime, period: float, late: float) -> datetime:
-        """The wall time of the next sample: one period on, or now when the plant fell behind."""
-        if late > period:
-            log.warning("the virtual plant fell %.2f s behind real time (x%g); its clock restarts from now",
-                        late, self.s.speedup)
-            return self.clock.now()
-        return wall + timedelta(seconds=period)

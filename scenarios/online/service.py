@@ -9,7 +9,8 @@ One cycle every sample period (``sample_period_h / speedup`` wall-clock seconds)
 4. solve: the NMPC from the estimate, the belt's preview and the actual inputs;
 5. write the setpoints (limited again at the writer, :mod:`scenarios.online.writer`), the
    heartbeat and the status in one request; then the soft sensor's predictions.
-Each cycle is a row of the audit log (:mod:`scenarios.online.audit`) with its mode and reason.
+Each cycle is a row of the audit log (:mod:`scenarios.online.audit`) with its mode and reason;
+times in the log and the audit (``service_time_h``) are plant hours since the service started.
 
 Modes (each change logged):
 - ``warmup``: for ``warmup_h`` after the estimator starts it estimates and writes only the
@@ -44,7 +45,7 @@ from asyncua import ua
 
 from mpc import MpcError
 from scenarios.online.audit import AuditLog
-from scenarios.online.clock import Clock
+from scenarios.online.clock import Clock, sleep_until
 from scenarios.online.opcua import CONNECTION_ERRORS, PlantConnection, status_name
 from scenarios.online.parts import ControlParts
 from scenarios.online.quality import GOOD, Reading, TagQuality, severity
@@ -63,6 +64,9 @@ NUMERIC_ERRORS = (MpcError, TwinError, np.linalg.LinAlgError, RuntimeError)
 #: Back-off jitter: each wait is the nominal one times a factor in [1 - J, 1 + J], so that
 #: several services do not retry in step.
 BACKOFF_JITTER = 0.2
+#: Consecutive request time-outs after which the session counts as lost and is rebuilt (one is
+#: a busy server, three in a row at seconds each is a dead one).
+LOST_AFTER_TIMEOUTS = 3
 STATUS_MAX_CHARS = 240
 
 
@@ -114,6 +118,7 @@ class Service:
         self.last_u: np.ndarray | None = None  # the last known inputs (actual, else written)
         self.raw_mode: object = None
         self.mode = "start"
+        self.timeouts = 0
         self.heartbeat = 0
         self.stop_reason: str | None = None
 
@@ -162,26 +167,32 @@ class Service:
     def _last_written_text(self) -> str:
         if self.u_written is None:
             return "none written by this service"
-        return (f"feed {self.u_written[0]:.4g} t/h, speed {self.u_written[1]:.4g} of critical, written at "
+        return (f"feed {self.u_written[0]:.4g} t/h, speed {self.u_written[1]:.4g} of critical, written at service time "
                 f"{self.t_written_h:.3f} h")
 
     # ------------------------------------------------------------------ one cycle
     async def cycle(self) -> dict:
         """One sample: read, estimate, solve, write (module docstring); returns its audit row.
         Connection losses, bad data and numerical failures are handled here, logged and audited."""
-        t0 = time.perf_counter()
+        t0, cpu0 = time.perf_counter(), time.process_time()
         now = self.clock.now()
         t_h = self.clock.hours_between(self.start, now)
         steps = 1 if self.t_prev_h is None else max(1, round((t_h - self.t_prev_h) / self.dt_h))
         self.t_prev_h = t_h
-        row = {"wall_time_utc": now, "plant_time_h": t_h, "cycle": self.k, "mode": "disconnected", "written": False,
+        row = {"wall_time_utc": now, "service_time_h": t_h, "cycle": self.k, "mode": "disconnected", "written": False,
                "reason": ""}
         if self.conn is not None:
             try:
-                await self._connected_cycle(now, t_h, steps, row, t0)
+                await self._connected_cycle(now, t_h, steps, row, t0, cpu0)
+                self.timeouts = 0
+            except asyncio.TimeoutError as exc:  # a busy plant: hold this cycle, lost after a few
+                self.timeouts += 1
+                if self.timeouts >= LOST_AFTER_TIMEOUTS:
+                    await self._lost(exc)
+                else:
+                    self._no_answer(steps, row)
             except CONNECTION_ERRORS as exc:
                 await self._lost(exc)
-                row.update(mode="disconnected", written=False)
         if self.conn is None:
             self._blind(steps, row)
         row["cycle_s"] = time.perf_counter() - t0
@@ -189,16 +200,31 @@ class Service:
         self.k += 1
         return row
 
-    def _blind(self, steps: int, row: dict) -> None:
-        """No connection: the estimator predicts with the inputs the plant keeps."""
+    def _predict_blind(self, steps: int, row: dict) -> None:
+        """The estimator predicts with the inputs the plant keeps (unless it ran this cycle)."""
         u = self.u_written if self.u_written is not None else self.last_u
-        if self.est_start_h is not None and u is not None and self.blend_prev is not None:
-            for _ in range(steps):
-                self.parts.estimator.make_step([math.nan] * 3, u, self.blend_prev)
-        self._set_mode("disconnected", f"no connection to the plant: setpoints left at {self._last_written_text()}")
-        row["reason"] = f"no connection: setpoints left at {self._last_written_text()}"
+        if "estimate_s" in row or self.est_start_h is None or u is None or self.blend_prev is None:
+            return
+        for _ in range(steps):
+            self.parts.estimator.make_step([math.nan] * 3, u, self.blend_prev)
 
-    async def _connected_cycle(self, now, t_h: float, steps: int, row: dict, t0: float) -> None:
+    def _blind(self, steps: int, row: dict) -> None:
+        """No connection: predict; the plant keeps the last setpoints."""
+        self._predict_blind(steps, row)
+        reason = f"no connection: setpoints left at {self._last_written_text()}"
+        self._set_mode("disconnected", reason)
+        row.update(mode="disconnected", written=False, reason=reason)
+
+    def _no_answer(self, steps: int, row: dict) -> None:
+        """A request timed out: this cycle holds (a write in flight may or may not have landed)."""
+        self._predict_blind(steps, row)
+        reason = (f"the plant did not answer within {self.tags.connection.request_timeout_s:g} s "
+                  f"({self.timeouts} of {LOST_AFTER_TIMEOUTS} before the connection counts as lost)")
+        log.warning("%s", reason)
+        self._set_mode("hold", reason)
+        row.update(mode="hold", written=False, reason=reason)
+
+    async def _connected_cycle(self, now, t_h: float, steps: int, row: dict, t0: float, cpu0: float) -> None:
         readings = await self.conn.read()
         row["read_s"] = time.perf_counter() - t0
         v = {role: self.quality[role].assess(r, now, self.clock) for role, r in readings.items() if role != "mode"}
@@ -219,7 +245,8 @@ class Service:
         reason = "; ".join(n for n in (reason, write_note) if n)
         self._set_mode(mode, reason)
         await self._write(values, mode, reason, t_h, row)
-        row.update(mode=mode, reason=reason, write_done_s=time.perf_counter() - t0)
+        row.update(mode=mode, reason=reason, write_done_s=time.perf_counter() - t0,
+                   write_done_cpu_s=time.process_time() - cpu0)
         await self._soft_sensor(u_act, row)
 
     # ------------------------------------------------------------------ readings
@@ -404,7 +431,7 @@ class Service:
                  "surrogate_specific_energy_kwh_t": (p.surrogate_specific_energy_kwh_t, p.surrogate_status)}
         items = {f"soft_sensor.{k}": (None if val is None or not math.isfinite(val) else val, code)
                  for k, (val, code) in pairs.items() if getattr(tags, k) is not None and code is not None}
-        self._condition("soft sensor", p.status != ua.StatusCodes.Good, row["plant_time_h"],
+        self._condition("soft sensor", p.status != ua.StatusCodes.Good, row["service_time_h"],
                         f"soft sensor {status_name(p.status)}: {p.reason}")
         await self.conn.write(items, self.clock.now())
         row.update(soft_p80_um=p.p80_um, soft_specific_energy_kwh_t=p.specific_energy_kwh_t,
@@ -445,7 +472,7 @@ class Service:
             next_t = loop.time()
             while self.stop_reason is None:
                 row = await self.cycle()
-                if self.s.duration_h is not None and row["plant_time_h"] >= self.s.duration_h:
+                if self.s.duration_h is not None and row["service_time_h"] >= self.s.duration_h:
                     self.request_stop(f"duration {self.s.duration_h:g} h reached")
                 next_t += period
                 late = loop.time() - next_t
@@ -453,10 +480,7 @@ class Service:
                     skipped = math.ceil(late / period)
                     log.warning("cycle overran its period by %.3f s: %d sample(s) skipped", late, skipped)
                     next_t += skipped * period
-                try:
-                    await asyncio.wait_for(self._wake.wait(), timeout=max(0.0, next_t - loop.time()))
-                except asyncio.TimeoutError:
-                    pass
+                await sleep_until(next_t, self._wake)
         finally:
             for sig in signals:
                 loop.remove_signal_handler(sig)
@@ -477,7 +501,7 @@ class Service:
         if self.conn is not None:
             await self.conn.close()
             self.conn = None
-        self.audit.record({"wall_time_utc": self.clock.now(), "plant_time_h": self.clock.hours_between(
+        self.audit.record({"wall_time_utc": self.clock.now(), "service_time_h": self.clock.hours_between(
             self.start, self.clock.now()), "cycle": self.k, "mode": "stopped", "written": False,
             "reason": f"stopped ({reason}): {left}"})
         self.audit.flush()

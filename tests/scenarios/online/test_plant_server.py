@@ -86,3 +86,27 @@ def test_the_record_kpis_are_loop_kpis(plant):
     k = p.kpis()
     ref = loop_kpis(p.frame(), tuple(p.scene.controller.load_band_frac))
     assert k["p80_iae_um_h"] == ref["p80_iae_um_h"] > 0 and k["throughput_t"] == ref["throughput_t"]
+
+
+def test_a_write_storm_costs_at_most_one_integrator_restart_per_5_percent_of_a_sample(plant, monkeypatch):
+    from scenarios.online.plant_server import MIN_PIECE_FRAC
+
+    p, clock = plant
+    calls = []
+    step = p.plant.step
+    monkeypatch.setattr(p.plant, "step", lambda *a: calls.append(a[-1]) or step(*a))
+    for k in range(200):  # a client writing 200 times a sample
+        clock.advance(p.dt_h / 200)
+        p._apply_write("setpoints.feed_tph", 16.0 + k / 200, p.plant_time(clock.now()) - p.dt_h / 400, "storm")
+    asyncio.run(p.tick())
+    assert len(calls) <= 1 / MIN_PIECE_FRAC + 1 and sum(calls) == pytest.approx(p.dt_h)
+    assert p.u[0] < 17.0 and len(p.writes) > 0  # the last writes wait for the next sample
+
+
+def test_frozen_plant_time_stands_still_for_writes(plant):
+    p, clock = plant
+    p.running = False
+    clock.advance(5 * p.dt_h)
+    assert p.plant_time(clock.now()) == p.t_h
+    p.running = True
+    assert p.plant_time(clock.now()) == pytest.approx(p.t_h + 5 * p.dt_h)

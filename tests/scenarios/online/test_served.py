@@ -15,9 +15,6 @@ import pytest
 from asyncua import ua
 
 import scenarios.online as online
-from mpc import FixedInputs, LoopSettings, run_closed_loop
-from scenarios.run.closed_loop import hold_schedule, plant_start, scene_sensors
-from scenarios.run.feed import component_blend, feed_schedule
 from scenarios.scene import load_scene
 
 from .conftest import free_port
@@ -88,27 +85,6 @@ def short_reference(tmp_path_factory):
     return path
 
 
-def _in_process(scene, parts):
-    """KPIs of the in-process loop (mpc.run_closed_loop wired as scenarios.run.closed_loop wires
-    it) for each seed, and of no control."""
-    m = parts.models
-    feed, _ = feed_schedule(scene, m.components, scene.time_grid_h())
-    blend = component_blend(feed, m.components)
-    schedule = hold_schedule(feed["time_h"].to_numpy(float), blend, scene.scene.sample_period_h)
-    ss = plant_start(scene, m, blend[0])
-    css = m.control.steady(feed_tph=float(ss.u[0]), speed_frac_critical=float(ss.u[1]), blend=blend[0])
-    c, out = scene.controller, {}
-    for seed in (*SEEDS, "none"):
-        parts.controller.reset()
-        parts.estimator.reset(css.x)
-        st = LoopSettings(scene.scene.duration_h, scene.scene.sample_period_h, seed=1 if seed == "none" else seed,
-                          preview_lead_h=c.preview_lead_h, target_p80_um=c.target_p80_um,
-                          load_band=tuple(c.load_band_frac), estimator_warmup_h=WARMUP_H)
-        ctl, est = (FixedInputs(ss.u), None) if seed == "none" else (parts.controller, parts.estimator)
-        out[seed] = run_closed_loop(m.plant.model, ctl, est, schedule, scene_sensors(scene), ss.x, ss.u, st).kpis
-    return out
-
-
 async def _served(parts, tags, url, audit, proc):
     service = online.Service(parts, tags, online.ServeSettings(
         url, online.ClientSecurity(insecure=True), audit, speedup=SPEEDUP, warmup_h=WARMUP_H))
@@ -129,22 +105,23 @@ async def _served(parts, tags, url, audit, proc):
 @pytest.mark.slow
 def test_the_served_nmpc_holds_the_reference_transition_like_the_in_process_loop(short_reference, tmp_path):
     url = f"opc.tcp://127.0.0.1:{free_port()}"
-    proc = subprocess.Popen([*CLI, "plant-server", str(short_reference), "--opcua", url, "--insecure", "--paused",
-                             "--speedup", str(SPEEDUP), "--hold-h", str(WARMUP_H), "--duration-h", "1.75",
-                             "--watchdog-h", "0.5",
-                             "--record", str(tmp_path / "plant")], stderr=subprocess.PIPE, text=True)
-    try:
-        scene = load_scene(short_reference)
-        tags = online.load_tags(online.VIRTUAL_PLANT_TAGS, scene)
-        parts = online.build_parts(scene)  # while the plant server starts
-        ref = _in_process(scene, parts)
-        parts.reset()
-        service = asyncio.run(_served(parts, tags, url, tmp_path / "audit", proc))
-    finally:
-        if proc.poll() is None:
-            proc.terminate()
-        _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 0, err[-2000:]
+    log = tmp_path / "plant.log"  # a file, not a pipe: a full pipe would stall the server
+    with log.open("w") as err:
+        proc = subprocess.Popen([*CLI, "plant-server", str(short_reference), "--opcua", url, "--insecure", "--paused",
+                                 "--speedup", str(SPEEDUP), "--hold-h", str(WARMUP_H), "--duration-h", "1.75",
+                                 "--watchdog-h", "0.5", "--record", str(tmp_path / "plant")], stderr=err)
+        try:
+            scene = load_scene(short_reference)
+            tags = online.load_tags(online.VIRTUAL_PLANT_TAGS, scene)
+            parts = online.build_parts(scene)  # while the plant server starts
+            ref = {seed: online.run_in_process(parts, seed, WARMUP_H).kpis for seed in SEEDS}
+            ref["none"] = online.run_in_process(parts, 1, no_control=True).kpis
+            service = asyncio.run(_served(parts, tags, url, tmp_path / "audit", proc))
+        finally:
+            if proc.poll() is None:
+                proc.terminate()
+            proc.wait(timeout=60)
+    assert proc.returncode == 0, log.read_text()[-2000:]
     served = json.loads((tmp_path / "plant" / "plant-kpis.json").read_text())
     audit = online.read_audit(tmp_path / "audit")
     iae = [ref[s]["p80_iae_um_h"] for s in SEEDS]

@@ -72,8 +72,9 @@ async def _drill(ls: LockStep, url, tags):
     await op.write({"mode": ("auto", ua.StatusCodes.Good)}, ls.clock.now())
     await op.close()
     await phase("auto_again", 3)
+    soft = await ls.plant.server.get_node(ua.NodeId.from_string(tags.soft_sensor.p80_um)).read_data_value()
     await ls.stop()
-    return phases, np.array(inn), plant_mode_after
+    return phases, np.array(inn), plant_mode_after, soft
 
 
 @pytest.fixture(scope="module")
@@ -90,14 +91,15 @@ def drill(small_scene, small_tags, small_parts, tmp_path_factory):
         lg.setLevel(logging.INFO)
     ls = LockStep(small_scene, small_tags, small_parts, url, audit_dir)
     try:
-        phases, innovation, plant_mode = asyncio.run(_drill(ls, url, small_tags))
+        phases, innovation, plant_mode, soft = asyncio.run(_drill(ls, url, small_tags))
     finally:
         for lg, level in zip(loggers, levels):
             lg.removeHandler(handler)
             lg.setLevel(level)
     audit = online.read_audit(audit_dir)
     return {"phases": phases, "innovation": innovation, "audit": audit, "rows": pd.DataFrame(ls.rows),
-            "records": handler.records, "plant": ls.plant, "plant_mode_after_outage": plant_mode, "tags": small_tags}
+            "records": handler.records, "plant": ls.plant, "plant_mode_after_outage": plant_mode, "tags": small_tags,
+            "soft_node": soft}
 
 
 def _rows(d, phase):
@@ -179,3 +181,44 @@ def test_setpoints_stay_within_the_writers_limits(drill):
     assert w["feed_sp_tph"].between(lim.min, lim.max).all()
     steps = (w["feed_sp_tph"] - w["feed_actual_tph"]).abs()
     assert (steps <= lim.rate_max_per_h * drill["plant"].dt_h + 1e-9).all()
+
+
+def test_the_soft_sensor_publishes_the_twins_prediction_of_the_ore_on_the_belt(drill, small_parts):
+    last = drill["rows"].iloc[-1]
+    dv = drill["soft_node"]
+    assert dv.StatusCode.is_good() and dv.Value.Value == last["soft_p80_um"]
+    belt = [drill["plant"].published[f"blend.{o}"].Value.Value for o in ("B", "D")]
+    ss = small_parts.models.control.steady(feed_tph=last["feed_actual_tph"],
+                                           speed_frac_critical=last["speed_actual_frac_critical"], blend=belt)
+    assert last["soft_p80_um"] == pytest.approx(ss.p80_um, rel=1e-9)
+
+
+class _SilentPlant:
+    """A session whose requests never come back in time (a plant server too busy to answer)."""
+
+    async def read(self):
+        raise asyncio.TimeoutError
+
+    async def close(self):
+        pass
+
+
+def test_a_busy_plant_holds_cycles_and_counts_as_lost_after_three_timeouts(small_parts, small_tags, url, tmp_path,
+                                                                             caplog):
+    from scenarios.online.service import LOST_AFTER_TIMEOUTS
+
+    small_parts.reset()
+    service = online.Service(small_parts, small_tags, online.ServeSettings(
+        url, online.ClientSecurity(insecure=True), tmp_path / "audit"), clock=online.ManualClock(3600.0))
+
+    async def go():
+        service.conn = _SilentPlant()
+        rows = [await service.cycle() for _ in range(LOST_AFTER_TIMEOUTS)]
+        await service.shutdown("test end")
+        return rows
+
+    with caplog.at_level(logging.WARNING, logger="grindtwin.online"):
+        rows = asyncio.run(go())
+    assert [r["mode"] for r in rows] == ["hold"] * (LOST_AFTER_TIMEOUTS - 1) + ["disconnected"]
+    assert "did not answer within 1 s (1 of 3" in rows[0]["reason"]
+    assert any("lost (TimeoutError" in r.getMessage() for r in caplog.records)
