@@ -148,7 +148,7 @@ def pct(x, q) -> float:
     return float(np.percentile(x, q)) if x.size else float("nan")
 
 
-def figure(plant: pd.DataFrame, audit: pd.DataFrame) -> None:
+def figure(plant: pd.DataFrame, scene) -> None:
     fig, (a1, a2, a3) = plt.subplots(3, 1, figsize=(9, 7.5), sharex=True, gridspec_kw={"height_ratios": [3, 2, 2]})
     a1.plot(plant["time_h"], plant["p80_um"], label="plant P80 (the twin's truth)")
     a1.plot(plant["time_h"], plant["p80_measured_um"], ".", ms=3, label="analyser (OPC UA)")
@@ -162,7 +162,8 @@ def figure(plant: pd.DataFrame, audit: pd.DataFrame) -> None:
     a3.set_xlabel("plant time [h]  (before 0: the estimator's warm-up on the running plant)")
     for a in (a1, a2, a3):
         a.axvspan(plant["time_h"].min(), 0.0, color="0.9", zorder=0)
-        a.axvspan(3.0, 3.5, color="C1", alpha=0.12, zorder=0)
+        for ev in scene.feed.schedule:
+            a.axvspan(ev.at_h, ev.at_h + ev.ramp_h, color="C1", alpha=0.12, zorder=0)
     a1.set_title("grindtwin serve on the virtual plant over OPC UA (Basic256Sha256 SignAndEncrypt); "
                  "ramp to 60 % B / 40 % D shaded", fontsize=9)
     fig.tight_layout()
@@ -272,7 +273,7 @@ def main(argv=None) -> int:
     cols = [c for c in ("service_time_h", "mode", "read_s", "estimate_s", "solve_s", "write_s", "write_done_s",
                         "write_done_cpu_s", "soft_s", "cycle_s") if c in cycles]
     cycles[cols].to_csv(OUT / "online_cycle.csv", index=False)
-    figure(plant, cycles)
+    figure(plant, load_scene(SCENE))
     text = report(tr, cycles, served_k, ref_k, args, (load0, load1))
     (OUT / "online_cycle.md").write_text(text)
     print(text)
