@@ -69,6 +69,7 @@ def add_case_arguments(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--solver", default="rti", help="NmpcSettings.solver of the NMPC runs")
     ap.add_argument("--hardness-noise", type=float, default=HARDNESS_NOISE_PER_SQRT_H,
                     help="EKF random-walk intensity of the hardness scale [1/sqrt(h)]")
+    ap.add_argument("--disturbance-model", default="hardness", help="EKF disturbance model (mpc.DISTURBANCE_MODELS)")
     ap.add_argument("--warmup-h", type=float, default=2.0,
                     help="estimator warm-up on the steady plant before t = 0 [h]")
 
@@ -92,9 +93,9 @@ def reference_setup(sensors: Sensors, args=None):
     return plant, ss, ctw, css
 
 
-def reference_ekf(ctw, css, dt_h: float, hardness_noise: float) -> Ekf:
+def reference_ekf(ctw, css, dt_h: float, hardness_noise: float, disturbance_model: str = "hardness") -> Ekf:
     """The EKF of the case on the controller model, started at its steady state."""
-    return Ekf(ctw.model, dt_h, css.x, hardness_noise_per_sqrt_h=hardness_noise)
+    return Ekf(ctw.model, dt_h, css.x, hardness_noise_per_sqrt_h=hardness_noise, disturbance_model=disturbance_model)
 
 
 def main(argv=None) -> pd.DataFrame:
@@ -147,7 +148,7 @@ def run_case(args, plant_hardness=1.0, write: bool = True) -> pd.DataFrame:
     plant, ss, ctw, css = reference_setup(sensors, args)
     rows, runs = [], []
     for kind in args.only.split(","):
-        est = reference_ekf(ctw, css, dt, args.hardness_noise)
+        est = reference_ekf(ctw, css, dt, args.hardness_noise, args.disturbance_model)
         t0 = time.perf_counter()
         if kind == "none":
             ctrl = FixedInputs(ss.u)
@@ -191,7 +192,7 @@ def run_case(args, plant_hardness=1.0, write: bool = True) -> pd.DataFrame:
           f"duration {args.duration_h} h, sample {dt} h, seed {args.seed}; solver {args.solver}; "
           f"weights p80 {args.weight_p80}, du_feed {args.weight_du_feed}, du_speed "
           f"{args.weight_du_speed}, energy {args.weight_energy}; EKF hardness noise "
-          f"{args.hardness_noise}/sqrt(h), warm-up {args.warmup_h} h before t = 0; "
+          f"{args.hardness_noise}/sqrt(h), disturbance model {args.disturbance_model}, warm-up {args.warmup_h} h before t = 0; "
           f"{model_line(args)}; sensors: P80 noise 3 um, dead time 0.1 h, sampling 0.05 h.",
           "", table[cols].to_markdown(index=False, floatfmt=".4g")]
     (OUT / f"mpc_reference_case{args.tag}.md").write_text("\n".join(md) + "\n")

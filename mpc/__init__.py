@@ -4,9 +4,11 @@ steady-state optimiser, sensors, plants (:mod:`mpc.plants`) and the closed loop.
 
 from mpc.baselines import FixedInputs, PiFeedback, pi_baseline
 from mpc.closed_loop import ESTIMATOR_MEASUREMENTS, ClosedLoopResult, LoopSettings, run_closed_loop
-from mpc.discretize import RK4_RATE_SAFETY, cvodes_map, min_rk4_substeps, rk4_map, stable_rk4_substeps, state_jacobian
+from mpc.discretize import (RK4_RATE_SAFETY, cvodes_map, min_rk4_substeps, rk4_map, rk4_sensitivity_map,
+                             stable_rk4_substeps, state_jacobian)
 from mpc.errors import MpcError, MpcInputError, MpcSolverError
-from mpc.estimator import MEASUREMENTS, Ekf
+from mpc.codegen import CompileFallbackWarning, CompileReport, compiled
+from mpc.estimator import DISTURBANCE_MODELS, MEASUREMENTS, Ekf
 from mpc.kpis import P80_BAND_UM, cumulative, integral, loop_kpis, outside_band_frac, p80_iae_um_h, within_band_frac
 from mpc.linear import (Fopdt, LinearMPC, OperatingPoint, discretize, fit_fopdt, fopdt_from_model, gain_table,
                         linearize, steady_target)
@@ -18,12 +20,12 @@ from mpc.results import ControllerStepResult
 from mpc.sensors import Sensors, SensorState
 
 __all__ = [
-    "ClosedLoopResult", "Controller", "ControllerStepResult", "DiscretePI", "ESTIMATOR_MEASUREMENTS", "Ekf",
+    "ClosedLoopResult", "CompileFallbackWarning", "CompileReport", "DISTURBANCE_MODELS", "Controller", "ControllerStepResult", "DiscretePI", "ESTIMATOR_MEASUREMENTS", "Ekf",
     "FixedInputs", "Fopdt", "LeRouxCircuit", "LeRouxParameters", "LeRouxPlant", "LinearMPC", "LoopSettings",
     "MEASUREMENTS", "MatchedTwin", "MpcError", "MpcInputError", "MpcSolverError", "NmpcSettings", "OperatingPoint",
     "P80_BAND_UM", "PiFeedback", "QP_SOLVERS", "SOLVERS", "RK4_RATE_SAFETY", "SensorState", "Sensors", "Setpoints", "TwinPlant",
-    "cumulative", "cvodes_map", "discretize", "feed_for_target", "fit_fopdt", "fopdt_from_model", "gain_table",
+    "compiled", "cumulative", "cvodes_map", "discretize", "feed_for_target", "fit_fopdt", "fopdt_from_model", "gain_table",
     "integral", "linearize", "loop_kpis", "matched_twin", "min_rk4_substeps", "optimal_setpoints",
-    "outside_band_frac", "p80_iae_um_h", "pi_baseline", "pi_from_model", "rk4_map", "simc_pi", "speed_for_target",
+    "outside_band_frac", "p80_iae_um_h", "pi_baseline", "pi_from_model", "rk4_map", "rk4_sensitivity_map", "simc_pi", "speed_for_target",
     "stable_rk4_substeps", "state_jacobian", "steady_target", "within_band_frac",
 ]

@@ -1,11 +1,17 @@
 """Extended Kalman filter on the twin model: mill contents and ore hardness from plant sensors.
 
-The augmented state is ``z = [x; h]`` with ``x`` the model's states and ``h`` the hardness scale
-(the last entry of ``d``, dividing every breakage rate), modelled as a random walk
-``h_{k+1} = h_k + w_h`` (the disturbance model of offset-free MPC: Muske & Badgwell 2002,
+The augmented state is ``z = [x; h; b]`` with ``x`` the model's states, ``h`` the hardness scale
+(the last entry of ``d``, dividing every breakage rate) and ``b`` a bias of the P80 measurement
+[um], each a random walk ``h_{k+1} = h_k + w_h`` (the disturbance model of offset-free MPC:
+Muske & Badgwell 2002,
 "Disturbance modeling for offset-free linear model predictive control", J. Process Control 12,
 617-632; Pannocchia & Rawlings 2003, AIChE J. 49, 426-437: with as many integrating
 disturbances as measured controlled outputs, a converged estimator removes the steady offset).
+The disturbance model (:data:`DISTURBANCE_MODELS`) names what absorbs the plant/model mismatch:
+``"hardness"`` (``z = [x; h]``: everything, including a coarse model's structural P80 error, is
+read as ore hardness), ``"p80_bias"`` (``z = [x; b]``: hardness held at ``hardness0``; the P80
+analyser reads ``P80(x) + b``) or ``"hardness+p80_bias"`` (both: the bias takes the slow P80
+mismatch, hardness what also moves load and power).
 
 Filter (Simon, *Optimal State Estimation*, 2006, section 13.2, the discrete EKF): prediction
 through ``x_{k+1} = F(x_k, u_k, d_k)`` (:func:`mpc.discretize.rk4_map` over one sample) with the
@@ -25,7 +31,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from mpc.discretize import rk4_map
+from mpc.codegen import compiled
+from mpc.discretize import rk4_sensitivity_map
 from mpc.errors import MpcInputError
 
 MEASUREMENTS = ("p80_um", "power_kw", "load_frac")
@@ -35,10 +42,15 @@ MEASUREMENTS = ("p80_um", "power_kw", "load_frac")
 #: measured ore change and after an unmeasured +10 % hardness step; 0.1 passes the analyser's
 #: noise to the inputs (IAE 14.8 against 9.6 um h).
 HARDNESS_NOISE_PER_SQRT_H = 0.03
+#: Default random-walk intensity of the P80 bias [um/sqrt(h)]: a 1-sigma drift of 5 um in an
+#: hour (our assumption: the structural error of a coarse model moves with the operating point
+#: over hours, not minutes).
+P80_BIAS_NOISE_UM_PER_SQRT_H = 5.0
+DISTURBANCE_MODELS = ("hardness", "p80_bias", "hardness+p80_bias")
 
 
 class Ekf:
-    """Extended Kalman filter with a random-walk hardness disturbance.
+    """Extended Kalman filter with random-walk disturbances (hardness scale, P80 bias).
 
     Parameters
     ----------
@@ -49,7 +61,8 @@ class Ekf:
     x0 : array
         Initial state estimate (model states).
     hardness0 : float
-        Initial hardness-scale estimate (1 = as calibrated).
+        Initial hardness-scale estimate (1 = as calibrated); the fixed value when the
+        disturbance model has no hardness.
     p80_noise_um, power_noise_kw, load_noise_frac : float
         Measurement noise standard deviations (R diagonal). The power and load defaults are
         well above a plant sensor's noise: they also cover the structural mismatch of a
@@ -58,15 +71,19 @@ class Ekf:
     state_noise_rel : float
         Process-noise standard deviation per sample of each state, relative to its scale
         (``max(|x0|, 1e-3 H_nom)``).
-    hardness_noise_per_sqrt_h : float
-        Random-walk intensity of the hardness scale [1/sqrt(h)]: its variance grows by
-        ``hardness_noise_per_sqrt_h^2 dt_h`` per sample. Larger: faster, noisier estimate.
-    p0_rel, hardness_p0 : float
-        Initial standard deviations (relative for the states, absolute for the hardness).
+    hardness_noise_per_sqrt_h, p80_bias_noise_um_per_sqrt_h : float
+        Random-walk intensities of the hardness scale [1/sqrt(h)] and of the P80 bias
+        [um/sqrt(h)]: a variance growing by ``intensity^2 dt_h`` per sample.
+    p0_rel, hardness_p0, p80_bias_p0_um : float
+        Initial standard deviations (relative for the states, absolute for the disturbances).
     rk4_substeps : int
         RK4 steps per sample.
     hardness_bounds : tuple
         The estimate is clipped to this range.
+    disturbance_model : str
+        One of :data:`DISTURBANCE_MODELS`.
+    codegen : str
+        The filter step compiled (:func:`mpc.codegen.compiled` mode).
     """
 
     def __init__(self, model, dt_h: float, x0, hardness0: float = 1.0, p80_noise_um: float = 3.0,
@@ -74,17 +91,26 @@ class Ekf:
                  state_noise_rel: float = 1e-4,
                  hardness_noise_per_sqrt_h: float = HARDNESS_NOISE_PER_SQRT_H,
                  p0_rel: float = 0.05, hardness_p0: float = 0.1, rk4_substeps: int = 3,
-                 hardness_bounds: tuple = (0.3, 3.0)):
+                 hardness_bounds: tuple = (0.3, 3.0), disturbance_model: str = "hardness",
+                 p80_bias_noise_um_per_sqrt_h: float = P80_BIAS_NOISE_UM_PER_SQRT_H,
+                 p80_bias_p0_um: float = 10.0, codegen: str = "auto"):
         self.model = model
         if not (np.isfinite(dt_h) and dt_h > 0):
             raise MpcInputError(f"The 'dt_h' parameter of Ekf must be a float > 0. Got {dt_h!r}.")
+        if disturbance_model not in DISTURBANCE_MODELS:
+            raise MpcInputError(f"The 'disturbance_model' parameter of Ekf must be one of "
+                                f"{DISTURBANCE_MODELS}. Got {disturbance_model!r}.")
         self.dt_h = float(dt_h)
         for name, v in (("p80_noise_um", p80_noise_um), ("power_noise_kw", power_noise_kw),
                         ("load_noise_frac", load_noise_frac), ("state_noise_rel", state_noise_rel),
                         ("hardness_noise_per_sqrt_h", hardness_noise_per_sqrt_h),
-                        ("p0_rel", p0_rel), ("hardness_p0", hardness_p0)):
+                        ("p80_bias_noise_um_per_sqrt_h", p80_bias_noise_um_per_sqrt_h),
+                        ("p0_rel", p0_rel), ("hardness_p0", hardness_p0), ("p80_bias_p0_um", p80_bias_p0_um)):
             if not (np.isfinite(v) and v > 0):
                 raise MpcInputError(f"The '{name}' parameter of Ekf must be a float > 0. Got {v!r}.")
+        self.disturbance_model = disturbance_model
+        self.has_hardness = "hardness" in disturbance_model
+        self.has_p80_bias = "p80_bias" in disturbance_model
         self.nx = model.f.size1_in(0)
         self.nd = model.f.size1_in(2)
         x0 = np.asarray(x0, float).reshape(-1)
@@ -95,44 +121,84 @@ class Ekf:
         self.p80_output = "p80_measured_um" if "p80_measured_um" in model.outputs else "p80_um"
         self.scale = np.maximum(np.abs(x0), 1e-3 * model.spec.holdup_nominal_t)
         # the analyser-lag states (after the masses) get a hundredth of the mass states' noise,
-        # so a P80 offset is explained by hardness (offset-free), not by the lag chain
-        n_mass = getattr(model, "n_mass", self.nx)
+        # so a P80 offset is explained by the disturbances (offset-free), not by the lag chain
+        self.n_mass = getattr(model, "n_mass", self.nx)
         rel = np.full(self.nx, float(state_noise_rel))
-        rel[n_mass:] *= 0.01
-        self.q = np.diag(np.r_[(rel * self.scale) ** 2,
-                               hardness_noise_per_sqrt_h ** 2 * self.dt_h])
+        rel[self.n_mass:] *= 0.01
+        q_d = ([hardness_noise_per_sqrt_h ** 2 * self.dt_h] if self.has_hardness else []) + \
+              ([p80_bias_noise_um_per_sqrt_h ** 2 * self.dt_h] if self.has_p80_bias else [])
+        self.q = np.diag(np.r_[(rel * self.scale) ** 2, q_d])
         self.r_diag = np.array([p80_noise_um, power_noise_kw, load_noise_frac], float) ** 2
         self._x0, self._h0 = x0.copy(), float(hardness0)
-        self._p0 = np.diag(np.r_[(p0_rel * self.scale) ** 2, hardness_p0 ** 2])
-        # symbolic prediction and measurement with their Jacobians (built once)
-        F = rk4_map(model.f, self.dt_h, rk4_substeps, name="ekf_F").expand()
-        z = ca.SX.sym("z", self.nx + 1)
-        u = ca.SX.sym("u", model.f.size1_in(1))
-        db = ca.SX.sym("db", self.nd - 1)  # known blend fractions
-        d = ca.vertcat(db, z[-1])
-        zn = ca.vertcat(F(z[:-1], u, d), z[-1])
-        y = ca.vertcat(model.outputs[self.p80_output](z[:-1], u, d),
-                       model.outputs["power_kw"](z[:-1], u, d),
-                       model.outputs["load_frac"](z[:-1], u, d))
-        self._pred = ca.Function("ekf_pred", [z, u, db], [zn, ca.jacobian(zn, z)])
-        self._meas = ca.Function("ekf_meas", [z, u, db], [y, ca.jacobian(y, z)])
+        p0_d = ([hardness_p0 ** 2] if self.has_hardness else []) + ([p80_bias_p0_um ** 2] if self.has_p80_bias else [])
+        self._p0 = np.diag(np.r_[(p0_rel * self.scale) ** 2, p0_d])
+        self.step_function = self._step_function(rk4_substeps)
+        self._step, self.build_report = compiled(self.step_function, codegen)
         self.reset()
+
+    def _step_function(self, rk4_substeps: int) -> ca.Function:
+        """``ekf_step(z, P, u, db, y, mask) -> (z+, P+, innovation)``: one predict + update
+        (module docstring), measurements with ``mask = 0`` left out (their row of C is zero and
+        their innovation 0, which is the update without them); the estimator's whole arithmetic,
+        shared by this class and the exported C controller."""
+        m, nx, nd = self.model, self.nx, self.nd
+        nz = self.q.shape[0]
+        F = rk4_sensitivity_map(m, self.dt_h, rk4_substeps, name="ekf_F", with_d=True)
+        z, P = ca.MX.sym("z", nz), ca.MX.sym("P", nz, nz)
+        u, db = ca.MX.sym("u", m.f.size1_in(1)), ca.MX.sym("db", nd - 1)
+        y, mask = ca.MX.sym("y", 3), ca.MX.sym("mask", 3)
+        h = z[nx] if self.has_hardness else ca.MX(self._h0)
+        x_next, a, _, dd = F(z[:nx], u, ca.vertcat(db, h))
+        nd_z = nz - nx
+        top = [a] + ([dd[:, -1]] if self.has_hardness else []) + ([ca.MX(nx, 1)] if self.has_p80_bias else [])
+        a_z = ca.vertcat(ca.horzcat(*top), ca.horzcat(ca.MX(nd_z, nx), ca.DM.eye(nd_z)))
+        zp = ca.vertcat(x_next, z[nx:])
+        pp = ca.mtimes([a_z, P, a_z.T]) + ca.DM(self.q)
+        ys, us, dbs = ca.SX.sym("z", nz), ca.SX.sym("u", u.numel()), ca.SX.sym("db", nd - 1)
+        d_s = ca.vertcat(dbs, ys[nx] if self.has_hardness else self._h0)
+        yh = ca.vertcat(m.outputs[self.p80_output](ys[:nx], us, d_s) + (ys[-1] if self.has_p80_bias else 0),
+                        m.outputs["power_kw"](ys[:nx], us, d_s), m.outputs["load_frac"](ys[:nx], us, d_s))
+        meas = ca.Function("ekf_meas", [ys, us, dbs], [yh, ca.jacobian(yh, ys)])
+        yhat, c = meas(zp, u, db)
+        c = ca.mtimes(ca.diag(mask), c)
+        e = mask * (y - yhat)
+        r = ca.diag(ca.DM(self.r_diag))
+        pct = ca.mtimes(pp, c.T)
+        k = ca.solve(ca.mtimes(c, pct) + r, pct.T).T
+        ikc = ca.DM.eye(nz) - ca.mtimes(k, c)
+        pn = ca.mtimes([ikc, pp, ikc.T]) + ca.mtimes([k, r, k.T])
+        zn = zp + ca.mtimes(k, e)
+        lo = np.r_[np.zeros(self.n_mass), -np.inf * np.ones(nz - self.n_mass)]
+        hi = np.inf * np.ones(nz)
+        if self.has_hardness:
+            lo[nx], hi[nx] = self.hardness_bounds
+        zn = ca.fmin(ca.fmax(zn, ca.DM(np.maximum(lo, -1e300))), ca.DM(np.minimum(hi, 1e300)))
+        return ca.Function("ekf_step", [z, P, u, db, y, mask], [zn, 0.5 * (pn + pn.T), e],
+                           ["z", "P", "u", "db", "y", "mask"], ["z_next", "P_next", "innovation"])
 
     def reset(self, x0=None, hardness0: float | None = None) -> None:
         """Back to the initial estimate and covariance."""
         x = self._x0 if x0 is None else np.asarray(x0, float).reshape(-1)
         h = self._h0 if hardness0 is None else float(hardness0)
-        self.z = np.r_[x, h]
+        if hardness0 is not None and not self.has_hardness:
+            self._h0 = h
+        self.z = np.r_[x, [h] if self.has_hardness else [], [0.0] if self.has_p80_bias else []]
         self.P = self._p0.copy()
         self.innovation = np.full(3, np.nan)
 
     @property
     def x_est(self) -> np.ndarray:
-        return self.z[:-1].copy()
+        return self.z[: self.nx].copy()
 
     @property
     def hardness_est(self) -> float:
-        return float(self.z[-1])
+        """The estimated hardness scale (the fixed ``hardness0`` when not estimated)."""
+        return float(self.z[self.nx]) if self.has_hardness else self._h0
+
+    @property
+    def p80_bias_um(self) -> float:
+        """The estimated P80 bias [um] (0 when not modelled): the plant's P80 minus the model's."""
+        return float(self.z[-1]) if self.has_p80_bias else 0.0
 
     def make_step(self, y_meas, u, d_known):
         """One sample: predict over the last period with the input ``u`` and known
@@ -146,25 +212,9 @@ class Ekf:
         if y.size != 3:
             raise MpcInputError(f"The 'y_meas' parameter of Ekf.make_step must be "
                                 f"[p80_um, power_kw, load_frac]. Got {y.size} values.")
-        zn, a = self._pred(self.z, u, db)
-        self.z = np.asarray(zn, float).ravel()
-        a = np.asarray(a, float)
-        self.P = a @ self.P @ a.T + self.q
         ok = np.isfinite(y)
-        self.innovation = np.full(3, np.nan)
-        if ok.any():
-            yh, c = self._meas(self.z, u, db)
-            yh, c = np.asarray(yh, float).ravel()[ok], np.asarray(c, float)[ok]
-            r = np.diag(self.r_diag[ok])
-            s = c @ self.P @ c.T + r
-            k = np.linalg.solve(s, c @ self.P).T
-            e = y[ok] - yh
-            self.innovation[ok] = e
-            self.z = self.z + k @ e
-            ikc = np.eye(self.z.size) - k @ c
-            self.P = ikc @ self.P @ ikc.T + k @ r @ k.T
-        self.P = 0.5 * (self.P + self.P.T)
-        n_mass = getattr(self.model, "n_mass", self.nx)
-        self.z[:n_mass] = np.maximum(self.z[:n_mass], 0.0)
-        self.z[-1] = float(np.clip(self.z[-1], *self.hardness_bounds))
-        return self.x_est, np.r_[db, self.z[-1]]
+        zn, pn, e = self._step(self.z, self.P, u, db, np.where(ok, y, 0.0), ok.astype(float))
+        self.z = np.asarray(zn, float).ravel()
+        self.P = np.asarray(pn, float)
+        self.innovation = np.where(ok, np.asarray(e, float).ravel(), np.nan)
+        return self.x_est, np.r_[db, self.hardness_est]

@@ -43,8 +43,9 @@ def outside_band_frac(load_frac, band) -> float:
 def loop_kpis(frame: pd.DataFrame, load_band=(0.8, 1.2)) -> dict:
     """KPIs of a closed-loop frame (columns of :func:`mpc.run_closed_loop`): IAE of the plant's
     exact P80 from target [um h], share within +-10 um, largest error [um], specific energy =
-    energy / fresh feed [kWh/t], throughput = product [t], share of samples with the load outside
-    its band, controller solve-time median and 95th percentile [s], and the steps on which the
+    energy / fresh feed [kWh/t], throughput = product [t], standard deviations of the P80 [um]
+    and of the load over the samples (industry's variability measures), share of samples with the
+    load outside its band, controller solve-time median and 95th percentile [s], and the steps on which the
     controller fell back to a held input."""
     t = frame["time_h"].to_numpy(float)
     target = frame["p80_target_um"].to_numpy(float)
@@ -57,6 +58,8 @@ def loop_kpis(frame: pd.DataFrame, load_band=(0.8, 1.2)) -> dict:
         "p80_max_abs_err_um": float(np.max(np.abs(p80 - target))),
         "specific_energy_kwh_t": integral(t, frame["power_kw"]) / fed_t if fed_t > 0 else math.nan,
         "throughput_t": integral(t, frame["throughput_tph"]),
+        "p80_std_um": float(np.std(p80)),
+        "load_std_frac": float(np.std(frame["load_frac"].to_numpy(float))),
         "load_outside_band_frac": outside_band_frac(frame["load_frac"], load_band),
         "solve_time_median_s": float(np.median(st)),
         "solve_time_p95_s": float(np.percentile(st, 95)),

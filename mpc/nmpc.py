@@ -79,7 +79,9 @@ from dataclasses import dataclass, fields
 import casadi as ca
 import numpy as np
 
-from mpc.discretize import rk4_map
+from mpc.codegen import MODES as CODEGEN_MODES
+from mpc.codegen import compiled
+from mpc.discretize import rk4_map, rk4_sensitivity_map
 from mpc.errors import MpcInputError, MpcSolverError
 from mpc.results import ControllerStepResult
 from twin import pxx_um
@@ -91,6 +93,7 @@ PASSING_TARGET = 0.80
 #: meeting its tolerance in 200 iterations (measured); the decision variables here are scaled
 #: to O(1) (states) or are inputs and slacks below ~100, so 1e4 is inactive and converges in ~7.
 HPIPM_INF = 1e4
+HPIPM_MODES = ("robust", "balance", "speed")
 
 
 @dataclass
@@ -164,6 +167,12 @@ class NmpcSettings:
     """Use the disturbance preview over the horizon; False: hold the current d (feedback only)."""
     unreachable_tol_frac: float = 0.01
     """Passing-fraction miss at the horizon end above which the status says target_unreachable."""
+    hpipm_mode: str = "robust"
+    """HPIPM's preset (its ``mode``): "robust" (HPIPM's most careful iterations) or "speed"
+    (fewer, cheaper iterations to the same tolerances; benchmarks/results/mpc_compiled.md)."""
+    codegen: str = "auto"
+    """Compiled QP data of "rti" (:mod:`mpc.codegen`): "auto" (compiled when a C compiler is
+    found, else interpreted, warned and counted), "on" (error without a compiler), "off"."""
 
     def __post_init__(self) -> None:
         def bad(name, allowed):
@@ -198,6 +207,10 @@ class NmpcSettings:
             bad("load_band_frac", "a pair (lo, hi) with 0 <= lo < hi")
         if self.solver not in SOLVERS:
             bad("solver", f"one of {SOLVERS}")
+        if self.hpipm_mode not in HPIPM_MODES:
+            bad("hpipm_mode", f"one of {HPIPM_MODES}")
+        if self.codegen not in CODEGEN_MODES:
+            bad("codegen", f"one of {CODEGEN_MODES}")
         if self.qpsol is None:
             self.qpsol = "qrqp" if self.solver == "sqpmethod" else "hpipm"
         if self.qpsol not in QP_SOLVERS:
@@ -252,16 +265,15 @@ class Controller:
         wpass = ca.SX.sym("wpass", m.spec.grid.count)
         psd = psd_fn(xs, us, ds)
         passing = ca.dot(wpass, psd) / (ca.sum1(psd) + 1e-12 * m.spec.holdup_nominal_t)
-        out_fn = ca.Function("nmpc_out", [xs, us, ds, wpass],
-                             [passing, m.outputs["load_frac"](xs, us, ds),
-                              m.outputs["specific_energy_kwh_t"](xs, us, ds),
-                              m.outputs["power_kw"](xs, us, ds)])
-        self._out_fn = out_fn
-        scale = ca.DM(self.x_scale)
-        has_power = math.isfinite(s.power_max_kw)
-        ns = 2 if has_power else 1
-        self._n_slack = ns
+        self._out_fn = ca.Function("nmpc_out", [xs, us, ds, wpass],
+                                   [passing, m.outputs["load_frac"](xs, us, ds),
+                                    m.outputs["specific_energy_kwh_t"](xs, us, ds),
+                                    m.outputs["power_kw"](xs, us, ds)])
+        self._scale = ca.DM(self.x_scale)
+        self._has_power = math.isfinite(s.power_max_kw)
+        ns = self._n_slack = 2 if self._has_power else 1
         nxl, nul = nx + nu + ns, nu + ns  # lifted state [x/scale; u_prev; slack], control [u; slack]
+        self._nxl, self._nul = nxl, nul
 
         p_x0, p_d = ca.MX.sym("x0", nx), ca.MX.sym("D", nd, N)
         p_uprev, p_wpass = ca.MX.sym("u_prev", nu), ca.MX.sym("wpass", m.spec.grid.count)
@@ -270,8 +282,6 @@ class Controller:
         U = [ca.MX.sym(f"U{k}", nul) for k in range(N)]
         u_lo = np.array([s.feed_tph_min, s.speed_min])
         u_hi = np.array([s.feed_tph_max, s.speed_max])
-        du_max = np.array([s.feed_rate_max_tph_per_h, s.speed_rate_max_per_h]) * s.dt_h
-        lo_band, hi_band = s.load_band_frac
         inf = np.inf
         gap_sign = -1.0 if s.solver == "fatrop" else 1.0
         w, lbw, ubw, g, lbg, ubg = [], [], [], [], [], []
@@ -279,72 +289,164 @@ class Controller:
         self._ix, self._iu, self._ig_gap, self._ig_path, ng_path = [], [], [], [], []
         nw = ng = 0
         for k in range(N + 1):
-            Xk = X[k]
-            xk, vk, sig = Xk[:nx], Xk[nx:nx + nu], Xk[nx + nu:]
+            Xk, Uk = X[k], (U[k] if k < N else None)
             w.append(Xk); lbw.append(-inf * np.ones(nxl)); ubw.append(inf * np.ones(nxl))
             self._ix.append(np.arange(nw, nw + nxl)); nw += nxl
-            path, plo, phi = [], [], []
-            if k == 0:  # initial state, last applied input, no slack: equalities of stage 0
-                path.append(Xk - ca.vertcat(p_x0 / scale, p_uprev, ca.DM.zeros(ns)))
-                plo.append(np.zeros(nxl)); phi.append(np.zeros(nxl))
-            else:  # outputs at X_k with the input held over the interval before it
-                pas, load, se, pw = out_fn(xk * scale, vk, p_d[:, k - 1], p_wpass)
-                path.append(ca.vertcat(load - sig[0], load + sig[0]))
-                plo.append(np.array([-inf, lo_band])); phi.append(np.array([hi_band, inf]))
-                if has_power:
-                    path.append(pw - sig[1]); plo.append(np.array([-inf])); phi.append(np.array([s.power_max_kw]))
-                residuals.append(math.sqrt(s.weight_p80) * 100.0 * (pas - PASSING_TARGET))
-                linear = linear + s.weight_energy * se
+            t = self._stage_terms(k, Xk, Uk, p_d[:, max(k - 1, 0)], p_x0, p_uprev, p_wpass)
+            residuals += t["residuals"]
+            linear = linear + t["linear"]
             if k < N:
-                Uk = U[k]
-                uk, sk = Uk[:nu], Uk[nu:]
                 w.append(Uk); lbw.append(np.r_[u_lo, np.zeros(ns)]); ubw.append(np.r_[u_hi, inf * np.ones(ns)])
                 self._iu.append(np.arange(nw, nw + nul)); nw += nul
-                du = uk - vk
-                path.append(du)
-                free = k % s.move_block == 0  # inside a move block: no move
-                plo.append(-du_max if free else np.zeros(nu)); phi.append(du_max if free else np.zeros(nu))
-                residuals += [math.sqrt(s.weight_du_feed) * du[0],
-                              math.sqrt(s.weight_du_speed) * 100.0 * du[1],
-                              math.sqrt(s.load_penalty_quad) * sk[0]]
-                linear = linear + s.load_penalty_lin * sk[0]
-                if has_power:
-                    residuals.append(math.sqrt(s.power_penalty_quad) * sk[1])
-                    linear = linear + s.power_penalty_lin * sk[1]
                 # gap first, then the stage's path constraints (the order hpipm and fatrop ask
                 # for); hpipm wants F - X_{k+1}, fatrop X_{k+1} - F
-                gap = gap_sign * (ca.vertcat(F(xk * scale, uk, p_d[:, k]) / scale, uk, sk) - X[k + 1])
+                xk = Xk[:nx] * self._scale
+                gap = gap_sign * (self._gap_value(F(xk, Uk[:nu], p_d[:, k]), Uk) - X[k + 1])
                 g.append(gap); lbg.append(np.zeros(nxl)); ubg.append(np.zeros(nxl))
                 self._ig_gap.append(np.arange(ng, ng + nxl)); ng += nxl
-            pv = ca.vertcat(*path)
-            g.append(pv); lbg.append(np.concatenate(plo)); ubg.append(np.concatenate(phi))
-            self._ig_path.append(np.arange(ng, ng + pv.numel())); ng += pv.numel()
-            ng_path.append(pv.numel())
+            g.append(t["path"]); lbg.append(t["lo"]); ubg.append(t["hi"])
+            self._ig_path.append(np.arange(ng, ng + t["path"].numel())); ng += t["path"].numel()
+            ng_path.append(t["path"].numel())
         self._nw = nw
         wv, gv = ca.vertcat(*w), ca.vertcat(*g)
-        rv = ca.vertcat(*residuals)
-        J = ca.sumsqr(rv) + linear
+        J = ca.sumsqr(ca.vertcat(*residuals)) + linear
+        #: the whole NLP as one expression (the reference the stage-wise QP data is tested against)
+        self.nlp = {"x": wv, "f": J, "g": gv, "p": P, "r": ca.vertcat(*residuals)}
         self._lbw, self._ubw = np.concatenate(lbw), np.concatenate(ubw)
         self._lbg, self._ubg = np.concatenate(lbg), np.concatenate(ubg)
         self._dims = {"N": N, "nx": [nxl] * (N + 1), "nu": [nul] * N + [0], "ng": ng_path}
         t0 = time.perf_counter()
         try:
             if s.solver == "rti":
-                self._build_rti(wv, gv, rv, J, P)
+                self._build_rti(ca.Function("rti_cost", [wv, P], [J]))
             else:
                 self._solver = ca.nlpsol("nmpc", s.solver, {"x": wv, "f": J, "g": gv, "p": P},
                                          self._nlp_options())
+                self.build_report = {"qp_data": "nlpsol (CasADi)"}
         except RuntimeError as exc:
             raise MpcSolverError(f"The '{s.solver}' solver (qpsol {s.qpsol!r}) could not be "
                                  f"built for this NLP. CasADi said: {str(exc)[-300:]}") from exc
         self.build_time_s = time.perf_counter() - t0
         self._wpass = np.asarray(m.spec.grid.passing_weights(s.target_p80_um), float)
 
+    def _gap_value(self, x_next, Uk):
+        """Next lifted state ``[F / scale; u_k; s_k]`` from the model's ``x_next``."""
+        return ca.vertcat(x_next / self._scale, Uk)
+
+    def _stage_terms(self, k, Xk, Uk, d_prev, p_x0, p_uprev, p_wpass) -> dict:
+        """Stage ``k``'s path constraints (with bounds), least-squares residuals and linear cost
+        in the lifted variables ``Xk`` (``Uk`` None at k = N); ``d_prev`` is the disturbance
+        over the interval before ``X_k`` (see the module docstring, "Layout")."""
+        s, nx, nu, ns, N = self.settings, self.nx, self.nu, self._n_slack, self.settings.horizon_steps
+        xk, vk, sig = Xk[:nx], Xk[nx:nx + nu], Xk[nx + nu:]
+        path, lo, hi, residuals, linear = [], [], [], [], 0
+        if k == 0:  # initial state, last applied input, no slack: equalities of stage 0
+            path.append(Xk - ca.vertcat(p_x0 / self._scale, p_uprev, ca.DM.zeros(ns)))
+            lo.append(np.zeros(Xk.numel())); hi.append(np.zeros(Xk.numel()))
+        else:  # outputs at X_k with the input held over the interval before it
+            pas, load, se, pw = self._out_fn(xk * self._scale, vk, d_prev, p_wpass)
+            lo_band, hi_band = s.load_band_frac
+            path.append(ca.vertcat(load - sig[0], load + sig[0]))
+            lo.append(np.array([-np.inf, lo_band])); hi.append(np.array([hi_band, np.inf]))
+            if self._has_power:
+                path.append(pw - sig[1]); lo.append(np.array([-np.inf])); hi.append(np.array([s.power_max_kw]))
+            residuals.append(math.sqrt(s.weight_p80) * 100.0 * (pas - PASSING_TARGET))
+            linear = linear + s.weight_energy * se
+        if k < N:
+            uk, sk = Uk[:nu], Uk[nu:]
+            du = uk - vk
+            path.append(du)
+            du_max = np.array([s.feed_rate_max_tph_per_h, s.speed_rate_max_per_h]) * s.dt_h
+            free = k % s.move_block == 0  # inside a move block: no move
+            lo.append(-du_max if free else np.zeros(nu)); hi.append(du_max if free else np.zeros(nu))
+            residuals += [math.sqrt(s.weight_du_feed) * du[0],
+                          math.sqrt(s.weight_du_speed) * 100.0 * du[1],
+                          math.sqrt(s.load_penalty_quad) * sk[0]]
+            linear = linear + s.load_penalty_lin * sk[0]
+            if self._has_power:
+                residuals.append(math.sqrt(s.power_penalty_quad) * sk[1])
+                linear = linear + s.power_penalty_lin * sk[1]
+        return {"path": ca.vertcat(*path), "lo": np.concatenate(lo), "hi": np.concatenate(hi),
+                "residuals": residuals, "linear": linear}
+
+    def _rti_stage(self, k: int, F_sens) -> ca.Function:
+        """Stage ``k``'s share of the Gauss-Newton QP: gap value and Jacobian (from the RK4
+        sensitivities ``F_sens`` of the sparse model), path constraints and their Jacobian,
+        Hessian block ``2 Jr^T Jr`` and gradient ``2 Jr^T r + grad(linear)``."""
+        nx, nu, nd, nxl, nul, N = self.nx, self.nu, self.nd, self._nxl, self._nul, self.settings.horizon_steps
+        Xk, Uk = ca.MX.sym("X", nxl), (ca.MX.sym("U", nul) if k < N else ca.MX(0, 1))
+        d_prev, d_k = ca.MX.sym("d_prev", nd), ca.MX.sym("d", nd)
+        p_x0, p_uprev, p_wpass = ca.MX.sym("x0", nx), ca.MX.sym("u_prev", nu), ca.MX.sym("wpass", self.model.spec.grid.count)
+        v = ca.vertcat(Xk, Uk)
+        t = self._stage_terms(k, Xk, Uk if k < N else None, d_prev, p_x0, p_uprev, p_wpass)
+        r = ca.vertcat(*t["residuals"])
+        jr = ca.jacobian(r, v)
+        outs = {"path": t["path"], "path_jac": ca.jacobian(t["path"], v),
+                "hess": 2.0 * ca.mtimes(jr.T, jr), "grad": 2.0 * ca.mtimes(jr.T, r) + ca.gradient(t["linear"], v)}
+        if k < N:
+            inv_s = ca.DM(1.0 / self.x_scale)
+            x_next, a, b = F_sens(Xk[:nx] * self._scale, Uk[:nu], d_k)
+            a_s = ca.mtimes(ca.diag(inv_s), ca.mtimes(a, ca.diag(self._scale)))
+            top = ca.horzcat(a_s, ca.MX(nx, nxl - nx), ca.mtimes(ca.diag(inv_s), b), ca.MX(nx, nul - nu))
+            outs["gap"] = self._gap_value(x_next, Uk)
+            outs["gap_jac"] = ca.vertcat(top, ca.horzcat(ca.MX(nul, nxl), ca.DM.eye(nul)))
+        names = list(outs)
+        return ca.Function(f"rti_stage{'0' if k == 0 else ('N' if k == N else '')}",
+                           [Xk, Uk, d_prev, d_k, p_x0, p_uprev, p_wpass], [outs[n] for n in names],
+                           ["X", "U", "d_prev", "d", "x0", "u_prev", "wpass"], names)
+
+    def _rti_qp_function(self) -> ca.Function:
+        """``qp_data(w, p) -> (H, grad, g, A)`` of the Gauss-Newton QP, assembled from the
+        stage functions (the middle stages mapped over the horizon): the Jacobians are built
+        once per stage from the sparse model, never expanded over the horizon."""
+        s, nx, nu, nd, nxl, N = self.settings, self.nx, self.nu, self.nd, self._nxl, self.settings.horizon_steps
+        F_sens = rk4_sensitivity_map(self.model, s.dt_h, s.rk4_substeps, name="nmpc_F_sens")
+        w = ca.MX.sym("w", self._nw)
+        p_x0, p_d = ca.MX.sym("x0", nx), ca.MX.sym("D", nd, N)
+        p_uprev, p_wpass = ca.MX.sym("u_prev", nu), ca.MX.sym("wpass", self.model.spec.grid.count)
+        P = ca.vertcat(p_x0, ca.vec(p_d), p_uprev, p_wpass)
+        X = [w[i] for i in self._ix]
+        U = [w[i] for i in self._iu] + [ca.MX(0, 1)]
+        d_prev = [p_d[:, max(k - 1, 0)] for k in range(N + 1)]
+        d_k = [p_d[:, min(k, N - 1)] for k in range(N + 1)]
+        st = [None] * (N + 1)
+        for k, fn in ((0, self._rti_stage(0, F_sens)), (N, self._rti_stage(N, F_sens))):
+            st[k] = fn.call({"X": X[k], "U": U[k], "d_prev": d_prev[k], "d": d_k[k], "x0": p_x0,
+                             "u_prev": p_uprev, "wpass": p_wpass})
+        if N > 1:
+            mid = self._rti_stage(1, F_sens).map(N - 1, "serial")
+            out = mid.call({"X": ca.horzcat(*X[1:N]), "U": ca.horzcat(*U[1:N]),
+                            "d_prev": ca.horzcat(*d_prev[1:N]), "d": ca.horzcat(*d_k[1:N]),
+                            "x0": p_x0, "u_prev": p_uprev, "wpass": p_wpass})
+            for name, val in out.items():
+                parts = ca.horzsplit(val, val.size2() // (N - 1))
+                for k in range(1, N):
+                    st[k] = st[k] or {}
+                    st[k][name] = parts[k - 1]
+        H = ca.diagcat(*[st[k]["hess"] for k in range(N + 1)])
+        grad = ca.vertcat(*[st[k]["grad"] for k in range(N + 1)])
+        g, rows = [], []
+        ncol = [nxl + (self._nul if k < N else 0) for k in range(N + 1)]
+        for k in range(N + 1):
+            if k < N:
+                g.append(st[k]["gap"] - X[k + 1])
+                blocks = [ca.MX(nxl, c) for c in ncol]
+                blocks[k] = st[k]["gap_jac"]
+                blocks[k + 1] = ca.horzcat(-ca.DM.eye(nxl), ca.MX(nxl, ncol[k + 1] - nxl))
+                rows.append(blocks)
+            g.append(st[k]["path"])
+            blocks = [ca.MX(st[k]["path"].numel(), c) for c in ncol]
+            blocks[k] = st[k]["path_jac"]
+            rows.append(blocks)
+        A = ca.blockcat(rows)
+        return ca.Function("nmpc_rti_qp_data", [w, P], [H, grad, ca.vertcat(*g), A],
+                           ["w", "p"], ["H", "grad", "g", "A"])
+
     def _qp_options(self) -> dict:
         s = self.settings
         if s.qpsol == "hpipm":  # the stage dimensions of the layout, so HPIPM's Riccati applies
             return {**self._dims, "error_on_fail": False, "inf": HPIPM_INF,
-                    "hpipm": {"iter_max": 100}}
+                    "hpipm": {"iter_max": 100, "mode": s.hpipm_mode}}
         if s.qpsol == "qrqp":
             return {"print_iter": False, "print_header": False, "error_on_fail": False}
         return {"error_on_fail": False, "osqp": {"verbose": False, "eps_abs": 1e-8, "eps_rel": 1e-8}}
@@ -373,19 +475,20 @@ class Controller:
                          "error_on_fail": False})
         return opts
 
-    def _build_rti(self, wv, gv, rv, J, P) -> None:
+    def _build_rti(self, cost_fn) -> None:
         """Real-time iteration (Diehl, Bock & Schloeder 2005, SIAM J. Control Optim. 43,
         1714-1736; Gros et al. 2020, Int. J. Control 93, 62-80): one Gauss-Newton QP per sample
         at the shifted previous solution, full step. Hessian ``2 Jr^T Jr`` of the least-squares
         residuals ``r`` (the linear energy and l1 slack terms enter the gradient only), so it is
-        positive semi-definite without regularisation; the QP goes to ``qpsol``."""
-        Jr = ca.jacobian(rv, wv)
-        H = 2.0 * ca.mtimes(Jr.T, Jr)
-        A = ca.jacobian(gv, wv)
-        self._qp_data = ca.Function("rti_qp_data", [wv, P], [H, ca.gradient(J, wv), gv, A]).expand()
-        self._cost = ca.Function("rti_cost", [wv, P], [J]).expand()
-        self._qp = ca.conic("rti_qp", self.settings.qpsol, {"h": H.sparsity(), "a": A.sparsity()},
-                            self._qp_options())
+        positive semi-definite without regularisation; the QP goes to ``qpsol``. The QP data
+        and the cost are compiled (:mod:`mpc.codegen`, ``NmpcSettings.codegen``)."""
+        mode = self.settings.codegen
+        qp_fn = self._rti_qp_function()
+        self._qp_data, rep_qp = compiled(qp_fn, mode)
+        self._cost, rep_cost = compiled(cost_fn.expand(), mode)
+        self.build_report = {"qp_data": rep_qp, "cost": rep_cost}
+        self._qp = ca.conic("rti_qp", self.settings.qpsol,
+                            {"h": qp_fn.sparsity_out("H"), "a": qp_fn.sparsity_out("A")}, self._qp_options())
         self._solver = self._rti_solve
 
     def _rti_solve(self, x0, p, lbx, ubx, lbg, ubg, **_):
@@ -482,9 +585,14 @@ class Controller:
         return w0, None, None
 
     # ------------------------------------------------------------------ step
-    def make_step(self, x_est, d_preview, u_prev, y_meas=None) -> ControllerStepResult:
+    #: make_step takes the estimator's P80 bias (the closed loop passes it)
+    accepts_p80_bias = True
+
+    def make_step(self, x_est, d_preview, u_prev, y_meas=None, p80_bias_um: float = 0.0) -> ControllerStepResult:
         """One sample: from the state estimate, the disturbance preview (shape ``(n_d, N)``, or
         ``(n_d,)`` held) and the last applied input to the input to apply now.
+        ``p80_bias_um``: the estimated plant-minus-model P80 bias; the model's P80 is held at
+        ``target - p80_bias_um`` so that the plant's is at the target (offset-free).
         ``y_meas`` is accepted for a common closed-loop verb and not used."""
         s = self.settings
         nx, nu = self.nx, self.nu
@@ -497,7 +605,12 @@ class Controller:
         D = self._d_traj(d_preview)
         x0s = x / self.x_scale
         w0, lam_g0, lam_x0 = self._initial_guess(x0s, u_prev)
-        p = np.concatenate([x, D.ravel(order="F"), u_prev, self._wpass])
+        if not math.isfinite(p80_bias_um) or p80_bias_um >= s.target_p80_um:
+            raise MpcInputError(f"The 'p80_bias_um' parameter must be finite and below the target "
+                                f"{s.target_p80_um} um. Got {p80_bias_um!r}.")
+        wpass = self._wpass if p80_bias_um == 0.0 else np.asarray(
+            self.model.spec.grid.passing_weights(s.target_p80_um - p80_bias_um), float)
+        p = np.concatenate([x, D.ravel(order="F"), u_prev, wpass])
         args = dict(x0=w0, p=p, lbx=self._lbw, ubx=self._ubw, lbg=self._lbg, ubg=self._ubg)
         if lam_g0 is not None and s.solver == "ipopt":
             args["lam_g0"] = lam_g0
@@ -526,7 +639,7 @@ class Controller:
         states = np.array([wopt[i[:nx]] * self.x_scale for i in self._ix])
         self._plan_prev = plan
         self._plan_age = 0
-        info = self._plan_info(states, plan, D)
+        info = self._plan_info(states, plan, D, wpass, p80_bias_um)
         if abs(info["passing_end"] - PASSING_TARGET) > s.unreachable_tol_frac:
             status = f"target_unreachable ({status}): predicted P80 {info['p80_end_um']:.1f} um " \
                      f"at the horizon end against {s.target_p80_um:.1f} um"
@@ -535,13 +648,14 @@ class Controller:
         return ControllerStepResult(True, status, float(sol["f"]), iters, dt_solve, u0, plan,
                                     None, states)
 
-    def _plan_info(self, states, plan, D) -> dict:
+    def _plan_info(self, states, plan, D, wpass, p80_bias_um: float) -> dict:
+        """The plan's end: passing fraction (of the biased target), P80 with the bias, load..."""
         psd_fn = self.model.product_psd_function()
         x_end, u_end, d_end = states[-1], plan[-1], D[:, -1]
-        pas, load, se, pw = (float(v) for v in self._out_fn(x_end, u_end, d_end, self._wpass))
+        pas, load, se, pw = (float(v) for v in self._out_fn(x_end, u_end, d_end, wpass))
         psd = np.asarray(psd_fn(x_end, u_end, d_end), float).ravel()
-        p80_end = pxx_um(self.model.spec.grid, psd) if psd.sum() > 0 else math.nan
-        pas1 = float(self._out_fn(states[1], plan[0], D[:, 0], self._wpass)[0])
+        p80_end = pxx_um(self.model.spec.grid, psd) + p80_bias_um if psd.sum() > 0 else math.nan
+        pas1 = float(self._out_fn(states[1], plan[0], D[:, 0], wpass)[0])
         return {"passing_end": pas, "passing_next": pas1, "p80_end_um": p80_end,
                 "load_end_frac": load, "specific_energy_end_kwh_t": se, "power_end_kw": pw}
 

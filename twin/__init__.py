@@ -3,20 +3,29 @@
 runs), ``twin.calibration`` (breakage maps, DEM chain, table fits, calibration files) and
 ``twin.surrogate`` (the PLS soft sensor, imported on its own: it needs scikit-learn)."""
 
-from .breakage import BreakageParams, OreBreakage, austin_selection, ore_breakage
-from .effects import EFFECTS, Effect, known_effects
-from .errors import ModelError, SolverError, TwinError, TwinInputError
-from .mill import MILLS, Mill, bond_power_kw, get_mill, hogg_fuerstenau_power_kw, load_status
-from .model import INPUT_NAMES, Model, ModelSpec
-from .ore import Blend, Mineralogy, Texture, load_ore, reference_ores
-from .sizes import GatesGaudinSchuhmann, SizeGrid, discretise, pxx_um
-from .solve import SteadyState, Trajectory
-from .twin import DEFAULT_EFFECTS, Twin
+from ._lazy import lazy_face
+
+#: Public name -> the module that defines it, imported on first use (PEP 562).
+_API = {
+    "BreakageParams": ".breakage", "OreBreakage": ".breakage", "austin_selection": ".breakage",
+    "ore_breakage": ".breakage",
+    "EFFECTS": ".effects", "Effect": ".effects", "known_effects": ".effects",
+    "ModelError": ".errors", "SolverError": ".errors", "TwinError": ".errors", "TwinInputError": ".errors",
+    "MILLS": ".mill", "Mill": ".mill", "bond_power_kw": ".mill", "get_mill": ".mill",
+    "hogg_fuerstenau_power_kw": ".mill", "load_status": ".mill",
+    "INPUT_NAMES": ".model", "Model": ".model", "ModelSpec": ".model",
+    "Blend": ".ore", "Mineralogy": ".ore", "Texture": ".ore", "load_ore": ".ore", "reference_ores": ".ore",
+    "GatesGaudinSchuhmann": ".sizes", "RosinRammler": ".sizes", "SizeGrid": ".sizes", "discretise": ".sizes",
+    "pxx_um": ".sizes",
+    "SteadyState": ".solve", "Trajectory": ".solve",
+    "DEFAULT_EFFECTS": ".twin", "Twin": ".twin",
+}
 
 __all__ = [
     "Blend", "BreakageParams", "DEFAULT_EFFECTS", "EFFECTS", "Effect", "GatesGaudinSchuhmann", "INPUT_NAMES", "MILLS",
-    "Mill", "Mineralogy", "Model", "ModelError", "ModelSpec", "OreBreakage", "SizeGrid", "SolverError", "SteadyState",
+    "Mill", "Mineralogy", "Model", "ModelError", "ModelSpec", "OreBreakage", "RosinRammler", "SizeGrid", "SolverError", "SteadyState",
     "Texture", "Trajectory", "Twin", "TwinError", "TwinInputError", "austin_selection", "bond_power_kw",
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
     "pxx_um", "reference_ores",
 ]
+__getattr__, __dir__ = lazy_face(__name__, _API)

@@ -55,9 +55,26 @@ def _print_kpis(summary: dict, out=None) -> None:
         out.write(f"  {key:26s} {text}\n")
 
 
+def _where_results_went(result) -> None:
+    """Say where the results are, or that nothing was written (no --out)."""
+    if result.out_dir is not None:
+        print(f"results in {result.out_dir}")
+    else:
+        sys.stderr.write("grindtwin: no --out DIR given: the time series, plots and summary were not written\n")
+
+
+def _check_output_options(args) -> None:
+    """--csv and --xlsx write into --out: refuse them without it, before any work."""
+    asked = [f"--{name}" for name in ("csv", "xlsx") if getattr(args, name, False)]
+    if asked and not args.out:
+        raise SceneError(f"{' and '.join(asked)} write into the results folder: give --out DIR")
+
+
 def _add_output_options(p) -> None:
     p.add_argument("--out", help="write the results into this folder (created; replaced when complete)")
     p.add_argument("--csv", action="store_true", help="also write timeseries.csv")
+    p.add_argument("--xlsx", action="store_true", help="also write run.xlsx: KPIs, time series, every stream "
+                   "size by size, the scene")
     p.add_argument("--no-plots", action="store_true", help="do not draw the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -78,12 +95,12 @@ def cmd_run(args) -> int:
     from scenarios.scene import load_scene
     from scenarios.run import run_scene
 
+    _check_output_options(args)
     scene = load_scene(args.scene)
     result = run_scene(scene, out_dir=args.out, progress=not args.quiet, csv=args.csv,
-                       plots=not args.no_plots)
+                       plots=not args.no_plots, xlsx=args.xlsx)
     _print_kpis(result.summary)
-    if result.out_dir is not None:
-        print(f"results in {result.out_dir}")
+    _where_results_went(result)
     return 0
 
 
@@ -91,7 +108,7 @@ def cmd_run(args) -> int:
 def add_replay_parser(subparsers):
     p = subparsers.add_parser("replay", help="drive a scene with recorded plant data",
                               description="Replay a recorded history (CSV or Parquet: timestamp, "
-                              "mineral wt%% or ore fractions, optionally recorded feed_tph, "
+                              "mineral wt% or ore fractions, optionally recorded feed_tph, "
                               "speed_frac_critical, p80_um) through SCENE.toml; the run's inputs and "
                               "P80 sit beside the recorded ones.")
     p.add_argument("scene", help="scene file (TOML)")
@@ -108,27 +125,47 @@ def cmd_replay(args) -> int:
     from scenarios.scene import load_scene
     from scenarios.run import replay_scene
 
+    _check_output_options(args)
     if not Path(args.history).is_file():
         raise SceneError(f"{args.history}: history file not found")
     if args.duration_h is not None and not args.duration_h > 0:
         raise SceneError(f"--duration-h must be > 0 (got {args.duration_h:g})")
     result = replay_scene(load_scene(args.scene), args.history, out_dir=args.out,
                           progress=not args.quiet, duration_h=args.duration_h, csv=args.csv,
-                          plots=not args.no_plots)
+                          plots=not args.no_plots, xlsx=args.xlsx)
     _print_kpis(result.summary)
     for key, value in result.summary.get("replay", {}).get("run_minus_recorded", {}).items():
         print(f"  {key:26s} {value:.4g}")
-    if result.out_dir is not None:
-        print(f"results in {result.out_dir}")
+    _where_results_went(result)
     return 0
 
 
 # --------------------------------------------------------------------------- sweep
+#: Key of the sweep case's result that carries its time series (popped before the table is written).
+TRACE_KEY = "trace"
+#: Columns of a case kept for the sweep's comparison (plot and workbook).
+TRACE_COLUMNS = ("time_h", "p80_um", "content_p80_um", "feed_tph", "speed_frac_critical")
+
+
 def sweep_case(scene) -> dict:
-    """The sweep's ``run_case``: run the scene quietly, return its KPIs (picklable: module level)."""
+    """The sweep's ``run_case``: run the scene quietly, return its KPIs and, under
+    :data:`TRACE_KEY`, its :data:`TRACE_COLUMNS` (picklable: module level)."""
     from scenarios.run import run_scene
 
-    return dict(run_scene(scene, out_dir=None, progress=False).kpis)
+    res = run_scene(scene, out_dir=None, progress=False)
+    trace = {c: res.frame[c].to_numpy(float).tolist() for c in TRACE_COLUMNS if c in res.frame}
+    return dict(res.kpis) | {TRACE_KEY: trace}
+
+
+def _pop_traces(table):
+    """The cases' traces as one long table (``case`` + :data:`TRACE_COLUMNS`), removed from ``table``."""
+    import pandas as pd
+
+    if TRACE_KEY not in table:
+        return None
+    parts = [pd.DataFrame(tr).assign(case=case) for case, tr in zip(table["case"], table.pop(TRACE_KEY))
+             if isinstance(tr, dict)]
+    return pd.concat(parts, ignore_index=True) if parts else None
 
 
 def add_sweep_parser(subparsers):
@@ -143,7 +180,8 @@ def add_sweep_parser(subparsers):
     g = p.add_mutually_exclusive_group()
     g.add_argument("--workers", type=int, default=None, help="local processes (default: all cores)")
     g.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://host:8786")
-    p.add_argument("--out", help="write sweep.csv and sweep.parquet into this folder")
+    p.add_argument("--out", help="write sweep.csv, sweep.parquet, sweep_traces.csv and sweep.png into this folder")
+    p.add_argument("--xlsx", action="store_true", help="also write sweep.xlsx (with --out)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_sweep)
     return p
@@ -157,6 +195,8 @@ def cmd_sweep(args) -> int:
 
     if args.workers is not None and args.workers < 1:
         raise SceneError(f"--workers must be >= 1 (got {args.workers})")
+    if args.xlsx and not args.out:
+        raise SceneError("--xlsx writes into the results folder: give --out DIR")
     vary = {}
     for text in args.vary:
         key, values = parse_vary(text)
@@ -165,6 +205,7 @@ def cmd_sweep(args) -> int:
         vary[key] = values
     table = run_sweep(args.scene, vary, sweep_case, mode=args.mode, workers=args.workers,
                       scheduler=args.scheduler, progress=not args.quiet)
+    traces = _pop_traces(table)
     if args.out:
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
@@ -178,7 +219,10 @@ def cmd_sweep(args) -> int:
         tmp = out / "sweep.parquet.partial"
         flat.to_parquet(tmp, index=False)
         tmp.replace(out / "sweep.parquet")
-    cols = ["case", *vary, "p80_iae_um_h", "specific_energy_kwh_t", "throughput_t", "error"]
+        _write_sweep_comparison(out, table, traces, args.scene, args.xlsx)
+    else:
+        sys.stderr.write("grindtwin: no --out DIR given: the sweep's table was not written\n")
+    cols = ["case", *vary, "p80_iae_um_h", "specific_energy_kwh_t", "throughput_tph", "error"]
     with pd.option_context("display.width", 160, "display.max_columns", 20):
         print(table[[c for c in cols if c in table.columns]].to_string(index=False))
     failed = int(table["error"].notna().sum())
@@ -186,6 +230,21 @@ def cmd_sweep(args) -> int:
         sys.stderr.write(f"grindtwin: sweep: {failed} of {len(table)} cases failed (see the error column)\n")
         return 1 if failed == len(table) else 0
     return 0
+
+
+def _write_sweep_comparison(out: Path, table, traces, scene_path, xlsx: bool) -> None:
+    """sweep_traces.csv and sweep.png (P80 of every case, KPIs per case); sweep.xlsx on request."""
+    from scenarios.output import write_sweep_plot, write_sweep_workbook
+    from scenarios.scene import load_scene
+
+    scene = load_scene(scene_path)
+    if traces is not None:
+        tmp = out / "sweep_traces.csv.partial"
+        traces.to_csv(tmp, index=False)
+        tmp.replace(out / "sweep_traces.csv")
+    write_sweep_plot(table, traces, out, scene.controller.target_p80_um)
+    if xlsx:
+        write_sweep_workbook(table, traces, scene, out / "sweep.xlsx")
 
 
 # --------------------------------------------------------------------------- check
@@ -271,7 +330,7 @@ STEADY_KEYS = ("source", "feed_tph", "speed_frac_critical", "p80_um", "specific_
 def cmd_steady(args) -> int:
     import json
 
-    from twin import Blend, Twin, load_ore
+    from twin import Blend, load_ore  # light: the surrogate's answer needs neither CasADi nor scikit-learn
 
     blend = Blend.parse(args.blend) if args.blend else Blend.single(load_ore(args.ore))
     if args.surrogate:
@@ -282,6 +341,8 @@ def cmd_steady(args) -> int:
         kpis = surrogate_steady(blend, args.feed_tph, args.speed, mill=args.mill)
         kpis = {k: v for k, v in kpis.items() if k in STEADY_KEYS or k == "source"}
     else:
+        from twin import Twin
+
         twin = Twin(blend, mill=args.mill)
         if args.at_constant_load:
             ss = twin.steady_at_constant_load(speed_frac_critical=args.speed)

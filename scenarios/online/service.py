@@ -369,7 +369,8 @@ class Service:
         D = np.vstack([np.array(preview, float).T, np.full(self.n_stages, float(d_est[-1]))])
         t1 = time.perf_counter()
         try:
-            res = self.parts.controller.make_step(x_est, D, u_prev, y_meas=self.p80_held)
+            res = self.parts.controller.make_step(x_est, D, u_prev, y_meas=self.p80_held,
+                                                  p80_bias_um=self.parts.estimator.p80_bias_um)
         except NUMERIC_ERRORS as exc:
             log.exception("the controller failed")
             return None, None, f"the controller failed: {type(exc).__name__}: {exc}"
@@ -444,6 +445,7 @@ class Service:
                "feed_proposed_tph": math.nan if u_prop is None else float(u_prop[0]),
                "speed_proposed_frac_critical": math.nan if u_prop is None else float(u_prop[1]),
                "hardness_est": math.nan if d_est is None else float(d_est[-1]),
+               "p80_bias_est_um": self.parts.estimator.p80_bias_um,
                "operator_mode": str(self.raw_mode)}
         if res is not None:
             out |= {"controller_status": res.status, "controller_success": bool(res.success),

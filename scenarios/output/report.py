@@ -1,4 +1,5 @@
-"""A self-contained HTML report of a run directory: KPI table, plots embedded as base64 PNG.
+"""A self-contained HTML report of a run directory: KPI table, plots embedded as base64 PNG,
+the plant's model beside the controller's, the versions and commit behind the run.
 
     grindtwin report RUN_DIR      ->  RUN_DIR/report.html
 
@@ -20,26 +21,35 @@ from scenarios.output.write import INCOMPLETE_MARKER
 
 #: KPI key -> (label, format).
 KPI_LABELS = {
-    "p80_iae_um_h": ("P80 integral absolute error [um h]", "{:.4g}"),
-    "p80_within_10um_frac": ("share of time P80 within 10 um of target", "{:.1%}"),
+    "p80_iae_um_h": ("P80 integral absolute error [µm h]", "{:.4g}"),
+    "p80_within_10um_frac": ("share of time P80 within ±10 µm of target [%]", "{:.1%}"),
     "specific_energy_kwh_t": ("specific energy [kWh/t]", "{:.4g}"),
-    "throughput_t": ("throughput [t]", "{:.4g}"),
-    "load_outside_band_frac": ("share of time load outside band", "{:.1%}"),
+    "throughput_t": ("product discharged over the run [t]", "{:.4g}"),
+    "throughput_tph": ("throughput, mean product rate [t/h]", "{:.4g}"),
+    "load_outside_band_frac": ("share of time load outside its band [%]", "{:.1%}"),
     "solve_time_median_s": ("controller solve time, median [s]", "{:.3g}"),
     "solve_time_p95_s": ("controller solve time, 95th percentile [s]", "{:.3g}"),
-    "mass_balance_error": ("mass balance error (relative)", "{:.2e}"),
-    "p80_final_um": ("final P80 [um]", "{:.4g}"),
-    "p80_mean_um": ("mean P80 [um]", "{:.4g}"),
+    "mass_balance_error": ("mass balance error [relative]", "{:.2e}"),
+    "start_feed_tph": ("feed rate at the start [t/h]", "{:.4g}"),
+    "start_p80_um": ("P80 at the start [µm]", "{:.4g}"),
+    "p80_final_um": ("final P80 [µm]", "{:.4g}"),
+    "p80_mean_um": ("mean P80 [µm]", "{:.4g}"),
     "energy_kwh": ("energy drawn [kWh]", "{:.4g}"),
     "fed_t": ("fresh feed [t]", "{:.4g}"),
     "duration_h": ("duration [h]", "{:.4g}"),
+    "feed_tph_mean_diff": ("feed rate, mean of run - recorded [t/h]", "{:.4g}"),
+    "feed_tph_mean_abs_diff": ("feed rate, mean |run - recorded| [t/h]", "{:.4g}"),
+    "speed_frac_critical_mean_diff": ("speed, mean of run - recorded [fraction of critical]", "{:.4g}"),
+    "speed_frac_critical_mean_abs_diff": ("speed, mean |run - recorded| [fraction of critical]", "{:.4g}"),
+    "p80_um_mean_diff": ("P80, mean of run - recorded [µm]", "{:.4g}"),
+    "p80_um_mean_abs_diff": ("P80, mean |run - recorded| [µm]", "{:.4g}"),
 }
 
 _CSS = """body{font-family:system-ui,sans-serif;max-width:60em;margin:2em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:.3em .7em;text-align:left}
 td.num{text-align:right;font-variant-numeric:tabular-nums}code{font-size:90%}
-pre{background:#f6f6f6;padding:.7em;overflow-x:auto;font-size:80%}img{max-width:100%}
-.na{color:#888}"""
+pre{background:#f6f6f6;padding:.7em;overflow-x:auto;font-size:80%;white-space:pre-wrap}img{max-width:100%}
+.na{color:#888}.models{display:grid;grid-template-columns:1fr 1fr;gap:1em}.models h3{margin:.2em 0}"""
 
 
 def _fmt(key: str, value) -> str:
@@ -69,6 +79,26 @@ def _img(path: Path, caption: str) -> str:
             f"<figcaption>{html.escape(caption)}</figcaption></figure>")
 
 
+def models_section(summary: dict) -> str:
+    """The plant's model (what was simulated) beside the controller's (None open loop)."""
+    plant = summary.get("plant_model") or ""
+    ctl = summary.get("controller_model") or "none: open loop, the scene's inputs"
+    cols = [("Plant (simulated)", plant), ("Controller's model", ctl)]
+    return ('<h2>Models</h2><div class="models">' + "".join(
+        f"<div><h3>{html.escape(title)}</h3><pre>{html.escape(text)}</pre></div>" for title, text in cols)
+        + "</div>")
+
+
+def versions_section(versions: dict) -> str:
+    """The versions behind the run; the git commit, or why there is none."""
+    code = {k: versions.get(k) for k in ("git", "git_source")}
+    libs = ", ".join(f"{html.escape(k)} {html.escape(str(v))}" for k, v in versions.items() if k not in code)
+    commit = (f"git commit <code>{html.escape(str(code['git']))}</code>" if code["git"]
+              else "no git commit")
+    source = f" ({html.escape(str(code['git_source']))})" if code["git_source"] else ""
+    return f"<h2>Versions</h2><p>{libs}</p><p>{commit}{source}</p>"
+
+
 def render_report(run_dir) -> str:
     """The HTML text of the report of ``run_dir`` (SceneError if it is not a complete run)."""
     run_dir = Path(run_dir)
@@ -91,7 +121,7 @@ def render_report(run_dir) -> str:
     if summary.get("description"):
         parts.append(f"<p>{html.escape(summary['description'])}</p>")
     facts = [("mode", summary.get("mode")), ("controller", summary.get("controller")),
-             ("target P80 [um]", summary.get("target_p80_um")), ("seed", summary.get("seed")),
+             ("target P80 [µm]", summary.get("target_p80_um")), ("seed", summary.get("seed")),
              ("effects", ", ".join(summary.get("effects", []))),
              ("components", ", ".join(summary.get("components", []))),
              ("scene file", summary.get("source"))]
@@ -109,11 +139,9 @@ def render_report(run_dir) -> str:
     if summary.get("notes"):
         parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(str(n))}</li>"
                                                     for n in summary["notes"]) + "</ul>")
-    if summary.get("model"):
-        parts.append(f"<h2>Model</h2><pre>{html.escape(summary['model'])}</pre>")
+    parts.append(models_section(summary))
     if summary.get("versions"):
-        parts.append("<h2>Versions</h2><p>" + ", ".join(
-            f"{html.escape(k)} {html.escape(str(v))}" for k, v in summary["versions"].items()) + "</p>")
+        parts.append(versions_section(summary["versions"]))
     parts.append("</body></html>")
     return "\n".join(parts)
 

@@ -4,7 +4,10 @@ Layout of a run directory::
 
     DIR/timeseries.parquet   one row per sample, unit-suffixed columns
     DIR/timeseries.csv       the same, on request (``csv=True``)
-    DIR/product_psd.csv      cumulative passing at a few times (rows) per size (columns, um)
+    DIR/product_psd.csv      cumulative % passing at a few times (rows) per size (columns, um);
+                             mill_psd.csv the same of the mill content, streams.csv every
+                             stream size by size at the end (scenarios.output.workbook)
+    DIR/run.xlsx             the workbook, on request (``xlsx=True``)
     DIR/summary.json         scene, KPIs (unit-suffixed keys; NaN written as null), model
                              description, effects, versions, seed, notes
     DIR/*.png                plots (see :data:`scenarios.output.plots.PLOTS`)
@@ -27,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from scenarios.output.plots import write_plots
+from scenarios.output.workbook import RUN_WORKBOOK, write_size_csvs, write_workbook
 
 INCOMPLETE_MARKER = "_INCOMPLETE"
 def json_safe(obj):
@@ -45,7 +49,7 @@ def json_safe(obj):
     return obj
 
 
-def write_run(result, out_dir, csv: bool = False, plots: bool = True) -> Path:
+def write_run(result, out_dir, csv: bool = False, plots: bool = True, xlsx: bool = False) -> Path:
     """Write ``result`` (a :class:`scenarios.run.runner.RunResult`) to ``out_dir`` atomically."""
     final = Path(out_dir)
     partial = final.with_name(final.name + ".partial")
@@ -59,8 +63,9 @@ def write_run(result, out_dir, csv: bool = False, plots: bool = True) -> Path:
         frame.to_parquet(partial / "timeseries.parquet", index=False)
         if csv:
             frame.to_csv(partial / "timeseries.csv", index=False)
-        if result.psd is not None:
-            result.psd.to_csv(partial / "product_psd.csv")
+        write_size_csvs(result, partial)
+        if xlsx:
+            write_workbook(result, partial / RUN_WORKBOOK)
         if plots:
             write_plots(result, partial)
         summary = dict(result.summary)

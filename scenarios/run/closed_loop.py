@@ -8,11 +8,36 @@ import math
 import numpy as np
 import pandas as pd
 
-from mpc import (RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, NmpcSettings, Sensors, feed_for_target,
-                 pi_baseline, run_closed_loop, stable_rk4_substeps)
+from mpc import (RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, NmpcSettings, Sensors, TwinPlant,
+                 feed_for_target, pi_baseline, run_closed_loop, stable_rk4_substeps)
 from scenarios.errors import RunError, SceneError
 from scenarios.run.feed import component_blend
+from scenarios.run.streams import Samples, run_size_data
 from scenarios.scene import Scene
+
+#: Scalar outputs of the plant's model recorded beside the loop's columns when the model has
+#: them (the hydrocyclone's cut size and circulating load).
+EXTRA_OUTPUTS = ("cyclone_d50c_um", "circulating_load_frac")
+
+
+class RecordingPlant(TwinPlant):
+    """The plant twin, keeping the (x, u, d) of every measurement (the loop measures once a
+    sample, after the estimator's warm-up has measured its own) and adding
+    :data:`EXTRA_OUTPUTS` to the measured values."""
+
+    def __init__(self, model):
+        super().__init__(model)
+        self.seen: list[tuple] = []
+        self._extra = {k: model.outputs[k] for k in EXTRA_OUTPUTS if k in model.outputs}
+
+    def measure(self, x, u, d) -> dict:
+        self.seen.append((np.array(x, float), np.array(u, float), np.array(d, float)))
+        return super().measure(x, u, d) | {k: float(fn(x, u, d)) for k, fn in self._extra.items()}
+
+    def samples(self, time_h: np.ndarray) -> Samples:
+        """The last ``len(time_h)`` measurements: the loop's samples."""
+        x, u, d = (np.array(a) for a in zip(*self.seen[-len(time_h):]))
+        return Samples(np.asarray(time_h, float), x, u, d)
 
 
 def feed_bounds(scene: Scene) -> tuple[float, float]:
@@ -61,8 +86,9 @@ def make_controller(scene: Scene, twin):
 
 
 def make_estimator(scene: Scene, twin, css):
-    """The NMPC's EKF on the controller's twin, started at the steady state ``css``."""
-    return Ekf(twin.model, scene.scene.sample_period_h, css.x)
+    """The NMPC's EKF on the controller's twin, started at the steady state ``css``, with the
+    scene's disturbance model."""
+    return Ekf(twin.model, scene.scene.sample_period_h, css.x, disturbance_model=scene.controller.disturbance_model)
 
 
 def scene_sensors(scene: Scene) -> Sensors:
@@ -141,16 +167,18 @@ def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
             target_p80_um=c.target_p80_um if c.target_p80_um is not None else math.nan,
             load_band=tuple(c.load_band_frac), progress=progress,
             estimator_warmup_h=ESTIMATOR_WARMUP_H if estimator is not None else 0.0)
-        res = run_closed_loop(models.plant.model, controller, estimator, schedule, sensors, ss.x, ss.u, settings)
+        plant = RecordingPlant(models.plant.model)
+        res = run_closed_loop(plant, controller, estimator, schedule, sensors, ss.x, ss.u, settings)
     except (RunError, SceneError):
         raise
     except Exception as exc:  # noqa: BLE001 - the loop's failure is the run's failure
         raise RunError(f"scene {scene.scene.name}: the closed loop failed: "
                        f"{type(exc).__name__}: {exc}") from None
     frame = res.frame.copy()
+    sizes = run_size_data(models.plant.model, plant.samples(frame["time_h"].to_numpy(float)), batch=False)
     k = dict(res.kpis)
     extra = {"notes": notes,
              "solve_times_s": frame["solve_time_s"].dropna().to_numpy() if "solve_time_s" in frame else None,
              "solve_time_median_s": k.get("solve_time_median_s", math.nan),
              "solve_time_p95_s": k.get("solve_time_p95_s", math.nan)}
-    return frame, None, extra
+    return frame, sizes, extra

@@ -4,7 +4,9 @@
   analyser's; :func:`mpc.p80_iae_um_h`); NaN without ``controller.target_p80_um``.
 - ``p80_within_10um_frac``: share of samples with |P80 - target| <= 10 um; NaN without target.
 - ``specific_energy_kwh_t``: energy drawn / fresh feed; for a batch grind, / the charge.
-- ``throughput_t``: product discharged over the run; for a batch grind the charge ground.
+- ``throughput_t``: product discharged over the run [t]; for a batch grind the charge ground.
+- ``throughput_tph``: mean product rate over the run [t/h] (``throughput_t / duration_h``);
+  NaN for a batch grind (no product flow).
 - ``load_outside_band_frac``: share of samples whose load is outside
   ``controller.load_band_frac``; NaN for a batch grind (no load dynamics).
 - ``solve_time_median_s``, ``solve_time_p95_s``: controller solve times; NaN in open loop.
@@ -25,7 +27,7 @@ from mpc import cumulative, integral, outside_band_frac, p80_iae_um_h, within_ba
 from scenarios.run.models import is_batch
 from scenarios.scene import Scene
 
-KPI_KEYS = ("p80_iae_um_h", "p80_within_10um_frac", "specific_energy_kwh_t", "throughput_t",
+KPI_KEYS = ("p80_iae_um_h", "p80_within_10um_frac", "specific_energy_kwh_t", "throughput_t", "throughput_tph",
             "load_outside_band_frac", "solve_time_median_s", "solve_time_p95_s",
             "mass_balance_error")
 
@@ -55,6 +57,8 @@ def compute_kpis(scene: Scene, frame: pd.DataFrame, solve_times_s=None, batch_ch
     else:
         k["specific_energy_kwh_t"] = float(energy / fed) if fed > 0 else math.nan
         k["throughput_t"] = float(frame["produced_t"].iloc[-1]) if "produced_t" in frame else math.nan
+    k["throughput_tph"] = (k["throughput_t"] / float(t[-1] - t[0])
+                           if batch_charge_t is None and t[-1] > t[0] else math.nan)
     k["load_outside_band_frac"] = (outside_band_frac(frame["load_frac"], scene.controller.load_band_frac)
                                    if "load_frac" in frame else math.nan)
     if solve_times_s is not None and len(solve_times_s):
@@ -64,6 +68,8 @@ def compute_kpis(scene: Scene, frame: pd.DataFrame, solve_times_s=None, batch_ch
         k["solve_time_median_s"] = math.nan if solve_time_median_s is None else float(solve_time_median_s)
         k["solve_time_p95_s"] = math.nan if solve_time_p95_s is None else float(solve_time_p95_s)
     k["mass_balance_error"] = mass_balance_error(frame)
+    k["start_feed_tph"] = float(frame["feed_tph"].iloc[0]) if "feed_tph" in frame else math.nan
+    k["start_p80_um"] = float(p80[0])  # what the case started from (sweep tables compare cases)
     k["p80_final_um"] = float(p80[-1])
     k["p80_mean_um"] = float(np.nanmean(p80))
     k["energy_kwh"] = float(energy)

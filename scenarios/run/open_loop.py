@@ -12,13 +12,12 @@ from tqdm.auto import tqdm
 from mpc import Sensors, SensorState
 from scenarios.errors import RunError
 from scenarios.run.feed import component_blend, input_series
+from scenarios.run.streams import Samples, run_size_data
 from scenarios.scene import Scene
 from twin import TwinError
 
 #: Samples integrated per call (one progress-bar tick).
 PROGRESS_CHUNK_STEPS = 60
-#: Number of product size distributions kept over time (evenly spaced samples) for plots.
-N_PSD_SNAPSHOTS = 6
 
 
 def start_state(scene: Scene, twin, u0, blend0, notes: list[str]):
@@ -64,30 +63,9 @@ def simulate_chunks(scene: Scene, twin, x0, feed_tph, speed, blend, progress: bo
     return frame, np.vstack(states)
 
 
-def psd_snapshots(twin, states, frame, components, batch: bool) -> pd.DataFrame:
-    """Cumulative passing of the product (continuous) or of the mill content (batch) at
-    ``N_PSD_SNAPSHOTS`` evenly spaced samples (first and last included)."""
-    model = twin.model
-    grid = model.spec.grid
-    fn = model.psd_function()
-    idx = np.unique(np.linspace(0, len(frame) - 1, N_PSD_SNAPSHOTS).round().astype(int))
-    rows = {}
-    for i in idx:
-        u = [frame["feed_tph"].iloc[i], frame["speed_frac_critical"].iloc[i]]
-        d = model.d_vector([frame[f"blend_{c}_frac"].iloc[i] for c in components],
-                           frame["hardness_scale"].iloc[i])
-        mass = np.asarray(fn(states[i], u, d), float).ravel()
-        rows[float(frame["time_h"].iloc[i])] = grid.cumulative_passing(mass)
-    upper = grid.upper_um
-    psd = pd.DataFrame(rows, index=pd.Index(np.round(upper, 4), name="size_um")).T
-    psd.index.name = "time_h"
-    psd.attrs["what"] = "mill content" if batch else "product"
-    return psd
-
-
 def run_open_loop(scene: Scene, models, feed: pd.DataFrame, progress: bool, replay: bool):
     """The plant under the scene's (or, in a replay, the recorded) inputs; returns
-    ``(frame, psd snapshots, extra)``."""
+    ``(frame, size data of scenarios.run.streams.run_size_data, extra)``."""
     notes: list[str] = []
     twin = models.plant
     blend = component_blend(feed, models.components)
@@ -98,8 +76,8 @@ def run_open_loop(scene: Scene, models, feed: pd.DataFrame, progress: bool, repl
     frame, states = simulate_chunks(scene, twin, x0, f, s, blend, progress)
     frame["p80_analyser_um"] = analyser_trace(frame["time_h"].to_numpy(), frame["p80_um"].to_numpy(),
                                               scene.sensors, scene.scene.seed)
-    psd = psd_snapshots(twin, states, frame, models.components, batch=False)
-    return frame, psd, {"notes": notes, "solve_times_s": None}
+    sizes = run_size_data(twin.model, Samples.from_frame(twin.model, states, frame, models.components), batch=False)
+    return frame, sizes, {"notes": notes, "solve_times_s": None}
 
 
 def analyser_trace(time_h: np.ndarray, p80_um: np.ndarray, sensors, seed: int) -> np.ndarray:

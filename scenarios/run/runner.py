@@ -33,7 +33,7 @@ KPIs: :mod:`scenarios.run.kpis`.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -55,13 +55,19 @@ from scenarios.scene import Scene, load_scene, read_history, scene_from_dict
 class RunResult:
     """One run: ``frame`` (one row per sample, unit-suffixed columns), ``summary`` (JSON-able:
     scene, kpis, model description, effects, versions, seed, notes), ``psd`` (product size
-    distribution snapshots: rows = times, columns = class upper sizes in um, values = cumulative
-    fraction passing) and ``out_dir`` (where it was written, or ``None``)."""
+    distribution snapshots, the mill content's for a batch grind: rows = times, columns = class
+    upper sizes in um, values = cumulative fraction passing), ``mill_psd`` (the same of the mill
+    content of a continuous mill), ``streams`` (size-by-size tables of every stream at the
+    "start" and "end" of the run, :func:`scenarios.run.streams.size_by_size`), ``scene`` (the
+    validated scene) and ``out_dir`` (where it was written, or ``None``)."""
 
     frame: pd.DataFrame
     summary: dict
     out_dir: Path | None = None
     psd: pd.DataFrame | None = None
+    mill_psd: pd.DataFrame | None = None
+    streams: dict = field(default_factory=dict)
+    scene: Scene | None = None
 
     @property
     def kpis(self) -> dict:
@@ -73,9 +79,10 @@ def _as_scene(scene_or_path) -> Scene:
 
 
 def run_scene(scene_or_path, out_dir=None, progress: bool = True, *, csv: bool = False,
-              plots: bool = True, replay: bool = False) -> RunResult:
+              plots: bool = True, xlsx: bool = False, replay: bool = False) -> RunResult:
     """Run a scene (a ``Scene`` or a path) and, with ``out_dir``, write its outputs there.
 
+    ``xlsx=True`` adds the workbook ``run.xlsx`` (:mod:`scenarios.output.workbook`).
     ``replay=True`` drives the inputs with the recorded feed rate and speed of the history (open
     loop) where the history records them. Raises SceneError for a scene the twin refuses and
     RunError when the run fails. See the module docstring for what a run does and the KPIs.
@@ -88,11 +95,12 @@ def run_scene(scene_or_path, out_dir=None, progress: bool = True, *, csv: bool =
     feed, notes = feed_schedule(scene, models.components, times, ores)
     notes = models.notes + notes
     if is_batch(scene):
-        frame, psd, extra = run_batch(scene, models, feed, progress)
+        frame, sizes, extra = run_batch(scene, models, feed, progress)
     elif scene.controller.kind == "none":
-        frame, psd, extra = run_open_loop(scene, models, feed, progress, replay)
+        frame, sizes, extra = run_open_loop(scene, models, feed, progress, replay)
     else:
-        frame, psd, extra = run_closed(scene, models, feed, progress)
+        frame, sizes, extra = run_closed(scene, models, feed, progress)
+    psd = sizes["psd"]
     notes += extra.pop("notes", [])
     for c in feed.columns:
         if c.startswith("recorded_") or c == "history_fit_residual_wt_pct":
@@ -103,14 +111,16 @@ def run_scene(scene_or_path, out_dir=None, progress: bool = True, *, csv: bool =
         summary["final_psd"] = {"what": psd.attrs.get("what", "product"), "time_h": float(psd.index[-1]),
                                 "size_um": [float(x) for x in psd.columns],
                                 "passing_frac": [float(v) for v in psd.iloc[-1]]}
-    result = RunResult(frame=frame, summary=summary, psd=psd)
+    result = RunResult(frame=frame, summary=summary, psd=psd, mill_psd=sizes["mill_psd"], streams=sizes["streams"],
+                       scene=scene)
     if out_dir is not None:
-        result.out_dir = write_run(result, out_dir, csv=csv, plots=plots)
+        result.out_dir = write_run(result, out_dir, csv=csv, plots=plots, xlsx=xlsx)
     return result
 
 
 def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True, *,
-                 duration_h: float | None = None, csv: bool = False, plots: bool = True) -> RunResult:
+                 duration_h: float | None = None, csv: bool = False, plots: bool = True,
+                 xlsx: bool = False) -> RunResult:
     """Drive a scene with a recorded history (CSV or Parquet; format in :mod:`scenarios.scene.history`).
 
     The scene's ``feed.history`` is set to ``history_csv`` (its ``feed.blend`` and schedule are
@@ -151,5 +161,5 @@ def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True
             cmp[f"{col}_mean_abs_diff"] = float(np.nanmean(np.abs(diff)))
     result.summary["replay"] = {"history": str(history_csv), "run_minus_recorded": cmp}
     if out_dir is not None:
-        result.out_dir = write_run(result, out_dir, csv=csv, plots=plots)
+        result.out_dir = write_run(result, out_dir, csv=csv, plots=plots, xlsx=xlsx)
     return result

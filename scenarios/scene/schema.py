@@ -4,6 +4,10 @@ Field-level rules (types, ranges, allowed words) live here; rules that relate se
 fields (blends sum to 1, ores exist, schedule order, bounds order, effect names) live in
 :mod:`scenarios.scene.loader`, which validates a whole file and reports every error at once.
 Units are in the field names (``feed_tph``, ``speed_frac_critical`` as 0.70, ``p80_um``).
+
+Every field carries a docstring (read by pydantic as its description): the scene-file reference
+``docs/scenes.md`` is generated from this module by ``python -m scenarios.scene.reference``, so
+what a key means is written here and only here.
 """
 
 from __future__ import annotations
@@ -15,7 +19,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr
 
-from mpc import QP_SOLVERS, SOLVERS
+from mpc import DISTURBANCE_MODELS, QP_SOLVERS, SOLVERS
 from twin import MILLS
 
 #: The twin's default number of mixers in series (twin.Twin's ``n_mixers``).
@@ -35,36 +39,56 @@ class Section(BaseModel):
     """Base of every section: unknown keys are errors; values are not coerced (strict), except
     that an integer is accepted where a float is expected."""
 
-    model_config = ConfigDict(extra="forbid", strict=True)
+    model_config = ConfigDict(extra="forbid", strict=True, use_attribute_docstrings=True)
 
 
 class SceneInfo(Section):
     """``[scene]``: identity, time axis and seed of the run."""
 
     name: str = Field(min_length=1)
+    """Name of the scene: the title of its plots, report and workbook."""
     description: str = ""
+    """One line on what the scene shows (printed in the report)."""
     duration_h: float = Field(gt=0, le=24 * 366)
+    """Length of the run [h]; the run has one row per sample from 0 to this time, inclusive."""
     sample_period_h: float = Field(default=1 / 60, gt=0, le=24)
+    """Sample period [h]: inputs are held over a sample, the controller acts once a sample, and
+    the time series has one row per sample (1/60 = one minute)."""
     seed: int = Field(default=0, ge=0)
+    """Seed of the sensors' noise (analyser, power and load readings): runs are reproducible."""
 
 
 class SizeClasses(Section):
     """``[mill.size_classes]``: geometric series of sieve sizes, coarsest first."""
 
     top_um: float = Field(default=6700.0, gt=0, le=1e6)
-    ratio: float = Field(default=math.sqrt(2), gt=1, le=10)
-    count: int = Field(default=25, ge=3, le=200)
+    """Upper size of the coarsest class [um]; must lie above ``feed.p80_um``."""
+    ratio: float = Field(default=math.sqrt(2), gt=1, le=10, json_schema_extra={"unit": "-"})
+    """Ratio of neighbouring sieve sizes (sqrt 2 is the standard sieve series); the
+    calibration is fitted at 25 classes of ratio sqrt 2, a coarser grid moves P80
+    (benchmarks/results/twin_accuracy.md)."""
+    count: int = Field(default=25, ge=3, le=200, json_schema_extra={"unit": "-"})
+    """Number of size classes; a sink class below the finest is added by the twin."""
 
 
 class Mill(Section):
     """``[mill]``: a preset plus optional overrides; after loading every field is set."""
 
     preset: Literal["lab", "industrial"]
-    diameter_m: float | None = Field(default=None, gt=0, lt=20)
-    length_m: float | None = Field(default=None, gt=0, lt=30)
-    ball_filling_frac: float | None = Field(default=None, gt=0, lt=0.5)
-    n_mixers: int | None = Field(default=None, ge=1, le=20)
+    """The mill: ``"lab"`` is MISSION.md's laboratory mill (0.5 m x 0.3 m, 31 kg/h nominal),
+    ``"industrial"`` an overflow ball mill of 3.2 m x 4.8 m (~30 t/h of Type B). Calibrated
+    values of the preset (power factor, grate, discharge) come from the shipped calibration."""
+    diameter_m: float | None = Field(default=None, gt=0, lt=20, examples=[3.2])
+    """Inside diameter [m]; default: the preset's."""
+    length_m: float | None = Field(default=None, gt=0, lt=30, examples=[4.8])
+    """Inside length [m]; default: the preset's."""
+    ball_filling_frac: float | None = Field(default=None, gt=0, lt=0.5, examples=[0.35])
+    """Ball-bed volume over mill volume; default: the preset's (0.35)."""
+    n_mixers: int | None = Field(default=None, ge=1, le=20, json_schema_extra={"unit": "-"})
+    """Perfect mixers in series (the residence-time distribution) of the controller's model and,
+    unless ``[plant]`` says otherwise, of the plant; default 3."""
     size_classes: SizeClasses = Field(default_factory=SizeClasses)
+    """The size grid of the controller's model and, unless ``[plant]`` says otherwise, of the plant."""
 
 
 class Texture(Section):
@@ -73,25 +97,38 @@ class Texture(Section):
     ``twin.ore.mineralogy.Texture``."""
 
     mean_grain_um: float = Field(gt=0, le=1e5)
-    uniformity: float = Field(gt=0, le=1)
-    association_entropy: float = Field(ge=0, le=1)
+    """Mean mineral grain size [um] (automated mineralogy)."""
+    uniformity: float = Field(gt=0, le=1, json_schema_extra={"unit": "-"})
+    """Grain-size uniformity: 1 = equigranular."""
+    association_entropy: float = Field(ge=0, le=1, json_schema_extra={"unit": "-"})
+    """Mineral-association entropy, normalised: 0 = each mineral touches only itself, 1 = fully
+    intergrown."""
 
 
 class Ore(Section):
     """``[ores.NAME]``: a reference ore ``type`` or an explicit mineralogy (wt%) and texture."""
 
     type: Literal["A", "B", "C", "D"] | None = None
-    mineralogy: dict[str, float] | None = None
+    """A reference ore type of the porphyry deposit (MISSION.md; ``twin/ore/data/ores.toml``);
+    give either ``type`` or ``mineralogy`` and ``texture``."""
+    mineralogy: dict[str, float] | None = Field(default=None, json_schema_extra={"unit": "wt%"})
+    """Modal mineralogy, mineral -> wt% (minerals of ``twin/ore/data/minerals.csv``), summing to
+    100 within 0.5 wt%; required with ``texture`` when there is no ``type``."""
     texture: Texture | None = None
+    """The ore's texture (``[ores.NAME.texture]``); required with ``mineralogy``."""
 
 
 class ScheduleEvent(Section):
     """``[[feed.schedule]]``: from ``at_h`` the blend moves to ``blend`` (step or linear ramp)."""
 
     at_h: float = Field(ge=0)
-    blend: dict[str, float]
+    """When the change starts [h]; events in increasing time, each after the previous ramp ends."""
+    blend: dict[str, float] = Field(json_schema_extra={"unit": "mass fraction"})
+    """The blend the feed moves to, ore -> mass fraction (ores of ``[ores]``, summing to 1)."""
     kind: Literal["step", "ramp"] = "step"
+    """``"step"``: the new blend from ``at_h``; ``"ramp"``: linear over ``ramp_h``."""
     ramp_h: float = Field(default=0.0, ge=0)
+    """Length of a ramp [h] (> 0 for a ramp; only for ``kind = "ramp"``)."""
 
 
 class Feed(Section):
@@ -107,58 +144,117 @@ class Feed(Section):
     without texture columns; ``history_max_gap_h`` is how long a value may be held.
     """
 
-    blend: dict[str, float] | None = None
+    blend: dict[str, float] | None = Field(default=None, json_schema_extra={"unit": "mass fraction"})
+    """Blend at t = 0, ore -> mass fraction (ores of ``[ores]``, summing to 1 within 0.001);
+    required unless ``history`` gives the feed from t = 0."""
     feed_tph: float | None = Field(default=None, gt=0, le=1e4)
+    """Fresh feed rate [t/h] (dry solids); required with the ``transport`` effect. Open loop it is
+    held throughout; a controller with a target starts the plant at the feed rate that holds
+    the target instead (the run's notes say which)."""
     batch_charge_kg: float | None = Field(default=None, gt=0, le=1e6)
+    """Charge of a batch grind [kg] (a scene without ``transport``); only for batch scenes."""
     speed_frac_critical: float = Field(gt=0, lt=1)
+    """Mill speed as a fraction of critical (0.70, not 70); held open loop, the start of a
+    closed loop."""
     p80_um: float = Field(default=3200.0, gt=0, le=1e6)
-    ggs_modulus: float = Field(default=0.8, gt=0, le=5)
+    """P80 of the fresh feed [um] (80 % passing), below ``mill.size_classes.top_um``."""
+    ggs_modulus: float = Field(default=0.8, gt=0, le=5, json_schema_extra={"unit": "-"})
+    """Distribution modulus m of the Gates-Gaudin-Schuhmann feed, passing = (x / x_max)^m with
+    x_max from ``p80_um``."""
     schedule: list[ScheduleEvent] = Field(default_factory=list)
+    """Blend changes over time (``[[feed.schedule]]``); not with ``history``."""
     history: str | None = None
-    history_texture: Texture | None = None
+    """A recorded history, CSV or Parquet (path relative to the scene file): a time column
+    (``timestamp`` or ``time_h``), mineral wt% (``<mineral>_wt_pct``) or ore fractions
+    (``ore_<name>_frac``), optionally ``feed_tph``, ``speed_frac_critical``, ``p80_um`` and
+    texture columns; rules in ``scenarios/scene/history.py``. A mineralogy is mapped onto the
+    scene's ores (the reference types A-D without ``[ores]``) by non-negative least squares."""
+    history_texture: Texture | None = Field(default=None, examples=[
+        {"mean_grain_um": 120.0, "uniformity": 0.6, "association_entropy": 0.5}])
+    """Texture of a mineralogy history without texture columns (required then; only with
+    ``history``)."""
     history_max_gap_h: float = Field(default=10 / 60, gt=0)
+    """Longest stretch [h] over which a missing recorded value is held; longer gaps are refused."""
 
 
 class Weights(Section):
     """``[controller.weights]``: P80 tracking, move suppression, energy."""
 
-    p80: float = Field(default=1.0, ge=0)
-    du_feed: float = Field(default=0.1, ge=0)
-    du_speed: float = Field(default=0.1, ge=0)
-    energy: float = Field(default=0.0, ge=0)
+    p80: float = Field(default=1.0, ge=0, json_schema_extra={"unit": "-"})
+    """NMPC weight on (100 (passing fraction at the target size - 0.80))^2 per sample."""
+    du_feed: float = Field(default=0.1, ge=0, json_schema_extra={"unit": "1/(t/h)^2"})
+    """NMPC weight on (feed move [t/h])^2."""
+    du_speed: float = Field(default=0.1, ge=0, json_schema_extra={"unit": "1/(% of critical)^2"})
+    """NMPC weight on (speed move [% of critical])^2."""
+    energy: float = Field(default=0.0, ge=0, json_schema_extra={"unit": "1/(kWh/t)"})
+    """NMPC economic weight on specific energy per sample (0: none)."""
 
 
 class Bounds(Section):
     """``[controller.bounds]``: input bounds and rate limits (``None`` = no rate limit)."""
 
     feed_tph_min: float | None = Field(default=None, ge=0)
+    """Lowest feed rate [t/h]; required for ``pi`` and ``nmpc``."""
     feed_tph_max: float | None = Field(default=None, gt=0)
-    speed_min: float = Field(default=0.60, gt=0, lt=1)
-    speed_max: float = Field(default=0.85, gt=0, lt=1)
-    feed_rate_max_tph_per_h: float | None = Field(default=None, gt=0)
-    speed_rate_max_per_h: float | None = Field(default=None, gt=0)
+    """Highest feed rate [t/h], above ``feed_tph_min``; required for ``pi`` and ``nmpc``."""
+    speed_min: float = Field(default=0.60, gt=0, lt=1, json_schema_extra={"unit": "fraction of critical"})
+    """Lowest mill speed (NMPC)."""
+    speed_max: float = Field(default=0.85, gt=0, lt=1, json_schema_extra={"unit": "fraction of critical"})
+    """Highest mill speed (NMPC), above ``speed_min``."""
+    feed_rate_max_tph_per_h: float | None = Field(default=None, gt=0, json_schema_extra={"unit": "t/h per h"})
+    """Largest feed-rate change per hour (NMPC and PI); none: no limit."""
+    speed_rate_max_per_h: float | None = Field(default=None, gt=0,
+                                               json_schema_extra={"unit": "fraction of critical per h"})
+    """Largest speed change per hour (NMPC); none: no limit."""
 
 
 class Controller(Section):
     """``[controller]``: kind, target, horizon and tuning, bounds, solver.
 
     ``load_band_frac`` is the mill hold-up as a fraction of the nominal hold-up at the initial
-    operating point; ``preview_lead_h`` is how far ahead the feed is known (belt analyser).
+    operating point; ``preview_lead_h`` is how far ahead the feed is known (belt analyser);
+    ``disturbance_model`` what the EKF's disturbance states absorb (``mpc.DISTURBANCE_MODELS``).
     """
 
     kind: Literal["none", "pi", "nmpc"] = "none"
+    """``"none"``: open loop, the scene's inputs. ``"pi"``: a PI loop from the analyser's P80 to
+    the feed rate only (speed held), SIMC-tuned on the linearised plant twin with the analyser's
+    delay and anti-windup. ``"nmpc"``: the NMPC moves feed rate and speed, with an EKF estimating
+    the mill contents and the ore hardness from the analyser, power and load readings."""
     target_p80_um: float | None = Field(default=None, gt=0)
-    horizon_steps: int = Field(default=30, ge=1, le=10_000)
-    move_block: int = Field(default=5, ge=1)
-    rk4_substeps: int = Field(default=3, ge=1, le=100)  # RK4 steps per sample in the prediction
+    """Product P80 target [um]; required for ``pi`` and ``nmpc``; open loop it is the reference
+    of the P80 KPIs. A closed loop starts the plant at the steady state that holds it."""
+    horizon_steps: int = Field(default=30, ge=1, le=10_000, json_schema_extra={"unit": "samples"})
+    """NMPC prediction horizon."""
+    move_block: int = Field(default=5, ge=1, json_schema_extra={"unit": "samples"})
+    """NMPC samples per input block (1: a free move every sample); at most ``horizon_steps``."""
+    rk4_substeps: int = Field(default=3, ge=1, le=100, json_schema_extra={"unit": "per sample"})
+    """RK4 steps per sample in the NMPC's prediction; a count below the stable one at the
+    initial steady state is refused before the run."""
     preview_lead_h: float = Field(default=0.0, ge=0)
+    """How far ahead [h] the feed blend is known (a belt analyser): the NMPC sees the blend over
+    its horizon up to this lead (0: feedback only)."""
     weights: Weights = Field(default_factory=Weights)
+    """NMPC weights (``[controller.weights]``)."""
     bounds: Bounds = Field(default_factory=Bounds)
+    """Input bounds and rate limits (``[controller.bounds]``)."""
     solver: Literal[SOLVERS] = "ipopt"
-    qpsol: Literal[QP_SOLVERS] | None = None  # QP solver of rti / sqpmethod
+    """NMPC solver: ``"ipopt"`` (interior point, exact Hessian; the default), ``"sqpmethod"``
+    (SQP), ``"fatrop"`` (structure-exploiting interior point), ``"rti"`` (real-time iteration:
+    one Gauss-Newton QP a sample; the reference scene's choice)."""
+    qpsol: Literal[QP_SOLVERS] | None = Field(default=None, examples=["hpipm"])
+    """QP solver of ``rti`` (default ``"hpipm"``) or ``sqpmethod`` (``"qrqp"``, its only choice)."""
     load_band_frac: list[float] = Field(default_factory=lambda: [0.8, 1.2], min_length=2,
-                                        max_length=2)
-    power_max_kw: float | None = Field(default=None, gt=0)
+                                        max_length=2, json_schema_extra={"unit": "hold-up / nominal"})
+    """Stable band of the mill load [low, high], 0 < low < 1 < high: a soft constraint of the NMPC
+    and the band of the ``load_outside_band_frac`` KPI."""
+    power_max_kw: float | None = Field(default=None, gt=0, examples=[420.0])
+    """Soft upper limit of mill power [kW] for the NMPC; none: no limit."""
+    disturbance_model: Literal[DISTURBANCE_MODELS] = "hardness"
+    """What the NMPC's estimator reads the plant/model mismatch as: ``"hardness"`` (everything,
+    including a coarse model's structural P80 error, is read as ore hardness), ``"p80_bias"``
+    (hardness held at 1; the analyser reads the model's P80 plus a bias) or
+    ``"hardness+p80_bias"`` (both: the bias takes the slow P80 mismatch); see mpc.estimator."""
 
 
 class Sensors(Section):
@@ -168,10 +264,18 @@ class Sensors(Section):
     """
 
     p80_noise_um: float = Field(default=0.0, ge=0)
+    """Standard deviation of the P80 analyser's Gaussian noise [um]."""
     p80_dead_time_h: float = Field(default=0.0, ge=0)
+    """Analyser dead time [h]: a sample taken at t is reported at t + dead time; shorter than
+    the scene. To let the NMPC's model know it, also list ``sensor_delay`` with this
+    ``dead_time_h``."""
     p80_sample_period_h: float | None = Field(default=None, gt=0)
+    """Analyser sampling period [h], at least ``scene.sample_period_h``; the reading is held in
+    between; default: the scene's sample period."""
     power_noise_kw: float = Field(default=0.0, ge=0)
-    load_noise_frac: float = Field(default=0.0, ge=0, lt=1)
+    """Standard deviation of the mill power reading's noise [kW]."""
+    load_noise_frac: float = Field(default=0.0, ge=0, lt=1, json_schema_extra={"unit": "hold-up / nominal"})
+    """Standard deviation of the load reading's noise [hold-up / nominal]."""
 
 
 class Plant(Section):
@@ -182,10 +286,17 @@ class Plant(Section):
     """
 
     model: Literal["twin", "leroux2013"] = "twin"
+    """``"twin"``: a twin built with the settings below; ``"leroux2013"`` (le Roux et al. 2013) is
+    refused by scenes for now (it runs from benchmarks/mpc_leroux_case.py)."""
     effects: list[str] | None = None
+    """The plant's effects (names as in ``effects``); default: the scene's."""
     size_classes: SizeClasses | None = None
-    n_mixers: int | None = Field(default=None, ge=1, le=20)
-    effect_options: dict[str, dict[str, Any]] | None = None
+    """The plant's size grid; default: ``mill.size_classes`` (the controller's model's grid)."""
+    n_mixers: int | None = Field(default=None, ge=1, le=20, json_schema_extra={"unit": "-"})
+    """The plant's mixers in series; default: ``mill.n_mixers``."""
+    effect_options: dict[str, dict[str, Any]] | None = Field(default=None, examples=[
+        {"classification": {"kind": "hydrocyclone"}}])
+    """Options of the plant's effects; default: the scene's options of the effects the plant has."""
 
 
 class Scene(Section):
@@ -198,14 +309,28 @@ class Scene(Section):
     """
 
     scene: SceneInfo
+    """Identity, time axis and seed (``[scene]``)."""
     mill: Mill
+    """The mill and the size grid (``[mill]``)."""
     ores: dict[str, Ore] = Field(default_factory=dict)
+    """The ores the feed is blended from, by name (``[ores.NAME]``); at least one, unless a
+    mineralogy ``feed.history`` is given (then the reference types A-D are the components)."""
     feed: Feed
+    """Feed blend over time, rate, speed and size (``[feed]``)."""
     effects: list[str]
+    """The physical effects the model contains, and nothing else (see "Effects" below); a
+    top-level key, so in TOML it comes before the first ``[table]``. Without ``transport`` the
+    scene is a batch grind."""
     effect_options: dict[str, dict[str, Any]] = Field(default_factory=dict)
+    """Options of listed effects, ``[effect_options.EFFECT]`` (see "Effects" below)."""
     controller: Controller = Field(default_factory=Controller)
+    """What moves the inputs (``[controller]``)."""
     sensors: Sensors = Field(default_factory=Sensors)
+    """The plant's measurements (``[sensors]``); used by closed loops and for the analyser trace
+    of open-loop runs."""
     plant: Plant | None = None
+    """The simulated plant when it differs from the controller's model (``[plant]``); default: the
+    same twin."""
 
     _source_path: Path | None = PrivateAttr(default=None)
 

@@ -5,6 +5,8 @@ editing code; the Cantera practice)."""
 
 import pytest
 
+from mpc.codegen import MODE_ENV
+
 from twin.sizes import SizeGrid
 from twin.twin import DEFAULT_EFFECTS, Twin
 
@@ -12,6 +14,13 @@ from twin.twin import DEFAULT_EFFECTS, Twin
 def pytest_addoption(parser):
     parser.addoption("--save-reference", action="store_true", default=False,
                      help="rewrite the stored references of tests/mpc instead of comparing")
+
+
+@pytest.fixture(autouse=True)
+def interpreted_by_default(monkeypatch):
+    """Controllers and estimators run interpreted unless a test asks for compiled code
+    (``codegen="on"``): each new model or setting would otherwise compile anew."""
+    monkeypatch.setenv(MODE_ENV, "off")
 
 
 @pytest.fixture

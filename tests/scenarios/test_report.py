@@ -28,8 +28,9 @@ def fake_run(tmp_path):
                "effects": ["breakage", "transport"], "components": ["B"],
                "kpis": {"p80_iae_um_h": 4.5, "specific_energy_kwh_t": 10.0, "throughput_t": 30.0,
                         "solve_time_median_s": float("nan"), "mass_balance_error": 1e-12},
-               "model": "Model: 2 effect(s)", "notes": ["started at steady state"],
-               "versions": {"numpy": np.__version__}}
+               "plant_model": "Model: 2 effect(s), plant", "controller_model": "Model: 3 effect(s), <coarse>",
+               "notes": ["started at steady state"],
+               "versions": {"numpy": np.__version__, "git": "0123456789ab", "git_source": "checkout"}}
     return write_run(RunResult(frame, summary, psd=psd), tmp_path / "run")
 
 
@@ -59,3 +60,44 @@ def test_report_refuses_what_is_not_a_complete_run(tmp_path):
     (tmp_path / "_INCOMPLETE").write_text("")
     with pytest.raises(SceneError, match="incomplete"):
         render_report(tmp_path)
+
+
+def test_report_shows_plant_beside_controller_units_and_commit(tmp_path):
+    text = render_report(fake_run(tmp_path))
+    models = re.search(r'<div class="models">(.*?)</div></div>', text, re.S).group(1)
+    plant, ctl = re.findall(r"<h3>(.*?)</h3><pre>(.*?)</pre>", models)
+    assert plant == ("Plant (simulated)", "Model: 2 effect(s), plant")
+    assert ctl == ("Controller&#x27;s model", "Model: 3 effect(s), &lt;coarse&gt;")
+    assert "throughput [t]<" not in text and "product discharged over the run [t]" in text
+    assert "git commit <code>0123456789ab</code> (checkout)" in text
+
+
+def test_open_loop_report_says_there_is_no_controller(tmp_path):
+    import json
+
+    run = fake_run(tmp_path)
+    summary = json.loads((run / "summary.json").read_text())
+    summary.update(controller_model=None, versions={"git": None, "git_source": "installed package"})
+    (run / "summary.json").write_text(json.dumps(summary))
+    text = render_report(run)
+    assert "none: open loop" in text and "no git commit (installed package)" in text
+
+
+def test_git_commit_of_an_install_is_the_checkouts_only_when_every_file_matches(tmp_path):
+    """An install (files copied from a checkout) is that checkout's HEAD only if every tracked
+    source file is HEAD's version; one changed byte and it is not."""
+    import subprocess
+    import tarfile
+    from pathlib import Path
+
+    from scenarios.run.summary import PACKAGES, _installed_matches_head
+
+    repo = Path(__file__).resolve().parents[2]
+    archive = tmp_path / "head.tar"
+    subprocess.run(["git", "archive", "-o", str(archive), "HEAD", *PACKAGES], cwd=repo, check=True)
+    with tarfile.open(archive) as tar:
+        tar.extractall(tmp_path / "site", filter="data")
+    assert _installed_matches_head(repo, tmp_path / "site")
+    target = tmp_path / "site" / "scenarios" / "run" / "summary.py"
+    target.write_bytes(target.read_bytes() + b"\n")
+    assert not _installed_matches_head(repo, tmp_path / "site")

@@ -163,7 +163,7 @@ def test_written_run_is_complete_and_json_has_no_nan(short_run, tmp_path):
     assert "NaN" not in text  # strict JSON: undefined KPIs are null
     assert summary["kpis"]["solve_time_median_s"] is None
     assert summary["scene"] == "pyrite_surge" and summary["seed"] == 3
-    assert "Effects:" in summary["model"] and summary["versions"]["numpy"]
+    assert "Effects:" in summary["plant_model"] and summary["versions"]["numpy"]
     assert summary["effects"] == ["breakage", "transport", "holdup", "speed", "cushioning", "power"]
     back = pd.read_parquet(out / "timeseries.parquet")
     pd.testing.assert_frame_equal(back, short_run.frame, check_dtype=False)
@@ -195,13 +195,13 @@ def test_run_interrupted_mid_simulation_writes_nothing(tmp_path, monkeypatch):
     import scenarios.run.open_loop as open_loop
 
     calls = []
-    real = open_loop.psd_snapshots
+    real = open_loop.run_size_data
 
     def boom(*args, **kwargs):  # the run dies after the integration, before any output
         calls.append(1)
         raise RuntimeError("killed")
 
-    monkeypatch.setattr(open_loop, "psd_snapshots", boom)
+    monkeypatch.setattr(open_loop, "run_size_data", boom)
     scene = short_pyrite_scene(tmp_path, 0.25)
     with pytest.raises(RuntimeError, match="killed"):
         run_scene(scene, out_dir=tmp_path / "run", progress=False)
@@ -291,7 +291,7 @@ def test_a_different_plant_is_built_and_simulated(tmp_path):
                     "size_classes = { ratio = 2.0, count = 11 }\n")
     res = run_scene(path, progress=False)
     assert res.summary["plant_model"] is not None and "11 size classes" in res.summary["plant_model"]
-    assert "13 size classes" in res.summary["model"]
+    assert res.summary["controller_model"] is None  # open loop: the scene's own model is not run
     assert res.psd.shape[1] == 11  # the plant's grid is what ran
     assert any("plant is a separate twin" in n for n in res.summary["notes"])
 

@@ -7,7 +7,6 @@ import json
 import platform
 import time
 from functools import cache
-from importlib import metadata
 from pathlib import Path
 
 from ..errors import TwinError
@@ -43,6 +42,8 @@ def lab_mill_values(values: dict) -> dict:
 
 def versions() -> dict:
     """Versions of what shapes a calibration, for its provenance record."""
+    from importlib import metadata  # only when a calibration is written: slow to import
+
     return {"python": platform.python_version(),
             **{pkg: metadata.version(pkg) for pkg in ("numpy", "scipy", "numba", "casadi")}}
 

@@ -67,7 +67,7 @@ class Classification(Effect):
     name = "classification"
     requires = ("transport",)
     provides = ("discharge_class_factor", "product_split", "flow_multiplier")
-    outputs = ("cyclone_d50c_um", "circulating_load_frac")
+    outputs = ("cyclone_d50c_um", "circulating_load_frac", "cyclone_feed_tph", "cyclone_underflow_tph")
     uses = ("cut_size_factor",)
     source = "Austin et al. (1984) ch. 9 (grate); Plitt (1976), Flintoff et al. (1987) (hydrocyclone)"
     summary = "grate discharge factor, or hydrocyclone closed circuit with recycle to the feed"
@@ -130,6 +130,8 @@ class Classification(Effect):
             under = [e * dc for dc in discharge]
             over = [dc - uc for dc, uc in zip(discharge, under)]
             ctx.output("cyclone_d50c_um", d50)
+            ctx.output("cyclone_feed_tph", sum(discharge))  # per size class, as the underflow below
+            ctx.output("cyclone_underflow_tph", sum(under))
             ctx.output("circulating_load_frac", sum(ca.sum1(u) for u in under) / smooth_max(
                 ctx.feed_tph, 1e-6 * spec.feed_nominal_tph, 1e-6 * spec.feed_nominal_tph))
             return over, under

@@ -2,19 +2,30 @@
 sample tables, ore typing (PCA + clustering), nano-indentation (Oliver-Pharr) and fracture-energy
 distributions. Nothing here knows the mill; the mill model reads an ore's mineralogy only."""
 
-from .fracture_energy import (BreakageOutcomeFit, FractureEnergyFit, SizeDependence, breakage_probability,
-                              fit_breakage_outcomes, fit_by_group, fit_fracture_energy, fit_size_dependence,
-                              read_single_particle, sample_fracture_energies, validate_single_particle)
-from .indentation import (AreaFunction, IndentationResult, Indenter, analyse_curves, oliver_pharr, read_curves,
-                          reduced_modulus_gpa, synthesize_curve, youngs_from_reduced_gpa)
-from .mineralogy import Mineralogy, Texture
-from .minerals import (CLAY_MINERALS, CUSHIONING_MINERALS, MICA_MINERALS, SULFIDE_MINERALS, Mineral,
-                       mineral_names, mineral_table, source_table)
-from .ores import BLEND_SUM_TOLERANCE, Blend, load_ore, reference_ores
-from .oretyping import OreTyper
-from .sample_library import generate_library, load_reference_samples
-from .samples import (SampleTableError, from_mineralogies, read_samples, to_mineralogies, to_mineralogy,
-                      validate_samples)
+from .._lazy import lazy_face
+
+#: Public name -> the module that defines it, imported on first use (PEP 562).
+_API = {
+    "BreakageOutcomeFit": ".fracture_energy", "FractureEnergyFit": ".fracture_energy",
+    "SizeDependence": ".fracture_energy", "breakage_probability": ".fracture_energy",
+    "fit_breakage_outcomes": ".fracture_energy", "fit_by_group": ".fracture_energy",
+    "fit_fracture_energy": ".fracture_energy", "fit_size_dependence": ".fracture_energy",
+    "read_single_particle": ".fracture_energy", "sample_fracture_energies": ".fracture_energy",
+    "validate_single_particle": ".fracture_energy",
+    "AreaFunction": ".indentation", "IndentationResult": ".indentation", "Indenter": ".indentation",
+    "analyse_curves": ".indentation", "oliver_pharr": ".indentation", "read_curves": ".indentation",
+    "reduced_modulus_gpa": ".indentation", "synthesize_curve": ".indentation",
+    "youngs_from_reduced_gpa": ".indentation",
+    "Mineralogy": ".mineralogy", "Texture": ".mineralogy",
+    "CLAY_MINERALS": ".minerals", "CUSHIONING_MINERALS": ".minerals", "MICA_MINERALS": ".minerals",
+    "SULFIDE_MINERALS": ".minerals", "Mineral": ".minerals", "mineral_names": ".minerals",
+    "mineral_table": ".minerals", "source_table": ".minerals",
+    "BLEND_SUM_TOLERANCE": ".ores", "Blend": ".ores", "load_ore": ".ores", "reference_ores": ".ores",
+    "OreTyper": ".oretyping",
+    "generate_library": ".sample_library", "load_reference_samples": ".sample_library",
+    "SampleTableError": ".samples", "from_mineralogies": ".samples", "read_samples": ".samples",
+    "to_mineralogies": ".samples", "to_mineralogy": ".samples", "validate_samples": ".samples",
+}
 
 __all__ = [
     "AreaFunction", "BLEND_SUM_TOLERANCE", "Blend", "BreakageOutcomeFit", "CLAY_MINERALS", "CUSHIONING_MINERALS",
@@ -26,3 +37,4 @@ __all__ = [
     "sample_fracture_energies", "source_table", "synthesize_curve", "to_mineralogies", "to_mineralogy",
     "validate_samples", "youngs_from_reduced_gpa",
 ]
+__getattr__, __dir__ = lazy_face(__name__, _API)

@@ -19,6 +19,10 @@ from .minerals import CLAY_MINERALS, MICA_MINERALS, SULFIDE_MINERALS, mineral_ta
 #: are reported to 0.1 wt% per phase; 0.5 wt% allows rounding over ~10 phases).
 SUM_TOLERANCE_WT_PCT = 0.5
 
+#: Column names of sample tables (and the surrogate's inputs): ``<mineral>_wt_pct`` and the texture.
+WT_SUFFIX = "_wt_pct"
+TEXTURE_COLUMNS = ("mean_grain_um", "uniformity", "association_entropy")
+
 #: Reference grain size of the textural index [um]: the coarse, equigranular Type A texture.
 TEXTURE_REFERENCE_GRAIN_UM = 200.0
 

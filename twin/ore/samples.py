@@ -29,11 +29,9 @@ import pandas as pd
 
 from ..errors import TwinInputError, close_matches
 from .minerals import mineral_table
-from .mineralogy import SUM_TOLERANCE_WT_PCT, Mineralogy, Texture
+from .mineralogy import SUM_TOLERANCE_WT_PCT, TEXTURE_COLUMNS, WT_SUFFIX, Mineralogy, Texture
 
-WT_SUFFIX = "_wt_pct"
 ID_COLUMN = "sample_id"
-TEXTURE_COLUMNS = ("mean_grain_um", "uniformity", "association_entropy")
 
 #: allowed interval of each texture column: (lo, hi, lo_open, hi_open)
 _TEXTURE_RANGES = {

@@ -4,11 +4,11 @@ texture and operating conditions."""
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 
 from ..errors import TwinInputError
-from ..ore import Blend, Mineralogy, Texture, load_ore, mineral_table
-from ..ore.samples import TEXTURE_COLUMNS, WT_SUFFIX
+from ..ore.mineralogy import TEXTURE_COLUMNS, WT_SUFFIX, Mineralogy, Texture
+from ..ore.minerals import mineral_table
+from ..ore.ores import Blend, load_ore
 
 #: The operating conditions among the inputs (after mineral wt% and texture).
 CONDITION_COLUMNS = ("feed_tph", "speed_frac_critical")
@@ -43,9 +43,11 @@ def as_mineralogy(ore) -> Mineralogy:
     return load_ore(ore)
 
 
-def feature_frame(mineralogies, feed_tph, speed_frac_critical) -> pd.DataFrame:
-    """Input table of the surrogate: one row per (mineralogy, feed, speed); the three
-    arguments broadcast against each other."""
+def feature_frame(mineralogies, feed_tph, speed_frac_critical):
+    """Input table of the surrogate (a DataFrame): one row per (mineralogy, feed, speed); the
+    three arguments broadcast against each other."""
+    import pandas as pd  # tables only: a single answer (predict.py) is numpy alone
+
     ores = [as_mineralogy(m) for m in (mineralogies if isinstance(mineralogies, (list, tuple)) else [mineralogies])]
     feed = np.atleast_1d(np.asarray(feed_tph, float))
     speed = np.atleast_1d(np.asarray(speed_frac_critical, float))

@@ -16,10 +16,11 @@ from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import FunctionTransformer, PolynomialFeatures, StandardScaler
 
 from ..errors import TwinError, TwinInputError, bad_value
-from ..ore.samples import TEXTURE_COLUMNS, WT_SUFFIX
+from ..ore.mineralogy import TEXTURE_COLUMNS, WT_SUFFIX
+from .compiled import (Q_FLOOR, Q_LIMIT_FACTOR, SCORE_MARGIN, TARGETS, CompiledSurrogate, checked_predict,
+                       domain_problems, scores_and_q)
 from .inputs import CONDITION_COLUMNS, input_columns, mineral_names
 
-TARGETS = ("p80_um", "specific_energy_kwh_t", "load_frac")
 #: Shipped hyper-parameters, chosen by grouped 5-fold CV and held-out error on the shipped table
 #: (the grid is in benchmarks/results/twin_surrogate.md).
 DEFAULT_PARAMS = {"n_components": 80, "n_pca": 10, "degree": 2}
@@ -27,12 +28,6 @@ DEFAULT_PARAMS = {"n_components": 80, "n_pca": 10, "degree": 2}
 RANGE_MARGIN = 0.05
 #: A mineral whose smallest trained content is below this [wt%] may also be absent (range from 0).
 TRACE_WT_PCT = 1.0
-#: A PCA score may leave the trained [min, max] by this share of the trained range.
-SCORE_MARGIN = 0.10
-#: A mineralogy's PCA residual may reach this multiple of the largest training residual, and at
-#: least Q_FLOOR (with all PCs kept the training residual is round-off).
-Q_LIMIT_FACTOR = 1.5
-Q_FLOOR = 1e-8
 
 
 def _product_pairs(powers: np.ndarray) -> np.ndarray:
@@ -176,11 +171,13 @@ class Surrogate(RegressorMixin, BaseEstimator):
         }
 
     def _scores_and_q(self, A: np.ndarray):
-        c = self._c
-        z = (A[:, c["m_idx"]] - c["m_mu"]) / c["m_sd"] - c["pca_mu"]
-        s = z @ c["pca_W"]
-        q = ((z - s @ c["pca_W"].T) ** 2).sum(axis=1)
-        return s, q
+        return scores_and_q(self._c, A)
+
+    def compiled(self, metadata: dict | None = None) -> CompiledSurrogate:
+        """The fitted surrogate as arrays (:mod:`twin.surrogate.compiled`): numpy alone predicts."""
+        self._check_fitted()
+        return CompiledSurrogate(tuple(self.feature_names_in_), dict(self._c), self.score_range_, self.q_limit_,
+                                 dict(metadata if metadata is not None else getattr(self, "metadata_", {})))
 
     def _check_fitted(self):
         if not hasattr(self, "pipeline_"):
@@ -193,30 +190,8 @@ class Surrogate(RegressorMixin, BaseEstimator):
         return self._domain(A, max_problems)
 
     def _domain(self, A: np.ndarray, max_problems: int = 20, sq=None) -> list[str]:
-        c = self._c
-        s, q = self._scores_and_q(A) if sq is None else sq
-        lo, hi = self.score_range_[:, 0], self.score_range_[:, 1]
-        pad = SCORE_MARGIN * (hi - lo)
-        bad_box = (A < c["lo"]) | (A > c["hi"]) | ~np.isfinite(A)
-        bad_s = (s < lo - pad) | (s > hi + pad)
-        bad_q = q > self.q_limit_
-        rows = np.flatnonzero(bad_box.any(axis=1) | bad_s.any(axis=1) | bad_q)
-        out = []
-        for i in rows:
-            for j in np.flatnonzero(bad_box[i]):
-                out.append(f"row {i}: the '{self.feature_names_in_[j]}' input of Surrogate must be in the trained "
-                           f"range [{c['lo'][j]:.6g}, {c['hi'][j]:.6g}]. Got {A[i, j]:.6g}.")
-            for j in np.flatnonzero(bad_s[i]):
-                out.append(f"row {i}: the mineralogy's PCA score {j + 1} of Surrogate must be in the trained "
-                           f"range [{lo[j]:.4g}, {hi[j]:.4g}] (+-{SCORE_MARGIN:.0%}). Got {s[i, j]:.4g}: "
-                           "a mineral combination outside the training design.")
-            if bad_q[i]:
-                out.append(f"row {i}: the mineralogy's PCA residual (Q) of Surrogate must be <= "
-                           f"{self.q_limit_:.4g} ({Q_LIMIT_FACTOR} x the largest in training, at least {Q_FLOOR:g}). Got {q[i]:.4g}: "
-                           "a mineral combination unlike the training mineralogies.")
-            if len(out) >= max_problems:
-                break
-        return out
+        return domain_problems(self._c, self.feature_names_in_, self.score_range_, self.q_limit_, A,
+                               max_problems, sq)
 
     def predict(self, X, check_domain: bool = True) -> np.ndarray:
         """KPIs (n, 3) in units, order :data:`TARGETS`. Raises TwinInputError for inputs
@@ -225,18 +200,7 @@ class Surrogate(RegressorMixin, BaseEstimator):
         return self._predict_array(self._as_array(X), check_domain)
 
     def _predict_array(self, A: np.ndarray, check_domain: bool = True) -> np.ndarray:
-        s, q = self._scores_and_q(A)
-        if check_domain:
-            problems = self._domain(A, 5, (s, q))
-            if problems:
-                raise TwinInputError("Input outside the surrogate's training domain (the surrogate does not "
-                                     "extrapolate; use the twin): " + " | ".join(problems))
-        c = self._c
-        lg = (np.log(A[:, c["log_idx"]]) - c["log_mu"]) / c["log_sd"]
-        ln = (A[:, c["lin_idx"]] - c["lin_mu"]) / c["lin_sd"]
-        Z = np.hstack([s, lg, ln, np.ones((len(A), 1))])  # last column: 1, for linear terms
-        F = Z[:, c["pairs"][0]] * Z[:, c["pairs"][1]]
-        return np.exp((F - c["x_mean"]) @ c["coef"] + c["intercept"])
+        return checked_predict(self._c, self.feature_names_in_, self.score_range_, self.q_limit_, A, check_domain)
 
     def predict_pipeline(self, X) -> np.ndarray:
         """The same prediction through the scikit-learn Pipeline (no domain check); the

@@ -1,4 +1,7 @@
-"""One steady-state answer from the surrogate, with the keys of the ``steady`` command's JSON."""
+"""One steady-state answer from the surrogate, with the keys of the ``steady`` command's JSON.
+
+numpy alone: the shipped surrogate is read in its compiled form (:mod:`twin.surrogate.compiled`),
+so ``grindtwin steady --surrogate`` imports neither scikit-learn nor CasADi."""
 
 from __future__ import annotations
 
@@ -7,14 +10,13 @@ from functools import cache
 
 import numpy as np
 
-from ..calibration import shipped_calibration
+from ..calibration.files import shipped_calibration
 from ..errors import TwinInputError, bad_value
 from ..mill import get_mill, load_status
-from ..ore import CUSHIONING_MINERALS
-from ..ore.samples import TEXTURE_COLUMNS
-from .files import shipped_surrogate
-from .inputs import as_mineralogy, mineral_names
-from .model import Surrogate
+from ..ore.mineralogy import TEXTURE_COLUMNS, WT_SUFFIX
+from ..ore.minerals import CUSHIONING_MINERALS
+from .files import shipped_compiled
+from .inputs import CONDITION_COLUMNS, as_mineralogy
 
 
 def _number(field: str, value) -> float:
@@ -32,18 +34,35 @@ def _mill(name: str):
     return get_mill(name, shipped_calibration())
 
 
+def input_row(names, ore, feed_tph: float, speed_frac_critical: float) -> list[float]:
+    """One input row in the order ``names`` (the surrogate's feature names): mineral wt%, texture,
+    feed rate and speed."""
+    conditions = dict(zip(CONDITION_COLUMNS, (feed_tph, speed_frac_critical)))
+    row = []
+    for name in names:
+        if name.endswith(WT_SUFFIX):
+            row.append(ore.wt_pct.get(name[: -len(WT_SUFFIX)], 0.0))
+        elif name in TEXTURE_COLUMNS:
+            row.append(float(getattr(ore.texture, name)))
+        else:
+            row.append(conditions[name])
+    return row
+
+
 def surrogate_steady(mineralogy, feed_tph: float | None = None, speed_frac_critical: float | None = None,
-                     mill: str = "lab", surrogate: Surrogate | None = None) -> dict:
+                     mill: str = "lab", surrogate=None) -> dict:
     """Steady-state KPIs from the surrogate, keys as the ``steady`` command's JSON.
 
     ``mineralogy``: a Mineralogy, a Blend (taken as its mass-weighted mineralogy), a
     reference type letter or an ore TOML path. ``feed_tph`` and ``speed_frac_critical``
     default to the mill's nominal values (as :meth:`Twin.steady`). Raises TwinInputError
     outside the training domain (field, value, trained range) or for a mill the surrogate
-    was not trained for.
+    was not trained for. ``surrogate``: a fitted Surrogate or a CompiledSurrogate (default: the
+    shipped one, compiled).
     """
-    sur = surrogate or shipped_surrogate()
-    trained_mill = getattr(sur, "metadata_", {}).get("mill", "lab")
+    sur = shipped_compiled() if surrogate is None else surrogate
+    sur = sur if hasattr(sur, "arrays") else sur.compiled()
+    trained_mill = sur.metadata.get("mill", "lab")
     if mill != trained_mill:
         raise TwinInputError(f"The 'mill' of surrogate_steady must be {trained_mill!r} (the mill the surrogate "
                              f"was trained for). Got {mill!r}.")
@@ -52,10 +71,7 @@ def surrogate_steady(mineralogy, feed_tph: float | None = None, speed_frac_criti
     feed = _number("feed_tph", m.feed_nominal_tph if feed_tph is None else feed_tph)
     speed = _number("speed_frac_critical", m.speed_nominal_frac_critical if speed_frac_critical is None
                     else speed_frac_critical)
-    row = [ore.wt_pct.get(k, 0.0) for k in mineral_names()] + [float(getattr(ore.texture, c)) for c in TEXTURE_COLUMNS]
-    row += [feed, speed]  # the order of input_columns / feature_names_in_
-    sur._check_fitted()
-    p80, se, load = sur._predict_array(np.array([row], float))[0]
+    p80, se, load = sur.predict(np.array([input_row(sur.feature_names, ore, feed, speed)], float))[0]
     return {"source": "surrogate", "mill": mill, "feed_tph": feed, "speed_frac_critical": speed,
             "p80_um": float(p80), "specific_energy_kwh_t": float(se), "power_kw": float(se * feed),
             "throughput_tph": feed, "discharge_tph": feed, "load_frac": float(load),

@@ -11,7 +11,7 @@ import pandas as pd
 
 from .design import (DEFAULT_N_MINERALOGIES, DEFAULT_POINTS, DEFAULT_SEED, generate_training_table,
                      load_training_table)
-from .files import GENERATE_COMMAND, MODEL_PATH, TABLE_PATH, TRAIN_COMMAND, save
+from .files import COMPILED_PATH, GENERATE_COMMAND, MODEL_PATH, TABLE_PATH, TRAIN_COMMAND, load, save, save_compiled
 from .model import DEFAULT_PARAMS, Surrogate, cross_validate, held_out_split, split_xy
 
 
@@ -39,15 +39,18 @@ def train_and_save(table: pd.DataFrame, params: dict | None = None, out: str | P
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m twin.surrogate", description="Generate the training table and train the twin's PLS surrogate.")
     p.add_argument("--generate", action="store_true", help=f"run the twin over the design -> {TABLE_PATH.name}")
-    p.add_argument("--train", action="store_true", help=f"fit and cross-validate -> {MODEL_PATH.name}")
+    p.add_argument("--train", action="store_true", help=f"fit and cross-validate -> {MODEL_PATH.name} "
+                   f"and {COMPILED_PATH.name}")
+    p.add_argument("--compile", action="store_true",
+                   help=f"write {COMPILED_PATH.name} (numpy-only form) from the saved {MODEL_PATH.name}")
     p.add_argument("--seed", type=int, default=DEFAULT_SEED)
     p.add_argument("--n-mineralogies", type=int, default=DEFAULT_N_MINERALOGIES)
     p.add_argument("--points", type=int, default=DEFAULT_POINTS, help="operating points per mineralogy")
     p.add_argument("--table", help=f"training table (default {TABLE_PATH})")
     p.add_argument("--out", help=f"surrogate file (default {MODEL_PATH})")
     args = p.parse_args(argv)
-    if not (args.generate or args.train):
-        p.error("give --generate and/or --train")
+    if not (args.generate or args.train or args.compile):
+        p.error("give --generate, --train and/or --compile")
     table_path = Path(args.table) if args.table else TABLE_PATH
     if args.generate or (args.train and not table_path.is_file()):
         table = generate_training_table(args.seed, args.n_mineralogies, args.points, progress=True)
@@ -58,4 +61,8 @@ def main(argv: list[str] | None = None) -> int:
         table = load_training_table(table_path)
         _, meta = train_and_save(table, out=args.out)
         print(json.dumps({k: meta[k] for k in ("n_rows", "cv_r2", "held_out_r2", "fit_seconds")}, indent=1))
+    elif args.compile:
+        joblib_path = Path(args.out) if args.out else MODEL_PATH
+        sur = load(joblib_path)
+        print(f"wrote {save_compiled(sur, joblib_path, sur.metadata_)}")
     return 0

@@ -1,0 +1,117 @@
+"""How fast the command line gives its first answer: whole ``grindtwin`` processes, wall time,
+this checkout against an earlier revision, interleaved.
+
+Commands (each a fresh Python process):
+- ``help``: ``grindtwin --help``;
+- ``surrogate``: ``grindtwin steady --surrogate --ore B --feed-tph 0.031 --speed 0.70``;
+- ``twin``: ``grindtwin steady --ore B --feed-tph 0.031 --speed 0.70`` (builds the CasADi twin);
+- floors: ``python -c pass`` (the interpreter) and ``python -c "import numpy"``.
+Each runs from this checkout ("now") and, for help, surrogate and twin, from ``--before REV``
+(default: the commit before the fast start, 757bf8f), exported by ``git archive``. Both sides
+run the same way: ``python -c "from scenarios.cli import main; ..."`` with the tree first on
+``sys.path`` (a ``.pth`` file in a throwaway venv that also sees this venv's libraries), so the
+two differ only in their code. Every round runs every command once, in a fixed interleaved
+order (now, before, now, before, ...); the table gives medians over ``--rounds`` rounds and the
+ratio of the medians. The machine is 2 cores shared with other jobs: times are upper bounds.
+
+Writes ``benchmarks/results/cli_startup.csv`` (every timing) and ``.md``.
+
+Run: ``python benchmarks/cli_startup.py [--rounds 15] [--before REV]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import subprocess
+import sys
+import sysconfig
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results"
+DEFAULT_BEFORE = "757bf8f"
+STEADY = ["steady", "--ore", "B", "--feed-tph", "0.031", "--speed", "0.70"]
+COMMANDS = {"help": ["--help"], "surrogate": [*STEADY, "--surrogate"], "twin": STEADY}
+MAIN = "import sys; from scenarios.cli import main; sys.exit(main(sys.argv[1:]))"
+FLOORS = {"python -c pass": "pass", "python -c 'import numpy'": "import numpy"}
+
+
+def tree_python(tree: Path, venvs: Path, name: str) -> Path:
+    """A venv's python that imports grindtwin from ``tree`` and every library from this venv."""
+    env = venvs / name
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(env)], check=True)
+    site = Path(sysconfig.get_paths(vars={"base": str(env), "platbase": str(env)})["purelib"])
+    (site / "grindtwin_tree.pth").write_text(f"{tree}\n{sysconfig.get_paths()['purelib']}\n")
+    return env / "bin" / "python"
+
+
+def export(rev: str, where: Path) -> Path:
+    where.mkdir(parents=True)
+    archive = subprocess.run(["git", "archive", rev, "dem", "twin", "mpc", "scenarios"], cwd=ROOT,
+                             check=True, capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(where)], input=archive, check=True)
+    return where
+
+
+def wall(cmd: list[str], cwd: Path) -> float:
+    """Seconds of one process, run in ``cwd`` (not a tree: ``python -c`` puts the folder first on
+    sys.path)."""
+    t0 = time.perf_counter()
+    res = subprocess.run(cmd, capture_output=True, cwd=cwd)
+    dt = time.perf_counter() - t0
+    if res.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed: {res.stderr.decode()[-400:]}")
+    return dt
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--rounds", type=int, default=15)
+    ap.add_argument("--before", default=DEFAULT_BEFORE, help="the revision to compare with")
+    args = ap.parse_args(argv)
+    with tempfile.TemporaryDirectory(prefix="cli-startup-") as tmp:
+        tmp = Path(tmp)
+        sides = {"now": tree_python(ROOT, tmp, "now"),
+                 "before": tree_python(export(args.before, tmp / "before"), tmp, "before")}
+        runs = [(name, side, [str(py), "-c", MAIN, *argv_]) for name, argv_ in COMMANDS.items()
+                for side, py in sides.items()]
+        runs += [(name, "floor", [sys.executable, "-c", code]) for name, code in FLOORS.items()]
+        for _, _, cmd in runs:  # warm the file cache and the bytecode of both trees
+            wall(cmd, tmp)
+        rows = [{"round": r, "command": name, "side": side, "wall_s": wall(cmd, tmp)}
+                for r in range(args.rounds) for name, side, cmd in runs]
+    df = pd.DataFrame(rows)
+    RESULTS.mkdir(exist_ok=True)
+    df.to_csv(RESULTS / "cli_startup.csv", index=False)
+    (RESULTS / "cli_startup.md").write_text(summary(df, args), encoding="utf-8")
+    print(summary(df, args))
+    return 0
+
+
+def summary(df: pd.DataFrame, args) -> str:
+    med = df.groupby(["command", "side"])["wall_s"].median().unstack()
+    q = df.groupby(["command", "side"])["wall_s"].quantile(0.9).unstack()
+    lines = ["# Command-line start-up: wall time of whole processes", "",
+             f"`python benchmarks/cli_startup.py --rounds {args.rounds} --before {args.before}`; "
+             f"{platform.python_version()}, {os.cpu_count()} cores shared with other jobs (upper bounds). "
+             "Medians (90th percentile) over the rounds, every command once a round, interleaved.", "",
+             "| command | now [s] | before [s] | now / before |", "|---|---|---|---|"]
+    for name in [*COMMANDS, *FLOORS]:
+        side = "now" if name in COMMANDS else "floor"
+        now, qn = med.loc[name, side], q.loc[name, side]
+        before, qb = med.loc[name].get("before", np.nan), q.loc[name].get("before", np.nan)
+        b = f"{before:.3f} ({qb:.3f})" if np.isfinite(before) else "-"
+        ratio = f"{now / before:.2f}" if np.isfinite(before) else "-"
+        lines.append(f"| `{name}` | {now:.3f} ({qn:.3f}) | {b} | {ratio} |")
+    return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":
+    sys.exit(main())

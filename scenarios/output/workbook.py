@@ -1,0 +1,155 @@
+"""The tables an engineer opens after a run: size distributions as labelled CSV files, and one
+Excel workbook per run or per sweep (written with openpyxl through pandas).
+
+Run workbook (``run.xlsx``): summary, KPIs (with their meaning and unit), the time series, the
+size-by-size table of every stream at the start and the end of the run (as a simulator prints a
+circuit), the product and mill-content size distributions over time, the models, the scene.
+Sweep workbook (``sweep.xlsx``): the cases with their KPIs, the P80 of every case against time,
+the scene the cases vary. Units are in every column name or header.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pandas as pd
+
+#: Size distributions a run writes as CSV: the stream (``attrs['what']``) -> file name.
+PSD_FILES = {"product": "product_psd.csv", "mill content": "mill_psd.csv"}
+#: The size-by-size table of every stream at the end of a run.
+STREAMS_FILE = "streams.csv"
+RUN_WORKBOOK = "run.xlsx"
+SWEEP_WORKBOOK = "sweep.xlsx"
+
+
+def psd_table(psd: pd.DataFrame) -> pd.DataFrame:
+    """A size distribution over time with its units in the header: ``time [h]``, then one
+    column per sieve size, ``cumulative % passing <size> µm``."""
+    out = 100.0 * psd.astype(float)
+    out.columns = [f"cumulative % passing {float(s):g} µm" for s in psd.columns]
+    out.index = pd.Index(psd.index.astype(float), name="time [h]")
+    return out
+
+
+def write_size_csvs(result, folder: Path) -> list[Path]:
+    """``product_psd.csv`` and ``mill_psd.csv`` (a batch grind has the second only) and
+    ``streams.csv`` (every stream at the end of the run)."""
+    written = []
+    for psd in (result.psd, getattr(result, "mill_psd", None)):
+        if psd is not None and len(psd):
+            path = Path(folder) / PSD_FILES[psd.attrs.get("what", "product")]
+            psd_table(psd).to_csv(path)
+            written.append(path)
+    end = (getattr(result, "streams", None) or {}).get("end")
+    if end is not None:
+        end.to_csv(Path(folder) / STREAMS_FILE)
+        written.append(Path(folder) / STREAMS_FILE)
+    return written
+
+
+def kpi_rows(kpis: dict) -> pd.DataFrame:
+    """KPI key, meaning with its unit, value (None where undefined)."""
+    from scenarios.output.report import KPI_LABELS
+
+    rows = [{"kpi": k, "meaning [unit]": KPI_LABELS.get(k, (k, ""))[0],
+             "value": None if v is None or (isinstance(v, float) and not math.isfinite(v)) else v}
+            for k, v in kpis.items()]
+    return pd.DataFrame(rows, columns=["kpi", "meaning [unit]", "value"])
+
+
+def flat_keys(data, prefix: str = "") -> list[tuple[str, object]]:
+    """A nested table as (key path, value) rows: ``feed.schedule[0].blend.D``."""
+    rows: list[tuple[str, object]] = []
+    if isinstance(data, dict):
+        for k, v in data.items():
+            rows += flat_keys(v, f"{prefix}.{k}" if prefix else str(k))
+    elif isinstance(data, list) and data and all(isinstance(v, (dict, list)) for v in data):
+        for i, v in enumerate(data):
+            rows += flat_keys(v, f"{prefix}[{i}]")
+    else:
+        rows.append((prefix, ", ".join(map(str, data)) if isinstance(data, list) else data))
+    return rows
+
+
+def scene_rows(scene) -> pd.DataFrame:
+    """Every key of a validated scene (defaults filled in) with its value."""
+    data = scene.model_dump(exclude_none=True) if scene is not None else {}
+    return pd.DataFrame(flat_keys(data), columns=["key", "value"])
+
+
+def summary_rows(summary: dict) -> pd.DataFrame:
+    keys = ("scene", "description", "mode", "controller", "target_p80_um", "seed", "source", "wall_time_s")
+    rows = [(k, summary.get(k)) for k in keys]
+    rows += [("effects", ", ".join(summary.get("effects", []))),
+             ("components", ", ".join(summary.get("components", [])))]
+    rows += [(f"note {i + 1}", n) for i, n in enumerate(summary.get("notes", []))]
+    rows += [(f"version: {k}", v) for k, v in (summary.get("versions") or {}).items()]
+    return pd.DataFrame(rows, columns=["item", "value"])
+
+
+def model_rows(summary: dict) -> pd.DataFrame:
+    """The plant's model and the controller's, line by line side by side."""
+    plant = (summary.get("plant_model") or "").splitlines()
+    ctl = (summary.get("controller_model") or "none (open loop)").splitlines()
+    n = max(len(plant), len(ctl))
+    return pd.DataFrame({"plant (simulated)": plant + [""] * (n - len(plant)),
+                         "controller's model": ctl + [""] * (n - len(ctl))})
+
+
+def _write_sheets(path: Path, sheets: dict[str, tuple[pd.DataFrame, bool]]) -> Path:
+    """Write ``name -> (table, keep its index)`` sheets to ``path`` via ``path.partial``; header
+    row frozen, columns sized to their header."""
+    tmp = path.with_name(path.name + ".partial")
+    with pd.ExcelWriter(tmp, engine="openpyxl") as xl:
+        for name, (table, index) in sheets.items():
+            table.to_excel(xl, sheet_name=name, index=index)
+            ws = xl.sheets[name]
+            ws.freeze_panes = "B2" if index else "A2"
+            for cells in ws.iter_cols(min_row=1, max_row=1):
+                width = max(10, min(60, len(str(cells[0].value or "")) + 2))
+                ws.column_dimensions[cells[0].column_letter].width = width
+    tmp.replace(path)
+    return path
+
+
+def write_workbook(result, path: Path) -> Path:
+    """The run's workbook (module docstring)."""
+    s = result.summary
+    sheets = {"summary": (summary_rows(s), False), "KPIs": (kpi_rows(s.get("kpis", {})), False),
+              "time series": (result.frame, False)}
+    for when, table in (getattr(result, "streams", None) or {}).items():
+        sheets[f"streams at {when}"] = (table, True)
+    for attr, label in (("psd", "PSD " + (result.psd.attrs.get("what", "product") if result.psd is not None
+                                          else "")), ("mill_psd", "PSD mill content")):
+        psd = getattr(result, attr, None)
+        if psd is not None and len(psd):
+            sheets[label.strip()[:31]] = (psd_table(psd), True)
+    sheets["models"] = (model_rows(s), False)
+    sheets["scene"] = (scene_rows(getattr(result, "scene", None)), False)
+    return _write_sheets(Path(path), sheets)
+
+
+def trace_table(traces: pd.DataFrame, column: str | None = None) -> pd.DataFrame:
+    """Long traces (``case``, ``time_h``, ...) as one column per case, ``time [h]`` rows; by default
+    of the product P80 (of the mill content's in a batch sweep)."""
+    column = column or ("p80_um" if "p80_um" in traces else "content_p80_um")
+    wide = traces.pivot(index="time_h", columns="case", values=column)
+    wide.columns = [f"case {c}: {column}" for c in wide.columns]
+    wide.index.name = "time [h]"
+    return wide
+
+
+def write_sweep_workbook(table: pd.DataFrame, traces: pd.DataFrame | None, scene, path: Path) -> Path:
+    """The sweep's workbook (module docstring); ``scene``: the validated base scene or None."""
+    cases = table.copy()
+    for c in cases.columns:  # blends and other tables of a case: as text in a cell
+        if cases[c].map(lambda v: isinstance(v, (dict, list))).any():
+            cases[c] = cases[c].map(str)
+    sheets = {"cases": (cases, False)}
+    if traces is not None and len(traces):
+        sheets["P80 traces"] = (trace_table(traces), True)
+    varied = pd.DataFrame({"varied key": table.attrs.get("varied", [])})
+    sheets["varied keys"] = (varied, False)
+    sheets["scene"] = (scene_rows(scene), False)
+    return _write_sheets(Path(path), sheets)

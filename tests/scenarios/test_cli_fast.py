@@ -1,0 +1,41 @@
+"""The first answers start fast: ``grindtwin --help`` imports neither numpy nor any floor below
+the CLI, ``grindtwin steady --surrogate`` answers without CasADi, SciPy, pandas, scikit-learn or
+numba (the wall times are measured in benchmarks/cli_startup.py)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+HEAVY = ("casadi", "scipy", "pandas", "sklearn", "numba", "matplotlib", "pydantic")
+
+
+def imported_after(argv: list[str]) -> tuple[dict, str]:
+    """Top-level modules imported by the grindtwin command ``argv`` in a fresh process, and its stdout."""
+    code = ("import json, sys\nfrom scenarios.cli import main\n"
+            "try:\n    main(sys.argv[1:])\nexcept SystemExit:\n    pass\n"
+            "sys.stderr.write(json.dumps(sorted({m.split('.')[0] for m in sys.modules})))")
+    res = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, timeout=120)
+    return set(json.loads(res.stderr.strip().splitlines()[-1])), res.stdout
+
+
+def test_help_imports_no_numerics():
+    mods, out = imported_after(["--help"])
+    assert "steady" in out and "optimize" in out
+    assert not mods & {"numpy", "twin", "mpc", *HEAVY}
+
+
+@pytest.mark.parametrize("argv", [["steady", "--surrogate", "--ore", "B", "--feed-tph", "0.031", "--speed", "0.70"],
+                                  ["steady", "--surrogate", "--blend", "B=0.6,D=0.4", "--json"]])
+def test_surrogate_answer_needs_numpy_only(argv):
+    mods, out = imported_after(argv)
+    assert "surrogate" in out and "p80_um" in out
+    assert not mods & set(HEAVY), mods & set(HEAVY)
+
+
+def test_the_twin_answer_does_import_casadi():  # the check above can fail
+    mods, out = imported_after(["steady", "--ore", "B", "--feed-tph", "0.031", "--speed", "0.70"])
+    assert "casadi" in mods and "p80_um" in out

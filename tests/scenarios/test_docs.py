@@ -1,0 +1,69 @@
+"""docs/scenes.md is the schema's own account of itself: regenerated, it is the checked-in page;
+every key of every section has a description and an example; the page's example scene is valid."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from pydantic import Field
+
+from scenarios.scene import scene_from_dict
+from scenarios.scene.reference import COMMAND, missing_documentation, render
+from scenarios.scene.schema import Section
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def test_scene_reference_is_the_generated_page():
+    page = (REPO / "docs" / "scenes.md").read_text(encoding="utf-8")
+    assert page == render(), f"docs/scenes.md is stale: regenerate it with `{COMMAND}`"
+
+
+def test_every_key_has_a_description_and_an_example():
+    assert missing_documentation() == []
+
+
+def test_an_undocumented_key_is_found():
+    class Bare(Section):
+        documented: float = Field(default=1.0)
+        """A documented key [h]."""
+        bare_h: float = Field(default=None)
+
+    assert missing_documentation([((), Bare)]) == ["Bare.bare_h: no description", "Bare.bare_h: no example"]
+
+
+def test_every_section_and_key_of_the_schema_is_on_the_page():
+    page = render()
+    for name in ("feed_tph", "preview_lead_h", "p80_dead_time_h", "rk4_substeps", "history_max_gap_h",
+                 "circulating_load_nominal", "dead_time_h"):
+        assert f"| `{name}` |" in page
+    row = re.search(r"^\| `solver` \|.*$", page, re.M).group(0)
+    assert '"ipopt"' in row and "the default" in row  # IPOPT is the default, and the page says so
+    assert re.search(r"^\| `kind` \|.*feed rate only", page, re.M)  # PI moves the feed only
+
+
+def test_the_pages_example_scene_is_valid():
+    import tomllib
+
+    block = re.search(r"```toml\n(.*?)```", render(), re.S).group(1)
+    scene = scene_from_dict(tomllib.loads(block), REPO / "scenarios" / "reference_transition.toml")
+    assert scene.controller.solver == "rti" and scene.feed.schedule[0].blend == {"B": 0.6, "D": 0.4}
+
+
+def test_readme_cli_table_lists_every_command():
+    from scenarios.cli.commands import COMMANDS
+
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    table = readme[readme.index("## The CLI"):readme.index("Exit codes:")]
+    listed = set(re.findall(r"^\| `grindtwin ([a-z-]+)", table, re.M))
+    assert listed == set(COMMANDS), f"README's CLI table: missing {set(COMMANDS) - listed}, extra {listed - set(COMMANDS)}"
+
+
+def test_help_texts_have_no_doubled_percent_signs():
+    from scenarios.cli import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.choices and "run" in a.choices)
+    for name, p in sub.choices.items():
+        assert "%%" not in p.format_help(), name
