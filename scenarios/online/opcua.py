@@ -59,7 +59,7 @@ class PlantConnection:
         client = Client(self.url, timeout=self.timeout_s, watchdog_intervall=PROBE_TIMEOUTS * self.timeout_s)
         client.name = client.description = "grindtwin serve"
         await secure_client(client, self.security)
-        await asyncio.wait_for(client.connect(), timeout=4 * self.timeout_s)
+        await client.connect()  # every step of it under the request time-out
         try:
             self._read_ids = [await resolve(client, n) for n in self.read_roles.values()]
             self._write_ids = {r: await resolve(client, n) for r, n in self.write_roles.items()}
