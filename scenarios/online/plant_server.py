@@ -3,8 +3,9 @@ for commissioning ``grindtwin serve`` and for operator training.
 
 The server holds every node of a tag map (:mod:`scenarios.online.tags`), as a plant's DCS would:
 - each sample period (``sample_period_h / speedup`` wall-clock seconds, or :meth:`tick` in lock
-  step) the twin advances one sample; a setpoint takes effect at the plant time it was written
-  (the input is piecewise constant between writes, as a feeder's setpoint is);
+  step) the twin advances one sample; a setpoint takes effect at the first scan mark (a share
+  :data:`MIN_PIECE_FRAC` of a sample) after the plant time it was written (the input is
+  piecewise constant between writes, as a feeder's setpoint is);
 - the P80 analyser is :class:`mpc.SensorState` (noise, dead time, sampling and hold: the one
   analyser model of grindtwin); a value is published at each analyser report with its source
   timestamp; power and load carry their noise; the actual feed and speed are the inputs in
@@ -14,8 +15,8 @@ The server holds every node of a tag map (:mod:`scenarios.online.tags`), as a pl
 - a watchdog: once the service's heartbeat has been seen, a heartbeat older than ``watchdog_h``
   while the mode is auto sheds the service (mode set to manual), as a DCS does;
 - an instructor's analyser malfunction node (``Instructor.P80Fault``: none, bad, uncertain,
-  frozen, stale) and a freeze/run switch (``Simulation.Run``; ``paused`` starts frozen), as
-  operator training simulators have;
+  frozen, stale), a freeze/run switch (``Simulation.Run``; ``paused`` starts frozen) and the
+  speed-up (``Simulation.Speedup``), as operator training simulators have;
 - the plant's true trajectory is recorded (``record_dir/plant.parquet``, the columns of
   :func:`mpc.run_closed_loop`'s frame) so a served run's KPIs are those of an in-process one.
 """
@@ -53,9 +54,11 @@ NAMESPACE_URI = "urn:grindtwin:virtual-plant"
 NAMESPACE_INDEX = 2  # the first namespace a server registers
 #: The service is shed after this many sample periods without a heartbeat (default watchdog).
 WATCHDOG_SAMPLES = 3
-#: Setpoint changes closer than this share of a sample to the previous change take effect
-#: together with it: each piece restarts the integrator (as costly as a whole sample), and a
-#: client writing many times a sample must not stall the plant (5 %: 9 s of a 3-minute sample).
+#: A setpoint takes effect at the next mark of this share of a sample after it was written, as a
+#: DCS picks it up at its next scan (5 %: 9 s of a 3-minute sample). Each piece between marks
+#: restarts the integrator (as costly as a whole sample), so a client writing many times a sample
+#: cannot stall the plant; and the pieces are whole numbers of marks, so their integrators (one
+#: per length, built in about a sample's integration time) are built once, not at every write.
 MIN_PIECE_FRAC = 0.05
 FAULTS = ("none", "bad", "uncertain", "frozen", "stale")
 #: Nodes of the simulator itself, beside the tag map's.
@@ -114,6 +117,7 @@ class PlantServer:
         self.server = None
         self.stop_reason: str | None = None
         self._wake: asyncio.Event | None = None
+        self._retimed = False  # the speed-up or run/freeze changed: the run loop re-times the sample
         self._check_record_dir()
 
     # ------------------------------------------------------------------ nodes
@@ -170,6 +174,8 @@ class PlantServer:
             return float(self.u[0 if role.endswith("feed_tph") else 1]), ua.VariantType.Double, True
         if role == "heartbeat":
             return 0, ua.VariantType.UInt32, True
+        if role == "sim.speedup":
+            return float(self.clock.speedup), ua.VariantType.Double, True
         if role in ("status", "sim.fault"):
             return ("none" if role == "sim.fault" else ""), ua.VariantType.String, True
         if role == "sim.run":
@@ -221,8 +227,14 @@ class PlantServer:
             self.mode = value
         elif role == "sim.fault":
             self.set_fault(str(value))
+        elif role == "sim.speedup":
+            if isinstance(value, float) and math.isfinite(value) and value > 0:
+                self._retime(speedup=value)
+                log.info("%.3f h: %s set the speed-up to x%g", t, user, value)
+            else:
+                log.error("%.3f h: %s wrote speed-up %r: must be a float > 0; ignored", t, user, value)
         elif role == "sim.run":
-            self.running = bool(value)
+            self._retime(running=bool(value))
             log.info("%.3f h: %s %s the simulation", t, user, "runs" if self.running else "freezes")
 
     def set_fault(self, fault: str) -> None:
@@ -242,20 +254,49 @@ class PlantServer:
         w0, t0 = self.anchor
         return t0 + self.clock.hours_between(w0, wall) if self.running else self.t_h
 
+    def _retime(self, speedup: float | None = None, running: bool | None = None) -> None:
+        """A new speed-up or run/freeze from now on: plant time so far counts at the old pace, and
+        the run loop (woken) times the rest of the sample at the new one."""
+        now = self.clock.now()
+        self.anchor = (now, self.plant_time(now))
+        if speedup is not None:
+            self.clock.speedup = speedup
+        if running is not None:
+            self.running = running
+        self._retimed = True
+        if self._wake is not None:
+            self._wake.set()
+
+    def _next_sample(self, loop) -> tuple[float, datetime]:
+        """(loop time, wall time) of the next sample after :meth:`_retime`."""
+        self._retimed = False
+        self._wake.clear()
+        now = self.clock.now()
+        left_h = self.t_h + self.dt_h - self.plant_time(now) if self.running else self.dt_h
+        left_s = self.clock.wall_seconds(min(max(left_h, 0.0), self.dt_h))
+        return loop.time() + left_s, now + timedelta(seconds=left_s)
+
     async def tick(self, wall: datetime | None = None) -> None:
         """Advance one sample (``wall``: the wall-clock time of the new sample instant)."""
         t0, t1 = self.t_h, self.t_h + self.dt_h
         d = self.plant.disturbance(t0, self.schedule(max(t0, 0.0)), 1.0)
-        t, gap = t0, MIN_PIECE_FRAC * self.dt_h
-        # writes in the last gap before t1 wait for the next sample (applied at t1, not before they came)
-        pending = sorted((w for w in self.writes if w[0] < t1 - gap), key=lambda w: w[0])  # stable: write order
-        self.writes = [w for w in self.writes if w[0] >= t1 - gap]
-        for tw, i, value in pending:
-            if tw - t > gap:
-                await self._step(d, tw - t)
-                t = tw
+        marks = round(1 / MIN_PIECE_FRAC)
+        gap = self.dt_h / marks
+
+        def mark(tw: float) -> int:  # the first scan mark at or after a write (0: the sample's start)
+            return max(0, math.ceil((tw - t0) / gap - 1e-9))  # 1e-9: a write on a mark is at it, not after
+
+        # writes after the sample's last mark wait for the next sample (applied at t1, not before they came)
+        pending = sorted(((mark(w[0]), w) for w in self.writes if mark(w[0]) < marks),
+                         key=lambda mw: mw[0])  # stable: write order within a mark
+        self.writes = [w for w in self.writes if mark(w[0]) >= marks]
+        done = 0
+        for m, (_, i, value) in pending:
+            if m > done:
+                await self._step(d, (m - done) * gap)
+                done = m
             self.u[i] = value
-        await self._step(d, t1 - t)
+        await self._step(d, self.dt_h if done == 0 else (marks - done) * gap)
         wall = wall or self.clock.now()
         self.t_h, self.anchor = t1, (wall, t1)
         vals = self._measure()
@@ -291,7 +332,7 @@ class PlantServer:
         pub = {"power_kw": dv(vals["power_meas_kw"]), "load_frac": dv(vals["load_meas_frac"]),
                "feed_tph": dv(float(self.u[0])), "speed_frac_critical": dv(float(self.u[1])),
                "sim.time_h": dv(self.t_h), "sim.p80_true_um": dv(float(vals["p80_um"])),
-               "sim.speedup": dv(float(self.s.speedup))}
+               "sim.speedup": dv(float(self.clock.speedup))}
         future = np.asarray(self.schedule(max(self.t_h + self.lead_h, 0.0)), float)
         if self.tags.belt_analyser is not None:
             pub |= {f"blend.{c}": dv(float(f)) for c, f in zip(self.components, future)}
@@ -384,20 +425,22 @@ class PlantServer:
         signals = (signal.SIGTERM, signal.SIGINT) if install_signal_handlers else ()
         for sig in signals:
             loop.add_signal_handler(sig, self.request_stop, sig.name)
-        period = self.clock.wall_seconds(self.dt_h)
         try:
             await self.start()
-            next_t, wall = loop.time() + period, self.clock.now()
+            period = self.clock.wall_seconds(self.dt_h)
+            next_t, next_wall = loop.time() + period, self.clock.now() + timedelta(seconds=period)
             while self.stop_reason is None:
                 if await sleep_until(next_t, self._wake):
-                    continue  # woken: stop requested
+                    if self.stop_reason is None and self._retimed:  # a new speed-up or run/freeze
+                        next_t, next_wall = self._next_sample(loop)
+                    continue
+                period = self.clock.wall_seconds(self.dt_h)
                 if loop.time() - next_t > period:
                     log.warning("the virtual plant fell %.2f s behind real time (x%g); its clock restarts from now",
-                                loop.time() - next_t, self.s.speedup)
-                    next_t, wall = loop.time(), self.clock.now()
-                else:
-                    wall += timedelta(seconds=period)
-                next_t += period
+                                loop.time() - next_t, self.clock.speedup)
+                    next_t, next_wall = loop.time(), self.clock.now()
+                wall = next_wall
+                next_t, next_wall = next_t + period, next_wall + timedelta(seconds=period)
                 if not self.running:  # frozen: plant time stands still
                     self.anchor = (wall, self.t_h)
                     continue

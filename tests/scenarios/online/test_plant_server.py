@@ -39,7 +39,7 @@ def test_a_setpoint_takes_effect_at_the_time_it_was_written(plant):
     asyncio.run(p.tick())
     x1, _, _ = p.plant.step(x0, u0, d, dt / 4)
     x2, _, _ = p.plant.step(x1, np.array([12.0, u0[1]]), d, 3 * dt / 4)
-    np.testing.assert_allclose(p.x, x2, rtol=1e-9)
+    np.testing.assert_allclose(p.x, x2, rtol=1e-9, atol=1e-12)  # a quarter is 5 marks, to the last bit
     held, _, _ = p.plant.step(x0, np.array([12.0, u0[1]]), d, dt)  # the test can fail: the timing matters
     assert np.max(np.abs(p.x - held) / (np.abs(held) + 1e-9)) > 1e-4
     assert p.published["feed_tph"].Value.Value == 12.0
@@ -103,6 +103,30 @@ def test_a_write_storm_costs_at_most_one_integrator_restart_per_5_percent_of_a_s
     assert p.u[0] < 17.0 and len(p.writes) > 0  # the last writes wait for the next sample
 
 
+def test_a_setpoint_waits_for_the_next_scan_mark_so_piece_lengths_repeat(plant, monkeypatch):
+    from scenarios.online.plant_server import MIN_PIECE_FRAC
+
+    p, clock = plant
+    lengths = set()
+    step = p.plant.step
+    monkeypatch.setattr(p.plant, "step", lambda *a: lengths.add(a[-1]) or step(*a))
+    rng = np.random.default_rng(0)
+    for _ in range(8):  # a write at a random time in each sample, as a served controller's
+        x0, u0, d = p.x.copy(), p.u.copy(), p.plant.disturbance(p.t_h, p.schedule(max(p.t_h, 0.0)), 1.0)
+        frac = rng.uniform(0.0, 1.0 - MIN_PIECE_FRAC)
+        clock.advance(frac * p.dt_h)
+        p._apply_write("setpoints.feed_tph", float(u0[0]) + 0.5, p.plant_time(clock.now()), "test")
+        clock.advance((1 - frac) * p.dt_h)
+        asyncio.run(p.tick())
+    # the last sample: the write took effect at the first 5 % mark after it
+    at = math.ceil(frac / MIN_PIECE_FRAC) * MIN_PIECE_FRAC * p.dt_h
+    x1, _, _ = p.plant.step(x0, u0, d, at)
+    x2, _, _ = p.plant.step(x1, np.array([u0[0] + 0.5, u0[1]]), d, p.dt_h - at)
+    np.testing.assert_allclose(p.x, x2, rtol=1e-9, atol=1e-12)
+    marks = np.array(sorted(lengths)) / (MIN_PIECE_FRAC * p.dt_h)
+    np.testing.assert_allclose(marks, np.round(marks), atol=1e-9)  # whole numbers of marks: cached integrators
+
+
 def test_frozen_plant_time_stands_still_for_writes(plant):
     p, clock = plant
     p.running = False
@@ -110,3 +134,35 @@ def test_frozen_plant_time_stands_still_for_writes(plant):
     assert p.plant_time(clock.now()) == p.t_h
     p.running = True
     assert p.plant_time(clock.now()) == pytest.approx(p.t_h + 5 * p.dt_h)
+
+
+def test_a_new_speed_up_counts_from_the_time_it_was_written(plant):
+    p, clock = plant  # x3600: a wall-clock second is a plant hour
+    clock.advance(p.dt_h / 2)
+    p._apply_write("sim.speedup", 7200.0, p.plant_time(clock.now()), "instructor")
+    clock.advance(p.dt_h / 2)  # at x7200: half the wall time of the first half
+    # the first half at x3600, the second at x7200 (the new pace applied to all: 1.5 samples)
+    assert p.plant_time(clock.now()) == pytest.approx(p.t_h + p.dt_h)
+    for bad in (0.0, -2.0, math.inf, "fast"):
+        p._apply_write("sim.speedup", bad, 0.0, "instructor")
+    assert p.clock.speedup == 7200.0
+
+
+def test_a_paused_plant_runs_at_the_speed_up_written_with_run(small_scene, small_tags, small_parts, url):
+    """Started frozen at real time (a 3-minute sample), the plant must not wait out the sample it
+    was paused in once the instructor sets x3600 and runs it: three samples take 0.15 s."""
+    p = online.PlantServer(small_scene, small_tags, online.PlantServerSettings(
+        url, online.ServerSecurity(insecure=True), paused=True, duration_h=3 * small_scene.scene.sample_period_h),
+        models=small_parts.models)
+
+    async def go():
+        serving = asyncio.create_task(p.run(install_signal_handlers=False))
+        while p.server is None:
+            await asyncio.sleep(0.01)
+        await asyncio.sleep(0.2)  # a frozen while at x1
+        p._apply_write("sim.speedup", 3600.0, p.t_h, "instructor")
+        p._apply_write("sim.run", True, p.t_h, "instructor")
+        await asyncio.wait_for(serving, 30)  # before the re-timing: the 180 s sample ran out first
+
+    asyncio.run(go())
+    assert p.t_h == pytest.approx(3 * small_scene.scene.sample_period_h) and len(p.rows) == 3
