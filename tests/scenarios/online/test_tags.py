@@ -69,9 +69,9 @@ def test_a_missing_file_says_tag_map(tmp_path, small_scene):
 
 
 def test_limits_follow_another_scene(tmp_path):
-    """hard_to_soft has ores A and D, a 1-minute sample and its own bounds."""
+    """hard_to_soft has ores A and D, its own sample period and its own bounds."""
     scene = load_scene("scenarios/hard_to_soft.toml")
     tags = online.load_tags(_write(tmp_path, SMALL_TAGS.replace("B = ", "A = ")), scene)
     assert (tags.setpoints.feed_tph.min, tags.setpoints.feed_tph.max) == (15.0, 50.0)
-    assert tags.measurements.power_kw.max_age_h == pytest.approx(3 / 60)
+    assert tags.measurements.power_kw.max_age_h == pytest.approx(3 * scene.scene.sample_period_h)  # 3 samples
     assert tags.measurements.p80_um.max_age_h == 0.15  # stated in the map
