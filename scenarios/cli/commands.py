@@ -1,4 +1,4 @@
-"""The ``grindtwin`` subcommands: run, replay, sweep, check, report, steady, calibrate.
+"""The ``grindtwin`` subcommands: run, replay, sweep, check, report, steady, calibrate, serve, plant-server.
 
 Each command is a pair ``add_<name>_parser(subparsers)`` / ``cmd_<name>(args) -> int``, to be
 registered in :mod:`scenarios.cli`. Every ``cmd_*`` returns its exit code itself: 0 success,
@@ -695,6 +695,121 @@ def cmd_export_controller(args) -> int:
 
     files = export_scene_controller(load_scene(args.scene), args.out, source=str(args.scene))
     print(f"{len(files)} files in {args.out}: build with `make -C {args.out}`; API in gt_controller.h")
+# --------------------------------------------------------------------------- serve, plant-server (OPC UA)
+def _online():
+    """``scenarios.online`` (the ``online`` extra), or a RunError saying how to install it."""
+    try:
+        import scenarios.online as online
+    except ModuleNotFoundError as exc:
+        if exc.name != "asyncua":
+            raise
+        raise RunError("the OPC UA commands need the 'online' extra: pip install 'grindtwin[online]'") from None
+    return online
+
+
+def _add_online_options(p) -> None:
+    p.add_argument("scene", help="scene file (TOML)")
+    p.add_argument("--opcua", required=True, metavar="URL", help="endpoint, e.g. opc.tcp://127.0.0.1:4840")
+    p.add_argument("--speedup", type=_float_in("--speedup", 0, 1e6, lo_open=True), default=1.0,
+                   help="plant hours pass this many times faster than real time (a virtual plant; default 1)")
+    p.add_argument("--duration-h", type=_float_in("--duration-h", 0, 1e6, lo_open=True), default=None,
+                   help="stop after this many plant hours (default: run until SIGTERM)")
+    p.add_argument("--insecure", action="store_true", help="no security and anonymous users (commissioning only)")
+    p.add_argument("--cert", help="this application's certificate (PEM)")
+    p.add_argument("--key", help="its private key (PEM)")
+    p.add_argument("--quiet", action="store_true", help="log warnings and errors only")
+
+
+def _online_logging(args) -> None:
+    import logging
+
+    logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO, stream=sys.stderr,
+                        format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    logging.getLogger("asyncua").setLevel(logging.ERROR)
+
+
+def add_serve_parser(subparsers):
+    p = subparsers.add_parser("serve", help="run the scene's estimator and NMPC against a plant over OPC UA",
+                              description="Every sample period read the plant's measurements from the nodes of "
+                              "TAGS.toml, estimate, solve and write the feed and speed setpoints; an audit row per "
+                              "cycle (Parquet). SIGTERM leaves the setpoints at their last written values.")
+    _add_online_options(p)
+    p.add_argument("--tags", required=True, help="tag map (TOML): which node holds what")
+    p.add_argument("--audit", default="grindtwin-audit", help="folder of the audit log (default grindtwin-audit)")
+    p.add_argument("--warmup-h", type=_float_in("--warmup-h", 0, 1e3), default=None,
+                   help="estimate this long before moving anything (default 2 h)")
+    p.add_argument("--server-cert", help="the plant server's certificate (PEM): only that server is accepted")
+    p.add_argument("--user", help="OPC UA user name (password from $GRINDTWIN_OPCUA_PASSWORD or --password-file)")
+    p.add_argument("--password-file", help="a file whose first line is the password")
+    p.set_defaults(func=cmd_serve)
+    return p
+
+
+@_exit_codes("serve")
+def cmd_serve(args) -> int:
+    import asyncio
+
+    from scenarios.scene import load_scene
+
+    online = _online()
+    _online_logging(args)
+    scene = load_scene(args.scene)
+    tags = online.load_tags(args.tags, scene)
+    security = online.ClientSecurity(args.insecure, args.cert and Path(args.cert), args.key and Path(args.key),
+                                     args.server_cert and Path(args.server_cert), args.user,
+                                     online.read_password(args.password_file and Path(args.password_file))
+                                     if args.user else None)
+    security.check()
+    settings = online.ServeSettings(args.opcua, security, Path(args.audit), speedup=args.speedup,
+                                    warmup_h=args.warmup_h, duration_h=args.duration_h)
+    parts = online.build_parts(scene, soft_sensor=tags.soft_sensor is not None,
+                               surrogate=tags.soft_sensor is not None and tags.soft_sensor.surrogate_p80_um is not None)
+    asyncio.run(online.Service(parts, tags, settings).run())
+    return 0
+
+
+def add_plant_server_parser(subparsers):
+    p = subparsers.add_parser("plant-server", help="the scene's twin as a virtual plant behind an OPC UA server",
+                              description="Serve the scene's plant twin (analyser noise, dead time and sampling; "
+                              "belt analyser; watchdog; analyser faults) on the nodes of a tag map, in real time or "
+                              "sped up, for commissioning grindtwin serve and operator training.")
+    _add_online_options(p)
+    p.add_argument("--tags", default=None, help="tag map (default: the virtual plant's, for ores B and D)")
+    p.add_argument("--hold-h", type=_float_in("--hold-h", 0, 1e3), default=0.0,
+                   help="run this long at the initial blend before the scene's time 0")
+    p.add_argument("--record", help="write the plant's true trajectory here (plant.parquet, plant-kpis.json)")
+    p.add_argument("--watchdog-h", type=_float_in("--watchdog-h", 0, 1e3, lo_open=True), default=None,
+                   help="shed the service after this long without its heartbeat (default 3 samples)")
+    p.add_argument("--mode", default=None, help="initial operator mode (default: the tag map's auto value)")
+    p.add_argument("--paused", action="store_true", help="start frozen; Simulation.Run = true starts the plant")
+    p.add_argument("--trust", help="folder of the client certificates accepted")
+    p.add_argument("--users", help="users file (TOML, scrypt hashes)")
+    p.set_defaults(func=cmd_plant_server)
+    return p
+
+
+@_exit_codes("plant-server")
+def cmd_plant_server(args) -> int:
+    import asyncio
+
+    from scenarios.scene import load_scene
+
+    online = _online()
+    _online_logging(args)
+    scene = load_scene(args.scene)
+    tags = online.load_tags(args.tags or online.VIRTUAL_PLANT_TAGS, scene)
+    security = online.ServerSecurity(args.insecure, *(a and Path(a) for a in (args.cert, args.key, args.trust,
+                                                                              args.users)))
+    security.check()
+    mode = args.mode
+    if mode is not None and isinstance(tags.mode.auto_value, int):
+        if not mode.lstrip("-").isdigit():
+            raise SceneError(f"--mode must be an integer for this tag map's mode node (got {mode!r})")
+        mode = int(mode)
+    settings = online.PlantServerSettings(args.opcua, security, speedup=args.speedup, hold_h=args.hold_h,
+                                          duration_h=args.duration_h, record_dir=args.record and Path(args.record),
+                                          watchdog_h=args.watchdog_h, initial_mode=mode, paused=args.paused)
+    asyncio.run(online.PlantServer(scene, tags, settings).run())
     return 0
 
 
@@ -711,4 +826,6 @@ COMMANDS = {
     "check": (add_check_parser, cmd_check),
     "report": (add_report_parser, cmd_report),
     "export-controller": (add_export_controller_parser, cmd_export_controller),
+    "serve": (add_serve_parser, cmd_serve),
+    "plant-server": (add_plant_server_parser, cmd_plant_server),
 }

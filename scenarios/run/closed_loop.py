@@ -110,6 +110,35 @@ def start_feed_tph(scene: Scene, models, blend0) -> float:
     return float(feed0)
 
 
+def make_estimator(scene: Scene, twin, css, codegen: str = "auto"):
+    """The NMPC's EKF on the controller's twin, started at the steady state ``css``, with the
+    scene's disturbance model."""
+    return Ekf(twin.model, scene.scene.sample_period_h, css.x, disturbance_model=scene.controller.disturbance_model,
+               codegen=codegen)
+
+
+def scene_sensors(scene: Scene) -> Sensors:
+    """``mpc.Sensors`` from the scene's ``[sensors]``."""
+    return Sensors(**{k: v for k, v in scene.sensors.model_dump().items() if k in Sensors.__dataclass_fields__})
+
+
+def hold_schedule(times_h, blend, dt_h: float):
+    """``schedule(t)``: the blend of the sample at or before t (clamped at the ends)."""
+    times_h = np.asarray(times_h, float)
+
+    def schedule(t_h):
+        k = min(max(int(np.searchsorted(times_h, t_h + 1e-9 * dt_h, side="right")) - 1, 0), len(times_h) - 1)
+        return blend[k]
+    return schedule
+
+
+def plant_start(scene: Scene, models, blend0):
+    """Where a closed loop starts: the plant's steady state at :func:`start_feed_tph`
+    (``feed.start``), the scene's speed and ``blend0``; RunError if no feed rate holds the target."""
+    return models.plant.steady(feed_tph=start_feed_tph(scene, models, blend0),
+                               speed_frac_critical=scene.feed.speed_frac_critical, blend=blend0)
+
+
 #: The estimator runs this long on the steady plant before the loop closes (as on a plant that
 #: was running before; the same as the reference-case benchmark).
 ESTIMATOR_WARMUP_H = 2.0
@@ -126,14 +155,11 @@ class LoopStart:
 
 
 def loop_start(scene: Scene, models, blend0) -> LoopStart:
-    """The steady state at :func:`start_feed_tph` (``feed.start``), the scene's speed and initial
-    blend; RunError if no feed rate holds the target."""
-    c = scene.controller
-    speed0 = scene.feed.speed_frac_critical
-    feed0 = start_feed_tph(scene, models, blend0)
-    ss = models.plant.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend0)
+    """:func:`plant_start` and (NMPC) the controller's model's steady state at its inputs."""
+    ss = plant_start(scene, models, blend0)
+    feed0, speed0 = float(ss.u[0]), scene.feed.speed_frac_critical
     css = (models.control.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend0)
-           if c.kind == "nmpc" else None)
+           if scene.controller.kind == "nmpc" else None)
     return LoopStart(feed0, ss, css)
 
 
@@ -141,9 +167,7 @@ def nmpc_parts(scene: Scene, models, start: LoopStart, codegen: str = "auto"):
     """The NMPC's EKF (started at the controller model's steady state ``start.control``) and the
     NMPC itself, after the RK4 stability check."""
     check_rk4_substeps(scene, models.control.model, start.control)
-    estimator = Ekf(models.control.model, scene.scene.sample_period_h, start.control.x,
-                    disturbance_model=scene.controller.disturbance_model, codegen=codegen)
-    return estimator, make_controller(scene, models.control, codegen)
+    return make_estimator(scene, models.control, start.control, codegen), make_controller(scene, models.control, codegen)
 
 
 def export_scene_controller(scene: Scene, out_dir, source: str = "") -> list[str]:
@@ -194,12 +218,8 @@ def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
         ss = start.plant
         notes.append(f"the plant starts at steady state, feed {start.feed_tph:.4g} t/h, "
                      f"speed {scene.feed.speed_frac_critical:.3g}")
-        sensors = Sensors(**{k: v for k, v in scene.sensors.model_dump().items() if k in Sensors.__dataclass_fields__})
-
-        def schedule(t_h):
-            k = min(max(int(np.searchsorted(times, t_h + 1e-9 * dt, side="right")) - 1, 0), len(times) - 1)
-            return blend[k]
-
+        sensors = scene_sensors(scene)
+        schedule = hold_schedule(times, blend, dt)
         controller, estimator = _controller_and_estimator(scene, models, start, sensors)
         settings = LoopSettings(
             scene.scene.duration_h, dt, seed=scene.scene.seed, preview_lead_h=c.preview_lead_h,

@@ -30,22 +30,22 @@ TEXT_BOMS = ((b"\xff\xfe\x00\x00", "UTF-32"), (b"\x00\x00\xfe\xff", "UTF-32"), (
              (b"\xfe\xff", "UTF-16"))
 
 
-def read_toml(path: str | Path) -> dict[str, Any]:
-    """The raw TOML table of a scene file; SceneError if missing or not TOML."""
+def read_toml(path: str | Path, what: str = "scene file") -> dict[str, Any]:
+    """The raw TOML table of a scene file (or another ``what``); SceneError if missing or not TOML."""
     path = Path(path)
     try:
         raw = path.read_bytes()
     except FileNotFoundError:
-        raise SceneError(f"{path}: scene file not found") from None
+        raise SceneError(f"{path}: {what} not found") from None
     except OSError as exc:
-        raise SceneError(f"{path}: cannot read the scene file: {exc.strerror or exc}") from None
+        raise SceneError(f"{path}: cannot read the {what}: {exc.strerror or exc}") from None
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         found = next((name for bom, name in TEXT_BOMS if raw.startswith(bom)),
                      "UTF-16 or UTF-32" if b"\x00" in raw[:64] else None)
-        what = f"it is {found} text" if found else f"byte {exc.start} is 0x{raw[exc.start]:02x}"
-        raise SceneError(f"{path}: not UTF-8 text ({what}); a TOML scene file must be UTF-8: save "
+        detail = f"it is {found} text" if found else f"byte {exc.start} is 0x{raw[exc.start]:02x}"
+        raise SceneError(f"{path}: not UTF-8 text ({detail}); a TOML {what} must be UTF-8: save "
                          "it again as UTF-8") from None
     try:
         return tomllib.loads(text.removeprefix("\ufeff"))
@@ -63,7 +63,7 @@ def validate_scene_dict(data: dict[str, Any], source_path: str | Path | None = N
     try:
         scene = Scene.model_validate(data)
     except ValidationError as exc:
-        errors += [_pydantic_message(label, e) for e in exc.errors()]
+        errors += [pydantic_message(label, e) for e in exc.errors()]
     base_dir = source.parent if source is not None else Path.cwd()
     errors += [f"{label}: {m}" for m in cross_check(data, base_dir)]
     errors = list(dict.fromkeys(errors))  # keep order, drop repeats
@@ -103,7 +103,9 @@ def _summary(source_path, errors: list[str]) -> str:
     return head + "\n  " + "\n  ".join(errors)
 
 
-def _pydantic_message(label: str, err: dict) -> str:
+def pydantic_message(label: str, err: dict, model: type = Scene) -> str:
+    """One pydantic error of a file validated against ``model`` as ``LABEL: key.path: what is
+    wrong and what is allowed (got VALUE)``."""
     loc = tuple(err["loc"])
     path = format_path(loc)
     kind = err["type"]
@@ -111,9 +113,9 @@ def _pydantic_message(label: str, err: dict) -> str:
         return f"{label}: {path}: required key is missing"
     if kind == "extra_forbidden":
         key = loc[-1]
-        allowed = allowed_keys(Scene, loc[:-1])
+        allowed = allowed_keys(model, loc[:-1])
         hint = ""
-        if len(loc) > 1 and key in Scene.model_fields:
+        if len(loc) > 1 and key in model.model_fields:
             hint = (f" ({key!r} is a top-level key: in TOML it must come before the first "
                     "[table], else it belongs to that table)")
         return (f"{label}: {path}: unknown key {key!r}{did_you_mean(key, allowed)}; "
@@ -121,7 +123,7 @@ def _pydantic_message(label: str, err: dict) -> str:
     hint = ""
     if kind == "literal_error":
         try:
-            ann = type_at(Scene, loc)
+            ann = type_at(model, loc)
         except KeyError:
             ann = None
         if get_origin(ann) is Literal:

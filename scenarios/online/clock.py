@@ -1,0 +1,56 @@
+"""Plant time on the wall clock: ``speedup`` plant seconds pass per wall-clock second (1 on a
+real plant; more on a virtual plant run faster than real time)."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from datetime import datetime, timedelta, timezone
+
+
+class Clock:
+    """Wall-clock time (UTC) and its conversion to plant hours at a speed-up factor."""
+
+    def __init__(self, speedup: float = 1.0):
+        if not (isinstance(speedup, (int, float)) and math.isfinite(speedup) and speedup > 0):
+            raise ValueError(f"The 'speedup' of Clock must be a float > 0. Got {speedup!r}.")
+        self.speedup = float(speedup)
+
+    def now(self) -> datetime:
+        return datetime.now(timezone.utc)
+
+    def hours_between(self, start: datetime, end: datetime) -> float:
+        """Plant hours from ``start`` to ``end`` (both aware datetimes)."""
+        return (end - start).total_seconds() * self.speedup / 3600.0
+
+    def wall_seconds(self, plant_h: float) -> float:
+        """Wall-clock seconds that ``plant_h`` plant hours take."""
+        return plant_h * 3600.0 / self.speedup
+
+
+class ManualClock(Clock):
+    """A clock that moves only when told to (lock-step tests and benchmarks)."""
+
+    def __init__(self, speedup: float = 1.0, start: datetime | None = None):
+        super().__init__(speedup)
+        self._now = start or datetime.now(timezone.utc)
+
+    def now(self) -> datetime:
+        return self._now
+
+    def advance(self, plant_h: float) -> None:
+        self._now += timedelta(seconds=self.wall_seconds(plant_h))
+
+
+async def sleep_until(loop_time: float, wake: asyncio.Event) -> bool:
+    """Sleep until the event loop's time reaches ``loop_time``; True if ``wake`` was set first."""
+    delay = loop_time - asyncio.get_running_loop().time()
+    if wake.is_set():
+        return True
+    if delay <= 0:
+        return False
+    try:
+        await asyncio.wait_for(wake.wait(), timeout=delay)
+        return True
+    except asyncio.TimeoutError:
+        return False

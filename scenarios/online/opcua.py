@@ -1,0 +1,129 @@
+"""The service's OPC UA client: one session to the plant, every read of a cycle in one Read
+request (values with status codes and source timestamps) and every write in one Write request,
+typed as the server's nodes are typed."""
+
+from __future__ import annotations
+
+import asyncio
+from datetime import datetime, timezone
+
+from asyncua import Client, ua
+
+from scenarios.online.quality import Reading
+from scenarios.online.security import ClientSecurity, secure_client
+
+#: What a lost or refused connection raises (asyncua's status errors are UaError).
+CONNECTION_ERRORS = (ConnectionError, OSError, asyncio.TimeoutError, ua.UaError)
+
+#: asyncua's connection supervisor probes the server every interval with that time-out and drops
+#: the session on a miss; the service's own requests find a loss at the next cycle, so the probe
+#: waits this many request time-outs rather than taking a busy server for a dead one.
+PROBE_TIMEOUTS = 4
+
+#: Variant types of the node data types the service writes.
+_VARIANTS = {ua.ObjectIds.Double: ua.VariantType.Double, ua.ObjectIds.Float: ua.VariantType.Float,
+             ua.ObjectIds.Int16: ua.VariantType.Int16, ua.ObjectIds.Int32: ua.VariantType.Int32,
+             ua.ObjectIds.Int64: ua.VariantType.Int64, ua.ObjectIds.UInt16: ua.VariantType.UInt16,
+             ua.ObjectIds.UInt32: ua.VariantType.UInt32, ua.ObjectIds.UInt64: ua.VariantType.UInt64,
+             ua.ObjectIds.String: ua.VariantType.String, ua.ObjectIds.Boolean: ua.VariantType.Boolean}
+_INTEGERS = {ua.VariantType.Int16, ua.VariantType.Int32, ua.VariantType.Int64, ua.VariantType.UInt16,
+             ua.VariantType.UInt32, ua.VariantType.UInt64}
+
+
+def status_name(code: int) -> str:
+    try:
+        return ua.StatusCode(code).name
+    except (KeyError, ValueError, AttributeError):
+        return f"0x{code:08X}"
+
+
+async def resolve(client: Client, node_id: str) -> ua.NodeId:
+    """A node id string, with ``nsu=URI`` turned into the server's namespace index."""
+    if node_id.startswith("nsu="):
+        uri, rest = node_id[4:].split(";", 1)
+        return ua.NodeId.from_string(f"ns={await client.get_namespace_index(uri)};{rest}")
+    return ua.NodeId.from_string(node_id)
+
+
+class PlantConnection:
+    """A session to the plant server for fixed read and write roles (role -> node id)."""
+
+    def __init__(self, url: str, security: ClientSecurity, read_roles: dict[str, str],
+                 write_roles: dict[str, str], timeout_s: float = 2.0):
+        self.url, self.security, self.timeout_s = url, security, timeout_s
+        self.read_roles, self.write_roles = dict(read_roles), dict(write_roles)
+        self.client: Client | None = None
+
+    async def open(self) -> None:
+        """Connect, authenticate and look up the nodes; raises a CONNECTION_ERRORS error."""
+        client = Client(self.url, timeout=self.timeout_s, watchdog_intervall=PROBE_TIMEOUTS * self.timeout_s)
+        client.name = client.description = "grindtwin serve"
+        await secure_client(client, self.security)
+        await client.connect()  # every step of it under the request time-out
+        try:
+            self._read_ids = [await resolve(client, n) for n in self.read_roles.values()]
+            self._write_ids = {r: await resolve(client, n) for r, n in self.write_roles.items()}
+            types = await client.uaclient.read_attributes(list(self._write_ids.values()), ua.AttributeIds.DataType)
+            self._variants = {}
+            for role, dv in zip(self._write_ids, types):
+                dtype = dv.Value.Value if dv.Value is not None else None
+                ident = dtype.Identifier if isinstance(dtype, ua.NodeId) else None
+                self._variants[role] = _VARIANTS.get(ident, ua.VariantType.Double)
+        except BaseException:
+            await self._disconnect(client)
+            raise
+        self.client = client
+
+    async def read(self) -> dict[str, Reading]:
+        """Every read role's value, status and timestamps, in one request."""
+        params = ua.ReadParameters()
+        params.TimestampsToReturn = ua.TimestampsToReturn.Both
+        for nid in self._read_ids:
+            rv = ua.ReadValueId()
+            rv.NodeId, rv.AttributeId = nid, ua.AttributeIds.Value
+            params.NodesToRead.append(rv)
+        values = await asyncio.wait_for(self._client().uaclient.read(params), timeout=self.timeout_s)
+        out = {}
+        for role, dv in zip(self.read_roles, values):
+            code = dv.StatusCode.value if dv.StatusCode is not None else 0
+            out[role] = Reading(dv.Value.Value if dv.Value is not None else None, code,
+                                _aware(dv.SourceTimestamp), _aware(dv.ServerTimestamp), status_name(code))
+        return out
+
+    async def write(self, values: dict[str, tuple], source_time: datetime) -> dict[str, int]:
+        """Write ``{role: (value, status code)}`` in one request; returns each role's result code."""
+        roles = list(values)
+        dvs = []
+        for role in roles:
+            value, code = values[role]
+            vt = self._variants[role]
+            if vt in _INTEGERS:
+                value = int(value)
+            variant = ua.Variant(None, ua.VariantType.Null) if value is None else ua.Variant(value, vt)
+            dvs.append(ua.DataValue(variant, ua.StatusCode(code), source_time))
+        res = await asyncio.wait_for(
+            self._client().uaclient.write_attributes([self._write_ids[r] for r in roles], dvs, ua.AttributeIds.Value),
+            timeout=self.timeout_s)
+        return {r: s.value for r, s in zip(roles, res)}
+
+    async def close(self) -> None:
+        client, self.client = self.client, None
+        if client is not None:
+            await self._disconnect(client)
+
+    async def _disconnect(self, client: Client) -> None:
+        try:
+            await asyncio.wait_for(client.disconnect(), timeout=self.timeout_s)
+        except CONNECTION_ERRORS:
+            pass  # the connection is gone either way
+
+    def _client(self) -> Client:
+        if self.client is None:
+            raise ConnectionError("not connected")
+        return self.client
+
+
+def _aware(t: datetime | None) -> datetime | None:
+    if t is None or t.tzinfo is not None:
+        return t
+    return t.replace(tzinfo=timezone.utc)

@@ -1,0 +1,510 @@
+"""``grindtwin serve``: the scene's estimator and NMPC against a live plant over OPC UA.
+
+One cycle every sample period (``sample_period_h / speedup`` wall-clock seconds):
+1. read every tag of the map in one request (values, status codes, source timestamps);
+2. judge each reading (:mod:`scenarios.online.quality`): usable, or bad / uncertain / stale / frozen;
+3. estimate: the EKF predicts over the last period with the actual inputs and the blend that
+   entered the mill (the belt analyser's reading ``lead_h`` ago), and updates with the usable
+   measurements (a P80 only when the analyser reported a new one);
+4. solve: the NMPC from the estimate, the belt's preview and the actual inputs;
+5. write the setpoints (limited again at the writer, :mod:`scenarios.online.writer`), the
+   heartbeat and the status in one request; then the soft sensor's predictions.
+Each cycle is a row of the audit log (:mod:`scenarios.online.audit`) with its mode and reason;
+times in the log and the audit (``service_time_h``) are plant hours since the service started.
+
+Modes (each change logged):
+- ``warmup``: for ``warmup_h`` after the estimator starts it estimates and writes only the
+  heartbeat (as the in-process loop warms its EKF up on the running plant);
+- ``auto``: the controller's move is written;
+- ``manual`` (the mode node is not ``auto_value``, or unreadable): nothing is written; the
+  controller runs with the actual inputs as its last inputs, so the first move back in auto
+  starts where the operator left the plant (bumpless);
+- ``hold``: nothing is written (the plant keeps the last setpoints) while the P80 has been
+  unusable for longer than ``fallback.p80_hold_after_h`` (until then the controller runs on its
+  model), the actual inputs for longer than ``fallback.inputs_hold_after_h`` (until then the
+  last written setpoints stand in for them), or the estimator or controller failed;
+- ``disconnected``: the estimator predicts with the last written setpoints, which the plant
+  keeps; a task reconnects with exponential back-off.
+SIGTERM or SIGINT ends the service after the running cycle: only the status is written, the
+audit flushed, and the log names the setpoints left in the plant.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+import signal
+import time
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from asyncua import ua
+
+from mpc import MpcError
+from scenarios.online.audit import AuditLog
+from scenarios.online.clock import Clock, sleep_until
+from scenarios.online.opcua import CONNECTION_ERRORS, PlantConnection, status_name
+from scenarios.online.parts import ControlParts
+from scenarios.online.quality import GOOD, Reading, TagQuality, severity
+from scenarios.online.security import ClientSecurity
+from scenarios.online.tags import TagMap
+from scenarios.online.writer import Limit, limit_move
+from scenarios.run.closed_loop import ESTIMATOR_WARMUP_H
+from twin import TwinError
+
+log = logging.getLogger("grindtwin.online.service")
+
+INPUTS = ("feed_tph", "speed_frac_critical")
+#: Failures of the estimator's or controller's numerics: held and reported, never hidden
+#: (CasADi raises RuntimeError on a failed function evaluation).
+NUMERIC_ERRORS = (MpcError, TwinError, np.linalg.LinAlgError, RuntimeError)
+#: Back-off jitter: each wait is the nominal one times a factor in [1 - J, 1 + J], so that
+#: several services do not retry in step.
+BACKOFF_JITTER = 0.2
+#: Consecutive request time-outs after which the session counts as lost and is rebuilt (one is
+#: a busy server, three in a row at seconds each is a dead one).
+LOST_AFTER_TIMEOUTS = 3
+STATUS_MAX_CHARS = 240
+
+
+@dataclass
+class ServeSettings:
+    """How a service runs (the scene and tag map say what it controls)."""
+
+    url: str
+    security: ClientSecurity
+    audit_dir: Path
+    speedup: float = 1.0
+    warmup_h: float | None = None
+    """Estimate this long before moving anything (None: the in-process loop's ESTIMATOR_WARMUP_H)."""
+    duration_h: float | None = None
+    audit_flush_every: int = 20
+
+
+class Service:
+    """The served controller of ``parts.scene`` on the plant named by ``tags`` (see the module
+    docstring). Drive it with :meth:`run`, or cycle by cycle (:meth:`connect`, :meth:`cycle`,
+    :meth:`shutdown`) under a :class:`~scenarios.online.clock.ManualClock`."""
+
+    def __init__(self, parts: ControlParts, tags: TagMap, settings: ServeSettings, clock: Clock | None = None):
+        self.parts, self.tags, self.s = parts, tags, settings
+        self.scene = parts.scene
+        self.clock = clock or Clock(settings.speedup)
+        self.dt_h = self.scene.scene.sample_period_h
+        self.warmup_h = ESTIMATOR_WARMUP_H if settings.warmup_h is None else settings.warmup_h
+        self.n_stages = parts.controller.settings.horizon_steps
+        self.limits = {name: Limit.of(name, sp) for name, sp in tags.setpoints}
+        self.quality = {name: TagQuality.of(name, m) for name, m in tags.measurements if m is not None}
+        if tags.belt_analyser is not None:
+            self.quality |= {f"blend.{o}": TagQuality.of(f"blend.{o}", tags.belt_analyser) for o in parts.ores}
+        self.audit = AuditLog(settings.audit_dir, settings.audit_flush_every)
+        self.conn: PlantConnection | None = None
+        self._reconnect_task: asyncio.Task | None = None
+        self._wake: asyncio.Event | None = None
+        self._rng = np.random.default_rng(self.scene.scene.seed)
+        self.start = self.clock.now()
+        self.k = 0
+        self.t_prev_h: float | None = None
+        self.belt: deque = deque()  # (plant time of the reading [h], blend fractions)
+        self.u_written: np.ndarray | None = None
+        self.t_written_h = math.nan
+        self.est_start_h: float | None = None
+        self.blend_prev: np.ndarray | None = None
+        self.p80_held = math.nan
+        self.bad_since: dict[str, float] = {}
+        self.last_u: np.ndarray | None = None  # the last known inputs (actual, else written)
+        self.raw_mode: object = None
+        self.mode = "start"
+        self.timeouts = 0
+        self.heartbeat = 0
+        self.stop_reason: str | None = None
+
+    # ------------------------------------------------------------------ connection
+    def _new_connection(self) -> PlantConnection:
+        return PlantConnection(self.s.url, self.s.security, self.tags.read_roles(), self.tags.write_roles(),
+                               self.tags.connection.request_timeout_s)
+
+    async def connect(self) -> None:
+        """Open the session now (raises a connection error if the plant refuses or is away)."""
+        conn = self._new_connection()
+        await conn.open()
+        self.conn = conn
+        log.info("connected to %s (%s)", self.s.url, "insecure" if self.s.security.insecure else
+                 "Basic256Sha256 SignAndEncrypt, user " + str(self.s.security.username))
+
+    def _start_reconnect(self) -> None:
+        if self._reconnect_task is None or self._reconnect_task.done():
+            self._reconnect_task = asyncio.get_running_loop().create_task(self._reconnect())
+
+    async def _reconnect(self) -> None:
+        """Connect, retrying with exponential back-off (``[connection]``) until it works or the service stops."""
+        c = self.tags.connection
+        delay, attempt, t0 = c.reconnect_initial_s, 0, time.monotonic()
+        while self.stop_reason is None:
+            attempt += 1
+            try:
+                await self.connect()
+                log.info("connection established after %d attempt(s), %.1f s", attempt, time.monotonic() - t0)
+                return
+            except CONNECTION_ERRORS as exc:
+                wait = delay * (1 + BACKOFF_JITTER * self._rng.uniform(-1, 1))
+                log.warning("connecting to %s failed (attempt %d: %s: %s); next try in %.2f s",
+                            self.s.url, attempt, type(exc).__name__, exc, wait)
+                await asyncio.sleep(wait)
+                delay = min(2 * delay, c.reconnect_max_s)
+
+    async def _lost(self, exc: BaseException) -> None:
+        log.error("connection to %s lost (%s: %s); the plant keeps the last setpoints (%s); reconnecting",
+                  self.s.url, type(exc).__name__, exc, self._last_written_text())
+        conn, self.conn = self.conn, None
+        if conn is not None:
+            await conn.close()
+        self._start_reconnect()
+
+    def _last_written_text(self) -> str:
+        if self.u_written is None:
+            return "none written by this service"
+        return (f"feed {self.u_written[0]:.4g} t/h, speed {self.u_written[1]:.4g} of critical, written at service time "
+                f"{self.t_written_h:.3f} h")
+
+    # ------------------------------------------------------------------ one cycle
+    async def cycle(self) -> dict:
+        """One sample: read, estimate, solve, write (module docstring); returns its audit row.
+        Connection losses, bad data and numerical failures are handled here, logged and audited."""
+        t0, cpu0 = time.perf_counter(), time.process_time()
+        now = self.clock.now()
+        t_h = self.clock.hours_between(self.start, now)
+        steps = 1 if self.t_prev_h is None else max(1, round((t_h - self.t_prev_h) / self.dt_h))
+        self.t_prev_h = t_h
+        row = {"wall_time_utc": now, "service_time_h": t_h, "cycle": self.k, "mode": "disconnected", "written": False,
+               "reason": ""}
+        if self.conn is not None:
+            try:
+                await self._connected_cycle(now, t_h, steps, row, t0, cpu0)
+                self.timeouts = 0
+            except asyncio.TimeoutError as exc:  # a busy plant: hold this cycle, lost after a few
+                self.timeouts += 1
+                if self.timeouts >= LOST_AFTER_TIMEOUTS:
+                    await self._lost(exc)
+                else:
+                    self._no_answer(steps, row)
+            except CONNECTION_ERRORS as exc:
+                await self._lost(exc)
+        if self.conn is None:
+            self._blind(steps, row)
+        row["cycle_s"] = time.perf_counter() - t0
+        self.audit.record(row)
+        self.k += 1
+        return row
+
+    def _predict_blind(self, steps: int, row: dict) -> None:
+        """The estimator predicts with the inputs the plant keeps (unless it ran this cycle)."""
+        u = self.u_written if self.u_written is not None else self.last_u
+        if "estimate_s" in row or self.est_start_h is None or u is None or self.blend_prev is None:
+            return
+        for _ in range(steps):
+            self.parts.estimator.make_step([math.nan] * 3, u, self.blend_prev)
+
+    def _blind(self, steps: int, row: dict) -> None:
+        """No connection: predict; the plant keeps the last setpoints."""
+        self._predict_blind(steps, row)
+        reason = f"no connection: setpoints left at {self._last_written_text()}"
+        self._set_mode("disconnected", reason)
+        row.update(mode="disconnected", written=False, reason=reason)
+
+    def _no_answer(self, steps: int, row: dict) -> None:
+        """A request timed out: this cycle holds (a write in flight may or may not have landed)."""
+        self._predict_blind(steps, row)
+        reason = (f"the plant did not answer within {self.tags.connection.request_timeout_s:g} s "
+                  f"({self.timeouts} of {LOST_AFTER_TIMEOUTS} before the connection counts as lost)")
+        log.warning("%s", reason)
+        self._set_mode("hold", reason)
+        row.update(mode="hold", written=False, reason=reason)
+
+    async def _connected_cycle(self, now, t_h: float, steps: int, row: dict, t0: float, cpu0: float) -> None:
+        readings = await self.conn.read()
+        row["read_s"] = time.perf_counter() - t0
+        v = {role: self.quality[role].assess(r, now, self.clock) for role, r in readings.items() if role != "mode"}
+        for role, verdict in v.items():
+            row[f"{role}_quality"] = verdict.quality
+            self._condition(role, not verdict.ok, t_h, f"{role} unusable: {verdict.quality} ({verdict.reason})")
+        auto = self._auto(readings["mode"], t_h)
+        blend_now, preview = self._belt(v, t_h)
+        u_act, inputs_note = self._inputs(v, t_h)
+        t1 = time.perf_counter()
+        x_est, d_est, est_note = self._estimate(v, u_act, blend_now, steps, t_h)
+        row["estimate_s"] = time.perf_counter() - t1
+        mode, reason = self._decide(auto, x_est, t_h, inputs_note or est_note)
+        u_prop, res, solve_note = self._solve(mode, x_est, d_est, preview, u_act, row)
+        mode, reason = ("hold", solve_note) if solve_note else (mode, reason)
+        values, write_note = self._moves(mode, u_prop, u_act)
+        row.update(self._row_values(v, u_act, u_prop, x_est, d_est, res))
+        reason = "; ".join(n for n in (reason, write_note) if n)
+        self._set_mode(mode, reason)
+        await self._write(values, mode, reason, t_h, row)
+        row.update(mode=mode, reason=reason, write_done_s=time.perf_counter() - t0,
+                   write_done_cpu_s=time.process_time() - cpu0)
+        await self._soft_sensor(u_act, row)
+
+    # ------------------------------------------------------------------ readings
+    def _condition(self, key: str, active: bool, t_h: float, message: str) -> None:
+        """Log a condition when it starts and when it ends (not every cycle)."""
+        since = self.bad_since.get(key)
+        if active and since is None:
+            self.bad_since[key] = t_h
+            log.warning("%.3f h: %s", t_h, message)
+        elif not active and since is not None:
+            del self.bad_since[key]
+            log.info("%.3f h: %s good again after %.3f h", t_h, key, t_h - since)
+
+    def _bad_for_h(self, key: str, t_h: float) -> float:
+        since = self.bad_since.get(key)
+        return 0.0 if since is None else t_h - since
+
+    def _auto(self, reading: Reading, t_h: float) -> bool:
+        """True if the operator's mode is auto; a mode without Good status counts as manual."""
+        good = severity(reading.status) == GOOD
+        self.raw_mode = reading.value if good else f"unreadable ({reading.status_name})"
+        self._condition("mode", not good, t_h, f"mode unreadable ({reading.status_name}): treated as manual")
+        return good and reading.value == self.tags.mode.auto_value
+
+    def _belt(self, v: dict, t_h: float):
+        """The blend entering the mill now and the preview's blend per stage, from the belt
+        analyser's readings (held when a reading is unusable; the scene's initial blend without one)."""
+        ba = self.tags.belt_analyser
+        if ba is None:
+            return self.parts.blend0, [self.parts.blend0] * self.n_stages
+        verdicts = [v[f"blend.{o}"] for o in self.parts.ores]
+        if all(x.ok for x in verdicts) and verdicts[0].new:
+            b = np.array([x.value for x in verdicts])
+            total = b.sum()
+            if abs(total - 1.0) <= ba.sum_tolerance and np.all(b >= 0):
+                self.belt.append((t_h, b / total))
+                self._condition("belt sum", False, t_h, "")
+            else:
+                self._condition("belt sum", True, t_h, f"belt analyser fractions sum to {total:.4g}, outside 1 +- "
+                                f"{ba.sum_tolerance:g}: reading refused, last blend held")
+        if not self.belt:
+            return None, None
+        while len(self.belt) > 1 and self.belt[1][0] <= t_h - ba.lead_h - self.dt_h:
+            self.belt.popleft()  # keep one reading older than the lead
+        at = [self._belt_at(min(t_h + j * self.dt_h, t_h + ba.lead_h) - ba.lead_h) for j in range(self.n_stages)]
+        return at[0], at
+
+    def _belt_at(self, t_h: float) -> np.ndarray:
+        """The belt reading taken at or before ``t_h`` (half a sample's tolerance), else the oldest."""
+        best = self.belt[0][1]
+        for t, b in self.belt:
+            if t <= t_h + 0.5 * self.dt_h:
+                best = b
+        return best
+
+    def _inputs(self, v: dict, t_h: float):
+        """The actual inputs (the last written setpoints stand in for unusable ones for
+        ``inputs_hold_after_h``); ``(u or None, hold note)``."""
+        act = np.array([v[n].value for n in INPUTS])
+        ok = np.isfinite(act)
+        self._condition("inputs", not ok.all(), t_h, "actual feed or speed unusable")
+        if not ok.all() and self.u_written is not None:
+            act = np.where(ok, act, self.u_written)
+        if not np.all(np.isfinite(act)):
+            return None, "the actual inputs are unknown"
+        self.last_u = act
+        if self._bad_for_h("inputs", t_h) > self.tags.fallback.inputs_hold_after_h:
+            return act, f"actual inputs unusable for {self._bad_for_h('inputs', t_h):.3g} h"
+        return act, ""
+
+    # ------------------------------------------------------------------ estimate, decide, solve
+    def _estimate(self, v: dict, u, blend_now, steps: int, t_h: float):
+        """``(x_est, d_est, note)``; the EKF starts at the controller model's steady state at
+        the first actual inputs and blend, then predicts and updates every cycle."""
+        ekf = self.parts.estimator
+        if u is None or blend_now is None:
+            return None, None, "no actual inputs or belt analyser reading for the estimator yet"
+        p80 = v["p80_um"]
+        if p80.ok:
+            self.p80_held = p80.value
+        try:
+            if self.est_start_h is None:
+                css = self.parts.models.control.steady(feed_tph=u[0], speed_frac_critical=u[1], blend=blend_now)
+                ekf.reset(css.x)
+                self.est_start_h, self.blend_prev = t_h, blend_now
+                log.info("%.3f h: estimator started at the steady state of feed %.4g t/h, speed %.4g", t_h, *u)
+                return ekf.x_est, np.r_[blend_now, ekf.hardness_est], ""
+            for _ in range(steps - 1):
+                ekf.make_step([math.nan] * 3, u, self.blend_prev)
+            y = [p80.value if (p80.ok and p80.new) else math.nan] + [
+                v[m].value if m in v else math.nan for m in ("power_kw", "load_frac")]
+            x, d = ekf.make_step(y, u, self.blend_prev)
+        except NUMERIC_ERRORS as exc:
+            log.exception("%.3f h: the estimator failed", t_h)
+            return None, None, f"the estimator failed: {type(exc).__name__}: {exc}"
+        self.blend_prev = blend_now
+        return x, d, ""
+
+    def _decide(self, auto: bool, x_est, t_h: float, note: str) -> tuple[str, str]:
+        """The mode of this cycle and its reason (before the controller runs)."""
+        if x_est is None:
+            return "hold", note
+        if t_h - self.est_start_h < self.warmup_h:
+            return "warmup", f"estimator warm-up {t_h - self.est_start_h:.3g} of {self.warmup_h:g} h"
+        if not auto:
+            return "manual", f"mode {self.raw_mode!r} is not {self.tags.mode.auto_value!r}: the controller " \
+                             "tracks the actual inputs, nothing written"
+        if note:
+            return "hold", note
+        p80_bad = self._bad_for_h("p80_um", t_h)
+        if p80_bad > self.tags.fallback.p80_hold_after_h:
+            return "hold", f"P80 unusable for {p80_bad:.3g} h (> {self.tags.fallback.p80_hold_after_h:g} h)"
+        return "auto", f"on the model: P80 unusable for {p80_bad:.3g} h" if "p80_um" in self.bad_since else ""
+
+    def _solve(self, mode: str, x_est, d_est, preview, u_act, row: dict):
+        """The controller's step (not in warm-up or without an estimate); ``(u, result, failure note)``."""
+        u_prev = u_act if u_act is not None else self.u_written
+        if mode == "warmup" or x_est is None or u_prev is None:
+            return None, None, ""
+        D = np.vstack([np.array(preview, float).T, np.full(self.n_stages, float(d_est[-1]))])
+        t1 = time.perf_counter()
+        try:
+            res = self.parts.controller.make_step(x_est, D, u_prev, y_meas=self.p80_held,
+                                                  p80_bias_um=self.parts.estimator.p80_bias_um)
+        except NUMERIC_ERRORS as exc:
+            log.exception("the controller failed")
+            return None, None, f"the controller failed: {type(exc).__name__}: {exc}"
+        finally:
+            row["solve_s"] = time.perf_counter() - t1
+        return np.asarray(res.u_applied, float), res, ""
+
+    def _moves(self, mode: str, u_prop, u_act) -> tuple[dict, str]:
+        """The setpoints to write in auto, limited at the writer; ``({name: value}, notes)``."""
+        if mode != "auto" or u_prop is None:
+            return {}, ""
+        out, notes = {}, []
+        for i, name in enumerate(INPUTS):
+            ref = u_act[i] if u_act is not None else (self.u_written[i] if self.u_written is not None else None)
+            value, n = limit_move(float(u_prop[i]), ref, self.dt_h, self.limits[name])
+            notes += n
+            if value is None:
+                return {}, "; ".join(notes)
+            out[name] = value
+        return out, "; ".join(notes)
+
+    # ------------------------------------------------------------------ write, soft sensor, audit
+    def _set_mode(self, mode: str, reason: str) -> None:
+        if mode != self.mode:
+            level = logging.INFO if mode in ("auto", "warmup", "manual") else logging.WARNING
+            log.log(level, "mode %s -> %s%s", self.mode, mode, f": {reason}" if reason else "")
+            if mode == "auto" and self.mode in ("manual", "hold") and self.last_u is not None:
+                log.info("back in auto from the actual inputs (feed %.4g t/h, speed %.4g): bumpless", *self.last_u)
+            self.mode = mode
+
+    async def _write(self, values: dict, mode: str, reason: str, t_h: float, row: dict) -> None:
+        self.heartbeat = (self.heartbeat + 1) % 2**31
+        items = {f"setpoints.{k}": (v, ua.StatusCodes.Good) for k, v in values.items()}
+        items["heartbeat"] = (self.heartbeat, ua.StatusCodes.Good)
+        if self.tags.status is not None:
+            items["status"] = ((f"{mode}: {reason}" if reason else mode)[:STATUS_MAX_CHARS], ua.StatusCodes.Good)
+        t1 = time.perf_counter()
+        results = await self.conn.write(items, self.clock.now())
+        row["write_s"] = time.perf_counter() - t1
+        refused = {r: status_name(c) for r, c in results.items() if c != ua.StatusCodes.Good}
+        if refused:
+            log.error("the server refused writes: %s", refused)
+            row["reason"] = f"write refused: {refused}"
+        if values and not any(r.startswith("setpoints.") for r in refused):
+            self.u_written = np.array([values[n] for n in INPUTS])
+            self.t_written_h = t_h
+            row["written"] = True
+        row["feed_sp_tph"], row["speed_sp_frac_critical"] = (values.get(n, math.nan) for n in INPUTS)
+
+    async def _soft_sensor(self, u_act, row: dict) -> None:
+        """Publish the soft sensor's predictions for the ore on the belt at the actual inputs."""
+        soft, tags = self.parts.soft_sensor, self.tags.soft_sensor
+        if soft is None or tags is None or u_act is None or not self.belt:
+            return
+        t1 = time.perf_counter()
+        p = soft.predict(self.belt[-1][1], float(u_act[0]), float(u_act[1]))
+        pairs = {"p80_um": (p.p80_um, p.status), "specific_energy_kwh_t": (p.specific_energy_kwh_t, p.status),
+                 "surrogate_p80_um": (p.surrogate_p80_um, p.surrogate_status),
+                 "surrogate_specific_energy_kwh_t": (p.surrogate_specific_energy_kwh_t, p.surrogate_status)}
+        items = {f"soft_sensor.{k}": (None if val is None or not math.isfinite(val) else val, code)
+                 for k, (val, code) in pairs.items() if getattr(tags, k) is not None and code is not None}
+        self._condition("soft sensor", p.status != ua.StatusCodes.Good, row["service_time_h"],
+                        f"soft sensor {status_name(p.status)}: {p.reason}")
+        await self.conn.write(items, self.clock.now())
+        row.update(soft_p80_um=p.p80_um, soft_specific_energy_kwh_t=p.specific_energy_kwh_t,
+                   soft_status=status_name(p.status), soft_s=time.perf_counter() - t1)
+
+    def _row_values(self, v: dict, u_act, u_prop, x_est, d_est, res) -> dict:
+        out = {"p80_um": v["p80_um"].value, "p80_new": bool(v["p80_um"].new),
+               "feed_actual_tph": math.nan if u_act is None else float(u_act[0]),
+               "speed_actual_frac_critical": math.nan if u_act is None else float(u_act[1]),
+               "feed_proposed_tph": math.nan if u_prop is None else float(u_prop[0]),
+               "speed_proposed_frac_critical": math.nan if u_prop is None else float(u_prop[1]),
+               "hardness_est": math.nan if d_est is None else float(d_est[-1]),
+               "p80_bias_est_um": self.parts.estimator.p80_bias_um,
+               "operator_mode": str(self.raw_mode)}
+        if res is not None:
+            out |= {"controller_status": res.status, "controller_success": bool(res.success),
+                    "fallback": res.fallback_used or ""}
+        return out
+
+    # ------------------------------------------------------------------ run and stop
+    def request_stop(self, reason: str) -> None:
+        """End the service after the running cycle (signal handlers call this)."""
+        if self.stop_reason is None:
+            self.stop_reason = reason
+            log.info("stop requested: %s", reason)
+        if self._wake is not None:
+            self._wake.set()
+
+    async def run(self, install_signal_handlers: bool = True) -> None:
+        """Cycle every sample period until stopped (SIGTERM, SIGINT, ``duration_h``)."""
+        loop = asyncio.get_running_loop()
+        self._wake = asyncio.Event()
+        signals = (signal.SIGTERM, signal.SIGINT) if install_signal_handlers else ()
+        for sig in signals:
+            loop.add_signal_handler(sig, self.request_stop, sig.name)
+        period = self.clock.wall_seconds(self.dt_h)
+        try:
+            self._start_reconnect()
+            next_t = loop.time()
+            while self.stop_reason is None:
+                row = await self.cycle()
+                if self.s.duration_h is not None and row["service_time_h"] >= self.s.duration_h:
+                    self.request_stop(f"duration {self.s.duration_h:g} h reached")
+                next_t += period
+                late = loop.time() - next_t
+                if late > 0:
+                    skipped = math.ceil(late / period)
+                    log.warning("cycle overran its period by %.3f s: %d sample(s) skipped", late, skipped)
+                    next_t += skipped * period
+                await sleep_until(next_t, self._wake)
+        finally:
+            for sig in signals:
+                loop.remove_signal_handler(sig)
+            await self.shutdown(self.stop_reason or "ended")
+
+    async def shutdown(self, reason: str) -> None:
+        """Stop: write nothing but the status, flush the audit, report the setpoints left."""
+        self.stop_reason = self.stop_reason or reason
+        if self._reconnect_task is not None:
+            self._reconnect_task.cancel()
+        left = f"setpoints left at {self._last_written_text()}"
+        if self.conn is not None and self.tags.status is not None:
+            try:
+                await self.conn.write({"status": (f"stopped ({reason}): {left}"[:STATUS_MAX_CHARS],
+                                                  ua.StatusCodes.Good)}, self.clock.now())
+            except CONNECTION_ERRORS as exc:
+                log.warning("could not write the final status: %s", exc)
+        if self.conn is not None:
+            await self.conn.close()
+            self.conn = None
+        self.audit.record({"wall_time_utc": self.clock.now(), "service_time_h": self.clock.hours_between(
+            self.start, self.clock.now()), "cycle": self.k, "mode": "stopped", "written": False,
+            "reason": f"stopped ({reason}): {left}"})
+        self.audit.flush()
+        log.info("stopped (%s): %s", reason, left)

@@ -1,0 +1,258 @@
+"""The tag map: which OPC UA node holds each measurement, setpoint and status of a served scene.
+
+A TOML file validated as a whole like a scene (every problem at once, each as ``FILE: key.path:
+what is wrong and what is allowed (got VALUE)``), then checked against the scene it serves (the
+belt analyser names the scene's ores, a P80 freeze limit longer than the analyser's period, no
+node in two roles), then completed visibly from the scene (the returned :class:`TagMap` shows
+every default it took). Times are plant hours (a speed-up divides them in wall-clock time).
+
+Node ids are OPC UA's string form: ``ns=2;s=Mill.P80_um`` (namespace index, then ``i=`` numeric,
+``s=`` string, ``g=`` GUID or ``b=`` opaque id) or ``nsu=URI;s=...`` (namespace by its URI,
+resolved on connection). Example: ``scenarios/online/data/virtual_plant_tags.toml``.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from scenarios.errors import SceneError
+from scenarios.run.closed_loop import feed_bounds
+from scenarios.scene import Scene, pydantic_message, read_toml
+
+#: A node id in OPC UA's string form (Part 6, 5.3.1.10): namespace, then identifier type and value.
+NODE_ID_PATTERN = r"^(ns=\d+|nsu=[^;]+);(i=\d+|s=.+|g=[0-9a-fA-F-]{36}|b=.+)$"
+NodeId = Annotated[str, Field(pattern=NODE_ID_PATTERN)]
+
+#: A reading older than this many sample periods (the slower of the loop's and, for P80, the
+#: analyser's) is stale: one period is the normal age of a held value, three leave room for a
+#: late scan without taking a dead source for a live one.
+STALE_AFTER_SAMPLES = 3
+#: Default of ``fallback.inputs_hold_after_h`` in samples: without the actual feed and speed the
+#: estimator and the rate limits use the last written setpoints; two samples of that is a hiccup,
+#: longer and the setpoints are held.
+INPUTS_HOLD_AFTER_SAMPLES = 2
+
+
+class TagMapError(SceneError):
+    """A tag map is invalid; the message names the file, the key path, the value and what is allowed."""
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True)
+
+
+class Measurement(_Section):
+    """A measured value: its node and the rules that make a reading usable."""
+
+    node: NodeId
+    max_age_h: float | None = Field(default=None, gt=0)
+    """A source timestamp older than this is stale (default: STALE_AFTER_SAMPLES sample periods)."""
+    frozen_after_h: float | None = Field(default=None, gt=0)
+    """A value unchanged for longer than this is frozen (default: no check)."""
+    freeze_tolerance: float = Field(default=0.0, ge=0)
+    """Changes up to this size count as unchanged (0: exactly the same value)."""
+    uncertain: Literal["reject", "accept"] = "reject"
+    """What an Uncertain status code means here: reject the reading, or use it."""
+
+
+class Measurements(_Section):
+    """``[measurements]``: the P80 analyser, mill power and load, the actual feed and speed."""
+
+    p80_um: Measurement
+    power_kw: Measurement | None = None
+    load_frac: Measurement | None = None
+    feed_tph: Measurement
+    speed_frac_critical: Measurement
+
+
+class BeltAnalyser(_Section):
+    """``[belt_analyser]``: the fraction of each of the scene's ores on the belt, reported
+    ``lead_h`` before it reaches the mill."""
+
+    nodes: dict[str, NodeId] = Field(min_length=1)
+    lead_h: float | None = Field(default=None, ge=0)
+    max_age_h: float | None = Field(default=None, gt=0)
+    frozen_after_h: float | None = Field(default=None, gt=0)
+    freeze_tolerance: float = Field(default=0.0, ge=0)
+    uncertain: Literal["reject", "accept"] = "reject"
+    sum_tolerance: float = Field(default=0.02, gt=0, lt=1)
+    """Fractions summing to 1 within this are rescaled to 1; further off the reading is refused."""
+
+
+class Mode(_Section):
+    """``[mode]``: the operator's mode switch; ``auto_value`` means auto, anything else manual."""
+
+    node: NodeId
+    auto_value: str | int = "auto"
+
+
+class Setpoint(_Section):
+    """A setpoint the service writes, with the limits enforced again at the writer (defaults:
+    the scene's controller bounds and rate limits)."""
+
+    node: NodeId
+    min: float | None = None
+    max: float | None = None
+    rate_max_per_h: float | None = Field(default=None, gt=0)
+
+
+class Setpoints(_Section):
+    """``[setpoints]``: feed rate and mill speed."""
+
+    feed_tph: Setpoint
+    speed_frac_critical: Setpoint
+
+
+class Node(_Section):
+    node: NodeId
+
+
+class SoftSensor(_Section):
+    """``[soft_sensor]``: where the predicted P80 and specific energy of the incoming ore are
+    published: the twin's steady state and, for the surrogate's mill, the PLS surrogate."""
+
+    p80_um: NodeId | None = None
+    specific_energy_kwh_t: NodeId | None = None
+    surrogate_p80_um: NodeId | None = None
+    surrogate_specific_energy_kwh_t: NodeId | None = None
+
+
+class Fallback(_Section):
+    """``[fallback]``: how long the controller runs on its model before it holds the setpoints."""
+
+    p80_hold_after_h: float | None = Field(default=None, gt=0)
+    """P80 unusable this long: hold the setpoints (default: the NMPC's horizon)."""
+    inputs_hold_after_h: float | None = Field(default=None, gt=0)
+    """Actual feed or speed unusable this long: hold (default: INPUTS_HOLD_AFTER_SAMPLES samples)."""
+
+
+class Connection(_Section):
+    """``[connection]``: request time-out and reconnection back-off (wall-clock seconds)."""
+
+    request_timeout_s: float = Field(default=2.0, gt=0, le=60)
+    reconnect_initial_s: float = Field(default=0.5, gt=0, le=60)
+    reconnect_max_s: float = Field(default=30.0, gt=0, le=3600)
+
+
+class TagMap(_Section):
+    """A validated, completed tag map (see the module docstring)."""
+
+    measurements: Measurements
+    belt_analyser: BeltAnalyser | None = None
+    mode: Mode
+    setpoints: Setpoints
+    heartbeat: Node
+    status: Node | None = None
+    soft_sensor: SoftSensor | None = None
+    fallback: Fallback = Field(default_factory=Fallback)
+    connection: Connection = Field(default_factory=Connection)
+
+    def read_roles(self) -> dict[str, str]:
+        """Role -> node id of everything read each cycle (belt ores as ``blend.<ore>``)."""
+        roles = {name: m.node for name, m in self.measurements if m is not None}
+        if self.belt_analyser is not None:
+            roles |= {f"blend.{ore}": node for ore, node in self.belt_analyser.nodes.items()}
+        return roles | {"mode": self.mode.node}
+
+    def write_roles(self) -> dict[str, str]:
+        """Role -> node id of everything the service may write."""
+        roles = {f"setpoints.{name}": sp.node for name, sp in self.setpoints}
+        roles["heartbeat"] = self.heartbeat.node
+        if self.status is not None:
+            roles["status"] = self.status.node
+        if self.soft_sensor is not None:
+            roles |= {f"soft_sensor.{k}": v for k, v in self.soft_sensor if v is not None}
+        return roles
+
+
+def load_tags(path: str | Path, scene: Scene) -> TagMap:
+    """Read, validate, check against ``scene`` and complete a tag map; TagMapError listing
+    every problem, before anything connects."""
+    path = Path(path)
+    data = read_toml(path, what="tag map")
+    try:
+        tags = TagMap.model_validate(data)
+    except ValidationError as exc:
+        raise TagMapError(_summary(path, [pydantic_message(str(path), e, TagMap) for e in exc.errors()])) from None
+    problems = [f"{path}: {m}" for m in scene_problems(tags, scene)]
+    if problems:
+        raise TagMapError(_summary(path, problems))
+    return complete(tags, scene)
+
+
+def _summary(path: Path, errors: list[str]) -> str:
+    errors = list(dict.fromkeys(errors))
+    return f"{path}: {len(errors)} problem{'s' if len(errors) > 1 else ''} in the tag map\n  " + "\n  ".join(errors)
+
+
+def scene_problems(tags: TagMap, scene: Scene) -> list[str]:
+    """What in a schema-valid tag map does not fit the scene it serves."""
+    out = []
+    ores = sorted(scene.ores)
+    if tags.belt_analyser is not None and sorted(tags.belt_analyser.nodes) != ores:
+        out.append(f"belt_analyser.nodes: must name exactly the scene's ores {ores} "
+                   f"(got {sorted(tags.belt_analyser.nodes)})")
+    p80 = tags.measurements.p80_um
+    period = scene.sensors.p80_sample_period_h or scene.scene.sample_period_h
+    if p80.frozen_after_h is not None and p80.frozen_after_h <= period:
+        out.append(f"measurements.p80_um.frozen_after_h: must be longer than the analyser's sample period "
+                   f"{period:g} h, or every held reading counts as frozen (got {p80.frozen_after_h!r})")
+    for name, sp in tags.setpoints:
+        if sp.min is not None and sp.max is not None and not sp.min < sp.max:
+            out.append(f"setpoints.{name}: min must be below max (got min {sp.min!r}, max {sp.max!r})")
+    seen: dict[str, str] = {}
+    for role, node in (tags.read_roles() | {k: v for k, v in tags.write_roles().items()}).items():
+        if node in seen:
+            out.append(f"{_role_path(role)}: node {node!r} is already the node of {_role_path(seen[node])}; "
+                       "each role needs a node of its own")
+        seen.setdefault(node, role)
+    if scene.controller.kind != "nmpc":
+        out.append(f"(scene) controller.kind: grindtwin serve runs the scene's NMPC; must be 'nmpc' "
+                   f"(got {scene.controller.kind!r})")
+    return out
+
+
+def _role_path(role: str) -> str:
+    """The tag map's key path of a role of :meth:`TagMap.read_roles` / ``write_roles``."""
+    if role.startswith("blend."):
+        return f"belt_analyser.nodes.{role[6:]}"
+    if role in Measurements.model_fields:
+        return f"measurements.{role}.node"
+    if role.startswith("setpoints."):
+        return f"{role}.node"
+    return role if role.startswith("soft_sensor.") else f"{role}.node"
+
+
+def complete(tags: TagMap, scene: Scene) -> TagMap:
+    """The tag map with the scene's defaults filled in (a new object)."""
+    t = tags.model_copy(deep=True)
+    dt = scene.scene.sample_period_h
+    analyser = max(dt, scene.sensors.p80_sample_period_h or dt)
+    for name, m in t.measurements:
+        if m is not None and m.max_age_h is None:
+            m.max_age_h = STALE_AFTER_SAMPLES * (analyser if name == "p80_um" else dt)
+    if t.belt_analyser is not None:
+        if t.belt_analyser.lead_h is None:
+            t.belt_analyser.lead_h = scene.controller.preview_lead_h
+        if t.belt_analyser.max_age_h is None:
+            t.belt_analyser.max_age_h = STALE_AFTER_SAMPLES * dt
+    b = scene.controller.bounds
+    feed_lo, feed_hi = feed_bounds(scene)
+    _fill(t.setpoints.feed_tph, feed_lo, feed_hi, b.feed_rate_max_tph_per_h)
+    _fill(t.setpoints.speed_frac_critical, b.speed_min, b.speed_max, b.speed_rate_max_per_h)
+    if t.fallback.p80_hold_after_h is None:
+        t.fallback.p80_hold_after_h = scene.controller.horizon_steps * dt
+    if t.fallback.inputs_hold_after_h is None:
+        t.fallback.inputs_hold_after_h = INPUTS_HOLD_AFTER_SAMPLES * dt
+    return t
+
+
+def _fill(sp: Setpoint, lo: float, hi: float, rate: float | None) -> None:
+    sp.min = lo if sp.min is None else sp.min
+    sp.max = hi if sp.max is None else sp.max
+    if sp.rate_max_per_h is None:
+        sp.rate_max_per_h = rate if rate is not None else math.inf

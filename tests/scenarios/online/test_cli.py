@@ -1,0 +1,33 @@
+"""grindtwin serve and plant-server refuse bad input with exit 2 and one line, before anything runs."""
+
+import pytest
+
+from scenarios.cli import main
+
+from .conftest import SMALL_TAGS
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["serve", "{scene}", "--opcua", "opc.tcp://127.0.0.1:4840", "--tags", "{tags}"],
+     "a secure session needs --cert, --key, --server-cert, --user (or --insecure for an unsecured one)"),
+    (["serve", "{scene}", "--opcua", "opc.tcp://127.0.0.1:4840", "--tags", "{tags}", "--insecure", "--user", "apc"],
+     "--insecure connects without security or user; drop --user"),
+    (["plant-server", "{scene}", "--opcua", "opc.tcp://127.0.0.1:4840", "--tags", "{tags}", "--cert", "c.pem"],
+     "a secure endpoint needs --key, --trust, --users"),
+    (["serve", "{scene}", "--opcua", "opc.tcp://127.0.0.1:4840", "--tags", "{bad_tags}", "--insecure"],
+     "setpoints.feed_tph: min must be below max (got min 40.0, max 30.0)"),
+    (["plant-server", "{scene}", "--opcua", "opc.tcp://127.0.0.1:4840", "--speedup", "0", "--insecure"],
+     "--speedup must be in (0, 1e+06]"),
+])
+def test_bad_input_exits_2_with_one_clear_line(small_files, tmp_path, capsys, argv, message):
+    scene, tags = small_files
+    bad = tmp_path / "bad.toml"
+    bad.write_text(SMALL_TAGS.replace('node = "ns=2;s=Mill.Feed.Setpoint_tph"',
+                                      'node = "ns=2;s=Mill.Feed.Setpoint_tph"\nmin = 40.0\nmax = 30.0'))
+    args = [a.format(scene=scene, tags=tags, bad_tags=bad) for a in argv]
+    try:
+        code = main(args)
+    except SystemExit as exc:  # argparse's own refusals
+        code = exc.code
+    assert code == 2
+    assert message in capsys.readouterr().err

@@ -1,0 +1,168 @@
+"""The virtual plant without the network: a setpoint takes effect when it is written (the input
+piecewise constant), the analyser is mpc.SensorState with the scene's seed, the belt analyser
+reports the blend lead_h ahead, and the record's KPIs are mpc.loop_kpis of its frame."""
+
+import asyncio
+import math
+
+import numpy as np
+import pytest
+
+import scenarios.online as online
+from mpc import SensorState, loop_kpis
+from scenarios.run.closed_loop import scene_sensors
+
+
+@pytest.fixture
+def plant(small_scene, small_tags, small_parts):
+    clock = online.ManualClock(speedup=3600.0)
+    p = online.PlantServer(small_scene, small_tags, online.PlantServerSettings(
+        "opc.tcp://127.0.0.1:1", online.ServerSecurity(insecure=True)), models=small_parts.models, clock=clock)
+    return p, clock
+
+
+def ticks(p, clock, n):
+    async def go():
+        for _ in range(n):
+            clock.advance(p.dt_h)
+            await p.tick()
+    asyncio.run(go())
+
+
+def test_a_setpoint_takes_effect_at_the_time_it_was_written(plant):
+    p, clock = plant
+    dt = p.dt_h
+    x0, u0, d = p.x.copy(), p.u.copy(), p.plant.disturbance(0.0, p.schedule(0.0), 1.0)
+    clock.advance(dt / 4)  # a quarter into the sample the feed setpoint changes
+    p._apply_write("setpoints.feed_tph", 12.0, p.plant_time(clock.now()), "test")
+    clock.advance(3 * dt / 4)
+    asyncio.run(p.tick())
+    x1, _, _ = p.plant.step(x0, u0, d, dt / 4)
+    x2, _, _ = p.plant.step(x1, np.array([12.0, u0[1]]), d, 3 * dt / 4)
+    np.testing.assert_allclose(p.x, x2, rtol=1e-9, atol=1e-12)  # a quarter is 5 marks, to the last bit
+    held, _, _ = p.plant.step(x0, np.array([12.0, u0[1]]), d, dt)  # the test can fail: the timing matters
+    assert np.max(np.abs(p.x - held) / (np.abs(held) + 1e-9)) > 1e-4
+    assert p.published["feed_tph"].Value.Value == 12.0
+
+
+def test_non_physical_setpoints_are_ignored(plant):
+    p, _ = plant
+    for value in (math.nan, -3.0, "20"):
+        p._apply_write("setpoints.feed_tph", value, 0.0, "test")
+    p._apply_write("setpoints.speed_frac_critical", 1.2, 0.0, "test")
+    assert p.writes == []
+
+
+def test_the_analyser_is_sensor_state_with_the_scenes_seed(plant, small_scene):
+    p, clock = plant
+    ticks(p, clock, 12)
+    f = p.frame()
+    ref = SensorState(scene_sensors(small_scene), np.random.default_rng(small_scene.scene.seed))
+    for row in f.itertuples():
+        _, held, pw, ld = ref.make_step(row.time_h - p.t_start_h, row.p80_um, row.power_kw, row.load_frac)
+        assert (held, pw, ld) == (row.p80_measured_um, row.power_meas_kw, row.load_meas_frac) or (
+            math.isnan(held) and math.isnan(row.p80_measured_um))
+    reports = f["p80_measured_um"].dropna()
+    assert reports.nunique() >= 8  # a live analyser (a report every sample after the dead time)
+    assert (reports - f.loc[reports.index, "p80_um"]).abs().max() > 0.5  # with noise
+
+
+def test_the_belt_analyser_reports_the_blend_lead_h_ahead(plant, small_scene):
+    p, clock = plant
+    p.t_h = p.t_start_h = 0.5  # near the ramp at 1.0 h
+    belt = []
+    for _ in range(10):
+        ticks(p, clock, 1)
+        belt.append(p.published["blend.D"].Value.Value)
+    lead = small_scene.controller.preview_lead_h
+    t = p.frame()["time_h"].to_numpy()
+    np.testing.assert_allclose(belt, [p.schedule(tt + lead)[1] for tt in t])
+    assert belt[-1] > 0 and p.frame()["blend_D_frac"].iloc[-1] < belt[-1]  # the belt sees D before the mill
+
+
+def test_the_record_kpis_are_loop_kpis(plant):
+    p, clock = plant
+    ticks(p, clock, 10)
+    k = p.kpis()
+    ref = loop_kpis(p.frame(), tuple(p.scene.controller.load_band_frac))
+    assert k["p80_iae_um_h"] == ref["p80_iae_um_h"] > 0 and k["throughput_t"] == ref["throughput_t"]
+
+
+def test_a_write_storm_costs_at_most_one_integrator_restart_per_5_percent_of_a_sample(plant, monkeypatch):
+    from scenarios.online.plant_server import MIN_PIECE_FRAC
+
+    p, clock = plant
+    calls = []
+    step = p.plant.step
+    monkeypatch.setattr(p.plant, "step", lambda *a: calls.append(a[-1]) or step(*a))
+    for k in range(200):  # a client writing 200 times a sample
+        clock.advance(p.dt_h / 200)
+        p._apply_write("setpoints.feed_tph", 16.0 + k / 200, p.plant_time(clock.now()) - p.dt_h / 400, "storm")
+    asyncio.run(p.tick())
+    assert len(calls) <= 1 / MIN_PIECE_FRAC + 1 and sum(calls) == pytest.approx(p.dt_h)
+    assert p.u[0] < 17.0 and len(p.writes) > 0  # the last writes wait for the next sample
+
+
+def test_a_setpoint_waits_for_the_next_scan_mark_so_piece_lengths_repeat(plant, monkeypatch):
+    from scenarios.online.plant_server import MIN_PIECE_FRAC
+
+    p, clock = plant
+    lengths = set()
+    step = p.plant.step
+    monkeypatch.setattr(p.plant, "step", lambda *a: lengths.add(a[-1]) or step(*a))
+    rng = np.random.default_rng(0)
+    for _ in range(8):  # a write at a random time in each sample, as a served controller's
+        x0, u0, d = p.x.copy(), p.u.copy(), p.plant.disturbance(p.t_h, p.schedule(max(p.t_h, 0.0)), 1.0)
+        frac = rng.uniform(0.0, 1.0 - MIN_PIECE_FRAC)
+        clock.advance(frac * p.dt_h)
+        p._apply_write("setpoints.feed_tph", float(u0[0]) + 0.5, p.plant_time(clock.now()), "test")
+        clock.advance((1 - frac) * p.dt_h)
+        asyncio.run(p.tick())
+    # the last sample: the write took effect at the first 5 % mark after it
+    at = math.ceil(frac / MIN_PIECE_FRAC) * MIN_PIECE_FRAC * p.dt_h
+    x1, _, _ = p.plant.step(x0, u0, d, at)
+    x2, _, _ = p.plant.step(x1, np.array([u0[0] + 0.5, u0[1]]), d, p.dt_h - at)
+    np.testing.assert_allclose(p.x, x2, rtol=1e-9, atol=1e-12)
+    marks = np.array(sorted(lengths)) / (MIN_PIECE_FRAC * p.dt_h)
+    np.testing.assert_allclose(marks, np.round(marks), atol=1e-9)  # whole numbers of marks: cached integrators
+
+
+def test_frozen_plant_time_stands_still_for_writes(plant):
+    p, clock = plant
+    p.running = False
+    clock.advance(5 * p.dt_h)
+    assert p.plant_time(clock.now()) == p.t_h
+    p.running = True
+    assert p.plant_time(clock.now()) == pytest.approx(p.t_h + 5 * p.dt_h)
+
+
+def test_a_new_speed_up_counts_from_the_time_it_was_written(plant):
+    p, clock = plant  # x3600: a wall-clock second is a plant hour
+    clock.advance(p.dt_h / 2)
+    p._apply_write("sim.speedup", 7200.0, p.plant_time(clock.now()), "instructor")
+    clock.advance(p.dt_h / 2)  # at x7200: half the wall time of the first half
+    # the first half at x3600, the second at x7200 (the new pace applied to all: 1.5 samples)
+    assert p.plant_time(clock.now()) == pytest.approx(p.t_h + p.dt_h)
+    for bad in (0.0, -2.0, math.inf, "fast"):
+        p._apply_write("sim.speedup", bad, 0.0, "instructor")
+    assert p.clock.speedup == 7200.0
+
+
+def test_a_paused_plant_runs_at_the_speed_up_written_with_run(small_scene, small_tags, small_parts, url):
+    """Started frozen at real time (a 3-minute sample), the plant must not wait out the sample it
+    was paused in once the instructor sets x3600 and runs it: three samples take 0.15 s."""
+    p = online.PlantServer(small_scene, small_tags, online.PlantServerSettings(
+        url, online.ServerSecurity(insecure=True), paused=True, duration_h=3 * small_scene.scene.sample_period_h),
+        models=small_parts.models)
+
+    async def go():
+        serving = asyncio.create_task(p.run(install_signal_handlers=False))
+        while p.server is None:
+            await asyncio.sleep(0.01)
+        await asyncio.sleep(0.2)  # a frozen while at x1
+        p._apply_write("sim.speedup", 3600.0, p.t_h, "instructor")
+        p._apply_write("sim.run", True, p.t_h, "instructor")
+        await asyncio.wait_for(serving, 30)  # before the re-timing: the 180 s sample ran out first
+
+    asyncio.run(go())
+    assert p.t_h == pytest.approx(3 * small_scene.scene.sample_period_h) and len(p.rows) == 3

@@ -1,0 +1,73 @@
+"""Data quality: status severity from the code's top bits, stale and future timestamps,
+frozen values, Uncertain accepted only where the map says so."""
+
+import math
+from datetime import datetime, timedelta, timezone
+
+import pytest
+from asyncua import ua
+
+from scenarios.online import Clock, Reading, TagQuality, severity
+
+T0 = datetime(2030, 1, 1, tzinfo=timezone.utc)
+CLOCK = Clock(speedup=60.0)  # a wall minute is a plant hour
+
+
+def at(minutes):
+    return T0 + timedelta(minutes=minutes)
+
+
+@pytest.mark.parametrize("name, expected", [("Good", "good"), ("GoodLocalOverride", "good"),
+                                            ("UncertainLastUsableValue", "uncertain"),
+                                            ("UncertainSensorNotAccurate", "uncertain"),
+                                            ("BadSensorFailure", "bad"), ("BadCommunicationError", "bad"),
+                                            ("BadWaitingForInitialData", "bad")])
+def test_severity_agrees_with_asyncua(name, expected):
+    code = getattr(ua.StatusCodes, name)
+    assert severity(code) == expected
+    sc = ua.StatusCode(code)
+    assert (sc.is_good(), sc.is_uncertain(), sc.is_bad()) == (expected == "good", expected == "uncertain",
+                                                                expected == "bad")
+
+
+def test_stale_after_max_age_in_plant_hours():
+    q = TagQuality("p80", max_age_h=0.15)
+    assert q.assess(Reading(210.0, 0, at(0)), at(0.1), CLOCK).ok  # 0.1 plant h old
+    v = q.assess(Reading(210.0, 0, at(0)), at(0.2), CLOCK)
+    assert (v.quality, v.ok) == ("stale", False) and "0.2 h old, limit 0.15 h" in v.reason
+    v = q.assess(Reading(210.0, 0, at(0.5)), at(0.2), CLOCK)
+    assert v.quality == "stale" and "future" in v.reason
+
+
+def test_frozen_when_the_value_stays_while_timestamps_move():
+    q = TagQuality("p80", max_age_h=1.0, frozen_after_h=0.2)
+    verdicts = [q.assess(Reading(212.5, 0, at(m)), at(m), CLOCK) for m in (0, 0.1, 0.2, 0.3)]
+    assert [v.quality for v in verdicts] == ["good", "good", "good", "frozen"]
+    assert q.assess(Reading(212.6, 0, at(0.35)), at(0.35), CLOCK).quality == "good"  # moves again
+
+
+def test_freeze_tolerance_and_no_check_without_a_limit():
+    q = TagQuality("p", max_age_h=None, frozen_after_h=0.1, freeze_tolerance=0.5)
+    assert q.assess(Reading(1.0, 0, at(0)), at(0), CLOCK).ok
+    assert q.assess(Reading(1.4, 0, at(0.2)), at(0.2), CLOCK).quality == "frozen"
+    free = TagQuality("feed", max_age_h=None)
+    assert all(free.assess(Reading(20.0, 0, at(m)), at(m), CLOCK).ok for m in range(10))
+
+
+def test_uncertain_rejected_unless_accepted_and_bad_always():
+    unc = ua.StatusCodes.UncertainLastUsableValue
+    assert TagQuality("a", None).assess(Reading(1.0, unc, at(0)), at(0), CLOCK).quality == "uncertain"
+    v = TagQuality("a", None, accept_uncertain=True).assess(Reading(1.0, unc, at(0)), at(0), CLOCK)
+    assert v.ok and v.value == 1.0
+    v = TagQuality("a", None, accept_uncertain=True).assess(
+        Reading(1.0, ua.StatusCodes.BadSensorFailure, at(0), status_name="BadSensorFailure"), at(0), CLOCK)
+    assert not v.ok and math.isnan(v.value) and "BadSensorFailure" in v.reason
+
+
+def test_not_a_number_is_bad_and_new_follows_the_timestamp():
+    q = TagQuality("a", None)
+    assert q.assess(Reading("abc", 0, at(0)), at(0), CLOCK).quality == "bad"
+    assert q.assess(Reading(float("nan"), 0, at(0)), at(0), CLOCK).quality == "bad"
+    assert q.assess(Reading(True, 0, at(0)), at(0), CLOCK).quality == "bad"
+    assert q.assess(Reading(2.0, 0, at(1)), at(1), CLOCK).new
+    assert not q.assess(Reading(2.0, 0, at(1)), at(1.5), CLOCK).new

@@ -1,0 +1,224 @@
+"""A fault drill of the served controller on the virtual plant, in lock step on loopback: warm-up,
+auto, a Bad P80, a frozen analyser, a manual period with an operator's move, a network outage
+that sheds the service by the plant's watchdog, and the return. Each is handled, logged and
+audited; no exception escapes. The drill runs once; each test reads one phase of it."""
+
+import asyncio
+import logging
+
+import numpy as np
+import pandas as pd
+import pytest
+from asyncua import ua
+
+import scenarios.online as online
+
+from .conftest import LockStep
+
+
+class Records(logging.Handler):
+    def __init__(self):
+        super().__init__(logging.DEBUG)
+        self.records = []
+
+    def emit(self, record):
+        self.records.append(record)
+
+
+async def _operator(url, tags):
+    """An operator's client (the DCS console): writes the mode and the feed setpoint."""
+    conn = online.PlantConnection(url, online.ClientSecurity(insecure=True), {},
+                                  {"mode": tags.mode.node, "feed": tags.setpoints.feed_tph.node})
+    await conn.open()
+    return conn
+
+
+async def _drill(ls: LockStep, url, tags):
+    phases, inn = {}, []
+
+    async def phase(name, n):
+        start = len(ls.rows)
+        for _ in range(n):
+            await ls.step()
+            inn.append(ls.service.parts.estimator.innovation[0])
+        phases[name] = (start, len(ls.rows))
+
+    await ls.start()
+    await phase("warmup_auto", 10)                     # warm-up 0.2 h, then auto
+    ls.plant.set_fault("bad")
+    await phase("bad_p80", 6)                          # 0.3 h: on the model, then hold (> 0.15 h)
+    ls.plant.set_fault("none")
+    await phase("recovered_1", 4)
+    ls.plant.set_fault("frozen")
+    await phase("frozen", 9)                           # frozen after 0.2 h, then hold
+    ls.plant.set_fault("none")
+    await phase("recovered_2", 4)
+    op = await _operator(url, tags)
+    await op.write({"mode": ("manual", ua.StatusCodes.Good), "feed": (12.0, ua.StatusCodes.Good)}, ls.clock.now())
+    await phase("manual", 5)
+    await op.write({"mode": ("auto", ua.StatusCodes.Good)}, ls.clock.now())
+    await phase("back_to_auto", 3)
+    await op.close()
+    await ls.plant.drop()
+    await phase("outage", 5)                           # 0.25 h without heartbeat: the watchdog sheds (0.15 h)
+    await ls.plant.restore()
+    for _ in range(100):                               # the reconnection task's back-off runs on wall time
+        await asyncio.sleep(0.05)
+        if ls.service.conn is not None:
+            break
+    await phase("returned", 3)
+    plant_mode_after = ls.plant.mode
+    op = await _operator(url, tags)
+    await op.write({"mode": ("auto", ua.StatusCodes.Good)}, ls.clock.now())
+    await op.close()
+    await phase("auto_again", 3)
+    soft = await ls.plant.server.get_node(ua.NodeId.from_string(tags.soft_sensor.p80_um)).read_data_value()
+    await ls.stop()
+    return phases, np.array(inn), plant_mode_after, soft
+
+
+@pytest.fixture(scope="module")
+def drill(small_scene, small_tags, small_parts, tmp_path_factory):
+    from .conftest import free_port
+
+    url = f"opc.tcp://127.0.0.1:{free_port()}"
+    audit_dir = tmp_path_factory.mktemp("drill") / "audit"
+    handler = Records()
+    loggers = [logging.getLogger(n) for n in ("grindtwin.online", "asyncio")]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.addHandler(handler)
+        lg.setLevel(logging.INFO)
+    ls = LockStep(small_scene, small_tags, small_parts, url, audit_dir)
+    try:
+        phases, innovation, plant_mode, soft = asyncio.run(_drill(ls, url, small_tags))
+    finally:
+        for lg, level in zip(loggers, levels):
+            lg.removeHandler(handler)
+            lg.setLevel(level)
+    audit = online.read_audit(audit_dir)
+    return {"phases": phases, "innovation": innovation, "audit": audit, "rows": pd.DataFrame(ls.rows),
+            "records": handler.records, "plant": ls.plant, "plant_mode_after_outage": plant_mode, "tags": small_tags,
+            "soft_node": soft}
+
+
+def _rows(d, phase):
+    a, b = d["phases"][phase]
+    return d["rows"].iloc[a:b]
+
+
+def _messages(d, level=logging.WARNING):
+    return [r.getMessage() for r in d["records"] if r.levelno >= level]
+
+
+def test_no_exception_escapes_and_every_cycle_is_audited(drill):
+    assert len(drill["audit"]) == len(drill["rows"]) + 1  # and the shutdown row
+    assert drill["audit"]["mode"].iloc[-1] == "stopped"
+    assert not [r for r in drill["records"] if r.name == "asyncio" and r.levelno >= logging.ERROR]
+
+
+def test_warm_up_then_auto_writes_the_controllers_moves(drill):
+    r = _rows(drill, "warmup_auto")
+    assert list(r["mode"][:4]) == ["warmup"] * 4 and (r["mode"][5:] == "auto").all()
+    assert not r["written"][:4].any() and r["written"][5:].all()
+
+
+def test_a_bad_p80_runs_on_the_model_then_holds(drill):
+    r = _rows(drill, "bad_p80")
+    assert (r["p80_um_quality"] == "bad").all()
+    assert r["mode"].iloc[0] == "auto" and "on the model: P80 unusable" in r["reason"].iloc[0]
+    held = r[r["mode"] == "hold"]
+    assert len(held) >= 2 and not held["written"].any()
+    assert held["reason"].str.contains(r"P80 unusable for .* h \(> 0.15 h\)").all()
+    a, b = drill["phases"]["bad_p80"]
+    assert np.isnan(drill["innovation"][a:b]).all()  # the estimator got no P80
+    assert any("p80_um unusable: bad (status BadSensorFailure)" in m for m in _messages(drill))
+    r2 = _rows(drill, "recovered_1")
+    assert r2["mode"].iloc[-1] == "auto" and r2["written"].iloc[-1]
+
+
+def test_a_frozen_analyser_is_found_and_held(drill):
+    r = _rows(drill, "frozen")
+    q = list(r["p80_um_quality"])
+    assert "frozen" in q and q[0] == "good"  # frozen only after frozen_after_h of the same value
+    assert (r["mode"] == "hold").any()
+    assert any("p80_um unusable: frozen (value" in m for m in _messages(drill))
+    a, b = drill["phases"]["frozen"]
+    frozen_rows = np.flatnonzero(r["p80_um_quality"].to_numpy() == "frozen")
+    assert np.isnan(drill["innovation"][a + frozen_rows]).all()
+
+
+def test_manual_writes_nothing_and_the_return_to_auto_is_bumpless(drill):
+    r = _rows(drill, "manual")
+    assert (r["mode"] == "manual").all() and not r["written"].any()
+    assert r["feed_proposed_tph"].notna().all()  # the controller tracks
+    assert (r["feed_actual_tph"].iloc[1:] == 12.0).all()  # the operator's move stands
+    back = _rows(drill, "back_to_auto")
+    first = back[back["written"]].iloc[0]
+    rate = drill["tags"].setpoints.feed_tph.rate_max_per_h * drill["plant"].dt_h
+    assert abs(first["feed_sp_tph"] - 12.0) <= rate + 1e-9  # starts where the operator left it
+    assert any("bumpless" in m for m in _messages(drill, logging.INFO))
+
+
+def test_an_outage_is_reported_the_plant_sheds_the_service_and_it_comes_back(drill):
+    r = _rows(drill, "outage")
+    assert (r["mode"] == "disconnected").all() and not r["written"].any()
+    assert r["reason"].str.contains("setpoints left at feed").all()
+    msgs = _messages(drill)
+    assert any("lost" in m and "the plant keeps the last setpoints" in m for m in msgs)
+    assert any("watchdog: no heartbeat" in m for m in msgs)
+    assert drill["plant_mode_after_outage"] == "manual"
+    ret = _rows(drill, "returned")
+    assert (ret["mode"] == "manual").all()  # shed by the watchdog: it waits for the operator
+    assert any("connection established" in m for m in _messages(drill, logging.INFO))
+    again = _rows(drill, "auto_again")
+    assert again["mode"].iloc[-1] == "auto" and again["written"].iloc[-1]
+
+
+def test_setpoints_stay_within_the_writers_limits(drill):
+    w = drill["rows"][drill["rows"]["written"]]
+    lim = drill["tags"].setpoints.feed_tph
+    assert w["feed_sp_tph"].between(lim.min, lim.max).all()
+    steps = (w["feed_sp_tph"] - w["feed_actual_tph"]).abs()
+    assert (steps <= lim.rate_max_per_h * drill["plant"].dt_h + 1e-9).all()
+
+
+def test_the_soft_sensor_publishes_the_twins_prediction_of_the_ore_on_the_belt(drill, small_parts):
+    last = drill["rows"].iloc[-1]
+    dv = drill["soft_node"]
+    assert dv.StatusCode.is_good() and dv.Value.Value == last["soft_p80_um"]
+    belt = [drill["plant"].published[f"blend.{o}"].Value.Value for o in ("B", "D")]
+    ss = small_parts.models.control.steady(feed_tph=last["feed_actual_tph"],
+                                           speed_frac_critical=last["speed_actual_frac_critical"], blend=belt)
+    assert last["soft_p80_um"] == pytest.approx(ss.p80_um, rel=1e-9)
+
+
+class _SilentPlant:
+    """A session whose requests never come back in time (a plant server too busy to answer)."""
+
+    async def read(self):
+        raise asyncio.TimeoutError
+
+    async def close(self):
+        pass
+
+
+def test_a_busy_plant_holds_cycles_and_counts_as_lost_after_three_timeouts(small_parts, small_tags, url, tmp_path,
+                                                                             caplog):
+    from scenarios.online.service import LOST_AFTER_TIMEOUTS
+
+    small_parts.reset()
+    service = online.Service(small_parts, small_tags, online.ServeSettings(
+        url, online.ClientSecurity(insecure=True), tmp_path / "audit"), clock=online.ManualClock(3600.0))
+
+    async def go():
+        service.conn = _SilentPlant()
+        rows = [await service.cycle() for _ in range(LOST_AFTER_TIMEOUTS)]
+        await service.shutdown("test end")
+        return rows
+
+    with caplog.at_level(logging.WARNING, logger="grindtwin.online"):
+        rows = asyncio.run(go())
+    assert [r["mode"] for r in rows] == ["hold"] * (LOST_AFTER_TIMEOUTS - 1) + ["disconnected"]
+    assert "did not answer within 1 s (1 of 3" in rows[0]["reason"]
+    assert any("lost (TimeoutError" in r.getMessage() for r in caplog.records)

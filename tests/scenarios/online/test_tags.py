@@ -1,0 +1,77 @@
+"""Tag maps are validated as a whole like scenes: every problem at once, each naming the file,
+the key path, the value and what is allowed; then checked against the scene and completed."""
+
+
+import pytest
+
+import scenarios.online as online
+from scenarios.errors import SceneError
+from scenarios.scene import load_scene
+
+from .conftest import SMALL_TAGS
+
+
+def _write(tmp_path, text):
+    p = tmp_path / "tags.toml"
+    p.write_text(text)
+    return p
+
+
+def test_the_shipped_virtual_plant_map_fits_the_reference_scene_and_takes_its_defaults():
+    scene = load_scene("scenarios/reference_transition.toml")
+    tags = online.load_tags(online.VIRTUAL_PLANT_TAGS, scene)
+    # load's max age was omitted: three of the scene's 0.05 h samples
+    assert tags.measurements.load_frac.max_age_h == pytest.approx(0.15)
+    assert tags.belt_analyser.lead_h == 0.5 == scene.controller.preview_lead_h
+    roles = tags.read_roles() | tags.write_roles()
+    assert len(set(roles.values())) == len(roles)  # one node per role
+
+
+def test_defaults_come_from_the_scene(tmp_path, small_scene):
+    tags = online.load_tags(_write(tmp_path, SMALL_TAGS), small_scene)
+    b = small_scene.controller.bounds
+    sp = tags.setpoints.feed_tph
+    assert (sp.min, sp.max, sp.rate_max_per_h) == (b.feed_tph_min, b.feed_tph_max, b.feed_rate_max_tph_per_h)
+    assert tags.fallback.inputs_hold_after_h == pytest.approx(2 * small_scene.scene.sample_period_h)
+    assert tags.belt_analyser.lead_h == small_scene.controller.preview_lead_h
+
+
+def test_every_schema_problem_is_reported_with_file_key_value_and_allowed(tmp_path, small_scene):
+    bad = SMALL_TAGS.replace('node = "ns=2;s=Mill.Power_kW"', 'node = "Mill.Power_kW"')
+    bad = bad.replace("max_age_h = 0.15", "max_age_h = -1.0")
+    bad = bad.replace("[mode]\n", "[mode]\nauto_valu = 1\n")
+    with pytest.raises(online.TagMapError) as e:
+        online.load_tags(_write(tmp_path, bad), small_scene)
+    msg = str(e.value)
+    assert "3 problems in the tag map" in msg
+    assert "measurements.power_kw.node: String should match pattern" in msg and "'Mill.Power_kW'" in msg
+    assert "measurements.p80_um.max_age_h: Input should be greater than 0 (got -1.0)" in msg
+    assert "mode.auto_valu: unknown key 'auto_valu' (did you mean 'auto_value'?); allowed keys: auto_value, node" in msg
+    assert msg.count(str(tmp_path / "tags.toml")) >= 4
+
+
+def test_the_map_is_checked_against_the_scene(tmp_path, small_scene):
+    bad = SMALL_TAGS.replace('D = "ns=2;s=Belt.D_frac"', 'C = "ns=2;s=Belt.D_frac"')
+    bad = bad.replace("frozen_after_h = 0.2", "frozen_after_h = 0.05")
+    bad = bad.replace('node = "ns=2;s=APC.Status"', 'node = "ns=2;s=APC.Heartbeat"')
+    with pytest.raises(online.TagMapError) as e:
+        online.load_tags(_write(tmp_path, bad), small_scene)
+    msg = str(e.value)
+    assert "belt_analyser.nodes: must name exactly the scene's ores ['B', 'D'] (got ['B', 'C'])" in msg
+    assert "measurements.p80_um.frozen_after_h: must be longer than the analyser's sample period 0.05 h" in msg
+    assert "status.node: node 'ns=2;s=APC.Heartbeat' is already the node of heartbeat.node" in msg
+
+
+def test_a_missing_file_says_tag_map(tmp_path, small_scene):
+    with pytest.raises(SceneError) as e:
+        online.load_tags(tmp_path / "none.toml", small_scene)
+    assert "tag map not found" in str(e.value)
+
+
+def test_limits_follow_another_scene(tmp_path):
+    """hard_to_soft has ores A and D, its own sample period and its own bounds."""
+    scene = load_scene("scenarios/hard_to_soft.toml")
+    tags = online.load_tags(_write(tmp_path, SMALL_TAGS.replace("B = ", "A = ")), scene)
+    assert (tags.setpoints.feed_tph.min, tags.setpoints.feed_tph.max) == (15.0, 50.0)
+    assert tags.measurements.power_kw.max_age_h == pytest.approx(3 * scene.scene.sample_period_h)  # 3 samples
+    assert tags.measurements.p80_um.max_age_h == 0.15  # stated in the map
