@@ -137,7 +137,6 @@ def cumulative_breakage(grid: SizeGrid, gamma: float, beta: float, phi: float, d
 
 def breakage_matrix(B: np.ndarray) -> np.ndarray:
     """b[i, j] = B[i, j] - B[i+1, j] (the sink keeps B[n-1, j]); checks mass conservation."""
-    n = B.shape[0]
     b = np.zeros_like(B)
     b[:-1] = B[:-1] - B[1:]
     b[-1] = B[-1]

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 
-from twin import MILLS, power_kw
+from twin import MILLS, get_mill, power_kw
 
 #: A feed rate above this multiple of the mill's nominal feed rate is refused: an order of
 #: magnitude above nominal is no operating point of that mill (its hold-up would be many
@@ -22,7 +22,7 @@ def nominal_feed_tph(preset, net_power_kw=None) -> float | None:
     that gives the mill's net power draws that power from the preset's geometry: its nominal
     feed is the preset's scaled by the power ratio (throughput ~ power at a given specific
     energy, Bond's law)."""
-    mill = MILLS.get(preset) if isinstance(preset, str) else None
+    mill = get_mill(preset) if isinstance(preset, str) and preset in MILLS else None
     if mill is None:
         return None
     scale = 1.0

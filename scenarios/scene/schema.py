@@ -20,7 +20,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 
 from mpc import DISTURBANCE_MODELS, QP_SOLVERS, SOLVERS
-from twin import MILLS
+from twin import get_mill
 
 #: The twin's default number of mixers in series (twin.Twin's ``n_mixers``).
 DEFAULT_N_MIXERS = 3
@@ -29,8 +29,9 @@ ORE_TYPES = ("A", "B", "C", "D")
 CONTROLLER_KINDS = ("none", "pi", "nmpc")
 
 def mill_preset(name: str) -> dict[str, float | int]:
-    """Dimensions of a mill preset of ``twin.MILLS`` and the twin's default number of mixers."""
-    mill = MILLS[name]
+    """Dimensions of a mill preset of ``twin.MILLS`` (the sized ``industrial`` preset as its file
+    gives it, :func:`twin.get_mill`) and the twin's default number of mixers."""
+    mill = get_mill(name)
     return {"diameter_m": mill.diameter_m, "length_m": mill.length_m,
             "ball_filling_frac": mill.ball_filling_frac, "n_mixers": DEFAULT_N_MIXERS}
 

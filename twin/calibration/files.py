@@ -116,8 +116,12 @@ class Calibration:
                        f"{sorted(mine)} (missing {sorted(set(mine) - set(theirs))}, extra "
                        f"{sorted(set(theirs) - set(mine))})")
         g = self.size_grid
-        theirs_g = {"top_um": float(grid.top_um), "ratio": float(grid.ratio), "count": int(grid.count)}
-        if not all(math.isclose(float(g[k]), float(theirs_g[k]), rel_tol=1e-9) for k in g):
+        theirs_g = {"top_um": float(grid.top_um), "ratio": float(grid.ratio), "count": int(grid.count),
+                    "scheme": grid.scheme}
+        # a record without a scheme predates the second-order discretisation: Austin's form
+        same_scheme = g.get("scheme", "austin") == grid.scheme
+        if not same_scheme or not all(math.isclose(float(g[k]), float(theirs_g[k]), rel_tol=1e-9)
+                                      for k in ("top_um", "ratio", "count")):
             out.append(f"size grid {theirs_g} differs from the grid of calibration {self.name!r} {g}")
         return out
 
@@ -145,7 +149,8 @@ def base_record(name: str, breakage_map: str, description: str) -> dict:
     n_mixers = inspect.signature(Twin).parameters["n_mixers"].default
     return {"format": FILE_FORMAT, "format_version": FORMAT_VERSION, "name": name, "description": description,
             "breakage_map": breakage_map, "effects": list(DEFAULT_EFFECTS),
-            "size_grid": {"top_um": float(g.top_um), "ratio": float(g.ratio), "count": int(g.count)},
+            "size_grid": {"top_um": float(g.top_um), "ratio": float(g.ratio), "count": int(g.count),
+                          "scheme": g.scheme},
             "n_mixers": n_mixers, "mill": "lab"}
 
 

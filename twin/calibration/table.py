@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import time
 
-from ..errors import SolverError
 from .breakage_map import COEFFICIENT_NAMES
 from .files import Calibration, base_record, provenance
 from .fitting import fit_to_table, predict_table, table_errors
