@@ -85,7 +85,7 @@ def main():
              f"step for 'dem'; the table step for 'table'). Goal: every predicted KPI within {GOAL_PCT:g} %. "
              f"Worst predicted error: dem {worst['dem']:.1f} %, table {worst['table']:.1f} %. "
              f"The 'table' map fits 11 numbers to the 9 of three ores (under-determined). Calibrations: "
-             f"{dem.label()}, {table.label()}.")
+             f"'dem' (sha256 {dem.sha256[:12]}), 'table' (sha256 {table.sha256[:12]}), the shipped files.")
     write_table(summary(df), "twin_loo", "Leave-one-ore-out predictions of MISSION.md's table", notes)
     df.to_csv(os.path.join(os.path.dirname(__file__), "results", "twin_loo_folds.csv"), index=False)
 

@@ -69,12 +69,32 @@ def _root_in(g, bounds, xtol) -> float:
     return float(scipy.optimize.brentq(g, lo, hi, xtol=xtol))
 
 
+#: Halvings of the feed bracket's upper end towards its lower end while the mill has no steady
+#: state there (it overloads: its hold-up grows without bound); 6 halvings reach 1/64 of the span.
+OVERLOAD_HALVINGS = 6
+
+
 def feed_for_target(twin, blend, target_p80_um: float, speed_frac_critical: float,
                     feed_bounds_tph=(5.0, 60.0), hardness_scale: float = 1.0) -> float:
-    """Feed rate [t/h] with steady P80 = target at the given speed; nan if outside the bounds."""
-    return _root_in(lambda f: twin.steady(feed_tph=f, speed_frac_critical=speed_frac_critical, blend=blend,
-                                          hardness_scale=hardness_scale).p80_um - target_p80_um,
-                    feed_bounds_tph, xtol=1e-4)
+    """Feed rate [t/h] with steady P80 = target at the given speed; nan if outside the bounds.
+    Where the mill overloads at the upper bound (no steady state, twin.SolverError), the bracket
+    ends at the highest feed, halving towards the lower bound, that it holds."""
+    from twin import SolverError
+
+    def gap(f):
+        return twin.steady(feed_tph=f, speed_frac_critical=speed_frac_critical, blend=blend,
+                           hardness_scale=hardness_scale).p80_um - target_p80_um
+
+    lo, hi = feed_bounds_tph
+    for _ in range(OVERLOAD_HALVINGS):
+        try:
+            gap(hi)
+            break
+        except SolverError:
+            hi = 0.5 * (lo + hi)
+    else:
+        return math.nan
+    return _root_in(gap, (lo, hi), xtol=1e-4)
 
 
 def speed_for_target(twin, blend, target_p80_um: float, feed_tph: float,

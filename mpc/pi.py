@@ -103,7 +103,8 @@ class DiscretePI:
     anti_windup : str
         ``"back_calculation"``, ``"conditional"`` or ``"none"``.
     tt_h : float, optional
-        Tracking time of back-calculation (default ``ti_h / 2``); needs ``dt_h <= tt_h``.
+        Tracking time of back-calculation (default ``ti_h / 2``, at least ``dt_h``: the discrete
+        back-calculation gain dt/Tt must not exceed 1); needs ``dt_h <= tt_h``.
     """
 
     def __init__(self, kc: float, ti_h: float, dt_h: float, setpoint: float, u_bias: float,
@@ -120,7 +121,7 @@ class DiscretePI:
             raise MpcInputError(f"The 'anti_windup' parameter of DiscretePI must be one of "
                                 f"{ANTI_WINDUP}. Got {anti_windup!r}.")
         self.anti_windup = anti_windup
-        self.tt_h = self.ti_h / 2.0 if tt_h is None else _positive("tt_h", tt_h)
+        self.tt_h = max(self.ti_h / 2.0, self.dt_h) if tt_h is None else _positive("tt_h", tt_h)
         if anti_windup == "back_calculation" and self.dt_h > self.tt_h:
             raise MpcInputError(f"The 'tt_h' parameter of DiscretePI must be >= dt_h "
                                 f"({self.dt_h}) for a stable back-calculation. Got {self.tt_h}.")

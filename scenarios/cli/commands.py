@@ -695,6 +695,7 @@ def cmd_export_controller(args) -> int:
 
     files = export_scene_controller(load_scene(args.scene), args.out, source=str(args.scene))
     print(f"{len(files)} files in {args.out}: build with `make -C {args.out}`; API in gt_controller.h")
+    return 0
 # --------------------------------------------------------------------------- serve, plant-server (OPC UA)
 def _online():
     """``scenarios.online`` (the ``online`` extra), or a RunError saying how to install it."""

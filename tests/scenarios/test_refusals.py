@@ -24,25 +24,25 @@ CASES = [
      ["controller.target_p80_um", "finite number", "inf"]),
     ("power model typo", None, [], '\n[effect_options.power]\nmodel = "bnd"\n',
      ["effect_options.power.model", "'bond'", "'bnd'", "Did you mean 'bond'"]),
-    ("stages = 2.7", None, [('"power"]', '"power", "sensor_delay"]')], "\n[effect_options.sensor_delay]\nstages = 2.7\n",
+    ("stages = 2.7", None, [('"classification"]', '"classification", "sensor_delay"]')], "\n[effect_options.sensor_delay]\nstages = 2.7\n",
      ["effect_options.sensor_delay.stages", "an integer in [1, 50]", "2.7"]),
-    ("stages = 0", None, [('"power"]', '"power", "sensor_delay"]')], "\n[effect_options.sensor_delay]\nstages = 0\n",
+    ("stages = 0", None, [('"classification"]', '"classification", "sensor_delay"]')], "\n[effect_options.sensor_delay]\nstages = 0\n",
      ["effect_options.sensor_delay.stages", "an integer in [1, 50]", "Got 0"]),
-    ("dead time 0", None, [('"power"]', '"power", "sensor_delay"]')],
+    ("dead time 0", None, [('"classification"]', '"classification", "sensor_delay"]')],
      "\n[effect_options.sensor_delay]\ndead_time_h = 0.0\n",
      ["effect_options.sensor_delay.dead_time_h", "a number in (0, 24)", "0.0"]),
-    ("negative dead time", None, [('"power"]', '"power", "sensor_delay"]')],
+    ("negative dead time", None, [('"classification"]', '"classification", "sensor_delay"]')],
      "\n[effect_options.sensor_delay]\ndead_time_h = -0.1\n",
      ["effect_options.sensor_delay.dead_time_h", "a number in (0, 24)", "-0.1"]),
-    ("classification kind typo", None, [('"power"]', '"power", "classification"]')],
+    ("classification kind typo", None, [],  # the scene has classification
      '\n[effect_options.classification]\nkind = "grte"\n',
      ["effect_options.classification.kind", "'grate'", "'grte'", "Did you mean 'grate'"]),
     ("infinite duration", None, [("duration_h = 1.0", "duration_h = inf")], "",
      ["scene.duration_h", "finite number", "inf"]),
     ("plant without transport", None, [], PLANT_WITHOUT_TRANSPORT,
      ["plant.effects", "continuous mill", "not a batch grind", "add `transport`"]),
-    ("feed in kg/h", None, [("feed_tph = 30.0", "feed_tph = 30000.0")], "",
-     ["feed.feed_tph", "more than 10 x the mill's nominal 30 t/h", "kg/h?", "30000"]),
+    ("feed in kg/h", None, [("feed_tph = 30.0", "feed_tph = 3000.0")], "",  # 3 t/h typed in kg/h
+     ["feed.feed_tph", "more than 10 x the mill's nominal", "kg/h?", "3000"]),
 ]
 
 

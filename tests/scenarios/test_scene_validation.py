@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from twin import get_mill
+
 from scenarios.errors import SceneError
 from scenarios.scene.loader import check_scene, load_scene
 from tests.scenarios.conftest import BASE_SCENE
@@ -101,7 +103,8 @@ def test_every_error_of_a_file_is_reported_at_once(write_scene):
 def test_base_scene_is_valid_and_defaults_are_filled_visibly(write_scene):
     scene = load_scene(write_scene())
     assert scene.source_path.name == "scene.toml"
-    assert (scene.mill.diameter_m, scene.mill.length_m, scene.mill.n_mixers) == (3.2, 4.8, 3)
+    preset = get_mill("industrial")  # the sized preset's file, not the base mill's dimensions
+    assert (scene.mill.diameter_m, scene.mill.length_m, scene.mill.n_mixers) == (preset.diameter_m, preset.length_m, 3)
     assert scene.feed.p80_um == 3200.0
     assert scene.sensors.p80_sample_period_h == scene.scene.sample_period_h
     assert scene.controller.bounds.speed_max == 0.85

@@ -16,11 +16,10 @@ from twin.twin import Twin
 #: Acceptance threshold of R2 per KPI on unseen mineralogies (MISSION goal 0.95; the shipped
 #: design reaches ~0.998, so 0.99 catches a degradation long before the goal is missed).
 R2_THRESHOLD = 0.99
-#: Agreement with the twin on fresh points: relative error per KPI. Held-out errors of the
-#: shipped settings (512 points of 64 unseen mineralogies): P80 median 0.6 %, p95 1.9 %,
-#: max 3.3 %; specific energy median 0.2 %, max 1.1 %; load max 0.13 %. Worst on the fresh
-#: points below: P80 1.5 %, specific energy 0.34 %, load 0.04 %.
-REL_TOL = {"p80_um": 0.05, "specific_energy_kwh_t": 0.03, "load_frac": 0.01}
+#: Agreement with the twin on fresh points: worst relative error per KPI. P80's is the widest on
+#: the DEM calibration (its mapped rates vary more across mineralogies than the table map's did;
+#: benchmarks/results/twin_surrogate.md has the held-out errors).
+REL_TOL = {"p80_um": 0.08, "specific_energy_kwh_t": 0.03, "load_frac": 0.01}
 
 
 @pytest.fixture(scope="module")

@@ -15,6 +15,7 @@ from scenarios.scene import load_scene
 #: analysers so that the freeze checks see live signals.
 SMALL_SCENE = """\
 effects = ["breakage", "transport", "holdup", "speed", "power", "sensor_delay"]
+calibration_mismatch_ok = true  # a lean, coarse model for fast service tests, not the calibration's
 [scene]
 name = "online_small"
 duration_h = 3.0

