@@ -6,7 +6,7 @@ The Python API mirrors the CLI: ``scenarios.load_scene``, ``scenarios.check_scen
 """
 
 _API = {
-    "load_scene": "scenarios.scene", "check_scene": "scenarios.scene", "Scene": "scenarios.scene",
+    "load_scene": "scenarios.scene", "check_scene": "scenarios.run", "Scene": "scenarios.scene",
     "run_scene": "scenarios.run", "replay_scene": "scenarios.run", "RunResult": "scenarios.run",
     "run_sweep": "scenarios.run", "write_report": "scenarios.output",
 }

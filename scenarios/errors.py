@@ -11,3 +11,12 @@ class SceneError(ScenarioError, ValueError):
 
 class RunError(ScenarioError, RuntimeError):
     """A run failed; the message says why. Partial output is never presented as complete."""
+
+
+class Interrupted(BaseException):
+    """A signal (SIGTERM) asked the process to stop: raised like KeyboardInterrupt so that a run
+    unwinds and removes its partial output. ``signum`` is the signal's number."""
+
+    def __init__(self, signum: int):
+        super().__init__(f"signal {signum}")
+        self.signum = signum

@@ -12,7 +12,9 @@ _API = {
     "EFFECTS": ".effects", "Effect": ".effects", "known_effects": ".effects",
     "ModelError": ".errors", "SolverError": ".errors", "TwinError": ".errors", "TwinInputError": ".errors",
     "MILLS": ".mill", "Mill": ".mill", "bond_power_kw": ".mill", "get_mill": ".mill",
-    "hogg_fuerstenau_power_kw": ".mill", "load_status": ".mill",
+    "hogg_fuerstenau_power_kw": ".mill", "load_status": ".mill", "POWER_MODELS": ".mill", "power_kw": ".mill",
+    "Hydrocyclone": ".effects.classification", "hydrocyclone_from": ".effects.classification",
+    "TabulatedPSD": ".sizes", "SizedMill": ".sizing", "size_mill": ".sizing", "write_preset": ".sizing",
     "INPUT_NAMES": ".model", "Model": ".model", "ModelSpec": ".model",
     "Blend": ".ore", "Mineralogy": ".ore", "Texture": ".ore", "load_ore": ".ore", "reference_ores": ".ore",
     "GatesGaudinSchuhmann": ".sizes", "RosinRammler": ".sizes", "SizeGrid": ".sizes", "discretise": ".sizes",
@@ -23,8 +25,9 @@ _API = {
 
 __all__ = [
     "Blend", "BreakageParams", "DEFAULT_EFFECTS", "EFFECTS", "Effect", "GatesGaudinSchuhmann", "INPUT_NAMES", "MILLS",
-    "Mill", "Mineralogy", "Model", "ModelError", "ModelSpec", "OreBreakage", "RosinRammler", "SizeGrid", "SolverError", "SteadyState",
-    "Texture", "Trajectory", "Twin", "TwinError", "TwinInputError", "austin_selection", "bond_power_kw",
+    "Hydrocyclone", "Mill", "Mineralogy", "Model", "ModelError", "ModelSpec", "OreBreakage", "POWER_MODELS", "RosinRammler",
+    "SizeGrid", "SizedMill", "SolverError", "SteadyState", "TabulatedPSD", "Texture", "Trajectory", "Twin", "TwinError",
+    "TwinInputError", "austin_selection", "bond_power_kw", "hydrocyclone_from", "power_kw", "size_mill", "write_preset",
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
     "pxx_um", "reference_ores",
 ]

@@ -6,12 +6,17 @@ Units: m, t, t/m3, t/h, fraction of critical speed.
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, replace
+from functools import cache
+from pathlib import Path
 
 from .errors import TwinInputError, bad_value, check_range, close_matches
 
 G_M_S2 = 9.80665
+#: The net-power models a Mill may name (functions in :data:`POWER_MODELS`).
+POWER_MODEL_NAMES = ("bond", "hogg_fuerstenau")
 
 
 @dataclass(frozen=True)
@@ -23,7 +28,16 @@ class Mill:
     nominal hold-up) within which the mill is called stable. ``discharge_factor`` is the
     mill's free discharge at nominal hold-up over its nominal feed, before a grate holds coarse
     particles back (a grate mill at nominal load passes less than it could; the V_Pmo of le
-    Roux et al. 2013); fitted for the lab mill by `grindtwin calibrate`."""
+    Roux et al. 2013); fitted for the lab mill by `grindtwin calibrate`.
+
+    ``ball_size_mm`` is the make-up ball size (Austin's scale-up factors on S, twin.scaleup);
+    ``discharge_solids_frac`` the solids mass fraction of the mill discharge (0.72, not 72), which
+    the mill's feed water holds (the circuit's water balance, twin.effects.classification).
+    ``power_model`` names the net-power model (:data:`POWER_MODELS`); ``net_power_kw``, when
+    given, is the net power at the nominal speed (a measured or published draw), and the model
+    then only shapes how power moves with speed. ``cyclone`` is the hydrocyclone cluster the mill
+    is sized with (its twin.Hydrocyclone fields as (name, value) pairs; the classification effect's
+    default when it runs a hydrocyclone circuit), empty when none."""
 
     name: str
     diameter_m: float
@@ -40,6 +54,11 @@ class Mill:
     discharge_factor: float = 1.0
     feed_nominal_tph: float = 0.031
     power_factor: float = 1.0
+    ball_size_mm: float = 25.0
+    discharge_solids_frac: float = 0.70
+    power_model: str = "bond"
+    net_power_kw: float | None = None
+    cyclone: tuple = ()
 
     def __post_init__(self):
         o = f"Mill {self.name!r}"
@@ -58,6 +77,12 @@ class Mill:
         check_range(o, "discharge_factor", self.discharge_factor, 0.0, 100.0)
         check_range(o, "feed_nominal_tph", self.feed_nominal_tph, 0.0, 1e5)
         check_range(o, "power_factor", self.power_factor, 0.0, 10.0)
+        check_range(o, "ball_size_mm", self.ball_size_mm, 0.0, 200.0)
+        check_range(o, "discharge_solids_frac", self.discharge_solids_frac, 0.0, 1.0)
+        if self.power_model not in POWER_MODEL_NAMES:
+            raise bad_value(o, "power_model", self.power_model, "one of " + ", ".join(map(repr, POWER_MODEL_NAMES)))
+        if self.net_power_kw is not None:
+            check_range(o, "net_power_kw", self.net_power_kw, 0.0, 1e5)
 
     @property
     def volume_m3(self) -> float:
@@ -83,13 +108,30 @@ class Mill:
         return replace(self, **changes)
 
 
-#: The laboratory mill of MISSION.md: 0.5 m x 0.3 m, 70 % of critical.
-LAB = Mill("lab", diameter_m=0.5, length_m=0.3, feed_nominal_tph=0.031)
-#: An industrial overflow ball mill sized (Bond power at 35 % balls, 70 % critical) for about
-#: 30 t/h of Type B at 12.8 kWh/t: 3.2 m x 4.8 m draws ~0.38 MW.
-INDUSTRIAL = Mill("industrial", diameter_m=3.2, length_m=4.8, feed_nominal_tph=30.0)
+#: The laboratory mill of MISSION.md: 0.5 m x 0.3 m, 70 % of critical, 25 mm balls (the ball size
+#: Austin et al. 1984 ch. 4 report the typical shape parameters for; twin.calibration.breakage_map).
+LAB = Mill("lab", diameter_m=0.5, length_m=0.3, feed_nominal_tph=0.031, ball_size_mm=25.0)
+#: The shape of the industrial mill (length 1.5 diameters, 35 % balls, 70 % critical, 25 mm balls),
+#: from which `grindtwin size-mill` sizes the ``industrial`` preset.
+INDUSTRIAL_BASE = Mill("industrial", diameter_m=3.2, length_m=4.8, feed_nominal_tph=30.0, ball_size_mm=25.0)
+#: The ``industrial`` preset: the base shape at the size `grindtwin size-mill --ore B --feed-tph 31
+#: --target-p80-um 210 --write-preset` found (twin.sizing), with its hydrocyclones.
+INDUSTRIAL_PRESET_PATH = Path(__file__).resolve().parent / "data" / "industrial_mill.json"
 
-MILLS = {"lab": LAB, "industrial": INDUSTRIAL}
+
+@cache
+def industrial_preset() -> Mill:
+    """The sized industrial mill (INDUSTRIAL_PRESET_PATH); TwinError naming the command if absent."""
+    from .errors import TwinError
+
+    if not INDUSTRIAL_PRESET_PATH.is_file():
+        raise TwinError(f"No industrial mill preset {INDUSTRIAL_PRESET_PATH}: run "
+                        "`grindtwin size-mill --ore B --feed-tph 31 --target-p80-um 210 --write-preset`.")
+    record = json.loads(INDUSTRIAL_PRESET_PATH.read_text(encoding="utf-8"))
+    return INDUSTRIAL_BASE.with_(**record["mill"], cyclone=tuple(sorted(record["cyclone"].items())))
+
+
+MILLS = {"lab": LAB, "industrial": INDUSTRIAL_BASE}
 
 
 def get_mill(spec, calibration: dict | None = None) -> Mill:
@@ -99,7 +141,8 @@ def get_mill(spec, calibration: dict | None = None) -> Mill:
         return spec
     if spec in MILLS:
         fitted = (calibration or {}).get("mills", {}).get(spec, {})
-        return MILLS[spec].with_(**fitted)
+        preset = industrial_preset() if spec == "industrial" else MILLS[spec]
+        return preset.with_(**fitted)
     raise TwinInputError(f"The 'mill' must be one of {', '.join(MILLS)}. Got {spec!r}.{close_matches(str(spec), MILLS)}")
 
 
@@ -138,7 +181,20 @@ def hogg_fuerstenau_power_kw(mill: Mill, speed_frac_critical, dynamic_angle_deg:
     return mill.power_factor * mass_t * G_M_S2 * r_c * math.sin(math.radians(dynamic_angle_deg)) * omega
 
 
+def power_kw(mill: Mill, speed_frac_critical):
+    """Net power [kW] of the mill at a speed: its ``power_model``; with ``net_power_kw`` given, that
+    draw at the nominal speed, shaped with speed by the model (floats and CasADi expressions)."""
+    model = POWER_MODELS[mill.power_model]
+    if mill.net_power_kw is None:
+        return model(mill, speed_frac_critical)
+    return mill.net_power_kw * model(mill, speed_frac_critical) / model(mill, mill.speed_nominal_frac_critical)
+
+
 def load_status(load_frac: float, band) -> str:
     """'under', 'stable' or 'over' for a load (hold-up over nominal) and a stable band."""
     lo, hi = band
     return "under" if load_frac < lo else "over" if load_frac > hi else "stable"
+
+
+#: Net-power models by name (a Mill's ``power_model``).
+POWER_MODELS = dict(zip(POWER_MODEL_NAMES, (bond_power_kw, hogg_fuerstenau_power_kw)))

@@ -43,6 +43,7 @@ class ModelSpec:
     clay_frac: list  # clay (kaolinite + illite) mass fraction per component
     coefficients: dict
     n_mixers: int = 3
+    mixer_fracs: tuple = ()  # each mixer's share of the hold-up (empty: n_mixers equal shares)
     p80_initial_um: float = 200.0
     effects: list = field(default_factory=list)
     effect_options: dict = field(default_factory=dict)
@@ -62,6 +63,10 @@ class Model:
     CORE_OUTPUTS = ("holdup_t", "content_p80_um", "content_psd_frac")
 
     def __init__(self, spec: ModelSpec):
+        if not spec.mixer_fracs:
+            spec.mixer_fracs = tuple([1.0 / spec.n_mixers] * spec.n_mixers)
+        if len(spec.mixer_fracs) != spec.n_mixers:
+            raise ModelError(f"ModelSpec has {spec.n_mixers} mixers but {len(spec.mixer_fracs)} mixer shares.")
         self.spec = spec
         effects = resolve(spec.effects, spec.effect_options)
         self.effect_names = [e.name for e in effects]
@@ -185,7 +190,8 @@ class Model:
         w = self.d_vector(blend_fracs)[:C]
         m = np.zeros(self.shape)
         for c in range(C):
-            m[c, :, :] = load_frac * self.spec.holdup_nominal_t / N * w[c] * self.spec.feed_frac
+            m[c, :, :] = (load_frac * self.spec.holdup_nominal_t * np.asarray(self.spec.mixer_fracs)[:, None]
+                          * w[c] * self.spec.feed_frac[None, :])
         return np.concatenate([m.ravel(), *self._extra_initial])
 
     def evaluate(self, name: str, x, u, d) -> np.ndarray | float:

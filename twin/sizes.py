@@ -5,6 +5,11 @@ Sizes in um. Classes form a geometric series, coarsest first (Austin, Klimpel & 
 size ``upper_um[i] = top_um / ratio**i`` and the next class's upper size; the last class is a
 sink holding everything below its upper size. Cumulative passing at an upper size is the mass
 in that class and every finer one.
+
+A grid also names how the breakage terms are discretised on it (``scheme``, see
+:mod:`twin.breakage`): ``"cell_average"`` (the default, second order in the class width) or
+``"austin"`` (the classical discrete form of Austin et al. 1984 and Moly-Cop Tools, first order,
+for parameters defined on a tool's own sieve series).
 """
 
 from __future__ import annotations
@@ -21,21 +26,33 @@ from .errors import TwinInputError, bad_value, check_range
 #: kinks of the exact piecewise-linear interpolation; the error this causes is stated in
 #: :func:`smooth_pxx` and tested.
 SMOOTH_PXX_SHARPNESS = 0.05
+#: Discretisations of the breakage terms a grid may name (twin.breakage).
+SCHEMES = ("cell_average", "austin")
 
 
 @dataclass(frozen=True)
 class SizeGrid:
-    """Geometric size classes: ``count`` classes from ``top_um`` down by ``ratio`` (last is a sink)."""
+    """Geometric size classes: ``count`` classes from ``top_um`` down by ``ratio`` (last is a sink);
+    ``scheme`` the discretisation of breakage on them (one of :data:`SCHEMES`)."""
 
     top_um: float = 6700.0
     ratio: float = math.sqrt(2.0)
     count: int = 25
+    scheme: str = "cell_average"
 
     def __post_init__(self):
         check_range("SizeGrid", "top_um", self.top_um, 0.0, 1e7)
         check_range("SizeGrid", "ratio", self.ratio, 1.0, 10.0, hi_open=False)
-        if not isinstance(self.count, int) or not 3 <= self.count <= 200:
-            raise bad_value("SizeGrid", "count", self.count, "an integer in [3, 200]")
+        if not isinstance(self.count, int) or not 3 <= self.count <= 400:
+            raise bad_value("SizeGrid", "count", self.count, "an integer in [3, 400]")
+        if self.scheme not in SCHEMES:
+            raise bad_value("SizeGrid", "scheme", self.scheme, "one of " + ", ".join(map(repr, SCHEMES)))
+
+    @classmethod
+    def spanning(cls, top_um: float, bottom_um: float, count: int, scheme: str = "cell_average") -> "SizeGrid":
+        """``count`` classes whose upper sizes run from ``top_um`` to ``bottom_um`` (the sink's)."""
+        check_range("SizeGrid.spanning", "bottom_um", bottom_um, 0.0, top_um)
+        return cls(top_um, (top_um / bottom_um) ** (1.0 / (count - 1)), count, scheme)
 
     @property
     def upper_um(self) -> np.ndarray:
@@ -175,7 +192,12 @@ class GatesGaudinSchuhmann:
 
 @dataclass(frozen=True)
 class TabulatedPSD:
-    """Cumulative passing given at sizes; interpolated linearly in log size."""
+    """Cumulative passing measured on sieves (``sizes_um`` increasing, ``passing_frac`` in [0, 1]),
+    interpolated linearly in log size. Above the coarsest sieve nothing is retained once 100 %
+    passes (else the rest lies in the top class, as :func:`discretise` puts it). Below the finest
+    sieve the distribution follows the Gates-Gaudin-Schuhmann line through the two finest sieves
+    (passing ~ x^m, Gupta & Yan 2016, ch. 3: the straight fine end of crushed and ground ores on
+    log-log axes), so the pan is not lumped at one size."""
 
     sizes_um: tuple
     passing_frac: tuple
@@ -183,14 +205,49 @@ class TabulatedPSD:
     def __post_init__(self):
         s, p = np.asarray(self.sizes_um, float), np.asarray(self.passing_frac, float)
         if s.shape != p.shape or s.size < 2 or np.any(s <= 0) or np.any(np.diff(s) <= 0):
-            raise TwinInputError("TabulatedPSD needs >= 2 strictly increasing positive sizes_um, "
-                                 "one passing_frac each.")
-        if np.any(np.diff(p) < 0) or p[0] < 0 or p[-1] > 1:
-            raise TwinInputError("TabulatedPSD passing_frac must be non-decreasing within [0, 1].")
+            raise bad_value("TabulatedPSD", "sizes_um", list(self.sizes_um),
+                            ">= 2 strictly increasing positive sieve sizes [um], one passing_frac each")
+        if np.any(np.diff(p) < 0) or p[0] <= 0 or p[-1] > 1:
+            raise bad_value("TabulatedPSD", "passing_frac", list(self.passing_frac),
+                            "fractions passing (0.5, not 50) non-decreasing with size, within (0, 1]")
+
+    @classmethod
+    def from_sieves(cls, sizes_um, passing_pct) -> "TabulatedPSD":
+        """From sieve sizes [um] and cumulative % passing in any order (as a screen analysis is
+        written, coarsest first); % as 94.43, not 0.9443."""
+        s, p = np.asarray(sizes_um, float), np.asarray(passing_pct, float)
+        if s.shape != p.shape:
+            raise bad_value("TabulatedPSD", "passing_pct", list(p), f"one value per sieve ({s.size} sieves)")
+        if np.any(p < 0) or np.any(p > 100):
+            raise bad_value("TabulatedPSD", "passing_pct", list(p), "percentages in [0, 100]")
+        order = np.argsort(s)
+        return cls(tuple(s[order]), tuple(p[order] / 100.0))
+
+    @classmethod
+    def from_csv(cls, path) -> "TabulatedPSD":
+        """From a CSV file with columns ``size_um`` and ``passing_pct`` (one sieve a row)."""
+        import pandas as pd
+
+        frame = pd.read_csv(path)
+        missing = {"size_um", "passing_pct"} - set(frame.columns)
+        if missing:
+            raise TwinInputError(f"The size-distribution file {path} must have columns size_um and passing_pct. "
+                                 f"Missing {sorted(missing)}; found {list(frame.columns)}.")
+        return cls.from_sieves(frame["size_um"].to_numpy(float), frame["passing_pct"].to_numpy(float))
+
+    @property
+    def fine_modulus(self) -> float:
+        """GGS modulus of the fine end: the log-log slope through the two finest sieves."""
+        s, p = self.sizes_um, self.passing_frac
+        return math.log(p[1] / p[0]) / math.log(s[1] / s[0])
 
     def passing(self, x_um):
         s, p = np.log(self.sizes_um), np.asarray(self.passing_frac, float)
-        return np.interp(np.log(np.asarray(x_um, float)), s, p, left=0.0, right=1.0)
+        x = np.asarray(x_um, float)
+        lx = np.log(np.maximum(x, 1e-300))
+        inside = np.interp(lx, s, p, right=1.0)
+        fine = p[0] * np.exp(self.fine_modulus * (lx - s[0]))
+        return np.where(lx < s[0], fine, inside)
 
 
 def discretise(grid: SizeGrid, psd) -> np.ndarray:

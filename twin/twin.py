@@ -13,11 +13,13 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from .breakage import ore_breakage
+from .breakage import BreakageParams
+from .breakage import ore_breakage as _ore_breakage
 from .calibration import mineralogy_breakage, shipped_calibration
-from .errors import TwinInputError, bad_value
-from .mill import Mill, bond_power_kw, get_mill
+from .errors import TwinInputError, bad_value, check_range
+from .mill import Mill, get_mill, power_kw
 from .model import Model, ModelSpec
+from .scaleup import scale_breakage
 from .ore import CLAY_MINERALS, CUSHIONING_MINERALS, Blend, Mineralogy, load_ore
 from .sizes import GatesGaudinSchuhmann, SizeGrid, discretise
 from .solve import simulate, steady_state, steady_state_at_load
@@ -40,24 +42,39 @@ class Twin:
     replaceable mineralogy -> BreakageParams function; ``calibration`` (default: the shipped
     ``twin/calibration/files/table.json``) gives its coefficients and the fitted mill values.
     ``feed_psd`` overrides the feed size distribution (object with ``passing`` or class fractions).
+    ``ore_breakage`` maps component names to :class:`twin.BreakageParams` given directly (e.g. an
+    ore's published energy-specific parameters), which replace the map for those ores;
+    ``solids_density_t_m3`` replaces the blend's mineral density; ``mixer_volume_fracs`` gives the
+    mixers' shares of the hold-up (e.g. Whiten's one large and two small, (0.7, 0.15, 0.15)) in
+    place of ``n_mixers`` equal ones. The map's parameters describe the calibration's mill
+    (``calibrated_mill``, the laboratory mill): on another mill they are scaled to it by
+    :func:`twin.scaleup.scale_breakage` (Austin's diameter and ball-size rules); parameters given
+    in ``ore_breakage`` are taken as this mill's own.
     """
 
     def __init__(self, ores="B", mill: str | Mill = "lab", effects: Sequence[str] = DEFAULT_EFFECTS,
                  effect_options: dict | None = None, grid: SizeGrid | None = None, n_mixers: int = 3,
                  feed_p80_um: float = FEED_P80_UM, feed_modulus: float = FEED_GGS_MODULUS, feed_psd=None,
-                 breakage_map: Callable = mineralogy_breakage, calibration: dict | None = None):
+                 breakage_map: Callable = mineralogy_breakage, calibration: dict | None = None,
+                 ore_breakage: dict | None = None, solids_density_t_m3: float | None = None,
+                 mixer_volume_fracs: Sequence[float] | None = None, calibrated_mill: str | Mill = "lab"):
         self.blend = _as_blend(ores)
         self.calibration = calibration or shipped_calibration()
         self.coefficients = dict(self.calibration["coefficients"])
         self.mill = get_mill(mill, self.calibration)
         self.grid = grid or SizeGrid()
-        if not isinstance(n_mixers, int) or not 1 <= n_mixers <= 20:
-            raise bad_value("Twin", "n_mixers", n_mixers, "an integer in [1, 20]")
-        density = 1.0 / sum(f / o.density_t_m3 for o, f in zip(self.blend.ores, self.blend.fractions))
+        mixer_fracs = _mixer_fracs(n_mixers, mixer_volume_fracs)
+        given = _given_breakage(ore_breakage, self.blend.names)
+        if solids_density_t_m3 is None:
+            density = 1.0 / sum(f / o.density_t_m3 for o, f in zip(self.blend.ores, self.blend.fractions))
+        else:
+            density = check_range("Twin", "solids_density_t_m3", solids_density_t_m3, 1.0, 25.0)
         holdup_nom = self.mill.nominal_holdup_t(density)
-        power_nom = bond_power_kw(self.mill, self.mill.speed_nominal_frac_critical)
-        breakage = [ore_breakage(self.grid, breakage_map(o, self.coefficients), power_nom, holdup_nom)
-                    for o in self.blend.ores]
+        power_nom = power_kw(self.mill, self.mill.speed_nominal_frac_critical)
+        from_mill = get_mill(calibrated_mill, self.calibration)
+        params = [given.get(o.name) or scale_breakage(breakage_map(o, self.coefficients), from_mill, self.mill, density)
+                  for o in self.blend.ores]
+        breakage = [_ore_breakage(self.grid, p, power_nom, holdup_nom) for p in params]
         feed = _feed_fractions(self.grid, feed_psd, feed_p80_um, feed_modulus)
         self.spec = ModelSpec(
             grid=self.grid, mill=self.mill, component_names=self.blend.names, breakage=breakage,
@@ -65,7 +82,7 @@ class Twin:
             solids_density_t_m3=density,
             soft_frac=[o.group_fraction(CUSHIONING_MINERALS) for o in self.blend.ores],
             clay_frac=[o.group_fraction(CLAY_MINERALS) for o in self.blend.ores],
-            coefficients=self.coefficients, n_mixers=n_mixers, effects=list(effects),
+            coefficients=self.coefficients, n_mixers=len(mixer_fracs), mixer_fracs=mixer_fracs, effects=list(effects),
             effect_options=dict(effect_options or {}))
         self.model = Model(self.spec)
 
@@ -88,8 +105,10 @@ class Twin:
 
     def simulate(self, duration_h: float, dt_h: float, feed_tph=None, speed_frac_critical=None,
                  blend=None, x0=None, **kwargs):
-        """Open-loop run with inputs given as constants or callables of time [h]; returns a
-        :class:`twin.solve.simulate.Trajectory`."""
+        """Open-loop run with inputs given as constants or callables of time [h] (read at every
+        sample and just before it, linear in between: :func:`twin.solve.simulate`); returns a
+        :class:`twin.solve.simulate.Trajectory`. Every value read is checked as
+        :meth:`steady` checks its inputs; the error names the time."""
         def as_fn(v, default):
             v = default if v is None else v
             return v if callable(v) else (lambda t, v=v: v)
@@ -99,15 +118,16 @@ class Twin:
         blend_fn = as_fn(blend, self.nominal_blend)
         x0 = self.model.initial_state(self.nominal_blend) if x0 is None else x0
         return simulate(self.model, x0, duration_h, dt_h,
-                        u_fn=lambda t: [feed_fn(t), speed_fn(t)],
-                        d_fn=lambda t: self.model.d_vector(blend_fn(t)), **kwargs)
+                        u_fn=_at_time(lambda t: self._u(feed_fn(t), speed_fn(t))),
+                        d_fn=_at_time(lambda t: self._d(blend_fn(t), 1.0)), **kwargs)
 
     def _u(self, feed_tph, speed):
         speed = self.mill.speed_nominal_frac_critical if speed is None else speed
         if not 0.0 <= float(feed_tph) < 1e5:
             raise bad_value("Twin", "feed_tph", feed_tph, "a float in [0, 1e5)")
         if not 0.0 < float(speed) < 1.0:
-            raise bad_value("Twin", "speed_frac_critical", speed, "a float in (0, 1)")
+            percent = " (a fraction of critical speed, not percent)" if 10.0 <= float(speed) <= 100.0 else ""
+            raise bad_value("Twin", "speed_frac_critical", speed, f"a float in (0, 1){percent}")
         return np.array([feed_tph, speed], float)
 
     def _d(self, blend, hardness_scale):
@@ -121,9 +141,43 @@ class Twin:
                                      f"{self.blend.names}.")
         else:
             fr = np.asarray(blend, float)
-        if abs(fr.sum() - 1.0) > 1e-6 or np.any(fr < 0):
-            raise bad_value("Twin", "blend", list(fr), "non-negative fractions summing to 1")
+        if not np.all(np.isfinite(fr)) or abs(fr.sum() - 1.0) > 1e-6 or np.any(fr < 0):
+            raise bad_value("Twin", "blend", [float(v) for v in fr], "non-negative fractions summing to 1")
         return self.model.d_vector(fr, hardness_scale)
+
+
+def _at_time(fn):
+    """``fn(t)`` with the time [h] added to an input error's message."""
+    def checked(t):
+        try:
+            return fn(t)
+        except TwinInputError as exc:
+            raise TwinInputError(f"{exc} (at t = {t:.6g} h)") from None
+    return checked
+
+
+def _mixer_fracs(n_mixers, fracs) -> tuple:
+    """The mixers' shares of the hold-up: ``fracs`` normalised, or ``n_mixers`` equal shares."""
+    if fracs is None:
+        if not isinstance(n_mixers, int) or not 1 <= n_mixers <= 20:
+            raise bad_value("Twin", "n_mixers", n_mixers, "an integer in [1, 20]")
+        return tuple([1.0 / n_mixers] * n_mixers)
+    f = np.asarray(fracs, float)
+    if f.ndim != 1 or not 1 <= f.size <= 20 or np.any(~np.isfinite(f)) or np.any(f <= 0):
+        raise bad_value("Twin", "mixer_volume_fracs", fracs, "1 to 20 positive shares of the hold-up")
+    return tuple(float(v) for v in f / f.sum())
+
+
+def _given_breakage(given, names) -> dict:
+    """Breakage parameters given per component name, checked against the components."""
+    given = dict(given or {})
+    unknown = sorted(set(given) - set(names))
+    if unknown:
+        raise bad_value("Twin", "ore_breakage", unknown, f"names of this twin's components {list(names)}")
+    bad = [k for k, v in given.items() if not isinstance(v, BreakageParams)]
+    if bad:
+        raise bad_value("Twin", "ore_breakage", {k: given[k] for k in bad}, "twin.BreakageParams per ore")
+    return given
 
 
 def _feed_fractions(grid, feed_psd, feed_p80_um, feed_modulus) -> np.ndarray:

@@ -8,12 +8,15 @@ reason), so it behaves the same however it is called.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
+import signal
 import sys
+import threading
 from pathlib import Path
 
-from scenarios.errors import RunError, SceneError
+from scenarios.errors import Interrupted, RunError, SceneError
 
 
 def _fail(kind: str, command: str, exc: BaseException) -> int:
@@ -24,22 +27,73 @@ def _fail(kind: str, command: str, exc: BaseException) -> int:
     return 1
 
 
+#: Packages whose exception families the commands map to exit codes: (module, input error, any error).
+ERROR_FAMILIES = (("twin.errors", "TwinInputError", "TwinError"), ("mpc.errors", "MpcInputError", "MpcError"),
+                  ("dem.errors", "DemInputError", "DemError"))
+
+
+def _families() -> tuple[tuple, tuple]:
+    """(bad-input classes, failed-run classes) of the packages loaded so far: a package that was
+    never imported raised nothing (so the CLI imports none of them for this)."""
+    bad, failed = [SceneError], [RunError, OSError]
+    for module, input_name, base_name in ERROR_FAMILIES:
+        mod = sys.modules.get(module)
+        if mod is not None:
+            bad.append(getattr(mod, input_name))
+            failed.append(getattr(mod, base_name))
+    return tuple(bad), tuple(failed)
+
+
+@contextlib.contextmanager
+def _signals_unwind(received: list):
+    """SIGINT raises KeyboardInterrupt and SIGTERM :class:`Interrupted`, so that a run unwinds
+    and removes its partial output; each signal is also appended to ``received``, because a
+    signal that lands inside a CasADi call comes out of it as some other exception. The previous
+    handlers are restored after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        received.append(signum)
+        raise KeyboardInterrupt if signum == signal.SIGINT else Interrupted(signum)
+
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
+def _interrupted(command: str, signum: int) -> int:
+    sys.stderr.write(f"grindtwin: {command} interrupted by {signal.Signals(signum).name}; no results "
+                     "were written (a partial folder, if any, was removed)\n")
+    return 128 + signum  # the shell's convention: 130 for SIGINT, 143 for SIGTERM
+
+
 def _exit_codes(command: str):
-    """Map the exception families to exit codes (2 bad input, 1 failed run)."""
+    """Map the exception families to exit codes: 2 bad input, 1 failed run, 128 + signal number
+    when interrupted (SIGINT, SIGTERM); one line on stderr, no traceback."""
 
     def wrap(fn):
         @functools.wraps(fn)
         def inner(args) -> int:
-            from twin import TwinError, TwinInputError
-
+            received: list[int] = []
             try:
-                return fn(args)
-            except (SceneError, TwinInputError) as exc:
-                return _fail("input", command, exc)
-            except (RunError, TwinError) as exc:
-                return _fail("run", command, exc)
-            except OSError as exc:
-                return _fail("run", command, exc)
+                with _signals_unwind(received):
+                    return fn(args)
+            except BaseException as exc:  # noqa: BLE001 - sorted below, anything else re-raised
+                if received or isinstance(exc, KeyboardInterrupt):
+                    return _interrupted(command, received[0] if received else signal.SIGINT)
+                if isinstance(exc, Interrupted):
+                    return _interrupted(command, exc.signum)
+                bad, failed = _families()
+                if isinstance(exc, bad):
+                    return _fail("input", command, exc)
+                if isinstance(exc, failed):
+                    return _fail("run", command, exc)
+                raise
         return inner
     return wrap
 
@@ -53,6 +107,8 @@ def _print_kpis(summary: dict, out=None) -> None:
         else:
             text = f"{value:.4g}"
         out.write(f"  {key:26s} {text}\n")
+    for warning in summary.get("warnings") or []:
+        sys.stderr.write(f"grindtwin: warning: {warning}\n")
 
 
 def _where_results_went(result) -> None:
@@ -180,8 +236,11 @@ def add_sweep_parser(subparsers):
     g = p.add_mutually_exclusive_group()
     g.add_argument("--workers", type=int, default=None, help="local processes (default: all cores)")
     g.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://host:8786")
-    p.add_argument("--out", help="write sweep.csv, sweep.parquet, sweep_traces.csv and sweep.png into this folder")
+    p.add_argument("--out", help="write sweep.csv, sweep.parquet, sweep_traces.csv and sweep.png into this folder "
+                   "(created; replaced when complete)")
     p.add_argument("--xlsx", action="store_true", help="also write sweep.xlsx (with --out)")
+    p.add_argument("--max-cases", type=int, default=None, metavar="N",
+                   help="allow up to N cases (default: scenarios.run.sweep.MAX_CASES, 1000)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_sweep)
     return p
@@ -191,10 +250,13 @@ def add_sweep_parser(subparsers):
 def cmd_sweep(args) -> int:
     import pandas as pd
 
-    from scenarios.run import parse_vary, run_sweep
+    from scenarios.output import claim_output
+    from scenarios.run import MAX_CASES, parse_vary, run_sweep
 
     if args.workers is not None and args.workers < 1:
         raise SceneError(f"--workers must be >= 1 (got {args.workers})")
+    if args.max_cases is not None and args.max_cases < 1:
+        raise SceneError(f"--max-cases must be >= 1 (got {args.max_cases})")
     if args.xlsx and not args.out:
         raise SceneError("--xlsx writes into the results folder: give --out DIR")
     vary = {}
@@ -203,60 +265,66 @@ def cmd_sweep(args) -> int:
         if key in vary:
             raise SceneError(f"--vary {key}: given twice")
         vary[key] = values
-    table = run_sweep(args.scene, vary, sweep_case, mode=args.mode, workers=args.workers,
-                      scheduler=args.scheduler, progress=not args.quiet)
-    traces = _pop_traces(table)
-    if args.out:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        tmp = out / "sweep.csv.partial"
-        table.to_csv(tmp, index=False)
-        tmp.replace(out / "sweep.csv")
-        flat = table.copy()
-        for c in flat.columns:  # blends etc. are dicts: parquet wants plain columns
-            if flat[c].map(lambda v: isinstance(v, (dict, list))).any():
-                flat[c] = flat[c].map(str)
-        tmp = out / "sweep.parquet.partial"
-        flat.to_parquet(tmp, index=False)
-        tmp.replace(out / "sweep.parquet")
-        _write_sweep_comparison(out, table, traces, args.scene, args.xlsx)
-    else:
+    with claim_output(args.out, protect=(Path(args.scene),)) as claim:
+        table = run_sweep(args.scene, vary, sweep_case, mode=args.mode, workers=args.workers,
+                          scheduler=args.scheduler, progress=not args.quiet,
+                          max_cases=args.max_cases or MAX_CASES)
+        traces = _pop_traces(table)
+        if claim is not None:
+            claim.commit(lambda folder: _write_sweep(folder, table, traces, args.scene, args.xlsx), kind="sweep")
+    if claim is None:
         sys.stderr.write("grindtwin: no --out DIR given: the sweep's table was not written\n")
     cols = ["case", *vary, "p80_iae_um_h", "specific_energy_kwh_t", "throughput_tph", "error"]
     with pd.option_context("display.width", 160, "display.max_columns", 20):
         print(table[[c for c in cols if c in table.columns]].to_string(index=False))
-    failed = int(table["error"].notna().sum())
-    if failed:
-        sys.stderr.write(f"grindtwin: sweep: {failed} of {len(table)} cases failed (see the error column)\n")
-        return 1 if failed == len(table) else 0
+    failed = table[table["error"].notna()]
+    if len(failed):
+        sys.stderr.write(f"grindtwin: sweep: {len(failed)} of {len(table)} cases failed:\n")
+        for _, row in failed.head(SWEEP_FAILURES_SHOWN).iterrows():
+            setting = ", ".join(f"{k}={row[k]!r}" for k in vary)
+            sys.stderr.write(f"  case {row['case']} ({setting}): {row['error']}\n")
+        if len(failed) > SWEEP_FAILURES_SHOWN:
+            sys.stderr.write(f"  and {len(failed) - SWEEP_FAILURES_SHOWN} more (see the error column)\n")
+        return 1
     return 0
 
 
-def _write_sweep_comparison(out: Path, table, traces, scene_path, xlsx: bool) -> None:
-    """sweep_traces.csv and sweep.png (P80 of every case, KPIs per case); sweep.xlsx on request."""
+#: Failed cases listed on stderr by ``grindtwin sweep`` (the rest are in the table's error column).
+SWEEP_FAILURES_SHOWN = 10
+
+
+def _write_sweep(folder: Path, table, traces, scene_path, xlsx: bool) -> None:
+    """sweep.csv, sweep.parquet, sweep_traces.csv and sweep.png (P80 of every case, KPIs per
+    case) into the claimed folder; sweep.xlsx on request."""
     from scenarios.output import write_sweep_plot, write_sweep_workbook
     from scenarios.scene import load_scene
 
+    table.to_csv(folder / "sweep.csv", index=False)
+    flat = table.copy()
+    for c in flat.columns:  # blends etc. are dicts: parquet wants plain columns
+        if flat[c].map(lambda v: isinstance(v, (dict, list))).any():
+            flat[c] = flat[c].map(str)
+    flat.to_parquet(folder / "sweep.parquet", index=False)
     scene = load_scene(scene_path)
     if traces is not None:
-        tmp = out / "sweep_traces.csv.partial"
-        traces.to_csv(tmp, index=False)
-        tmp.replace(out / "sweep_traces.csv")
-    write_sweep_plot(table, traces, out, scene.controller.target_p80_um)
+        traces.to_csv(folder / "sweep_traces.csv", index=False)
+    write_sweep_plot(table, traces, folder, scene.controller.target_p80_um)
     if xlsx:
-        write_sweep_workbook(table, traces, scene, out / "sweep.xlsx")
+        write_sweep_workbook(table, traces, scene, folder / "sweep.xlsx")
 
 
 # --------------------------------------------------------------------------- check
 def add_check_parser(subparsers):
-    p = subparsers.add_parser("check", help="validate scene files only (exit 2 listing every problem)")
+    p = subparsers.add_parser("check", help="validate scene files: everything run would refuse, "
+                              "without running (exit 2 listing every problem)")
     p.add_argument("scenes", nargs="+", metavar="SCENE", help="scene file(s) (TOML)")
     p.set_defaults(func=cmd_check)
     return p
 
 
+@_exit_codes("check")
 def cmd_check(args) -> int:
-    from scenarios.scene import check_scene
+    from scenarios.run import check_scene
 
     bad = 0
     for path in args.scenes:
@@ -318,6 +386,8 @@ def add_steady_parser(subparsers):
     s.add_argument("--json", action="store_true", help="print the KPIs as JSON (unit-suffixed keys)")
     s.add_argument("--surrogate", action="store_true",
                    help="answer from the PLS surrogate (lab mill; refuses inputs outside its training domain)")
+    s.add_argument("--scene", help="a scene file: its plant twin at the scene's initial feed and speed "
+                   "(--feed-tph and --speed override them; --ore, --blend and --mill do not apply)")
     s.set_defaults(func=cmd_steady)
     return s
 
@@ -326,12 +396,41 @@ STEADY_KEYS = ("source", "feed_tph", "speed_frac_critical", "p80_um", "specific_
                "throughput_tph", "holdup_t", "load_frac", "load_status")
 
 
+def _steady_scene(args) -> int:
+    """`grindtwin steady --scene FILE`: the scene's plant twin at its initial operating point."""
+    import json
+
+    from scenarios.run.models import build_models
+    from scenarios.scene import load_scene
+
+    if args.surrogate or args.at_constant_load or args.blend:
+        raise SceneError("--scene runs the scene's own twin: --surrogate, --at-constant-load and --blend do not apply.")
+    scene = load_scene(args.scene)
+    models = build_models(scene)
+    feed = args.feed_tph if args.feed_tph is not None else scene.feed.feed_tph
+    if feed is None:
+        raise SceneError(f"{args.scene}: a batch scene (no feed.feed_tph) has no steady state.")
+    speed = args.speed if args.speed is not None else scene.feed.speed_frac_critical
+    blend = [scene.feed.blend.get(n, 0.0) for n in models.components] if scene.feed.blend else None
+    ss = models.plant.steady(feed_tph=feed, speed_frac_critical=speed, blend=blend)
+    kpis = {"scene": scene.scene.name, **ss.summary()}
+    if args.json:
+        print(json.dumps(kpis, indent=2))
+        return 0
+    print(f"Scene {scene.scene.name} ({args.scene}), steady state")
+    for key, val in kpis.items():
+        print(f"  {key:28s} {val:.4g}" if isinstance(val, float) else f"  {key:28s} {val}")
+    return 0
+
+
 @_exit_codes("steady")
 def cmd_steady(args) -> int:
     import json
 
     from twin import Blend, load_ore  # light: the surrogate's answer needs neither CasADi nor scikit-learn
 
+    if args.scene:
+        return _steady_scene(args)
     blend = Blend.parse(args.blend) if args.blend else Blend.single(load_ore(args.ore))
     if args.surrogate:
         from twin.surrogate import surrogate_steady
@@ -349,14 +448,22 @@ def cmd_steady(args) -> int:
         else:
             ss = twin.steady(feed_tph=args.feed_tph, speed_frac_critical=args.speed)
         kpis = {k: v for k, v in ss.summary().items() if k in STEADY_KEYS} | {"source": "twin"}
+    notes = []
+    if kpis.get("feed_tph") == 0 and "specific_energy_kwh_t" in kpis:
+        # energy per tonne of feed has no value without feed (the model's floor gives ~1e7)
+        kpis["specific_energy_kwh_t"] = None
+        notes.append("specific_energy_kwh_t is undefined at zero feed")
     if args.json:
         mineralogy = {o.name: {"wt_pct": o.wt_pct, **o.summary()} for o in blend.ores}
         print(json.dumps({"mill": args.mill, "blend": dict(zip(blend.names, blend.fractions)),
-                          **kpis, "mineralogy": mineralogy}, indent=2))
+                          **kpis, "mineralogy": mineralogy, "notes": notes}, indent=2))
         return 0
     print(f"Mill {args.mill}, blend " + ", ".join(f"{n} {f:.0%}" for n, f in zip(blend.names, blend.fractions)))
     for key, val in kpis.items():
-        print(f"  {key:24s} {val:.4g}" if isinstance(val, float) else f"  {key:24s} {val}")
+        text = "undefined" if val is None else f"{val:.4g}" if isinstance(val, float) else val
+        print(f"  {key:24s} {text}")
+    for note in notes:
+        print(f"  note: {note}")
     for ore in blend.ores:
         wt = ", ".join(f"{m} {w:.1f}" for m, w in sorted(ore.wt_pct.items(), key=lambda kv: -kv[1]))
         print(f"  ore {ore.name}: H_min {ore.hardness_index_gpa:.2f} GPa, textural index "
@@ -414,6 +521,50 @@ def cmd_optimize(args) -> int:
         print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
         print(("answer: " if sp.feasible else "no feasible answer: ") + sp.message)
     return 0 if sp.feasible else 1
+
+
+# --------------------------------------------------------------------------- size-mill
+def add_size_mill_parser(subparsers):
+    z = subparsers.add_parser("size-mill", help="size a ball mill in closed circuit for an ore, feed and target P80",
+                              description="The mill diameter (length 1.5 diameters, 35 %% balls) and hydrocyclone "
+                              "count at which the twin's steady overflow P80 meets the target, rates scaled from the "
+                              "laboratory calibration by Austin's rules (twin.sizing, twin.scaleup).")
+    z.add_argument("--ore", default="B", help="reference type A-D or a TOML file with [mineralogy] and [texture]")
+    z.add_argument("--feed-tph", required=True, type=_float_in("--feed-tph", 0, 1e5, lo_open=True))
+    z.add_argument("--target-p80-um", required=True, type=_float_in("--target-p80-um", 1.0, 1e4))
+    z.add_argument("--speed", type=_float_in("--speed", 0.3, 0.95), default=0.70,
+                   help="mill speed as a fraction of critical (0.70, not 70)")
+    z.add_argument("--write-preset", action="store_true",
+                   help="write the answer as the `industrial` preset (twin/data/industrial_mill.json)")
+    z.add_argument("--json", action="store_true", help="print the answer as JSON")
+    z.set_defaults(func=cmd_size_mill)
+    return z
+
+
+@_exit_codes("size-mill")
+def cmd_size_mill(args) -> int:
+    import json
+
+    from twin import load_ore, size_mill, write_preset
+
+    sized = size_mill(load_ore(args.ore), args.feed_tph, args.target_p80_um, args.speed)
+    command = (f"grindtwin size-mill --ore {args.ore} --feed-tph {args.feed_tph:g} --target-p80-um "
+               f"{args.target_p80_um:g} --speed {args.speed:g}")
+    record = sized.record(command)
+    if args.write_preset:
+        print(f"wrote {write_preset(sized, command + ' --write-preset')}")
+    if args.json:
+        print(json.dumps(record, indent=2))
+        return 0
+    m, z = sized.mill, record["sizing"]
+    print(f"Mill for ore {args.ore} at {args.feed_tph:g} t/h, P80 {args.target_p80_um:g} um, {args.speed:.2f} of critical:")
+    print(f"  diameter_m                {m.diameter_m:.3f}\n  length_m                  {m.length_m:.3f}\n"
+          f"  ball_filling_frac         {m.ball_filling_frac:.2f}\n  ball_size_mm              {m.ball_size_mm:g}\n"
+          f"  power_model               {m.power_model}\n  hydrocyclones             {sized.cyclone['count']} x "
+          f"{sized.cyclone['diameter_cm']:g} cm")
+    for key in ("p80_um", "circulating_load_frac", "power_kw", "specific_energy_kwh_t", "load_frac", "load_status"):
+        print(f"  {key:25s} {z[key]:.4g}" if isinstance(z[key], float) else f"  {key:25s} {z[key]}")
+    return 0
 
 
 # --------------------------------------------------------------------------- calibrate
@@ -475,6 +626,7 @@ COMMANDS = {
     "steady": (add_steady_parser, cmd_steady),
     "optimize": (add_optimize_parser, cmd_optimize),
     "calibrate": (add_calibrate_parser, cmd_calibrate),
+    "size-mill": (add_size_mill_parser, cmd_size_mill),
     "bench": (add_bench_parser, cmd_bench),
     "run": (add_run_parser, cmd_run),
     "replay": (add_replay_parser, cmd_replay),

@@ -1,4 +1,5 @@
-"""Write a run's results: time series, summary, plots; never a half-written result.
+"""Write a run's results into a folder of its own; never a half-written result, never into or
+over anything grindtwin did not write.
 
 Layout of a run directory::
 
@@ -11,28 +12,56 @@ Layout of a run directory::
     DIR/summary.json         scene, KPIs (unit-suffixed keys; NaN written as null), model
                              description, effects, versions, seed, notes
     DIR/*.png                plots (see :data:`scenarios.output.plots.PLOTS`)
+    DIR/grindtwin-manifest.json  what grindtwin wrote here (written last): how a later run
+                             knows the folder is a grindtwin result it may replace
     DIR/report.html          written later by ``grindtwin report DIR``
 
-Atomicity: everything is written into ``DIR.partial`` (with an ``_INCOMPLETE`` marker as
-its first file); only when every file is written is the marker removed and the folder renamed
-to ``DIR``. An existing ``DIR`` is replaced only then. If writing fails the partial folder is
-removed; if the process is killed, what remains is ``DIR.partial`` with its marker, never a
-``DIR`` that looks complete.
+The folder is claimed before any work (:func:`claim_output`), so a bad ``DIR`` costs nothing:
+- ``DIR`` missing or empty, or a previous grindtwin result (its manifest lists every file in
+  it, apart from ``report.html``): accepted; a previous result is replaced as a whole, only
+  once the new one is complete;
+- anything else (a folder with files grindtwin did not write, a file, the current folder or one
+  of its parents, the scene file's own folder) is refused;
+- ``DIR.lock`` is locked (``fcntl.flock``, exclusive): a second run to the same ``DIR`` is
+  refused at once, so two runs can never mix their files; the kernel drops the lock when a
+  process dies, so a killed run leaves no stale lock;
+- ``DIR.partial`` is created, with an ``_INCOMPLETE`` marker as its first file: this is the
+  writability check. Everything is written there; only when every file is written is the
+  marker removed and the folder renamed to ``DIR``. If the run fails or is interrupted the
+  partial folder is removed; if the process is killed outright, what remains is
+  ``DIR.partial`` with its marker, never a ``DIR`` that looks complete.
+Removing: a partial folder this run made is emptied and removed; a stale one (with the
+marker) and a previous result only by name (the names a run writes, or the ones its manifest
+lists), then with ``os.rmdir``, which fails rather than delete anything else.
 """
 
 from __future__ import annotations
 
+import fcntl
 import json
 import math
-import shutil
+import os
+import time
+from collections.abc import Callable
+from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
 
-from scenarios.output.plots import write_plots
-from scenarios.output.workbook import RUN_WORKBOOK, write_size_csvs, write_workbook
+from scenarios.errors import RunError, SceneError
+from scenarios.output.plots import PLOTS, SWEEP_PLOT, write_plots
+from scenarios.output.workbook import PSD_FILES, RUN_WORKBOOK, STREAMS_FILE, SWEEP_WORKBOOK, write_size_csvs, write_workbook
 
 INCOMPLETE_MARKER = "_INCOMPLETE"
+MANIFEST = "grindtwin-manifest.json"
+#: Files grindtwin may add to a finished run folder later (``grindtwin report``).
+LATER_FILES = ("report.html", "report.html.partial")
+#: Every name a run or a sweep writes, so that a stale partial folder is removed by name.
+RUN_FILES = ("timeseries.parquet", "timeseries.csv", *PSD_FILES.values(), STREAMS_FILE, RUN_WORKBOOK,
+             "summary.json", *PLOTS, "sweep.csv", "sweep.parquet", "sweep_traces.csv", SWEEP_PLOT, SWEEP_WORKBOOK,
+             MANIFEST, INCOMPLETE_MARKER)
+
+
 def json_safe(obj):
     """NaN and infinities -> None; numpy scalars -> Python; recursively."""
     if isinstance(obj, dict):
@@ -49,40 +78,207 @@ def json_safe(obj):
     return obj
 
 
-def write_run(result, out_dir, csv: bool = False, plots: bool = True, xlsx: bool = False) -> Path:
-    """Write ``result`` (a :class:`scenarios.run.runner.RunResult`) to ``out_dir`` atomically."""
-    final = Path(out_dir)
-    partial = final.with_name(final.name + ".partial")
-    if partial.exists():
-        shutil.rmtree(partial)
-    partial.mkdir(parents=True)
+def _refuse(final: Path, why: str) -> SceneError:
+    return SceneError(f"--out {final}: {why}; nothing was run. Choose a new folder (e.g. --out "
+                      f"runs/NAME), or move the folder away yourself.")
+
+
+def _manifest_files(folder: Path) -> list[str] | None:
+    """The files a grindtwin manifest in ``folder`` lists, or ``None`` if it has none."""
     try:
-        (partial / INCOMPLETE_MARKER).write_text("this run was interrupted while its results were "
-                                                 "written; do not use these files\n")
-        frame = result.frame
-        frame.to_parquet(partial / "timeseries.parquet", index=False)
-        if csv:
-            frame.to_csv(partial / "timeseries.csv", index=False)
-        write_size_csvs(result, partial)
-        if xlsx:
-            write_workbook(result, partial / RUN_WORKBOOK)
-        if plots:
-            write_plots(result, partial)
-        summary = dict(result.summary)
-        summary["files"] = sorted(p.name for p in partial.iterdir() if p.name != INCOMPLETE_MARKER) \
-            + ["summary.json"]
-        (partial / "summary.json").write_text(json.dumps(json_safe(summary), indent=2) + "\n")
-        (partial / INCOMPLETE_MARKER).unlink()
-    except BaseException:
-        shutil.rmtree(partial, ignore_errors=True)
-        raise
-    old = None
-    if final.exists():
-        old = final.with_name(final.name + ".old")
-        if old.exists():
-            shutil.rmtree(old)
-        final.rename(old)
-    partial.rename(final)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
-    return final
+        data = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    files = data.get("files") if isinstance(data, dict) and data.get("written_by") == "grindtwin" else None
+    return [str(f) for f in files] if isinstance(files, list) else None
+
+
+def strangers(folder: Path) -> list[str] | None:
+    """Names in an existing ``folder`` that grindtwin did not write (``[]``: all ours, or
+    empty); ``None`` if ``folder`` is not a directory."""
+    if not folder.is_dir():
+        return None
+    names = sorted(p.name for p in folder.iterdir())
+    if not names:
+        return []
+    ours = _manifest_files(folder)
+    if ours is None:
+        return names
+    allowed = set(ours) | {MANIFEST, *LATER_FILES}
+    return [n for n in names if n not in allowed]
+
+
+def _remove_ours(folder: Path, names=None) -> bool:
+    """Unlink ``names`` in ``folder`` (those that exist; None: every file in it), then rmdir it;
+    False if anything else is left (then the folder stays)."""
+    if names is None:
+        names = [p.name for p in folder.iterdir()]
+    for name in names:
+        p = folder / name
+        if p.is_file() or p.is_symlink():
+            p.unlink()
+    try:
+        folder.rmdir()
+    except OSError:
+        return False
+    return True
+
+
+def _check_place(final: Path, protect: tuple[Path, ...]) -> None:
+    here = Path.cwd().resolve()
+    target = final.resolve()
+    if target == here or target in here.parents:
+        raise _refuse(final, "this is the current folder or one of its parents, which grindtwin "
+                      "would have to replace")
+    for p in protect:
+        if target == p.resolve() or target in p.resolve().parents:
+            raise _refuse(final, f"this folder holds {p.name}, which grindtwin did not write")
+    if final.exists() and not final.is_dir():
+        raise _refuse(final, "a file of that name exists")
+    others = strangers(final)
+    if others:
+        shown = ", ".join(others[:5]) + (f" and {len(others) - 5} more" if len(others) > 5 else "")
+        raise _refuse(final, f"the folder exists and holds files grindtwin did not write ({shown})")
+
+
+class OutputClaim:
+    """An output folder claimed for one run: checked, locked, ``DIR.partial`` created.
+
+    Use as a context manager; :meth:`commit` writes the files into the partial folder (via
+    ``write_files(folder) -> None``) and puts it in place. Leaving the block without a commit
+    (an error, Ctrl-C, SIGTERM) removes the partial folder and releases the lock.
+    """
+
+    def __init__(self, out_dir, protect=()):
+        self.given = Path(out_dir)
+        self.final = Path(os.path.abspath(out_dir))  # "." and ".." get a name of their own
+        self.partial = self.final.with_name(self.final.name + ".partial")
+        self.lock_path = self.final.with_name(self.final.name + ".lock")
+        self._protect = tuple(Path(p) for p in protect if p is not None)
+        self._lock_fd: int | None = None
+        self._keep_partial = False
+        self.notes: list[str] = []
+
+    # ------------------------------------------------------------------ claim
+    def __enter__(self) -> OutputClaim:
+        _check_place(self.given, self._protect)
+        parent = self.final.parent
+        try:
+            parent.mkdir(parents=True, exist_ok=True)
+            self._lock()
+            self._fresh_partial()
+        except OSError as exc:
+            self._unlock()
+            raise _refuse(self.final, f"cannot write there ({exc.strerror or exc})") from None
+        except BaseException:
+            self._unlock()
+            raise
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if self.partial.exists() and not self._keep_partial:
+            _remove_ours(self.partial)  # this run made it: everything in it is this run's
+        self._unlock()
+
+    def _lock(self) -> None:
+        while True:
+            fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = os.read(fd, 64).decode(errors="replace").strip() or "?"
+                os.close(fd)
+                raise _refuse(self.final, f"another grindtwin run (pid {holder}) is writing to this "
+                              f"folder (lock {self.lock_path.name})") from None
+            # the file may have been unlinked by the run that held it just before: lock again
+            try:
+                same = os.fstat(fd).st_ino == os.stat(self.lock_path).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                os.ftruncate(fd, 0)
+                os.write(fd, f"{os.getpid()}\n".encode())
+                self._lock_fd = fd
+                return
+            os.close(fd)
+
+    def _unlock(self) -> None:
+        if self._lock_fd is None:
+            return
+        try:
+            self.lock_path.unlink()
+        except FileNotFoundError:
+            pass
+        os.close(self._lock_fd)  # closing releases the flock
+        self._lock_fd = None
+
+    def _fresh_partial(self) -> None:
+        if self.partial.exists():  # left by a killed run: ours if marked, or as far as its manifest says
+            marked = (self.partial / INCOMPLETE_MARKER).exists()
+            names = RUN_FILES if marked else [*(_manifest_files(self.partial) or []), MANIFEST]
+            if not _remove_ours(self.partial, names):
+                raise _refuse(self.final, f"{self.partial.name} is left from an earlier run and holds "
+                              "files grindtwin did not write")
+        self.partial.mkdir()
+        (self.partial / INCOMPLETE_MARKER).write_text("this run was interrupted while its results "
+                                                      "were written; do not use these files\n")
+
+    # ------------------------------------------------------------------ commit
+    def commit(self, write_files: Callable[[Path], None], kind: str = "run") -> Path:
+        """Write the files (``write_files(partial_folder)``), the manifest, and put the folder
+        in place of ``DIR`` (a previous grindtwin result there is replaced as a whole)."""
+        write_files(self.partial)
+        files = sorted(p.name for p in self.partial.iterdir() if p.name != INCOMPLETE_MARKER)
+        manifest = {"written_by": "grindtwin", "kind": kind, "files": files,
+                    "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+        (self.partial / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n", encoding="utf-8")
+        (self.partial / INCOMPLETE_MARKER).unlink()
+        self._replace_final()
+        return self.final
+
+    def _replace_final(self) -> None:
+        old = None
+        if self.final.exists():
+            if strangers(self.final):  # a file was added while this run was computing
+                self._keep_partial = True
+                raise RunError(f"--out {self.final}: files grindtwin did not write appeared in the "
+                               f"folder during the run; it was left alone and the results are in "
+                               f"{self.partial}")
+            listed = (_manifest_files(self.final) or []) + [MANIFEST, *LATER_FILES]
+            if not any(self.final.iterdir()):
+                self.final.rmdir()
+            else:
+                old = self.final.with_name(f"{self.final.name}.replaced-{os.getpid()}")
+                self.final.rename(old)
+        self.partial.rename(self.final)
+        if old is not None and not _remove_ours(old, listed):
+            self.notes.append(f"kept {old}: it holds files grindtwin did not write")
+
+
+def claim_output(out_dir, protect=()):
+    """:class:`OutputClaim` for ``out_dir``, or a do-nothing context (yielding ``None``) when
+    ``out_dir`` is ``None``. ``protect``: files (e.g. the scene file) whose folder is refused."""
+    return nullcontext(None) if out_dir is None else OutputClaim(out_dir, protect)
+
+
+def write_files(result, folder: Path, csv: bool = False, plots: bool = True, xlsx: bool = False) -> None:
+    """The files of ``result`` (a :class:`scenarios.run.runner.RunResult`) into ``folder``."""
+    frame = result.frame
+    frame.to_parquet(folder / "timeseries.parquet", index=False)
+    if csv:
+        frame.to_csv(folder / "timeseries.csv", index=False)
+    write_size_csvs(result, folder)
+    if xlsx:
+        write_workbook(result, folder / RUN_WORKBOOK)
+    if plots:
+        write_plots(result, folder)
+    summary = dict(result.summary)
+    summary["files"] = sorted(p.name for p in folder.iterdir() if p.name != INCOMPLETE_MARKER) \
+        + ["summary.json"]
+    (folder / "summary.json").write_text(json.dumps(json_safe(summary), indent=2) + "\n")
+
+
+def write_run(result, out_dir, csv: bool = False, plots: bool = True, xlsx: bool = False, protect=()) -> Path:
+    """Claim ``out_dir`` and write ``result`` there atomically (see the module docstring)."""
+    with OutputClaim(out_dir, protect) as claim:
+        return claim.commit(lambda folder: write_files(result, folder, csv, plots, xlsx))

@@ -3,8 +3,9 @@ run, the KPIs and summary (``run_scene``, ``replay_scene``), and what-if sweeps 
 
 from scenarios.run.kpis import KPI_KEYS, compute_kpis
 from scenarios.run.models import Models, build_models, is_batch
+from scenarios.run.preflight import check_scene
 from scenarios.run.runner import RunResult, replay_scene, run_scene
-from scenarios.run.sweep import parse_vary, run_sweep
+from scenarios.run.sweep import MAX_CASES, parse_vary, run_sweep
 
-__all__ = ["KPI_KEYS", "Models", "RunResult", "build_models", "compute_kpis", "is_batch", "parse_vary",
+__all__ = ["KPI_KEYS", "MAX_CASES", "Models", "RunResult", "build_models", "check_scene", "compute_kpis", "is_batch", "parse_vary",
            "replay_scene", "run_scene", "run_sweep"]

@@ -4,11 +4,12 @@ the PI baseline, wired as the reference-case benchmark wires them."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
-from mpc import (RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, NmpcSettings, Sensors, TwinPlant,
+from mpc import (RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, MpcInputError, NmpcSettings, Sensors, TwinPlant,
                  feed_for_target, pi_baseline, run_closed_loop, stable_rk4_substeps)
 from scenarios.errors import RunError, SceneError
 from scenarios.run.feed import component_blend
@@ -90,52 +91,64 @@ def make_controller(scene: Scene, twin):
 ESTIMATOR_WARMUP_H = 2.0
 
 
+@dataclass
+class LoopStart:
+    """Where a closed loop starts: the feed rate, the plant's steady state there and (NMPC) the
+    controller's model's steady state at the same inputs."""
+
+    feed_tph: float
+    plant: object  # twin.SteadyState
+    control: object | None
+
+
+def loop_start(scene: Scene, models, blend0) -> LoopStart:
+    """The steady state that holds the target P80 at the scene's speed and initial blend (feed
+    solved by :func:`mpc.optimize.feed_for_target`; the scene's ``feed_tph`` if it has no
+    target); RunError if no feed rate holds it."""
+    c = scene.controller
+    speed0 = scene.feed.speed_frac_critical
+    feed0 = (feed_for_target(models.plant, blend0, c.target_p80_um, speed0)
+             if c.target_p80_um is not None else scene.feed.feed_tph)
+    if not math.isfinite(feed0):
+        raise RunError(f"scene {scene.scene.name}: no feed rate in 5-60 t/h holds the target P80 "
+                       f"{c.target_p80_um} um at speed {speed0} with the initial blend")
+    ss = models.plant.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend0)
+    css = (models.control.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend0)
+           if c.kind == "nmpc" else None)
+    return LoopStart(feed0, ss, css)
+
+
 def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
     """Closed loop through :func:`mpc.closed_loop.run_closed_loop`.
 
-    Wiring (the same as benchmarks/mpc_reference_case.py): the plant starts at the steady state
-    that holds the target P80 at the scene's speed and initial blend (feed solved by
-    :func:`mpc.optimize.feed_for_target`; the scene's ``feed_tph`` if it has no target); the
-    sensors are the scene's ``[sensors]``; the NMPC gets an EKF on the controller's model
-    (hardness as a random walk), warmed up on the steady plant for ``ESTIMATOR_WARMUP_H``; PI is
-    :func:`mpc.closed_loop.pi_baseline` (SIMC on the linearised plant twin, analyser delay
-    added). ``schedule(t)`` holds the blend of the sample at or before t (clamped at the end).
-    Any failure inside the loop is a RunError with its reason.
+    Wiring (the same as benchmarks/mpc_reference_case.py): the plant starts at
+    :func:`loop_start`; the sensors are the scene's ``[sensors]``; the NMPC gets an EKF on the
+    controller's model (hardness as a random walk), warmed up on the steady plant for
+    ``ESTIMATOR_WARMUP_H`` and reset where its estimate stops being finite
+    (:class:`CountingEstimator`); PI is :func:`mpc.closed_loop.pi_baseline` (SIMC on the
+    linearised plant twin, analyser delay added). ``schedule(t)`` holds the blend of the sample
+    at or before t (clamped at the end). Any failure inside the loop is a RunError with its
+    reason; the controller's failures, fallbacks and the estimator's resets are counted in the
+    returned ``extra["controller_health"]``.
     """
-    kind = scene.controller.kind
     c = scene.controller
     blend = component_blend(feed, models.components)
     times = feed["time_h"].to_numpy(float)
     dt = scene.scene.sample_period_h
-    speed0 = scene.feed.speed_frac_critical
     notes: list[str] = []
+    estimator = None
     try:
-        feed0 = (feed_for_target(models.plant, blend[0], c.target_p80_um, speed0)
-                 if c.target_p80_um is not None else scene.feed.feed_tph)
-        if not math.isfinite(feed0):
-            raise RunError(f"scene {scene.scene.name}: no feed rate in 5-60 t/h holds the target P80 "
-                           f"{c.target_p80_um} um at speed {speed0} with the initial blend")
-        ss = models.plant.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend[0])
-        notes.append(f"the plant starts at steady state, feed {feed0:.4g} t/h, speed {speed0:.3g}")
+        start = loop_start(scene, models, blend[0])
+        ss = start.plant
+        notes.append(f"the plant starts at steady state, feed {start.feed_tph:.4g} t/h, "
+                     f"speed {scene.feed.speed_frac_critical:.3g}")
         sensors = Sensors(**{k: v for k, v in scene.sensors.model_dump().items() if k in Sensors.__dataclass_fields__})
 
         def schedule(t_h):
             k = min(max(int(np.searchsorted(times, t_h + 1e-9 * dt, side="right")) - 1, 0), len(times) - 1)
             return blend[k]
 
-        estimator = None
-        if kind == "nmpc":
-            css = models.control.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend[0])
-            check_rk4_substeps(scene, models.control.model, css)
-            estimator = Ekf(models.control.model, dt, css.x, disturbance_model=c.disturbance_model)
-            controller = make_controller(scene, models.control)
-        else:
-            b = c.bounds
-            controller, _ = pi_baseline(
-                models.plant.model, ss, sensors, dt, c.target_p80_um,
-                feed_tph_min=b.feed_tph_min, feed_tph_max=b.feed_tph_max,
-                feed_rate_max_tph_per_h=(b.feed_rate_max_tph_per_h if b.feed_rate_max_tph_per_h is not None
-                                         else math.inf))
+        controller, estimator = _controller_and_estimator(scene, models, start, sensors)
         settings = LoopSettings(
             scene.scene.duration_h, dt, seed=scene.scene.seed, preview_lead_h=c.preview_lead_h,
             target_p80_um=c.target_p80_um if c.target_p80_um is not None else math.nan,
@@ -145,14 +158,95 @@ def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
         res = run_closed_loop(plant, controller, estimator, schedule, sensors, ss.x, ss.u, settings)
     except (RunError, SceneError):
         raise
+    except MpcInputError as exc:  # a setting the controller refuses: bad input, not a failed run
+        raise SceneError(f"scene {scene.scene.name}: the controller refused the scene: {exc}") from None
     except Exception as exc:  # noqa: BLE001 - the loop's failure is the run's failure
         raise RunError(f"scene {scene.scene.name}: the closed loop failed: "
                        f"{type(exc).__name__}: {exc}") from None
     frame = res.frame.copy()
     sizes = run_size_data(models.plant.model, plant.samples(frame["time_h"].to_numpy(float)), batch=False)
     k = dict(res.kpis)
-    extra = {"notes": notes,
+    health = controller_health(frame, estimator)
+    extra = {"notes": notes, "warnings": health_notes(health), "controller_health": health,
              "solve_times_s": frame["solve_time_s"].dropna().to_numpy() if "solve_time_s" in frame else None,
              "solve_time_median_s": k.get("solve_time_median_s", math.nan),
              "solve_time_p95_s": k.get("solve_time_p95_s", math.nan)}
     return frame, sizes, extra
+
+
+def _controller_and_estimator(scene: Scene, models, start: LoopStart, sensors):
+    """The NMPC with its EKF (on the controller's model, RK4 sub-steps checked first), or the PI
+    baseline without one."""
+    c, dt = scene.controller, scene.scene.sample_period_h
+    if c.kind == "nmpc":
+        check_rk4_substeps(scene, models.control.model, start.control)
+        estimator = CountingEstimator(Ekf(models.control.model, dt, start.control.x,
+                                          disturbance_model=c.disturbance_model))
+        return make_controller(scene, models.control), estimator
+    b = c.bounds
+    controller, _ = pi_baseline(
+        models.plant.model, start.plant, sensors, dt, c.target_p80_um,
+        feed_tph_min=b.feed_tph_min, feed_tph_max=b.feed_tph_max,
+        feed_rate_max_tph_per_h=b.feed_rate_max_tph_per_h if b.feed_rate_max_tph_per_h is not None else math.inf)
+    return controller, None
+
+
+class CountingEstimator:
+    """The EKF with its resets counted: when an update leaves a non-finite estimate (or its
+    linear algebra fails), the EKF is reset to its initial estimate and covariance and the
+    reset is recorded (``resets``: the numbers of the estimator steps at which it was reset,
+    1 = its first step, warm-up included). Everything else is the EKF's own."""
+
+    def __init__(self, ekf):
+        self.ekf = ekf
+        self.resets: list[int] = []
+        self._calls = 0
+
+    def __getattr__(self, name):
+        return getattr(self.ekf, name)
+
+    def make_step(self, y_meas, u, d_known):
+        self._calls += 1
+        try:
+            x, d = self.ekf.make_step(y_meas, u, d_known)
+            ok = bool(np.all(np.isfinite(x)) and np.all(np.isfinite(d)) and np.all(np.isfinite(self.ekf.P)))
+        except np.linalg.LinAlgError:
+            ok = False
+        if ok:
+            return x, d
+        self.resets.append(self._calls)
+        self.ekf.reset()
+        return self.ekf.x_est, np.r_[np.asarray(d_known, float).reshape(-1)[: self.ekf.nd - 1],
+                                     self.ekf.hardness_est]
+
+
+def controller_health(frame: pd.DataFrame, estimator) -> dict:
+    """What went wrong in a closed loop, counted over its samples: steps whose solve failed,
+    fallbacks by kind, steps that reached no plan for the target, estimator resets."""
+    n = len(frame)
+    success = frame["success"].astype(bool) if "success" in frame else pd.Series(True, index=frame.index)
+    fallback = frame["fallback"] if "fallback" in frame else pd.Series(None, index=frame.index)
+    status = frame["status"].astype(str) if "status" in frame else pd.Series("", index=frame.index)
+    kinds = fallback.dropna().value_counts()
+    failed = ~success
+    return {"steps": n, "failed_steps": int(failed.sum()),
+            "fallback_steps": int(fallback.notna().sum()),
+            "fallbacks": {str(k): int(v) for k, v in kinds.items()},
+            "target_unreachable_steps": int(status.str.startswith("target_unreachable").sum()),
+            "first_failure_time_h": float(frame.loc[failed, "time_h"].iloc[0]) if failed.any() else None,
+            "failure_statuses": {str(k): int(v) for k, v in status[failed].value_counts().head(5).items()},
+            "estimator_resets": len(estimator.resets) if estimator is not None else 0}
+
+
+def health_notes(health: dict) -> list[str]:
+    """One note per thing that went wrong (none when the controller and estimator were fine)."""
+    notes = []
+    if health["failed_steps"]:
+        kinds = ", ".join(f"{k} {v}" for k, v in health["fallbacks"].items()) or "none"
+        notes.append(f"the controller's solve failed on {health['failed_steps']} of {health['steps']} "
+                     f"steps (first at {health['first_failure_time_h']:.4g} h; fallbacks: {kinds}; "
+                     f"statuses: {health['failure_statuses']})")
+    if health["estimator_resets"]:
+        notes.append(f"the estimator was reset {health['estimator_resets']} times (its estimate was "
+                     "not finite)")
+    return notes

@@ -11,6 +11,10 @@
   ``controller.load_band_frac``; NaN for a batch grind (no load dynamics).
 - ``solve_time_median_s``, ``solve_time_p95_s``: controller solve times; NaN in open loop.
 - ``mass_balance_error``: max |fed - produced - (H - H0)| / (fed + H0) over the run.
+- ``controller_failed_steps``, ``controller_fallback_steps``, ``estimator_resets``: samples on
+  which the controller's solve failed, on which a fallback input was applied, and estimator
+  resets (:func:`scenarios.run.closed_loop.controller_health`); NaN in open loop.
+- ``specific_energy_kwh_t`` is NaN (undefined, with a note) when nothing was fed.
 - Also ``p80_final_um``, ``p80_mean_um``, ``energy_kwh``, ``fed_t``, ``duration_h``.
 Integrals are trapezoidal over the samples (:mod:`mpc.kpis`).
 """
@@ -29,11 +33,14 @@ from scenarios.scene import Scene
 
 KPI_KEYS = ("p80_iae_um_h", "p80_within_10um_frac", "specific_energy_kwh_t", "throughput_t", "throughput_tph",
             "load_outside_band_frac", "solve_time_median_s", "solve_time_p95_s",
-            "mass_balance_error")
+            "mass_balance_error", "controller_failed_steps", "controller_fallback_steps", "estimator_resets")
+#: KPI key -> key of the controller's health record (scenarios.run.closed_loop.controller_health).
+HEALTH_KPIS = {"controller_failed_steps": "failed_steps", "controller_fallback_steps": "fallback_steps",
+               "estimator_resets": "estimator_resets"}
 
 
 def compute_kpis(scene: Scene, frame: pd.DataFrame, solve_times_s=None, batch_charge_t=None,
-                 solve_time_median_s=None, solve_time_p95_s=None) -> dict:
+                 solve_time_median_s=None, solve_time_p95_s=None, controller_health=None) -> dict:
     """The KPIs of a run from its frame (definitions in the module docstring)."""
     t = frame["time_h"].to_numpy(float)
     p80 = frame["p80_um" if "p80_um" in frame else "content_p80_um"].to_numpy(float)  # batch: the content
@@ -68,6 +75,8 @@ def compute_kpis(scene: Scene, frame: pd.DataFrame, solve_times_s=None, batch_ch
         k["solve_time_median_s"] = math.nan if solve_time_median_s is None else float(solve_time_median_s)
         k["solve_time_p95_s"] = math.nan if solve_time_p95_s is None else float(solve_time_p95_s)
     k["mass_balance_error"] = mass_balance_error(frame)
+    for key, field in HEALTH_KPIS.items():
+        k[key] = math.nan if controller_health is None else int(controller_health[field])
     k["start_feed_tph"] = float(frame["feed_tph"].iloc[0]) if "feed_tph" in frame else math.nan
     k["start_p80_um"] = float(p80[0])  # what the case started from (sweep tables compare cases)
     k["p80_final_um"] = float(p80[-1])

@@ -8,7 +8,7 @@ from typing import Any
 
 from scenarios.errors import RunError, SceneError
 from scenarios.scene import Scene, ore_mineralogies
-from twin import Mineralogy, SizeGrid, Twin, TwinError, get_mill, reference_ores
+from twin import BreakageParams, Mineralogy, SizeGrid, TabulatedPSD, Twin, TwinError, get_mill, power_kw, reference_ores
 from twin.calibration import shipped_calibration
 
 
@@ -36,23 +36,71 @@ def component_ores(scene: Scene) -> dict:
             for name, o in sorted(reference_ores().items())}
 
 
+#: Scene [mill] keys passed to the twin's Mill when given (the rest keep the preset's values).
+MILL_OVERRIDES = ("diameter_m", "length_m", "ball_filling_frac", "ball_size_mm", "discharge_solids_frac",
+                  "power_model", "net_power_kw")
+
+
 def scene_mill(scene: Scene):
-    """The scene's mill: its preset with the fitted values of the calibration, and the scene's
-    dimensions."""
+    """The scene's mill: its preset with the fitted values of the calibration, the scene's
+    dimensions and mill keys, and the scene's feed rate as the nominal one."""
     m = scene.mill
-    return get_mill(m.preset, shipped_calibration()).with_(
-        diameter_m=m.diameter_m, length_m=m.length_m, ball_filling_frac=m.ball_filling_frac)
+    given = {k: getattr(m, k) for k in MILL_OVERRIDES if getattr(m, k) is not None}
+    if scene.feed.feed_tph is not None:
+        given["feed_nominal_tph"] = scene.feed.feed_tph
+    return get_mill(m.preset, shipped_calibration()).with_(**given)
+
+
+def scene_feed_psd(scene: Scene):
+    """The scene's feed size distribution: its screen analysis (table or CSV), or None (GGS)."""
+    f = scene.feed
+    if f.psd is not None:
+        return TabulatedPSD.from_sieves(f.psd.sizes_um, f.psd.passing_pct)
+    if f.psd_csv is not None:
+        path = scene.resolve_path(f.psd_csv)
+        return TabulatedPSD.from_csv(path)
+    return None
+
+
+def scene_breakage(scene: Scene, ores: dict, mill) -> tuple[dict, float | None]:
+    """Breakage parameters the scene gives per ore, and the blend's solids density [t/m3] where
+    an ore's density is given (None: the minerals' densities)."""
+    fracs = dict(scene.feed.blend or {name: 1.0 / len(ores) for name in ores})
+    densities = {name: (scene.ores[name].density_t_m3 if name in scene.ores and scene.ores[name].density_t_m3
+                        else ore.density_t_m3) for name, ore in ores.items()}
+    given_density = any(name in scene.ores and scene.ores[name].density_t_m3 for name in ores)
+    w = {name: fracs.get(name, 0.0) for name in ores}
+    total = sum(w.values()) or 1.0
+    density = 1.0 / sum(w[n] / total / densities[n] for n in ores) if any(w.values()) else None
+    out = {}
+    for name, ore in scene.ores.items():
+        b = ore.breakage
+        if b is None or name not in ores:
+            continue
+        if b.form == "energy_specific":
+            out[name] = BreakageParams.energy_specific(b.alpha0_t_kwh, b.alpha1, b.alpha2, b.critical_size_um,
+                                                       b.beta0, b.beta1, b.beta2, source=f"scene ores.{name}.breakage")
+        else:
+            out[name] = BreakageParams.austin_rate(
+                b.a_per_min, b.alpha, b.mu_um, b.Lambda, gamma=b.beta1, beta=b.beta2, phi=b.beta0,
+                power_kw=power_kw(mill, mill.speed_nominal_frac_critical),
+                holdup_t=mill.nominal_holdup_t(density or densities[name]), source=f"scene ores.{name}.breakage")
+    return out, (density if given_density else None)
 
 
 def build_twin(scene: Scene, ores: dict, effects, effect_options, size_classes, n_mixers=None):
     """A twin of the scene's mill and feed with the given effects and grid; SceneError if the
     twin refuses it."""
     try:
-        return Twin(list(ores.values()), mill=scene_mill(scene), effects=list(effects),
+        mill = scene_mill(scene)
+        breakage, density = scene_breakage(scene, ores, mill)
+        fracs = scene.mill.mixer_volume_fracs if n_mixers is None else None
+        return Twin(list(ores.values()), mill=mill, effects=list(effects),
                     effect_options=dict(effect_options or {}),
-                    grid=SizeGrid(size_classes.top_um, size_classes.ratio, size_classes.count),
+                    grid=SizeGrid(size_classes.top_um, size_classes.ratio, size_classes.count, size_classes.scheme),
                     n_mixers=int(n_mixers or scene.mill.n_mixers), feed_p80_um=scene.feed.p80_um,
-                    feed_modulus=scene.feed.ggs_modulus)
+                    feed_modulus=scene.feed.ggs_modulus, feed_psd=scene_feed_psd(scene),
+                    ore_breakage=breakage, solids_density_t_m3=density, mixer_volume_fracs=fracs)
     except TwinError as exc:
         src = scene.source_path or scene.scene.name
         raise SceneError(f"{src}: the twin refused the scene: {exc}") from None
@@ -72,6 +120,10 @@ def build_models(scene: Scene) -> Models:
             raise RunError(f"plant model {p.model!r} is not supported by the runner yet; use "
                            "plant.model = 'twin'")
         effects = p.effects if p.effects is not None else scene.effects
+        if ("transport" in effects) != ("transport" in scene.effects):
+            raise SceneError(f"{scene.source_path or scene.scene.name}: plant.effects: the plant must be "
+                             "the same kind of mill as the scene (continuous with `transport`, or a "
+                             f"batch grind without); got {list(effects)}")
         # the scene's options apply to the plant's effects that have them
         options = p.effect_options if p.effect_options is not None else {
             k: v for k, v in scene.effect_options.items() if k in effects}

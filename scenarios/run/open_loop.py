@@ -16,8 +16,11 @@ from scenarios.run.streams import Samples, run_size_data
 from scenarios.scene import Scene
 from twin import TwinError
 
-#: Samples integrated per call (one progress-bar tick).
-PROGRESS_CHUNK_STEPS = 60
+#: Samples integrated per call (one progress-bar tick; the integrator restarts between calls).
+PROGRESS_CHUNK_STEPS = 120
+#: Sample times are snapped to the sample they are within this fraction of (floating-point
+#: round-off of k * dt / dt).
+SAMPLE_SNAP = 1e-12
 
 
 def start_state(scene: Scene, twin, u0, blend0, notes: list[str]):
@@ -32,10 +35,45 @@ def start_state(scene: Scene, twin, u0, blend0, notes: list[str]):
         return twin.model.initial_state(list(blend0))
 
 
-def simulate_chunks(scene: Scene, twin, x0, feed_tph, speed, blend, progress: bool):
-    """Integrate over the grid in stretches; returns (frame, states) with cumulative fed/produced."""
+def step_samples(scene: Scene, n_samples: int) -> np.ndarray:
+    """Where the inputs may jump: at the samples where a ``step`` event of the schedule takes
+    effect (its first sample at or after ``at_h``); between the others a schedule is linear
+    (ramps are ramps). A recorded history is held sample to sample (its rule,
+    :mod:`scenarios.scene.schedule`), so every one of its samples may jump."""
+    dt = scene.scene.sample_period_h
+    if scene.feed.history is not None:
+        return np.ones(n_samples, bool)
+    jumps = np.zeros(n_samples, bool)
+    for ev in scene.feed.schedule:
+        k = int(np.ceil(ev.at_h / dt - 1e-9))
+        if ev.kind == "step" and 0 < k < n_samples:
+            jumps[k] = True
+    return jumps
+
+
+def sampled_input(values: np.ndarray, jumps: np.ndarray, dt: float, offset_h: float = 0.0):
+    """A function of time [h] (from ``offset_h``) through the sample values: linear between
+    samples, except before a sample in ``jumps``, where the previous value is held up to it."""
+    values = np.asarray(values, float)
+    last = len(values) - 1
+
+    def fn(t_h: float):
+        x = (t_h + offset_h) / dt
+        k = min(max(int(np.floor(x + SAMPLE_SNAP)), 0), last)
+        if k == last:
+            return values[last]
+        w = x - k
+        return values[k] if jumps[k + 1] else values[k] + w * (values[k + 1] - values[k])
+    return fn
+
+
+def simulate_chunks(scene: Scene, twin, x0, feed_tph, speed, blend, progress: bool, jumps=None):
+    """Integrate over the grid in stretches of ``PROGRESS_CHUNK_STEPS`` samples (the inputs
+    linear between samples, stepping at ``jumps``: :func:`step_samples`); returns (frame,
+    states) with cumulative fed/produced."""
     dt = scene.scene.sample_period_h
     n = len(feed_tph) - 1
+    jumps = np.zeros(n + 1, bool) if jumps is None else jumps
     frames, states = [], [np.asarray(x0, float)[None, :]]
     fed0 = prod0 = 0.0
     x = x0
@@ -43,9 +81,9 @@ def simulate_chunks(scene: Scene, twin, x0, feed_tph, speed, blend, progress: bo
         for a in range(0, n, PROGRESS_CHUNK_STEPS):
             b = min(a + PROGRESS_CHUNK_STEPS, n)
             try:
-                tr = twin.simulate((b - a) * dt, dt, feed_tph=lambda t, a=a: feed_tph[a + int(round(t / dt))],
-                                   speed_frac_critical=lambda t, a=a: speed[a + int(round(t / dt))],
-                                   blend=lambda t, a=a: blend[a + int(round(t / dt))], x0=x)
+                tr = twin.simulate((b - a) * dt, dt, feed_tph=sampled_input(feed_tph, jumps, dt, a * dt),
+                                   speed_frac_critical=sampled_input(speed, jumps, dt, a * dt),
+                                   blend=sampled_input(blend, jumps, dt, a * dt), x0=x)
             except TwinError as exc:
                 raise RunError(f"scene {scene.scene.name}: the plant integration failed between "
                                f"t = {a * dt:.4g} h and {b * dt:.4g} h: {exc}") from None
@@ -73,7 +111,7 @@ def run_open_loop(scene: Scene, models, feed: pd.DataFrame, progress: bool, repl
     if replay and "recorded_feed_tph" in feed:
         notes.append("replay: inputs are the recorded feed rate and speed")
     x0 = start_state(scene, twin, (f[0], s[0]), blend[0], notes)
-    frame, states = simulate_chunks(scene, twin, x0, f, s, blend, progress)
+    frame, states = simulate_chunks(scene, twin, x0, f, s, blend, progress, step_samples(scene, len(f)))
     frame["p80_analyser_um"] = analyser_trace(frame["time_h"].to_numpy(), frame["p80_um"].to_numpy(),
                                               scene.sensors, scene.scene.seed)
     sizes = run_size_data(twin.model, Samples.from_frame(twin.model, states, frame, models.components), batch=False)

@@ -18,14 +18,20 @@ What a run does
   that steady state cannot be found the mill starts at its nominal hold-up filled with feed.
   A batch mill (no ``transport``) starts with ``feed.batch_charge_kg`` of feed of the initial
   blend and grinds it for ``scene.duration_h`` with no feed.
-- **Inputs.** Held over each sample period. Controller ``"none"``: the scene's ``feed_tph``
+- **Inputs.** Open loop, a schedule is linear between samples (a ramp is the ramp, a step
+  event a step at its sample) and a history is held sample to sample; closed loop, the
+  controller's input is held over each sample period. Controller ``"none"``: the scene's ``feed_tph``
   and ``speed_frac_critical`` throughout (in a replay, the recorded ones where recorded).
   ``"pi"`` and ``"nmpc"`` need the ``mpc`` package's modules (see :mod:`scenarios.run.closed_loop`).
 - **Analyser.** Open loop, ``p80_analyser_um`` is what the scene's P80 analyser would report
   (:func:`scenarios.run.open_loop.analyser_trace`); the KPIs use
   the plant's ``p80_um``.
 - **Progress.** The run is integrated in stretches of ``PROGRESS_CHUNK_STEPS`` samples with a
-  tqdm bar; the integrator restarts at each stretch (as at every input change).
+  tqdm bar; the integrator restarts at each stretch and where an input jumps or bends.
+- **Refusals first.** What the run would refuse is refused before it starts
+  (:mod:`scenarios.run.preflight`: the controller's settings, then, once the models are built,
+  a controller too large to build); the output folder is claimed before any work
+  (:mod:`scenarios.output.write`).
 
 KPIs: :mod:`scenarios.run.kpis`.
 """
@@ -33,6 +39,7 @@ KPIs: :mod:`scenarios.run.kpis`.
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -40,13 +47,14 @@ import numpy as np
 import pandas as pd
 
 from scenarios.errors import SceneError
-from scenarios.output import write_run
+from scenarios.output import claim_output, write_files
 from scenarios.run.batch import run_batch
 from scenarios.run.closed_loop import run_closed
 from scenarios.run.feed import feed_schedule
 from scenarios.run.kpis import compute_kpis
 from scenarios.run.models import build_models, component_ores, is_batch
 from scenarios.run.open_loop import run_open_loop
+from scenarios.run.preflight import model_size_problems, refuse, settings_problems
 from scenarios.run.summary import make_summary
 from scenarios.scene import Scene, load_scene, read_history, scene_from_dict
 
@@ -84,12 +92,34 @@ def run_scene(scene_or_path, out_dir=None, progress: bool = True, *, csv: bool =
 
     ``xlsx=True`` adds the workbook ``run.xlsx`` (:mod:`scenarios.output.workbook`).
     ``replay=True`` drives the inputs with the recorded feed rate and speed of the history (open
-    loop) where the history records them. Raises SceneError for a scene the twin refuses and
-    RunError when the run fails. See the module docstring for what a run does and the KPIs.
+    loop) where the history records them. Raises SceneError for a scene the twin refuses (or an
+    ``out_dir`` that cannot be used: checked before any work, see :mod:`scenarios.output.write`)
+    and RunError when the run fails. See the module docstring for what a run does and the KPIs.
     """
     scene = _as_scene(scene_or_path)
+    refuse(scene, settings_problems(scene))
+    with claim_output(out_dir, protect=_scene_files(scene)) as claim:
+        result = _run(scene, progress, replay)
+        _commit(claim, result, csv, plots, xlsx)
+    return result
+
+
+def _scene_files(scene: Scene) -> tuple:
+    """The user's files a run reads: their folders are never an output folder."""
+    return tuple(p for p in (scene.source_path, scene.history_path()) if p is not None)
+
+
+def _commit(claim, result: RunResult, csv: bool, plots: bool, xlsx: bool) -> None:
+    if claim is not None:
+        result.out_dir = claim.commit(lambda folder: write_files(result, folder, csv, plots, xlsx))
+        for note in claim.notes:
+            warnings.warn(note, stacklevel=3)
+
+
+def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
     t_start = time.perf_counter()
     models = build_models(scene)
+    refuse(scene, model_size_problems(scene, models))
     times = scene.time_grid_h()
     ores = component_ores(scene)
     feed, notes = feed_schedule(scene, models.components, times, ores)
@@ -102,20 +132,26 @@ def run_scene(scene_or_path, out_dir=None, progress: bool = True, *, csv: bool =
         frame, sizes, extra = run_closed(scene, models, feed, progress)
     psd = sizes["psd"]
     notes += extra.pop("notes", [])
+    warnings_ = extra.pop("warnings", [])
+    health = extra.get("controller_health")
     for c in feed.columns:
         if c.startswith("recorded_") or c == "history_fit_residual_wt_pct":
             frame[c] = feed[c].to_numpy()
+    if not is_batch(scene) and {"feed_tph", "specific_energy_kwh_t"} <= set(frame.columns):
+        # the model's power / feed has a floor at zero feed (a huge number): undefined there
+        frame.loc[frame["feed_tph"] <= 0, "specific_energy_kwh_t"] = np.nan
     kpis = compute_kpis(scene, frame, **extra)
-    summary = make_summary(scene, models, kpis, notes, time.perf_counter() - t_start)
+    if not kpis["fed_t"] > 0 and not is_batch(scene):
+        warnings_.append("specific energy is undefined: nothing was fed")
+    summary = make_summary(scene, models, kpis, notes + warnings_, time.perf_counter() - t_start)
+    summary["controller_health"] = health
+    summary["warnings"] = warnings_
     if psd is not None:
         summary["final_psd"] = {"what": psd.attrs.get("what", "product"), "time_h": float(psd.index[-1]),
                                 "size_um": [float(x) for x in psd.columns],
                                 "passing_frac": [float(v) for v in psd.iloc[-1]]}
-    result = RunResult(frame=frame, summary=summary, psd=psd, mill_psd=sizes["mill_psd"], streams=sizes["streams"],
-                       scene=scene)
-    if out_dir is not None:
-        result.out_dir = write_run(result, out_dir, csv=csv, plots=plots, xlsx=xlsx)
-    return result
+    return RunResult(frame=frame, summary=summary, psd=psd, mill_psd=sizes["mill_psd"], streams=sizes["streams"],
+                     scene=scene)
 
 
 def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True, *,
@@ -133,7 +169,15 @@ def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True
     (mean and mean absolute differences, run minus recorded).
     """
     scene = _as_scene(scene_or_path)
+    refuse(scene, settings_problems(scene))
     history_path = Path(history_csv).resolve()
+    with claim_output(out_dir, protect=(*_scene_files(scene), history_path)) as claim:
+        result = _replay(scene, history_path, progress, duration_h)
+        _commit(claim, result, csv, plots, xlsx)
+    return result
+
+
+def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float | None) -> RunResult:
     data = scene.model_dump(exclude_none=True)
     data["feed"].pop("blend", None)
     data["feed"].pop("schedule", None)
@@ -144,13 +188,13 @@ def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True
                             max_gap_h=scene.feed.history_max_gap_h).span_h
         n = int(np.floor(span / dt + 1e-9))
         if n < 1:
-            raise SceneError(f"{history_csv}: the history spans {span:g} h, less than one sample "
+            raise SceneError(f"{history_path}: the history spans {span:g} h, less than one sample "
                              f"period ({dt:g} h) of the scene")
         duration_h = n * dt
     data["scene"]["duration_h"] = float(duration_h)
     src = scene.source_path
     new = scene_from_dict(data, src if src is not None else Path.cwd() / "scene.toml")
-    result = run_scene(new, out_dir=None, progress=progress, replay=True)
+    result = _run(new, progress, replay=True)
     frame = result.frame
     cmp = {}
     for col in ("feed_tph", "speed_frac_critical", "p80_um"):
@@ -159,7 +203,5 @@ def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True
             diff = frame[col].to_numpy(float) - frame[rec].to_numpy(float)
             cmp[f"{col}_mean_diff"] = float(np.nanmean(diff))
             cmp[f"{col}_mean_abs_diff"] = float(np.nanmean(np.abs(diff)))
-    result.summary["replay"] = {"history": str(history_csv), "run_minus_recorded": cmp}
-    if out_dir is not None:
-        result.out_dir = write_run(result, out_dir, csv=csv, plots=plots, xlsx=xlsx)
+    result.summary["replay"] = {"history": str(history_path), "run_minus_recorded": cmp}
     return result

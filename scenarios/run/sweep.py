@@ -17,8 +17,11 @@ from __future__ import annotations
 
 import copy
 import itertools
+import math
 import os
 import pickle
+import re
+import signal
 import tomllib
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
@@ -35,6 +38,13 @@ from scenarios.scene.loader import read_toml, validate_scene_dict
 from scenarios.scene.schema import Scene
 
 RunCase = Callable[[Scene], dict]
+
+#: A sweep of more cases than this is refused unless ``max_cases`` (``--max-cases``) allows it:
+#: each case is a whole run (seconds to minutes), so a typo such as ``1:1000:0.001`` would
+#: otherwise start days of work.
+MAX_CASES = 1000
+#: Most values one ``start:stop:step`` range may give (above any useful ``max_cases``).
+MAX_RANGE_VALUES = 1_000_000
 
 
 @dataclass
@@ -61,29 +71,42 @@ def parse_vary(text: str) -> tuple[str, list]:
             start, stop, step = (float(p) for p in parts)
         except ValueError:
             raise SceneError(f"--vary {text!r}: start:stop:step must be numbers") from None
+        if not all(math.isfinite(v) for v in (start, stop, step)):
+            raise SceneError(f"--vary {text!r}: start:stop:step must be finite numbers")
         if step <= 0 or stop < start:
             raise SceneError(f"--vary {text!r}: need step > 0 and stop >= start")
         n = int(np.floor((stop - start) / step + 1e-9)) + 1
+        if n > MAX_RANGE_VALUES:
+            raise SceneError(f"--vary {text!r}: {n} values; a range gives at most {MAX_RANGE_VALUES}")
         values = [start + i * step for i in range(n)]
         if all(float(p).is_integer() for p in parts):
             values = [int(round(v)) for v in values]
         return key, values
     try:
-        return key, tomllib.loads(f"v = [{spec}]")["v"]
+        values = tomllib.loads(f"v = [{spec}]")["v"]
     except tomllib.TOMLDecodeError:
-        pass
-    values = []
-    for item in (s.strip() for s in spec.split(",")):
-        try:
-            values.append(tomllib.loads(f"v = {item}")["v"])
-        except tomllib.TOMLDecodeError:
-            values.append(item)
+        values = []
+        for item in (s.strip() for s in spec.split(",")):
+            try:
+                values.append(tomllib.loads(f"v = {item}")["v"])
+            except tomllib.TOMLDecodeError:
+                values.append(item)
+    bad = [v for v in values if isinstance(v, float) and not math.isfinite(v)]
+    if bad:
+        raise SceneError(f"--vary {text!r}: values must be finite numbers (got {bad[0]})")
     return key, values
 
 
+def case_count(vary: dict[str, list], mode: str = "cartesian") -> int:
+    """How many cases ``vary`` makes (paired: the common length)."""
+    lengths = [len(v) for v in vary.values()]
+    return (max(lengths) if mode == "paired" else math.prod(lengths)) if lengths else 0
+
+
 def expand_cases(scene_dict: dict[str, Any], vary: dict[str, list],
-                 mode: Literal["cartesian", "paired"] = "cartesian") -> list[Case]:
-    """The sweep's cases: a deep copy of ``scene_dict`` per case with the varied keys set."""
+                 mode: Literal["cartesian", "paired"] = "cartesian", max_cases: int = MAX_CASES) -> list[Case]:
+    """The sweep's cases: a deep copy of ``scene_dict`` per case with the varied keys set;
+    SceneError above ``max_cases`` cases (counted before anything is copied)."""
     if mode not in ("cartesian", "paired"):
         raise SceneError(f"sweep mode: must be 'cartesian' or 'paired' (got {mode!r})")
     if not vary:
@@ -97,6 +120,11 @@ def expand_cases(scene_dict: dict[str, Any], vary: dict[str, list],
         lengths = {key: len(v) for key, v in lists.items()}
         if len(set(lengths.values())) > 1:
             raise SceneError(f"sweep: paired mode needs lists of equal length (got {lengths})")
+    n = case_count(lists, mode)
+    if n > max_cases:
+        raise SceneError(f"sweep: {n:,} cases, more than the limit of {max_cases:,}; vary fewer "
+                         f"values, or raise the limit with --max-cases {n} (max_cases={n})")
+    if mode == "paired":
         combos = list(zip(*lists.values()))
     else:
         combos = list(itertools.product(*lists.values()))
@@ -127,13 +155,16 @@ def validate_cases(cases: list[Case], source_path: str | Path | None) -> list[Sc
 
 def run_sweep(scene_path: str | Path, vary: dict[str, list], run_case: RunCase, *,
               mode: Literal["cartesian", "paired"] = "cartesian", workers: int | None = None,
-              scheduler: Any = None, progress: bool = True) -> pd.DataFrame:
+              scheduler: Any = None, progress: bool = True, max_cases: int = MAX_CASES) -> pd.DataFrame:
     """Run ``run_case(scene) -> dict of KPIs`` for every case; one row per case.
 
     Columns: ``case``, the varied key paths, the KPIs (union over cases), ``error`` (``None``
-    for a case that ran). ``run_case`` must be picklable (a module-level function).
+    for a case that ran). ``run_case`` must be picklable (a module-level function). The
+    scheduler address is checked and the cluster reached before any case runs.
     """
-    cases = expand_cases(read_toml(scene_path), vary, mode)
+    cases = expand_cases(read_toml(scene_path), vary, mode, max_cases)
+    if isinstance(scheduler, str):
+        check_scheduler_address(scheduler)
     scenes = validate_cases(cases, scene_path)
     if scheduler is not None:
         outcomes = _run_dask(run_case, scenes, scheduler, progress)
@@ -170,12 +201,35 @@ def _run_local(run_case: RunCase, scenes: list[Scene], workers: int | None, prog
                 outcomes[i] = run_one(run_case, scene)
                 bar.update()
             return outcomes
-        with ProcessPoolExecutor(max_workers=workers) as pool:
+        pool = ProcessPoolExecutor(max_workers=workers, initializer=_worker_ignores_signals)
+        try:
             futures = {pool.submit(run_one, run_case, s): i for i, s in enumerate(scenes)}
             for fut in as_completed(futures):
                 outcomes[futures[fut]] = _outcome(fut)
                 bar.update()
+        except BaseException:  # Ctrl-C, SIGTERM: stop the workers now, not after their cases
+            _stop_workers(pool)
+            raise
+        pool.shutdown()
     return outcomes
+
+
+def _worker_ignores_signals() -> None:
+    """Workers leave SIGINT and SIGTERM to the parent (a Ctrl-C reaches the whole process
+    group): the parent stops them, so no worker prints a traceback of its own."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Cancel what has not started and terminate the worker processes this sweep started."""
+    procs = list(getattr(pool, "_processes", {}).values())  # no public API for this before 3.14
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in procs:
+        if proc.is_alive():
+            proc.terminate()
+    for proc in procs:
+        proc.join(timeout=5)
 
 
 def _check_picklable(run_case: RunCase) -> None:
@@ -186,6 +240,19 @@ def _check_picklable(run_case: RunCase) -> None:
                        "use a module-level function, or workers=1") from None
 
 
+#: A Dask scheduler address: ``PROTOCOL://HOST[:PORT]`` or ``HOST:PORT``.
+SCHEDULER_ADDRESS = re.compile(r"^(?:(?:tcp|tls|inproc|ucx|ws|wss)://[^\s/:]+(?::\d{1,5})?|[^\s/:]+:\d{1,5})/?$")
+#: How long to try to reach a Dask scheduler before the sweep is refused [s].
+SCHEDULER_TIMEOUT_S = 10
+
+
+def check_scheduler_address(address: str) -> None:
+    """SceneError unless ``address`` reads as a Dask scheduler address."""
+    if not SCHEDULER_ADDRESS.match(address):
+        raise SceneError(f"--scheduler {address!r}: not a Dask scheduler address; expected "
+                         "PROTOCOL://HOST:PORT (e.g. tcp://10.0.0.5:8786) or HOST:PORT")
+
+
 def _run_dask(run_case: RunCase, scenes: list[Scene], scheduler: Any, progress: bool):
     try:
         from distributed import Client
@@ -194,7 +261,11 @@ def _run_dask(run_case: RunCase, scenes: list[Scene], scheduler: Any, progress: 
         raise RunError("a Dask scheduler was given but dask.distributed is not installed; "
                        "install the optional extra: pip install 'grindtwin[distributed]'") from None
     own = not isinstance(scheduler, Client)
-    client = Client(scheduler) if own else scheduler
+    try:
+        client = Client(scheduler, timeout=SCHEDULER_TIMEOUT_S) if own else scheduler
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise RunError(f"cannot reach the Dask scheduler {scheduler!r} within {SCHEDULER_TIMEOUT_S} s: "
+                       f"{type(exc).__name__}: {exc}") from None
     try:
         futures = [client.submit(run_one, run_case, s, pure=False) for s in scenes]
         index = {f.key: i for i, f in enumerate(futures)}

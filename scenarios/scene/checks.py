@@ -10,12 +10,15 @@ must sum to 100 wt% within ``MINERAL_SUM_TOL_PCT``.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
 from scenarios.errors import SceneError
 from scenarios.scene.history import read_history
 from scenarios.scene.keypaths import did_you_mean, format_path
+from scenarios.scene.ranges import feed_problem, nominal_feed_tph
+from twin import TwinError, hydrocyclone_from
 from twin.effects import problems as effect_problems
 from twin.ore import mineral_names
 
@@ -37,7 +40,9 @@ def _get(data: Any, *loc) -> Any:
 
 
 def _num(x: Any) -> float | None:
-    return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else None
+    """A finite number, else None (NaN and infinities are the schema pass's to report)."""
+    ok = isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+    return float(x) if ok else None
 
 
 class _Report:
@@ -57,7 +62,7 @@ def cross_check(data: dict[str, Any], base_dir: Path) -> list[str]:
     _check_time(data, r)
     _check_effects(data, r)
     ore_names = _check_ores(data, r)
-    _check_feed(data, ore_names, r)
+    _check_feed(data, ore_names, r, base_dir)
     _check_schedule(data, ore_names, r)
     _check_history(data, ore_names, base_dir, r)
     _check_controller(data, r)
@@ -91,6 +96,17 @@ def _check_effect_table(effects, options, prefix: tuple, r: _Report) -> None:
     if not bad:
         for p in effect_problems(effects, options):
             r.add(prefix + p.loc, p.message)
+        _check_cyclone(options, prefix, r)
+
+
+def _check_cyclone(options: dict, prefix: tuple, r: _Report) -> None:
+    """A hydrocyclone table's fields, by the twin's own Hydrocyclone validation."""
+    cyc = options.get("classification", {}).get("cyclone")
+    if isinstance(cyc, dict):
+        try:
+            hydrocyclone_from(cyc)
+        except TwinError as exc:
+            r.add(prefix + ("effect_options", "classification", "cyclone"), str(exc))
 
 
 def _check_ores(data, r: _Report) -> list[str]:
@@ -152,7 +168,7 @@ def _check_blend(blend: Any, loc: tuple, ore_names: list[str], r: _Report) -> No
         r.add(loc, f"fractions must sum to 1 within {BLEND_SUM_TOL:g}", round(total, 6))
 
 
-def _check_feed(data, ore_names: list[str], r: _Report) -> None:
+def _check_feed(data, ore_names: list[str], r: _Report, base_dir: Path = Path(".")) -> None:
     feed = data.get("feed")
     if not isinstance(feed, dict):
         return
@@ -179,6 +195,15 @@ def _check_feed(data, ore_names: list[str], r: _Report) -> None:
         if _get(data, "controller", "kind") not in (None, "none"):
             r.add(("controller", "kind"), "a batch scene (effects without `transport`) has "
                   "nothing to control; use kind = \"none\"", _get(data, "controller", "kind"))
+    nominal = nominal_feed_tph(_get(data, "mill", "preset"), _get(data, "mill", "net_power_kw"))
+    for loc in (("feed", "feed_tph"), ("controller", "bounds", "feed_tph_max")):
+        v = _num(_get(data, *loc))
+        problem = feed_problem(v, nominal) if v is not None and v > 0 else None
+        if problem:
+            r.add(loc, problem, v)
+    csv = feed.get("psd_csv")
+    if isinstance(csv, str) and not (Path(csv) if Path(csv).is_absolute() else base_dir / csv).is_file():
+        r.add(("feed", "psd_csv"), "file not found (a CSV with columns size_um, passing_pct)", csv)
     p80 = _num(feed.get("p80_um", 3200.0))
     top = _num(_get(data, "mill", "size_classes", "top_um") or 6700.0)
     if p80 is not None and top is not None and p80 >= top:
@@ -238,7 +263,8 @@ def _check_history(data, ore_names: list[str], base_dir: Path, r: _Report) -> No
         return
     try:
         gap = _num(feed.get("history_max_gap_h", 10 / 60))
-        history = read_history(path, sample_period_h=dt, max_gap_h=gap if gap and gap > 0 else 10 / 60)
+        history = read_history(path, sample_period_h=dt, max_gap_h=gap if gap and gap > 0 else 10 / 60,
+                               feed_nominal_tph=nominal_feed_tph(_get(data, "mill", "preset"), _get(data, "mill", "net_power_kw")))
     except SceneError as exc:
         for line in str(exc).splitlines():
             r.add(("feed", "history"), line.strip())
@@ -333,3 +359,12 @@ def _check_plant(data, r: _Report) -> None:
                                                  or plant.get("effect_options") is not None):
         _check_effect_table(plant.get("effects", data.get("effects")), plant.get("effect_options", {}),
                             ("plant",), r)
+    scene_effects, effects = data.get("effects"), plant.get("effects")
+    if isinstance(scene_effects, list) and isinstance(effects, list) \
+            and ("transport" in scene_effects) != ("transport" in effects):
+        continuous = "transport" in scene_effects
+        kind = "a continuous mill (effects has `transport`)" if continuous else \
+            "a batch grind (effects without `transport`)"
+        r.add(("plant", "effects"), f"the scene is {kind}; the plant must be the same kind of mill, "
+              f"not a {'batch grind' if continuous else 'continuous mill'}: "
+              f"{'add' if continuous else 'remove'} `transport` here", effects)

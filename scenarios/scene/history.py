@@ -17,7 +17,12 @@ Rules, applied in this order; each action is written to ``History.report``:
 4. Gaps: a value may be held for at most ``max_gap_h`` (default 10 min), whether the rows are
    missing or present with NaN. A longer stretch, or missing values in the first row, is
    refused, naming the data rows (1 = first row after the header).
-5. Negative values are refused, naming the rows.
+5. Cells that are not numbers (text), infinite values and negative values are refused, naming
+   the rows; so are values outside their physical range, with the usual unit mistake named:
+   ``speed_frac_critical`` in (0, 1) (a fraction of critical, not percent), ``p80_um`` > 0, the
+   texture within the scene schema's ranges, and (when the scene's mill is known)
+   ``feed_tph`` at most :data:`scenarios.scene.ranges.FEED_MAX_NOMINAL_MULTIPLE` times the
+   mill's nominal feed rate (a feed in kg/h is 1000x).
 6. Composition rows must sum to 100 wt% (or 1) within ``sum_tol_frac`` (relative, default 2 %);
    they are rescaled to sum exactly; rows further off are refused, naming them.
 7. Resampling to the scene's sample period: the value at grid time t_k = k*dt is the
@@ -27,6 +32,7 @@ Rules, applied in this order; each action is written to ``History.report``:
 
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,8 +41,12 @@ from typing import Literal
 import numpy as np
 import pandas as pd
 
+from pydantic import ValidationError
+
 from scenarios.errors import SceneError
 from scenarios.scene.keypaths import did_you_mean
+from scenarios.scene.ranges import feed_problem, speed_problem
+from scenarios.scene.schema import Texture
 from twin.ore import mineral_names
 
 DEFAULT_MAX_GAP_H = 10 / 60
@@ -72,8 +82,9 @@ class History:
 
 
 def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float = DEFAULT_MAX_GAP_H,
-                 sum_tol_frac: float = 0.02) -> History:
-    """Read, clean and resample a recorded history by the rules of this module's docstring."""
+                 sum_tol_frac: float = 0.02, feed_nominal_tph: float | None = None) -> History:
+    """Read, clean and resample a recorded history by the rules of this module's docstring
+    (``feed_nominal_tph``: the scene's mill's nominal feed rate, for the feed's range)."""
     path = Path(path)
     raw = _read_table(path)
     where = str(path)
@@ -101,10 +112,11 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
     t = df["_t"].to_numpy() - df["_t"].iloc[0]
     if start is not None:
         start = start + pd.Timedelta(hours=float(df["_t"].iloc[0]))
-    values = df[comp_cols + other_cols].astype(float)
+    values = _numeric(df, comp_cols + other_cols, where)
     neg = (values < 0).any(axis=1).to_numpy()
     if neg.any():
         raise SceneError(f"{where}: negative values in data rows {_names(df['_row'][neg])}")
+    _check_ranges(values, df["_row"], where, feed_nominal_tph)
 
     comp = values[comp_cols]
     comp_missing = comp.isna().any(axis=1).to_numpy()
@@ -216,6 +228,55 @@ def _classify_columns(raw: pd.DataFrame, where: str) -> tuple[list[str], str, li
         raise SceneError(f"{where}: " + f"\n{where}: ".join(problems))
     kind = "mineralogy" if mineral_cols else "blend"
     return (mineral_cols or ore_cols), kind, other
+
+
+def _numeric(df: pd.DataFrame, cols: list[str], where: str) -> pd.DataFrame:
+    """The columns as floats (empty cells NaN); SceneError naming text cells and infinite values."""
+    out, errors = {}, []
+    for col in cols:
+        raw = df[col]
+        num = pd.to_numeric(raw, errors="coerce").astype(float)
+        text = raw.notna().to_numpy() & num.isna().to_numpy()
+        if text.any():
+            first = raw[text].iloc[0]
+            errors.append(f"column {col}: not a number in data rows {_names(df['_row'][text])} "
+                          f"(e.g. {first!r})")
+        inf = np.isinf(num.to_numpy())
+        if inf.any():
+            errors.append(f"column {col}: infinite value in data rows {_names(df['_row'][inf])}")
+        out[col] = num
+    if errors:
+        raise SceneError(f"{where}: " + f"\n{where}: ".join(errors))
+    return pd.DataFrame(out, index=df.index)
+
+
+def _check_ranges(values: pd.DataFrame, rows: pd.Series, where: str, feed_nominal_tph) -> None:
+    """Refuse recorded values outside their physical ranges, naming rows and the likely mistake."""
+    checks = {"speed_frac_critical": speed_problem,
+              "feed_tph": lambda v: feed_problem(v, feed_nominal_tph),
+              "p80_um": lambda v: None if v > 0 else f"P80 {v:g} um is not > 0"}
+    checks |= {key: functools.partial(_texture_problem, key) for key in TEXTURE_COLUMNS}
+    errors = []
+    for col, problem in checks.items():
+        if col not in values:
+            continue
+        v = values[col].to_numpy()
+        msgs = [(i, problem(float(x))) for i, x in enumerate(v) if not np.isnan(x)]
+        bad = [(i, m) for i, m in msgs if m is not None]
+        if bad:
+            errors.append(f"column {col}: {bad[0][1]} in data rows {_names(rows.iloc[[i for i, _ in bad]])}")
+    if errors:
+        raise SceneError(f"{where}: " + f"\n{where}: ".join(errors))
+
+
+@functools.lru_cache(maxsize=4096)
+def _texture_problem(key: str, value: float) -> str | None:
+    """The scene schema's range of a texture key (``[ores.NAME.texture]``), applied to a cell."""
+    try:
+        Texture.model_validate({k: (value if k == key else 0.5) for k in TEXTURE_COLUMNS})
+    except ValidationError as exc:
+        return f"{value:g} {exc.errors()[0]['msg'].lower()}"
+    return None
 
 
 def _check_holds(t: np.ndarray, missing: np.ndarray, rows: pd.Series, what: str,

@@ -25,18 +25,32 @@ from scenarios.scene.keypaths import allowed_keys, did_you_mean, format_path, ty
 from scenarios.scene.schema import Scene, mill_preset
 
 
+#: Byte-order marks of text encodings that are not UTF-8, to name the encoding in the error.
+TEXT_BOMS = ((b"\xff\xfe\x00\x00", "UTF-32"), (b"\x00\x00\xfe\xff", "UTF-32"), (b"\xff\xfe", "UTF-16"),
+             (b"\xfe\xff", "UTF-16"))
+
+
 def read_toml(path: str | Path) -> dict[str, Any]:
     """The raw TOML table of a scene file; SceneError if missing or not TOML."""
     path = Path(path)
     try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
+        raw = path.read_bytes()
     except FileNotFoundError:
         raise SceneError(f"{path}: scene file not found") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{path}: not valid TOML: {exc}") from None
     except OSError as exc:
         raise SceneError(f"{path}: cannot read the scene file: {exc.strerror or exc}") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        found = next((name for bom, name in TEXT_BOMS if raw.startswith(bom)),
+                     "UTF-16 or UTF-32" if b"\x00" in raw[:64] else None)
+        what = f"it is {found} text" if found else f"byte {exc.start} is 0x{raw[exc.start]:02x}"
+        raise SceneError(f"{path}: not UTF-8 text ({what}); a TOML scene file must be UTF-8: save "
+                         "it again as UTF-8") from None
+    try:
+        return tomllib.loads(text.removeprefix("\ufeff"))
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{path}: not valid TOML: {exc}") from None
 
 
 def validate_scene_dict(data: dict[str, Any], source_path: str | Path | None = None,
@@ -117,6 +131,8 @@ def _pydantic_message(label: str, err: dict) -> str:
 
 def _fill_defaults(scene: Scene) -> None:
     mill = scene.mill
+    if mill.n_mixers is None and mill.mixer_volume_fracs is not None:
+        mill.n_mixers = len(mill.mixer_volume_fracs)
     for key, value in mill_preset(mill.preset).items():
         if getattr(mill, key) is None:
             setattr(mill, key, value)

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 
 from mpc import DISTURBANCE_MODELS, QP_SOLVERS, SOLVERS
 from twin import MILLS
@@ -37,9 +37,10 @@ def mill_preset(name: str) -> dict[str, float | int]:
 
 class Section(BaseModel):
     """Base of every section: unknown keys are errors; values are not coerced (strict), except
-    that an integer is accepted where a float is expected."""
+    that an integer is accepted where a float is expected; NaN and infinities are refused
+    wherever a number is expected (TOML allows ``nan`` and ``inf``, no quantity here is)."""
 
-    model_config = ConfigDict(extra="forbid", strict=True, use_attribute_docstrings=True)
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, use_attribute_docstrings=True)
 
 
 class SceneInfo(Section):
@@ -69,6 +70,10 @@ class SizeClasses(Section):
     (benchmarks/results/twin_accuracy.md)."""
     count: int = Field(default=25, ge=3, le=200, json_schema_extra={"unit": "-"})
     """Number of size classes; a sink class below the finest is added by the twin."""
+    scheme: Literal["cell_average", "austin"] = "cell_average"
+    """Discretisation of breakage on the grid (twin.breakage): ``"cell_average"``, second order in
+    the class width; ``"austin"``, the classical first-order discrete form in which a tool's
+    parameters are defined on its own sieve series."""
 
 
 class Mill(Section):
@@ -76,7 +81,8 @@ class Mill(Section):
 
     preset: Literal["lab", "industrial"]
     """The mill: ``"lab"`` is MISSION.md's laboratory mill (0.5 m x 0.3 m, 31 kg/h nominal),
-    ``"industrial"`` an overflow ball mill of 3.2 m x 4.8 m (~30 t/h of Type B). Calibrated
+    ``"industrial"`` the mill `grindtwin size-mill` sizes for 31 t/h of Type B at 210 um in closed
+    circuit with hydrocyclones (twin/data/industrial_mill.json). Calibrated
     values of the preset (power factor, grate, discharge) come from the shipped calibration."""
     diameter_m: float | None = Field(default=None, gt=0, lt=20, examples=[3.2])
     """Inside diameter [m]; default: the preset's."""
@@ -89,6 +95,78 @@ class Mill(Section):
     unless ``[plant]`` says otherwise, of the plant; default 3."""
     size_classes: SizeClasses = Field(default_factory=SizeClasses)
     """The size grid of the controller's model and, unless ``[plant]`` says otherwise, of the plant."""
+    mixer_volume_fracs: list[float] | None = Field(default=None, min_length=1, max_length=20,
+                                                   json_schema_extra={"unit": "fraction of hold-up"})
+    """The mixers' shares of the hold-up, e.g. Whiten's one large and two small [0.7, 0.15, 0.15];
+    sets ``n_mixers`` (which must agree if given); default: equal shares."""
+    ball_size_mm: float | None = Field(default=None, gt=0, le=200, json_schema_extra={"unit": "mm"})
+    """Make-up ball size [mm] (Austin's scale-up factors on S); default: the preset's (25)."""
+    discharge_solids_frac: float | None = Field(default=None, gt=0, lt=1)
+    """Solids mass fraction of the mill discharge (0.72, not 72), held by the mill's feed water;
+    default 0.70."""
+    power_model: Literal["bond", "hogg_fuerstenau"] | None = None
+    """Net-power model of the mill; default: the preset's (``"bond"``)."""
+    net_power_kw: float | None = Field(default=None, gt=0, le=1e5)
+    """A given (measured or published) net power at the nominal speed [kW]; the power model then
+    only shapes how power moves with speed."""
+    @model_validator(mode="after")
+    def _mixers_agree(self):
+        fracs = self.mixer_volume_fracs
+        if fracs is not None:
+            if any(not f > 0 for f in fracs):
+                raise ValueError(f"mixer_volume_fracs must be positive shares of the hold-up (got {fracs})")
+            if self.n_mixers is not None and self.n_mixers != len(fracs):
+                raise ValueError(f"n_mixers = {self.n_mixers} but mixer_volume_fracs has {len(fracs)} shares: "
+                                 "give one of them, or both agreeing")
+        return self
+
+
+class OreBreakage(Section):
+    """``[ores.NAME.breakage]``: the ore's selection and breakage parameters given directly (they
+    replace the calibration's mineralogy map for this ore; twin.BreakageParams).
+
+    ``form = "energy_specific"`` (Moly-Cop Tools, Herbst & Fuerstenau): S^E = alpha0_t_kwh
+    d^alpha1 / (1 + (d / critical_size_um)^alpha2), d in um. ``form = "austin"``: Austin's rate
+    S = a_per_min (d/1 mm)^alpha / (1 + (d/mu_um)^Lambda) [1/min], measured at the scene mill's
+    nominal power and hold-up. Breakage B = beta0 (x/y)^beta1 + (1 - beta0)(x/y)^beta2 (Austin's
+    phi, gamma, beta) for both."""
+
+    form: Literal["energy_specific", "austin"] = "energy_specific"
+    """Which selection form the keys below give."""
+    alpha0_t_kwh: float | None = Field(default=None, gt=0, le=1e6)
+    """Energy-specific selection coefficient [t/kWh] with sizes in um (energy_specific)."""
+    alpha1: float | None = Field(default=None, ge=0, le=5, json_schema_extra={"unit": "-"})
+    """Size exponent of the energy-specific selection (energy_specific)."""
+    alpha2: float | None = Field(default=None, ge=0, le=20, json_schema_extra={"unit": "-"})
+    """Exponent of the fall of the selection above the critical size (energy_specific)."""
+    critical_size_um: float | None = Field(default=None, gt=0, le=1e7)
+    """Critical size of the selection [um] (energy_specific)."""
+    a_per_min: float | None = Field(default=None, gt=0, le=1e6, json_schema_extra={"unit": "1/min"})
+    """Austin's rate constant at 1 mm [1/min] (austin)."""
+    alpha: float | None = Field(default=None, ge=0, le=5, json_schema_extra={"unit": "-"})
+    """Austin's size exponent (austin)."""
+    mu_um: float | None = Field(default=None, gt=0, le=1e7)
+    """Austin's mu, the size where the rate falls to half its power law [um] (austin)."""
+    Lambda: float | None = Field(default=None, ge=0, le=20, json_schema_extra={"unit": "-"})
+    """Austin's Lambda, the steepness of that fall (austin)."""
+    beta0: float = Field(ge=0, le=1, json_schema_extra={"unit": "-"})
+    """Share of the fine-fragment term of B (Austin's phi)."""
+    beta1: float = Field(gt=0, le=5, json_schema_extra={"unit": "-"})
+    """Exponent of the fine-fragment term of B (Austin's gamma)."""
+    beta2: float = Field(gt=0, le=20, json_schema_extra={"unit": "-"})
+    """Exponent of the coarse-fragment term of B (Austin's beta)."""
+
+    @model_validator(mode="after")
+    def _form_complete(self):
+        need = {"energy_specific": ("alpha0_t_kwh", "alpha1", "alpha2", "critical_size_um"),
+                "austin": ("a_per_min", "alpha", "mu_um", "Lambda")}
+        missing = [k for k in need[self.form] if getattr(self, k) is None]
+        extra = [k for f, keys in need.items() if f != self.form for k in keys if getattr(self, k) is not None]
+        if missing:
+            raise ValueError(f"form = {self.form!r} needs {', '.join(missing)}")
+        if extra:
+            raise ValueError(f"{', '.join(extra)} belong to the other form, not form = {self.form!r}")
+        return self
 
 
 class Texture(Section):
@@ -116,6 +194,11 @@ class Ore(Section):
     100 within 0.5 wt%; required with ``texture`` when there is no ``type``."""
     texture: Texture | None = None
     """The ore's texture (``[ores.NAME.texture]``); required with ``mineralogy``."""
+    breakage: OreBreakage | None = None
+    """Selection and breakage parameters given directly (``[ores.NAME.breakage]``), in place of
+    the calibration's mineralogy map for this ore."""
+    density_t_m3: float | None = Field(default=None, gt=1, le=25, json_schema_extra={"unit": "t/m3"})
+    """Solids density [t/m3] in place of the minerals' density."""
 
 
 class ScheduleEvent(Section):
@@ -131,11 +214,34 @@ class ScheduleEvent(Section):
     """Length of a ramp [h] (> 0 for a ramp; only for ``kind = "ramp"``)."""
 
 
+class FeedPSD(Section):
+    """``[feed.psd]``: a screen analysis: sieve sizes [um] and cumulative % passing (94.43, not
+    0.9443), any order (twin.sizes.TabulatedPSD)."""
+
+    sizes_um: list[float] = Field(min_length=2)
+    """Sieve sizes [um]."""
+    passing_pct: list[float] = Field(min_length=2)
+    """Cumulative % passing each sieve."""
+
+    @model_validator(mode="after")
+    def _paired(self):
+        if len(self.sizes_um) != len(self.passing_pct):
+            raise ValueError(f"{len(self.sizes_um)} sizes_um but {len(self.passing_pct)} passing_pct: one each")
+        if any(not s > 0 for s in self.sizes_um) or len(set(self.sizes_um)) != len(self.sizes_um):
+            raise ValueError("sizes_um must be distinct positive sieve sizes")
+        if any(not 0 <= v <= 100 for v in self.passing_pct):
+            raise ValueError("passing_pct must be percentages in [0, 100]")
+        pairs = sorted(zip(self.sizes_um, self.passing_pct))
+        if any(b[1] < a[1] for a, b in zip(pairs, pairs[1:])):
+            raise ValueError("passing_pct must not fall as the sieve size rises")
+        return self
+
+
 class Feed(Section):
     """``[feed]``: initial blend and operating point, feed size, then a schedule or a history.
 
     Feed size: Gates-Gaudin-Schuhmann distribution with ``p80_um`` and ``ggs_modulus`` (as the
-    twin's feed). ``blend`` is required unless a ``history`` gives the feed from t = 0.
+    twin's feed), or a screen analysis as ``[feed.psd]`` or ``psd_csv`` (then not ``p80_um``). ``blend`` is required unless a ``history`` gives the feed from t = 0.
     ``feed_tph`` is required with the ``transport`` effect (continuous mill); without it the
     scene is a batch grind of ``batch_charge_kg``.
 
@@ -161,6 +267,11 @@ class Feed(Section):
     ggs_modulus: float = Field(default=0.8, gt=0, le=5, json_schema_extra={"unit": "-"})
     """Distribution modulus m of the Gates-Gaudin-Schuhmann feed, passing = (x / x_max)^m with
     x_max from ``p80_um``."""
+    psd: FeedPSD | None = None
+    """A screen analysis of the fresh feed (``[feed.psd]``), in place of ``p80_um``."""
+    psd_csv: str | None = None
+    """A CSV of the fresh feed's screen analysis (columns ``size_um``, ``passing_pct``; path
+    relative to the scene file), in place of ``p80_um``."""
     schedule: list[ScheduleEvent] = Field(default_factory=list)
     """Blend changes over time (``[[feed.schedule]]``); not with ``history``."""
     history: str | None = None
@@ -175,6 +286,15 @@ class Feed(Section):
     ``history``)."""
     history_max_gap_h: float = Field(default=10 / 60, gt=0)
     """Longest stretch [h] over which a missing recorded value is held; longer gaps are refused."""
+
+    @model_validator(mode="after")
+    def _one_size_distribution(self):
+        given = [k for k in ("psd", "psd_csv") if getattr(self, k) is not None]
+        ggs = [k for k in ("p80_um", "ggs_modulus") if k in self.model_fields_set]
+        if len(given) > 1 or (given and ggs):
+            raise ValueError("give the feed size once: " + " or ".join(given + ggs) + " (psd, psd_csv, "
+                             "or p80_um with ggs_modulus)")
+        return self
 
 
 class Weights(Section):
@@ -193,8 +313,8 @@ class Weights(Section):
 class Bounds(Section):
     """``[controller.bounds]``: input bounds and rate limits (``None`` = no rate limit)."""
 
-    feed_tph_min: float | None = Field(default=None, ge=0)
-    """Lowest feed rate [t/h]; required for ``pi`` and ``nmpc``."""
+    feed_tph_min: float | None = Field(default=None, gt=0)
+    """Lowest feed rate [t/h], above 0; required for ``pi`` and ``nmpc``."""
     feed_tph_max: float | None = Field(default=None, gt=0)
     """Highest feed rate [t/h], above ``feed_tph_min``; required for ``pi`` and ``nmpc``."""
     speed_min: float = Field(default=0.60, gt=0, lt=1, json_schema_extra={"unit": "fraction of critical"})
@@ -343,7 +463,11 @@ class Scene(Section):
         """``feed.history`` resolved against the scene file's folder, or ``None``."""
         if self.feed.history is None:
             return None
-        p = Path(self.feed.history)
+        return self.resolve_path(self.feed.history)
+
+    def resolve_path(self, path: str) -> Path:
+        """A path of the scene resolved against the scene file's folder."""
+        p = Path(path)
         if not p.is_absolute() and self._source_path is not None:
             p = self._source_path.parent / p
         return p

@@ -135,3 +135,25 @@ def test_replay_command(tmp_path, capsys):
     assert "replay" in json.loads((out / "summary.json").read_text())
     assert grindtwin(["replay", scene, "--history", tmp_path / "none.csv"]) == 2
     assert "history file not found" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("module,name,code,head", [
+    ("mpc.errors", "MpcSolverError", 1, "grindtwin: optimize failed: "),
+    ("dem.errors", "DemInstabilityError", 1, "grindtwin: optimize failed: "),
+    ("dem.errors", "DemInputError", 2, "grindtwin: error: "),
+])
+def test_mpc_and_dem_errors_reach_the_command_line_as_one_line(monkeypatch, capsys, module, name, code, head):
+    """Only scene, twin, run and OS errors were mapped; an MPC or DEM error was a traceback."""
+    import importlib
+
+    import mpc
+
+    exc = getattr(importlib.import_module(module), name)
+
+    def fail(*args, **kwargs):
+        raise exc("the solver said no")
+
+    monkeypatch.setattr(mpc, "optimal_setpoints", fail)
+    assert grindtwin(["optimize", "--target-p80-um", "210"]) == code
+    err = capsys.readouterr().err
+    assert err == f"{head}the solver said no\n"

@@ -53,3 +53,15 @@ def test_steady_from_surrogate_is_close_to_the_twin(capsys):
     assert (twin["source"], sur["source"]) == ("twin", "surrogate")
     assert sur["p80_um"] == pytest.approx(twin["p80_um"], rel=0.05)
     assert sur["specific_energy_kwh_t"] == pytest.approx(twin["specific_energy_kwh_t"], rel=0.03)
+
+
+def test_zero_feed_reports_specific_energy_as_undefined(capsys):
+    """Energy per tonne fed has no value without feed: null with a note, never the model's
+    1e7 kWh/t from its division floor."""
+    assert main(["steady", "--ore", "B", "--feed-tph", "0", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["specific_energy_kwh_t"] is None and out["power_kw"] > 0
+    assert out["notes"] == ["specific_energy_kwh_t is undefined at zero feed"]
+    assert main(["steady", "--ore", "B", "--feed-tph", "0"]) == 0
+    text = capsys.readouterr().out
+    assert "specific_energy_kwh_t    undefined" in text and "e+0" not in text

@@ -136,7 +136,55 @@ def test_sample_history_script_reproduces_the_shipped_file(tmp_path):
 def test_replay_scene_feed_table_has_mineralogy_texture_and_recorded_values():
     scene = load_scene(ROOT / "scenarios" / "replay_day.toml")
     table = feed_table(scene)
-    assert len(table) == 24 * 60 + 1
+    assert len(table) == 24 * 20 + 1  # the one-minute records averaged to the scene's 3-minute samples
     assert {"quartz_wt_pct", "mean_grain_um", "recorded_feed_tph", "recorded_p80_um"} <= set(table)
     with pytest.raises(SceneError, match="records mineralogy"):
         blend_at(scene, 1.0)
+
+
+GOOD_ROWS = """\
+time_h,quartz_wt_pct,kaolinite_wt_pct,feed_tph,speed_frac_critical
+0.0,60,40,30,0.72
+0.0166667,60,40,30,0.72
+0.0333333,60,40,30,0.72
+"""
+
+
+@pytest.mark.parametrize("old,new,fragments", [
+    ("0.0166667,60,40,30,0.72", "0.0166667,60,40,thirty,0.72",
+     ["column feed_tph: not a number in data rows 2", "'thirty'"]),
+    ("0.0333333,60,40,30,0.72", "0.0333333,inf,40,30,0.72", ["column quartz_wt_pct: infinite value in data rows 3"]),
+    (",0.72\n", ",72\n", ["column speed_frac_critical: speed 72 is outside (0, 1): fraction of critical "
+                          "expected, not percent (72 % is 0.72) in data rows 1, 2, 3"]),
+    ("0.0,60,40,30,0.72", "0.0,60,40,30,1.2", ["speed 1.2 is outside (0, 1) in data rows 1"]),
+])
+def test_a_bad_cell_is_refused_with_its_row_and_the_likely_mistake(tmp_path, old, new, fragments):
+    text = GOOD_ROWS.replace(old, new)
+    assert text != GOOD_ROWS
+    with pytest.raises(SceneError) as info:
+        read_history(write(tmp_path, text), DT)
+    for fragment in fragments:
+        assert fragment in str(info.value)
+
+
+def test_a_feed_in_kg_per_hour_is_refused_against_the_mills_nominal_feed(tmp_path):
+    path = write(tmp_path, GOOD_ROWS.replace(",30,", ",30000,"))
+    read_history(path, DT)  # no mill known: no bound
+    with pytest.raises(SceneError, match=r"column feed_tph: feed 30000 t/h is more than 10 x the mill's nominal "
+                                         r"30 t/h \(kg/h\? t/h expected\) in data rows 1, 2, 3"):
+        read_history(path, DT, feed_nominal_tph=30.0)
+
+
+def test_replay_refuses_a_history_recorded_in_percent_of_critical(tmp_path, capsys):
+    """The issue's case: speed 72 in a history gave -1.2e216 kWh/t and exit 0."""
+    from tests.scenarios.test_cli import grindtwin
+    from tests.scenarios.test_runner import _history_csv, short_pyrite_scene
+
+    scene = short_pyrite_scene(tmp_path, duration_h=0.5)
+    hist = _history_csv(tmp_path)
+    hist.write_text(hist.read_text().replace(",0.7,", ",70.0,"))
+    out = tmp_path / "out"
+    assert grindtwin(["replay", scene, "--history", hist, "--out", out, "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "speed 70 is outside (0, 1): fraction of critical expected, not percent" in err
+    assert "data rows 1, 2, 3" in err and "Traceback" not in err and not out.exists()

@@ -106,3 +106,63 @@ def test_dask_worker_processes_give_the_same_table(write_scene):
 def test_a_run_case_that_cannot_reach_worker_processes_is_refused_clearly(write_scene):
     with pytest.raises(RunError, match="module-level function, or workers=1"):
         run_sweep(write_scene(), VARY, lambda scene: {}, workers=2, progress=False)
+
+
+@pytest.mark.parametrize("text,fragment", [
+    ("feed.feed_tph=nan:30:1", "start:stop:step must be finite numbers"),
+    ("feed.feed_tph=1:inf:1", "start:stop:step must be finite numbers"),
+    ("feed.feed_tph=25,nan", "values must be finite numbers (got nan)"),
+    ("feed.feed_tph=inf", "values must be finite numbers (got inf)"),
+])
+def test_parse_vary_refuses_nan_and_infinity(text, fragment):
+    with pytest.raises(SceneError) as info:
+        parse_vary(text)
+    assert fragment in str(info.value)
+
+
+def test_a_huge_sweep_is_refused_before_any_case_is_built_unless_allowed(write_scene):
+    from scenarios.run.sweep import MAX_CASES
+
+    path = write_scene()
+    huge = {"feed.feed_tph": list(range(600)), "controller.weights.p80": list(range(500))}
+    with pytest.raises(SceneError, match=r"300,000 cases, more than the limit of 1,000; .*--max-cases 300000"):
+        run_sweep(path, huge, cheap_kpis, workers=1, progress=False)
+    assert MAX_CASES == 1000
+    table = run_sweep(path, {"feed.feed_tph": [25.0, 30.0, 35.0]}, cheap_kpis, workers=1, progress=False,
+                      max_cases=3)
+    assert len(table) == 3
+    with pytest.raises(SceneError, match="3 cases, more than the limit of 2"):
+        run_sweep(path, {"feed.feed_tph": [25.0, 30.0, 35.0]}, cheap_kpis, workers=1, progress=False,
+                  max_cases=2)
+
+
+@pytest.mark.parametrize("address", ["notanaddress", "tcp://", "http://host:8786", "host:port"])
+def test_a_scheduler_that_is_not_an_address_is_refused_before_any_case(write_scene, address):
+    with pytest.raises(SceneError, match="not a Dask scheduler address; expected PROTOCOL://HOST:PORT"):
+        run_sweep(write_scene(), VARY, cheap_kpis, scheduler=address, progress=False)
+
+
+def test_sweep_command_exits_1_naming_the_failed_cases(write_scene, monkeypatch, capsys):
+    """A sweep whose cases fail exits non-zero and says which (it exited 0 unless all failed)."""
+    from scenarios.cli import commands
+    from tests.scenarios.test_cli import grindtwin
+
+    monkeypatch.setattr(commands, "sweep_case", cheap_kpis)
+    assert grindtwin(["sweep", write_scene(), "--vary", "feed.feed_tph=25,30,44", "--workers", "1",
+                      "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "grindtwin: sweep: 1 of 3 cases failed:" in err
+    assert "case 2 (feed.feed_tph=44): RuntimeError: mill overloaded at 44.0 t/h" in err
+
+
+def test_sweep_command_refuses_scheduler_and_huge_sweeps_with_exit_2(write_scene, capsys):
+    from tests.scenarios.test_cli import grindtwin
+
+    path = write_scene()
+    assert grindtwin(["sweep", path, "--vary", "feed.feed_tph=20:40:1", "--scheduler", "notanaddress",
+                      "--quiet"]) == 2
+    assert "--scheduler 'notanaddress': not a Dask scheduler address" in capsys.readouterr().err
+    assert grindtwin(["sweep", path, "--vary", "feed.feed_tph=1:1000:0.5", "--vary",
+                      "controller.weights.p80=1:3:1", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "5,997 cases, more than the limit of 1,000" in err and "Traceback" not in err

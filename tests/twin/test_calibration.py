@@ -55,3 +55,43 @@ def test_minimax_step_reaches_the_linear_programme_optimum_and_the_pnorm_does_no
     assert pn.max_abs_residual >= lp.fun * (1 - 1e-9)
     with pytest.raises(ValueError, match="'final'"):
         fit_log_ratios(lambda z: A @ z - b, np.zeros(3), lo, hi, max_nfev=5, final="max")
+
+
+def test_a_fit_counts_the_solvers_own_failures_and_lets_any_other_error_through(monkeypatch):
+    """The table fits turned any exception into a residual of 10, so a bug looked like a bad
+    region of parameter space; only the steady state's SolverError is such a point now."""
+    from twin.calibration import dem_link, table
+    from twin.calibration.reference import reference_table
+    from twin.errors import ModelError, SolverError
+
+    ref = reference_table()
+    z = table._pack(table.START)
+
+    def solver_fails(values, *args, **kwargs):
+        raise SolverError("Steady state did not converge")
+
+    failures = []
+    monkeypatch.setattr(table, "predict", solver_fails)
+    assert np.all(table._residuals(z, ref, failures) == 10.0) and failures == ["Steady state did not converge"]
+    for bug in (ModelError("b must be lower-triangular"), ZeroDivisionError("division by zero")):
+        def raises(values, *args, bug=bug, **kwargs):
+            raise bug
+        monkeypatch.setattr(table, "predict", raises)
+        with pytest.raises(type(bug)):
+            table._residuals(z, ref, [])
+        monkeypatch.setattr(dem_link, "predict", raises)
+        with pytest.raises(type(bug)):
+            dem_link.fit_table({}, max_nfev=2)
+
+    calls = []
+
+    def first_fails(values, record=None):  # the first point fails, then the table itself
+        calls.append(1)
+        if len(calls) == 1:
+            raise SolverError("Steady state did not converge")
+        return {o: dict(ref[o]) for o in ref}
+
+    monkeypatch.setattr(dem_link, "predict", first_fails)
+    fit = dem_link.fit_table({}, max_nfev=2)
+    assert fit["solver_failures"]["count"] == 1
+    assert fit["solver_failures"]["first"] == "Steady state did not converge"

@@ -38,6 +38,8 @@ def test_zero_feed_empties_the_mill():
     _check(run, t.model)
     assert run.frame["holdup_t"].iloc[-1] < 0.05 * run.frame["holdup_t"].iloc[0]
     assert t.steady(feed_tph=0.0).outputs["holdup_t"] == 0.0
+    # energy per tonne fed is undefined without feed: NaN, not the model's division floor (~1e7)
+    assert run.frame["specific_energy_kwh_t"].isna().all() and (run.frame["power_kw"] > 0).all()
 
 
 def test_all_fines_feed_passes_straight_through():
@@ -109,3 +111,59 @@ def test_extreme_mineralogy_all_quartz_and_all_clay():
         ss = t.steady()
         assert ss.x.min() >= 0 and np.isfinite(ss.p80_um)
         assert mineralogy_breakage(ore, t.coefficients).se_1mm_t_kwh > 0
+
+
+def test_simulate_refuses_a_blend_that_does_not_sum_to_one_naming_the_time():
+    """The issue's case: a blend summing to 1.4 ran with a 27 % mass error."""
+    from twin.errors import TwinInputError
+
+    t = Twin(["B", "D"], effects=["breakage", "transport"])
+    with pytest.raises(TwinInputError, match=r"'blend' parameter of Twin .*summing to 1\. Got \[1\.0, 0\.4\].*"
+                                             r"at t = 0\.5 h"):
+        t.simulate(1.0, 0.1, blend=lambda th: [1.0, 0.0] if th < 0.5 else [1.0, 0.4])
+
+
+def test_simulate_refuses_a_speed_in_percent_with_the_hint():
+    from twin.errors import TwinInputError
+
+    t = Twin("B", effects=["breakage", "transport", "speed"])
+    with pytest.raises(TwinInputError, match=r"speed_frac_critical.*\(0, 1\) \(a fraction of critical speed, "
+                                             r"not percent\)\. Got 72.*at t = 0 h"):
+        t.simulate(1.0, 0.1, speed_frac_critical=72)
+
+
+def test_a_ramp_is_integrated_as_the_ramp_it_is():
+    """Inputs are linear between samples: a ramp sampled every 6 min gives the run sampled every
+    22.5 s (the same ramp, 16x finer); held per sample (a staircase) it was O(dt) off."""
+    t = Twin(["B", "D"], mill="industrial")
+    x0 = t.steady(feed_tph=30.0, blend=[1.0, 0.0]).x
+
+    def ramp(th):
+        w = min(max((th - 0.5) / 0.5, 0.0), 1.0)
+        return [1.0 - 0.4 * w, 0.4 * w]
+
+    coarse = t.simulate(2.0, 0.1, feed_tph=30.0, blend=ramp, x0=x0)
+    fine = t.simulate(2.0, 0.1 / 16, feed_tph=30.0, blend=ramp, x0=x0)
+    p80_fine = fine.frame["p80_um"].to_numpy()[::16]
+    np.testing.assert_allclose(coarse.frame["p80_um"], p80_fine, rtol=1e-6)
+    np.testing.assert_allclose(coarse.fed_t, fine.fed_t[::16], rtol=1e-9)
+    assert coarse.mass_balance_error() < 1e-8
+
+
+def test_only_jumps_and_bends_restart_the_integrator():
+    """A 30-min ramp on one-minute samples is three stretches (before, ramp, after), not one
+    per sample; a step is two; a staircase held per sample restarts at every step of it."""
+    from twin.solve.simulate import JUMP_PROBE_FRAC, input_stretches
+
+    dt, n = 1 / 60, 480
+    times = np.arange(n + 1) * dt
+
+    def stretches(fn):
+        values = np.array([[fn(t)] for t in times])
+        before = np.array([[fn(t - JUMP_PROBE_FRAC * dt)] for t in times[1:]])
+        return input_stretches(values, before)
+
+    assert stretches(lambda t: min(max((t - 3.0) / 0.5, 0.0), 1.0)) == [(0, 180), (180, 210), (210, 240),
+                                                                          (240, 480)]
+    assert stretches(lambda t: 0.0 if t < 3.0 - 1e-12 else 1.0) == [(0, 180), (180, 240), (240, 480)]
+    assert len(stretches(lambda t: np.floor(t / dt + 1e-9) % 2)) == n

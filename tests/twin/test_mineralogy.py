@@ -72,12 +72,12 @@ def test_bond_power_of_lab_mill_is_a_few_hundred_watts():
 
 
 def test_hogg_fuerstenau_power_agrees_with_bond_for_the_lab_mill_and_scales_as_d25_l():
-    from twin.mill import INDUSTRIAL, hogg_fuerstenau_power_kw
+    from twin.mill import INDUSTRIAL_BASE, hogg_fuerstenau_power_kw
 
     lab = LAB.with_(power_factor=1.0)
     hf, bond = hogg_fuerstenau_power_kw(lab, 0.70), bond_power_kw(lab, 0.70)
     assert hf == pytest.approx(bond, rel=0.05)  # two independent published models, 0.5 m mill
-    big = INDUSTRIAL.with_(power_factor=1.0)
+    big = INDUSTRIAL_BASE.with_(power_factor=1.0)
     ratio = (big.diameter_m / lab.diameter_m) ** 2.5 * big.length_m / lab.length_m
     assert hogg_fuerstenau_power_kw(big, 0.70) == pytest.approx(hf * ratio, rel=1e-12)
 

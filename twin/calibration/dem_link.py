@@ -115,9 +115,9 @@ import scipy.optimize
 from ..breakage import BreakageParams
 from .breakage_map import AUSTIN_SHAPE
 from .files import DEM_CALIBRATION_PATH, lab_mill_values, shipped_dem_calibration, versions, write_json_atomically
-from .fitting import fit_log_ratios
+from .fitting import FAILED_POINT_RESIDUAL, failed_points_record, fit_log_ratios
 from .reference import KPIS, reference_table
-from ..errors import TwinError, TwinInputError
+from ..errors import SolverError, TwinError, TwinInputError
 from ..ore.fracture_energy import breakage_probability, fit_fracture_energy
 from ..ore.mineralogy import Mineralogy
 from ..ore.ores import load_ore
@@ -496,11 +496,14 @@ def fit_table(record: dict, max_nfev: int = 60) -> dict:
     def unpack(z):
         return {n: float(math.exp(v)) for n, v in zip(names, z)}
 
-    def resid(z):
+    failures: list[str] = []
+
+    def resid(z):  # a steady state's solver failure is a bad point (counted); anything else propagates
         try:
             pred = predict(unpack(z), record)
-        except Exception:
-            return np.full(len(ref) * len(KPIS), 10.0)
+        except SolverError as exc:
+            failures.append(str(exc))
+            return np.full(len(ref) * len(KPIS), FAILED_POINT_RESIDUAL)
         return np.array([math.log(pred[o][k] / ref[o][k]) for o in ref for k in KPIS])
 
     t0 = time.perf_counter()
@@ -511,6 +514,7 @@ def fit_table(record: dict, max_nfev: int = 60) -> dict:
     return {"fitted_to": "twin/calibration/data/reference_table.csv (MISSION.md reference table)",
             "parameters_fitted": list(names), "values": values, "predicted": pred, "error_pct": err,
             "max_abs_error_pct": max(abs(e) for r in err.values() for e in r.values()),
+            "solver_failures": failed_points_record(failures),
             "from_dem_alone": ["se_1mm_t_kwh ratios between ores", "alpha", "mu_um", "Lambda", "gamma", "phi"],
             "typed_in": {"beta": AUSTIN_SHAPE["beta"], "delta": 0.0},
             "optimizer": {"status": int(sol.status), "message": str(sol.message), "nfev": int(sol.nfev),

@@ -82,3 +82,14 @@ def _result(x, r, step2, name: str):
         x=np.asarray(x, float), status=int(step2.status), message=f"{name}: {step2.message}",
         success=bool(step2.success), nfev=int(step2.nfev), cost=0.5 * float(r @ r),
         max_abs_residual=float(np.max(np.abs(r))))
+
+
+#: The log-ratio residual given to the optimiser where the steady state's solver fails (a ratio
+#: of e^10: far worse than any point where it converges, so the fit moves away from it).
+FAILED_POINT_RESIDUAL = 10.0
+
+
+def failed_points_record(failures: list) -> dict:
+    """How many fit evaluations hit a solver failure, and the first message, for the fit record."""
+    return {"count": len(failures), "residual_given": FAILED_POINT_RESIDUAL,
+            "first": failures[0] if failures else None}

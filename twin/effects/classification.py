@@ -6,11 +6,14 @@ hydrocyclone whose underflow returns to the mill feed (the industrial configurat
 - Both cut sizes are multiplied by the assembly's ``cut_size_factor`` (1 unless ``rheology``
   is listed).
 - Hydrocyclone: Plitt (1976, CIM Bull. 69, 114-123) with the corrections of Flintoff, Plitt &
-  Turak (1987, CIM Bull. 80, 39-50): corrected cut size d50c, sharpness m and volumetric flow
-  split from the cyclone geometry and feed; corrected efficiency E_c = 1 - exp(-0.693 (d/d50c)^m)
-  and actual partition to underflow E = R_f + (1 - R_f) E_c, R_f the water (and fine solids)
-  bypass. The cut size follows the cyclone feed as d50c ~ Q^-0.45 (Plitt), the feed being
-  diluted at the sump to a fixed solids content."""
+  Turak (1987, CIM Bull. 80, 39-50): corrected cut size d50c, pressure, volumetric flow split and
+  sharpness m from the cyclone geometry and its feed, each evaluated at the actual cyclone feed
+  (the mill discharge diluted at the sump to a set solids content), each with a calibration
+  factor; or d50c, m and the bypasses of a surveyed cyclone given directly. Corrected efficiency
+  E_c = 1 - exp(-ln 2 (d/d50c)^m), partition to underflow E = R_s + (1 - R_s) E_c with R_s the
+  solids bypass; water splits by the water bypass R_f. Water and solids are balanced apart: the
+  solids fraction of the mill discharge (the mill's), cyclone feed, overflow and underflow are
+  outputs, with the cyclone pressure and the sump's and mill's water additions."""
 
 from __future__ import annotations
 
@@ -21,13 +24,37 @@ import casadi as ca
 import numpy as np
 from scipy.constants import g as G_M_S2
 
-from ..errors import ModelError
+from ..errors import ModelError, bad_value, check_range, close_matches
 from .base import Effect, EffectContext, Option, smooth_max
+
+
+#: Plitt's (1976) equations in the metric form of Flintoff, Plitt & Turak (1987): coefficients
+#: of d50c [um], pressure [kPa], volumetric split S = Qu/Qo and sharpness m, with sizes in cm,
+#: flow in L/min per cyclone, phi the feed solids % by volume, head in m of slurry.
+PLITT_D50C, PLITT_PRESSURE, PLITT_SPLIT, PLITT_SHARPNESS = 39.7, 1.88, 1.9, 1.94
+#: Plitt's partition: corrected efficiency 1 - exp(-ln 2 (d/d50c)^m) (0.693 = ln 2: E_c(d50c) = 1/2).
+LN2 = math.log(2.0)
+WATER_DENSITY_T_M3 = 1.0
+
+
+def _exp(v):
+    return ca.exp(v) if isinstance(v, (ca.SX, ca.MX)) else np.exp(v)
 
 
 @dataclass(frozen=True)
 class Hydrocyclone:
-    """Cyclone geometry [cm], count, and the sump's feed solids [% by volume] and viscosity."""
+    """A cluster of ``count`` hydrocyclones: geometry [cm], the sump's dilution and the model of its
+    performance.
+
+    Plitt (default): d50c, pressure, flow split and sharpness from Plitt's equations (module
+    constants), each times its calibration factor (``d50c_factor``, ``pressure_factor``,
+    ``sharpness_factor``, ``split_factor``: the roles of Moly-Cop Tools's a1-a4, whose values are
+    in that tool's own units and do not transfer), water bypass R_f = S / (1 + S) and solids bypass
+    ``solids_bypass_frac`` (default R_f, Plitt's assumption that fine solids follow the water).
+    Direct: ``d50c_um``, ``sharpness`` and ``water_bypass_frac`` given (a surveyed cyclone), solids
+    bypass as above; pressure still from Plitt's equation for the geometry.
+    The sump dilutes the mill discharge to ``feed_solids_frac`` (solids mass fraction of the
+    cyclone feed, 0.61 not 61) or, when that is None, to ``feed_solids_vol_pct`` % by volume."""
 
     diameter_cm: float = 38.0
     inlet_cm: float = 11.0
@@ -36,27 +63,87 @@ class Hydrocyclone:
     free_vortex_height_cm: float = 120.0
     count: int = 2
     feed_solids_vol_pct: float = 30.0
+    feed_solids_frac: float | None = None
     viscosity_cp: float = 1.0
+    d50c_factor: float = 1.0
+    pressure_factor: float = 1.0
+    sharpness_factor: float = 1.0
+    split_factor: float = 1.0
+    d50c_um: float | None = None
+    sharpness: float | None = None
+    water_bypass_frac: float | None = None
+    solids_bypass_frac: float | None = None
 
-    def plitt(self, slurry_flow_m3_h: float, solids_density_t_m3: float) -> dict:
+    def __post_init__(self):
+        o = "Hydrocyclone"
+        for name in ("diameter_cm", "inlet_cm", "vortex_finder_cm", "apex_cm", "free_vortex_height_cm"):
+            check_range(o, name, getattr(self, name), 0.0, 1000.0)
+        if not isinstance(self.count, int) or isinstance(self.count, bool) or not 1 <= self.count <= 200:
+            raise bad_value(o, "count", self.count, "an integer in [1, 200]")
+        check_range(o, "feed_solids_vol_pct", self.feed_solids_vol_pct, 0.0, 70.0)
+        check_range(o, "viscosity_cp", self.viscosity_cp, 0.0, 1e4)
+        for name in ("d50c_factor", "pressure_factor", "sharpness_factor", "split_factor"):
+            check_range(o, name, getattr(self, name), 0.0, 1e3)
+        for name, lo, hi in (("feed_solids_frac", 0.0, 1.0), ("d50c_um", 0.0, 1e5), ("sharpness", 0.0, 20.0),
+                             ("water_bypass_frac", 0.0, 1.0), ("solids_bypass_frac", 0.0, 1.0)):
+            if getattr(self, name) is not None:
+                check_range(o, name, getattr(self, name), lo, hi, lo_open=name.endswith("bypass_frac"))
+        direct = [n for n in ("d50c_um", "sharpness", "water_bypass_frac") if getattr(self, n) is not None]
+        if direct and len(direct) < 3:
+            missing = sorted({"d50c_um", "sharpness", "water_bypass_frac"} - set(direct))
+            raise bad_value(o, missing[0], None, "given with " + ", ".join(direct)
+                            + " (a cyclone given directly needs d50c_um, sharpness and water_bypass_frac)")
+
+    @property
+    def mode(self) -> str:
+        return "direct" if self.d50c_um is not None else "plitt"
+
+    def feed_volume_pct(self, solids_density_t_m3: float) -> float:
+        """Solids % by volume of the cyclone feed."""
+        if self.feed_solids_frac is None:
+            return self.feed_solids_vol_pct
+        c, rho = self.feed_solids_frac, solids_density_t_m3
+        return 100.0 * (c / rho) / (c / rho + (1.0 - c) / WATER_DENSITY_T_M3)
+
+    def plitt(self, slurry_flow_m3_h, solids_density_t_m3: float) -> dict:
         """Plitt's d50c [um], sharpness m, pressure [kPa], volumetric split S = Qu/Qo and water
-        bypass R_f = S/(1+S), for the total slurry flow shared by ``count`` cyclones."""
+        bypass R_f = S/(1+S) (each with its factor; the given values in the direct mode), for the
+        total slurry flow [m3/h] shared by ``count`` cyclones. Floats or CasADi expressions."""
         q = slurry_flow_m3_h * 1000.0 / 60.0 / self.count  # L/min per cyclone
         dc, di, do, du, h = (self.diameter_cm, self.inlet_cm, self.vortex_finder_cm,
                              self.apex_cm, self.free_vortex_height_cm)
-        phi = self.feed_solids_vol_pct
-        d50c = (39.7 * dc ** 0.46 * di ** 0.6 * do ** 1.21 * self.viscosity_cp ** 0.5
-                * math.exp(0.063 * phi)
-                / (du ** 0.71 * h ** 0.38 * q ** 0.45 * (solids_density_t_m3 - 1.0) ** 0.5))
-        p_kpa = 1.88 * q ** 1.78 * math.exp(0.0055 * phi) / (
+        phi = self.feed_volume_pct(solids_density_t_m3)
+        p_kpa = self.pressure_factor * PLITT_PRESSURE * q ** 1.78 * math.exp(0.0055 * phi) / (
             dc ** 0.37 * di ** 0.94 * h ** 0.28 * (du ** 2 + do ** 2) ** 0.87)
-        rho_slurry = 1.0 + phi / 100.0 * (solids_density_t_m3 - 1.0)
+        if self.mode == "direct":
+            rf = self.water_bypass_frac
+            return {"d50c_um": self.d50c_um + 0 * q, "sharpness_m": self.sharpness + 0 * q, "pressure_kpa": p_kpa,
+                    "volume_split": rf / (1.0 - rf) + 0 * q, "water_bypass_frac": rf + 0 * q}
+        d50c = (self.d50c_factor * PLITT_D50C * dc ** 0.46 * di ** 0.6 * do ** 1.21 * self.viscosity_cp ** 0.5
+                * math.exp(0.063 * phi)
+                / (du ** 0.71 * h ** 0.38 * q ** 0.45 * (solids_density_t_m3 - WATER_DENSITY_T_M3) ** 0.5))
+        rho_slurry = WATER_DENSITY_T_M3 + phi / 100.0 * (solids_density_t_m3 - WATER_DENSITY_T_M3)
         head_m = p_kpa / (G_M_S2 * rho_slurry)
-        split = (1.9 * (du / do) ** 3.31 * h ** 0.54 * (du ** 2 + do ** 2) ** 0.36
+        split = (self.split_factor * PLITT_SPLIT * (du / do) ** 3.31 * h ** 0.54 * (du ** 2 + do ** 2) ** 0.36
                  * math.exp(0.0054 * phi) / (head_m ** 0.24 * dc ** 1.11))
-        m = 1.94 * math.exp(-1.58 * split / (1 + split)) * (dc ** 2 * h / q) ** 0.15
+        m = self.sharpness_factor * PLITT_SHARPNESS * _exp(-1.58 * split / (1 + split)) * (dc ** 2 * h / q) ** 0.15
         return {"d50c_um": d50c, "sharpness_m": m, "pressure_kpa": p_kpa,
                 "volume_split": split, "water_bypass_frac": split / (1.0 + split)}
+
+    def solids_bypass(self, water_bypass):
+        return water_bypass if self.solids_bypass_frac is None else self.solids_bypass_frac
+
+
+def hydrocyclone_from(value) -> Hydrocyclone:
+    """A Hydrocyclone, or one built from a table of its fields (errors name the field)."""
+    if isinstance(value, Hydrocyclone):
+        return value
+    unknown = sorted(set(value) - set(Hydrocyclone.__dataclass_fields__))
+    if unknown:
+        raise ModelError(f"Unknown field {unknown[0]!r} of the 'cyclone' option of effect 'classification'."
+                         f"{close_matches(unknown[0], Hydrocyclone.__dataclass_fields__)} Fields: "
+                         f"{', '.join(Hydrocyclone.__dataclass_fields__)}.")
+    return Hydrocyclone(**value)
 
 
 def grate_factor(size_um: np.ndarray, d50_um: float, sharpness: float) -> np.ndarray:
@@ -67,7 +154,10 @@ class Classification(Effect):
     name = "classification"
     requires = ("transport",)
     provides = ("discharge_class_factor", "product_split", "flow_multiplier")
-    outputs = ("cyclone_d50c_um", "circulating_load_frac", "cyclone_feed_tph", "cyclone_underflow_tph")
+    outputs = ("cyclone_d50c_um", "circulating_load_frac", "cyclone_feed_tph", "cyclone_underflow_tph",
+               "cyclone_pressure_kpa", "cyclone_sharpness", "cyclone_water_bypass_frac", "cyclone_feed_solids_frac",
+               "overflow_solids_frac", "underflow_solids_frac", "overflow_water_m3_h", "sump_water_m3_h",
+               "mill_water_m3_h")
     uses = ("cut_size_factor",)
     source = "Austin et al. (1984) ch. 9 (grate); Plitt (1976), Flintoff et al. (1987) (hydrocyclone)"
     summary = "grate discharge factor, or hydrocyclone closed circuit with recycle to the feed"
@@ -76,8 +166,9 @@ class Classification(Effect):
                        "(closed circuit, underflow to the mill feed)", choices=("grate", "hydrocyclone")),
         "circulating_load_nominal": Option(2.5, "underflow / fresh feed at nominal (hydrocyclone)", float,
                                            lo=0.0, hi=50.0),
-        "cyclone": Option(Hydrocyclone(), "hydrocyclone geometry and feed (hydrocyclone): a Hydrocyclone or a "
-                          "table of its fields", (Hydrocyclone, dict)),
+        "cyclone": Option(None, "hydrocyclone geometry, feed dilution and model (hydrocyclone): a Hydrocyclone "
+                          "or a table of its fields; None: the mill's own (Mill.cyclone), else Hydrocyclone()",
+                          (Hydrocyclone, dict, type(None))),
     }
 
     def apply(self, ctx: EffectContext) -> None:
@@ -103,39 +194,63 @@ class Classification(Effect):
     def _hydrocyclone(self, ctx: EffectContext) -> None:
         spec = ctx.spec
         cl = self.settings["circulating_load_nominal"]
-        cyc = self.settings["cyclone"]
-        if isinstance(cyc, dict):
-            try:
-                cyc = Hydrocyclone(**cyc)
-            except TypeError as exc:
-                raise ModelError(f"The 'cyclone' option of effect 'classification': {exc}. Fields: "
-                                 f"{', '.join(Hydrocyclone.__dataclass_fields__)}.") from None
+        given = self.settings["cyclone"]
+        cyc = hydrocyclone_from(dict(spec.mill.cyclone) if given is None else given)
         rho = spec.solids_density_t_m3
         solids_nom = spec.feed_nominal_tph * (1.0 + cl)  # cyclone feed solids at nominal
-        phi = cyc.feed_solids_vol_pct / 100.0
-        slurry_nom = solids_nom / rho / phi  # m3/h
-        plitt = cyc.plitt(slurry_nom, rho)
-        for key, val in plitt.items():
-            ctx.param(f"cyclone_{key}", val, "", "Plitt (1976) at nominal cyclone feed")
+        at_nominal = cyc.plitt(_slurry_m3_h(cyc, solids_nom, rho), rho)
+        for key, val in at_nominal.items():
+            ctx.param(f"cyclone_{key}", float(val), "", f"{cyc.mode} cyclone at nominal feed")
         ctx.provide("flow_multiplier", 1.0 + cl)
-        rf, m, d50_nom = plitt["water_bypass_frac"], plitt["sharpness_m"], plitt["d50c_um"]
         xs = ca.DM(spec.grid.mid_um)
         cut = ctx.get("cut_size_factor", 1.0)
+        s_d = spec.mill.discharge_solids_frac
+        feed_floor = 1e-6 * spec.feed_nominal_tph
 
         def split(discharge):
-            total = sum(ca.sum1(dc) for dc in discharge)
-            q_ratio = smooth_max(total / solids_nom, 1e-3, 1e-3)
-            d50 = d50_nom * q_ratio ** -0.45 * cut
-            e = rf + (1.0 - rf) * (1.0 - ca.exp(-0.693 * (xs / d50) ** m))
+            solids = sum(ca.sum1(dc) for dc in discharge)
+            state = cyc.plitt(_slurry_m3_h(cyc, smooth_max(solids, 1e-3 * solids_nom, 1e-3 * solids_nom), rho), rho)
+            d50 = state["d50c_um"] * cut
+            rf = state["water_bypass_frac"]
+            rs = cyc.solids_bypass(rf)
+            e = rs + (1.0 - rs) * (1.0 - ca.exp(-LN2 * (xs / d50) ** state["sharpness_m"]))
             under = [e * dc for dc in discharge]
             over = [dc - uc for dc, uc in zip(discharge, under)]
+            _water_balance(ctx, cyc, solids, sum(ca.sum1(u) for u in under), rf, rho, s_d, feed_floor)
             ctx.output("cyclone_d50c_um", d50)
             ctx.output("cyclone_feed_tph", sum(discharge))  # per size class, as the underflow below
             ctx.output("cyclone_underflow_tph", sum(under))
+            ctx.output("cyclone_pressure_kpa", state["pressure_kpa"])
+            ctx.output("cyclone_sharpness", state["sharpness_m"])
+            ctx.output("cyclone_water_bypass_frac", rf)
             ctx.output("circulating_load_frac", sum(ca.sum1(u) for u in under) / smooth_max(
-                ctx.feed_tph, 1e-6 * spec.feed_nominal_tph, 1e-6 * spec.feed_nominal_tph))
+                ctx.feed_tph, feed_floor, feed_floor))
             return over, under
 
         ctx.provide("product_split", split)
-        ctx.note(f"hydrocyclone (Plitt): d50c {d50_nom:.0f} um, m {m:.2f}, bypass {rf:.2f} at nominal; "
-                 "underflow to mixer 0")
+        ctx.note(f"hydrocyclone ({cyc.mode}): d50c {float(at_nominal['d50c_um']):.0f} um, m "
+                 f"{float(at_nominal['sharpness_m']):.2f}, water bypass {float(at_nominal['water_bypass_frac']):.2f} "
+                 "at nominal; underflow to mixer 0; water balance")
+
+
+def _slurry_m3_h(cyc: Hydrocyclone, solids_tph, rho):
+    """Cyclone feed slurry [m3/h] for a solids flow [t/h] diluted at the sump."""
+    phi = cyc.feed_volume_pct(rho) / 100.0
+    return solids_tph / rho / phi
+
+
+def _water_balance(ctx, cyc, solids, under_solids, rf, rho, s_d, floor):
+    """Water [m3/h] and solids fractions of the circuit's streams: the mill discharge at the mill's
+    solids fraction, the sump adds water to the cyclone feed's, the cyclone sends R_f of the feed
+    water to the underflow; the mill's feed water is what the discharge holds less the underflow's."""
+    phi = cyc.feed_volume_pct(rho) / 100.0
+    feed_water = solids / rho * (1.0 - phi) / phi * WATER_DENSITY_T_M3
+    discharge_water = solids * (1.0 - s_d) / s_d
+    under_water, over_water = rf * feed_water, (1.0 - rf) * feed_water
+    over_solids = solids - under_solids
+    ctx.output("cyclone_feed_solids_frac", solids / smooth_max(solids + feed_water, floor, floor))
+    ctx.output("overflow_solids_frac", over_solids / smooth_max(over_solids + over_water, floor, floor))
+    ctx.output("underflow_solids_frac", under_solids / smooth_max(under_solids + under_water, floor, floor))
+    ctx.output("overflow_water_m3_h", over_water / WATER_DENSITY_T_M3)
+    ctx.output("sump_water_m3_h", (feed_water - discharge_water) / WATER_DENSITY_T_M3)
+    ctx.output("mill_water_m3_h", (discharge_water - under_water) / WATER_DENSITY_T_M3)

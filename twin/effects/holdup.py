@@ -36,13 +36,14 @@ class Holdup(Effect):
         h_nom = spec.holdup_nominal_t
         q_nom = spec.feed_nominal_tph * ctx.get("flow_multiplier", 1.0) * spec.mill.discharge_factor
         n = ctx.param("discharge_exponent", spec.mill.discharge_exponent, "-", "le Roux et al. 2013")
-        n_mix = ctx.n_mixers
         h_sat = ctx.param("rate_saturation_load", RATE_SATURATION_LOAD, "H/H_nom", "Austin et al. 1984")
 
+        fracs = spec.mixer_fracs
+
         def rate(k):
-            # mixer k holds 1/N of the nominal hold-up at nominal flow
-            load_k = smooth_max(n_mix * ctx.holdup(k) / h_nom, 0.0, 1e-3)
-            return n_mix * q_nom / h_nom * load_k ** (n - 1.0)
+            # mixer k holds its share f_k of the nominal hold-up at nominal flow
+            load_k = smooth_max(ctx.holdup(k) / (fracs[k] * h_nom), 0.0, 1e-3)
+            return q_nom / (fracs[k] * h_nom) * load_k ** (n - 1.0)
 
         ctx.provide("discharge_rate_law", rate)
         load = ctx.holdup() / h_nom

@@ -1,5 +1,9 @@
 """Continuous flow through N perfect mixers in series (Austin, Klimpel & Luckie 1984, ch. 9:
-residence-time distribution of a ball mill as a few fully mixed reactors in series).
+residence-time distribution of a ball mill as a few fully mixed reactors in series), of equal
+volume or of the shares ``ModelSpec.mixer_fracs`` (Whiten's one large and two small mixers:
+Whiten 1974, in Napier-Munn et al. 1996, JKMRC Monograph 2, ch. 10; Austin et al. 1984 ch. 9
+report industrial ball mills as one large mixer of ~0.7 of the mean residence time and two
+small ones).
 
 Fresh feed [t/h] enters mixer 0 split by the blend fractions, each component with the feed
 size distribution; mixer k discharges ``r_k m_k`` into mixer k+1; the last mixer's discharge
@@ -30,7 +34,8 @@ class Transport(Effect):
         q_mill = spec.feed_nominal_tph * ctx.get("flow_multiplier", 1.0) * spec.mill.discharge_factor
         tau_h = ctx.param("residence_time_nominal_h", spec.holdup_nominal_t / q_mill,
                           "h", "H_nom / mill through-flow at nominal")
-        rate = ctx.get("discharge_rate_law", lambda k: n_mix / tau_h)
+        fracs = spec.mixer_fracs
+        rate = ctx.get("discharge_rate_law", lambda k: 1.0 / (fracs[k] * tau_h))
         class_factor = ctx.get("discharge_class_factor")
         feed = ca.DM(spec.feed_frac)
         discharge = []

@@ -1,7 +1,9 @@
 """Time integration of a model: IDAS (BDF, stiff) on the model's sparse DAE form (CVODES when
-it has no aggregates) with piecewise-constant inputs per sample and quadratures of fed and
-produced mass for the mass balance; a fixed-step RK4 for convergence
-studies; and the exact batch solution (matrix exponential) for the linear batch mill."""
+it has no aggregates) with quadratures of fed and produced mass for the mass balance; inputs
+constant over a step (:func:`step`, the closed loop's plant) or, in an open-loop run
+(:func:`simulate`), linear between samples inside one integrator call, restarted only where an
+input jumps; a fixed-step RK4 for convergence studies; and the exact batch solution (matrix
+exponential) for the linear batch mill."""
 
 from __future__ import annotations
 
@@ -28,8 +30,23 @@ DAE_MIN_RTOL = 1e-10
 
 
 #: IDAS computes consistent initial derivatives (without it a restart from rest fails the first
-#: error test) and leaves the aggregates, exact functions of x, out of its error test.
-IDAS_OPTIONS = {"calc_ic": True, "suppress_algebraic": True}
+#: error test) and leaves the aggregates, exact functions of x, out of its error test; its
+#: Newton systems are solved by a sparse LU (CSparse) on the DAE form's sparse Jacobian, not
+#: densely (3x faster on a 300-state model: benchmarks/results/twin_open_loop.md).
+IDAS_OPTIONS = {"calc_ic": True, "suppress_algebraic": True, "linear_solver": "csparse"}
+
+#: An open-loop input's value just before a sample is read this many sample periods before it.
+JUMP_PROBE_FRAC = 1e-9
+#: An input jumps at a sample when its value just before differs from its value at the sample,
+#: and bends there when its change over the sample after differs from its change over the one
+#: before, by more than this (relative to the largest magnitude involved, plus JUMP_ATOL): a
+#: probe 1e-9 of a sample before a ramp's sample differs by ~1e-9 of the change per sample, a
+#: step by all of it.
+JUMP_RTOL = 1e-6
+JUMP_ATOL = 1e-9
+#: Longest stretch of samples in one integrator call (one integrator is built per stretch
+#: length, so this bounds the lengths; a restart on a steady solution costs ~20 BDF steps).
+MAX_STRETCH_SAMPLES = 240
 
 
 def _dae(model, rtol: float, extra: dict) -> tuple[str, dict]:
@@ -87,24 +104,56 @@ class Trajectory:
         return float(np.abs(err).max() / (self.fed_t[-1] + h[0] + 1e-300))
 
 
-@lru_cache(maxsize=32)
-def grid_integrator(model, dt_h: float, n_steps: int, rtol: float = RTOL, atol_rel: float = ATOL_REL):
-    """IDAS over ``n_steps`` sample periods in one call, inputs piecewise constant per period:
-    (x0, z0, u=[u; d] per period) -> states at every sample and the cumulative quadratures."""
+@lru_cache(maxsize=64)
+def stretch_integrator(model, dt_h: float, n_steps: int, rtol: float = RTOL, atol_rel: float = ATOL_REL):
+    """IDAS over ``n_steps`` sample periods in one call with the inputs linear in time:
+    (x0, z0, p = [w0; slope]) -> states at every sample and the cumulative quadratures, where
+    the inputs are w(t) = w0 + slope t ([u; d], slope per hour, t from the stretch's start; held
+    beyond its end). Constant inputs and ramps are integrated exactly without a restart."""
+    t = ca.SX.sym("t")
+    n_w = model.u.numel() + model.d.numel()
+    w0, slope = ca.SX.sym("w0", n_w), ca.SX.sym("slope", n_w)
+    w = w0 + slope * ca.fmin(ca.fmax(t, 0.0), n_steps * dt_h)  # held beyond the end (step overshoot)
     produced = model.output_exprs_dae.get("throughput_tph", ca.SX(0))
-    solver, dae = _dae(model, rtol, {"u": ca.vertcat(model.u, model.d),
+    solver, dae = _dae(model, rtol, {"t": t, "p": ca.vertcat(w0, slope),
                                      "quad_dae": ca.vertcat(model.u[0], produced)})
+    exprs = [key for key in ("ode", "alg", "quad") if key in dae]
+    dae |= dict(zip(exprs, ca.substitute([dae[key] for key in exprs], [ca.vertcat(model.u, model.d)], [w])))
     opts = {"reltol": rtol, "abstol": atol_rel * model.spec.holdup_nominal_t, "max_num_steps": 1000000}
     opts |= IDAS_OPTIONS if solver == "idas" else {}
     return ca.integrator("G", solver, dae, 0.0, dt_h * np.arange(1, n_steps + 1), opts)
 
 
+def input_stretches(values: np.ndarray, before: np.ndarray) -> list[tuple[int, int]]:
+    """Stretches ``(a, b)`` of samples over which every input is linear in time, each one
+    integrator call: cut where an input jumps (``before[k - 1]``, its value just before sample
+    k, differs from ``values[k]``), where it bends (its change per sample differs on the two
+    sides of k) and every :data:`MAX_STRETCH_SAMPLES`."""
+    n = len(values) - 1
+
+    def differs(a, b, scale):
+        return np.any(np.abs(a - b) > JUMP_RTOL * scale + JUMP_ATOL, axis=1)
+
+    after = before - values[:-1]  # change over [k - 1, k], up to just before k
+    jumps = differs(before, values[1:], np.maximum(np.abs(before), np.abs(values[1:])))
+    scale = np.maximum(np.abs(values[:-2]), np.maximum(np.abs(values[1:-1]), np.abs(before[1:])))
+    bends = differs(after[1:], after[:-1], scale) if n > 1 else np.zeros(0, bool)
+    cuts = set((np.nonzero(jumps[:-1])[0] + 1).tolist()) | set((np.nonzero(bends)[0] + 1).tolist())
+    cuts |= set(range(MAX_STRETCH_SAMPLES, n, MAX_STRETCH_SAMPLES))
+    cuts = sorted(cuts)
+    return list(zip([0, *cuts], [*cuts, n]))
+
+
 def simulate(model, x0, duration_h: float, dt_h: float, u_fn, d_fn, rtol=RTOL, atol_rel=ATOL_REL,
              exact_p80: bool = True) -> Trajectory:
-    """Open-loop run, inputs held over each sample period (zero-order hold). The inputs do not
-    depend on the state, so each stretch of constant inputs is one integrator call; the
-    integrator restarts where the inputs jump (SUNDIALS' BDF history must not straddle a jump:
-    without the restart a feed step fails the error test)."""
+    """Open-loop run with the inputs ``u_fn(t)``, ``d_fn(t)`` (functions of time [h], state-free).
+
+    The inputs are read at every sample and just before it (``JUMP_PROBE_FRAC`` of a sample
+    earlier) and are linear between samples, so steps on the sample grid and ramps are exactly
+    what the functions say. Each stretch over which they are linear is one IDAS call
+    (:func:`input_stretches`); the integrator restarts only where an input jumps or bends
+    (SUNDIALS' BDF history must not straddle a jump: across one a feed step fails the error
+    test), the value just before held up to a jump."""
     if not duration_h > 0 or not dt_h > 0:
         raise TwinInputError(f"The 'duration_h' and 'dt_h' of simulate must be > 0. Got {duration_h}, {dt_h}.")
     n = int(round(duration_h / dt_h))
@@ -112,15 +161,18 @@ def simulate(model, x0, duration_h: float, dt_h: float, u_fn, d_fn, rtol=RTOL, a
     times = np.arange(n + 1) * dt_h
     us = np.array([u_fn(t) for t in times], float)
     ds = np.array([d_fn(t) for t in times], float)
-    inputs = np.hstack([us[:-1], ds[:-1]])
-    jumps = np.nonzero(np.any(inputs[1:] != inputs[:-1], axis=1))[0] + 1
+    values = np.hstack([us, ds])
+    probe = times[1:] - JUMP_PROBE_FRAC * dt_h
+    before = np.hstack([np.array([u_fn(t) for t in probe], float).reshape(n, -1),
+                        np.array([d_fn(t) for t in probe], float).reshape(n, -1)])
     xs = np.empty((n + 1, model.n_x))
     xs[0] = x0
     q = np.zeros((n + 1, 2))
-    for a, b in zip(np.r_[0, jumps], np.r_[jumps, n]):
-        G = grid_integrator(model, float(dt_h), int(b - a), rtol, atol_rel)
+    for a, b in input_stretches(values, before):
+        slope = (before[b - 1] - values[a]) / ((b - a) * dt_h)
+        G = stretch_integrator(model, float(dt_h), int(b - a), rtol, atol_rel)
         try:
-            out = G(x0=xs[a], z0=_z0(G, model, xs[a]), u=np.repeat(inputs[a][:, None], b - a, axis=1))
+            out = G(x0=xs[a], z0=_z0(G, model, xs[a]), p=np.concatenate([values[a], slope]))
         except RuntimeError as exc:
             raise SolverError(f"The integrator failed between t = {a * dt_h:.4g} h and {b * dt_h:.4g} h: "
                               f"{exc}") from exc
@@ -153,6 +205,8 @@ def outputs_frame(model, xs, us, ds, time_h, exact_p80=True) -> pd.DataFrame:
     names, fn = _trajectory_outputs(model, len(time_h))
     scalars, psd = (np.asarray(v) for v in fn(xs.T, us.T, ds.T))
     cols |= {name: scalars[i] for i, name in enumerate(names)}
+    if "specific_energy_kwh_t" in cols:  # undefined without feed (the model's floor gives ~1e7)
+        cols["specific_energy_kwh_t"] = np.where(us[:, 0] > 0, cols["specific_energy_kwh_t"], np.nan)
     if exact_p80:  # of the product, or of the mill content in a batch model
         cols["p80_exact_um" if model.psd_what == "product" else "content_p80_exact_um"] = [pxx_um(model.spec.grid, psd[:, j]) if psd[:, j].sum() > 0 else math.nan
                                 for j in range(psd.shape[1])]

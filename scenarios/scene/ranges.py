@@ -1,0 +1,53 @@
+"""Physical ranges shared by scene keys and history columns, with the hint for the usual unit
+mistake: mill speed as a fraction of critical (0.72, not 72 %) and feed rate in t/h (not kg/h),
+the latter judged against the mill's nominal feed rate."""
+
+from __future__ import annotations
+
+import math
+
+from twin import MILLS, power_kw
+
+#: A feed rate above this multiple of the mill's nominal feed rate is refused: an order of
+#: magnitude above nominal is no operating point of that mill (its hold-up would be many
+#: times its volume), while a feed in kg/h typed as t/h is 1000x.
+FEED_MAX_NOMINAL_MULTIPLE = 10.0
+#: Speeds in this range are named as "percent of critical" in the hint: ball mills run at
+#: 10-100 % of critical (0.65-0.80 typically), so 72 reads as 72 %, but 1.2 as a fraction.
+PERCENT_RANGE = (10.0, 100.0)
+
+
+def nominal_feed_tph(preset, net_power_kw=None) -> float | None:
+    """The nominal feed rate [t/h] of a mill preset of ``twin.MILLS`` (None if unknown). A scene
+    that gives the mill's net power draws that power from the preset's geometry: its nominal
+    feed is the preset's scaled by the power ratio (throughput ~ power at a given specific
+    energy, Bond's law)."""
+    mill = MILLS.get(preset) if isinstance(preset, str) else None
+    if mill is None:
+        return None
+    scale = 1.0
+    if isinstance(net_power_kw, (int, float)) and math.isfinite(net_power_kw) and net_power_kw > 0:
+        scale = float(net_power_kw) / float(power_kw(mill, mill.speed_nominal_frac_critical))
+    return float(mill.feed_nominal_tph) * scale
+
+
+def speed_problem(value: float) -> str | None:
+    """Why ``value`` is not a speed as a fraction of critical in (0, 1), or None."""
+    if math.isfinite(value) and 0.0 < value < 1.0:
+        return None
+    hint = ""
+    if PERCENT_RANGE[0] <= value <= PERCENT_RANGE[1]:
+        hint = f": fraction of critical expected, not percent ({value:g} % is {value / 100:g})"
+    return f"speed {value:g} is outside (0, 1){hint}"
+
+
+def feed_problem(value: float, nominal_tph: float | None) -> str | None:
+    """Why ``value`` [t/h] is not a plausible feed rate of a mill with ``nominal_tph``, or None."""
+    if not math.isfinite(value) or value < 0:
+        return f"feed {value:g} t/h is not a finite rate >= 0"
+    if nominal_tph is None or value <= FEED_MAX_NOMINAL_MULTIPLE * nominal_tph:
+        return None
+    limit = FEED_MAX_NOMINAL_MULTIPLE * nominal_tph
+    hint = " (kg/h? t/h expected)" if value / 1000.0 <= limit else ""
+    return (f"feed {value:g} t/h is more than {FEED_MAX_NOMINAL_MULTIPLE:g} x the mill's nominal "
+            f"{nominal_tph:g} t/h{hint}")

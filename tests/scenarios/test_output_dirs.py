@@ -1,0 +1,156 @@
+"""Output folders: nothing a user has is deleted or mixed with; a bad --out is refused before
+any work; a previous grindtwin result is replaced as a whole."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from scenarios.errors import SceneError
+from scenarios.output.write import write_run
+from scenarios.run.runner import RunResult
+from tests.scenarios.test_cli import grindtwin
+from tests.scenarios.test_runner import LIBRARY, short_pyrite_scene
+
+
+def tiny_result(seed: int = 7) -> RunResult:
+    t = np.linspace(0, 1, 5)
+    frame = pd.DataFrame({"time_h": t, "feed_tph": 30.0, "speed_frac_critical": 0.7, "p80_um": 250.0,
+                          "power_kw": 300.0, "load_frac": 1.0})
+    return RunResult(frame, {"scene": "tiny", "seed": seed, "kpis": {}, "target_p80_um": None})
+
+
+@pytest.fixture
+def no_work(monkeypatch):
+    """Fail the test if a run gets as far as building its models."""
+    import scenarios.run.runner as runner
+
+    def boom(scene):
+        raise AssertionError("the run started although --out should have been refused")
+
+    monkeypatch.setattr(runner, "build_models", boom)
+
+
+def test_a_folder_with_the_users_files_is_refused_and_left_alone(tmp_path, capsys, no_work):
+    """The issue's reproduction: the scene and a note in p/, then run --out p."""
+    p = tmp_path / "p"
+    p.mkdir()
+    (p / "notes.txt").write_text("x\n")
+    shutil.copy(LIBRARY / "pyrite_surge.toml", p)
+    assert grindtwin(["run", p / "pyrite_surge.toml", "--out", p, "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "grindtwin did not write" in err and "Traceback" not in err
+    assert sorted(x.name for x in p.iterdir()) == ["notes.txt", "pyrite_surge.toml"]
+    assert (p / "notes.txt").read_text() == "x\n"
+    assert not (tmp_path / "p.partial").exists() and not (tmp_path / "p.lock").exists()
+
+
+def test_the_scene_folder_and_the_current_folder_are_refused(tmp_path, monkeypatch, capsys, no_work):
+    scene = short_pyrite_scene(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    for out in (".", str(tmp_path)):
+        assert grindtwin(["run", scene, "--out", out, "--quiet"]) == 2
+        assert "Traceback" not in capsys.readouterr().err
+    sub = tmp_path / "sub"
+    sub.mkdir()
+    monkeypatch.chdir(sub)
+    assert grindtwin(["run", scene, "--out", "..", "--quiet"]) == 2  # a parent of the current folder
+    assert "current folder or one of its parents" in capsys.readouterr().err
+    assert scene.exists() and sorted(x.name for x in tmp_path.iterdir()) == ["short.toml", "sub"]
+
+
+def test_an_empty_folder_or_a_previous_run_is_replaced_as_a_whole(tmp_path):
+    from scenarios.output.write import MANIFEST
+
+    out = tmp_path / "run"
+    out.mkdir()
+    assert write_run(tiny_result(1), out, plots=False) == out
+    manifest = json.loads((out / MANIFEST).read_text())
+    assert manifest["written_by"] == "grindtwin" and "summary.json" in manifest["files"]
+    (out / "report.html").write_text("<html></html>")  # grindtwin report's file: ours too
+    write_run(tiny_result(2), out, plots=False)
+    assert json.loads((out / "summary.json").read_text())["seed"] == 2
+    assert not (out / "report.html").exists()  # the old result went as a whole
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # no .old, .partial or .lock left
+
+
+def test_a_previous_run_with_a_file_added_by_the_user_is_refused(tmp_path):
+    out = tmp_path / "run"
+    write_run(tiny_result(1), out, plots=False)
+    (out / "my_analysis.xlsx").write_text("precious")
+    with pytest.raises(SceneError, match=r"holds files grindtwin did not write \(my_analysis.xlsx\)"):
+        write_run(tiny_result(2), out, plots=False)
+    assert (out / "my_analysis.xlsx").read_text() == "precious"
+    assert json.loads((out / "summary.json").read_text())["seed"] == 1
+
+
+def test_a_file_of_that_name_is_refused(tmp_path):
+    target = tmp_path / "results"
+    target.write_text("not a folder")
+    with pytest.raises(SceneError, match="a file of that name exists"):
+        write_run(tiny_result(), target, plots=False)
+    assert target.read_text() == "not a folder"
+
+
+def test_a_second_run_to_a_locked_folder_is_refused_at_once(tmp_path, capsys, no_work):
+    """Two runs to one --out cannot mix: while one holds DIR.lock another is refused before it
+    starts (flock: a separate open file description conflicts even in the same process)."""
+    from scenarios.output.write import MANIFEST, OutputClaim
+
+    out = tmp_path / "out"
+    scene = short_pyrite_scene(tmp_path, duration_h=0.25)
+    with OutputClaim(out) as first:
+        assert grindtwin(["run", scene, "--out", out, "--quiet"]) == 2
+        assert f"another grindtwin run (pid {os.getpid()})" in capsys.readouterr().err
+        first.commit(lambda folder: (folder / "summary.json").write_text("{}"))
+    assert sorted(p.name for p in out.iterdir()) == [MANIFEST, "summary.json"]
+
+
+def _read_only_place(tmp_path) -> Path:
+    """A folder nobody may create entries in (chmod 555; root ignores modes, so /sys for root)."""
+    if os.geteuid() == 0:
+        return Path("/sys/kernel/grindtwin-test-out")
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    return ro / "out"
+
+
+def test_an_unwritable_out_is_refused_before_the_run(tmp_path, capsys, no_work):
+    out = _read_only_place(tmp_path)
+    scene = short_pyrite_scene(tmp_path, duration_h=0.25)
+    assert grindtwin(["run", scene, "--out", out, "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "cannot write there" in err and "Traceback" not in err
+
+
+def test_a_stale_partial_folder_is_removed_by_name_only(tmp_path):
+    out = tmp_path / "run"
+    stale = tmp_path / "run.partial"  # a run killed with SIGKILL leaves this
+    stale.mkdir()
+    (stale / "_INCOMPLETE").write_text("")
+    (stale / "timeseries.parquet").write_text("")
+    write_run(tiny_result(), out, plots=False)
+    assert not stale.exists() and (out / "summary.json").exists()
+    stale.mkdir()
+    (stale / "thesis.docx").write_text("not ours")
+    with pytest.raises(SceneError, match="run.partial is left from an earlier run"):
+        write_run(tiny_result(), out, plots=False)
+    assert (stale / "thesis.docx").read_text() == "not ours"
+
+
+def test_sweep_out_follows_the_same_rules(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    out.mkdir()
+    (out / "sweep.csv").write_text("my own table\n")  # same name, but not written by grindtwin
+    scene = short_pyrite_scene(tmp_path, duration_h=0.25)
+    assert grindtwin(["sweep", scene, "--vary", "feed.feed_tph=24,30", "--workers", "1", "--out", out,
+                      "--quiet"]) == 2
+    assert "grindtwin did not write" in capsys.readouterr().err
+    assert (out / "sweep.csv").read_text() == "my own table\n"

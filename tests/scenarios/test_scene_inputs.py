@@ -1,0 +1,84 @@
+"""Scene keys for an engineer's own circuit: given breakage parameters, screen-analysis feeds,
+mixers of unequal volume, given net power; each checked with the key path, and carried into the
+twin as written."""
+
+import numpy as np
+import pytest
+
+from scenarios.run.models import build_models
+from scenarios.scene import check_scene, load_scene
+from tests.scenarios.conftest import BASE_SCENE
+
+BREAKAGE = """
+[ores.B.breakage]
+form = "energy_specific"
+alpha0_t_kwh = 0.01
+alpha1 = 0.66
+alpha2 = 2.5
+critical_size_um = 7000.0
+beta0 = 0.4
+beta1 = 0.65
+beta2 = 4.0
+"""
+
+
+def _with(extra: str, base: str = BASE_SCENE) -> str:
+    return base.replace("[ores.D]", extra.strip() + "\n\n[ores.D]", 1) if extra.lstrip().startswith("[ores.B") \
+        else base + "\n" + extra
+
+
+@pytest.mark.parametrize("extra, fragments", [
+    (BREAKAGE.replace("alpha2 = 2.5\n", ""), ["ores.B.breakage", "needs alpha2"]),
+    (BREAKAGE.replace("beta0 = 0.4", "beta0 = 1.4"), ["ores.B.breakage.beta0", "1.4"]),
+    (BREAKAGE + "a_per_min = 0.5\n", ["ores.B.breakage", "a_per_min", "other form"]),
+])
+def test_bad_breakage_table_names_key_and_rule(write_scene, extra, fragments):
+    messages = "\n".join(check_scene(write_scene(_with(extra))))
+    for f in fragments:
+        assert f in messages, messages
+
+
+def test_feed_size_given_twice_is_refused(write_scene):
+    text = BASE_SCENE.replace("speed_frac_critical = 0.70", "speed_frac_critical = 0.70\np80_um = 3000.0\n"
+                              "psd = { sizes_um = [4000, 1000, 250], passing_pct = [100, 50, 20] }")
+    assert any("give the feed size once" in m for m in check_scene(write_scene(text)))
+
+
+def test_missing_psd_csv_is_named(write_scene):
+    text = BASE_SCENE.replace("speed_frac_critical = 0.70", 'speed_frac_critical = 0.70\npsd_csv = "nowhere.csv"')
+    assert any("feed.psd_csv" in m and "not found" in m for m in check_scene(write_scene(text)))
+
+
+def test_mixer_shares_and_count_must_agree(write_scene):
+    text = BASE_SCENE.replace('preset = "industrial"', 'preset = "industrial"\nn_mixers = 2\n'
+                              "mixer_volume_fracs = [0.7, 0.15, 0.15]")
+    assert any("mixer_volume_fracs has 3" in m for m in check_scene(write_scene(text)))
+
+
+def test_scene_inputs_reach_the_twin_as_written(write_scene, tmp_path):
+    (tmp_path / "feed.csv").write_text("size_um,passing_pct\n6700,100\n1700,60\n425,30\n106,12\n")
+    text = _with(BREAKAGE).replace("speed_frac_critical = 0.70", 'speed_frac_critical = 0.70\npsd_csv = "feed.csv"')
+    text = text.replace('preset = "industrial"', 'preset = "industrial"\nmixer_volume_fracs = [0.7, 0.15, 0.15]\n'
+                        "net_power_kw = 500.0\ndischarge_solids_frac = 0.72")
+    scene = load_scene(write_scene(text))
+    assert scene.mill.n_mixers == 3
+    twin = build_models(scene).plant
+    assert twin.spec.mixer_fracs == pytest.approx((0.7, 0.15, 0.15))
+    assert twin.mill.net_power_kw == 500.0 and twin.mill.discharge_solids_frac == 0.72
+    b = twin.spec.breakage[0].params
+    assert (b.phi, b.gamma, b.beta, b.mu_um) == (0.4, 0.65, 4.0, 7000.0)
+    assert b.se_1mm_t_kwh == pytest.approx(0.01 * 1000 ** 0.66)
+    passing = twin.grid.cumulative_passing(twin.spec.feed_frac)
+    k = int(np.argmin(np.abs(twin.grid.upper_um - 1675.0)))  # 6700 / 2^2
+    assert passing[k] == pytest.approx(np.interp(np.log(1675.0), np.log([425, 1700]), [0.30, 0.60]), abs=1e-9)
+    out = twin.steady(feed_tph=30.0).outputs  # the given draw, times the cushioning the scene lists
+    k_power = twin.coefficients["cushioning_power_coeff"]
+    assert out["power_kw"] == pytest.approx(500.0 / (1.0 + k_power * out["soft_frac"]), rel=1e-9)
+
+
+def test_bad_cyclone_field_is_named_by_check(write_scene):
+    text = BASE_SCENE.replace('effects = ["breakage", "transport", "holdup", "cushioning", "power"]',
+                              'effects = ["breakage", "transport", "holdup", "cushioning", "power", "classification"]')
+    text += '\n[effect_options.classification]\nkind = "hydrocyclone"\ncyclone = { count = 4, d50c_um = 150.0 }\n'
+    messages = "\n".join(check_scene(write_scene(text)))
+    assert "effect_options.classification.cyclone" in messages and "sharpness" in messages, messages

@@ -1,0 +1,159 @@
+"""The standard parameterisations an engineer brings (breakage parameters, screen analyses,
+mills, hydrocyclones), their validation, and the scale-up rules."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from twin import (BreakageParams, Hydrocyclone, SizeGrid, TabulatedPSD, Twin, TwinInputError, discretise, get_mill,
+                  power_kw)
+from twin.errors import TwinError
+from twin.mill import INDUSTRIAL_PRESET_PATH, LAB, POWER_MODELS
+from twin.scaleup import diameter_factor_a, scale_breakage
+
+LEAN = ["breakage", "transport"]
+
+
+def test_energy_specific_parameters_map_onto_austin_form():
+    p = BreakageParams.energy_specific(0.009686, 0.659, 2.5, 7093.0, 0.4, 0.65, 4.0)
+    # S^E(1 mm) = alpha0 * 1000^alpha1 / (1 + (1000/7093)^2.5), the form with d in um
+    grid = SizeGrid(top_um=1000.0 * 2 ** 0.25, ratio=2 ** 0.5, count=3, scheme="austin")
+    from twin.breakage import selection_at
+    s = selection_at(1000.0, p.se_1mm_t_kwh, p.alpha, p.mu_um, p.Lambda)
+    assert s == pytest.approx(0.009686 * 1000 ** 0.659 / (1 + (1000 / 7093) ** 2.5), rel=1e-12)
+    assert (p.phi, p.gamma, p.beta, p.mu_um, p.Lambda) == (0.4, 0.65, 4.0, 7093.0, 2.5)
+    assert grid.count == 3
+
+
+def test_austin_rate_converts_by_power_and_holdup():
+    p = BreakageParams.austin_rate(0.5, 1.0, 3000.0, 2.5, 1.0, 4.0, 0.5, power_kw=100.0, holdup_t=4.0)
+    assert p.se_1mm_t_kwh == pytest.approx(60 * 0.5 * 4.0 / 100.0)
+
+
+@pytest.mark.parametrize("kwargs, field", [
+    (dict(alpha0_t_kwh=-1, alpha1=0.6, alpha2=2.5, critical_size_um=7000, beta0=0.4, beta1=0.6, beta2=4), "alpha0_t_kwh"),
+    (dict(alpha0_t_kwh=0.01, alpha1=0.6, alpha2=2.5, critical_size_um=7000, beta0=1.4, beta1=0.6, beta2=4), "phi"),
+])
+def test_bad_breakage_parameters_name_the_field(kwargs, field):
+    with pytest.raises(TwinInputError, match=field):
+        BreakageParams.energy_specific(**kwargs)
+
+
+def test_screen_analysis_interpolates_and_extends_below_the_finest_sieve_on_its_ggs_line():
+    psd = TabulatedPSD.from_sieves([1000, 500, 250, 125], [100, 70, 49, 34.3])
+    assert psd.passing(500.0) == pytest.approx(0.70)
+    m = psd.fine_modulus
+    assert m == pytest.approx(math.log(49 / 34.3) / math.log(2))
+    assert psd.passing(62.5) == pytest.approx(0.343 * 0.5 ** m)
+    frac = discretise(SizeGrid(top_um=2000.0, count=12), psd)
+    assert frac.sum() == pytest.approx(1.0) and np.all(frac >= 0)
+
+
+@pytest.mark.parametrize("sizes, passing, field", [([100, 200], [50, 40], "passing_frac"),
+                                                   ([100, 200], [50, 140], "passing_pct"),
+                                                   ([100, 200, 300], [10, 20], "passing_pct")])
+def test_bad_screen_analysis_names_the_field(sizes, passing, field):
+    with pytest.raises(TwinInputError, match=field):
+        TabulatedPSD.from_sieves(sizes, passing)
+
+
+def test_screen_analysis_csv(tmp_path):
+    path = tmp_path / "feed.csv"
+    path.write_text("size_um,passing_pct\n1000,100\n500,60\n250,35\n")
+    assert TabulatedPSD.from_csv(path).passing(500.0) == pytest.approx(0.6)
+    (tmp_path / "bad.csv").write_text("size,pct\n1,2\n")
+    with pytest.raises(TwinInputError, match="size_um"):
+        TabulatedPSD.from_csv(tmp_path / "bad.csv")
+
+
+def test_unequal_mixers_hold_their_shares_of_the_holdup():
+    fr = (0.7, 0.15, 0.15)
+    tw = Twin("B", mill="lab", effects=LEAN, mixer_volume_fracs=fr)
+    ss = tw.steady()
+    held = tw.model.mass_array(ss.x).sum(axis=(0, 2))
+    # without breakage every mixer passes the same flow, so the hold-up splits as the volumes
+    tw0 = Twin("B", mill="lab", effects=["transport", "breakage"], mixer_volume_fracs=fr,
+               ore_breakage={"B": BreakageParams(se_1mm_t_kwh=1e-9)})
+    held0 = tw0.model.mass_array(tw0.steady().x).sum(axis=(0, 2))
+    assert held0 / held0.sum() == pytest.approx(np.array(fr), rel=1e-6)
+    assert held.sum() > 0
+
+
+def test_mixer_shares_are_validated():
+    with pytest.raises(TwinInputError, match="mixer_volume_fracs"):
+        Twin("B", mill="lab", effects=LEAN, mixer_volume_fracs=(0.7, -0.1))
+
+
+def test_given_net_power_is_drawn_at_nominal_speed_and_shaped_by_the_model():
+    mill = LAB.with_(net_power_kw=2.0)
+    assert power_kw(mill, 0.70) == pytest.approx(2.0)
+    for name, model in POWER_MODELS.items():
+        m = mill.with_(power_model=name)
+        assert power_kw(m, 0.80) / power_kw(m, 0.70) == pytest.approx(model(LAB, 0.80) / model(LAB, 0.70))
+    with pytest.raises(TwinInputError, match="power_model"):
+        LAB.with_(power_model="morell")
+
+
+def test_plitt_factors_scale_their_own_equation_only():
+    base, cyc = Hydrocyclone(), Hydrocyclone(d50c_factor=2.0, pressure_factor=1.5)
+    a, b = base.plitt(300.0, 2.7), cyc.plitt(300.0, 2.7)
+    assert b["d50c_um"] == pytest.approx(2 * a["d50c_um"])
+    assert b["pressure_kpa"] == pytest.approx(1.5 * a["pressure_kpa"])
+    # a higher pressure (head) lowers Plitt's split: S ~ H^-0.24
+    assert b["volume_split"] == pytest.approx(a["volume_split"] * 1.5 ** -0.24)
+
+
+def test_plitt_cut_size_follows_flow_to_the_minus_045():
+    cyc = Hydrocyclone(feed_solids_frac=0.6)
+    assert cyc.plitt(400.0, 2.7)["d50c_um"] / cyc.plitt(200.0, 2.7)["d50c_um"] == pytest.approx(2 ** -0.45)
+
+
+def test_direct_cyclone_needs_its_three_values_and_names_the_missing_one():
+    with pytest.raises(TwinInputError, match="water_bypass_frac"):
+        Hydrocyclone(d50c_um=180.0, sharpness=1.3)
+    with pytest.raises(TwinInputError, match="solids_bypass_frac"):
+        Hydrocyclone(d50c_um=180.0, sharpness=1.3, water_bypass_frac=0.4, solids_bypass_frac=1.2)
+    cyc = Hydrocyclone(d50c_um=180.0, sharpness=1.3, water_bypass_frac=0.4, solids_bypass_frac=0.35)
+    assert cyc.mode == "direct" and cyc.plitt(500.0, 2.8)["d50c_um"] == 180.0
+
+
+def test_scale_up_is_identity_on_the_calibration_mill_and_follows_austin_elsewhere():
+    p = BreakageParams(se_1mm_t_kwh=1.0)
+    assert scale_breakage(p, LAB, LAB, 2.7) == p
+    big = LAB.with_(name="big", diameter_m=2.0, length_m=1.2)
+    q = scale_breakage(p, LAB, big, 2.7)
+    # Bond's power P ~ D^2.3 L, hold-up ~ D^2 L: S^E grows as D^(0.5 - 0.3) = D^0.2
+    assert q.se_1mm_t_kwh == pytest.approx(4.0 ** 0.2, rel=1e-9)
+    assert q.mu_um == pytest.approx(3000.0 * 4.0 ** 0.2)
+    # Hogg-Fuerstenau's P ~ D^2.5: energy-specific rates do not change with diameter
+    hf = scale_breakage(p, LAB.with_(power_model="hogg_fuerstenau"), big.with_(power_model="hogg_fuerstenau"), 2.7)
+    assert hf.se_1mm_t_kwh == pytest.approx(1.0, rel=1e-9)
+    balls = scale_breakage(p, LAB, LAB.with_(name="b", ball_size_mm=50.0), 2.7)
+    assert balls.se_1mm_t_kwh == pytest.approx(0.5) and balls.mu_um == pytest.approx(4 * 3000.0)
+    assert diameter_factor_a(1.0, 7.62) == pytest.approx(3.81 ** 0.5 * 2 ** 0.3)
+
+
+def test_industrial_preset_is_the_sized_mill_and_meets_its_sizing_target():
+    """Depends on the shipped calibration: after a recalibration, rerun the command in the file."""
+    record = json.loads(INDUSTRIAL_PRESET_PATH.read_text())
+    mill = get_mill("industrial")
+    assert mill.diameter_m == record["mill"]["diameter_m"] and dict(mill.cyclone) == record["cyclone"]
+    z = record["sizing"]
+    tw = Twin(z["ore"], mill="industrial", effect_options={"classification": {"kind": "hydrocyclone"}})
+    ss = tw.steady(feed_tph=z["feed_tph"])
+    assert ss.p80_um == pytest.approx(z["target_p80_um"], rel=0.01), record["command"]
+    assert ss.load_status == "stable"
+
+
+def test_missing_preset_file_names_the_command(monkeypatch, tmp_path):
+    import twin.mill as mill_module
+    monkeypatch.setattr(mill_module, "INDUSTRIAL_PRESET_PATH", tmp_path / "none.json")
+    mill_module.industrial_preset.cache_clear()
+    try:
+        with pytest.raises(TwinError, match="size-mill"):
+            get_mill("industrial")
+    finally:
+        monkeypatch.undo()
+        mill_module.industrial_preset.cache_clear()

@@ -1,0 +1,62 @@
+"""Scale-up of breakage parameters from the mill they were calibrated in to another mill.
+
+Rules (Austin, Klimpel & Luckie 1984, *Process Engineering of Size Reduction*, ch. 8 and 10;
+Austin, Shoji & Luckie 1976, Powder Technol. 14, 71-79), at the same fractional ball filling,
+powder filling and fraction of critical speed:
+- mill diameter: the rate constant A of S grows as D^0.5 up to D = 3.81 m and as D^0.3 beyond
+  (larger mills lift balls higher: more energetic impacts), and the size of the maximum of S,
+  set by mu, as D^0.2;
+- ball size: A falls as 1/d (fewer contacts per unit ball mass) and mu grows as d^2 (bigger
+  balls break bigger particles: Austin's x_m ~ d^2).
+The twin's rates are energy-specific, S = S^E P / H, so S^E carries Austin's factor on A over the
+change of net power per unit hold-up, (P/H)_to / (P/H)_from, of the mills' power models without
+their corrections (``power_factor``, a given ``net_power_kw``): with Bond's D^2.3 power, S^E
+grows as D^0.2; with Hogg-Fuerstenau's D^2.5, S^E is invariant (Herbst & Fuerstenau's 1980
+scale-up claim). A mill that draws more than its model (a fitted power factor, a measured
+power) breaks faster in proportion, as the energy-specific form has it. B does not change.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from .breakage import BreakageParams
+from .mill import Mill, power_kw
+
+#: Austin et al. (1984) eq. 10.6-10.8: exponents of the rate constant A on mill diameter below and
+#: above the break diameter, of mu on diameter, and of A and mu on ball size.
+DIAMETER_EXPONENT_A = 0.5
+DIAMETER_EXPONENT_A_LARGE = 0.3
+DIAMETER_BREAK_M = 3.81
+DIAMETER_EXPONENT_MU = 0.2
+BALL_EXPONENT_A = -1.0
+BALL_EXPONENT_MU = 2.0
+
+
+def diameter_factor_a(d_from_m: float, d_to_m: float) -> float:
+    """Austin's factor on A from one mill diameter to another (D^0.5 to 3.81 m, D^0.3 beyond)."""
+    def level(d):
+        if d <= DIAMETER_BREAK_M:
+            return d ** DIAMETER_EXPONENT_A
+        return DIAMETER_BREAK_M ** DIAMETER_EXPONENT_A * (d / DIAMETER_BREAK_M) ** DIAMETER_EXPONENT_A_LARGE
+    return level(d_to_m) / level(d_from_m)
+
+
+def power_per_holdup(mill: Mill, solids_density_t_m3: float) -> float:
+    """Net power of the mill's power model (no power factor, no given power) per tonne of nominal
+    hold-up [kW/t] at its nominal speed: the geometric part of the energy input."""
+    model = replace(mill, power_factor=1.0, net_power_kw=None)
+    return power_kw(model, mill.speed_nominal_frac_critical) / mill.nominal_holdup_t(solids_density_t_m3)
+
+
+def scale_breakage(params: BreakageParams, from_mill: Mill, to_mill: Mill, solids_density_t_m3: float) -> BreakageParams:
+    """``params`` calibrated in ``from_mill``, scaled to ``to_mill`` by the module's rules."""
+    if (from_mill.diameter_m, from_mill.ball_size_mm) == (to_mill.diameter_m, to_mill.ball_size_mm) and \
+            power_per_holdup(from_mill, solids_density_t_m3) == power_per_holdup(to_mill, solids_density_t_m3):
+        return params
+    ball = to_mill.ball_size_mm / from_mill.ball_size_mm
+    factor_a = diameter_factor_a(from_mill.diameter_m, to_mill.diameter_m) * ball ** BALL_EXPONENT_A
+    energy = power_per_holdup(from_mill, solids_density_t_m3) / power_per_holdup(to_mill, solids_density_t_m3)
+    mu = params.mu_um * (to_mill.diameter_m / from_mill.diameter_m) ** DIAMETER_EXPONENT_MU * ball ** BALL_EXPONENT_MU
+    return replace(params, se_1mm_t_kwh=params.se_1mm_t_kwh * factor_a * energy, mu_um=mu,
+                   source=f"{params.source}; scaled from mill {from_mill.name!r} to {to_mill.name!r} (twin.scaleup)")
