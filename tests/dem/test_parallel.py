@@ -16,6 +16,14 @@ if numba.config.NUMBA_NUM_THREADS < 2:  # a machine configuration, not our code
                 f"{numba.config.NUMBA_NUM_THREADS}); set it, numba then runs two threads on any core count")
 
 
+@pytest.fixture(autouse=True)
+def _parallel_at_any_size(monkeypatch):
+    """These systems are small: run them on the threads asked for, not serially by size."""
+    import dem.system
+
+    monkeypatch.setattr(dem.system, "PARALLEL_MIN_SPHERES", 0)
+
+
 def _crushed(threads):
     """A weak agglomerate crushed fast: bonds break, broken pairs come into frictional contact."""
     agg = make_agglomerate(0.01, 120, random_state=4)
@@ -100,3 +108,4 @@ def test_morton_order_keeps_neighbours_near_in_index():
     step = np.linalg.norm(np.diff(pos[order], axis=0), axis=1)
     step_random = np.linalg.norm(np.diff(pos, axis=0), axis=1)
     assert np.median(step) < 0.25 * np.median(step_random)
+
