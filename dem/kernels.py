@@ -249,14 +249,14 @@ def _damp(i, force, torque, vel, om, mass, inertia, alpha, hdt):
 
 
 @nb.njit(cache=True, parallel=True)
-def sphere_loads(sp, bd, pr, wl, dr, cp, dt, drum_angle):
+def sphere_loads(sp, bd, pr, wl, dr, d_torque, cp, dt, drum_angle):
     """Total force and torque on each sphere (parallel over spheres): gravity, its bond and
     contact rows in a fixed order, walls and drum, then Cundall damping."""
     pos, vel, om, rad, mass, inertia, f, t = sp
     b_load, b_start, b_entry = bd.load, bd.sphere_start, bd.sphere_entry
     p_load, p_start, p_entry = pr.load, pr.sphere_start, pr.sphere_entry
     w_p, w_n, w_v, w_xi, w_touch, w_force, w_impact = wl.p, wl.n, wl.v, wl.xi, wl.touch, wl.f_sphere, wl.impact_J
-    lifters, d_xi, d_touch, d_impact, d_torque = dr
+    lifters, d_xi, d_touch, d_impact = dr.lifter_angles, dr.xi, dr.touch, dr.impact_J
     law = cp[CP_CONTACT_LAW]
     ew, gw, muw, etaw = cp[CP_ESTAR_PW], cp[CP_GSTAR_PW], cp[CP_MU_PW], cp[CP_ETA_PW]
     gx, gy, gz = cp[CP_GX], cp[CP_GY], cp[CP_GZ]
@@ -346,7 +346,7 @@ def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw):
         pair_contact(k, pi, pj, xi, touch, load, impact, pos, vel, om, rad, mass, lz, e_star,
                      g_star, mu, eta, dt, ov0, law)
     nbroken = bond_forces(sp, bd, lz, dt, cp[CP_BETA])
-    sphere_loads(sp, bd, pr, wl, dr, cp, dt, drum_angle)
+    sphere_loads(sp, bd, pr, wl, dr, dr.torque_sphere, cp, dt, drum_angle)
     return _collect(pr, wl, dr, cp, hist_pp, hist_pw), nbroken
 
 
