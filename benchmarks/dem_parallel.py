@@ -15,8 +15,10 @@ Yade, the same time step on both sides (grindtwin's default, 0.5 of its critical
    (2 threads) against Yade (-j2, recording every 20 steps to catch its peak), same dt.
 3. scale: grindtwin alone at 500-32000 spheres, 1 and 2 threads interleaved.
 
-``python benchmarks/dem_parallel.py [--fast]`` writes benchmarks/results/dem_parallel_speed.*,
-dem_parallel_peak.* and dem_parallel_scale.* (md + csv). Needs ``yade`` on PATH (Debian package).
+``python benchmarks/dem_parallel.py [--fast] [--parts speed,peak,scale] [--sizes 500,2000]`` writes
+benchmarks/results/dem_parallel_speed.*, dem_parallel_peak.* and dem_parallel_scale.* (md + csv)
+for the parts asked (default all; ``--sizes`` limits every part to those sphere counts). Needs
+``yade`` on PATH (Debian package).
 """
 
 from __future__ import annotations
@@ -33,10 +35,18 @@ sys.path.insert(0, os.path.dirname(__file__))
 import numpy as np
 import pandas as pd
 
-from dem_common import OUT, write_table
+from dem_common import write_table
 from dem.agglomerate import make_agglomerate
 
 FAST = "--fast" in sys.argv
+
+
+def _arg(name, default):
+    return sys.argv[sys.argv.index(name) + 1] if name in sys.argv else default
+
+
+PARTS = _arg("--parts", "speed,peak,scale").split(",")
+SIZES = [int(x) for x in _arg("--sizes", "0").split(",")]
 HERE = os.path.dirname(os.path.abspath(__file__))
 WORKER = os.path.join(HERE, "dem_parallel_worker.py")
 YADE_SCRIPT = os.path.join(HERE, "dem_yade_compression.py")
@@ -45,6 +55,10 @@ REPEATS = 2
 PEAK_SIZES = (500, 2000) if not FAST else (500,)
 PEAK_SEEDS = (0, 1, 2)
 SCALE = {500: 1000, 2000: 300, 8000: 80, 32000: 20} if not FAST else {500: 300, 2000: 80}
+if SIZES != [0]:
+    STEPS = {n: v for n, v in STEPS.items() if n in SIZES}
+    SCALE = {n: v for n, v in SCALE.items() if n in SIZES}
+    PEAK_SIZES = tuple(n for n in PEAK_SIZES if n in SIZES)
 
 
 def load_average() -> str:
@@ -160,22 +174,25 @@ def scale(folder):
 
 
 def main():
-    note = (f"Command: `python benchmarks/dem_parallel.py{' --fast' if FAST else ''}`. Machine: 2 cores "
+    note = (f"Command: `python benchmarks/dem_parallel.py {' '.join(sys.argv[1:])}`. Machine: 2 cores "
             f"shared with other jobs; load average (1/5/15 min) at the start {load_average()}, "
             "after each size in the table. Times are medians of interleaved repeats.")
     with tempfile.TemporaryDirectory() as folder:
         if shutil.which("yade") is None:
             raise SystemExit("yade not on PATH (Debian package 'yade'); nothing written")
-        sp = speed(folder)
-        write_table(sp, "dem_parallel_speed", "grindtwin (1 and 2 threads) against Yade -j1/-j2, Yade-JCFpm physics",
-                    note + " us = microseconds of CPU (user + system, all threads) or wall time per "
-                    "particle-step; per_core_x_yade = Yade -j1 CPU / grindtwin 1-thread CPU.")
-        pk = peaks(folder)
-        write_table(pk, "dem_parallel_peak", "Peak force: grindtwin against Yade, same packings and time step",
-                    note + f" Peak ratio over the packings: mean {pk.peak_ratio.mean():.4f}, "
-                    f"range {pk.peak_ratio.min():.4f}-{pk.peak_ratio.max():.4f}.")
-        sc = scale(folder)
-        write_table(sc, "dem_parallel_scale", "grindtwin compression-test scale table (1 and 2 threads)", note)
+        if "speed" in PARTS:
+            write_table(speed(folder), "dem_parallel_speed",
+                        "grindtwin (1 and 2 threads) against Yade -j1/-j2, Yade-JCFpm physics",
+                        note + " us = microseconds of CPU (user + system, all threads) or wall time per "
+                        "particle-step; per_core_x_yade = Yade -j1 CPU / grindtwin 1-thread CPU.")
+        if "peak" in PARTS:
+            pk = peaks(folder)
+            write_table(pk, "dem_parallel_peak", "Peak force: grindtwin against Yade, same packings and time step",
+                        note + f" Peak ratio over the packings: mean {pk.peak_ratio.mean():.4f}, "
+                        f"range {pk.peak_ratio.min():.4f}-{pk.peak_ratio.max():.4f}.")
+        if "scale" in PARTS:
+            write_table(scale(folder), "dem_parallel_scale",
+                        "grindtwin compression-test scale table (1 and 2 threads)", note)
 
 
 if __name__ == "__main__":

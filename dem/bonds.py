@@ -31,8 +31,8 @@ import numba as nb
 import numpy as np
 
 from dem.errors import DemInputError
-from dem.state import (LOAD_TI, LOAD_TJ, N_LOAD, BondArrays, add_rows, csr_of_rows,
-                       rotate_into_plane, write_pair_load)
+from dem.state import (LOAD_TI, LOAD_TJ, N_LOAD, BondArrays, csr_of_rows, rotate_into_plane,
+                       write_pair_load)
 
 #: bond state codes
 INTACT = 0

@@ -39,6 +39,7 @@ from dem.state import N_LOAD, PairArrays, add_rows, csr_of_rows
 N_CP = 23
 
 STATUS_OK = 0
+STATUS_REBUILD = 1
 STATUS_NONFINITE = 2
 
 
@@ -248,14 +249,14 @@ def _damp(i, force, torque, vel, om, mass, inertia, alpha, hdt):
 
 
 @nb.njit(cache=True, parallel=True)
-def sphere_loads(sp, bd, pr, wl, dr, cp, dt, drum_angle):
+def sphere_loads(sp, bd, pr, wl, dr, d_torque, cp, dt, drum_angle):
     """Total force and torque on each sphere (parallel over spheres): gravity, its bond and
     contact rows in a fixed order, walls and drum, then Cundall damping."""
     pos, vel, om, rad, mass, inertia, f, t = sp
     b_load, b_start, b_entry = bd.load, bd.sphere_start, bd.sphere_entry
     p_load, p_start, p_entry = pr.load, pr.sphere_start, pr.sphere_entry
     w_p, w_n, w_v, w_xi, w_touch, w_force, w_impact = wl.p, wl.n, wl.v, wl.xi, wl.touch, wl.f_sphere, wl.impact_J
-    lifters, d_xi, d_touch, d_impact, d_torque = dr
+    lifters, d_xi, d_touch, d_impact = dr.lifter_angles, dr.xi, dr.touch, dr.impact_J
     law = cp[CP_CONTACT_LAW]
     ew, gw, muw, etaw = cp[CP_ESTAR_PW], cp[CP_GSTAR_PW], cp[CP_MU_PW], cp[CP_ETA_PW]
     gx, gy, gz = cp[CP_GX], cp[CP_GY], cp[CP_GZ]
@@ -345,7 +346,7 @@ def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw):
         pair_contact(k, pi, pj, xi, touch, load, impact, pos, vel, om, rad, mass, lz, e_star,
                      g_star, mu, eta, dt, ov0, law)
     nbroken = bond_forces(sp, bd, lz, dt, cp[CP_BETA])
-    sphere_loads(sp, bd, pr, wl, dr, cp, dt, drum_angle)
+    sphere_loads(sp, bd, pr, wl, dr, dr.torque_sphere, cp, dt, drum_angle)
     return _collect(pr, wl, dr, cp, hist_pp, hist_pw), nbroken
 
 
@@ -385,42 +386,44 @@ def _move_walls(wl, cp, dt, after_forces):
 
 @nb.njit(cache=True, parallel=True)
 def run_steps(n_steps, dt, sp, bd, pr, wl, dr, cp, pos_ref, drum_angle, hist_pp, hist_pw,
-              rec_wall_f, rec_wall_pos, rec_torque, rec_broken):
-    """Advance ``n_steps`` velocity-Verlet steps; ``sp.force``/``sp.torque`` must hold the forces
-    at entry.
+              rec_wall_f, rec_wall_pos, rec_torque, rec_broken, drifted):
+    """Advance up to ``n_steps`` velocity-Verlet steps; ``sp.force``/``sp.torque`` must hold the
+    forces at entry.
 
     Planar walls move with their velocity; a wall with ``mass > 0`` is free along its normal
     (drop weight). Records per step: wall forces (N, along each wall normal, positive = pushed
     outwards), wall positions along the normals, drum torque, bonds broken.
-    Returns (status, steps done, drum angle, pair arrays).
+
+    Once a sphere has moved more than half the skin after a drift, it returns
+    ``STATUS_REBUILD`` before that step's forces: the caller rebuilds the list
+    (:func:`rebuild_pairs`) and calls again with ``drifted=True`` to finish the step. The list
+    is never replaced in here: reassigning a bundle of arrays in a loop of a ``parallel=True``
+    function corrupted numba's reference counts (a segmentation fault some rebuilds later).
+    Returns (status, steps done, drum angle).
     """
     pos = sp.pos
     n = pos.shape[0]
     lz = cp[CP_LZ]
-    skin = cp[CP_SKIN]
-    lim2 = (0.5 * skin) ** 2
+    lim2 = (0.5 * cp[CP_SKIN]) ** 2
     half = 0.5 * dt
-    status = STATUS_OK
     ang = drum_angle
-    done = 0
     for step in range(n_steps):
-        _kick(sp, half, dt, lz, True)
-        _move_walls(wl, cp, dt, False)
-        ang += cp[CP_DRUM_OMEGA] * dt
-        # rebuild the list once a sphere has moved more than half the skin (an integer count,
-        # the same whatever the thread count)
-        moved = 0
-        for i in nb.prange(n):
-            dx = pos[i, 0] - pos_ref[i, 0]
-            dy = pos[i, 1] - pos_ref[i, 1]
-            dz = pos[i, 2] - pos_ref[i, 2]
-            if lz > 0.0:
-                dz -= lz * math.floor(dz / lz + 0.5)
-            if dx * dx + dy * dy + dz * dz > lim2:
-                moved += 1
-        if moved > 0:
-            pr = rebuild_pairs(sp, bd, pr, skin, lz)
-            pos_ref[:, :] = pos
+        if not (drifted and step == 0):
+            _kick(sp, half, dt, lz, True)
+            _move_walls(wl, cp, dt, False)
+            ang += cp[CP_DRUM_OMEGA] * dt
+            # an integer count, the same whatever the thread count
+            moved = 0
+            for i in nb.prange(n):
+                dx = pos[i, 0] - pos_ref[i, 0]
+                dy = pos[i, 1] - pos_ref[i, 1]
+                dz = pos[i, 2] - pos_ref[i, 2]
+                if lz > 0.0:
+                    dz -= lz * math.floor(dz / lz + 0.5)
+                if dx * dx + dy * dy + dz * dz > lim2:
+                    moved += 1
+            if moved > 0:
+                return STATUS_REBUILD, step, ang
         tq, nbr = compute_forces(sp, bd, pr, wl, dr, cp, dt, ang, hist_pp, hist_pw)
         _kick(sp, half, dt, lz, False)
         _move_walls(wl, cp, dt, True)
@@ -431,8 +434,6 @@ def run_steps(n_steps, dt, sp, bd, pr, wl, dr, cp, pos_ref, drum_angle, hist_pp,
                                      + wl.p[k, 2] * wl.n[k, 2])
         rec_torque[step] = tq
         rec_broken[step] = nbr
-        done = step + 1
         if not math.isfinite(sp.vel[0, 0] + sp.force[n - 1, 2] + pos[n // 2, 0]):
-            status = STATUS_NONFINITE
-            break
-    return status, done, ang, pr
+            return STATUS_NONFINITE, step + 1, ang
+    return STATUS_OK, n_steps, ang

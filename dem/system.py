@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from dem import kernels as K
@@ -27,6 +28,12 @@ from dem.state import DrumArrays, SphereArrays, WallArrays
 HIST_LO_LOG10 = -9.0
 HIST_DLOG10 = 0.25
 HIST_NBINS = 44
+
+#: systems of fewer spheres run their steps on one thread: each step has about five parallel
+#: regions, and with two threads they were measured slower at both sizes tried (0.12x at 500
+#: and 0.81x at 2,000 spheres in wall time, benchmarks/results/dem_parallel_speed.md); the
+#: break-even size is not measured, so the threshold sits above both
+PARALLEL_MIN_SPHERES = 4000
 
 #: ``contact_law`` choices of :class:`System`: Hertz–Mindlin with restitution damping
 #: (default) or Yade's linear spring (``Law2_ScGeom_FrictPhys_CundallStrack``; the material's
@@ -184,11 +191,13 @@ class System:
         rec_p = np.zeros((n_steps, nw))
         rec_t = np.zeros(n_steps)
         rec_b = np.zeros(n_steps, dtype=np.int64)
-        status, done, ang, self.pairs = K.run_steps(
-            n_steps, self.dt_s, self.spheres, self.bonds.arrays, self.pairs, self.walls,
-            self.drum_arrays, self.cp, self.pos_ref, self.drum_angle, self.hist_pp, self.hist_pw,
-            rec_f, rec_p, rec_t, rec_b)
-        self.drum_angle = ang
+        threads = numba.get_num_threads()
+        if self.n < PARALLEL_MIN_SPHERES:
+            numba.set_num_threads(1)
+        try:
+            done, status = self._advance(n_steps, rec_f, rec_p, rec_t, rec_b)
+        finally:
+            numba.set_num_threads(threads)
         self.steps += done
         self.time_s += done * self.dt_s
         self.records.wall_force_N.append(rec_f[:done])
@@ -199,6 +208,24 @@ class System:
             raise DemInstabilityError(
                 f"Non-finite state at step {self.steps} (t = {self.time_s:.4g} s, dt = {self.dt_s:.3g} s); "
                 "reduce time_step_factor or check the material parameters.")
+
+    def _advance(self, n_steps, rec_f, rec_p, rec_t, rec_b) -> tuple[int, int]:
+        """The kernel's steps, the neighbour list rebuilt between calls when it asks (see
+        :func:`dem.kernels.run_steps`). Returns (steps done, status)."""
+        done, status, drifted = 0, K.STATUS_REBUILD, False
+        while status == K.STATUS_REBUILD:
+            status, k, self.drum_angle = K.run_steps(
+                n_steps - done, self.dt_s, self.spheres, self.bonds.arrays, self.pairs,
+                self.walls, self.drum_arrays, self.cp, self.pos_ref, self.drum_angle,
+                self.hist_pp, self.hist_pw, rec_f[done:], rec_p[done:], rec_t[done:],
+                rec_b[done:], drifted)
+            done += k
+            drifted = status == K.STATUS_REBUILD
+            if drifted:
+                self.pairs = K.rebuild_pairs(self.spheres, self.bonds.arrays, self.pairs,
+                                             self.cp[K.CP_SKIN], self.cp[K.CP_LZ])
+                self.pos_ref[:, :] = self.pos
+        return done, status
 
     def set_wall_velocity(self, k: int, velocity_m_s) -> None:
         self.w_v[k, :] = velocity_m_s
