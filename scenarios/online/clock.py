@@ -4,7 +4,9 @@ real plant; more on a virtual plant run faster than real time)."""
 from __future__ import annotations
 
 import asyncio
+import logging
 import math
+import signal
 from datetime import datetime, timedelta, timezone
 
 
@@ -54,3 +56,27 @@ async def sleep_until(loop_time: float, wake: asyncio.Event) -> bool:
         return True
     except asyncio.TimeoutError:
         return False
+
+
+class Stoppable:
+    """A long-running asyncio service's stop: ``request_stop`` (from a signal, a time limit or a
+    test) records the first reason and wakes the sleeping loop; ``stop_on_signals`` installs it
+    for SIGTERM and SIGINT and returns the signals to remove at the end."""
+
+    stop_reason: str | None = None
+    _wake: asyncio.Event | None = None
+    log_name = "grindtwin.online"  #: the logger the stop is logged to
+
+    def request_stop(self, reason: str) -> None:
+        """End the service after the running cycle (signal handlers call this)."""
+        if self.stop_reason is None:
+            self.stop_reason = reason
+            logging.getLogger(self.log_name).info("stop requested: %s", reason)
+        if self._wake is not None:
+            self._wake.set()
+
+    def stop_on_signals(self, loop, install: bool) -> tuple:
+        signals = (signal.SIGTERM, signal.SIGINT) if install else ()
+        for sig in signals:
+            loop.add_signal_handler(sig, self.request_stop, sig.name)
+        return signals

@@ -27,7 +27,6 @@ import asyncio
 import json
 import logging
 import math
-import signal
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from pathlib import Path
@@ -39,7 +38,7 @@ from asyncua.common.callback import CallbackType
 
 from mpc import SensorState, TwinPlant, loop_kpis
 from scenarios.errors import SceneError
-from scenarios.online.clock import Clock, sleep_until
+from scenarios.online.clock import Clock, Stoppable, sleep_until
 from scenarios.online.security import ServerSecurity, make_server
 from scenarios.online.tags import TagMap
 from scenarios.run import build_models
@@ -83,8 +82,10 @@ class PlantServerSettings:
     paused: bool = False
 
 
-class PlantServer:
+class PlantServer(Stoppable):
     """The scene's plant twin behind an OPC UA server with the nodes of ``tags``."""
+
+    log_name = log.name
 
     def __init__(self, scene: Scene, tags: TagMap, settings: PlantServerSettings, models=None,
                  clock: Clock | None = None):
@@ -411,20 +412,11 @@ class PlantServer:
         (d / "plant-kpis.json").write_text(json.dumps(self.kpis(), indent=2))
 
     # ------------------------------------------------------------------ run
-    def request_stop(self, reason: str) -> None:
-        if self.stop_reason is None:
-            self.stop_reason = reason
-            log.info("stop requested: %s", reason)
-        if self._wake is not None:
-            self._wake.set()
-
     async def run(self, install_signal_handlers: bool = True) -> None:
         """Serve and advance in (sped-up) real time until stopped or ``duration_h``."""
         loop = asyncio.get_running_loop()
         self._wake = asyncio.Event()
-        signals = (signal.SIGTERM, signal.SIGINT) if install_signal_handlers else ()
-        for sig in signals:
-            loop.add_signal_handler(sig, self.request_stop, sig.name)
+        signals = self.stop_on_signals(loop, install_signal_handlers)
         try:
             await self.start()
             period = self.clock.wall_seconds(self.dt_h)

@@ -34,7 +34,6 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
-import signal
 import time
 from collections import deque
 from dataclasses import dataclass
@@ -45,7 +44,7 @@ from asyncua import ua
 
 from mpc import MpcError
 from scenarios.online.audit import AuditLog
-from scenarios.online.clock import Clock, sleep_until
+from scenarios.online.clock import Clock, Stoppable, sleep_until
 from scenarios.online.opcua import CONNECTION_ERRORS, PlantConnection, status_name
 from scenarios.online.parts import ControlParts
 from scenarios.online.quality import GOOD, Reading, TagQuality, severity
@@ -84,10 +83,12 @@ class ServeSettings:
     audit_flush_every: int = 20
 
 
-class Service:
+class Service(Stoppable):
     """The served controller of ``parts.scene`` on the plant named by ``tags`` (see the module
     docstring). Drive it with :meth:`run`, or cycle by cycle (:meth:`connect`, :meth:`cycle`,
     :meth:`shutdown`) under a :class:`~scenarios.online.clock.ManualClock`."""
+
+    log_name = log.name
 
     def __init__(self, parts: ControlParts, tags: TagMap, settings: ServeSettings, clock: Clock | None = None):
         self.parts, self.tags, self.s = parts, tags, settings
@@ -453,21 +454,11 @@ class Service:
         return out
 
     # ------------------------------------------------------------------ run and stop
-    def request_stop(self, reason: str) -> None:
-        """End the service after the running cycle (signal handlers call this)."""
-        if self.stop_reason is None:
-            self.stop_reason = reason
-            log.info("stop requested: %s", reason)
-        if self._wake is not None:
-            self._wake.set()
-
     async def run(self, install_signal_handlers: bool = True) -> None:
         """Cycle every sample period until stopped (SIGTERM, SIGINT, ``duration_h``)."""
         loop = asyncio.get_running_loop()
         self._wake = asyncio.Event()
-        signals = (signal.SIGTERM, signal.SIGINT) if install_signal_handlers else ()
-        for sig in signals:
-            loop.add_signal_handler(sig, self.request_stop, sig.name)
+        signals = self.stop_on_signals(loop, install_signal_handlers)
         period = self.clock.wall_seconds(self.dt_h)
         try:
             self._start_reconnect()

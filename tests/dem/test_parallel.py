@@ -70,6 +70,7 @@ def test_drum_is_bit_identical_on_one_and_two_threads():
         out.append(s)
     a, b = out
     assert a.hist_pp.sum() > 0 and a.hist_pw.sum() > 0  # collisions were counted
+    assert np.any(a.record_arrays()["torque_Nm"] != 0)  # the shell's torque reached the record
     np.testing.assert_array_equal(a.pos, b.pos)
     np.testing.assert_array_equal(a.hist_pp, b.hist_pp)
     np.testing.assert_array_equal(a.hist_pw, b.hist_pw)
