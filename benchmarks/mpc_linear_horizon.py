@@ -6,7 +6,7 @@ ZOH at 3 min) in closed loop on the *nonlinear* le Roux plant through a P80 set-
 closed-loop IAE of P80 from the set point (um h). Writes
 ``benchmarks/results/mpc_linear_horizon.csv`` and prints the table.
 
-Run: ``/work/venv/bin/python benchmarks/mpc_linear_horizon.py [--quick]``.
+Run: ``python benchmarks/mpc_linear_horizon.py [--quick]``.
 """
 
 from __future__ import annotations

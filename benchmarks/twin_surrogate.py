@@ -13,7 +13,7 @@ runs on a 2-core machine shared with other jobs (upper bounds of the quiet-machi
 
 Writes ``benchmarks/results/twin_surrogate.csv`` and ``.md``.
 
-Run: ``PYTHONPATH=. /work/venv/bin/python benchmarks/twin_surrogate.py [--quick]``.
+Run: ``PYTHONPATH=. python benchmarks/twin_surrogate.py [--quick]``.
 """
 
 from __future__ import annotations

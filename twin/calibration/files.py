@@ -101,7 +101,7 @@ class Calibration:
 
     def identity(self) -> dict:
         """What a run records of the calibration it ran: name, file, hash, the command."""
-        return {"name": self.name, "path": str(self.path) if self.path else None, "sha256": self.sha256,
+        return {"name": self.name, "path": _shown_path(self.path), "sha256": self.sha256,
                 "breakage_map": self.breakage_map,
                 "command": self.record.get("provenance", {}).get("command")}
 
@@ -135,6 +135,16 @@ class Calibration:
                                                        for k, v in mills.items()}}
         rec.update(record)
         return Calibration(rec)
+
+
+def _shown_path(path) -> str | None:
+    """A shipped calibration's path inside the package (the same on every machine), else the file's."""
+    if path is None:
+        return None
+    path = Path(path)
+    if path.parent.resolve() == CALIBRATION_DIR.resolve():
+        return f"twin/calibration/files/{path.name}"
+    return str(path)
 
 
 def base_record(name: str, breakage_map: str, description: str) -> dict:
