@@ -14,7 +14,7 @@ _API = {
     "MILLS": ".mill", "Mill": ".mill", "bond_power_kw": ".mill", "get_mill": ".mill",
     "hogg_fuerstenau_power_kw": ".mill", "load_status": ".mill", "POWER_MODELS": ".mill", "power_kw": ".mill",
     "Hydrocyclone": ".effects.classification", "hydrocyclone_from": ".effects.classification",
-    "TabulatedPSD": ".sizes", "SizedMill": ".sizing", "size_mill": ".sizing", "write_preset": ".sizing",
+    "TabulatedPSD": ".sizes", "SizedMill": ".sizing", "size_mill": ".sizing", "write_preset": ".sizing", "check_preset_path": ".sizing",
     "INPUT_NAMES": ".model", "Model": ".model", "ModelSpec": ".model",
     "Blend": ".ore", "Mineralogy": ".ore", "Texture": ".ore", "load_ore": ".ore", "reference_ores": ".ore",
     "GatesGaudinSchuhmann": ".sizes", "RosinRammler": ".sizes", "SizeGrid": ".sizes", "discretise": ".sizes",
@@ -27,7 +27,7 @@ __all__ = [
     "Blend", "BreakageParams", "DEFAULT_EFFECTS", "EFFECTS", "Effect", "GatesGaudinSchuhmann", "INPUT_NAMES", "MILLS",
     "Hydrocyclone", "Mill", "Mineralogy", "Model", "ModelError", "ModelSpec", "OreBreakage", "POWER_MODELS", "RosinRammler",
     "SizeGrid", "SizedMill", "SolverError", "SteadyState", "TabulatedPSD", "Texture", "Trajectory", "Twin", "TwinError",
-    "TwinInputError", "austin_selection", "bond_power_kw", "hydrocyclone_from", "power_kw", "size_mill", "write_preset",
+    "TwinInputError", "austin_selection", "bond_power_kw", "hydrocyclone_from", "power_kw", "size_mill", "write_preset", "check_preset_path",
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
     "pxx_um", "reference_ores",
 ]

@@ -115,7 +115,7 @@ LAB = Mill("lab", diameter_m=0.5, length_m=0.3, feed_nominal_tph=0.031, ball_siz
 #: from which `grindtwin size-mill` sizes the ``industrial`` preset.
 INDUSTRIAL_BASE = Mill("industrial", diameter_m=3.2, length_m=4.8, feed_nominal_tph=30.0, ball_size_mm=25.0)
 #: The ``industrial`` preset: the base shape at the size `grindtwin size-mill --ore B --feed-tph 31
-#: --target-p80-um 210 --write-preset` found (twin.sizing), with its hydrocyclones.
+#: --target-p80-um 210 --write-preset twin/data/industrial_mill.json` found (twin.sizing), with its hydrocyclones.
 INDUSTRIAL_PRESET_PATH = Path(__file__).resolve().parent / "data" / "industrial_mill.json"
 
 
@@ -126,7 +126,7 @@ def industrial_preset() -> Mill:
 
     if not INDUSTRIAL_PRESET_PATH.is_file():
         raise TwinError(f"No industrial mill preset {INDUSTRIAL_PRESET_PATH}: run "
-                        "`grindtwin size-mill --ore B --feed-tph 31 --target-p80-um 210 --write-preset`.")
+                        "`grindtwin size-mill --ore B --feed-tph 31 --target-p80-um 210 --write-preset twin/data/industrial_mill.json`.")
     record = json.loads(INDUSTRIAL_PRESET_PATH.read_text(encoding="utf-8"))
     return INDUSTRIAL_BASE.with_(**record["mill"], cyclone=tuple(sorted(record["cyclone"].items())))
 

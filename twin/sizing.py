@@ -27,7 +27,7 @@ import scipy.sparse.linalg
 
 from .effects.classification import Hydrocyclone
 from .errors import SolverError, check_range
-from .mill import INDUSTRIAL_BASE, INDUSTRIAL_PRESET_PATH, Mill, get_mill
+from .mill import INDUSTRIAL_BASE, Mill, get_mill
 from .twin import DEFAULT_EFFECTS, Twin
 
 #: Design circulating load (underflow over fresh feed) of a ball mill-cyclone circuit.
@@ -134,12 +134,39 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
                      calibration.identity())
 
 
-def write_preset(sized: SizedMill, command: str, path: Path = INDUSTRIAL_PRESET_PATH) -> Path:
-    """Write the sized mill as the ``industrial`` preset (temporary file renamed over the old)."""
+#: The keys of a preset file grindtwin wrote (:meth:`SizedMill.record`).
+PRESET_KEYS = ("mill", "cyclone", "sizing", "command")
+
+
+def check_preset_path(path) -> Path:
+    """``path`` if a preset may be written there: a new file in an existing folder, or a preset
+    file grindtwin wrote; TwinInputError otherwise (called before any sizing work)."""
+    from .errors import TwinInputError
+
     path = Path(path)
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(sized.record(command), indent=2) + "\n", encoding="utf-8")
-    tmp.replace(path)
+    if path.is_dir():
+        raise TwinInputError(f"The preset output {path} is a folder; give a file path.")
+    if path.exists():
+        try:
+            record = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+            record = None
+        if not (isinstance(record, dict) and all(k in record for k in PRESET_KEYS)):
+            raise TwinInputError(f"Refusing to overwrite {path}: it is not a mill preset grindtwin wrote.")
+    if not path.parent.is_dir():
+        raise TwinInputError(f"The folder of the preset output {path} does not exist.")
+    return path
+
+
+def write_preset(sized: SizedMill, command: str, path) -> Path:
+    """Write the sized mill as a preset file at ``path`` (the shipped ``industrial`` preset is
+    INDUSTRIAL_PRESET_PATH, written only when named), atomically."""
+    from .calibration.files import write_json_atomically
+    from .mill import industrial_preset
+
+    path = check_preset_path(path)
+    write_json_atomically(path, sized.record(command))
+    industrial_preset.cache_clear()
     return path
 
 

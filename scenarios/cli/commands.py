@@ -591,8 +591,9 @@ def add_size_mill_parser(subparsers):
     z.add_argument("--target-p80-um", required=True, type=_float_in("--target-p80-um", 1.0, 1e4))
     z.add_argument("--speed", type=_float_in("--speed", 0.3, 0.95), default=0.70,
                    help="mill speed as a fraction of critical (0.70, not 70)")
-    z.add_argument("--write-preset", action="store_true",
-                   help="write the answer as the `industrial` preset (twin/data/industrial_mill.json)")
+    z.add_argument("--write-preset", metavar="PATH",
+                   help="also write the answer as a preset file here (a new file or a preset grindtwin wrote; "
+                   "the shipped `industrial` preset is twin/data/industrial_mill.json, written only when named)")
     z.add_argument("--json", action="store_true", help="print the answer as JSON")
     z.set_defaults(func=cmd_size_mill)
     return z
@@ -602,14 +603,16 @@ def add_size_mill_parser(subparsers):
 def cmd_size_mill(args) -> int:
     import json
 
-    from twin import load_ore, size_mill, write_preset
+    from twin import check_preset_path, load_ore, size_mill, write_preset
 
+    if args.write_preset:
+        check_preset_path(args.write_preset)  # before the sizing's minutes of work
     sized = size_mill(load_ore(args.ore), args.feed_tph, args.target_p80_um, args.speed)
     command = (f"grindtwin size-mill --ore {args.ore} --feed-tph {args.feed_tph:g} --target-p80-um "
                f"{args.target_p80_um:g} --speed {args.speed:g}")
     record = sized.record(command)
     if args.write_preset:
-        print(f"wrote {write_preset(sized, command + ' --write-preset')}")
+        print(f"wrote {write_preset(sized, f'{command} --write-preset {args.write_preset}', args.write_preset)}")
     if args.json:
         print(json.dumps(record, indent=2))
         return 0

@@ -162,3 +162,14 @@ def test_mpc_and_dem_errors_reach_the_command_line_as_one_line(monkeypatch, caps
     assert grindtwin(["optimize", "--target-p80-um", "210"]) == code
     err = capsys.readouterr().err
     assert err == f"{head}the solver said no\n"
+
+
+def test_size_mill_refuses_a_users_file_before_sizing(tmp_path, capsys, monkeypatch):
+    import twin
+
+    mine = tmp_path / "mill.json"
+    mine.write_text("my notes")
+    monkeypatch.setattr(twin, "size_mill", lambda *a, **k: pytest.fail("sized although the output is refused"))
+    assert grindtwin(["size-mill", "--feed-tph", "31", "--target-p80-um", "210", "--write-preset", str(mine)]) == 2
+    assert "not a mill preset grindtwin wrote" in capsys.readouterr().err
+    assert mine.read_text() == "my notes"

@@ -159,3 +159,20 @@ def test_missing_preset_file_names_the_command(monkeypatch, tmp_path):
     finally:
         monkeypatch.undo()
         mill_module.industrial_preset.cache_clear()
+
+
+def test_a_preset_is_written_only_where_grindtwin_may_write(tmp_path):
+    """size-mill --write-preset: a new file or a preset grindtwin wrote; never a user's file."""
+    from twin import check_preset_path
+
+    assert check_preset_path(tmp_path / "new.json") == tmp_path / "new.json"
+    assert check_preset_path(INDUSTRIAL_PRESET_PATH) == INDUSTRIAL_PRESET_PATH  # a preset it wrote
+    mine = tmp_path / "notes.json"
+    mine.write_text('{"mine": true}')
+    with pytest.raises(TwinInputError, match="not a mill preset grindtwin wrote"):
+        check_preset_path(mine)
+    with pytest.raises(TwinInputError, match="is a folder"):
+        check_preset_path(tmp_path)
+    with pytest.raises(TwinInputError, match="does not exist"):
+        check_preset_path(tmp_path / "nowhere" / "p.json")
+    assert mine.read_text() == '{"mine": true}'
