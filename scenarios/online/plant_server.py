@@ -80,6 +80,8 @@ class PlantServerSettings:
     watchdog_h: float | None = None
     initial_mode: str | int | None = None
     paused: bool = False
+    seed: int | None = None
+    """The analysers' noise seed (None: the scene's, as the in-process loop's default)."""
 
 
 class PlantServer(Stoppable):
@@ -100,7 +102,8 @@ class PlantServer(Stoppable):
         ss = plant_start(scene, models, self.schedule(0.0))
         self.plant = TwinPlant(models.plant.model)
         self.x, self.u = np.asarray(ss.x, float).copy(), np.asarray(ss.u, float).copy()
-        self.sensor = SensorState(scene_sensors(scene), np.random.default_rng(scene.scene.seed))
+        seed = scene.scene.seed if settings.seed is None else settings.seed
+        self.sensor = SensorState(scene_sensors(scene), np.random.default_rng(seed))
         self.lead_h = tags.belt_analyser.lead_h if tags.belt_analyser is not None else 0.0
         self.watchdog_h = settings.watchdog_h or WATCHDOG_SAMPLES * self.dt_h
         auto = tags.mode.auto_value
@@ -398,8 +401,13 @@ class PlantServer(Stoppable):
         return pd.DataFrame(self.rows)
 
     def kpis(self) -> dict:
-        """KPIs of the recorded run from the scene's time 0 (:func:`mpc.loop_kpis`)."""
+        """KPIs of the recorded run from the scene's time 0 (:func:`mpc.loop_kpis`). A row holds the
+        inputs in effect at its time, the end of the sample before; the in-process frame's row holds
+        the inputs applied from its time on (its feed is integrated forward), so the inputs are the
+        next row's here (the last row keeps its own)."""
         f = self.frame()
+        for c in ("feed_tph", "speed_frac_critical"):
+            f[c] = f[c].shift(-1).fillna(f[c])
         f = f[f["time_h"] >= -1e-9].reset_index(drop=True)
         k = loop_kpis(f, tuple(self.scene.controller.load_band_frac)) if len(f) > 1 else {}
         return {key: v for key, v in k.items() if not key.startswith(("solve_time", "fallback"))}
