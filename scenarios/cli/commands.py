@@ -724,12 +724,23 @@ def _add_online_options(p) -> None:
     p.add_argument("--quiet", action="store_true", help="log warnings and errors only")
 
 
+def _seed(text: str) -> int:
+    """argparse type of ``--seed``: an integer >= 0 (numpy's seeds)."""
+    import argparse
+
+    if not text.isdigit():
+        raise argparse.ArgumentTypeError(f"--seed must be an integer >= 0. Got {text!r}.")
+    return int(text)
+
+
 def _online_logging(args) -> None:
     import logging
 
     logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO, stream=sys.stderr,
                         format="%(asctime)s %(name)s %(levelname)s %(message)s")
     logging.getLogger("asyncua").setLevel(logging.ERROR)
+    # its session's publish loop logs a traceback when the server goes; the service logs the loss
+    logging.getLogger("asyncua.client.ua_session").setLevel(logging.CRITICAL)
 
 
 def add_serve_parser(subparsers):
@@ -786,6 +797,7 @@ def add_plant_server_parser(subparsers):
                    help="shed the service after this long without its heartbeat (default 3 samples)")
     p.add_argument("--mode", default=None, help="initial operator mode (default: the tag map's auto value)")
     p.add_argument("--paused", action="store_true", help="start frozen; Simulation.Run = true starts the plant")
+    p.add_argument("--seed", type=_seed, default=None, help="the analysers' noise seed (default: the scene's)")
     p.add_argument("--trust", help="folder of the client certificates accepted")
     p.add_argument("--users", help="users file (TOML, scrypt hashes)")
     p.set_defaults(func=cmd_plant_server)
@@ -812,7 +824,8 @@ def cmd_plant_server(args) -> int:
         mode = int(mode)
     settings = online.PlantServerSettings(args.opcua, security, speedup=args.speedup, hold_h=args.hold_h,
                                           duration_h=args.duration_h, record_dir=args.record and Path(args.record),
-                                          watchdog_h=args.watchdog_h, initial_mode=mode, paused=args.paused)
+                                          watchdog_h=args.watchdog_h, initial_mode=mode, paused=args.paused,
+                                          seed=args.seed)
     asyncio.run(online.PlantServer(scene, tags, settings).run())
     return 0
 
