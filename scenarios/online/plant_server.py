@@ -327,11 +327,13 @@ class PlantServer(Stoppable):
         self.t_h, self.anchor = t1, (wall, t1)
         vals = self._measure()
         self._publish(vals, wall)
+        # the record (a file every record_every samples) before the sample is served: a client
+        # that cycles on the new values then finds the server free
+        self._record(vals)
         if self.server is not None:
             for role, dv in self.published.items():
                 await self.server.write_attribute_value(ua.NodeId.from_string(self._node_ids[role]), dv)
             await self._watchdog()
-        self._record(vals)
 
     async def _step(self, d, dt_h: float) -> None:
         """Integrate in a worker thread (CasADi's integrator releases the GIL), so that the server

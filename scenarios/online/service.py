@@ -247,7 +247,7 @@ class Service(Stoppable):
 
     async def _connected_cycle(self, now, t_h: float, steps: int, row: dict, t0: float, cpu0: float) -> None:
         readings = await self.conn.read()
-        row["read_s"] = time.perf_counter() - t0
+        row["read_s"], row["read_cpu_s"] = time.perf_counter() - t0, time.process_time() - cpu0
         v = {role: self.quality[role].assess(r, now, self.clock) for role, r in readings.items() if role != "mode"}
         for role, verdict in v.items():
             row[f"{role}_quality"] = verdict.quality
@@ -255,9 +255,9 @@ class Service(Stoppable):
         auto = self._auto(readings["mode"], t_h)
         blend_now, preview = self._belt(v, t_h)
         u_act, inputs_note = self._inputs(v, t_h)
-        t1 = time.perf_counter()
+        t1, c1 = time.perf_counter(), time.process_time()
         x_est, d_est, est_note = self._estimate(v, u_act, blend_now, steps, t_h)
-        row["estimate_s"] = time.perf_counter() - t1
+        row["estimate_s"], row["estimate_cpu_s"] = time.perf_counter() - t1, time.process_time() - c1
         mode, reason = self._decide(auto, x_est, t_h, inputs_note or est_note)
         u_prop, res, solve_note = self._solve(mode, x_est, d_est, preview, u_act, row)
         mode, reason = ("hold", solve_note) if solve_note else (mode, reason)
@@ -388,7 +388,7 @@ class Service(Stoppable):
         if mode == "warmup" or x_est is None or u_prev is None:
             return None, None, ""
         D = np.vstack([np.array(preview, float).T, np.full(self.n_stages, float(d_est[-1]))])
-        t1 = time.perf_counter()
+        t1, c1 = time.perf_counter(), time.process_time()
         try:
             res = self.parts.controller.make_step(x_est, D, u_prev, y_meas=self.p80_held,
                                                   p80_bias_um=self.parts.estimator.p80_bias_um)
@@ -396,7 +396,7 @@ class Service(Stoppable):
             log.exception("the controller failed")
             return None, None, f"the controller failed: {type(exc).__name__}: {exc}"
         finally:
-            row["solve_s"] = time.perf_counter() - t1
+            row["solve_s"], row["solve_cpu_s"] = time.perf_counter() - t1, time.process_time() - c1
         return np.asarray(res.u_applied, float), res, ""
 
     def _moves(self, mode: str, u_prop, u_act) -> tuple[dict, str]:
@@ -428,9 +428,9 @@ class Service(Stoppable):
         items["heartbeat"] = (self.heartbeat, ua.StatusCodes.Good)
         if self.tags.status is not None:
             items["status"] = ((f"{mode}: {reason}" if reason else mode)[:STATUS_MAX_CHARS], ua.StatusCodes.Good)
-        t1 = time.perf_counter()
+        t1, c1 = time.perf_counter(), time.process_time()
         results = await self.conn.write(items, self.clock.now())
-        row["write_s"] = time.perf_counter() - t1
+        row["write_s"], row["write_cpu_s"] = time.perf_counter() - t1, time.process_time() - c1
         refused = {r: status_name(c) for r, c in results.items() if c != ua.StatusCodes.Good}
         if refused:
             log.error("the server refused writes: %s", refused)

@@ -99,30 +99,6 @@ def short(tmp_path_factory):
     return path, scene, online.load_tags(online.VIRTUAL_PLANT_TAGS, scene), online.build_parts(scene)
 
 
-async def _lock_step(scene, tags, parts, audit, seed, late_frac):
-    """The served loop against the virtual plant on one manual clock, each cycle ``late_frac``
-    of a sample after the plant's sample; the plant's KPIs."""
-    parts.reset()
-    clock, dt = online.ManualClock(60.0), scene.scene.sample_period_h
-    url = f"opc.tcp://127.0.0.1:{free_port()}"
-    plant = online.PlantServer(scene, tags, online.PlantServerSettings(
-        url, online.ServerSecurity(insecure=True), hold_h=WARMUP_H, seed=seed), models=parts.models, clock=clock)
-    service = online.Service(parts, tags, online.ServeSettings(
-        url, online.ClientSecurity(insecure=True), audit, warmup_h=WARMUP_H), clock=clock)
-    await plant.start()
-    await service.connect()
-    await service.cycle()  # the estimator starts with the plant's hold, as in process
-    for _ in range(round((WARMUP_H + scene.scene.duration_h) / dt)):
-        clock.advance(dt * (1 - late_frac))
-        await plant.tick()
-        clock.advance(dt * late_frac)
-        await service.cycle()
-    await service.shutdown("test end")
-    await plant.stop_server()
-    parts.reset()
-    return plant.kpis()
-
-
 KEYS = ("p80_iae_um_h", "p80_within_10um_frac", "p80_max_abs_err_um", "specific_energy_kwh_t", "throughput_t")
 
 
@@ -131,12 +107,12 @@ def test_in_lock_step_the_served_loop_is_the_in_process_loop(short, tmp_path):
     """Same scene, seed, warm-up and analyser: over OPC UA the loop is the in-process one, to
     rounding; a move a sample late (the service cycling just before the plant's next sample) is
     outside the real-time test's tolerance, so that test can tell the loops apart."""
-    _, scene, tags, parts = short
+    _, _, tags, parts = short
     ref = online.run_in_process(parts, 2, WARMUP_H).kpis
-    same = asyncio.run(_lock_step(scene, tags, parts, tmp_path / "a0", 2, 0.0))
+    same = asyncio.run(online.run_lock_step(parts, tags, 2, tmp_path / "a0", WARMUP_H)).kpis()
     for k in KEYS:  # specific energy: the in-process frame's last row holds a move never applied
         assert same[k] == pytest.approx(ref[k], rel=5e-4 if k == "specific_energy_kwh_t" else 1e-6, abs=1e-9), k
-    late = asyncio.run(_lock_step(scene, tags, parts, tmp_path / "a1", 2, 0.9))
+    late = asyncio.run(online.run_lock_step(parts, tags, 2, tmp_path / "a1", WARMUP_H, late_frac=0.9)).kpis()
     assert late["specific_energy_kwh_t"] / ref["specific_energy_kwh_t"] - 1 > 2 * SE_REL_TOL
 
 
