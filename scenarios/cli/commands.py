@@ -733,6 +733,17 @@ def _seed(text: str) -> int:
     return int(text)
 
 
+def _online_scene(args, tags_path):
+    """``(scenarios.online, scene, tag map)`` of an OPC UA command, logging set up; the scene and
+    the tag map are checked before anything connects."""
+    from scenarios.scene import load_scene
+
+    online = _online()
+    _online_logging(args)
+    scene = load_scene(args.scene)
+    return online, scene, online.load_tags(tags_path, scene)
+
+
 def _online_logging(args) -> None:
     import logging
 
@@ -764,12 +775,7 @@ def add_serve_parser(subparsers):
 def cmd_serve(args) -> int:
     import asyncio
 
-    from scenarios.scene import load_scene
-
-    online = _online()
-    _online_logging(args)
-    scene = load_scene(args.scene)
-    tags = online.load_tags(args.tags, scene)
+    online, scene, tags = _online_scene(args, args.tags)
     security = online.ClientSecurity(args.insecure, args.cert and Path(args.cert), args.key and Path(args.key),
                                      args.server_cert and Path(args.server_cert), args.user,
                                      online.read_password(args.password_file and Path(args.password_file))
@@ -808,12 +814,7 @@ def add_plant_server_parser(subparsers):
 def cmd_plant_server(args) -> int:
     import asyncio
 
-    from scenarios.scene import load_scene
-
-    online = _online()
-    _online_logging(args)
-    scene = load_scene(args.scene)
-    tags = online.load_tags(args.tags or online.VIRTUAL_PLANT_TAGS, scene)
+    online, scene, tags = _online_scene(args, args.tags or _online().VIRTUAL_PLANT_TAGS)
     security = online.ServerSecurity(args.insecure, *(a and Path(a) for a in (args.cert, args.key, args.trust,
                                                                               args.users)))
     security.check()
