@@ -164,9 +164,9 @@ class NmpcSettings:
     tol: float = 1e-6
     """Convergence tolerance of the NLP solver."""
     hessian: str = "exact"
-    """IPOPT Hessian: "exact" (NLP expanded to SX; converges in 2-5 iterations here, but the
-    build takes 20-200 s as the horizon grows) or "limited-memory" (L-BFGS, MX graph, builds in
-    about a second; measured: did not converge in 100 iterations on the mill model)."""
+    """IPOPT Hessian: "exact" (NLP expanded to SX; few iterations, but the build grows with the
+    horizon) or "limited-memory" (L-BFGS, MX graph, quick to build, but slow to converge on the
+    mill model; ``benchmarks/mpc_nmpc_build.py``)."""
     warm_start: bool = True
     """Start from the previous solution shifted by one sample (primal and dual)."""
     preview: bool = True

@@ -1,6 +1,6 @@
 """Steady-state set-point optimiser: feed rate and speed that hold a target P80 with a stable load.
 
-On the twin's steady state (``Twin.steady``, ~10 ms): for a blend, the P80 rises with feed rate
+On the twin's steady state (``Twin.steady``): for a blend, the P80 rises with feed rate
 and falls with speed (over the usable range), so
 
 - ``"feed"``: speed held (default: the mill's nominal), the feed rate that gives the target is
