@@ -17,6 +17,7 @@ an unreachable target is reported in ``message``, never replaced by the nearest 
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -81,6 +82,7 @@ def feed_for_target(twin, blend, target_p80_um: float, speed_frac_critical: floa
     ends at the highest feed, halving towards the lower bound, that it holds."""
     from twin import SolverError
 
+    @functools.cache  # the bracket's end is solved once, for the overload test and the root
     def gap(f):
         return twin.steady(feed_tph=f, speed_frac_critical=speed_frac_critical, blend=blend,
                            hardness_scale=hardness_scale).p80_um - target_p80_um
