@@ -66,8 +66,7 @@ def test_pyrite_for_biotite_raises_energy_and_refines_slightly():
 
 @pytest.mark.xfail(strict=True, reason=(
     "on the full DEM step the throughput at constant load rises by 0.16 % (it fell by 0.03 % on the "
-    "10-particle step): the model puts the throughput's response within 0.2 % of zero, the denser "
-    "charge's extra mass against the slower breakage"))
+    "10-particle step): the model puts the throughput's response within 0.2 % of zero"))
 def test_pyrite_for_biotite_slows_the_mill_at_constant_load():
     claim = pyrite_claim()
     assert claim["slows"], claim
