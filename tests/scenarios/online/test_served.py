@@ -76,8 +76,9 @@ WARMUP_H = 0.5
 #: scan mark after the cycle, a share of a sample late (MAX_LATE_FRAC at most, median). In lock-step
 #: runs of this case (seeds 1-3, moves 0.1-0.25 of a sample late) the IAE moved by up to 0.34 um h
 #: either way (it is about 1.5 um h: noise-driven, any change of timing changes it) and the specific
-#: energy rose by 0.04-0.13 %; a move 0.9 of a sample late raised the energy by 0.41-0.46 %
-#: (benchmarks/results/online_cycle.md).
+#: energy rose by 0.04-0.13 %; a move 0.9 of a sample late raised the energy by 0.42-0.46 %
+#: (online.run_lock_step(..., late_frac=F) beside online.run_in_process; the 8-hour case over five
+#: seeds: benchmarks/results/online_cycle.md).
 IAE_TOL_UM_H, SE_REL_TOL, MAX_LATE_FRAC = 0.35, 0.0015, 0.25
 #: The real-time run's sample period in wall-clock seconds, as a multiple of the in-process NMPC
 #: step's p95 measured just before on this machine (and at least MIN_PERIOD_S): a move follows
