@@ -1,22 +1,27 @@
-"""One cycle of the served controller (read, estimate, solve, write) on loopback, and what the
-secure session costs; the reference transition served on the virtual plant beside the in-process loop.
+"""One cycle of the served controller (read, estimate, solve, write) on loopback, what the secure
+session costs, and the reference transition served on the virtual plant against the in-process
+loop over several seeds.
 
 Set-up: ``grindtwin plant-server`` in its own process serves scenarios/reference_transition.toml
 over Basic256Sha256 SignAndEncrypt with user authentication (certificates and a user made for
 this run in a temporary folder), sped up ``--speedup`` times, after a 2-hour hold at the initial
-blend; a second plant server serves the same nodes unsecured (``--insecure``, frozen).
-``scenarios.online.Service`` runs in this process with the scene's EKF and NMPC.
+blend, with the analysers' noise of each seed (``--seed``); a second plant server serves the same
+nodes unsecured (``--insecure``, frozen). ``scenarios.online.Service`` runs in this process with
+the scene's EKF and NMPC; its cycle starts on each new analyser report (the virtual plant's tag map).
 
 1. Transport, interleaved: the service's read of every tag and its write of the setpoints,
    heartbeat and status, over the secure and the unsecured session in turn (A, B, A, B, ...).
-2. The served run: the whole 8-hour transition in sped-up real time; per-cycle times from the
-   audit log, the plant's KPIs from its record, beside the in-process loop (mpc.run_closed_loop
-   wired as scenarios.run.closed_loop wires it, same seed and warm-up).
-3. docs/online_served_run.png: P80 (plant, analyser, target), setpoints and modes of the served run.
+2. Per seed: the in-process loop (mpc.run_closed_loop wired as scenarios.run.closed_loop wires it),
+   the served loop in lock step on one manual clock (over OPC UA, no wall-clock timing; each cycle
+   ``--late`` of a sample after the plant's sample: 0 is the in-process loop's timing), and the
+   whole 8-hour transition served in sped-up real time; KPIs from the plant's record, per-cycle
+   times from the audit log, when the moves took effect from the plant's record.
+3. docs/online_served_run.png: P80 (plant, analyser, target), setpoints of the first seed's served run.
 
-Writes benchmarks/results/online_cycle.md and online_cycle.csv (per-cycle times of the served run).
+Writes benchmarks/results/online_cycle.md, online_cycle.csv (per-cycle times of the served runs)
+and online_cycle_seeds.csv (KPIs per seed and loop).
 
-    python benchmarks/online_cycle.py [--speedup 60] [--rounds 300]
+    python benchmarks/online_cycle.py [--speedup 180] [--rounds 300] [--seeds 1,2,3,4,5] [--late 0,0.5,0.9]
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import math
 import os
 import platform
 import socket
@@ -40,6 +46,7 @@ import pandas as pd
 from asyncua import ua
 
 import scenarios.online as online
+from scenarios.online.plant_server import MIN_PIECE_FRAC
 from scenarios.run.closed_loop import ESTIMATOR_WARMUP_H
 from scenarios.scene import load_scene
 
@@ -68,17 +75,18 @@ def make_pki(d: Path) -> None:
     (d / "users.toml").write_text(f'[users.{USER}]\npassword_scrypt = "{online.hash_password(PASSWORD)}"\n')
 
 
-def start_plants(d: Path, speedup: float, logs):
-    """The secure plant server (frozen until the served run) and the unsecured one (frozen)."""
-    secure_url, open_url = f"opc.tcp://127.0.0.1:{free_port()}", f"opc.tcp://127.0.0.1:{free_port()}"
-    common = [str(SCENE), "--speedup", str(speedup), "--paused", "--quiet"]
-    # logs to files, not pipes: a full pipe would stall a server
-    secure = subprocess.Popen([*CLI, "plant-server", *common, "--opcua", secure_url, "--hold-h", str(ESTIMATOR_WARMUP_H),
-                               "--duration-h", "8", "--record", str(d / "plant"), "--cert", str(d / "server.pem"),
-                               "--key", str(d / "server-key.pem"), "--trust", str(d / "trust"), "--users",
-                               str(d / "users.toml")], stderr=logs[0])
-    unsecured = subprocess.Popen([*CLI, "plant-server", *common, "--opcua", open_url, "--insecure"], stderr=logs[1])
-    return (secure, secure_url), (unsecured, open_url)
+def start_plant(d: Path, speedup: float, log, seed: int | None = None, secure: bool = True):
+    """A frozen plant server: the secure one with the seed's analysers and a record (the served
+    runs), or the unsecured one (the transport's comparison)."""
+    url = f"opc.tcp://127.0.0.1:{free_port()}"
+    cmd = [*CLI, "plant-server", str(SCENE), "--speedup", str(speedup), "--paused", "--quiet", "--opcua", url]
+    if secure:
+        cmd += ["--hold-h", str(ESTIMATOR_WARMUP_H), "--duration-h", "8", "--seed", str(seed), "--record",
+                str(d / f"plant-{seed}"), "--cert", str(d / "server.pem"), "--key", str(d / "server-key.pem"),
+                "--trust", str(d / "trust"), "--users", str(d / "users.toml")]
+    else:
+        cmd += ["--insecure"]
+    return subprocess.Popen(cmd, stderr=log), url  # logs to a file, not a pipe: a full pipe would stall a server
 
 
 def client_security(d: Path) -> online.ClientSecurity:
@@ -126,18 +134,21 @@ async def transport(tags, secure, unsecured, rounds: int) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-async def served(parts, tags, d: Path, secure_url: str, proc, speedup: float):
-    """The served run on the secure plant server: unfreeze it and serve until its run ends."""
-    service = online.Service(parts, tags, online.ServeSettings(secure_url, client_security(d), d / "audit",
-                                                               speedup=speedup))
+async def served(parts, tags, d: Path, url: str, proc, speedup: float, seed: int):
+    """The served run on a secure plant server: connect while it is frozen, let it run, serve
+    until its run ends. The frozen plant's readings are stale by then, so the estimator starts at
+    the plant's first sample, one into the hold (the warm-up is one sample shorter to match)."""
+    await (await connected(url, client_security(d), tags)).close()  # it listens: the service connects at once
+    service = online.Service(parts, tags, online.ServeSettings(
+        url, client_security(d), d / f"audit-{seed}", speedup=speedup,
+        warmup_h=ESTIMATOR_WARMUP_H - parts.scene.scene.sample_period_h))
     task = asyncio.create_task(service.run(install_signal_handlers=False))
-    await wait_until(lambda: service.conn is not None, 120, "the service's session")
-    run = online.PlantConnection(secure_url, client_security(d), {}, {"run": "ns=2;s=Simulation.Run"})
+    await wait_until(lambda: service.conn is not None, 300, "the service's session")
+    run = online.PlantConnection(url, client_security(d), {}, {"run": "ns=2;s=Simulation.Run"})
     await run.open()
     await run.write({"run": (True, ua.StatusCodes.Good)}, online.Clock().now())
     await run.close()
-    await wait_until(lambda: proc.poll() is not None or (service.conn is None and service.k > 50), 3600,
-                     "the end of the plant's run")
+    await wait_until(lambda: proc.poll() is not None, 3600, "the end of the plant's run")
     service.request_stop("benchmark end")
     await task
 
@@ -176,16 +187,50 @@ def table(rows: list[list], header: list[str]) -> str:
     return "\n".join(out)
 
 
-def report(tr: pd.DataFrame, cycles: pd.DataFrame, served_k: dict, ref_k: dict, args, load, plant_run) -> str:
+KEYS = ["p80_iae_um_h", "p80_within_10um_frac", "p80_max_abs_err_um", "specific_energy_kwh_t", "throughput_t",
+        "load_outside_band_frac"]
+PARTS = [("read", "read"), ("estimate (EKF)", "estimate"), ("solve (NMPC)", "solve"), ("write", "write"),
+         ("cycle: read, estimate, solve, write", "write_done")]
+
+
+def cycle_table(auto: pd.DataFrame) -> str:
+    ms = lambda v: f"{1e3 * v:.1f}"  # noqa: E731
+    rows = []
+    for name, c in PARTS:
+        cpu = auto.get(f"{c}_cpu_s")
+        rows.append([name, ms(pct(auto[f"{c}_s"], 50)), ms(pct(auto[f"{c}_s"], 95)),
+                     ms(pct(cpu, 50)) if cpu is not None else "", ms(pct(cpu, 95)) if cpu is not None else ""])
+    rows.append(["soft sensor (after the write)", ms(pct(auto["soft_s"], 50)), ms(pct(auto["soft_s"], 95)), "", ""])
+    return table(rows, ["part of a cycle (auto)", "wall median ms", "wall p95 ms", "CPU median ms", "CPU p95 ms"])
+
+
+def seeds_table(k: pd.DataFrame, loops: list[str]) -> str:
+    rows = []
+    for key in KEYS:
+        row = [key]
+        for loop in loops:
+            v = k[k["loop"] == loop][key].to_numpy(float)
+            row.append(f"{np.mean(v):.4g} ({np.min(v):.4g}-{np.max(v):.4g})")
+        rows.append(row)
+    return table(rows, ["KPI (t >= 0), mean (min-max) over seeds", *loops])
+
+
+def paired_table(k: pd.DataFrame, loops: list[str]) -> str:
+    ref = k[k["loop"] == "in-process"].set_index("seed")
+    rows = []
+    for seed in ref.index:
+        row = [seed, f"{ref.loc[seed, 'p80_iae_um_h']:.3f}"]
+        for loop in loops:
+            o = k[(k["loop"] == loop) & (k["seed"] == seed)].iloc[0]
+            row.append(f"{o['p80_iae_um_h']:.3f} ({o['p80_iae_um_h'] - ref.loc[seed, 'p80_iae_um_h']:+.3f}), "
+                       f"{100 * (o['specific_energy_kwh_t'] / ref.loc[seed, 'specific_energy_kwh_t'] - 1):+.3f} %")
+        rows.append(row)
+    return table(rows, ["seed", "in-process IAE um h", *[f"{lp}: IAE (diff), energy diff" for lp in loops]])
+
+
+def report(tr: pd.DataFrame, cycles: pd.DataFrame, kpis: pd.DataFrame, moves: pd.DataFrame, args, loads) -> str:
     ms = lambda v: f"{1e3 * v:.1f}"  # noqa: E731
     auto = cycles[cycles["mode"] == "auto"]
-    comp = [["read", "read_s"], ["estimate (EKF)", "estimate_s"], ["solve (NMPC)", "solve_s"], ["write", "write_s"],
-            ["cycle: read, estimate, solve, write", "write_done_s"], ["soft sensor (after the write)", "soft_s"]]
-    t1 = table([[name, ms(pct(auto[c], 50)), ms(pct(auto[c], 95)), int(auto[c].notna().sum())] for name, c in comp
-                if c in auto] + [["cycle, the service's CPU time", ms(pct(auto["write_done_cpu_s"], 50)),
-                                  ms(pct(auto["write_done_cpu_s"], 95)), int(auto["write_done_cpu_s"].notna().sum())]],
-               ["part of a cycle (auto)", "median ms", "p95 ms", "cycles"])
-    share = {c: pct(auto[c], 50) / pct(auto["write_done_s"], 50) for c in ("read_s", "estimate_s", "solve_s", "write_s")}
     g = tr.groupby("session")
     t2 = table([[s, ms(g.get_group(s)["read_s"].median()), ms(g.get_group(s)["write_s"].median()),
                  ms(g.get_group(s)["read_write_s"].median()), ms(pct(g.get_group(s)["read_write_s"], 95)),
@@ -193,26 +238,27 @@ def report(tr: pd.DataFrame, cycles: pd.DataFrame, served_k: dict, ref_k: dict, 
                ["session", "read median ms", "write median ms", "read + write median ms", "read + write p95 ms",
                 "rounds"])
     ratio = g.get_group("secure")["read_write_s"].median() / g.get_group("unsecured")["read_write_s"].median()
-    keys = ["p80_iae_um_h", "p80_within_10um_frac", "p80_max_abs_err_um", "specific_energy_kwh_t", "throughput_t",
-            "load_outside_band_frac"]
-    t3 = table([[k, f"{ref_k[k]:.4g}", f"{served_k[k]:.4g}"] for k in keys], ["KPI (t >= 0)", "in-process", "served"])
-    modes = cycles["mode"].value_counts().to_dict()
-    goal = pct(auto["write_done_s"], 95) <= 0.050
-    return f"""# Online: one served cycle on loopback, and the reference transition served
+    loops = list(dict.fromkeys(kpis["loop"]))
+    others = [lp for lp in loops if lp != "in-process"]
+    wall95, cpu95 = pct(auto["write_done_s"], 95), pct(auto["write_done_cpu_s"], 95)
+    late = moves["setpoint_applied_at_frac"].dropna()
+    started = auto["started_by"].value_counts().to_dict()
+    load_txt = ", ".join(f"seed {s}: {a:.1f}-{b:.1f}" for s, (a, b) in loads.items())
+    return f"""# Online: one served cycle on loopback, and the reference transition served over seeds
 
-Command: `python benchmarks/online_cycle.py --speedup {args.speedup:g} --rounds {args.rounds}`
+Command: `{" ".join(["python benchmarks/online_cycle.py", *sys.argv[1:]])}`
 (plant server in its own process, the service in the benchmark's; both on one 2-core machine shared
-with other jobs: load average {load[0]:.1f} at the start, {load[1]:.1f} at the end, so times are upper bounds).
-asyncua {asyncua.__version__ if hasattr(asyncua, '__version__') else '?'}, Python {platform.python_version()}.
+with other jobs; load average (1 min) at the start and end of each served run: {load_txt}).
+asyncua {getattr(asyncua, "__version__", "?")}, Python {platform.python_version()}.
 
-## One cycle (secure session, the reference scene's EKF and NMPC)
+## One cycle (secure session, the reference scene's EKF and NMPC; the served runs' auto cycles)
 
-{t1}
+{cycle_table(auto)}
 
-Wall-clock times: under the machine's load a process waits for a core, so the wall times are upper
-bounds; the CPU time is what the service's own work took. Goal (cycle p95 <= 50 ms wall):
-{"met" if goal else "not met"} on this run. Shares of the median cycle: read {share["read_s"]:.0%}, estimate
-{share["estimate_s"]:.0%}, solve {share["solve_s"]:.0%}, write {share["write_s"]:.0%}.
+{len(auto)} cycles in auto over {kpis["seed"].nunique()} seeds; started by {started}.
+Goal (cycle p95 <= 50 ms wall): {"met" if wall95 <= 0.050 else "not met"} on this run (wall p95 {ms(wall95)} ms,
+the service's CPU p95 {ms(cpu95)} ms). The read and write are round trips: their wall time includes
+the plant server's work in its own process, which the service's CPU time does not.
 
 ## What the secure session costs (interleaved, A B A B ...)
 
@@ -220,67 +266,97 @@ bounds; the CPU time is what the service's own work took. Goal (cycle p95 <= 50 
 
 Secure / unsecured read + write (medians): {ratio:.2f}x.
 
-## The 8-hour reference transition: served against in-process
+## The 8-hour reference transition: served against in-process, same seeds
 
-Same scene, seed, EKF warm-up ({ESTIMATOR_WARMUP_H:g} h on the running plant) and controller; the served
-loop runs on wall-clock timers (a sample every {3600 * 0.05 / args.speedup:.2f} s at x{args.speedup:g}), the
-in-process loop in lock step.
+Same scene, seeds (the analysers' noise), EKF warm-up ({ESTIMATOR_WARMUP_H:g} h on the running plant) and
+controller. "lock step, late F": the served loop over OPC UA on a manual clock, each cycle F of a
+sample after the plant's sample (0: the in-process timing). "served": in real time at x{args.speedup:g}
+(a sample every {3600 * 0.05 / args.speedup:.2f} s), each cycle started by the analyser's report.
 
-{t3}
+{seeds_table(kpis, loops)}
 
-Served cycles by mode: {modes}, for {plant_run[1]} plant samples; the plant fell behind real time
-{plant_run[0]} times (its clock then restarts from the wall clock, while the service's runs on).
-Figure: docs/online_served_run.png.
+Per seed (IAE in um h and its difference from the in-process run of the seed; specific energy's
+difference):
+
+{paired_table(kpis, others)}
+
+When the served moves took effect (share of a sample after the plant's sample; the plant applies a
+write at its next scan mark, {MIN_PIECE_FRAC:.0%} of a sample): median
+{late.median():.3f}, p95 {pct(late, 95):.3f}, max {late.max():.3f} ({len(late)} samples with a move).
+Figure (seed {kpis["seed"].iloc[0]}): docs/online_served_run.png.
 """
 
 
-async def benchmark(args, d: Path, plants):
-    (sec_proc, sec_url), (open_proc, open_url) = plants
-    scene = load_scene(SCENE)
-    tags = online.load_tags(online.VIRTUAL_PLANT_TAGS, scene)
-    parts = online.build_parts(scene, soft_sensor=True)
-    ref_k = online.run_in_process(parts, scene.scene.seed).kpis
-    secure = await connected(sec_url, client_security(d), tags)
-    unsecured = await connected(open_url, online.ClientSecurity(insecure=True), tags)
-    tr = await transport(tags, secure, unsecured, args.rounds)
-    await secure.close()
-    await unsecured.close()
-    await served(parts, tags, d, sec_url, sec_proc, args.speedup)
-    return tr, ref_k
+def lock_step_runs(parts, tags, seed: int, lates: list[float], d: Path) -> list[dict]:
+    out = [{"loop": "in-process", "seed": seed, **online.run_in_process(parts, seed).kpis}]
+    for f in lates:
+        plant = asyncio.run(online.run_lock_step(parts, tags, seed, d / f"lock-{seed}-{f}", late_frac=f))
+        out.append({"loop": f"lock step, late {f:g}", "seed": seed, **plant.kpis()})
+    return out
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--speedup", type=float, default=60.0, help="x60: a 3-minute sample every 3 s")
-    ap.add_argument("--rounds", type=int, default=300)
+    ap.add_argument("--speedup", type=float, default=180.0, help="x180: a 3-minute sample every second")
+    ap.add_argument("--rounds", type=int, default=300, help="transport rounds per session")
+    ap.add_argument("--seeds", default="1,2,3,4,5", help="the analysers' noise seeds")
+    ap.add_argument("--late", default="0,0.5,0.9", help="lock-step cycles this share of a sample late")
     args = ap.parse_args(argv)
-    load0 = os.getloadavg()[0]
+    seeds = [int(x) for x in args.seeds.split(",")]
+    lates = [float(x) for x in args.late.split(",") if x.strip()]
+    scene = load_scene(SCENE)
+    tags = online.load_tags(online.VIRTUAL_PLANT_TAGS, scene)
+    parts = online.build_parts(scene, soft_sensor=True)
+    kpis, cycles, moves, loads = [], [], [], {}
     with tempfile.TemporaryDirectory() as tmp:
         d = Path(tmp)
         make_pki(d)
-        with (d / "secure.log").open("w") as log_s, (d / "unsecured.log").open("w") as log_u:
-            plants = start_plants(d, args.speedup, (log_s, log_u))
-            try:
-                tr, ref_k = asyncio.run(benchmark(args, d, plants))
-            finally:
-                for proc, _ in plants:
-                    if proc.poll() is None:
-                        proc.terminate()
-                    proc.wait(timeout=120)
-        behind = (d / "secure.log").read_text().count("fell")  # the plant fell behind real time
-        plant = pd.read_parquet(d / "plant" / "plant.parquet")
-        served_k = json.loads((d / "plant" / "plant-kpis.json").read_text())
-        cycles = online.read_audit(d / "audit")
-    load1 = os.getloadavg()[0]
+        with (d / "plants.log").open("w") as log:
+            open_proc, open_url = start_plant(d, args.speedup, log, secure=False)
+            for i, seed in enumerate(seeds):
+                proc, url = start_plant(d, args.speedup, log, seed)
+                try:
+                    kpis += lock_step_runs(parts, tags, seed, lates, d)  # while the plant server starts
+                    if i == 0:
+                        tr = asyncio.run(transport_run(d, tags, url, open_url, args.rounds))
+                    loads[seed] = (os.getloadavg()[0], math.nan)
+                    asyncio.run(served(parts, tags, d, url, proc, args.speedup, seed))
+                    loads[seed] = (loads[seed][0], os.getloadavg()[0])
+                finally:
+                    stop(proc)
+                plant = pd.read_parquet(d / f"plant-{seed}" / "plant.parquet")
+                kpis.append({"loop": "served", "seed": seed,
+                             **json.loads((d / f"plant-{seed}" / "plant-kpis.json").read_text())})
+                cycles.append(online.read_audit(d / f"audit-{seed}").assign(seed=seed))
+                moves.append(plant.assign(seed=seed))
+                if i == 0:
+                    figure(plant, scene)
+            stop(open_proc)
+    kpis, cycles, moves = pd.DataFrame(kpis), pd.concat(cycles), pd.concat(moves)
     OUT.mkdir(parents=True, exist_ok=True)
-    cols = [c for c in ("service_time_h", "mode", "read_s", "estimate_s", "solve_s", "write_s", "write_done_s",
-                        "write_done_cpu_s", "soft_s", "cycle_s") if c in cycles]
+    cols = ["seed", "service_time_h", "mode", "started_by"] + [c for c in cycles if c.endswith("_s")]
     cycles[cols].to_csv(OUT / "online_cycle.csv", index=False)
-    figure(plant, load_scene(SCENE))
-    text = report(tr, cycles, served_k, ref_k, args, (load0, load1), (behind, len(plant)))
+    kpis[["loop", "seed", *KEYS]].to_csv(OUT / "online_cycle_seeds.csv", index=False)
+    text = report(tr, cycles, kpis, moves, args, loads)
     (OUT / "online_cycle.md").write_text(text)
     print(text)
     return 0
+
+
+def stop(proc) -> None:
+    if proc.poll() is None:
+        proc.terminate()
+    proc.wait(timeout=120)
+
+
+async def transport_run(d: Path, tags, secure_url: str, open_url: str, rounds: int) -> pd.DataFrame:
+    secure = await connected(secure_url, client_security(d), tags)
+    unsecured = await connected(open_url, online.ClientSecurity(insecure=True), tags)
+    try:
+        return await transport(tags, secure, unsecured, rounds)
+    finally:
+        await secure.close()
+        await unsecured.close()
 
 
 if __name__ == "__main__":

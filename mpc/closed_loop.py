@@ -104,9 +104,12 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
     x = np.asarray(x0, float).copy()
     u_prev = np.asarray(u0, float).reshape(-1).copy()
     d_prev_known = None
-    if estimator is not None and settings.estimator_warmup_h > 0:
-        x, d_prev_known = _warm_up(plant, estimator, schedule, sensors, settings, rng, x, u_prev, hard)
+    # one analyser for the whole run, its clock started with the warm-up: a plant's analyser does
+    # not restart when the controller takes over at t = 0
     sens = SensorState(sensors, rng)
+    t_sens0_h = 0.0  # the analyser's time at t = 0
+    if estimator is not None and settings.estimator_warmup_h > 0:
+        x, d_prev_known, t_sens0_h = _warm_up(plant, estimator, schedule, sens, settings, x, u_prev, hard)
     n_preview = settings.horizon_steps or getattr(getattr(controller, "settings", None), "horizon_steps", 1)
     rows = []
     fed_t = produced_t = 0.0  # cumulative plant feed and product [t], for the mass balance
@@ -116,7 +119,7 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
         d_plant = plant.disturbance(t, blend, hard(t))
         vals = plant.measure(x, u_prev, d_plant)
         p80 = vals.pop("p80_um")
-        p80_new, p80_held, pw_m, ld_m = sens.make_step(t, p80, vals["power_kw"], vals["load_frac"])
+        p80_new, p80_held, pw_m, ld_m = sens.make_step(t_sens0_h + t, p80, vals["power_kw"], vals["load_frac"])
         if estimator is None:
             x_est, d_est, h_est = x, None, hard(t)
         elif d_prev_known is None:
@@ -147,19 +150,20 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
     return ClosedLoopResult(frame, loop_kpis(frame, settings.load_band))
 
 
-def _warm_up(plant, estimator, schedule, sensors, settings, rng, x, u0, hard):
+def _warm_up(plant, estimator, schedule, sens, settings, x, u0, hard):
     """Run the estimator on the plant held at ``u0`` and ``schedule(0)`` for
-    ``settings.estimator_warmup_h``; returns the plant state at the end and the blend it saw."""
-    warm = SensorState(sensors, rng)
+    ``settings.estimator_warmup_h``, read through the analyser ``sens``; returns the plant state
+    at the end, the blend it saw and the analyser's time at the end."""
     b0 = np.asarray(schedule(0.0), float)
     d0 = plant.disturbance(0.0, b0, hard(0.0))
-    for k in range(int(round(settings.estimator_warmup_h / settings.dt_h))):
+    n = int(round(settings.estimator_warmup_h / settings.dt_h))
+    for k in range(n):
         m = plant.measure(x, u0, d0)
-        y = warm.make_step(k * settings.dt_h, m["p80_um"], m["power_kw"], m["load_frac"])
+        y = sens.make_step(k * settings.dt_h, m["p80_um"], m["power_kw"], m["load_frac"])
         if k > 0:
             estimator.make_step(settings.for_estimator([y[0], y[2], y[3]]), u0, b0)
         x, _, _ = plant.step(x, u0, d0, settings.dt_h)
-    return x, b0
+    return x, b0, n * settings.dt_h
 
 
 def _preview(schedule, t: float, settings: LoopSettings, n_stages: int, hardness: float) -> np.ndarray:

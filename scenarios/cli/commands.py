@@ -726,12 +726,34 @@ def _add_online_options(p) -> None:
     p.add_argument("--quiet", action="store_true", help="log warnings and errors only")
 
 
+def _seed(text: str) -> int:
+    """argparse type of ``--seed``: an integer >= 0 (numpy's seeds)."""
+    import argparse
+
+    if not text.isdigit():
+        raise argparse.ArgumentTypeError(f"--seed must be an integer >= 0. Got {text!r}.")
+    return int(text)
+
+
+def _online_scene(args, tags_path):
+    """``(scenarios.online, scene, tag map)`` of an OPC UA command, logging set up; the scene and
+    the tag map are checked before anything connects."""
+    from scenarios.scene import load_scene
+
+    online = _online()
+    _online_logging(args)
+    scene = load_scene(args.scene)
+    return online, scene, online.load_tags(tags_path, scene)
+
+
 def _online_logging(args) -> None:
     import logging
 
     logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO, stream=sys.stderr,
                         format="%(asctime)s %(name)s %(levelname)s %(message)s")
     logging.getLogger("asyncua").setLevel(logging.ERROR)
+    # its session's publish loop logs a traceback when the server goes; the service logs the loss
+    logging.getLogger("asyncua.client.ua_session").setLevel(logging.CRITICAL)
 
 
 def add_serve_parser(subparsers):
@@ -755,12 +777,7 @@ def add_serve_parser(subparsers):
 def cmd_serve(args) -> int:
     import asyncio
 
-    from scenarios.scene import load_scene
-
-    online = _online()
-    _online_logging(args)
-    scene = load_scene(args.scene)
-    tags = online.load_tags(args.tags, scene)
+    online, scene, tags = _online_scene(args, args.tags)
     security = online.ClientSecurity(args.insecure, args.cert and Path(args.cert), args.key and Path(args.key),
                                      args.server_cert and Path(args.server_cert), args.user,
                                      online.read_password(args.password_file and Path(args.password_file))
@@ -788,6 +805,7 @@ def add_plant_server_parser(subparsers):
                    help="shed the service after this long without its heartbeat (default 3 samples)")
     p.add_argument("--mode", default=None, help="initial operator mode (default: the tag map's auto value)")
     p.add_argument("--paused", action="store_true", help="start frozen; Simulation.Run = true starts the plant")
+    p.add_argument("--seed", type=_seed, default=None, help="the analysers' noise seed (default: the scene's)")
     p.add_argument("--trust", help="folder of the client certificates accepted")
     p.add_argument("--users", help="users file (TOML, scrypt hashes)")
     p.set_defaults(func=cmd_plant_server)
@@ -798,12 +816,7 @@ def add_plant_server_parser(subparsers):
 def cmd_plant_server(args) -> int:
     import asyncio
 
-    from scenarios.scene import load_scene
-
-    online = _online()
-    _online_logging(args)
-    scene = load_scene(args.scene)
-    tags = online.load_tags(args.tags or online.VIRTUAL_PLANT_TAGS, scene)
+    online, scene, tags = _online_scene(args, args.tags or _online().VIRTUAL_PLANT_TAGS)
     security = online.ServerSecurity(args.insecure, *(a and Path(a) for a in (args.cert, args.key, args.trust,
                                                                               args.users)))
     security.check()
@@ -814,7 +827,8 @@ def cmd_plant_server(args) -> int:
         mode = int(mode)
     settings = online.PlantServerSettings(args.opcua, security, speedup=args.speedup, hold_h=args.hold_h,
                                           duration_h=args.duration_h, record_dir=args.record and Path(args.record),
-                                          watchdog_h=args.watchdog_h, initial_mode=mode, paused=args.paused)
+                                          watchdog_h=args.watchdog_h, initial_mode=mode, paused=args.paused,
+                                          seed=args.seed)
     asyncio.run(online.PlantServer(scene, tags, settings).run())
     return 0
 

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from scenarios.online.audit import AuditLog, read_audit
 from scenarios.online.clock import Clock, ManualClock
+from scenarios.online.lock_step import run_lock_step
 from scenarios.online.opcua import CONNECTION_ERRORS, PlantConnection
 from scenarios.online.parts import ControlParts, build_parts, run_in_process
 from scenarios.online.plant_server import FAULTS, PlantServer, PlantServerSettings
@@ -25,4 +26,4 @@ __all__ = ["AuditLog", "CONNECTION_ERRORS", "ClientSecurity", "Clock", "ControlP
            "ManualClock", "PASSWORD_ENV", "PlantConnection", "PlantServer", "PlantServerSettings", "Reading",
            "ServeSettings", "ServerSecurity", "Service", "SoftPrediction", "SoftSensor", "TagMap", "TagMapError",
            "TagQuality", "VIRTUAL_PLANT_TAGS", "Verdict", "build_parts", "hash_password", "limit_move", "load_tags",
-           "make_certificate", "read_audit", "read_password", "run_in_process", "severity"]
+           "make_certificate", "read_audit", "read_password", "run_in_process", "run_lock_step", "severity"]

@@ -1,10 +1,13 @@
 """The service's OPC UA client: one session to the plant, every read of a cycle in one Read
 request (values with status codes and source timestamps) and every write in one Write request,
-typed as the server's nodes are typed."""
+typed as the server's nodes are typed; optionally a subscription that reports each new value
+(a new source timestamp too) of one node, which starts the service's cycle."""
 
 from __future__ import annotations
 
 import asyncio
+from dataclasses import dataclass
+from collections.abc import Callable
 from datetime import datetime, timezone
 
 from asyncua import Client, ua
@@ -45,13 +48,39 @@ async def resolve(client: Client, node_id: str) -> ua.NodeId:
     return ua.NodeId.from_string(node_id)
 
 
+class _OnNew:
+    """asyncua's subscription handler: each data change notification calls ``on_new()``."""
+
+    def __init__(self, on_new: Callable[[], None]):
+        self.on_new = on_new
+
+    def datachange_notification(self, node, val, data) -> None:
+        self.on_new()
+
+    def status_change_notification(self, status) -> None:
+        """The subscription's status changed (lost or timed out): the service finds a lost
+        session at its next request and reconnects, which subscribes again."""
+
+
+@dataclass
+class Trigger:
+    """Call ``on_new()`` at every new value of the read role ``role`` (a subscription: the
+    server sends the value when it is written, within ``publishing_ms``)."""
+
+    role: str
+    on_new: Callable[[], None]
+    publishing_ms: float
+
+
 class PlantConnection:
-    """A session to the plant server for fixed read and write roles (role -> node id)."""
+    """A session to the plant server for fixed read and write roles (role -> node id), and an
+    optional :class:`Trigger`."""
 
     def __init__(self, url: str, security: ClientSecurity, read_roles: dict[str, str],
-                 write_roles: dict[str, str], timeout_s: float = 2.0):
+                 write_roles: dict[str, str], timeout_s: float = 2.0, trigger: Trigger | None = None):
         self.url, self.security, self.timeout_s = url, security, timeout_s
         self.read_roles, self.write_roles = dict(read_roles), dict(write_roles)
+        self.trigger = trigger
         self.client: Client | None = None
 
     async def open(self) -> None:
@@ -69,10 +98,28 @@ class PlantConnection:
                 dtype = dv.Value.Value if dv.Value is not None else None
                 ident = dtype.Identifier if isinstance(dtype, ua.NodeId) else None
                 self._variants[role] = _VARIANTS.get(ident, ua.VariantType.Double)
+            if self.trigger is not None:
+                await self._subscribe(client, self.trigger)
         except BaseException:
             await self._disconnect(client)
             raise
         self.client = client
+
+    async def _subscribe(self, client: Client, trigger: Trigger) -> None:
+        """Monitor the trigger's node; a notification at each change of its status, value or
+        source timestamp (a frozen analyser's new report too)."""
+        sub = await client.create_subscription(trigger.publishing_ms, _OnNew(trigger.on_new))
+        item = ua.MonitoredItemCreateRequest()
+        item.ItemToMonitor = ua.ReadValueId()
+        item.ItemToMonitor.NodeId = self._read_ids[list(self.read_roles).index(trigger.role)]
+        item.ItemToMonitor.AttributeId = ua.AttributeIds.Value
+        item.MonitoringMode = ua.MonitoringMode.Reporting
+        p = item.RequestedParameters = ua.MonitoringParameters()
+        p.ClientHandle, p.SamplingInterval, p.QueueSize, p.DiscardOldest = 1, 0.0, 1, True
+        p.Filter = ua.DataChangeFilter(Trigger=ua.DataChangeTrigger.StatusValueTimestamp)
+        result = (await sub.create_monitored_items([item]))[0]
+        if isinstance(result, ua.StatusCode):
+            result.check()  # a UaStatusCodeError naming the server's refusal
 
     async def read(self) -> dict[str, Reading]:
         """Every read role's value, status and timestamps, in one request."""

@@ -18,7 +18,9 @@ The server holds every node of a tag map (:mod:`scenarios.online.tags`), as a pl
   frozen, stale), a freeze/run switch (``Simulation.Run``; ``paused`` starts frozen) and the
   speed-up (``Simulation.Speedup``), as operator training simulators have;
 - the plant's true trajectory is recorded (``record_dir/plant.parquet``, the columns of
-  :func:`mpc.run_closed_loop`'s frame) so a served run's KPIs are those of an in-process one.
+  :func:`mpc.run_closed_loop`'s frame) so a served run's KPIs are those of an in-process one;
+  ``setpoint_applied_at_frac`` says how far into each sample its last setpoint write took effect
+  (the in-process loop moves at the sample instant, 0).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import asyncio
 import json
 import logging
 import math
+import time
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from pathlib import Path
@@ -80,6 +83,8 @@ class PlantServerSettings:
     watchdog_h: float | None = None
     initial_mode: str | int | None = None
     paused: bool = False
+    seed: int | None = None
+    """The analysers' noise seed (None: the scene's, as the in-process loop's default)."""
 
 
 class PlantServer(Stoppable):
@@ -100,7 +105,8 @@ class PlantServer(Stoppable):
         ss = plant_start(scene, models, self.schedule(0.0))
         self.plant = TwinPlant(models.plant.model)
         self.x, self.u = np.asarray(ss.x, float).copy(), np.asarray(ss.u, float).copy()
-        self.sensor = SensorState(scene_sensors(scene), np.random.default_rng(scene.scene.seed))
+        seed = scene.scene.seed if settings.seed is None else settings.seed
+        self.sensor = SensorState(scene_sensors(scene), np.random.default_rng(seed))
         self.lead_h = tags.belt_analyser.lead_h if tags.belt_analyser is not None else 0.0
         self.watchdog_h = settings.watchdog_h or WATCHDOG_SAMPLES * self.dt_h
         auto = tags.mode.auto_value
@@ -119,6 +125,8 @@ class PlantServer(Stoppable):
         self.stop_reason: str | None = None
         self._wake: asyncio.Event | None = None
         self._retimed = False  # the speed-up or run/freeze changed: the run loop re-times the sample
+        self._built = False  # the integrators of every piece length (_build_integrators)
+        self.applied_at_frac = math.nan  # when in the last sample its last setpoint write took effect (share)
         self._check_record_dir()
 
     # ------------------------------------------------------------------ nodes
@@ -157,6 +165,7 @@ class PlantServer(Stoppable):
                 await var.set_writable()
         server.subscribe_server_callback(CallbackType.PostWrite, self._on_write)
         self.server = server
+        await asyncio.to_thread(self._build_integrators)
         if not self.published:
             self._publish(self._measure(), self.clock.now())
         for role, dv in self.published.items():
@@ -165,6 +174,21 @@ class PlantServer(Stoppable):
         log.info("virtual plant %s serving at %s (%s), plant time %.3f h, speed-up %g", self.scene.scene.name,
                  self.s.url, "insecure" if self.s.security.insecure else "Basic256Sha256 SignAndEncrypt",
                  self.t_h, self.s.speedup)
+
+    def _build_integrators(self) -> None:
+        """Build now the integrator of every piece length a write can cut a sample into (whole
+        scan marks), not at the first write that needs it: a build takes tens of times a sample's
+        integration, and a sped-up plant would fall behind real time there (once built, each is
+        cached by the twin's solver)."""
+        if self._built:
+            return
+        t0 = time.perf_counter()
+        marks = round(1 / MIN_PIECE_FRAC)
+        d = self.plant.disturbance(self.t_h, self.schedule(max(self.t_h, 0.0)), 1.0)
+        for dt_h in [self.dt_h] + [m * (self.dt_h / marks) for m in range(1, marks)]:
+            self.plant.step(self.x, self.u.copy(), d, dt_h)  # the state is not advanced
+        self._built = True
+        log.info("the plant's integrators for %d piece lengths built in %.1f s", marks, time.perf_counter() - t0)
 
     def _node_spec(self, role: str):
         """(initial value, variant type, writable by clients) of a role's node."""
@@ -292,6 +316,7 @@ class PlantServer(Stoppable):
                          key=lambda mw: mw[0])  # stable: write order within a mark
         self.writes = [w for w in self.writes if mark(w[0]) >= marks]
         done = 0
+        self.applied_at_frac = max((m for m, _ in pending), default=math.nan) / marks
         for m, (_, i, value) in pending:
             if m > done:
                 await self._step(d, (m - done) * gap)
@@ -302,11 +327,13 @@ class PlantServer(Stoppable):
         self.t_h, self.anchor = t1, (wall, t1)
         vals = self._measure()
         self._publish(vals, wall)
+        # the record (a file every record_every samples) before the sample is served: a client
+        # that cycles on the new values then finds the server free
+        self._record(vals)
         if self.server is not None:
             for role, dv in self.published.items():
                 await self.server.write_attribute_value(ua.NodeId.from_string(self._node_ids[role]), dv)
             await self._watchdog()
-        self._record(vals)
 
     async def _step(self, d, dt_h: float) -> None:
         """Integrate in a worker thread (CasADi's integrator releases the GIL), so that the server
@@ -381,6 +408,7 @@ class PlantServer(Stoppable):
             "fed_t": self.fed_t, "produced_t": self.produced_t,
             **{f"blend_{c}_frac": float(b) for c, b in zip(self.components, vals["blend"])},
             "hardness_scale": 1.0, "mode": str(self.mode), "p80_fault": self.fault,
+            "setpoint_applied_at_frac": self.applied_at_frac,
             "solve_time_s": math.nan, "fallback": None})
         if self.s.record_dir is not None and len(self.rows) % self.s.record_every == 0:
             self.write_record()
@@ -398,8 +426,13 @@ class PlantServer(Stoppable):
         return pd.DataFrame(self.rows)
 
     def kpis(self) -> dict:
-        """KPIs of the recorded run from the scene's time 0 (:func:`mpc.loop_kpis`)."""
+        """KPIs of the recorded run from the scene's time 0 (:func:`mpc.loop_kpis`). A row holds the
+        inputs in effect at its time, the end of the sample before; the in-process frame's row holds
+        the inputs applied from its time on (its feed is integrated forward), so the inputs are the
+        next row's here (the last row keeps its own)."""
         f = self.frame()
+        for c in ("feed_tph", "speed_frac_critical"):
+            f[c] = f[c].shift(-1).fillna(f[c])
         f = f[f["time_h"] >= -1e-9].reset_index(drop=True)
         k = loop_kpis(f, tuple(self.scene.controller.load_band_frac)) if len(f) > 1 else {}
         return {key: v for key, v in k.items() if not key.startswith(("solve_time", "fallback"))}

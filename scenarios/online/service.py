@@ -1,6 +1,8 @@
 """``grindtwin serve``: the scene's estimator and NMPC against a live plant over OPC UA.
 
-One cycle every sample period (``sample_period_h / speedup`` wall-clock seconds):
+One cycle every sample period (``sample_period_h / speedup`` wall-clock seconds), on the
+service's timer or, with the tag map's ``[cycle] on_new``, as soon as the plant publishes a new
+value of that measurement (the timer stands in when none comes):
 1. read every tag of the map in one request (values, status codes, source timestamps);
 2. judge each reading (:mod:`scenarios.online.quality`): usable, or bad / uncertain / stale / frozen;
 3. estimate: the EKF predicts over the last period with the actual inputs and the blend that
@@ -45,7 +47,7 @@ from asyncua import ua
 from mpc import MpcError
 from scenarios.online.audit import AuditLog
 from scenarios.online.clock import Clock, Stoppable, sleep_until
-from scenarios.online.opcua import CONNECTION_ERRORS, PlantConnection, status_name
+from scenarios.online.opcua import CONNECTION_ERRORS, PlantConnection, Trigger, status_name
 from scenarios.online.parts import ControlParts
 from scenarios.online.quality import GOOD, Reading, TagQuality, severity
 from scenarios.online.security import ClientSecurity
@@ -67,6 +69,12 @@ BACKOFF_JITTER = 0.2
 #: a busy server, three in a row at seconds each is a dead one).
 LOST_AFTER_TIMEOUTS = 3
 STATUS_MAX_CHARS = 240
+#: With ``[cycle] on_new``, the plant's server is asked to send a new value within this share of
+#: a sample (the subscription's publishing interval; 30 ms at x60, 1.8 s in real time), and no
+#: faster than every TRIGGER_MIN_PUBLISHING_MS: a move then follows its sample by about a
+#: cycle, as in the in-process loop, not by up to a sample.
+TRIGGER_PUBLISHING_FRAC = 0.01
+TRIGGER_MIN_PUBLISHING_MS = 10.0
 
 
 @dataclass
@@ -122,11 +130,22 @@ class Service(Stoppable):
         self.timeouts = 0
         self.heartbeat = 0
         self.stop_reason: str | None = None
+        self.new_data = False  # the trigger's node has a new value since the last cycle started
 
     # ------------------------------------------------------------------ connection
     def _new_connection(self) -> PlantConnection:
+        trigger = None
+        if self.tags.cycle.on_new is not None:
+            ms = max(TRIGGER_MIN_PUBLISHING_MS, 1e3 * TRIGGER_PUBLISHING_FRAC * self.clock.wall_seconds(self.dt_h))
+            trigger = Trigger(self.tags.cycle.on_new, self._on_new, ms)
         return PlantConnection(self.s.url, self.s.security, self.tags.read_roles(), self.tags.write_roles(),
-                               self.tags.connection.request_timeout_s)
+                               self.tags.connection.request_timeout_s, trigger)
+
+    def _on_new(self) -> None:
+        """The trigger's node has a new value: wake the run loop for a cycle."""
+        self.new_data = True
+        if self._wake is not None:
+            self._wake.set()
 
     async def connect(self) -> None:
         """Open the session now (raises a connection error if the plant refuses or is away)."""
@@ -172,16 +191,17 @@ class Service(Stoppable):
                 f"{self.t_written_h:.3f} h")
 
     # ------------------------------------------------------------------ one cycle
-    async def cycle(self) -> dict:
-        """One sample: read, estimate, solve, write (module docstring); returns its audit row.
-        Connection losses, bad data and numerical failures are handled here, logged and audited."""
+    async def cycle(self, started_by: str = "") -> dict:
+        """One sample: read, estimate, solve, write (module docstring); returns its audit row
+        (``started_by``: what started it, for the audit). Connection losses, bad data and
+        numerical failures are handled here, logged and audited."""
         t0, cpu0 = time.perf_counter(), time.process_time()
         now = self.clock.now()
         t_h = self.clock.hours_between(self.start, now)
         steps = 1 if self.t_prev_h is None else max(1, round((t_h - self.t_prev_h) / self.dt_h))
         self.t_prev_h = t_h
         row = {"wall_time_utc": now, "service_time_h": t_h, "cycle": self.k, "mode": "disconnected", "written": False,
-               "reason": ""}
+               "reason": "", "started_by": started_by}
         if self.conn is not None:
             try:
                 await self._connected_cycle(now, t_h, steps, row, t0, cpu0)
@@ -227,7 +247,7 @@ class Service(Stoppable):
 
     async def _connected_cycle(self, now, t_h: float, steps: int, row: dict, t0: float, cpu0: float) -> None:
         readings = await self.conn.read()
-        row["read_s"] = time.perf_counter() - t0
+        row["read_s"], row["read_cpu_s"] = time.perf_counter() - t0, time.process_time() - cpu0
         v = {role: self.quality[role].assess(r, now, self.clock) for role, r in readings.items() if role != "mode"}
         for role, verdict in v.items():
             row[f"{role}_quality"] = verdict.quality
@@ -235,9 +255,9 @@ class Service(Stoppable):
         auto = self._auto(readings["mode"], t_h)
         blend_now, preview = self._belt(v, t_h)
         u_act, inputs_note = self._inputs(v, t_h)
-        t1 = time.perf_counter()
+        t1, c1 = time.perf_counter(), time.process_time()
         x_est, d_est, est_note = self._estimate(v, u_act, blend_now, steps, t_h)
-        row["estimate_s"] = time.perf_counter() - t1
+        row["estimate_s"], row["estimate_cpu_s"] = time.perf_counter() - t1, time.process_time() - c1
         mode, reason = self._decide(auto, x_est, t_h, inputs_note or est_note)
         u_prop, res, solve_note = self._solve(mode, x_est, d_est, preview, u_act, row)
         mode, reason = ("hold", solve_note) if solve_note else (mode, reason)
@@ -368,7 +388,7 @@ class Service(Stoppable):
         if mode == "warmup" or x_est is None or u_prev is None:
             return None, None, ""
         D = np.vstack([np.array(preview, float).T, np.full(self.n_stages, float(d_est[-1]))])
-        t1 = time.perf_counter()
+        t1, c1 = time.perf_counter(), time.process_time()
         try:
             res = self.parts.controller.make_step(x_est, D, u_prev, y_meas=self.p80_held,
                                                   p80_bias_um=self.parts.estimator.p80_bias_um)
@@ -376,7 +396,7 @@ class Service(Stoppable):
             log.exception("the controller failed")
             return None, None, f"the controller failed: {type(exc).__name__}: {exc}"
         finally:
-            row["solve_s"] = time.perf_counter() - t1
+            row["solve_s"], row["solve_cpu_s"] = time.perf_counter() - t1, time.process_time() - c1
         return np.asarray(res.u_applied, float), res, ""
 
     def _moves(self, mode: str, u_prop, u_act) -> tuple[dict, str]:
@@ -408,9 +428,9 @@ class Service(Stoppable):
         items["heartbeat"] = (self.heartbeat, ua.StatusCodes.Good)
         if self.tags.status is not None:
             items["status"] = ((f"{mode}: {reason}" if reason else mode)[:STATUS_MAX_CHARS], ua.StatusCodes.Good)
-        t1 = time.perf_counter()
+        t1, c1 = time.perf_counter(), time.process_time()
         results = await self.conn.write(items, self.clock.now())
-        row["write_s"] = time.perf_counter() - t1
+        row["write_s"], row["write_cpu_s"] = time.perf_counter() - t1, time.process_time() - c1
         refused = {r: status_name(c) for r, c in results.items() if c != ua.StatusCodes.Good}
         if refused:
             log.error("the server refused writes: %s", refused)
@@ -455,7 +475,8 @@ class Service(Stoppable):
 
     # ------------------------------------------------------------------ run and stop
     async def run(self, install_signal_handlers: bool = True) -> None:
-        """Cycle every sample period until stopped (SIGTERM, SIGINT, ``duration_h``)."""
+        """Cycle every sample period, or on the trigger's new values, until stopped (SIGTERM,
+        SIGINT, ``duration_h``)."""
         loop = asyncio.get_running_loop()
         self._wake = asyncio.Event()
         signals = self.stop_on_signals(loop, install_signal_handlers)
@@ -464,20 +485,35 @@ class Service(Stoppable):
             self._start_reconnect()
             next_t = loop.time()
             while self.stop_reason is None:
-                row = await self.cycle()
+                started, triggered = loop.time(), self.new_data
+                self._wake.clear()
+                self.new_data = False
+                row = await self.cycle(f"new {self.tags.cycle.on_new}" if triggered else "timer")
                 if self.s.duration_h is not None and row["service_time_h"] >= self.s.duration_h:
                     self.request_stop(f"duration {self.s.duration_h:g} h reached")
-                next_t += period
-                late = loop.time() - next_t
-                if late > 0:
-                    skipped = math.ceil(late / period)
-                    log.warning("cycle overran its period by %.3f s: %d sample(s) skipped", late, skipped)
-                    next_t += skipped * period
+                next_t = self._next_cycle(loop, next_t, started, triggered, period, row["service_time_h"])
                 await sleep_until(next_t, self._wake)
         finally:
             for sig in signals:
                 loop.remove_signal_handler(sig)
             await self.shutdown(self.stop_reason or "ended")
+
+    def _next_cycle(self, loop, next_t: float, started: float, triggered: bool, period: float, t_h: float) -> float:
+        """The loop time at which the timer starts the next cycle: a period on (overruns skip
+        whole samples); after a cycle the trigger started, ``timeout_samples`` periods after it."""
+        cyc = self.tags.cycle
+        if cyc.on_new is not None:
+            self._condition("cycle trigger", not triggered and self.conn is not None, t_h, f"no new {cyc.on_new} within {cyc.timeout_samples:g} "
+                            "samples: the timer starts the cycles")
+            if triggered:
+                return started + cyc.timeout_samples * period
+        next_t += period
+        late = loop.time() - next_t
+        if late > 0:
+            skipped = math.ceil(late / period)
+            log.warning("cycle overran its period by %.3f s: %d sample(s) skipped", late, skipped)
+            next_t += skipped * period
+        return next_t
 
     async def shutdown(self, reason: str) -> None:
         """Stop: write nothing but the status, flush the audit, report the setpoints left."""

@@ -138,6 +138,17 @@ class Connection(_Section):
     reconnect_max_s: float = Field(default=30.0, gt=0, le=3600)
 
 
+class Cycle(_Section):
+    """``[cycle]``: what starts the service's cycle. ``on_new`` names a measurement whose new
+    value starts it (a subscription to its node), so that the cycle follows the plant's sample
+    at once, as an APC that executes on a new analyser report; when no new value has come
+    ``timeout_samples`` sample periods after the last cycle, or without ``on_new``, the
+    service's own timer starts it, every sample period."""
+
+    on_new: Literal["p80_um", "power_kw", "load_frac", "feed_tph", "speed_frac_critical"] | None = None
+    timeout_samples: float = Field(default=1.5, gt=1, le=10)
+
+
 class TagMap(_Section):
     """A validated, completed tag map (see the module docstring)."""
 
@@ -150,6 +161,7 @@ class TagMap(_Section):
     soft_sensor: SoftSensor | None = None
     fallback: Fallback = Field(default_factory=Fallback)
     connection: Connection = Field(default_factory=Connection)
+    cycle: Cycle = Field(default_factory=Cycle)
 
     def read_roles(self) -> dict[str, str]:
         """Role -> node id of everything read each cycle (belt ores as ``blend.<ore>``)."""
@@ -210,6 +222,10 @@ def scene_problems(tags: TagMap, scene: Scene) -> list[str]:
             out.append(f"{_role_path(role)}: node {node!r} is already the node of {_role_path(seen[node])}; "
                        "each role needs a node of its own")
         seen.setdefault(node, role)
+    on_new = tags.cycle.on_new
+    if on_new is not None and getattr(tags.measurements, on_new) is None:
+        out.append(f"cycle.on_new: names a measurement the map reads; [measurements.{on_new}] has no node "
+                   f"(got {on_new!r})")
     if scene.controller.kind != "nmpc":
         out.append(f"(scene) controller.kind: grindtwin serve runs the scene's NMPC; must be 'nmpc' "
                    f"(got {scene.controller.kind!r})")

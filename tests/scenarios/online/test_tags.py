@@ -75,3 +75,17 @@ def test_limits_follow_another_scene(tmp_path):
     assert (tags.setpoints.feed_tph.min, tags.setpoints.feed_tph.max) == (15.0, 50.0)
     assert tags.measurements.power_kw.max_age_h == pytest.approx(3 * scene.scene.sample_period_h)  # 3 samples
     assert tags.measurements.p80_um.max_age_h == 0.15  # stated in the map
+
+
+def test_a_cycle_trigger_must_be_a_measurement_the_map_reads(tmp_path, small_scene):
+    no_power = SMALL_TAGS.replace('[measurements.power_kw]\nnode = "ns=2;s=Mill.Power_kW"\n', "")
+    bad = no_power + '[cycle]\non_new = "power_kw"\n'
+    with pytest.raises(online.TagMapError) as e:
+        online.load_tags(_write(tmp_path, bad), small_scene)
+    assert "cycle.on_new: names a measurement the map reads; [measurements.power_kw] has no node (got 'power_kw')" \
+        in str(e.value)
+    with pytest.raises(online.TagMapError) as e:
+        online.load_tags(_write(tmp_path, SMALL_TAGS + '[cycle]\non_new = "belt"\ntimeout_samples = 1.0\n'), small_scene)
+    assert "cycle.on_new" in str(e.value) and "cycle.timeout_samples" in str(e.value)
+    ok = online.load_tags(_write(tmp_path, SMALL_TAGS + '[cycle]\non_new = "p80_um"\n'), small_scene)
+    assert (ok.cycle.on_new, ok.cycle.timeout_samples) == ("p80_um", 1.5)
