@@ -89,7 +89,7 @@ def controllers(args, circuit, mt, sensors, dt):
                 weight_du_feed=args.weight_du_feed, weight_du_speed=args.weight_du_speed,
                 feed_tph_min=FEED_MIN, feed_tph_max=FEED_MAX, feed_rate_max_tph_per_h=FEED_RATE,
                 rk4_substeps=mt.rk4_substeps(dt), solver=args.solver, qpsol=args.qpsol,
-                weight_p80=args.weight_p80, preview=False))
+                weight_p80=args.weight_p80, weight_energy=args.weight_energy, preview=False))
             print(f"NMPC built in {time.perf_counter() - t0:.1f} s, "
                   f"{mt.rk4_substeps(dt)} RK4 steps per sample")
             yield kind, ctrl, est, None
@@ -174,17 +174,23 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--duration-h", type=float, default=8.0)
     ap.add_argument("--dt-h", type=float, default=0.05)
     ap.add_argument("--horizon", type=int, default=20)
-    ap.add_argument("--seeds", default="1", help="comma-separated sensor-noise seeds, one run each")
+    ap.add_argument("--seeds", default="1,2,3,4,5,6,7,8,9,10", help="comma-separated sensor-noise seeds, one run each")
     ap.add_argument("--only", default="none,pi,nmpc")
     ap.add_argument("--weight-du-feed", type=float, default=1.0)
-    ap.add_argument("--weight-du-speed", type=float, default=1.0)
+    ap.add_argument("--weight-du-speed", type=float, default=10.0)
     ap.add_argument("--solver", default="rti", help="NmpcSettings.solver of the NMPC")
     ap.add_argument("--qpsol", default="condensed", help="NmpcSettings.qpsol of the NMPC")
-    ap.add_argument("--weight-p80", type=float, default=1.0)
+    # P80 5, speed moves 10, hardness walk 0.2 (the reference case: 1, 1, 0.1): chosen over seeds
+    # 1-10 once the twin answers feed as slowly as the circuit (a slow model needs a firmer P80
+    # weight to move early); the speed-move weight pins the speed/feed trade at a held P80, on
+    # which the twin and the circuit disagree (with 1, speed wanders to its 0.85 bound on some
+    # seeds and P80 with it); judged on the held-out seeds 11-20 (--seeds 11,...,20)
+    ap.add_argument("--weight-p80", type=float, default=5.0)
+    ap.add_argument("--weight-energy", type=float, default=0.01, help="NmpcSettings.weight_energy")
     ap.add_argument("--disturbance-model", default="hardness", help="EKF disturbance model (mpc.DISTURBANCE_MODELS)")
     ap.add_argument("--p80-bias-noise", type=float, default=5.0,
                     help="EKF random-walk intensity of the P80 bias [um/sqrt(h)]")
-    ap.add_argument("--hardness-noise", type=float, default=0.1,
+    ap.add_argument("--hardness-noise", type=float, default=0.2,
                     help="EKF random-walk intensity of the twin's hardness scale [1/sqrt(h)]")
     ap.add_argument("--p80-noise", type=float, default=3.0, help="analyser noise [um]")
     ap.add_argument("--warmup-h", type=float, default=2.0,
@@ -213,7 +219,7 @@ def main(argv=None) -> pd.DataFrame:
           "",
           f"duration {args.duration_h} h, sample {args.dt_h} h, NMPC horizon {args.horizon} ({args.solver}, "
           f"qpsol {args.qpsol}, no preview), seeds {args.seeds}; weights p80 {args.weight_p80}, du_feed "
-          f"{args.weight_du_feed}, du_speed {args.weight_du_speed}; EKF on the P80 analyser only, "
+          f"{args.weight_du_feed}, du_speed {args.weight_du_speed}, energy {args.weight_energy}; EKF on the P80 analyser only, "
           f"disturbance model {args.disturbance_model}, hardness noise "
           f"{args.hardness_noise}/sqrt(h), warm-up {args.warmup_h} h; sensors: P80 noise "
           f"{args.p80_noise} um, dead time 0.1 h, sampling 0.05 h. Band: +-{BAND_REL:.0%} of "
