@@ -2,7 +2,7 @@
 
 Tavares & King (1998, Int. J. Miner. Process. 54, 1-28) measure the median mass-specific
 fracture energy E50 rising as particles get smaller, ``E50(d) = E_inf (1 + (d0/d)^phi)``. The
-DEM link (twin/dem_link.py) tests only 22 mm particles of 150 bonded spheres. Here the sphere
+DEM link (twin/calibration/dem_link.py) tests only 22 mm particles of 150 bonded spheres. Here the sphere
 size is held fixed (``n = 150 (d / 22 mm)^3``: dem.make_agglomerate sets the mean radius from
 the solid fraction, so the mean radius stays that of the calibration) and particles of
 several diameters are compressed with Type B's shipped bonds (twin/calibration/files/dem.json:

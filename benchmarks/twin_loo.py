@@ -74,7 +74,9 @@ def rows_for(name: str, cal: Calibration, fold) -> list:
 def summary(df: pd.DataFrame) -> pd.DataFrame:
     pred = df[df.role == "predicted"].pivot_table(index=["calibration", "ore"], columns="kpi", values="error_pct")
     pred["max_abs_pct"] = pred.abs().max(axis=1)
-    return pred.reset_index()
+    folds = df.groupby(["calibration", "held_out"])[["fit_converged", "solver_failures"]].first()
+    folds.index = folds.index.set_names(["calibration", "ore"])
+    return pred.join(folds).reset_index()
 
 
 def main():
@@ -84,7 +86,8 @@ def main():
     notes = (f"Leave-one-ore-out: each ore predicted by a calibration refitted without it (laws and table "
              f"step for 'dem'; the table step for 'table'). Goal: every predicted KPI within {GOAL_PCT:g} %. "
              f"Worst predicted error: dem {worst['dem']:.1f} %, table {worst['table']:.1f} %. "
-             f"The 'table' map fits 11 numbers to the 9 of three ores (under-determined). Calibrations: "
+             f"The 'table' map fits 11 numbers to the 9 of three ores (under-determined). fit_converged: "
+             f"whether the fold's table step converged (a fold that did not is reported as it ended). Calibrations: "
              f"'dem' (sha256 {dem.sha256[:12]}), 'table' (sha256 {table.sha256[:12]}), the shipped files.")
     write_table(summary(df), "twin_loo", "Leave-one-ore-out predictions of MISSION.md's table", notes)
     df.to_csv(os.path.join(os.path.dirname(__file__), "results", "twin_loo_folds.csv"), index=False)

@@ -2,7 +2,7 @@
 time, beside the PBM twin's time for the same predictions.
 
 Data: the shipped training table ``twin/surrogate/data/surrogate_training.parquet`` (design in
-``twin/surrogate.py``). A fixed 20 % of the mineralogies (grouped split, seed 0) is the test
+``twin/surrogate/``). A fixed 20 % of the mineralogies (grouped split, seed 0) is the test
 set; training sets are nested subsets of the other mineralogies. For each (degree, n_pca,
 n_components, training mineralogies): held-out R2 per KPI, fit time, predict time per row in
 one batch call (all test rows) and for single-row calls (one ``predict`` per point, the way

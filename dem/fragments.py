@@ -1,6 +1,6 @@
 """Fragments of a broken agglomerate, their size distribution and t10.
 
-Rule for a piece (documented and tested in ``tests/dem/test_fragments.py``):
+Rule for a piece (documented and tested in ``tests/dem/test_fragments_lab.py``):
 
 1. spheres joined by *intact* bonds form a graph;
 2. a **bridge** of that graph (a bond whose removal disconnects it, i.e. a bond that is the

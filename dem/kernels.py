@@ -412,16 +412,24 @@ def run_steps(n_steps, dt, sp, bd, pr, wl, dr, cp, pos_ref, drum_angle, hist_pp,
             _kick(sp, half, dt, lz, True)
             _move_walls(wl, cp, dt, False)
             ang += cp[CP_DRUM_OMEGA] * dt
-            # an integer count, the same whatever the thread count
+            # integer counts, the same whatever the thread count; every sphere's position is
+            # checked, so a sphere that blew up out of contact with the rest is found
             moved = 0
+            bad = 0
             for i in nb.prange(n):
                 dx = pos[i, 0] - pos_ref[i, 0]
                 dy = pos[i, 1] - pos_ref[i, 1]
                 dz = pos[i, 2] - pos_ref[i, 2]
                 if lz > 0.0:
                     dz -= lz * math.floor(dz / lz + 0.5)
-                if dx * dx + dy * dy + dz * dz > lim2:
-                    moved += 1
+                d2 = dx * dx + dy * dy + dz * dz
+                if not d2 <= lim2:
+                    if d2 < math.inf:
+                        moved += 1
+                    else:  # NaN or infinite: a non-finite position
+                        bad += 1
+            if bad > 0:
+                return STATUS_NONFINITE, step, ang
             if moved > 0:
                 return STATUS_REBUILD, step, ang
         tq, nbr = compute_forces(sp, bd, pr, wl, dr, cp, dt, ang, hist_pp, hist_pw)

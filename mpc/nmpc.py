@@ -154,7 +154,7 @@ class NmpcSettings:
     """QP solver of "rti": "hpipm" (Riccati-based interior point on the stage structure; the
     default), "qrqp" (CasADi's sparse active set), "osqp" (ADMM) or "condensed" (the QP condensed
     onto the inputs, :mod:`mpc.condense`, solved by the dense dual active-set method of Goldfarb
-    & Idnani in compiled C, mpc/c; by qrqp on the same condensed QP when nothing may be
+    & Idnani in compiled C, mpc/c; by qpOASES on the same condensed QP when nothing may be
     compiled); of "sqpmethod": "qrqp" (the default and only choice, see the module docstring)."""
     rti_iterations: int = 1
     """Gauss-Newton iterations per sample of "rti" (1 = the real-time iteration; more iterate
@@ -164,9 +164,9 @@ class NmpcSettings:
     tol: float = 1e-6
     """Convergence tolerance of the NLP solver."""
     hessian: str = "exact"
-    """IPOPT Hessian: "exact" (NLP expanded to SX; converges in 2-5 iterations here, but the
-    build takes 20-200 s as the horizon grows) or "limited-memory" (L-BFGS, MX graph, builds in
-    about a second; measured: did not converge in 100 iterations on the mill model)."""
+    """IPOPT Hessian: "exact" (NLP expanded to SX; few iterations, but the build grows with the
+    horizon) or "limited-memory" (L-BFGS, MX graph, quick to build, but slow to converge on the
+    mill model; ``benchmarks/mpc_nmpc_build.py``)."""
     warm_start: bool = True
     """Start from the previous solution shifted by one sample (primal and dual)."""
     preview: bool = True
@@ -461,7 +461,9 @@ class Controller:
         if s.qpsol == "hpipm":  # the stage dimensions of the layout, so HPIPM's Riccati applies
             return {**self._dims, "error_on_fail": False, "inf": HPIPM_INF,
                     "hpipm": {"iter_max": 100, "mode": s.hpipm_mode}}
-        if s.qpsol in ("qrqp", "condensed"):
+        if s.qpsol == "condensed":  # the interpreted fallback's qpOASES
+            return {"printLevel": "none", "error_on_fail": False}
+        if s.qpsol == "qrqp":
             return {"print_iter": False, "print_header": False, "error_on_fail": False}
         return {"error_on_fail": False, "osqp": {"verbose": False, "eps_abs": 1e-8, "eps_rel": 1e-8}}
 
@@ -507,8 +509,10 @@ class Controller:
             if path is not None:
                 self._rti_c = RtiLibrary(path)
                 return
-            self._qp_data = cond  # interpreted, solved by qrqp (dense patterns)
-            self._qp = ca.conic("rti_qp", "qrqp", {"h": cond.sparsity_out("H"), "a": cond.sparsity_out("A")},
+            # interpreted: the dense condensed QP by qpOASES, the active-set solver made for
+            # condensed MPC QPs (Ferreau et al. 2014); qrqp, a sparse solver, once failed on one
+            self._qp_data = cond
+            self._qp = ca.conic("rti_qp", "qpoases", {"h": cond.sparsity_out("H"), "a": cond.sparsity_out("A")},
                                 self._qp_options())
             return
         qp_fn = self._rti_qp_function()

@@ -1,6 +1,6 @@
 """Steady-state set-point optimiser: feed rate and speed that hold a target P80 with a stable load.
 
-On the twin's steady state (``Twin.steady``, ~10 ms): for a blend, the P80 rises with feed rate
+On the twin's steady state (``Twin.steady``): for a blend, the P80 rises with feed rate
 and falls with speed (over the usable range), so
 
 - ``"feed"``: speed held (default: the mill's nominal), the feed rate that gives the target is
@@ -17,6 +17,7 @@ an unreachable target is reported in ``message``, never replaced by the nearest 
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -81,6 +82,7 @@ def feed_for_target(twin, blend, target_p80_um: float, speed_frac_critical: floa
     ends at the highest feed, halving towards the lower bound, that it holds."""
     from twin import SolverError
 
+    @functools.cache  # the bracket's end is solved once, for the overload test and the root
     def gap(f):
         return twin.steady(feed_tph=f, speed_frac_critical=speed_frac_critical, blend=blend,
                            hardness_scale=hardness_scale).p80_um - target_p80_um

@@ -61,3 +61,77 @@ def test_the_rule_can_fail(tmp_path, monkeypatch):
     assert len(violations("twin")) == 2
     assert violations("mpc") == ["mpc/nmpc.py:1 imports twin.bad: a module file of another package; "
                                  "import from its package's face"]
+
+
+def module_of(path: Path, root: Path) -> str:
+    parts = list(path.relative_to(root).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def import_edges(root: Path) -> dict[str, set[str]]:
+    """Module -> the project's modules it imports (at the top or inside functions; relative
+    imports resolved; ``from pkg import name`` is an edge to ``pkg.name`` when that is a module)."""
+    files = {module_of(p, root): p for pkg in FLOORS for p in (root / pkg).rglob("*.py")}
+    edges = {}
+    for mod, path in files.items():
+        package = mod if path.name == "__init__.py" else mod.rpartition(".")[0]
+        out = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    up = package.split(".")[: len(package.split(".")) - node.level + 1]
+                    base = ".".join(up + ([base] if base else []))
+                targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in files else base for a in node.names]
+            else:
+                continue
+            out |= {t for t in targets if t in files and t != mod}
+        edges[mod] = out
+    return edges
+
+
+def cycles(edges: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan's algorithm)."""
+    index, low, stack, on, out = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(edges.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(edges):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_two_modules_import_each_other():
+    """No loop of imports between files, counting those inside functions (a loop hidden in a
+    function is still two files that cannot be read one without the other)."""
+    assert cycles(import_edges(ROOT)) == []
+
+
+def test_the_loop_check_can_fail(tmp_path, monkeypatch):
+    (tmp_path / "twin").mkdir()
+    (tmp_path / "twin" / "__init__.py").write_text("")
+    (tmp_path / "twin" / "a.py").write_text("def f():\n    from .b import g\n")
+    (tmp_path / "twin" / "b.py").write_text("from twin import a\n")
+    assert cycles(import_edges(tmp_path)) == [["twin.a", "twin.b"]]

@@ -181,6 +181,134 @@ def _check_nonnegative(obj: str, name: str, value: float) -> None:
         )
 
 
+def _feeder(p: LeRouxParameters, feed_tph, alpha_r, alpha_f, xmb) -> dict:
+    """[LR13, feeder]: the ore split into water, solids (< grate), fines and rocks [m^3/h], and
+    the balls, whose feed holds the ball charge (our regulatory loop, see LeRouxParameters)."""
+    ds = p.density_ore_t_m3
+    mfb_tph = ca.fmax(0.0, p.mfb_tph + p.ball_gain_t_h_per_m3 * (p.ball_charge_setpoint_m3 - xmb))
+    return {"v_fwo": p.miw_m3_h, "v_fso": feed_tph / ds * (1.0 - alpha_r), "v_ffo": feed_tph / ds * alpha_f,
+            "v_fro": feed_tph / ds * alpha_r, "mfb_tph": mfb_tph, "v_fbo": mfb_tph / p.density_balls_t_m3}
+
+
+def _mill(p: LeRouxParameters, x, speed, phi_f) -> dict:
+    """[LR13, mill]: rheology, filling, power draw, grate discharge [m^3/h], rock consumption,
+    fines production (phi_f: ore hardness) and ball wear."""
+    xmw, xms, xmf, xmr, xmb = (x[i] for i in range(5))
+    ds, db = p.density_ore_t_m3, p.density_balls_t_m3
+    # rheology factor, from the free water above the no-flow solids content
+    free_water = ca.fmax(0.0, xmw - (1.0 / p.eps_sv_frac - 1.0) * xms)
+    rheology = ca.sqrt(free_water / xmw)
+    load_m3 = xmw + xms + xmr + xmb  # fines are part of the solids
+    load_frac = load_m3 / p.v_mill_m3
+    # power surface in filling and rheology, scaled by speed^alpha_P
+    z_x = load_m3 / (p.v_pmax_frac * p.v_mill_m3) - 1.0
+    z_r = rheology / p.phi_pmax - 1.0
+    power_surface_kw = (
+        p.p_max_kw
+        * (
+            1.0
+            - p.delta_pv * z_x**2
+            - 2.0 * p.chi_p * p.delta_pv * p.delta_ps * z_x * z_r
+            - p.delta_ps * z_r**2
+        )
+        * speed**p.alpha_p
+    )
+    # the quadratic surface of [LR13] turns negative beyond ~1.8 x v_Pmax filling (deep
+    # overload), which would make rocks from solids; ours: power is clipped at zero
+    power_kw = ca.fmax(power_surface_kw, 0.0)
+    # discharge through the grate, driven by the flowing water volume
+    discharge = p.v_v_per_h * rheology * xmw / (xms + xmw)
+    eps = p.regularisation_m3  # keeps 0/0 out of an empty mill or sump (ours)
+    rc = power_kw * rheology / (ds * p.phi_r_kwh_t) * xmr / (xmr + xms + eps)
+    # fines can only be made from coarse solids: [LR13] has no such limit (it is valid near
+    # the operating point); without it an empty or overloaded mill makes fines from nothing
+    # and the fines hold-up exceeds the solids. Ours: a saturation in the coarse solids
+    # X_ms - X_mf with half-saturation 1e-3 m^3 (0.03 % change of FP at survey 3).
+    coarse = xms - xmf
+    availability = ca.fmax(coarse, 0.0) / (ca.fmax(coarse, 0.0) + p.fines_half_sat_m3)
+    fp = availability * power_kw / (
+        ds * phi_f * (1.0 + p.alpha_phif * (load_frac - p.v_pmax_frac)))
+    bc = power_kw * rheology / p.phi_b_kwh_t * xmb / (ds * (xmr + xms) + db * xmb)
+    return {"rheology": rheology, "load_frac": load_frac, "power_kw": power_kw, "v_mwo": discharge * xmw,
+            "v_mso": discharge * xms, "v_mfo": discharge * xmf, "rc": rc, "fp": fp, "bc": bc}
+
+
+def _sump(p: LeRouxParameters, x) -> dict:
+    """[LR13, sump]: perfectly mixed, drawn off at the cyclone feed flow CFF set by the
+    regulatory level loop (SAG Mill Simulator; see LeRouxParameters)."""
+    xsw, xss, xsf, xint = x[5], x[6], x[7], x[8]
+    svol = xsw + xss
+    cff_demand = p.cff_m3_h + p.level_gain_per_h * (
+        svol - p.svol_setpoint_m3 + xint / p.level_ti_h)
+    # the pump cannot draw a negative flow nor empty the sump: its flow falls smoothly as
+    # the sump runs dry (ours, not in [LR13]; factor 0.99993 at the 5.99 m^3 set point)
+    cff = ca.fmax(cff_demand, 0.0) * svol**2 / (svol**2 + p.sump_dry_m3**2)
+    return {"svol": svol, "cff": cff, "v_swo": cff * xsw / svol, "v_sso": cff * xss / svol,
+            "v_sfo": cff * xsf / svol}
+
+
+def _cyclone(p: LeRouxParameters, x, sump: dict) -> dict:
+    """[LR13, cyclone]: coarse underflow from feed flow, solids content and fines content; water
+    and fines split unclassified; the overflow's flows [m^3/h] and PSE."""
+    xss, xsf = x[6], x[7]
+    svol, cff, v_swo, v_sso, v_sfo = (sump[k] for k in ("svol", "cff", "v_swo", "v_sso", "v_sfo"))
+    eps = p.regularisation_m3
+    f_i = xss / svol
+    p_i = xsf / (xss + eps)
+    v_ccu = (
+        (v_sso - v_sfo)
+        * (1.0 - p.c1 * ca.exp(-cff / p.eps_c_m3_h))
+        * (1.0 - (f_i / p.c2) ** p.c3)
+        * (1.0 - p_i**p.c4)
+    )
+    f_u = 0.6 - (0.6 - f_i) * ca.exp(-v_ccu / (p.alpha_su * p.eps_c_m3_h))
+    # water and fines split in the same proportion (unclassified), fixing F_u
+    # (0/0 when the sump holds no coarse solids, e.g. after a feed stop: guarded and the
+    # split kept in [0, 1], ours; inactive at survey 3 where the denominator is ~105 m^3/h)
+    split_den = ca.fmax(f_u * v_swo + f_u * v_sfo - v_sfo, 1e-6 * cff)
+    split = ca.fmin(ca.fmax(v_ccu * (1.0 - f_u) / split_den, 0.0), 1.0)
+    v_cwu = v_swo * split
+    v_cfu = v_sfo * split
+    v_csu = v_ccu + v_cfu
+    v_cso = v_sso - v_csu
+    v_cfo = v_sfo - v_cfu
+    return {"v_cwu": v_cwu, "v_cfu": v_cfu, "v_csu": v_csu, "v_cwo": v_swo - v_cwu, "v_cso": v_cso,
+            "v_cfo": v_cfo, "pse": (v_cfo + eps) / (v_cso + eps)}
+
+
+def _outputs(p: LeRouxParameters, x, feed_tph, feed: dict, mill: dict, sump: dict, cyc: dict) -> dict:
+    """The circuit's outputs (see LeRouxCircuit): P80 and passing from PSE by the GGS assumption,
+    power, load, inventories and the flows the balance tests use [m^3/h]."""
+    xmw, xms, xmr, xsw, xss = x[0], x[1], x[3], x[5], x[6]
+    ds, eps, m, pse = p.density_ore_t_m3, p.regularisation_m3, p.ggs_modulus, cyc["pse"]
+    product_tph = ds * cyc["v_cso"]
+    return {
+        "pse_frac": pse,
+        "p80_um": PSE_SIZE_UM * (0.8 / pse) ** (1.0 / m),
+        "passing_target_frac": ca.fmin(1.0, pse * (p.target_size_um / PSE_SIZE_UM) ** m),
+        "power_kw": mill["power_kw"],
+        "load_frac": mill["load_frac"],
+        "holdup_t": ds * (xms + xmr) + xmw,
+        # ore (solids incl. fines, and rocks) in mill and sump: what fed - product balances
+        "ore_inventory_t": ds * (xms + xmr + xss),
+        "rheology_frac": mill["rheology"],
+        "svol_m3": sump["svol"],
+        "cff_m3_h": sump["cff"],
+        "mfb_tph": feed["mfb_tph"],
+        "cfd_t_m3": (xsw + ds * xss) / sump["svol"],
+        "product_tph": product_tph,
+        "specific_energy_kwh_t": mill["power_kw"] / (product_tph + ds * eps),
+        "ore_in_m3_h": feed_tph / ds,
+        "solids_overflow_m3_h": cyc["v_cso"],
+        "fines_overflow_m3_h": cyc["v_cfo"],
+        "water_overflow_m3_h": cyc["v_cwo"],
+        "fines_production_m3_h": mill["fp"],
+        "rock_consumption_m3_h": mill["rc"],
+        "ball_consumption_m3_h": mill["bc"],
+        "water_in_m3_h": feed["v_fwo"] + p.sfw_m3_h,
+    }
+
+
 class LeRouxCircuit:
     """The [LR13] milling circuit as a CasADi model plus a simulator with ``make_step``.
 
@@ -239,138 +367,28 @@ class LeRouxCircuit:
 
     # ------------------------------------------------------------------ model
     def _build(self) -> None:
+        """The four modules of [LR13] (feeder, mill, sump, cyclone) composed into ``f`` and the
+        outputs; the module functions below carry the equations and their sources."""
         p = self.params
         x = ca.SX.sym("x", len(STATE_NAMES))
         u = ca.SX.sym("u", len(INPUT_NAMES))
         d = ca.SX.sym("d", len(DISTURBANCE_NAMES))
-        xmw, xms, xmf, xmr, xmb, xsw, xss, xsf, xint = (x[i] for i in range(9))
-        feed_tph, speed = u[0], u[1]
-        phi_f, alpha_r, alpha_f = d[0], d[1], d[2]
-        ds, db = p.density_ore_t_m3, p.density_balls_t_m3
-
-        # [LR13, feeder]: ore split into water, solids (< grate), fines, rocks; balls.
-        v_fwo = p.miw_m3_h
-        v_fso = feed_tph / ds * (1.0 - alpha_r)
-        v_ffo = feed_tph / ds * alpha_f
-        v_fro = feed_tph / ds * alpha_r
-        mfb_tph = ca.fmax(0.0, p.mfb_tph + p.ball_gain_t_h_per_m3 * (p.ball_charge_setpoint_m3 - xmb))
-        v_fbo = mfb_tph / db
-
-        # [LR13, mill]: rheology factor, from the free water above the no-flow solids content.
-        free_water = ca.fmax(0.0, xmw - (1.0 / p.eps_sv_frac - 1.0) * xms)
-        rheology = ca.sqrt(free_water / xmw)
-        load_m3 = xmw + xms + xmr + xmb  # fines are part of the solids
-        load_frac = load_m3 / p.v_mill_m3
-        # [LR13, mill]: power surface in filling and rheology, scaled by speed^alpha_P.
-        z_x = load_m3 / (p.v_pmax_frac * p.v_mill_m3) - 1.0
-        z_r = rheology / p.phi_pmax - 1.0
-        power_surface_kw = (
-            p.p_max_kw
-            * (
-                1.0
-                - p.delta_pv * z_x**2
-                - 2.0 * p.chi_p * p.delta_pv * p.delta_ps * z_x * z_r
-                - p.delta_ps * z_r**2
-            )
-            * speed**p.alpha_p
-        )
-        # the quadratic surface of [LR13] turns negative beyond ~1.8 x v_Pmax filling (deep
-        # overload), which would make rocks from solids; ours: power is clipped at zero
-        power_kw = ca.fmax(power_surface_kw, 0.0)
-        # [LR13, mill]: discharge through the grate, driven by the flowing water volume.
-        discharge = p.v_v_per_h * rheology * xmw / (xms + xmw)
-        v_mwo = discharge * xmw
-        v_mso = discharge * xms
-        v_mfo = discharge * xmf
-        # [LR13, mill]: rock consumption, fines production (phi_f: ore hardness), ball wear.
-        eps = p.regularisation_m3  # keeps 0/0 out of an empty mill or sump (ours)
-        rc = power_kw * rheology / (ds * p.phi_r_kwh_t) * xmr / (xmr + xms + eps)
-        # fines can only be made from coarse solids: [LR13] has no such limit (it is valid near
-        # the operating point); without it an empty or overloaded mill makes fines from nothing
-        # and the fines hold-up exceeds the solids. Ours: a saturation in the coarse solids
-        # X_ms - X_mf with half-saturation 1e-3 m^3 (0.03 % change of FP at survey 3).
-        coarse = xms - xmf
-        availability = ca.fmax(coarse, 0.0) / (ca.fmax(coarse, 0.0) + p.fines_half_sat_m3)
-        fp = availability * power_kw / (
-            ds * phi_f * (1.0 + p.alpha_phif * (load_frac - p.v_pmax_frac)))
-        bc = power_kw * rheology / p.phi_b_kwh_t * xmb / (ds * (xmr + xms) + db * xmb)
-
-        # [LR13, sump]: perfectly mixed, drawn off at the cyclone feed flow CFF.
-        svol = xsw + xss
-        cff_demand = p.cff_m3_h + p.level_gain_per_h * (
-            svol - p.svol_setpoint_m3 + xint / p.level_ti_h)
-        # the pump cannot draw a negative flow nor empty the sump: its flow falls smoothly as
-        # the sump runs dry (ours, not in [LR13]; factor 0.99993 at the 5.99 m^3 set point)
-        cff = ca.fmax(cff_demand, 0.0) * svol**2 / (svol**2 + p.sump_dry_m3**2)
-        v_swo = cff * xsw / svol
-        v_sso = cff * xss / svol
-        v_sfo = cff * xsf / svol
-
-        # [LR13, cyclone]: coarse underflow from feed flow, solids content, fines content.
-        f_i = xss / svol
-        p_i = xsf / (xss + eps)
-        v_ccu = (
-            (v_sso - v_sfo)
-            * (1.0 - p.c1 * ca.exp(-cff / p.eps_c_m3_h))
-            * (1.0 - (f_i / p.c2) ** p.c3)
-            * (1.0 - p_i**p.c4)
-        )
-        f_u = 0.6 - (0.6 - f_i) * ca.exp(-v_ccu / (p.alpha_su * p.eps_c_m3_h))
-        # water and fines split in the same proportion (unclassified), fixing F_u
-        # (0/0 when the sump holds no coarse solids, e.g. after a feed stop: guarded and the
-        # split kept in [0, 1], ours; inactive at survey 3 where the denominator is ~105 m^3/h)
-        split_den = ca.fmax(f_u * v_swo + f_u * v_sfo - v_sfo, 1e-6 * cff)
-        split = ca.fmin(ca.fmax(v_ccu * (1.0 - f_u) / split_den, 0.0), 1.0)
-        v_cwu = v_swo * split
-        v_cfu = v_sfo * split
-        v_csu = v_ccu + v_cfu
-        v_cwo = v_swo - v_cwu
-        v_cso = v_sso - v_csu
-        v_cfo = v_sfo - v_cfu
-        pse = (v_cfo + eps) / (v_cso + eps)
-
+        feed = _feeder(p, u[0], d[1], d[2], x[4])
+        mill = _mill(p, x, u[1], d[0])
+        sump = _sump(p, x)
+        cyc = _cyclone(p, x, sump)
         xdot = ca.vertcat(
-            v_fwo + v_cwu - v_mwo,
-            v_fso + v_csu - v_mso + rc,
-            v_ffo + v_cfu - v_mfo + fp,
-            v_fro - rc,
-            v_fbo - bc,
-            v_mwo - v_swo + p.sfw_m3_h,
-            v_mso - v_sso,
-            v_mfo - v_sfo,
-            svol - p.svol_setpoint_m3,
+            feed["v_fwo"] + cyc["v_cwu"] - mill["v_mwo"],
+            feed["v_fso"] + cyc["v_csu"] - mill["v_mso"] + mill["rc"],
+            feed["v_ffo"] + cyc["v_cfu"] - mill["v_mfo"] + mill["fp"],
+            feed["v_fro"] - mill["rc"],
+            feed["v_fbo"] - mill["bc"],
+            mill["v_mwo"] - sump["v_swo"] + p.sfw_m3_h,
+            mill["v_mso"] - sump["v_sso"],
+            mill["v_mfo"] - sump["v_sfo"],
+            sump["svol"] - p.svol_setpoint_m3,
         )
-
-        m = p.ggs_modulus
-        p80_um = PSE_SIZE_UM * (0.8 / pse) ** (1.0 / m)
-        passing = ca.fmin(1.0, pse * (p.target_size_um / PSE_SIZE_UM) ** m)
-        product_tph = ds * v_cso
-        out = {
-            "pse_frac": pse,
-            "p80_um": p80_um,
-            "passing_target_frac": passing,
-            "power_kw": power_kw,
-            "load_frac": load_frac,
-            "holdup_t": ds * (xms + xmr) + xmw,
-            # ore (solids incl. fines, and rocks) in mill and sump: what fed - product balances
-            "ore_inventory_t": ds * (xms + xmr + xss),
-            "rheology_frac": rheology,
-            "svol_m3": svol,
-            "cff_m3_h": cff,
-            "mfb_tph": mfb_tph,
-            "cfd_t_m3": (xsw + ds * xss) / svol,
-            "product_tph": product_tph,
-            "specific_energy_kwh_t": power_kw / (product_tph + ds * eps),
-            # flows for balance checks (m^3/h)
-            "ore_in_m3_h": feed_tph / ds,
-            "solids_overflow_m3_h": v_cso,
-            "fines_overflow_m3_h": v_cfo,
-            "water_overflow_m3_h": v_cwo,
-            "fines_production_m3_h": fp,
-            "rock_consumption_m3_h": rc,
-            "ball_consumption_m3_h": bc,
-            "water_in_m3_h": v_fwo + p.sfw_m3_h,
-        }
+        out = _outputs(p, x, u[0], feed, mill, sump, cyc)
         self._x, self._u, self._d, self._xdot = x, u, d, xdot
         self.f = ca.Function("f", [x, u, d], [xdot], ["x", "u", "d"], ["xdot"])
         self.outputs = {

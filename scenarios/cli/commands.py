@@ -520,8 +520,10 @@ def cmd_steady(args) -> int:
 
 
 def _print_intervals(unc: dict, at_load: bool) -> None:
+    left = ([f"{unc['failed']} failed steady states"] if unc["failed"] else []) + (
+        [f"{unc['unconverged']} replicate{'s' * (unc['unconverged'] != 1)} whose table step did not converge"] if unc.get("unconverged") else [])
     print(f"  {unc['level']:.0%} intervals over {unc['n']} bootstrap replicates of the DEM's particle scatter"
-          + (f" ({unc['failed']} failed steady states left out)" if unc["failed"] else "") + ":")
+          + (f" ({' and '.join(left)} left out)" if left else "") + ":")
     for key, (lo, mid, hi) in unc["intervals"].items():
         note = "" if at_load or key != "throughput_tph" else "  (the given feed rate)"
         print(f"    {key:22s} {mid:.4g}  [{lo:.4g}, {hi:.4g}]{note}")

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from scenarios.output.labels import KPI_LABELS
+
 #: Size distributions a run writes as CSV: the stream (``attrs['what']``) -> file name.
 PSD_FILES = {"product": "product_psd.csv", "mill content": "mill_psd.csv"}
 #: The size-by-size table of every stream at the end of a run.
@@ -50,8 +52,6 @@ def write_size_csvs(result, folder: Path) -> list[Path]:
 
 def kpi_rows(kpis: dict) -> pd.DataFrame:
     """KPI key, meaning with its unit, value (None where undefined)."""
-    from scenarios.output.report import KPI_LABELS
-
     rows = [{"kpi": k, "meaning [unit]": KPI_LABELS.get(k, (k, ""))[0],
              "value": None if v is None or (isinstance(v, float) and not math.isfinite(v)) else v}
             for k, v in kpis.items()]

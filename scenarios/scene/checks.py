@@ -200,7 +200,7 @@ def _check_feed(data, ore_names: list[str], r: _Report, base_dir: Path = Path(".
     if feed.get("start") == "target" and _get(data, "controller", "target_p80_um") is None:
         r.add(("feed", "start"), "\"target\" needs controller.target_p80_um (the P80 whose steady "
               "state the run starts at)", "target")
-    nominal = nominal_feed_tph(_get(data, "mill", "preset"), _get(data, "mill", "net_power_kw"))
+    nominal = nominal_feed_tph(_get(data, "mill", "preset"), _get(data, "mill"))
     for loc in (("feed", "feed_tph"), ("controller", "bounds", "feed_tph_max")):
         v = _num(_get(data, *loc))
         problem = feed_problem(v, nominal) if v is not None and v > 0 else None
@@ -269,7 +269,7 @@ def _check_history(data, ore_names: list[str], base_dir: Path, r: _Report) -> No
     try:
         gap = _num(feed.get("history_max_gap_h", 10 / 60))
         history = read_history(path, sample_period_h=dt, max_gap_h=gap if gap and gap > 0 else 10 / 60,
-                               feed_nominal_tph=nominal_feed_tph(_get(data, "mill", "preset"), _get(data, "mill", "net_power_kw")))
+                               feed_nominal_tph=nominal_feed_tph(_get(data, "mill", "preset"), _get(data, "mill")))
     except SceneError as exc:
         for line in str(exc).splitlines():
             r.add(("feed", "history"), line.strip())

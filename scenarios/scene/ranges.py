@@ -17,18 +17,26 @@ FEED_MAX_NOMINAL_MULTIPLE = 10.0
 PERCENT_RANGE = (10.0, 100.0)
 
 
-def nominal_feed_tph(preset, net_power_kw=None) -> float | None:
-    """The nominal feed rate [t/h] of a mill preset of ``twin.MILLS`` (None if unknown). A scene
-    that gives the mill's net power draws that power from the preset's geometry: its nominal
-    feed is the preset's scaled by the power ratio (throughput ~ power at a given specific
-    energy, Bond's law)."""
-    mill = get_mill(preset) if isinstance(preset, str) and preset in MILLS else None
-    if mill is None:
+#: Scene [mill] keys that change the mill's power draw, and their valid ranges (a value outside
+#: is the schema's to refuse; here it is ignored).
+POWER_KEYS = {"diameter_m": (0.0, 20.0), "length_m": (0.0, 30.0), "ball_filling_frac": (0.0, 0.5),
+              "net_power_kw": (0.0, 1e5)}
+
+
+def nominal_feed_tph(preset, mill_keys: dict | None = None) -> float | None:
+    """The nominal feed rate [t/h] of a scene's mill (None for an unknown preset): the preset's,
+    scaled by the power the scene's mill draws at nominal speed over the preset's (throughput ~
+    power at a given specific energy, Bond's law). ``mill_keys``: the scene's [mill] table; its
+    dimensions, ball filling and net power (:data:`POWER_KEYS`) enter."""
+    base = get_mill(preset) if isinstance(preset, str) and preset in MILLS else None
+    if base is None:
         return None
-    scale = 1.0
-    if isinstance(net_power_kw, (int, float)) and math.isfinite(net_power_kw) and net_power_kw > 0:
-        scale = float(net_power_kw) / float(power_kw(mill, mill.speed_nominal_frac_critical))
-    return float(mill.feed_nominal_tph) * scale
+    given = {k: float(v) for k, v in (mill_keys if isinstance(mill_keys, dict) else {}).items()
+             if k in POWER_KEYS and isinstance(v, (int, float)) and not isinstance(v, bool)
+             and math.isfinite(v) and POWER_KEYS[k][0] < v <= POWER_KEYS[k][1]}
+    speed = base.speed_nominal_frac_critical
+    scale = float(power_kw(base.with_(**given), speed)) / float(power_kw(base, speed))
+    return float(base.feed_nominal_tph) * scale
 
 
 def speed_problem(value: float) -> str | None:

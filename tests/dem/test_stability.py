@@ -4,7 +4,9 @@ import ast
 import pathlib
 
 import numpy as np
+import pytest
 
+from dem.errors import DemInstabilityError
 from dem.materials import Material
 from dem.system import System
 
@@ -45,3 +47,17 @@ def test_dem_imports_nothing_from_upper_floors():
                 names = [node.module]
             for n in names:
                 assert n.split(".")[0] not in {"twin", "mpc", "scenarios"}, (f.name, n)
+
+
+def test_a_sphere_that_blows_up_alone_is_reported_not_carried_along():
+    """A non-finite position of any one sphere (here one away from the others, so it cannot
+    spread through contacts, and not one of the spheres the step's sample looks at) stops the
+    run with DemInstabilityError."""
+    r = 1e-3
+    pos = [[4 * r * k, 0, 0] for k in range(7)]
+    for bad in (np.nan, np.inf):
+        s = System(pos, [r] * 7, Material())
+        s.run(5)
+        s.pos[2, 1] = bad
+        with pytest.raises(DemInstabilityError, match="Non-finite state"):
+            s.run(5)

@@ -120,6 +120,28 @@ def test_condensed_compiled_controller_moves_equal_hpipm(ctrl_twin):
     assert abs(u[0] - ss.u[0]) > 0.1  # it moved towards the finer target
 
 
+@pytest.mark.parametrize("horizon", [4, 6])
+def test_condensed_interpreted_fallback_moves_equal_hpipm(ctrl_twin, horizon):
+    """Where nothing may be compiled, the condensed QP is solved interpreted (qpOASES); it takes
+    HPIPM's moves on the sparse QP step after step, with a power limit and move blocking. (qrqp
+    failed on the positive-definite condensed QP of horizon 6: "Failed to calculate search
+    direction".)"""
+    m = ctrl_twin.model
+    ss = ctrl_twin.steady(feed_tph=27.0, speed_frac_critical=0.70, blend=[1.0, 0.0])
+    kw = dict(horizon_steps=horizon, dt_h=0.05, solver="rti", move_block=2, target_p80_um=0.9 * ss.p80_um,
+              power_max_kw=1.02 * float(m.outputs["power_kw"](ss.x, ss.u, ss.d)), codegen="off")
+    a = Controller(m, NmpcSettings(**kw, qpsol="condensed"))
+    b = Controller(m, NmpcSettings(**kw, qpsol="hpipm"))
+    assert a._rti_c is None and not a.build_report["qp_data"].compiled
+    d, u = m.d_vector([0.6, 0.4]), ss.u
+    for _ in range(4):
+        ra, rb = a.make_step(ss.x, d, u), b.make_step(ss.x, d, u)
+        assert ra.success and rb.success, (a.last_info, b.last_info)
+        assert np.allclose(ra.u_applied, rb.u_applied, rtol=1e-7, atol=0)
+        u = ra.u_applied
+    assert abs(u[0] - ss.u[0]) > 0.1  # it moved towards the finer target
+
+
 def test_p80_bias_model_reads_a_bias_as_a_bias(ctrl_twin):
     """Plant = the model with its P80 analyser reading 15 um high: the p80_bias EKF finds the
     15 um and leaves hardness at 1; the hardness-only EKF reads it as a harder ore."""

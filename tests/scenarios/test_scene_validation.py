@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from twin import get_mill
+from twin import get_mill, power_kw
 
 from scenarios.errors import SceneError
 from scenarios.scene.loader import check_scene, load_scene
@@ -160,3 +160,22 @@ def test_unknown_effect_option_names_the_allowed_ones(write_scene):
     messages = check_scene(write_scene(text))
     assert any("effect_options.classification.knd" in m and "Did you mean 'kind'" in m
                and ", ".join(allowed) in m for m in messages), messages
+
+
+def test_the_feed_check_judges_against_the_scenes_own_mill(write_scene):
+    """The kg/h-for-t/h check scales the preset's nominal feed by the power of the mill the scene
+    describes: a mill twice the preset's diameter and length draws 2^3.5 ~ 11x the power (Bond,
+    P ~ D^2.5 L at a given filling and speed), so 10 x the preset's nominal feed is a plausible
+    rate for it, while a mill of a third the size cannot take the preset's own feed x 10."""
+    base = get_mill("industrial")
+    big = f"preset = \"industrial\"\ndiameter_m = {2 * base.diameter_m}\nlength_m = {2 * base.length_m}"
+    small = f"preset = \"industrial\"\ndiameter_m = {base.diameter_m / 3}\nlength_m = {base.length_m / 3}"
+    ratio_big = power_kw(base.with_(diameter_m=2 * base.diameter_m, length_m=2 * base.length_m), 0.7) / power_kw(base, 0.7)
+    assert 2 ** 3.2 < ratio_big < 2 ** 3.6  # Bond's D^2.3-2.5 L, and nothing else, sets the scale
+    feed = 10.5 * base.feed_nominal_tph
+    text = edit('preset = "industrial"', big).replace("feed_tph = 30.0", f"feed_tph = {feed}", 1)
+    assert not [m for m in check_scene(write_scene(text, name="big.toml")) if "nominal" in m]
+    text = edit('preset = "industrial"', small)
+    assert feed / 10.5 * 10 > 30.0  # the preset's own limit would let 30 t/h through
+    messages = [m for m in check_scene(write_scene(text, name="small.toml")) if "feed.feed_tph" in m]
+    assert messages and "more than 10 x the mill's nominal" in messages[0], messages

@@ -18,10 +18,13 @@ from twin.sizes import SizeGrid
 E50_SE_GOAL = 0.10
 #: the --fast path (4 particles, short drum) against the shipped full run. Peak forces scatter
 #: ~20 % from particle to particle, so the mean of 4 is known to ~10 % (1 s.d.): bond strength
-#: and E50 within 25 %; the per-size S^E (drum spectrum x P_break, 0.1-2 mm) within a factor 1.5.
+#: and E50 within 25 %. The per-size S^E (drum spectrum x P_break, 0.1-2 mm): the fast drum
+#: window reads S^E 20-25 % low (benchmarks/results/dem_drum_accuracy.md), and at the fine end
+#: P_break lies in the lognormal's tail, where the sigma of 4 particles (s.e. 1/sqrt(2 x 3) ~ 40 %) moves it by
+#: ~25 %: within a factor 0.75 x 0.8 = 1 / 1.7.
 FAST_TOL_STRENGTH = 0.25
 FAST_TOL_E50 = 0.25
-FAST_FACTOR_SE = 1.5
+FAST_FACTOR_SE = 1.7
 
 
 @pytest.fixture(scope="module")
@@ -57,9 +60,6 @@ def test_the_dem_step_records_its_particles_and_calibration_errors(cal):
             rec["calibration_error_pct"], rel=1e-9)
 
 
-@pytest.mark.xfail(strict=True, reason="the shipped DEM step is the previous one (10 particles per ore, the old "
-                   "compression-test end): its E50 standard errors reach 14.6 %; rerun `grindtwin calibrate` with the "
-                   "full settings (30 particles) and this passes")
 def test_e50_standard_errors_are_stated_and_below_the_goal(cal):
     se = cal.record["bootstrap"]["standard_errors"]["e50"]
     for o in "ABCD":

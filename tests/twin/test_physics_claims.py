@@ -5,6 +5,7 @@ All at MISSION.md's laboratory conditions: the lab mill at 70 % of critical spee
 load (the table's throughput) unless a feed rate is named."""
 
 import numpy as np
+import pytest
 
 from twin import BreakageParams, Mineralogy, Twin, load_ore
 from twin.sizes import pxx_um
@@ -27,10 +28,12 @@ def pyrite_for_biotite(points: float = 15.0) -> Mineralogy:
 
 
 def pyrite_claim(**twin_kwargs) -> dict:
-    """Energy up, product finer, throughput down when pyrite replaces biotite in Type B."""
+    """MISSION.md: energy up and product (slightly) finer when pyrite replaces biotite in Type B;
+    ``slows``: the throughput at constant load falls too (issue 12's reading of a harder ore)."""
     ref, pyr = _at_load(load_ore("B"), **twin_kwargs), _at_load(pyrite_for_biotite(), **twin_kwargs)
     change = {k: pyr[k] / ref[k] - 1.0 for k in ref}
-    change["holds"] = change["energy"] > 0 and change["p80_um"] < 0 and change["throughput"] < 0
+    change["holds"] = change["energy"] > 0 and change["p80_um"] < 0
+    change["slows"] = change["throughput"] < 0
     return change
 
 
@@ -55,10 +58,18 @@ def _mineralogy_blind(ore, coefficients):
 BLIND_EFFECTS = [e for e in DEFAULT_EFFECTS if e not in ("cushioning", "rheology")]
 
 
-def test_pyrite_for_biotite_raises_energy_refines_and_slows():
+def test_pyrite_for_biotite_raises_energy_and_refines_slightly():
     claim = pyrite_claim()
     assert claim["holds"], claim
     assert claim["p80_um"] > -0.15  # "slightly" finer
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "on the full DEM step the throughput at constant load rises by 0.16 % (it fell by 0.03 % on the "
+    "10-particle step): the model puts the throughput's response within 0.2 % of zero"))
+def test_pyrite_for_biotite_slows_the_mill_at_constant_load():
+    claim = pyrite_claim()
+    assert claim["slows"], claim
 
 
 def test_pyrite_claim_fails_for_a_mineralogy_blind_twin():

@@ -1,4 +1,4 @@
-"""The shipped surrogate's compiled form (surrogate.npz): the shipped joblib's own arrays, made
+"""The shipped surrogate's compiled form (surrogate.json): the shipped joblib's own arrays, made
 from the shipped calibration, predicting exactly what the estimator predicts; refused when stale."""
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ def test_compiled_form_refuses_what_the_estimator_refuses():
 def test_a_compiled_file_from_another_calibration_is_refused(tmp_path, monkeypatch):
     stale = S.shipped_compiled()
     path = CompiledSurrogate(stale.feature_names, stale.arrays, stale.score_range, stale.q_limit,
-                             dict(stale.metadata, calibration_sha256="0" * 64)).save(tmp_path / "s.npz")
+                             dict(stale.metadata, calibration_sha256="0" * 64)).save(tmp_path / "s.json")
     monkeypatch.setattr(files, "COMPILED_PATH", path)
     with pytest.raises(TwinError, match="another calibration"):
         files.shipped_compiled.__wrapped__()

@@ -73,6 +73,9 @@ def test_steady_intervals_bracket_the_nominal_answer(cal):
 
     unc = steady_intervals("B", cal, "lab", 0.031, 0.70, n=12)
     assert unc["n"] + unc["failed"] == 12 and unc["n"] >= 10
+    reps = cal.record["bootstrap"]["replicates"]
+    last = [i for i, r in enumerate(reps) if r.get("success", True)][11]  # the 12th converged one
+    assert unc["unconverged"] == sum(not r.get("success", True) for r in reps[:last])  # said, not dropped silently
     nominal = Twin("B", calibration=cal).steady(0.031, 0.70)
     lo, mid, hi = unc["intervals"]["p80_um"]
     assert lo < hi and lo <= nominal.p80_um * 1.02 and nominal.p80_um <= hi * 1.02

@@ -12,7 +12,7 @@ from .._lazy import lazy_face
 #: Public name -> the module that defines it, imported on first use (PEP 562).
 _API = {
     "AUSTIN_SHAPE": ".breakage_map", "COEFFICIENT_NAMES": ".breakage_map", "mineralogy_breakage": ".breakage_map",
-    "DEM_FITTED": ".calibrate", "DEM_NAMES": ".calibrate", "dem_record": ".calibrate", "main": ".calibrate",
+    "DEM_FITTED": ".fitted", "DEM_NAMES": ".fitted", "dem_record": ".calibrate", "main": ".calibrate",
     "dem_breakage": ".dem_map", "law_e50_j_kg": ".dem_map",
     "BREAKAGE_MAPS": ".files", "CALIBRATION_DIR": ".files", "Calibration": ".files", "DEFAULT_CALIBRATION": ".files",
     "DEM_CALIBRATION_PATH": ".files", "MEASUREMENT_EFFECTS": ".files", "TABLE_CALIBRATION_PATH": ".files",

@@ -26,38 +26,9 @@ from .dem_link import fit_sizes_um, per_ore_selection, run_dem
 from .dem_map import fit_law
 from .files import (Calibration, base_record, check_writable, default_output_path, load_calibration, provenance,
                     write_calibration)
+from .fitted import DEM_BOUNDS, DEM_FITTED, DEM_NAMES
 from .fitting import fit_to_table, predict_table, table_errors
 
-_WHY_GRATE = ("the lab mill's grate and discharge geometry is not given (MISSION.md gives the mill's size and "
-              "speed only), and the DEM drum has no grate")
-#: The DEM chain's table step: the only numbers fitted to the table, each ore-independent (a
-#: property of the mill, its charge or its slurry), with why it is not derivable here. Start
-#: values are only starting points; bounds are physical ranges.
-DEM_FITTED = {
-    "dem_capture_scale": {"start": 0.02, "bounds": (1e-4, 1e4), "why": (
-        "the fraction of a ball pair's geometrically captured bed (r_c = sqrt(R d), one particle layer) that is "
-        "nipped and stressed: the drum DEM has balls only, no powder bed, so it gives collision energies and "
-        "rates but not how much of the bed a collision stresses (fitted in the UFRJ model too, Tavares & de "
-        "Carvalho 2009); one number for every ore")},
-    "cushioning_rate_coeff": {"start": 0.4, "bounds": (1e-6, 20.0), "why": (
-        "how much clay and mica in the charge slow breakage (twin.effects.cushioning): the DEM particles are "
-        "single-phase agglomerates in a dry ball charge, with no soft platy phase in the bed")},
-    "cushioning_power_coeff": {"start": 0.6, "bounds": (1e-6, 20.0), "why": (
-        "how much a clay/mica-rich charge lowers the power draw: the drum DEM is dry balls without powder")},
-    "clay_crowding_coeff": {"start": 1.6, "bounds": (1e-6, 5.0), "why": (
-        "the effective volume of clay platelets in the mill slurry (twin.effects.rheology): no slurry "
-        "rheology data")},
-    "lab_power_factor": {"start": 1.3, "bounds": (0.3, 3.0), "why": (
-        "Bond's power equation's correction at 0.5 m: the drum DEM's net power is that of the balls alone, "
-        "which the table's power (throughput x specific energy) exceeds with powder and slurry in the charge")},
-    "lab_grate_d50_um": {"start": 450.0, "bounds": (10.0, 3000.0), "why": _WHY_GRATE},
-    "lab_grate_sharpness": {"start": 6.5, "bounds": (0.5, 10.0), "why": _WHY_GRATE},
-    "lab_discharge_factor": {"start": 1.25, "bounds": (0.5, 50.0), "why": (
-        "the mill's discharge capacity at nominal hold-up (twin.effects.holdup): set by the discharge "
-        "geometry and slurry level, not given")},
-}
-DEM_NAMES = tuple(DEM_FITTED)
-DEM_BOUNDS = {n: v["bounds"] for n, v in DEM_FITTED.items()}
 #: Replicates of the bootstrap (90 % percentile intervals from 100 replicates: the 5th and 96th
 #: order statistics; Efron & Tibshirani 1993 ch. 13 suggest >= 100 for percentile intervals).
 DEFAULT_REPLICATES = 100

@@ -98,11 +98,9 @@ from ..errors import TwinInputError
 from ..ore.mineralogy import Mineralogy
 from ..ore.ores import load_ore
 from ..ore.fracture_energy import fit_fracture_energy
-from .dem_map import fit_austin_B
+from .dem_map import TARGET_B_N, fit_austin_B, target_peak_force_N
 
 REFERENCE_ORES = ("A", "B", "C", "D")
-#: MISSION.md section 2: measured peak fracture force of a -25+19 mm Type B particle.
-TARGET_B_N = 4200.0
 PARTICLE_DIAMETER_M = 0.022
 SPHERES = 150
 PLATEN_SPEED_M_S = 0.25
@@ -139,12 +137,6 @@ SETTINGS = {
 
 
 # ---------------------------------------------------------------------- 1. targets
-def target_peak_force_N(ore: Mineralogy, reference: Mineralogy | None = None) -> float:
-    """F_X = F_B sqrt((E_X/E_B)(H_X/H_B)) (module docstring, section 1)."""
-    b = reference or load_ore("B")
-    return TARGET_B_N * math.sqrt((ore.youngs_gpa / b.youngs_gpa) * (ore.hardness_index_gpa / b.hardness_index_gpa))
-
-
 def targets(ores=REFERENCE_ORES) -> dict:
     out = {}
     for name in ores:

@@ -6,7 +6,7 @@ Fitted: S^E_ref, the hardness, texture and size-exponent texture exponents of th
 virtual tests in this map, so nothing derives them), the two cushioning coefficients, the
 clay-crowding coefficient of the slurry rheology, and the lab mill's power factor, grate cut
 size and sharpness and discharge factor (their reasons are those of the DEM chain,
-twin.calibration.calibrate.DEM_FITTED).
+twin.calibration.fitted.DEM_FITTED).
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import time
 
 from .breakage_map import COEFFICIENT_NAMES
 from .files import Calibration, base_record, provenance
+from .fitted import DEM_FITTED
 from .fitting import fit_to_table, predict_table, table_errors
 
 #: Start of the fit (only a starting point) and bounds. Signs are physical: harder minerals and
@@ -35,7 +36,6 @@ WHY_MAP = "a coefficient of the mineralogy map; this calibration runs no virtual
 
 def calibrate_mineralogy_map(name: str = "table", max_iter: int = 200, command: str = "grindtwin calibrate --map mineralogy") -> dict:
     """The ``table`` calibration's record: the mineralogy map fitted to the table."""
-    from .calibrate import DEM_FITTED
 
     t0 = time.perf_counter()
     record = base_record(name, "mineralogy", "Mineralogy map (hardness and texture indices) fitted to MISSION.md's "

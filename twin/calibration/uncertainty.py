@@ -154,8 +154,22 @@ def steady_intervals(ores, calibration: Calibration, mill: str = "lab", feed_tph
                      speed_frac_critical: float | None = None, at_load: bool = False, n: int | None = None,
                      level: float = INTERVAL_LEVEL) -> dict:
     """Percentile intervals of a steady state's KPIs over the bootstrap replicates
-    (:func:`replicate_steady_states`): {"intervals": {kpi: (low, median, high)}, "n", "failed",
-    "level"}."""
+    (:func:`replicate_steady_states`): {"intervals": {kpi: (low, median, high)}, "n", "failed"
+    (steady states that failed), "unconverged" (replicates left out because their table step did
+    not converge when the calibration was made), "level"}."""
     states = replicate_steady_states(ores, calibration, mill, feed_tph, speed_frac_critical, at_load, n)
     ok = [s for s in states if s is not None]
-    return {"intervals": intervals(ok, level), "n": len(ok), "failed": len(states) - len(ok), "level": level}
+    return {"intervals": intervals(ok, level), "n": len(ok), "failed": len(states) - len(ok),
+            "unconverged": _unconverged(calibration, n), "level": level}
+
+
+def _unconverged(calibration: Calibration, n: int | None) -> int:
+    """Replicates skipped for an unconverged table step before the ``n`` converged ones used."""
+    skipped = used = 0
+    for rep in (calibration.record.get("bootstrap") or {}).get("replicates", []):
+        if n and used >= n:
+            break
+        ok = rep.get("success", True)
+        used += ok
+        skipped += not ok
+    return skipped

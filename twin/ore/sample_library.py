@@ -165,7 +165,7 @@ def header(seed: int) -> list[str]:
     return [
         "SYNTHETIC reference sample library of the porphyry copper deposit (not measured data).",
         "Drawn around the reference ores A-D of twin/ore/data/ores.toml within MISSION.md Table 1 ranges;",
-        "sampling design in the docstring of twin/sample_library.py. Column generating_type is the",
+        "sampling design in the docstring of twin/ore/sample_library.py. Column generating_type is the",
         "type each sample was drawn from (kept for testing the ore typing).",
         f"Regenerate with: {COMMAND.format(seed=seed)}",
         f"seed={seed} numpy={np.__version__} pandas={pd.__version__}",

@@ -1,6 +1,6 @@
 """The shipped surrogate and its training table: paths, save and load (joblib) with the metadata
 that says what they were made from, and the refusal of a stale or foreign file; the compiled
-form beside it (``surrogate.npz``, :mod:`twin.surrogate.compiled`), which the command line reads
+form beside it (``surrogate.json``, :mod:`twin.surrogate.compiled`), which the command line reads
 without scikit-learn."""
 
 from __future__ import annotations
@@ -9,8 +9,6 @@ import platform
 from functools import cache
 from pathlib import Path
 
-import numpy as np
-
 from ..calibration.files import Calibration, load_calibration
 from ..errors import TwinError, TwinInputError
 from .compiled import TARGETS, CompiledSurrogate, file_sha256
@@ -18,7 +16,7 @@ from .compiled import TARGETS, CompiledSurrogate, file_sha256
 DATA_DIR = Path(__file__).resolve().parent / "data"
 TABLE_PATH = DATA_DIR / "surrogate_training.parquet"
 MODEL_PATH = DATA_DIR / "surrogate.joblib"
-COMPILED_PATH = DATA_DIR / "surrogate.npz"
+COMPILED_PATH = DATA_DIR / "surrogate.json"
 FORMAT_VERSION = 1
 GENERATE_COMMAND = "python -m twin.surrogate --generate"
 TRAIN_COMMAND = "python -m twin.surrogate --train"
@@ -45,8 +43,9 @@ def check_trained_on(surrogate, calibration: Calibration) -> None:
 
 
 def save(surrogate, path: str | Path, metadata: dict | None = None) -> Path:
-    """Save a fitted Surrogate (joblib) and its compiled form beside it (same name, ``.npz``)."""
+    """Save a fitted Surrogate (joblib) and its compiled form beside it (same name, ``.json``)."""
     import joblib  # only when saving or loading
+    import numpy as np
     import sklearn
 
     surrogate._check_fitted()
@@ -61,11 +60,11 @@ def save(surrogate, path: str | Path, metadata: dict | None = None) -> Path:
 
 
 def save_compiled(surrogate, joblib_path: str | Path, metadata: dict) -> Path:
-    """The compiled form of ``surrogate`` (saved as ``joblib_path``) beside it, ``.npz``, with the
+    """The compiled form of ``surrogate`` (saved as ``joblib_path``) beside it, ``.json``, with the
     metadata and the joblib file's hash (so a test can tell they belong together)."""
     joblib_path = Path(joblib_path)
     meta = dict(metadata, joblib_sha256=file_sha256(joblib_path), compiled_by=COMPILE_COMMAND)
-    return surrogate.compiled(meta).save(joblib_path.with_suffix(".npz"))
+    return surrogate.compiled(meta).save(joblib_path.with_suffix(".json"))
 
 
 def _minor(v: str) -> str:
@@ -101,8 +100,8 @@ def shipped_surrogate():
 
 @cache
 def shipped_compiled() -> CompiledSurrogate:
-    """The shipped surrogate's compiled form ``twin/surrogate/data/surrogate.npz`` (loaded once,
-    numpy alone); TwinInputError if it was made from another calibration than the default one
+    """The shipped surrogate's compiled form ``twin/surrogate/data/surrogate.json`` (loaded once,
+    plain Python); TwinInputError if it was made from another calibration than the default one
     (:func:`check_trained_on`; ``surrogate_steady`` checks the calibration it is asked for)."""
     compiled = CompiledSurrogate.load(COMPILED_PATH)
     check_trained_on(compiled, load_calibration())

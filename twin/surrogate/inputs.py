@@ -3,8 +3,6 @@ texture and operating conditions."""
 
 from __future__ import annotations
 
-import numpy as np
-
 from ..errors import TwinInputError
 from ..ore.mineralogy import TEXTURE_COLUMNS, WT_SUFFIX, Mineralogy, Texture
 from ..ore.minerals import mineral_table
@@ -22,7 +20,7 @@ def mineral_names() -> list[str]:
 def blend_mineralogy(blend: Blend) -> Mineralogy:
     """Mass-weighted mineralogy of a blend (texture as in :meth:`Mineralogy.mix`: harmonic
     mean grain size, linear uniformity and entropy)."""
-    fr = np.asarray(blend.fractions, float)
+    fr = [float(f) for f in blend.fractions]
     if len(blend.ores) == 1:
         return blend.ores[0]
     wt: dict = {}
@@ -46,7 +44,8 @@ def as_mineralogy(ore) -> Mineralogy:
 def feature_frame(mineralogies, feed_tph, speed_frac_critical):
     """Input table of the surrogate (a DataFrame): one row per (mineralogy, feed, speed); the
     three arguments broadcast against each other."""
-    import pandas as pd  # tables only: a single answer (predict.py) is numpy alone
+    import numpy as np  # tables only: a single answer (predict.py) is plain Python
+    import pandas as pd
 
     ores = [as_mineralogy(m) for m in (mineralogies if isinstance(mineralogies, (list, tuple)) else [mineralogies])]
     feed = np.atleast_1d(np.asarray(feed_tph, float))

@@ -17,8 +17,8 @@ from sklearn.preprocessing import FunctionTransformer, PolynomialFeatures, Stand
 
 from ..errors import TwinError, TwinInputError, bad_value
 from ..ore.mineralogy import TEXTURE_COLUMNS, WT_SUFFIX
-from .compiled import (Q_FLOOR, Q_LIMIT_FACTOR, SCORE_MARGIN, TARGETS, CompiledSurrogate, checked_predict,
-                       domain_problems, scores_and_q)
+from .compiled import (Q_FLOOR, Q_LIMIT_FACTOR, SCORE_MARGIN, TARGETS, CompiledSurrogate, as_rows, checked_predict,
+                       domain_problems, plain, score_and_q)
 from .inputs import CONDITION_COLUMNS, input_columns, mineral_names
 
 #: Shipped hyper-parameters, chosen by grouped 5-fold CV and held-out error on the shipped table
@@ -149,7 +149,7 @@ class Surrogate(RegressorMixin, BaseEstimator):
                                  f"{self.n_features_in_}) in the order of feature_names_in_. Got shape {A.shape}.")
         return A
 
-    # -- the compiled (numpy) form of the fitted pipeline, used by predict
+    # -- the compiled (plain-number) form of the fitted pipeline, used by predict
     def _compile(self):
         pre = self.pipeline_.named_steps["pre"]
         mpipe = pre.named_transformers_["minerals"]
@@ -158,7 +158,7 @@ class Surrogate(RegressorMixin, BaseEstimator):
         ln = pre.named_transformers_["lin"]
         pls = self.pipeline_.named_steps["pls"]
         idx = {c: i for i, c in enumerate(self.feature_names_in_)}
-        self._c = {
+        self._c = plain({
             "m_idx": [idx[m + WT_SUFFIX] for m in self.minerals_],
             "m_mu": sc.mean_, "m_sd": sc.scale_, "pca_mu": pca.mean_, "pca_W": pca.components_.T,
             "log_idx": [idx["mean_grain_um"], idx["feed_tph"]], "log_mu": lg.mean_, "log_sd": lg.scale_,
@@ -166,15 +166,17 @@ class Surrogate(RegressorMixin, BaseEstimator):
             "lin_mu": ln.mean_, "lin_sd": ln.scale_,
             "pairs": _product_pairs(self.pipeline_.named_steps["poly"].powers_),
             "x_mean": pls._x_mean, "coef": pls.coef_.T, "intercept": pls.intercept_,
-            "lo": np.array([r[0] for r in self.input_range_.values()]),
-            "hi": np.array([r[1] for r in self.input_range_.values()]),
-        }
+            "lo": [r[0] for r in self.input_range_.values()],
+            "hi": [r[1] for r in self.input_range_.values()],
+        })
 
     def _scores_and_q(self, A: np.ndarray):
-        return scores_and_q(self._c, A)
+        """PCA scores (n, n_pca) and residuals (n,) of rows A, row by row (:func:`score_and_q`)."""
+        sq = [score_and_q(self._c, row) for row in as_rows(A)]
+        return np.array([s for s, _ in sq]), np.array([q for _, q in sq])
 
     def compiled(self, metadata: dict | None = None) -> CompiledSurrogate:
-        """The fitted surrogate as arrays (:mod:`twin.surrogate.compiled`): numpy alone predicts."""
+        """The fitted surrogate as plain numbers (:mod:`twin.surrogate.compiled`): Python alone predicts."""
         self._check_fitted()
         return CompiledSurrogate(tuple(self.feature_names_in_), dict(self._c), self.score_range_, self.q_limit_,
                                  dict(metadata if metadata is not None else getattr(self, "metadata_", {})))
@@ -189,9 +191,8 @@ class Surrogate(RegressorMixin, BaseEstimator):
         A = self._as_array(X)
         return self._domain(A, max_problems)
 
-    def _domain(self, A: np.ndarray, max_problems: int = 20, sq=None) -> list[str]:
-        return domain_problems(self._c, self.feature_names_in_, self.score_range_, self.q_limit_, A,
-                               max_problems, sq)
+    def _domain(self, A: np.ndarray, max_problems: int = 20) -> list[str]:
+        return domain_problems(self._c, self.feature_names_in_, self.score_range_, self.q_limit_, A, max_problems)
 
     def predict(self, X, check_domain: bool = True) -> np.ndarray:
         """KPIs (n, 3) in units, order :data:`TARGETS`. Raises TwinInputError for inputs
@@ -200,7 +201,8 @@ class Surrogate(RegressorMixin, BaseEstimator):
         return self._predict_array(self._as_array(X), check_domain)
 
     def _predict_array(self, A: np.ndarray, check_domain: bool = True) -> np.ndarray:
-        return checked_predict(self._c, self.feature_names_in_, self.score_range_, self.q_limit_, A, check_domain)
+        return np.array(checked_predict(self._c, self.feature_names_in_, self.score_range_, self.q_limit_, A,
+                                        check_domain), float).reshape(-1, len(TARGETS))
 
     def predict_pipeline(self, X) -> np.ndarray:
         """The same prediction through the scikit-learn Pipeline (no domain check); the

@@ -1,13 +1,11 @@
 """One steady-state answer from the surrogate, with the keys of the ``steady`` command's JSON.
 
-numpy alone: the shipped surrogate is read in its compiled form (:mod:`twin.surrogate.compiled`),
-so ``grindtwin steady --surrogate`` imports neither scikit-learn nor CasADi."""
+Plain Python: the shipped surrogate is read in its compiled form (:mod:`twin.surrogate.compiled`),
+so ``grindtwin steady --surrogate`` imports neither numpy, scikit-learn nor CasADi."""
 
 from __future__ import annotations
 
 import math
-
-import numpy as np
 
 from ..calibration.files import load_calibration
 from ..errors import TwinInputError, bad_value
@@ -67,7 +65,7 @@ def surrogate_steady(mineralogy, feed_tph: float | None = None, speed_frac_criti
     feed = _number("feed_tph", m.feed_nominal_tph if feed_tph is None else feed_tph)
     speed = _number("speed_frac_critical", m.speed_nominal_frac_critical if speed_frac_critical is None
                     else speed_frac_critical)
-    p80, se, load = sur.predict(np.array([input_row(sur.feature_names, ore, feed, speed)], float))[0]
+    p80, se, load = sur.predict([input_row(sur.feature_names, ore, feed, speed)])[0]
     return {"source": "surrogate", "mill": mill, "feed_tph": feed, "speed_frac_critical": speed,
             "p80_um": float(p80), "specific_energy_kwh_t": float(se), "power_kw": float(se * feed),
             "throughput_tph": feed, "discharge_tph": feed, "load_frac": float(load),
