@@ -10,7 +10,9 @@ also a rock fraction 0.465 -> 0.55 at t = 4 h); 8 h, 3-min samples. Three contro
 same plant, sensors and seed: no control (survey-3 inputs held), PI P80 -> feed (SIMC on a
 FOPDT fit of the circuit's linearised feed -> P80 response, analyser delay added:
 :func:`mpc.closed_loop.pi_baseline` on the circuit), and the NMPC + EKF on the twin matched to
-the circuit (:func:`mpc.plants.leroux.matched_twin`). The EKF is given the P80 analyser only: the
+the circuit (:func:`mpc.plants.leroux.matched_twin`: its survey-3 power and P80, and a feed
+inventory whose time constant gives it the mean response time of the same feed step test the PI
+is tuned on; ``--feed-inventory-h 0`` runs the twin without it). The EKF is given the P80 analyser only: the
 circuit's power (a ROM-mill power surface in filling and rheology) and its filling (balls,
 rocks and water included) do not mean what the twin's power and load (ore hold-up over
 nominal) mean, and with one integrating disturbance (the hardness) a second measurement that
@@ -21,9 +23,10 @@ scaled to this target (+-5 % of 94 um = +-4.7 um), and the final offset: mean P8
 over the last hour (true plant P80, not the noisy analyser).
 
 Writes benchmarks/results/mpc_leroux_case.csv (KPIs), .md (table) and mpc_leroux_case_runs.csv
-(one row per sample, all runs).
+(one row per sample, all runs); ``--seeds 1,2,3`` repeats the case over sensor-noise seeds (a
+``seed`` column) and states the NMPC's IAE over the PI's per seed.
 
-    PYTHONPATH=. python benchmarks/mpc_leroux_case.py [--duration-h 8] [--dt-h 0.05]
+    PYTHONPATH=. python benchmarks/mpc_leroux_case.py [--duration-h 8] [--dt-h 0.05] [--seeds 1]
 """
 
 from __future__ import annotations
@@ -86,7 +89,7 @@ def controllers(args, circuit, mt, sensors, dt):
                 weight_du_feed=args.weight_du_feed, weight_du_speed=args.weight_du_speed,
                 feed_tph_min=FEED_MIN, feed_tph_max=FEED_MAX, feed_rate_max_tph_per_h=FEED_RATE,
                 rk4_substeps=mt.rk4_substeps(dt), solver=args.solver, qpsol=args.qpsol,
-                weight_p80=args.weight_p80, preview=False))
+                weight_p80=args.weight_p80, weight_energy=args.weight_energy, preview=False))
             print(f"NMPC built in {time.perf_counter() - t0:.1f} s, "
                   f"{mt.rk4_substeps(dt)} RK4 steps per sample")
             yield kind, ctrl, est, None
@@ -97,14 +100,18 @@ def controllers(args, circuit, mt, sensors, dt):
 def run_case(args) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
     dt = args.dt_h
     circuit = LeRouxCircuit()
-    mt = matched_twin(circuit, analyser_dead_time_h=0.1)
+    mt = matched_twin(circuit, analyser_dead_time_h=0.1, feed_inventory_h=args.feed_inventory_h)
     rock = (lambda t: ROCK_FRAC if t >= T_ROCK_H else circuit.params.alpha_r_frac) \
         if args.rock_step else None
     plant = LeRouxPlant(circuit, component_names=mt.twin.blend.names, rock_frac=rock)
     sensors = Sensors(p80_noise_um=args.p80_noise, p80_dead_time_h=0.1, p80_sample_period_h=0.05,
                       power_noise_kw=5.0, load_noise_frac=0.01)
+    ps, ts = mt.plant_step, mt.twin_step
     notes = [f"twin matched to the circuit: power factor {mt.power_factor:.4g}, hardness scale "
-             f"{mt.hardness0:.4g}, target P80 {mt.target_p80_um} um"]
+             f"{mt.hardness0:.4g}, target P80 {mt.target_p80_um} um",
+             f"feed step test, FOPDT fits of feed -> P80: circuit gain {ps.gain:.3g} um/(t/h), tau "
+             f"{ps.tau_h:.3g} h, delay {ps.delay_h:.3g} h; twin without inventory {ts.gain:.3g}, "
+             f"{ts.tau_h:.3g} h, {ts.delay_h:.3g} h; twin's feed inventory {mt.feed_inventory_h:.3g} h"]
     rows, runs = [], []
     target = mt.target_p80_um
     for kind, ctrl, est, note in controllers(args, circuit, mt, sensors, dt):
@@ -141,22 +148,49 @@ def run_case(args) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
     return pd.DataFrame(rows), pd.concat(runs), notes
 
 
+def run_seeds(args) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
+    """The case once per seed of ``args.seeds`` (the sensor noise differs); a ``seed`` column."""
+    tables, runs = [], []
+    for seed in (int(v) for v in args.seeds.split(",")):
+        args.seed = seed
+        table, run, notes = run_case(args)
+        tables.append(table.assign(seed=seed))
+        runs.append(run.assign(seed=seed))
+    return pd.concat(tables, ignore_index=True), pd.concat(runs), notes
+
+
+def ratio_line(table: pd.DataFrame) -> str:
+    """The NMPC's IAE over the PI's, per seed, and their median."""
+    iae = table.pivot(index="seed", columns="controller", values="p80_iae_um_h")
+    if not {"pi", "nmpc"} <= set(iae.columns):
+        return ""
+    r = iae["nmpc"] / iae["pi"]
+    each = ", ".join(f"{v:.3f}" for v in r)
+    return f"NMPC IAE / PI IAE per seed ({', '.join(map(str, r.index))}): {each}; median {r.median():.3f}."
+
+
 def main(argv=None) -> pd.DataFrame:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration-h", type=float, default=8.0)
     ap.add_argument("--dt-h", type=float, default=0.05)
     ap.add_argument("--horizon", type=int, default=20)
-    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--seeds", default="1,2,3,4,5,6,7,8,9,10", help="comma-separated sensor-noise seeds, one run each")
     ap.add_argument("--only", default="none,pi,nmpc")
     ap.add_argument("--weight-du-feed", type=float, default=1.0)
-    ap.add_argument("--weight-du-speed", type=float, default=1.0)
+    ap.add_argument("--weight-du-speed", type=float, default=10.0)
     ap.add_argument("--solver", default="rti", help="NmpcSettings.solver of the NMPC")
     ap.add_argument("--qpsol", default="condensed", help="NmpcSettings.qpsol of the NMPC")
-    ap.add_argument("--weight-p80", type=float, default=1.0)
+    # P80 5, speed moves 10, hardness walk 0.2 (the reference case: 1, 1, 0.1): chosen over seeds
+    # 1-10 once the twin answers feed as slowly as the circuit (a slow model needs a firmer P80
+    # weight to move early); the speed-move weight pins the speed/feed trade at a held P80, on
+    # which the twin and the circuit disagree (with 1, speed wanders to its 0.85 bound on some
+    # seeds and P80 with it); judged on the held-out seeds 11-20 (--seeds 11,...,20)
+    ap.add_argument("--weight-p80", type=float, default=5.0)
+    ap.add_argument("--weight-energy", type=float, default=0.01, help="NmpcSettings.weight_energy")
     ap.add_argument("--disturbance-model", default="hardness", help="EKF disturbance model (mpc.DISTURBANCE_MODELS)")
     ap.add_argument("--p80-bias-noise", type=float, default=5.0,
                     help="EKF random-walk intensity of the P80 bias [um/sqrt(h)]")
-    ap.add_argument("--hardness-noise", type=float, default=0.1,
+    ap.add_argument("--hardness-noise", type=float, default=0.2,
                     help="EKF random-walk intensity of the twin's hardness scale [1/sqrt(h)]")
     ap.add_argument("--p80-noise", type=float, default=3.0, help="analyser noise [um]")
     ap.add_argument("--warmup-h", type=float, default=2.0,
@@ -164,14 +198,17 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--rock-step", action="store_true",
                     help=f"also step the rock fraction to {ROCK_FRAC} at t = {T_ROCK_H} h")
     ap.add_argument("--tag", default="", help="suffix of the result files")
+    ap.add_argument("--feed-inventory-h", type=float, default=None,
+                    help="time constant of the matched twin's feed inventory [h]; default identified from "
+                         "the circuit's feed step test, 0 for none")
     argv = sys.argv[1:] if argv is None else list(argv)
     args = ap.parse_args(argv)
-    table, runs, notes = run_case(args)
+    table, runs, notes = run_seeds(args)
     OUT.mkdir(exist_ok=True)
     name = f"mpc_leroux_case{args.tag}"
     table.to_csv(OUT / f"{name}.csv", index=False)
     runs.to_csv(OUT / f"{name}_runs.csv", index=False)
-    cols = ["controller", "p80_iae_um_h", "p80_within_10um_frac", "p80_within_band_frac",
+    cols = ["seed", "controller", "p80_iae_um_h", "p80_within_10um_frac", "p80_within_band_frac",
             "p80_max_abs_err_um", "p80_after_step_max_abs_err_um", "final_offset_um",
             "final_max_abs_err_um", "specific_energy_kwh_t", "throughput_t", "feed_final_tph",
             "speed_final_frac", "hardness_est_final_rel", "solve_time_median_s",
@@ -181,8 +218,8 @@ def main(argv=None) -> pd.DataFrame:
           "twin-based NMPC + EKF against PI and no control",
           "",
           f"duration {args.duration_h} h, sample {args.dt_h} h, NMPC horizon {args.horizon} ({args.solver}, "
-          f"qpsol {args.qpsol}, no preview), seed {args.seed}; weights p80 {args.weight_p80}, du_feed "
-          f"{args.weight_du_feed}, du_speed {args.weight_du_speed}; EKF on the P80 analyser only, "
+          f"qpsol {args.qpsol}, no preview), seeds {args.seeds}; weights p80 {args.weight_p80}, du_feed "
+          f"{args.weight_du_feed}, du_speed {args.weight_du_speed}, energy {args.weight_energy}; EKF on the P80 analyser only, "
           f"disturbance model {args.disturbance_model}, hardness noise "
           f"{args.hardness_noise}/sqrt(h), warm-up {args.warmup_h} h; sensors: P80 noise "
           f"{args.p80_noise} um, dead time 0.1 h, sampling 0.05 h. Band: +-{BAND_REL:.0%} of "
@@ -190,7 +227,7 @@ def main(argv=None) -> pd.DataFrame:
           "hardness_est_final_rel: the EKF's hardness over its survey-3 value (plant: "
           f"{PHI_F_STEP}).",
           "", *[f"- {n}" for n in notes], "",
-          table[cols].to_markdown(index=False, floatfmt=".4g"), "",
+          table[cols].to_markdown(index=False, floatfmt=".4g"), "", ratio_line(table), "",
           f"Reproduce: `{' '.join(['PYTHONPATH=. python benchmarks/mpc_leroux_case.py', *argv])}`."]
     (OUT / f"{name}.md").write_text("\n".join(md) + "\n")
     return table

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mpc.linear import Fopdt, fopdt_from_model, linearize
+from mpc.linear import Fopdt, feed_step_fopdt
 from mpc.pi import DiscretePI
 from mpc.results import ControllerStepResult
 from mpc.sensors import Sensors
@@ -45,12 +45,10 @@ def pi_baseline(plant_model, steady, sensors: Sensors, dt_h: float, target_p80_u
     (``plant_model``: a twin's model, or any model with ``f(x, u, d)`` and ``outputs['p80_um']``
     such as :class:`mpc.plants.leroux.LeRouxCircuit`; ``steady``: a :class:`twin.solve.steady.SteadyState`
     or anything with its ``x``, ``u``, ``d``): FOPDT fit of the feed -> P80 step response
-    (:func:`mpc.linear.fopdt_from_model`), its dead time increased by the analyser dead time
+    (:func:`mpc.linear.feed_step_fopdt`), its dead time increased by the analyser dead time
     plus half the sampling period (the mean delay of a sample-and-hold; Seborg et al. 2011,
     sec. 17.1). Returns ``(PiFeedback, Fopdt)``."""
-    sys_c, _ = linearize(plant_model.f, plant_model.outputs, steady.x, steady.u, steady.d,
-                         ["p80_um"], steady_tol=1e-4)
-    f = fopdt_from_model(sys_c, "feed_tph", "p80_um")
+    f = feed_step_fopdt(plant_model, steady.x, steady.u, steady.d)
     f = Fopdt(f.gain, f.tau_h, f.delay_h + sensors.p80_dead_time_h
               + 0.5 * sensors.p80_sample_period_h, f.rms_error)
     pi = DiscretePI.from_fopdt(f, dt_h, target_p80_um, float(steady.u[0]), tau_c_h=tau_c_h,

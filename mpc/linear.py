@@ -273,6 +273,15 @@ def fopdt_from_model(sys_c: control.StateSpace, input_name: str, output_name: st
     return fit_fopdt(t, _step_channel(sys_c, j, i, t))
 
 
+def feed_step_fopdt(model, x_ss, u_ss, d_ss, output_name: str = "p80_um",
+                    steady_tol: float = 1e-4) -> Fopdt:
+    """A feed step test on ``model`` (anything with ``f(x, u, d)`` and ``outputs``: a twin's model
+    or :class:`mpc.plants.leroux.LeRouxCircuit`) at its steady state ``(x_ss, u_ss, d_ss)``: the
+    FOPDT fit of the linearised ``feed_tph -> output_name`` step response."""
+    sys_c, _ = linearize(model.f, model.outputs, x_ss, u_ss, d_ss, [output_name], steady_tol=steady_tol)
+    return fopdt_from_model(sys_c, "feed_tph", output_name)
+
+
 # --------------------------------------------------------------------------- targets
 def steady_target(sys: control.StateSpace, y_ref: dict[str, float], u_ref=None,
                   u_weight=None) -> tuple[np.ndarray, np.ndarray]:

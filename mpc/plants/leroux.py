@@ -72,6 +72,7 @@ from scipy.optimize import brentq
 
 from mpc.discretize import RK4_RATE_SAFETY, min_rk4_substeps, state_jacobian
 from mpc.errors import MpcInputError, MpcSolverError
+from mpc.linear import Fopdt, feed_step_fopdt
 from twin import DEFAULT_EFFECTS, Mill, SizeGrid, Twin
 
 STATE_NAMES = (
@@ -170,6 +171,13 @@ def _check_positive(obj: str, name: str, value: float) -> None:
     if not np.isfinite(value) or value <= 0.0:
         raise MpcInputError(
             f"The '{name}' parameter of {obj} must be a finite float > 0. Got {value!r}."
+        )
+
+
+def _check_nonnegative(obj: str, name: str, value: float) -> None:
+    if not np.isfinite(value) or value < 0.0:
+        raise MpcInputError(
+            f"The '{name}' parameter of {obj} must be a finite float >= 0. Got {value!r}."
         )
 
 
@@ -624,6 +632,12 @@ class MatchedTwin:
     """The circuit's survey-3 steady state."""
     jacobian: np.ndarray
     """``df/dx`` of the twin at :attr:`steady`."""
+    feed_inventory_h: float
+    """Time constant of the twin's feed inventory (0: none, the twin's own charge only)."""
+    plant_step: Fopdt
+    """FOPDT fit of the circuit's feed -> P80 step test (the PI baseline's model too)."""
+    twin_step: Fopdt
+    """FOPDT fit of the same step test on the twin without the inventory."""
 
     @property
     def fastest_rate_per_h(self) -> float:
@@ -641,7 +655,8 @@ class MatchedTwin:
 
 
 def matched_twin(circuit: LeRouxCircuit | None = None, ore: str = "B", grid=None,
-                 analyser_dead_time_h: float = 0.1, n_mixers: int = 1) -> MatchedTwin:
+                 analyser_dead_time_h: float = 0.1, n_mixers: int = 1,
+                 feed_inventory_h: float | None = None) -> MatchedTwin:
     """The twin the NMPC runs on, matched to the [LR13] circuit by what a plant would measure.
 
     Choices (each a stated reason, not from [LR13] unless said):
@@ -664,13 +679,23 @@ def matched_twin(circuit: LeRouxCircuit | None = None, ore: str = "B", grid=None
     - model: the twin's default effects plus the analyser dead time (``sensor_delay``), a grid
       of 12 classes of ratio 2 from 6.7 mm (down to 3.3 um; the target lies in the
       52-105 um class) and ``n_mixers`` mixers (1: the coarse, fast controller model of the
-      reference case).
+      reference case);
+    - dynamics: a feed step test on the circuit (what a plant can run; the FOPDT fit the PI
+      baseline is tuned on, :func:`mpc.linear.feed_step_fopdt`) answers in ~1.4 h, the twin's
+      charge of fine feed in ~5 min (it holds neither [LR13]'s rocks nor its slow slurry charge).
+      Unless ``feed_inventory_h`` is given, the twin gets the ``feed_inventory`` effect with the
+      time constant that makes its mean response time (time constant + dead time of the fit)
+      that of the circuit's step test (method of moments: the mean times of lags in series add;
+      Seborg et al. 2011 sec. 6.2); none if the twin is already as slow. ``feed_inventory_h=0``:
+      the twin without it.
     """
     c = LeRouxCircuit() if circuit is None else circuit
     if not isinstance(c, LeRouxCircuit):
         raise MpcInputError("The 'circuit' parameter of matched_twin must be a LeRouxCircuit. "
                             f"Got {type(c).__name__}.")
     _check_positive("matched_twin", "analyser_dead_time_h", float(analyser_dead_time_h))
+    if feed_inventory_h is not None:
+        _check_nonnegative("matched_twin", "feed_inventory_h", float(feed_inventory_h))
     p = c.params
     x_ss = c.steady_state()
     y_ss = c.evaluate_outputs(x_ss, c.u_nominal)
@@ -682,13 +707,14 @@ def matched_twin(circuit: LeRouxCircuit | None = None, ore: str = "B", grid=None
     effects = list(DEFAULT_EFFECTS) + ["sensor_delay"]
     opts = {"sensor_delay": {"dead_time_h": float(analyser_dead_time_h)}}
 
-    def build(power_factor):
+    def build(power_factor, inventory_h=0.0):
         mill = Mill("leroux2013", diameter_m=diameter, length_m=diameter,
                     ball_filling_frac=float(ball_filling), bed_porosity=porosity,
                     speed_nominal_frac_critical=p.speed_frac_critical,
                     feed_nominal_tph=p.feed_tph, power_factor=power_factor)
-        return Twin(ore, mill=mill, effects=effects, effect_options=opts, grid=grid,
-                    n_mixers=n_mixers)
+        inventory = {"feed_inventory": {"time_constant_h": inventory_h}} if inventory_h > 0 else {}
+        return Twin(ore, mill=mill, effects=effects + list(inventory), effect_options=opts | inventory,
+                    grid=grid, n_mixers=n_mixers)
 
     tw1 = build(1.0)
     ss1 = tw1.steady(feed_tph=p.feed_tph, speed_frac_critical=p.speed_frac_critical)
@@ -707,5 +733,15 @@ def matched_twin(circuit: LeRouxCircuit | None = None, ore: str = "B", grid=None
     h0 = float(brentq(miss, lo, hi, xtol=1e-4))
     ss = tw.steady(feed_tph=p.feed_tph, speed_frac_critical=p.speed_frac_critical,
                    hardness_scale=h0)
+    plant_step = feed_step_fopdt(c, x_ss, c.u_nominal, c.d_nominal)
+    twin_step = feed_step_fopdt(tw.model, ss.x, ss.u, ss.d)
+    if feed_inventory_h is None:
+        gap_h = plant_step.tau_h + plant_step.delay_h - twin_step.tau_h - twin_step.delay_h
+        feed_inventory_h = max(gap_h, 0.0)
+    if feed_inventory_h > 0:  # same steady state (the inventory passes its inflow): same h0, power
+        tw = build(pf, float(feed_inventory_h))
+        ss = tw.steady(feed_tph=p.feed_tph, speed_frac_critical=p.speed_frac_critical,
+                       hardness_scale=h0)
     return MatchedTwin(tw, ss, h0, float(pf), float(target), x_ss,
-                       state_jacobian(tw.model.f, ss.x, ss.u, ss.d))
+                       state_jacobian(tw.model.f, ss.x, ss.u, ss.d), float(feed_inventory_h),
+                       plant_step, twin_step)

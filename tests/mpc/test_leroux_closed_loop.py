@@ -10,6 +10,7 @@ import pytest
 from mpc import FixedInputs, LoopSettings, Sensors, run_closed_loop
 from mpc.errors import MpcInputError
 from mpc.estimator import Ekf
+from mpc.linear import feed_step_fopdt
 from mpc.plants.leroux import LeRouxCircuit, LeRouxPlant, matched_twin
 from mpc.nmpc import Controller, NmpcSettings
 
@@ -36,6 +37,22 @@ def test_matched_twin_draws_survey3_power_and_p80(circuit, mt):
     # the sub-steps cover 1.4x the matched twin's fastest rate within RK4's real-axis stability
     # bound 2.785
     assert mt.rk4_substeps(DT) >= math.ceil(1.4 * DT * mt.fastest_rate_per_h / 2.785)
+
+
+def test_matched_twin_answers_a_feed_step_as_slowly_as_the_circuit(circuit, mt):
+    """The feed inventory identified from the circuit's feed step test gives the twin the
+    circuit's mean response time (tau + delay of the FOPDT fits); without it the twin answers
+    more than ten times faster (the test can fail: the inventory matters)."""
+    ps = mt.plant_step
+    fit = feed_step_fopdt(mt.twin.model, mt.steady.x, mt.steady.u, mt.steady.d)
+    assert fit.tau_h + fit.delay_h == pytest.approx(ps.tau_h + ps.delay_h, rel=0.02)
+    assert mt.twin_step.tau_h + mt.twin_step.delay_h < 0.1 * (ps.tau_h + ps.delay_h)
+    assert "feed_inventory" in mt.twin.model.effect_names
+    bare = matched_twin(circuit, feed_inventory_h=0.0)
+    assert "feed_inventory" not in bare.twin.model.effect_names and bare.feed_inventory_h == 0.0
+    assert bare.hardness0 == pytest.approx(mt.hardness0, rel=1e-9)
+    with pytest.raises(MpcInputError, match="feed_inventory_h"):
+        matched_twin(circuit, feed_inventory_h=-1.0)
 
 
 def test_adapter_mass_balance_and_columns(circuit):
@@ -96,7 +113,12 @@ def test_twin_nmpc_removes_offset_after_hardness_step(circuit, mt):
     err = last.p80_um - mt.target_p80_um
     assert abs(err.mean()) < 2.5 and err.abs().max() < 5.0
     assert last.hardness_est.mean() / mt.hardness0 == pytest.approx(1.15, abs=0.1)
-    assert last.feed_tph.mean() < 62.0  # harder ore: less feed (or more speed) holds the grind
+    # the inputs it ends at hold the grind on the harder ore: the circuit's own steady P80 there
+    u_end = np.array([last.feed_tph.mean(), last.speed_frac_critical.mean()])
+    d_end = plant.disturbance(4.0, [1.0], 1.15)
+    x_end = circuit.steady_state(u=u_end, d=d_end, x0=mt.plant_steady_x)
+    assert circuit.evaluate_outputs(x_end, u_end, d_end)["p80_um"] == pytest.approx(mt.target_p80_um, abs=2.5)
+    assert u_end[0] < circuit.params.feed_tph or u_end[1] > circuit.params.speed_frac_critical
     res0 = run_closed_loop(plant, FixedInputs(u3), None, lambda t: [1.0], sensors, mt.plant_steady_x, u3,
                            settings, plant_hardness=1.15)
     err0 = res0.frame.p80_um[res0.frame.time_h >= 3.5] - mt.target_p80_um

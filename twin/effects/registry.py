@@ -10,6 +10,7 @@ from .base import CORE_VARIABLES, Effect
 from .breakage import Breakage
 from .classification import Classification
 from .cushioning import Cushioning
+from .feed_inventory import FeedInventory
 from .holdup import Holdup
 from .power import Power
 from .rheology import Rheology
@@ -21,7 +22,7 @@ from .transport import Transport
 #: Every effect by name (alphabetical: the order carries no meaning; the build order comes from
 #: the declarations, ties broken by name).
 EFFECTS: dict[str, type[Effect]] = {cls.name: cls for cls in sorted(
-    (Breakage, Classification, Cushioning, Holdup, Power, Rheology, SensorDelay, SlowingDown, Speed, Transport),
+    (Breakage, Classification, Cushioning, FeedInventory, Holdup, Power, Rheology, SensorDelay, SlowingDown, Speed, Transport),
     key=lambda c: c.name)}
 
 

@@ -5,7 +5,7 @@ Whiten 1974, in Napier-Munn et al. 1996, JKMRC Monograph 2, ch. 10; Austin et al
 report industrial ball mills as one large mixer of ~0.7 of the mean residence time and two
 small ones).
 
-Fresh feed [t/h] enters mixer 0 split by the blend fractions, each component with the feed
+Fresh feed [t/h] (or what arrives of it through ``feed_inventory``) enters mixer 0 split by the blend fractions, each component with the feed
 size distribution; mixer k discharges ``r_k m_k`` into mixer k+1; the last mixer's discharge
 (times the class factor of a grate, if listed) is the mill discharge, split by a classifier
 into product and recycle when one is listed. Without ``holdup`` the rate is fixed by the
@@ -23,7 +23,7 @@ from .base import Effect, EffectContext
 
 class Transport(Effect):
     name = "transport"
-    uses = ("discharge_rate_law", "discharge_class_factor", "product_split", "flow_multiplier")
+    uses = ("discharge_rate_law", "discharge_class_factor", "product_split", "flow_multiplier", "feed_arrival_tph")
     outputs = ("product_tph", "throughput_tph", "discharge_tph", "p80_um", "psd_frac")
     source = "Austin, Klimpel & Luckie (1984), ch. 9 (mixers in series)"
     summary = "feed in, discharge out, N mixers in series; product P80"
@@ -38,9 +38,10 @@ class Transport(Effect):
         rate = ctx.get("discharge_rate_law", lambda k: 1.0 / (fracs[k] * tau_h))
         class_factor = ctx.get("discharge_class_factor")
         feed = ca.DM(spec.feed_frac)
+        arrival_tph = ctx.get("feed_arrival_tph", ctx.feed_tph)  # the fresh feed, or through an inventory
         discharge = []
         for c in range(ctx.n_components):
-            inflow = ctx.feed_tph * ctx.blend(c) * feed
+            inflow = arrival_tph * ctx.blend(c) * feed
             for k in range(n_mix):
                 out = rate(k) * ctx.mass[c][k]
                 if k == n_mix - 1 and class_factor is not None:
