@@ -3,6 +3,8 @@ from the shipped calibration, predicting exactly what the estimator predicts; re
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -42,3 +44,15 @@ def test_a_compiled_file_from_another_calibration_is_refused(tmp_path, monkeypat
         files.shipped_compiled.__wrapped__()
     round_trip = CompiledSurrogate.load(path)
     assert round_trip.feature_names == stale.feature_names and round_trip.q_limit == stale.q_limit
+
+
+def test_an_unchecked_row_outside_the_domain_predicts_nan_not_a_number():
+    """Without the domain check, a non-positive log input gives NaN KPIs (as numpy's exp of NaN),
+    never a finite value or an infinity that could pass for one."""
+    sur = S.shipped_compiled()
+    row = list(S.load_training_table()[list(sur.feature_names)].iloc[0])
+    row[sur.feature_names.index("feed_tph")] = -1.0
+    out = sur.predict([row], check_domain=False)[0]
+    assert all(math.isnan(v) for v in out), out
+    with pytest.raises(TwinInputError, match="feed_tph"):
+        sur.predict([row])

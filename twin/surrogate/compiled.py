@@ -74,7 +74,8 @@ def predict_row(c: dict, row, s=None) -> list[float]:
     out = []
     for t, b in enumerate(c["intercept"]):
         y = math.fsum(f * ck[t] for f, ck in zip(F, c["coef"])) + b
-        out.append(math.exp(y) if y < 709.0 else math.inf)  # 709: the largest exponent of a double
+        # 709: the largest exponent of a double (overflow is inf); NaN stays NaN, as numpy's exp
+        out.append(math.inf if y > 709.0 else math.exp(y))
     return out
 
 
