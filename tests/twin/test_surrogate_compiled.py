@@ -56,3 +56,12 @@ def test_an_unchecked_row_outside_the_domain_predicts_nan_not_a_number():
     assert all(math.isnan(v) for v in out), out
     with pytest.raises(TwinInputError, match="feed_tph"):
         sur.predict([row])
+
+
+def test_a_table_is_read_by_column_name_not_position():
+    sur = S.shipped_compiled()
+    table = S.load_training_table()[list(sur.feature_names)].iloc[:3]
+    shuffled = table[list(reversed(table.columns))]
+    assert sur.predict(shuffled) == sur.predict(table.to_numpy(float))
+    with pytest.raises(TwinInputError, match="lacks the columns"):
+        sur.predict(table.drop(columns=["feed_tph"]))

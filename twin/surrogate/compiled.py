@@ -144,7 +144,13 @@ class CompiledSurrogate:
         self.q_limit = float(self.q_limit)
 
     def predict(self, A, check_domain: bool = True) -> list[list[float]]:
-        """KPI rows, order :data:`TARGETS`, of input rows in the order of ``feature_names``."""
+        """KPI rows, order :data:`TARGETS`, of input rows in the order of ``feature_names`` (or a
+        table whose columns are named so: taken by name, never by position)."""
+        if hasattr(A, "columns"):
+            missing = [c for c in self.feature_names if c not in A.columns]
+            if missing:
+                raise TwinInputError(f"The 'X' of CompiledSurrogate lacks the columns {missing}.")
+            A = A[list(self.feature_names)].to_numpy(float)
         rows = as_rows(A)
         bad = [len(r) for r in rows if len(r) != len(self.feature_names)]
         if bad:
