@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 
-from twin import MILLS, get_mill, power_kw
+from twin import MILLS, TwinInputError, get_mill, power_kw
 
 #: A feed rate above this multiple of the mill's nominal feed rate is refused: an order of
 #: magnitude above nominal is no operating point of that mill (its hold-up would be many
@@ -17,26 +17,27 @@ FEED_MAX_NOMINAL_MULTIPLE = 10.0
 PERCENT_RANGE = (10.0, 100.0)
 
 
-#: Scene [mill] keys that change the mill's power draw, and their valid ranges (a value outside
-#: is the schema's to refuse; here it is ignored).
-POWER_KEYS = {"diameter_m": (0.0, 20.0), "length_m": (0.0, 30.0), "ball_filling_frac": (0.0, 0.5),
-              "net_power_kw": (0.0, 1e5)}
+#: Scene [mill] keys that change the mill's power draw.
+POWER_KEYS = ("diameter_m", "length_m", "ball_filling_frac", "net_power_kw")
 
 
 def nominal_feed_tph(preset, mill_keys: dict | None = None) -> float | None:
     """The nominal feed rate [t/h] of a scene's mill (None for an unknown preset): the preset's,
     scaled by the power the scene's mill draws at nominal speed over the preset's (throughput ~
     power at a given specific energy, Bond's law). ``mill_keys``: the scene's [mill] table; its
-    dimensions, ball filling and net power (:data:`POWER_KEYS`) enter."""
+    dimensions, ball filling and net power (:data:`POWER_KEYS`) enter. A value the mill refuses
+    (the schema names it in the same check) leaves the preset's nominal feed."""
     base = get_mill(preset) if isinstance(preset, str) and preset in MILLS else None
     if base is None:
         return None
     given = {k: float(v) for k, v in (mill_keys if isinstance(mill_keys, dict) else {}).items()
-             if k in POWER_KEYS and isinstance(v, (int, float)) and not isinstance(v, bool)
-             and math.isfinite(v) and POWER_KEYS[k][0] < v <= POWER_KEYS[k][1]}
+             if k in POWER_KEYS and isinstance(v, (int, float)) and not isinstance(v, bool)}
+    try:
+        mill = base.with_(**given)
+    except TwinInputError:
+        mill = base
     speed = base.speed_nominal_frac_critical
-    scale = float(power_kw(base.with_(**given), speed)) / float(power_kw(base, speed))
-    return float(base.feed_nominal_tph) * scale
+    return float(base.feed_nominal_tph) * float(power_kw(mill, speed)) / float(power_kw(base, speed))
 
 
 def speed_problem(value: float) -> str | None:
