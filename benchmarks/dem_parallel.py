@@ -15,7 +15,7 @@ Yade, the same time step on both sides (grindtwin's default, 0.5 of its critical
    (2 threads) against Yade (-j2, recording every 20 steps to catch its peak), same dt.
 3. scale: grindtwin alone at 500-32000 spheres, 1 and 2 threads interleaved.
 
-``python benchmarks/dem_parallel.py [--fast] [--parts speed,peak,scale] [--sizes 500,2000]`` writes
+``python benchmarks/dem_parallel.py [--fast] [--parts speed,peak,scale] [--sizes 500,2000] [--repeats 3]`` writes
 benchmarks/results/dem_parallel_speed.*, dem_parallel_peak.* and dem_parallel_scale.* (md + csv)
 for the parts asked (default all; ``--sizes`` limits every part to those sphere counts). Needs
 ``yade`` on PATH (Debian package).
@@ -51,7 +51,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 WORKER = os.path.join(HERE, "dem_parallel_worker.py")
 YADE_SCRIPT = os.path.join(HERE, "dem_yade_compression.py")
 STEPS = {500: 1000, 2000: 300, 8000: 80} if not FAST else {500: 500, 2000: 150}
-REPEATS = 2
+REPEATS = int(_arg("--repeats", "3"))
 PEAK_SIZES = (500, 2000) if not FAST else (500,)
 PEAK_SEEDS = (0, 1, 2)
 SCALE = {500: 1000, 2000: 300, 8000: 80, 32000: 20} if not FAST else {500: 300, 2000: 80}

@@ -72,6 +72,7 @@ def main():
     s.run(steps)
     print(json.dumps({"steps": steps, "wall_s": time.perf_counter() - w0,
                       "cpu_s": time.process_time() - c0, "threads": numba.get_num_threads(),
+                      "threading_layer": numba.threading_layer(),
                       "n_spheres": agg.n_spheres, "n_bonds": agg.n_bonds}))
 
 

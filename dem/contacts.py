@@ -39,7 +39,7 @@ CONTACT_LAW_HERTZ_MINDLIN = 0
 CONTACT_LAW_LINEAR_YADE = 1
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def hist_add(hist, lo_log10, dlog10, energy_J):
     if energy_J <= 0.0:
         k = 0
@@ -52,14 +52,15 @@ def hist_add(hist, lo_log10, dlog10, energy_J):
     hist[k] += 1.0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def hertz_mindlin(delta, nx, ny, nz, vrx, vry, vrz, r_eff, m_eff, e_star, g_star, mu, eta,
-                  xi, dt, law=0.0):
+                  x0, x1, x2, dt, law=0.0):
     """Force on j (on the particle for walls) of one Hertz–Mindlin contact.
 
     ``law = 1`` makes it the linear contact of Yade instead (``CONTACT_LAW_LINEAR_YADE``):
     ``k_n = 2 e_star r_eff``, ``k_s = 2 g_star r_eff`` (see :data:`CONTACT_LAW_LINEAR_YADE`).
-    ``xi`` (length-3 view) is updated in place. Returns (fx, fy, fz, fn, vn).
+    ``(x0, x1, x2)`` is the tangential spring; its update is returned, so that no array view is
+    made per contact. Returns (fx, fy, fz, fn, vn, x0, x1, x2).
     """
     vn = vrx * nx + vry * ny + vrz * nz
     if law == 1.0:
@@ -77,28 +78,28 @@ def hertz_mindlin(delta, nx, ny, nz, vrx, vry, vrz, r_eff, m_eff, e_star, g_star
     vty = vry - vn * ny
     vtz = vrz - vn * nz
     # rotate the spring into the current tangent plane, keeping its length
-    old2 = xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]
-    xn = xi[0] * nx + xi[1] * ny + xi[2] * nz
-    xi[0] -= xn * nx
-    xi[1] -= xn * ny
-    xi[2] -= xn * nz
-    new2 = xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]
+    old2 = x0 * x0 + x1 * x1 + x2 * x2
+    xn = x0 * nx + x1 * ny + x2 * nz
+    x0 -= xn * nx
+    x1 -= xn * ny
+    x2 -= xn * nz
+    new2 = x0 * x0 + x1 * x1 + x2 * x2
     if new2 > 0.0:
         sc = math.sqrt(old2 / new2)
-        xi[0] *= sc
-        xi[1] *= sc
-        xi[2] *= sc
-    xi[0] += vtx * dt
-    xi[1] += vty * dt
-    xi[2] += vtz * dt
+        x0 *= sc
+        x1 *= sc
+        x2 *= sc
+    x0 += vtx * dt
+    x1 += vty * dt
+    x2 += vtz * dt
     if law == 1.0:
         s_t = 2.0 * g_star * r_eff
     else:
         s_t = 8.0 * g_star * sq
     ct = eta * math.sqrt(m_eff * s_t)
-    ftx = -s_t * xi[0] - ct * vtx
-    fty = -s_t * xi[1] - ct * vty
-    ftz = -s_t * xi[2] - ct * vtz
+    ftx = -s_t * x0 - ct * vtx
+    fty = -s_t * x1 - ct * vty
+    ftz = -s_t * x2 - ct * vtz
     ft = math.sqrt(ftx * ftx + fty * fty + ftz * ftz)
     lim = mu * fn
     if ft > lim:
@@ -110,13 +111,13 @@ def hertz_mindlin(delta, nx, ny, nz, vrx, vry, vrz, r_eff, m_eff, e_star, g_star
         fty *= sc
         ftz *= sc
         if s_t > 0.0:
-            xi[0] = -ftx / s_t
-            xi[1] = -fty / s_t
-            xi[2] = -ftz / s_t
-    return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, fn, vn
+            x0 = -ftx / s_t
+            x1 = -fty / s_t
+            x2 = -ftz / s_t
+    return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, fn, vn, x0, x1, x2
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def pair_contact(k, pi, pj, xi, touch, load, impact, pos, vel, om, rad, mass, lz, e_star, g_star,
                  mu, eta, dt, overlap0, law=0.0):
     """Hertz–Mindlin contact of pair k (spheres i < j of the Verlet list): updates its history
@@ -161,14 +162,15 @@ def pair_contact(k, pi, pj, xi, touch, load, impact, pos, vel, om, rad, mass, lz
     vrz = vel[j, 2] - vel[i, 2] - aj * (om[j, 0] * ny - om[j, 1] * nx) - ai * (om[i, 0] * ny - om[i, 1] * nx)
     r_eff = rad[i] * rad[j] / (rad[i] + rad[j])
     m_eff = mass[i] * mass[j] / (mass[i] + mass[j])
-    fx, fy, fz, fn, vn = hertz_mindlin(delta, nx, ny, nz, vrx, vry, vrz, r_eff, m_eff, e_star,
-                                       g_star, mu, eta, xi[k], dt, law)
+    fx, fy, fz, fn, vn, xi[k, 0], xi[k, 1], xi[k, 2] = hertz_mindlin(
+        delta, nx, ny, nz, vrx, vry, vrz, r_eff, m_eff, e_star, g_star, mu, eta, xi[k, 0],
+        xi[k, 1], xi[k, 2], dt, law)
     if new:
         impact[k] = 0.5 * m_eff * vn * vn
     write_pair_load(load, k, fx, fy, fz, nx, ny, nz, ai, aj)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def wall_contact(i, k, delta, nx, ny, nz, cx, cy, cz, wvx, wvy, wvz, pos, vel, om, rad, mass,
                  force, torque, xi, touch, impact, e_star, g_star, mu, eta, dt, law=0.0):
     """Hertz–Mindlin contact of sphere i with wall element k at contact point c.
@@ -191,8 +193,9 @@ def wall_contact(i, k, delta, nx, ny, nz, cx, cy, cz, wvx, wvy, wvz, pos, vel, o
     vy = vel[i, 1] + om[i, 2] * rx - om[i, 0] * rz - wvy
     vz = vel[i, 2] + om[i, 0] * ry - om[i, 1] * rx - wvz
     # the particle plays the role of j (n from wall to particle, v_rel = particle - wall)
-    fx, fy, fz, fn, vn = hertz_mindlin(delta, nx, ny, nz, vx, vy, vz, rad[i], mass[i], e_star,
-                                       g_star, mu, eta, xi[i, k], dt, law)
+    fx, fy, fz, fn, vn, xi[i, k, 0], xi[i, k, 1], xi[i, k, 2] = hertz_mindlin(
+        delta, nx, ny, nz, vx, vy, vz, rad[i], mass[i], e_star, g_star, mu, eta, xi[i, k, 0],
+        xi[i, k, 1], xi[i, k, 2], dt, law)
     if new:
         impact[i, k] = 0.5 * mass[i] * vn * vn
     f = force
@@ -206,13 +209,7 @@ def wall_contact(i, k, delta, nx, ny, nz, cx, cy, cz, wvx, wvy, wvz, pos, vel, o
     return fx, fy, fz
 
 
-@nb.njit(cache=True)
-def _apart(touch, impact, i, k):
-    touch[i, k] = 0
-    impact[i, k] = -1.0
-
-
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def plane_walls(i, pos, vel, om, rad, mass, force, torque, w_p, w_n, w_v, w_xi, w_touch,
                 w_force, w_impact, e_star, g_star, mu, eta, dt, law=0.0):
     """Contacts of sphere i with the infinite planes (point ``w_p``, unit normal ``w_n`` into
@@ -237,7 +234,7 @@ def plane_walls(i, pos, vel, om, rad, mass, force, torque, w_p, w_n, w_v, w_xi, 
         w_force[i, k, 2] = -fz
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def drum_walls(i, pos, vel, om, rad, mass, force, torque, lifter_angles, d_xi, d_touch, d_impact,
                drum_radius, drum_omega, drum_angle, lifter_height, lifter_half_width, e_star,
                g_star, mu, eta, dt, law=0.0):

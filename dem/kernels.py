@@ -5,9 +5,12 @@
   half the skin since the last build (Allen & Tildesley, *Computer Simulation of Liquids*,
   §5.3), the contact histories carried over pair by pair. Optional periodicity along z (drum
   slice).
-- Parallel (numba ``prange``) over bonds, pairs and spheres (the neighbour search is serial), each writing only its own rows;
-  per-sphere sums in a fixed order (:mod:`dem.state`), so the results do not depend on the
-  number of threads (``NUMBA_NUM_THREADS`` or ``numba.set_num_threads``).
+- Parallel (numba ``prange``) over bonds, pairs and spheres (the neighbour search is serial),
+  each writing only its own rows; per-sphere sums in a fixed order (:mod:`dem.state`), so the
+  results do not depend on the number of threads (``NUMBA_NUM_THREADS`` or
+  ``numba.set_num_threads``). Element functions (one contact, one bond, one sphere's walls)
+  are inlined and take plain arrays and scalars: a call that passes arrays, or a view made per
+  contact, costs reference counting that the threads contend for.
 - Integration: velocity Verlet (kick–drift–kick), the standard explicit DEM scheme
   (Allen & Tildesley §3.2); forces use the mid-step velocities for damping and incremental
   springs.
@@ -24,6 +27,7 @@ editing those, delete ``dem/__pycache__/*.nbi`` and ``*.nbc``, or the old kernel
 from __future__ import annotations
 
 import math
+import os
 
 import numba as nb
 import numpy as np
@@ -37,6 +41,14 @@ from dem.state import N_LOAD, PairArrays, add_rows, csr_of_rows
  CP_LOCAL_DAMPING, CP_GX, CP_GY, CP_GZ, CP_LZ, CP_SKIN, CP_BETA, CP_DRUM_R, CP_DRUM_OMEGA,
  CP_LIFTER_H, CP_LIFTER_HW, CP_HIST_LO, CP_HIST_DLOG, CP_CONTACT_LAW, CP_DAMP_AT_STEP) = range(23)
 N_CP = 23
+
+#: numba's threading layers in the order tried, unless the user chose one (NUMBA_THREADING_LAYER
+#: or NUMBA_THREADING_LAYER_PRIORITY): OpenMP first. numba's own default puts TBB first, and
+#: with TBB a step of a few thousand spheres gained nothing from the second core where OpenMP
+#: gained (benchmarks/results/dem_parallel_speed.md records the layer that ran)
+THREADING_LAYER_PRIORITY = ["omp", "tbb", "workqueue"]
+if not {"NUMBA_THREADING_LAYER", "NUMBA_THREADING_LAYER_PRIORITY"} & set(os.environ):
+    nb.config.THREADING_LAYER_PRIORITY = THREADING_LAYER_PRIORITY
 
 STATUS_OK = 0
 STATUS_REBUILD = 1
