@@ -28,9 +28,11 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 
 import numba as nb
 import numpy as np
+from numba.core.errors import NumbaPerformanceWarning
 
 from dem.bonds import BROKEN_SHEAR_SLIDING, INTACT, P_OVERLAP0, P_SIGNED_MC, bond_forces
 from dem.contacts import drum_walls, hist_add, pair_contact, plane_walls
@@ -49,6 +51,11 @@ N_CP = 23
 THREADING_LAYER_PRIORITY = ["omp", "tbb", "workqueue"]
 if not {"NUMBA_THREADING_LAYER", "NUMBA_THREADING_LAYER_PRIORITY"} & set(os.environ):
     nb.config.THREADING_LAYER_PRIORITY = THREADING_LAYER_PRIORITY
+
+# run_steps has no parallel loop of its own but must be compiled parallel=True (see
+# compute_forces); numba warns about that at compile time: not for this file's kernels
+warnings.filterwarnings("ignore", message=r"(?s).*no transformation for parallel execution.*dem[/\\]kernels\.py",
+                        category=NumbaPerformanceWarning)
 
 STATUS_OK = 0
 STATUS_REBUILD = 1
@@ -261,9 +268,10 @@ def _damp(i, force, torque, vel, om, mass, inertia, alpha, hdt):
 
 
 @nb.njit(cache=True, parallel=True)
-def sphere_loads(sp, bd, pr, wl, dr, d_torque, cp, dt, drum_angle):
+def sphere_loads(sp, bd, pr, wl, dr, d_torque, cp, dt, drum_angle, kick):
     """Total force and torque on each sphere (parallel over spheres): gravity, its bond and
-    contact rows in a fixed order, walls and drum, then Cundall damping."""
+    contact rows in a fixed order, walls and drum, then Cundall damping; with ``kick`` then the
+    step's closing half kick of the sphere (in the same parallel loop: one fewer barrier)."""
     pos, vel, om, rad, mass, inertia, f, t = sp
     b_load, b_start, b_entry = bd.load, bd.sphere_start, bd.sphere_entry
     p_load, p_start, p_entry = pr.load, pr.sphere_start, pr.sphere_entry
@@ -295,6 +303,8 @@ def sphere_loads(sp, bd, pr, wl, dr, d_torque, cp, dt, drum_angle):
                                      law)
         if alpha > 0.0:
             _damp(i, f, t, vel, om, mass, inertia, alpha, hdt)
+        if kick:
+            _half_kick(i, vel, om, mass, inertia, f, t, 0.5 * dt)
 
 
 @nb.njit(cache=True)
@@ -333,10 +343,11 @@ def _collect(pr, wl, dr, cp, hist_pp, hist_pw):
 
 
 @nb.njit(cache=True, parallel=True)
-def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw):
+def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw, kick=False):
     """All forces and torques at the current positions (mid-step velocities): contacts (every
     pair of the Verlet list not held by a bond, in parallel, each writing its own row), then
-    bonds (a bond that breaks now leaves its contact to the next step), then per sphere.
+    bonds (a bond that breaks now leaves its contact to the next step), then per sphere (with
+    ``kick``, the step's closing half kick too).
 
     Returns (drum torque N m, number of bonds broken in this call). A caller of this (and of
     any parallel kernel) must itself be compiled with ``parallel=True``: called from a plain
@@ -358,26 +369,48 @@ def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw):
         pair_contact(k, pi, pj, xi, touch, load, impact, pos, vel, om, rad, mass, lz, e_star,
                      g_star, mu, eta, dt, ov0, law)
     nbroken = bond_forces(sp, bd, lz, dt, cp[CP_BETA])
-    sphere_loads(sp, bd, pr, wl, dr, dr.torque_sphere, cp, dt, drum_angle)
+    sphere_loads(sp, bd, pr, wl, dr, dr.torque_sphere, cp, dt, drum_angle, kick)
     return _collect(pr, wl, dr, cp, hist_pp, hist_pw), nbroken
 
 
+@nb.njit(cache=True, inline="always")
+def _half_kick(i, vel, om, mass, inertia, force, torque, half):
+    """Half-step velocity update of sphere i from its current force and torque."""
+    im = 1.0 / mass[i]
+    ii = 1.0 / inertia[i]
+    for d in range(3):
+        vel[i, d] += half * force[i, d] * im
+        om[i, d] += half * torque[i, d] * ii
+
+
 @nb.njit(cache=True, parallel=True)
-def _kick(sp, half, dt, lz, drift):
-    """Half-step velocity update from the current forces; with ``drift`` then a full position
-    step (wrapped into the periodic slice)."""
+def _kick_drift(sp, half, dt, lz, pos_ref, lim2):
+    """Opening half kick and full position step (wrapped into the periodic slice) of every
+    sphere, which is then checked against the list's reference positions. Returns (spheres
+    moved beyond half the skin, spheres with a non-finite position): integer counts, the same
+    whatever the thread count; every sphere is checked, so one that blew up out of contact
+    with the rest is found."""
     pos, vel, om, _, mass, inertia, force, torque = sp
+    moved = 0
+    bad = 0
     for i in nb.prange(pos.shape[0]):
-        im = 1.0 / mass[i]
-        ii = 1.0 / inertia[i]
+        _half_kick(i, vel, om, mass, inertia, force, torque, half)
         for d in range(3):
-            vel[i, d] += half * force[i, d] * im
-            om[i, d] += half * torque[i, d] * ii
-        if drift:
-            for d in range(3):
-                pos[i, d] += dt * vel[i, d]
-            if lz > 0.0:
-                pos[i, 2] -= lz * math.floor(pos[i, 2] / lz)
+            pos[i, d] += dt * vel[i, d]
+        if lz > 0.0:
+            pos[i, 2] -= lz * math.floor(pos[i, 2] / lz)
+        dx = pos[i, 0] - pos_ref[i, 0]
+        dy = pos[i, 1] - pos_ref[i, 1]
+        dz = pos[i, 2] - pos_ref[i, 2]
+        if lz > 0.0:
+            dz -= lz * math.floor(dz / lz + 0.5)
+        d2 = dx * dx + dy * dy + dz * dz
+        if not d2 <= lim2:
+            if d2 < math.inf:
+                moved += 1
+            else:  # NaN or infinite: a non-finite position
+                bad += 1
+    return moved, bad
 
 
 @nb.njit(cache=True)
@@ -421,31 +454,14 @@ def run_steps(n_steps, dt, sp, bd, pr, wl, dr, cp, pos_ref, drum_angle, hist_pp,
     ang = drum_angle
     for step in range(n_steps):
         if not (drifted and step == 0):
-            _kick(sp, half, dt, lz, True)
+            moved, bad = _kick_drift(sp, half, dt, lz, pos_ref, lim2)
             _move_walls(wl, cp, dt, False)
             ang += cp[CP_DRUM_OMEGA] * dt
-            # integer counts, the same whatever the thread count; every sphere's position is
-            # checked, so a sphere that blew up out of contact with the rest is found
-            moved = 0
-            bad = 0
-            for i in nb.prange(n):
-                dx = pos[i, 0] - pos_ref[i, 0]
-                dy = pos[i, 1] - pos_ref[i, 1]
-                dz = pos[i, 2] - pos_ref[i, 2]
-                if lz > 0.0:
-                    dz -= lz * math.floor(dz / lz + 0.5)
-                d2 = dx * dx + dy * dy + dz * dz
-                if not d2 <= lim2:
-                    if d2 < math.inf:
-                        moved += 1
-                    else:  # NaN or infinite: a non-finite position
-                        bad += 1
             if bad > 0:
                 return STATUS_NONFINITE, step, ang
             if moved > 0:
                 return STATUS_REBUILD, step, ang
-        tq, nbr = compute_forces(sp, bd, pr, wl, dr, cp, dt, ang, hist_pp, hist_pw)
-        _kick(sp, half, dt, lz, False)
+        tq, nbr = compute_forces(sp, bd, pr, wl, dr, cp, dt, ang, hist_pp, hist_pw, True)
         _move_walls(wl, cp, dt, True)
         for k in range(wl.p.shape[0]):
             rec_wall_f[step, k] = -(wl.f[k, 0] * wl.n[k, 0] + wl.f[k, 1] * wl.n[k, 1]
