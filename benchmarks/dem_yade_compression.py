@@ -16,7 +16,7 @@ import sys
 import time
 
 pack, out = sys.argv[1], sys.argv[2]
-opts = dict(a.split("=", 1) for a in sys.argv[3:] if "=" in a)
+script_args = dict(a.split("=", 1) for a in sys.argv[3:] if "=" in a)
 plain = [a for a in sys.argv[3:] if "=" not in a]
 dt_factor = float(plain[0]) if plain else 0.5  # O.dt = dt_factor * PWaveTimeStep()
 rows = [list(map(float, l.split())) for l in open(pack) if l.strip() and not l.startswith("#")]
@@ -44,24 +44,24 @@ O.engines = [
         [Law2_ScGeom_JCFpmPhys_JointedCohesiveFrictionalPM(label="jcf"), Law2_ScGeom_FrictPhys_CundallStrack()]),
     NewtonIntegrator(damping=0.7),
 ]
-O.dt = float(opts["dt"]) if "dt" in opts else dt_factor * PWaveTimeStep()
+O.dt = float(script_args["dt"]) if "dt" in script_args else dt_factor * PWaveTimeStep()
 O.step()
 aabb.aabbEnlargeFactor = 1.0
 ig2.interactionDetectionFactor = 1.0
 n_bonds = sum(1 for i in O.interactions if isinstance(i.phys, JCFpmPhys) and i.phys.isCohesive)
-if "steps" in opts:
+if "steps" in script_args:
     O.run(20, True)
     t0, c0 = time.time(), time.process_time()
-    O.run(int(opts["steps"]), True)
+    O.run(int(script_args["steps"]), True)
     with open(out, "w") as fh:
-        fh.write(json.dumps({"steps": int(opts["steps"]), "wall_s": time.time() - t0,
+        fh.write(json.dumps({"steps": int(script_args["steps"]), "wall_s": time.time() - t0,
                              "cpu_s": time.process_time() - c0, "dt_s": O.dt, "n_bonds": n_bonds}))
     sys.exit(0)
 rec = []
 peak = 0.0
 t0 = time.time()
 steps = 0
-every = int(opts.get("every", 20))  # often enough to catch the peak (every 200 steps read 3543 N for 3611 N)
+every = int(script_args.get("every", 20))  # often enough to catch the peak (every 200 steps read 3543 N for 3611 N)
 while True:
     O.run(every, True)
     steps += every
@@ -80,3 +80,4 @@ with open(out, "w") as fh:
     fh.write("time_s,displacement_m,force_top_N,force_bottom_N,broken_tension,broken_shear\n")
     for r in rec:
         fh.write(",".join(f"{v:.9g}" for v in r) + "\n")
+sys.exit(0)  # leave before Yade starts its interactive session
