@@ -12,11 +12,14 @@ Yade, the same time step on both sides (grindtwin's default, 0.5 of its critical
    NUMBA_NUM_THREADS=1 and 2 and ``yade -j1`` and ``-j2`` one after the other (A, B, C, D, A, ...),
    each in its own process; medians. CPU = user + system time of the stepping (all threads).
 2. peak force: full compression tests at 500 and 2000 spheres on packings seeds 0-2, grindtwin
-   (2 threads) against Yade (-j2, recording every 20 steps to catch its peak), same dt.
+   against Yade (one thread each: the physics, not the speed; grindtwin's result does not depend
+   on the thread count; Yade records every 20 steps to catch its peak), same dt.
 3. scale: grindtwin alone at 500-32000 spheres, 1 and 2 threads interleaved.
+4. drum: the lab drum's ball charge at about 500 to 24,000 balls, 1 and 2 threads interleaved.
 
-``python benchmarks/dem_parallel.py [--fast] [--parts speed,peak,scale] [--sizes 500,2000] [--repeats 3]`` writes
-benchmarks/results/dem_parallel_speed.*, dem_parallel_peak.* and dem_parallel_scale.* (md + csv)
+``python benchmarks/dem_parallel.py [--fast] [--parts speed,peak,scale,drum] [--sizes 500,2000] [--repeats 3]``
+writes benchmarks/results/dem_parallel_speed.*, dem_parallel_peak.*, dem_parallel_scale.* and
+dem_parallel_drum.* (md + csv)
 for the parts asked (default all; ``--sizes`` limits every part to those sphere counts). Needs
 ``yade`` on PATH (Debian package).
 """
@@ -45,7 +48,7 @@ def _arg(name, default):
     return sys.argv[sys.argv.index(name) + 1] if name in sys.argv else default
 
 
-PARTS = _arg("--parts", "speed,peak,scale").split(",")
+PARTS = _arg("--parts", "speed,peak,scale,drum").split(",")
 SIZES = [int(x) for x in _arg("--sizes", "0").split(",")]
 HERE = os.path.dirname(os.path.abspath(__file__))
 WORKER = os.path.join(HERE, "dem_parallel_worker.py")
@@ -55,6 +58,9 @@ REPEATS = int(_arg("--repeats", "3"))
 PEAK_SIZES = (500, 2000) if not FAST else (500,)
 PEAK_SEEDS = (0, 1, 2)
 SCALE = {500: 1000, 2000: 300, 8000: 80, 32000: 20} if not FAST else {500: 300, 2000: 80}
+#: drum cases: (ball diameter m, slice length m, timed steps)
+DRUM = ((0.025, 0.1, 3000), (0.025, 0.3, 2000), (0.0125, 0.2, 500), (0.01, 0.3, 200)) if not FAST else \
+    ((0.025, 0.1, 1000),)
 if SIZES != [0]:
     STEPS = {n: v for n, v in STEPS.items() if n in SIZES}
     SCALE = {n: v for n, v in SCALE.items() if n in SIZES}
@@ -143,9 +149,9 @@ def peaks(folder):
         for seed in PEAK_SEEDS:
             agg, pack, dt = write_pack(n, seed, folder)
             g = json.loads(subprocess.run([sys.executable, WORKER, pack, repr(dt), "full"],
-                                          env=dict(os.environ, NUMBA_NUM_THREADS="2"), check=True,
+                                          env=dict(os.environ, NUMBA_NUM_THREADS="1"), check=True,
                                           capture_output=True, text=True).stdout.strip().splitlines()[-1])
-            y = yade(pack, dt, "full", 2, folder)
+            y = yade(pack, dt, "full", 1, folder)
             rows.append({"n_spheres": n, "seed": seed, "dt_s": dt, "gt_peak_N": g["peak_force_N"],
                          "yade_peak_N": y["peak_force_N"], "peak_ratio": g["peak_force_N"] / y["peak_force_N"],
                          "gt_energy_J": g["fracture_energy_J"], "yade_energy_J": y["fracture_energy_J"],
@@ -173,6 +179,30 @@ def scale(folder):
     return pd.DataFrame(rows)
 
 
+def drum_scale():
+    """The drum's ball charge on 1 and 2 threads, interleaved: ball counts set by the ball size
+    and the slice length of the 0.5 m x 0.3 m lab drum."""
+    rows = []
+    for ball_d, section, steps in DRUM:
+        args = [sys.executable, WORKER, "drum", repr(ball_d), repr(section), str(steps)]
+        runs = {1: [], 2: []}
+        for rep in range(REPEATS):
+            for t in (1, 2):
+                out = subprocess.run(args, env=dict(os.environ, NUMBA_NUM_THREADS=str(t)), check=True,
+                                     capture_output=True, text=True).stdout
+                runs[t].append(json.loads(out.strip().splitlines()[-1]))
+        n = runs[1][0]["n_spheres"]
+        w = {t: float(np.median([r["wall_s"] for r in v])) for t, v in runs.items()}
+        rows.append({"n_balls": n, "ball_d_m": ball_d, "section_m": section, "n_pairs": runs[1][0]["n_pairs"],
+                     "steps": steps, "particle_steps_per_s_1t": n * steps / w[1],
+                     "particle_steps_per_s_2t": n * steps / w[2],
+                     "cpu_us_per_particle_step_1t": float(np.median([r["cpu_s"] for r in runs[1]])) / (n * steps) * 1e6,
+                     "speedup_2t": w[1] / w[2], "threading_layer": runs[2][0]["threading_layer"],
+                     "load_after": load_average()})
+        print(rows[-1], flush=True)
+    return pd.DataFrame(rows)
+
+
 def main():
     note = (f"Command: `python benchmarks/dem_parallel.py {' '.join(sys.argv[1:])}`. Machine: 2 cores "
             f"shared with other jobs; load average (1/5/15 min) at the start {load_average()}, "
@@ -190,6 +220,9 @@ def main():
             write_table(pk, "dem_parallel_peak", "Peak force: grindtwin against Yade, same packings and time step",
                         note + f" Peak ratio over the packings: mean {pk.peak_ratio.mean():.4f}, "
                         f"range {pk.peak_ratio.min():.4f}-{pk.peak_ratio.max():.4f}.")
+        if "drum" in PARTS:
+            write_table(drum_scale(), "dem_parallel_drum",
+                        "grindtwin drum (ball charge) scale table (1 and 2 threads)", note)
         if "scale" in PARTS:
             write_table(scale(folder), "dem_parallel_scale",
                         "grindtwin compression-test scale table (1 and 2 threads)", note)

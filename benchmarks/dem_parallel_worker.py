@@ -5,6 +5,7 @@ is set by NUMBA_NUM_THREADS before numba starts).
 phase on the packing PACK (x y z r per line, as written for Yade) with the Yade-JCFpm mirror
 physics and prints one JSON line: steps, wall and CPU seconds of the stepping alone.
 ``... PACK DT_S full`` runs the whole compression test instead and prints its peak force and energy.
+``... drum BALL_D_M SECTION_M STEPS`` times the lab drum's ball charge instead.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import numpy as np
 
 from dem.agglomerate import Agglomerate
 from dem.bonds import BondParams, BondSet, find_bond_pairs
+from dem.drum import drum_system
 from dem.lab import compression_test
 from dem.materials import Material
 from dem.system import PlaneWall, System
@@ -55,7 +57,22 @@ def loading_system(agg: Agglomerate, dt_s: float) -> System:
                   contact_law="linear_yade", damping_velocity="at_force")
 
 
+def drum(ball_d_m: float, section_m: float, steps: int) -> dict:
+    """The lab drum's ball charge (dem.drum, 0.7 critical, J = 0.35) after 2,000 steps of
+    settling from rest (contacts formed), then ``steps`` timed steps."""
+    s = drum_system(0.7, 0.35, ball_diameter_m=ball_d_m, section_length_m=section_m).system
+    s.run(2000)
+    w0, c0 = time.perf_counter(), time.process_time()
+    s.run(steps)
+    return {"steps": steps, "wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0,
+            "threads": numba.get_num_threads(), "threading_layer": numba.threading_layer(),
+            "n_spheres": s.n, "n_pairs": int(s.pairs.i.shape[0])}
+
+
 def main():
+    if sys.argv[1] == "drum":
+        print(json.dumps(drum(float(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4]))))
+        return
     agg = read_pack(sys.argv[1])
     dt = float(sys.argv[2])
     if sys.argv[3] == "full":
