@@ -32,7 +32,7 @@ Verlet, where v is the mid-step velocity). Models, side by side:
   grindtwin ``contact_law="hertz_mindlin"``; LAMMPS ``pair_style granular`` and ``fix
   wall/gran/region`` with ``hertz/material``, ``tangential mindlin NULL 0 mu``, ``damping
   velocity`` with 0. Both use E* = 1/(2 (1-nu^2)/E), G* = 1/(2 (2-nu)/G) and k_t = 8 G* a.
-Differences that remain (stated in the results file): grindtwin still computes the (negligible)
+Differences that remain: grindtwin still computes the (negligible)
 shear spring of every bond, its rotation into the tangent plane and a shear-strength test
 (more work per bond than bpm/spring); LAMMPS breaks a bond at |strain| > eps_c, in compression
 too, grindtwin only in tension; a broken bond's Hertz contact counts overlap beyond the one at
@@ -287,7 +287,7 @@ def main():
             print(row, flush=True)
     cmd = "NUMBA_NUM_THREADS=1 python benchmarks/dem_lammps.py " + " ".join(sys.argv[1:])
     write_table(pd.DataFrame(rows), "dem_lammps", "grindtwin central bonds against LAMMPS BPM bpm/spring, one core",
-                NOTES.format(cmd=cmd, start=start))
+                NOTES.format(cmd=cmd, start=start) + __doc__[__doc__.index("The test:"):])
     pd.concat(curves).to_csv(os.path.join(HERE, "results", "dem_lammps_curve.csv"), index=False)
 
 
@@ -302,7 +302,10 @@ while no bond is broken on either side (to `travel_compared_m` of platen travel;
 `first_break_travel_*_m`, nan = none in the curve); stiffness = force / travel there;
 `max_rel_force_diff` = largest |F_lammps - F_gt| / F_gt over the second half of the compared travel.
 The curves: dem_lammps_curve.csv.
-Models and every remaining difference: the module docstring of benchmarks/dem_lammps.py."""
+
+The test and its models (from the module docstring of benchmarks/dem_lammps.py):
+
+"""
 
 
 if __name__ == "__main__":
