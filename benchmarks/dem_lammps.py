@@ -20,9 +20,9 @@ on both sides; platens at z_min/z_max of the packing, the top one moving down at
 Cundall local damping 0.7 on forces and torques with the mid-step velocity (grindtwin
 ``damping_velocity="mid_step"``; LAMMPS ``fix damping/cundall`` in post_force of velocity
 Verlet, where v is the mid-step velocity). Models, side by side:
-- bond: grindtwin ``BondParams`` "parallel" with ``moment_factor=0`` (no bending/twist) and a
-  shear stiffness of ``CENTRAL_KS_RATIO`` k_n (BondParams needs k_s > 0): a normal spring
-  ``k_n A`` with ``k_n = E/(R1+R2)`` from the mean radius (Potyondy & Cundall 2004, eq. 9),
+- bond: grindtwin's central bond (``BondParams`` "parallel" with ``ks_Pa_m=0`` and
+  ``moment_factor=0``, its own kernel path): a normal spring ``k_n A`` along the line of
+  centres with ``k_n = E/(R1+R2)`` from the mean radius (Potyondy & Cundall 2004, eq. 9),
   ``A = pi min(R1,R2)^2``, stress-free at creation, breaking when ``F_n/A > 10 MPa``.
   LAMMPS ``bpm/spring smooth no`` (Clemmer & Robbins, PRL 2022): ``F = k (r - r0)``, one bond
   type per bond with ``k = k_n A`` of that bond and ``eps_c = sigma_t / (k_n r0)``, no bond
@@ -32,9 +32,7 @@ Verlet, where v is the mid-step velocity). Models, side by side:
   grindtwin ``contact_law="hertz_mindlin"``; LAMMPS ``pair_style granular`` and ``fix
   wall/gran/region`` with ``hertz/material``, ``tangential mindlin NULL 0 mu``, ``damping
   velocity`` with 0. Both use E* = 1/(2 (1-nu^2)/E), G* = 1/(2 (2-nu)/G) and k_t = 8 G* a.
-Differences that remain: grindtwin still computes the (negligible)
-shear spring of every bond, its rotation into the tangent plane and a shear-strength test
-(more work per bond than bpm/spring); LAMMPS breaks a bond at |strain| > eps_c, in compression
+Differences that remain: LAMMPS breaks a bond at |strain| > eps_c, in compression
 too, grindtwin only in tension; a broken bond's Hertz contact counts overlap beyond the one at
 bonding in grindtwin, the whole overlap in LAMMPS; LAMMPS rebuilds its neighbour list on its
 own skin criterion (skin = grindtwin's 0.3 mean radius).
@@ -61,9 +59,6 @@ from dem.bonds import BondParams, BondSet, kn_from_modulus_Pa_m
 from dem.materials import Material
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-#: grindtwin needs k_s > 0: a shear spring 1e-9 of the normal one makes its shear forces
-#: ~1e-9 of the normal ones, i.e. central bonds (the shear work is still done every step)
-CENTRAL_KS_RATIO = 1e-9
 E_PA, NU, SIGMA_T_PA, COHESION_PA = 30e9, 0.25, 10e6, 20e6
 ROCK = Material(youngs_modulus_Pa=E_PA, poisson_ratio=NU, density_kg_m3=2700.0,
                 friction_coef=math.tan(math.radians(30.0)), restitution=1.0)
@@ -85,7 +80,7 @@ def _arg(name, default):
 
 def bond_params(mean_radius_m: float) -> BondParams:
     kn = kn_from_modulus_Pa_m(E_PA, mean_radius_m)
-    return BondParams(kn_Pa_m=kn, ks_Pa_m=CENTRAL_KS_RATIO * kn, tensile_strength_Pa=SIGMA_T_PA,
+    return BondParams(kn_Pa_m=kn, ks_Pa_m=0.0, tensile_strength_Pa=SIGMA_T_PA,
                       cohesion_Pa=COHESION_PA, moment_factor=0.0)
 
 

@@ -31,7 +31,7 @@ import numba as nb
 import numpy as np
 
 from dem.errors import DemInputError
-from dem.state import (LOAD_TI, LOAD_TJ, N_LOAD, BondArrays, csr_of_rows, rotate_into_plane,
+from dem.state import (LOAD_F, LOAD_TI, LOAD_TJ, N_LOAD, BondArrays, csr_of_rows, rotate_into_plane,
                        write_pair_load)
 
 #: bond state codes
@@ -62,7 +62,10 @@ class BondParams:
     Fields
     ------
     kn_Pa_m : normal stiffness per unit area k_n (Pa/m).
-    ks_Pa_m : shear stiffness per unit area k_s (Pa/m).
+    ks_Pa_m : shear stiffness per unit area k_s (Pa/m). 0 with ``moment_factor`` 0 makes a
+        *central* bond: a normal spring ``k_n A`` along the line of centres only, breaking in
+        tension (the spring bonds of LAMMPS' BPM package, Clemmer & Robbins 2022, in tension),
+        on a faster kernel path with no shear spring and no torques.
     tensile_strength_Pa : bond tensile strength.
     cohesion_Pa : bond shear strength at zero normal stress.
     friction_angle_deg : Mohr–Coulomb friction angle of the bond shear strength (0 = constant).
@@ -108,9 +111,13 @@ class BondParams:
         for name in ("kn_Pa_m", "ks_Pa_m", "tensile_strength_Pa", "cohesion_Pa",
                      "radius_multiplier"):
             v = float(getattr(self, name))
+            if name == "ks_Pa_m" and v == 0.0 and self.convention == "parallel":
+                continue  # a central bond: a normal spring only
             if not math.isfinite(v) or v <= 0.0:
                 raise DemInputError(
-                    f"The '{name}' parameter of BondParams must be a finite float > 0. Got {v!r}.")
+                    f"The '{name}' parameter of BondParams must be a finite float > 0"
+                    + (" (or 0 for a central bond, convention 'parallel')" if name == "ks_Pa_m" else "")
+                    + f". Got {v!r}.")
         phi = float(self.friction_angle_deg)
         if not (0.0 <= phi < 90.0):
             raise DemInputError(
@@ -451,6 +458,26 @@ def _write_load(b, fn, fs, mb, mt, load, nx, ny, nz, ai, aj, beta):
 
 
 @nb.njit(cache=True, inline="always")
+def _central_step(b, i, j, props, fn, length, state, load, pos, rad, lz):
+    """A central bond (k_s = 0, no moments): the normal spring along the line of centres,
+    broken when F_n/A exceeds the tensile strength; its force acts through both centres, so
+    it exerts no torque. Returns 1 if it broke, else 0."""
+    d, nx, ny, nz, _, _ = _axis(i, j, pos, rad, lz)
+    fn[b] += props[b, P_KN_A] * (d - length[b])
+    length[b] = d
+    for c in range(N_LOAD):
+        load[b, c] = 0.0
+    if fn[b] * props[b, P_INV_AREA] > props[b, P_SIGT]:
+        state[b] = BROKEN_TENSION
+        fn[b] = 0.0
+        return 1
+    load[b, LOAD_F] = -fn[b] * nx
+    load[b, LOAD_F + 1] = -fn[b] * ny
+    load[b, LOAD_F + 2] = -fn[b] * nz
+    return 0
+
+
+@nb.njit(cache=True, inline="always")
 def bond_step(b, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om, rad, lz, dt, beta):
     """Update bond b incrementally, test it for failure, write its loads. Returns 1 if it broke
     (a JCFpm bond that starts to slide counts), else 0."""
@@ -459,6 +486,8 @@ def bond_step(b, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om, r
         return 0
     i = ij[b, 0]
     j = ij[b, 1]
+    if beta == 0.0 and props[b, P_KS_A] == 0.0:
+        return _central_step(b, i, j, props, fn, length, state, load, pos, rad, lz)
     d, nx, ny, nz, ai, aj = _axis(i, j, pos, rad, lz)
     vrx, vry, vrz = _relative_velocity(i, j, vel, om, rad, d, nx, ny, nz, ai, aj,
                                        props[b, P_SIGNED_MC] != 0.0)

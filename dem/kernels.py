@@ -28,11 +28,9 @@ from __future__ import annotations
 
 import math
 import os
-import warnings
 
 import numba as nb
 import numpy as np
-from numba.core.errors import NumbaPerformanceWarning
 
 from dem.bonds import BROKEN_SHEAR_SLIDING, INTACT, P_OVERLAP0, P_SIGNED_MC, bond_forces
 from dem.contacts import drum_walls, hist_add, pair_contact, plane_walls
@@ -51,11 +49,6 @@ N_CP = 23
 THREADING_LAYER_PRIORITY = ["omp", "tbb", "workqueue"]
 if not {"NUMBA_THREADING_LAYER", "NUMBA_THREADING_LAYER_PRIORITY"} & set(os.environ):
     nb.config.THREADING_LAYER_PRIORITY = THREADING_LAYER_PRIORITY
-
-# run_steps has no parallel loop of its own but must be compiled parallel=True (see
-# compute_forces); numba warns about that at compile time: not for this file's kernels
-warnings.filterwarnings("ignore", message=r"(?s).*no transformation for parallel execution.*dem[/\\]kernels\.py",
-                        category=NumbaPerformanceWarning)
 
 STATUS_OK = 0
 STATUS_REBUILD = 1

@@ -10,10 +10,12 @@ optional periodicity along z. The time step is ``time_step_factor`` times the cr
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numba
 import numpy as np
+from numba.core.errors import NumbaPerformanceWarning
 
 from dem import kernels as K
 from dem.bonds import BROKEN_SHEAR_SLIDING, INTACT, P_OVERLAP0, BondParams, BondSet
@@ -214,11 +216,13 @@ class System:
         :func:`dem.kernels.run_steps`). Returns (steps done, status)."""
         done, status, drifted = 0, K.STATUS_REBUILD, False
         while status == K.STATUS_REBUILD:
-            status, k, self.drum_angle = K.run_steps(
-                n_steps - done, self.dt_s, self.spheres, self.bonds.arrays, self.pairs,
-                self.walls, self.drum_arrays, self.cp, self.pos_ref, self.drum_angle,
-                self.hist_pp, self.hist_pw, rec_f[done:], rec_p[done:], rec_t[done:],
-                rec_b[done:], drifted)
+            with warnings.catch_warnings():
+                # run_steps has no parallel loop of its own but must be compiled parallel=True
+                # (see dem.kernels.compute_forces); numba says so when it compiles it
+                warnings.filterwarnings("ignore", message=r"(?s).*no transformation for parallel",
+                                        category=NumbaPerformanceWarning)
+                status, k, self.drum_angle = self._run_steps(n_steps - done, drifted, rec_f[done:],
+                                                             rec_p[done:], rec_t[done:], rec_b[done:])
             done += k
             drifted = status == K.STATUS_REBUILD
             if drifted:
@@ -226,6 +230,11 @@ class System:
                                              self.cp[K.CP_SKIN], self.cp[K.CP_LZ])
                 self.pos_ref[:, :] = self.pos
         return done, status
+
+    def _run_steps(self, n_steps, drifted, rec_f, rec_p, rec_t, rec_b):
+        return K.run_steps(n_steps, self.dt_s, self.spheres, self.bonds.arrays, self.pairs,
+                           self.walls, self.drum_arrays, self.cp, self.pos_ref, self.drum_angle,
+                           self.hist_pp, self.hist_pw, rec_f, rec_p, rec_t, rec_b, drifted)
 
     def set_wall_velocity(self, k: int, velocity_m_s) -> None:
         self.w_v[k, :] = velocity_m_s

@@ -190,6 +190,70 @@ def test_bond_params_validation():
         BondParams(tensile_strength_Pa=0.0)
     with pytest.raises(DemInputError, match="moment_factor"):
         BondParams(moment_factor=2.0)
+    with pytest.raises(DemInputError, match=r"ks_Pa_m.*or 0 for a central bond.*-1"):
+        BondParams(ks_Pa_m=-1.0)
+    with pytest.raises(DemInputError, match="ks_Pa_m"):
+        BondParams.yade_jcfpm(30e9, 0.0, 1e6, 1e6, 30.0)
+
+
+# ---------------------------------------------------------------- central bonds (k_s = 0)
+CENTRAL = dict(kn_Pa_m=KN, ks_Pa_m=0.0, cohesion_Pa=1e12, moment_factor=0.0)
+
+
+def test_central_bond_is_a_normal_spring_with_no_shear_and_no_torque():
+    pos, rad, bs = _pair(BondParams(tensile_strength_Pa=1e12, **CENTRAL), gap=1e-4)
+    area = math.pi * R**2
+    du = 1e-7
+    f, t, _ = _apply(pos, rad, bs, np.array([[0, 0, 0], [du / 1e-7, 0, 0]]))
+    assert bs.fn[0] == pytest.approx(KN * area * du, rel=1e-9)
+    assert f[1, 0] == pytest.approx(-KN * area * du, rel=1e-9)
+    # sideways motion: the spring turns with the line of centres, no shear force, no torque
+    omega = np.array([[0, 0, 0], [0, 0, 3.0]])
+    f, t, _ = _apply(pos, rad, bs, np.array([[0, 0, 0], [0, 0.05, 0]]), omega)
+    axis = (pos[1] - pos[0]) / np.linalg.norm(pos[1] - pos[0])
+    np.testing.assert_allclose(np.cross(f[1], axis), 0.0, atol=1e-12 * np.linalg.norm(f[1]))
+    assert np.all(t == 0.0) and np.all(bs.fs == 0.0)
+
+
+def test_central_bond_breaks_exactly_at_tensile_strength():
+    sig_t = 5e6
+    pos, rad, bs = _pair(BondParams(tensile_strength_Pa=sig_t, **CENTRAL))
+    area = math.pi * R**2
+    du = 1e-10
+    vel = np.array([[0, 0, 0], [du / 1e-7, 0, 0]])
+    last = 0.0
+    for _ in range(100000):
+        _, _, nbr = _apply(pos, rad, bs, vel)
+        if nbr:
+            break
+        last = bs.fn[0]
+    assert bs.state[0] == BROKEN_TENSION and bs.fn[0] == 0.0
+    assert sig_t * area - KN * area * du <= last <= sig_t * area
+
+
+def test_central_bond_path_matches_the_full_bond_with_a_vanishing_shear_spring():
+    """The fast path and the general bond kernel with k_s -> 0 load a packing alike."""
+    from dem.agglomerate import make_agglomerate
+    from dem.bonds import kn_from_modulus_Pa_m
+    from dem.system import PlaneWall
+
+    agg = make_agglomerate(0.01, 120, random_state=4)
+    kn = kn_from_modulus_Pa_m(30e9, agg.mean_radius_m)
+    forces = []
+    for ks in (0.0, 1e-12 * kn):
+        bp = BondParams(kn_Pa_m=kn, ks_Pa_m=ks, tensile_strength_Pa=1e9, cohesion_Pa=1e9,
+                        moment_factor=0.0)
+        pos = agg.pos_m.copy()
+        z_lo = float(np.min(pos[:, 2] - agg.radius_m))
+        z_hi = float(np.max(pos[:, 2] + agg.radius_m))
+        walls = [PlaneWall((0, 0, z_lo), (0, 0, 1)), PlaneWall((0, 0, z_hi), (0, 0, -1), (0, 0, -0.5))]
+        s = System(pos, agg.radius_m, Material(), bonds=BondSet(agg.bond_pairs, pos, agg.radius_m, bp),
+                   walls=walls, local_damping=0.3, time_step_factor=0.5)
+        s.run(1500)
+        assert not np.any(s.bonds.state)
+        forces.append(s.record_arrays()["wall_force_N"][:, 1])
+    assert forces[0].max() > 0
+    np.testing.assert_allclose(forces[0], forces[1], rtol=1e-6, atol=1e-9 * forces[0].max())
 
 
 # ---------------------------------------------------------------- Yade JCFpm mirror convention
