@@ -84,7 +84,7 @@ import casadi as ca
 import numpy as np
 
 from mpc.codegen import MODES as CODEGEN_MODES
-from mpc.codegen import c_library, compiled
+from mpc.codegen import RTI_CFLAGS, c_library, compiled
 from mpc.condense import RTI_C_SOURCES, RtiLibrary, condensed_qp_function, stage_functions
 from mpc.discretize import rk4_map, rk4_sensitivity_map
 from mpc.errors import MpcInputError, MpcSolverError
@@ -504,7 +504,7 @@ class Controller:
         self._solver = self._rti_solve
         self._rti_c = None
         if self.settings.qpsol == "condensed":
-            path, rep_qp = c_library("gt_rti", stage_functions(self), list(RTI_C_SOURCES), mode)
+            path, rep_qp = c_library("gt_rti", stage_functions(self), list(RTI_C_SOURCES), mode, RTI_CFLAGS)
             self.build_report = {"qp_data": rep_qp, "cost": rep_cost}
             if path is not None:
                 self._rti_c = RtiLibrary(path)
