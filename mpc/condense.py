@@ -20,6 +20,13 @@ propagated forward stage by stage. What is left is a dense QP in ``N (n_u + n_s)
 The propagation uses ``A_k`` only on the directions that ``dx_k`` spans (``1 + n_u k`` columns:
 the affine part and the earlier input steps; :func:`mpc.discretize.rk4_directional_map`), not the
 ``n_x + n_u`` of a full sensitivity, and forms ``A_k`` only where that is fewer directions.
+
+Two implementations of the same arithmetic: :func:`condensed_qp_function`, one CasADi function
+(the interpreted path, without a C compiler, and the reference of the tests), and the compiled
+path, mpc/c/gt_cond.c, a loop over the stages in C on the small generated functions of
+:func:`stage_functions` (the model's sparse factors at one point, the stage terms), which
+propagates the directions itself (always directionally: as many operations as forming ``A_k``
+here) and keeps the C small whatever the horizon.
 """
 
 from __future__ import annotations
