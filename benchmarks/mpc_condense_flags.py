@@ -38,6 +38,27 @@ from mpc.condense import RTI_C_SOURCES, RtiLibrary, stage_functions  # noqa: E40
 OUT = Path(__file__).parent / "results"
 
 
+def interleaved_steps(libs: dict, ctrl, css, horizon: int, points: int) -> pd.DataFrame:
+    """Every library's step at each perturbed point in turn; one row per point and library."""
+    D = np.array([np.r_[schedule(0.0), 1.0] for _ in range(horizon)]).T
+    p = np.concatenate([css.x, D.ravel(order="F"), css.u, ctrl._wpass])
+    w0 = ctrl._initial_guess(css.x / ctrl.x_scale, css.u)[0]
+    rows = []
+    for seed in range(points):
+        w = w0 * (1 + 0.02 * np.random.default_rng(seed).standard_normal(w0.size))
+        ref = None
+        for fl, lib in libs.items():
+            cpu0 = time.thread_time()
+            w_next, st, it = lib.step(w, p)
+            cpu = time.thread_time() - cpu0
+            data_s, qp_s = lib.last_seconds()
+            ref = w_next - w if ref is None else ref
+            rows.append({"flags": fl, "point": seed, "status": st, "qp_iterations": it, "data_s": data_s,
+                         "qp_s": qp_s, "step_cpu_s": cpu, "load_1min": os.getloadavg()[0],
+                         "step_rel_diff": np.max(np.abs(w_next - w - ref)) / np.max(np.abs(ref))})
+    return pd.DataFrame(rows)
+
+
 def main(argv=None) -> pd.DataFrame:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--horizon", type=int, default=40)
@@ -57,25 +78,9 @@ def main(argv=None) -> pd.DataFrame:
             path, _ = c_library("gt_rti", fns, list(RTI_C_SOURCES), "on", tuple(fl.split()))
             builds[fl] = time.perf_counter() - t0
             libs[fl] = RtiLibrary(path)
-        D = np.array([np.r_[schedule(0.0), 1.0] for _ in range(args.horizon)]).T
-        p = np.concatenate([css.x, D.ravel(order="F"), css.u, ctrl._wpass])
-        w0 = ctrl._initial_guess(css.x / ctrl.x_scale, css.u)[0]
-        rows = []
-        for seed in range(args.points):
-            w = w0 * (1 + 0.02 * np.random.default_rng(seed).standard_normal(w0.size))
-            ref = None
-            for fl, lib in libs.items():
-                cpu0 = time.thread_time()
-                w_next, st, it = lib.step(w, p)
-                cpu = time.thread_time() - cpu0
-                data_s, qp_s = lib.last_seconds()
-                ref = w_next - w if ref is None else ref
-                rows.append({"flags": fl, "point": seed, "status": st, "qp_iterations": it, "data_s": data_s,
-                             "qp_s": qp_s, "step_cpu_s": cpu, "load_1min": os.getloadavg()[0],
-                             "step_rel_diff": np.max(np.abs(w_next - w - ref)) / np.max(np.abs(ref))})
+        fr = interleaved_steps(libs, ctrl, css, args.horizon, args.points)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
-    fr = pd.DataFrame(rows)
     table = fr.groupby("flags", sort=False).agg(
         data_median_s=("data_s", "median"), data_p95_s=("data_s", lambda v: v.quantile(0.95)),
         qp_median_s=("qp_s", "median"), step_cpu_median_s=("step_cpu_s", "median"),
