@@ -15,6 +15,11 @@ enum { P_K, P_FX, P_FZ, P_FU, P_GX, N_POINT };
 enum { T_R, T_JR, T_LG, T_PATH, T_JP, N_TERMS };
 
 typedef struct { int nrow, ncol, *colind, *row; } csc; /* a sparse factor's pattern */
+typedef struct { int *rowptr, *col, *perm; } csr;      /* the same by rows; perm: CSC index */
+
+/* directions per state, padded to a multiple of GT_BLOCK (the padding stays zero) */
+#define GT_BLOCK 8
+#define PAD(n) (((n) + GT_BLOCK - 1) / GT_BLOCK * GT_BLOCK)
 
 typedef int (*casadi_fn)(const casadi_real **, casadi_real **, casadi_int *, casadi_real *, int);
 typedef const casadi_int *(*sparsity_fn)(casadi_int);
@@ -24,6 +29,7 @@ struct gt_cond {
     double h, hh, h6;
     double *scale, *inv_s, *lba_c, *uba_c, *lbx_c, *ubx_c;
     csc sp[N_POINT];                 /* patterns of the point's outputs (k unused) */
+    csr sr[N_POINT];                 /* f_x, f_z, g_x by rows */
     double *pt[N_POINT];             /* the point's output values */
     double *tm[N_TERMS];             /* a stage's terms (dense) */
     int nr[3], npath[3];             /* residual and path rows of terms0, terms, termsN */
@@ -62,7 +68,7 @@ static long nnz_of(const casadi_int *sp) {
 static long layout(gt_cond *c, char *mem, const double *dims) {
     int N = (int)dims[D_N], nx = (int)dims[D_NX], nu = (int)dims[D_NU], nxl = (int)dims[D_NXL];
     int nul = (int)dims[D_NUL], nv = (int)dims[D_NV], m = (int)dims[D_M];
-    int nz = (int)gt_cond_point_sparsity_out(P_GX)[0], ld = 1 + nu * N, k, i, nr_tot = 0;
+    int nz = (int)gt_cond_point_sparsity_out(P_GX)[0], ld = PAD(1 + nu * N), k, i, nr_tot = 0;
     long off = ((long)sizeof(gt_cond) + 7) & ~7L, nT = 0;
     casadi_int sz[4], mx[4] = {0, 0, 0, 0};
     int (*works[5])(casadi_int *, casadi_int *, casadi_int *, casadi_int *) = {
@@ -94,6 +100,7 @@ static long layout(gt_cond *c, char *mem, const double *dims) {
     for (i = P_FX; i < N_POINT; ++i) {
         const casadi_int *sp = gt_cond_point_sparsity_out(i);
         TAKE(c->sp[i].colind, int, sp[1] + 1); TAKE(c->sp[i].row, int, nnz_of(sp));
+        TAKE(c->sr[i].rowptr, int, sp[0] + 1); TAKE(c->sr[i].col, int, nnz_of(sp)); TAKE(c->sr[i].perm, int, nnz_of(sp));
     }
     for (i = 0; i < 5; ++i) {
         works[i](&sz[0], &sz[1], &sz[2], &sz[3]);
@@ -130,13 +137,32 @@ static void pattern(csc *s, const casadi_int *sp) {
     for (k = 0; k < s->colind[ncol]; ++k) s->row[k] = (int)sp[3 + ncol + k];
 }
 
+/* the CSR form of s (rowptr counted, then filled column by column: columns ascend in a row) */
+static void by_rows(csr *r, const csc *s) {
+    int i, j, k;
+    for (i = 0; i <= s->nrow; ++i) r->rowptr[i] = 0;
+    for (k = 0; k < s->colind[s->ncol]; ++k) r->rowptr[s->row[k] + 1]++;
+    for (i = 0; i < s->nrow; ++i) r->rowptr[i + 1] += r->rowptr[i];
+    for (j = 0; j < s->ncol; ++j)
+        for (k = s->colind[j]; k < s->colind[j + 1]; ++k) {
+            int at = r->rowptr[s->row[k]]++;
+            r->col[at] = j;
+            r->perm[at] = k;
+        }
+    for (i = s->nrow; i > 0; --i) r->rowptr[i] = r->rowptr[i - 1];
+    r->rowptr[0] = 0;
+}
+
 gt_cond *gt_cond_init(void *mem) {
     gt_cond *c = (gt_cond *)mem;
     double dims[N_DIMS], step[3];
     int i;
     if (consts_dims(dims)) return NULL;
     layout(c, (char *)mem, dims);
-    for (i = P_FX; i < N_POINT; ++i) pattern(&c->sp[i], gt_cond_point_sparsity_out(i));
+    for (i = P_FX; i < N_POINT; ++i) {
+        pattern(&c->sp[i], gt_cond_point_sparsity_out(i));
+        by_rows(&c->sr[i], &c->sp[i]);
+    }
     for (i = 0; i < 3; ++i) {
         c->nr[i] = (int)TERMS_SP[i](T_R)[0];
         c->npath[i] = (int)TERMS_SP[i](T_PATH)[0];
@@ -153,14 +179,20 @@ void gt_cond_sizes(const gt_cond *c, int *nw, int *np, int *nv, int *m) {
     *nw = c->nw; *np = c->np; *nv = c->nv; *m = c->m;
 }
 
-/* out[r, :] += sum_c F[r, c] in[c, :] for the sparse F, rows of length n (stride ld) */
-static void sp_mul_add(const csc *F, const double *val, const double *in, double *out, int ld, int n) {
-    int j, k, q;
-    for (j = 0; j < F->ncol; ++j) {
-        const double *restrict src = in + (long)j * ld;
-        for (k = F->colind[j]; k < F->colind[j + 1]; ++k) {
-            double v = val[k], *restrict dst = out + (long)F->row[k] * ld;
-            for (q = 0; q < n; ++q) dst[q] += v * src[q];
+/* out[r, :] (+)= sum_c F[r, c] in[c, :] for the sparse F (rows of ld, a multiple of GT_BLOCK),
+ * a block of GT_BLOCK directions accumulated in registers over the row's nonzeros */
+static void sp_mul(const csr *F, int nrow, const double *val, const double *in, double *out, int ld, int add) {
+    int r, k, q, b;
+    for (r = 0; r < nrow; ++r) {
+        double *restrict dst = out + (long)r * ld;
+        for (b = 0; b < ld; b += GT_BLOCK) {
+            double acc[GT_BLOCK];
+            for (q = 0; q < GT_BLOCK; ++q) acc[q] = add ? dst[b + q] : 0.0;
+            for (k = F->rowptr[r]; k < F->rowptr[r + 1]; ++k) {
+                const double v = val[F->perm[k]], *restrict src = in + (long)F->col[k] * ld + b;
+                for (q = 0; q < GT_BLOCK; ++q) acc[q] += v * src[q];
+            }
+            for (q = 0; q < GT_BLOCK; ++q) dst[b + q] = acc[q];
         }
     }
 }
@@ -173,14 +205,12 @@ static int rk4_stage(gt_cond *c, const double *x, const double *u, const double 
     c->res[P_K] = kv;
     for (i = P_FX; i < N_POINT; ++i) c->res[i] = c->pt[i];
     if (gt_cond_point(c->arg, c->res, c->iw, c->w, 0)) return 1;
-    memset(dS, 0, sizeof(double) * (size_t)c->nx * ld);
-    sp_mul_add(&c->sp[P_FX], c->pt[P_FX], S, dS, ld, ld);
+    sp_mul(&c->sr[P_FX], c->nx, c->pt[P_FX], S, dS, ld, 0);
     for (j = 0; j < c->nu; ++j) /* f_u times the input directions [0 I] */
         for (i = c->sp[P_FU].colind[j]; i < c->sp[P_FU].colind[j + 1]; ++i)
             dS[(long)c->sp[P_FU].row[i] * ld + ndir + j] += c->pt[P_FU][i];
-    memset(c->Z, 0, sizeof(double) * (size_t)c->nz * ld);
-    sp_mul_add(&c->sp[P_GX], c->pt[P_GX], S, c->Z, ld, ld);
-    sp_mul_add(&c->sp[P_FZ], c->pt[P_FZ], c->Z, dS, ld, ld);
+    sp_mul(&c->sr[P_GX], c->nz, c->pt[P_GX], S, c->Z, ld, 0);
+    sp_mul(&c->sr[P_FZ], c->nx, c->pt[P_FZ], c->Z, dS, ld, 1);
     return 0;
 }
 
@@ -193,7 +223,7 @@ static void rk4_point(gt_cond *c, double a, const double *kv, const double *dS, 
 
 /* x_next and the directions [t_k; T_k's input columns; B] through the RK4 steps of stage k */
 static int propagate(gt_cond *c, const double *u, const double *d, int ndir) {
-    int ld = ndir + c->nu, s, i;
+    int ld = PAD(ndir + c->nu), s, i;
     long n = (long)c->nx * ld;
     double **K = c->kv, **D = c->Sk;
     for (s = 0; s < c->steps; ++s) { /* the order of mpc.discretize._rk4_forward's operations */
@@ -260,7 +290,7 @@ static int stage_terms(gt_cond *c, int k, const double *w, const double *p, cons
 
 /* the propagation of stage k: t_{k+1} and T_{k+1} from t_k, T_k */
 static int stage_dynamics(gt_cond *c, int k, const double *w, const double *p, const double *Tk, double *Tn) {
-    int nx = c->nx, nu = c->nu, nul = c->nul, ndir = 1 + nu * k, ld = ndir + nu, ck = k * nul, i, j, a;
+    int nx = c->nx, nu = c->nu, nul = c->nul, ndir = 1 + nu * k, ld = PAD(ndir + nu), ck = k * nul, i, j, a;
     int stride = c->nxl + nul;
     const double *Xk = w + (long)k * stride, *Uk = Xk + c->nxl, *Xn = Xk + stride;
     const double *tk = c->t + (long)k * c->nxl;
@@ -269,7 +299,7 @@ static int stage_dynamics(gt_cond *c, int k, const double *w, const double *p, c
         double *s = c->S + (long)i * ld, sc = c->scale[i];
         s[0] = sc * tk[i];
         for (j = 0; j < k; ++j) for (a = 0; a < nu; ++a) s[1 + j * nu + a] = sc * Tk[(long)i * ck + j * nul + a];
-        for (a = 0; a < nu; ++a) s[ndir + a] = 0.0;
+        for (a = ndir; a < ld; ++a) s[a] = 0.0; /* the input directions and the padding */
         c->x[i] = Xk[i] * sc;
     }
     if (propagate(c, Uk, p + nx + (long)c->nd * k, ndir)) return 1;
