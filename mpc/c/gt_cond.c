@@ -1,7 +1,8 @@
 /* Condensing in a loop over the stages (gt_cond.h; the arithmetic of mpc/condense.py's
  * condensed_qp_function, whose docstring has the sources). Layouts: the directions of the RK4
  * sensitivities and the rows of T_k are stored direction- or column-contiguous ("row-major"), so
- * that every sparse factor's nonzero updates a contiguous row (a loop the compiler vectorises). */
+ * that a sparse factor, applied by rows, sums contiguous blocks of directions (loops the
+ * compiler vectorises); every product skips what is structurally zero (T_k's later columns). */
 #include "gt_cond.h"
 
 #include <stddef.h>
