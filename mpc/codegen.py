@@ -41,6 +41,11 @@ MODES = ("auto", "on", "off")
 #: Optimisation flags of the compiled QP data. -O2 measured against -O1 and -O3 -march=native
 #: in benchmarks/mpc_compiled.py (the table says which ran fastest).
 DEFAULT_CFLAGS = ("-O2",)
+#: Flags of the compiled condensed RTI step (mpc/c: the condensing loop and the QP solver): gcc's
+#: -O2 vectorises only loops it need not peel, -O3 the loops over the directions too; -march=native
+#: is faster still but binds the cached library to the machine, not used
+#: (benchmarks/results/mpc_condense_flags_h40.md).
+RTI_CFLAGS = ("-O3",)
 #: Interpreted fallbacks taken by ``mode="auto"`` in this process, by reason.
 FALLBACKS: collections.Counter = collections.Counter()
 

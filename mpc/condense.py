@@ -20,6 +20,13 @@ propagated forward stage by stage. What is left is a dense QP in ``N (n_u + n_s)
 The propagation uses ``A_k`` only on the directions that ``dx_k`` spans (``1 + n_u k`` columns:
 the affine part and the earlier input steps; :func:`mpc.discretize.rk4_directional_map`), not the
 ``n_x + n_u`` of a full sensitivity, and forms ``A_k`` only where that is fewer directions.
+
+Two implementations of the same arithmetic: :func:`condensed_qp_function`, one CasADi function
+(the interpreted path, without a C compiler, and the reference of the tests), and the compiled
+path, mpc/c/gt_cond.c, a loop over the stages in C on the small generated functions of
+:func:`stage_functions` (the model's sparse factors at one point, the stage terms), which
+propagates the directions itself (always directionally: as many operations as forming ``A_k``
+here) and keeps the C small whatever the horizon.
 """
 
 from __future__ import annotations
@@ -35,9 +42,10 @@ from mpc.errors import MpcInputError
 OUTPUTS = ("H", "g", "A", "lba", "uba", "lbx", "ubx", "Gw", "hw")
 
 
-def _terms_function(ctrl, k: int) -> ca.Function:
+def _terms_function(ctrl, k: int, name: str | None = None, dense: bool = False) -> ca.Function:
     """Stage ``k``'s residuals, their Jacobian, the linear cost's gradient, the path constraints
-    and their Jacobian, in ``v = [X~_k; U~_k]`` (``ctrl._stage_terms``, the NLP's own terms)."""
+    and their Jacobian, in ``v = [X~_k; U~_k]`` (``ctrl._stage_terms``, the NLP's own terms);
+    ``dense``: the Jacobians as dense (column-major) matrices, the form mpc/c/gt_cond.c reads."""
     nx, nu, nd, nxl, nul, N = ctrl.nx, ctrl.nu, ctrl.nd, ctrl._nxl, ctrl._nul, ctrl.settings.horizon_steps
     Xk, Uk = ca.MX.sym("X", nxl), (ca.MX.sym("U", nul) if k < N else ca.MX(0, 1))
     d_prev = ca.MX.sym("d_prev", nd)
@@ -48,7 +56,9 @@ def _terms_function(ctrl, k: int) -> ca.Function:
     r = ca.vertcat(*t["residuals"])
     lin = t["linear"] if isinstance(t["linear"], ca.MX) else ca.MX(t["linear"])
     outs = [r, ca.jacobian(r, v), ca.gradient(lin, v), t["path"], ca.jacobian(t["path"], v)]
-    return ca.Function(f"cond_terms{'0' if k == 0 else ('N' if k == N else '')}",
+    if dense:
+        outs = [ca.densify(o) for o in outs]
+    return ca.Function(name or f"cond_terms{'0' if k == 0 else ('N' if k == N else '')}",
                        [Xk, Uk, d_prev, p_x0, p_uprev, p_wpass], outs,
                        ["X", "U", "d_prev", "x0", "u_prev", "wpass"], ["r", "jr", "lg", "path", "jp"])
 
@@ -158,6 +168,41 @@ def condensed_qp_function(ctrl) -> ca.Function:
     outs = [ca.densify(v) for v in (H, g, ca.vertcat(*rows), ca.vertcat(*lo), ca.vertcat(*hi), lbx, ubx)]
     outs += [Gw, ca.densify(hw)]
     return ca.Function("nmpc_condensed_qp", [w, P], outs, ["w", "p"], list(OUTPUTS))
+
+
+#: The C sources of the compiled RTI step (mpc/c), beside the generated stage functions.
+RTI_C_SOURCES = ("gt_qp.c", "gt_cond.c", "gt_rti.c")
+#: The generated functions mpc/c/gt_cond.c calls (its loop over the stages does the rest).
+C_FUNCTIONS = ("gt_cond_point", "gt_cond_terms0", "gt_cond_terms", "gt_cond_termsN", "gt_cond_consts")
+
+
+def stage_functions(ctrl) -> list[ca.Function]:
+    """The pieces of :func:`condensed_qp_function` that mpc/c/gt_cond.c condenses in a loop over
+    the stages (named as in :data:`C_FUNCTIONS`): the model's sparse DAE form at one point
+    (``(x, u, d) -> (f, f_x, f_z, f_u, g_x)``, the RK4 stages' factors), the terms of stage 0,
+    of a middle stage and of stage N (dense Jacobians), and the constants: dimensions, RK4 step
+    lengths, state scales, the path rows' bounds, the controls' bounds. Same arithmetic as the
+    interpreted function up to the order of the sums (tests/mpc/test_condense.py)."""
+    s, m = ctrl.settings, ctrl.model
+    nx, nu, nd, nxl, nul, N = ctrl.nx, ctrl.nu, ctrl.nd, ctrl._nxl, ctrl._nul, s.horizon_steps
+    if np.any(np.isfinite(ctrl._lbw[np.concatenate(ctrl._ix)])) or np.any(np.isfinite(ctrl._ubw[np.concatenate(ctrl._ix)])):
+        raise MpcInputError("Condensing needs unbounded lifted states (bounds on controls only).")
+    stride = nxl + nul
+    if any(ix[0] != k * stride or iu[0] != k * stride + nxl for k, (ix, iu) in enumerate(zip(ctrl._ix, ctrl._iu))):
+        raise MpcInputError("Condensing in C needs the NLP's variables stage by stage ([X~_k; U~_k]).")
+    point = _sensitivity_point(m, m.u, "gt_cond")  # named gt_cond_point
+    terms = [_terms_function(ctrl, 0, "gt_cond_terms0", True), _terms_function(ctrl, min(1, N), "gt_cond_terms", True),
+             _terms_function(ctrl, N, "gt_cond_termsN", True)]
+    idx = np.concatenate([ctrl._ig_path[k][(nxl if k == 0 else 0):] for k in range(N + 1)])
+    iu = np.concatenate(ctrl._iu)
+    h = s.dt_h / int(s.rk4_substeps)
+    n_p = nx + nd * N + nu + m.spec.grid.count
+    dims = [N, nx, nu, nd, nxl, nul, int(s.rk4_substeps), n_p, ctrl._nw, idx.size, N * nul]
+    consts = [dims, [h, 0.5 * h, h / 6.0], ctrl.x_scale, 1.0 / ctrl.x_scale, ctrl._lbg[idx], ctrl._ubg[idx],
+              ctrl._lbw[iu], ctrl._ubw[iu]]
+    cf = ca.Function("gt_cond_consts", [], [ca.DM(np.asarray(v, float)) for v in consts], [],
+                     ["dims", "step", "scale", "inv_scale", "lba", "uba", "lbx", "ubx"])
+    return [point, *terms, cf]
 
 
 class RtiLibrary:

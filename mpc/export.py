@@ -3,8 +3,8 @@ QP, with a small C API (mpc/c/gt_controller.h: new, estimate, step, plan).
 
 What is written (``export_controller``): CasADi's generated C of the estimator's step
 (:attr:`mpc.estimator.Ekf.step_function`, ``gt_ekf_data.c``) and of the condensed QP data
-(:func:`mpc.condense.condensed_qp_function`, ``gt_rti_data.c``), with their headers; the
-hand-written C of mpc/c (the Goldfarb-Idnani QP solver, the RTI step, the controller API, a
+(:func:`mpc.condense.stage_functions`, ``gt_rti_data.c``), with their headers; the
+hand-written C of mpc/c (the Goldfarb-Idnani QP solver, the condensing loop, the RTI step, the controller API, a
 replay harness and an allocation counter); ``gt_controller_config.h`` (dimensions, scales, bounds,
 passing weights, the initial estimate); a Makefile; and ``grindtwin_export.json`` listing every
 file written. The Python controller with ``qpsol = "condensed"`` runs the same generated code and
@@ -31,21 +31,21 @@ import casadi as ca
 import numpy as np
 
 from mpc.codegen import C_DIR
-from mpc.condense import condensed_qp_function
+from mpc.condense import stage_functions
 from mpc.errors import MpcInputError
 
 MANIFEST = "grindtwin_export.json"
-C_FILES = ("gt_qp.c", "gt_qp.h", "gt_rti.c", "gt_rti.h", "gt_controller.c", "gt_controller.h",
+C_FILES = ("gt_qp.c", "gt_qp.h", "gt_cond.c", "gt_cond.h", "gt_rti.c", "gt_rti.h", "gt_controller.c", "gt_controller.h",
            "gt_replay.c", "gt_malloc_count.c")
 #: What the Makefile builds in the folder (a re-export may replace these too).
-BUILD_PRODUCTS = ("gt_rti_data.o", "gt_ekf_data.o", "gt_qp.o", "gt_rti.o", "gt_controller.o", "gt_replay.o",
+BUILD_PRODUCTS = ("gt_rti_data.o", "gt_ekf_data.o", "gt_qp.o", "gt_cond.o", "gt_rti.o", "gt_controller.o", "gt_replay.o",
                   "libgtcontroller.a", "gt_replay", "gt_malloc_count.so")
 MAKEFILE = """\
 # grindtwin's exported NMPC: `make` builds libgtcontroller.a, the replay harness gt_replay and
 # the allocation counter gt_malloc_count.so (LD_PRELOAD=./gt_malloc_count.so ./gt_replay < log).
 CC ?= cc
 CFLAGS ?= -O2
-OBJS = gt_rti_data.o gt_ekf_data.o gt_qp.o gt_rti.o gt_controller.o
+OBJS = gt_rti_data.o gt_ekf_data.o gt_qp.o gt_cond.o gt_rti.o gt_controller.o
 
 all: libgtcontroller.a gt_replay gt_malloc_count.so
 
@@ -114,9 +114,10 @@ def config_header(controller, estimator, u0) -> str:
     return "\n".join(lines)
 
 
-def _generate(fn: ca.Function, name: str, folder: Path) -> None:
+def _generate(fns, name: str, folder: Path) -> None:
     gen = ca.CodeGenerator(f"{name}.c", {"with_header": True})
-    gen.add(fn)
+    for fn in fns:
+        gen.add(fn)
     gen.generate(str(folder) + "/")
 
 
@@ -149,8 +150,8 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "") -> l
         shutil.rmtree(partial)
     partial.mkdir(parents=True)
     try:
-        _generate(condensed_qp_function(controller), "gt_rti_data", partial)
-        _generate(estimator.step_function, "gt_ekf_data", partial)
+        _generate(stage_functions(controller), "gt_rti_data", partial)
+        _generate([estimator.step_function], "gt_ekf_data", partial)
         for name in C_FILES:
             shutil.copyfile(C_DIR / name, partial / name)
         (partial / "gt_controller_config.h").write_text(config_header(controller, estimator, u0))

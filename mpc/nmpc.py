@@ -63,7 +63,8 @@ Solvers (``NmpcSettings.solver``), built once and reused:
   quadratic programming framework for model predictive control", IFAC-PapersOnLine 53, 6563),
   qrqp or OSQP, or (``qpsol = "condensed"``) the same QP condensed onto the inputs
   (:mod:`mpc.condense`) and solved by the dense dual active-set method of Goldfarb & Idnani
-  (mpc/c/gt_qp.c) in one compiled C call with its data (mpc/c/gt_rti.c), the code that
+  (mpc/c/gt_qp.c) in one compiled C call with its data (condensed by a loop over the stages,
+  mpc/c/gt_cond.c, on generated stage functions; mpc/c/gt_rti.c), the code that
   ``grindtwin export-controller`` writes out (:mod:`mpc.export`). Iterations are counted per QP.
 
 Failure handling: if the solver does not converge the controller applies the previous plan
@@ -83,8 +84,8 @@ import casadi as ca
 import numpy as np
 
 from mpc.codegen import MODES as CODEGEN_MODES
-from mpc.codegen import c_library, compiled
-from mpc.condense import RtiLibrary, condensed_qp_function
+from mpc.codegen import RTI_CFLAGS, c_library, compiled
+from mpc.condense import RTI_C_SOURCES, RtiLibrary, condensed_qp_function, stage_functions
 from mpc.discretize import rk4_map, rk4_sensitivity_map
 from mpc.errors import MpcInputError, MpcSolverError
 from mpc.results import ControllerStepResult
@@ -503,12 +504,12 @@ class Controller:
         self._solver = self._rti_solve
         self._rti_c = None
         if self.settings.qpsol == "condensed":
-            cond = condensed_qp_function(self)
-            path, rep_qp = c_library("gt_rti", [cond], ["gt_qp.c", "gt_rti.c"], mode)
+            path, rep_qp = c_library("gt_rti", stage_functions(self), list(RTI_C_SOURCES), mode, RTI_CFLAGS)
             self.build_report = {"qp_data": rep_qp, "cost": rep_cost}
             if path is not None:
                 self._rti_c = RtiLibrary(path)
                 return
+            cond = condensed_qp_function(self)
             # interpreted: the dense condensed QP by qpOASES, the active-set solver made for
             # condensed MPC QPs (Ferreau et al. 2014); qrqp, a sparse solver, once failed on one
             self._qp_data = cond

@@ -1,7 +1,7 @@
 /* grindtwin's exported NMPC (gt_controller.h): the same arithmetic as mpc.Ekf.make_step and
  * mpc.Controller.make_step with qpsol "condensed" (the warm start shifted by one sample, the
  * real-time iterations of gt_rti.c, the plan clipped to the input bounds, the shifted-plan and
- * hold-input fallbacks), on the CasADi-generated ekf_step and nmpc_condensed_qp. */
+ * hold-input fallbacks), on the CasADi-generated ekf_step and stage functions (gt_cond.c). */
 #include "gt_controller.h"
 
 #include <math.h>

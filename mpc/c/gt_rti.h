@@ -1,5 +1,5 @@
-/* One real-time iteration of grindtwin's NMPC on the condensed QP: the QP data from CasADi's
- * generated function nmpc_condensed_qp(w, p) (mpc/condense.py), the dense QP by gt_qp_solve
+/* One real-time iteration of grindtwin's NMPC on the condensed QP: the QP data condensed by the
+ * loop over the stages of gt_cond.c (mpc/condense.py), the dense QP by gt_qp_solve
  * (Goldfarb & Idnani), the full step w + Gw dV + hw. gt_rti_new allocates everything once;
  * gt_rti_step allocates nothing. */
 #ifndef GT_RTI_H

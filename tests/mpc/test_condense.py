@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from mpc import Controller, NmpcSettings, codegen
-from mpc.condense import condensed_qp_function
+from mpc.condense import OUTPUTS, RTI_C_SOURCES, condensed_qp_function, stage_functions
 from mpc.errors import MpcInputError
 
 
@@ -45,6 +45,52 @@ def test_condensed_step_equals_the_sparse_qp_step(ctrl_twin, kw):
     dw = np.asarray(ca.mtimes(out["Gw"], sol["x"]) + out["hw"]).ravel()
     assert np.max(np.abs(dw - dw_ref)) <= 1e-9 * max(1.0, np.max(np.abs(dw_ref)))
     assert np.max(np.abs(dw_ref)) > 1e-2  # a real step: the test can fail
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kw", [dict(horizon_steps=4, move_block=2, power_max_kw=900.0), dict(horizon_steps=1)])
+def test_c_condensing_loop_equals_the_interpreted_condensed_qp(ctrl_twin, kw, tmp_path, monkeypatch):
+    """mpc/c/gt_cond.c (the loop over the stages on the generated stage functions) gives the QP
+    data of condensed_qp_function (CasADi's virtual machine), entry by entry, and its step
+    w + Gw dV + hw for a given dV; with a power limit and move blocking, and at horizon 1 (no
+    middle stage)."""
+    if codegen.find_compiler() is None:
+        pytest.skip("no C compiler on this machine")
+    monkeypatch.setenv(codegen.CACHE_ENV, str(tmp_path))
+    m = ctrl_twin.model
+    ss = ctrl_twin.steady(feed_tph=27.0, speed_frac_critical=0.70, blend=[1.0, 0.0])
+    c = Controller(m, NmpcSettings(dt_h=0.05, solver="rti", qpsol="condensed", codegen="off", **kw))
+    N = c.settings.horizon_steps
+    rng = np.random.default_rng(1)
+    w = _perturbed_point(c, ss, rng)
+    d = np.repeat(m.d_vector([0.8, 0.2], 1.05)[:, None], N, axis=1)
+    p = np.concatenate([ss.x * 1.01, d.ravel(order="F"), ss.u, c._wpass])
+    ref = dict(zip(OUTPUTS, (np.asarray(ca.densify(v)) for v in condensed_qp_function(c)(w, p))))
+    path, rep = codegen.c_library("gt_rti", stage_functions(c), list(RTI_C_SOURCES), "on")
+    so = ctypes.CDLL(str(path))
+    so.gt_cond_bytes.restype, so.gt_cond_init.restype = ctypes.c_long, ctypes.c_void_p
+    so.gt_cond_init.argtypes = [ctypes.c_void_p]
+    so.gt_cond_eval.argtypes = [ctypes.c_void_p] + [ctypes.POINTER(ctypes.c_double)] * 9
+    so.gt_cond_expand.argtypes = [ctypes.c_void_p] + [ctypes.POINTER(ctypes.c_double)] * 3
+    mem = np.zeros(so.gt_cond_bytes() // 8 + 1)  # 8-byte aligned, zeroed
+    h = so.gt_cond_init(mem.ctypes.data)
+    assert h
+    nv, mrows = ref["H"].shape[0], ref["A"].shape[0]
+    got = {k: np.zeros(v.shape, order="F") for k, v in ref.items() if k not in ("Gw", "hw")}
+
+    def ptr(a):
+        return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+    assert so.gt_cond_eval(h, ptr(w), ptr(p), *(ptr(got[k]) for k in OUTPUTS[:7])) == 0
+    for k, v in got.items():
+        fin = np.isfinite(ref[k])
+        assert np.array_equal(fin, np.isfinite(v)), k
+        assert np.max(np.abs(v[fin] - ref[k][fin]), initial=0.0) <= 1e-11 * max(1.0, np.max(np.abs(ref[k][fin]))), k
+    dv = rng.standard_normal(nv)
+    w_out = np.zeros_like(w)
+    so.gt_cond_expand(h, ptr(w), ptr(dv), ptr(w_out))
+    dw = ref["Gw"] @ dv + ref["hw"].ravel()
+    assert np.max(np.abs(w_out - w - dw)) <= 1e-11 * max(1.0, np.max(np.abs(dw)))
+    assert nv == N * c._nul and mrows > 0 and np.max(np.abs(ref["H"])) > 0  # a real QP: the test can fail
 
 
 def test_condensed_needs_strict_convexity():
