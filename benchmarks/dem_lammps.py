@@ -280,7 +280,8 @@ def main():
             rows.append(row)
             curves.append(curve)
             print(row, flush=True)
-    cmd = "NUMBA_NUM_THREADS=1 python benchmarks/dem_lammps.py " + " ".join(sys.argv[1:])
+    args = ["LAMMPS_VENV/bin/python" if a == python else a for a in sys.argv[1:]]  # no local paths
+    cmd = "NUMBA_NUM_THREADS=1 python benchmarks/dem_lammps.py " + " ".join(args)
     write_table(pd.DataFrame(rows), "dem_lammps", "grindtwin central bonds against LAMMPS BPM bpm/spring, one core",
                 NOTES.format(cmd=cmd, start=start) + __doc__[__doc__.index("The test:"):])
     pd.concat(curves).to_csv(os.path.join(HERE, "results", "dem_lammps_curve.csv"), index=False)
