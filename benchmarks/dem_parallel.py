@@ -53,11 +53,11 @@ SIZES = [int(x) for x in _arg("--sizes", "0").split(",")]
 HERE = os.path.dirname(os.path.abspath(__file__))
 WORKER = os.path.join(HERE, "dem_parallel_worker.py")
 YADE_SCRIPT = os.path.join(HERE, "dem_yade_compression.py")
-STEPS = {500: 1000, 2000: 300, 8000: 80} if not FAST else {500: 500, 2000: 150}
+STEPS = {500: 1000, 2000: 600, 8000: 200} if not FAST else {500: 500, 2000: 150}
 REPEATS = int(_arg("--repeats", "3"))
 PEAK_SIZES = (500, 2000) if not FAST else (500,)
 PEAK_SEEDS = (0, 1, 2)
-SCALE = {500: 1000, 2000: 300, 8000: 80, 32000: 20} if not FAST else {500: 300, 2000: 80}
+SCALE = {500: 2000, 1000: 1000, 2000: 600, 4000: 300, 8000: 150, 32000: 50} if not FAST else {500: 300, 2000: 80}
 #: drum cases: (ball diameter m, slice length m, timed steps)
 DRUM = ((0.025, 0.1, 3000), (0.025, 0.3, 2000), (0.0125, 0.2, 500), (0.01, 0.3, 200)) if not FAST else \
     ((0.025, 0.1, 1000),)

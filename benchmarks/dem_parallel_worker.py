@@ -27,6 +27,11 @@ from dem.drum import drum_system
 from dem.lab import compression_test
 from dem.materials import Material
 from dem.system import PlaneWall, System
+import dem.system
+
+# the thread count asked for at every size: the break-even size of System.PARALLEL_MIN_SPHERES
+# is what these runs measure
+dem.system.PARALLEL_MIN_SPHERES = 0
 
 BONDS = BondParams.yade_jcfpm(30e9, 0.4, 10e6, 20e6, 30.0)
 ROCK = Material(youngs_modulus_Pa=30e9, poisson_ratio=0.4, density_kg_m3=2700.0,
