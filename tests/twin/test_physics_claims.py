@@ -75,8 +75,9 @@ def test_pyrite_for_biotite_slows_the_mill_in_volume_not_in_tonnes():
     eq. 9; twin.mill.Mill.free_discharge_tph), so its *tonnes* per hour rise (on the shipped
     calibration: -3.3 % in volume, +2.4 % in tonnes). Issue 12's 'lowers the throughput at
     constant load' holds for the volume, not for the mass the table's kg/h counts. (Where the
-    discharge was a fixed mass flow, the denser ore stayed 5.9 % longer at the same filling and
-    the tonnes rose by 0.16 %; test_steady's density test pins the volume flow.)"""
+    discharge was a fixed mass flow, H_nom / Q_nom grew with the density, the denser ore stayed
+    longer at the same filling and the tonnes rose by 0.16 %; test_steady's density test pins
+    the volume flow.)"""
     claim = pyrite_claim()
     assert claim["volume_throughput"] < 0 < claim["throughput"], claim
 
