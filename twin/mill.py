@@ -13,8 +13,12 @@ from functools import cache
 from pathlib import Path
 
 from .errors import TwinInputError, bad_value, check_range, close_matches
+from .ore.minerals import mineral_table
 
 G_M_S2 = 9.80665
+#: The solids density [t/m3] the mills' ``discharge_factor`` is stated at: a quartz slurry
+#: (twin/ore/data/minerals.csv; Mill.free_discharge_tph).
+DISCHARGE_REFERENCE_DENSITY_T_M3 = mineral_table()["quartz"].density_t_m3
 #: The net-power models a Mill may name (functions in :data:`POWER_MODELS`).
 POWER_MODEL_NAMES = ("bond", "hogg_fuerstenau")
 
@@ -28,7 +32,8 @@ class Mill:
     nominal hold-up) within which the mill is called stable. ``discharge_factor`` is the
     mill's free discharge at nominal hold-up over its nominal feed, before a grate holds coarse
     particles back (a grate mill at nominal load passes less than it could; the V_Pmo of le
-    Roux et al. 2013); fitted for the lab mill by `grindtwin calibrate`.
+    Roux et al. 2013), for a quartz slurry: the discharge is a volume flow
+    (:meth:`free_discharge_tph`); fitted for the lab mill by `grindtwin calibrate`.
 
     ``ball_size_mm`` is the make-up ball size (Austin's scale-up factors on S, twin.scaleup);
     ``discharge_solids_frac`` the solids mass fraction of the mill discharge (0.72, not 72), which
@@ -103,6 +108,17 @@ class Mill:
         bed_volume = self.ball_filling_frac * self.volume_m3
         return (self.powder_filling_nominal * self.bed_porosity * bed_volume
                 * solids_density_t_m3 * (1.0 - self.bed_porosity))
+
+    def free_discharge_tph(self, solids_density_t_m3: float, flow_multiplier=1.0):
+        """The mill's free discharge at nominal hold-up as a solids mass flow [t/h]. The nominal
+        hold-up is a volume (Austin's powder filling U), and the discharge law is one of volumes:
+        le Roux et al. (2013, eq. 9) give the mill's solids outflow as a volume flow set by the
+        volumes of slurry and solids it holds. So at the same filling the same volume of solids
+        leaves, and its mass scales with the solids density: ``discharge_factor`` x nominal feed
+        x flow multiplier (a circuit's recycle) x rho_s / rho_quartz, the factor being stated for
+        a quartz slurry. The residence time H_nom / Q then does not depend on the density."""
+        return (self.feed_nominal_tph * flow_multiplier * self.discharge_factor
+                * solids_density_t_m3 / DISCHARGE_REFERENCE_DENSITY_T_M3)
 
     def with_(self, **changes) -> "Mill":
         return replace(self, **changes)

@@ -344,7 +344,8 @@ def test_an_unstable_rk4_substep_count_is_refused_with_the_needed_one():
     from scenarios.scene.loader import load_scene
 
     scene = load_scene(LIBRARY / "reference_transition.toml")
-    scene.scene.duration_h = 0.1
-    scene.controller.rk4_substeps = 1  # the 3-mixer controller model needs 2 at 0.05 h
+    scene.scene.duration_h = 0.2
+    scene.scene.sample_period_h = 0.1  # the 3-mixer controller model needs 1 RK4 step at 0.05 h, 2 at 0.1 h
+    scene.controller.rk4_substeps = 1
     with pytest.raises(SceneError, match=r"controller.rk4_substeps = 1 is unstable.*at least 2 steps"):
         run_scene(scene, progress=False)

@@ -48,11 +48,7 @@ def test_shipped_values_reproduce_the_recorded_predictions(shipped):
             assert pred[ore][key] == pytest.approx(value, rel=1e-6), (shipped.name, ore, key)
 
 
-def test_the_table_step_converged_without_solver_failures(shipped, request):
-    if shipped.name == "table":  # the default's table step converges; the mineralogy map's does not yet
-        request.applymarker(pytest.mark.xfail(strict=True, reason=(
-            "the 'table' map's 11 numbers for the table's 12: SLSQP's max-norm step stops at its iteration "
-            "limit (200, and the same at 600), max error 3.33 %")))
+def test_the_table_step_converged_without_solver_failures(shipped):
     opt = shipped.record["fit"]["optimizer"]
     assert opt["success"], opt["message"]
     assert shipped.record["fit"]["solver_failures"]["count"] == 0

@@ -8,7 +8,7 @@ import pytest
 from twin.calibration import load_calibration
 from twin.effects.rheology import SLURRY_SOLIDS_VOL_FRAC, thomas_relative_viscosity
 from twin.errors import ModelError
-from twin.mill import LAB
+from twin.mill import DISCHARGE_REFERENCE_DENSITY_T_M3, LAB
 from twin.twin import DEFAULT_EFFECTS, Twin
 
 from .test_model import _structural_balance
@@ -75,8 +75,10 @@ def test_mass_balance_closes_with_rheology(kind):
 
 @pytest.mark.parametrize("factor", [0.5, 1.0, 2.3, 9.0])
 def test_discharge_factor_sets_the_load_by_the_discharge_law(factor):
-    # no grate: every mixer discharges f Q_nom (H_k / H_nom,k)^2, so at the nominal feed each
-    # mixer, and the mill, holds f^-1/2 of nominal (to the smooth floor of the empty-mill guard)
+    # no grate: every mixer discharges f Q_nom (rho_s / rho_quartz) (H_k / H_nom,k)^2 (a volume
+    # flow stated for quartz), so at the nominal feed each mixer, and the mill, holds
+    # (f rho_s / rho_quartz)^-1/2 of nominal (to the smooth floor of the empty-mill guard)
     t = Twin("B", mill=LAB.with_(discharge_factor=factor), effects=["breakage", "transport", "holdup"])
     ss = t.steady(feed_tph=LAB.feed_nominal_tph)
-    assert ss.outputs["load_frac"] == pytest.approx(factor ** -0.5, rel=1e-5)
+    volume_factor = factor * t.spec.solids_density_t_m3 / DISCHARGE_REFERENCE_DENSITY_T_M3
+    assert ss.outputs["load_frac"] == pytest.approx(volume_factor ** -0.5, rel=1e-5)

@@ -42,3 +42,26 @@ def test_steady_state_of_batch_mill_is_refused(batch_b):
 def test_bad_speed_is_named(twin_b):
     with pytest.raises(TwinInputError, match="'speed_frac_critical' parameter of Twin must be a float in \\(0, 1\\). Got 1.3"):
         twin_b.steady(speed_frac_critical=1.3)
+
+
+def test_a_denser_ore_of_the_same_breakage_per_volume_runs_the_same_volumes():
+    """The hold-up is a volume (powder filling) and the discharge a volume flow (le Roux et al.
+    2013, eq. 9): an ore twice as dense that breaks alike per volume (twice the tonnes per kWh, S^E,
+    so S = S^E P / H is unchanged) has the same residence time and product at constant load, and
+    twice the mass throughput. It fails where the discharge is a fixed mass flow (the residence
+    time would double and the product be finer, at the same tonnes per hour)."""
+    from dataclasses import replace
+
+    from twin import Twin, load_ore
+
+    ore = load_ore("B")
+    params = Twin(ore).spec.breakage[0].params
+    runs = []
+    for scale in (1.0, 2.0):
+        p = replace(params, se_1mm_t_kwh=params.se_1mm_t_kwh * scale)
+        twin = Twin(ore, ore_breakage={ore.name: p}, solids_density_t_m3=scale * ore.density_t_m3)
+        runs.append(twin.steady_at_constant_load())
+    light, heavy = runs
+    assert heavy.feed_tph == pytest.approx(2.0 * light.feed_tph, rel=1e-7)
+    assert heavy.p80_um == pytest.approx(light.p80_um, rel=1e-7)
+    assert heavy.outputs["specific_energy_kwh_t"] == pytest.approx(0.5 * light.outputs["specific_energy_kwh_t"], rel=1e-7)

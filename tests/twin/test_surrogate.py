@@ -18,8 +18,11 @@ from twin.twin import Twin
 R2_THRESHOLD = 0.99
 #: Agreement with the twin on fresh points: worst relative error per KPI. P80's is the widest on
 #: the DEM calibration (its mapped rates vary more across mineralogies than the table map's did;
-#: benchmarks/results/twin_surrogate.md has the held-out errors).
-REL_TOL = {"p80_um": 0.08, "specific_energy_kwh_t": 0.03, "load_frac": 0.01}
+#: benchmarks/results/twin_surrogate.md has the held-out errors). The load's follows P80's: with
+#: the lab grate a size cut (d50 119 um, sharpness 1.6, since the discharge is a volume flow) the
+#: hold-up at a feed rate moves with the content's fineness, and the surrogate's load errs by about
+#: half its P80 error (worst 2.7 % at 5.5 % on these points), so half of P80's tolerance.
+REL_TOL = {"p80_um": 0.08, "specific_energy_kwh_t": 0.03, "load_frac": 0.04}
 
 
 @pytest.fixture(scope="module")

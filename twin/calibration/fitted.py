@@ -27,8 +27,9 @@ DEM_FITTED = {
     "lab_grate_d50_um": {"start": 450.0, "bounds": (10.0, 3000.0), "why": _WHY_GRATE},
     "lab_grate_sharpness": {"start": 6.5, "bounds": (0.5, 10.0), "why": _WHY_GRATE},
     "lab_discharge_factor": {"start": 1.25, "bounds": (0.5, 50.0), "why": (
-        "the mill's discharge capacity at nominal hold-up (twin.effects.holdup): set by the discharge "
-        "geometry and slurry level, not given")},
+        "the mill's discharge capacity at nominal hold-up (twin.effects.holdup; a volume flow, stated for a "
+        "quartz slurry, twin.mill.Mill.free_discharge_tph): set by the discharge geometry and slurry level, "
+        "not given")},
 }
 DEM_NAMES = tuple(DEM_FITTED)
 DEM_BOUNDS = {n: v["bounds"] for n, v in DEM_FITTED.items()}

@@ -1,7 +1,8 @@
 """Mill load dynamics: discharge depends on hold-up, breakage rates on the powder filling.
 
 - Discharge: the flow out of a mixer rises with its content, Q = Q_nom (H/H_nom)^n, Q_nom the
-  nominal feed times the mill's ``discharge_factor``; n = 2
+  mill's free discharge at nominal hold-up (:meth:`twin.mill.Mill.free_discharge_tph`: a volume
+  flow, so its mass grows with the solids density as H_nom does); n = 2
   follows the overflow-discharge law of the le Roux et al. (2013) circuit model, where mill
   outflow is proportional to the square of its slurry content (Minerals Engineering 43-44,
   eq. 9), and Morrell & Stephenson (1996, Powder Technol. 88, 63-69) for slurry hold-up
@@ -34,7 +35,7 @@ class Holdup(Effect):
     def apply(self, ctx: EffectContext) -> None:
         spec = ctx.spec
         h_nom = spec.holdup_nominal_t
-        q_nom = spec.feed_nominal_tph * ctx.get("flow_multiplier", 1.0) * spec.mill.discharge_factor
+        q_nom = spec.mill.free_discharge_tph(spec.solids_density_t_m3, ctx.get("flow_multiplier", 1.0))
         n = ctx.param("discharge_exponent", spec.mill.discharge_exponent, "-", "le Roux et al. 2013")
         h_sat = ctx.param("rate_saturation_load", RATE_SATURATION_LOAD, "H/H_nom", "Austin et al. 1984")
 

@@ -9,8 +9,9 @@ Fresh feed [t/h] (or what arrives of it through ``feed_inventory``) enters mixer
 size distribution; mixer k discharges ``r_k m_k`` into mixer k+1; the last mixer's discharge
 (times the class factor of a grate, if listed) is the mill discharge, split by a classifier
 into product and recycle when one is listed. Without ``holdup`` the rate is fixed by the
-nominal mean residence time tau = H_nom / Q_nom (Q_nom the nominal feed times the mill's
-``discharge_factor`` and the circuit's flow multiplier). The product's size distribution gives
+nominal mean residence time tau = H_nom / Q_nom (Q_nom the mill's free discharge at nominal
+hold-up with the circuit's flow multiplier, :meth:`twin.mill.Mill.free_discharge_tph`: a volume
+flow, so tau does not depend on the solids density). The product's size distribution gives
 the product P80 (a smooth interpolation, :func:`twin.sizes.smooth_pxx`)."""
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ class Transport(Effect):
     def apply(self, ctx: EffectContext) -> None:
         spec = ctx.spec
         n_mix = ctx.n_mixers
-        q_mill = spec.feed_nominal_tph * ctx.get("flow_multiplier", 1.0) * spec.mill.discharge_factor
+        q_mill = spec.mill.free_discharge_tph(spec.solids_density_t_m3, ctx.get("flow_multiplier", 1.0))
         tau_h = ctx.param("residence_time_nominal_h", spec.holdup_nominal_t / q_mill,
                           "h", "H_nom / mill through-flow at nominal")
         fracs = spec.mixer_fracs
