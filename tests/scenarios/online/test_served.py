@@ -78,7 +78,8 @@ WARMUP_H = 0.5
 #: either way (it is about 1.5 um h: noise-driven, any change of timing changes it) and the specific
 #: energy rose by 0.04-0.13 %; a move 0.9 of a sample late raised the energy by 0.42-0.46 %
 #: (online.run_lock_step(..., late_frac=F) beside online.run_in_process; the 8-hour case over five
-#: seeds: benchmarks/results/online_cycle.md).
+#: seeds: benchmarks/results/online_cycle.md). Those runs predate the volume-flow discharge; on it
+#: the 0.9-late move of seed 2 raises the energy by 0.27 %.
 IAE_TOL_UM_H, SE_REL_TOL, MAX_LATE_FRAC = 0.35, 0.0015, 0.25
 #: The real-time run's sample period in wall-clock seconds, as a multiple of the in-process NMPC
 #: step's p95 measured just before on this machine (and at least MIN_PERIOD_S): a move follows
@@ -114,7 +115,7 @@ def test_in_lock_step_the_served_loop_is_the_in_process_loop(short, tmp_path):
     for k in KEYS:  # specific energy: the in-process frame's last row holds a move never applied
         assert same[k] == pytest.approx(ref[k], rel=5e-4 if k == "specific_energy_kwh_t" else 1e-6, abs=1e-9), k
     late = asyncio.run(online.run_lock_step(parts, tags, 2, tmp_path / "a1", WARMUP_H, late_frac=0.9)).kpis()
-    assert late["specific_energy_kwh_t"] / ref["specific_energy_kwh_t"] - 1 > 2 * SE_REL_TOL
+    assert late["specific_energy_kwh_t"] / ref["specific_energy_kwh_t"] - 1 > SE_REL_TOL
 
 
 async def _listening(url, proc, timeout_s=180):
