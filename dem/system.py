@@ -31,11 +31,11 @@ HIST_LO_LOG10 = -9.0
 HIST_DLOG10 = 0.25
 HIST_NBINS = 44
 
-#: systems of fewer spheres run their steps on one thread: each step has about five parallel
-#: regions, and with two threads they were measured slower at both sizes tried (0.12x at 500
-#: and 0.81x at 2,000 spheres in wall time, benchmarks/results/dem_parallel_speed.md); the
-#: break-even size is not measured, so the threshold sits above both
-PARALLEL_MIN_SPHERES = 4000
+#: systems of fewer spheres run their steps on one thread: a step has four parallel regions,
+#: and each costs a barrier. On a quiet machine two threads gained from the smallest size
+#: measured, 500 spheres (1.1-1.5x in wall time; the drum's 504 balls 1.05x), and 1.7-1.9x from
+#: 1,000 to 32,000 (benchmarks/results/dem_parallel_scale.md, dem_parallel_drum.md)
+PARALLEL_MIN_SPHERES = 500
 
 #: ``contact_law`` choices of :class:`System`: Hertz–Mindlin with restitution damping
 #: (default) or Yade's linear spring (``Law2_ScGeom_FrictPhys_CundallStrack``; the material's
