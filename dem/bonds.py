@@ -516,13 +516,21 @@ def bond_step(b, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om, r
 @nb.njit(cache=True, parallel=True)
 def bond_forces(sp, bd, lz, dt, beta):
     """Update every active bond (in parallel, each writing only its own row). Velocities must be
-    mid-step values (those that moved the spheres over the last ``dt``). Returns the number of
-    bonds that broke. The loads are summed per sphere by :func:`dem.kernels.compute_forces`."""
+    mid-step values (those that moved the spheres over the last ``dt``). Returns (bonds that
+    broke, bonds that stopped carrying their pair: their contacts start next step). The loads
+    are summed per sphere by :func:`dem.kernels.compute_forces`."""
     ij, props, fn, fs, mb, mt = bd.ij, bd.props, bd.fn, bd.fs, bd.mb, bd.mt
     length, state, load = bd.length, bd.state, bd.load
     pos, vel, om, rad = sp.pos, sp.vel, sp.omega, sp.rad
     nbroken = 0
+    nreleased = 0
     for b in nb.prange(ij.shape[0]):
+        st = state[b]
+        if st != INTACT and st != BROKEN_SHEAR_SLIDING:
+            continue
         nbroken += bond_step(b, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om,
                              rad, lz, dt, beta)
-    return nbroken
+        after = state[b]
+        if after != INTACT and after != BROKEN_SHEAR_SLIDING:
+            nreleased += 1
+    return nbroken, nreleased

@@ -34,7 +34,7 @@ import numpy as np
 
 from dem.bonds import BROKEN_SHEAR_SLIDING, INTACT, P_OVERLAP0, P_SIGNED_MC, bond_forces
 from dem.contacts import drum_walls, hist_add, pair_contact, plane_walls
-from dem.state import N_LOAD, PairArrays, add_rows, csr_of_rows
+from dem.state import N_LOAD, PairArrays, add_rows, fill_csr
 
 # indices of the scalar parameter vector ``cp``
 (CP_ESTAR_PP, CP_GSTAR_PP, CP_MU_PP, CP_ETA_PP, CP_ESTAR_PW, CP_GSTAR_PW, CP_MU_PW, CP_ETA_PW,
@@ -178,12 +178,40 @@ def build_neighbour_list(pos, rad, skin, lz, b_partner, b_index):
 
 
 @nb.njit(cache=True)
-def new_pair_arrays(pi, pj, pb, first):
-    """A :class:`dem.state.PairArrays` on a fresh neighbour list, no contact history."""
+def new_pair_arrays(pi, pj, pb, first, b_state):
+    """A :class:`dem.state.PairArrays` on a fresh neighbour list, no contact history; its
+    active pairs those not carried by a bond in state ``b_state``."""
     npair = pi.shape[0]
-    start, entry = csr_of_rows(pi, pj, first.shape[0] - 1)
-    return PairArrays(pi, pj, pb, first, np.zeros((npair, 3)), np.zeros(npair, dtype=np.int8),
-                      np.zeros((npair, N_LOAD)), np.full(npair, -1.0), start, entry)
+    n = first.shape[0] - 1
+    pr = PairArrays(pi, pj, pb, first, np.zeros((npair, 3)), np.zeros(npair, dtype=np.int8),
+                    np.zeros((npair, N_LOAD)), np.full(npair, -1.0), np.empty(npair, dtype=np.int64),
+                    np.zeros(1, dtype=np.int64), np.empty(n + 1, dtype=np.int64),
+                    np.empty(2 * npair, dtype=np.int64))
+    refresh_active(pr, b_state)
+    return pr
+
+
+@nb.njit(cache=True, inline="always")
+def _carried(b, b_state):
+    """True while bond b (-1: none) carries its pair: intact, or JCFpm's sliding after a shear
+    break (see :data:`dem.bonds.BROKEN_SHEAR_SLIDING`)."""
+    if b < 0:
+        return False
+    st = b_state[b]
+    return st == INTACT or st == BROKEN_SHEAR_SLIDING
+
+
+@nb.njit(cache=True)
+def refresh_active(pr, b_state):
+    """The pairs no bond carries (in increasing order) and their per-sphere CSR list, in place."""
+    pb, active = pr.bond, pr.active
+    m = 0
+    for k in range(pb.shape[0]):
+        if not _carried(pb[k], b_state):
+            active[m] = k
+            m += 1
+    pr.n_active[0] = m
+    fill_csr(pr.i, pr.j, active, m, pr.sphere_start, pr.sphere_entry)
 
 
 @nb.njit(cache=True)
@@ -191,7 +219,7 @@ def rebuild_pairs(sp, bd, old, skin, lz):
     """A new neighbour list at the current positions with the contact histories of the pairs
     that were already listed (matched within each sphere's group)."""
     pi, pj, pb, first = build_neighbour_list(sp.pos, sp.rad, skin, lz, bd.partner, bd.index)
-    pr = new_pair_arrays(pi, pj, pb, first)
+    pr = new_pair_arrays(pi, pj, pb, first, bd.state)
     xi, touch = pr.xi, pr.touch
     o_first, o_j, o_xi, o_touch = old.first, old.j, old.xi, old.touch
     for i in range(first.shape[0] - 1):
@@ -219,14 +247,11 @@ def _cundall_damped(f, v, alpha):
 
 @nb.njit(cache=True, inline="always")
 def _contact_overlap0(k, pi, pj, pb, b_state, b_props, pos, rad, lz):
-    """Overlap subtracted from pair k's geometric overlap, or -1 while an intact (or JCFpm
-    sliding) bond carries the pair."""
+    """Overlap subtracted from active pair k's geometric overlap: 0 without a bond, else the
+    overlap its broken bond had (JCFpm: lowered as the pair separates)."""
     b = pb[k]
     if b < 0:
         return 0.0
-    st = b_state[b]
-    if st == INTACT or st == BROKEN_SHEAR_SLIDING:
-        return -1.0
     ov0 = b_props[b, P_OVERLAP0]
     if b_props[b, P_SIGNED_MC] != 0.0:
         # "yade_jcfpm": the contact of a broken bond is erased while the spheres are apart by
@@ -306,8 +331,9 @@ def _collect(pr, wl, dr, cp, hist_pp, hist_pw):
     impact energies of new contacts into the histograms. Returns the drum torque."""
     lo = cp[CP_HIST_LO]
     dl = cp[CP_HIST_DLOG]
-    p_impact = pr.impact_J
-    for k in range(p_impact.shape[0]):
+    p_impact, active = pr.impact_J, pr.active
+    for q in range(pr.n_active[0]):
+        k = active[q]
         if p_impact[k] >= 0.0:
             hist_add(hist_pp, lo, dl, p_impact[k])
     w_touch, w_force, w_impact, w_f = wl.touch, wl.f_sphere, wl.impact_J, wl.f
@@ -338,30 +364,29 @@ def _collect(pr, wl, dr, cp, hist_pp, hist_pw):
 @nb.njit(cache=True, parallel=True)
 def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw, kick=False):
     """All forces and torques at the current positions (mid-step velocities): contacts (every
-    pair of the Verlet list not held by a bond, in parallel, each writing its own row), then
-    bonds (a bond that breaks now leaves its contact to the next step), then per sphere (with
-    ``kick``, the step's closing half kick too).
+    active pair of the Verlet list, those no bond carries, in parallel, each writing its own
+    row), then bonds (a bond that breaks now leaves its contact to the next step: the active
+    pairs are refreshed), then per sphere (with ``kick``, the step's closing half kick too).
 
     Returns (drum torque N m, number of bonds broken in this call). A caller of this (and of
     any parallel kernel) must itself be compiled with ``parallel=True``: called from a plain
     njit function the parallel loops run 2-3x slower even on one thread (measured).
     """
     pi, pj, pb, xi, touch, load, impact = pr.i, pr.j, pr.bond, pr.xi, pr.touch, pr.load, pr.impact_J
+    active = pr.active
     pos, vel, om, rad, mass = sp.pos, sp.vel, sp.omega, sp.rad, sp.mass
     b_state, b_props = bd.state, bd.props
     lz = cp[CP_LZ]
     law = cp[CP_CONTACT_LAW]
     e_star, g_star, mu, eta = cp[CP_ESTAR_PP], cp[CP_GSTAR_PP], cp[CP_MU_PP], cp[CP_ETA_PP]
-    for k in nb.prange(pi.shape[0]):
+    for q in nb.prange(pr.n_active[0]):
+        k = active[q]
         ov0 = _contact_overlap0(k, pi, pj, pb, b_state, b_props, pos, rad, lz)
-        if ov0 < 0.0:
-            impact[k] = -1.0
-            for c in range(N_LOAD):
-                load[k, c] = 0.0
-            continue
         pair_contact(k, pi, pj, xi, touch, load, impact, pos, vel, om, rad, mass, lz, e_star,
                      g_star, mu, eta, dt, ov0, law)
-    nbroken = bond_forces(sp, bd, lz, dt, cp[CP_BETA])
+    nbroken, nreleased = bond_forces(sp, bd, lz, dt, cp[CP_BETA])
+    if nreleased > 0:
+        refresh_active(pr, b_state)
     sphere_loads(sp, bd, pr, wl, dr, dr.torque_sphere, cp, dt, drum_angle, kick)
     return _collect(pr, wl, dr, cp, hist_pp, hist_pw), nbroken
 

@@ -66,7 +66,15 @@ class PairArrays(NamedTuple):
     sphere i are ``first[i]:first[i+1]``); ``bond`` the bond index of a bonded pair or -1;
     contact history ``xi`` (p, 3, tangential spring) and ``touch`` (1 while in contact);
     ``load`` (p, 9); ``impact_J`` (normal impact energy of a contact that began this step, else
-    -1); the per-sphere CSR list of pairs."""
+    -1); the *active* pairs, those not carried by a bond (``active[:n_active[0]]``, increasing),
+    and the per-sphere CSR list of the active pairs' rows.
+
+    A pair carried by its bond has no contact: leaving it out of the contact loop and of the
+    per-sphere sums (instead of writing and adding a zero row each step) matters in a bonded
+    agglomerate, where nearly every listed pair is bonded. Bonds only break, so a pair only
+    ever joins the active ones (``dem.kernels.refresh_active``, after a step whose bonds let
+    pairs go); its row is then still the zero row it was made with.
+    """
 
     i: np.ndarray
     j: np.ndarray
@@ -76,6 +84,8 @@ class PairArrays(NamedTuple):
     touch: np.ndarray
     load: np.ndarray
     impact_J: np.ndarray
+    active: np.ndarray
+    n_active: np.ndarray
     sphere_start: np.ndarray
     sphere_entry: np.ndarray
 
@@ -115,22 +125,33 @@ def csr_of_rows(first: np.ndarray, second: np.ndarray, n: int):
     ``2 k + 1`` (as second), each sphere's entries in increasing k (the fixed summation order).
     Returns (sphere_start (n + 1,), sphere_entry (2 m,))."""
     m = first.shape[0]
-    start = np.zeros(n + 1, dtype=np.int64)
-    for k in range(m):
+    start = np.empty(n + 1, dtype=np.int64)
+    entry = np.empty(2 * m, dtype=np.int64)
+    fill_csr(first, second, np.arange(m), m, start, entry)
+    return start, entry
+
+
+@nb.njit(cache=True)
+def fill_csr(first, second, rows, count, start, entry):
+    """:func:`csr_of_rows` of the rows ``rows[:count]`` (increasing) only, written in place into
+    ``start`` (n + 1,) and ``entry[:2 count]``."""
+    n = start.shape[0] - 1
+    start[:] = 0
+    for q in range(count):
+        k = rows[q]
         start[first[k] + 1] += 1
         start[second[k] + 1] += 1
     for s in range(n):
         start[s + 1] += start[s]
     fill = start[:n].copy()
-    entry = np.empty(2 * m, dtype=np.int64)
-    for k in range(m):
+    for q in range(count):
+        k = rows[q]
         a = first[k]
         entry[fill[a]] = 2 * k
         fill[a] += 1
         b = second[k]
         entry[fill[b]] = 2 * k + 1
         fill[b] += 1
-    return start, entry
 
 
 @nb.njit(cache=True, inline="always")

@@ -134,7 +134,7 @@ class System:
         self.pos_ref = self.pos.copy()
         self.pairs = K.new_pair_arrays(*K.build_neighbour_list(
             self.pos, self.rad, self.cp[K.CP_SKIN], self.cp[K.CP_LZ], self.bonds.partner,
-            self.bonds.index))
+            self.bonds.index), self.bonds.state)
         self._forces(0.0)
 
     def _set_time_step(self, time_step_factor: float, dt_s: float | None) -> None:
