@@ -31,7 +31,7 @@ import numba as nb
 import numpy as np
 
 from dem.errors import DemInputError
-from dem.state import (LOAD_F, LOAD_TI, LOAD_TJ, N_LOAD, BondArrays, csr_of_rows, rotate_into_plane,
+from dem.state import (LOAD_F, LOAD_TI, LOAD_TJ, N_FORCE, N_LOAD, BondArrays, csr_of_rows, rotate_into_plane,
                        write_pair_load)
 
 #: bond state codes
@@ -43,8 +43,8 @@ BROKEN_SHEAR = 2
 #: pair moves apart beyond that length; then BROKEN_SHEAR
 BROKEN_SHEAR_SLIDING = 3
 
-# columns of the bond property table (one row per bond; those the kernel reads every step
-# first, so that they share a cache line): k_n A, k_s A (N/m), 1/A, tensile strength, cohesion,
+# columns of the bond property table (one row per bond, stored column by column, see BondSet):
+# k_n A, k_s A (N/m), 1/A, tensile strength, cohesion,
 # tan(phi_b), 1 for JCFpm's signed Mohr-Coulomb, overlap at bonding (m); k_n I, k_s J (N m/rad),
 # R_b/I, R_b/J; A, R_b, k_n, k_s (Pa/m), length at bonding
 (P_KN_A, P_KS_A, P_INV_AREA, P_SIGT, P_COH, P_TANPHI, P_SIGNED_MC, P_OVERLAP0, P_KN_I, P_KS_J,
@@ -186,7 +186,9 @@ class BondSet:
         self.params = params
         self.beta = float(params.moment_factor)
         self.ij = pairs
-        self.props = _property_table(pairs, pos_m, radius_m, params)
+        # column-major: a central bond reads three columns, and a bond's row of 17 would cost a
+        # cache line of traffic each; the full bond reads its dozen columns as as many streams
+        self.props = np.asfortranarray(_property_table(pairs, pos_m, radius_m, params))
         self.length = self.props[:, P_LENGTH0].copy()
         self.fn = np.zeros(nbnd)
         self.fs = np.zeros((nbnd, 3))
@@ -195,13 +197,20 @@ class BondSet:
         self.state = np.zeros(nbnd, dtype=np.int8)
         self.partner, self.index = _bond_partners(pairs, n)
         start, entry = csr_of_rows(pairs[:, 0].copy(), pairs[:, 1].copy(), n)
+        # central bonds load their spheres through the centres: rows of the force columns only
+        load = np.zeros((nbnd, N_FORCE if self.central else N_LOAD))
         self.arrays = BondArrays(self.ij, self.props, self.fn, self.fs, self.mb, self.mt,
-                                 self.length, self.state, np.zeros((nbnd, N_LOAD)), start, entry,
+                                 self.length, self.state, load, start, entry,
                                  self.partner, self.index)
 
     @property
     def n_bonds(self) -> int:
         return int(self.ij.shape[0])
+
+    @property
+    def central(self) -> bool:
+        """Every bond central (k_s = 0, no moments): their loads are forces through the centres."""
+        return self.beta == 0.0 and self.n_bonds > 0 and bool(np.all(self.props[:, P_KS_A] == 0.0))
 
     @property
     def intact(self) -> np.ndarray:
@@ -461,20 +470,18 @@ def _write_load(b, fn, fs, mb, mt, load, nx, ny, nz, ai, aj, beta):
 def _central_step(b, i, j, props, fn, length, state, load, pos, rad, lz):
     """A central bond (k_s = 0, no moments): the normal spring along the line of centres,
     broken when F_n/A exceeds the tensile strength; its force acts through both centres, so
-    it exerts no torque. Returns 1 if it broke, else 0."""
+    it exerts no torque (only a row's force columns are written). Returns 1 if it broke, else 0."""
     d, nx, ny, nz, _, _ = _axis(i, j, pos, rad, lz)
     fn[b] += props[b, P_KN_A] * (d - length[b])
     length[b] = d
-    for c in range(N_LOAD):
-        load[b, c] = 0.0
-    if fn[b] * props[b, P_INV_AREA] > props[b, P_SIGT]:
+    broke = fn[b] * props[b, P_INV_AREA] > props[b, P_SIGT]
+    if broke:
         state[b] = BROKEN_TENSION
         fn[b] = 0.0
-        return 1
     load[b, LOAD_F] = -fn[b] * nx
     load[b, LOAD_F + 1] = -fn[b] * ny
     load[b, LOAD_F + 2] = -fn[b] * nz
-    return 0
+    return 1 if broke else 0
 
 
 @nb.njit(cache=True, inline="always")

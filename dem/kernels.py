@@ -34,13 +34,14 @@ import numpy as np
 
 from dem.bonds import BROKEN_SHEAR_SLIDING, INTACT, P_OVERLAP0, P_SIGNED_MC, bond_forces
 from dem.contacts import drum_walls, hist_add, pair_contact, plane_walls
-from dem.state import N_LOAD, PairArrays, add_rows, fill_csr
+from dem.state import N_LOAD, PairArrays, add_force_rows, add_rows, fill_csr
 
 # indices of the scalar parameter vector ``cp``
 (CP_ESTAR_PP, CP_GSTAR_PP, CP_MU_PP, CP_ETA_PP, CP_ESTAR_PW, CP_GSTAR_PW, CP_MU_PW, CP_ETA_PW,
  CP_LOCAL_DAMPING, CP_GX, CP_GY, CP_GZ, CP_LZ, CP_SKIN, CP_BETA, CP_DRUM_R, CP_DRUM_OMEGA,
- CP_LIFTER_H, CP_LIFTER_HW, CP_HIST_LO, CP_HIST_DLOG, CP_CONTACT_LAW, CP_DAMP_AT_STEP) = range(23)
-N_CP = 23
+ CP_LIFTER_H, CP_LIFTER_HW, CP_HIST_LO, CP_HIST_DLOG, CP_CONTACT_LAW, CP_DAMP_AT_STEP,
+ CP_CENTRAL_BONDS) = range(24)
+N_CP = 24
 
 #: numba's threading layers in the order tried, unless the user chose one (NUMBA_THREADING_LAYER
 #: or NUMBA_THREADING_LAYER_PRIORITY): OpenMP first. numba's own default puts TBB first, and
@@ -301,6 +302,7 @@ def sphere_loads(sp, bd, pr, wl, dr, d_torque, cp, dt, drum_angle, kick):
     alpha = cp[CP_LOCAL_DAMPING]
     hdt = 0.5 * dt if cp[CP_DAMP_AT_STEP] != 0.0 else 0.0
     drum_r = cp[CP_DRUM_R]
+    central = cp[CP_CENTRAL_BONDS] != 0.0
     nw = w_p.shape[0]
     for i in nb.prange(pos.shape[0]):
         f[i, 0] = mass[i] * gx
@@ -309,7 +311,10 @@ def sphere_loads(sp, bd, pr, wl, dr, d_torque, cp, dt, drum_angle, kick):
         t[i, 0] = 0.0
         t[i, 1] = 0.0
         t[i, 2] = 0.0
-        add_rows(b_load, b_start, b_entry, i, f, t)
+        if central:
+            add_force_rows(b_load, b_start, b_entry, i, f)
+        else:
+            add_rows(b_load, b_start, b_entry, i, f, t)
         add_rows(p_load, p_start, p_entry, i, f, t)
         if nw > 0:
             plane_walls(i, pos, vel, om, rad, mass, f, t, w_p, w_n, w_v, w_xi, w_touch, w_force,

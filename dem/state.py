@@ -24,6 +24,8 @@ import numpy as np
 #: on the first sphere, torque on the second
 LOAD_F, LOAD_TI, LOAD_TJ = 0, 3, 6
 N_LOAD = 9
+#: columns of a row of forces through the centres only (central bonds: no torque columns)
+N_FORCE = 3
 
 
 class SphereArrays(NamedTuple):
@@ -200,6 +202,27 @@ def add_rows(load, start, entry, s, force, torque):
     torque[s, 0] += tx
     torque[s, 1] += ty
     torque[s, 2] += tz
+
+
+@nb.njit(cache=True, inline="always")
+def add_force_rows(load, start, entry, s, force):
+    """:func:`add_rows` of rows that carry forces through the sphere centres only (no torque
+    columns read: central bonds), in the same fixed order."""
+    fx = fy = fz = 0.0
+    for q in range(start[s], start[s + 1]):
+        e = entry[q]
+        k = e >> 1
+        if e & 1:
+            fx += load[k, LOAD_F]
+            fy += load[k, LOAD_F + 1]
+            fz += load[k, LOAD_F + 2]
+        else:
+            fx -= load[k, LOAD_F]
+            fy -= load[k, LOAD_F + 1]
+            fz -= load[k, LOAD_F + 2]
+    force[s, 0] += fx
+    force[s, 1] += fy
+    force[s, 2] += fz
 
 
 @nb.njit(cache=True, inline="always")

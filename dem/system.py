@@ -124,7 +124,7 @@ class System:
         self.drum_angle = 0.0
         self.cp = _contact_parameters(material, wall_material, contact_law, local_damping,
                                       damping_velocity, gravity_m_s2, periodic_z_m,
-                                      skin_fraction * float(np.min(rad)), self.bonds.beta, drum)
+                                      skin_fraction * float(np.min(rad)), self.bonds, drum)
         self.hist_pp = np.zeros(HIST_NBINS)
         self.hist_pw = np.zeros(HIST_NBINS)
         self._set_time_step(time_step_factor, dt_s)
@@ -326,7 +326,7 @@ def _wall_arrays(walls: list[PlaneWall], n: int) -> WallArrays:
 
 
 def _contact_parameters(material, wall_material, contact_law, local_damping, damping_velocity,
-                        gravity_m_s2, periodic_z_m, skin_m, beta, drum) -> np.ndarray:
+                        gravity_m_s2, periodic_z_m, skin_m, bonds, drum) -> np.ndarray:
     """The kernels' scalar parameter vector (indices ``kernels.CP_*``)."""
     cp = np.zeros(K.N_CP)
     cp[K.CP_ESTAR_PP] = effective_youngs_Pa(material, material)
@@ -351,7 +351,8 @@ def _contact_parameters(material, wall_material, contact_law, local_damping, dam
     cp[K.CP_GX:K.CP_GZ + 1] = np.asarray(gravity_m_s2, dtype=float)
     cp[K.CP_LZ] = float(periodic_z_m)
     cp[K.CP_SKIN] = skin_m
-    cp[K.CP_BETA] = beta
+    cp[K.CP_BETA] = bonds.beta
+    cp[K.CP_CENTRAL_BONDS] = 1.0 if bonds.central else 0.0
     if drum is not None:
         cp[K.CP_DRUM_R] = drum.radius_m
         cp[K.CP_DRUM_OMEGA] = drum.omega_rad_s

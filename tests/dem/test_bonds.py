@@ -10,7 +10,7 @@ from dem.bonds import (BROKEN_SHEAR, BROKEN_TENSION, INTACT, P_AREA, BondParams,
 from dem.errors import DemInputError
 from dem.materials import Material
 from dem.reference import reference_bond
-from dem.state import LOAD_F, LOAD_TI, LOAD_TJ
+from dem.state import LOAD_F, LOAD_TI, LOAD_TJ, N_FORCE
 from dem.system import System
 
 R = 1e-3
@@ -33,6 +33,8 @@ def _apply(pos, rad, bs, vel, omega=None, dt=1e-7):
                     bs.arrays.load, pos, vel, omega, rad, 0.0, dt, bs.beta)
     row = bs.arrays.load[0]
     f = np.array([-row[LOAD_F:LOAD_F + 3], row[LOAD_F:LOAD_F + 3]])
+    if row.shape[0] == N_FORCE:  # central bonds: rows of forces through the centres, no torque
+        return f, np.zeros((2, 3)), nbr
     t = np.array([row[LOAD_TI:LOAD_TI + 3], row[LOAD_TJ:LOAD_TJ + 3]])
     return f, t, nbr
 
@@ -204,6 +206,7 @@ CENTRAL = dict(kn_Pa_m=KN, ks_Pa_m=0.0, cohesion_Pa=1e12, moment_factor=0.0)
 
 def test_central_bond_is_a_normal_spring_with_no_shear_and_no_torque():
     pos, rad, bs = _pair(BondParams(tensile_strength_Pa=1e12, **CENTRAL), gap=1e-4)
+    assert bs.central and bs.arrays.load.shape == (1, N_FORCE)  # no torque columns at all
     area = math.pi * R**2
     du = 1e-7
     f, t, _ = _apply(pos, rad, bs, np.array([[0, 0, 0], [du / 1e-7, 0, 0]]))
