@@ -3,15 +3,22 @@
 System's critical step (``System.critical_dt_s``) is the smaller of the contact step and the
 bond-spring step ``sqrt(m / sum k)`` per sphere (dem.system); velocity Verlet on one harmonic
 spring is stable up to 2/omega, and a sphere coupled to many bonds lowers that, so the true
-bound lies somewhere between. This benchmark finds it: the Yade-JCFpm compression test's
-loading phase (benchmarks/dem_parallel_worker.py, platen 0.1 m/s) run to the same simulated
-time at time steps ``factor x critical`` (set past System's allowed range, which stops at 1, by
-assigning ``dt_s`` after construction), on several packings. A run is *stable* when it
+bound lies somewhere between. This benchmark finds it: a compression test's loading phase run to
+the same simulated time at time steps ``factor x critical`` (set past System's allowed range,
+which stops at 1, by assigning ``dt_s`` after construction), on several packings, for two
+models (``--models``):
+
+- ``jcfpm``: the Yade-JCFpm mirror of benchmarks/dem_parallel_worker.py (central-ish force-only
+  bonds, linear contacts, platen 0.1 m/s), 500 and 2,000 spheres;
+- ``calibration``: what the DEM calibration runs (twin/calibration/dem_link.py): Type B's
+  parallel bonds with bending and twisting moments from the shipped calibration file, Hertz-
+  Mindlin contacts, steel platens at its 0.25 m/s, 150 spheres (its resolution) and 500.
+ A run is *stable* when it
 raises no instability, breaks no bond that the reference (factor 0.25) does not, and its
 platen force at the end is within ``STABLE_TOL`` of the reference's. The accuracy cost of the
 allowed factors on whole compression tests is in benchmarks/results/dem_accuracy.md.
 
-``python benchmarks/dem_time_step.py [--sizes 500,2000] [--seeds 0,1,2]`` writes
+``python benchmarks/dem_time_step.py [--models jcfpm,calibration] [--sizes 500,2000] [--seeds 0,1,2]`` writes
 benchmarks/results/dem_time_step.md and .csv.
 """
 
@@ -30,6 +37,7 @@ from dem_common import write_table
 from dem_parallel_worker import loading_system
 from dem.agglomerate import make_agglomerate
 from dem.errors import DemInstabilityError
+from dem.lab import DEFAULT_TIME_STEP_FACTOR as DEFAULT_FACTOR
 
 #: simulated loading time (s): 30 um of platen travel, elastic for the intact particle
 T_END_S = 3e-4
@@ -43,8 +51,36 @@ def _arg(name, default):
     return sys.argv[sys.argv.index(name) + 1] if name in sys.argv else default
 
 
-def loading(agg, factor: float) -> dict:
-    s = loading_system(agg, 1e-12)          # any valid step; the factor's is set next
+def calibration_loading_system(agg, dt_s: float):
+    """The compression test as the DEM calibration runs it for Type B (its bonds, material, platen
+    speed; dem.lab.compression_test's damping and platens)."""
+    import json
+
+    from dem.bonds import BondParams, BondSet
+    from dem.materials import STEEL, Material
+    from dem.system import PlaneWall, System
+    from twin.calibration.dem_link import PLATEN_SPEED_M_S
+    from twin.calibration.files import CALIBRATION_DIR
+
+    ore = json.loads((CALIBRATION_DIR / "dem.json").read_text(encoding="utf-8"))["dem"]["ores"]["B"]
+    b = ore["bond"]
+    bonds = BondParams(kn_Pa_m=b["kn_GPa_m"] * 1e9, ks_Pa_m=b["ks_GPa_m"] * 1e9,
+                       tensile_strength_Pa=b["tensile_strength_MPa"] * 1e6, cohesion_Pa=b["cohesion_MPa"] * 1e6)
+    rock = Material(youngs_modulus_Pa=ore["youngs_gpa"] * 1e9, density_kg_m3=ore["density_t_m3"] * 1e3)
+    pos = agg.pos_m.copy()
+    z_lo = float(np.min(pos[:, 2] - agg.radius_m))
+    z_hi = float(np.max(pos[:, 2] + agg.radius_m))
+    walls = [PlaneWall((0, 0, z_lo), (0, 0, 1)), PlaneWall((0, 0, z_hi), (0, 0, -1), (0, 0, -PLATEN_SPEED_M_S))]
+    return System(pos, agg.radius_m, rock, density_kg_m3=rock.density_kg_m3 / agg.solid_fraction,
+                  bonds=BondSet(agg.bond_pairs, pos, agg.radius_m, bonds), wall_material=STEEL, walls=walls,
+                  local_damping=0.7, dt_s=dt_s)
+
+
+MODELS = {"jcfpm": (loading_system, (500, 2000)), "calibration": (calibration_loading_system, (150, 500))}
+
+
+def loading(agg, factor: float, model: str = "jcfpm") -> dict:
+    s = MODELS[model][0](agg, 1e-12)        # any valid step; the factor's is set next
     s.dt_s = factor * s.critical_dt_s
     steps = int(round(T_END_S / s.dt_s))
     try:
@@ -57,15 +93,15 @@ def loading(agg, factor: float) -> dict:
             "broken": int(np.sum(s.bonds.state != 0)), "critical_dt_s": s.critical_dt_s}
 
 
-def scan(n: int, seed: int) -> list[dict]:
+def scan(model: str, n: int, seed: int) -> list[dict]:
     agg = make_agglomerate(0.022, n, random_state=seed)
-    ref = loading(agg, REFERENCE_FACTOR)
+    ref = loading(agg, REFERENCE_FACTOR, model)
     rows = []
     for f in FACTORS:
-        r = loading(agg, f)
+        r = loading(agg, f, model)
         err = r["force_end_N"] / ref["force_end_N"] - 1.0
         stable = (not r["unstable"]) and r["broken"] <= ref["broken"] and abs(err) <= STABLE_TOL
-        rows.append({"n_spheres": n, "seed": seed, "factor": f, "dt_s": f * r["critical_dt_s"],
+        rows.append({"model": model, "n_spheres": n, "seed": seed, "factor": f, "dt_s": f * r["critical_dt_s"],
                      "steps": r["steps"], "force_err_pct": 100 * err, "broken": r["broken"],
                      "broken_reference": ref["broken"], "stable": stable})
         print(rows[-1], flush=True)
@@ -73,18 +109,25 @@ def scan(n: int, seed: int) -> list[dict]:
 
 
 def main():
-    sizes = [int(x) for x in _arg("--sizes", "500,2000").split(",")]
+    models = _arg("--models", "jcfpm,calibration").split(",")
+    bad = [m for m in models if m not in MODELS]
+    if bad:
+        raise SystemExit(f"--models must be among {sorted(MODELS)}. Got {bad}; nothing written.")
+    sizes = _arg("--sizes", "")
     seeds = [int(x) for x in _arg("--seeds", "0,1,2").split(",")]
-    t = pd.DataFrame([r for n in sizes for s in seeds for r in scan(n, s)])
-    bound = {n: float(g.groupby("factor").stable.all().loc[lambda x: x].index.max())
-             for n, g in t.groupby("n_spheres")}
-    first_bad = {n: g.loc[~g.stable, "factor"].min() for n, g in t.groupby("n_spheres")}
+    t = pd.DataFrame([r for m in models
+                      for n in ([int(x) for x in sizes.split(",")] if sizes else MODELS[m][1])
+                      for s in seeds for r in scan(m, n, s)])
+    groups = t.groupby(["model", "n_spheres"])
+    bound = {k: float(g.groupby("factor").stable.all().loc[lambda x: x].index.max()) for k, g in groups}
+    first_bad = {k: g.loc[~g.stable, "factor"].min() for k, g in groups}
     note = (f"Command: `python benchmarks/dem_time_step.py {' '.join(sys.argv[1:])}`. Loading phase of the "
-            f"Yade-JCFpm compression test to t = {T_END_S:g} s at factor x System.critical_dt_s; reference "
-            f"factor {REFERENCE_FACTOR}; stable = no instability, no bond broken that the reference keeps, final "
-            f"platen force within {100 * STABLE_TOL:g} % of the reference's. Largest factor stable on every "
-            f"packing: " + ", ".join(f"{n} spheres {bound[n]:g} (first unstable {first_bad[n]:g})" for n in bound)
-            + ". System allows factors up to 1 (default 0.5).")
+            f"compression test to t = {T_END_S:g} s at factor x System.critical_dt_s (models: see the script's "
+            f"docstring); reference factor {REFERENCE_FACTOR}; stable = no instability, no bond broken that the "
+            f"reference keeps, final platen force within {100 * STABLE_TOL:g} % of the reference's. Largest factor "
+            "stable on every packing: " + ", ".join(f"{m} {n} spheres {bound[m, n]:g} (first unstable "
+                                                     f"{first_bad[m, n]:g})" for m, n in bound)
+            + f". System allows factors up to 1; the compression test's default is {DEFAULT_FACTOR:g}.")
     write_table(t, "dem_time_step", "Measured stability bound of the DEM time step", note)
 
 

@@ -223,13 +223,23 @@ class BondSet:
                 "broken_shear": int(np.sum((self.state == BROKEN_SHEAR)
                                            | (self.state == BROKEN_SHEAR_SLIDING)))}
 
-    def stiffness_sums(self, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """Per-sphere sums of translational (N/m) and rotational (N m/rad) bond stiffness."""
-        kt = np.maximum(self.props[:, P_KN_A], self.props[:, P_KS_A])
-        kr = self.beta * np.maximum(self.props[:, P_KN_I], self.props[:, P_KS_J])
+    def stiffness_sums(self, n: int, radius_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per-sphere sums of translational (N/m) and rotational (N m/rad) bond stiffness.
+
+        A sphere's rotation about an axis across the bond turns its shear spring through the
+        lever arm ``a`` (from its centre to the bond centre; Yade's JCFpm: its radius), which
+        stiffens it by ``k_s A a^2``, besides the bending spring ``beta k_n I``; about the bond
+        axis only the twisting spring ``beta k_s J`` acts. The larger of the two counts."""
+        pr = self.props
+        kt = np.maximum(pr[:, P_KN_A], pr[:, P_KS_A])
         k_sum = np.zeros(n)
         r_sum = np.zeros(n)
+        half_gap = 0.5 * (pr[:, P_LENGTH0] - radius_m[self.ij[:, 0]] - radius_m[self.ij[:, 1]])
+        jcfpm = pr[:, P_SIGNED_MC] != 0.0
         for col in (0, 1):
+            r = radius_m[self.ij[:, col]]
+            arm = np.where(jcfpm, r, r + half_gap)
+            kr = np.maximum(pr[:, P_KS_A] * arm**2 + self.beta * pr[:, P_KN_I], self.beta * pr[:, P_KS_J])
             np.add.at(k_sum, self.ij[:, col], kt)
             np.add.at(r_sum, self.ij[:, col], kr)
         return k_sum, r_sum

@@ -71,14 +71,20 @@ def _cell_grid(pos, rad, skin, lz):
     if periodic:
         lo[2] = 0.0
         hi[2] = lz
-    # cap the number of cells at ~8 per sphere (fragments flying apart)
-    while True:
-        nx = max(1, int((hi[0] - lo[0]) / cell))
-        ny = max(1, int((hi[1] - lo[1]) / cell))
-        nz = max(1, int((hi[2] - lo[2]) / cell))
-        if nx * ny * nz <= 8 * n + 27:
-            break
+    # cap the number of cells at ~8 per sphere (fragments flying apart), counted in floats: a
+    # system blowing up spans distances whose cell counts overflow an integer (one cell then;
+    # the run stops on its non-finite state soon after)
+    span = np.empty(3)
+    for d in range(3):
+        span[d] = hi[d] - lo[d]
+    if not (np.isfinite(span[0]) and np.isfinite(span[1]) and np.isfinite(span[2])):
+        cell = math.inf
+    while (max(1.0, math.floor(span[0] / cell)) * max(1.0, math.floor(span[1] / cell))
+           * max(1.0, math.floor(span[2] / cell)) > 8.0 * n + 27.0):
         cell *= 1.5
+    nx = max(1, int(span[0] / cell))
+    ny = max(1, int(span[1] / cell))
+    nz = max(1, int(span[2] / cell))
     if periodic and nz < 3:
         nz = 1
     size = np.array([(hi[0] - lo[0]) / nx, (hi[1] - lo[1]) / ny, (hi[2] - lo[2]) / nz])

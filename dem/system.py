@@ -149,7 +149,7 @@ class System:
             mat_for_dt = Material(m.youngs_modulus_Pa, m.poisson_ratio, self.density_kg_m3,
                                   m.friction_coef, m.restitution)
             dt_r = rayleigh_time_step_s(float(np.min(self.rad)), mat_for_dt)
-        k_sum, r_sum = self.bonds.stiffness_sums(self.n)
+        k_sum, r_sum = self.bonds.stiffness_sums(self.n, self.rad)
         dt_b = bond_time_step_s(self.mass, self.inertia, k_sum, r_sum)
         self.critical_dt_s = min(dt_r, dt_b)
         self.rayleigh_dt_s = dt_r

@@ -7,7 +7,7 @@ import pytest
 
 from dem.bonds import (BROKEN_SHEAR, BROKEN_TENSION, INTACT, P_AREA, BondParams, BondSet,
                        bond_step, find_bond_pairs)
-from dem.errors import DemInputError
+from dem.errors import DemInputError, DemInstabilityError
 from dem.materials import Material
 from dem.reference import reference_bond
 from dem.state import LOAD_F, LOAD_TI, LOAD_TJ, N_FORCE
@@ -316,3 +316,42 @@ def test_yade_shear_strength_grows_with_compression_and_leaves_a_frictional_cont
     # after the break: sliding at the Coulomb limit of the normal force it still carries
     _apply(pos, rad, bs, np.array([[0, 0, 0], [0, 0, du / 1e-7]]))
     assert np.linalg.norm(bs.fs[0]) == pytest.approx(-bs.fn[0] * math.tan(math.radians(phi)), rel=1e-6)
+
+
+# ---------------------------------------------------------------- critical time step
+def _spinning_pair(ks_over_kn):
+    pos = np.array([[0.0, 0.0, 0.0], [2 * R, 0.0, 0.0]])
+    bp = BondParams(kn_Pa_m=KN, ks_Pa_m=ks_over_kn * KN, tensile_strength_Pa=1e15, cohesion_Pa=1e15)
+    return pos, BondSet(np.array([[0, 1]]), pos, np.array([R, R]), bp)
+
+
+def test_rotational_stiffness_counts_the_shear_spring_through_its_lever_arm():
+    _, bs = _spinning_pair(1.0)
+    area, inertia = math.pi * R**2, math.pi * R**4 / 4
+    k_sum, r_sum = bs.stiffness_sums(2, np.array([R, R]))
+    np.testing.assert_allclose(k_sum, KN * area, rtol=1e-12)
+    # about an axis across the bond: shear spring at the lever arm R, plus bending (beta = 1)
+    np.testing.assert_allclose(r_sum, KN * area * R**2 + KN * inertia, rtol=1e-12)
+
+
+@pytest.mark.parametrize("ks_over_kn", [0.4, 1.0])
+def test_largest_allowed_time_step_is_stable_for_a_spinning_bonded_pair(ks_over_kn):
+    """At time_step_factor 1 (System's largest) a pair with spinning spheres keeps its energy
+    bounded (velocity Verlet's shadow-energy swing, ~dt^2); a step that leaves out the shear
+    spring's torque stiffness (the critical step before it was counted: 1.58x this one at
+    k_s = k_n) blows up."""
+    for factor, bounded in ((1.0, True), (1.6, False)):
+        pos, bs = _spinning_pair(ks_over_kn)
+        s = System(pos, [R, R], Material(), bonds=bs, dt_s=1e-12)
+        s.dt_s = factor * s.critical_dt_s
+        rng = np.random.default_rng(0)
+        s.vel[:] = rng.normal(0, 1e-3, (2, 3))
+        s.omega[:] = rng.normal(0, 1.0, (2, 3))
+        e0, e_max = s.total_energy_J(), 0.0
+        try:
+            for _ in range(30):
+                s.run(100)
+                e_max = max(e_max, s.total_energy_J())
+        except DemInstabilityError:
+            e_max = math.inf
+        assert (e_max < 1.25 * e0) == bounded, (factor, e_max / e0)
