@@ -6,7 +6,8 @@ Public API (``dem`` imports nothing from twin, mpc or scenarios):
   ``damping_coefficient``, ``rayleigh_time_step_s``, ``hertz_contact_duration_s``;
 - :mod:`dem.bonds`: ``BondParams``, ``BondSet``, ``kn_from_modulus_Pa_m``;
 - :mod:`dem.agglomerate`: ``make_agglomerate`` -> ``Agglomerate``;
-- :mod:`dem.lab`: ``compression_test`` -> ``CompressionResult``, ``drop_weight_test`` -> ``ImpactResult``;
+- :mod:`dem.lab`: ``compression_test`` -> ``CompressionResult``, ``drop_weight_test`` -> ``ImpactResult``,
+  ``DEFAULT_TIME_STEP_FACTOR``;
 - :mod:`dem.fragments`: ``find_fragments`` -> ``FragmentResult``;
 - :mod:`dem.calibrate`: ``BondCalibrator``;
 - :mod:`dem.drum`: ``drum_test`` -> ``DrumResult``, ``critical_speed_rad_s``;
@@ -20,11 +21,12 @@ from dem.calibrate import BondCalibrator
 from dem.drum import DrumResult, critical_speed_rad_s, drum_test
 from dem.errors import DemError, DemInputError, DemInstabilityError
 from dem.fragments import FragmentResult, find_fragments
-from dem.lab import CompressionResult, ImpactResult, compression_test, drop_weight_test
+from dem.lab import (DEFAULT_TIME_STEP_FACTOR, CompressionResult, ImpactResult, compression_test,
+                     drop_weight_test)
 from dem.materials import RAYLEIGH_SAFETY_FACTOR, STEEL, Material
 
 __all__ = ["Agglomerate", "make_agglomerate", "BondParams", "kn_from_modulus_Pa_m",
            "BondCalibrator", "DrumResult", "critical_speed_rad_s", "drum_test", "DemError",
            "DemInputError", "DemInstabilityError", "FragmentResult", "find_fragments",
-           "CompressionResult", "ImpactResult", "compression_test", "drop_weight_test",
+           "CompressionResult", "ImpactResult", "compression_test", "drop_weight_test", "DEFAULT_TIME_STEP_FACTOR",
            "RAYLEIGH_SAFETY_FACTOR", "STEEL", "Material"]

@@ -29,7 +29,7 @@ import pandas as pd
 from dem.agglomerate import make_agglomerate
 from dem.bonds import BondParams, kn_from_modulus_Pa_m
 from dem.errors import DemError, DemInputError
-from dem.lab import compression_test
+from dem.lab import DEFAULT_TIME_STEP_FACTOR, compression_test
 from dem.materials import Material
 
 
@@ -68,7 +68,7 @@ class BondCalibrator:
                  stiffness_ratio: float = 0.4, cohesion_ratio: float = 2.0,
                  initial_tensile_strength_Pa: float = 10e6, friction_angle_deg: float = 0.0,
                  radius_multiplier: float = 1.0, moment_factor: float = 1.0,
-                 platen_speed_m_s: float = 0.1, time_step_factor: float = 0.5,
+                 platen_speed_m_s: float = 0.1, time_step_factor: float = DEFAULT_TIME_STEP_FACTOR,
                  local_damping: float = 0.7, tol_pct: float = 1.0, max_iter: int = 6,
                  verbose: bool = False) -> None:
         self.n_particles = n_particles

@@ -16,9 +16,9 @@
   whole, and the test goes on (with the old end, the first two conditions at a 0.5 % window,
   6 of 20 particles of 22 mm ended on such a chip, benchmarks/results/dem_size_effect.md).
   Otherwise it ends at ``max_strain`` (default 8 %).
-  ``time_step_factor`` defaults to 0.5 of the critical step, which for bonded agglomerates is
-  the bond-spring step ``sqrt(m / sum k)`` (already a factor sqrt(2) inside the stability
-  limit; benchmarks/dem_accuracy.py measures the effect).
+  ``time_step_factor`` defaults to the largest System allows, 1 of the critical step
+  (:data:`DEFAULT_TIME_STEP_FACTOR`: a measured margin of 1.5 to instability;
+  benchmarks/dem_accuracy.py measures the accuracy it costs).
   Fracture energy = ``∫ F_top dδ`` from contact to the peak force (Tavares & King 1998).
 - **Drop weight**: the particle rests on a fixed anvil; a free flat drop weight of mass
   ``drop_mass_kg`` touches its top with speed ``v0 = sqrt(2 E_s m_p / M)`` so that the
@@ -48,12 +48,13 @@ from dem.fragments import FragmentResult, find_fragments
 from dem.materials import RAYLEIGH_SAFETY_FACTOR, STEEL, Material
 from dem.system import PlaneWall, System
 
-#: Default time step of the compression test, as a fraction of System's critical step (the
-#: bond-spring step ``sqrt(m / sum k)`` for bonded agglomerates). Measured: loading stays within
-#: 1 % of the force at 0.25 up to 1.5 on every packing tried, bonds break spuriously from 1.75
-#: (benchmarks/results/dem_time_step.md); its accuracy cost on whole tests against 0.25 is in
+#: Default time step of the compression test, as a fraction of System's critical step (for
+#: bonded agglomerates the bond-spring step ``sqrt(m / sum k)``, translational and rotational):
+#: System's largest. Measured, the loading stays within 1 % of the force at 0.25 up to 1.5 on
+#: every packing tried, and bonds break spuriously from 1.75 (benchmarks/results/dem_time_step.md),
+#: so 1 keeps a margin of 1.5; its accuracy cost on whole tests against 0.25 is in
 #: benchmarks/results/dem_accuracy.md.
-DEFAULT_TIME_STEP_FACTOR = 0.5
+DEFAULT_TIME_STEP_FACTOR = 1.0
 
 
 @dataclass(frozen=True)

@@ -112,6 +112,9 @@ COHESION_RATIO = 2.0
 #: drop-weight energies as multiples of the ore's compression E50
 DROP_ENERGY_MULTIPLES = (0.3, 0.6, 1.2, 2.5, 5.0)
 DROP_MASS_KG = 1.0
+#: drop tests' time step, a fraction of System's critical step: the impact's stability was not
+#: measured beyond 0.5 (the compression test's, dem.lab.DEFAULT_TIME_STEP_FACTOR, was)
+DROP_TIME_STEP_FACTOR = 0.5
 #: a drop test ends at the weight's rebound or after this many D/v0 (the weight has then
 #: travelled 0.6 D into the particle at its initial speed; longer runs only grind the debris)
 DROP_MAX_TIME_FACTOR = 0.6
@@ -199,7 +202,7 @@ def drop_tests(ore: Mineralogy, bond_params, e50_j_kg: float, settings: dict, se
         ys, ps = [], []
         for k, agg in enumerate(aggs):
             r = drop_weight_test(agg, bond_params, e, drop_mass_kg=DROP_MASS_KG, material=mat,
-                                 time_step_factor=0.5, max_time_factor=DROP_MAX_TIME_FACTOR)
+                                 time_step_factor=DROP_TIME_STEP_FACTOR, max_time_factor=DROP_MAX_TIME_FACTOR)
             sd = r.fragments.size_distribution
             keep = (sd["sieve_size_rel"] >= y_min) & (sd["sieve_size_rel"] < 1.0)
             ys.append(sd["sieve_size_rel"][keep].to_numpy())
@@ -256,6 +259,8 @@ def run_dem(fast: bool = False, seed: int = 0, ores=REFERENCE_ORES, progress: bo
     A progress bar (tqdm, on stderr) counts the simulations and shows the wall time."""
     from tqdm.auto import tqdm
 
+    from dem import DEFAULT_TIME_STEP_FACTOR
+
     unknown = [o for o in ores if o not in REFERENCE_ORES]
     if unknown:
         raise TwinInputError(f"The DEM step runs reference ores {REFERENCE_ORES}. Got {unknown}.")
@@ -276,6 +281,7 @@ def run_dem(fast: bool = False, seed: int = 0, ores=REFERENCE_ORES, progress: bo
                          "spheres_per_particle": SPHERES, "particle_diameter_m": PARTICLE_DIAMETER_M,
                          "platen_speed_m_s": PLATEN_SPEED_M_S, "stiffness_ratio": STIFFNESS_RATIO,
                          "cohesion_ratio": COHESION_RATIO, "drop_mass_kg": DROP_MASS_KG, "drum": DRUM,
+                         "time_step_factor": DEFAULT_TIME_STEP_FACTOR, "drop_time_step_factor": DROP_TIME_STEP_FACTOR,
                          "seed": seed, "fast": fast},
             "drum": drum, "ores": {n: out[n] for n in ores}, "dem_seconds": time.perf_counter() - t0}
 
