@@ -530,24 +530,16 @@ def bond_step(b, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om, r
     return broke
 
 
-@nb.njit(cache=True, parallel=True)
-def bond_forces(sp, bd, lz, dt, beta):
-    """Update every active bond (in parallel, each writing only its own row). Velocities must be
-    mid-step values (those that moved the spheres over the last ``dt``). Returns (bonds that
-    broke, bonds that stopped carrying their pair: their contacts start next step). The loads
-    are summed per sphere by :func:`dem.kernels.compute_forces`."""
-    ij, props, fn, fs, mb, mt = bd.ij, bd.props, bd.fn, bd.fs, bd.mb, bd.mt
-    length, state, load = bd.length, bd.state, bd.load
-    pos, vel, om, rad = sp.pos, sp.vel, sp.omega, sp.rad
-    nbroken = 0
-    nreleased = 0
-    for b in nb.prange(ij.shape[0]):
-        st = state[b]
-        if st != INTACT and st != BROKEN_SHEAR_SLIDING:
-            continue
-        nbroken += bond_step(b, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om,
-                             rad, lz, dt, beta)
-        after = state[b]
-        if after != INTACT and after != BROKEN_SHEAR_SLIDING:
-            nreleased += 1
-    return nbroken, nreleased
+@nb.njit(cache=True, inline="always")
+def bond_update(b, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om, rad, lz, dt, beta):
+    """Bond b's step if it is active (intact, or JCFpm's sliding), writing only its own row.
+    Velocities must be mid-step values (those that moved the spheres over the last ``dt``).
+    Returns (1 if it broke, 1 if it stopped carrying its pair: its contact starts next step).
+    The loads are summed per sphere by :func:`dem.kernels.compute_forces`, which runs this in
+    parallel over the bonds."""
+    st = state[b]
+    if st != INTACT and st != BROKEN_SHEAR_SLIDING:
+        return 0, 0
+    broke = bond_step(b, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om, rad, lz, dt, beta)
+    after = state[b]
+    return broke, 1 if after != INTACT and after != BROKEN_SHEAR_SLIDING else 0

@@ -32,7 +32,7 @@ import os
 import numba as nb
 import numpy as np
 
-from dem.bonds import BROKEN_SHEAR_SLIDING, INTACT, P_OVERLAP0, P_SIGNED_MC, bond_forces
+from dem.bonds import BROKEN_SHEAR_SLIDING, INTACT, P_OVERLAP0, P_SIGNED_MC, bond_update
 from dem.contacts import drum_walls, hist_add, pair_contact, plane_walls
 from dem.state import N_LOAD, PairArrays, add_force_rows, add_rows, fill_csr
 
@@ -374,10 +374,12 @@ def _collect(pr, wl, dr, cp, hist_pp, hist_pw):
 
 @nb.njit(cache=True, parallel=True)
 def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw, kick=False):
-    """All forces and torques at the current positions (mid-step velocities): contacts (every
-    active pair of the Verlet list, those no bond carries, in parallel, each writing its own
-    row), then bonds (a bond that breaks now leaves its contact to the next step: the active
-    pairs are refreshed), then per sphere (with ``kick``, the step's closing half kick too).
+    """All forces and torques at the current positions (mid-step velocities): bonds and contacts
+    (every active pair of the Verlet list, those no bond carries) in one parallel loop, each
+    writing its own row; a bond that breaks now leaves its contact to the next step (the active
+    pairs are refreshed after the loop); then per sphere (with ``kick``, the step's closing half
+    kick too). One loop for both saves a parallel region, whose barrier costs the threads
+    more the less work a step has.
 
     Returns (drum torque N m, number of bonds broken in this call). A caller of this (and of
     any parallel kernel) must itself be compiled with ``parallel=True``: called from a plain
@@ -386,16 +388,26 @@ def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw, kic
     pi, pj, pb, xi, touch, load, impact = pr.i, pr.j, pr.bond, pr.xi, pr.touch, pr.load, pr.impact_J
     active = pr.active
     pos, vel, om, rad, mass = sp.pos, sp.vel, sp.omega, sp.rad, sp.mass
-    b_state, b_props = bd.state, bd.props
+    ij, b_props, fn, fs, mb, mt = bd.ij, bd.props, bd.fn, bd.fs, bd.mb, bd.mt
+    length, b_state, b_load = bd.length, bd.state, bd.load
     lz = cp[CP_LZ]
+    beta = cp[CP_BETA]
     law = cp[CP_CONTACT_LAW]
     e_star, g_star, mu, eta = cp[CP_ESTAR_PP], cp[CP_GSTAR_PP], cp[CP_MU_PP], cp[CP_ETA_PP]
-    for q in nb.prange(pr.n_active[0]):
-        k = active[q]
-        ov0 = _contact_overlap0(k, pi, pj, pb, b_state, b_props, pos, rad, lz)
-        pair_contact(k, pi, pj, xi, touch, load, impact, pos, vel, om, rad, mass, lz, e_star,
-                     g_star, mu, eta, dt, ov0, law)
-    nbroken, nreleased = bond_forces(sp, bd, lz, dt, cp[CP_BETA])
+    nbond = ij.shape[0]
+    nbroken = 0
+    nreleased = 0
+    for q in nb.prange(nbond + pr.n_active[0]):
+        if q < nbond:
+            broke, released = bond_update(q, ij, b_props, fn, fs, mb, mt, length, b_state, b_load,
+                                          pos, vel, om, rad, lz, dt, beta)
+            nbroken += broke
+            nreleased += released
+        else:
+            k = active[q - nbond]
+            ov0 = _contact_overlap0(k, pi, pj, pb, b_state, b_props, pos, rad, lz)
+            pair_contact(k, pi, pj, xi, touch, load, impact, pos, vel, om, rad, mass, lz, e_star,
+                         g_star, mu, eta, dt, ov0, law)
     if nreleased > 0:
         refresh_active(pr, b_state)
     sphere_loads(sp, bd, pr, wl, dr, dr.torque_sphere, cp, dt, drum_angle, kick)
