@@ -82,9 +82,13 @@ def main():
     rows += sweep("platen_speed_m_s", speeds, lambda v: point(250, speed=v))
     df = pd.DataFrame(rows)
     write_table(df, "dem_accuracy", "DEM compression test: accuracy against time",
-                f"Mean of seeds {SEEDS}; errors relative to the `reference` value of each sweep "
-                "(finest resolution, smallest time step, slowest platen). Peak-force scatter "
-                "between particles (peak_force_sd_N) is the natural limit of any comparison.")
+                f"Command: `python benchmarks/dem_accuracy.py {' '.join(sys.argv[1:])}`, load average "
+                f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())} at the end (2 cores; wall times vary "
+                "with the load, the step counts do not: a time step twice as large takes half the steps). "
+                f"Mean of seeds {SEEDS}, the same packings at every point; errors relative to the "
+                "`reference` value of each sweep (finest resolution, smallest time step, slowest platen). "
+                "Peak-force scatter between particles (peak_force_sd_N) is the natural limit of any "
+                "comparison across packings.")
 
 
 if __name__ == "__main__":
