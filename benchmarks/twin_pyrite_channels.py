@@ -3,10 +3,14 @@ split into its channels, each a consistent twin on the default calibration (lab 
 critical, nominal hold-up):
 
 - density alone: Type B at the pyrite ore's density, breaking alike per volume (S^E per tonne
-  times the density ratio, so S = S^E P / H is unchanged);
+  times the density ratio, so S = S^E P / H is unchanged), the grate's cut held at Type B's
+  (the volume-flow discharge alone);
+- grate hold-back alone: Type B with the grate's cut of the denser pyrite ore (Stokes,
+  twin.effects.classification.grate_density_factor);
 - hardness alone: the pyrite ore's breakage per volume (its S^E over the density ratio) at
   Type B's density;
-- cushioning alone: Type B with the pyrite ore's soft (clay + mica + chlorite) fraction;
+- cushioning alone: Type B with the pyrite ore's soft (clay + mica + chlorite) fraction (it
+  slows the rates only; the power follows the clay, which does not change);
 - all: the pyrite ore itself (tests/twin/test_physics_claims.py's ``pyrite_for_biotite``).
 
 Writes benchmarks/results/twin_pyrite_channels.csv/.md. Run: ``python benchmarks/twin_pyrite_channels.py``
@@ -25,6 +29,8 @@ import pandas as pd
 
 from dem_common import write_table
 from twin import Mineralogy, Twin, load_ore
+from twin.effects.classification import grate_density_factor
+from twin.mill import get_mill
 from twin.model import Model
 from twin.solve import steady_state_at_load
 
@@ -50,10 +56,17 @@ def main():
     rb, rp = b.density_t_m3, p.density_t_m3
     tb, tp = Twin(b), Twin(p)
     sb, sp = tb.spec.breakage[0].params, tp.spec.breakage[0].params
+    lab = get_mill("lab", tb.calibration.record)
+    held = grate_density_factor(rp) / grate_density_factor(rb)  # the pyrite ore's cut over B's
+
+    def grate_scaled(factor):
+        return lab.with_(grate_d50_um=lab.grate_d50_um * factor)
+
     cases = {
         "Type B": kpis(tb),
         "density alone": kpis(Twin(b, ore_breakage={b.name: replace(sb, se_1mm_t_kwh=sb.se_1mm_t_kwh * rp / rb)},
-                                   solids_density_t_m3=rp)),
+                                   solids_density_t_m3=rp, mill=grate_scaled(1.0 / held))),
+        "grate hold-back alone": kpis(Twin(b, mill=grate_scaled(held))),
         "hardness alone": kpis(Twin(b, ore_breakage={b.name: replace(sp, se_1mm_t_kwh=sp.se_1mm_t_kwh * rb / rp)})),
         "cushioning alone": kpis(tb, replace(tb.spec, soft_frac=tp.spec.soft_frac)),
         "all (pyrite ore)": kpis(tp),
@@ -67,7 +80,8 @@ def main():
     notes = (f"{POINTS:g} wt% pyrite for biotite in Type B at constant load (the nominal powder filling, a volume). "
              f"Densities {rb:.3f} and {rp:.3f} t/m3 ({100 * (rp / rb - 1):+.2f} %); S^E at 1 mm {sb.se_1mm_t_kwh:.4f} "
              f"and {sp.se_1mm_t_kwh:.4f} t/kWh ({100 * ((sp.se_1mm_t_kwh / rp) / (sb.se_1mm_t_kwh / rb) - 1):+.2f} % per "
-             f"volume); soft fraction {tb.spec.soft_frac[0]:.3f} and {tp.spec.soft_frac[0]:.3f}. The ore volume "
+             f"volume); soft fraction {tb.spec.soft_frac[0]:.3f} and {tp.spec.soft_frac[0]:.3f}; the grate's cut "
+             f"x {held:.4f} for the denser ore. The ore volume "
              f"ground per hour changes by {volume:+.2f} %. Calibration: {tb.calibration.name!r}, sha256 {tb.calibration.sha256[:12]}.")
     write_table(pd.DataFrame(rows), "twin_pyrite_channels", "Pyrite for biotite: the throughput's channels", notes)
     print(notes)

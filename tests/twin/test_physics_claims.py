@@ -61,7 +61,14 @@ def _mineralogy_blind(ore, coefficients):
 BLIND_EFFECTS = [e for e in DEFAULT_EFFECTS if e not in ("cushioning", "rheology")]
 
 
+@pytest.mark.xfail(strict=True, reason=(
+    "contradicted on the default calibration (README, Limitations): the table's ores A and B draw the "
+    "same power with 2 and 18 % biotite, so mica does not lower the power and pyrite for biotite leaves it "
+    "as it is; the energy then follows the tonnes, which rise (+5.9 % density at the same volume), and the "
+    "DEM's harder ore leaves the table-fitted grate coarser (benchmarks/results/twin_pyrite_channels.md)"))
 def test_pyrite_for_biotite_raises_energy_and_refines_slightly():
+    """MISSION.md's claim, expected to fail (strict: if a model change makes it hold, this test
+    fails and README's Limitations must change with it)."""
     claim = pyrite_claim()
     assert claim["holds"], claim
     assert claim["p80_um"] > -0.15  # "slightly" finer
@@ -70,26 +77,29 @@ def test_pyrite_for_biotite_raises_energy_and_refines_slightly():
 def test_pyrite_for_biotite_slows_the_mill_in_volume_not_in_tonnes():
     """At constant load (the nominal powder filling: a volume of ore) the mill grinds less ore
     *volume* per hour with pyrite for biotite: the harder ore (hardness index 8.0 -> 10.1 GPa)
-    breaks more slowly, which the lost mica cushioning only partly offsets. But the ore is 5.9 %
-    denser (3.07 against 2.90 t/m3) and the mill discharges a volume flow (le Roux et al. 2013,
-    eq. 9; twin.mill.Mill.free_discharge_tph), so its *tonnes* per hour rise (on the shipped
-    calibration: -3.3 % in volume, +2.4 % in tonnes). Issue 12's 'lowers the throughput at
-    constant load' holds for the volume, not for the mass the table's kg/h counts. (Where the
-    discharge was a fixed mass flow, H_nom / Q_nom grew with the density, the denser ore stayed
-    longer at the same filling and the tonnes rose by 0.16 %; test_steady's density test pins
-    the volume flow.)"""
+    breaks more slowly, which the lost mica cushioning only partly offsets, and the grate holds
+    the denser ore back (Stokes). But the ore is 5.9 % denser (3.07 against 2.90 t/m3) and the
+    mill discharges a volume flow (le Roux et al. 2013, eq. 9; twin.mill.Mill.free_discharge_tph),
+    so its *tonnes* per hour rise. Issue 12's 'lowers the throughput at constant load' holds for
+    the volume, not for the mass the table's kg/h counts. (Where the discharge was a fixed mass
+    flow, H_nom / Q_nom grew with the density and the denser ore stayed longer at the same
+    filling; test_steady's density test pins the volume flow.)"""
     claim = pyrite_claim()
     assert claim["volume_throughput"] < 0 < claim["throughput"], claim
 
 
-def test_pyrite_claim_fails_for_a_mineralogy_blind_twin():
-    assert not pyrite_claim(effects=BLIND_EFFECTS, breakage_map=_mineralogy_blind)["holds"]
+def test_pyrite_for_biotite_leaves_the_power_and_moves_the_energy_with_the_tonnes():
+    """Why the pyrite claim fails: the power follows the slurry's clay, which pyrite for biotite
+    does not change, so the specific energy is the same power over more tonnes: exactly
+    1 / (1 + throughput change) - 1. Fails on a model whose power falls with the mica."""
+    claim = pyrite_claim()
+    assert claim["energy"] == pytest.approx(1.0 / (1.0 + claim["throughput"]) - 1.0, rel=1e-9)
 
 
 def test_pyrite_claim_fails_for_the_plain_table_regression():
     """The 'table' calibration fits hardness out of the rates, and its S^E is per tonne whatever the
     density: the denser pyrite ore, at the same filling, shares the power among more tonnes and
-    its product coarsens (+2.5 % on the shipped file) where the DEM chain's refines."""
+    its product coarsens."""
     claim = pyrite_claim(calibration="table")
     assert not claim["holds"] and claim["p80_um"] > 0, claim
 

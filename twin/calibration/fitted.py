@@ -16,8 +16,9 @@ DEM_FITTED = {
     "cushioning_rate_coeff": {"start": 0.4, "bounds": (1e-6, 20.0), "why": (
         "how much clay and mica in the charge slow breakage (twin.effects.cushioning): the DEM particles are "
         "single-phase agglomerates in a dry ball charge, with no soft platy phase in the bed")},
-    "cushioning_power_coeff": {"start": 0.6, "bounds": (1e-6, 20.0), "why": (
-        "how much a clay/mica-rich charge lowers the power draw: the drum DEM is dry balls without powder")},
+    "slurry_power_coeff": {"start": 0.003, "bounds": (1e-6, 20.0), "why": (
+        "how much a clay-thickened slurry lowers the power draw (twin.effects.rheology): the drum DEM is dry "
+        "balls without slurry, and no power-viscosity law of the charge is published in closed form")},
     "clay_crowding_coeff": {"start": 1.6, "bounds": (1e-6, 5.0), "why": (
         "the effective volume of clay platelets in the mill slurry (twin.effects.rheology): no slurry "
         "rheology data")},

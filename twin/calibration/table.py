@@ -21,12 +21,12 @@ from .fitting import fit_to_table, predict_table, table_errors
 #: Start of the fit (only a starting point) and bounds. Signs are physical: harder minerals and
 #: finer textures never speed breakage up, cushioning never adds energy.
 START = {"se_ref_t_kwh": 0.55, "hardness_exponent": 0.05, "texture_exponent": 0.01, "alpha_texture_exponent": 0.2,
-         "cushioning_rate_coeff": 0.01, "cushioning_power_coeff": 0.6, "clay_crowding_coeff": 0.9,
+         "cushioning_rate_coeff": 0.01, "slurry_power_coeff": 0.003, "clay_crowding_coeff": 0.9,
          "lab_power_factor": 1.3, "lab_grate_d50_um": 25.0, "lab_grate_sharpness": 1.2,
          "lab_discharge_factor": 2.4}
 BOUNDS = {"se_ref_t_kwh": (0.05, 20.0), "hardness_exponent": (0.0, 5.0), "texture_exponent": (0.0, 5.0),
           "alpha_texture_exponent": (-1.0, 2.0),
-          "cushioning_rate_coeff": (0.0, 20.0), "cushioning_power_coeff": (0.0, 20.0),
+          "cushioning_rate_coeff": (0.0, 20.0), "slurry_power_coeff": (0.0, 20.0),
           "clay_crowding_coeff": (0.0, 5.0),
           "lab_power_factor": (0.3, 3.0), "lab_grate_d50_um": (10.0, 3000.0), "lab_grate_sharpness": (0.5, 10.0),
           "lab_discharge_factor": (0.5, 50.0)}
