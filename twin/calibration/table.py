@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 
+from ..effects.rheology import CLAY_CROWDING_MAX
 from .breakage_map import COEFFICIENT_NAMES
 from .files import Calibration, base_record, provenance
 from .fitted import DEM_FITTED
@@ -27,7 +28,7 @@ START = {"se_ref_t_kwh": 0.55, "hardness_exponent": 0.05, "texture_exponent": 0.
 BOUNDS = {"se_ref_t_kwh": (0.05, 20.0), "hardness_exponent": (0.0, 5.0), "texture_exponent": (0.0, 5.0),
           "alpha_texture_exponent": (-1.0, 2.0),
           "cushioning_rate_coeff": (0.0, 20.0), "slurry_power_coeff": (0.0, 20.0),
-          "clay_crowding_coeff": (0.0, 5.0),
+          "clay_crowding_coeff": (0.0, CLAY_CROWDING_MAX),
           "lab_power_factor": (0.3, 3.0), "lab_grate_d50_um": (10.0, 3000.0), "lab_grate_sharpness": (0.5, 10.0),
           "lab_discharge_factor": (0.5, 50.0)}
 NAMES = tuple(START)

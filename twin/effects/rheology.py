@@ -10,7 +10,8 @@ draws less power from the mill.
   Napier-Munn 2002, as in twin.effects.cushioning, on clay in grinding slurries).
   w_clay is the clay mass fraction of the hold-up (from the states: a clay-rich component
   thickens the slurry a hard one grinds in); phi_v the mill slurry's solids volume fraction;
-  k_clay comes from the calibration.
+  k_clay comes from the calibration, bounded so that no ore of the deposit (clay up to 40 %)
+  is crowded past jamming (:data:`CLAY_CROWDING_MAX`).
 - Transport: a particle leaves with the slurry when its settling velocity is below the slurry's
   through-flow; Stokes' law, v_s = g d^2 (rho_s - rho) / (18 mu), makes the cut size grow as
   sqrt(mu). Relative to a clay-free slurry of the same solids, the grate's d50 (and a
@@ -43,6 +44,15 @@ from .base import Effect, EffectContext
 SLURRY_SOLIDS_VOL_FRAC = 0.46
 #: Stokes' law: the cut size grows as the square root of the carrier's viscosity.
 STOKES_CUT_EXPONENT = 0.5
+#: Solids volume fraction at which a suspension of spheres jams (random close packing, 0.637:
+#: Scott & Kilgour 1969, J. Phys. D 2, 863): beyond it a slurry does not flow and a viscosity
+#: equation describes nothing.
+JAMMING_VOL_FRAC = 0.64
+#: The most clay an ore of the deposit carries (MISSION.md: clay ~0-40 % over the deposit).
+DEPOSIT_MAX_CLAY_FRAC = 0.40
+#: The largest clay-crowding coefficient that keeps every ore of the deposit's slurry below
+#: jamming: phi_v (1 + k w_clay,max) = JAMMING_VOL_FRAC. Calibrations fit k within it.
+CLAY_CROWDING_MAX = (JAMMING_VOL_FRAC / SLURRY_SOLIDS_VOL_FRAC - 1.0) / DEPOSIT_MAX_CLAY_FRAC
 
 
 def thomas_relative_viscosity(phi):
