@@ -3,8 +3,8 @@ MISSION.md's table, with no DEM. Kept beside the DEM chain as the comparison a p
 regression on the table gives: its 11 numbers are fitted to the table's 12.
 
 Fitted: S^E_ref, the hardness, texture and size-exponent texture exponents of the map (no
-virtual tests in this map, so nothing derives them), the two cushioning coefficients, the
-clay-crowding coefficient of the slurry rheology, and the lab mill's power factor, grate cut
+virtual tests in this map, so nothing derives them), the cushioning rate coefficient, the
+clay-crowding and power coefficients of the slurry rheology, and the lab mill's power factor, grate cut
 size and sharpness and discharge factor (their reasons are those of the DEM chain,
 twin.calibration.fitted.DEM_FITTED).
 """
