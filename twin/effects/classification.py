@@ -178,8 +178,10 @@ class Classification(Effect):
                "overflow_solids_frac", "underflow_solids_frac", "overflow_water_m3_h", "sump_water_m3_h",
                "mill_water_m3_h")
     uses = ("cut_size_factor",)
-    source = "Austin et al. (1984) ch. 9 (grate); Plitt (1976), Flintoff et al. (1987) (hydrocyclone)"
-    summary = "grate discharge factor, or hydrocyclone closed circuit with recycle to the feed"
+    source = ("Austin et al. (1984) ch. 9 (grate), Stokes settling (its density term); Plitt (1976), "
+              "Flintoff et al. (1987) (hydrocyclone)")
+    summary = ("grate discharge factor, cut ~ (rho_s - 1)^-1/2, or hydrocyclone closed circuit with recycle "
+               "to the feed")
     options = {
         "kind": Option("grate", "'grate' (internal classification at the discharge) or 'hydrocyclone' "
                        "(closed circuit, underflow to the mill feed)", choices=("grate", "hydrocyclone")),
