@@ -137,3 +137,18 @@ def test_the_grate_holds_the_denser_pyrite_ore_back(monkeypatch):
     monkeypatch.setattr(classification, "STOKES_DENSITY_EXPONENT", 0.0)
     p80_without, tau_without = kpis()
     assert p80_with < p80_without and tau_with > tau_without
+
+
+def test_no_calibration_crowds_a_slurry_of_the_deposit_past_jamming():
+    """The clay-crowding bound brings the deposit's clay-richest slurry (40 % clay) exactly to
+    random close packing, and both shipped calibrations (and their fits' bounds) stay within it."""
+    from twin.calibration import DEM_FITTED
+    from twin.calibration.table import BOUNDS
+    from twin.effects.rheology import CLAY_CROWDING_MAX, DEPOSIT_MAX_CLAY_FRAC, JAMMING_VOL_FRAC
+
+    assert SLURRY_SOLIDS_VOL_FRAC * (1.0 + CLAY_CROWDING_MAX * DEPOSIT_MAX_CLAY_FRAC) == pytest.approx(
+        JAMMING_VOL_FRAC, rel=1e-15)
+    assert DEM_FITTED["clay_crowding_coeff"]["bounds"][1] == BOUNDS["clay_crowding_coeff"][1] == CLAY_CROWDING_MAX
+    for name in ("dem", "table"):
+        k = load_calibration(name).coefficients["clay_crowding_coeff"]
+        assert 0.0 <= k <= CLAY_CROWDING_MAX * (1.0 + 1e-12), name
