@@ -31,6 +31,7 @@ import numpy as np
 from scipy.constants import g as G_M_S2
 
 from ..errors import ModelError, bad_value, check_range, close_matches
+from ..mill import DISCHARGE_REFERENCE_DENSITY_T_M3
 from .base import Effect, EffectContext, Option, smooth_max
 
 
@@ -163,8 +164,6 @@ STOKES_DENSITY_EXPONENT = -0.5
 def grate_density_factor(solids_density_t_m3: float) -> float:
     """The grate's cut size at an ore density over its cut for a quartz slurry (module docstring):
     ((rho_s - rho_w) / (rho_quartz - rho_w))^-1/2."""
-    from ..mill import DISCHARGE_REFERENCE_DENSITY_T_M3
-
     return ((solids_density_t_m3 - WATER_DENSITY_T_M3)
             / (DISCHARGE_REFERENCE_DENSITY_T_M3 - WATER_DENSITY_T_M3)) ** STOKES_DENSITY_EXPONENT
 
