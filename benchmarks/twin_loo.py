@@ -66,6 +66,7 @@ def rows_for(name: str, cal: Calibration, fold) -> list:
                              "mission": ref[ore][kpi], "twin": pred[ore][kpi],
                              "error_pct": 100.0 * (pred[ore][kpi] / ref[ore][kpi] - 1.0),
                              "fit_converged": fit["optimizer"]["success"],
+                             "at_bounds": " ".join(fit["at_bounds"]) or "-",
                              "solver_failures": fit["solver_failures"]["count"], "fold_seconds": seconds})
         print(f"{name}: without {held}: {seconds:.0f} s, converged {fit['optimizer']['success']}", flush=True)
     return rows
@@ -74,7 +75,7 @@ def rows_for(name: str, cal: Calibration, fold) -> list:
 def summary(df: pd.DataFrame) -> pd.DataFrame:
     pred = df[df.role == "predicted"].pivot_table(index=["calibration", "ore"], columns="kpi", values="error_pct")
     pred["max_abs_pct"] = pred.abs().max(axis=1)
-    folds = df.groupby(["calibration", "held_out"])[["fit_converged", "solver_failures"]].first()
+    folds = df.groupby(["calibration", "held_out"])[["fit_converged", "at_bounds", "solver_failures"]].first()
     folds.index = folds.index.set_names(["calibration", "ore"])
     return pred.join(folds).reset_index()
 
@@ -87,7 +88,8 @@ def main():
              f"step for 'dem'; the table step for 'table'). Goal: every predicted KPI within {GOAL_PCT:g} %. "
              f"Worst predicted error: dem {worst['dem']:.1f} %, table {worst['table']:.1f} %. "
              f"The 'table' map fits 11 numbers to the 9 of three ores (under-determined). fit_converged: "
-             f"whether the fold's table step converged (a fold that did not is reported as it ended). Calibrations: "
+             f"whether the fold's table step converged (a fold that did not is reported as it ended); at_bounds: "
+             f"the fold's fitted numbers that ended at a bound of their range. Calibrations: "
              f"'dem' (sha256 {dem.sha256[:12]}), 'table' (sha256 {table.sha256[:12]}), the shipped files.")
     write_table(summary(df), "twin_loo", "Leave-one-ore-out predictions of MISSION.md's table", notes)
     df.to_csv(os.path.join(os.path.dirname(__file__), "results", "twin_loo_folds.csv"), index=False)

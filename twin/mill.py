@@ -27,7 +27,9 @@ POWER_MODEL_NAMES = ("bond", "hogg_fuerstenau")
 class Mill:
     """A ball mill. ``power_factor`` scales Bond's power equation where it is extrapolated
     (a laboratory mill below the ~1 m diameters it was fitted to; Rowland & Kjos 1980); it is
-    fitted by `grindtwin calibrate`, never typed in. ``powder_filling_nominal`` is Austin's U: the fraction of the ball bed's
+    fitted by `grindtwin calibrate`, never typed in. ``grate_d50_um`` is the grate's cut size for a
+    quartz slurry (a denser ore's is finer by Stokes, twin.effects.classification).
+    ``powder_filling_nominal`` is Austin's U: the fraction of the ball bed's
     voids filled by powder at the nominal hold-up; ``stable_band`` the load (hold-up over
     nominal hold-up) within which the mill is called stable. ``discharge_factor`` is the
     mill's free discharge at nominal hold-up over its nominal feed, before a grate holds coarse

@@ -71,9 +71,9 @@ def test_scene_inputs_reach_the_twin_as_written(write_scene, tmp_path):
     passing = twin.grid.cumulative_passing(twin.spec.feed_frac)
     k = int(np.argmin(np.abs(twin.grid.upper_um - 1675.0)))  # 6700 / 2^2
     assert passing[k] == pytest.approx(np.interp(np.log(1675.0), np.log([425, 1700]), [0.30, 0.60]), abs=1e-9)
-    out = twin.steady(feed_tph=30.0).outputs  # the given draw, times the cushioning the scene lists
-    k_power = twin.coefficients["cushioning_power_coeff"]
-    assert out["power_kw"] == pytest.approx(500.0 / (1.0 + k_power * out["soft_frac"]), rel=1e-9)
+    out = twin.steady(feed_tph=30.0).outputs  # the given draw: cushioning slows the rates only, and
+    assert out["power_kw"] == pytest.approx(500.0, rel=1e-9)  # the scene lists no slurry rheology
+    assert out["soft_frac"] > 0.0
 
 
 def test_bad_cyclone_field_is_named_by_check(write_scene):

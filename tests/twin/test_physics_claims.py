@@ -67,19 +67,34 @@ def test_pyrite_for_biotite_raises_energy_and_refines_slightly():
     assert claim["p80_um"] > -0.15  # "slightly" finer
 
 
-def test_pyrite_for_biotite_slows_the_mill_in_volume_not_in_tonnes():
-    """At constant load (the nominal powder filling: a volume of ore) the mill grinds less ore
-    *volume* per hour with pyrite for biotite: the harder ore (hardness index 8.0 -> 10.1 GPa)
-    breaks more slowly, which the lost mica cushioning only partly offsets. But the ore is 5.9 %
-    denser (3.07 against 2.90 t/m3) and the mill discharges a volume flow (le Roux et al. 2013,
-    eq. 9; twin.mill.Mill.free_discharge_tph), so its *tonnes* per hour rise (on the shipped
-    calibration: -3.3 % in volume, +2.4 % in tonnes). Issue 12's 'lowers the throughput at
-    constant load' holds for the volume, not for the mass the table's kg/h counts. (Where the
-    discharge was a fixed mass flow, H_nom / Q_nom grew with the density, the denser ore stayed
-    longer at the same filling and the tonnes rose by 0.16 %; test_steady's density test pins
-    the volume flow.)"""
+def test_pyrite_for_biotite_slows_the_mill_in_tonnes_and_more_in_volume():
+    """Issue 12: pyrite for biotite lowers the throughput at constant load. The constant load is
+    a volume (the nominal powder filling) and the mill discharges a volume flow (le Roux et al.
+    2013, eq. 9; twin.mill.Mill.free_discharge_tph), so the ore's 5.9 % higher density (3.07
+    against 2.90 t/m3) alone adds as many tonnes per hour; the harder ore (hardness index 8.0 ->
+    10.1 GPa) breaking more slowly, which the lost mica cushioning only partly offsets, and the
+    grate holding the denser ore back take more than that away: the tonnes fall, the ore volume
+    ground per hour falls further."""
     claim = pyrite_claim()
-    assert claim["volume_throughput"] < 0 < claim["throughput"], claim
+    assert claim["volume_throughput"] < claim["throughput"] < 0, claim
+
+
+def test_pyrite_for_biotite_leaves_the_power_and_raises_the_energy_by_the_tonnes():
+    """The power follows the slurry's clay (twin.effects.rheology), which pyrite for biotite does
+    not change, so the energy rise is exactly the same power over fewer tonnes:
+    1 / (1 + throughput change) - 1. Fails on a model whose power moves with the mica."""
+    claim = pyrite_claim()
+    assert claim["energy"] == pytest.approx(1.0 / (1.0 + claim["throughput"]) - 1.0, rel=1e-9)
+
+
+def test_pyrite_claim_fails_without_the_grate_holding_dense_ore_back(monkeypatch):
+    """With the grate a cut by size only (no Stokes density term), the harder pyrite ore still
+    costs more energy but leaves coarser: the refinement is the dense ore's hold-back."""
+    import twin.effects.classification as classification
+
+    monkeypatch.setattr(classification, "STOKES_DENSITY_EXPONENT", 0.0)
+    claim = pyrite_claim()
+    assert not claim["holds"] and claim["p80_um"] > 0, claim
 
 
 def test_pyrite_claim_fails_for_a_mineralogy_blind_twin():
@@ -89,7 +104,7 @@ def test_pyrite_claim_fails_for_a_mineralogy_blind_twin():
 def test_pyrite_claim_fails_for_the_plain_table_regression():
     """The 'table' calibration fits hardness out of the rates, and its S^E is per tonne whatever the
     density: the denser pyrite ore, at the same filling, shares the power among more tonnes and
-    its product coarsens (+2.5 % on the shipped file) where the DEM chain's refines."""
+    its product coarsens where the DEM chain's refines."""
     claim = pyrite_claim(calibration="table")
     assert not claim["holds"] and claim["p80_um"] > 0, claim
 

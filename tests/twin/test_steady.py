@@ -49,17 +49,24 @@ def test_a_denser_ore_of_the_same_breakage_per_volume_runs_the_same_volumes():
     2013, eq. 9): an ore twice as dense that breaks alike per volume (twice the tonnes per kWh, S^E,
     so S = S^E P / H is unchanged) has the same residence time and product at constant load, and
     twice the mass throughput. It fails where the discharge is a fixed mass flow (the residence
-    time would double and the product be finer, at the same tonnes per hour)."""
+    time would double and the product be finer, at the same tonnes per hour). The grate's cut
+    is held (its Stokes density term, tested in test_rheology, would hold the denser ore back)."""
     from dataclasses import replace
 
     from twin import Twin, load_ore
+    from twin.effects.classification import grate_density_factor
+    from twin.mill import get_mill
 
     ore = load_ore("B")
-    params = Twin(ore).spec.breakage[0].params
+    base = Twin(ore)
+    params = base.spec.breakage[0].params
+    lab = get_mill("lab", base.calibration.record)
     runs = []
     for scale in (1.0, 2.0):
         p = replace(params, se_1mm_t_kwh=params.se_1mm_t_kwh * scale)
-        twin = Twin(ore, ore_breakage={ore.name: p}, solids_density_t_m3=scale * ore.density_t_m3)
+        rho = scale * ore.density_t_m3
+        held = lab.with_(grate_d50_um=lab.grate_d50_um * grate_density_factor(ore.density_t_m3) / grate_density_factor(rho))
+        twin = Twin(ore, ore_breakage={ore.name: p}, solids_density_t_m3=rho, mill=held)
         runs.append(twin.steady_at_constant_load())
     light, heavy = runs
     assert heavy.feed_tph == pytest.approx(2.0 * light.feed_tph, rel=1e-7)

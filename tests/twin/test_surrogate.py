@@ -13,16 +13,18 @@ from twin.ore.sample_library import generate_library
 from twin.ore.samples import to_mineralogies
 from twin.twin import Twin
 
-#: Acceptance threshold of R2 per KPI on unseen mineralogies (MISSION goal 0.95; the shipped
-#: design reaches ~0.998, so 0.99 catches a degradation long before the goal is missed).
-R2_THRESHOLD = 0.99
+#: Acceptance threshold of R2 per KPI on unseen mineralogies. MISSION's goal is 0.95; P80 and
+#: energy reach ~0.999, so 0.99 catches their degradation long before the goal is missed. The
+#: load is held to MISSION's goal itself: since the table step made the lab grate a sharp cut
+#: (sharpness ~8, with the clay crowding bounded below jamming) the hold-up climbs steeply
+#: toward overload for hard ores at high feed, which a quadratic PLS in log space follows less
+#: well (README, Limitations: it was held to 0.99 on the soft grate before).
+R2_THRESHOLD = {"p80_um": 0.99, "specific_energy_kwh_t": 0.99, "load_frac": 0.95}
 #: Agreement with the twin on fresh points: worst relative error per KPI. P80's is the widest on
 #: the DEM calibration (its mapped rates vary more across mineralogies than the table map's did;
-#: benchmarks/results/twin_surrogate.md has the held-out errors). The load's follows P80's: with
-#: the lab grate a size cut (d50 119 um, sharpness 1.6, since the discharge is a volume flow) the
-#: hold-up at a feed rate moves with the content's fineness, and the surrogate's load errs by about
-#: half its P80 error (worst 2.7 % at 5.5 % on these points), so half of P80's tolerance.
-REL_TOL = {"p80_um": 0.08, "specific_energy_kwh_t": 0.03, "load_frac": 0.04}
+#: benchmarks/results/twin_surrogate.md has the held-out errors); the load's, on the sharp grate
+#: (above), is as wide as P80's.
+REL_TOL = {"p80_um": 0.08, "specific_energy_kwh_t": 0.03, "load_frac": 0.08}
 
 
 @pytest.fixture(scope="module")
@@ -48,14 +50,14 @@ def test_held_out_r2_meets_threshold(split_fit):
     assert len(np.unique(g)) >= 60  # 20 % of 320 mineralogies, none seen in training
     r2 = sur.r2_per_kpi(X, Y)
     for kpi, v in r2.items():
-        assert v >= R2_THRESHOLD, f"{kpi}: R2 {v:.4f} on unseen mineralogies < {R2_THRESHOLD}"
+        assert v >= R2_THRESHOLD[kpi], f"{kpi}: R2 {v:.4f} on unseen mineralogies < {R2_THRESHOLD[kpi]}"
 
 
 def test_r2_test_can_fail(table):
     """A one-component linear PLS misses the threshold on the same split: the test discriminates."""
     train, test = S.held_out_split(table)
     weak = S.Surrogate(n_components=1, n_pca=2, degree=1).fit(*S.split_xy(train)[:2])
-    assert min(weak.r2_per_kpi(*S.split_xy(test)[:2]).values()) < R2_THRESHOLD
+    assert any(v < R2_THRESHOLD[k] for k, v in weak.r2_per_kpi(*S.split_xy(test)[:2]).items())
 
 
 def test_shipped_metadata_and_scores(shipped):
@@ -65,7 +67,7 @@ def test_shipped_metadata_and_scores(shipped):
     assert meta["design"]["seed"] == S.DEFAULT_SEED and meta["mill"] == "lab"
     assert meta["failed_steady_states"] == 0
     for kpi in S.TARGETS:
-        assert meta["cv_r2"][kpi] >= R2_THRESHOLD and meta["held_out_r2"][kpi] >= R2_THRESHOLD
+        assert meta["cv_r2"][kpi] >= R2_THRESHOLD[kpi] and meta["held_out_r2"][kpi] >= R2_THRESHOLD[kpi]
     assert meta["calibration"]["name"] == "dem" and meta["calibration_sha256"] == S.calibration_sha256(), (
         "twin/calibration/files/dem.json (the default calibration) changed since the surrogate was trained: "
         "regenerate with `python -m twin.surrogate --generate --train`")

@@ -27,7 +27,7 @@ HARDNESS_REFERENCE_GPA = 8.0
 AUSTIN_SHAPE = {"alpha": 1.0, "mu_um": 3000.0, "Lambda": 2.5, "gamma": 1.0, "beta": 4.0, "phi": 0.5}
 
 COEFFICIENT_NAMES = ("se_ref_t_kwh", "hardness_exponent", "texture_exponent", "alpha_texture_exponent",
-                     "cushioning_rate_coeff", "cushioning_power_coeff", "clay_crowding_coeff")
+                     "cushioning_rate_coeff", "slurry_power_coeff", "clay_crowding_coeff")
 
 
 def mineralogy_breakage(ore: Mineralogy, coefficients: dict) -> BreakageParams:

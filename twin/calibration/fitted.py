@@ -2,6 +2,8 @@
 the mill, its charge or its slurry), with why it cannot be derived here; the ``table``
 calibration (twin.calibration.table) gives the same reasons for the numbers it shares."""
 
+from ..effects.rheology import CLAY_CROWDING_MAX
+
 _WHY_GRATE = ("the lab mill's grate and discharge geometry is not given (MISSION.md gives the mill's size and "
               "speed only), and the DEM drum has no grate")
 #: The DEM chain's table step: the only numbers fitted to the table, each ore-independent (a
@@ -16,11 +18,13 @@ DEM_FITTED = {
     "cushioning_rate_coeff": {"start": 0.4, "bounds": (1e-6, 20.0), "why": (
         "how much clay and mica in the charge slow breakage (twin.effects.cushioning): the DEM particles are "
         "single-phase agglomerates in a dry ball charge, with no soft platy phase in the bed")},
-    "cushioning_power_coeff": {"start": 0.6, "bounds": (1e-6, 20.0), "why": (
-        "how much a clay/mica-rich charge lowers the power draw: the drum DEM is dry balls without powder")},
-    "clay_crowding_coeff": {"start": 1.6, "bounds": (1e-6, 5.0), "why": (
+    "slurry_power_coeff": {"start": 0.003, "bounds": (1e-6, 20.0), "why": (
+        "how much a clay-thickened slurry lowers the power draw (twin.effects.rheology): the drum DEM is dry "
+        "balls without slurry, and no power-viscosity law of the charge is published in closed form")},
+    "clay_crowding_coeff": {"start": 0.8, "bounds": (1e-6, CLAY_CROWDING_MAX), "why": (
         "the effective volume of clay platelets in the mill slurry (twin.effects.rheology): no slurry "
-        "rheology data")},
+        "rheology data; at most the crowding that brings the deposit's clay-richest slurry (40 % clay) to "
+        "jamming (twin.effects.rheology.CLAY_CROWDING_MAX)")},
     "lab_power_factor": {"start": 1.3, "bounds": (0.3, 3.0), "why": (
         "Bond's power equation's correction at 0.5 m: the drum DEM's net power is that of the balls alone, "
         "which the table's power (throughput x specific energy) exceeds with powder and slurry in the charge")},

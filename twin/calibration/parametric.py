@@ -29,7 +29,7 @@ from ..model import Model
 from ..solve import steady_sensitivities, steady_state, steady_state_at_load
 from .breakage_map import AUSTIN_SHAPE, HARDNESS_REFERENCE_GPA
 
-COEFFICIENTS = ("cushioning_rate_coeff", "cushioning_power_coeff", "clay_crowding_coeff")
+COEFFICIENTS = ("cushioning_rate_coeff", "slurry_power_coeff", "clay_crowding_coeff")
 MILL_FIELDS = ("power_factor", "grate_d50_um", "grate_sharpness", "discharge_factor")
 #: Parameters of each breakage map that the selection vector carries (module docstring).
 MAP_PARAMETERS = {"dem": ("dem_capture_scale",),

@@ -3,8 +3,8 @@ MISSION.md's table, with no DEM. Kept beside the DEM chain as the comparison a p
 regression on the table gives: its 11 numbers are fitted to the table's 12.
 
 Fitted: S^E_ref, the hardness, texture and size-exponent texture exponents of the map (no
-virtual tests in this map, so nothing derives them), the two cushioning coefficients, the
-clay-crowding coefficient of the slurry rheology, and the lab mill's power factor, grate cut
+virtual tests in this map, so nothing derives them), the cushioning rate coefficient, the
+clay-crowding and power coefficients of the slurry rheology, and the lab mill's power factor, grate cut
 size and sharpness and discharge factor (their reasons are those of the DEM chain,
 twin.calibration.fitted.DEM_FITTED).
 """
@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 
+from ..effects.rheology import CLAY_CROWDING_MAX
 from .breakage_map import COEFFICIENT_NAMES
 from .files import Calibration, base_record, provenance
 from .fitted import DEM_FITTED
@@ -21,13 +22,13 @@ from .fitting import fit_to_table, predict_table, table_errors
 #: Start of the fit (only a starting point) and bounds. Signs are physical: harder minerals and
 #: finer textures never speed breakage up, cushioning never adds energy.
 START = {"se_ref_t_kwh": 0.55, "hardness_exponent": 0.05, "texture_exponent": 0.01, "alpha_texture_exponent": 0.2,
-         "cushioning_rate_coeff": 0.01, "cushioning_power_coeff": 0.6, "clay_crowding_coeff": 0.9,
+         "cushioning_rate_coeff": 0.01, "slurry_power_coeff": 0.003, "clay_crowding_coeff": 0.9,
          "lab_power_factor": 1.3, "lab_grate_d50_um": 25.0, "lab_grate_sharpness": 1.2,
          "lab_discharge_factor": 2.4}
 BOUNDS = {"se_ref_t_kwh": (0.05, 20.0), "hardness_exponent": (0.0, 5.0), "texture_exponent": (0.0, 5.0),
           "alpha_texture_exponent": (-1.0, 2.0),
-          "cushioning_rate_coeff": (0.0, 20.0), "cushioning_power_coeff": (0.0, 20.0),
-          "clay_crowding_coeff": (0.0, 5.0),
+          "cushioning_rate_coeff": (0.0, 20.0), "slurry_power_coeff": (0.0, 20.0),
+          "clay_crowding_coeff": (0.0, CLAY_CROWDING_MAX),
           "lab_power_factor": (0.3, 3.0), "lab_grate_d50_um": (10.0, 3000.0), "lab_grate_sharpness": (0.5, 10.0),
           "lab_discharge_factor": (0.5, 50.0)}
 NAMES = tuple(START)

@@ -2,7 +2,13 @@
 hydrocyclone whose underflow returns to the mill feed (the industrial configuration).
 
 - Grate: discharge factor c_i = 1 / (1 + (x_i / d50)^k) (Austin, Klimpel & Luckie 1984, ch. 9,
-  internal classification of grate-discharge mills), d50 and k from the mill.
+  internal classification of grate-discharge mills), d50 and k from the mill, d50 stated for a
+  quartz slurry: a particle leaves with the slurry when it settles slower than the slurry
+  moves, and Stokes' settling velocity g d^2 (rho_s - rho_w) / (18 mu) makes the cut size
+  scale as (rho_s - rho_w)^-1/2, the density term Plitt's cyclone d50c has too. So a denser ore
+  is held back finer (dense sulfides are retained and overground in grinding circuits: Banisi,
+  Laplante & Marois 1991, CIM Bull. 84, 72-78); the ore's density is the nominal blend's, as in
+  Plitt's equation below.
 - Both cut sizes are multiplied by the assembly's ``cut_size_factor`` (1 unless ``rheology``
   is listed).
 - Hydrocyclone: Plitt (1976, CIM Bull. 69, 114-123) with the corrections of Flintoff, Plitt &
@@ -25,6 +31,7 @@ import numpy as np
 from scipy.constants import g as G_M_S2
 
 from ..errors import ModelError, bad_value, check_range, close_matches
+from ..mill import DISCHARGE_REFERENCE_DENSITY_T_M3
 from .base import Effect, EffectContext, Option, smooth_max
 
 
@@ -150,6 +157,17 @@ def grate_factor(size_um: np.ndarray, d50_um: float, sharpness: float) -> np.nda
     return 1.0 / (1.0 + (np.asarray(size_um) / d50_um) ** sharpness)
 
 
+#: Stokes' law: the cut size of a settling classifier scales as (rho_s - rho_w)^-1/2 (as Plitt's d50c).
+STOKES_DENSITY_EXPONENT = -0.5
+
+
+def grate_density_factor(solids_density_t_m3: float) -> float:
+    """The grate's cut size at an ore density over its cut for a quartz slurry (module docstring):
+    ((rho_s - rho_w) / (rho_quartz - rho_w))^-1/2."""
+    return ((solids_density_t_m3 - WATER_DENSITY_T_M3)
+            / (DISCHARGE_REFERENCE_DENSITY_T_M3 - WATER_DENSITY_T_M3)) ** STOKES_DENSITY_EXPONENT
+
+
 class Classification(Effect):
     name = "classification"
     requires = ("transport",)
@@ -159,8 +177,10 @@ class Classification(Effect):
                "overflow_solids_frac", "underflow_solids_frac", "overflow_water_m3_h", "sump_water_m3_h",
                "mill_water_m3_h")
     uses = ("cut_size_factor",)
-    source = "Austin et al. (1984) ch. 9 (grate); Plitt (1976), Flintoff et al. (1987) (hydrocyclone)"
-    summary = "grate discharge factor, or hydrocyclone closed circuit with recycle to the feed"
+    source = ("Austin et al. (1984) ch. 9 (grate), Stokes settling (its density term); Plitt (1976), "
+              "Flintoff et al. (1987) (hydrocyclone)")
+    summary = ("grate discharge factor, cut ~ (rho_s - 1)^-1/2, or hydrocyclone closed circuit with recycle "
+               "to the feed")
     options = {
         "kind": Option("grate", "'grate' (internal classification at the discharge) or 'hydrocyclone' "
                        "(closed circuit, underflow to the mill feed)", choices=("grate", "hydrocyclone")),
@@ -180,9 +200,11 @@ class Classification(Effect):
     def _grate(self, ctx: EffectContext) -> None:
         spec = ctx.spec
         x = spec.grid.mid_um
-        d50 = ctx.param("grate_d50_um", spec.mill.grate_d50_um, "um", "mill")
+        d50 = ctx.param("grate_d50_um", spec.mill.grate_d50_um, "um", "mill (quartz slurry)")
         k = ctx.param("grate_sharpness", spec.mill.grate_sharpness, "-", "mill")
-        cut = ctx.get("cut_size_factor", 1.0)
+        density = ctx.param("grate_density_factor", grate_density_factor(spec.solids_density_t_m3), "-",
+                            "Stokes: ((rho_s - 1) / (rho_quartz - 1))^-1/2")
+        cut = ctx.get("cut_size_factor", 1.0) * density
         if isinstance(cut, float):
             c = grate_factor(x, d50 * cut, k)
         else:  # a cut size that moves with the states (rheology)
@@ -190,7 +212,8 @@ class Classification(Effect):
             c = 1.0 / (1.0 + (ratio if isinstance(ratio, ca.SX) else ca.DM(ratio)) * cut ** -k)
         c[-1] = 1.0
         ctx.provide("discharge_class_factor", c)
-        ctx.note(f"grate factor on the last mixer's discharge, d50 {d50:g} um")
+        ctx.note(f"grate factor on the last mixer's discharge, d50 {d50:g} um (quartz slurry) x {density:.3f} "
+                 "for the ore's density")
 
     def _hydrocyclone(self, ctx: EffectContext) -> None:
         spec = ctx.spec

@@ -1,7 +1,7 @@
 """Mill power draw and specific energy: the mill's net-power model (:func:`twin.mill.power_kw`:
 Bond's equation for overflow ball mills, the calibrated default, or the torque-arm model of Hogg &
 Fuerstenau; a given net power shaped with speed by the model), or the model the ``model`` option
-names, times the power factor of other listed effects (cushioning; a given net power too). Specific energy is net power
+names, times the power factor of other listed effects (the slurry's rheology; a given net power too). Specific energy is net power
 per tonne of fresh feed [kWh/t]. The model used is a parameter of the built model (describe())."""
 
 from __future__ import annotations
