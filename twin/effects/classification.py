@@ -6,8 +6,8 @@ hydrocyclone whose underflow returns to the mill feed (the industrial configurat
   quartz slurry: a particle leaves with the slurry when it settles slower than the slurry
   moves, and Stokes' settling velocity g d^2 (rho_s - rho_w) / (18 mu) makes the cut size
   scale as (rho_s - rho_w)^-1/2, the density term Plitt's cyclone d50c has too. So a denser ore
-  is held back finer (dense sulfides are retained and overground in grinding circuits: Banisi,
-  Laplante & Marois 1991, CIM Bull. 84, 72-78); the ore's density is the nominal blend's, as in
+  is held back finer (dense minerals are retained in grinding circuits and ground longer: gold in
+  Banisi, Laplante & Marois 1991, CIM Bull. 84 (955), 72-78); the ore's density is the nominal blend's, as in
   Plitt's equation below.
 - Both cut sizes are multiplied by the assembly's ``cut_size_factor`` (1 unless ``rheology``
   is listed).

@@ -1,8 +1,8 @@
 """Cushioning by clay and mica (and chlorite): soft, platy phyllosilicates in the charge absorb
 impact energy in sliding and deformation, so every component breaks more slowly per unit of
 energy (MISSION.md 'physical reasons': a clay-rich charge dissipates energy in sliding instead
-of breaking harder grains, and micas add to that; Shi & Napier-Munn 2002, Int. J. Miner.
-Process. 65, 195-214, breakage against slurry rheology). The energy is still drawn: cushioning
+of breaking harder grains, and micas add to that; Shi & Napier-Munn 2002, "Effects of slurry
+rheology on industrial grinding performance", Int. J. Miner. Process. 65). The energy is still drawn: cushioning
 slows the rates, not the power (the power falls with the slurry's viscosity, which clays raise
 and micas do not: twin.effects.rheology).
 
