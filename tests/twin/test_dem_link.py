@@ -60,6 +60,16 @@ def test_the_dem_step_records_its_particles_and_calibration_errors(cal):
             rec["calibration_error_pct"], rel=1e-9)
 
 
+def test_the_shipped_dem_step_ran_on_todays_time_steps(cal):
+    """The DEM step records the time steps its virtual tests ran on; a change of the defaults
+    (or of the critical step they are fractions of) asks for `grindtwin calibrate` again."""
+    from dem import DEFAULT_TIME_STEP_FACTOR
+
+    s = cal.record["dem"]["settings"]
+    assert s["time_step_factor"] == DEFAULT_TIME_STEP_FACTOR
+    assert s["drop_time_step_factor"] == dem_link.DROP_TIME_STEP_FACTOR
+
+
 def test_e50_standard_errors_are_stated_and_below_the_goal(cal):
     se = cal.record["bootstrap"]["standard_errors"]["e50"]
     for o in "ABCD":
