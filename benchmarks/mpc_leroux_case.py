@@ -211,9 +211,9 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--weight-du-speed", type=float, default=10.0)
     ap.add_argument("--solver", default="rti", help="NmpcSettings.solver of the NMPC")
     ap.add_argument("--qpsol", default="condensed", help="NmpcSettings.qpsol of the NMPC")
-    # P80 20, feed moves 1, speed moves 10, hardness walk 0.15 (the reference case: 1, 1, 1, 0.1):
+    # P80 20, feed moves 1, speed moves 10, hardness walk 0.15 (the reference case: 1, 1, 1, 0.03):
     # the best median over seeds 1-10 of benchmarks/mpc_leroux_sweep.py (mpc_leroux_sweep.md; 108
-    # combinations within 0.80-0.89, the best dozen within 0.01 of each other); judged on the
+    # combinations within 0.80-0.93, the best dozen within 0.01 of each other); judged on the
     # held-out seeds 11-20 (--seeds 11,...,20). The P80 weight is on the twin's passing, whose
     # deviations are 1/p80_gain of the plant's: 20 is 5.4 per plant unit, the 5 chosen before the
     # gain correction. The speed-move weight pins the speed/feed trade at a held P80, on which
