@@ -104,6 +104,7 @@ def make_estimator(args, case) -> Ekf:
 
 
 def make_nmpc(args, case) -> Controller:
+    """The NMPC (RTI, no preview) on the matched twin with the case's weights and input limits."""
     mt, dt = case.mt, args.dt_h
     t0 = time.perf_counter()
     ctrl = Controller(mt.twin.model, NmpcSettings(

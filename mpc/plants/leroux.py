@@ -72,7 +72,7 @@ from scipy.optimize import brentq
 
 from mpc.discretize import RK4_RATE_SAFETY, min_rk4_substeps, state_jacobian
 from mpc.errors import MpcInputError, MpcSolverError
-from mpc.linear import Fopdt, StepMoments, feed_step_fopdt, step_test
+from mpc.linear import Fopdt, feed_step_fopdt, step_test
 from twin import DEFAULT_EFFECTS, Mill, SizeGrid, Twin
 
 STATE_NAMES = (
