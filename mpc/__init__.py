@@ -11,8 +11,8 @@ from mpc.codegen import CompileFallbackWarning, CompileReport, compiled
 from mpc.estimator import DISTURBANCE_MODELS, MEASUREMENTS, Ekf
 from mpc.export import check_out_dir, export_controller
 from mpc.kpis import P80_BAND_UM, cumulative, integral, loop_kpis, outside_band_frac, p80_iae_um_h, within_band_frac
-from mpc.linear import (Fopdt, LinearMPC, OperatingPoint, discretize, fit_fopdt, fopdt_from_model, gain_table,
-                        linearize, steady_target)
+from mpc.linear import (Fopdt, LinearMPC, OperatingPoint, StepMoments, discretize, fit_fopdt, fopdt_from_model,
+                        gain_table, linearize, steady_target, step_moments, step_test)
 from mpc.nmpc import QP_SOLVERS, SOLVERS, Controller, NmpcSettings
 from mpc.optimize import Setpoints, feed_for_target, optimal_setpoints, speed_for_target
 from mpc.pi import DiscretePI, pi_from_model, simc_pi
@@ -24,9 +24,9 @@ __all__ = [
     "ClosedLoopResult", "CompileFallbackWarning", "CompileReport", "DISTURBANCE_MODELS", "Controller", "ControllerStepResult", "DiscretePI", "ESTIMATOR_MEASUREMENTS", "Ekf",
     "FixedInputs", "Fopdt", "LeRouxCircuit", "LeRouxParameters", "LeRouxPlant", "LinearMPC", "LoopSettings",
     "MEASUREMENTS", "MatchedTwin", "MpcError", "MpcInputError", "MpcSolverError", "NmpcSettings", "OperatingPoint",
-    "P80_BAND_UM", "PiFeedback", "QP_SOLVERS", "SOLVERS", "RK4_RATE_SAFETY", "SensorState", "Sensors", "Setpoints", "TwinPlant",
+    "P80_BAND_UM", "PiFeedback", "QP_SOLVERS", "SOLVERS", "RK4_RATE_SAFETY", "SensorState", "Sensors", "Setpoints", "StepMoments", "TwinPlant",
     "check_out_dir", "compiled", "cumulative", "cvodes_map", "discretize", "export_controller", "feed_for_target", "fit_fopdt", "fopdt_from_model", "gain_table",
     "integral", "linearize", "loop_kpis", "matched_twin", "min_rk4_substeps", "optimal_setpoints",
     "outside_band_frac", "p80_iae_um_h", "pi_baseline", "pi_from_model", "rk4_map", "rk4_sensitivity_map", "simc_pi", "speed_for_target",
-    "stable_rk4_substeps", "state_jacobian", "steady_target", "within_band_frac",
+    "stable_rk4_substeps", "state_jacobian", "steady_target", "step_moments", "step_test", "within_band_frac",
 ]

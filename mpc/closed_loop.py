@@ -129,7 +129,7 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
             x_est, d_est = estimator.make_step(settings.for_estimator([p80_new, pw_m, ld_m]), u_prev, d_prev_known)
             h_est = float(d_est[-1])
         preview = _preview(schedule, t, settings, n_preview, h_est)
-        bias = {"p80_bias_um": estimator.p80_bias_um} if (
+        bias = {"p80_bias_um": estimator.controller_p80_bias_um(settings.target_p80_um)} if (
             estimator is not None and getattr(controller, "accepts_p80_bias", False)) else {}
         res = controller.make_step(x_est, preview, u_prev, y_meas=p80_held, **bias)
         u = np.asarray(res.u_applied, float)
@@ -176,14 +176,14 @@ def _preview(schedule, t: float, settings: LoopSettings, n_stages: int, hardness
 
 def _estimate_columns(estimator, x_est, u, d_est) -> dict:
     """The estimator's P80 at the estimate (and its delayed, measured P80), its P80 bias, and
-    their sum ``p80_est_um``: what the estimator believes the plant's ``p80_um`` is (with
-    ``hardness_est`` beside the true ``hardness_scale``, the estimates beside their truth)."""
+    ``p80_est_um``, what the estimator believes the plant's ``p80_um`` is (the model's plus the
+    bias, through the estimator's P80 gain; with ``hardness_est`` beside the true
+    ``hardness_scale``, the estimates beside their truth)."""
     if estimator is None:
         return {}
     em = estimator.model
-    bias = estimator.p80_bias_um
-    out = {"p80_model_um": float(em.outputs["p80_um"](x_est, u, d_est)), "p80_bias_est_um": bias}
-    out["p80_est_um"] = out["p80_model_um"] + bias  # the estimate of the plant's p80_um
+    out = {"p80_model_um": float(em.outputs["p80_um"](x_est, u, d_est)), "p80_bias_est_um": estimator.p80_bias_um}
+    out["p80_est_um"] = estimator.plant_p80_um(out["p80_model_um"])  # the estimate of the plant's p80_um
     if estimator.p80_output != "p80_um":
         out["p80_model_measured_um"] = float(em.outputs[estimator.p80_output](x_est, u, d_est))
     return out

@@ -21,7 +21,11 @@ this sample, ``K = P C^T (C P C^T + R)^-1``, ``z <- z + K (y - h(z))``, Joseph f
 
 Measurements (any may be absent at a sample: pass ``nan``): P80 from the particle-size analyser
 (the model's ``p80_measured_um`` when the ``sensor_delay`` effect models the analyser dead time,
-else ``p80_um``), mill power [kW] and load (hold-up / nominal). An analyser sampling every few
+else ``p80_um``), mill power [kW] and load (hold-up / nominal). A model whose P80 moves less than
+the plant's may carry a P80 gain ``g`` identified on the plant (a step test's steady gain over
+the model's): the analyser then reads ``ref + g (P80(x) - ref) + b`` about a reference P80
+``ref``, and the controller is handed the bias that holds the plant at its target
+(:meth:`Ekf.controller_p80_bias_um`). An analyser sampling every few
 minutes gives a new value only at its sample instants; the closed loop passes ``nan`` in
 between so a held value is not counted twice.
 """
@@ -82,6 +86,11 @@ class Ekf:
         The estimate is clipped to this range.
     disturbance_model : str
         One of :data:`DISTURBANCE_MODELS`.
+    p80_gain, p80_reference_um : float
+        The analyser reads ``p80_reference_um + p80_gain (P80(x) - p80_reference_um)`` (plus the
+        bias): the plant's P80 departs ``p80_gain`` times as far from the reference as the
+        model's (module docstring). Default 1, the model's P80 itself; a reference [um] is
+        needed with any other gain.
     codegen : str
         The filter step compiled (:func:`mpc.codegen.compiled` mode).
     """
@@ -93,7 +102,8 @@ class Ekf:
                  p0_rel: float = 0.05, hardness_p0: float = 0.1, rk4_substeps: int = 3,
                  hardness_bounds: tuple = (0.3, 3.0), disturbance_model: str = "hardness",
                  p80_bias_noise_um_per_sqrt_h: float = P80_BIAS_NOISE_UM_PER_SQRT_H,
-                 p80_bias_p0_um: float = 10.0, codegen: str = "auto"):
+                 p80_bias_p0_um: float = 10.0, p80_gain: float = 1.0, p80_reference_um: float | None = None,
+                 codegen: str = "auto"):
         self.model = model
         if not (np.isfinite(dt_h) and dt_h > 0):
             raise MpcInputError(f"The 'dt_h' parameter of Ekf must be a float > 0. Got {dt_h!r}.")
@@ -108,6 +118,7 @@ class Ekf:
                         ("p0_rel", p0_rel), ("hardness_p0", hardness_p0), ("p80_bias_p0_um", p80_bias_p0_um)):
             if not (np.isfinite(v) and v > 0):
                 raise MpcInputError(f"The '{name}' parameter of Ekf must be a float > 0. Got {v!r}.")
+        self.p80_gain, self.p80_reference_um = _p80_gain(p80_gain, p80_reference_um)
         self.disturbance_model = disturbance_model
         self.has_hardness = "hardness" in disturbance_model
         self.has_p80_bias = "p80_bias" in disturbance_model
@@ -156,7 +167,8 @@ class Ekf:
         pp = ca.mtimes([a_z, P, a_z.T]) + ca.DM(self.q)
         ys, us, dbs = ca.SX.sym("z", nz), ca.SX.sym("u", u.numel()), ca.SX.sym("db", nd - 1)
         d_s = ca.vertcat(dbs, ys[nx] if self.has_hardness else self._h0)
-        yh = ca.vertcat(m.outputs[self.p80_output](ys[:nx], us, d_s) + (ys[-1] if self.has_p80_bias else 0),
+        yh = ca.vertcat(self._analyser_p80(m.outputs[self.p80_output](ys[:nx], us, d_s),
+                                           ys[-1] if self.has_p80_bias else 0),
                         m.outputs["power_kw"](ys[:nx], us, d_s), m.outputs["load_frac"](ys[:nx], us, d_s))
         meas = ca.Function("ekf_meas", [ys, us, dbs], [yh, ca.jacobian(yh, ys)])
         yhat, c = meas(zp, u, db)
@@ -200,6 +212,27 @@ class Ekf:
         """The estimated P80 bias [um] (0 when not modelled): the plant's P80 minus the model's."""
         return float(self.z[-1]) if self.has_p80_bias else 0.0
 
+    def _analyser_p80(self, p80_model_um, bias_um):
+        """What the analyser reads when the model's P80 is ``p80_model_um`` (module docstring)."""
+        if self.p80_gain == 1.0:
+            return p80_model_um + bias_um
+        ref = self.p80_reference_um
+        return ref + self.p80_gain * (p80_model_um - ref) + bias_um
+
+    def plant_p80_um(self, p80_model_um: float) -> float:
+        """The plant's P80 [um] the estimate says goes with the model's ``p80_model_um`` (the
+        current P80 bias and the P80 gain applied)."""
+        return float(self._analyser_p80(float(p80_model_um), self.p80_bias_um))
+
+    def controller_p80_bias_um(self, target_p80_um: float) -> float:
+        """The P80 bias to hand the controller (which holds the model's P80 at ``target - bias``)
+        so that the plant's P80 sits at ``target_p80_um``: the P80 bias itself at gain 1, else
+        ``target - (ref + (target - b - ref) / g)``."""
+        if self.p80_gain == 1.0:
+            return self.p80_bias_um
+        ref, target = self.p80_reference_um, float(target_p80_um)
+        return target - (ref + (target - self.p80_bias_um - ref) / self.p80_gain)
+
     def make_step(self, y_meas, u, d_known):
         """One sample: predict over the last period with the input ``u`` and known
         disturbances ``d_known`` applied over it (blend fractions; a trailing hardness entry,
@@ -218,3 +251,20 @@ class Ekf:
         self.P = np.asarray(pn, float)
         self.innovation = np.where(ok, np.asarray(e, float).ravel(), np.nan)
         return self.x_est, np.r_[db, self.hardness_est]
+
+
+def _p80_gain(gain, reference_um) -> tuple[float, float | None]:
+    """``(gain, reference)`` checked: a finite gain > 0; a finite reference > 0 with any gain but 1."""
+    g = float(gain)
+    if not (np.isfinite(g) and g > 0):
+        raise MpcInputError(f"The 'p80_gain' parameter of Ekf must be a float > 0. Got {gain!r}.")
+    if reference_um is None:
+        if g != 1.0:
+            raise MpcInputError(f"The 'p80_reference_um' parameter of Ekf is needed with a 'p80_gain' other "
+                                f"than 1 (the P80 the gain maps deviations from). Got p80_gain {g!r} and no "
+                                "reference.")
+        return g, None
+    ref = float(reference_um)
+    if not (np.isfinite(ref) and ref > 0):
+        raise MpcInputError(f"The 'p80_reference_um' parameter of Ekf must be a float > 0. Got {reference_um!r}.")
+    return g, ref

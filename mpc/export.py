@@ -84,6 +84,9 @@ def _check(controller, estimator) -> None:
         raise MpcInputError(f"export-controller supports the disturbance model 'hardness' only (the P80 "
                             f"bias moves the passing weights, not exported yet). Got "
                             f"{estimator.disturbance_model!r}.")
+    if estimator.p80_gain != 1.0:
+        raise MpcInputError(f"export-controller supports an estimator P80 gain of 1 only (a gain moves the "
+                            f"passing weights with the target, not exported yet). Got {estimator.p80_gain!r}.")
     if estimator.model is not controller.model:
         raise MpcInputError("export-controller needs the estimator and the controller on one model.")
     stride = controller._nxl + controller._nul

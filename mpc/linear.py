@@ -8,6 +8,11 @@ Works on the generic model contract of the twin (and of :mod:`mpc.plants.leroux`
 - :func:`discretize` - zero-order-hold sampling (``control.sample_system``, method ``"zoh"``);
 - :func:`gain_table` - steady-state gain and dominant time constant of every input-output
   channel, as a pandas DataFrame;
+- :func:`step_moments` / :func:`step_test` - steady gain and mean response time of a channel,
+  exact from the transfer function: ``K = G(0)``, ``T = -G'(0) / G(0)``, the first moment of
+  the impulse response over its area, equal to the area between the normalised step response
+  and 1 (method of moments, Seborg et al. 2011, *Process Dynamics and Control*, 3rd ed.,
+  sec. 6.2: the mean times of lags in series add, a FOPDT's is ``tau + theta``);
 - :func:`fit_fopdt` / :func:`fopdt_from_model` - first-order-plus-dead-time fit of a step
   response (least squares, started from the two-point estimate ``tau = 1.5 (t63 - t28)``,
   ``theta = t63 - tau``, exact for a FOPDT since it reaches 28.3 % = 1 - exp(-1/3) of its
@@ -195,6 +200,58 @@ def gain_table(sys_c: control.StateSpace, horizon_factor: float = 6.0,
     return pd.DataFrame(rows)
 
 
+# --------------------------------------------------------------------------- moments
+@dataclass(frozen=True)
+class StepMoments:
+    """Steady gain and mean response time of one channel (module docstring)."""
+
+    gain: float
+    """``G(0)``, output units per input unit."""
+    mean_time_h: float
+    """``-G'(0) / G(0)`` [h]: the area between the normalised step response and 1."""
+
+
+def _channel(sys_c: control.StateSpace, input_name: str, output_name: str) -> tuple[int, int]:
+    if input_name not in sys_c.input_labels:
+        raise MpcInputError(
+            f"The 'input_name' parameter must be one of {sys_c.input_labels}. Got {input_name!r}."
+        )
+    if output_name not in sys_c.output_labels:
+        raise MpcInputError(
+            f"The 'output_name' parameter must be one of {sys_c.output_labels}. "
+            f"Got {output_name!r}."
+        )
+    return sys_c.input_labels.index(input_name), sys_c.output_labels.index(output_name)
+
+
+def step_moments(sys_c: control.StateSpace, input_name: str, output_name: str) -> StepMoments:
+    """Gain and mean response time of a continuous, asymptotically stable channel, from
+    ``G(s) = C (sI - A)^-1 B + D``: ``G(0) = D - C A^-1 B`` and ``G'(0) = -C A^-2 B``."""
+    if not control.isctime(sys_c, strict=True):
+        raise MpcInputError("The 'sys_c' parameter of step_moments must be a continuous-time StateSpace.")
+    j, i = _channel(sys_c, input_name, output_name)
+    a, b, c, d = (np.asarray(m, dtype=float) for m in (sys_c.A, sys_c.B, sys_c.C, sys_c.D))
+    lam = np.linalg.eigvals(a)
+    if np.any(lam.real >= 0):
+        raise MpcInputError("The 'sys_c' parameter of step_moments must be asymptotically stable. "
+                            f"Got eigenvalues with Re >= 0: {lam[lam.real >= 0]}.")
+    a_inv_b = np.linalg.solve(a, b[:, j])
+    gain = float(d[i, j] - c[i] @ a_inv_b)
+    if gain == 0.0:
+        raise MpcInputError(f"The channel {input_name} -> {output_name} has zero steady gain: "
+                            "its mean response time is undefined.")
+    return StepMoments(gain, float(c[i] @ np.linalg.solve(a, a_inv_b)) / gain)
+
+
+def step_test(model, x_ss, u_ss, d_ss, input_name: str, output_name: str = "p80_um",
+              steady_tol: float = 1e-4) -> StepMoments:
+    """A step test on ``model`` (anything with ``f(x, u, d)`` and ``outputs``: a twin's model or
+    :class:`mpc.plants.leroux.LeRouxCircuit`) at its steady state: :func:`step_moments` of the
+    linearised ``input_name -> output_name`` channel."""
+    sys_c, _ = linearize(model.f, model.outputs, x_ss, u_ss, d_ss, [output_name], steady_tol=steady_tol)
+    return step_moments(sys_c, input_name, output_name)
+
+
 # --------------------------------------------------------------------------- FOPDT
 @dataclass(frozen=True)
 class Fopdt:
@@ -255,17 +312,7 @@ def fit_fopdt(t_h, y, du: float = 1.0) -> Fopdt:
 def fopdt_from_model(sys_c: control.StateSpace, input_name: str, output_name: str,
                      t_final_h: float | None = None, n_points: int = 2001) -> Fopdt:
     """FOPDT fit of the unit-step response of one channel of a linear(ised) model."""
-    if input_name not in sys_c.input_labels:
-        raise MpcInputError(
-            f"The 'input_name' parameter must be one of {sys_c.input_labels}. Got {input_name!r}."
-        )
-    if output_name not in sys_c.output_labels:
-        raise MpcInputError(
-            f"The 'output_name' parameter must be one of {sys_c.output_labels}. "
-            f"Got {output_name!r}."
-        )
-    j = sys_c.input_labels.index(input_name)
-    i = sys_c.output_labels.index(output_name)
+    j, i = _channel(sys_c, input_name, output_name)
     if t_final_h is None:
         lam = np.linalg.eigvals(np.asarray(sys_c.A, dtype=float))
         t_final_h = 6.0 * float(np.max(-1.0 / lam.real))

@@ -72,7 +72,7 @@ from scipy.optimize import brentq
 
 from mpc.discretize import RK4_RATE_SAFETY, min_rk4_substeps, state_jacobian
 from mpc.errors import MpcInputError, MpcSolverError
-from mpc.linear import Fopdt, feed_step_fopdt
+from mpc.linear import Fopdt, feed_step_fopdt, step_test
 from twin import DEFAULT_EFFECTS, Mill, SizeGrid, Twin
 
 STATE_NAMES = (
@@ -638,6 +638,19 @@ class MatchedTwin:
     """FOPDT fit of the circuit's feed -> P80 step test (the PI baseline's model too)."""
     twin_step: Fopdt
     """FOPDT fit of the same step test on the twin without the inventory."""
+    p80_gain: float
+    """The P80 gain correction: the analyser reads ``target + p80_gain (P80_twin - target)``
+    (:class:`mpc.estimator.Ekf` ``p80_gain``; 1: none)."""
+    charge_fast_frac: float
+    """Fraction of a speed or hardness change the twin's breakage sees at once (effect
+    ``charge_lag``; 1: no lag)."""
+    charge_time_constant_h: float
+    """The circuit's charge time constant: the feed step test's mean response time, circuit's
+    minus the bare twin's (the feed inventory's and the charge lag's)."""
+    step_tests: dict
+    """``{(who, input): StepMoments}`` of the P80 step tests the identification used, ``who`` in
+    ``"circuit"``, ``"twin"`` (the bare twin: no inventory, no lag), ``input`` in ``"feed_tph"``,
+    ``"speed_frac_critical"``."""
 
     @property
     def fastest_rate_per_h(self) -> float:
@@ -656,7 +669,8 @@ class MatchedTwin:
 
 def matched_twin(circuit: LeRouxCircuit | None = None, ore: str = "B", grid=None,
                  analyser_dead_time_h: float = 0.1, n_mixers: int = 1,
-                 feed_inventory_h: float | None = None) -> MatchedTwin:
+                 feed_inventory_h: float | None = None, p80_gain: float | None = None,
+                 charge_fast_frac: float | None = None) -> MatchedTwin:
     """The twin the NMPC runs on, matched to the [LR13] circuit by what a plant would measure.
 
     Choices (each a stated reason, not from [LR13] unless said):
@@ -680,14 +694,26 @@ def matched_twin(circuit: LeRouxCircuit | None = None, ore: str = "B", grid=None
       of 12 classes of ratio 2 from 6.7 mm (down to 3.3 um; the target lies in the
       52-105 um class) and ``n_mixers`` mixers (1: the coarse, fast controller model of the
       reference case);
-    - dynamics: a feed step test on the circuit (what a plant can run; the FOPDT fit the PI
-      baseline is tuned on, :func:`mpc.linear.feed_step_fopdt`) answers in ~1.4 h, the twin's
-      charge of fine feed in ~5 min (it holds neither [LR13]'s rocks nor its slow slurry charge).
-      Unless ``feed_inventory_h`` is given, the twin gets the ``feed_inventory`` effect with the
-      time constant that makes its mean response time (time constant + dead time of the fit)
-      that of the circuit's step test (method of moments: the mean times of lags in series add;
-      Seborg et al. 2011 sec. 6.2); none if the twin is already as slow. ``feed_inventory_h=0``:
-      the twin without it.
+    - dynamics and gains, from step tests on the circuit (what a plant can run: the feed step
+      the PI baseline is tuned on, and a speed step), read as steady gain and mean response time
+      (:func:`mpc.linear.step_test`; method of moments, Seborg et al. 2011 sec. 6.2: the mean
+      times of lags in series add). The circuit answers a feed step in ~1.4 h, the bare twin's
+      charge of fine feed in ~5 min (it holds neither [LR13]'s rocks nor its slurry charge,
+      whose slow mode is the circuit's ~1.3-h eigenvalue); the charge time constant is the
+      difference (0 if the twin is already as slow). Unless ``feed_inventory_h`` is given, the
+      twin gets the ``feed_inventory`` effect with it (``0``: none);
+    - ``p80_gain`` (None: identified): the circuit's steady feed -> P80 gain over the twin's,
+      from the same feed step test. [LR13] makes fines at the rate the power allows whatever
+      its charge holds; the twin's first-order breakage follows its content, so its P80 moves
+      about half as far for feed, speed and hardness alike. The estimator reads the analyser
+      through it (:class:`mpc.estimator.Ekf` ``p80_gain``, about ``target_p80_um``); 1: none;
+    - ``charge_fast_frac`` (None: identified): the ``charge_lag`` effect with the charge time
+      constant and the fraction ``a`` of a speed or hardness change that acts at once, from the
+      speed step test: the lag adds ``(1 - a) tau`` to the twin's mean response time, so
+      ``a = 1 - (T_circuit - T_twin) / tau`` (1, no lag, if the twin is already as slow; an
+      error if no ``a`` in [0, 1] can match). Hardness acts in both through the same channel as
+      speed ([LR13]: FP ~ P / phi_f with P ~ speed; the twin: S ~ f(speed) / hardness), so the
+      speed test stands for the hardness change no plant can step. 1: no lag.
     """
     c = LeRouxCircuit() if circuit is None else circuit
     if not isinstance(c, LeRouxCircuit):
@@ -696,6 +722,11 @@ def matched_twin(circuit: LeRouxCircuit | None = None, ore: str = "B", grid=None
     _check_positive("matched_twin", "analyser_dead_time_h", float(analyser_dead_time_h))
     if feed_inventory_h is not None:
         _check_nonnegative("matched_twin", "feed_inventory_h", float(feed_inventory_h))
+    if p80_gain is not None:
+        _check_positive("matched_twin", "p80_gain", float(p80_gain))
+    if charge_fast_frac is not None and not 0.0 <= float(charge_fast_frac) <= 1.0:
+        raise MpcInputError(f"The 'charge_fast_frac' parameter of matched_twin must be a float in [0, 1]. "
+                            f"Got {charge_fast_frac!r}.")
     p = c.params
     x_ss = c.steady_state()
     y_ss = c.evaluate_outputs(x_ss, c.u_nominal)
@@ -707,13 +738,15 @@ def matched_twin(circuit: LeRouxCircuit | None = None, ore: str = "B", grid=None
     effects = list(DEFAULT_EFFECTS) + ["sensor_delay"]
     opts = {"sensor_delay": {"dead_time_h": float(analyser_dead_time_h)}}
 
-    def build(power_factor, inventory_h=0.0):
+    def build(power_factor, inventory_h=0.0, fast_frac=1.0, charge_h=0.0):
         mill = Mill("leroux2013", diameter_m=diameter, length_m=diameter,
                     ball_filling_frac=float(ball_filling), bed_porosity=porosity,
                     speed_nominal_frac_critical=p.speed_frac_critical,
                     feed_nominal_tph=p.feed_tph, power_factor=power_factor)
-        inventory = {"feed_inventory": {"time_constant_h": inventory_h}} if inventory_h > 0 else {}
-        return Twin(ore, mill=mill, effects=effects + list(inventory), effect_options=opts | inventory,
+        extra = {"feed_inventory": {"time_constant_h": inventory_h}} if inventory_h > 0 else {}
+        if fast_frac < 1.0:
+            extra["charge_lag"] = {"fast_frac": fast_frac, "time_constant_h": charge_h}
+        return Twin(ore, mill=mill, effects=effects + list(extra), effect_options=opts | extra,
                     grid=grid, n_mixers=n_mixers)
 
     tw1 = build(1.0)
@@ -735,13 +768,43 @@ def matched_twin(circuit: LeRouxCircuit | None = None, ore: str = "B", grid=None
                    hardness_scale=h0)
     plant_step = feed_step_fopdt(c, x_ss, c.u_nominal, c.d_nominal)
     twin_step = feed_step_fopdt(tw.model, ss.x, ss.u, ss.d)
-    if feed_inventory_h is None:
-        gap_h = plant_step.tau_h + plant_step.delay_h - twin_step.tau_h - twin_step.delay_h
-        feed_inventory_h = max(gap_h, 0.0)
-    if feed_inventory_h > 0:  # same steady state (the inventory passes its inflow): same h0, power
-        tw = build(pf, float(feed_inventory_h))
+    tests = {(who, inp): step_test(m, x, u, d, inp) for who, (m, x, u, d) in
+             (("circuit", (c, x_ss, c.u_nominal, c.d_nominal)), ("twin", (tw.model, ss.x, ss.u, ss.d)))
+             for inp in INPUT_NAMES}
+    charge_h = max(tests["circuit", "feed_tph"].mean_time_h - tests["twin", "feed_tph"].mean_time_h, 0.0)
+    feed_inventory_h = charge_h if feed_inventory_h is None else float(feed_inventory_h)
+    p80_gain = _identified_gain(tests) if p80_gain is None else float(p80_gain)
+    fast = _identified_fast_frac(tests, charge_h) if charge_fast_frac is None else float(charge_fast_frac)
+    if feed_inventory_h > 0 or fast < 1.0:
+        # same steady state (the inventory passes its inflow, the lag settles at the inputs' rate):
+        # same h0 and power
+        tw = build(pf, feed_inventory_h, fast, charge_h)
         ss = tw.steady(feed_tph=p.feed_tph, speed_frac_critical=p.speed_frac_critical,
                        hardness_scale=h0)
     return MatchedTwin(tw, ss, h0, float(pf), float(target), x_ss,
                        state_jacobian(tw.model.f, ss.x, ss.u, ss.d), float(feed_inventory_h),
-                       plant_step, twin_step)
+                       plant_step, twin_step, p80_gain, fast, charge_h, tests)
+
+
+def _identified_gain(tests: dict) -> float:
+    """The circuit's steady feed -> P80 gain over the bare twin's (the feed step test)."""
+    g = tests["circuit", "feed_tph"].gain / tests["twin", "feed_tph"].gain
+    if not g > 0:
+        raise MpcSolverError(f"matched_twin: the circuit's and the twin's feed -> P80 gains differ in sign "
+                             f"({tests['circuit', 'feed_tph'].gain:.3g}, {tests['twin', 'feed_tph'].gain:.3g} "
+                             "um/(t/h)); no P80 gain correction can match them")
+    return float(g)
+
+
+def _identified_fast_frac(tests: dict, charge_h: float) -> float:
+    """``a = 1 - (T_circuit - T_twin) / tau`` of the speed step test (matched_twin's docstring);
+    1 when the twin answers as slowly as the circuit or there is no charge."""
+    gap_h = tests["circuit", "speed_frac_critical"].mean_time_h - tests["twin", "speed_frac_critical"].mean_time_h
+    if gap_h <= 0.0 or charge_h <= 0.0:
+        return 1.0
+    a = 1.0 - gap_h / charge_h
+    if a < 0.0:
+        raise MpcSolverError(f"matched_twin: the circuit answers a speed step {gap_h:.3g} h later (mean response "
+                             f"time) than the twin, more than the charge time constant {charge_h:.3g} h can add; "
+                             "give 'charge_fast_frac' explicitly")
+    return float(a)

@@ -391,7 +391,8 @@ class Service(Stoppable):
         t1, c1 = time.perf_counter(), time.process_time()
         try:
             res = self.parts.controller.make_step(x_est, D, u_prev, y_meas=self.p80_held,
-                                                  p80_bias_um=self.parts.estimator.p80_bias_um)
+                                                  p80_bias_um=self.parts.estimator.controller_p80_bias_um(
+                                                      self.parts.controller.settings.target_p80_um))
         except NUMERIC_ERRORS as exc:
             log.exception("the controller failed")
             return None, None, f"the controller failed: {type(exc).__name__}: {exc}"

@@ -35,3 +35,61 @@ def test_ekf_rejects_bad_input(ctrl_twin):
     ekf = Ekf(m, 0.05, m.initial_state([1.0, 0.0]))
     with pytest.raises(MpcInputError, match="y_meas"):
         ekf.make_step([1.0, 2.0], [27.0, 0.7], [1.0, 0.0])
+
+
+@pytest.mark.parametrize("gain", [1.0, 2.0])
+def test_ekf_reads_the_analyser_through_its_p80_gain(ctrl_twin, gain):
+    """A plant whose P80 sits 6 um above the model's steady one, read by an EKF whose P80 gain
+    is g about that steady P80: the estimate moves the model's P80 by 6/g um (the hardness
+    takes it), and what it believes the plant reads is the measurement (the test can fail: at
+    g = 2 the model moves half as far as at g = 1)."""
+    m = ctrl_twin.model
+    ss = ctrl_twin.steady(feed_tph=27.0, speed_frac_critical=0.70, blend=[1.0, 0.0])
+    ref = float(m.outputs["p80_measured_um"](ss.x, ss.u, ss.d))
+    ekf = Ekf(m, 0.05, ss.x, p80_noise_um=1.0, hardness_noise_per_sqrt_h=0.1, p80_gain=gain, p80_reference_um=ref)
+    for _ in range(120):
+        x_est, d_est = ekf.make_step([ref + 6.0, np.nan, np.nan], ss.u, [1.0, 0.0])
+    p80_model = float(m.outputs["p80_measured_um"](x_est, ss.u, d_est))
+    assert p80_model - ref == pytest.approx(6.0 / gain, abs=0.1)
+    assert ekf.plant_p80_um(p80_model) == pytest.approx(ref + 6.0, abs=0.1)
+
+
+@pytest.mark.parametrize("model", ["hardness", "hardness+p80_bias"])
+def test_the_controller_bias_puts_the_plant_at_its_target(ctrl_twin, model):
+    """The model held at target - controller bias reads as the target on the plant, whatever
+    the gain, reference and bias; at gain 1 the controller bias is the P80 bias itself."""
+    m = ctrl_twin.model
+    x0 = m.initial_state([1.0, 0.0])
+    for gain, ref, bias, target in [(1.0, None, 4.0, 200.0), (1.9, 94.0, 0.0, 94.0), (1.9, 94.0, -3.0, 90.0),
+                                    (0.6, 210.0, 7.0, 215.0)]:
+        ekf = Ekf(m, 0.05, x0, disturbance_model=model, p80_gain=gain, p80_reference_um=ref)
+        if ekf.has_p80_bias:
+            ekf.z[-1] = bias
+        b = ekf.controller_p80_bias_um(target)
+        assert ekf.plant_p80_um(target - b) == pytest.approx(target, abs=1e-9)
+        if gain == 1.0:
+            assert b == ekf.p80_bias_um
+
+
+def test_ekf_refuses_a_bad_p80_gain(ctrl_twin):
+    x0 = ctrl_twin.model.initial_state([1.0, 0.0])
+    with pytest.raises(MpcInputError, match="'p80_gain'.*Got 0.0"):
+        Ekf(ctrl_twin.model, 0.05, x0, p80_gain=0.0, p80_reference_um=94.0)
+    with pytest.raises(MpcInputError, match="'p80_reference_um'.*needed"):
+        Ekf(ctrl_twin.model, 0.05, x0, p80_gain=2.0)
+    with pytest.raises(MpcInputError, match="'p80_reference_um'.*Got -1"):
+        Ekf(ctrl_twin.model, 0.05, x0, p80_gain=2.0, p80_reference_um=-1.0)
+
+
+def test_export_refuses_an_estimator_with_a_p80_gain(ctrl_twin, tmp_path):
+    """The exported C controller holds the model at the target (no passing weights moved by a
+    bias): an estimator with a P80 gain is refused before anything is written."""
+    from types import SimpleNamespace
+
+    from mpc.export import export_controller
+
+    ekf = Ekf(ctrl_twin.model, 0.05, ctrl_twin.model.initial_state([1.0, 0.0]), p80_gain=1.9, p80_reference_um=94.0)
+    ctrl = SimpleNamespace(settings=SimpleNamespace(solver="rti", qpsol="condensed"), model=ctrl_twin.model)
+    with pytest.raises(MpcInputError, match="P80 gain of 1 only.*1.9"):
+        export_controller(ctrl, ekf, [27.0, 0.7], tmp_path / "out")
+    assert not (tmp_path / "out").exists()

@@ -15,6 +15,7 @@ from mpc.linear import (
     fopdt_from_model,
     gain_table,
     linearize,
+    step_moments,
 )
 
 
@@ -124,6 +125,41 @@ def test_fopdt_of_second_order_is_between_half_rule_bounds():
     assert 1.0 <= fit.tau_h <= 1.2
     assert 0.05 <= fit.delay_h <= 0.2
     assert fit.rms_error < 0.02
+
+
+def _siso(num, den):
+    sysc = control.ss(control.tf(num, den))
+    return control.ss(sysc.A, sysc.B, sysc.C, sysc.D, inputs=["u"], outputs=["y"])
+
+
+@pytest.mark.parametrize("num, den, gain, mean_time", [
+    ([1.8], [0.7, 1.0], 1.8, 0.7),  # first order: gain K, mean time tau
+    ([-2.0], np.polymul([0.7, 1.0], [0.2, 1.0]), -2.0, 0.9),  # lags in series: the times add
+    # a + (1 - a)/(tau s + 1), a = 0.3, tau = 1.3: fast and slow in parallel, (1 - a) tau
+    ([0.3 * 1.3, 1.0], [1.3, 1.0], 1.0, 0.7 * 1.3),
+])
+def test_step_moments_are_exact_for_known_systems(num, den, gain, mean_time):
+    m = step_moments(_siso(num, den), "u", "y")
+    assert m.gain == pytest.approx(gain, rel=1e-12)
+    assert m.mean_time_h == pytest.approx(mean_time, rel=1e-12)
+
+
+def test_step_moments_equal_the_area_over_the_step_response():
+    """T is the area between the normalised step response and 1 (an independent quadrature)."""
+    sysc = _siso([0.5, 1.0], np.polymul([1.0, 1.0], [0.3, 0.2, 1.0]))
+    t = np.linspace(0.0, 40.0, 400001)
+    y = np.asarray(control.step_response(sysc, T=t).outputs).ravel()
+    m = step_moments(sysc, "u", "y")
+    assert m.mean_time_h == pytest.approx(np.trapezoid(1.0 - y / m.gain, t), rel=1e-6)
+
+
+def test_step_moments_refuse_what_has_no_mean_time():
+    with pytest.raises(MpcInputError, match="asymptotically stable"):
+        step_moments(_siso([1.0], [1.0, -0.5]), "u", "y")
+    with pytest.raises(MpcInputError, match="zero steady gain"):
+        step_moments(_siso([1.0, 0.0], [1.0, 1.0]), "u", "y")
+    with pytest.raises(MpcInputError, match="input_name"):
+        step_moments(_siso([1.0], [1.0, 1.0]), "feed_tph", "y")
 
 
 def random_system(seed, nx=3, nu=2, rho=1.05):

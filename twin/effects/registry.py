@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from ..errors import ModelError, close_matches
 from .base import CORE_VARIABLES, Effect
 from .breakage import Breakage
+from .charge_lag import ChargeLag
 from .classification import Classification
 from .cushioning import Cushioning
 from .feed_inventory import FeedInventory
@@ -22,7 +23,7 @@ from .transport import Transport
 #: Every effect by name (alphabetical: the order carries no meaning; the build order comes from
 #: the declarations, ties broken by name).
 EFFECTS: dict[str, type[Effect]] = {cls.name: cls for cls in sorted(
-    (Breakage, Classification, Cushioning, FeedInventory, Holdup, Power, Rheology, SensorDelay, SlowingDown, Speed, Transport),
+    (Breakage, ChargeLag, Classification, Cushioning, FeedInventory, Holdup, Power, Rheology, SensorDelay, SlowingDown, Speed, Transport),
     key=lambda c: c.name)}
 
 
