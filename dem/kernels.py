@@ -34,7 +34,7 @@ import numpy as np
 
 from dem.bonds import BROKEN_SHEAR_SLIDING, INTACT, P_OVERLAP0, P_SIGNED_MC, bond_update
 from dem.contacts import drum_walls, hist_add, pair_contact, plane_walls
-from dem.state import N_LOAD, PairArrays, add_force_rows, add_rows, fill_csr
+from dem.state import N_LOAD, PairArrays, add_rows, fill_csr
 
 # indices of the scalar parameter vector ``cp``
 (CP_ESTAR_PP, CP_GSTAR_PP, CP_MU_PP, CP_ETA_PP, CP_ESTAR_PW, CP_GSTAR_PW, CP_MU_PW, CP_ETA_PW,
@@ -317,10 +317,7 @@ def sphere_loads(sp, bd, pr, wl, dr, d_torque, cp, dt, drum_angle, kick):
         t[i, 0] = 0.0
         t[i, 1] = 0.0
         t[i, 2] = 0.0
-        if central:
-            add_force_rows(b_load, b_start, b_entry, i, f)
-        else:
-            add_rows(b_load, b_start, b_entry, i, f, t)
+        add_rows(b_load, b_start, b_entry, i, f, t, not central)
         add_rows(p_load, p_start, p_entry, i, f, t)
         if nw > 0:
             plane_walls(i, pos, vel, om, rad, mass, f, t, w_p, w_n, w_v, w_xi, w_touch, w_force,

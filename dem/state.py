@@ -176,8 +176,10 @@ def write_pair_load(load, k, fx, fy, fz, nx, ny, nz, ai, aj):
 
 
 @nb.njit(cache=True, inline="always")
-def add_rows(load, start, entry, s, force, torque):
-    """Add to sphere s the loads of its rows, in the fixed order of its CSR list."""
+def add_rows(load, start, entry, s, force, torque, torques=True):
+    """Add to sphere s the loads of its rows, in the fixed order of its CSR list. With
+    ``torques`` False the rows carry forces through the centres only (central bonds, rows of
+    ``N_FORCE`` columns) and no torque column is read."""
     fx = fy = fz = tx = ty = tz = 0.0
     for q in range(start[s], start[s + 1]):
         e = entry[q]
@@ -186,43 +188,25 @@ def add_rows(load, start, entry, s, force, torque):
             fx += load[k, LOAD_F]
             fy += load[k, LOAD_F + 1]
             fz += load[k, LOAD_F + 2]
-            tx += load[k, LOAD_TJ]
-            ty += load[k, LOAD_TJ + 1]
-            tz += load[k, LOAD_TJ + 2]
+            if torques:
+                tx += load[k, LOAD_TJ]
+                ty += load[k, LOAD_TJ + 1]
+                tz += load[k, LOAD_TJ + 2]
         else:
             fx -= load[k, LOAD_F]
             fy -= load[k, LOAD_F + 1]
             fz -= load[k, LOAD_F + 2]
-            tx += load[k, LOAD_TI]
-            ty += load[k, LOAD_TI + 1]
-            tz += load[k, LOAD_TI + 2]
+            if torques:
+                tx += load[k, LOAD_TI]
+                ty += load[k, LOAD_TI + 1]
+                tz += load[k, LOAD_TI + 2]
     force[s, 0] += fx
     force[s, 1] += fy
     force[s, 2] += fz
-    torque[s, 0] += tx
-    torque[s, 1] += ty
-    torque[s, 2] += tz
-
-
-@nb.njit(cache=True, inline="always")
-def add_force_rows(load, start, entry, s, force):
-    """:func:`add_rows` of rows that carry forces through the sphere centres only (no torque
-    columns read: central bonds), in the same fixed order."""
-    fx = fy = fz = 0.0
-    for q in range(start[s], start[s + 1]):
-        e = entry[q]
-        k = e >> 1
-        if e & 1:
-            fx += load[k, LOAD_F]
-            fy += load[k, LOAD_F + 1]
-            fz += load[k, LOAD_F + 2]
-        else:
-            fx -= load[k, LOAD_F]
-            fy -= load[k, LOAD_F + 1]
-            fz -= load[k, LOAD_F + 2]
-    force[s, 0] += fx
-    force[s, 1] += fy
-    force[s, 2] += fz
+    if torques:
+        torque[s, 0] += tx
+        torque[s, 1] += ty
+        torque[s, 2] += tz
 
 
 @nb.njit(cache=True, inline="always")
