@@ -35,13 +35,13 @@ SCHEMES = ("cell_average", "austin")
 
 
 def steady(case: dict, grid: SizeGrid):
-    """(build seconds, steady seconds, P80 um) of the case on the grid."""
+    """(build seconds, steady seconds, P80 um, load: hold-up over nominal) of the case on the grid."""
     t0 = time.perf_counter()
     tw = Twin(case["ores"], mill=case["mill"], grid=grid)
     t1 = time.perf_counter()
     kw = {} if case["feed_tph"] is None else {"feed_tph": case["feed_tph"], "blend": [1.0, 0.0]}
     ss = tw.steady(**kw)
-    return t1 - t0, time.perf_counter() - t1, ss.p80_um
+    return t1 - t0, time.perf_counter() - t1, ss.p80_um, ss.outputs["load_frac"]
 
 
 def grids(quick: bool) -> dict:
@@ -59,18 +59,19 @@ def main(argv=None) -> None:
     ref_count = 97 if args.quick else 193
     rows = []
     for case_name, case in CASES.items():
-        ref = steady(case, SizeGrid.spanning(TOP_UM, BOTTOM_UM, ref_count))[2]
+        ref, ref_load = steady(case, SizeGrid.spanning(TOP_UM, BOTTOM_UM, ref_count))[2:]
         for grid_name, make in grids(args.quick).items():
             samples = {s: [] for s in SCHEMES}
             for _ in range(REPEAT):
                 for scheme in SCHEMES:  # interleaved
                     samples[scheme].append(steady(case, make(scheme)))
             for scheme in SCHEMES:
-                build, solve, p80 = (float(np.median(v)) for v in zip(*samples[scheme]))
+                build, solve, p80, load = (float(np.median(v)) for v in zip(*samples[scheme]))
                 rows.append({"case": case_name, "grid": grid_name, "scheme": scheme, "p80_um": p80,
-                             "error_pct": 100.0 * (p80 / ref - 1.0), "build_s": build, "steady_s": solve})
+                             "error_pct": 100.0 * (p80 / ref - 1.0), "load": load,
+                             "load_error_pct": 100.0 * (load / ref_load - 1.0), "build_s": build, "steady_s": solve})
         rows.append({"case": case_name, "grid": f"reference: {ref_count} classes", "scheme": "cell_average",
-                     "p80_um": ref, "error_pct": 0.0})
+                     "p80_um": ref, "error_pct": 0.0, "load": ref_load, "load_error_pct": 0.0})
     df = pd.DataFrame(rows)
     for (case, scheme), part in df[~df["grid"].str.startswith(("controller", "reference"))].groupby(["case", "scheme"]):
         err = part["error_pct"].abs().to_numpy()
@@ -79,10 +80,10 @@ def main(argv=None) -> None:
     RESULTS.mkdir(exist_ok=True)
     df.to_csv(RESULTS / "twin_grid.csv", index=False)
     lines = ["# Twin: size grid against error and time", "",
-             f"`python benchmarks/twin_grid.py{' --quick' if args.quick else ''}`. P80 error against the "
-             f"{ref_count}-class cell-average reference of the same case; build and steady-state times are "
-             f"medians of {REPEAT}, schemes interleaved, 2-core shared machine. Shipped calibration "
-             "(fitted on the first-order scheme: the lab case's P80 is not the table's until it is refitted).", ""]
+             f"`python benchmarks/twin_grid.py{' --quick' if args.quick else ''}`. P80 and load (hold-up over "
+             f"nominal) errors against the {ref_count}-class cell-average reference of the same case; build "
+             f"and steady-state times are medians of {REPEAT}, schemes interleaved, 2-core shared machine. "
+             "Default calibration (fitted on the cell-average scheme, 25 classes of ratio sqrt 2).", ""]
     for case in CASES:
         lines += [f"## {case}", "", df[df["case"] == case].drop(columns="case").to_markdown(
             index=False, floatfmt=".4g"), ""]

@@ -79,8 +79,10 @@ def test_gauss_nodes_integrate_the_interval_to_round_off(monkeypatch):
 def test_controller_grid_predicts_the_plant_mill():
     """The reference scene's controller model (7 classes of ratio 2.5) and plant (25 of sqrt 2),
     same calibration: the same product on the controller's class bounds within 1 point of
-    passing and the same load within 1 %. (Its P80, interpolated inside one class of ratio 2.5,
-    is 5-6 % coarser: benchmarks/results/twin_grid.md.)"""
+    passing, and the same load within a tenth of the half-width of the mill's stable load band
+    (what the controller keeps the load in). The coarse classes' hold-up error grows toward
+    overload; this case runs 5 % over nominal. (Its P80, interpolated inside one class of ratio
+    2.5, is coarser, and both errors are tabled in benchmarks/results/twin_grid.md.)"""
     kw = dict(mill="industrial", n_mixers=3)
     coarse = SizeGrid(6700.0, 2.5, 7)
     plant_twin = Twin(["B", "D"], grid=SizeGrid(6700.0, math.sqrt(2.0), 25), **kw)
@@ -90,4 +92,5 @@ def test_controller_grid_predicts_the_plant_mill():
     plant_on_coarse = np.interp(np.log(coarse.upper_um), np.log(fine.upper_um[::-1]),
                                 fine.cumulative_passing(plant.psd)[::-1])
     assert np.max(np.abs(coarse.cumulative_passing(ctl.psd) - plant_on_coarse)) < 0.01
-    assert ctl.outputs["load_frac"] == pytest.approx(plant.outputs["load_frac"], rel=0.01)
+    lo, hi = plant_twin.mill.stable_band
+    assert ctl.outputs["load_frac"] == pytest.approx(plant.outputs["load_frac"], abs=0.1 * (hi - lo) / 2.0)
