@@ -195,8 +195,20 @@ def run_case(args, plant_hardness=1.0, write: bool = True) -> pd.DataFrame:
           f"{args.hardness_noise}/sqrt(h), disturbance model {args.disturbance_model}, warm-up {args.warmup_h} h before t = 0; "
           f"{model_line(args)}; sensors: P80 noise 3 um, dead time 0.1 h, sampling 0.05 h.",
           "", table[cols].to_markdown(index=False, floatfmt=".4g")]
+    md += ["", estimates_line(runs[-1], f"mpc_reference_case{args.tag}_runs.csv")]
     (OUT / f"mpc_reference_case{args.tag}.md").write_text("\n".join(md) + "\n")
     return table
+
+
+def estimates_line(frame: pd.DataFrame, runs_file: str) -> str:
+    """What the EKF's estimates read against the plant's truth over one run (its controller's)."""
+    h, bias = frame["hardness_est"], frame["p80_bias_est_um"]
+    err = (frame["p80_est_um"] - frame["p80_um"]).abs()
+    return (f"{frame['controller'].iloc[0]}: estimates beside the truth (columns of {runs_file}: "
+            "`hardness_est` against `hardness_scale`, `p80_est_um` = `p80_model_um` + `p80_bias_est_um` against the plant's "
+            f"`p80_um`): hardness_est median {h.median():.3f} (range {h.min():.3f}-{h.max():.3f}; truth "
+            f"{frame['hardness_scale'].median():.3f}), P80 bias median {bias.median():.1f} um, "
+            f"|p80_est_um - p80_um| median {err.median():.2f} um (max {err.max():.2f}).")
 
 
 if __name__ == "__main__":
