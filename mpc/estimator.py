@@ -41,10 +41,9 @@ from mpc.errors import MpcInputError
 
 MEASUREMENTS = ("p80_um", "power_kw", "load_frac")
 #: Default random-walk intensity of the hardness scale [1/sqrt(h)]: a 1-sigma drift of
-#: 0.03 sqrt(24) = 15 % a day (our assumption for ore within a pit). Measured on the reference
-#: case (benchmarks/results/mpc_ekf_tuning.md): 0.02-0.03 give the least IAE both through the
-#: measured ore change and after an unmeasured +10 % hardness step; 0.1 passes the analyser's
-#: noise to the inputs (IAE 14.8 against 9.6 um h).
+#: 0.03 sqrt(24) = 15 % a day (our assumption for ore within a pit): a statement about the ore,
+#: not a tuning. Less passes less analyser noise to the inputs, more follows an unmeasured
+#: hardness change faster (the trade-off: benchmarks/results/mpc_ekf_tuning.md).
 HARDNESS_NOISE_PER_SQRT_H = 0.03
 #: Default random-walk intensity of the P80 bias [um/sqrt(h)]: a 1-sigma drift of 5 um in an
 #: hour (our assumption: the structural error of a coarse model moves with the operating point
