@@ -242,7 +242,8 @@ def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
     extra = {"notes": notes, "warnings": health_notes(health), "controller_health": health,
              "solve_times_s": frame["solve_time_s"].dropna().to_numpy() if "solve_time_s" in frame else None,
              "solve_time_median_s": k.get("solve_time_median_s", math.nan),
-             "solve_time_p95_s": k.get("solve_time_p95_s", math.nan)}
+             "solve_time_p95_s": k.get("solve_time_p95_s", math.nan),
+             "start_feed_tph": start.feed_tph}  # the frame's first feed is the first move (NMPC: at t = 0)
     return frame, sizes, extra
 
 

@@ -40,8 +40,11 @@ HEALTH_KPIS = {"controller_failed_steps": "failed_steps", "controller_fallback_s
 
 
 def compute_kpis(scene: Scene, frame: pd.DataFrame, solve_times_s=None, batch_charge_t=None,
-                 solve_time_median_s=None, solve_time_p95_s=None, controller_health=None) -> dict:
-    """The KPIs of a run from its frame (definitions in the module docstring)."""
+                 solve_time_median_s=None, solve_time_p95_s=None, controller_health=None,
+                 start_feed_tph=None) -> dict:
+    """The KPIs of a run from its frame (definitions in the module docstring). ``start_feed_tph``:
+    the feed rate of the state the run started from, when the frame's first row holds a move
+    made at t = 0 (a closed loop's); else the first row's."""
     t = frame["time_h"].to_numpy(float)
     p80 = frame["p80_um" if "p80_um" in frame else "content_p80_um"].to_numpy(float)  # batch: the content
     target = scene.controller.target_p80_um
@@ -77,7 +80,10 @@ def compute_kpis(scene: Scene, frame: pd.DataFrame, solve_times_s=None, batch_ch
     k["mass_balance_error"] = mass_balance_error(frame)
     for key, field in HEALTH_KPIS.items():
         k[key] = math.nan if controller_health is None else int(controller_health[field])
-    k["start_feed_tph"] = float(frame["feed_tph"].iloc[0]) if "feed_tph" in frame else math.nan
+    if start_feed_tph is not None:
+        k["start_feed_tph"] = float(start_feed_tph)
+    else:
+        k["start_feed_tph"] = float(frame["feed_tph"].iloc[0]) if "feed_tph" in frame else math.nan
     k["start_p80_um"] = float(p80[0])  # what the case started from (sweep tables compare cases)
     k["p80_final_um"] = float(p80[-1])
     k["p80_mean_um"] = float(np.nanmean(p80))

@@ -40,7 +40,7 @@ def test_start_target_without_a_target_is_refused(write_scene):
 def test_a_sweep_over_the_controller_starts_every_case_where_the_scene_says(write_scene):
     """feed.start = "target": the no-control baseline of a sweep starts at the closed loop's
     steady state, and the table says so (start_p80_um: the P80 at t = 0, of the start state;
-    start_feed_tph: the first applied feed, the PI's first move there)."""
+    start_feed_tph: the start state's feed rate)."""
     from scenarios.cli.commands import sweep_case
     from scenarios.run import run_sweep
 

@@ -236,6 +236,19 @@ def test_closed_loop_through_the_real_loop(tmp_path, kind):
     assert 0 <= k["p80_within_10um_frac"] <= 1 and k["p80_iae_um_h"] >= 0
     if kind == "nmpc":
         assert k["solve_time_median_s"] > 0 and k["solve_time_p95_s"] >= k["solve_time_median_s"]
+    # start_feed_tph is the start state's feed rate (the steady state holding the target), not
+    # the first row's feed, which is the controller's move at t = 0 (the NMPC moves at once)
+    from scenarios.run.closed_loop import start_feed_tph
+    from scenarios.run.feed import component_blend, feed_schedule
+    from scenarios.run.models import build_models, component_ores
+    from scenarios.scene import load_scene
+    scene = load_scene(path)
+    models = build_models(scene)
+    feed, _ = feed_schedule(scene, models.components, scene.time_grid_h(), component_ores(scene))
+    feed0 = start_feed_tph(scene, models, component_blend(feed, models.components)[0])
+    assert k["start_feed_tph"] == pytest.approx(feed0, rel=1e-9)
+    if kind == "nmpc":
+        assert res.frame["feed_tph"].iloc[0] != pytest.approx(feed0, rel=1e-4)  # the test can fail
     assert {"feed_tph", "speed_frac_critical", "solve_time_s"} <= set(res.frame.columns)
     assert k["mass_balance_error"] < 1e-6  # the plant's fed and produced mass close with its hold-up
 
