@@ -6,10 +6,14 @@ the PI's (the PI's runs do not depend on the grid: one per seed). Everything els
 default (``python benchmarks/mpc_leroux_case.py --help``), the matched twin identified once.
 
 Writes benchmarks/results/mpc_leroux_sweep.csv (one row per combination: median, mean and worst
-ratio, per-seed ratios, largest last-hour offset) and .md (the best 15, the chosen one first).
+ratio, per-seed ratios, largest last-hour offset) and .md (the best 15, and where the case's
+defaults rank: a combination that leads on the tuning seeds by less than their spread is not
+adopted unless it also leads on the held-out seeds). ``--from-csv`` rewrites the .md from the
+.csv of an earlier sweep (the PI's runs and the identification redone: seconds).
 
     PYTHONPATH=. python benchmarks/mpc_leroux_sweep.py [--seeds 1,...,10] [--weight-p80 10,20,40]
         [--hardness-noise 0.1,0.15,0.2,0.3] [--weight-du-feed 0.3,1,3] [--weight-du-speed 3,10,30]
+        [--from-csv]
 """
 
 from __future__ import annotations
@@ -60,33 +64,54 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--seeds", default="1,2,3,4,5,6,7,8,9,10", help="tuning seeds")
     for name, grid in GRID.items():
         ap.add_argument(f"--{name.replace('_', '-')}", default=grid, help=f"grid of the case's --{name}")
+    ap.add_argument("--from-csv", action="store_true", help="rewrite the .md from the .csv of an earlier sweep")
     sweep = ap.parse_args(argv)
     args = parser().parse_args([])
     seeds = [int(v) for v in sweep.seeds.split(",")]
     grids = {name: [float(v) for v in getattr(sweep, name).split(",")] for name in GRID}
     case = build_case(args)
     pi = pi_iae(args, case, seeds)
-    rows = []
-    t0 = time.perf_counter()
-    for values in itertools.product(*grids.values()):
-        for name, v in zip(grids, values):
-            setattr(args, name, v)
-        rows.append(dict(zip(grids, values)) | score(args, case, seeds, pi))
-        print(rows[-1], f"({time.perf_counter() - t0:.0f} s)", flush=True)
-    table = pd.DataFrame(rows).sort_values(["ratio_median", "ratio_mean"], ignore_index=True)
-    OUT.mkdir(exist_ok=True)
-    table.to_csv(OUT / "mpc_leroux_sweep.csv", index=False)
+    if sweep.from_csv:
+        table = pd.read_csv(OUT / "mpc_leroux_sweep.csv")
+    else:
+        rows = []
+        t0 = time.perf_counter()
+        for values in itertools.product(*grids.values()):
+            for name, v in zip(grids, values):
+                setattr(args, name, v)
+            rows.append(dict(zip(grids, values)) | score(args, case, seeds, pi))
+            print(rows[-1], f"({time.perf_counter() - t0:.0f} s)", flush=True)
+        table = pd.DataFrame(rows).sort_values(["ratio_median", "ratio_mean"], ignore_index=True)
+        OUT.mkdir(exist_ok=True)
+        table.to_csv(OUT / "mpc_leroux_sweep.csv", index=False)
+    (OUT / "mpc_leroux_sweep.md").write_text(markdown(table, grids, sweep.seeds, seeds, pi, case.notes, argv))
+    return table
+
+
+def defaults_line(table: pd.DataFrame, grids: dict) -> str:
+    """Where the case's defaults (``mpc_leroux_case.py --help``) rank in ``table``."""
+    d = parser().parse_args([])
+    flags = ", ".join(f"--{n.replace('_', '-')} {getattr(d, n):g}" for n in grids)
+    hit = (table[list(grids)] == [getattr(d, n) for n in grids]).all(axis=1)
+    if not hit.any():
+        return f"The case's defaults ({flags}) are not on this grid."
+    k = int(hit.idxmax())
+    return (f"The case's defaults ({flags}): rank {k + 1} of {len(table)}, median "
+            f"{table.loc[k, 'ratio_median']:.4g}, mean {table.loc[k, 'ratio_mean']:.4g}.")
+
+
+def markdown(table, grids, seeds_arg, seeds, pi, notes, argv) -> str:
     best = table.iloc[0]
     md = ["# le Roux case: the NMPC's weights and the EKF's hardness walk, swept on the tuning seeds", "",
-          f"Seeds {sweep.seeds}; NMPC IAE over the PI's per seed (PI IAE "
+          f"Seeds {seeds_arg}; NMPC IAE over the PI's per seed (PI IAE "
           f"{', '.join(f'{pi[s]:.3g}' for s in seeds)} um*h); {len(table)} combinations, sorted by the median "
           "ratio (then the mean). Everything else at the case's defaults; the matched twin as identified:", "",
-          *[f"- {n}" for n in case.notes], "",
-          "Chosen (first row): " + ", ".join(f"--{n.replace('_', '-')} {best[n]:g}" for n in grids) + ".", "",
+          *[f"- {n}" for n in notes], "",
+          "Best on these seeds (first row): " + ", ".join(f"--{n.replace('_', '-')} {best[n]:g}" for n in grids)
+          + ". " + defaults_line(table, grids), "",
           table.head(15).to_markdown(index=False, floatfmt=".4g"), "",
-          f"Reproduce: `{' '.join(['PYTHONPATH=. python benchmarks/mpc_leroux_sweep.py', *argv])}`."]
-    (OUT / "mpc_leroux_sweep.md").write_text("\n".join(md) + "\n")
-    return table
+          f"Reproduce: `{' '.join(['PYTHONPATH=. python benchmarks/mpc_leroux_sweep.py', *(a for a in argv if a != '--from-csv')])}`."]
+    return "\n".join(md) + "\n"
 
 
 if __name__ == "__main__":
