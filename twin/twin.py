@@ -73,10 +73,10 @@ class Twin:
             density = check_range("Twin", "solids_density_t_m3", solids_density_t_m3, 1.0, 25.0)
         holdup_nom = self.mill.nominal_holdup_t(density)
         power_nom = power_kw(self.mill, self.mill.speed_nominal_frac_critical)
-        from_mill = get_mill(calibrated_mill, self.calibration.record)
-        params = [given.get(o.name) or scale_breakage(
-            breakage_map(o, self.coefficients) if breakage_map else self.calibration.breakage(o),
-            from_mill, self.mill, density) for o in self.blend.ores]
+        self.calibrated_mill = get_mill(calibrated_mill, self.calibration.record)
+        params = [given.get(o.name) or self.scaled_breakage(
+            breakage_map(o, self.coefficients) if breakage_map else self.calibration.breakage(o), density)
+            for o in self.blend.ores]
         breakage = [_ore_breakage(self.grid, p, power_nom, holdup_nom) for p in params]
         feed = _feed_fractions(self.grid, feed_psd, feed_p80_um, feed_modulus)
         self.spec = ModelSpec(
@@ -88,6 +88,12 @@ class Twin:
             coefficients=self.coefficients, n_mixers=len(mixer_fracs), mixer_fracs=mixer_fracs, effects=list(effects),
             effect_options=dict(effect_options or {}))
         self.model = Model(self.spec)
+
+    def scaled_breakage(self, params: BreakageParams, density_t_m3: float | None = None) -> BreakageParams:
+        """``params`` of the calibrated mill scaled to this twin's mill
+        (:func:`twin.scaleup.scale_breakage`; unchanged on the calibrated mill itself)."""
+        density = self.spec.solids_density_t_m3 if density_t_m3 is None else density_t_m3
+        return scale_breakage(params, self.calibrated_mill, self.mill, density)
 
     @property
     def nominal_blend(self) -> np.ndarray:

@@ -90,3 +90,16 @@ def test_steady_intervals_bracket_the_nominal_answer(cal):
     lo, mid, hi = unc["intervals"]["p80_um"]
     assert lo < hi and lo <= nominal.p80_um * 1.02 and nominal.p80_um <= hi * 1.02
     assert unc["intervals"]["throughput_tph"][0] == pytest.approx(0.031, rel=1e-9)  # the given feed
+
+
+def test_intervals_on_another_mill_scale_the_breakage_as_the_twin_does(cal):
+    """On the industrial mill the replicates' S and b are scaled from the calibrated (lab) mill
+    as :class:`twin.Twin` scales them: unscaled, the replicates' P80 was ~3x the twin's own."""
+    from twin import Twin
+
+    unc = steady_intervals("B", cal, "industrial", 31.0, 0.70, n=6)
+    nominal = Twin("B", mill="industrial", calibration=cal).steady(31.0, 0.70)
+    lo, mid, hi = unc["intervals"]["p80_um"]
+    assert mid == pytest.approx(nominal.p80_um, rel=0.05)
+    assert unc["intervals"]["load_frac"][1] == pytest.approx(float(nominal.outputs["load_frac"]), rel=0.02)
+

@@ -135,8 +135,9 @@ class ParametricTwin:
 
     def set_breakage(self, calibration) -> None:
         """Take S and b of every component from ``calibration``'s map (its laws) at the base
-        values of the named parameters (those enter through the symbols)."""
-        params = [calibration.breakage(o) for o in self.twin.blend.ores]
+        values of the named parameters (those enter through the symbols), scaled from the
+        calibrated mill to this twin's as :class:`twin.Twin` scales them."""
+        params = [self.twin.scaled_breakage(calibration.breakage(o)) for o in self.twin.blend.ores]
         holdup = self.twin.spec.holdup_nominal_t
         self._breakage = self._breakage_numbers([ore_breakage(self.twin.grid, p, self._power_kw, holdup)
                                                  for p in params])
