@@ -497,6 +497,16 @@ def cmd_steady(args) -> int:
         # energy per tonne of feed has no value without feed (the model's floor gives ~1e7)
         kpis["specific_energy_kwh_t"] = None
         notes.append("specific_energy_kwh_t is undefined at zero feed")
+        if unc and "specific_energy_kwh_t" in unc["intervals"]:
+            unc["intervals"]["specific_energy_kwh_t"] = None
+    for key, val in kpis.items():  # e.g. P80 without a product: undefined, never NaN in the JSON
+        if isinstance(val, float) and not math.isfinite(val):
+            kpis[key] = None
+            notes.append(f"{key} is undefined at this state (not a finite number)")
+    if unc:
+        for key, iv in unc["intervals"].items():
+            if iv is not None and not all(math.isfinite(v) for v in iv):
+                unc["intervals"][key] = None
     if args.json:
         mineralogy = {o.name: {"wt_pct": o.wt_pct, **o.summary()} for o in blend.ores}
         print(json.dumps({"mill": args.mill, "blend": dict(zip(blend.names, blend.fractions)),
@@ -524,7 +534,11 @@ def _print_intervals(unc: dict, at_load: bool) -> None:
         [f"{unc['unconverged']} replicate{'s' * (unc['unconverged'] != 1)} whose table step did not converge"] if unc.get("unconverged") else [])
     print(f"  {unc['level']:.0%} intervals over {unc['n']} bootstrap replicates of the DEM's particle scatter"
           + (f" ({' and '.join(left)} left out)" if left else "") + ":")
-    for key, (lo, mid, hi) in unc["intervals"].items():
+    for key, iv in unc["intervals"].items():
+        if iv is None:
+            print(f"    {key:22s} undefined")
+            continue
+        lo, mid, hi = iv
         note = "" if at_load or key != "throughput_tph" else "  (the given feed rate)"
         print(f"    {key:22s} {mid:.4g}  [{lo:.4g}, {hi:.4g}]{note}")
 

@@ -58,10 +58,17 @@ def test_steady_from_surrogate_is_close_to_the_twin(capsys):
 def test_zero_feed_reports_specific_energy_as_undefined(capsys):
     """Energy per tonne fed has no value without feed: null with a note, never the model's
     1e7 kWh/t from its division floor."""
-    assert main(["steady", "--ore", "B", "--feed-tph", "0", "--json"]) == 0
-    out = json.loads(capsys.readouterr().out)
+    assert main(["steady", "--ore", "B", "--feed-tph", "0", "--json", "--uncertainty", "3"]) == 0
+    out = json.loads(capsys.readouterr().out, parse_constant=_refuse)  # strict JSON: no NaN
     assert out["specific_energy_kwh_t"] is None and out["power_kw"] > 0
-    assert out["notes"] == ["specific_energy_kwh_t is undefined at zero feed"]
-    assert main(["steady", "--ore", "B", "--feed-tph", "0"]) == 0
+    assert out["p80_um"] is None  # no product, no P80
+    assert out["notes"][0] == "specific_energy_kwh_t is undefined at zero feed"
+    assert out["uncertainty"]["intervals"]["specific_energy_kwh_t"] is None
+    assert main(["steady", "--ore", "B", "--feed-tph", "0", "--uncertainty", "3"]) == 0
     text = capsys.readouterr().out
     assert "specific_energy_kwh_t    undefined" in text and "e+0" not in text
+    assert "specific_energy_kwh_t  undefined" in text  # the interval line too
+
+
+def _refuse(constant):
+    raise ValueError(f"not JSON: {constant}")
