@@ -99,12 +99,31 @@ def feed_for_target(twin, blend, target_p80_um: float, speed_frac_critical: floa
     return _root_in(gap, (lo, hi), xtol=1e-4)
 
 
+#: Points of the speed scan that brackets the roots of P80(speed) = target: P80 is not monotonic
+#: in speed (breakage rates peak near 0.75-0.8 of critical, Austin et al. 1984 sec. 10.2, and the
+#: twin's speed factor follows), so a target can be met at two speeds, or at none inside the
+#: bounds although both ends are coarser than it; a step of 0.025 of critical over 0.55-0.90.
+SPEED_SCAN_POINTS = 15
+
+
 def speed_for_target(twin, blend, target_p80_um: float, feed_tph: float,
                      speed_bounds=(0.55, 0.90), hardness_scale: float = 1.0) -> float:
-    """Speed [fraction of critical] with steady P80 = target at the given feed; nan if none."""
-    return _root_in(lambda s: twin.steady(feed_tph=feed_tph, speed_frac_critical=s, blend=blend,
-                                          hardness_scale=hardness_scale).p80_um - target_p80_um,
-                    speed_bounds, xtol=1e-7)
+    """Speed [fraction of critical] with steady P80 = target at the given feed; of several such
+    speeds the one of least specific energy; nan if none. Roots are bracketed on a scan of
+    ``SPEED_SCAN_POINTS`` speeds, then refined by Brent's method."""
+    @functools.cache
+    def state(s):
+        return twin.steady(feed_tph=feed_tph, speed_frac_critical=s, blend=blend, hardness_scale=hardness_scale)
+
+    def gap(s):
+        return state(float(s)).p80_um - target_p80_um
+
+    grid = np.linspace(speed_bounds[0], speed_bounds[1], SPEED_SCAN_POINTS)
+    roots = [_root_in(gap, (float(a), float(b)), xtol=1e-7) for a, b in zip(grid[:-1], grid[1:])]
+    roots = [r for r in roots if math.isfinite(r)]
+    if not roots:
+        return math.nan
+    return min(roots, key=lambda s: state(s).outputs["specific_energy_kwh_t"])
 
 
 def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
@@ -179,7 +198,7 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
     pick = table[(table.option == mode)
                  & ((table.objective == objective) if mode == "both" else True)].iloc[0]
     if pick.feasible:
-        msg = (f"P80 {target_p80_um:g} um with feed {pick.feed_tph:.2f} t/h, speed "
+        msg = (f"P80 {target_p80_um:g} um with feed {pick.feed_tph:.4g} t/h, speed "
                f"{pick.speed_frac_critical:.3f} of critical, {pick.specific_energy_kwh_t:.2f} "
                f"kWh/t, load {pick.load_frac:.2f}")
     else:
