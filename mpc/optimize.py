@@ -203,8 +203,8 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
                f"kWh/t, load {pick.load_frac:.2f}")
     else:
         msg = (f"Target P80 {target_p80_um:g} um is infeasible in mode {mode!r} ({pick.note}; "
-               f"feed bounds {feed_bounds_tph} t/h, speed bounds {speed_bounds}, load band "
-               f"{band}).")
+               f"feed bounds {feed_bounds_tph[0]:.4g}-{feed_bounds_tph[1]:.4g} t/h, speed bounds "
+               f"{speed_bounds[0]:g}-{speed_bounds[1]:g}, load band {band[0]:g}-{band[1]:g}).")
     return Setpoints(bool(pick.feasible), float(pick.feed_tph), float(pick.speed_frac_critical),
                      float(pick.p80_um), float(pick.specific_energy_kwh_t), float(pick.load_frac),
                      float(pick.power_kw), mode, objective, msg, table)

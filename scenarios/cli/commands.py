@@ -429,6 +429,30 @@ STEADY_KEYS = ("source", "feed_tph", "speed_frac_critical", "p80_um", "specific_
                "throughput_tph", "holdup_t", "load_frac", "load_status")
 
 
+def undefined_to_none(kpis: dict, unc: dict | None = None) -> list[str]:
+    """A steady state's undefined numbers set to None in place (printed "undefined", JSON null),
+    with a note for each: the specific energy at zero feed (the model's division floor gives
+    ~1e7 kWh/t) and any value that is not finite (P80 without a product); the same in the
+    uncertainty intervals ``unc``. Returns the notes."""
+    notes = []
+    if kpis.get("feed_tph") == 0 and "specific_energy_kwh_t" in kpis:
+        kpis["specific_energy_kwh_t"] = None
+        notes.append("specific_energy_kwh_t is undefined at zero feed")
+        if unc and "specific_energy_kwh_t" in unc["intervals"]:
+            unc["intervals"]["specific_energy_kwh_t"] = None
+    if kpis.get("holdup_t") == 0 and "content_p80_um" in kpis:  # an empty mill has no content
+        kpis["content_p80_um"] = None
+        notes.append("content_p80_um is undefined in an empty mill")
+    for key, val in kpis.items():
+        if isinstance(val, float) and not math.isfinite(val):
+            kpis[key] = None
+            notes.append(f"{key} is undefined at this state (not a finite number)")
+    for key, iv in (unc["intervals"] if unc else {}).items():
+        if iv is not None and not all(math.isfinite(v) for v in iv):
+            unc["intervals"][key] = None
+    return notes
+
+
 def _steady_scene(args) -> int:
     """`grindtwin steady --scene FILE`: the scene's plant twin at its initial operating point."""
     import json
@@ -448,12 +472,16 @@ def _steady_scene(args) -> int:
     blend = [scene.feed.blend.get(n, 0.0) for n in models.components] if scene.feed.blend else None
     ss = models.plant.steady(feed_tph=feed, speed_frac_critical=speed, blend=blend)
     kpis = {"scene": scene.scene.name, **ss.summary()}
+    notes = undefined_to_none(kpis)
     if args.json:
-        print(json.dumps(kpis, indent=2))
+        print(json.dumps(kpis | {"notes": notes}, indent=2, allow_nan=False))
         return 0
     print(f"Scene {scene.scene.name} ({args.scene}), steady state")
     for key, val in kpis.items():
-        print(f"  {key:28s} {val:.4g}" if isinstance(val, float) else f"  {key:28s} {val}")
+        text = "undefined" if val is None else f"{val:.4g}" if isinstance(val, float) else val
+        print(f"  {key:28s} {text}")
+    for note in notes:
+        print(f"  note: {note}")
     return 0
 
 
@@ -492,26 +520,12 @@ def cmd_steady(args) -> int:
 
         unc = steady_intervals(blend, calibration, args.mill, args.feed_tph, args.speed,
                                at_load=args.at_constant_load, n=args.uncertainty or None)
-    notes = []
-    if kpis.get("feed_tph") == 0 and "specific_energy_kwh_t" in kpis:
-        # energy per tonne of feed has no value without feed (the model's floor gives ~1e7)
-        kpis["specific_energy_kwh_t"] = None
-        notes.append("specific_energy_kwh_t is undefined at zero feed")
-        if unc and "specific_energy_kwh_t" in unc["intervals"]:
-            unc["intervals"]["specific_energy_kwh_t"] = None
-    for key, val in kpis.items():  # e.g. P80 without a product: undefined, never NaN in the JSON
-        if isinstance(val, float) and not math.isfinite(val):
-            kpis[key] = None
-            notes.append(f"{key} is undefined at this state (not a finite number)")
-    if unc:
-        for key, iv in unc["intervals"].items():
-            if iv is not None and not all(math.isfinite(v) for v in iv):
-                unc["intervals"][key] = None
+    notes = undefined_to_none(kpis, unc)
     if args.json:
         mineralogy = {o.name: {"wt_pct": o.wt_pct, **o.summary()} for o in blend.ores}
         print(json.dumps({"mill": args.mill, "blend": dict(zip(blend.names, blend.fractions)),
                           "calibration": calibration.identity(), **kpis, "mineralogy": mineralogy,
-                          "notes": notes, **({"uncertainty": unc} if unc else {})}, indent=2))
+                          "notes": notes, **({"uncertainty": unc} if unc else {})}, indent=2, allow_nan=False))
         return 0
     print(f"Mill {args.mill}, blend " + ", ".join(f"{n} {f:.0%}" for n, f in zip(blend.names, blend.fractions))
           + f"; calibration {calibration.label()}")
@@ -582,12 +596,14 @@ def cmd_optimize(args) -> int:
         raise SceneError(str(exc)) from None
     table = sp.table
     if args.json:
-        print(json.dumps({"feasible": sp.feasible, "message": sp.message, "mode": sp.mode,
-                          "objective": sp.objective, "feed_tph": sp.feed_tph,
-                          "speed_frac_critical": sp.speed_frac_critical, "p80_um": sp.p80_um,
-                          "specific_energy_kwh_t": sp.specific_energy_kwh_t, "load_frac": sp.load_frac,
-                          "power_kw": sp.power_kw, "table": json.loads(table.to_json(orient="records"))},
-                         indent=2))
+        from scenarios.output.write import json_safe
+
+        print(json.dumps(json_safe({"feasible": sp.feasible, "message": sp.message, "mode": sp.mode,
+                                    "objective": sp.objective, "feed_tph": sp.feed_tph,
+                                    "speed_frac_critical": sp.speed_frac_critical, "p80_um": sp.p80_um,
+                                    "specific_energy_kwh_t": sp.specific_energy_kwh_t, "load_frac": sp.load_frac,
+                                    "power_kw": sp.power_kw, "table": json.loads(table.to_json(orient="records"))}),
+                         indent=2, allow_nan=False))
     else:
         print(f"Target P80 {args.target_p80_um:g} um, mill {args.mill}, blend "
               + ", ".join(f"{n} {f:.0%}" for n, f in zip(blend.names, blend.fractions)))

@@ -50,12 +50,19 @@ def write_size_csvs(result, folder: Path) -> list[Path]:
     return written
 
 
+#: Excel number format of a fraction shown as a percentage (labels' "{:.1%}")
+PERCENT_FORMAT = "0.0%"
+
+
 def kpi_rows(kpis: dict) -> pd.DataFrame:
     """KPI key, meaning with its unit, value (None where undefined)."""
     rows = [{"kpi": k, "meaning [unit]": KPI_LABELS.get(k, (k, ""))[0],
              "value": None if v is None or (isinstance(v, float) and not math.isfinite(v)) else v}
             for k, v in kpis.items()]
-    return pd.DataFrame(rows, columns=["kpi", "meaning [unit]", "value"])
+    table = pd.DataFrame(rows, columns=["kpi", "meaning [unit]", "value"])
+    # a fraction labelled [%] is shown as a percentage (the cell keeps the fraction), as the report does
+    table.attrs["percent_cells"] = [(i, 2) for i, k in enumerate(kpis) if KPI_LABELS.get(k, ("", ""))[1].endswith("%}")]
+    return table
 
 
 def flat_keys(data, prefix: str = "") -> list[tuple[str, object]]:
@@ -106,6 +113,8 @@ def _write_sheets(path: Path, sheets: dict[str, tuple[pd.DataFrame, bool]]) -> P
             table.to_excel(xl, sheet_name=name, index=index)
             ws = xl.sheets[name]
             ws.freeze_panes = "B2" if index else "A2"
+            for row, col in table.attrs.get("percent_cells", []):  # (row, column) of the table
+                ws.cell(row=row + 2, column=col + 1 + bool(index)).number_format = PERCENT_FORMAT
             for cells in ws.iter_cols(min_row=1, max_row=1):
                 width = max(10, min(60, len(str(cells[0].value or "")) + 2))
                 ws.column_dimensions[cells[0].column_letter].width = width

@@ -20,3 +20,13 @@ def test_optimize_holds_the_target_at_least_energy(capsys):
 def test_unreachable_target_is_reported_with_exit_1(capsys):
     assert main(["optimize", "--ore", "A", "--target-p80-um", "20"]) == 1
     assert "no feasible answer" in capsys.readouterr().out
+
+
+def test_unreachable_target_in_json_is_strict_json_with_nulls(capsys):
+    assert main(["optimize", "--ore", "A", "--target-p80-um", "20", "--json"]) == 1
+    out = json.loads(capsys.readouterr().out, parse_constant=_refuse)  # no NaN
+    assert not out["feasible"] and out["feed_tph"] is None and out["p80_um"] is None
+
+
+def _refuse(constant):
+    raise ValueError(f"not JSON: {constant}")

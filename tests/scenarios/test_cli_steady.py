@@ -72,3 +72,15 @@ def test_zero_feed_reports_specific_energy_as_undefined(capsys):
 
 def _refuse(constant):
     raise ValueError(f"not JSON: {constant}")
+
+
+def test_scene_steady_at_zero_feed_says_undefined(capsys):
+    """The --scene path applies the same rules: no 1e6 kWh/t floor, no NaN in the JSON."""
+    from pathlib import Path
+
+    scene = str(Path(__file__).resolve().parents[2] / "scenarios" / "pyrite_surge.toml")
+    assert main(["steady", "--scene", scene, "--feed-tph", "0", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out, parse_constant=_refuse)
+    assert out["specific_energy_kwh_t"] is None and out["p80_um"] is None
+    assert "specific_energy_kwh_t is undefined at zero feed" in out["notes"]
+

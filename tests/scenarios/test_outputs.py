@@ -142,6 +142,12 @@ def test_run_workbook_reads_back_the_runs_numbers(open_run, tmp_path):
     kpis = {row[0]: row[2] for row in list(book["KPIs"].values)[1:]}
     for key, value in open_run.kpis.items():
         assert (kpis[key] is None) if not math.isfinite(value) else kpis[key] == pytest.approx(value, rel=XLSX_RTOL)
+    # a fraction whose label says [%] is shown as a percentage, as in the report
+    formats = {row[0].value: (row[1].value, row[2].number_format) for row in list(openpyxl.load_workbook(
+        out / "run.xlsx")["KPIs"].iter_rows())[1:]}
+    label, fmt = formats["p80_within_10um_frac"]
+    assert label.endswith("[%]") and fmt == "0.0%"
+    assert formats["p80_iae_um_h"][1] == "General"
     ts = _sheet(book, "time series")
     for col in ("time_h", "p80_um", "power_kw", "load_frac", "fed_t", "blend_B_pyrite_frac"):
         np.testing.assert_allclose(ts[col].to_numpy(float), open_run.frame[col].to_numpy(float), rtol=XLSX_RTOL)
