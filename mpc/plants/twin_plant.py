@@ -18,7 +18,8 @@ PLANT_OUTPUTS = ("power_kw", "load_frac", "throughput_tph", "specific_energy_kwh
 class TwinPlant:
     """The plant protocol (:mod:`mpc.plants`) on a twin's :class:`twin.model.Model`: P80 from the
     product size distribution (:func:`twin.sizes.pxx_um`, nan for an empty product), the
-    outputs :data:`PLANT_OUTPUTS` of the model, and :func:`twin.solve.simulate.step`."""
+    outputs :data:`PLANT_OUTPUTS` of the model (the specific energy nan at zero feed, as in
+    :func:`twin.solve.simulate.outputs_frame`), and :func:`twin.solve.simulate.step`."""
 
     def __init__(self, model):
         self.model = model
@@ -33,6 +34,8 @@ class TwinPlant:
         psd = np.asarray(self._psd_fn(x, u, d), float).ravel()
         vals = {"p80_um": pxx_um(self.model.spec.grid, psd) if psd.sum() > 0 else math.nan}
         vals.update({key: float(fn(x, u, d)) for key, fn in self._outs.items()})
+        if not float(np.asarray(u, float).ravel()[0]) > 0.0:  # energy per tonne fed: undefined without
+            vals["specific_energy_kwh_t"] = math.nan       # feed (the model's division floor gives ~1e7)
         return vals
 
     def step(self, x, u, d, dt_h: float):

@@ -14,7 +14,7 @@ KPI_LABELS = {
     "mass_balance_error": ("mass balance error [relative]", "{:.2e}"),
     "controller_failed_steps": ("controller steps whose solve failed", "{:d}"),
     "controller_fallback_steps": ("controller steps that applied a fallback input", "{:d}"),
-    "estimator_resets": ("estimator resets", "{:d}"),
+    "estimator_resets": ("estimator resets (its warm-up included)", "{:d}"),
     "start_feed_tph": ("feed rate of the start state [t/h]", "{:.4g}"),
     "start_p80_um": ("P80 at the start [µm]", "{:.4g}"),
     "p80_final_um": ("final P80 [µm]", "{:.4g}"),

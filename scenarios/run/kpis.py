@@ -13,8 +13,13 @@
 - ``mass_balance_error``: max |fed - produced - (H - H0)| / (fed + H0) over the run.
 - ``controller_failed_steps``, ``controller_fallback_steps``, ``estimator_resets``: samples on
   which the controller's solve failed, on which a fallback input was applied, and estimator
-  resets (:func:`scenarios.run.closed_loop.controller_health`); NaN in open loop.
+  resets, the estimator's warm-up on the steady plant included
+  (:func:`scenarios.run.closed_loop.controller_health`); NaN in open loop.
 - ``specific_energy_kwh_t`` is NaN (undefined, with a note) when nothing was fed.
+- ``start_feed_tph``, ``start_p80_um``: the feed rate of the state the run started from and the
+  P80 at t = 0.
+- P80 KPIs read the frame's ``p80_um``: the exact interpolation of the product's size
+  distribution in every mode (open loop: the model's smooth output is ``p80_smooth_um``).
 - Also ``p80_final_um``, ``p80_mean_um``, ``energy_kwh``, ``fed_t``, ``duration_h``.
 Integrals are trapezoidal over the samples (:mod:`mpc.kpis`).
 """

@@ -137,9 +137,6 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
     for c in feed.columns:
         if c.startswith("recorded_") or c == "history_fit_residual_wt_pct":
             frame[c] = feed[c].to_numpy()
-    if not is_batch(scene) and {"feed_tph", "specific_energy_kwh_t"} <= set(frame.columns):
-        # the model's power / feed has a floor at zero feed (a huge number): undefined there
-        frame.loc[frame["feed_tph"] <= 0, "specific_energy_kwh_t"] = np.nan
     kpis = compute_kpis(scene, frame, **extra)
     if not kpis["fed_t"] > 0 and not is_batch(scene):
         warnings_.append("specific energy is undefined: nothing was fed")

@@ -55,3 +55,27 @@ def test_optimal_setpoints_table_and_infeasible(plant_twin):
             <= r.table.loc[r.table.feasible, "specific_energy_kwh_t"].min() + 1e-9)
     bad = optimal_setpoints(plant_twin, [0.6, 0.4], 30.0, mode="both")
     assert not bad.feasible and "infeasible" in bad.message
+
+
+def test_a_closed_loop_row_has_the_specific_energy_of_the_feed_it_measured(plant_twin):
+    """A row holds the move made at its sample and the outputs measured under the feed before it:
+    the row where the feed is cut to zero still has a specific energy (of the feed that ran up
+    to it), the next rows have none (no feed, not the model's ~1e7 kWh/t floor)."""
+    from mpc.plants.twin_plant import TwinPlant
+
+    class CutFeedAtThirdSample(FixedInputs):
+        k = 0
+
+        def make_step(self, x_est, d_preview, u_prev, y_meas=None):
+            self.k += 1
+            self.u_fixed = np.array([30.0 if self.k <= 2 else 0.0, 0.7])
+            return super().make_step(x_est, d_preview, u_prev, y_meas)
+
+    ss = plant_twin.steady(feed_tph=30.0, speed_frac_critical=0.7, blend=[1.0, 0.0])
+    res = run_closed_loop(TwinPlant(plant_twin.model), CutFeedAtThirdSample([30.0, 0.7]), None, lambda t: [1.0, 0.0],
+                          Sensors(), ss.x, ss.u, LoopSettings(0.25, 0.05, seed=1, target_p80_um=210.0))
+    f = res.frame
+    cut = int(np.argmax(f["feed_tph"].to_numpy() == 0.0))
+    se = f["specific_energy_kwh_t"]
+    assert cut == 2 and 3 < se.iloc[cut] < 30  # measured under 30 t/h
+    assert se.iloc[cut + 1:].isna().all()
