@@ -111,6 +111,13 @@ class Mill:
         return (self.powder_filling_nominal * self.bed_porosity * bed_volume
                 * solids_density_t_m3 * (1.0 - self.bed_porosity))
 
+    def max_holdup_t(self, solids_density_t_m3: float) -> float:
+        """Ore hold-up [t] of the mill filled to its shell with powder packed at the bed
+        porosity around its balls: (mill volume - the balls' solid volume) * packed-powder
+        density. A steady state holding more is the model's extrapolation: the mill overflows."""
+        free = self.volume_m3 * (1.0 - self.ball_filling_frac * (1.0 - self.bed_porosity))
+        return free * solids_density_t_m3 * (1.0 - self.bed_porosity)
+
     def free_discharge_tph(self, solids_density_t_m3: float, flow_multiplier=1.0):
         """The mill's free discharge at nominal hold-up as a solids mass flow [t/h]. The nominal
         hold-up is a volume (Austin's powder filling U), and the discharge law is one of volumes:

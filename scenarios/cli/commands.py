@@ -429,12 +429,17 @@ STEADY_KEYS = ("source", "feed_tph", "speed_frac_critical", "p80_um", "specific_
                "throughput_tph", "holdup_t", "load_frac", "load_status")
 
 
-def undefined_to_none(kpis: dict, unc: dict | None = None) -> list[str]:
+def undefined_to_none(kpis: dict, unc: dict | None = None, capacity_t: float | None = None) -> list[str]:
     """A steady state's undefined numbers set to None in place (printed "undefined", JSON null),
     with a note for each: the specific energy at zero feed (the model's division floor gives
     ~1e7 kWh/t) and any value that is not finite (P80 without a product); the same in the
-    uncertainty intervals ``unc``. Returns the notes."""
+    uncertainty intervals ``unc``. A hold-up above ``capacity_t`` (:meth:`twin.Mill.max_holdup_t`)
+    gets a note: the mill would overflow. Returns the notes."""
     notes = []
+    held = kpis.get("holdup_t")
+    if capacity_t is not None and isinstance(held, float) and held > capacity_t:
+        notes.append(f"hold-up {held:.4g} t is more than the mill holds filled to its shell ({capacity_t:.4g} t): "
+                     "it would overflow; these numbers extrapolate the model beyond the mill")
     if kpis.get("feed_tph") == 0 and "specific_energy_kwh_t" in kpis:
         kpis["specific_energy_kwh_t"] = None
         notes.append("specific_energy_kwh_t is undefined at zero feed")
@@ -472,7 +477,8 @@ def _steady_scene(args) -> int:
     blend = [scene.feed.blend.get(n, 0.0) for n in models.components] if scene.feed.blend else None
     ss = models.plant.steady(feed_tph=feed, speed_frac_critical=speed, blend=blend)
     kpis = {"scene": scene.scene.name, **ss.summary()}
-    notes = undefined_to_none(kpis)
+    plant = models.plant
+    notes = undefined_to_none(kpis, capacity_t=plant.mill.max_holdup_t(plant.spec.solids_density_t_m3))
     if args.json:
         print(json.dumps(kpis | {"notes": notes}, indent=2, allow_nan=False))
         return 0
@@ -520,7 +526,14 @@ def cmd_steady(args) -> int:
 
         unc = steady_intervals(blend, calibration, args.mill, args.feed_tph, args.speed,
                                at_load=args.at_constant_load, n=args.uncertainty or None)
-    notes = undefined_to_none(kpis, unc)
+    capacity = None if args.surrogate else twin.mill.max_holdup_t(twin.spec.solids_density_t_m3)
+    notes = undefined_to_none(kpis, unc, capacity)
+    if not args.surrogate and "classification" in twin.spec.effects:
+        kind = (twin.spec.effect_options.get("classification") or {}).get("kind", "grate")
+        if kind == "grate" and twin.mill.cyclone:
+            notes.append(f"mill {args.mill!r} was sized with a hydrocyclone circuit; this is its grate discharge "
+                         "(the calibration's effects); a scene with effect_options.classification.kind = "
+                         "\"hydrocyclone\" runs the sized circuit")
     if args.json:
         mineralogy = {o.name: {"wt_pct": o.wt_pct, **o.summary()} for o in blend.ores}
         print(json.dumps({"mill": args.mill, "blend": dict(zip(blend.names, blend.fractions)),

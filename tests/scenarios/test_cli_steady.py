@@ -84,3 +84,26 @@ def test_scene_steady_at_zero_feed_says_undefined(capsys):
     assert out["specific_energy_kwh_t"] is None and out["p80_um"] is None
     assert "specific_energy_kwh_t is undefined at zero feed" in out["notes"]
 
+
+
+def test_a_hold_up_beyond_the_mills_volume_is_said(capsys):
+    """5 t/h into the 0.031-t/h laboratory mill: the model's steady state holds far more ore than
+    the mill, filled to its shell, could (5.6x nominal): a note says so; none at the nominal feed."""
+    from twin import Twin
+
+    lab = Twin("B")
+    capacity = lab.mill.max_holdup_t(lab.spec.solids_density_t_m3)
+    m = lab.mill  # full over nominal: (1 - J (1 - eps)) / (U eps J), Austin's U, bed porosity, ball filling
+    j, eps, u = m.ball_filling_frac, m.bed_porosity, m.powder_filling_nominal
+    assert capacity / lab.spec.holdup_nominal_t == pytest.approx((1 - j * (1 - eps)) / (u * eps * j), rel=1e-9)
+    assert main(["steady", "--ore", "B", "--feed-tph", "5", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["holdup_t"] > capacity and any("overflow" in n for n in out["notes"])
+    assert main(["steady", "--ore", "B", "--feed-tph", "0.031", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["notes"] == []
+
+
+def test_the_industrial_mill_says_it_runs_its_grate_not_its_sized_circuit(capsys):
+    assert main(["steady", "--ore", "B", "--mill", "industrial", "--feed-tph", "31", "--json"]) == 0
+    assert any("hydrocyclone" in n for n in json.loads(capsys.readouterr().out)["notes"])
+
