@@ -458,6 +458,18 @@ def undefined_to_none(kpis: dict, unc: dict | None = None, capacity_t: float | N
     return notes
 
 
+def circuit_notes(twin, mill_name: str) -> list[str]:
+    """A note when a mill sized with a hydrocyclone circuit runs its grate discharge (the
+    calibration's effects): its numbers are not those of the circuit it was sized for."""
+    if "classification" not in twin.spec.effects or not twin.mill.cyclone:
+        return []
+    if (twin.spec.effect_options.get("classification") or {}).get("kind", "grate") != "grate":
+        return []
+    return [f"mill {mill_name!r} was sized with a hydrocyclone circuit; this is its grate discharge (the "
+            "calibration's effects); a scene with effect_options.classification.kind = \"hydrocyclone\" "
+            "runs the sized circuit"]
+
+
 def _steady_scene(args) -> int:
     """`grindtwin steady --scene FILE`: the scene's plant twin at its initial operating point."""
     import json
@@ -528,12 +540,8 @@ def cmd_steady(args) -> int:
                                at_load=args.at_constant_load, n=args.uncertainty or None)
     capacity = None if args.surrogate else twin.mill.max_holdup_t(twin.spec.solids_density_t_m3)
     notes = undefined_to_none(kpis, unc, capacity)
-    if not args.surrogate and "classification" in twin.spec.effects:
-        kind = (twin.spec.effect_options.get("classification") or {}).get("kind", "grate")
-        if kind == "grate" and twin.mill.cyclone:
-            notes.append(f"mill {args.mill!r} was sized with a hydrocyclone circuit; this is its grate discharge "
-                         "(the calibration's effects); a scene with effect_options.classification.kind = "
-                         "\"hydrocyclone\" runs the sized circuit")
+    if not args.surrogate:
+        notes += circuit_notes(twin, args.mill)
     if args.json:
         mineralogy = {o.name: {"wt_pct": o.wt_pct, **o.summary()} for o in blend.ores}
         print(json.dumps({"mill": args.mill, "blend": dict(zip(blend.names, blend.fractions)),
@@ -608,6 +616,7 @@ def cmd_optimize(args) -> int:
     except MpcInputError as exc:
         raise SceneError(str(exc)) from None
     table = sp.table
+    notes = circuit_notes(twin, args.mill)
     if args.json:
         from scenarios.output.write import json_safe
 
@@ -615,13 +624,16 @@ def cmd_optimize(args) -> int:
                                     "objective": sp.objective, "feed_tph": sp.feed_tph,
                                     "speed_frac_critical": sp.speed_frac_critical, "p80_um": sp.p80_um,
                                     "specific_energy_kwh_t": sp.specific_energy_kwh_t, "load_frac": sp.load_frac,
-                                    "power_kw": sp.power_kw, "table": json.loads(table.to_json(orient="records"))}),
+                                    "power_kw": sp.power_kw, "table": json.loads(table.to_json(orient="records")),
+                                    "notes": notes}),
                          indent=2, allow_nan=False))
     else:
         print(f"Target P80 {args.target_p80_um:g} um, mill {args.mill}, blend "
               + ", ".join(f"{n} {f:.0%}" for n, f in zip(blend.names, blend.fractions)))
         print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
         print(("answer: " if sp.feasible else "no feasible answer: ") + sp.message)
+        for note in notes:
+            print(f"note: {note}")
     return 0 if sp.feasible else 1
 
 

@@ -15,6 +15,7 @@ def test_optimize_holds_the_target_at_least_energy(capsys):
     both = [r for r in out["table"] if r["option"] == "both" and r["feasible"]]
     assert out["specific_energy_kwh_t"] == pytest.approx(min(r["specific_energy_kwh_t"] for r in both), rel=1e-6)
     assert 0.8 <= out["load_frac"] <= 1.2
+    assert any("hydrocyclone" in n for n in out["notes"])  # the preset's sized circuit is not what ran
 
 
 def test_unreachable_target_is_reported_with_exit_1(capsys):
