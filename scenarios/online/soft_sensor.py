@@ -13,6 +13,7 @@ operating conditions are set to the trained mill's nominal ones).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from asyncua import ua
@@ -76,6 +77,8 @@ class SoftSensor:
             p80, se = float(ss.p80_um), float(ss.outputs["specific_energy_kwh_t"])
             status = OUTSIDE_DOMAIN if problems else GOOD
             reason = "outside the training domain: " + " | ".join(problems) if problems else ""
+            if not (math.isfinite(p80) and math.isfinite(se)):  # e.g. no feed: no product
+                status, reason = FAILED, f"undefined at feed {feed_tph:g} t/h (no product)"
         except TwinError as exc:
             p80 = se = float("nan")
             status, reason = FAILED, f"the twin's steady state failed: {exc}"

@@ -55,3 +55,13 @@ def write_scene(tmp_path):
         return path
 
     return write
+
+
+def strict_json(text: str):
+    """``json.loads`` that refuses NaN and Infinity (not JSON, though Python writes them)."""
+    import json
+
+    def refuse(constant):
+        raise ValueError(f"not JSON: {constant}")
+    return json.loads(text, parse_constant=refuse)
+

@@ -6,6 +6,8 @@ import pytest
 
 from scenarios.cli import main
 
+from .conftest import strict_json
+
 
 def test_optimize_holds_the_target_at_least_energy(capsys):
     assert main(["optimize", "--blend", "B=0.6,D=0.4", "--mill", "industrial", "--target-p80-um", "210",
@@ -25,9 +27,6 @@ def test_unreachable_target_is_reported_with_exit_1(capsys):
 
 def test_unreachable_target_in_json_is_strict_json_with_nulls(capsys):
     assert main(["optimize", "--ore", "A", "--target-p80-um", "20", "--json"]) == 1
-    out = json.loads(capsys.readouterr().out, parse_constant=_refuse)  # no NaN
+    out = strict_json(capsys.readouterr().out)  # no NaN
     assert not out["feasible"] and out["feed_tph"] is None and out["p80_um"] is None
 
-
-def _refuse(constant):
-    raise ValueError(f"not JSON: {constant}")

@@ -6,6 +6,8 @@ import pytest
 
 from scenarios.cli import main
 
+from .conftest import strict_json
+
 
 def test_steady_json_has_unit_suffixed_kpis(capsys):
     assert main(["steady", "--ore", "B", "--feed-tph", "0.031", "--speed", "0.70", "--json"]) == 0
@@ -59,7 +61,7 @@ def test_zero_feed_reports_specific_energy_as_undefined(capsys):
     """Energy per tonne fed has no value without feed: null with a note, never the model's
     1e7 kWh/t from its division floor."""
     assert main(["steady", "--ore", "B", "--feed-tph", "0", "--json", "--uncertainty", "3"]) == 0
-    out = json.loads(capsys.readouterr().out, parse_constant=_refuse)  # strict JSON: no NaN
+    out = strict_json(capsys.readouterr().out)  # strict JSON: no NaN
     assert out["specific_energy_kwh_t"] is None and out["power_kw"] > 0
     assert out["p80_um"] is None  # no product, no P80
     assert out["notes"][0] == "specific_energy_kwh_t is undefined at zero feed"
@@ -70,9 +72,6 @@ def test_zero_feed_reports_specific_energy_as_undefined(capsys):
     assert "specific_energy_kwh_t  undefined" in text  # the interval line too
 
 
-def _refuse(constant):
-    raise ValueError(f"not JSON: {constant}")
-
 
 def test_scene_steady_at_zero_feed_says_undefined(capsys):
     """The --scene path applies the same rules: no 1e6 kWh/t floor, no NaN in the JSON."""
@@ -80,7 +79,7 @@ def test_scene_steady_at_zero_feed_says_undefined(capsys):
 
     scene = str(Path(__file__).resolve().parents[2] / "scenarios" / "pyrite_surge.toml")
     assert main(["steady", "--scene", scene, "--feed-tph", "0", "--json"]) == 0
-    out = json.loads(capsys.readouterr().out, parse_constant=_refuse)
+    out = strict_json(capsys.readouterr().out)
     assert out["specific_energy_kwh_t"] is None and out["p80_um"] is None
     assert "specific_energy_kwh_t is undefined at zero feed" in out["notes"]
 

@@ -1,5 +1,7 @@
 """Hard cases finish with finite, non-negative results and a closed mass balance."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -39,6 +41,7 @@ def test_zero_feed_empties_the_mill():
     _check(run, t.model)
     assert run.frame["holdup_t"].iloc[-1] < 0.05 * run.frame["holdup_t"].iloc[0]
     assert t.steady(feed_tph=0.0).outputs["holdup_t"] == 0.0
+    assert math.isnan(t.steady(feed_tph=0.0).outputs["specific_energy_kwh_t"])  # as the trajectory's
     # energy per tonne fed is undefined without feed: NaN, not the model's division floor (~1e7)
     assert run.frame["specific_energy_kwh_t"].isna().all() and (run.frame["power_kw"] > 0).all()
 

@@ -160,6 +160,8 @@ def _product_psd(model) -> ca.Function:
 
 def _result(model, x, u, d, method) -> SteadyState:
     outs = _scalar_outputs(model, x, u, d)
+    if "specific_energy_kwh_t" in outs and not u[0] > 0.0:  # undefined without feed, as in
+        outs["specific_energy_kwh_t"] = math.nan             # twin.solve.simulate.outputs_frame
     psd = np.asarray(_product_psd(model)(x, u, d)).ravel()
     p80 = pxx_um(model.spec.grid, psd) if psd.sum() > 0 else math.nan
     status = load_status(outs["load_frac"], model.spec.mill.stable_band) if "load_frac" in outs else "n/a"

@@ -38,6 +38,12 @@ def test_inside_the_domain_both_answers_are_good_and_agree(lab):
     assert abs(p.surrogate_p80_um / p.p80_um - 1) < 0.08  # the surrogate learnt this twin (its test's P80 tolerance)
 
 
+def test_at_zero_feed_the_twins_answer_is_bad_not_a_number_called_good(lab):
+    _, soft = lab
+    p = soft.predict([0.6, 0.4], 0.0, 0.70)  # no product: no P80, no energy per tonne fed
+    assert p.status == ua.StatusCodes.BadInternalError and "no product" in p.reason
+
+
 def test_outside_the_domain_the_twin_is_uncertain_and_the_surrogate_bad():
     ores = {"B": _ore("B"), "P": PYRITIC}
     soft = online.SoftSensor(Twin(list(ores.values()), mill="lab"), ores, "lab", with_surrogate=True)
