@@ -16,8 +16,9 @@ RTI's block: QP data, solver work); estimate and step allocate nothing (counted 
 
 The folder: created if absent; an existing folder is used only if it holds a previous export
 and nothing else (its manifest names every file it wrote and every file its Makefile builds),
-which is then replaced; anything else is refused, nothing written. Files are written into
-``DIR.partial`` and renamed when complete.
+which is then replaced; anything else is refused, nothing written. Files are written into a new
+hidden folder beside it (``.DIR.<random>.partial``, :func:`twin.atomic.new_folder_beside`) and
+renamed when complete.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ import numpy as np
 from mpc.codegen import C_DIR
 from mpc.condense import stage_functions
 from mpc.errors import MpcInputError
+from twin.atomic import new_folder_beside
 
 MANIFEST = "grindtwin_export.json"
 C_FILES = ("gt_qp.c", "gt_qp.h", "gt_cond.c", "gt_cond.h", "gt_rti.c", "gt_rti.h", "gt_controller.c", "gt_controller.h",
@@ -148,10 +150,8 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "") -> l
     _check(controller, estimator)
     out = Path(out_dir)
     check_out_dir(out)
-    partial = out.with_name(out.name + ".partial")
-    if partial.exists():
-        shutil.rmtree(partial)
-    partial.mkdir(parents=True)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    partial = new_folder_beside(out)
     try:
         _generate(stage_functions(controller), "gt_rti_data", partial)
         _generate([estimator.step_function], "gt_ekf_data", partial)

@@ -90,10 +90,16 @@ def test_exported_controller_replays_the_reference_hour_like_python(tmp_path, mo
     assert allocs == [0]  # no heap in estimate and step (counted by the LD_PRELOAD shim)
 
     # a second export replaces the first and its build (all ours); a user's file stops a third
+    # (a user's folder named like a scratch folder beside it is left alone)
     written = _export_files(out)
     assert (out / "gt_replay").exists()
+    theirs = out.with_name(out.name + ".partial")
+    theirs.mkdir()
+    (theirs / "keep.txt").write_text("mine")
+    before = sorted(p.name for p in out.parent.iterdir())
     assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 0
     assert sorted(p.name for p in out.iterdir()) == sorted(written)
+    assert (theirs / "keep.txt").read_text() == "mine" and sorted(p.name for p in out.parent.iterdir()) == before
     (out / "mine.c").write_text("/* a user's file */")
     assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 2
     assert (out / "mine.c").exists()

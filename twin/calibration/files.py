@@ -19,6 +19,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..atomic import write_text_atomically
 from ..errors import TwinInputError, close_matches
 
 #: The folder of shipped calibration files, one per name (``<name>.json``).
@@ -294,11 +295,9 @@ def check_writable(path: Path) -> Path:
 
 
 def write_json_atomically(path: Path, record: dict, indent: int = 2) -> None:
-    """Write to a temporary file and rename it over ``path``: nothing is ever half-written."""
-    path = Path(path)
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(record, indent=indent) + "\n", encoding="utf-8")
-    tmp.replace(path)
+    """Write to a fresh temporary file and rename it over ``path``: nothing is ever half-written,
+    and no other file is touched (:mod:`twin.atomic`)."""
+    write_text_atomically(path, json.dumps(record, indent=indent) + "\n")
 
 
 def write_calibration(path: Path, record: dict) -> Calibration:

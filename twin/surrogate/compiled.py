@@ -15,10 +15,10 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..atomic import write_text_atomically
 from ..errors import TwinError, TwinInputError
 
 TARGETS = ("p80_um", "specific_energy_kwh_t", "load_frac")
@@ -159,15 +159,13 @@ class CompiledSurrogate:
         return checked_predict(self.arrays, self.feature_names, self.score_range, self.q_limit, rows, check_domain)
 
     def save(self, path: str | Path) -> Path:
-        """Write the numbers and the metadata to one JSON file (via a temporary file)."""
+        """Write the numbers and the metadata to one JSON file (via a temporary file,
+        :mod:`twin.atomic`)."""
         path = Path(path)
-        tmp = path.with_name(path.name + ".partial")
         doc = {"metadata": dict(self.metadata, compiled_format_version=COMPILED_FORMAT_VERSION),
                "feature_names": list(self.feature_names), "arrays": self.arrays,
                "score_range": self.score_range, "q_limit": self.q_limit}
-        tmp.write_text(json.dumps(doc, sort_keys=True, allow_nan=False) + "\n", encoding="utf-8")
-        os.replace(tmp, path)
-        return path
+        return write_text_atomically(path, json.dumps(doc, sort_keys=True, allow_nan=False) + "\n")
 
     @classmethod
     def load(cls, path: str | Path) -> "CompiledSurrogate":

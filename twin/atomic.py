@@ -1,0 +1,43 @@
+"""Writing where a user points: the content goes to a temporary file (or folder) of a name nobody
+else holds, created exclusively beside the target (:mod:`tempfile`), and is renamed over the
+target when complete. A reader never sees half a file, and no other file is touched: a fixed
+name such as ``X.tmp`` or ``DIR.partial`` could be the user's own, and would be overwritten or
+removed."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+
+def _default_mode(base: int) -> int:
+    """``base`` under the process's umask (what ``open`` or ``mkdir`` would have given)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return base & ~umask
+
+
+def write_text_atomically(path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` via a fresh temporary file beside it; on any error the
+    temporary file is removed and ``path`` is as it was."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".partial")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.chmod(tmp, _default_mode(0o666))  # mkstemp makes it private (0600)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def new_folder_beside(path) -> Path:
+    """A new, empty folder beside ``path`` (same file system, so it can be renamed to ``path``),
+    under a name no one else holds; the caller fills it and renames it, or removes it."""
+    path = Path(path)
+    folder = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.", suffix=".partial"))
+    os.chmod(folder, _default_mode(0o777))  # mkdtemp makes it private (0700)
+    return folder
