@@ -18,7 +18,7 @@
 struct gt_controller {
     gt_rti *rti;
     double z[GT_NZ], P[GT_NZ * GT_NZ], P_next[GT_NZ * GT_NZ], innovation[3];
-    double w[GT_NW], w_prev[GT_NW], w_next[GT_NW], p[GT_NP];
+    double w[GT_NW], w_prev[GT_NW], w_next[GT_NW], p[GT_NP], wpass[GT_NPASS];
     double plan[GT_N * 2], plan_prev[GT_N * 2];
     int have_w_prev, have_plan, plan_age, qp_iter, qp_status;
     const casadi_real **ekf_arg;
@@ -122,6 +122,34 @@ static void initial_guess(gt_controller *c, const double *x0s, const double *u_p
     }
 }
 
+/* twin.sizes.SizeGrid.passing_weights: w with sum(w * mass_fraction) = the fraction passing
+ * size_um (> 0), by linear interpolation of cumulative passing in log size between class upper
+ * sizes; inside the sink, passing falls by one class per grid ratio */
+static void passing_weights(double size_um, double *w) {
+    const double *up = gt_upper_um;
+    int i, k = 0;
+    for (i = 0; i < GT_NPASS; ++i) w[i] = 0.0;
+    if (size_um >= up[0]) {
+        for (i = 0; i < GT_NPASS; ++i) w[i] = 1.0;
+        return;
+    }
+    if (size_um <= up[GT_NPASS - 1]) {
+        double frac = 1.0 - log(up[GT_NPASS - 1] / size_um) / log(GT_GRID_RATIO);
+        w[GT_NPASS - 1] = frac > 0.0 ? frac : 0.0;
+        return;
+    }
+    while (!(up[k + 1] < size_um)) ++k; /* up[k] >= size_um > up[k + 1] */
+    for (i = k + 1; i < GT_NPASS; ++i) w[i] = 1.0;
+    w[k] = log(size_um / up[k + 1]) / log(up[k] / up[k + 1]);
+}
+
+/* mpc.Ekf.controller_p80_bias_um: the bias that holds the plant (not the model) at the target */
+static double controller_p80_bias(const gt_controller *c) {
+    double b = GT_HAS_P80_BIAS ? c->z[GT_NZ - 1] : 0.0;
+    if (GT_P80_GAIN == 1.0) return b;
+    return GT_TARGET_P80_UM - (GT_P80_REFERENCE_UM + (GT_TARGET_P80_UM - b - GT_P80_REFERENCE_UM) / GT_P80_GAIN);
+}
+
 static double clip(double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); }
 
 /* mpc.Controller._fallback */
@@ -147,8 +175,18 @@ static int fallback(gt_controller *c, const double *u_prev, double *u) {
 
 int gt_controller_step(gt_controller *c, const double *preview, const double *u_applied, double *u) {
     double x0s[GT_NX], h = GT_HAS_HARDNESS ? c->z[GT_NX] : GT_HARDNESS0;
-    double *p = c->p;
+    double *p = c->p, bias = controller_p80_bias(c);
+    const double *wpass = gt_wpass;
     int k, i, it, n_it = GT_RTI_ITERATIONS, ok = n_it > 0;
+    if (!isfinite(bias) || bias >= GT_TARGET_P80_UM) { /* mpc.Controller.make_step refuses it */
+        u[0] = u_applied[0];
+        u[1] = u_applied[1];
+        return GT_STEP_BAD_BIAS;
+    }
+    if (bias != 0.0) { /* the model held at target - bias (mpc.Controller.make_step) */
+        passing_weights(GT_TARGET_P80_UM - bias, c->wpass);
+        wpass = c->wpass;
+    }
     /* p = [x; vec(D); u_prev; wpass], D = [blend preview; hardness] per stage */
     for (i = 0; i < GT_NX; ++i) {
         p[i] = c->z[i];
@@ -160,7 +198,7 @@ int gt_controller_step(gt_controller *c, const double *preview, const double *u_
         p[GT_NX + k * GT_ND + GT_NB] = h;
     }
     for (i = 0; i < GT_NU; ++i) p[GT_NX + GT_N * GT_ND + i] = u_applied[i];
-    for (i = 0; i < GT_NPASS; ++i) p[GT_NX + GT_N * GT_ND + GT_NU + i] = gt_wpass[i];
+    for (i = 0; i < GT_NPASS; ++i) p[GT_NX + GT_N * GT_ND + GT_NU + i] = wpass[i];
     initial_guess(c, x0s, u_applied);
     c->qp_iter = 0;
     c->qp_status = 0;

@@ -16,7 +16,9 @@ typedef struct gt_controller gt_controller;
 enum gt_step_status {
     GT_STEP_OK = 0,           /* the QP solved; u is the plan's first move */
     GT_STEP_SHIFTED_PLAN = 1, /* the QP failed; u is the previous plan shifted by one sample */
-    GT_STEP_HOLD_INPUT = 2    /* the QP failed and no plan is left; u = u_applied */
+    GT_STEP_HOLD_INPUT = 2,   /* the QP failed and no plan is left; u = u_applied */
+    GT_STEP_BAD_BIAS = 3      /* the estimated P80 bias is not finite or not below the target (the
+                                 Python controller raises); nothing solved, u = u_applied */
 };
 
 gt_controller *gt_controller_new(void);

@@ -79,17 +79,3 @@ def test_ekf_refuses_a_bad_p80_gain(ctrl_twin):
         Ekf(ctrl_twin.model, 0.05, x0, p80_gain=2.0)
     with pytest.raises(MpcInputError, match="'p80_reference_um'.*Got -1"):
         Ekf(ctrl_twin.model, 0.05, x0, p80_gain=2.0, p80_reference_um=-1.0)
-
-
-def test_export_refuses_an_estimator_with_a_p80_gain(ctrl_twin, tmp_path):
-    """The exported C controller holds the model at the target (no passing weights moved by a
-    bias): an estimator with a P80 gain is refused before anything is written."""
-    from types import SimpleNamespace
-
-    from mpc.export import export_controller
-
-    ekf = Ekf(ctrl_twin.model, 0.05, ctrl_twin.model.initial_state([1.0, 0.0]), p80_gain=1.9, p80_reference_um=94.0)
-    ctrl = SimpleNamespace(settings=SimpleNamespace(solver="rti", qpsol="condensed"), model=ctrl_twin.model)
-    with pytest.raises(MpcInputError, match="P80 gain of 1 only.*1.9"):
-        export_controller(ctrl, ekf, [27.0, 0.7], tmp_path / "out")
-    assert not (tmp_path / "out").exists()

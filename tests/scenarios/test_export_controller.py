@@ -51,13 +51,14 @@ class Recording:
         return out
 
 
-@pytest.mark.slow
-def test_exported_controller_replays_the_reference_hour_like_python(tmp_path, monkeypatch):
+def _replay_first_hour(scene_path: Path, out: Path, monkeypatch):
+    """Export the scene's controller to ``out``, build it, record the Python closed loop's first
+    hour (on the same compiled C) and replay it through gt_replay; ``(python moves, C moves, C
+    statuses, allocations in estimate/step)``."""
     cc = codegen.find_compiler()
     if cc is None or shutil.which("make") is None:
         pytest.skip("no C compiler or make on this machine")
-    out = tmp_path / "ctl"
-    assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 0
+    assert main(["export-controller", str(scene_path), "--out", str(out)]) == 0
     build = subprocess.run(["make", "-j2", "-C", str(out), "CFLAGS=-O1", f"CC={cc}"], capture_output=True, text=True)
     assert build.returncode == 0, build.stderr[-2000:]
 
@@ -72,7 +73,7 @@ def test_exported_controller_replays_the_reference_hour_like_python(tmp_path, mo
     monkeypatch.setenv(codegen.MODE_ENV, "on")  # the Python controller on the same compiled C
     monkeypatch.setattr(closed_loop, "nmpc_parts", recording)
     with pytest.raises(RunError, match="FirstHourDone"):  # the first hour: 21 samples of 3 min
-        run_scene(load_scene(REFERENCE), progress=False)
+        run_scene(load_scene(scene_path), progress=False)
     py = np.array(rec["C"].moves)
     assert len(py) == 21 and sum(line[0] == "E" for line in log) >= 40  # warm-up + loop
 
@@ -83,6 +84,13 @@ def test_exported_controller_replays_the_reference_hour_like_python(tmp_path, mo
     moves = np.array([[float(v) for v in ln.split()[2:4]] for ln in lines if ln.startswith("U ")])
     status = [int(ln.split()[1]) for ln in lines if ln.startswith("U ")]
     allocs = [int(ln.split()[1]) for ln in lines if ln.startswith("M ")]
+    return py, moves, status, allocs
+
+
+@pytest.mark.slow
+def test_exported_controller_replays_the_reference_hour_like_python(tmp_path, monkeypatch):
+    out = tmp_path / "ctl"
+    py, moves, status, allocs = _replay_first_hour(REFERENCE, out, monkeypatch)
     assert status == [0] * len(py)
     assert moves.shape == py.shape
     assert np.max(np.abs(moves / py - 1.0)) <= 1e-9
@@ -125,3 +133,30 @@ def test_export_refuses_a_controller_it_cannot_export(tmp_path, capsys):
     assert main(["export-controller", str(scene), "--out", str(tmp_path / "x")]) == 2
     assert "controller.kind" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.slow
+def test_exported_controller_with_a_p80_bias_and_gain_replays_like_python(tmp_path, monkeypatch):
+    """The disturbance model hardness+p80_bias and an estimator P80 gain (as the le Roux case's
+    matched twin has): the C controller moves the passing weights to target - bias as Python
+    does, every step (a bias of 0 would leave them, and the comparison could not fail)."""
+    from mpc.estimator import Ekf
+
+    scene = tmp_path / "biased.toml"
+    text = REFERENCE.read_text()
+    assert 'disturbance_model = "hardness"\n' in text
+    scene.write_text(text.replace('disturbance_model = "hardness"\n', 'disturbance_model = "hardness+p80_bias"\n'))
+    target = load_scene(scene).controller.target_p80_um
+    init = Ekf.__init__
+
+    def with_gain(self, *a, **k):  # the export and the recorded loop build their EKF through this
+        init(self, *a, **{**k, "p80_gain": 1.4, "p80_reference_um": target})
+
+    monkeypatch.setattr(Ekf, "__init__", with_gain)
+    biases = []
+    bias_of = Ekf.controller_p80_bias_um
+    monkeypatch.setattr(Ekf, "controller_p80_bias_um", lambda self, t: biases.append(bias_of(self, t)) or biases[-1])
+    py, moves, status, allocs = _replay_first_hour(scene, tmp_path / "ctl", monkeypatch)
+    assert status == [0] * len(py) and allocs == [0]
+    assert np.max(np.abs(moves / py - 1.0)) <= 1e-9
+    assert min(abs(b) for b in biases[-len(py):]) > 1e-3  # the weights moved on every step
