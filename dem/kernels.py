@@ -293,10 +293,13 @@ def _damp(i, force, torque, vel, om, mass, inertia, alpha, hdt):
 
 
 @nb.njit(cache=True, parallel=True)
-def sphere_loads(sp, bd, pr, wl, dr, d_torque, cp, dt, drum_angle, kick):
+def sphere_loads(sp, bd, pr, wl, dr, d_torque, cp, dt, drum_angle, kick, advance, pos_ref, lim2):
     """Total force and torque on each sphere (parallel over spheres): gravity, its bond and
     contact rows in a fixed order, walls and drum, then Cundall damping; with ``kick`` then the
-    step's closing half kick of the sphere (in the same parallel loop: one fewer barrier)."""
+    step's closing half kick of the sphere, and with ``advance`` also the next step's opening
+    half kick and drift (:func:`_advance`), in the same parallel loop: each is one fewer
+    barrier per step, and a sphere's arithmetic is the same as in separate loops. Returns the
+    next step's drift counts (moved beyond half the skin, non-finite), 0 without ``advance``."""
     pos, vel, om, rad, mass, inertia, f, t = sp
     b_load, b_start, b_entry = bd.load, bd.sphere_start, bd.sphere_entry
     p_load, p_start, p_entry = pr.load, pr.sphere_start, pr.sphere_entry
@@ -309,7 +312,10 @@ def sphere_loads(sp, bd, pr, wl, dr, d_torque, cp, dt, drum_angle, kick):
     hdt = 0.5 * dt if cp[CP_DAMP_AT_STEP] != 0.0 else 0.0
     drum_r = cp[CP_DRUM_R]
     central = cp[CP_CENTRAL_BONDS] != 0.0
+    lz = cp[CP_LZ]
     nw = w_p.shape[0]
+    moved = 0
+    bad = 0
     for i in nb.prange(pos.shape[0]):
         f[i, 0] = mass[i] * gx
         f[i, 1] = mass[i] * gy
@@ -331,6 +337,11 @@ def sphere_loads(sp, bd, pr, wl, dr, d_torque, cp, dt, drum_angle, kick):
             _damp(i, f, t, vel, om, mass, inertia, alpha, hdt)
         if kick:
             _half_kick(i, vel, om, mass, inertia, f, t, 0.5 * dt)
+            if advance:
+                code = _advance(i, pos, vel, om, mass, inertia, f, t, 0.5 * dt, dt, lz, pos_ref, lim2)
+                moved += code == 1
+                bad += code == 2
+    return moved, bad
 
 
 @nb.njit(cache=True)
@@ -370,7 +381,8 @@ def _collect(pr, wl, dr, cp, hist_pp, hist_pw):
 
 
 @nb.njit(cache=True, parallel=True)
-def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw, kick=False):
+def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw, kick=False, advance=False,
+                   pos_ref=None, lim2=0.0):
     """All forces and torques at the current positions (mid-step velocities): bonds and contacts
     (every active pair of the Verlet list, those no bond carries) in one parallel loop, each
     writing its own row; a bond that breaks now leaves its contact to the next step (the active
@@ -378,7 +390,9 @@ def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw, kic
     kick too). One loop for both saves a parallel region, whose barrier costs the threads
     more the less work a step has.
 
-    Returns (drum torque N m, number of bonds broken in this call). A caller of this (and of
+    With ``kick`` and ``advance``, the next step's opening half kick and drift too, checked
+    against ``pos_ref`` (:func:`_advance`). Returns (drum torque N m, number of bonds broken in
+    this call, the next step's drift counts: moved beyond half the skin, non-finite). A caller of this (and of
     any parallel kernel) must itself be compiled with ``parallel=True``: called from a plain
     njit function the parallel loops run 2-3x slower even on one thread (measured).
     """
@@ -407,8 +421,9 @@ def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw, kic
                          g_star, mu, eta, dt, ov0, law)
     if nreleased > 0:
         refresh_active(pr, b_state)
-    sphere_loads(sp, bd, pr, wl, dr, dr.torque_sphere, cp, dt, drum_angle, kick)
-    return _collect(pr, wl, dr, cp, hist_pp, hist_pw), nbroken
+    ref = sp.pos if pos_ref is None else pos_ref
+    moved, bad = sphere_loads(sp, bd, pr, wl, dr, dr.torque_sphere, cp, dt, drum_angle, kick, advance, ref, lim2)
+    return _collect(pr, wl, dr, cp, hist_pp, hist_pw), nbroken, moved, bad
 
 
 @nb.njit(cache=True, inline="always")
@@ -421,33 +436,39 @@ def _half_kick(i, vel, om, mass, inertia, force, torque, half):
         om[i, d] += half * torque[i, d] * ii
 
 
+@nb.njit(cache=True, inline="always")
+def _advance(i, pos, vel, om, mass, inertia, force, torque, half, dt, lz, pos_ref, lim2):
+    """Opening half kick and full position step of sphere i (wrapped into the periodic slice),
+    then its check against the list's reference position: 0, 1 if it moved beyond half the skin,
+    2 if its position is not finite."""
+    _half_kick(i, vel, om, mass, inertia, force, torque, half)
+    for d in range(3):
+        pos[i, d] += dt * vel[i, d]
+    if lz > 0.0:
+        pos[i, 2] -= lz * math.floor(pos[i, 2] / lz)
+    dx = pos[i, 0] - pos_ref[i, 0]
+    dy = pos[i, 1] - pos_ref[i, 1]
+    dz = pos[i, 2] - pos_ref[i, 2]
+    if lz > 0.0:
+        dz -= lz * math.floor(dz / lz + 0.5)
+    d2 = dx * dx + dy * dy + dz * dz
+    if d2 <= lim2:
+        return 0
+    return 1 if d2 < math.inf else 2  # NaN or infinite: a non-finite position
+
+
 @nb.njit(cache=True, parallel=True)
 def _kick_drift(sp, half, dt, lz, pos_ref, lim2):
-    """Opening half kick and full position step (wrapped into the periodic slice) of every
-    sphere, which is then checked against the list's reference positions. Returns (spheres
-    moved beyond half the skin, spheres with a non-finite position): integer counts, the same
-    whatever the thread count; every sphere is checked, so one that blew up out of contact
-    with the rest is found."""
+    """:func:`_advance` of every sphere. Returns (spheres moved beyond half the skin, spheres
+    with a non-finite position): integer counts, the same whatever the thread count; every
+    sphere is checked, so one that blew up out of contact with the rest is found."""
     pos, vel, om, _, mass, inertia, force, torque = sp
     moved = 0
     bad = 0
     for i in nb.prange(pos.shape[0]):
-        _half_kick(i, vel, om, mass, inertia, force, torque, half)
-        for d in range(3):
-            pos[i, d] += dt * vel[i, d]
-        if lz > 0.0:
-            pos[i, 2] -= lz * math.floor(pos[i, 2] / lz)
-        dx = pos[i, 0] - pos_ref[i, 0]
-        dy = pos[i, 1] - pos_ref[i, 1]
-        dz = pos[i, 2] - pos_ref[i, 2]
-        if lz > 0.0:
-            dz -= lz * math.floor(dz / lz + 0.5)
-        d2 = dx * dx + dy * dy + dz * dz
-        if not d2 <= lim2:
-            if d2 < math.inf:
-                moved += 1
-            else:  # NaN or infinite: a non-finite position
-                bad += 1
+        code = _advance(i, pos, vel, om, mass, inertia, force, torque, half, dt, lz, pos_ref, lim2)
+        moved += code == 1
+        bad += code == 2
     return moved, bad
 
 
@@ -490,16 +511,21 @@ def run_steps(n_steps, dt, sp, bd, pr, wl, dr, cp, pos_ref, drum_angle, hist_pp,
     lim2 = (0.5 * cp[CP_SKIN]) ** 2
     half = 0.5 * dt
     ang = drum_angle
+    moved = bad = 0
     for step in range(n_steps):
-        if not (drifted and step == 0):
+        if step == 0 and not drifted:
             moved, bad = _kick_drift(sp, half, dt, lz, pos_ref, lim2)
+        if not (drifted and step == 0):  # this step's drift is done: walls and drum follow
             _move_walls(wl, cp, dt, False)
             ang += cp[CP_DRUM_OMEGA] * dt
             if bad > 0:
                 return STATUS_NONFINITE, step, ang
             if moved > 0:
                 return STATUS_REBUILD, step, ang
-        tq, nbr = compute_forces(sp, bd, pr, wl, dr, cp, dt, ang, hist_pp, hist_pw, True)
+        # the forces, the closing half kick and, unless this is the call's last step, the next
+        # step's opening kick and drift, in one pass over the spheres
+        tq, nbr, moved, bad = compute_forces(sp, bd, pr, wl, dr, cp, dt, ang, hist_pp, hist_pw, True,
+                                             step + 1 < n_steps, pos_ref, lim2)
         _move_walls(wl, cp, dt, True)
         for k in range(wl.p.shape[0]):
             rec_wall_f[step, k] = -(wl.f[k, 0] * wl.n[k, 0] + wl.f[k, 1] * wl.n[k, 1]

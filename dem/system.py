@@ -181,7 +181,7 @@ class System:
         """Evaluate the forces at the current state; returns (drum torque, bonds broken)."""
         return K.compute_forces(self.spheres, self.bonds.arrays, self.pairs, self.walls,
                                 self.drum_arrays, self.cp, dt, self.drum_angle, self.hist_pp,
-                                self.hist_pw)
+                                self.hist_pw)[:2]
 
     def run(self, n_steps: int) -> None:
         """Advance ``n_steps`` steps and append the per-step records."""
