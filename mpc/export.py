@@ -34,7 +34,7 @@ import numpy as np
 from mpc.codegen import C_DIR
 from mpc.condense import stage_functions
 from mpc.errors import MpcInputError
-from twin.atomic import new_folder_beside
+from twin import new_folder_beside
 
 MANIFEST = "grindtwin_export.json"
 C_FILES = ("gt_qp.c", "gt_qp.h", "gt_cond.c", "gt_cond.h", "gt_rti.c", "gt_rti.h", "gt_controller.c", "gt_controller.h",

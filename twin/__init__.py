@@ -21,6 +21,7 @@ _API = {
     "pxx_um": ".sizes",
     "SteadyState": ".solve", "Trajectory": ".solve",
     "DEFAULT_EFFECTS": ".twin", "Twin": ".twin",
+    "new_folder_beside": ".atomic", "write_text_atomically": ".atomic",
 }
 
 __all__ = [
@@ -29,6 +30,6 @@ __all__ = [
     "SizeGrid", "SizedMill", "SolverError", "SteadyState", "TabulatedPSD", "Texture", "Trajectory", "Twin", "TwinError",
     "TwinInputError", "austin_selection", "bond_power_kw", "hydrocyclone_from", "power_kw", "size_mill", "write_preset", "check_preset_path",
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
-    "pxx_um", "reference_ores",
+    "new_folder_beside", "pxx_um", "reference_ores", "write_text_atomically",
 ]
 __getattr__, __dir__ = lazy_face(__name__, _API)
