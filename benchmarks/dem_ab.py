@@ -1,0 +1,104 @@
+"""A DEM kernel change against an earlier revision, interleaved in one run: the compression test's
+loading phase (benchmarks/dem_parallel_worker.py, the same packing) and the drum, run from this
+checkout (B) and from a temporary git worktree of ``--base`` (A), alternating A, B, B, A, ...
+in fresh processes (each process loads its own tree's cached kernels). Reports the median over
+pairs of A's wall time over B's and of A's CPU time over B's (above 1: this checkout is faster)
+at 1 and 2 threads. On one thread the CPU time is the steadier measure on a shared machine (time
+the hypervisor gives to others is not counted); on two it includes OpenMP's spinning at barriers.
+
+Writes benchmarks/results/dem_ab.md and .csv. Needs git; the worktree is made in a temporary
+folder and removed afterwards.
+
+    python benchmarks/dem_ab.py --base REV [--sizes 500,2000,8000] [--repeats 9]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(HERE))
+from dem_common import write_table  # noqa: E402
+from dem_parallel import load_average, write_pack  # noqa: E402
+
+#: timed steps per case: about 1.5-3 s of stepping on one thread (shorter runs drown in this machine's noise)
+STEPS = {500: 8000, 2000: 2400, 8000: 600}
+DRUM = {504: (0.025, 0.1, 20000), 1512: (0.025, 0.3, 12000), 8064: (0.0125, 0.2, 3000)}
+
+
+def run(tree: Path, args: list[str], threads: int) -> tuple[float, float]:
+    """Wall and CPU time [s] (all threads) of the timed steps of one worker process from ``tree``."""
+    env = dict(os.environ, NUMBA_NUM_THREADS=str(threads), OMP_NUM_THREADS="1", PYTHONPATH=str(tree))
+    out = subprocess.run([sys.executable, str(tree / "benchmarks" / "dem_parallel_worker.py"), *args], env=env,
+                         check=True, capture_output=True, text=True).stdout
+    res = json.loads(out.strip().splitlines()[-1])
+    return float(res["wall_s"]), float(res["cpu_s"])
+
+
+def compare(base: Path, args: list[str], threads: int, repeats: int) -> dict:
+    """A (base) and B (this checkout) alternated, one warm-up each (compiles or loads the cache)."""
+    run(base, args, threads), run(ROOT, args, threads)
+    ta, tb = [], []
+    for r in range(repeats):
+        order = (base, ROOT) if r % 2 == 0 else (ROOT, base)
+        t = {tree: run(tree, args, threads) for tree in order}
+        ta.append(t[base])
+        tb.append(t[ROOT])
+    ta, tb = np.array(ta), np.array(tb)  # columns: wall, CPU
+    r = ta / tb
+    return {"threads": threads, "base_wall_s_median": float(np.median(ta[:, 0])),
+            "this_wall_s_median": float(np.median(tb[:, 0])), "wall_ratio_median": float(np.median(r[:, 0])),
+            "wall_ratio_min": float(np.min(r[:, 0])), "wall_ratio_max": float(np.max(r[:, 0])),
+            "cpu_ratio_median": float(np.median(r[:, 1])), "cpu_ratio_min": float(np.min(r[:, 1])),
+            "cpu_ratio_max": float(np.max(r[:, 1])), "load_after": load_average()}
+
+
+def main(argv=None) -> pd.DataFrame:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--base", required=True, help="git revision to compare against (A)")
+    ap.add_argument("--sizes", default="500,2000,8000", help="sphere counts of the compression test")
+    ap.add_argument("--drum", default="1512,8064", help=f"ball counts of the drum ({', '.join(map(str, DRUM))})")
+    ap.add_argument("--repeats", type=int, default=9)
+    args = ap.parse_args(argv)
+    rev = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", args.base], check=True,
+                         capture_output=True, text=True).stdout.strip()
+    head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], check=True,
+                          capture_output=True, text=True).stdout.strip()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        base = Path(tmp) / "base"
+        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(base), rev], check=True,
+                       capture_output=True)
+        try:
+            cases = [(f"compression {n} spheres", [pack, repr(dt), str(STEPS[n])])
+                     for n in (int(v) for v in args.sizes.split(",") if v)
+                     for _, pack, dt in [write_pack(n, 0, tmp)]]
+            cases += [(f"drum {n} balls", ["drum", repr(DRUM[n][0]), repr(DRUM[n][1]), str(DRUM[n][2])])
+                      for n in (int(v) for v in args.drum.split(",") if v)]
+            for name, worker_args in cases:
+                for threads in (1, 2):
+                    rows.append({"case": name, **compare(base, worker_args, threads, args.repeats)})
+                    print(rows[-1], flush=True)
+        finally:
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(base)], check=False)
+    table = pd.DataFrame(rows)
+    note = (f"Command: `python benchmarks/dem_ab.py {' '.join(argv if argv is not None else sys.argv[1:])}`. "
+            f"A = {rev} (a worktree), B = this checkout ({head}, plus any uncommitted change); {args.repeats} pairs "
+            f"per row, alternated in fresh processes; ratios = A's wall (CPU) time over B's (above 1: B faster). Machine: "
+            f"2 cores; load average (1/5/15 min) after each row.")
+    write_table(table, "dem_ab", f"DEM kernels: this checkout against {rev}, interleaved", note)
+    return table
+
+
+if __name__ == "__main__":
+    main()
