@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -92,7 +93,7 @@ def main(argv=None) -> pd.DataFrame:
         finally:
             subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(base)], check=False)
     table = pd.DataFrame(rows)
-    note = (f"Command: `python benchmarks/dem_ab.py {' '.join(argv if argv is not None else sys.argv[1:])}`. "
+    note = (f"Command: `python benchmarks/dem_ab.py {shlex.join(argv if argv is not None else sys.argv[1:])}`. "
             f"A = {rev} (a worktree), B = this checkout ({head}, plus any uncommitted change); {args.repeats} pairs "
             f"per row, alternated in fresh processes; ratios = A's wall (CPU) time over B's (above 1: B faster). Machine: "
             f"2 cores; load average (1/5/15 min) after each row.")
