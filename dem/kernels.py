@@ -513,9 +513,9 @@ def run_steps(n_steps, dt, sp, bd, pr, wl, dr, cp, pos_ref, drum_angle, hist_pp,
     ang = drum_angle
     moved = bad = 0
     for step in range(n_steps):
-        if step == 0 and not drifted:
-            moved, bad = _kick_drift(sp, half, dt, lz, pos_ref, lim2)
-        if not (drifted and step == 0):  # this step's drift is done: walls and drum follow
+        if step > 0 or not drifted:  # else the caller's rebuild came after this step's drift
+            if step == 0:  # later steps drift in the previous step's force pass
+                moved, bad = _kick_drift(sp, half, dt, lz, pos_ref, lim2)
             _move_walls(wl, cp, dt, False)
             ang += cp[CP_DRUM_OMEGA] * dt
             if bad > 0:

@@ -31,10 +31,11 @@ HIST_LO_LOG10 = -9.0
 HIST_DLOG10 = 0.25
 HIST_NBINS = 44
 
-#: systems of fewer spheres run their steps on one thread: a step has parallel regions (two
-#: since the next step's drift joined the per-sphere pass), and each costs a barrier. On a quiet machine two threads gained from the smallest size
-#: measured, 500 spheres (1.1-1.5x in wall time; the drum's 504 balls 1.05x), and 1.7-1.9x from
-#: 1,000 to 32,000 (benchmarks/results/dem_parallel_scale.md, dem_parallel_drum.md)
+#: systems of fewer spheres run their steps on one thread: a step has two parallel regions,
+#: and each costs a barrier. On a quiet machine (with three regions a step) two threads gained
+#: from the smallest size measured, 500 spheres (1.1-1.5x in wall time; the drum's 504 balls
+#: 1.05x), and 1.7-1.9x from 1,000 to 32,000 (benchmarks/results/dem_parallel_scale.md,
+#: dem_parallel_drum.md)
 PARALLEL_MIN_SPHERES = 500
 
 #: ``contact_law`` choices of :class:`System`: Hertz–Mindlin with restitution damping

@@ -64,4 +64,3 @@ def strict_json(text: str):
     def refuse(constant):
         raise ValueError(f"not JSON: {constant}")
     return json.loads(text, parse_constant=refuse)
-

@@ -72,7 +72,6 @@ def test_zero_feed_reports_specific_energy_as_undefined(capsys):
     assert "specific_energy_kwh_t  undefined" in text  # the interval line too
 
 
-
 def test_scene_steady_at_zero_feed_says_undefined(capsys):
     """The --scene path applies the same rules: no 1e6 kWh/t floor, no NaN in the JSON."""
     from pathlib import Path
@@ -82,7 +81,6 @@ def test_scene_steady_at_zero_feed_says_undefined(capsys):
     out = strict_json(capsys.readouterr().out)
     assert out["specific_energy_kwh_t"] is None and out["p80_um"] is None
     assert "specific_energy_kwh_t is undefined at zero feed" in out["notes"]
-
 
 
 def test_a_hold_up_beyond_the_mills_volume_is_said(capsys):
@@ -105,4 +103,3 @@ def test_a_hold_up_beyond_the_mills_volume_is_said(capsys):
 def test_the_industrial_mill_says_it_runs_its_grate_not_its_sized_circuit(capsys):
     assert main(["steady", "--ore", "B", "--mill", "industrial", "--feed-tph", "31", "--json"]) == 0
     assert any("hydrocyclone" in n for n in json.loads(capsys.readouterr().out)["notes"])
-
