@@ -29,8 +29,7 @@ import pandas as pd
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
-from dem_common import write_table  # noqa: E402
-from dem_parallel import load_average, write_pack  # noqa: E402
+from dem_common import load_average, write_pack, write_table  # noqa: E402
 
 #: timed steps per case: about 1.5-3 s of stepping on one thread (shorter runs drown in this machine's noise)
 STEPS = {500: 8000, 2000: 2400, 8000: 600}

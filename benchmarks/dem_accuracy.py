@@ -27,7 +27,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 import numpy as np
 import pandas as pd
 
-from dem_common import write_table
+from dem_common import load_average, write_table
 from dem.agglomerate import make_agglomerate
 from dem.bonds import BondParams, kn_from_modulus_Pa_m
 from dem.lab import compression_test
@@ -83,7 +83,7 @@ def main():
     df = pd.DataFrame(rows)
     write_table(df, "dem_accuracy", "DEM compression test: accuracy against time",
                 f"Command: `python benchmarks/dem_accuracy.py {' '.join(sys.argv[1:])}`, load average "
-                f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())} at the end (2 cores; wall times vary "
+                f"{load_average()} at the end (2 cores; wall times vary "
                 "with the load, the step counts do not: a time step twice as large takes half the steps). "
                 f"Mean of seeds {SEEDS}, the same packings at every point; errors relative to the "
                 "`reference` value of each sweep (finest resolution, smallest time step, slowest platen). "

@@ -27,7 +27,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 import numpy as np
 import pandas as pd
 
-from dem_common import write_table
+from dem_common import load_average, write_pack, write_table
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 WORKER = os.path.join(HERE, "dem_parallel_worker.py")
@@ -50,8 +50,6 @@ def run(pack: str, dt: float, steps: int, threads: int, extra: dict) -> dict:
 
 
 def main():
-    from dem_parallel import write_pack
-
     repeats, steps = int(_arg("--repeats", "5")), int(_arg("--steps", "300"))
     rows = []
     with tempfile.TemporaryDirectory() as folder:
@@ -74,7 +72,7 @@ def main():
                 rows.append({"busy_processes": busy, "setting": s, "steps": steps, "repeats": repeats,
                              "wall_1t_s": w1, "wall_2t_s": w2, "speedup_2t": w1 / w2,
                              "us_per_particle_step_2t": w2 / (N_SPHERES * steps) * 1e6,
-                             "load_after": " / ".join(f"{x:.1f}" for x in os.getloadavg())})
+                             "load_after": load_average()})
                 print(rows[-1], flush=True)
     write_table(pd.DataFrame(rows), "dem_busy", "The DEM's second thread with other jobs on the cores",
                 f"Command: `python benchmarks/dem_busy.py {' '.join(sys.argv[1:])}`. {N_SPHERES} spheres, "

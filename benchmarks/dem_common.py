@@ -1,8 +1,10 @@
-"""Shared helpers of the dem benchmarks (markdown tables without extra dependencies)."""
+"""Shared helpers of the dem benchmarks: markdown tables without extra dependencies, the
+machine's load and CPU, and the compression test's packings written for both grindtwin and Yade."""
 
 from __future__ import annotations
 
 import os
+import platform
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
@@ -30,3 +32,46 @@ def write_table(df, name: str, title: str, notes: str = "") -> None:
         if notes:
             fh.write(notes.strip() + "\n\n")
         fh.write(md_table(df))
+
+
+def load_average() -> str:
+    """The 1, 5 and 15 minute load averages, as 'a / b / c'."""
+    return " / ".join(f"{x:.1f}" for x in os.getloadavg())
+
+
+def cpu_model() -> str:
+    """The CPU's model name (Linux /proc/cpuinfo, else the platform's) and the core count: timings
+    from different sessions may come from different hosts."""
+    name = platform.processor() or "unknown CPU"
+    try:
+        with open("/proc/cpuinfo") as fh:
+            name = next(line.split(":", 1)[1].strip() for line in fh if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return f"{name}, {os.cpu_count()} cores"
+
+
+def write_pack(n: int, seed: int, folder: str):
+    """A compression-test particle of ``n`` spheres (make_agglomerate, 22 mm, ``seed``) written as
+    text for Yade (x y z r per line, metres); returns (agglomerate, path, time step s), the step
+    being 0.5 of grindtwin's critical step for the Yade-JCFpm mirror (used by both sides)."""
+    from dem.agglomerate import make_agglomerate
+
+    agg = make_agglomerate(0.022, n, random_state=seed)
+    path = os.path.join(folder, f"pack_{n}_{seed}.txt")
+    with open(path, "w") as fh:
+        fh.write(f"# x_m y_m z_m r_m solid_fraction {agg.solid_fraction}\n")
+        for p, r in zip(agg.pos_m, agg.radius_m):
+            fh.write(f"{p[0]:.17g} {p[1]:.17g} {p[2]:.17g} {r:.17g}\n")
+    return agg, path, _dt(agg)
+
+
+def _dt(agg) -> float:
+    from dem_parallel_worker import BONDS, PLATEN, ROCK
+    from dem.bonds import BondSet
+    from dem.system import PlaneWall, System
+    s = System(agg.pos_m, agg.radius_m, ROCK, density_kg_m3=2700.0 / agg.solid_fraction,
+               bonds=BondSet(agg.bond_pairs, agg.pos_m, agg.radius_m, BONDS), wall_material=PLATEN,
+               walls=[PlaneWall((0, 0, -1.0), (0, 0, 1))], contact_law="linear_yade",
+               time_step_factor=0.5)
+    return s.dt_s

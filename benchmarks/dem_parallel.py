@@ -9,8 +9,9 @@ Yade, the same time step on both sides (0.5 of grindtwin's critical step).
 
 1. speed: the loading phase, ``STEPS[n]`` steps, nothing recorded on either side (grindtwin
    records its platen force per step in memory, Yade nothing); each repeat runs grindtwin with
-   NUMBA_NUM_THREADS=1 and 2 and ``yade -j1`` and ``-j2`` one after the other (A, B, C, D, A, ...),
-   each in its own process; medians. CPU = user + system time of the stepping (all threads).
+   NUMBA_NUM_THREADS=1 and 2 and ``yade -j1`` and ``-j2`` one after the other (A, B, C, D, then
+   D, C, B, A), each in its own process; ratios pair by pair within a repeat, then medians.
+   CPU = user + system time of the stepping (all threads).
 2. peak force: full compression tests at 500 and 2000 spheres on packings seeds 0-2, grindtwin
    against Yade (one thread each: the physics, not the speed; grindtwin's result does not depend
    on the thread count; Yade records every 20 steps to catch its peak), same dt.
@@ -20,12 +21,13 @@ Yade, the same time step on both sides (0.5 of grindtwin's critical step).
 ``python benchmarks/dem_parallel.py [--fast] [--parts speed,peak,scale,drum] [--sizes 500,2000] [--repeats 3]``
 writes benchmarks/results/dem_parallel_speed.*, dem_parallel_peak.*, dem_parallel_scale.* and
 dem_parallel_drum.* (md + csv)
-for the parts asked (default all; ``--sizes`` limits every part to those sphere counts). Needs
-``yade`` on PATH (Debian package).
+for the parts asked (default all; ``--sizes`` limits every part to those sphere counts). The
+speed and peak parts need ``yade`` on PATH (Debian package ``yade``).
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import shutil
@@ -38,58 +40,41 @@ sys.path.insert(0, os.path.dirname(__file__))
 import numpy as np
 import pandas as pd
 
-from dem_common import write_table
-from dem.agglomerate import make_agglomerate
+from dem_common import cpu_model, load_average, write_pack, write_table
 
-FAST = "--fast" in sys.argv
-
-
-def _arg(name, default):
-    return sys.argv[sys.argv.index(name) + 1] if name in sys.argv else default
-
-
-PARTS = _arg("--parts", "speed,peak,scale,drum").split(",")
-SIZES = [int(x) for x in _arg("--sizes", "0").split(",")]
 HERE = os.path.dirname(os.path.abspath(__file__))
 WORKER = os.path.join(HERE, "dem_parallel_worker.py")
 YADE_SCRIPT = os.path.join(HERE, "dem_yade_compression.py")
-STEPS = {500: 1000, 2000: 600, 8000: 200} if not FAST else {500: 500, 2000: 150}
-REPEATS = int(_arg("--repeats", "3"))
-PEAK_SIZES = (500, 2000) if not FAST else (500,)
+#: timed steps of the speed part: about 1-3 s of stepping per grindtwin run on one thread and
+#: 5-15 s per Yade run (shorter runs drown in this machine's noise)
+STEPS = {500: 8000, 2000: 2400, 8000: 600}
+STEPS_FAST = {500: 500, 2000: 150}
 PEAK_SEEDS = (0, 1, 2)
-SCALE = {500: 2000, 1000: 1000, 2000: 600, 4000: 300, 8000: 150, 32000: 50} if not FAST else {500: 300, 2000: 80}
+SCALE = {500: 2000, 1000: 1000, 2000: 600, 4000: 300, 8000: 150, 32000: 50}
+SCALE_FAST = {500: 300, 2000: 80}
 #: drum cases: (ball diameter m, slice length m, timed steps)
-DRUM = ((0.025, 0.1, 3000), (0.025, 0.3, 2000), (0.0125, 0.2, 500), (0.01, 0.3, 200)) if not FAST else \
-    ((0.025, 0.1, 1000),)
-if SIZES != [0]:
-    STEPS = {n: v for n, v in STEPS.items() if n in SIZES}
-    SCALE = {n: v for n, v in SCALE.items() if n in SIZES}
-    PEAK_SIZES = tuple(n for n in PEAK_SIZES if n in SIZES)
+DRUM = ((0.025, 0.1, 3000), (0.025, 0.3, 2000), (0.0125, 0.2, 500), (0.01, 0.3, 200))
+DRUM_FAST = ((0.025, 0.1, 1000),)
 
 
-def load_average() -> str:
-    return " / ".join(f"{x:.1f}" for x in os.getloadavg())
-
-
-def write_pack(n: int, seed: int, folder: str):
-    agg = make_agglomerate(0.022, n, random_state=seed)
-    path = os.path.join(folder, f"pack_{n}_{seed}.txt")
-    with open(path, "w") as fh:
-        fh.write(f"# x_m y_m z_m r_m solid_fraction {agg.solid_fraction}\n")
-        for p, r in zip(agg.pos_m, agg.radius_m):
-            fh.write(f"{p[0]:.17g} {p[1]:.17g} {p[2]:.17g} {r:.17g}\n")
-    return agg, path, _dt(agg)
-
-
-def _dt(agg) -> float:
-    from dem_parallel_worker import BONDS, PLATEN, ROCK
-    from dem.bonds import BondSet
-    from dem.system import PlaneWall, System
-    s = System(agg.pos_m, agg.radius_m, ROCK, density_kg_m3=2700.0 / agg.solid_fraction,
-               bonds=BondSet(agg.bond_pairs, agg.pos_m, agg.radius_m, BONDS), wall_material=PLATEN,
-               walls=[PlaneWall((0, 0, -1.0), (0, 0, 1))], contact_law="linear_yade",
-               time_step_factor=0.5)
-    return s.dt_s
+def options(argv=None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--fast", action="store_true", help="fewer steps and sizes (a smoke run)")
+    ap.add_argument("--parts", default="speed,peak,scale,drum")
+    ap.add_argument("--sizes", default="", help="sphere counts to keep in every part, e.g. 500,2000")
+    ap.add_argument("--repeats", type=int, default=3)
+    o = ap.parse_args(argv)
+    o.parts = o.parts.split(",")
+    o.steps = dict(STEPS_FAST if o.fast else STEPS)
+    o.scale = dict(SCALE_FAST if o.fast else SCALE)
+    o.peak_sizes = (500,) if o.fast else (500, 2000)
+    o.drum = DRUM_FAST if o.fast else DRUM
+    if o.sizes:
+        keep = {int(x) for x in o.sizes.split(",")}
+        o.steps = {n: v for n, v in o.steps.items() if n in keep}
+        o.scale = {n: v for n, v in o.scale.items() if n in keep}
+        o.peak_sizes = tuple(n for n in o.peak_sizes if n in keep)
+    return o
 
 
 def grindtwin(pack, dt, steps, threads):
@@ -115,37 +100,42 @@ def yade(pack, dt, steps, threads, folder):
     return {"peak_force_N": float(c["force_top_N"].max()), "fracture_energy_J": e}
 
 
-def speed(folder):
+def speed(folder, o):
+    """Each repeat runs the four sides in fresh processes, in the order gt1, gt2, yade1, yade2 and
+    reversed on the next repeat; the ratios are taken pair by pair within a repeat (both sides
+    seconds apart), then their median and range over the repeats."""
     rows = []
-    for n, steps in STEPS.items():
+    for n, steps in o.steps.items():
         agg, pack, dt = write_pack(n, 0, folder)
         grindtwin(pack, dt, 10, 1)            # compile once into the cache
         runs = {k: [] for k in ("gt1", "gt2", "yade1", "yade2")}
-        for rep in range(REPEATS):
-            runs["gt1"].append(grindtwin(pack, dt, steps, 1))
-            runs["gt2"].append(grindtwin(pack, dt, steps, 2))
-            runs["yade1"].append(yade(pack, dt, steps, 1, folder))
-            runs["yade2"].append(yade(pack, dt, steps, 2, folder))
+        sides = {"gt1": lambda: grindtwin(pack, dt, steps, 1), "gt2": lambda: grindtwin(pack, dt, steps, 2),
+                 "yade1": lambda: yade(pack, dt, steps, 1, folder), "yade2": lambda: yade(pack, dt, steps, 2, folder)}
+        for rep in range(o.repeats):
+            for k in (list(sides) if rep % 2 == 0 else list(sides)[::-1]):
+                runs[k].append(sides[k]())
             print(n, rep, {k: (round(v[-1]["wall_s"], 3), round(v[-1]["cpu_s"], 3)) for k, v in runs.items()},
                   "load", load_average(), flush=True)
         ps = n * steps
-        med = {k: (float(np.median([r["cpu_s"] for r in v])) / ps * 1e6,
-                   float(np.median([r["wall_s"] for r in v])) / ps * 1e6) for k, v in runs.items()}
-        rows.append({"n_spheres": n, "n_bonds": agg.n_bonds, "steps": steps, "repeats": REPEATS, "dt_s": dt,
-                     "gt_1t_cpu_us": med["gt1"][0], "gt_2t_cpu_us": med["gt2"][0],
-                     "yade_j1_cpu_us": med["yade1"][0], "yade_j2_cpu_us": med["yade2"][0],
-                     "gt_1t_wall_us": med["gt1"][1], "gt_2t_wall_us": med["gt2"][1],
-                     "yade_j1_wall_us": med["yade1"][1], "yade_j2_wall_us": med["yade2"][1],
-                     "per_core_x_yade": med["yade1"][0] / med["gt1"][0],
-                     "gt_2nd_core_speedup": med["gt1"][1] / med["gt2"][1],
-                     "yade_2nd_core_speedup": med["yade1"][1] / med["yade2"][1],
+        cpu = {k: np.array([r["cpu_s"] for r in v]) for k, v in runs.items()}
+        wall = {k: np.array([r["wall_s"] for r in v]) for k, v in runs.items()}
+        per_core = cpu["yade1"] / cpu["gt1"]
+        second = wall["gt1"] / wall["gt2"]
+        rows.append({"n_spheres": n, "n_bonds": agg.n_bonds, "steps": steps, "repeats": o.repeats, "dt_s": dt,
+                     **{f"{k}_cpu_us": float(np.median(cpu[k])) / ps * 1e6 for k in ("gt1", "gt2", "yade1", "yade2")},
+                     **{f"{k}_wall_us": float(np.median(wall[k])) / ps * 1e6 for k in ("gt1", "gt2", "yade1", "yade2")},
+                     "per_core_x_yade": float(np.median(per_core)),
+                     "per_core_range": f"{per_core.min():.2f}-{per_core.max():.2f}",
+                     "gt_2nd_core_speedup": float(np.median(second)),
+                     "gt_2nd_core_range": f"{second.min():.2f}-{second.max():.2f}",
+                     "yade_2nd_core_speedup": float(np.median(wall["yade1"] / wall["yade2"])),
                      "load_after": load_average()})
     return pd.DataFrame(rows)
 
 
-def peaks(folder):
+def peaks(folder, o):
     rows = []
-    for n in PEAK_SIZES:
+    for n in o.peak_sizes:
         for seed in PEAK_SEEDS:
             agg, pack, dt = write_pack(n, seed, folder)
             g = json.loads(subprocess.run([sys.executable, WORKER, pack, repr(dt), "full"],
@@ -160,72 +150,83 @@ def peaks(folder):
     return pd.DataFrame(rows)
 
 
-def scale(folder):
+def _speedup(w1, w2) -> dict:
+    """The second thread's speed-up: median and range of the within-repeat ratios of wall times."""
+    r = np.asarray(w1) / np.asarray(w2)
+    return {"speedup_2t": float(np.median(r)), "speedup_2t_range": f"{r.min():.2f}-{r.max():.2f}"}
+
+
+def scale(folder, o):
     rows = []
-    for n, steps in SCALE.items():
+    for n, steps in o.scale.items():
         agg, pack, dt = write_pack(n, 0, folder)
         grindtwin(pack, dt, 10, 1)
         t1, t2 = [], []
-        for rep in range(REPEATS):
+        for rep in range(o.repeats):
             t1.append(grindtwin(pack, dt, steps, 1))
             t2.append(grindtwin(pack, dt, steps, 2))
-        w1 = float(np.median([r["wall_s"] for r in t1]))
-        w2 = float(np.median([r["wall_s"] for r in t2]))
+        w1 = np.array([r["wall_s"] for r in t1])
+        w2 = np.array([r["wall_s"] for r in t2])
         rows.append({"n_spheres": n, "n_bonds": agg.n_bonds, "steps": steps,
-                     "particle_steps_per_s_1t": n * steps / w1, "particle_steps_per_s_2t": n * steps / w2,
+                     "particle_steps_per_s_1t": n * steps / float(np.median(w1)),
+                     "particle_steps_per_s_2t": n * steps / float(np.median(w2)),
                      "cpu_us_per_particle_step_1t": float(np.median([r["cpu_s"] for r in t1])) / (n * steps) * 1e6,
-                     "speedup_2t": w1 / w2, "load_after": load_average()})
+                     **_speedup(w1, w2), "load_after": load_average()})
         print(rows[-1], flush=True)
     return pd.DataFrame(rows)
 
 
-def drum_scale():
+def drum_scale(o):
     """The drum's ball charge on 1 and 2 threads, interleaved: ball counts set by the ball size
     and the slice length of the 0.5 m x 0.3 m lab drum."""
     rows = []
-    for ball_d, section, steps in DRUM:
+    for ball_d, section, steps in o.drum:
         args = [sys.executable, WORKER, "drum", repr(ball_d), repr(section), str(steps)]
         runs = {1: [], 2: []}
-        for rep in range(REPEATS):
+        for rep in range(o.repeats):
             for t in (1, 2):
                 out = subprocess.run(args, env=dict(os.environ, NUMBA_NUM_THREADS=str(t)), check=True,
                                      capture_output=True, text=True).stdout
                 runs[t].append(json.loads(out.strip().splitlines()[-1]))
         n = runs[1][0]["n_spheres"]
-        w = {t: float(np.median([r["wall_s"] for r in v])) for t, v in runs.items()}
+        w = {t: np.array([r["wall_s"] for r in v]) for t, v in runs.items()}
         rows.append({"n_balls": n, "ball_d_m": ball_d, "section_m": section, "n_pairs": runs[1][0]["n_pairs"],
-                     "steps": steps, "particle_steps_per_s_1t": n * steps / w[1],
-                     "particle_steps_per_s_2t": n * steps / w[2],
+                     "steps": steps, "particle_steps_per_s_1t": n * steps / float(np.median(w[1])),
+                     "particle_steps_per_s_2t": n * steps / float(np.median(w[2])),
                      "cpu_us_per_particle_step_1t": float(np.median([r["cpu_s"] for r in runs[1]])) / (n * steps) * 1e6,
-                     "speedup_2t": w[1] / w[2], "threading_layer": runs[2][0]["threading_layer"],
+                     **_speedup(w[1], w[2]), "threading_layer": runs[2][0]["threading_layer"],
                      "load_after": load_average()})
         print(rows[-1], flush=True)
     return pd.DataFrame(rows)
 
 
-def main():
-    note = (f"Command: `python benchmarks/dem_parallel.py {' '.join(sys.argv[1:])}`. Machine: 2 cores "
+def main(argv=None):
+    o = options(argv)
+    note = (f"Command: `python benchmarks/dem_parallel.py {' '.join(sys.argv[1:])}`. Machine: {cpu_model()}, "
             f"shared with other jobs; load average (1/5/15 min) at the start {load_average()}, "
-            "after each size in the table. Times are medians of interleaved repeats.")
+            "after each size in the table. Times are medians of interleaved repeats; ratios are medians "
+            "of the ratios taken within each repeat (ranges: over the repeats).")
+    if {"speed", "peak"} & set(o.parts) and shutil.which("yade") is None:
+        raise SystemExit("yade not on PATH (Debian package 'yade'), needed by the speed and peak parts; "
+                         "nothing written")
     with tempfile.TemporaryDirectory() as folder:
-        if {"speed", "peak"} & set(PARTS) and shutil.which("yade") is None:
-            raise SystemExit("yade not on PATH (Debian package 'yade'), needed by the speed and peak parts; "
-                             "nothing written")
-        if "speed" in PARTS:
-            write_table(speed(folder), "dem_parallel_speed",
+        if "speed" in o.parts:
+            write_table(speed(folder, o), "dem_parallel_speed",
                         "grindtwin (1 and 2 threads) against Yade -j1/-j2, Yade-JCFpm physics",
                         note + " us = microseconds of CPU (user + system, all threads) or wall time per "
-                        "particle-step; per_core_x_yade = Yade -j1 CPU / grindtwin 1-thread CPU.")
-        if "peak" in PARTS:
-            pk = peaks(folder)
+                        "particle-step; gt1/gt2 = grindtwin on 1/2 threads, yade1/yade2 = yade -j1/-j2; "
+                        "per_core_x_yade = Yade -j1 CPU / grindtwin 1-thread CPU; second core: 1-thread "
+                        "wall / 2-thread wall.")
+        if "peak" in o.parts:
+            pk = peaks(folder, o)
             write_table(pk, "dem_parallel_peak", "Peak force: grindtwin against Yade, same packings and time step",
                         note + f" Peak ratio over the packings: mean {pk.peak_ratio.mean():.4f}, "
                         f"range {pk.peak_ratio.min():.4f}-{pk.peak_ratio.max():.4f}.")
-        if "drum" in PARTS:
-            write_table(drum_scale(), "dem_parallel_drum",
+        if "drum" in o.parts:
+            write_table(drum_scale(o), "dem_parallel_drum",
                         "grindtwin drum (ball charge) scale table (1 and 2 threads)", note)
-        if "scale" in PARTS:
-            write_table(scale(folder), "dem_parallel_scale",
+        if "scale" in o.parts:
+            write_table(scale(folder, o), "dem_parallel_scale",
                         "grindtwin compression-test scale table (1 and 2 threads)", note)
 
 
