@@ -16,6 +16,7 @@ writes benchmarks/results/dem_busy.md and .csv.
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -37,10 +38,6 @@ BUSY = (0, 1, 2)
 N_SPHERES = 2000
 
 
-def _arg(name, default):
-    return sys.argv[sys.argv.index(name) + 1] if name in sys.argv else default
-
-
 def run(pack: str, dt: float, steps: int, threads: int, extra: dict) -> dict:
     env = {k: v for k, v in os.environ.items() if k not in ("GOMP_SPINCOUNT", "OMP_WAIT_POLICY")}
     env.update(extra, NUMBA_NUM_THREADS=str(threads), OMP_NUM_THREADS="1")
@@ -49,8 +46,12 @@ def run(pack: str, dt: float, steps: int, threads: int, extra: dict) -> dict:
     return json.loads(out.strip().splitlines()[-1])
 
 
-def main():
-    repeats, steps = int(_arg("--repeats", "5")), int(_arg("--steps", "300"))
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--steps", type=int, default=300, help="timed steps per run")
+    o = ap.parse_args(argv)
+    repeats, steps = o.repeats, o.steps
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         _, pack, dt = write_pack(N_SPHERES, 0, folder)
