@@ -29,10 +29,8 @@ import pandas as pd
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
-from dem_common import load_average, write_pack, write_table  # noqa: E402
+from dem_common import LOADING_STEPS, load_average, write_pack, write_table  # noqa: E402
 
-#: timed steps per case: about 1.5-3 s of stepping on one thread (shorter runs drown in this machine's noise)
-STEPS = {500: 8000, 2000: 2400, 8000: 600}
 DRUM = {504: (0.025, 0.1, 20000), 1512: (0.025, 0.3, 12000), 8064: (0.0125, 0.2, 3000)}
 
 
@@ -70,6 +68,16 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--drum", default="1512,8064", help=f"ball counts of the drum ({', '.join(map(str, DRUM))})")
     ap.add_argument("--repeats", type=int, default=9)
     args = ap.parse_args(argv)
+    sizes = [int(v) for v in args.sizes.split(",") if v]
+    drums = [int(v) for v in args.drum.split(",") if v]
+    bad = [f"--sizes {n} (choose from {sorted(LOADING_STEPS)})" for n in sizes if n not in LOADING_STEPS]
+    bad += [f"--drum {n} (choose from {sorted(DRUM)})" for n in drums if n not in DRUM]
+    if args.repeats < 1:
+        bad.append(f"--repeats {args.repeats} (at least 1)")
+    if not sizes + drums:
+        bad.append("--sizes and --drum both empty (nothing to compare)")
+    if bad:
+        ap.error("; ".join(bad) + ". Nothing written.")
     rev = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", args.base], check=True,
                          capture_output=True, text=True).stdout.strip()
     head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], check=True,
@@ -80,11 +88,10 @@ def main(argv=None) -> pd.DataFrame:
         subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(base), rev], check=True,
                        capture_output=True)
         try:
-            cases = [(f"compression {n} spheres", [pack, repr(dt), str(STEPS[n])])
-                     for n in (int(v) for v in args.sizes.split(",") if v)
-                     for _, pack, dt in [write_pack(n, 0, tmp)]]
+            cases = [(f"compression {n} spheres", [pack, repr(dt), str(LOADING_STEPS[n])])
+                     for n in sizes for _, pack, dt in [write_pack(n, 0, tmp)]]
             cases += [(f"drum {n} balls", ["drum", repr(DRUM[n][0]), repr(DRUM[n][1]), str(DRUM[n][2])])
-                      for n in (int(v) for v in args.drum.split(",") if v)]
+                      for n in drums]
             for name, worker_args in cases:
                 for threads in (1, 2):
                     rows.append({"case": name, **compare(base, worker_args, threads, args.repeats)})

@@ -10,6 +10,10 @@ import sys
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 OUT = os.path.join(os.path.dirname(__file__), "results")
+#: timed steps of the compression test's loading phase per sphere count, for speed comparisons:
+#: about 1-3 s of grindtwin stepping on one thread, 5-15 s of Yade's (shorter runs drown in this
+#: machine's noise)
+LOADING_STEPS = {500: 8000, 2000: 2400, 8000: 600}
 
 
 def md_table(df, floatfmt: str = ".4g") -> str:

@@ -7,11 +7,12 @@ issue's 22 mm particle, E = 30 GPa, ks/kn 0.4, tensile 10 MPa, cohesion 20 MPa, 
 platen 0.1 m/s, local damping 0.7. Each size: one packing (make_agglomerate, seed 0) written for
 Yade, the same time step on both sides (0.5 of grindtwin's critical step).
 
-1. speed: the loading phase, ``STEPS[n]`` steps, nothing recorded on either side (grindtwin
-   records its platen force per step in memory, Yade nothing); each repeat runs grindtwin with
-   NUMBA_NUM_THREADS=1 and 2 and ``yade -j1`` and ``-j2`` one after the other (A, B, C, D, then
-   D, C, B, A), each in its own process; ratios pair by pair within a repeat, then medians.
-   CPU = user + system time of the stepping (all threads).
+1. speed: the loading phase, ``LOADING_STEPS[n]`` steps (benchmarks/dem_common.py), nothing
+   recorded on either side (grindtwin records its platen force per step in memory, Yade
+   nothing); each repeat runs grindtwin with NUMBA_NUM_THREADS=1 and 2 and ``yade -j1`` and
+   ``-j2`` one after the other (A, B, C, D, then D, C, B, A), each in its own process; ratios
+   pair by pair within a repeat, then medians. CPU = user + system time of the stepping (all
+   threads).
 2. peak force: full compression tests at 500 and 2000 spheres on packings seeds 0-2, grindtwin
    against Yade (one thread each: the physics, not the speed; grindtwin's result does not depend
    on the thread count; Yade records every 20 steps to catch its peak), same dt.
@@ -40,14 +41,11 @@ sys.path.insert(0, os.path.dirname(__file__))
 import numpy as np
 import pandas as pd
 
-from dem_common import cpu_model, load_average, write_pack, write_table
+from dem_common import LOADING_STEPS, cpu_model, load_average, write_pack, write_table
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 WORKER = os.path.join(HERE, "dem_parallel_worker.py")
 YADE_SCRIPT = os.path.join(HERE, "dem_yade_compression.py")
-#: timed steps of the speed part: about 1-3 s of stepping per grindtwin run on one thread and
-#: 5-15 s per Yade run (shorter runs drown in this machine's noise)
-STEPS = {500: 8000, 2000: 2400, 8000: 600}
 STEPS_FAST = {500: 500, 2000: 150}
 PEAK_SEEDS = (0, 1, 2)
 SCALE = {500: 2000, 1000: 1000, 2000: 600, 4000: 300, 8000: 150, 32000: 50}
@@ -55,22 +53,33 @@ SCALE_FAST = {500: 300, 2000: 80}
 #: drum cases: (ball diameter m, slice length m, timed steps)
 DRUM = ((0.025, 0.1, 3000), (0.025, 0.3, 2000), (0.0125, 0.2, 500), (0.01, 0.3, 200))
 DRUM_FAST = ((0.025, 0.1, 1000),)
+PARTS = ("speed", "peak", "scale", "drum")
 
 
 def options(argv=None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--fast", action="store_true", help="fewer steps and sizes (a smoke run)")
-    ap.add_argument("--parts", default="speed,peak,scale,drum")
+    ap.add_argument("--parts", default=",".join(PARTS))
     ap.add_argument("--sizes", default="", help="sphere counts to keep in every part, e.g. 500,2000")
     ap.add_argument("--repeats", type=int, default=3)
     o = ap.parse_args(argv)
     o.parts = o.parts.split(",")
-    o.steps = dict(STEPS_FAST if o.fast else STEPS)
+    unknown = sorted(set(o.parts) - set(PARTS))
+    if unknown:
+        ap.error(f"--parts {','.join(unknown)}: not a part; choose from {','.join(PARTS)}. Nothing written.")
+    if o.repeats < 1:
+        ap.error(f"--repeats {o.repeats}: must be at least 1. Nothing written.")
+    o.steps = dict(STEPS_FAST if o.fast else LOADING_STEPS)
     o.scale = dict(SCALE_FAST if o.fast else SCALE)
     o.peak_sizes = (500,) if o.fast else (500, 2000)
     o.drum = DRUM_FAST if o.fast else DRUM
     if o.sizes:
         keep = {int(x) for x in o.sizes.split(",")}
+        offered = {"speed": sorted(o.steps), "peak": list(o.peak_sizes), "scale": sorted(o.scale)}
+        empty = [p for p in o.parts if p in offered and not keep & set(offered[p])]
+        if empty:
+            ap.error(f"--sizes {o.sizes}: no size of " + "; ".join(
+                f"part {p} ({','.join(map(str, offered[p]))})" for p in empty) + ". Nothing written.")
         o.steps = {n: v for n, v in o.steps.items() if n in keep}
         o.scale = {n: v for n, v in o.scale.items() if n in keep}
         o.peak_sizes = tuple(n for n in o.peak_sizes if n in keep)
