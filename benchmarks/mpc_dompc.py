@@ -62,7 +62,6 @@ sys.path.insert(0, str(Path(__file__).parent))
 from mpc_reference_case import (LEAD_H, OUT, TARGET_UM, add_case_arguments,  # noqa: E402
                                 reference_ekf, reference_sensors, reference_setup, schedule)
 
-from mpc import nmpc as nmpc_mod  # noqa: E402
 from mpc import LoopSettings, run_closed_loop  # noqa: E402
 from mpc.discretize import rk4_map  # noqa: E402
 from mpc.errors import MpcInputError  # noqa: E402

@@ -16,6 +16,7 @@ Writes benchmarks/results/mpc_export.csv and .md.
 
 from __future__ import annotations
 
+import argparse
 import os
 import subprocess
 import sys
@@ -67,7 +68,9 @@ class Mirror:
         return out
 
 
-def main() -> pd.DataFrame:
+def main(argv=None) -> pd.DataFrame:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "ctl"
         t0 = time.perf_counter()

@@ -12,6 +12,7 @@ dominant time constant, t63) and the FOPDT fit the PI baseline uses
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 import pandas as pd
@@ -25,7 +26,9 @@ TARGET_UM, SPEED = 210.0, 0.70
 OUTPUTS = ["p80_um", "power_kw", "load_frac"]
 
 
-def main() -> pd.DataFrame:
+def main(argv=None) -> pd.DataFrame:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.parse_args(argv)
     rows = []
     for ore in "ABCD":
         tw = Twin([ore], mill="industrial", effects=list(DEFAULT_EFFECTS))

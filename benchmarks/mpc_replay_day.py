@@ -13,6 +13,7 @@ Writes benchmarks/results/mpc_replay_day.md and .csv. Run: python benchmarks/mpc
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import resource
@@ -30,7 +31,9 @@ COMMAND = [sys.executable, "-c", "import sys; from scenarios.cli import main; sy
            "scenarios/replay_day.toml", "--history", "scenarios/data/sample_history.csv", "--quiet"]
 
 
-def main() -> int:
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "replay_day"
         load0 = os.getloadavg()[0]

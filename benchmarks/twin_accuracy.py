@@ -18,7 +18,6 @@ Run: python benchmarks/twin_accuracy.py [--quick]
 from __future__ import annotations
 
 import argparse
-import math
 import time
 from pathlib import Path
 

@@ -11,6 +11,7 @@ twin_dem_link_claims.md/.csv (claims). Run: ``python benchmarks/twin_dem_link.py
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 
@@ -111,7 +112,9 @@ def claim_rows(cal) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def main():
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.parse_args(argv)
     cal, table = load_calibration("dem"), load_calibration("table")
     law = cal.record["law"]["energy"]
     se = cal.record["bootstrap"]["standard_errors"]

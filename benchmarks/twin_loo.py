@@ -14,6 +14,7 @@ Writes benchmarks/results/twin_loo.csv/.md. Run: ``python benchmarks/twin_loo.py
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 import time
@@ -80,7 +81,9 @@ def summary(df: pd.DataFrame) -> pd.DataFrame:
     return pred.join(folds).reset_index()
 
 
-def main():
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.parse_args(argv)
     dem, table = load_calibration("dem"), load_calibration("table")
     df = pd.DataFrame(rows_for("dem", dem, dem_fold) + rows_for("table", table, table_fold))
     worst = df[df.role == "predicted"].groupby("calibration")["error_pct"].apply(lambda s: s.abs().max())

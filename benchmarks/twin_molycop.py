@@ -15,6 +15,7 @@ Run: python benchmarks/twin_molycop.py
 
 from __future__ import annotations
 
+import argparse
 import copy
 import time
 import tomllib
@@ -94,7 +95,9 @@ def variants(base: dict) -> dict:
     return out
 
 
-def main() -> None:
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.parse_args(argv)
     pub = published()
     base = read_toml(SCENE)
     results = {name: run(raw) for name, raw in variants(base).items()}

@@ -23,6 +23,7 @@ Run: ``python benchmarks/twin_pyrite_channels.py`` (~1 min).
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 from dataclasses import replace
@@ -57,7 +58,9 @@ def kpis(twin: Twin, spec=None) -> dict:
             "residence_time_min": 60.0 * ss.outputs["holdup_t"] / ss.feed_tph}
 
 
-def main():
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.parse_args(argv)
     b, p = load_ore("B"), pyrite_ore()
     rb, rp = b.density_t_m3, p.density_t_m3
     tb, tp = Twin(b), Twin(p)
