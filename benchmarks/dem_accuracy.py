@@ -12,12 +12,13 @@ mean over the same ``SEEDS`` agglomerates:
 3. platen speed (250 spheres) -> top/bottom force mismatch before the peak (quasi-static
    check) and peak force; reference is the slowest.
 
-Writes benchmarks/results/dem_accuracy.csv and .md. Run: ``python benchmarks/dem_accuracy.py``
+Writes benchmarks/results/dem_accuracy.csv and .md. Run: ``python benchmarks/dem_accuracy.py [--fast]``
 (about 10 min on one free core; ``--fast``: 2 seeds, coarser sweeps).
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 import time
@@ -32,13 +33,12 @@ from dem.agglomerate import make_agglomerate
 from dem.bonds import BondParams, kn_from_modulus_Pa_m
 from dem.lab import compression_test
 
-FAST = "--fast" in sys.argv
-SEEDS = [0, 1] if FAST else [0, 1, 2]
+SEEDS, SEEDS_FAST = [0, 1, 2], [0, 1]
 
 
-def point(n, factor=0.5, speed=0.1):
+def point(n, seeds, factor=0.5, speed=0.1):
     peaks, energies, walls, mism = [], [], [], []
-    for seed in SEEDS:
+    for seed in seeds:
         agg = make_agglomerate(0.022, n, random_state=seed)
         kn = kn_from_modulus_Pa_m(30e9, agg.mean_radius_m)
         bp = BondParams(kn_Pa_m=kn, ks_Pa_m=0.4 * kn, tensile_strength_Pa=10e6, cohesion_Pa=20e6)
@@ -72,20 +72,25 @@ def sweep(name, values, fn):
     return rows
 
 
-def main():
-    res = [60, 125, 250, 500] if FAST else [60, 125, 250, 500, 1000]
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else list(argv)
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--fast", action="store_true", help="2 seeds and coarser sweeps (a smoke run)")
+    fast = ap.parse_args(argv).fast
+    seeds = SEEDS_FAST if fast else SEEDS
+    res = [60, 125, 250, 500] if fast else [60, 125, 250, 500, 1000]
     rows = []
-    rows += sweep("spheres_per_particle", res, lambda n: point(n))
-    factors = [0.25, 0.5, 1.0] if FAST else [0.125, 0.25, 0.5, 1.0]
-    speeds = [0.05, 0.1, 0.2, 0.4] if FAST else [0.025, 0.05, 0.1, 0.2, 0.4]
-    rows += sweep("time_step_factor", factors, lambda f: point(250, factor=f))
-    rows += sweep("platen_speed_m_s", speeds, lambda v: point(250, speed=v))
+    rows += sweep("spheres_per_particle", res, lambda n: point(n, seeds))
+    factors = [0.25, 0.5, 1.0] if fast else [0.125, 0.25, 0.5, 1.0]
+    speeds = [0.05, 0.1, 0.2, 0.4] if fast else [0.025, 0.05, 0.1, 0.2, 0.4]
+    rows += sweep("time_step_factor", factors, lambda f: point(250, seeds, factor=f))
+    rows += sweep("platen_speed_m_s", speeds, lambda v: point(250, seeds, speed=v))
     df = pd.DataFrame(rows)
     write_table(df, "dem_accuracy", "DEM compression test: accuracy against time",
-                f"Command: `python benchmarks/dem_accuracy.py {' '.join(sys.argv[1:])}`, load average "
+                f"Command: `python benchmarks/dem_accuracy.py {' '.join(argv)}`, load average "
                 f"{load_average()} at the end (2 cores; wall times vary "
                 "with the load, the step counts do not: a time step twice as large takes half the steps). "
-                f"Mean of seeds {SEEDS}, the same packings at every point; errors relative to the "
+                f"Mean of seeds {seeds}, the same packings at every point; errors relative to the "
                 "`reference` value of each sweep (finest resolution, smallest time step, slowest platen). "
                 "Peak-force scatter between particles (peak_force_sd_N) is the natural limit of any "
                 "comparison across packings.")

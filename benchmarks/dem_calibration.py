@@ -9,11 +9,14 @@ Two calibrations with :class:`dem.calibrate.BondCalibrator` (10 particles of 22 
   MISSION's 68 MPa. MISSION's numbers are used as *inputs to compare with*, not as results.
 
 Writes benchmarks/results/dem_calibration.csv/.md (one row per calibration) and
-dem_calibration_particles.csv (per particle). Run: ``python benchmarks/dem_calibration.py``.
+dem_calibration_particles.csv (per particle). Run:
+``python benchmarks/dem_calibration.py [--spheres 250] [--cases issue_material,mission_ratios]``
+(default: 250 spheres per particle, ``issue_material`` only).
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 
@@ -21,15 +24,14 @@ sys.path.insert(0, os.path.dirname(__file__))
 
 import pandas as pd
 
-from dem_common import OUT, write_table
+from dem_common import OUT, SPHERES, option_type, write_table
 from dem.calibrate import BondCalibrator
 
 TARGET_N = 4200.0
-SPHERES = int(os.environ.get("DEM_SPHERES", "250"))
 
 
-def run(label, **kw):
-    cal = BondCalibrator(n_particles=10, particle_diameter_m=0.022, spheres_per_particle=SPHERES,
+def run(label, spheres, **kw):
+    cal = BondCalibrator(n_particles=10, particle_diameter_m=0.022, spheres_per_particle=spheres,
                          random_state=0, verbose=True, **kw)
     if label == "mission_ratios":
         # hold MISSION's k_n: bond modulus = k_n * 2 r_mean (P&C 2004 eq. 9 inverted)
@@ -38,7 +40,7 @@ def run(label, **kw):
         cal.bond_modulus_Pa = 620e9 * 2 * r_mean
     cal.fit(TARGET_N)
     print(cal.history_.to_string(), flush=True)
-    row = {"calibration": label, "spheres_per_particle": SPHERES, "target_peak_force_N": TARGET_N,
+    row = {"calibration": label, "spheres_per_particle": spheres, "target_peak_force_N": TARGET_N,
            "tensile_strength_MPa": cal.tensile_strength_Pa_ / 1e6,
            "cohesion_MPa": cal.cohesion_Pa_ / 1e6, "kn_GPa_m": cal.kn_Pa_m_ / 1e9,
            "ks_GPa_m": cal.ks_Pa_m_ / 1e9, "mean_peak_force_N": cal.mean_peak_force_N_,
@@ -57,12 +59,17 @@ CASES = {"issue_material": {},
          "mission_ratios": {"stiffness_ratio": 250 / 620, "cohesion_ratio": 85 / 68}}
 
 
-def main():
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--spheres", type=SPHERES, default="250", help="spheres per particle (default %(default)s)")
+    ap.add_argument("--cases", default="issue_material",
+                    type=option_type(str, CASES.__contains__, "one of " + ", ".join(CASES), many=True),
+                    help=f"comma-separated, from {','.join(CASES)} (default %(default)s; mission_ratios is about "
+                    "4x slower: 17x softer bonds reach the peak after 17x more displacement with a 4x larger step)")
+    o = ap.parse_args(argv)
     rows, parts = [], []
-    # DEM_CAL_CASES=issue_material,mission_ratios (the MISSION-stiffness case is ~4x slower:
-    # 17x softer bonds reach the peak after 17x more displacement with a 4x larger step)
-    for label in os.environ.get("DEM_CAL_CASES", "issue_material").split(","):
-        r, p = run(label, **CASES[label])
+    for label in o.cases:
+        r, p = run(label, o.spheres, **CASES[label])
         rows.append(r)
         parts.append(p)
         print(r, flush=True)

@@ -3,6 +3,8 @@ machine's load and CPU, and the compression test's packings written for both gri
 
 from __future__ import annotations
 
+import argparse
+import math
 import os
 import platform
 import sys
@@ -14,6 +16,56 @@ OUT = os.path.join(os.path.dirname(__file__), "results")
 #: about 1-3 s of grindtwin stepping on one thread, 5-15 s of Yade's (shorter runs drown in this
 #: machine's noise)
 LOADING_STEPS = {500: 8000, 2000: 2400, 8000: 600}
+
+
+def option_type(kind, ok, allowed: str, many: bool = False):
+    """An argparse ``type``: one ``kind`` value for which ``ok`` holds (with ``many``: a comma-separated
+    list of them). Anything else is argparse's usual error (exit 2, before any work), naming the option,
+    the value and ``allowed``, which says what one value may be."""
+    def parse(text: str):
+        if many and not text.strip():
+            raise argparse.ArgumentTypeError(f"empty; give a comma-separated list, each {allowed}")
+        values = []
+        for item in text.split(",") if many else [text]:
+            try:
+                value = kind(item.strip())
+            except ValueError:
+                value = None
+            if value is None or not ok(value):
+                where = f" (in {text!r})" if many and item != text else ""
+                raise argparse.ArgumentTypeError(f"{item.strip()!r}{where} is not {allowed}")
+            values.append(value)
+        return values if many else values[0]
+    return parse
+
+
+#: the sphere counts of one particle that make_agglomerate accepts
+SPHERES_MIN, SPHERES_MAX = 2, 200_000
+_SPHERES = (int, lambda v: SPHERES_MIN <= v <= SPHERES_MAX,
+            f"an integer in [{SPHERES_MIN}, {SPHERES_MAX}] (make_agglomerate's range)")
+_POSITIVE = (float, lambda v: 0 < v < math.inf, "a finite number > 0")
+#: argparse types: a count of 1 or more; the spheres of one particle; a positive number; one or a list
+COUNT = option_type(int, lambda v: v >= 1, "an integer >= 1")
+SPHERES = option_type(*_SPHERES)
+SPHERES_LIST = option_type(*_SPHERES, many=True)
+POSITIVE = option_type(*_POSITIVE)
+POSITIVE_LIST = option_type(*_POSITIVE, many=True)
+
+
+def parse_run_mode(ap: argparse.ArgumentParser, argv=None) -> argparse.Namespace:
+    """Adds ``MODE N [EVERY]`` to ``ap`` and parses ``argv``: ``steps N`` times N steps, ``curve N EVERY``
+    records the platen force every EVERY of N steps. The calling convention of both workers of
+    benchmarks/dem_lammps.py, grindtwin's and the LAMMPS peer's (which imports this module in LAMMPS'
+    venv: keep the module's imports to the standard library)."""
+    ap.add_argument("mode", choices=("steps", "curve"))
+    ap.add_argument("steps", metavar="N", type=COUNT, help="steps (timed, or of the curve)")
+    ap.add_argument("every", metavar="EVERY", type=COUNT, nargs="?", help="curve only: platen force every EVERY steps")
+    o = ap.parse_args(argv)
+    if o.mode == "curve" and o.every is None:
+        ap.error("mode curve: EVERY is missing ('curve N EVERY')")
+    if o.mode == "steps" and o.every is not None:
+        ap.error(f"EVERY {o.every}: mode steps takes none ('steps N')")
+    return o
 
 
 def md_table(df, floatfmt: str = ".4g") -> str:

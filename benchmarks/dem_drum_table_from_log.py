@@ -6,6 +6,7 @@ replaced, the power-model columns recomputed (dem_drum.add_models).
 Run: ``python benchmarks/dem_drum_table_from_log.py LOG``.
 """
 
+import argparse
 import ast
 import os
 import sys
@@ -17,7 +18,35 @@ import pandas as pd
 from dem_common import OUT, write_table
 from dem_drum import NOTES, TITLE, add_models, merge
 
-rows = [ast.literal_eval(line) for line in open(sys.argv[1]) if line.startswith("{")]
-path = os.path.join(OUT, "dem_drum.csv")
-old = pd.read_csv(path) if os.path.exists(path) else None
-write_table(add_models(merge(old, pd.DataFrame(rows))), "dem_drum", TITLE, NOTES)
+
+def read_rows(ap, log: str) -> list[dict]:
+    """The dict lines of ``log``; anything unreadable is refused through ``ap.error`` before a file is written."""
+    try:
+        with open(log) as fh:
+            lines = [(k, line) for k, line in enumerate(fh, 1) if line.startswith("{")]
+    except (OSError, UnicodeDecodeError) as e:
+        ap.error(f"LOG {log!r}: cannot be read ({e}). Nothing written.")
+    rows = []
+    for k, line in lines:
+        try:
+            rows.append(ast.literal_eval(line))
+        except (ValueError, SyntaxError):
+            rows.append(None)
+        if not isinstance(rows[-1], dict):
+            ap.error(f"LOG {log!r}, line {k}: not a row dict as dem_drum.py prints them. Nothing written.")
+    if not rows:
+        ap.error(f"LOG {log!r}: no row (a line starting with '{{') to merge. Nothing written.")
+    return rows
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("log", metavar="LOG", help="the output of an interrupted dem_drum.py run")
+    rows = read_rows(ap, ap.parse_args(argv).log)
+    path = os.path.join(OUT, "dem_drum.csv")
+    old = pd.read_csv(path) if os.path.exists(path) else None
+    write_table(add_models(merge(old, pd.DataFrame(rows))), "dem_drum", TITLE, NOTES)
+
+
+if __name__ == "__main__":
+    main()

@@ -3,32 +3,45 @@
 Bond parameters: read from benchmarks/results/dem_calibration.csv (the ``issue_material`` Type B
 calibration, fitted by benchmarks/dem_calibration.py), never typed in. Agglomerates at the
 calibration's resolution (bond parameters are resolution-specific) at 22 mm; seeds 0-2;
-specific energies 20 J/kg ... 3 kJ/kg. Writes benchmarks/results/dem_impact.csv/.md.
+specific energies 20 J/kg ... 3 kJ/kg. Writes benchmarks/results/dem_impact.csv/.md and
+dem_impact_runs.csv. Run: ``python benchmarks/dem_impact.py [--spheres N] [--energies 20,40,300]``
+(defaults: the calibration's resolution, energies 20,40,70,100,300,1000,3000 J/kg).
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(__file__))
 
-import numpy as np
 import pandas as pd
 
-from dem_common import OUT, write_table
+from dem_common import OUT, POSITIVE_LIST, SPHERES_MAX, SPHERES_MIN, option_type, write_table
 from dem.agglomerate import make_agglomerate
 from dem.bonds import BondParams
 from dem.lab import drop_weight_test
 
-N = int(os.environ.get("DEM_SPHERES", "0"))  # 0: the calibration's own resolution
-ENERGIES = [float(e) for e in os.environ.get("DEM_ENERGIES", "20,40,70,100,300,1000,3000").split(",")]
+ENERGIES = "20,40,70,100,300,1000,3000"
 SEEDS = [0, 1, 2]
 
 
-def main():
+def options(argv=None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    spheres = option_type(int, lambda v: v == 0 or SPHERES_MIN <= v <= SPHERES_MAX,
+                          f"0 (the calibration's resolution) or an integer in [{SPHERES_MIN}, {SPHERES_MAX}]")
+    ap.add_argument("--spheres", type=spheres, default=0,
+                    help="spheres per particle; 0 (the default): the calibration's own resolution")
+    ap.add_argument("--energies", type=POSITIVE_LIST, default=ENERGIES,
+                    help="specific energies, J/kg, comma-separated (default %(default)s)")
+    return ap.parse_args(argv)
+
+
+def main(argv=None):
+    o = options(argv)
     cal = pd.read_csv(os.path.join(OUT, "dem_calibration.csv")).set_index("calibration").loc["issue_material"]
-    n = N or int(cal["spheres_per_particle"])
+    n = o.spheres or int(cal["spheres_per_particle"])
     rows = []
     for seed in SEEDS:
         agg = make_agglomerate(0.022, n, random_state=seed)
@@ -36,7 +49,7 @@ def main():
         bp = BondParams(kn_Pa_m=kn, ks_Pa_m=float(cal["ks_GPa_m"]) * 1e9,
                         tensile_strength_Pa=float(cal["tensile_strength_MPa"]) * 1e6,
                         cohesion_Pa=float(cal["cohesion_MPa"]) * 1e6)
-        for e in ENERGIES:
+        for e in o.energies:
             r = drop_weight_test(agg, bp, e, time_step_factor=0.5)
             row = {"seed": seed}
             row.update(r.summary())

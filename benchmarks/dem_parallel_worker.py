@@ -10,6 +10,7 @@ physics and prints one JSON line: steps, wall and CPU seconds of the stepping al
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import os
@@ -21,6 +22,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 import numba
 import numpy as np
 
+from dem_common import COUNT, POSITIVE, option_type
 from dem.agglomerate import Agglomerate
 from dem.bonds import BondParams, BondSet, find_bond_pairs
 from dem.drum import drum_system
@@ -74,20 +76,46 @@ def drum(ball_d_m: float, section_m: float, steps: int) -> dict:
             "n_spheres": s.n, "n_pairs": int(s.pairs.i.shape[0])}
 
 
-def main():
-    if sys.argv[1] == "drum":
-        print(json.dumps(drum(float(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4]))))
+USAGE = "%(prog)s PACK DT_S {STEPS,full}\n       %(prog)s drum BALL_D_M SECTION_M STEPS"
+STEPS_OR_FULL = option_type(lambda t: t if t == "full" else int(t), lambda v: v == "full" or v >= 1,
+                            "an integer >= 1 or 'full'")
+
+
+def options(argv=None) -> argparse.Namespace:
+    """The callers' positional arguments: ``PACK DT_S STEPS|full`` or ``drum BALL_D_M SECTION_M STEPS``."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], usage=USAGE)
+    if argv[:1] == ["drum"]:
+        ap.add_argument("pack", choices=["drum"], help="the drum's ball charge instead of a packing")
+        ap.add_argument("ball_d_m", metavar="BALL_D_M", type=POSITIVE, help="ball diameter, m")
+        ap.add_argument("section_m", metavar="SECTION_M", type=POSITIVE, help="slice length, m")
+        ap.add_argument("steps", metavar="STEPS", type=COUNT, help="timed steps")
+        return ap.parse_args(argv)
+    ap.add_argument("pack", metavar="PACK", help="packing, x y z r per line as written for Yade (or 'drum')")
+    ap.add_argument("dt_s", metavar="DT_S", type=POSITIVE, help="time step, s")
+    ap.add_argument("steps", metavar="STEPS", type=STEPS_OR_FULL,
+                    help="timed steps of the loading phase, or 'full' for the whole compression test")
+    o = ap.parse_args(argv)
+    if not os.path.isfile(o.pack):
+        ap.error(f"PACK {o.pack!r}: no such file (the drum case is 'drum BALL_D_M SECTION_M STEPS')")
+    return o
+
+
+def main(argv=None):
+    o = options(argv)
+    if o.pack == "drum":
+        print(json.dumps(drum(o.ball_d_m, o.section_m, o.steps)))
         return
-    agg = read_pack(sys.argv[1])
-    dt = float(sys.argv[2])
-    if sys.argv[3] == "full":
+    agg = read_pack(o.pack)
+    dt = o.dt_s
+    if o.steps == "full":
         s = loading_system(agg, dt)          # only for the critical step of this packing
         r = compression_test(agg, BONDS, time_step_factor=dt / s.critical_dt_s, **MIRROR)
         print(json.dumps({"peak_force_N": r.peak_force_N, "fracture_energy_J": r.fracture_energy_J,
                           "steps": r.n_steps, "wall_s": r.wall_time_s, "dt_s": r.dt_s,
                           "threads": numba.get_num_threads()}))
         return
-    steps = int(sys.argv[3])
+    steps = o.steps
     s = loading_system(agg, dt)
     s.run(20)                                # kernels from the cache
     w0, c0 = time.perf_counter(), time.process_time()

@@ -6,12 +6,12 @@ material (E = 30 GPa, ks/kn = 0.4, tensile 10 MPa, cohesion 20 MPa, friction 30Â
 platen 0.1 m/s, local damping 0.7), the loading phase of the compression test timed over
 ``steps`` steps, median of ``repeats`` runs (after a warm-up that compiles the kernels).
 
-Writes benchmarks/results/dem_speed.csv and .md. Run: ``python benchmarks/dem_speed.py``.
+Writes benchmarks/results/dem_speed.csv and .md. Run: ``python benchmarks/dem_speed.py`` (no options).
 """
 
 from __future__ import annotations
 
-import math
+import argparse
 import os
 import platform
 import sys
@@ -45,7 +45,11 @@ def make_system(agg):
                   wall_material=STEEL, walls=walls, local_damping=0.7, time_step_factor=0.5)
 
 
-def main():
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 epilog="Sizes, steps and repeats: " + ", ".join(
+                                     f"{n} spheres x {steps} steps x {repeats}" for n, steps, repeats in SIZES))
+    ap.parse_args(argv)
     numba.set_num_threads(1)
     rows = []
     warm = make_system(make_agglomerate(0.022, 100, random_state=0))

@@ -19,11 +19,12 @@ platen force at the end is within ``STABLE_TOL`` of the reference's. The accurac
 allowed factors on whole compression tests is in benchmarks/results/dem_accuracy.md.
 
 ``python benchmarks/dem_time_step.py [--models jcfpm,calibration] [--sizes 500,2000] [--seeds 0,1,2]`` writes
-benchmarks/results/dem_time_step.md and .csv.
+benchmarks/results/dem_time_step.md and .csv (default: both models, each at its own sizes, seeds 0,1,2).
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 
@@ -33,7 +34,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 import numpy as np
 import pandas as pd
 
-from dem_common import write_table
+from dem_common import SPHERES_LIST, option_type, write_table
 from dem_parallel_worker import loading_system
 from dem.agglomerate import make_agglomerate
 from dem.errors import DemInstabilityError
@@ -45,10 +46,6 @@ T_END_S = 3e-4
 STABLE_TOL = 0.01
 REFERENCE_FACTOR = 0.25
 FACTORS = (0.5, 1.0, 1.25, 1.5, 1.75, 2.0, 2.5)
-
-
-def _arg(name, default):
-    return sys.argv[sys.argv.index(name) + 1] if name in sys.argv else default
 
 
 def calibration_loading_system(agg, dt_s: float):
@@ -108,20 +105,26 @@ def scan(model: str, n: int, seed: int) -> list[dict]:
     return rows
 
 
-def main():
-    models = _arg("--models", "jcfpm,calibration").split(",")
-    bad = [m for m in models if m not in MODELS]
-    if bad:
-        raise SystemExit(f"--models must be among {sorted(MODELS)}. Got {bad}; nothing written.")
-    sizes = _arg("--sizes", "")
-    seeds = [int(x) for x in _arg("--seeds", "0,1,2").split(",")]
-    t = pd.DataFrame([r for m in models
-                      for n in ([int(x) for x in sizes.split(",")] if sizes else MODELS[m][1])
-                      for s in seeds for r in scan(m, n, s)])
+def options(argv) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--models", default=",".join(MODELS), help="comma-separated (default %(default)s)",
+                    type=option_type(str, MODELS.__contains__, "one of " + ", ".join(MODELS), many=True))
+    ap.add_argument("--sizes", type=SPHERES_LIST, help="sphere counts for every model (default: each model's own: "
+                    + "; ".join(f"{m} {','.join(map(str, v[1]))}" for m, v in MODELS.items()) + ")")
+    ap.add_argument("--seeds", default="0,1,2", help="packing seeds (default %(default)s)",
+                    type=option_type(int, lambda v: v >= 0, "an integer >= 0", many=True))
+    return ap.parse_args(argv)
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else list(argv)
+    o = options(argv)
+    t = pd.DataFrame([r for m in o.models for n in (o.sizes or MODELS[m][1])
+                      for s in o.seeds for r in scan(m, n, s)])
     groups = t.groupby(["model", "n_spheres"])
     bound = {k: float(g.groupby("factor").stable.all().loc[lambda x: x].index.max()) for k, g in groups}
     first_bad = {k: g.loc[~g.stable, "factor"].min() for k, g in groups}
-    note = (f"Command: `python benchmarks/dem_time_step.py {' '.join(sys.argv[1:])}`. Loading phase of the "
+    note = (f"Command: `python benchmarks/dem_time_step.py {' '.join(argv)}`. Loading phase of the "
             f"compression test to t = {T_END_S:g} s at factor x System.critical_dt_s (models: see the script's "
             f"docstring); reference factor {REFERENCE_FACTOR}; stable = no instability, no bond broken that the "
             f"reference keeps, final platen force within {100 * STABLE_TOL:g} % of the reference's. Largest factor "

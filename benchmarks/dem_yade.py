@@ -15,12 +15,14 @@ Rows:
   (``damping_velocity="at_force"``). benchmarks/results/dem_yade_500.md logs what each of
   these did to the peak force.
 - Yade JCFpm (records every 20 steps).
-Writes benchmarks/results/dem_yade_500.csv/.md and dem_yade_curve_500.csv (Yade's curve).
-Needs ``yade`` on PATH (Debian package ``yade``).
+Writes benchmarks/results/dem_yade_500.csv/.md, dem_yade_curve_500.csv (Yade's curve) and
+dem_yade_pack_500.txt (the packing). Run: ``python benchmarks/dem_yade.py [--spheres 500]`` (another
+sphere count N writes the same files with N for 500). Needs ``yade`` on PATH (Debian package ``yade``).
 """
 
 from __future__ import annotations
 
+import argparse
 import math
 import os
 import shutil
@@ -33,13 +35,11 @@ sys.path.insert(0, os.path.dirname(__file__))
 import numpy as np
 import pandas as pd
 
-from dem_common import OUT, write_table
+from dem_common import OUT, SPHERES, write_table
 from dem.agglomerate import make_agglomerate
 from dem.bonds import BondParams, kn_from_modulus_Pa_m
 from dem.lab import compression_test
 from dem.materials import Material
-
-N = int(os.environ.get("DEM_SPHERES", "500"))
 
 LOG = """Log (500 spheres, one run each, peak force of the grindtwin Yade-convention run; Yade 3611 N,
 energy 0.299 J, every 20 steps; Yade itself over dt = 0.3..0.7 PWaveTimeStep: 3609..3751 N):
@@ -60,11 +60,14 @@ Energy to the peak depends on which of two equal humps (0.187 and 0.204 mm) is t
 0.2997 J (1.00x) when grindtwin peaks on the first, 0.359 J (1.20x) on the second."""
 
 
-def main():
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--spheres", type=SPHERES, default="500", help="spheres in the particle (default %(default)s)")
+    n = ap.parse_args(argv).spheres
     yade = shutil.which("yade") or shutil.which("yade-batch")
-    agg = make_agglomerate(0.022, N, random_state=0)
+    agg = make_agglomerate(0.022, n, random_state=0)
     os.makedirs(OUT, exist_ok=True)
-    pack = os.path.join(OUT, f"dem_yade_pack_{N}.txt")
+    pack = os.path.join(OUT, f"dem_yade_pack_{n}.txt")
     with open(pack, "w") as fh:
         fh.write(f"# x_m y_m z_m r_m solid_fraction {agg.solid_fraction}\n")
         for p, r in zip(agg.pos_m, agg.radius_m):
@@ -88,15 +91,15 @@ def main():
     for label, bp, kw in cases:
         r = compression_test(agg, bp, platen_speed_m_s=0.1, local_damping=0.7,
                              time_step_factor=0.5, **kw)
-        rows.append({"code": label, "n_spheres": N, "n_bonds": agg.n_bonds,
+        rows.append({"code": label, "n_spheres": n, "n_bonds": agg.n_bonds,
                      "peak_force_N": r.peak_force_N, "fracture_energy_J": r.fracture_energy_J,
                      "dt_s": r.dt_s, "steps": r.n_steps, "wall_s": r.wall_time_s,
-                     "particle_steps_per_s": N * r.n_steps / r.wall_time_s})
+                     "particle_steps_per_s": n * r.n_steps / r.wall_time_s})
         print(rows[-1], flush=True)
     if yade is None:
         print("yade not found; only the grindtwin row is written")
     else:
-        out = os.path.join(OUT, f"dem_yade_curve_{N}.csv")
+        out = os.path.join(OUT, f"dem_yade_curve_{n}.csv")
         script = os.path.join(os.path.dirname(__file__), "dem_yade_compression.py")
         t0 = time.perf_counter()
         subprocess.run([yade, "-n", "-j", "1", "-x", script, pack, out], check=True,
@@ -107,17 +110,17 @@ def main():
         c = pd.read_csv(out, comment="#")
         kp = int(np.argmax(c["force_top_N"]))
         e = float(np.trapezoid(np.r_[0, c["force_top_N"][:kp + 1]], np.r_[0, c["displacement_m"][:kp + 1]]))
-        rows.append({"code": "Yade JCFpm", "n_spheres": N, "n_bonds": int(info["n_bonds"]),
+        rows.append({"code": "Yade JCFpm", "n_spheres": n, "n_bonds": int(info["n_bonds"]),
                      "peak_force_N": float(c["force_top_N"].max()), "fracture_energy_J": e,
                      "dt_s": info["dt_s"], "steps": int(info["steps"]), "wall_s": info["wall_s"],
-                     "particle_steps_per_s": N * info["steps"] / info["wall_s"]})
+                     "particle_steps_per_s": n * info["steps"] / info["wall_s"]})
         print(rows[-1], f"(yade process {total:.1f} s)", flush=True)
     df = pd.DataFrame(rows)
     if yade is not None:
         df["speed_ratio_vs_yade"] = df["particle_steps_per_s"] / rows[-1]["particle_steps_per_s"]
         df["peak_ratio_vs_yade"] = df["peak_force_N"] / rows[-1]["peak_force_N"]
         df["energy_ratio_vs_yade"] = df["fracture_energy_J"] / rows[-1]["fracture_energy_J"]
-    write_table(df, f"dem_yade_{N}", "grindtwin DEM vs Yade: the issue's compression test",
+    write_table(df, f"dem_yade_{n}", "grindtwin DEM vs Yade: the issue's compression test",
                 "Same packing for both; single thread; see the module docstring of "
                 "benchmarks/dem_yade.py for the model differences.\n\n" + LOG)
 
