@@ -41,7 +41,8 @@ def options(argv=None) -> argparse.Namespace:
 def main(argv=None):
     o = options(argv)
     cal = pd.read_csv(os.path.join(OUT, "dem_calibration.csv")).set_index("calibration").loc["issue_material"]
-    n = o.spheres or int(cal["spheres_per_particle"])
+    cal_n = int(cal["spheres_per_particle"])
+    n = o.spheres or cal_n
     rows = []
     for seed in SEEDS:
         agg = make_agglomerate(0.022, n, random_state=seed)
@@ -60,7 +61,9 @@ def main(argv=None):
                                                 "n_fragments", "wall_time_s"]].mean().reset_index()
     df.to_csv(os.path.join(OUT, "dem_impact_runs.csv"), index=False)
     write_table(mean, "dem_impact", "Drop-weight impacts with the Type B calibration (mean of 3 particles)",
-                f"{n} spheres per 22 mm particle (the calibration's resolution), 1 kg drop weight. "
+                f"{n} spheres per 22 mm particle ({'the calibration' if n == cal_n else 'not the calibration'}'s "
+                f"resolution{'' if n == cal_n else f', {cal_n}: its bond parameters are resolution-specific'}), "
+                "1 kg drop weight. "
                 "t_n = mass fraction finer than D0/n; at this resolution a single sphere is about "
                 f"D0/{n ** (1 / 3):.1f}, so t10 is not resolved (t2, t4 are; twin can map them to t10 "
                 "with the t-family of Narayanan & Whiten 1988).")

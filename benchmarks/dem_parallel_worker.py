@@ -1,5 +1,5 @@
-"""One timed grindtwin run for benchmarks/dem_parallel.py (a subprocess, so that the thread count
-is set by NUMBA_NUM_THREADS before numba starts).
+"""One timed grindtwin run for benchmarks/dem_parallel.py, dem_ab.py and dem_busy.py (a subprocess,
+so that the thread count is set by NUMBA_NUM_THREADS before numba starts).
 
 ``python benchmarks/dem_parallel_worker.py PACK DT_S STEPS`` runs the compression test's loading
 phase on the packing PACK (x y z r per line, as written for Yade) with the Yade-JCFpm mirror
