@@ -50,6 +50,8 @@ BROKEN_SHEAR_SLIDING = 3
 (P_KN_A, P_KS_A, P_INV_AREA, P_SIGT, P_COH, P_TANPHI, P_SIGNED_MC, P_OVERLAP0, P_KN_I, P_KS_J,
  P_RB_I, P_RB_J, P_AREA, P_RBAR, P_KN, P_KS, P_LENGTH0) = range(17)
 N_PROPS = 17
+#: rows the property table has at least (see BondSet): with fewer it is not only F-contiguous
+MIN_TABLE_ROWS = 2
 
 #: bond conventions of :class:`BondParams`
 CONVENTIONS = ("parallel", "yade_jcfpm")
@@ -187,8 +189,14 @@ class BondSet:
         self.beta = float(params.moment_factor)
         self.ij = pairs
         # column-major: a central bond reads three columns, and a bond's row of 17 would cost a
-        # cache line of traffic each; the full bond reads its dozen columns as as many streams
-        self.props = np.asfortranarray(_property_table(pairs, pos_m, radius_m, params))
+        # cache line of traffic each; the full bond reads its dozen columns as as many streams.
+        # At least two rows: a table of 0 or 1 rows is C-contiguous too, numba types it so, and
+        # every kernel taking the bundle is compiled a second time (minutes on a cold cache).
+        # The kernels get the whole table (they index real bonds only); ``props`` is its view
+        # of the real rows, sharing its memory.
+        table = np.zeros((max(nbnd, MIN_TABLE_ROWS), N_PROPS), order="F")
+        table[:nbnd] = _property_table(pairs, pos_m, radius_m, params)
+        self.props = table[:nbnd]
         self.length = self.props[:, P_LENGTH0].copy()
         self.fn = np.zeros(nbnd)
         self.fs = np.zeros((nbnd, 3))
@@ -199,7 +207,7 @@ class BondSet:
         start, entry = csr_of_rows(pairs[:, 0].copy(), pairs[:, 1].copy(), n)
         # central bonds load their spheres through the centres: rows of the force columns only
         load = np.zeros((nbnd, N_FORCE if self.central else N_LOAD))
-        self.arrays = BondArrays(self.ij, self.props, self.fn, self.fs, self.mb, self.mt,
+        self.arrays = BondArrays(self.ij, table, self.fn, self.fs, self.mb, self.mt,
                                  self.length, self.state, load, start, entry,
                                  self.partner, self.index)
 

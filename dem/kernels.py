@@ -524,7 +524,10 @@ def run_steps(n_steps, dt, sp, bd, pr, wl, dr, cp, pos_ref, drum_angle, hist_pp,
                 return STATUS_REBUILD, step, ang
         # the forces, the closing half kick and, unless this is the call's last step, the next
         # step's opening kick and drift, in one pass over the spheres
-        tq, nbr, moved, bad = compute_forces(sp, bd, pr, wl, dr, cp, dt, ang, hist_pp, hist_pw, True,
+        # ``step >= 0`` (always true) rather than the constant True: a constant is typed
+        # Literal[bool] and compiles a second copy of compute_forces beside the one System
+        # calls with a plain bool (minutes on a cold cache)
+        tq, nbr, moved, bad = compute_forces(sp, bd, pr, wl, dr, cp, dt, ang, hist_pp, hist_pw, step >= 0,
                                              step + 1 < n_steps, pos_ref, lim2)
         _move_walls(wl, cp, dt, True)
         for k in range(wl.p.shape[0]):

@@ -179,10 +179,11 @@ class System:
         return self.pairs.bond
 
     def _forces(self, dt: float):
-        """Evaluate the forces at the current state; returns (drum torque, bonds broken)."""
+        """Evaluate the forces at the current state; returns (drum torque, bonds broken). Every
+        argument typed as run_steps passes it, so numba compiles one copy of the kernel."""
         return K.compute_forces(self.spheres, self.bonds.arrays, self.pairs, self.walls,
                                 self.drum_arrays, self.cp, dt, self.drum_angle, self.hist_pp,
-                                self.hist_pw)[:2]
+                                self.hist_pw, False, False, self.pos_ref, 0.0)[:2]
 
     def run(self, n_steps: int) -> None:
         """Advance ``n_steps`` steps and append the per-step records."""
