@@ -29,7 +29,7 @@ import pandas as pd
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
-from dem_common import LOADING_STEPS, load_average, write_pack, write_table  # noqa: E402
+from dem_common import LOADING_STEPS, base_worktree, git_short, load_average, write_pack, write_table  # noqa: E402
 
 DRUM = {504: (0.025, 0.1, 20000), 1512: (0.025, 0.3, 12000), 8064: (0.0125, 0.2, 3000)}
 
@@ -78,26 +78,18 @@ def main(argv=None) -> pd.DataFrame:
         bad.append("--sizes and --drum both empty (nothing to compare)")
     if bad:
         ap.error("; ".join(bad) + ". Nothing written.")
-    rev = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", args.base], check=True,
-                         capture_output=True, text=True).stdout.strip()
-    head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], check=True,
-                          capture_output=True, text=True).stdout.strip()
+    head = git_short(ROOT, "HEAD")
     rows = []
-    with tempfile.TemporaryDirectory() as tmp:
-        base = Path(tmp) / "base"
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(base), rev], check=True,
-                       capture_output=True)
-        try:
-            cases = [(f"compression {n} spheres", [pack, repr(dt), str(LOADING_STEPS[n])])
-                     for n in sizes for _, pack, dt in [write_pack(n, 0, tmp)]]
-            cases += [(f"drum {n} balls", ["drum", repr(DRUM[n][0]), repr(DRUM[n][1]), str(DRUM[n][2])])
-                      for n in drums]
-            for name, worker_args in cases:
-                for threads in (1, 2):
-                    rows.append({"case": name, **compare(base, worker_args, threads, args.repeats)})
-                    print(rows[-1], flush=True)
-        finally:
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(base)], check=False)
+    with base_worktree(ROOT, args.base) as (base, rev), tempfile.TemporaryDirectory() as tmp:
+        base = Path(base)
+        cases = [(f"compression {n} spheres", [pack, repr(dt), str(LOADING_STEPS[n])])
+                 for n in sizes for _, pack, dt in [write_pack(n, 0, tmp)]]
+        cases += [(f"drum {n} balls", ["drum", repr(DRUM[n][0]), repr(DRUM[n][1]), str(DRUM[n][2])])
+                  for n in drums]
+        for name, worker_args in cases:
+            for threads in (1, 2):
+                rows.append({"case": name, **compare(base, worker_args, threads, args.repeats)})
+                print(rows[-1], flush=True)
     table = pd.DataFrame(rows)
     note = (f"Command: `python benchmarks/dem_ab.py {shlex.join(argv if argv is not None else sys.argv[1:])}`. "
             f"A = {rev} (a worktree), B = this checkout ({head}, plus any uncommitted change); {args.repeats} pairs "

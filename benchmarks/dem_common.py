@@ -4,10 +4,13 @@ machine's load and CPU, and the compression test's packings written for both gri
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import platform
+import subprocess
 import sys
+import tempfile
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
@@ -105,6 +108,26 @@ def cpu_model() -> str:
     except (OSError, StopIteration):
         pass
     return f"{name}, {os.cpu_count()} cores"
+
+
+def git_short(root, rev: str) -> str:
+    """The short hash of ``rev`` in the repository at ``root``."""
+    return subprocess.run(["git", "-C", str(root), "rev-parse", "--short", rev], check=True,
+                          capture_output=True, text=True).stdout.strip()
+
+
+@contextlib.contextmanager
+def base_worktree(root, rev: str):
+    """A temporary git worktree of ``rev`` (detached), removed afterwards; yields (its path, short hash)."""
+    short = git_short(root, rev)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "base")
+        subprocess.run(["git", "-C", str(root), "worktree", "add", "--detach", path, short], check=True,
+                       capture_output=True)
+        try:
+            yield path, short
+        finally:
+            subprocess.run(["git", "-C", str(root), "worktree", "remove", "--force", path], check=False)
 
 
 def write_pack(n: int, seed: int, folder: str):
