@@ -12,21 +12,48 @@ Public API (``dem`` imports nothing from twin, mpc or scenarios):
 - :mod:`dem.calibrate`: ``BondCalibrator``;
 - :mod:`dem.drum`: ``drum_test`` -> ``DrumResult``, ``critical_speed_rad_s``;
 - :mod:`dem.system`: ``System`` (low level: state + kernels), ``PlaneWall``, ``DrumGeometry``;
-- :mod:`dem.errors`: ``DemError``, ``DemInputError``, ``DemInstabilityError``.
+- :mod:`dem.errors`: ``DemError``, ``DemInputError``, ``DemInstabilityError``;
+- ``kernel_cache_dir``: where numba keeps the compiled kernels (not inside the package).
 """
 
-from dem.agglomerate import Agglomerate, make_agglomerate
-from dem.bonds import BondParams, kn_from_modulus_Pa_m
-from dem.calibrate import BondCalibrator
-from dem.drum import DrumResult, critical_speed_rad_s, drum_test
-from dem.errors import DemError, DemInputError, DemInstabilityError
-from dem.fragments import FragmentResult, find_fragments
-from dem.lab import (DEFAULT_TIME_STEP_FACTOR, CompressionResult, ImpactResult, compression_test,
-                     drop_weight_test)
-from dem.materials import RAYLEIGH_SAFETY_FACTOR, STEEL, Material
+import os
+from pathlib import Path
+
+import numba
+
+
+def kernel_cache_dir() -> Path:
+    """Where numba keeps the compiled kernels: ``$NUMBA_CACHE_DIR`` if set, else grindtwin's cache
+    folder (``$GRINDTWIN_CACHE_DIR``, else ``$XDG_CACHE_HOME/grindtwin`` or ``~/.cache/grindtwin``,
+    the folder of the compiled controllers; dem sits below mpc and cannot ask it) / ``numba``.
+    numba's default is a ``__pycache__`` beside the sources, inside the installed package."""
+    if numba.config.CACHE_DIR:
+        return Path(numba.config.CACHE_DIR)
+    root = os.environ.get("GRINDTWIN_CACHE_DIR")
+    if not root:
+        root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "grindtwin"
+    return Path(root).expanduser() / "numba"
+
+
+# numba binds a kernel to its cache folder when it is decorated, that is when its module is
+# imported here: the folder is set for dem's kernels only, and the user's setting put back after
+_user_cache_dir = numba.config.CACHE_DIR
+numba.config.CACHE_DIR = str(kernel_cache_dir())
+try:
+    from dem.agglomerate import Agglomerate, make_agglomerate
+    from dem.bonds import BondParams, kn_from_modulus_Pa_m
+    from dem.calibrate import BondCalibrator
+    from dem.drum import DrumResult, critical_speed_rad_s, drum_test
+    from dem.errors import DemError, DemInputError, DemInstabilityError
+    from dem.fragments import FragmentResult, find_fragments
+    from dem.lab import (DEFAULT_TIME_STEP_FACTOR, CompressionResult, ImpactResult, compression_test,
+                         drop_weight_test)
+    from dem.materials import RAYLEIGH_SAFETY_FACTOR, STEEL, Material
+finally:
+    numba.config.CACHE_DIR = _user_cache_dir
 
 __all__ = ["Agglomerate", "make_agglomerate", "BondParams", "kn_from_modulus_Pa_m",
            "BondCalibrator", "DrumResult", "critical_speed_rad_s", "drum_test", "DemError",
            "DemInputError", "DemInstabilityError", "FragmentResult", "find_fragments",
            "CompressionResult", "ImpactResult", "compression_test", "drop_weight_test", "DEFAULT_TIME_STEP_FACTOR",
-           "RAYLEIGH_SAFETY_FACTOR", "STEEL", "Material"]
+           "RAYLEIGH_SAFETY_FACTOR", "STEEL", "Material", "kernel_cache_dir"]

@@ -131,33 +131,3 @@ def test_openmp_is_the_threading_layer_unless_the_user_chooses():
     assert _layer_in_subprocess() == "omp"
     assert _layer_in_subprocess(NUMBA_THREADING_LAYER="workqueue") == "workqueue"
 
-
-def test_every_system_runs_on_one_compiled_copy_of_the_kernels():
-    """Spheres without bonds, one bond, an agglomerate and the drum: one signature each of the
-    step kernels in a fresh interpreter. A second signature compiles the whole step again (the
-    bond table of 0 or 1 rows typed C-contiguous, or a constant argument typed as a literal,
-    each cost minutes on a cold cache)."""
-    import subprocess
-    import sys
-
-    code = """
-import numpy as np
-from dem import kernels as K
-from dem.agglomerate import make_agglomerate
-from dem.bonds import BondParams, BondSet, kn_from_modulus_Pa_m
-from dem.drum import drum_system
-from dem.materials import Material
-from dem.system import PlaneWall, System
-pos, rad = np.array([[0.0, 0, 0], [1.9e-3, 0, 0]]), np.array([1e-3, 1e-3])
-bp = BondParams(kn_Pa_m=1e13, ks_Pa_m=4e12, tensile_strength_Pa=2e6, cohesion_Pa=4e6)
-System(pos, rad, Material()).run(5)
-System(pos, rad, Material(), bonds=BondSet([[0, 1]], pos, rad, bp)).run(5)
-agg = make_agglomerate(0.01, 60, random_state=1)
-bs = BondSet(agg.bond_pairs, agg.pos_m, agg.radius_m, bp)
-z = float(np.min(agg.pos_m[:, 2] - agg.radius_m))
-System(agg.pos_m, agg.radius_m, Material(), bonds=bs, walls=[PlaneWall((0, 0, z), (0, 0, 1))]).run(5)
-drum_system(0.7, 0.3, ball_diameter_m=0.04, section_length_m=0.1, random_state=2).system.run(5)
-print([len(f.signatures) for f in (K.run_steps, K.compute_forces)])
-"""
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip().splitlines()[-1] == "[1, 1]", out.stdout
