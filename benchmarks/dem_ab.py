@@ -6,10 +6,10 @@ pairs of A's wall time over B's and of A's CPU time over B's (above 1: this chec
 at 1 and 2 threads. On one thread the CPU time is the steadier measure on a shared machine (time
 the hypervisor gives to others is not counted); on two it includes OpenMP's spinning at barriers.
 
-Writes benchmarks/results/dem_ab.md and .csv. Needs git; the worktree is made in a temporary
-folder and removed afterwards.
+Writes benchmarks/results/dem_ab.md and .csv (``--tag T``: dem_abT.md, .csv). Needs git; the
+worktree is made in a temporary folder and removed afterwards.
 
-    python benchmarks/dem_ab.py --base REV [--sizes 500,2000,8000] [--repeats 9]
+    python benchmarks/dem_ab.py --base REV [--sizes 500,2000,8000] [--repeats 9] [--tag T]
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import shlex
 import subprocess
 import sys
@@ -67,11 +68,14 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--sizes", default="500,2000,8000", help="sphere counts of the compression test")
     ap.add_argument("--drum", default="1512,8064", help=f"ball counts of the drum ({', '.join(map(str, DRUM))})")
     ap.add_argument("--repeats", type=int, default=9)
+    ap.add_argument("--tag", default="", help="suffix of the result files (dem_ab{TAG}.md, .csv)")
     args = ap.parse_args(argv)
     sizes = [int(v) for v in args.sizes.split(",") if v]
     drums = [int(v) for v in args.drum.split(",") if v]
     bad = [f"--sizes {n} (choose from {sorted(LOADING_STEPS)})" for n in sizes if n not in LOADING_STEPS]
     bad += [f"--drum {n} (choose from {sorted(DRUM)})" for n in drums if n not in DRUM]
+    if not re.fullmatch(r"[A-Za-z0-9_-]*", args.tag):
+        bad.append(f"--tag {args.tag!r} (letters, digits, _ and - only: it ends a file name)")
     if args.repeats < 1:
         bad.append(f"--repeats {args.repeats} (at least 1)")
     if not sizes + drums:
@@ -95,7 +99,7 @@ def main(argv=None) -> pd.DataFrame:
             f"A = {rev} (a worktree), B = this checkout ({head}, plus any uncommitted change); {args.repeats} pairs "
             f"per row, alternated in fresh processes; ratios = A's wall (CPU) time over B's (above 1: B faster). Machine: "
             f"2 cores; load average (1/5/15 min) after each row.")
-    write_table(table, "dem_ab", f"DEM kernels: this checkout against {rev}, interleaved", note)
+    write_table(table, f"dem_ab{args.tag}", f"DEM kernels: this checkout against {rev}, interleaved", note)
     return table
 
 
