@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import os
 import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -92,11 +91,16 @@ def main(argv=None) -> pd.DataFrame:
             return Mirror(est, proc, "E", rows), Mirror(ctrl, proc, "C", rows)
 
         closed_loop.nmpc_parts = mirrored
+        mode = os.environ.get(codegen.MODE_ENV)
         os.environ[codegen.MODE_ENV] = "on"
         try:
             run_scene(load_scene(SCENE), progress=False)
         finally:
             closed_loop.nmpc_parts = real
+            if mode is None:
+                os.environ.pop(codegen.MODE_ENV)
+            else:
+                os.environ[codegen.MODE_ENV] = mode
         tail, _ = proc.communicate()
         info = dict(line.split() for line in tail.strip().splitlines())
     fr = pd.DataFrame(rows)
@@ -133,4 +137,4 @@ def main(argv=None) -> pd.DataFrame:
 
 
 if __name__ == "__main__":
-    sys.exit(0 if main() is not None else 1)
+    main()

@@ -8,7 +8,7 @@ X's P80, specific energy and throughput at constant load are predicted and compa
 MISSION.md's table. The same folds for the 'table' calibration (the mineralogy map, 11 numbers
 fitted to the 9 of three ores: under-determined) show what a plain regression predicts.
 
-Writes benchmarks/results/twin_loo.csv/.md. Run: ``python benchmarks/twin_loo.py``
+Writes benchmarks/results/twin_loo.csv/.md and twin_loo_folds.csv (per fold). Run: ``python benchmarks/twin_loo.py``
 (a few minutes on one core).
 """
 
