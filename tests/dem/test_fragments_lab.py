@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dem.agglomerate import make_agglomerate
-from dem.bonds import BondParams, BondSet, kn_from_modulus_Pa_m
+from dem.bonds import BondParams, kn_from_modulus_Pa_m
 from dem.errors import DemInputError
 from dem.fragments import find_fragments
 from dem.lab import compression_test, drop_weight_test

@@ -48,7 +48,6 @@ def test_a_broken_bond_lets_its_pair_touch_on_the_same_list():
     """Pairs carried by an intact bond are left out of the contact loop; a bond that breaks
     hands its pair to the contacts at once, with no list rebuild in between (without the
     refresh of the active pairs the two spheres would pass through each other)."""
-    from dem import kernels as K
     from dem.bonds import BondParams, BondSet
 
     r = 1e-3
