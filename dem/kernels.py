@@ -20,8 +20,8 @@
   "at_force"``) Yade's ``cundallDamp2nd`` estimate ``v + dt/2 F/m`` at the time of the force.
 
 Developers: the kernels are cached by numba (``cache=True``) in :func:`dem.kernel_cache_dir`, and
-numba checks only this file's time stamp, not those of the functions it compiles in
-(``dem.bonds``, ``dem.contacts``). After editing those, delete the cache's ``dem_*`` folders, or
+numba checks only this file's content (a hash), not that of the files whose functions it
+compiles in (``dem.bonds``, ``dem.contacts``). After editing those, delete the cache's ``dem_*`` folders, or
 the old kernels run. A new module with kernels must be imported by ``dem/__init__.py`` (which
 points numba's cache there while it imports them).
 """
