@@ -13,10 +13,12 @@ Public API (``dem`` imports nothing from twin, mpc or scenarios):
 - :mod:`dem.drum`: ``drum_test`` -> ``DrumResult``, ``critical_speed_rad_s``;
 - :mod:`dem.system`: ``System`` (low level: state + kernels), ``PlaneWall``, ``DrumGeometry``;
 - :mod:`dem.errors`: ``DemError``, ``DemInputError``, ``DemInstabilityError``;
-- ``kernel_cache_dir``: where numba keeps the compiled kernels (not inside the package).
+- ``kernel_cache_dir``: where numba keeps the compiled kernels (not inside the package); a
+  ``RuntimeWarning`` at import if that folder cannot be written (numba would compile every time).
 """
 
 import os
+import warnings
 from pathlib import Path
 
 import numba
@@ -35,10 +37,25 @@ def kernel_cache_dir() -> Path:
     return Path(root).expanduser() / "numba"
 
 
+def _warn_if_unwritable(folder: Path) -> None:
+    """numba compiles without caching, silently, where it cannot write: say so once, at import."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        ok = os.access(folder, os.W_OK | os.X_OK)
+        reason = "not writable"
+    except OSError as exc:
+        ok, reason = False, f"{type(exc).__name__}: {exc.strerror or exc}"
+    if not ok:
+        warnings.warn(f"grindtwin: the DEM kernels cannot be cached in {str(folder)!r} ({reason}); every new "
+                      "process compiles them again (one to two minutes). Set GRINDTWIN_CACHE_DIR (or "
+                      "NUMBA_CACHE_DIR) to a writable folder.", RuntimeWarning, stacklevel=2)
+
+
 # numba binds a kernel to its cache folder when it is decorated, that is when its module is
 # imported here: the folder is set for dem's kernels only, and the user's setting put back after
 _user_cache_dir = numba.config.CACHE_DIR
 numba.config.CACHE_DIR = str(kernel_cache_dir())
+_warn_if_unwritable(Path(numba.config.CACHE_DIR))
 try:
     from dem.agglomerate import Agglomerate, make_agglomerate
     from dem.bonds import BondParams, kn_from_modulus_Pa_m

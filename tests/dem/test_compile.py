@@ -50,3 +50,18 @@ def test_kernels_are_cached_in_grindtwins_folder_not_in_the_package(tmp_path):
     assert Path(mine).parent == tmp_path / "g" / "numba"
     theirs = in_fresh_interpreter(CACHE_PATHS, CACHE_VARS, NUMBA_CACHE_DIR=str(tmp_path / "n")).split()
     assert Path(theirs[0]).parent == tmp_path / "n" and theirs[2] == repr(str(tmp_path / "n"))
+
+
+def test_an_unwritable_cache_folder_is_reported_not_silent(tmp_path):
+    """numba compiles without caching where it cannot write, and says nothing: dem warns at import,
+    naming the folder and how to choose another. A file where the folder should be stands in
+    for an unwritable folder (permissions do not stop root)."""
+    (tmp_path / "grindtwin").write_text("not a folder")
+    code = ("import warnings; warnings.simplefilter('always')\n"
+            "with warnings.catch_warnings(record=True) as w:\n"
+            "    import dem\n"
+            "print(repr([str(x.message) for x in w if issubclass(x.category, RuntimeWarning)]))")
+    said = in_fresh_interpreter(code, CACHE_VARS, XDG_CACHE_HOME=str(tmp_path))
+    assert str(tmp_path / "grindtwin" / "numba") in said and "GRINDTWIN_CACHE_DIR" in said, said
+    # a writable folder: no warning
+    assert in_fresh_interpreter(code, CACHE_VARS, XDG_CACHE_HOME=str(tmp_path / "ok")) == "[]"
