@@ -166,9 +166,10 @@ def build_neighbour_list(pos, rad, skin, lz, b_partner, b_index):
     n = pos.shape[0]
     counts, ci, order, start = _cell_grid(pos, rad, skin, lz)
     dummy = np.empty(0, dtype=np.int64)
+    count_only = np.int64(-1)  # typed int64 like the fill pass's offsets: a literal -1 compiles a second copy
     first = np.zeros(n + 1, dtype=np.int64)
     for i in range(n):
-        first[i + 1] = _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, dummy, -1)
+        first[i + 1] = _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, dummy, count_only)
     for i in range(n):
         first[i + 1] += first[i]
     npair = first[n]
@@ -220,7 +221,9 @@ def refresh_active(pr, b_state):
             active[m] = k
             m += 1
     pr.n_active[0] = m
-    fill_csr(pr.i, pr.j, active, m, pr.sphere_start, pr.sphere_entry)
+    # the count read back from its array: numba typed the local ``m`` as a literal 0 on some
+    # paths and compiled fill_csr a second time
+    fill_csr(pr.i, pr.j, active, pr.n_active[0], pr.sphere_start, pr.sphere_entry)
 
 
 @nb.njit(cache=True)
@@ -475,14 +478,19 @@ def _kick_drift(sp, half, dt, lz, pos_ref, lim2):
 
 
 @nb.njit(cache=True)
-def _move_walls(wl, cp, dt, after_forces):
-    """Planar walls: before the forces, a position step at their velocity; after, a free wall
-    (``mass > 0``) is accelerated along its normal by the spheres' reaction and gravity."""
+def _drift_walls(wl, dt):
+    """Planar walls' position step at their velocity (before the forces)."""
     for k in range(wl.p.shape[0]):
-        if not after_forces:
-            for d in range(3):
-                wl.p[k, d] += dt * wl.v[k, d]
-        elif wl.mass[k] > 0.0:
+        for d in range(3):
+            wl.p[k, d] += dt * wl.v[k, d]
+
+
+@nb.njit(cache=True)
+def _push_free_walls(wl, cp, dt):
+    """After the forces: a free wall (``mass > 0``) accelerated along its normal by the spheres'
+    reaction and gravity."""
+    for k in range(wl.p.shape[0]):
+        if wl.mass[k] > 0.0:
             fnrm = wl.f[k, 0] * wl.n[k, 0] + wl.f[k, 1] * wl.n[k, 1] + wl.f[k, 2] * wl.n[k, 2]
             gn = cp[CP_GX] * wl.n[k, 0] + cp[CP_GY] * wl.n[k, 1] + cp[CP_GZ] * wl.n[k, 2]
             acc = fnrm / wl.mass[k] + gn
@@ -518,7 +526,7 @@ def run_steps(n_steps, dt, sp, bd, pr, wl, dr, cp, pos_ref, drum_angle, hist_pp,
         if step > 0 or not drifted:  # else the caller's rebuild came after this step's drift
             if step == 0:  # later steps drift in the previous step's force pass
                 moved, bad = _kick_drift(sp, half, dt, lz, pos_ref, lim2)
-            _move_walls(wl, cp, dt, False)
+            _drift_walls(wl, dt)
             ang += cp[CP_DRUM_OMEGA] * dt
             if bad > 0:
                 return STATUS_NONFINITE, step, ang
@@ -531,7 +539,7 @@ def run_steps(n_steps, dt, sp, bd, pr, wl, dr, cp, pos_ref, drum_angle, hist_pp,
         # calls with a plain bool (minutes on a cold cache)
         tq, nbr, moved, bad = compute_forces(sp, bd, pr, wl, dr, cp, dt, ang, hist_pp, hist_pw, step >= 0,
                                              step + 1 < n_steps, pos_ref, lim2)
-        _move_walls(wl, cp, dt, True)
+        _push_free_walls(wl, cp, dt)
         for k in range(wl.p.shape[0]):
             rec_wall_f[step, k] = -(wl.f[k, 0] * wl.n[k, 0] + wl.f[k, 1] * wl.n[k, 1]
                                     + wl.f[k, 2] * wl.n[k, 2])
