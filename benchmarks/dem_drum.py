@@ -20,6 +20,7 @@ Run: ``python benchmarks/dem_drum.py [--speeds ...] [--checks]`` (1-3 min per sp
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 
@@ -64,7 +65,9 @@ def row(label, r):
     w = r.spectrum["total_per_s"].to_numpy()
     d["mean_impact_energy_J"] = float(np.sum(e * w) / max(np.sum(w), 1e-30))
     d["impact_power_W"] = float(np.sum(e * w))
-    print(d, flush=True)
+    # JSON (NaN written as NaN, numpy scalars as numbers): a dict's repr prints a bare nan, which
+    # dem_drum_table_from_log.py could not read back
+    print(json.dumps(d, default=lambda v: v.item()), flush=True)
     return d
 
 

@@ -8,6 +8,7 @@ Run: ``python benchmarks/dem_drum_table_from_log.py LOG``.
 
 import argparse
 import ast
+import json
 import os
 import sys
 
@@ -19,6 +20,19 @@ from dem_common import OUT, write_table
 from dem_drum import NOTES, TITLE, add_models, merge
 
 
+def _parse_row(line: str):
+    """A row as dem_drum.py prints it (JSON), or as it printed it before (a dict's repr, readable
+    unless it holds a bare nan); None if neither."""
+    try:
+        return json.loads(line)
+    except ValueError:
+        pass
+    try:
+        return ast.literal_eval(line)
+    except (ValueError, SyntaxError):
+        return None
+
+
 def read_rows(ap, log: str) -> list[dict]:
     """The dict lines of ``log``; anything unreadable is refused through ``ap.error`` before a file is written."""
     try:
@@ -28,10 +42,7 @@ def read_rows(ap, log: str) -> list[dict]:
         ap.error(f"LOG {log!r}: cannot be read ({e}). Nothing written.")
     rows = []
     for k, line in lines:
-        try:
-            rows.append(ast.literal_eval(line))
-        except (ValueError, SyntaxError):
-            rows.append(None)
+        rows.append(_parse_row(line))
         if not isinstance(rows[-1], dict):
             ap.error(f"LOG {log!r}, line {k}: not a row dict as dem_drum.py prints them. Nothing written.")
     if not rows:
