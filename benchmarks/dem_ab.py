@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import shlex
 import subprocess
 import sys
@@ -30,7 +29,7 @@ import pandas as pd
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
-from dem_common import LOADING_STEPS, base_worktree, git_short, load_average, write_pack, write_table  # noqa: E402
+from dem_common import LOADING_STEPS, TAG, base_worktree, git_short, load_average, write_pack, write_table  # noqa: E402
 
 DRUM = {504: (0.025, 0.1, 20000), 1512: (0.025, 0.3, 12000), 8064: (0.0125, 0.2, 3000)}
 
@@ -68,14 +67,12 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--sizes", default="500,2000,8000", help="sphere counts of the compression test")
     ap.add_argument("--drum", default="1512,8064", help=f"ball counts of the drum ({', '.join(map(str, DRUM))})")
     ap.add_argument("--repeats", type=int, default=9)
-    ap.add_argument("--tag", default="", help="suffix of the result files (dem_ab{TAG}.md, .csv)")
+    ap.add_argument("--tag", type=TAG, default="", help="suffix of the result files (dem_ab{TAG}.md, .csv)")
     args = ap.parse_args(argv)
     sizes = [int(v) for v in args.sizes.split(",") if v]
     drums = [int(v) for v in args.drum.split(",") if v]
     bad = [f"--sizes {n} (choose from {sorted(LOADING_STEPS)})" for n in sizes if n not in LOADING_STEPS]
     bad += [f"--drum {n} (choose from {sorted(DRUM)})" for n in drums if n not in DRUM]
-    if not re.fullmatch(r"[A-Za-z0-9_-]*", args.tag):
-        bad.append(f"--tag {args.tag!r} (letters, digits, _ and - only: it ends a file name)")
     if args.repeats < 1:
         bad.append(f"--repeats {args.repeats} (at least 1)")
     if not sizes + drums:

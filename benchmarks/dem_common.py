@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
+import re
 import os
 import platform
 import subprocess
@@ -53,6 +54,9 @@ SPHERES = option_type(*_SPHERES)
 SPHERES_LIST = option_type(*_SPHERES, many=True)
 POSITIVE = option_type(*_POSITIVE)
 POSITIVE_LIST = option_type(*_POSITIVE, many=True)
+#: a suffix of result file names (``--tag``): letters, digits, _ and -
+TAG = option_type(str, lambda v: re.fullmatch(r"[A-Za-z0-9_-]*", v) is not None,
+                  "letters, digits, _ and - only (it ends a file name)")
 
 
 def parse_run_mode(ap: argparse.ArgumentParser, argv=None) -> argparse.Namespace:

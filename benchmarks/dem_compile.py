@@ -8,9 +8,9 @@ prints how many signatures numba compiled of the step kernels (``run_steps``, ``
 each extra one is the whole step compiled again. Reports the wall time of each
 run (almost all compilation), the median of A's time over B's over the pairs, and the signatures.
 
-Writes benchmarks/results/dem_compile.md and .csv. Needs git.
+Writes benchmarks/results/dem_compile.md and .csv (``--tag T``: dem_compileT.md, .csv). Needs git.
 
-    python benchmarks/dem_compile.py --base REV [--repeats 2]
+    python benchmarks/dem_compile.py --base REV [--repeats 2] [--tag T]
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ import pandas as pd
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
-from dem_common import COUNT, base_worktree, cpu_model, git_short, load_average, write_table  # noqa: E402
+from dem_common import COUNT, TAG, base_worktree, cpu_model, git_short, load_average, write_table  # noqa: E402
 
 #: the first session: a compression test, then the drum (numba compiles what each needs)
 FIRST_USE = """
@@ -70,6 +70,7 @@ def main(argv=None) -> pd.DataFrame:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--base", required=True, help="git revision to compare against (A)")
     ap.add_argument("--repeats", type=COUNT, default="2", help="pairs of runs (default %(default)s)")
+    ap.add_argument("--tag", type=TAG, default="", help="suffix of the result files (dem_compile{TAG}.md, .csv)")
     args = ap.parse_args(argv)
     head = git_short(ROOT, "HEAD")
     rows = []
@@ -92,7 +93,7 @@ def main(argv=None) -> pd.DataFrame:
             "compiled of run_steps / compute_forces. "
             f"**A's time over B's: median {np.median(ratio):.2f}x (pairs {ratio.min():.2f}-{ratio.max():.2f}); "
             f"median {wall['A'].median():.0f} s against {wall['B'].median():.0f} s.**")
-    write_table(table, "dem_compile", f"DEM kernels' first compilation: this checkout against {rev}, interleaved",
+    write_table(table, f"dem_compile{args.tag}", f"DEM kernels' first compilation: this checkout against {rev}, interleaved",
                 note)
     return table
 
