@@ -19,9 +19,9 @@ Yade, the same time step on both sides (0.5 of grindtwin's critical step).
 3. scale: grindtwin alone at 500-32000 spheres, 1 and 2 threads interleaved.
 4. drum: the lab drum's ball charge at about 500 to 24,000 balls, 1 and 2 threads interleaved.
 
-``python benchmarks/dem_parallel.py [--fast] [--parts speed,peak,scale,drum] [--sizes 500,2000] [--repeats 3]``
-writes benchmarks/results/dem_parallel_speed.*, dem_parallel_peak.*, dem_parallel_scale.* and
-dem_parallel_drum.* (md + csv)
+``python benchmarks/dem_parallel.py [--fast] [--parts speed,peak,scale,drum] [--sizes 500,2000] [--repeats 3]
+[--tag T]`` writes benchmarks/results/dem_parallel_speed.*, dem_parallel_peak.*, dem_parallel_scale.* and
+dem_parallel_drum.* (md + csv; with ``--tag T`` dem_parallel_speedT.* and so on, beside them)
 for the parts asked (default all; ``--sizes`` limits every part to those sphere counts). The
 speed and peak parts need ``yade`` on PATH (Debian package ``yade``).
 """
@@ -41,7 +41,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 import numpy as np
 import pandas as pd
 
-from dem_common import LOADING_STEPS, cpu_model, load_average, write_pack, write_table
+from dem_common import LOADING_STEPS, TAG, cpu_model, load_average, write_pack, write_table
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 WORKER = os.path.join(HERE, "dem_parallel_worker.py")
@@ -62,6 +62,8 @@ def options(argv=None) -> argparse.Namespace:
     ap.add_argument("--parts", default=",".join(PARTS))
     ap.add_argument("--sizes", default="", help="sphere counts to keep in every part, e.g. 500,2000")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--tag", type=TAG, default="",
+                    help="suffix of the result files (dem_parallel_speed{TAG}.md, ...), beside the committed ones")
     o = ap.parse_args(argv)
     o.parts = o.parts.split(",")
     unknown = sorted(set(o.parts) - set(PARTS))
@@ -220,7 +222,7 @@ def main(argv=None):
                          "nothing written")
     with tempfile.TemporaryDirectory() as folder:
         if "speed" in o.parts:
-            write_table(speed(folder, o), "dem_parallel_speed",
+            write_table(speed(folder, o), f"dem_parallel_speed{o.tag}",
                         "grindtwin (1 and 2 threads) against Yade -j1/-j2, Yade-JCFpm physics",
                         note + " us = microseconds of CPU (user + system, all threads) or wall time per "
                         "particle-step; gt1/gt2 = grindtwin on 1/2 threads, yade1/yade2 = yade -j1/-j2; "
@@ -228,14 +230,14 @@ def main(argv=None):
                         "wall / 2-thread wall.")
         if "peak" in o.parts:
             pk = peaks(folder, o)
-            write_table(pk, "dem_parallel_peak", "Peak force: grindtwin against Yade, same packings and time step",
+            write_table(pk, f"dem_parallel_peak{o.tag}", "Peak force: grindtwin against Yade, same packings and time step",
                         note + f" Peak ratio over the packings: mean {pk.peak_ratio.mean():.4f}, "
                         f"range {pk.peak_ratio.min():.4f}-{pk.peak_ratio.max():.4f}.")
         if "drum" in o.parts:
-            write_table(drum_scale(o), "dem_parallel_drum",
+            write_table(drum_scale(o), f"dem_parallel_drum{o.tag}",
                         "grindtwin drum (ball charge) scale table (1 and 2 threads)", note)
         if "scale" in o.parts:
-            write_table(scale(folder, o), "dem_parallel_scale",
+            write_table(scale(folder, o), f"dem_parallel_scale{o.tag}",
                         "grindtwin compression-test scale table (1 and 2 threads)", note)
 
 
