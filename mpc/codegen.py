@@ -9,10 +9,10 @@ changed model, option or compiler builds anew and nothing stale is loaded. Libra
 compiled in a temporary file of the cache folder and renamed into place (atomic: two processes
 building the same function never load a half-written file).
 
-Modes (``mode``): ``"auto"`` compiles when a C compiler is found and otherwise returns the
-interpreted function (CasADi's virtual machine), reported by a :class:`CompileFallbackWarning`
-and counted in :data:`FALLBACKS`; ``"on"`` raises :class:`mpc.errors.MpcError` without a
-compiler; ``"off"`` never compiles; ``$GRINDTWIN_CODEGEN`` (one of the modes) replaces
+Modes (``mode``): ``"auto"`` compiles when a C compiler is found and the cache folder can be
+written, and otherwise returns the interpreted function (CasADi's virtual machine), reported by a
+:class:`CompileFallbackWarning` and counted in :data:`FALLBACKS`; ``"on"`` raises
+:class:`mpc.errors.MpcError` instead; ``"off"`` never compiles; ``$GRINDTWIN_CODEGEN`` (one of the modes) replaces
 ``"auto"`` (the test suite sets it to ``"off"`` for tests that are not about compiled code). The compiler is ``$CC`` if set, else ``cc`` or ``gcc`` on
 the PATH.
 """
@@ -136,12 +136,27 @@ def _resolve(name: str, mode: str) -> tuple[str | None, CompileReport | None]:
     if cc is None:
         reason = ("no C compiler found ($CC, cc, gcc); install one (e.g. apt-get install gcc) "
                   "to run the compiled controller")
-        if mode == "on":
-            raise MpcError(f"Cannot compile '{name}': {reason}.")
-        FALLBACKS[reason] += 1
-        warnings.warn(f"'{name}' runs interpreted (slower): {reason}.", CompileFallbackWarning, stacklevel=3)
-        return None, CompileReport(name, False, False, 0.0, None, reason)
-    return cc, None
+    else:
+        reason = _unwritable(cache_dir())
+    if reason is None:
+        return cc, None
+    if mode == "on":
+        raise MpcError(f"Cannot compile '{name}': {reason}.")
+    FALLBACKS[reason] += 1
+    warnings.warn(f"'{name}' runs interpreted (slower): {reason}.", CompileFallbackWarning, stacklevel=3)
+    return None, CompileReport(name, False, False, 0.0, None, reason)
+
+
+def _unwritable(folder: Path) -> str | None:
+    """Why the libraries cannot be kept in ``folder`` (created if missing), or None if they can."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        if os.access(folder, os.W_OK | os.X_OK):
+            return None
+        problem = "not writable"
+    except OSError as exc:
+        problem = f"{type(exc).__name__}: {exc.strerror or exc}"
+    return f"the cache folder {str(folder)!r} cannot be written ({problem}); set ${CACHE_ENV} to a writable folder"
 
 
 def compiled(fn: ca.Function, mode: str = "auto", cflags=DEFAULT_CFLAGS) -> tuple[ca.Function, CompileReport]:

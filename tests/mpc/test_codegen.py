@@ -80,6 +80,24 @@ def test_no_compiler_falls_back_reported_and_counted(monkeypatch):
         codegen.compiled(fn, "sometimes")
 
 
+def test_an_unwritable_cache_folder_falls_back_reported_not_a_crash(monkeypatch, tmp_path):
+    """A cache folder that cannot be made (a file in its place; permissions do not stop root) was an
+    OSError from deep in the compile; now the same reported fallback as a missing compiler."""
+    (tmp_path / "file").write_text("not a folder")
+    monkeypatch.setenv(codegen.CACHE_ENV, str(tmp_path / "file" / "cache"))
+    monkeypatch.delenv(codegen.MODE_ENV)
+    x = ca.SX.sym("x")
+    fn = ca.Function("cg_unwritable", [x], [3 * x])
+    before = sum(codegen.FALLBACKS.values())
+    with pytest.warns(codegen.CompileFallbackWarning, match="cannot be written.*GRINDTWIN_CACHE_DIR"):
+        f, rep = codegen.compiled(fn, "auto")
+    assert f is fn and not rep.compiled and str(tmp_path / "file" / "cache") in rep.reason
+    assert sum(codegen.FALLBACKS.values()) == before + 1
+    with pytest.raises(MpcError, match="cannot be written"):
+        codegen.compiled(fn, "on")
+    assert (tmp_path / "file").read_text() == "not a folder"
+
+
 @pytest.mark.slow
 def test_compiled_controller_moves_equal_interpreted(ctrl_twin):
     if codegen.find_compiler() is None:
