@@ -21,7 +21,8 @@ Yade, the same time step on both sides (0.5 of grindtwin's critical step).
 
 ``python benchmarks/dem_parallel.py [--fast] [--parts speed,peak,scale,drum] [--sizes 500,2000] [--repeats 3]
 [--tag T]`` writes benchmarks/results/dem_parallel_speed.*, dem_parallel_peak.*, dem_parallel_scale.* and
-dem_parallel_drum.* (md + csv; with ``--tag T`` dem_parallel_speedT.* and so on, beside them)
+dem_parallel_drum.* (md + csv; with ``--tag T`` dem_parallel_speedT.* and so on, beside them) and
+dem_parallel_speed_repeats.csv (every repeat's times, to pool runs)
 for the parts asked (default all; ``--sizes`` limits every part to those sphere counts). The
 speed and peak parts need ``yade`` on PATH (Debian package ``yade``).
 """
@@ -41,7 +42,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 import numpy as np
 import pandas as pd
 
-from dem_common import LOADING_STEPS, TAG, cpu_model, load_average, write_pack, write_table
+from dem_common import LOADING_STEPS, OUT, TAG, cpu_model, load_average, write_pack, write_table
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 WORKER = os.path.join(HERE, "dem_parallel_worker.py")
@@ -114,8 +115,9 @@ def yade(pack, dt, steps, threads, folder):
 def speed(folder, o):
     """Each repeat runs the four sides in fresh processes, in the order gt1, gt2, yade1, yade2 and
     reversed on the next repeat; the ratios are taken pair by pair within a repeat (both sides
-    seconds apart), then their median and range over the repeats."""
-    rows = []
+    seconds apart), then their median and range over the repeats. Returns (the table, one row per
+    repeat and side: its times, so runs can be pooled later)."""
+    rows, raw = [], []
     for n, steps in o.steps.items():
         agg, pack, dt = write_pack(n, 0, folder)
         grindtwin(pack, dt, 10, 1)            # compile once into the cache
@@ -128,6 +130,8 @@ def speed(folder, o):
             print(n, rep, {k: (round(v[-1]["wall_s"], 3), round(v[-1]["cpu_s"], 3)) for k, v in runs.items()},
                   "load", load_average(), flush=True)
         ps = n * steps
+        raw += [{"n_spheres": n, "steps": steps, "repeat": i, "side": k, "wall_s": r["wall_s"], "cpu_s": r["cpu_s"]}
+                for k, v in runs.items() for i, r in enumerate(v)]
         cpu = {k: np.array([r["cpu_s"] for r in v]) for k, v in runs.items()}
         wall = {k: np.array([r["wall_s"] for r in v]) for k, v in runs.items()}
         per_core = cpu["yade1"] / cpu["gt1"]
@@ -141,7 +145,7 @@ def speed(folder, o):
                      "gt_2nd_core_range": f"{second.min():.2f}-{second.max():.2f}",
                      "yade_2nd_core_speedup": float(np.median(wall["yade1"] / wall["yade2"])),
                      "load_after": load_average()})
-    return pd.DataFrame(rows)
+    return pd.DataFrame(rows), pd.DataFrame(raw)
 
 
 def peaks(folder, o):
@@ -222,15 +226,19 @@ def main(argv=None):
                          "nothing written")
     with tempfile.TemporaryDirectory() as folder:
         if "speed" in o.parts:
-            write_table(speed(folder, o), f"dem_parallel_speed{o.tag}",
+            table, raw = speed(folder, o)
+            write_table(table, f"dem_parallel_speed{o.tag}",
                         "grindtwin (1 and 2 threads) against Yade -j1/-j2, Yade-JCFpm physics",
                         note + " us = microseconds of CPU (user + system, all threads) or wall time per "
                         "particle-step; gt1/gt2 = grindtwin on 1/2 threads, yade1/yade2 = yade -j1/-j2; "
                         "per_core_x_yade = Yade -j1 CPU / grindtwin 1-thread CPU; second core: 1-thread "
-                        "wall / 2-thread wall.")
+                        "wall / 2-thread wall. Every repeat's times: dem_parallel_speed"
+                        f"{o.tag}_repeats.csv.")
+            raw.to_csv(os.path.join(OUT, f"dem_parallel_speed{o.tag}_repeats.csv"), index=False)
         if "peak" in o.parts:
             pk = peaks(folder, o)
-            write_table(pk, f"dem_parallel_peak{o.tag}", "Peak force: grindtwin against Yade, same packings and time step",
+            write_table(pk, f"dem_parallel_peak{o.tag}",
+                        "Peak force: grindtwin against Yade, same packings and time step",
                         note + f" Peak ratio over the packings: mean {pk.peak_ratio.mean():.4f}, "
                         f"range {pk.peak_ratio.min():.4f}-{pk.peak_ratio.max():.4f}.")
         if "drum" in o.parts:
