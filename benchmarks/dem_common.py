@@ -6,9 +6,9 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
-import re
 import os
 import platform
+import re
 import subprocess
 import sys
 import tempfile
