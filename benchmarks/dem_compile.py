@@ -93,8 +93,8 @@ def main(argv=None) -> pd.DataFrame:
             "compiled of run_steps / compute_forces. "
             f"**A's time over B's: median {np.median(ratio):.2f}x (pairs {ratio.min():.2f}-{ratio.max():.2f}); "
             f"median {wall['A'].median():.0f} s against {wall['B'].median():.0f} s.**")
-    write_table(table, f"dem_compile{args.tag}", f"DEM kernels' first compilation: this checkout against {rev}, interleaved",
-                note)
+    write_table(table, f"dem_compile{args.tag}",
+                f"DEM kernels' first compilation: this checkout against {rev}, interleaved", note)
     return table
 
 

@@ -13,10 +13,12 @@ Public API (``dem`` imports nothing from twin, mpc or scenarios):
 - :mod:`dem.drum`: ``drum_test`` -> ``DrumResult``, ``critical_speed_rad_s``;
 - :mod:`dem.system`: ``System`` (low level: state + kernels), ``PlaneWall``, ``DrumGeometry``;
 - :mod:`dem.errors`: ``DemError``, ``DemInputError``, ``DemInstabilityError``;
-- ``kernel_cache_dir``: where numba keeps the compiled kernels (not inside the package); a
-  ``RuntimeWarning`` at import if that folder cannot be written (numba would compile every time).
+- ``kernel_cache_dir``: where numba keeps the compiled kernels (not inside the package; a folder
+  per version of dem's sources); a ``RuntimeWarning`` at import if that folder cannot be written
+  (numba would compile every time).
 """
 
+import hashlib
 import os
 import warnings
 from pathlib import Path
@@ -24,17 +26,30 @@ from pathlib import Path
 import numba
 
 
+def kernel_source_hash() -> str:
+    """A hash of every source file of dem. numba keys a cached kernel on its own file only: a
+    kernel compiled with functions of another file (``dem.bonds`` into ``dem.kernels``) would be
+    loaded unchanged after that file changed, the old physics run silently."""
+    h = hashlib.sha256()
+    for f in sorted(Path(__file__).parent.glob("*.py")):
+        h.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()[:16]
+
+
 def kernel_cache_dir() -> Path:
-    """Where numba keeps the compiled kernels: ``$NUMBA_CACHE_DIR`` if set, else grindtwin's cache
-    folder (``$GRINDTWIN_CACHE_DIR``, else ``$XDG_CACHE_HOME/grindtwin`` or ``~/.cache/grindtwin``,
-    the folder of the compiled controllers; dem sits below mpc and cannot ask it) / ``numba``.
-    numba's default is a ``__pycache__`` beside the sources, inside the installed package."""
+    """Where numba keeps the compiled kernels: under ``$NUMBA_CACHE_DIR`` if set, else grindtwin's
+    cache folder (``$GRINDTWIN_CACHE_DIR``, else ``$XDG_CACHE_HOME/grindtwin`` or
+    ``~/.cache/grindtwin``, the folder of the compiled controllers; dem sits below mpc and cannot ask
+    it) / ``numba``, in a folder named by :func:`kernel_source_hash` (a changed source compiles
+    anew). numba's default is a ``__pycache__`` beside the sources, inside the installed package."""
     if numba.config.CACHE_DIR:
-        return Path(numba.config.CACHE_DIR)
-    root = os.environ.get("GRINDTWIN_CACHE_DIR")
-    if not root:
-        root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "grindtwin"
-    return Path(root).expanduser() / "numba"
+        base = Path(numba.config.CACHE_DIR)
+    else:
+        root = os.environ.get("GRINDTWIN_CACHE_DIR")
+        if not root:
+            root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "grindtwin"
+        base = Path(root).expanduser() / "numba"
+    return base / f"dem-{kernel_source_hash()}"
 
 
 def _warn_if_unwritable(folder: Path) -> None:
@@ -73,4 +88,4 @@ __all__ = ["Agglomerate", "make_agglomerate", "BondParams", "kn_from_modulus_Pa_
            "BondCalibrator", "DrumResult", "critical_speed_rad_s", "drum_test", "DemError",
            "DemInputError", "DemInstabilityError", "FragmentResult", "find_fragments",
            "CompressionResult", "ImpactResult", "compression_test", "drop_weight_test", "DEFAULT_TIME_STEP_FACTOR",
-           "RAYLEIGH_SAFETY_FACTOR", "STEEL", "Material", "kernel_cache_dir"]
+           "RAYLEIGH_SAFETY_FACTOR", "STEEL", "Material", "kernel_cache_dir", "kernel_source_hash"]

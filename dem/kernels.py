@@ -19,11 +19,11 @@
   ``v`` is the mid-step velocity, or with ``CP_DAMP_AT_STEP`` (System ``damping_velocity=
   "at_force"``) Yade's ``cundallDamp2nd`` estimate ``v + dt/2 F/m`` at the time of the force.
 
-Developers: the kernels are cached by numba (``cache=True``) in :func:`dem.kernel_cache_dir`, and
-numba checks only this file's content (a hash), not that of the files whose functions it
-compiles in (``dem.bonds``, ``dem.contacts``). After editing those, delete the cache's ``dem_*`` folders, or
-the old kernels run. A new module with kernels must be imported by ``dem/__init__.py`` (which
-points numba's cache there while it imports them).
+Developers: the kernels are cached by numba (``cache=True``) in :func:`dem.kernel_cache_dir`, a
+folder named by a hash of every dem source: numba itself checks only this file's content, not
+that of the files whose functions it compiles in (``dem.bonds``, ``dem.contacts``). A new module
+with kernels must be imported by ``dem/__init__.py`` (which points numba's cache there while it
+imports them).
 """
 
 from __future__ import annotations

@@ -12,9 +12,9 @@ building the same function never load a half-written file).
 Modes (``mode``): ``"auto"`` compiles when a C compiler is found and the cache folder can be
 written, and otherwise returns the interpreted function (CasADi's virtual machine), reported by a
 :class:`CompileFallbackWarning` and counted in :data:`FALLBACKS`; ``"on"`` raises
-:class:`mpc.errors.MpcError` instead; ``"off"`` never compiles; ``$GRINDTWIN_CODEGEN`` (one of the modes) replaces
-``"auto"`` (the test suite sets it to ``"off"`` for tests that are not about compiled code). The compiler is ``$CC`` if set, else ``cc`` or ``gcc`` on
-the PATH.
+:class:`mpc.errors.MpcError` instead; ``"off"`` never compiles; ``$GRINDTWIN_CODEGEN`` (one of
+the modes) replaces ``"auto"`` (the test suite sets it to ``"off"`` for tests that are not about
+compiled code). The compiler is ``$CC`` if set, else ``cc`` or ``gcc`` on the PATH.
 """
 
 from __future__ import annotations

@@ -1,7 +1,11 @@
 """Compiled kernels: one copy serves every system, and numba keeps it in grindtwin's cache folder,
 never inside the installed package."""
 
+import shutil
 from pathlib import Path
+
+import dem
+from dem import kernel_source_hash
 
 from . import in_fresh_interpreter
 
@@ -48,15 +52,36 @@ CACHE_PATHS = ("import numba, dem, dem.kernels as K, dem.contacts as C; "
 
 
 def test_kernels_are_cached_in_grindtwins_folder_not_in_the_package(tmp_path):
+    version = f"dem-{kernel_source_hash()}"
     kernels, contacts, after = in_fresh_interpreter(CACHE_PATHS, CACHE_VARS, XDG_CACHE_HOME=str(tmp_path)).split()
     for path in (kernels, contacts):
-        assert Path(path).parent == tmp_path / "grindtwin" / "numba", path
+        assert Path(path).parent == tmp_path / "grindtwin" / "numba" / version, path
     assert after == "''"  # numba's own setting put back for the user's functions
     # a grindtwin cache folder and a user's numba setting are both honoured
     mine = in_fresh_interpreter(CACHE_PATHS, CACHE_VARS, GRINDTWIN_CACHE_DIR=str(tmp_path / "g")).split()[0]
-    assert Path(mine).parent == tmp_path / "g" / "numba"
+    assert Path(mine).parent == tmp_path / "g" / "numba" / version
     theirs = in_fresh_interpreter(CACHE_PATHS, CACHE_VARS, NUMBA_CACHE_DIR=str(tmp_path / "n")).split()
-    assert Path(theirs[0]).parent == tmp_path / "n" and theirs[2] == repr(str(tmp_path / "n"))
+    assert Path(theirs[0]).parent == tmp_path / "n" / version and theirs[2] == repr(str(tmp_path / "n"))
+
+
+def test_a_changed_source_of_dem_gets_a_new_kernel_cache(tmp_path):
+    """numba keys a cached kernel on its own file only: after an edit of dem/bonds.py (compiled into
+    dem.kernels' step), doubling the bond stiffness, the old kernels were loaded and the old physics
+    ran with no word. The cache folder is named by a hash of every dem source, so a changed file
+    (an edit, an upgrade) compiles anew."""
+    copy = tmp_path / "src"
+    shutil.copytree(Path(dem.__file__).parent, copy / "dem", ignore=shutil.ignore_patterns("__pycache__"))
+    where = "import dem; print(dem.__file__, dem.kernel_cache_dir())"
+    env = dict(cwd=copy, XDG_CACHE_HOME=str(tmp_path / "cache"))
+    source, before = in_fresh_interpreter(where, CACHE_VARS + ("PYTHONPATH",), **env).split()
+    assert source == str(copy / "dem" / "__init__.py")
+    assert before == str(tmp_path / "cache" / "grindtwin" / "numba" / f"dem-{kernel_source_hash()}")
+    bonds = copy / "dem" / "bonds.py"
+    text = bonds.read_text()
+    assert "fn[b] += props[b, P_KN_A]" in text
+    bonds.write_text(text.replace("fn[b] += props[b, P_KN_A]", "fn[b] += 2.0 * props[b, P_KN_A]"))
+    after = in_fresh_interpreter(where, CACHE_VARS + ("PYTHONPATH",), **env).split()[1]
+    assert Path(after).parent == Path(before).parent and after != before
 
 
 def test_an_unwritable_cache_folder_is_reported_not_silent(tmp_path):
