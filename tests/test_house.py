@@ -1,9 +1,11 @@
 """The house's rules, read from the code's imports: each floor imports only from the floors below
 it (scenarios 4 -> mpc 3 -> twin 2 -> dem 1), and from another package only through a package's
-face (its ``__init__``), never a module file of another package."""
+face (its ``__init__``), never a module file of another package. And every data file in the
+packages is installed with them, or named as the checkout's only."""
 
 import ast
 import sys
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -135,3 +137,36 @@ def test_the_loop_check_can_fail(tmp_path, monkeypatch):
     (tmp_path / "twin" / "a.py").write_text("def f():\n    from .b import g\n")
     (tmp_path / "twin" / "b.py").write_text("from twin import a\n")
     assert cycles(import_edges(tmp_path)) == [["twin.a", "twin.b"]]
+
+
+#: data files in the package folders that are not installed: the checkout's tests and benchmarks
+#: read them, the package does not
+CHECKOUT_ONLY = {
+    "scenarios/data/README.md": "says where the folder's data come from",
+    "scenarios/data/molycop_ballsim_published.toml": "the published results the Moly-Cop test and benchmark compare with",
+}
+
+
+def unshipped(root: Path) -> list[str]:
+    """Data files (not Python) in the package folders that pyproject's package-data does not install
+    (setuptools' globs, relative to each package's folder) and CHECKOUT_ONLY does not name. The
+    test suite runs from the checkout, where every file is found; an installed grindtwin lacked
+    twin/data/industrial_mill.json, and README's first command failed."""
+    data = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]
+    shipped = {f for pkg, globs in data.items() for g in globs for f in (root / pkg.replace(".", "/")).glob(g)}
+    found = [f for pkg in FLOORS for f in (root / pkg).rglob("*")
+             if f.is_file() and f.suffix not in (".py", ".pyc") and "__pycache__" not in f.parts]
+    return sorted(f.relative_to(root).as_posix() for f in found
+                  if f not in shipped and f.relative_to(root).as_posix() not in CHECKOUT_ONLY)
+
+
+def test_every_data_file_of_the_packages_is_installed():
+    assert unshipped(ROOT) == []
+
+
+def test_the_data_file_check_can_fail(tmp_path):
+    (tmp_path / "pyproject.toml").write_text('[tool.setuptools.package-data]\n"twin.ore" = ["data/*.csv"]\n')
+    for name in ("twin/ore/data/minerals.csv", "twin/data/industrial_mill.json"):
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text("x")
+    assert unshipped(tmp_path) == ["twin/data/industrial_mill.json"]
