@@ -143,7 +143,8 @@ def test_the_loop_check_can_fail(tmp_path, monkeypatch):
 #: read them, the package does not
 CHECKOUT_ONLY = {
     "scenarios/data/README.md": "says where the folder's data come from",
-    "scenarios/data/molycop_ballsim_published.toml": "the published results the Moly-Cop test and benchmark compare with",
+    "scenarios/data/molycop_ballsim_published.toml": "the published results the Moly-Cop test and benchmark "
+                                                     "compare with",
 }
 
 
