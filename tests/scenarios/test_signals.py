@@ -16,8 +16,11 @@ from tests.scenarios.test_runner import short_pyrite_scene
 
 ROOT = Path(__file__).resolve().parents[2]
 COMMAND = [sys.executable, "-c", "import sys; from scenarios.cli import main; sys.exit(main())"]
-#: Long enough (an open loop of 200 h at one-minute samples) that the signal lands mid-run.
+#: Long enough (an open loop of 200 h at one-minute samples) that the signal lands mid-sweep.
 LONG_H = 200.0
+#: A single run 10x longer: 200 h ran in about a second on a quiet machine, and the run ended
+#: before the signal.
+RUN_LONG_H = 2000.0
 
 
 class Running:
@@ -55,7 +58,7 @@ class Running:
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_a_signal_mid_run_leaves_nothing_that_looks_complete(tmp_path, sig):
-    scene = short_pyrite_scene(tmp_path, duration_h=LONG_H)
+    scene = short_pyrite_scene(tmp_path, duration_h=RUN_LONG_H)
     out = tmp_path / "out"
     run = Running(["run", scene, "--out", out])
     run.wait_for_progress()
