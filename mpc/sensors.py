@@ -3,6 +3,7 @@ power and load readings, seeded; used by every closed loop and open-loop run."""
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 
@@ -41,7 +42,10 @@ class SensorState:
     """What the plant's sensors report in one run: the P80 analyser takes a sample every
     ``p80_sample_period_h`` and reports it ``p80_dead_time_h`` later, held until the next report,
     with Gaussian noise; power and load readings are the true values plus noise. The one analyser
-    model of grindtwin: closed loops and open-loop runs both read through it."""
+    model of grindtwin: closed loops, open-loop runs and the virtual plant all read through it.
+
+    It keeps only the true values a later sample can still need (from the one at or before the
+    last sample's time on): a run's cost per step and its memory do not grow with its length."""
 
     def __init__(self, sensors: Sensors, rng: np.random.Generator):
         self.s, self.rng = sensors, rng
@@ -50,16 +54,23 @@ class SensorState:
         self.held = math.nan
 
     def make_step(self, t_h: float, p80_um: float, power_kw: float, load_frac: float):
-        """Record the true values at ``t_h``; return (new P80 reading or nan, held reading,
-        power reading, load reading)."""
+        """Record the true values at ``t_h`` (not before the previous call's); return (new P80
+        reading or nan, held reading, power reading, load reading)."""
         s = self.s
+        if self.times and not t_h >= self.times[-1]:
+            raise MpcInputError(f"The 't_h' of SensorState.make_step must not go back in time: got "
+                                f"{t_h!r} after {self.times[-1]!r}.")
         self.times.append(t_h)
         self.p80.append(p80_um)
         j = math.floor((t_h - s.p80_dead_time_h) / s.p80_sample_period_h + 1e-9)
         new = math.nan
         if j >= 0 and j != self.last_sample:
             ts = j * s.p80_sample_period_h
-            value = float(np.interp(ts, self.times, self.p80))
+            # the recorded values bracketing ts (np.interp on them is np.interp on the whole
+            # record); the ones before are never needed again: later samples are taken later
+            k = max(bisect.bisect_right(self.times, ts) - 1, 0)
+            value = float(np.interp(ts, self.times[k:k + 2], self.p80[k:k + 2]))
+            del self.times[:k], self.p80[:k]
             new = value + s.p80_noise_um * self.rng.standard_normal()
             self.last_sample, self.held = j, new
         pw = power_kw + s.power_noise_kw * self.rng.standard_normal()
