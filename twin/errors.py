@@ -27,6 +27,11 @@ class SolverError(TwinError, RuntimeError):
     """A numerical solver failed; the message carries the solver's own status."""
 
 
+class FastCalibrationWarning(UserWarning):
+    """A calibration made with ``grindtwin calibrate --fast`` (a check of the machinery on a few
+    particles) is in use: its numbers run, but are not to be predicted with."""
+
+
 def bad_value(owner: str, field: str, value: object, allowed: str) -> TwinInputError:
     """Build the standard input error: field, value and what is allowed."""
     return TwinInputError(f"The '{field}' parameter of {owner} must be {allowed}. Got {value!r}.")

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from twin import SizeGrid, SolverError, Twin, TwinInputError
+from twin import FastCalibrationWarning, SizeGrid, SolverError, Twin, TwinInputError
 from twin.calibration import (DEFAULT_CALIBRATION, DEM_FITTED, DEM_NAMES, Calibration, check_writable,
                               fit_log_ratios, load_calibration, predict_table, shipped_names)
 from twin.calibration.fitting import SOLVER_FAILURE_RESIDUAL, TableProblem
@@ -97,6 +97,25 @@ def test_new_files_never_overwrite_what_grindtwin_did_not_write(tmp_path, monkey
     written = write_calibration(tmp_path / "copy.json", rec)
     assert written.name == "copy" and check_writable(tmp_path / "copy.json")  # its own file: allowed
     assert load_calibration(tmp_path / "copy.json").sha256 == written.sha256
+
+
+@pytest.mark.parametrize("how", ["--fast", "--from a --fast file"])
+def test_a_fast_calibration_says_so_wherever_it_is_used(tmp_path, how):
+    """`grindtwin calibrate --fast` checks the machinery on a few particles: its file runs, but
+    every use warns and every label and record says what it is, also for a file made --from its
+    DEM step (whose own provenance is not --fast)."""
+    shipped = load_calibration("dem")
+    assert not shipped.fast and "fast" not in shipped.identity() and "--fast" not in shipped.label()
+    rec = json.loads(json.dumps(shipped.record))
+    if how == "--fast":
+        rec["provenance"]["fast"] = True
+    else:
+        rec["dem"]["settings"]["fast"] = True
+    with pytest.warns(FastCalibrationWarning, match="made with --fast: a check of the machinery"):
+        cal = write_calibration(tmp_path / "quick.json", rec)
+    assert cal.fast and cal.identity()["fast"] is True and "not a calibration" in cal.label()
+    twin = Twin("B", calibration=cal.path)  # read once per process: the warning came with the first read
+    assert twin.calibration is cal
 
 
 def test_a_failed_steady_state_is_a_counted_rejected_point(monkeypatch):

@@ -16,11 +16,12 @@ import json
 import math
 import platform
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..atomic import write_text_atomically
-from ..errors import TwinInputError, close_matches
+from ..errors import FastCalibrationWarning, TwinInputError, close_matches
 
 #: The folder of shipped calibration files, one per name (``<name>.json``).
 CALIBRATION_DIR = Path(__file__).resolve().parent / "files"
@@ -35,6 +36,8 @@ BREAKAGE_MAPS = ("dem", "mineralogy")
 #: Effects that only delay or filter what is measured (an analyser's dead time): a calibration
 #: fitted to steady states does not depend on them, so a scene may add them freely.
 MEASUREMENT_EFFECTS = ("sensor_delay",)
+#: What every mention of a --fast calibration says (:attr:`Calibration.fast`).
+FAST_LABEL = "; made with --fast: a check of the machinery on a few particles, not a calibration"
 REQUIRED_KEYS = ("name", "breakage_map", "effects", "size_grid", "n_mixers", "mill", "coefficients", "mills")
 
 
@@ -95,16 +98,25 @@ class Calibration:
 
         return mineralogy_breakage(ore, self.coefficients)
 
+    @property
+    def fast(self) -> bool:
+        """Made by ``grindtwin calibrate --fast``, or on the DEM step of such a file (``--from``):
+        a check that the chain runs, on a few particles, not a calibration to predict with."""
+        return bool(self.record.get("provenance", {}).get("fast")
+                    or self.record.get("dem", {}).get("settings", {}).get("fast"))
+
     def label(self) -> str:
         where = str(self.path) if self.path else "in memory"
         sha = f", sha256 {self.sha256[:12]}" if self.sha256 else ""
-        return f"{self.name!r} ({where}{sha})"
+        return f"{self.name!r} ({where}{sha}{FAST_LABEL if self.fast else ''})"
 
     def identity(self) -> dict:
-        """What a run records of the calibration it ran: name, file, hash, the command."""
+        """What a run records of the calibration it ran: name, file, hash, the command (and
+        ``fast``: true for a --fast check, see :attr:`fast`)."""
         return {"name": self.name, "path": _shown_path(self.path), "sha256": self.sha256,
                 "breakage_map": self.breakage_map,
-                "command": self.record.get("provenance", {}).get("command")}
+                "command": self.record.get("provenance", {}).get("command"),
+                **({"fast": True} if self.fast else {})}
 
     def mismatch(self, effects, grid) -> list[str]:
         """What differs between a model's effects and size grid and this calibration's (empty:
@@ -207,6 +219,8 @@ def read_calibration(path: Path) -> Calibration:
         except (UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise TwinInputError(f"Calibration file {path} is not valid JSON: {exc}.") from None
         _LOADED[key] = Calibration(check_record(record, str(path)), path, sha)
+        if _LOADED[key].fast:  # once per file and process
+            warnings.warn(f"calibration {_LOADED[key].label()}", FastCalibrationWarning, stacklevel=2)
     return _LOADED[key]
 
 
