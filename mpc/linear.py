@@ -29,9 +29,9 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import casadi as ca
-import control
 import numpy as np
 import pandas as pd
 import scipy.linalg
@@ -39,6 +39,17 @@ import scipy.optimize
 
 from mpc.errors import MpcInputError
 from mpc.results import ControllerStepResult
+
+if TYPE_CHECKING:
+    import control
+
+
+def _control():
+    """python-control, imported on first use: it loads matplotlib and scipy.signal (over a second
+    at every start of the command line); only the linear tools below use it."""
+    import control
+
+    return control
 
 
 # --------------------------------------------------------------------------- linearisation
@@ -132,7 +143,7 @@ def linearize(
             raise MpcInputError(f"The 'disturbance_names' parameter must have {nd} names. "
                                 f"Got {len(dn)}.")
         inputs += list(dn)
-    sys = control.ss(a, b, c, dd, inputs=inputs, outputs=list(output_names),
+    sys = _control().ss(a, b, c, dd, inputs=inputs, outputs=list(output_names),
                      states=[f"x{i}" for i in range(nx)], name="linearized")
     op = OperatingPoint(x_ss, u_ss, d_ss, y0.reshape(-1), output_names)
     return sys, op
@@ -142,15 +153,15 @@ def discretize(sys_c: control.StateSpace, dt_h: float) -> control.StateSpace:
     """Zero-order-hold discretisation with sample period ``dt_h`` (hours)."""
     if not (np.isfinite(dt_h) and dt_h > 0):
         raise MpcInputError(f"The 'dt_h' parameter must be a float > 0. Got {dt_h!r}.")
-    if not control.isctime(sys_c, strict=True):
+    if not _control().isctime(sys_c, strict=True):
         raise MpcInputError("The 'sys_c' parameter must be a continuous-time StateSpace.")
-    return control.sample_system(sys_c, dt_h, method="zoh")
+    return _control().sample_system(sys_c, dt_h, method="zoh")
 
 
 # --------------------------------------------------------------------------- gains, tau
 def _step_channel(sys_c: control.StateSpace, i_in: int, i_out: int, t_h: np.ndarray):
-    siso = control.ss(sys_c.A, sys_c.B[:, [i_in]], sys_c.C[[i_out], :], sys_c.D[[i_out], [i_in]])
-    resp = control.step_response(siso, T=t_h)
+    siso = _control().ss(sys_c.A, sys_c.B[:, [i_in]], sys_c.C[[i_out], :], sys_c.D[[i_out], [i_in]])
+    resp = _control().step_response(siso, T=t_h)
     return np.asarray(resp.outputs, dtype=float).reshape(-1)
 
 
@@ -227,7 +238,7 @@ def _channel(sys_c: control.StateSpace, input_name: str, output_name: str) -> tu
 def step_moments(sys_c: control.StateSpace, input_name: str, output_name: str) -> StepMoments:
     """Gain and mean response time of a continuous, asymptotically stable channel, from
     ``G(s) = C (sI - A)^-1 B + D``: ``G(0) = D - C A^-1 B`` and ``G'(0) = -C A^-2 B``."""
-    if not control.isctime(sys_c, strict=True):
+    if not _control().isctime(sys_c, strict=True):
         raise MpcInputError("The 'sys_c' parameter of step_moments must be a continuous-time StateSpace.")
     j, i = _channel(sys_c, input_name, output_name)
     a, b, c, d = (np.asarray(m, dtype=float) for m in (sys_c.A, sys_c.B, sys_c.C, sys_c.D))
@@ -351,7 +362,7 @@ def steady_target(sys: control.StateSpace, y_ref: dict[str, float], u_ref=None,
     yv = np.array([float(y_ref[n]) for n in y_ref])
     u_ref = np.zeros(nu) if u_ref is None else _as_vec("u_ref", u_ref, nu)
     w = np.eye(nu) if u_weight is None else np.atleast_2d(np.asarray(u_weight, dtype=float))
-    a_eq = a - np.eye(nx) if control.isdtime(sys, strict=True) else a
+    a_eq = a - np.eye(nx) if _control().isdtime(sys, strict=True) else a
     if np.linalg.matrix_rank(a_eq) < nx:
         raise MpcInputError("The 'sys' parameter of steady_target must have no integrating "
                             "mode (A - I, or A in continuous time, must be invertible).")
@@ -424,7 +435,7 @@ class LinearMPC:
     def __init__(self, sys_d: control.StateSpace, q, r, horizon: int, terminal="q",
                  u_min=None, u_max=None, du_max=None, x_min=None, x_max=None,
                  solver: str = "qpoases"):
-        if not isinstance(sys_d, control.StateSpace) or not control.isdtime(sys_d, strict=True):
+        if not isinstance(sys_d, _control().StateSpace) or not _control().isdtime(sys_d, strict=True):
             raise MpcInputError("The 'sys_d' parameter of LinearMPC must be a discrete-time "
                                 f"control.StateSpace. Got {sys_d!r}.")
         if not (isinstance(horizon, (int, np.integer)) and horizon >= 1):

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -39,3 +40,11 @@ def test_surrogate_answer_needs_no_numerics(argv):
 def test_the_twin_answer_does_import_casadi():  # the check above can fail
     mods, out = imported_after(["steady", "--ore", "B", "--feed-tph", "0.031", "--speed", "0.70"])
     assert "casadi" in mods and "p80_um" in out
+
+
+def test_checking_a_scene_needs_no_python_control():
+    """python-control (which loads matplotlib and scipy.signal, over a second) is imported by the
+    linear tools that use it, not by every command that reads a scene."""
+    mods, out = imported_after(["check", str(Path(__file__).parents[2] / "scenarios" / "reference_transition.toml")])
+    assert "mpc" in mods and "ok" in out.lower(), out  # the scene was read and checked
+    assert "control" not in mods and "matplotlib" not in mods, mods & {"control", "matplotlib"}
