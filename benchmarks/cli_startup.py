@@ -5,8 +5,10 @@ Commands (each a fresh Python process):
 - ``help``: ``grindtwin --help``;
 - ``surrogate``: ``grindtwin steady --surrogate --ore B --feed-tph 0.031 --speed 0.70``;
 - ``twin``: ``grindtwin steady --ore B --feed-tph 0.031 --speed 0.70`` (builds the CasADi twin);
+- ``check``: ``grindtwin check scenarios/reference_transition.toml`` (this checkout's scene on both
+  sides: a revision too old to read it fails, and says so);
 - floors: ``python -c pass`` (the interpreter) and ``python -c "import numpy"``.
-Each runs from this checkout ("now") and, for help, surrogate and twin, from ``--before REV``
+Each runs from this checkout ("now") and from ``--before REV``
 (default: the commit before the fast start, 757bf8f), exported by ``git archive``. Both sides
 run the same way: ``python -c "from scenarios.cli import main; ..."`` with the tree first on
 ``sys.path`` (a ``.pth`` file in a throwaway venv that also sees this venv's libraries), so the
@@ -14,9 +16,9 @@ two differ only in their code. Every round runs every command once, in a fixed i
 order (now, before, now, before, ...); the table gives medians over ``--rounds`` rounds and the
 ratio of the medians. The machine is 2 cores shared with other jobs: times are upper bounds.
 
-Writes ``benchmarks/results/cli_startup.csv`` (every timing) and ``.md``.
+Writes ``benchmarks/results/cli_startup{TAG}.csv`` (every timing) and ``.md``.
 
-Run: ``python benchmarks/cli_startup.py [--rounds 15] [--before REV]``.
+Run: ``python benchmarks/cli_startup.py [--rounds 15] [--before REV] [--tag TAG]``.
 """
 
 from __future__ import annotations
@@ -33,12 +35,14 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from dem_common import TAG
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 DEFAULT_BEFORE = "757bf8f"
 STEADY = ["steady", "--ore", "B", "--feed-tph", "0.031", "--speed", "0.70"]
-COMMANDS = {"help": ["--help"], "surrogate": [*STEADY, "--surrogate"], "twin": STEADY}
+COMMANDS = {"help": ["--help"], "surrogate": [*STEADY, "--surrogate"], "twin": STEADY,
+            "check": ["check", str(ROOT / "scenarios" / "reference_transition.toml")]}
 MAIN = "import sys; from scenarios.cli import main; sys.exit(main(sys.argv[1:]))"
 FLOORS = {"python -c pass": "pass", "python -c 'import numpy'": "import numpy"}
 
@@ -75,6 +79,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rounds", type=int, default=15)
     ap.add_argument("--before", default=DEFAULT_BEFORE, help="the revision to compare with")
+    ap.add_argument("--tag", default="", type=TAG, help="suffix of the result files")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="cli-startup-") as tmp:
         tmp = Path(tmp)
@@ -89,8 +94,8 @@ def main(argv=None) -> int:
                 for r in range(args.rounds) for name, side, cmd in runs]
     df = pd.DataFrame(rows)
     RESULTS.mkdir(exist_ok=True)
-    df.to_csv(RESULTS / "cli_startup.csv", index=False)
-    (RESULTS / "cli_startup.md").write_text(summary(df, args), encoding="utf-8")
+    df.to_csv(RESULTS / f"cli_startup{args.tag}.csv", index=False)
+    (RESULTS / f"cli_startup{args.tag}.md").write_text(summary(df, args), encoding="utf-8")
     print(summary(df, args))
     return 0
 
@@ -99,7 +104,8 @@ def summary(df: pd.DataFrame, args) -> str:
     med = df.groupby(["command", "side"])["wall_s"].median().unstack()
     q = df.groupby(["command", "side"])["wall_s"].quantile(0.9).unstack()
     lines = ["# Command-line start-up: wall time of whole processes", "",
-             f"`python benchmarks/cli_startup.py --rounds {args.rounds} --before {args.before}`; "
+             f"`python benchmarks/cli_startup.py --rounds {args.rounds} --before {args.before}"
+             + (f" --tag {args.tag}" if args.tag else "") + "`; "
              f"{platform.python_version()}, {os.cpu_count()} cores shared with other jobs (upper bounds). "
              "Medians (90th percentile) over the rounds, every command once a round, interleaved.", "",
              "| command | now [s] | before [s] | now / before |", "|---|---|---|---|"]
