@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import json
 import re
 
 import numpy as np
@@ -70,6 +71,18 @@ def test_report_shows_plant_beside_controller_units_and_commit(tmp_path):
     assert ctl == ("Controller&#x27;s model", "Model: 3 effect(s), &lt;coarse&gt;")
     assert "throughput [t]<" not in text and "product discharged over the run [t]" in text
     assert "git commit <code>0123456789ab</code> (checkout)" in text
+
+
+@pytest.mark.parametrize("fast", [False, True])
+def test_report_says_when_the_calibration_was_a_fast_check(tmp_path, fast):
+    run = fake_run(tmp_path)
+    summary = json.loads((run / "summary.json").read_text())
+    summary["calibration"] = {"name": "dem", "path": "/x/calibration-dem.json", "sha256": "ab" * 32,
+                              **({"fast": True} if fast else {})}
+    (run / "summary.json").write_text(json.dumps(summary))
+    text = render_report(run)
+    assert "/x/calibration-dem.json, sha256 abababababab" in text
+    assert ("made with --fast" in text) is fast and ("not a calibration" in text) is fast
 
 
 def test_open_loop_report_says_there_is_no_controller(tmp_path):
