@@ -19,7 +19,7 @@ from scenarios.errors import SceneError
 from scenarios.output.labels import KPI_LABELS
 from scenarios.output.plots import PLOTS
 from scenarios.output.write import INCOMPLETE_MARKER
-from twin.calibration.files import FAST_LABEL
+from twin.calibration import FAST_LABEL
 
 _CSS = """body{font-family:system-ui,sans-serif;max-width:60em;margin:2em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:.3em .7em;text-align:left}

@@ -15,7 +15,7 @@ _API = {
     "DEM_FITTED": ".fitted", "DEM_NAMES": ".fitted", "dem_record": ".calibrate", "main": ".calibrate",
     "dem_breakage": ".dem_map", "law_e50_j_kg": ".dem_map",
     "BREAKAGE_MAPS": ".files", "CALIBRATION_DIR": ".files", "Calibration": ".files", "DEFAULT_CALIBRATION": ".files",
-    "DEM_CALIBRATION_PATH": ".files", "MEASUREMENT_EFFECTS": ".files", "TABLE_CALIBRATION_PATH": ".files",
+    "DEM_CALIBRATION_PATH": ".files", "FAST_LABEL": ".files", "MEASUREMENT_EFFECTS": ".files", "TABLE_CALIBRATION_PATH": ".files",
     "check_writable": ".files", "load_calibration": ".files", "shipped_calibration": ".files",
     "shipped_dem_calibration": ".files", "shipped_names": ".files", "write_json_atomically": ".files",
     "fit_log_ratios": ".fitting", "fit_to_table": ".fitting", "predict_table": ".fitting", "table_errors": ".fitting",
