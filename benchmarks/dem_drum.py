@@ -32,20 +32,27 @@ import pandas as pd
 from dem_common import OUT, write_table
 from dem.drum import drum_test
 from dem.materials import Material
+from twin.calibration import load_calibration
 from twin.mill import LAB, bond_power_kw, hogg_fuerstenau_power_kw
 
 SPEEDS = (0.5, 0.6, 0.7, 0.8, 0.9)
 #: the settings of every speed_sweep row (the rows of one table must share them)
 SETTLE_REV, MEASURE_REV = 1.0, 3.0
 
+#: the default calibration's fitted lab-mill power factor, read when the table is written (the
+#: note quoted a value typed in by hand, which went stale when the calibration was regenerated)
+_CALIBRATION = load_calibration()
+_LAB_POWER_FACTOR = _CALIBRATION.record["mills"]["lab"]["power_factor"]
 TITLE = "Drum DEM of the lab mill (0.5 m x 0.3 m, 25 mm balls, 8 lifters, J = 0.35)"
 NOTES = (
     "3D periodic slice 0.1 m long (504 balls) scaled to 0.3 m; power = -torque x omega; ball Young's "
     "modulus 1 GPa unless stated; impact energy = m* v_n^2/2 at first contact; settle 1 rev, measure "
     "3 revs. Speeds as fractions of the DEM's critical speed sqrt(2g/(D-d)). Models: twin.mill for "
     "the LAB mill at the same fraction of critical and J: bond_W = Bond (1961) as the twin uses it "
-    "with power_factor 1 (the published equation; the twin's fitted lab power_factor 1.47 in "
-    "twin/calibration/files/table.json is fitted to MISSION's energies, not to this DEM), hf_W = Hogg & "
+    "with power_factor 1 (the published equation; the twin's fitted lab power_factor "
+    f"{_LAB_POWER_FACTOR:.3g} in the default calibration {_CALIBRATION.name!r} "
+    f"({_CALIBRATION.identity()['path']}) is fitted to MISSION's "
+    "energies, not to this DEM), hf_W = Hogg & "
     "Fuerstenau (1972) torque arm at a 35 deg dynamic angle (omega from sqrt(2g/D), 2.5 % below the "
     "DEM's omega at the same fraction; no centrifuging loss). diff_*_pct = (DEM - model) / model. "
     "E_ball_10GPa: 0.7 critical, settle 1, measure 1 rev (the 1 GPa run's same window: 360.0 W, "
