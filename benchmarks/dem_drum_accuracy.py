@@ -156,10 +156,10 @@ def selection(drum: dict) -> dict:
 #: (study, label, run, settle_rev, measure_rev)
 SETTINGS = [
     ("revolutions", "measure 0.5 rev", "long", 1.0, 0.5),
-    ("revolutions", "measure 1 rev", "long", 1.0, 1.0),
+    ("revolutions", "measure 1 rev (twin full)", "long", 1.0, 1.0),
     ("revolutions", "measure 2 rev", "long", 1.0, 2.0),
     ("revolutions", "measure 3 rev (dem_drum.md)", "long", 1.0, 3.0),
-    ("revolutions", "settle 0.5 + measure 1 (twin full)", "long", 0.5, 1.0),
+    ("revolutions", "settle 0.5 + measure 1", "long", 0.5, 1.0),
     ("revolutions", "settle 0.3 + measure 0.3 (0.1 m)", "long", 0.3, 0.3),
     ("revolutions", "measure 5 rev", "long", 1.0, 5.0),
     ("revolutions", "measure 10 rev (reference)", "long", 1.0, 10.0),
@@ -246,6 +246,16 @@ def main(argv=None):
     write(a.cache)
 
 
+def shipped_drum() -> str:
+    """What the shipped calibration's drum was (its settings and power, read from the file: the
+    rows 'twin full' and 'twin fast' are these settings)."""
+    cal = load_calibration("dem")
+    s, d = cal.record["dem"]["settings"], cal.record["dem"]["drum"]
+    return (f"The shipped calibration ({cal.identity()['path']}) ran its drum with settle "
+            f"{s['drum_settle_rev']:g} + measure {s['drum_measure_rev']:g} rev on a {s['drum_section_length_m']:g} m "
+            f"section: {d['power_W']:.1f} W.")
+
+
 def write(cache: str) -> None:
     df = table(cache)
     if df.empty:
@@ -266,8 +276,7 @@ def write(cache: str) -> None:
                 "machine shared with other jobs (upper bounds). power_rev_std_W: spread of the per-revolution "
                 "power. The seed rows are the run-to-run noise (power 0.3 %, S^E_1mm 4 %, curve rms 2 % at "
                 "3 revolutions): differences below that are not resolved. The (settle 1, measure 3) row "
-                "reproduces dem_drum.md's 0.7 row (359.4 W) and 'twin full' the shipped "
-                "twin/calibration/files/dem.json drum (371.6 W, S1 47.2 t/kWh for B)."
+                "reproduces dem_drum.md's 0.7 row (359.4 W). " + shipped_drum()
                 + (f" Not run: {', '.join(missing)}." if missing else ""))
     print(df.to_string(), flush=True)
 
