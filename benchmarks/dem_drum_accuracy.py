@@ -11,7 +11,7 @@ value, with the wall time each setting costs:
     snapshotted every 0.1 revolution from t = 0, so every (settle, measure) window is read from
     the same run (a window's wall time is the time to simulate settle + measure revolutions).
     Reference: settle 1, measure 10 revolutions. Includes the twin's own drum settings
-    (dem_link.SETTINGS: full = settle 0.5 / measure 1 rev at 0.1 m, fast = 0.3 / 0.3 rev at
+    (dem_link.SETTINGS: full = settle 1 / measure 1 rev at 0.1 m, fast = 0.3 / 0.3 rev at
     0.0625 m).
 (b) number of balls: slice length 0.0625 m (2.5 ball diameters, the minimum drum_test allows,
     315 balls), 0.1 m (504) and the whole 0.3 m mill (1512 balls, no length scaling) at
