@@ -144,7 +144,7 @@ def linearize(
                                 f"Got {len(dn)}.")
         inputs += list(dn)
     sys = _control().ss(a, b, c, dd, inputs=inputs, outputs=list(output_names),
-                     states=[f"x{i}" for i in range(nx)], name="linearized")
+                        states=[f"x{i}" for i in range(nx)], name="linearized")
     op = OperatingPoint(x_ss, u_ss, d_ss, y0.reshape(-1), output_names)
     return sys, op
 

@@ -10,7 +10,8 @@ _API = {
     "BreakageParams": ".breakage", "OreBreakage": ".breakage", "austin_selection": ".breakage",
     "ore_breakage": ".breakage",
     "EFFECTS": ".effects", "Effect": ".effects", "known_effects": ".effects",
-    "FastCalibrationWarning": ".errors", "ModelError": ".errors", "SolverError": ".errors", "TwinError": ".errors", "TwinInputError": ".errors",
+    "FastCalibrationWarning": ".errors", "ModelError": ".errors", "SolverError": ".errors", "TwinError": ".errors",
+    "TwinInputError": ".errors",
     "MILLS": ".mill", "Mill": ".mill", "bond_power_kw": ".mill", "get_mill": ".mill",
     "hogg_fuerstenau_power_kw": ".mill", "load_status": ".mill", "POWER_MODELS": ".mill", "power_kw": ".mill",
     "Hydrocyclone": ".effects.classification", "hydrocyclone_from": ".effects.classification",
@@ -25,7 +26,8 @@ _API = {
 }
 
 __all__ = [
-    "Blend", "BreakageParams", "DEFAULT_EFFECTS", "EFFECTS", "Effect", "FastCalibrationWarning", "GatesGaudinSchuhmann", "INPUT_NAMES", "MILLS",
+    "Blend", "BreakageParams", "DEFAULT_EFFECTS", "EFFECTS", "Effect", "FastCalibrationWarning", "GatesGaudinSchuhmann",
+    "INPUT_NAMES", "MILLS",
     "Hydrocyclone", "Mill", "Mineralogy", "Model", "ModelError", "ModelSpec", "OreBreakage", "POWER_MODELS", "RosinRammler",
     "SizeGrid", "SizedMill", "SolverError", "SteadyState", "TabulatedPSD", "Texture", "Trajectory", "Twin", "TwinError",
     "TwinInputError", "austin_selection", "bond_power_kw", "hydrocyclone_from", "power_kw", "size_mill", "write_preset", "check_preset_path",
