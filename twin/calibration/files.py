@@ -100,10 +100,10 @@ class Calibration:
 
     @property
     def fast(self) -> bool:
-        """Made by ``grindtwin calibrate --fast``, or on the DEM step of such a file (``--from``):
-        a check that the chain runs, on a few particles, not a calibration to predict with."""
-        return bool(self.record.get("provenance", {}).get("fast")
-                    or self.record.get("dem", {}).get("settings", {}).get("fast"))
+        """Its DEM step ran ``--fast`` (``grindtwin calibrate --fast``, or ``--from`` such a file):
+        a check that the chain runs, on a few particles, not a calibration to predict with. (With
+        ``--from`` a full DEM step, ``--fast`` only cuts the bootstrap replicates.)"""
+        return bool(self.record.get("dem", {}).get("settings", {}).get("fast"))
 
     def label(self) -> str:
         where = str(self.path) if self.path else "in memory"
