@@ -49,7 +49,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 import numpy as np
 import pandas as pd
 
-from dem_common import write_table
+from dem_common import OUT, write_table
 from dem.drum import SOFT_STEEL_BALL, drum_system
 from dem.materials import RAYLEIGH_SAFETY_FACTOR, Material
 from dem.system import HIST_DLOG10, HIST_LO_LOG10, HIST_NBINS
@@ -246,6 +246,28 @@ def main(argv=None):
     write(a.cache)
 
 
+def seed_noise(df: pd.DataFrame) -> str:
+    """The seed rows' largest errors: the run-to-run noise, below which a difference is not resolved."""
+    seed = df[(df["study"] == "seed") & (df["setting"] != REFERENCE["seed"])]
+    if seed.empty:
+        return ""
+    big = {c: float(seed[c].abs().max()) for c in ("err_power_W_pct", "err_SE_1mm_pct", "err_SE_curve_rms_pct")}
+    return (f"The seed rows are the run-to-run noise (up to: power {big['err_power_W_pct']:.1f} %, S^E_1mm "
+            f"{big['err_SE_1mm_pct']:.1f} %, curve rms {big['err_SE_curve_rms_pct']:.1f} % at 3 revolutions): "
+            "differences below that are not resolved.")
+
+
+def drum_md_check(df: pd.DataFrame) -> str:
+    """This run's (settle 1, measure 3) window beside dem_drum.md's 0.7 row (dem.drum.drum_test)."""
+    mine = df.loc[df["setting"] == "measure 3 rev (dem_drum.md)", "power_W"]
+    drum = pd.read_csv(os.path.join(OUT, "dem_drum.csv"))
+    theirs = drum.loc[(drum["case"] == "speed_sweep") & np.isclose(drum["speed_frac_critical"], 0.7), "power_W"]
+    if mine.empty or theirs.empty:
+        return ""
+    return (f"The (settle 1, measure 3) row: {mine.iloc[0]:.1f} W; dem_drum.md's 0.7 row (drum_test, "
+            f"possibly an earlier revision of the DEM): {theirs.iloc[0]:.1f} W.")
+
+
 def shipped_drum() -> str:
     """What the shipped calibration's drum was (its settings and power, read from the file: the
     rows 'twin full' and 'twin fast' are these settings)."""
@@ -274,9 +296,7 @@ def write(cache: str) -> None:
                 "measure revolutions from rest (the revolutions rows are windows of one 11-revolution run, so "
                 "their wall time is where that run was when the window closed), single thread on a 2-core "
                 "machine shared with other jobs (upper bounds). power_rev_std_W: spread of the per-revolution "
-                "power. The seed rows are the run-to-run noise (power 0.3 %, S^E_1mm 4 %, curve rms 2 % at "
-                "3 revolutions): differences below that are not resolved. The (settle 1, measure 3) row "
-                "reproduces dem_drum.md's 0.7 row (359.4 W). " + shipped_drum()
+                "power. " + seed_noise(df) + " " + drum_md_check(df) + " " + shipped_drum()
                 + (f" Not run: {', '.join(missing)}." if missing else ""))
     print(df.to_string(), flush=True)
 
