@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 
 from .commands import COMMANDS
 
@@ -27,9 +28,16 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning as the command's other warnings read: one line on stderr, no source line."""
+    sys.stderr.write(f"grindtwin: warning: {message} ({category.__name__})\n")
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
-    return args.func(args)
+    with warnings.catch_warnings():  # the caller's way of showing warnings is put back after
+        warnings.showwarning = _show_warning
+        return args.func(args)
 
 
 if __name__ == "__main__":

@@ -3,7 +3,11 @@ mismatch, the record of what ran, --calibration, --uncertainty and calibrate's r
 
 from __future__ import annotations
 
+import hashlib
 import json
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -85,3 +89,22 @@ def test_calibrate_refuses_to_overwrite_a_file_it_did_not_write(tmp_path, capsys
     assert "Refusing to overwrite" in capsys.readouterr().err and foreign.read_text() == '{"mine": true}'
     assert main(["calibrate", "--map", "mineralogy", "--from", "dem", "--out", str(tmp_path / "x.json")]) == 2
     assert not (tmp_path / "x.json").exists()
+
+
+def test_a_fast_calibration_warns_in_one_line_on_the_command_line(tmp_path):
+    """A --fast calibration (its DEM step on a few particles) runs, but the command says what it
+    is, as its other warnings read: one line, no Python source line."""
+    rec = json.loads(json.dumps(load_calibration("dem").record))
+    rec["dem"]["settings"]["fast"] = True
+    path = tmp_path / "quick.json"
+    path.write_text(json.dumps(rec))
+    command = "import sys; from scenarios.cli import main; sys.exit(main(sys.argv[1:]))"
+    res = subprocess.run([sys.executable, "-c", command, "steady", "--ore", "B", "--feed-tph", "0.031", "--speed",
+                          "0.70", "--calibration", str(path)],
+                         capture_output=True, text=True, timeout=300, cwd=Path(__file__).parents[2])
+    assert res.returncode == 0, res.stderr
+    lines = [ln for ln in res.stderr.splitlines() if "warning" in ln.lower()]
+    sha = hashlib.sha256(path.read_bytes()).hexdigest()[:12]
+    assert lines == [f"grindtwin: warning: calibration 'dem' ({path}, sha256 {sha}; made with --fast: a check of the "
+                     "machinery on a few particles, not a calibration) (FastCalibrationWarning)"], res.stderr
+    assert "not a calibration" in res.stdout and "p80_um" in res.stdout  # and so does the header
