@@ -55,12 +55,26 @@ NOTES = (
     "energies, not to this DEM), hf_W = Hogg & "
     "Fuerstenau (1972) torque arm at a 35 deg dynamic angle (omega from sqrt(2g/D), 2.5 % below the "
     "DEM's omega at the same fraction; no centrifuging loss). diff_*_pct = (DEM - model) / model. "
-    "E_ball_10GPa: 0.7 critical, settle 1, measure 1 rev (the 1 GPa run's same window: 360.0 W, "
-    "2.73e+05 collisions/s; benchmarks/results/dem_drum_accuracy.md): power moves 0.2 %, the collision "
-    "count doubles with low-energy contacts. "
-    "Rows 0.5-0.7 are from a first run stopped early on a shared machine (parsed from its log), "
-    "0.8 and 0.9 from `--speeds 0.8 0.9` on the same code and settings; wall times are on a "
-    "shared 2-core machine.")
+    "Rows of a `--speeds` run replace those of the same case and speed; wall times (single thread) are "
+    "on a shared 2-core machine.")
+
+
+def notes(df: pd.DataFrame) -> str:
+    """:data:`NOTES` and the 10 GPa check beside the 1 GPa run's same window (settle 1, measure 1
+    rev: the 'measure 1 rev' row of dem_drum_accuracy.csv, when that table exists)."""
+    e = df[df["case"] == "E_ball_10GPa"]
+    path = os.path.join(OUT, "dem_drum_accuracy.csv")
+    if e.empty or not os.path.exists(path):
+        return NOTES
+    acc = pd.read_csv(path)
+    ref = acc[acc["setting"].str.startswith("measure 1 rev")]
+    if ref.empty:
+        return NOTES
+    p1, c1 = float(ref["power_W"].iloc[0]), float(ref["collisions_per_s"].iloc[0])
+    p10, c10 = float(e["power_W"].iloc[0]), float(e["collisions_per_s"].iloc[0])
+    return (NOTES + f" E_ball_10GPa: 0.7 critical, settle 1, measure 1 rev; the 1 GPa run's same window "
+            f"(dem_drum_accuracy.md) {p1:.1f} W, {c1:.3g} collisions/s: power moves {100 * (p10 / p1 - 1):+.1f} %, "
+            f"the collision count x {c10 / c1:.2f} (the stiffer balls' extra contacts are low-energy).")
 
 
 def row(label, r):
@@ -144,7 +158,7 @@ def main(argv=None):
         cols = ["speed_frac_critical"] + [c for c in new_sp.columns if c != "speed_frac_critical"]
         new_sp[cols].to_csv(sp_path, index=False)
     df = merge(old, pd.DataFrame(rows)) if rows else old
-    write_table(add_models(df), "dem_drum", TITLE, NOTES)
+    write_table(add_models(df), "dem_drum", TITLE, notes(df))
 
 
 if __name__ == "__main__":

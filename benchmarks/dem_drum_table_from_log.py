@@ -17,7 +17,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 import pandas as pd
 
 from dem_common import OUT, write_table
-from dem_drum import NOTES, TITLE, add_models, merge
+from dem_drum import TITLE, add_models, merge, notes
 
 
 def _parse_row(line: str):
@@ -56,7 +56,8 @@ def main(argv=None):
     rows = read_rows(ap, ap.parse_args(argv).log)
     path = os.path.join(OUT, "dem_drum.csv")
     old = pd.read_csv(path) if os.path.exists(path) else None
-    write_table(add_models(merge(old, pd.DataFrame(rows))), "dem_drum", TITLE, NOTES)
+    df = merge(old, pd.DataFrame(rows))
+    write_table(add_models(df), "dem_drum", TITLE, notes(df))
 
 
 if __name__ == "__main__":
