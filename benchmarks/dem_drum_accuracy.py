@@ -264,8 +264,8 @@ def drum_md_check(df: pd.DataFrame) -> str:
     theirs = drum.loc[(drum["case"] == "speed_sweep") & np.isclose(drum["speed_frac_critical"], 0.7), "power_W"]
     if mine.empty or theirs.empty:
         return ""
-    return (f"The (settle 1, measure 3) row: {mine.iloc[0]:.1f} W; dem_drum.md's 0.7 row (drum_test, "
-            f"possibly an earlier revision of the DEM): {theirs.iloc[0]:.1f} W.")
+    return (f"The (settle 1, measure 3) row: {mine.iloc[0]:.1f} W; dem_drum.md's 0.7 row (drum_test, the same "
+            f"settings): {theirs.iloc[0]:.1f} W.")
 
 
 def shipped_drum() -> str:
