@@ -259,10 +259,12 @@ def seed_noise(df: pd.DataFrame) -> str:
 
 def drum_md_check(df: pd.DataFrame) -> str:
     """This run's (settle 1, measure 3) window beside dem_drum.md's 0.7 row (dem.drum.drum_test)."""
-    mine = df.loc[df["setting"] == "measure 3 rev (dem_drum.md)", "power_W"]
-    drum = pd.read_csv(os.path.join(OUT, "dem_drum.csv"))
+    mine, path = df.loc[df["setting"] == "measure 3 rev (dem_drum.md)", "power_W"], os.path.join(OUT, "dem_drum.csv")
+    if mine.empty or not os.path.exists(path):
+        return ""
+    drum = pd.read_csv(path)
     theirs = drum.loc[(drum["case"] == "speed_sweep") & np.isclose(drum["speed_frac_critical"], 0.7), "power_W"]
-    if mine.empty or theirs.empty:
+    if theirs.empty:
         return ""
     return (f"The (settle 1, measure 3) row: {mine.iloc[0]:.1f} W; dem_drum.md's 0.7 row (drum_test, the same "
             f"settings): {theirs.iloc[0]:.1f} W.")
