@@ -15,11 +15,16 @@ Public API (``dem`` imports nothing from twin, mpc or scenarios):
 - :mod:`dem.errors`: ``DemError``, ``DemInputError``, ``DemInstabilityError``;
 - ``kernel_cache_dir``: where numba keeps the compiled kernels (not inside the package; a folder
   per version of dem's sources); a ``RuntimeWarning`` at import if that folder cannot be written
-  (numba would compile every time).
+  (numba would compile every time). In grindtwin's own cache folder (not a ``NUMBA_CACHE_DIR``
+  of the user's), the folders of other versions unused for :data:`STALE_KERNEL_DAYS` days are
+  removed at import (:func:`prune_stale_kernel_caches`).
 """
 
 import hashlib
 import os
+import re
+import shutil
+import time
 import warnings
 from pathlib import Path
 
@@ -34,6 +39,38 @@ def kernel_source_hash() -> str:
     for f in sorted(Path(__file__).parent.glob("*.py")):
         h.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
     return h.hexdigest()[:16]
+
+
+#: A kernel folder of another version of dem's sources unused this long is removed (each is
+#: 3-13 MB; every edit or upgrade of dem makes a new one). Another installed version that runs
+#: again after that compiles once more (one to two minutes); nothing else is lost.
+STALE_KERNEL_DAYS = 30
+#: The file whose time says when a kernel folder was last used (touched at every import).
+LAST_USED = "last-used"
+_KERNEL_FOLDER = re.compile(r"dem-[0-9a-f]{16}")
+
+
+def prune_stale_kernel_caches(base: Path, keep: str, now: float | None = None) -> list[Path]:
+    """Remove from ``base`` (grindtwin's own folder of kernel folders, never the user's
+    ``NUMBA_CACHE_DIR``) the kernel folders of other versions of dem (``dem-<hash>``, but ``keep``)
+    last used more than :data:`STALE_KERNEL_DAYS` days before ``now``, by their :data:`LAST_USED`
+    file (else the folder's own time). Returns what was removed; a folder that cannot be removed
+    is left, without a word (it is a cache)."""
+    if not base.is_dir():
+        return []
+    now = time.time() if now is None else now
+    removed = []
+    for folder in base.iterdir():
+        if folder.name == keep or not _KERNEL_FOLDER.fullmatch(folder.name) or folder.is_symlink() \
+                or not folder.is_dir():
+            continue
+        marker = folder / LAST_USED
+        used = (marker if marker.exists() else folder).stat().st_mtime
+        if now - used > STALE_KERNEL_DAYS * 86400.0:
+            shutil.rmtree(folder, ignore_errors=True)
+            if not folder.exists():
+                removed.append(folder)
+    return removed
 
 
 def kernel_cache_dir() -> Path:
@@ -69,8 +106,15 @@ def _warn_if_unwritable(folder: Path) -> None:
 # numba binds a kernel to its cache folder when it is decorated, that is when its module is
 # imported here: the folder is set for dem's kernels only, and the user's setting put back after
 _user_cache_dir = numba.config.CACHE_DIR
-numba.config.CACHE_DIR = str(kernel_cache_dir())
-_warn_if_unwritable(Path(numba.config.CACHE_DIR))
+_kernels = kernel_cache_dir()
+numba.config.CACHE_DIR = str(_kernels)
+_warn_if_unwritable(_kernels)
+try:  # this version's folder is in use (for another version's pruning); then prune grindtwin's own
+    (_kernels / LAST_USED).touch()
+    if not _user_cache_dir:
+        prune_stale_kernel_caches(_kernels.parent, _kernels.name)
+except OSError:
+    pass  # a cache that cannot be written was reported above
 try:
     from dem.agglomerate import Agglomerate, make_agglomerate
     from dem.bonds import BondParams, kn_from_modulus_Pa_m
@@ -88,4 +132,5 @@ __all__ = ["Agglomerate", "make_agglomerate", "BondParams", "kn_from_modulus_Pa_
            "BondCalibrator", "DrumResult", "critical_speed_rad_s", "drum_test", "DemError",
            "DemInputError", "DemInstabilityError", "FragmentResult", "find_fragments",
            "CompressionResult", "ImpactResult", "compression_test", "drop_weight_test", "DEFAULT_TIME_STEP_FACTOR",
-           "RAYLEIGH_SAFETY_FACTOR", "STEEL", "Material", "kernel_cache_dir", "kernel_source_hash"]
+           "RAYLEIGH_SAFETY_FACTOR", "STEEL", "Material", "kernel_cache_dir", "kernel_source_hash",
+           "prune_stale_kernel_caches", "STALE_KERNEL_DAYS"]

@@ -1,7 +1,9 @@
 """Compiled kernels: one copy serves every system, and numba keeps it in grindtwin's cache folder,
 never inside the installed package."""
 
+import os
 import shutil
+import time
 from pathlib import Path
 
 import dem
@@ -97,3 +99,44 @@ def test_an_unwritable_cache_folder_is_reported_not_silent(tmp_path):
     assert str(tmp_path / "grindtwin" / "numba") in said and "GRINDTWIN_CACHE_DIR" in said, said
     # a writable folder: no warning
     assert in_fresh_interpreter(code, CACHE_VARS, XDG_CACHE_HOME=str(tmp_path / "ok")) == "[]"
+
+
+def _kernel_folder(base: Path, name: str, days_ago: float, marker: bool = True) -> Path:
+    """A kernel folder of another version, last used ``days_ago`` (its marker, else its own time)."""
+    folder = base / name
+    (folder / "dem_0123").mkdir(parents=True)
+    (folder / "dem_0123" / "kernels.nbi").write_text("index")
+    t = time.time() - days_ago * 86400.0
+    if marker:
+        (folder / dem.LAST_USED).touch()
+        os.utime(folder / dem.LAST_USED, (t, t))
+    os.utime(folder, (t, t))
+    return folder
+
+
+def test_stale_kernel_folders_of_other_versions_are_pruned_and_nothing_else(tmp_path):
+    """Every edit or upgrade of dem leaves a 3-13 MB kernel folder: those of other versions unused
+    for STALE_KERNEL_DAYS go, by their last-used time, and nothing else in the folder does."""
+    old, days = "dem-" + "a" * 16, dem.STALE_KERNEL_DAYS
+    stale = _kernel_folder(tmp_path, old, days + 1)
+    stale_unmarked = _kernel_folder(tmp_path, "dem-" + "b" * 16, days + 1, marker=False)
+    recent = _kernel_folder(tmp_path, "dem-" + "c" * 16, days - 1)
+    mine = _kernel_folder(tmp_path, "dem-" + "d" * 16, days + 5)  # this version's, however old
+    other = _kernel_folder(tmp_path, "dem-notahash", days + 5)
+    (tmp_path / ("dem-" + "e" * 16)).write_text("a file, not a folder")
+    (tmp_path / ("dem-" + "f" * 16)).symlink_to(stale_unmarked)
+    removed = dem.prune_stale_kernel_caches(tmp_path, mine.name)
+    assert sorted(removed) == [stale, stale_unmarked]
+    assert not stale.exists() and not stale_unmarked.exists()
+    assert recent.is_dir() and mine.is_dir() and other.is_dir() and (tmp_path / ("dem-" + "e" * 16)).is_file()
+
+
+def test_importing_dem_prunes_its_own_cache_but_never_the_users_numba_folder(tmp_path):
+    old = "dem-" + "a" * 16
+    own = _kernel_folder(tmp_path / "x" / "grindtwin" / "numba", old, dem.STALE_KERNEL_DAYS + 1)
+    users = _kernel_folder(tmp_path / "n", old, dem.STALE_KERNEL_DAYS + 1)
+    where = "import dem; print(dem.kernel_cache_dir())"
+    current = Path(in_fresh_interpreter(where, CACHE_VARS, XDG_CACHE_HOME=str(tmp_path / "x")))
+    assert not own.exists() and (current / dem.LAST_USED).is_file()  # and this version's use is marked
+    in_fresh_interpreter(where, CACHE_VARS, NUMBA_CACHE_DIR=str(tmp_path / "n"))
+    assert users.is_dir()
