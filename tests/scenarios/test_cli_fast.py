@@ -48,3 +48,11 @@ def test_checking_a_scene_needs_no_python_control():
     mods, out = imported_after(["check", str(Path(__file__).parents[2] / "scenarios" / "reference_transition.toml")])
     assert "mpc" in mods and "ok" in out.lower(), out  # the scene was read and checked
     assert "control" not in mods and "matplotlib" not in mods, mods & {"control", "matplotlib"}
+
+
+def test_version_is_the_installed_distributions_and_imports_no_numerics():
+    from importlib.metadata import version
+
+    mods, out = imported_after(["--version"])
+    assert out.startswith(f"grindtwin {version('grindtwin')} (Python ")
+    assert not mods & {"numpy", "twin", "mpc", *HEAVY}
