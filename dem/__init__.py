@@ -53,9 +53,9 @@ _KERNEL_FOLDER = re.compile(r"dem-[0-9a-f]{16}")
 def prune_stale_kernel_caches(base: Path, keep: str, now: float | None = None) -> list[Path]:
     """Remove from ``base`` (grindtwin's own folder of kernel folders, never the user's
     ``NUMBA_CACHE_DIR``) the kernel folders of other versions of dem (``dem-<hash>``, but ``keep``)
-    last used more than :data:`STALE_KERNEL_DAYS` days before ``now``, by their :data:`LAST_USED`
-    file (else the folder's own time). Returns what was removed; a folder that cannot be removed
-    is left, without a word (it is a cache)."""
+    whose :data:`LAST_USED` file is more than :data:`STALE_KERNEL_DAYS` days older than ``now``. A
+    folder without that file is left: only the marker shows that grindtwin made it. Returns what
+    was removed; a folder that cannot be removed is left, without a word (it is a cache)."""
     if not base.is_dir():
         return []
     now = time.time() if now is None else now
@@ -65,8 +65,7 @@ def prune_stale_kernel_caches(base: Path, keep: str, now: float | None = None) -
                 or not folder.is_dir():
             continue
         marker = folder / LAST_USED
-        used = (marker if marker.exists() else folder).stat().st_mtime
-        if now - used > STALE_KERNEL_DAYS * 86400.0:
+        if marker.is_file() and now - marker.stat().st_mtime > STALE_KERNEL_DAYS * 86400.0:
             shutil.rmtree(folder, ignore_errors=True)
             if not folder.exists():
                 removed.append(folder)
