@@ -116,8 +116,9 @@ def _cell_grid(pos, rad, skin, lz):
 @nb.njit(cache=True)
 def _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, out_j, at):
     """Neighbours j > i of sphere i within ``R_i + R_j + skin`` in the 27 (9 if the periodic
-    slice is one cell thick) surrounding cells; written to ``out_j[at:]`` when ``at >= 0``.
-    Returns their number."""
+    slice is one cell thick) surrounding cells, written to ``out_j[at:]``; returns their number.
+    With ``at < 0`` only the number of spheres in those cells (a bound of the neighbours, with
+    no distance computed)."""
     nx, ny, nz = counts[0], counts[1], counts[2]
     periodic = lz > 0.0
     dzr = 1 if nz > 1 else 0
@@ -132,11 +133,14 @@ def _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, out_j, at):
                 continue
             for oz in range(-dzr, dzr + 1):
                 c = ci[i, 2] + oz
-                if periodic:
-                    c = c % nz
+                if periodic:  # c is in [-1, nz]: wrapped without an integer division
+                    c = c + nz if c < 0 else (c - nz if c >= nz else c)
                 elif c < 0 or c >= nz:
                     continue
                 cc = (a * ny + b) * nz + c
+                if at < 0:
+                    found += start[cc + 1] - start[cc]
+                    continue
                 for q in range(start[cc], start[cc + 1]):
                     j = order[q]
                     if j <= i:
@@ -148,17 +152,17 @@ def _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, out_j, at):
                         dz -= lz * math.floor(dz / lz + 0.5)
                     rc = rad[i] + rad[j] + skin
                     if dx * dx + dy * dy + dz * dz < rc * rc:
-                        if at >= 0:
-                            out_j[at + found] = j
+                        out_j[at + found] = j
                         found += 1
     return found
 
 
 @nb.njit(cache=True)
 def build_neighbour_list(pos, rad, skin, lz, b_partner, b_index):
-    """Pairs (i < j) within ``R_i + R_j + skin`` by sorted linked cells, grouped by i (a count
-    pass and a fill pass; serial: rebuilds are rare, every ~1e3-1e4 steps in the compression
-    test, and a parallel version doubled the kernels' compile time).
+    """Pairs (i < j) within ``R_i + R_j + skin`` by sorted linked cells, grouped by i: each
+    sphere's cells scanned once into its own slot of a buffer sized by the cells' occupancy,
+    then packed (serial: a parallel version doubled the kernels' compile time; in the drum the
+    list is rebuilt every few tens of steps, in the compression test every ~1e3-1e4).
 
     Returns (pair_i, pair_j, pair_bond, first): ``pair_bond`` is the bond index of a bonded pair
     or -1; the pairs of sphere i are ``first[i]:first[i+1]``.
@@ -166,20 +170,22 @@ def build_neighbour_list(pos, rad, skin, lz, b_partner, b_index):
     n = pos.shape[0]
     counts, ci, order, start = _cell_grid(pos, rad, skin, lz)
     dummy = np.empty(0, dtype=np.int64)
-    count_only = np.int64(-1)  # typed int64 like the fill pass's offsets: a literal -1 compiles a second copy
+    bound_only = np.int64(-1)  # typed int64 like the scan's offsets: a literal -1 compiles a second copy
+    slot = np.zeros(n + 1, dtype=np.int64)
+    for i in range(n):
+        slot[i + 1] = slot[i] + _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, dummy, bound_only)
+    buf = np.empty(slot[n], dtype=np.int64)
     first = np.zeros(n + 1, dtype=np.int64)
     for i in range(n):
-        first[i + 1] = _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, dummy, count_only)
-    for i in range(n):
-        first[i + 1] += first[i]
+        first[i + 1] = first[i] + _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, buf, slot[i])
     npair = first[n]
     pi = np.empty(npair, dtype=np.int64)
     pj = np.empty(npair, dtype=np.int64)
     pb = np.full(npair, -1, dtype=np.int64)
     for i in range(n):
-        _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, pj, first[i])
         for k in range(first[i], first[i + 1]):
             pi[k] = i
+            pj[k] = buf[slot[i] + k - first[i]]
             for s in range(b_partner.shape[1]):
                 if b_partner[i, s] == pj[k]:
                     pb[k] = b_index[i, s]
