@@ -117,8 +117,8 @@ def _cell_grid(pos, rad, skin, lz):
 def _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, out_j, at):
     """Neighbours j > i of sphere i within ``R_i + R_j + skin`` in the 27 (9 if the periodic
     slice is one cell thick) surrounding cells, written to ``out_j[at:]``; returns their number.
-    With ``at < 0`` only the number of spheres in those cells (a bound of the neighbours, with
-    no distance computed)."""
+    With ``at == -1`` only the number of spheres in those cells (a bound of the neighbours, with
+    no distance computed); with ``at == -2`` the number of neighbours, nothing written."""
     nx, ny, nz = counts[0], counts[1], counts[2]
     periodic = lz > 0.0
     dzr = 1 if nz > 1 else 0
@@ -138,7 +138,7 @@ def _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, out_j, at):
                 elif c < 0 or c >= nz:
                     continue
                 cc = (a * ny + b) * nz + c
-                if at < 0:
+                if at == -1:
                     found += start[cc + 1] - start[cc]
                     continue
                 for q in range(start[cc], start[cc + 1]):
@@ -152,17 +152,26 @@ def _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, out_j, at):
                         dz -= lz * math.floor(dz / lz + 0.5)
                     rc = rad[i] + rad[j] + skin
                     if dx * dx + dy * dy + dz * dz < rc * rc:
-                        out_j[at + found] = j
+                        if at >= 0:
+                            out_j[at + found] = j
                         found += 1
     return found
 
 
+#: Largest scan buffer [entries of 8 bytes] of :func:`build_neighbour_list`: above it (a very large
+#: or very polydisperse system, whose cells hold many spheres) the neighbours are counted first
+#: and scanned again, as before the buffer, so the buffer never holds more than 64 MB
+NEIGHBOUR_BUFFER_MAX = 1 << 23
+
+
 @nb.njit(cache=True)
-def build_neighbour_list(pos, rad, skin, lz, b_partner, b_index):
+def build_neighbour_list(pos, rad, skin, lz, b_partner, b_index, max_buffer=NEIGHBOUR_BUFFER_MAX):
     """Pairs (i < j) within ``R_i + R_j + skin`` by sorted linked cells, grouped by i: each
-    sphere's cells scanned once into its own slot of a buffer sized by the cells' occupancy,
-    then packed (serial: a parallel version doubled the kernels' compile time; in the drum the
-    list is rebuilt every few tens of steps, in the compression test every ~1e3-1e4).
+    sphere's cells scanned once into its own slot of a buffer sized by the cells' occupancy
+    (~70 entries a sphere in an agglomerate), then packed; if that buffer would exceed
+    ``max_buffer`` entries, a count pass and a second scan instead. Serial: a parallel version
+    doubled the kernels' compile time; in the drum the list is rebuilt every few tens of steps,
+    in the compression test every ~1e3-1e4.
 
     Returns (pair_i, pair_j, pair_bond, first): ``pair_bond`` is the bond index of a bonded pair
     or -1; the pairs of sphere i are ``first[i]:first[i+1]``.
@@ -170,22 +179,32 @@ def build_neighbour_list(pos, rad, skin, lz, b_partner, b_index):
     n = pos.shape[0]
     counts, ci, order, start = _cell_grid(pos, rad, skin, lz)
     dummy = np.empty(0, dtype=np.int64)
-    bound_only = np.int64(-1)  # typed int64 like the scan's offsets: a literal -1 compiles a second copy
+    # typed int64 like the scan's offsets: a literal compiles a second copy of _scan_sphere
+    bound_only, count_only = np.int64(-1), np.int64(-2)
     slot = np.zeros(n + 1, dtype=np.int64)
     for i in range(n):
         slot[i + 1] = slot[i] + _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, dummy, bound_only)
-    buf = np.empty(slot[n], dtype=np.int64)
     first = np.zeros(n + 1, dtype=np.int64)
+    one_scan = slot[n] <= max_buffer
+    buf = np.empty(slot[n] if one_scan else 0, dtype=np.int64)
     for i in range(n):
-        first[i + 1] = first[i] + _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, buf, slot[i])
+        if one_scan:
+            found = _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, buf, slot[i])
+        else:
+            found = _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, dummy, count_only)
+        first[i + 1] = first[i] + found
     npair = first[n]
     pi = np.empty(npair, dtype=np.int64)
     pj = np.empty(npair, dtype=np.int64)
     pb = np.full(npair, -1, dtype=np.int64)
     for i in range(n):
+        if one_scan:
+            for k in range(first[i], first[i + 1]):
+                pj[k] = buf[slot[i] + k - first[i]]
+        else:
+            _scan_sphere(i, pos, rad, skin, lz, counts, ci, order, start, pj, first[i])
         for k in range(first[i], first[i + 1]):
             pi[k] = i
-            pj[k] = buf[slot[i] + k - first[i]]
             for s in range(b_partner.shape[1]):
                 if b_partner[i, s] == pj[k]:
                     pb[k] = b_index[i, s]

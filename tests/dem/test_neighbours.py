@@ -4,7 +4,7 @@ minimum image along z in a periodic slice, grouped by i, with its bond index; no
 import numpy as np
 import pytest
 
-from dem.kernels import build_neighbour_list
+from dem.kernels import NEIGHBOUR_BUFFER_MAX, build_neighbour_list
 
 
 def _all_pairs(pos, rad, skin, lz):
@@ -19,10 +19,12 @@ def _all_pairs(pos, rad, skin, lz):
     return set(pairs)
 
 
+@pytest.mark.parametrize("one_scan", [True, False])
 @pytest.mark.parametrize("lz, n", [(0.0, 400), (0.1, 500), (0.02, 300), (0.011, 60), (0.3, 800)])
-def test_the_list_is_every_pair_within_reach(lz, n):
+def test_the_list_is_every_pair_within_reach(lz, n, one_scan):
     """A slice of 3 cells (the fewest that wrap), one cell thick (0.02 m, 0.011 m: no wrap
-    offsets), many cells, and no periodicity; radii 4-6 mm, skin 1 mm."""
+    offsets), many cells, and no periodicity; radii 4-6 mm, skin 1 mm. Both ways of filling the
+    list: one scan into the buffer, and (a buffer above its cap) a count pass and a second scan."""
     rng = np.random.default_rng(int(1000 * lz) + n)
     rad = rng.uniform(0.004, 0.006, n)
     box = np.array([0.12, 0.1, lz if lz > 0 else 0.1])
@@ -36,7 +38,8 @@ def test_the_list_is_every_pair_within_reach(lz, n):
         s = int(np.sum(partner[i] >= 0))
         if s < 2:
             partner[i, s], index[i, s] = j, b
-    pi, pj, pb, first = build_neighbour_list(pos, rad, skin, lz, partner, index)
+    cap = NEIGHBOUR_BUFFER_MAX if one_scan else 0
+    pi, pj, pb, first = build_neighbour_list(pos, rad, skin, lz, partner, index, cap)
     assert set(zip(pi.tolist(), pj.tolist())) == ref and len(pi) == len(ref)
     assert np.all(np.diff(pi) >= 0) and np.all(pi < pj)
     np.testing.assert_array_equal(first, np.searchsorted(pi, np.arange(n + 1)))
