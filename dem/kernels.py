@@ -53,13 +53,6 @@ THREADING_LAYER_PRIORITY = ["omp", "tbb", "workqueue"]
 if not {"NUMBA_THREADING_LAYER", "NUMBA_THREADING_LAYER_PRIORITY"} & set(os.environ):
     nb.config.THREADING_LAYER_PRIORITY = THREADING_LAYER_PRIORITY
 
-#: The only fast-math flag the step's kernels take: LLVM may fuse a * b + c into one fused
-#: multiply-add (IEEE 754 fma, one rounding instead of two, so no less accurate). No
-#: reassociation, no reciprocal approximation, NaN and infinity kept, so the order of every sum
-#: is still the source's and 1 and 2 threads stay bit-identical. Elements inlined into a kernel
-#: ("inline='always'") compile under its flags. Measured in benchmarks/results/dem_ab_fma.md.
-FUSED_MULTIPLY_ADD = {"contract"}
-
 STATUS_OK = 0
 STATUS_REBUILD = 1
 STATUS_NONFINITE = 2
@@ -277,7 +270,7 @@ def rebuild_pairs(sp, bd, old, skin, lz):
     return pr
 
 
-@nb.njit(cache=True, fastmath=FUSED_MULTIPLY_ADD)
+@nb.njit(cache=True)
 def _cundall_damped(f, v, alpha):
     """Cundall's local non-viscous damping ``f - alpha |f| sign(v)`` (Cundall 1987; Potyondy &
     Cundall 2004, eq. 2); ``f`` unchanged when ``v = 0``."""
@@ -329,7 +322,7 @@ def _damp(i, force, torque, vel, om, mass, inertia, alpha, hdt):
         torque[i, d] = _cundall_damped(td, om[i, d] + hdt * td * ii, alpha)
 
 
-@nb.njit(cache=True, parallel=True, fastmath=FUSED_MULTIPLY_ADD)
+@nb.njit(cache=True, parallel=True)
 def sphere_loads(sp, bd, pr, wl, dr, d_torque, cp, dt, drum_angle, kick, advance, pos_ref, lim2):
     """Total force and torque on each sphere (parallel over spheres): gravity, its bond and
     contact rows in a fixed order, walls and drum, then Cundall damping; with ``kick`` then the
@@ -381,7 +374,7 @@ def sphere_loads(sp, bd, pr, wl, dr, d_torque, cp, dt, drum_angle, kick, advance
     return moved, bad
 
 
-@nb.njit(cache=True, fastmath=FUSED_MULTIPLY_ADD)
+@nb.njit(cache=True)
 def _collect(pr, wl, dr, cp, hist_pp, hist_pw):
     """The serial end of a force evaluation, in sphere order: wall reactions, drum torque,
     impact energies of new contacts into the histograms. Returns the drum torque."""
@@ -417,7 +410,7 @@ def _collect(pr, wl, dr, cp, hist_pp, hist_pw):
     return tq
 
 
-@nb.njit(cache=True, parallel=True, fastmath=FUSED_MULTIPLY_ADD)
+@nb.njit(cache=True, parallel=True)
 def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw, kick=False, advance=False,
                    pos_ref=None, lim2=0.0):
     """All forces and torques at the current positions (mid-step velocities): bonds and contacts
@@ -494,7 +487,7 @@ def _advance(i, pos, vel, om, mass, inertia, force, torque, half, dt, lz, pos_re
     return 1 if d2 < math.inf else 2  # NaN or infinite: a non-finite position
 
 
-@nb.njit(cache=True, parallel=True, fastmath=FUSED_MULTIPLY_ADD)
+@nb.njit(cache=True, parallel=True)
 def _kick_drift(sp, half, dt, lz, pos_ref, lim2):
     """:func:`_advance` of every sphere. Returns (spheres moved beyond half the skin, spheres
     with a non-finite position): integer counts, the same whatever the thread count; every
@@ -509,7 +502,7 @@ def _kick_drift(sp, half, dt, lz, pos_ref, lim2):
     return moved, bad
 
 
-@nb.njit(cache=True, fastmath=FUSED_MULTIPLY_ADD)
+@nb.njit(cache=True)
 def _drift_walls(wl, dt):
     """Planar walls' position step at their velocity (before the forces)."""
     for k in range(wl.p.shape[0]):
@@ -517,7 +510,7 @@ def _drift_walls(wl, dt):
             wl.p[k, d] += dt * wl.v[k, d]
 
 
-@nb.njit(cache=True, fastmath=FUSED_MULTIPLY_ADD)
+@nb.njit(cache=True)
 def _push_free_walls(wl, cp, dt):
     """After the forces: a free wall (``mass > 0``) accelerated along its normal by the spheres'
     reaction and gravity."""
@@ -530,7 +523,7 @@ def _push_free_walls(wl, cp, dt):
                 wl.v[k, d] += dt * acc * wl.n[k, d]
 
 
-@nb.njit(cache=True, parallel=True, fastmath=FUSED_MULTIPLY_ADD)
+@nb.njit(cache=True, parallel=True)
 def run_steps(n_steps, dt, sp, bd, pr, wl, dr, cp, pos_ref, drum_angle, hist_pp, hist_pw,
               rec_wall_f, rec_wall_pos, rec_torque, rec_broken, drifted):
     """Advance up to ``n_steps`` velocity-Verlet steps; ``sp.force``/``sp.torque`` must hold the
