@@ -112,12 +112,22 @@ class BondCalibrator:
         if not isinstance(self.random_state, (int, np.integer)):
             raise DemInputError(f"The 'random_state' parameter of BondCalibrator must be an int. Got {self.random_state!r}.")
 
-    def _agglomerates(self):
-        return [make_agglomerate(self.particle_diameter_m, self.spheres_per_particle,
-                                 random_state=int(self.random_state) + k)
-                for k in range(self.n_particles)]
+    def particle(self, k: int):
+        """The k-th of the calibration's packings (seeded ``random_state + k``)."""
+        return make_agglomerate(self.particle_diameter_m, self.spheres_per_particle,
+                                random_state=int(self.random_state) + k)
 
-    def _run(self, aggs, params: BondParams):
+    def params(self, kn_Pa_m: float, tensile_strength_Pa: float) -> BondParams:
+        """The bonds :meth:`fit` tries at normal stiffness ``kn_Pa_m`` and tensile strength
+        ``tensile_strength_Pa`` (shear stiffness and cohesion in the calibrator's ratios)."""
+        return BondParams(kn_Pa_m=kn_Pa_m, ks_Pa_m=self.stiffness_ratio * kn_Pa_m,
+                          tensile_strength_Pa=tensile_strength_Pa,
+                          cohesion_Pa=self.cohesion_ratio * tensile_strength_Pa,
+                          friction_angle_deg=self.friction_angle_deg,
+                          radius_multiplier=self.radius_multiplier, moment_factor=self.moment_factor)
+
+    def run(self, aggs, params: BondParams):
+        """The compression tests of packings ``aggs`` with bonds ``params``, as :meth:`fit` runs them."""
         return [compression_test(a, params, material=self.material,
                                  platen_speed_m_s=self.platen_speed_m_s,
                                  local_damping=self.local_damping,
@@ -142,7 +152,7 @@ class BondCalibrator:
         if target_stiffness_N_m is not None:
             _pos("BondCalibrator.fit", "target_stiffness_N_m", target_stiffness_N_m, 0.0, 1e15)
         t0 = time.perf_counter()
-        aggs = self._agglomerates()
+        aggs = [self.particle(k) for k in range(self.n_particles)]
         r_mean = float(np.mean([a.mean_radius_m for a in aggs]))
         kn = kn_from_modulus_Pa_m(self.bond_modulus_Pa, r_mean)
         sig = float(self.initial_tensile_strength_Pa)
@@ -150,12 +160,8 @@ class BondCalibrator:
         results = None
         best = None  # (error, params, results, peaks, stiff, mean_f, err_f, err_k, iteration)
         for it in range(1, self.max_iter + 1):
-            params = BondParams(kn_Pa_m=kn, ks_Pa_m=self.stiffness_ratio * kn,
-                                tensile_strength_Pa=sig, cohesion_Pa=self.cohesion_ratio * sig,
-                                friction_angle_deg=self.friction_angle_deg,
-                                radius_multiplier=self.radius_multiplier,
-                                moment_factor=self.moment_factor)
-            results = self._run(aggs, params)
+            params = self.params(kn, sig)
+            results = self.run(aggs, params)
             peaks = np.array([r.peak_force_N for r in results])
             stiff = np.array([r.stiffness_N_m for r in results])
             mean_f = float(np.mean(peaks))

@@ -156,16 +156,20 @@ def _material(ore: Mineralogy):
     return Material(youngs_modulus_Pa=ore.youngs_gpa * 1e9, density_kg_m3=ore.density_t_m3 * 1000.0)
 
 
-def calibrate_bonds(ore: Mineralogy, target_N: float, settings: dict, seed: int, initial_tensile_Pa: float):
+def bond_calibrator(ore: Mineralogy, settings: dict, seed: int, initial_tensile_Pa: float):
+    """The DEM step's bond calibrator of ``ore`` (its packings, test and bond ratios), not fitted."""
     from dem import BondCalibrator
 
-    cal = BondCalibrator(n_particles=settings["n_particles"], particle_diameter_m=PARTICLE_DIAMETER_M,
-                         spheres_per_particle=SPHERES, random_state=seed, material=_material(ore),
-                         bond_modulus_Pa=ore.youngs_gpa * 1e9, stiffness_ratio=STIFFNESS_RATIO,
-                         cohesion_ratio=COHESION_RATIO, initial_tensile_strength_Pa=initial_tensile_Pa,
-                         platen_speed_m_s=PLATEN_SPEED_M_S, tol_pct=settings["calibration_tol_pct"],
-                         max_iter=settings["max_iter"])
-    return cal.fit(target_N)
+    return BondCalibrator(n_particles=settings["n_particles"], particle_diameter_m=PARTICLE_DIAMETER_M,
+                          spheres_per_particle=SPHERES, random_state=seed, material=_material(ore),
+                          bond_modulus_Pa=ore.youngs_gpa * 1e9, stiffness_ratio=STIFFNESS_RATIO,
+                          cohesion_ratio=COHESION_RATIO, initial_tensile_strength_Pa=initial_tensile_Pa,
+                          platen_speed_m_s=PLATEN_SPEED_M_S, tol_pct=settings["calibration_tol_pct"],
+                          max_iter=settings["max_iter"])
+
+
+def calibrate_bonds(ore: Mineralogy, target_N: float, settings: dict, seed: int, initial_tensile_Pa: float):
+    return bond_calibrator(ore, settings, seed, initial_tensile_Pa).fit(target_N)
 
 
 # ---------------------------------------------------------------------- 3. fragments
@@ -187,10 +191,18 @@ def fit_t10(e_kwh_t, t10) -> dict:
             "r2": float(1.0 - np.sum(sol.fun ** 2) / ss) if ss > 0 else float("nan")}
 
 
+def drop_test(agg, bond_params, specific_energy_J_kg: float, material):
+    """One of the DEM step's drop-weight tests (its drop mass and time steps)."""
+    from dem import drop_weight_test
+
+    return drop_weight_test(agg, bond_params, specific_energy_J_kg, drop_mass_kg=DROP_MASS_KG, material=material,
+                            time_step_factor=DROP_TIME_STEP_FACTOR, max_time_factor=DROP_MAX_TIME_FACTOR)
+
+
 def drop_tests(ore: Mineralogy, bond_params, e50_j_kg: float, settings: dict, seed: int, tick=None) -> dict:
     """Drop-weight tests at ``drop_energy_multiples`` x E50 on ``drop_particles`` packings; each
     row keeps its packing index and energy multiple (for the bootstrap and the pooled B)."""
-    from dem import drop_weight_test, make_agglomerate
+    from dem import make_agglomerate
 
     mat = _material(ore)
     aggs = [make_agglomerate(PARTICLE_DIAMETER_M, SPHERES, random_state=seed + k)
@@ -201,8 +213,7 @@ def drop_tests(ore: Mineralogy, bond_params, e50_j_kg: float, settings: dict, se
         e = float(mult * e50_j_kg)
         ys, ps = [], []
         for k, agg in enumerate(aggs):
-            r = drop_weight_test(agg, bond_params, e, drop_mass_kg=DROP_MASS_KG, material=mat,
-                                 time_step_factor=DROP_TIME_STEP_FACTOR, max_time_factor=DROP_MAX_TIME_FACTOR)
+            r = drop_test(agg, bond_params, e, mat)
             sd = r.fragments.size_distribution
             keep = (sd["sieve_size_rel"] >= y_min) & (sd["sieve_size_rel"] < 1.0)
             ys.append(sd["sieve_size_rel"][keep].to_numpy())
