@@ -3,6 +3,7 @@ targets, the shipped DEM step, its fits, the laws' physics, the map on ores far 
 reference types, and the --fast DEM path against the shipped file."""
 
 import math
+import platform
 
 import numpy as np
 import pytest
@@ -60,31 +61,39 @@ def test_the_dem_step_records_its_particles_and_calibration_errors(cal):
             rec["calibration_error_pct"], rel=1e-9)
 
 
+#: the shipped calibration was made on x86-64 (AMD EPYC) and reproduced bit for bit on another
+#: x86-64 CPU (Intel Xeon); elsewhere the C library's sin, cos and pow may round differently
+REPRODUCED_ON = ("x86_64", "AMD64")
+RECALIBRATE = ("the shipped DEM calibration's numbers do not come out of today's DEM: after a change of "
+               "the kernels' arithmetic, rerun `grindtwin calibrate --out twin/calibration/files/dem.json`")
+
+
+@pytest.mark.skipif(platform.machine() not in REPRODUCED_ON, reason="bit-for-bit only on x86-64, where it was made")
 def test_todays_kernels_reproduce_the_shipped_dem_step_bit_for_bit(cal):
     """Parts of the shipped calibration's DEM step, rerun, give the file's numbers exactly: the
     drum's power and collision spectrum, and ore B's first packing in its compression test and
     its lowest-energy drop test at the fitted bonds. The tests are chaotic once bonds break, so
-    a change of the kernels' rounding (fused multiply-adds, a reordered sum) moves them by
-    percents and fails here: it needs `grindtwin calibrate` rerun, or the file no longer comes
-    from its command (checked by mutation: fused multiply-adds in dem.kernels fail it)."""
+    a change of the kernels' rounding (fused multiply-adds, a reordered sum) moves them and
+    fails here: the file would no longer come from its command (checked by mutation: fused
+    multiply-adds in dem.kernels move the drum's power by 0.13 % and fail it)."""
     dem = cal.record["dem"]
     s = dem["settings"]
     drum = dem_link.drum_spectrum(s, s["seed"])
-    assert drum["power_W"] == dem["drum"]["power_W"]
-    assert drum["collisions_per_s_by_class"] == dem["drum"]["collisions_per_s_by_class"]
+    assert drum["power_W"] == dem["drum"]["power_W"], RECALIBRATE
+    assert drum["collisions_per_s_by_class"] == dem["drum"]["collisions_per_s_by_class"], RECALIBRATE
     rec = dem["ores"]["B"]
     strength_Pa = rec["bond"]["tensile_strength_MPa"] * 1e6
     calibrator = dem_link.bond_calibrator(load_ore("B"), s, s["seed"], strength_Pa)
     bonds = calibrator.params(rec["bond"]["kn_GPa_m"] * 1e9, strength_Pa)
     particle = calibrator.particle(0)
     (r,) = calibrator.run([particle], bonds)
-    assert (r.peak_force_N, r.specific_fracture_energy_J_kg) == (rec["peak_force_N"][0],
-                                                                 rec["specific_fracture_energy_J_kg"][0])
+    assert (r.peak_force_N, r.specific_fracture_energy_J_kg) == (
+        rec["peak_force_N"][0], rec["specific_fracture_energy_J_kg"][0]), RECALIBRATE
     row = rec["drop_weight"]["tests"][0]
     assert (row["particle"], row["energy_multiple"]) == (0, min(s["drop_energy_multiples"]))
     drop = dem_link.drop_test(particle, bonds, row["specific_energy_J_kg"], calibrator.material)
-    assert drop.summary()["absorbed_energy_J"] == row["absorbed_energy_J"]
-    assert drop.summary()["n_fragments"] == row["n_fragments"]
+    got = drop.summary()
+    assert (got["absorbed_energy_J"], got["n_fragments"]) == (row["absorbed_energy_J"], row["n_fragments"]), RECALIBRATE
 
 
 def test_the_shipped_dem_step_ran_on_todays_time_steps(cal):
