@@ -577,7 +577,7 @@ def lockstep_main(args) -> pd.DataFrame:
         "dompc_failed_steps": int((~d.success.astype(bool)).sum()), "load_1min_median": o.load_1min.median()}])
     print(table.T, flush=True)
     OUT.mkdir(exist_ok=True)
-    table.to_csv(OUT / "mpc_dompc_lockstep.csv", index=False)
+    table.to_csv(OUT / f"mpc_dompc_lockstep{args.tag}.csv", index=False)
     load = os.getloadavg()
     md = [f"# Ours (RTI, condensed QP, compiled) and do-mpc {do_mpc.__version__} (collocation, IPOPT) in lock-step",
           "", f"The reference transition ({args.duration_h} h, 3-min samples, seed {args.seed}) on the scene's "
@@ -588,8 +588,9 @@ def lockstep_main(args) -> pd.DataFrame:
           "on the same data (a collocation NLP solved to convergence against one Gauss-Newton QP on RK4: "
           f"close, not equal). Load average at the end {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} on 2 "
           "shared cores.", "", table.T.rename(columns={0: "value"}).to_markdown(floatfmt=".4g"), "",
-          "Reproduce: `PYTHONPATH=. python benchmarks/mpc_dompc.py --lockstep`."]
-    (OUT / "mpc_dompc_lockstep.md").write_text("\n".join(md) + "\n")
+          "Reproduce: `PYTHONPATH=. python benchmarks/mpc_dompc.py --lockstep"
+          + (f" --tag {args.tag}`." if args.tag else "`.")]
+    (OUT / f"mpc_dompc_lockstep{args.tag}.md").write_text("\n".join(md) + "\n")
     return table
 
 
