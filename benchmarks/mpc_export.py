@@ -9,9 +9,9 @@ alternate (Python, C, Python, C, ...). Recorded: the largest relative difference
 the C step's wall time (median, p95, worst; measured inside gt_replay), the Python step's
 (make_step), allocations inside the C calls after gt_controller_new, and the bytes it allocates.
 
-Writes benchmarks/results/mpc_export.csv and .md.
+Writes benchmarks/results/mpc_export.csv and .md (``--tag T``: mpc_exportT.csv, .md).
 
-    PYTHONPATH=. python benchmarks/mpc_export.py
+    PYTHONPATH=. python benchmarks/mpc_export.py [--tag T]
 """
 
 from __future__ import annotations
@@ -69,7 +69,8 @@ class Mirror:
 
 def main(argv=None) -> pd.DataFrame:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.parse_args(argv)
+    ap.add_argument("--tag", default="", help="suffix of the result files (mpc_export{TAG}.md, .csv)")
+    args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "ctl"
         t0 = time.perf_counter()
@@ -117,7 +118,7 @@ def main(argv=None) -> pd.DataFrame:
         "export_s": export_s, "make_O2_s": make_s, "load_1min_median": fr.load_1min.median()}])
     print(table.T, flush=True)
     OUT.mkdir(exist_ok=True)
-    table.to_csv(OUT / "mpc_export.csv", index=False)
+    table.to_csv(OUT / f"mpc_export{args.tag}.csv", index=False)
     load = os.getloadavg()
     md = ["# The exported C controller against the Python controller (reference scene, 8 h, lock-step)", "",
           "Python closed loop (plant twin, sensors, EKF, NMPC with qpsol \"condensed\", compiled) with every "
@@ -131,8 +132,8 @@ def main(argv=None) -> pd.DataFrame:
           "`c_bytes_allocated_by_new`: its two blocks (controller with the EKF's work; QP data and solver work). "
           f"Load average at the end {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} (1/5/15 min) on 2 shared cores.",
           "", table.T.rename(columns={0: "value"}).to_markdown(floatfmt=".4g"), "",
-          "Reproduce: `PYTHONPATH=. python benchmarks/mpc_export.py`."]
-    (OUT / "mpc_export.md").write_text("\n".join(md) + "\n")
+          "Reproduce: `PYTHONPATH=. python benchmarks/mpc_export.py" + (f" --tag {args.tag}`." if args.tag else "`.")]
+    (OUT / f"mpc_export{args.tag}.md").write_text("\n".join(md) + "\n")
     return table
 
 
