@@ -150,7 +150,7 @@ def write_pack(n: int, seed: int, folder: str):
 
 
 def _dt(agg) -> float:
-    from dem_parallel_worker import BONDS, PLATEN, ROCK
+    from dem_mirror import BONDS, PLATEN, ROCK
     from dem.bonds import BondSet
     from dem.system import PlaneWall, System
     s = System(agg.pos_m, agg.radius_m, ROCK, density_kg_m3=2700.0 / agg.solid_fraction,

@@ -23,25 +23,17 @@ import numba
 import numpy as np
 
 from dem_common import COUNT, POSITIVE, option_type
+from dem_mirror import BONDS, MIRROR, PLATEN, ROCK
 from dem.agglomerate import Agglomerate
-from dem.bonds import BondParams, BondSet, find_bond_pairs
+from dem.bonds import BondSet, find_bond_pairs
 from dem.drum import drum_system
 from dem.lab import compression_test
-from dem.materials import Material
 from dem.system import PlaneWall, System
 import dem.system
 
 # the thread count asked for at every size: the break-even size of System.PARALLEL_MIN_SPHERES
 # is what these runs measure
 dem.system.PARALLEL_MIN_SPHERES = 0
-
-BONDS = BondParams.yade_jcfpm(30e9, 0.4, 10e6, 20e6, 30.0)
-ROCK = Material(youngs_modulus_Pa=30e9, poisson_ratio=0.4, density_kg_m3=2700.0,
-                friction_coef=math.tan(math.radians(30)), restitution=1.0)
-PLATEN = Material(youngs_modulus_Pa=210e9, poisson_ratio=0.3, density_kg_m3=7800.0,
-                  friction_coef=math.tan(math.radians(30)), restitution=1.0)
-MIRROR = dict(material=ROCK, platen_material=PLATEN, contact_law="linear_yade",
-              damping_velocity="at_force", local_damping=0.7, platen_speed_m_s=0.1)
 
 
 def read_pack(path: str) -> Agglomerate:
