@@ -37,6 +37,7 @@ from mpc_reference_case import LEAD_H, TARGET_UM, reference_ekf, reference_senso
 from mpc import Controller, NmpcSettings, Sensors, SensorState  # noqa: E402
 from mpc.codegen import CACHE_ENV  # noqa: E402
 from mpc.plants import as_plant  # noqa: E402
+from dem_common import TAG  # noqa: E402
 
 OUT = Path(__file__).parent / "results"
 CACHE_FOLDERS: list[str] = []  # removed at the end of the run
@@ -140,7 +141,7 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--duration-h", type=float, default=8.0)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--interpreted", action="store_true", help="also HPIPM with interpreted QP data")
-    ap.add_argument("--tag", default="", help="suffix of the result files (e.g. _h40)")
+    ap.add_argument("--tag", default="", type=TAG, help="suffix of the result files (e.g. _h40)")
     args = ap.parse_args(argv)
     plant, ss, ctw, css = reference_setup(reference_sensors())
     rows = []

@@ -34,6 +34,7 @@ from mpc_reference_case import reference_sensors, reference_setup, schedule  # n
 from mpc import Controller  # noqa: E402
 from mpc.codegen import CACHE_ENV, c_library  # noqa: E402
 from mpc.condense import RTI_C_SOURCES, RtiLibrary, stage_functions  # noqa: E402
+from dem_common import TAG  # noqa: E402
 
 OUT = Path(__file__).parent / "results"
 
@@ -64,7 +65,7 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--horizon", type=int, default=40)
     ap.add_argument("--points", type=int, default=60)
     ap.add_argument("--flags", default="-O2;-O3;-O3 -march=native", help="flag sets separated by ';'")
-    ap.add_argument("--tag", default="")
+    ap.add_argument("--tag", default="", type=TAG)
     args = ap.parse_args(argv)
     _, _, ctw, css = reference_setup(reference_sensors())
     ctrl = Controller(ctw.model, settings(args.horizon, "off", "condensed"))

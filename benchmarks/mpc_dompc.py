@@ -67,6 +67,7 @@ from mpc.discretize import rk4_map  # noqa: E402
 from mpc.errors import MpcInputError  # noqa: E402
 from mpc.nmpc import PASSING_TARGET, Controller, NmpcSettings  # noqa: E402
 from mpc.results import ControllerStepResult  # noqa: E402
+from dem_common import TAG  # noqa: E402
 
 
 def import_do_mpc():
@@ -382,7 +383,7 @@ def main(argv=None) -> pd.DataFrame:
                          "when NmpcSettings has it)")
     ap.add_argument("--dompc", default="colloc,rk4",
                     help="do-mpc configurations: colloc|rk4[+setting=value|+ipopt.opt=value...],...")
-    ap.add_argument("--tag", default="", help="suffix of the result files")
+    ap.add_argument("--tag", default="", type=TAG, help="suffix of the result files")
     ap.add_argument("--lockstep", action="store_true",
                     help="ours (the reference scene's RTI, condensed, compiled) and do-mpc (collocation) "
                          "stepped in lock-step on one closed loop, interleaved: mpc_dompc_lockstep.md")

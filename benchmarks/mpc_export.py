@@ -30,6 +30,7 @@ from mpc import codegen
 from scenarios.cli import main as grindtwin
 from scenarios.run import closed_loop, run_scene
 from scenarios.scene import load_scene
+from dem_common import TAG
 
 OUT = Path(__file__).parent / "results"
 SCENE = Path(__file__).parents[1] / "scenarios" / "reference_transition.toml"
@@ -69,7 +70,7 @@ class Mirror:
 
 def main(argv=None) -> pd.DataFrame:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--tag", default="", help="suffix of the result files (mpc_export{TAG}.md, .csv)")
+    ap.add_argument("--tag", default="", type=TAG, help="suffix of the result files (mpc_export{TAG}.md, .csv)")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "ctl"

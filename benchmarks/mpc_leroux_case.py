@@ -47,6 +47,7 @@ from mpc import FixedInputs, LoopSettings, Sensors, pi_baseline, run_closed_loop
 from mpc.estimator import Ekf
 from mpc.plants.leroux import LeRouxCircuit, LeRouxPlant, matched_twin
 from mpc.nmpc import Controller, NmpcSettings
+from dem_common import TAG
 
 OUT = Path(__file__).parent / "results"
 T_STEP_H = 1.0  # hardness step
@@ -231,7 +232,7 @@ def parser() -> argparse.ArgumentParser:
                     help="estimator warm-up on the steady plant before t = 0 [h]")
     ap.add_argument("--rock-step", action="store_true",
                     help=f"also step the rock fraction to {ROCK_FRAC} at t = {T_ROCK_H} h")
-    ap.add_argument("--tag", default="", help="suffix of the result files")
+    ap.add_argument("--tag", default="", type=TAG, help="suffix of the result files")
     ap.add_argument("--feed-inventory-h", type=float, default=None,
                     help="time constant of the matched twin's feed inventory [h]; default identified from "
                          "the circuit's feed step test, 0 for none")

@@ -29,6 +29,7 @@ from mpc.nmpc import Controller, NmpcSettings
 from mpc.optimize import feed_for_target
 from twin.sizes import SizeGrid
 from twin.twin import DEFAULT_EFFECTS, Twin
+from dem_common import TAG
 
 OUT = Path(__file__).parent / "results"
 TARGET_UM = 210.0
@@ -102,7 +103,7 @@ def main(argv=None) -> pd.DataFrame:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_case_arguments(ap)
     ap.add_argument("--only", default="none,pi,nmpc,nmpc_preview")
-    ap.add_argument("--tag", default="", help="suffix of the result files")
+    ap.add_argument("--tag", default="", type=TAG, help="suffix of the result files")
     ap.add_argument("--seeds", default="", help="comma-separated sensor-noise seeds to repeat over")
     args = ap.parse_args(argv)
     if args.seeds:
