@@ -421,6 +421,9 @@ def add_steady_parser(subparsers):
                    "bootstrap replicates of the DEM's particle scatter (N replicates, default all)")
     s.add_argument("--scene", help="a scene file: its plant twin at the scene's initial feed and speed "
                    "(--feed-tph and --speed override them; --ore, --blend and --mill do not apply)")
+    s.add_argument("--allow-overflow", action="store_true",
+                   help="print a steady state that holds more ore than the mill filled to its shell (the model's "
+                   "extrapolation, with a note) instead of refusing it")
     s.set_defaults(func=cmd_steady)
     return s
 
@@ -458,6 +461,28 @@ def undefined_to_none(kpis: dict, unc: dict | None = None, capacity_t: float | N
     return notes
 
 
+def refuse_overflow(twin, ss, allow: bool, what: str, blend=None) -> None:
+    """Refuse (bad input, exit 2) a steady state ``ss`` of ``twin`` that holds more ore than the
+    mill filled to its shell (:meth:`twin.Mill.max_holdup_t`): no mill runs there, and its numbers
+    are the model's extrapolation, not a prediction. The error names the feed rate that fills the
+    mill to its shell at this speed (solved at that load). ``allow`` (``--allow-overflow``) keeps
+    the answer, noted by :func:`undefined_to_none`."""
+    capacity_t = twin.mill.max_holdup_t(twin.spec.solids_density_t_m3)
+    out = ss.summary()
+    if allow or not out["holdup_t"] > capacity_t:
+        return
+    speed = out["speed_frac_critical"]
+    try:
+        full = twin.steady_at_constant_load(speed, blend, load_frac=capacity_t / twin.spec.holdup_nominal_t)
+        allowed = f"feeds up to {full.summary()['feed_tph']:.4g} t/h (which fill it to its shell at this speed)"
+    except Exception as exc:  # noqa: BLE001 - the limit is advice; the refusal stands without it
+        allowed = f"a lower feed (the feed that fills it to its shell was not found: {exc})"
+    raise SceneError(f"{what} {out['feed_tph']:g} t/h: at {speed:.3g} of critical speed the mill's steady state "
+                     f"would hold {out['holdup_t']:.4g} t of ore, more than it holds filled to its shell "
+                     f"({capacity_t:.4g} t); it would overflow and these numbers would extrapolate the model "
+                     f"beyond the mill. Allowed: {allowed}; --allow-overflow prints the extrapolation anyway.")
+
+
 def circuit_notes(twin, mill_name: str) -> list[str]:
     """A note when a mill sized with a hydrocyclone circuit runs its grate discharge (the
     calibration's effects): its numbers are not those of the circuit it was sized for."""
@@ -488,6 +513,8 @@ def _steady_scene(args) -> int:
     speed = args.speed if args.speed is not None else scene.feed.speed_frac_critical
     blend = [scene.feed.blend.get(n, 0.0) for n in models.components] if scene.feed.blend else None
     ss = models.plant.steady(feed_tph=feed, speed_frac_critical=speed, blend=blend)
+    refuse_overflow(models.plant, ss, args.allow_overflow,
+                    "--feed-tph" if args.feed_tph is not None else f"{args.scene}: feed.feed_tph", blend)
     kpis = {"scene": scene.scene.name, **ss.summary()}
     plant = models.plant
     notes = undefined_to_none(kpis, capacity_t=plant.mill.max_holdup_t(plant.spec.solids_density_t_m3))
@@ -531,6 +558,7 @@ def cmd_steady(args) -> int:
             ss = twin.steady_at_constant_load(speed_frac_critical=args.speed)
         else:
             ss = twin.steady(feed_tph=args.feed_tph, speed_frac_critical=args.speed)
+        refuse_overflow(twin, ss, args.allow_overflow, "--feed-tph")
         kpis = {k: v for k, v in ss.summary().items() if k in STEADY_KEYS} | {"source": "twin"}
     unc = None
     if args.uncertainty is not None:

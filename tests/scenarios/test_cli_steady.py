@@ -1,6 +1,7 @@
 """`grindtwin steady` end to end, through the console entry point's main()."""
 
 import json
+import re
 
 import pytest
 
@@ -93,13 +94,50 @@ def test_a_hold_up_beyond_the_mills_volume_is_said(capsys):
     m = lab.mill  # full over nominal: (1 - J (1 - eps)) / (U eps J), Austin's U, bed porosity, ball filling
     j, eps, u = m.ball_filling_frac, m.bed_porosity, m.powder_filling_nominal
     assert capacity / lab.spec.holdup_nominal_t == pytest.approx((1 - j * (1 - eps)) / (u * eps * j), rel=1e-9)
-    assert main(["steady", "--ore", "B", "--feed-tph", "5", "--json"]) == 0
+    assert main(["steady", "--ore", "B", "--feed-tph", "5", "--json", "--allow-overflow"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["holdup_t"] > capacity and any("overflow" in n for n in out["notes"])
     assert main(["steady", "--ore", "B", "--feed-tph", "0.031", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["notes"] == []
 
 
+def test_a_steady_state_beyond_the_mills_volume_is_refused_with_the_feed_that_fills_it(capsys):
+    """Without --allow-overflow, 5 t/h into the laboratory mill is bad input (exit 2, nothing on
+    stdout): the error names the argument, its value and the feed that fills the mill to its
+    shell, which the twin confirms: its steady state there holds the shell's hold-up, and a feed
+    just below it is answered without a note."""
+    from twin import Twin
+
+    assert main(["steady", "--ore", "B", "--feed-tph", "5", "--json"]) == 2
+    cap = capsys.readouterr()
+    assert cap.out == ""
+    m = re.search(r"--feed-tph 5 t/h: .* hold ([0-9.e+]+) t .* filled to its shell \(([0-9.e+-]+) t\).* feeds up to "
+                  r"([0-9.e+-]+) t/h", cap.err)
+    assert m, cap.err
+    lab = Twin("B")
+    capacity = lab.mill.max_holdup_t(lab.spec.solids_density_t_m3)
+    assert float(m.group(2)) == pytest.approx(capacity, rel=1e-3)
+    assert float(m.group(1)) > capacity
+    full_tph = float(m.group(3))
+    assert lab.steady(feed_tph=full_tph).summary()["holdup_t"] == pytest.approx(capacity, rel=2e-3)
+    assert main(["steady", "--ore", "B", "--feed-tph", f"{0.99 * full_tph}", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["notes"] == []
+    assert main(["steady", "--ore", "B", "--feed-tph", f"{1.02 * full_tph}", "--json"]) == 2
+
+
 def test_the_industrial_mill_says_it_runs_its_grate_not_its_sized_circuit(capsys):
     assert main(["steady", "--ore", "B", "--mill", "industrial", "--feed-tph", "31", "--json"]) == 0
     assert any("hydrocyclone" in n for n in json.loads(capsys.readouterr().out)["notes"])
+
+
+def test_the_scene_path_refuses_an_overflowing_steady_state_too(capsys):
+    """--scene: a --feed-tph beyond the mill's shell is refused naming the argument (the scene's
+    own feed rate is its mill's nominal feed, so it holds the nominal hold-up); --allow-overflow
+    answers with the note."""
+    from pathlib import Path
+
+    scene = str(Path(__file__).resolve().parents[2] / "scenarios" / "pyrite_surge.toml")
+    assert main(["steady", "--scene", scene, "--feed-tph", "200", "--json"]) == 2
+    assert "--feed-tph 200 t/h:" in capsys.readouterr().err
+    assert main(["steady", "--scene", scene, "--feed-tph", "200", "--json", "--allow-overflow"]) == 0
+    assert any("overflow" in n for n in json.loads(capsys.readouterr().out)["notes"])

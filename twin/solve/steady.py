@@ -197,13 +197,19 @@ def steady_state(model, u, d, x_guess=None) -> SteadyState:
     return _result(model, _check(model, x, u, d, "long integration + Newton"), u, d, "integration+newton")
 
 
+#: Largest hold-up over nominal :func:`steady_state_at_load` solves for: above any ball mill filled to
+#: its shell (:meth:`twin.Mill.max_holdup_t`: 5.6x nominal for the shipped mills), whose feed
+#: the CLI names when it refuses an overflowing steady state.
+MAX_LOAD_FRAC = 10.0
+
+
 def steady_state_at_load(model, u, d, load_frac: float = 1.0, x_guess=None) -> SteadyState:
     """Steady state whose total hold-up is ``load_frac`` x nominal; the feed rate is solved for,
     from ``u[0]``. Newton starts from ``x_guess`` when given (e.g. a nearby solution), else from
     the steady state at feed ``u[0]``."""
     _require_transport(model)
-    if not 0.0 < load_frac < 5.0:
-        raise TwinInputError(f"The 'load_frac' must be a float in (0, 5). Got {load_frac}.")
+    if not 0.0 < load_frac <= MAX_LOAD_FRAC:
+        raise TwinInputError(f"The 'load_frac' must be a float in (0, {MAX_LOAD_FRAC:g}]. Got {load_frac}.")
     u, d = np.asarray(u, float), np.asarray(d, float)
     start = steady_state(model, u, d).x if x_guess is None else np.asarray(x_guess, float)
     x, uu, ok = _newton(model, start, u, d, load_target=load_frac)
