@@ -66,7 +66,7 @@ FAULTS = ("none", "bad", "uncertain", "frozen", "stale")
 #: Nodes of the simulator itself, beside the tag map's.
 SIM_NODES = {"time_h": "Simulation.Time_h", "p80_true_um": "Simulation.P80True_um",
              "speedup": "Simulation.Speedup", "run": "Simulation.Run", "fault": "Instructor.P80Fault"}
-RECORD_FILES = ("plant.parquet", "plant.parquet.partial", "plant-kpis.json")
+RECORD_FILES = ("plant.parquet", "plant.parquet.partial", "plant-kpis.json", "plant-kpis.json.partial")
 
 
 @dataclass
@@ -442,7 +442,10 @@ class PlantServer(Stoppable):
         tmp = d / "plant.parquet.partial"
         self.frame().to_parquet(tmp, index=False)
         tmp.replace(d / "plant.parquet")
-        (d / "plant-kpis.json").write_text(json.dumps(self.kpis(), indent=2))
+        # renamed into place too: the server may be stopped mid-write, and a reader may open it any time
+        tmp = d / "plant-kpis.json.partial"
+        tmp.write_text(json.dumps(self.kpis(), indent=2))
+        tmp.replace(d / "plant-kpis.json")
 
     # ------------------------------------------------------------------ run
     async def run(self, install_signal_handlers: bool = True) -> None:
