@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import math
+import os
 import signal
 import sys
 import threading
@@ -72,9 +73,30 @@ def _interrupted(command: str, signum: int) -> int:
     return 128 + signum  # the shell's convention: 130 for SIGINT, 143 for SIGTERM
 
 
+def _stdout_closed() -> bool:
+    """True when stdout is a pipe its reader has closed (``grindtwin steady | head``): polling its
+    write end reports an error (POLLERR, Linux and macOS). Then stdout is pointed at the null
+    device, so that Python's own flush at exit does not report it again (the Python docs' note on
+    SIGPIPE)."""
+    import select
+
+    try:
+        fd = sys.stdout.fileno()
+        poller = select.poll()
+        poller.register(fd, select.POLLOUT)
+        closed = any(events & select.POLLERR for _, events in poller.poll(0))
+    except (AttributeError, OSError, ValueError):  # no real stdout (captured), or no poll here
+        return False
+    if closed:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), fd)
+    return closed
+
+
 def _exit_codes(command: str):
     """Map the exception families to exit codes: 2 bad input, 1 failed run, 128 + signal number
-    when interrupted (SIGINT, SIGTERM); one line on stderr, no traceback."""
+    when interrupted (SIGINT, SIGTERM); one line on stderr, no traceback. A reader that closed
+    stdout early ends the command quietly with 141 (128 + SIGPIPE, what a shell shows for a
+    program stopped that way); any other broken pipe (a socket) is a failed run."""
 
     def wrap(fn):
         @functools.wraps(fn)
@@ -88,6 +110,8 @@ def _exit_codes(command: str):
                     return _interrupted(command, received[0] if received else signal.SIGINT)
                 if isinstance(exc, Interrupted):
                     return _interrupted(command, exc.signum)
+                if isinstance(exc, BrokenPipeError) and _stdout_closed():
+                    return 128 + signal.SIGPIPE
                 bad, failed = _families()
                 if isinstance(exc, bad):
                     return _fail("input", command, exc)

@@ -56,3 +56,14 @@ def test_version_is_the_installed_distributions_and_imports_no_numerics():
     mods, out = imported_after(["--version"])
     assert out.startswith(f"grindtwin {version('grindtwin')} (Python ")
     assert not mods & {"numpy", "twin", "mpc", *HEAVY}
+
+
+def test_a_reader_that_closes_stdout_early_ends_the_command_quietly():
+    """``grindtwin steady ... | head -1``: the reader gone before the answer is written ends the
+    command with 141 (128 + SIGPIPE) and nothing on stderr, not a 'failed' run."""
+    code = "import sys\nfrom scenarios.cli import main\nsys.exit(main(sys.argv[1:]))"
+    argv = ["steady", "--surrogate", "--ore", "B", "--feed-tph", "0.031", "--speed", "0.70"]
+    with subprocess.Popen([sys.executable, "-c", code, *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE) as proc:
+        proc.stdout.close()  # before the interpreter has even started: the answer finds no reader
+        assert proc.wait(timeout=120) == 141
+        assert proc.stderr.read() == b""
