@@ -75,7 +75,8 @@ def _interrupted(command: str, signum: int) -> int:
 
 def _stdout_closed() -> bool:
     """True when stdout is a pipe its reader has closed (``grindtwin steady | head``): polling its
-    write end reports an error (POLLERR, Linux and macOS). Then stdout is pointed at the null
+    write end reports an error (POLLERR; tested on Linux; where poll says nothing the broken pipe
+    stays a failed run, as before). Then stdout is pointed at the null
     device, so that Python's own flush at exit does not report it again (the Python docs' note on
     SIGPIPE)."""
     import select
