@@ -263,7 +263,11 @@ class Feed(Section):
     feed_tph: float | None = Field(default=None, gt=0, le=1e4)
     """Fresh feed rate [t/h] (dry solids); required with the ``transport`` effect. Open loop it is
     held throughout unless ``start = "target"``; a closed loop starts the plant at the feed rate
-    that holds the target unless ``start = "scene"`` (the run's notes say which)."""
+    that holds the target unless ``start = "scene"`` (the run's notes say which). It is also the
+    mill's nominal feed, at which its free discharge holds its nominal hold-up
+    (:meth:`twin.Mill.free_discharge_tph`): a scene at twice the feed states a mill built to
+    discharge twice as much, not the same mill fed twice as much (that is ``grindtwin steady
+    --scene FILE --feed-tph``, or a schedule's feed rate)."""
     batch_charge_kg: float | None = Field(default=None, gt=0, le=1e6)
     """Charge of a batch grind [kg] (a scene without ``transport``); only for batch scenes."""
     speed_frac_critical: float = Field(gt=0, lt=1)
