@@ -99,7 +99,7 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
     check_range("size_mill", "speed_frac_critical", speed_frac_critical, 0.3, 0.95)
     base = get_mill(base)
     design = asdict(cyclone or Hydrocyclone())
-    tried, found = [], []
+    tried, found, missed = [], [], {}
     for count in range(1, MAX_CYCLONES + 1):
         cyc = {**design, "count": count}
 
@@ -112,8 +112,13 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
             except SolverError:  # no steady state (the circuit overloads): the mill is too small
                 return 1.0
         lo, hi = (math.log(d) for d in DIAMETER_RANGE_M)
-        if gap(lo) < 0 or gap(hi) > 0:
+        if gap(lo) < 0:
             tried.append((count, None, None))
+            missed.setdefault("finer", []).append(count)
+            continue
+        if gap(hi) > 0:
+            tried.append((count, None, None))
+            missed.setdefault("coarser", []).append(count)
             continue
         d = math.exp(scipy.optimize.brentq(gap, lo, hi, xtol=1e-4))
         mill, ss = _at(ore, base, d, cyc, feed_tph, speed_frac_critical, calibration)
@@ -124,14 +129,41 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
             break
     stable = [f for f in found if f[3].load_status == "stable"]
     if not stable:
-        raise SolverError(f"No mill from {DIAMETER_RANGE_M[0]} to {DIAMETER_RANGE_M[1]} m with 1-{MAX_CYCLONES} "
+        raise SolverError(f"No mill from {DIAMETER_RANGE_M[0]} to {DIAMETER_RANGE_M[1]} m with 1-{count} "
                           f"cyclones of the base design gives P80 {target_p80_um:g} um at {feed_tph:g} t/h with a "
-                          f"stable load (tried: {tried}).")
+                          f"stable load: {_misses_text(missed, found, target_p80_um)}.")
     _, count, mill, ss, cyc = min(stable, key=lambda f: f[0])
     o = ss.outputs
     return SizedMill(mill, cyc, getattr(ore, "name", str(ore)), feed_tph, target_p80_um, ss.p80_um, o["circulating_load_frac"],
                      o["power_kw"], o["specific_energy_kwh_t"], o["load_frac"], ss.load_status, tried,
                      calibration.identity())
+
+
+def _misses_text(missed: dict, found: list, target_p80_um: float) -> str:
+    """Why each cyclone count gave no answer, for :func:`size_mill`'s error: the diameter range's
+    smallest mill already grinds finer than the target, its largest still coarser (or overloads),
+    or the diameter found leaves the load outside its stable band."""
+    lo, hi = DIAMETER_RANGE_M
+    parts = []
+    if missed.get("finer"):
+        parts.append(f"with {_counts(missed['finer'])} cyclones even the {lo:g}-m mill grinds finer than "
+                     f"{target_p80_um:g} um")
+    if missed.get("coarser"):
+        parts.append(f"with {_counts(missed['coarser'])} cyclones even the {hi:g}-m mill grinds coarser than "
+                     f"{target_p80_um:g} um or overloads")
+    parts += [f"with {count} cyclones the {mill.diameter_m:.2f}-m mill that meets it runs its load {ss.load_status} "
+              f"its stable band (load {ss.outputs['load_frac']:.3g} of nominal)" for _, count, mill, ss, _ in found]
+    return "; ".join(parts)
+
+
+def _counts(counts: list[int]) -> str:
+    """``[1, 2, 3, 5]`` -> ``"1-3, 5"``."""
+    runs, start = [], counts[0]
+    for a, b in zip(counts, counts[1:] + [None]):
+        if b != a + 1:
+            runs.append(f"{start}" if start == a else f"{start}-{a}")
+            start = b
+    return ", ".join(runs)
 
 
 #: The keys of a preset file grindtwin wrote (:meth:`SizedMill.record`).

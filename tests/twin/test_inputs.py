@@ -176,3 +176,15 @@ def test_a_preset_is_written_only_where_grindtwin_may_write(tmp_path):
     with pytest.raises(TwinInputError, match="does not exist"):
         check_preset_path(tmp_path / "nowhere" / "p.json")
     assert mine.read_text() == '{"mine": true}'
+
+
+def test_an_impossible_sizing_says_which_way_it_misses():
+    """size_mill at 1 kg/h: even the smallest mill of the range grinds finer than 75 um, for every
+    cyclone count; the error says so instead of listing empty tuples. _counts joins runs."""
+    from twin.errors import SolverError
+    from twin.sizing import DIAMETER_RANGE_M, MAX_CYCLONES, _counts, size_mill
+
+    with pytest.raises(SolverError, match=rf"with 1-{MAX_CYCLONES} cyclones even the {DIAMETER_RANGE_M[0]:g}-m mill "
+                                          r"grinds finer than 75 um\.$"):
+        size_mill("B", 0.001, 75.0)
+    assert _counts([1, 2, 3, 5, 7, 8]) == "1-3, 5, 7-8" and _counts([4]) == "4"
