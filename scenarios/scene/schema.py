@@ -267,7 +267,7 @@ class Feed(Section):
     mill's nominal feed, at which its free discharge holds its nominal hold-up
     (:meth:`twin.Mill.free_discharge_tph`): a scene at twice the feed states a mill built to
     discharge twice as much, not the same mill fed twice as much (that is ``grindtwin steady
-    --scene FILE --feed-tph``, or a schedule's feed rate)."""
+    --scene FILE --feed-tph``, a controller's moves or a history's ``feed_tph``)."""
     batch_charge_kg: float | None = Field(default=None, gt=0, le=1e6)
     """Charge of a batch grind [kg] (a scene without ``transport``); only for batch scenes."""
     speed_frac_critical: float = Field(gt=0, lt=1)
