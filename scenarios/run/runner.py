@@ -140,6 +140,7 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
     kpis = compute_kpis(scene, frame, **extra)
     if not kpis["fed_t"] > 0 and not is_batch(scene):
         warnings_.append("specific energy is undefined: nothing was fed")
+    warnings_ += overflow_warnings(frame, models.plant)
     summary = make_summary(scene, models, kpis, notes + warnings_, time.perf_counter() - t_start)
     summary["controller_health"] = health
     summary["warnings"] = warnings_
@@ -149,6 +150,25 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
                                 "passing_frac": [float(v) for v in psd.iloc[-1]]}
     return RunResult(frame=frame, summary=summary, psd=psd, mill_psd=sizes["mill_psd"], streams=sizes["streams"],
                      scene=scene)
+
+
+def overflow_warnings(frame: pd.DataFrame, plant) -> list[str]:
+    """A warning when the plant's hold-up exceeds what its mill holds filled to its shell
+    (:meth:`twin.Mill.max_holdup_t`) at any sample: no mill runs there (it would overflow), so the
+    numbers of those samples extrapolate the model beyond the mill. Says when, how often and how
+    far; none for a plant without a mill of that kind or a frame without ``holdup_t``."""
+    mill, spec = getattr(plant, "mill", None), getattr(plant, "spec", None)
+    if mill is None or spec is None or "holdup_t" not in frame.columns:
+        return []
+    capacity_t = mill.max_holdup_t(spec.solids_density_t_m3)
+    held = frame["holdup_t"].to_numpy(float)
+    over = held > capacity_t
+    if not over.any():
+        return []
+    t = frame["time_h"].to_numpy(float)[over]
+    return [f"the plant's hold-up exceeds what its mill holds filled to its shell ({capacity_t:.4g} t) on "
+            f"{over.mean():.0%} of the samples, from {t[0]:.4g} h to {t[-1]:.4g} h (at most {held.max():.4g} t): "
+            "the mill would overflow, and the numbers of those samples extrapolate the model beyond the mill"]
 
 
 def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True, *,

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -13,9 +14,9 @@ import pytest
 
 from twin import get_mill
 
-from scenarios.errors import RunError
 from scenarios.run import replay_scene, run_scene
 from scenarios.run.feed import mineralogy_to_blend
+from scenarios.run.models import build_models
 
 LIBRARY = Path(__file__).resolve().parents[2] / "scenarios"
 
@@ -364,3 +365,26 @@ def test_an_unstable_rk4_substep_count_is_refused_with_the_needed_one():
     scene.controller.rk4_substeps = 2
     with pytest.raises(SceneError, match=r"controller.rk4_substeps = 2 is unstable.*at least 3 steps"):
         run_scene(scene, progress=False)
+
+
+def test_a_run_whose_plant_overflows_its_mill_says_so(tmp_path, short_run):
+    """A replay at 250 t/h into the 30-t/h mill: its hold-up passes what the mill holds filled to
+    its shell; the run warns (summary warnings and notes, so the screen and the report) with the
+    share of samples over it, counted here from the frame. The short open-loop run has no such
+    warning."""
+    t = pd.date_range("2026-01-15T00:00", periods=61, freq="1min")
+    df = pd.DataFrame({"timestamp": t.strftime("%Y-%m-%dT%H:%M:%S"), "ore_B_ref_frac": 1.0,
+                       "ore_B_pyrite_frac": 0.0, "feed_tph": np.where(np.arange(61) < 5, 30.0, 250.0),
+                       "speed_frac_critical": 0.70, "p80_um": 260.0})
+    hist = tmp_path / "flood.csv"
+    df.to_csv(hist, index=False)
+    res = replay_scene(short_pyrite_scene(tmp_path), hist, progress=False)
+    plant = build_models(res.scene).plant
+    capacity = plant.mill.max_holdup_t(plant.spec.solids_density_t_m3)
+    held = res.frame["holdup_t"].to_numpy(float)
+    over = [w for w in res.summary["warnings"] if "filled to its shell" in w]
+    assert len(over) == 1 and over[0] in res.summary["notes"]
+    assert f"filled to its shell ({capacity:.4g} t)" in over[0]
+    share = float(re.search(r"on ([0-9]+)% of the samples", over[0]).group(1)) / 100
+    assert share == pytest.approx(np.mean(held > capacity), abs=0.006) and share > 0
+    assert not any("filled to its shell" in w for w in short_run.summary["warnings"])
