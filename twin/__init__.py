@@ -13,7 +13,8 @@ _API = {
     "FastCalibrationWarning": ".errors", "ModelError": ".errors", "SolverError": ".errors", "TwinError": ".errors",
     "TwinInputError": ".errors",
     "MILLS": ".mill", "Mill": ".mill", "bond_power_kw": ".mill", "get_mill": ".mill",
-    "hogg_fuerstenau_power_kw": ".mill", "load_status": ".mill", "POWER_MODELS": ".mill", "power_kw": ".mill",
+    "hogg_fuerstenau_power_kw": ".mill", "load_status": ".mill", "centrifuging_note": ".mill",
+    "CENTRIFUGING_FRAC_CRITICAL": ".mill", "POWER_MODELS": ".mill", "power_kw": ".mill",
     "Hydrocyclone": ".effects.classification", "hydrocyclone_from": ".effects.classification",
     "TabulatedPSD": ".sizes", "SizedMill": ".sizing", "size_mill": ".sizing", "write_preset": ".sizing", "check_preset_path": ".sizing",
     "INPUT_NAMES": ".model", "Model": ".model", "ModelSpec": ".model",
@@ -26,11 +27,11 @@ _API = {
 }
 
 __all__ = [
-    "Blend", "BreakageParams", "DEFAULT_EFFECTS", "EFFECTS", "Effect", "FastCalibrationWarning", "GatesGaudinSchuhmann",
+    "Blend", "BreakageParams", "CENTRIFUGING_FRAC_CRITICAL", "DEFAULT_EFFECTS", "EFFECTS", "Effect", "FastCalibrationWarning", "GatesGaudinSchuhmann",
     "INPUT_NAMES", "MILLS",
     "Hydrocyclone", "Mill", "Mineralogy", "Model", "ModelError", "ModelSpec", "OreBreakage", "POWER_MODELS", "RosinRammler",
     "SizeGrid", "SizedMill", "SolverError", "SteadyState", "TabulatedPSD", "Texture", "Trajectory", "Twin", "TwinError",
-    "TwinInputError", "austin_selection", "bond_power_kw", "hydrocyclone_from", "power_kw", "size_mill", "write_preset", "check_preset_path",
+    "TwinInputError", "austin_selection", "bond_power_kw", "centrifuging_note", "hydrocyclone_from", "power_kw", "size_mill", "write_preset", "check_preset_path",
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
     "new_folder_beside", "pxx_um", "reference_ores", "write_text_atomically",
 ]

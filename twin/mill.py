@@ -215,6 +215,22 @@ def power_kw(mill: Mill, speed_frac_critical):
     return mill.net_power_kw * model(mill, speed_frac_critical) / model(mill, mill.speed_nominal_frac_critical)
 
 
+#: Speed [fraction of critical] beyond which the ball charge centrifuges: the midpoint of the
+#: logistic falloff of Austin, Klimpel & Luckie's speed factor (1984, eq. 8.4), which the twin's
+#: breakage follows. Neither power model (Bond's equation, Hogg & Fuerstenau's torque arm) has a
+#: centrifuging loss, so beyond it the twin's power and specific energy are a cascading charge's.
+CENTRIFUGING_FRAC_CRITICAL = 0.94
+
+
+def centrifuging_note(speed_frac_critical: float) -> str | None:
+    """A note when a speed lies beyond :data:`CENTRIFUGING_FRAC_CRITICAL`, else None."""
+    if not speed_frac_critical > CENTRIFUGING_FRAC_CRITICAL:
+        return None
+    return (f"speed {speed_frac_critical:.3g} of critical is beyond {CENTRIFUGING_FRAC_CRITICAL} where the charge "
+            "centrifuges (Austin et al. 1984, eq. 8.4): breakage falls there, but the power model has no "
+            "centrifuging loss, so power and specific energy are overestimated")
+
+
 def load_status(load_frac: float, band) -> str:
     """'under', 'stable' or 'over' for a load (hold-up over nominal) and a stable band."""
     lo, hi = band

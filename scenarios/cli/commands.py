@@ -508,6 +508,14 @@ def refuse_overflow(twin, ss, allow: bool, what: str, blend=None) -> None:
                      f"beyond the mill. Allowed: {allowed}; --allow-overflow prints the extrapolation anyway.")
 
 
+def speed_notes(kpis: dict) -> list[str]:
+    """The centrifuging note (:func:`twin.centrifuging_note`) of a steady state's speed."""
+    from twin import centrifuging_note
+
+    note = centrifuging_note(kpis.get("speed_frac_critical") or 0.0)
+    return [note] if note else []
+
+
 def circuit_notes(twin, mill_name: str) -> list[str]:
     """A note when a mill sized with a hydrocyclone circuit runs its grate discharge (the
     calibration's effects): its numbers are not those of the circuit it was sized for."""
@@ -543,6 +551,7 @@ def _steady_scene(args) -> int:
     kpis = {"scene": scene.scene.name, **ss.summary()}
     plant = models.plant
     notes = undefined_to_none(kpis, capacity_t=plant.mill.max_holdup_t(plant.spec.solids_density_t_m3))
+    notes += speed_notes(kpis)
     if args.json:
         print(json.dumps(kpis | {"notes": notes}, indent=2, allow_nan=False))
         return 0
@@ -592,7 +601,7 @@ def cmd_steady(args) -> int:
         unc = steady_intervals(blend, calibration, args.mill, args.feed_tph, args.speed,
                                at_load=args.at_constant_load, n=args.uncertainty or None)
     capacity = None if args.surrogate else twin.mill.max_holdup_t(twin.spec.solids_density_t_m3)
-    notes = undefined_to_none(kpis, unc, capacity)
+    notes = undefined_to_none(kpis, unc, capacity) + speed_notes(kpis)
     if not args.surrogate:
         notes += circuit_notes(twin, args.mill)
     if args.json:

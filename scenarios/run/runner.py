@@ -57,6 +57,7 @@ from scenarios.run.open_loop import run_open_loop
 from scenarios.run.preflight import model_size_problems, refuse, settings_problems
 from scenarios.run.summary import make_summary
 from scenarios.scene import Scene, load_scene, read_history, scene_from_dict
+from twin import CENTRIFUGING_FRAC_CRITICAL, centrifuging_note
 
 
 @dataclass
@@ -140,7 +141,7 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
     kpis = compute_kpis(scene, frame, **extra)
     if not kpis["fed_t"] > 0 and not is_batch(scene):
         warnings_.append("specific energy is undefined: nothing was fed")
-    warnings_ += overflow_warnings(frame, models.plant)
+    warnings_ += overflow_warnings(frame, models.plant) + centrifuging_warnings(frame)
     summary = make_summary(scene, models, kpis, notes + warnings_, time.perf_counter() - t_start)
     summary["controller_health"] = health
     summary["warnings"] = warnings_
@@ -169,6 +170,18 @@ def overflow_warnings(frame: pd.DataFrame, plant) -> list[str]:
     return [f"the plant's hold-up exceeds what its mill holds filled to its shell ({capacity_t:.4g} t) on "
             f"{over.mean():.0%} of the samples, from {t[0]:.4g} h to {t[-1]:.4g} h (at most {held.max():.4g} t): "
             "the mill would overflow, and the numbers of those samples extrapolate the model beyond the mill"]
+
+
+def centrifuging_warnings(frame: pd.DataFrame) -> list[str]:
+    """The centrifuging note (:func:`twin.centrifuging_note`) of the run's fastest speed, with when."""
+    if "speed_frac_critical" not in frame.columns:
+        return []
+    speed = frame["speed_frac_critical"].to_numpy(float)
+    note = centrifuging_note(float(np.nanmax(speed)))
+    if note is None:
+        return []
+    t = frame["time_h"].to_numpy(float)[speed > CENTRIFUGING_FRAC_CRITICAL]
+    return [f"from {t[0]:.4g} h to {t[-1]:.4g} h the {note}"]
 
 
 def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True, *,

@@ -141,3 +141,17 @@ def test_the_scene_path_refuses_an_overflowing_steady_state_too(capsys):
     assert "--feed-tph 200 t/h:" in capsys.readouterr().err
     assert main(["steady", "--scene", scene, "--feed-tph", "200", "--json", "--allow-overflow"]) == 0
     assert any("overflow" in n for n in json.loads(capsys.readouterr().out)["notes"])
+
+
+def test_a_speed_where_the_charge_centrifuges_is_said(capsys):
+    """Beyond the midpoint of Austin's speed-factor falloff (eq. 8.4: its logistic term is 1/2
+    there) the charge centrifuges and the power models do not know it: a note; none at 0.94."""
+    from twin import CENTRIFUGING_FRAC_CRITICAL
+    from twin.breakage import austin_speed_factor
+
+    c = CENTRIFUGING_FRAC_CRITICAL
+    assert float(austin_speed_factor(c)) == pytest.approx((c - 0.1) / 2, rel=1e-12)
+    assert main(["steady", "--ore", "B", "--feed-tph", "0.031", "--speed", "0.96", "--json"]) == 0
+    assert any("centrifuges" in n for n in json.loads(capsys.readouterr().out)["notes"])
+    assert main(["steady", "--ore", "B", "--feed-tph", "0.031", "--speed", f"{c}", "--json"]) == 0
+    assert not any("centrifuges" in n for n in json.loads(capsys.readouterr().out)["notes"])

@@ -388,3 +388,15 @@ def test_a_run_whose_plant_overflows_its_mill_says_so(tmp_path, short_run):
     share = float(re.search(r"on ([0-9]+)% of the samples", over[0]).group(1)) / 100
     assert share == pytest.approx(np.mean(held > capacity), abs=0.006) and share > 0
     assert not any("filled to its shell" in w for w in short_run.summary["warnings"])
+
+
+def test_a_run_at_a_centrifuging_speed_says_so(tmp_path, short_run):
+    """The short scene at 0.96 of critical: a warning from the first sample; none at 0.70."""
+    path = short_pyrite_scene(tmp_path)
+    text = path.read_text()
+    assert "speed_frac_critical = 0.70" in text
+    path.write_text(text.replace("speed_frac_critical = 0.70", "speed_frac_critical = 0.96"))
+    res = run_scene(path, progress=False)
+    spun = [w for w in res.summary["warnings"] if "centrifuges" in w]
+    assert len(spun) == 1 and spun[0].startswith("from 0 h to 1 h the speed 0.96 of critical")
+    assert not any("centrifuges" in w for w in short_run.summary["warnings"])
