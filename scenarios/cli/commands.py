@@ -508,12 +508,18 @@ def refuse_overflow(twin, ss, allow: bool, what: str, blend=None) -> None:
                      f"beyond the mill. Allowed: {allowed}; --allow-overflow prints the extrapolation anyway.")
 
 
-def speed_notes(kpis: dict) -> list[str]:
-    """The centrifuging note (:func:`twin.centrifuging_note`) of a steady state's speed."""
-    from twin import centrifuging_note
+def validity_notes(state: dict, twin=None) -> list[str]:
+    """Where a steady state (its ``summary()``) lies outside what the twin's models describe: a
+    centrifuging speed (:func:`twin.centrifuging_note`) and, with ``twin``'s rheology effect, a
+    slurry past jamming (:func:`twin.jamming_note`)."""
+    from twin import centrifuging_note  # light: the surrogate's answer imports no CasADi
 
-    note = centrifuging_note(kpis.get("speed_frac_critical") or 0.0)
-    return [note] if note else []
+    notes = [centrifuging_note(state.get("speed_frac_critical") or 0.0)]
+    if twin is not None and "rheology" in twin.spec.effects and state.get("clay_frac") is not None:
+        from twin import jamming_note
+
+        notes.append(jamming_note(state["clay_frac"], twin.spec.coefficients["clay_crowding_coeff"]))
+    return [n for n in notes if n]
 
 
 def circuit_notes(twin, mill_name: str) -> list[str]:
@@ -551,7 +557,7 @@ def _steady_scene(args) -> int:
     kpis = {"scene": scene.scene.name, **ss.summary()}
     plant = models.plant
     notes = undefined_to_none(kpis, capacity_t=plant.mill.max_holdup_t(plant.spec.solids_density_t_m3))
-    notes += speed_notes(kpis)
+    notes += validity_notes(ss.summary(), plant)
     if args.json:
         print(json.dumps(kpis | {"notes": notes}, indent=2, allow_nan=False))
         return 0
@@ -601,7 +607,8 @@ def cmd_steady(args) -> int:
         unc = steady_intervals(blend, calibration, args.mill, args.feed_tph, args.speed,
                                at_load=args.at_constant_load, n=args.uncertainty or None)
     capacity = None if args.surrogate else twin.mill.max_holdup_t(twin.spec.solids_density_t_m3)
-    notes = undefined_to_none(kpis, unc, capacity) + speed_notes(kpis)
+    notes = undefined_to_none(kpis, unc, capacity)
+    notes += validity_notes(kpis) if args.surrogate else validity_notes(ss.summary(), twin)
     if not args.surrogate:
         notes += circuit_notes(twin, args.mill)
     if args.json:

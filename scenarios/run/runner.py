@@ -57,7 +57,7 @@ from scenarios.run.open_loop import run_open_loop
 from scenarios.run.preflight import model_size_problems, refuse, settings_problems
 from scenarios.run.summary import make_summary
 from scenarios.scene import Scene, load_scene, read_history, scene_from_dict
-from twin import CENTRIFUGING_FRAC_CRITICAL, centrifuging_note
+from twin import CENTRIFUGING_FRAC_CRITICAL, centrifuging_note, jamming_note
 
 
 @dataclass
@@ -141,7 +141,8 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
     kpis = compute_kpis(scene, frame, **extra)
     if not kpis["fed_t"] > 0 and not is_batch(scene):
         warnings_.append("specific energy is undefined: nothing was fed")
-    warnings_ += overflow_warnings(frame, models.plant) + centrifuging_warnings(frame)
+    warnings_ += (overflow_warnings(frame, models.plant) + centrifuging_warnings(frame)
+                  + jamming_warnings(frame, models.plant))
     summary = make_summary(scene, models, kpis, notes + warnings_, time.perf_counter() - t_start)
     summary["controller_health"] = health
     summary["warnings"] = warnings_
@@ -182,6 +183,20 @@ def centrifuging_warnings(frame: pd.DataFrame) -> list[str]:
         return []
     t = frame["time_h"].to_numpy(float)[speed > CENTRIFUGING_FRAC_CRITICAL]
     return [f"from {t[0]:.4g} h to {t[-1]:.4g} h the {note}"]
+
+
+def jamming_warnings(frame: pd.DataFrame, plant) -> list[str]:
+    """The jamming note (:func:`twin.jamming_note`) of the run's most clay-rich hold-up, with when,
+    for a plant with the rheology effect."""
+    spec = getattr(plant, "spec", None)
+    if spec is None or "rheology" not in spec.effects or "clay_frac" not in frame.columns:
+        return []
+    clay, k = frame["clay_frac"].to_numpy(float), spec.coefficients["clay_crowding_coeff"]
+    note = jamming_note(float(np.nanmax(clay)), k)
+    if note is None:
+        return []
+    t = frame["time_h"].to_numpy(float)[[jamming_note(float(c), k) is not None for c in clay]]
+    return [f"from {t[0]:.4g} h to {t[-1]:.4g} h {note}"]
 
 
 def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True, *,

@@ -400,3 +400,23 @@ def test_a_run_at_a_centrifuging_speed_says_so(tmp_path, short_run):
     spun = [w for w in res.summary["warnings"] if "centrifuges" in w]
     assert len(spun) == 1 and spun[0].startswith("from 0 h to 1 h the speed 0.96 of critical")
     assert not any("centrifuges" in w for w in short_run.summary["warnings"])
+
+
+def test_a_run_whose_slurry_jams_says_when():
+    """jamming_warnings: the samples whose hold-up clay passes the jamming fraction, first to
+    last; none below it or without the rheology effect."""
+    from types import SimpleNamespace
+
+    from scenarios.run.runner import jamming_warnings
+    from twin.effects.rheology import jamming_clay_frac
+
+    k = 0.9
+    limit = jamming_clay_frac(k)
+    frame = pd.DataFrame({"time_h": [0.0, 0.5, 1.0, 1.5, 2.0],
+                          "clay_frac": [0.1, limit + 0.01, 0.2, limit + 0.05, 0.1]})
+    plant = SimpleNamespace(spec=SimpleNamespace(effects=("rheology",), coefficients={"clay_crowding_coeff": k}))
+    (w,) = jamming_warnings(frame, plant)
+    assert w.startswith("from 0.5 h to 1.5 h the mill slurry holds") and f"past the {limit:.0%}" in w
+    assert jamming_warnings(frame.assign(clay_frac=limit - 0.01), plant) == []
+    plant.spec.effects = ("breakage",)
+    assert jamming_warnings(frame, plant) == []

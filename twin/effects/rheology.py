@@ -55,6 +55,25 @@ DEPOSIT_MAX_CLAY_FRAC = 0.40
 CLAY_CROWDING_MAX = (JAMMING_VOL_FRAC / SLURRY_SOLIDS_VOL_FRAC - 1.0) / DEPOSIT_MAX_CLAY_FRAC
 
 
+def jamming_clay_frac(clay_crowding_coeff: float) -> float:
+    """Clay mass fraction of the hold-up at which the mill slurry's effective solids fraction
+    phi_v (1 + k w_clay) reaches :data:`JAMMING_VOL_FRAC` (0.40 at :data:`CLAY_CROWDING_MAX`)."""
+    return (JAMMING_VOL_FRAC / SLURRY_SOLIDS_VOL_FRAC - 1.0) / clay_crowding_coeff
+
+
+def jamming_note(clay_frac: float, clay_crowding_coeff: float) -> str | None:
+    """A note when a hold-up's clay fraction puts the slurry past jamming, else None: beyond it
+    the slurry does not flow and Thomas's equation describes nothing, so the twin's viscosity,
+    power and cut size there are an extrapolation (the ores of the deposit stay below it)."""
+    limit = jamming_clay_frac(clay_crowding_coeff)
+    if not clay_frac > limit:
+        return None
+    return (f"the mill slurry holds {clay_frac:.0%} clay, past the {limit:.0%} at which it jams (effective solids "
+            f"{SLURRY_SOLIDS_VOL_FRAC * (1.0 + clay_crowding_coeff * clay_frac):.2f} > {JAMMING_VOL_FRAC}): such a "
+            "slurry does not flow, and the twin's viscosity, power and cut size there extrapolate Thomas's equation "
+            "beyond what it describes")
+
+
 def thomas_relative_viscosity(phi):
     """Thomas (1965): relative viscosity of a suspension at solids volume fraction phi.
     Works on floats and CasADi expressions."""
