@@ -686,6 +686,9 @@ def cmd_optimize(args) -> int:
         raise SceneError(str(exc)) from None
     table = sp.table
     notes = circuit_notes(twin, args.mill)
+    if sp.feasible:  # the answer's own steady state, for what the models do not describe there
+        notes += validity_notes(twin.steady(feed_tph=sp.feed_tph, speed_frac_critical=sp.speed_frac_critical,
+                                            blend=list(blend.fractions)).summary(), twin)
     if args.json:
         from scenarios.output.write import json_safe
 
