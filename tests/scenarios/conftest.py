@@ -64,3 +64,13 @@ def strict_json(text: str):
     def refuse(constant):
         raise ValueError(f"not JSON: {constant}")
     return json.loads(text, parse_constant=refuse)
+
+
+@pytest.fixture
+def clay_ore(tmp_path) -> Path:
+    """An ore file of 90 % kaolinite: its mill slurry is past jamming at the shipped calibration's
+    clay crowding (the deposit's ores carry at most 40 % clay)."""
+    ore = tmp_path / "clay.toml"
+    ore.write_text("[mineralogy]\nkaolinite = 90.0\nquartz = 10.0\n\n[texture]\nmean_grain_um = 20.0\n"
+                   "uniformity = 0.6\nassociation_entropy = 0.5\n")
+    return ore

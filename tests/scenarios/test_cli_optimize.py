@@ -32,13 +32,10 @@ def test_unreachable_target_in_json_is_strict_json_with_nulls(capsys):
 
 
 
-def test_an_answer_whose_slurry_jams_is_said(capsys, tmp_path):
+def test_an_answer_whose_slurry_jams_is_said(capsys, clay_ore):
     """optimize's answer for a 90 % kaolinite ore lies past the slurry's jamming: a note (the
     steady state at the answer, as steady would say it); none for ore B."""
-    ore = tmp_path / "clay.toml"
-    ore.write_text("[mineralogy]\nkaolinite = 90.0\nquartz = 10.0\n\n[texture]\nmean_grain_um = 20.0\n"
-                   "uniformity = 0.6\nassociation_entropy = 0.5\n")
-    assert main(["optimize", "--ore", str(ore), "--target-p80-um", "150", "--json"]) == 0
+    assert main(["optimize", "--ore", str(clay_ore), "--target-p80-um", "150", "--json"]) == 0
     assert any("jams" in n for n in json.loads(capsys.readouterr().out)["notes"])
     assert main(["optimize", "--ore", "B", "--target-p80-um", "150", "--json"]) == 0
     assert not any("jams" in n for n in json.loads(capsys.readouterr().out)["notes"])

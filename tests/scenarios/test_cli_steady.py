@@ -29,7 +29,7 @@ def test_steady_blend_at_constant_load(capsys):
 def test_steady_ore_from_toml(tmp_path, capsys):
     ore = tmp_path / "quartzite.toml"
     ore.write_text("[mineralogy]\nquartz = 90.0\nk_feldspar = 10.0\n[texture]\nmean_grain_um = 300.0\n")
-    assert main(["steady", "--ore", str(ore), "--feed-tph", "0.03", "--json"]) == 0
+    assert main(["steady", "--ore", str(clay_ore), "--feed-tph", "0.03", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["mineralogy"]["quartzite"]["hardness_index_gpa"] > 10
 
 
@@ -157,7 +157,7 @@ def test_a_speed_where_the_charge_centrifuges_is_said(capsys):
     assert not any("centrifuges" in n for n in json.loads(capsys.readouterr().out)["notes"])
 
 
-def test_a_slurry_past_jamming_is_said(capsys, tmp_path):
+def test_a_slurry_past_jamming_is_said(capsys, clay_ore):
     """An ore of 90 % kaolinite puts the mill slurry past jamming (phi_v (1 + k w_clay) above
     random close packing) at this calibration's clay crowding: a note naming both fractions;
     none for ore D, the deposit's clay-rich type."""
@@ -167,10 +167,7 @@ def test_a_slurry_past_jamming_is_said(capsys, tmp_path):
     k = Twin("B").spec.coefficients["clay_crowding_coeff"]
     limit = jamming_clay_frac(k)
     assert SLURRY_SOLIDS_VOL_FRAC * (1 + k * limit) == pytest.approx(JAMMING_VOL_FRAC, rel=1e-12)
-    ore = tmp_path / "clay.toml"
-    ore.write_text("[mineralogy]\nkaolinite = 90.0\nquartz = 10.0\n\n[texture]\nmean_grain_um = 20.0\n"
-                   "uniformity = 0.6\nassociation_entropy = 0.5\n")
-    assert main(["steady", "--ore", str(ore), "--feed-tph", "0.031", "--json"]) == 0
+    assert main(["steady", "--ore", str(clay_ore), "--feed-tph", "0.031", "--json"]) == 0
     jam = [n for n in json.loads(capsys.readouterr().out)["notes"] if "jams" in n]
     assert len(jam) == 1 and f"past the {limit:.0%} at which it jams" in jam[0] and "holds 90% clay" in jam[0]
     assert main(["steady", "--ore", "D", "--feed-tph", "0.031", "--json"]) == 0
