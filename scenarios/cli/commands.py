@@ -251,13 +251,14 @@ TRACE_COLUMNS = ("time_h", "p80_um", "content_p80_um", "feed_tph", "speed_frac_c
 
 
 def sweep_case(scene) -> dict:
-    """The sweep's ``run_case``: run the scene quietly, return its KPIs and, under
-    :data:`TRACE_KEY`, its :data:`TRACE_COLUMNS` (picklable: module level)."""
+    """The sweep's ``run_case``: run the scene quietly, return its KPIs, its warnings (joined by
+    "; ", None without any) and, under :data:`TRACE_KEY`, its :data:`TRACE_COLUMNS` (picklable:
+    module level)."""
     from scenarios.run import run_scene
 
     res = run_scene(scene, out_dir=None, progress=False)
     trace = {c: res.frame[c].to_numpy(float).tolist() for c in TRACE_COLUMNS if c in res.frame}
-    return dict(res.kpis) | {TRACE_KEY: trace}
+    return dict(res.kpis) | {"warnings": "; ".join(res.summary["warnings"]) or None, TRACE_KEY: trace}
 
 
 def _pop_traces(table):
@@ -331,6 +332,13 @@ def cmd_sweep(args) -> int:
             "throughput_tph", "error"]  # what each case started from, beside what it did
     with pd.option_context("display.width", 160, "display.max_columns", 20):
         print(table[[c for c in cols if c in table.columns]].to_string(index=False))
+    warned = table[table["warnings"].notna()] if "warnings" in table else table.iloc[:0]
+    for _, row in warned.head(SWEEP_FAILURES_SHOWN).iterrows():
+        setting = ", ".join(f"{k}={row[k]!r}" for k in vary)
+        sys.stderr.write(f"grindtwin: warning: case {row['case']} ({setting}): {row['warnings']}\n")
+    if len(warned) > SWEEP_FAILURES_SHOWN:
+        sys.stderr.write(f"grindtwin: warning: and {len(warned) - SWEEP_FAILURES_SHOWN} more cases warn (see the "
+                         "warnings column)\n")
     failed = table[table["error"].notna()]
     if len(failed):
         sys.stderr.write(f"grindtwin: sweep: {len(failed)} of {len(table)} cases failed:\n")

@@ -166,3 +166,19 @@ def test_sweep_command_refuses_scheduler_and_huge_sweeps_with_exit_2(write_scene
                       "controller.weights.p80=1:3:1", "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "5,997 cases, more than the limit of 1,000" in err and "Traceback" not in err
+
+
+def test_a_case_that_warns_says_so_in_its_row_and_on_screen(tmp_path, capsys):
+    """The real sweep_case on the short pyrite scene at 0.70 and 0.96 of critical: the second
+    case's run warns (its charge centrifuges), and the sweep keeps that warning in a ``warnings``
+    column and names the case on stderr; the first case's column is empty; exit 0."""
+    from tests.scenarios.test_cli import grindtwin
+    from tests.scenarios.test_runner import short_pyrite_scene
+
+    out = tmp_path / "sweep"
+    assert grindtwin(["sweep", str(short_pyrite_scene(tmp_path, duration_h=0.5)), "--vary",
+                      "feed.speed_frac_critical=0.7,0.96", "--workers", "1", "--quiet", "--out", str(out)]) == 0
+    table = pd.read_csv(out / "sweep.csv")
+    assert table["warnings"].isna().tolist() == [True, False]
+    assert "0.96 of critical is beyond 0.94 where the charge centrifuges" in table["warnings"][1]
+    assert "grindtwin: warning: case 1 (feed.speed_frac_critical=0.96): from 0 h" in capsys.readouterr().err
