@@ -465,17 +465,12 @@ STEADY_KEYS = ("source", "feed_tph", "speed_frac_critical", "p80_um", "specific_
                "throughput_tph", "holdup_t", "load_frac", "load_status")
 
 
-def undefined_to_none(kpis: dict, unc: dict | None = None, capacity_t: float | None = None) -> list[str]:
+def undefined_to_none(kpis: dict, unc: dict | None = None) -> list[str]:
     """A steady state's undefined numbers set to None in place (printed "undefined", JSON null),
     with a note for each: the specific energy at zero feed (the model's division floor gives
     ~1e7 kWh/t) and any value that is not finite (P80 without a product); the same in the
-    uncertainty intervals ``unc``. A hold-up above ``capacity_t`` (:meth:`twin.Mill.max_holdup_t`)
-    gets a note: the mill would overflow. Returns the notes."""
+    uncertainty intervals ``unc``. Returns the notes."""
     notes = []
-    held = kpis.get("holdup_t")
-    if capacity_t is not None and isinstance(held, float) and held > capacity_t:
-        notes.append(f"hold-up {held:.4g} t is more than the mill holds filled to its shell ({capacity_t:.4g} t): "
-                     "it would overflow; these numbers extrapolate the model beyond the mill")
     if kpis.get("feed_tph") == 0 and "specific_energy_kwh_t" in kpis:
         kpis["specific_energy_kwh_t"] = None
         notes.append("specific_energy_kwh_t is undefined at zero feed")
@@ -499,7 +494,7 @@ def refuse_overflow(twin, ss, allow: bool, what: str, blend=None) -> None:
     mill filled to its shell (:meth:`twin.Mill.max_holdup_t`): no mill runs there, and its numbers
     are the model's extrapolation, not a prediction. The error names the feed rate that fills the
     mill to its shell at this speed (solved at that load). ``allow`` (``--allow-overflow``) keeps
-    the answer, noted by :func:`undefined_to_none`."""
+    the answer, with the steady state's own note (:mod:`twin.validity`)."""
     capacity_t = twin.mill.max_holdup_t(twin.spec.solids_density_t_m3)
     out = ss.summary()
     if allow or not out["holdup_t"] > capacity_t:
@@ -514,20 +509,6 @@ def refuse_overflow(twin, ss, allow: bool, what: str, blend=None) -> None:
                      f"would hold {out['holdup_t']:.4g} t of ore, more than it holds filled to its shell "
                      f"({capacity_t:.4g} t); it would overflow and these numbers would extrapolate the model "
                      f"beyond the mill. Allowed: {allowed}; --allow-overflow prints the extrapolation anyway.")
-
-
-def validity_notes(state: dict, twin=None) -> list[str]:
-    """Where a steady state (its ``summary()``) lies outside what the twin's models describe: a
-    centrifuging speed (:func:`twin.centrifuging_note`) and, with ``twin``'s rheology effect, a
-    slurry past jamming (:func:`twin.jamming_note`)."""
-    from twin import centrifuging_note  # light: the surrogate's answer imports no CasADi
-
-    notes = [centrifuging_note(state.get("speed_frac_critical") or 0.0)]
-    if twin is not None and "rheology" in twin.spec.effects and state.get("clay_frac") is not None:
-        from twin import jamming_note
-
-        notes.append(jamming_note(state["clay_frac"], twin.spec.coefficients["clay_crowding_coeff"]))
-    return [n for n in notes if n]
 
 
 def circuit_notes(twin, mill_name: str) -> list[str]:
@@ -563,9 +544,7 @@ def _steady_scene(args) -> int:
     refuse_overflow(models.plant, ss, args.allow_overflow,
                     "--feed-tph" if args.feed_tph is not None else f"{args.scene}: feed.feed_tph", blend)
     kpis = {"scene": scene.scene.name, **ss.summary()}
-    plant = models.plant
-    notes = undefined_to_none(kpis, capacity_t=plant.mill.max_holdup_t(plant.spec.solids_density_t_m3))
-    notes += validity_notes(ss.summary(), plant)
+    notes = undefined_to_none(kpis) + ss.notes
     if args.json:
         print(json.dumps(kpis | {"notes": notes}, indent=2, allow_nan=False))
         return 0
@@ -614,9 +593,13 @@ def cmd_steady(args) -> int:
 
         unc = steady_intervals(blend, calibration, args.mill, args.feed_tph, args.speed,
                                at_load=args.at_constant_load, n=args.uncertainty or None)
-    capacity = None if args.surrogate else twin.mill.max_holdup_t(twin.spec.solids_density_t_m3)
-    notes = undefined_to_none(kpis, unc, capacity)
-    notes += validity_notes(kpis) if args.surrogate else validity_notes(ss.summary(), twin)
+    notes = undefined_to_none(kpis, unc)
+    if args.surrogate:  # no hold-up or clay of its own: what its speed says
+        from twin import centrifuging_note
+
+        notes += [n for n in [centrifuging_note(kpis.get("speed_frac_critical") or 0.0)] if n]
+    else:
+        notes += ss.notes
     if not args.surrogate:
         notes += circuit_notes(twin, args.mill)
     if args.json:
@@ -695,8 +678,8 @@ def cmd_optimize(args) -> int:
     table = sp.table
     notes = circuit_notes(twin, args.mill)
     if sp.feasible:  # the answer's own steady state, for what the models do not describe there
-        notes += validity_notes(twin.steady(feed_tph=sp.feed_tph, speed_frac_critical=sp.speed_frac_critical,
-                                            blend=list(blend.fractions)).summary(), twin)
+        notes += twin.steady(feed_tph=sp.feed_tph, speed_frac_critical=sp.speed_frac_critical,
+                             blend=list(blend.fractions)).notes
     if args.json:
         from scenarios.output.write import json_safe
 

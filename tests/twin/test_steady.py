@@ -72,3 +72,17 @@ def test_a_denser_ore_of_the_same_breakage_per_volume_runs_the_same_volumes():
     assert heavy.feed_tph == pytest.approx(2.0 * light.feed_tph, rel=1e-7)
     assert heavy.p80_um == pytest.approx(light.p80_um, rel=1e-7)
     assert heavy.outputs["specific_energy_kwh_t"] == pytest.approx(0.5 * light.outputs["specific_energy_kwh_t"], rel=1e-7)
+
+
+def test_a_steady_state_carries_what_the_models_do_not_describe():
+    """SteadyState.notes (twin.validity), for Python users as for the CLI: 5 t/h into the
+    laboratory mill overflows its shell; 0.96 of critical centrifuges; the nominal state has none."""
+    from twin import Twin
+
+    lab = Twin("B")
+    assert lab.steady(feed_tph=0.031).notes == []
+    over = lab.steady(feed_tph=5.0)
+    capacity = lab.mill.max_holdup_t(lab.spec.solids_density_t_m3)
+    assert over.summary()["holdup_t"] > capacity
+    assert [n for n in over.notes if "filled to its shell" in n and f"({capacity:.4g} t)" in n]
+    assert [n for n in lab.steady(feed_tph=0.031, speed_frac_critical=0.96).notes if "centrifuges" in n]

@@ -6,7 +6,7 @@ theorem on the same Newton system)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import casadi as ca
@@ -18,6 +18,7 @@ from ..errors import SolverError, TwinInputError
 from ..mill import load_status
 from .simulate import integrate_constant
 from ..sizes import pxx_um
+from ..validity import state_notes
 
 #: Newton stops when the largest mass-rate residual is below this share of nominal flow [-].
 RESIDUAL_REL_TOL = 1e-10
@@ -35,6 +36,7 @@ class SteadyState:
     load_status: str
     psd: np.ndarray  # product flow per class [t/h]
     method: str
+    notes: list = field(default_factory=list)  # where the models do not describe it (twin.validity)
 
     @property
     def feed_tph(self) -> float:
@@ -165,7 +167,8 @@ def _result(model, x, u, d, method) -> SteadyState:
     psd = np.asarray(_product_psd(model)(x, u, d)).ravel()
     p80 = pxx_um(model.spec.grid, psd) if psd.sum() > 0 else math.nan
     status = load_status(outs["load_frac"], model.spec.mill.stable_band) if "load_frac" in outs else "n/a"
-    return SteadyState(x, u, d, outs, p80, status, psd, method)
+    notes = state_notes(model.spec, model.effect_names, float(u[1]), outs.get("holdup_t", 0.0), outs.get("clay_frac"))
+    return SteadyState(x, u, d, outs, p80, status, psd, method, notes)
 
 
 def _require_transport(model):
