@@ -72,8 +72,6 @@ def test_help_texts_have_no_doubled_percent_signs():
 def test_readmes_python_example_runs_as_written(capsys):
     """README's python block, executed as a user would paste it: the blend's steady state lies
     inside what the models describe (no notes), and the 8-h run has one row per minute."""
-    import re
-
     readme = (REPO / "README.md").read_text(encoding="utf-8")
     (block,) = re.findall(r"```python\n(.*?)```", readme, re.S)
     ns: dict = {}
