@@ -76,6 +76,27 @@ def settings_problems(scene: Scene) -> list[str]:
 
 
 def model_size_problems(scene: Scene, models) -> list[str]:
+    """A batch charge the mill cannot hold, and the controller's NLP if its build is estimated
+    above the memory limit."""
+    return _batch_charge_problems(scene, models) + _nlp_size_problems(scene, models)
+
+
+def _batch_charge_problems(scene: Scene, models) -> list[str]:
+    """A batch charge beyond what the plant's mill holds filled to its shell
+    (:meth:`twin.Mill.max_holdup_t`): no mill grinds it, and its numbers would be the model's."""
+    plant = models.plant
+    if not is_batch(scene) or getattr(plant, "mill", None) is None:
+        return []
+    capacity_t = plant.mill.max_holdup_t(plant.spec.solids_density_t_m3)
+    charge_t = scene.feed.batch_charge_kg / 1000.0
+    if charge_t <= capacity_t:
+        return []
+    return [f"feed.batch_charge_kg: {scene.feed.batch_charge_kg:g} kg is more than the mill holds filled to its "
+            f"shell around its balls ({1000.0 * capacity_t:.4g} kg of this ore); allowed: up to "
+            f"{1000.0 * capacity_t:.4g} kg"]
+
+
+def _nlp_size_problems(scene: Scene, models) -> list[str]:
     """The controller's NLP, if its build is estimated above the memory limit."""
     c = scene.controller
     if c.kind != "nmpc":

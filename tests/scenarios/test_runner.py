@@ -420,3 +420,23 @@ def test_a_run_whose_slurry_jams_says_when():
     assert jamming_warnings(frame.assign(clay_frac=limit - 0.01), plant) == []
     plant.spec.effects = ("breakage",)
     assert jamming_warnings(frame, plant) == []
+
+
+def test_a_batch_charge_the_mill_cannot_hold_is_refused_before_any_work(tmp_path):
+    """500 kg into the laboratory mill, whose shell holds about 81 kg of this blend around its
+    balls: bad input naming the key and the largest charge (the plant's own capacity), and no
+    output folder; the shipped 12-kg charge runs."""
+    from scenarios.errors import SceneError
+    from scenarios.scene import load_scene
+
+    text = (LIBRARY / "batch_50B_50D.toml").read_text()
+    assert "batch_charge_kg = 12.0" in text
+    path = tmp_path / "big.toml"
+    path.write_text(text.replace("batch_charge_kg = 12.0", "batch_charge_kg = 500.0"))
+    plant = build_models(load_scene(path)).plant
+    capacity_kg = 1000.0 * plant.mill.max_holdup_t(plant.spec.solids_density_t_m3)
+    assert 12.0 < capacity_kg < 500.0
+    with pytest.raises(SceneError, match=rf"feed.batch_charge_kg: 500 kg is more than the mill holds filled to its "
+                                         rf"shell .*allowed: up to {capacity_kg:.4g} kg"):
+        run_scene(path, out_dir=tmp_path / "out", progress=False)
+    assert not (tmp_path / "out").exists()
