@@ -306,7 +306,19 @@ def controller_health(frame: pd.DataFrame, estimator) -> dict:
             "target_unreachable_steps": int(status.str.startswith("target_unreachable").sum()),
             "first_failure_time_h": float(frame.loc[failed, "time_h"].iloc[0]) if failed.any() else None,
             "failure_statuses": {str(k): int(v) for k, v in status[failed].value_counts().head(5).items()},
-            "estimator_resets": len(estimator.resets) if estimator is not None else 0}
+            "estimator_resets": len(estimator.resets) if estimator is not None else 0,
+            "hardness_at_bound_steps": _hardness_at_bound(frame, estimator)}
+
+
+def _hardness_at_bound(frame: pd.DataFrame, estimator) -> int:
+    """Samples whose hardness estimate sits at a bound of the EKF's clip (``hardness_bounds``):
+    the estimate is saturated there, and the controller runs a model it knows to be wrong."""
+    ekf = getattr(estimator, "ekf", None)
+    if ekf is None or not getattr(ekf, "has_hardness", False) or "hardness_est" not in frame:
+        return 0
+    h = frame["hardness_est"].to_numpy(float)
+    lo, hi = ekf.hardness_bounds
+    return int(np.sum(np.isclose(h, lo, rtol=1e-9, atol=0.0) | np.isclose(h, hi, rtol=1e-9, atol=0.0)))
 
 
 def health_notes(health: dict) -> list[str]:
@@ -320,4 +332,11 @@ def health_notes(health: dict) -> list[str]:
     if health["estimator_resets"]:
         notes.append(f"the estimator was reset {health['estimator_resets']} times (its estimate was "
                      "not finite)")
+    if health.get("target_unreachable_steps"):
+        notes.append(f"on {health['target_unreachable_steps']} of {health['steps']} steps the controller found no "
+                     "plan that reaches the P80 target within its input bounds")
+    if health.get("hardness_at_bound_steps"):
+        notes.append(f"on {health['hardness_at_bound_steps']} of {health['steps']} steps the estimator's hardness sat "
+                     "at a bound of its range (estimator hardness_bounds): the ore differs from the model by more "
+                     "than the estimator may say, and the controller ran a model it knew to be wrong")
     return notes

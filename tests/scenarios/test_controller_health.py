@@ -84,3 +84,24 @@ def test_an_estimator_whose_estimate_is_not_finite_is_reset_and_counted():
         assert np.all(np.isfinite(x)) and np.all(np.isfinite(d))
     assert est.resets == [2] and ekf.resets == 1
     assert est.hardness_est == 1.0  # everything else is the EKF's own
+
+
+def test_a_saturated_hardness_estimate_and_unreachable_targets_are_said():
+    """controller_health counts the samples whose hardness estimate sits at a bound of the EKF's
+    clip, and the steps whose plan missed the target; health_notes says both (none without)."""
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from scenarios.run.closed_loop import controller_health, health_notes
+
+    est = SimpleNamespace(resets=[], ekf=SimpleNamespace(has_hardness=True, hardness_bounds=(0.3, 3.0)))
+    frame = pd.DataFrame({"time_h": [0.0, 0.1, 0.2, 0.3], "hardness_est": [1.0, 3.0, 2.9999, 0.3],
+                          "status": ["ok", "target_unreachable (ok): predicted P80 250.0 um", "ok", "ok"]})
+    health = controller_health(frame, est)
+    assert health["hardness_at_bound_steps"] == 2 and health["target_unreachable_steps"] == 1
+    notes = health_notes(health)
+    assert any("on 2 of 4 steps the estimator's hardness sat at a bound" in n for n in notes)
+    assert any("on 1 of 4 steps the controller found no plan that reaches the P80 target" in n for n in notes)
+    calm = controller_health(frame.assign(hardness_est=1.0, status="ok"), est)
+    assert health_notes(calm) == []
