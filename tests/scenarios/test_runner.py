@@ -420,6 +420,8 @@ def test_a_run_whose_slurry_jams_says_when():
     assert jamming_warnings(frame.assign(clay_frac=limit - 0.01), plant) == []
     plant.spec.effects = ("breakage",)
     assert jamming_warnings(frame, plant) == []
+    plant.spec.effects, plant.spec.coefficients["clay_crowding_coeff"] = ("rheology",), 0.0
+    assert jamming_warnings(frame.assign(clay_frac=0.9), plant) == []  # no crowding: clay never jams
 
 
 def test_a_batch_charge_the_mill_cannot_hold_is_refused_before_any_work(tmp_path):

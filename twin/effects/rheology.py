@@ -35,6 +35,8 @@ draws less power from the mill.
 
 from __future__ import annotations
 
+import math
+
 import casadi as ca
 
 from .base import Effect, EffectContext
@@ -57,7 +59,10 @@ CLAY_CROWDING_MAX = (JAMMING_VOL_FRAC / SLURRY_SOLIDS_VOL_FRAC - 1.0) / DEPOSIT_
 
 def jamming_clay_frac(clay_crowding_coeff: float) -> float:
     """Clay mass fraction of the hold-up at which the mill slurry's effective solids fraction
-    phi_v (1 + k w_clay) reaches :data:`JAMMING_VOL_FRAC` (0.40 at :data:`CLAY_CROWDING_MAX`)."""
+    phi_v (1 + k w_clay) reaches :data:`JAMMING_VOL_FRAC` (0.40 at :data:`CLAY_CROWDING_MAX`;
+    infinite without crowding, k = 0: then clay never jams the slurry)."""
+    if not clay_crowding_coeff > 0.0:
+        return math.inf
     return (JAMMING_VOL_FRAC / SLURRY_SOLIDS_VOL_FRAC - 1.0) / clay_crowding_coeff
 
 
