@@ -25,7 +25,8 @@ _CSS = """body{font-family:system-ui,sans-serif;max-width:60em;margin:2em auto;p
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:.3em .7em;text-align:left}
 td.num{text-align:right;font-variant-numeric:tabular-nums}code{font-size:90%}
 pre{background:#f6f6f6;padding:.7em;overflow-x:auto;font-size:80%;white-space:pre-wrap}img{max-width:100%}
-.na{color:#888}.models{display:grid;grid-template-columns:1fr 1fr;gap:1em}.models h3{margin:.2em 0}"""
+.na{color:#888}.models{display:grid;grid-template-columns:1fr 1fr;gap:1em}.models h3{margin:.2em 0}
+.warnings{border:2px solid #c60;background:#fff4e5;padding:.2em 1em;margin:1em 0}"""
 
 
 def _fmt(key: str, value) -> str:
@@ -112,6 +113,10 @@ def render_report(run_dir) -> str:
              ("scene file", summary.get("source"))]
     parts.append("<table>" + "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
                                      for k, v in facts if v is not None) + "</table>")
+    warnings = [str(w) for w in summary.get("warnings") or []]
+    if warnings:  # before the numbers they qualify, not among the notes at the end
+        parts.append('<div class="warnings"><h2>Warnings</h2><ul>'
+                     + "".join(f"<li>{html.escape(w)}</li>" for w in warnings) + "</ul></div>")
     parts.append("<h2>Key performance indicators</h2>")
     parts.append(kpi_table(summary.get("kpis", {})))
     if summary.get("replay"):
@@ -121,9 +126,9 @@ def render_report(run_dir) -> str:
     for fname, caption in PLOTS.items():
         if (run_dir / fname).is_file():
             parts.append(_img(run_dir / fname, caption))
-    if summary.get("notes"):
-        parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(str(n))}</li>"
-                                                    for n in summary["notes"]) + "</ul>")
+    notes = [str(n) for n in summary.get("notes") or [] if str(n) not in warnings]
+    if notes:
+        parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in notes) + "</ul>")
     parts.append(models_section(summary))
     if summary.get("versions"):
         parts.append(versions_section(summary["versions"]))

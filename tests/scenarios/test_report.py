@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import html
 import json
 import re
 
@@ -114,3 +115,21 @@ def test_git_commit_of_an_install_is_the_checkouts_only_when_every_file_matches(
     target = tmp_path / "site" / "scenarios" / "run" / "summary.py"
     target.write_bytes(target.read_bytes() + b"\n")
     assert not _installed_matches_head(repo, tmp_path / "site")
+
+
+def test_warnings_open_the_report_before_the_numbers_they_qualify(tmp_path):
+    """A run's warnings (summary.json ``warnings``, also among its notes) stand in their own
+    section before the KPI table, escaped, and are not repeated among the notes at the end."""
+    run = fake_run(tmp_path)
+    summary = json.loads((run / "summary.json").read_text())
+    warning = "the plant's hold-up exceeds what its mill holds filled to its shell (26.8 t) <here>"
+    summary["warnings"] = [warning]
+    summary["notes"] = summary["notes"] + [warning]
+    (run / "summary.json").write_text(json.dumps(summary))
+    text = render_report(run)
+    escaped = html.escape(warning)
+    assert "&lt;here&gt;" in escaped
+    assert text.count(escaped) == 1
+    assert text.index("<h2>Warnings</h2>") < text.index(escaped) < text.index("Key performance indicators")
+    assert "started at steady state" in text[text.index("<h2>Notes</h2>"):]
+    assert "<h2>Warnings</h2>" not in render_report(fake_run(tmp_path / "calm"))
