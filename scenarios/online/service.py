@@ -364,6 +364,10 @@ class Service(Stoppable):
             log.exception("%.3f h: the estimator failed", t_h)
             return None, None, f"the estimator failed: {type(exc).__name__}: {exc}"
         self.blend_prev = blend_now
+        if getattr(ekf, "has_hardness", False):  # a saturated estimate: logged when it starts and ends
+            at_bound = any(math.isclose(ekf.hardness_est, b, rel_tol=1e-9) for b in ekf.hardness_bounds)
+            self._condition("hardness_bound", at_bound, t_h, f"the estimator's hardness sits at a bound of its range "
+                            f"{ekf.hardness_bounds}: the ore differs from the model by more than it may say")
         return x, d, ""
 
     def _decide(self, auto: bool, x_est, t_h: float, note: str) -> tuple[str, str]:

@@ -71,3 +71,32 @@ def test_not_a_number_is_bad_and_new_follows_the_timestamp():
     assert q.assess(Reading(True, 0, at(0)), at(0), CLOCK).quality == "bad"
     assert q.assess(Reading(2.0, 0, at(1)), at(1), CLOCK).new
     assert not q.assess(Reading(2.0, 0, at(1)), at(1.5), CLOCK).new
+
+
+def test_a_saturated_hardness_estimate_is_logged_when_it_starts_and_ends(caplog):
+    """Service._estimate: the EKF's hardness at a bound of its range is a logged condition (once
+    at its start, once at its end), as an unreadable tag is."""
+    import logging
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from scenarios.online.service import Service
+
+    class Ekf:
+        has_hardness, hardness_bounds, hardness_est = True, (0.3, 3.0), 1.0
+        x_est = np.zeros(2)
+
+        def make_step(self, y, u, d):
+            return self.x_est, np.r_[d, self.hardness_est]
+
+    svc = Service.__new__(Service)
+    svc.parts, svc.bad_since, svc.est_start_h, svc.blend_prev = SimpleNamespace(estimator=Ekf()), {}, 0.0, [1.0]
+    v = {"p80_um": SimpleNamespace(ok=True, new=True, value=200.0)}
+    with caplog.at_level(logging.INFO, logger="grindtwin.online"):
+        for t_h, h in ((0.1, 1.0), (0.2, 3.0), (0.3, 3.0), (0.4, 2.0)):
+            svc.parts.estimator.hardness_est = h
+            assert svc._estimate(v, [30.0, 0.7], [1.0], 1, t_h)[2] == ""
+    text = [r.getMessage() for r in caplog.records]
+    assert sum("hardness sits at a bound" in m for m in text) == 1 and "0.200 h" in text[0]
+    assert any(m.startswith("0.400 h: hardness_bound good again after 0.200 h") for m in text)
