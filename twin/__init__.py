@@ -24,6 +24,7 @@ _API = {
     "SteadyState": ".solve", "Trajectory": ".solve",
     "DEFAULT_EFFECTS": ".twin", "Twin": ".twin",
     "new_folder_beside": ".atomic", "write_text_atomically": ".atomic",
+    "trajectory_notes": ".validity",
 }
 
 __all__ = [
@@ -33,6 +34,6 @@ __all__ = [
     "SizeGrid", "SizedMill", "SolverError", "SteadyState", "TabulatedPSD", "Texture", "Trajectory", "Twin", "TwinError",
     "TwinInputError", "austin_selection", "bond_power_kw", "centrifuging_note", "hydrocyclone_from", "power_kw", "size_mill", "write_preset", "check_preset_path",
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "jamming_note", "known_effects", "load_ore", "load_status", "ore_breakage",
-    "new_folder_beside", "pxx_um", "reference_ores", "write_text_atomically",
+    "new_folder_beside", "pxx_um", "reference_ores", "trajectory_notes", "write_text_atomically",
 ]
 __getattr__, __dir__ = lazy_face(__name__, _API)

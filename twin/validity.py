@@ -2,14 +2,17 @@
 inside): a hold-up beyond the mill filled to its shell (:meth:`twin.Mill.max_holdup_t`: the mill
 would overflow), a speed where the charge centrifuges (:func:`twin.mill.centrifuging_note`) and,
 with the rheology effect, a slurry past jamming (:func:`twin.effects.rheology.jamming_note`).
-Every steady state carries them (:attr:`twin.solve.SteadyState.notes`); a run states them over
-its samples (``scenarios.run.runner``)."""
+Every steady state carries them (:attr:`twin.solve.SteadyState.notes`), every trajectory states
+them over its samples (:func:`trajectory_notes`, :attr:`twin.solve.Trajectory.notes`; a scene's
+run warns with them)."""
 
 from __future__ import annotations
 
 from numbers import Real
 
-from .mill import centrifuging_note
+import numpy as np
+
+from .mill import CENTRIFUGING_FRAC_CRITICAL, centrifuging_note
 
 
 def overflow_note(holdup_t: float, capacity_t: float) -> str | None:
@@ -33,3 +36,37 @@ def state_notes(spec, effect_names, speed_frac_critical: float, holdup_t: float,
 
         notes.append(jamming_note(clay_frac, k_clay))
     return [n for n in notes if n]
+
+
+def trajectory_notes(frame, spec, effect_names) -> list[str]:
+    """The notes of a run's samples (a frame with ``time_h`` and any of ``holdup_t``,
+    ``speed_frac_critical``, ``clay_frac``), each saying when: the share of samples past the
+    mill's shell and the largest hold-up, the centrifuging speed and the jammed slurry of its most
+    extreme sample."""
+    t = frame["time_h"].to_numpy(float)
+    notes = []
+    if "holdup_t" in frame.columns:
+        capacity_t = spec.mill.max_holdup_t(spec.solids_density_t_m3)
+        held = frame["holdup_t"].to_numpy(float)
+        over = held > capacity_t
+        if over.any():
+            notes.append(f"the plant's hold-up exceeds what its mill holds filled to its shell ({capacity_t:.4g} t) "
+                         f"on {over.mean():.0%} of the samples, from {t[over][0]:.4g} h to {t[over][-1]:.4g} h (at "
+                         f"most {held.max():.4g} t): the mill would overflow, and the numbers of those samples "
+                         "extrapolate the model beyond the mill")
+    if "speed_frac_critical" in frame.columns:
+        speed = frame["speed_frac_critical"].to_numpy(float)
+        note = centrifuging_note(float(np.nanmax(speed)))
+        if note:
+            fast = t[speed > CENTRIFUGING_FRAC_CRITICAL]
+            notes.append(f"from {fast[0]:.4g} h to {fast[-1]:.4g} h the {note}")
+    k_clay = spec.coefficients.get("clay_crowding_coeff")
+    if "rheology" in effect_names and "clay_frac" in frame.columns and isinstance(k_clay, Real):
+        from .effects.rheology import jamming_clay_frac, jamming_note
+
+        clay = frame["clay_frac"].to_numpy(float)
+        note = jamming_note(float(np.nanmax(clay)), k_clay)
+        if note:
+            jammed = t[clay > jamming_clay_frac(k_clay)]
+            notes.append(f"from {jammed[0]:.4g} h to {jammed[-1]:.4g} h {note}")
+    return notes

@@ -57,7 +57,7 @@ from scenarios.run.open_loop import run_open_loop
 from scenarios.run.preflight import model_size_problems, refuse, settings_problems
 from scenarios.run.summary import make_summary
 from scenarios.scene import Scene, load_scene, read_history, scene_from_dict
-from twin import CENTRIFUGING_FRAC_CRITICAL, centrifuging_note, jamming_note
+from twin import trajectory_notes
 
 
 @dataclass
@@ -141,8 +141,7 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
     kpis = compute_kpis(scene, frame, **extra)
     if not kpis["fed_t"] > 0 and not is_batch(scene):
         warnings_.append("specific energy is undefined: nothing was fed")
-    warnings_ += (overflow_warnings(frame, models.plant) + centrifuging_warnings(frame)
-                  + jamming_warnings(frame, models.plant))
+    warnings_ += trajectory_notes(frame, models.plant.spec, models.plant.model.effect_names)
     summary = make_summary(scene, models, kpis, notes + warnings_, time.perf_counter() - t_start)
     summary["controller_health"] = health
     summary["warnings"] = warnings_
@@ -152,51 +151,6 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
                                 "passing_frac": [float(v) for v in psd.iloc[-1]]}
     return RunResult(frame=frame, summary=summary, psd=psd, mill_psd=sizes["mill_psd"], streams=sizes["streams"],
                      scene=scene)
-
-
-def overflow_warnings(frame: pd.DataFrame, plant) -> list[str]:
-    """A warning when the plant's hold-up exceeds what its mill holds filled to its shell
-    (:meth:`twin.Mill.max_holdup_t`) at any sample: no mill runs there (it would overflow), so the
-    numbers of those samples extrapolate the model beyond the mill. Says when, how often and how
-    far; none for a plant without a mill of that kind or a frame without ``holdup_t``."""
-    mill, spec = getattr(plant, "mill", None), getattr(plant, "spec", None)
-    if mill is None or spec is None or "holdup_t" not in frame.columns:
-        return []
-    capacity_t = mill.max_holdup_t(spec.solids_density_t_m3)
-    held = frame["holdup_t"].to_numpy(float)
-    over = held > capacity_t
-    if not over.any():
-        return []
-    t = frame["time_h"].to_numpy(float)[over]
-    return [f"the plant's hold-up exceeds what its mill holds filled to its shell ({capacity_t:.4g} t) on "
-            f"{over.mean():.0%} of the samples, from {t[0]:.4g} h to {t[-1]:.4g} h (at most {held.max():.4g} t): "
-            "the mill would overflow, and the numbers of those samples extrapolate the model beyond the mill"]
-
-
-def centrifuging_warnings(frame: pd.DataFrame) -> list[str]:
-    """The centrifuging note (:func:`twin.centrifuging_note`) of the run's fastest speed, with when."""
-    if "speed_frac_critical" not in frame.columns:
-        return []
-    speed = frame["speed_frac_critical"].to_numpy(float)
-    note = centrifuging_note(float(np.nanmax(speed)))
-    if note is None:
-        return []
-    t = frame["time_h"].to_numpy(float)[speed > CENTRIFUGING_FRAC_CRITICAL]
-    return [f"from {t[0]:.4g} h to {t[-1]:.4g} h the {note}"]
-
-
-def jamming_warnings(frame: pd.DataFrame, plant) -> list[str]:
-    """The jamming note (:func:`twin.jamming_note`) of the run's most clay-rich hold-up, with when,
-    for a plant with the rheology effect."""
-    spec = getattr(plant, "spec", None)
-    if spec is None or "rheology" not in spec.effects or "clay_frac" not in frame.columns:
-        return []
-    clay, k = frame["clay_frac"].to_numpy(float), spec.coefficients["clay_crowding_coeff"]
-    note = jamming_note(float(np.nanmax(clay)), k)
-    if note is None:
-        return []
-    t = frame["time_h"].to_numpy(float)[[jamming_note(float(c), k) is not None for c in clay]]
-    return [f"from {t[0]:.4g} h to {t[-1]:.4g} h {note}"]
 
 
 def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True, *,

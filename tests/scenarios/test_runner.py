@@ -403,25 +403,24 @@ def test_a_run_at_a_centrifuging_speed_says_so(tmp_path, short_run):
 
 
 def test_a_run_whose_slurry_jams_says_when():
-    """jamming_warnings: the samples whose hold-up clay passes the jamming fraction, first to
-    last; none below it or without the rheology effect."""
+    """trajectory_notes: the samples whose hold-up clay passes the jamming fraction, first to
+    last; none below it, without the rheology effect, or without clay crowding."""
     from types import SimpleNamespace
 
-    from scenarios.run.runner import jamming_warnings
+    from twin import trajectory_notes
     from twin.effects.rheology import jamming_clay_frac
 
     k = 0.9
     limit = jamming_clay_frac(k)
     frame = pd.DataFrame({"time_h": [0.0, 0.5, 1.0, 1.5, 2.0],
                           "clay_frac": [0.1, limit + 0.01, 0.2, limit + 0.05, 0.1]})
-    plant = SimpleNamespace(spec=SimpleNamespace(effects=("rheology",), coefficients={"clay_crowding_coeff": k}))
-    (w,) = jamming_warnings(frame, plant)
+    spec = SimpleNamespace(coefficients={"clay_crowding_coeff": k})
+    (w,) = trajectory_notes(frame, spec, ("rheology",))
     assert w.startswith("from 0.5 h to 1.5 h the mill slurry holds") and f"past the {limit:.0%}" in w
-    assert jamming_warnings(frame.assign(clay_frac=limit - 0.01), plant) == []
-    plant.spec.effects = ("breakage",)
-    assert jamming_warnings(frame, plant) == []
-    plant.spec.effects, plant.spec.coefficients["clay_crowding_coeff"] = ("rheology",), 0.0
-    assert jamming_warnings(frame.assign(clay_frac=0.9), plant) == []  # no crowding: clay never jams
+    assert trajectory_notes(frame.assign(clay_frac=limit - 0.01), spec, ("rheology",)) == []
+    assert trajectory_notes(frame, spec, ("breakage",)) == []
+    spec.coefficients["clay_crowding_coeff"] = 0.0
+    assert trajectory_notes(frame.assign(clay_frac=0.9), spec, ("rheology",)) == []  # no crowding: never jams
 
 
 def test_a_batch_charge_the_mill_cannot_hold_is_refused_before_any_work(tmp_path):

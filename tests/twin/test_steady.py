@@ -86,3 +86,18 @@ def test_a_steady_state_carries_what_the_models_do_not_describe():
     assert over.summary()["holdup_t"] > capacity
     assert [n for n in over.notes if "filled to its shell" in n and f"({capacity:.4g} t)" in n]
     assert [n for n in lab.steady(feed_tph=0.031, speed_frac_critical=0.96).notes if "centrifuges" in n]
+
+
+def test_a_trajectory_says_when_it_leaves_what_the_models_describe():
+    """Trajectory.notes (twin.validity.trajectory_notes): 5 t/h into the laboratory mill fills it
+    past its shell after a while (the share of samples counted from the frame); at the nominal
+    feed the hour has no notes."""
+    from twin import Twin
+
+    lab = Twin("B")
+    assert lab.simulate(1.0, 0.05, feed_tph=0.031).notes == []
+    run = lab.simulate(1.0, 0.05, feed_tph=5.0)
+    capacity = lab.mill.max_holdup_t(lab.spec.solids_density_t_m3)
+    over = run.frame["holdup_t"].to_numpy() > capacity
+    (note,) = run.notes
+    assert 0 < over.mean() < 1 and f"on {over.mean():.0%} of the samples" in note

@@ -8,7 +8,7 @@ exponential) for the linear batch mill."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import casadi as ca
@@ -18,6 +18,7 @@ import scipy.linalg
 
 from ..errors import SolverError, TwinInputError
 from ..sizes import pxx_um
+from ..validity import trajectory_notes
 
 #: Default integrator tolerances (relative; absolute as a share of nominal hold-up).
 RTOL = 1e-8
@@ -96,6 +97,7 @@ class Trajectory:
     states: np.ndarray
     fed_t: np.ndarray
     produced_t: np.ndarray
+    notes: list = field(default_factory=list)  # where the models do not describe it (twin.validity)
 
     def mass_balance_error(self) -> float:
         """max |fed - produced - (H - H0)| over the run, relative to fed + H0."""
@@ -183,7 +185,7 @@ def simulate(model, x0, duration_h: float, dt_h: float, u_fn, d_fn, rtol=RTOL, a
     frame = outputs_frame(model, xs, us, ds, times, exact_p80)
     frame["fed_t"] = q[:, 0]
     frame["produced_t"] = q[:, 1]
-    return Trajectory(frame, xs, q[:, 0], q[:, 1])
+    return Trajectory(frame, xs, q[:, 0], q[:, 1], trajectory_notes(frame, model.spec, model.effect_names))
 
 
 @lru_cache(maxsize=64)
