@@ -54,6 +54,7 @@ class SizedMill:
     load_status: str
     tried: list = field(default_factory=list)  # (cyclones, diameter_m or None, circulating load)
     calibration: dict = field(default_factory=dict)  # the identity of the calibration it was sized with
+    notes: list = field(default_factory=list)  # where the models do not describe the design point (twin.validity)
 
     def record(self, command: str) -> dict:
         mill = {k: v for k, v in asdict(self.mill).items() if k in PRESET_FIELDS}
@@ -136,7 +137,7 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
     o = ss.outputs
     return SizedMill(mill, cyc, getattr(ore, "name", str(ore)), feed_tph, target_p80_um, ss.p80_um, o["circulating_load_frac"],
                      o["power_kw"], o["specific_energy_kwh_t"], o["load_frac"], ss.load_status, tried,
-                     calibration.identity())
+                     calibration.identity(), ss.notes)
 
 
 def _misses_text(missed: dict, found: list, target_p80_um: float) -> str:

@@ -709,7 +709,7 @@ def add_size_mill_parser(subparsers):
     z.add_argument("--ore", default="B", help="reference type A-D or a TOML file with [mineralogy] and [texture]")
     z.add_argument("--feed-tph", required=True, type=_float_in("--feed-tph", 0, 1e5, lo_open=True))
     z.add_argument("--target-p80-um", required=True, type=_float_in("--target-p80-um", 1.0, 1e4))
-    z.add_argument("--speed", type=_float_in("--speed", 0.3, 0.95), default=0.70,
+    z.add_argument("--speed", type=_float_in("--speed", 0.3, 0.95, True, True), default=0.70,
                    help="mill speed as a fraction of critical (0.70, not 70)")
     z.add_argument("--write-preset", metavar="PATH",
                    help="also write the answer as a preset file here (a new file or a preset grindtwin wrote; "
@@ -734,7 +734,7 @@ def cmd_size_mill(args) -> int:
     if args.write_preset:
         print(f"wrote {write_preset(sized, f'{command} --write-preset {args.write_preset}', args.write_preset)}")
     if args.json:
-        print(json.dumps(record, indent=2))
+        print(json.dumps(record | {"notes": sized.notes}, indent=2))
         return 0
     m, z = sized.mill, record["sizing"]
     print(f"Mill for ore {args.ore} at {args.feed_tph:g} t/h, P80 {args.target_p80_um:g} um, {args.speed:.2f} of critical:")
@@ -744,6 +744,8 @@ def cmd_size_mill(args) -> int:
           f"{sized.cyclone['diameter_cm']:g} cm")
     for key in ("p80_um", "circulating_load_frac", "power_kw", "specific_energy_kwh_t", "load_frac", "load_status"):
         print(f"  {key:25s} {z[key]:.4g}" if isinstance(z[key], float) else f"  {key:25s} {z[key]}")
+    for note in sized.notes:
+        print(f"  note: {note}")
     return 0
 
 

@@ -173,3 +173,24 @@ def test_size_mill_refuses_a_users_file_before_sizing(tmp_path, capsys, monkeypa
     assert grindtwin(["size-mill", "--feed-tph", "31", "--target-p80-um", "210", "--write-preset", str(mine)]) == 2
     assert "not a mill preset grindtwin wrote" in capsys.readouterr().err
     assert mine.read_text() == "my notes"
+
+
+def test_size_mill_prints_its_design_points_notes(capsys, monkeypatch):
+    """A sized mill's notes (its design point's steady-state notes: twin.validity) are printed,
+    and given in the JSON beside the record; the speed option is the sizing's open interval."""
+    import json
+
+    import twin
+    from twin.mill import INDUSTRIAL_BASE
+
+    note = "speed 0.945 of critical is beyond 0.94 where the charge centrifuges"
+    sized = twin.SizedMill(INDUSTRIAL_BASE, {"count": 3, "diameter_cm": 25.0}, "B", 31.0, 210.0, 210.0, 2.5, 200.0,
+                           7.0, 0.99, "stable", notes=[note])
+    monkeypatch.setattr(twin, "size_mill", lambda *a, **k: sized)
+    assert grindtwin(["size-mill", "--feed-tph", "31", "--target-p80-um", "210", "--speed", "0.945"]) == 0
+    assert f"  note: {note}" in capsys.readouterr().out
+    assert grindtwin(["size-mill", "--feed-tph", "31", "--target-p80-um", "210", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["notes"] == [note]
+    with pytest.raises(SystemExit) as refused:
+        grindtwin(["size-mill", "--feed-tph", "31", "--target-p80-um", "210", "--speed", "0.95"])
+    assert refused.value.code == 2 and "--speed must be in (0.3, 0.95). Got 0.95." in capsys.readouterr().err
