@@ -14,7 +14,7 @@ _API = {
     "TwinInputError": ".errors",
     "MILLS": ".mill", "Mill": ".mill", "bond_power_kw": ".mill", "get_mill": ".mill",
     "hogg_fuerstenau_power_kw": ".mill", "load_status": ".mill", "centrifuging_note": ".mill",
-    "CENTRIFUGING_FRAC_CRITICAL": ".mill", "jamming_note": ".effects.rheology", "POWER_MODELS": ".mill", "power_kw": ".mill",
+    "CENTRIFUGING_FRAC_CRITICAL": ".mill", "POWER_MODELS": ".mill", "power_kw": ".mill",
     "Hydrocyclone": ".effects.classification", "hydrocyclone_from": ".effects.classification",
     "TabulatedPSD": ".sizes", "SizedMill": ".sizing", "size_mill": ".sizing", "write_preset": ".sizing", "check_preset_path": ".sizing",
     "INPUT_NAMES": ".model", "Model": ".model", "ModelSpec": ".model",
@@ -33,7 +33,7 @@ __all__ = [
     "Hydrocyclone", "Mill", "Mineralogy", "Model", "ModelError", "ModelSpec", "OreBreakage", "POWER_MODELS", "RosinRammler",
     "SizeGrid", "SizedMill", "SolverError", "SteadyState", "TabulatedPSD", "Texture", "Trajectory", "Twin", "TwinError",
     "TwinInputError", "austin_selection", "bond_power_kw", "centrifuging_note", "hydrocyclone_from", "power_kw", "size_mill", "write_preset", "check_preset_path",
-    "discretise", "get_mill", "hogg_fuerstenau_power_kw", "jamming_note", "known_effects", "load_ore", "load_status", "ore_breakage",
+    "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
     "new_folder_beside", "pxx_um", "reference_ores", "trajectory_notes", "write_text_atomically",
 ]
 __getattr__, __dir__ = lazy_face(__name__, _API)

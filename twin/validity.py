@@ -29,13 +29,20 @@ def state_notes(spec, effect_names, speed_frac_critical: float, holdup_t: float,
     ``effect_names``, at a speed [fraction of critical], hold-up [t] and hold-up clay fraction."""
     notes = [overflow_note(holdup_t, spec.mill.max_holdup_t(spec.solids_density_t_m3)),
              centrifuging_note(speed_frac_critical)]
-    k_clay = spec.coefficients.get("clay_crowding_coeff")
-    # a parametric model (twin.calibration.parametric) holds a symbol there: no number to compare
-    if "rheology" in effect_names and clay_frac is not None and isinstance(k_clay, Real):
+    k_clay = _clay_crowding(spec, effect_names)
+    if k_clay is not None and clay_frac is not None:
         from .effects.rheology import jamming_note
 
         notes.append(jamming_note(clay_frac, k_clay))
     return [n for n in notes if n]
+
+
+def _clay_crowding(spec, effect_names) -> float | None:
+    """The clay-crowding coefficient a jamming check compares against, or None: without the
+    rheology effect, or in a parametric model (twin.calibration.parametric), which holds a symbol
+    there, not a number."""
+    k_clay = spec.coefficients.get("clay_crowding_coeff")
+    return k_clay if "rheology" in effect_names and isinstance(k_clay, Real) else None
 
 
 def trajectory_notes(frame, spec, effect_names) -> list[str]:
@@ -60,8 +67,8 @@ def trajectory_notes(frame, spec, effect_names) -> list[str]:
         if note:
             fast = t[speed > CENTRIFUGING_FRAC_CRITICAL]
             notes.append(f"from {fast[0]:.4g} h to {fast[-1]:.4g} h the {note}")
-    k_clay = spec.coefficients.get("clay_crowding_coeff")
-    if "rheology" in effect_names and "clay_frac" in frame.columns and isinstance(k_clay, Real):
+    k_clay = _clay_crowding(spec, effect_names)
+    if k_clay is not None and "clay_frac" in frame.columns:
         from .effects.rheology import jamming_clay_frac, jamming_note
 
         clay = frame["clay_frac"].to_numpy(float)

@@ -76,9 +76,8 @@ def _interrupted(command: str, signum: int) -> int:
 def _stdout_closed() -> bool:
     """True when stdout is a pipe its reader has closed (``grindtwin steady | head``): polling its
     write end reports an error (POLLERR; tested on Linux; where poll says nothing the broken pipe
-    stays a failed run, as before). Then stdout is pointed at the null
-    device, so that Python's own flush at exit does not report it again (the Python docs' note on
-    SIGPIPE)."""
+    stays a failed run, as before). Then stdout is pointed at the null device, so that Python's
+    own flush at exit does not report it again (the Python docs' note on SIGPIPE)."""
     import select
 
     try:
@@ -599,9 +598,7 @@ def cmd_steady(args) -> int:
 
         notes += [n for n in [centrifuging_note(kpis.get("speed_frac_critical") or 0.0)] if n]
     else:
-        notes += ss.notes
-    if not args.surrogate:
-        notes += circuit_notes(twin, args.mill)
+        notes += ss.notes + circuit_notes(twin, args.mill)
     if args.json:
         mineralogy = {o.name: {"wt_pct": o.wt_pct, **o.summary()} for o in blend.ores}
         print(json.dumps({"mill": args.mill, "blend": dict(zip(blend.names, blend.fractions)),
