@@ -54,6 +54,8 @@ from scenarios.output.workbook import PSD_FILES, RUN_WORKBOOK, STREAMS_FILE, SWE
 
 INCOMPLETE_MARKER = "_INCOMPLETE"
 MANIFEST = "grindtwin-manifest.json"
+#: first words of DIR.lock, by which a run knows the lock is grindtwin's (not a user's file)
+LOCK_TAG = "grindtwin lock"
 #: Files grindtwin may add to a finished run folder later (``grindtwin report``).
 LATER_FILES = ("report.html", "report.html.partial")
 #: Every name a run or a sweep writes, so that a stale partial folder is removed by name.
@@ -181,15 +183,27 @@ class OutputClaim:
         self._unlock()
 
     def _lock(self) -> None:
+        """Hold ``DIR.lock`` (flock): a file this project writes (:data:`LOCK_TAG` and the pid),
+        so a user's own ``DIR.lock`` (``uv.lock`` beside ``--out uv``) is refused, never emptied."""
         while True:
-            fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fd, created = os.open(self.lock_path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644), True
+            except FileExistsError:
+                try:
+                    fd, created = os.open(self.lock_path, os.O_RDWR), False
+                except FileNotFoundError:  # unlinked by the run that held it just now: again
+                    continue
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
                 holder = os.read(fd, 64).decode(errors="replace").strip() or "?"
                 os.close(fd)
-                raise _refuse(self.final, f"another grindtwin run (pid {holder}) is writing to this "
+                raise _refuse(self.final, f"another grindtwin run ({holder}) is writing to this "
                               f"folder (lock {self.lock_path.name})") from None
+            if not created and not os.read(fd, 64).decode(errors="replace").startswith(LOCK_TAG):
+                os.close(fd)
+                raise _refuse(self.final, f"{self.lock_path.name} beside it is not grindtwin's (grindtwin "
+                              "locks DIR with the file DIR.lock); choose another --out") from None
             # the file may have been unlinked by the run that held it just before: lock again
             try:
                 same = os.fstat(fd).st_ino == os.stat(self.lock_path).st_ino
@@ -197,7 +211,8 @@ class OutputClaim:
                 same = False
             if same:
                 os.ftruncate(fd, 0)
-                os.write(fd, f"{os.getpid()}\n".encode())
+                os.lseek(fd, 0, os.SEEK_SET)
+                os.write(fd, f"{LOCK_TAG} pid {os.getpid()}\n".encode())
                 self._lock_fd = fd
                 return
             os.close(fd)

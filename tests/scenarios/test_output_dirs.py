@@ -107,9 +107,31 @@ def test_a_second_run_to_a_locked_folder_is_refused_at_once(tmp_path, capsys, no
     scene = short_pyrite_scene(tmp_path, duration_h=0.25)
     with OutputClaim(out) as first:
         assert grindtwin(["run", scene, "--out", out, "--quiet"]) == 2
-        assert f"another grindtwin run (pid {os.getpid()})" in capsys.readouterr().err
+        assert f"another grindtwin run (grindtwin lock pid {os.getpid()})" in capsys.readouterr().err
         first.commit(lambda folder: (folder / "summary.json").write_text("{}"))
     assert sorted(p.name for p in out.iterdir()) == [MANIFEST, "summary.json"]
+
+
+def test_a_users_lock_file_beside_out_is_refused_and_kept(tmp_path, capsys, no_work):
+    """``--out uv`` beside a project's ``uv.lock``: grindtwin's lock name is taken by a file it did
+    not write, so the run is refused before any work and the file is left as it was (it was
+    emptied and deleted before)."""
+    lock = tmp_path / "uv.lock"
+    lock.write_text("version = 1\n")
+    scene = short_pyrite_scene(tmp_path, duration_h=0.25)
+    assert grindtwin(["run", scene, "--out", tmp_path / "uv", "--quiet"]) == 2
+    assert "uv.lock beside it is not grindtwin's" in capsys.readouterr().err
+    assert lock.read_text() == "version = 1\n" and not (tmp_path / "uv").exists()
+
+
+def test_a_lock_left_by_a_killed_run_is_taken_over(tmp_path, no_work):
+    """A run killed with -9 leaves its DIR.lock (no flock held any more): the next run takes it."""
+    from scenarios.output.write import LOCK_TAG, OutputClaim
+
+    (tmp_path / "out.lock").write_text(f"{LOCK_TAG} pid 1\n")
+    with OutputClaim(tmp_path / "out") as claim:
+        claim.commit(lambda folder: (folder / "summary.json").write_text("{}"))
+    assert not (tmp_path / "out.lock").exists() and (tmp_path / "out" / "summary.json").exists()
 
 
 def _read_only_place(tmp_path) -> Path:
