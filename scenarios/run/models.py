@@ -115,7 +115,9 @@ def build_twin(scene: Scene, ores: dict, effects, effect_options, size_classes, 
     try:
         mill = scene_mill(scene, cal)
         breakage, density = scene_breakage(scene, ores, mill)
-        fracs = scene.mill.mixer_volume_fracs if n_mixers is None else None
+        fracs = scene.mill.mixer_volume_fracs  # the mill's shares, for any twin with its number of mixers
+        if fracs is not None and n_mixers is not None and int(n_mixers) != len(fracs):
+            fracs = None
         return Twin(list(ores.values()), mill=mill, effects=list(effects),
                     effect_options=dict(effect_options or {}), grid=grid,
                     n_mixers=int(n_mixers or scene.mill.n_mixers), feed_p80_um=scene.feed.p80_um,
@@ -157,4 +159,8 @@ def build_models(scene: Scene) -> Models:
                 list(scene.effects), dict(scene.effect_options), scene.mill.size_classes, scene.mill.n_mixers):
             plant = build_twin(scene, ores, effects, options, sizes, mixers, calibration=cal)
             notes.append("the plant is a separate twin (effects " + ", ".join(effects) + ")")
+            fracs = scene.mill.mixer_volume_fracs
+            if fracs is not None and mixers != len(fracs):
+                notes.append(f"the plant's {mixers} mixers have equal shares (mill.mixer_volume_fracs gives "
+                             f"{len(fracs)})")
     return Models(control=control, plant=plant, components=list(ores), notes=notes, calibration=cal)

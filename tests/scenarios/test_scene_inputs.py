@@ -76,6 +76,21 @@ def test_scene_inputs_reach_the_twin_as_written(write_scene, tmp_path):
     assert out["soft_frac"] > 0.0
 
 
+@pytest.mark.parametrize("plant_mixers, shares", [(None, (0.7, 0.15, 0.15)), (3, (0.7, 0.15, 0.15)), (2, (0.5, 0.5))])
+def test_the_mills_mixer_shares_reach_a_separate_plant(write_scene, plant_mixers, shares):
+    """A [plant] that differs (here in its size classes) is the same mill: Whiten's shares of
+    ``mill.mixer_volume_fracs`` hold for it too, unless it has another number of mixers (equal
+    shares, said in a note). The plant used to get equal shares whenever [plant] differed."""
+    text = BASE_SCENE.replace('preset = "industrial"', 'preset = "industrial"\nmixer_volume_fracs = [0.7, 0.15, 0.15]')
+    text += "\n[plant]\nmodel = \"twin\"\nsize_classes = { top_um = 6700.0, ratio = 2.0, count = 12 }\n"
+    if plant_mixers is not None:
+        text += f"n_mixers = {plant_mixers}\n"
+    models = build_models(load_scene(write_scene(text)))
+    assert models.plant is not models.control and models.control.spec.mixer_fracs == pytest.approx((0.7, 0.15, 0.15))
+    assert models.plant.spec.mixer_fracs == pytest.approx(shares)
+    assert any("equal shares" in n for n in models.notes) == (plant_mixers == 2)
+
+
 def test_bad_cyclone_field_is_named_by_check(write_scene):
     text = BASE_SCENE.replace('effects = ["breakage", "transport", "holdup", "cushioning", "power"]',
                               'effects = ["breakage", "transport", "holdup", "cushioning", "power", "classification"]')
