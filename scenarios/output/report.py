@@ -18,7 +18,7 @@ from pathlib import Path
 from scenarios.errors import SceneError
 from scenarios.output.labels import KPI_LABELS
 from scenarios.output.plots import PLOTS
-from scenarios.output.write import INCOMPLETE_MARKER
+from scenarios.output.write import INCOMPLETE_MARKER, MANIFEST, manifest_files
 from twin.calibration import FAST_LABEL
 
 _CSS = """body{font-family:system-ui,sans-serif;max-width:60em;margin:2em auto;padding:0 1em;color:#222}
@@ -137,9 +137,15 @@ def render_report(run_dir) -> str:
 
 
 def write_report(run_dir) -> Path:
-    """Write ``run_dir/report.html`` (via a temporary file, renamed when complete)."""
+    """Write ``run_dir/report.html`` (via a temporary file, renamed when complete), only into a
+    folder grindtwin wrote (its manifest lists summary.json): a ``report.html`` of the user's
+    beside a ``summary.json`` of their own is never replaced."""
     run_dir = Path(run_dir)
     text = render_report(run_dir)
+    if "summary.json" not in (manifest_files(run_dir) or []):
+        raise SceneError(f"{run_dir}: summary.json is not listed in a {MANIFEST} written by grindtwin; the report "
+                         "is written only into a run folder grindtwin made (grindtwin run SCENE --out DIR), "
+                         "so nothing of yours there is replaced")
     out = run_dir / "report.html"
     tmp = run_dir / "report.html.partial"
     tmp.write_text(text, encoding="utf-8")

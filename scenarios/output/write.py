@@ -85,7 +85,7 @@ def _refuse(final: Path, why: str) -> SceneError:
                       f"runs/NAME), or move the folder away yourself.")
 
 
-def _manifest_files(folder: Path) -> list[str] | None:
+def manifest_files(folder: Path) -> list[str] | None:
     """The files a grindtwin manifest in ``folder`` lists, or ``None`` if it has none."""
     try:
         data = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
@@ -103,7 +103,7 @@ def strangers(folder: Path) -> list[str] | None:
     names = sorted(p.name for p in folder.iterdir())
     if not names:
         return []
-    ours = _manifest_files(folder)
+    ours = manifest_files(folder)
     if ours is None:
         return names
     allowed = set(ours) | {MANIFEST, *LATER_FILES}
@@ -230,7 +230,7 @@ class OutputClaim:
     def _fresh_partial(self) -> None:
         if self.partial.exists():  # left by a killed run: ours if marked, or as far as its manifest says
             marked = (self.partial / INCOMPLETE_MARKER).exists()
-            names = RUN_FILES if marked else [*(_manifest_files(self.partial) or []), MANIFEST]
+            names = RUN_FILES if marked else [*(manifest_files(self.partial) or []), MANIFEST]
             if not _remove_ours(self.partial, names):
                 raise _refuse(self.final, f"{self.partial.name} is left from an earlier run and holds "
                               "files grindtwin did not write")
@@ -259,7 +259,7 @@ class OutputClaim:
                 raise RunError(f"--out {self.final}: files grindtwin did not write appeared in the "
                                f"folder during the run; it was left alone and the results are in "
                                f"{self.partial}")
-            listed = (_manifest_files(self.final) or []) + [MANIFEST, *LATER_FILES]
+            listed = (manifest_files(self.final) or []) + [MANIFEST, *LATER_FILES]
             if not any(self.final.iterdir()):
                 self.final.rmdir()
             else:

@@ -64,6 +64,22 @@ def test_report_refuses_what_is_not_a_complete_run(tmp_path):
         render_report(tmp_path)
 
 
+def test_report_never_replaces_a_users_report_html(tmp_path, capsys):
+    """A folder of the user's with a summary.json and a report.html of their own (no manifest of
+    grindtwin's): refused, exit 2, their report untouched; a folder grindtwin wrote is reported."""
+    from scenarios.cli import main as grindtwin
+
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "summary.json").write_text(json.dumps({"scene": "mine", "kpis": {}}))
+    (mine / "report.html").write_text("<p>my notes</p>")
+    assert grindtwin(["report", str(mine)]) == 2
+    assert "written by grindtwin" in capsys.readouterr().err
+    assert (mine / "report.html").read_text() == "<p>my notes</p>"
+    assert sorted(p.name for p in mine.iterdir()) == ["report.html", "summary.json"]
+    assert write_report(fake_run(tmp_path)).is_file()
+
+
 def test_report_shows_plant_beside_controller_units_and_commit(tmp_path):
     text = render_report(fake_run(tmp_path))
     models = re.search(r'<div class="models">(.*?)</div></div>', text, re.S).group(1)
