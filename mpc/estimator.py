@@ -128,6 +128,13 @@ class Ekf:
             raise MpcInputError(f"The 'x0' parameter of Ekf must be {self.nx} finite values. "
                                 f"Got {x0.size}.")
         self.hardness_bounds = tuple(float(v) for v in hardness_bounds)
+        lo_h, hi_h = (self.hardness_bounds + (np.nan, np.nan))[:2]
+        if len(self.hardness_bounds) != 2 or not 0 < lo_h < hi_h < np.inf:
+            raise MpcInputError(f"The 'hardness_bounds' parameter of Ekf must be (lo, hi) with 0 < lo < hi, finite. "
+                                f"Got {hardness_bounds!r}.")
+        if not lo_h <= float(hardness0) <= hi_h:
+            raise MpcInputError(f"The 'hardness0' parameter of Ekf must lie in hardness_bounds [{lo_h:g}, {hi_h:g}]. "
+                                f"Got {hardness0!r}.")
         self.p80_output = "p80_measured_um" if "p80_measured_um" in model.outputs else "p80_um"
         self.scale = np.maximum(np.abs(x0), 1e-3 * model.spec.holdup_nominal_t)
         # the analyser-lag states (after the masses) get a hundredth of the mass states' noise,
@@ -244,6 +251,13 @@ class Ekf:
         if y.size != 3:
             raise MpcInputError(f"The 'y_meas' parameter of Ekf.make_step must be "
                                 f"[p80_um, power_kw, load_frac]. Got {y.size} values.")
+        nu, d_all = self.model.f.size1_in(1), np.asarray(d_known, float).reshape(-1)
+        if u.size != nu or not np.all(np.isfinite(u)):
+            raise MpcInputError(f"The 'u' parameter of Ekf.make_step must be {nu} finite values "
+                                f"[feed_tph, speed_frac_critical]. Got {u.tolist()}.")
+        if d_all.size not in (self.nd - 1, self.nd) or not np.all(np.isfinite(db)):
+            raise MpcInputError(f"The 'd_known' parameter of Ekf.make_step must be the {self.nd - 1} blend "
+                                f"fractions (a trailing hardness is ignored), finite. Got {d_all.tolist()}.")
         ok = np.isfinite(y)
         zn, pn, e = self._step(self.z, self.P, u, db, np.where(ok, y, 0.0), ok.astype(float))
         self.z = np.asarray(zn, float).ravel()

@@ -35,6 +35,18 @@ def test_ekf_rejects_bad_input(ctrl_twin):
     ekf = Ekf(m, 0.05, m.initial_state([1.0, 0.0]))
     with pytest.raises(MpcInputError, match="y_meas"):
         ekf.make_step([1.0, 2.0], [27.0, 0.7], [1.0, 0.0])
+    z0 = ekf.z.copy()
+    # a NaN or missing input or blend wrecked the estimate for good (the bounds clamp turned NaN
+    # into finite garbage); now refused before the filter moves
+    for u, d, name in (([np.nan, 0.7], [1.0, 0.0], "'u'"), ([28.0], [1.0, 0.0], "'u'"),
+                       ([27.0, 0.7], [np.nan, 1.0], "'d_known'"), ([27.0, 0.7], [1.0], "'d_known'")):
+        with pytest.raises(MpcInputError, match=name):
+            ekf.make_step([210.0, 180.0, 1.0], u, d)
+    assert np.array_equal(ekf.z, z0)
+    with pytest.raises(MpcInputError, match="hardness_bounds"):
+        Ekf(m, 0.05, m.initial_state([1.0, 0.0]), hardness_bounds=(3.0, 0.3))
+    with pytest.raises(MpcInputError, match="hardness0"):
+        Ekf(m, 0.05, m.initial_state([1.0, 0.0]), hardness0=10.0)
 
 
 @pytest.mark.parametrize("gain", [1.0, 2.0])
