@@ -188,3 +188,25 @@ def test_an_impossible_sizing_says_which_way_it_misses():
                                           r"grinds finer than 75 um\.$"):
         size_mill("B", 0.001, 75.0)
     assert _counts([1, 2, 3, 5, 7, 8]) == "1-3, 5, 7-8" and _counts([4]) == "4"
+
+
+def test_ore_files_that_are_not_toml_or_absent_are_named(tmp_path):
+    """A TOML syntax error, a duplicate key, a binary file or a missing file: a TwinInputError
+    naming the file (it was a tomllib/UnicodeDecodeError traceback, or 'must be a reference type')."""
+    from twin.ore.ores import load_ore
+
+    for name, data in (("bad.toml", b"[mineralogy\nx = 1\n"), ("dup.toml", b"[texture]\na = 1\na = 2\n"),
+                       ("bin.toml", b"\xff\xfe\x00\x01")):
+        (tmp_path / name).write_bytes(data)
+        with pytest.raises(TwinInputError, match=f"{name} is not valid TOML"):
+            load_ore(tmp_path / name)
+    with pytest.raises(TwinInputError, match="none.toml was not found"):
+        load_ore(tmp_path / "none.toml")
+
+
+def test_a_blend_names_each_ore_once():
+    """B=0.3,B=0.7 lost a component in every result keyed by name (JSON blend {'B': 0.7})."""
+    from twin.ore.ores import Blend, load_ore
+
+    with pytest.raises(TwinInputError, match="'B' appears more than once"):
+        Blend((load_ore("B"), load_ore("B")), (0.3, 0.7))

@@ -43,8 +43,15 @@ def load_ore(spec: str | Path | Mineralogy) -> Mineralogy:
         return refs[spec]
     path = Path(spec)
     if path.suffix == ".toml" and path.is_file():
-        with path.open("rb") as fh:
-            return _from_table(tomllib.load(fh), name=path.stem, where=str(path))
+        try:
+            with path.open("rb") as fh:
+                table = tomllib.load(fh)
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+            raise TwinInputError(f"The ore file {path} is not valid TOML: {exc}.") from None
+        return _from_table(table, name=path.stem, where=str(path))
+    if path.suffix == ".toml":
+        raise TwinInputError(f"The ore file {path} was not found (an ore is a reference type "
+                             f"{', '.join(refs)} or a TOML file with [mineralogy] and [texture] tables).")
     raise TwinInputError(
         f"The 'ore' must be a reference type ({', '.join(refs)}) or a TOML file with "
         f"[mineralogy] and [texture] tables. Got {str(spec)!r}.{close_matches(str(spec), refs)}")
@@ -60,6 +67,11 @@ class Blend:
     def __post_init__(self):
         if len(self.ores) != len(self.fractions) or not self.ores:
             raise TwinInputError("A Blend needs one fraction per ore and at least one ore.")
+        names = [ore.name for ore in self.ores]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:  # components are keyed by name (results, JSON): a second one would overwrite the first
+            raise TwinInputError(f"A Blend names each ore once; {', '.join(map(repr, twice))} appears more than once "
+                                 f"in {names} (two files with one stem are two ores of one name: rename one).")
         for ore, f in zip(self.ores, self.fractions):
             if not 0.0 <= f <= 1.0:
                 raise TwinInputError(
