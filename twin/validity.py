@@ -24,17 +24,33 @@ def overflow_note(holdup_t: float, capacity_t: float) -> str | None:
 
 
 def state_notes(spec, effect_names, speed_frac_critical: float, holdup_t: float,
-                clay_frac: float | None = None) -> list[str]:
+                clay_frac: float | None = None, outputs: dict | None = None) -> list[str]:
     """The notes of a state of a model built from ``spec`` (:class:`twin.model.ModelSpec`) with
-    ``effect_names``, at a speed [fraction of critical], hold-up [t] and hold-up clay fraction."""
+    ``effect_names``, at a speed [fraction of critical], hold-up [t] and hold-up clay fraction
+    (and the state's other ``outputs``, for the circuit's water balance)."""
     notes = [overflow_note(holdup_t, spec.mill.max_holdup_t(spec.solids_density_t_m3)),
-             centrifuging_note(speed_frac_critical)]
+             centrifuging_note(speed_frac_critical), water_note(outputs or {})]
     k_clay = _clay_crowding(spec, effect_names)
     if k_clay is not None and clay_frac is not None:
         from .effects.rheology import jamming_note
 
         notes.append(jamming_note(clay_frac, k_clay))
     return [n for n in notes if n]
+
+
+def water_note(outputs: dict) -> str:
+    """A note when the closed circuit's water balance (twin.effects.classification) needs water
+    taken out of the mill's feed or the sump: the cyclone underflow carries more water than the
+    mill discharges at its solids fraction (or the cyclone feed less than the discharge), which no
+    plant can run; typically cyclones far from their operating pressure, with a large water bypass."""
+    short = {k: float(outputs[k]) for k in ("mill_water_m3_h", "sump_water_m3_h")
+             if k in outputs and float(outputs[k]) < 0.0}
+    if not short:
+        return ""
+    more = ", ".join(f"{k} {float(outputs[k]):.3g}" for k in ("cyclone_pressure_kpa", "cyclone_water_bypass_frac")
+                     if k in outputs)
+    return ("the circuit's water balance needs water taken out (" + ", ".join(f"{k} {v:.3g}" for k, v in short.items())
+            + "): no plant runs so; the cyclones' operating point is far from a design's" + (f" ({more})" if more else ""))
 
 
 def _clay_crowding(spec, effect_names) -> float | None:

@@ -167,7 +167,8 @@ def _result(model, x, u, d, method) -> SteadyState:
     psd = np.asarray(_product_psd(model)(x, u, d)).ravel()
     p80 = pxx_um(model.spec.grid, psd) if psd.sum() > 0 else math.nan
     status = load_status(outs["load_frac"], model.spec.mill.stable_band) if "load_frac" in outs else "n/a"
-    notes = state_notes(model.spec, model.effect_names, float(u[1]), outs.get("holdup_t", 0.0), outs.get("clay_frac"))
+    notes = state_notes(model.spec, model.effect_names, float(u[1]), outs.get("holdup_t", 0.0), outs.get("clay_frac"),
+                        outs)
     return SteadyState(x, u, d, outs, p80, status, psd, method, notes)
 
 
