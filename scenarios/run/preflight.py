@@ -78,7 +78,26 @@ def settings_problems(scene: Scene) -> list[str]:
 def model_size_problems(scene: Scene, models) -> list[str]:
     """A batch charge the mill cannot hold, and the controller's NLP if its build is estimated
     above the memory limit."""
-    return _batch_charge_problems(scene, models) + _nlp_size_problems(scene, models)
+    return _batch_charge_problems(scene, models) + _plant_output_problems(scene, models) + _nlp_size_problems(scene, models)
+
+
+#: What a closed loop reads off its plant every sample (mpc.closed_loop: the sensors and the KPIs)
+CLOSED_LOOP_READS = ("power_kw", "load_frac")
+
+
+def _plant_output_problems(scene: Scene, models) -> list[str]:
+    """A closed loop whose plant model lacks an output its sensors read (a plant.effects without
+    ``power``, say): it failed after the build with a bare KeyError."""
+    outputs = getattr(getattr(models.plant, "model", None), "outputs", None)
+    if scene.controller.kind == "none" or is_batch(scene) or outputs is None:
+        return []
+    missing = [k for k in CLOSED_LOOP_READS if k not in outputs]
+    if not missing:
+        return []
+    key = "plant.effects" if scene.plant is not None and scene.plant.effects is not None else "effects"
+    return [f"{key}: a closed loop reads the plant's {' and '.join(missing)} every sample (its sensors and KPIs); "
+            f"the plant's effects {list(models.plant.model.effect_names)} give no {', '.join(missing)}: add the effect "
+            "that does (power: 'power'; load: 'holdup')"]
 
 
 def _batch_charge_problems(scene: Scene, models) -> list[str]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -80,6 +81,22 @@ def test_check_exits_2_with_the_message(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "feed.feed_tp: unknown key 'feed_tp' (did you mean 'feed_tph'?)" in err
     assert str(bad) in err and "Traceback" not in err
+
+
+def test_a_closed_loop_plant_without_power_is_refused_by_check_and_run(tmp_path, capsys):
+    """The reference transition with `power` taken out of plant.effects: check said OK and run
+    failed after the build with 'KeyError: power_kw' (exit 1); both now refuse it, naming the key."""
+    ref = Path(__file__).resolve().parents[2] / "scenarios" / "reference_transition.toml"
+    text = ref.read_text()
+    plant_effects = '"rheology", "power", "classification"]'
+    assert text.count(plant_effects) == 1
+    bad = tmp_path / "no_power.toml"
+    bad.write_text(text.replace(plant_effects, '"rheology", "classification"]'))
+    for argv in (["check", bad], ["run", bad, "--out", tmp_path / "o", "--quiet"]):
+        assert grindtwin(argv) == 2
+        err = capsys.readouterr().err
+        assert "plant.effects: a closed loop reads the plant's power_kw" in err and "Traceback" not in err
+    assert not (tmp_path / "o").exists()
 
 
 def test_run_on_bad_input_exits_2_without_traceback(tmp_path, capsys):
