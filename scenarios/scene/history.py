@@ -191,7 +191,15 @@ def _time_column(raw: pd.DataFrame, where: str) -> tuple[np.ndarray, pd.Timestam
         t = pd.to_numeric(raw["time_h"], errors="coerce").to_numpy(dtype=float)
         start = None
     else:
-        ts = pd.to_datetime(raw["timestamp"], errors="coerce", format="ISO8601")
+        try:
+            ts = pd.to_datetime(raw["timestamp"], errors="coerce", format="ISO8601")
+        except ValueError as exc:  # e.g. rows with and without a UTC offset: pandas refuses to mix them
+            text = raw["timestamp"].astype(str)
+            has_offset = text.str.contains(r"(?:Z|[+-]\d\d:?\d\d)$", regex=True)
+            first = _names(raw["_row"][has_offset != has_offset.iloc[0]][:1]) if has_offset.nunique() > 1 else "?"
+            raise SceneError(f"{where}: timestamp: rows with and without a UTC offset cannot be put on one clock "
+                             f"(first data row that differs from the first: {first}); give every timestamp an offset "
+                             f"(e.g. +00:00) or none. pandas said: {exc}") from None
         if ts.notna().any():
             start = ts.min()
             t = ((ts - start) / pd.Timedelta(hours=1)).to_numpy(dtype=float)

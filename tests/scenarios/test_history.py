@@ -77,8 +77,10 @@ def test_parquet_reads_like_csv(tmp_path):
      ["'kaolinte_wt_pct': unknown mineral (did you mean 'kaolinite'"]),
     (MESSY.replace("feed_tph", "feed_tp"), ["unknown column 'feed_tp' (did you mean 'feed_tph'?)"]),
     (MESSY.replace("timestamp", "time"), ["exactly one time column"]),
+    (MESSY.replace("00:05:00,", "00:05:00+00:00,").replace("00:06:00,", "00:06:00+00:00,"),
+     ["rows with and without a UTC offset", "first data row that differs from the first: 7"]),
 ], ids=["gap", "row sum", "NaN first row", "negative", "bad timestamp", "unknown mineral",
-        "unknown column", "no time column"])
+        "unknown column", "no time column", "mixed offsets"])
 def test_messy_csv_beyond_the_rules_is_refused_naming_rows(tmp_path, text, fragments):
     path = write(tmp_path, text)
     with pytest.raises(SceneError) as info:
