@@ -38,6 +38,21 @@ def state_notes(spec, effect_names, speed_frac_critical: float, holdup_t: float,
     return [n for n in notes if n]
 
 
+def sink_note(grid, product_mass) -> str:
+    """A note when 80 % of the product lies in the grid's sink (below its finest class bound):
+    its P80 is then :func:`twin.sizes.pxx_um`'s extrapolation, not a resolved size (a feed analysis
+    in mm read as um, or a breakage rate far too high, lands the whole product there)."""
+    m = np.asarray(product_mass, float)
+    if not m.sum() > 0:
+        return ""
+    sink = float(m[-1] / m.sum())
+    if sink < 0.8:
+        return ""
+    return (f"{sink:.0%} of the product lies below the finest size class ({grid.upper_um[-1]:.3g} um): its P80 is "
+            "extrapolated, not resolved (a finer mill.size_classes would resolve it; or check the feed's sizes "
+            "for mm given as um and the breakage rates' units)")
+
+
 def water_note(outputs: dict) -> str:
     """A note when the closed circuit's water balance (twin.effects.classification) needs water
     taken out of the mill's feed or the sump: the cyclone underflow carries more water than the

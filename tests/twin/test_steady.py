@@ -102,6 +102,19 @@ def test_a_circuit_whose_water_balance_needs_water_taken_out_says_so():
     assert not [n for n in Twin("B", mill="industrial").steady(feed_tph=31.0).notes if "water" in n]
 
 
+def test_a_p80_inside_the_grids_sink_is_said_to_be_extrapolated():
+    """Five classes of ratio 2 from 6.7 mm end at 419 um: the lab product (P80 ~200 um on the
+    default grid) lies 92 % in the sink, and the P80 printed is the sink's extrapolation (~380
+    um), which said nothing. The default grid resolves it: no such note."""
+    from twin import SizeGrid, Twin
+
+    coarse = Twin("B", grid=SizeGrid(top_um=6700.0, ratio=2.0, count=5)).steady(feed_tph=0.031)
+    fine = Twin("B").steady(feed_tph=0.031)
+    assert coarse.p80_um > 1.5 * fine.p80_um  # the extrapolation is far off
+    assert [n for n in coarse.notes if "below the finest size class (419 um)" in n and "extrapolated" in n]
+    assert not [n for n in fine.notes if "finest size class" in n]
+
+
 def test_a_trajectory_says_when_it_leaves_what_the_models_describe():
     """Trajectory.notes (twin.validity.trajectory_notes): 5 t/h into the laboratory mill fills it
     past its shell after a while (the share of samples counted from the frame); at the nominal
