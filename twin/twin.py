@@ -189,15 +189,27 @@ def _given_breakage(given, names) -> dict:
     return given
 
 
+#: The share of a feed distribution allowed above the size grid's top (lumped into the top
+#: class): 1 %, within a sieve analysis's own error; more changes the feed the twin grinds.
+FEED_ABOVE_TOP_MAX_FRAC = 0.01
+
+
 def _feed_fractions(grid, feed_psd, feed_p80_um, feed_modulus) -> np.ndarray:
     """Feed mass fraction per class: a distribution object (``passing(x_um)``), an array of
     class fractions, or by default GGS with the given P80 and modulus."""
-    if feed_psd is None:
-        return discretise(grid, GatesGaudinSchuhmann.from_p80(feed_p80_um, feed_modulus))
-    if hasattr(feed_psd, "passing"):
-        return discretise(grid, feed_psd)
+    if feed_psd is None or hasattr(feed_psd, "passing"):
+        dist = GatesGaudinSchuhmann.from_p80(feed_p80_um, feed_modulus) if feed_psd is None else feed_psd
+        above = 1.0 - float(dist.passing(grid.top_um))
+        if above > FEED_ABOVE_TOP_MAX_FRAC:  # discretise lumps it into the top class: another feed
+            given = (f"feed_p80_um {feed_p80_um:g} with modulus {feed_modulus:g}" if feed_psd is None
+                     else "the feed_psd")
+            raise TwinInputError(f"{given} puts {above:.1%} of the feed above the size grid's top "
+                                 f"({grid.top_um:g} um), which would be lumped into the top class (a finer feed "
+                                 f"than given); allowed: at most {FEED_ABOVE_TOP_MAX_FRAC:.0%}. Raise the grid's "
+                                 "top size (mill.size_classes.top_um in a scene) or give the feed's own analysis.")
+        return discretise(grid, dist)
     frac = np.asarray(feed_psd, float)
-    if frac.shape != (grid.count,) or np.any(frac < 0) or abs(frac.sum() - 1.0) > 1e-9:
+    if frac.shape != (grid.count,) or not np.all(np.isfinite(frac)) or np.any(frac < 0) or abs(frac.sum() - 1.0) > 1e-9:
         raise bad_value("Twin", "feed_psd", feed_psd,
                         f"a size distribution or {grid.count} non-negative class fractions summing to 1")
     return frac

@@ -210,3 +210,18 @@ def test_a_blend_names_each_ore_once():
 
     with pytest.raises(TwinInputError, match="'B' appears more than once"):
         Blend((load_ore("B"), load_ore("B")), (0.3, 0.7))
+
+
+def test_a_feed_reaching_above_the_grid_is_refused_not_lumped():
+    """GGS feed P80 20 mm on the 6.7-mm grid put 67 % of the feed into the top class (the twin
+    ground a 6.1-mm feed and said nothing); 6.6 mm, which a scene's F80-below-top rule let
+    through, 19 %. Now refused naming the share; the default 3.2-mm feed (top particle 4.4 mm)
+    is fine. Class fractions with a NaN are refused too (NaN passed both comparisons)."""
+    for f80, share in ((20000.0, "66.6%"), (6600.0, "19.0%")):
+        with pytest.raises(TwinInputError, match=f"feed_p80_um {f80:g} with modulus 0.8 puts {share} of the feed above"):
+            Twin("B", feed_p80_um=f80)
+    grid = SizeGrid()
+    frac = np.full(grid.count, 1.0 / grid.count)
+    frac[3] = np.nan
+    with pytest.raises(TwinInputError, match="feed_psd"):
+        Twin("B", feed_psd=frac)
