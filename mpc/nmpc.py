@@ -656,6 +656,12 @@ class Controller:
             raise MpcInputError(f"The 'u_prev' parameter must be {nu} finite values. Got {u_prev!r}.")
         D = self._d_traj(d_preview)
         x0s = x / self.x_scale
+        lo, hi = np.array([s.feed_tph_min, s.speed_min]), np.array([s.feed_tph_max, s.speed_max])
+        outside = not np.all((lo <= u_prev) & (u_prev <= hi))
+        if outside:  # no move from outside the bounds meets both bounds and rate limits: the QP
+            note = (f"input_outside_bounds: applied {u_prev.tolist()} outside [{lo.tolist()}, {hi.tolist()}]; "
+                    "planned from its projection (the first move jumps into the bounds); ")
+            u_prev = np.clip(u_prev, lo, hi)  # would be infeasible on every sample
         w0, lam_g0, lam_x0 = self._initial_guess(x0s, u_prev)
         if not math.isfinite(p80_bias_um) or p80_bias_um >= s.target_p80_um:
             raise MpcInputError(f"The 'p80_bias_um' parameter must be finite and below the target "
@@ -681,6 +687,8 @@ class Controller:
             wopt = np.asarray(sol["x"], float).ravel()
             if not np.all(np.isfinite(wopt)):
                 ok, status = False, "non-finite solution"
+        if outside:
+            status = note + status
         if not ok:
             return self._fallback(status, iters, dt_solve, u_prev)
         self._w_prev = wopt

@@ -173,11 +173,17 @@ static int fallback(gt_controller *c, const double *u_prev, double *u) {
     return GT_STEP_HOLD_INPUT;
 }
 
-int gt_controller_step(gt_controller *c, const double *preview, const double *u_applied, double *u) {
+int gt_controller_step(gt_controller *c, const double *preview, const double *u_given, double *u) {
     double x0s[GT_NX], h = GT_HAS_HARDNESS ? c->z[GT_NX] : GT_HARDNESS0;
-    double *p = c->p, bias = controller_p80_bias(c);
+    double *p = c->p, bias = controller_p80_bias(c), u_applied[GT_NU];
     const double *wpass = gt_wpass;
     int k, i, it, n_it = GT_RTI_ITERATIONS, ok = n_it > 0;
+    for (i = 0; i < GT_NU; ++i) { /* mpc.Controller.make_step: refused, or projected onto the bounds */
+        if (!isfinite(u_given[i])) return GT_STEP_BAD_INPUT;
+        u_applied[i] = clip(u_given[i], gt_u_lo[i], gt_u_hi[i]);
+    }
+    for (i = 0; i < (GT_PREVIEW ? GT_N : 1) * GT_NB; ++i)
+        if (!isfinite(preview[i])) return GT_STEP_BAD_INPUT;
     if (!isfinite(bias) || bias >= GT_TARGET_P80_UM) { /* mpc.Controller.make_step refuses it */
         u[0] = u_applied[0];
         u[1] = u_applied[1];

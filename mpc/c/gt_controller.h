@@ -17,9 +17,13 @@ enum gt_step_status {
     GT_STEP_OK = 0,           /* the QP solved; u is the plan's first move */
     GT_STEP_SHIFTED_PLAN = 1, /* the QP failed; u is the previous plan shifted by one sample */
     GT_STEP_HOLD_INPUT = 2,   /* the QP failed and no plan is left; u = u_applied */
-    GT_STEP_BAD_BIAS = 3      /* the estimated P80 bias is not finite or not below the target (the
+    GT_STEP_BAD_BIAS = 3,     /* the estimated P80 bias is not finite or not below the target (the
                                  Python controller raises); nothing solved, u = u_applied */
+    GT_STEP_BAD_INPUT = 4     /* u_applied or the preview holds a NaN or an infinity (the Python
+                                 controller raises); nothing solved, u left as it was */
 };
+/* u_applied outside the bounds gt_u_lo/gt_u_hi is planned from its projection onto them, as in
+ * mpc.Controller.make_step (status input_outside_bounds there): the first move jumps into them */
 
 gt_controller *gt_controller_new(void);
 void gt_controller_free(gt_controller *c);

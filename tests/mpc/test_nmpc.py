@@ -89,6 +89,20 @@ def test_max_iter_zero_fails_to_hold_input(ctrl_twin, solver):
     assert "Maximum_Iterations" in r.status
 
 
+def test_an_applied_input_outside_the_bounds_is_planned_from_its_projection(setup):
+    """After a manual period at 50 t/h (bounds 20-45, 0.5 t/h per sample) no first move met both
+    the bounds and the rate limit: the QP was infeasible on every sample and the input held at
+    50 for ever. Now planned from the projection onto the bounds, and said in the status."""
+    ctrl, ss = setup
+    ctrl.reset()
+    s = ctrl.settings
+    r = ctrl.make_step(ss.x, ctrl.model.d_vector([1.0, 0.0]), np.array([50.0, 0.70]))
+    assert r.success and "input_outside_bounds" in r.status and "[50.0, 0.7]" in r.status
+    assert s.feed_tph_max - s.feed_rate_max_tph_per_h * s.dt_h - 1e-6 <= r.u_applied[0] <= s.feed_tph_max + 1e-6
+    r = ctrl.make_step(ss.x, ctrl.model.d_vector([1.0, 0.0]), r.u_applied)
+    assert r.success and "input_outside_bounds" not in r.status
+
+
 def test_unreachable_target_is_reported(setup):
     ctrl, ss = setup
     ctrl.reset()

@@ -54,7 +54,7 @@ class Recording:
 def _replay_first_hour(scene_path: Path, out: Path, monkeypatch):
     """Export the scene's controller to ``out``, build it, record the Python closed loop's first
     hour (on the same compiled C) and replay it through gt_replay; ``(python moves, C moves, C
-    statuses, allocations in estimate/step)``."""
+    statuses, allocations in estimate/step, gt_replay's answers to a NaN and an out-of-bounds input)``."""
     cc = codegen.find_compiler()
     if cc is None or shutil.which("make") is None:
         pytest.skip("no C compiler or make on this machine")
@@ -84,14 +84,24 @@ def _replay_first_hour(scene_path: Path, out: Path, monkeypatch):
     moves = np.array([[float(v) for v in ln.split()[2:4]] for ln in lines if ln.startswith("U ")])
     status = [int(ln.split()[1]) for ln in lines if ln.startswith("U ")]
     allocs = [int(ln.split()[1]) for ln in lines if ln.startswith("M ")]
-    return py, moves, status, allocs
+    # a NaN input, and an applied input outside the bounds (as after a manual period): refused
+    # with its own status (the C returned NaN moves), and planned from the projection
+    c_line = next(ln for ln in log if ln.startswith("C "))
+    blend = c_line.split()[3:]
+    bad = [*log[:log.index(c_line)], " ".join(["C", "nan", "0.7", *blend]), " ".join(["C", "1000", "5.0", *blend])]
+    odd = subprocess.run([str(out / "gt_replay")], input="\n".join(bad) + "\n", capture_output=True, text=True,
+                         check=True).stdout.split("\n")
+    return py, moves, status, allocs, [ln.split() for ln in odd if ln.startswith("U ")]
 
 
 @pytest.mark.slow
 def test_exported_controller_replays_the_reference_hour_like_python(tmp_path, monkeypatch):
     out = tmp_path / "ctl"
-    py, moves, status, allocs = _replay_first_hour(REFERENCE, out, monkeypatch)
+    py, moves, status, allocs, odd = _replay_first_hour(REFERENCE, out, monkeypatch)
     assert status == [0] * len(py)
+    assert odd[0][1] == "4"  # GT_STEP_BAD_INPUT
+    lo, hi = [20.0, 0.6], [45.0, 0.85]  # the reference scene's controller bounds
+    assert odd[1][1] == "0" and all(a <= float(v) <= b for a, v, b in zip(lo, odd[1][2:4], hi))
     assert moves.shape == py.shape
     assert np.max(np.abs(moves / py - 1.0)) <= 1e-9
     assert np.ptp(py[:, 0]) > 1e-3  # the hour moves the feed: the comparison can fail
@@ -156,7 +166,7 @@ def test_exported_controller_with_a_p80_bias_and_gain_replays_like_python(tmp_pa
     biases = []
     bias_of = Ekf.controller_p80_bias_um
     monkeypatch.setattr(Ekf, "controller_p80_bias_um", lambda self, t: biases.append(bias_of(self, t)) or biases[-1])
-    py, moves, status, allocs = _replay_first_hour(scene, tmp_path / "ctl", monkeypatch)
+    py, moves, status, allocs, _ = _replay_first_hour(scene, tmp_path / "ctl", monkeypatch)
     assert status == [0] * len(py) and allocs == [0]
     assert np.max(np.abs(moves / py - 1.0)) <= 1e-9
     assert min(abs(b) for b in biases[-len(py):]) > 1e-3  # the weights moved on every step
