@@ -12,15 +12,27 @@ import pandas as pd
 P80_BAND_UM = 10.0
 
 
+def _samples(time_h, rate) -> tuple[np.ndarray, np.ndarray]:
+    """``(t, r)`` as arrays: one rate per time, times strictly increasing (else ValueError: a
+    shorter rate or a shuffled time gave a wrong integral silently)."""
+    t, r = np.asarray(time_h, float).ravel(), np.asarray(rate, float)
+    r = np.full(t.shape, float(r)) if r.ndim == 0 else r.ravel()
+    if t.shape != r.shape:
+        raise ValueError(f"a KPI integral needs one rate per time: got {t.size} times and {r.size} rates")
+    if t.size > 1 and not np.all(np.diff(t) > 0):
+        raise ValueError("a KPI integral needs strictly increasing times")
+    return t, r
+
+
 def integral(time_h, rate) -> float:
     """Integral of a sampled rate over time (trapezoidal) [rate x h]."""
-    t, r = np.asarray(time_h, float), np.asarray(rate, float)
+    t, r = _samples(time_h, rate)
     return float(np.sum(0.5 * (r[1:] + r[:-1]) * np.diff(t))) if t.size > 1 else 0.0
 
 
 def cumulative(time_h, rate) -> np.ndarray:
     """The integral of a sampled rate from the first sample to every sample (trapezoidal)."""
-    t, r = np.asarray(time_h, float), np.asarray(rate, float)
+    t, r = _samples(time_h, rate)
     return np.concatenate([[0.0], np.cumsum(0.5 * (r[1:] + r[:-1]) * np.diff(t))])
 
 
@@ -30,14 +42,15 @@ def p80_iae_um_h(time_h, p80_um, target_p80_um) -> float:
 
 
 def within_band_frac(p80_um, target_p80_um, band_um: float = P80_BAND_UM) -> float:
-    """Share of samples with |P80 - target| <= ``band_um``."""
+    """Share of samples with |P80 - target| <= ``band_um`` (a NaN P80 counts as outside)."""
     return float(np.mean(np.abs(np.asarray(p80_um, float) - np.asarray(target_p80_um, float)) <= band_um))
 
 
 def outside_band_frac(load_frac, band) -> float:
-    """Share of samples whose load (hold-up over nominal) lies outside ``band = (lo, hi)``."""
+    """Share of samples whose load (hold-up over nominal) lies outside ``band = (lo, hi)`` (a NaN
+    load counts as outside, as a NaN P80 does in :func:`within_band_frac`)."""
     load = np.asarray(load_frac, float)
-    return float(np.mean((load < band[0]) | (load > band[1])))
+    return float(np.mean(~((load >= band[0]) & (load <= band[1]))))
 
 
 def loop_kpis(frame: pd.DataFrame, load_band=(0.8, 1.2)) -> dict:
