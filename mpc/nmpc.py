@@ -101,6 +101,10 @@ HPIPM_INF = 1e4
 HPIPM_MODES = ("robust", "balance", "speed")
 
 
+#: IPOPT's Hessians (NmpcSettings.hessian)
+HESSIANS = ("exact", "limited-memory")
+
+
 @dataclass
 class NmpcSettings:
     """Settings of :class:`Controller` (units in the names; time in hours)."""
@@ -195,10 +199,18 @@ class NmpcSettings:
         if self.move_block > self.horizon_steps:
             bad("move_block", f"an int in [1, horizon_steps = {self.horizon_steps}]")
         for name in ("target_p80_um", "dt_h", "feed_rate_max_tph_per_h", "speed_rate_max_per_h",
-                     "tol", "power_max_kw"):
+                     "tol", "power_max_kw"):  # power_max_kw may be inf (no limit); the others finite
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and v > 0 and not math.isnan(v)):
-                bad(name, "a float > 0")
+            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 and not math.isnan(v)
+                    and (math.isfinite(v) or name == "power_max_kw")):
+                bad(name, "a finite float > 0" if name != "power_max_kw" else "a float > 0 (inf: no limit)")
+        for name in ("warm_start", "preview"):  # "false" is a true string
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                bad(name, "True or False")
+        if self.hessian not in HESSIANS:
+            bad("hessian", f"one of {HESSIANS}")
+        if not (math.isfinite(self.feed_tph_max) and math.isfinite(self.feed_tph_min)):
+            bad("feed_tph_max", "finite")
         for name in ("weight_p80", "weight_du_feed", "weight_du_speed", "weight_energy",
                      "load_penalty_lin", "load_penalty_quad", "power_penalty_lin",
                      "power_penalty_quad", "unreachable_tol_frac"):

@@ -23,6 +23,13 @@ def test_settings_errors_name_field_value_allowed():
         NmpcSettings(horizon_steps=0)
     with pytest.raises(MpcInputError, match="move_block"):
         NmpcSettings(horizon_steps=3, move_block=5)
+    # accepted before and wrong: "false" switched the preview on, an unknown Hessian, infinities
+    for kw, name in (({"preview": "false"}, "preview"), ({"warm_start": "no"}, "warm_start"),
+                     ({"hessian": "bogus"}, "hessian"), ({"dt_h": float("inf")}, "dt_h"),
+                     ({"target_p80_um": True}, "target_p80_um"), ({"feed_tph_max": float("inf")}, "feed_tph_max")):
+        with pytest.raises(MpcInputError, match=f"'{name}'"):
+            NmpcSettings(**kw)
+    assert NmpcSettings(power_max_kw=float("inf")).power_max_kw == float("inf")  # no limit, as documented
 
 
 def test_bounds_rate_limits_and_blocking_hold(setup):
