@@ -166,8 +166,10 @@ class PlantServer(Stoppable):
         server.subscribe_server_callback(CallbackType.PostWrite, self._on_write)
         self.server = server
         await asyncio.to_thread(self._build_integrators)
-        if not self.published:
-            self._publish(self._measure(), self.clock.now())
+        if not self.published:  # the first sample, recorded too: the KPIs integrate from it
+            vals = self._measure()
+            self._publish(vals, self.clock.now())
+            self._record(vals)
         for role, dv in self.published.items():
             await server.write_attribute_value(ua.NodeId.from_string(self._node_ids[role]), dv)
         await server.start()

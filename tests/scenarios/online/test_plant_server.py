@@ -165,4 +165,8 @@ def test_a_paused_plant_runs_at_the_speed_up_written_with_run(small_scene, small
         await asyncio.wait_for(serving, 30)  # before the re-timing: the 180 s sample ran out first
 
     asyncio.run(go())
-    assert p.t_h == pytest.approx(3 * small_scene.scene.sample_period_h) and len(p.rows) == 3
+    assert p.t_h == pytest.approx(3 * small_scene.scene.sample_period_h) and len(p.rows) == 4
+    # the record starts at the first sample, t = 0 (it had no row there without --hold-h, and its KPIs
+    # left out the first sample: throughput one sample short of what the plant produced)
+    assert [r["time_h"] for r in p.rows] == pytest.approx([0.0, *(k * small_scene.scene.sample_period_h
+                                                                   for k in (1, 2, 3))])
