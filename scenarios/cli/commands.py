@@ -599,6 +599,10 @@ def cmd_steady(args) -> int:
         notes += [n for n in [centrifuging_note(kpis.get("speed_frac_critical") or 0.0)] if n]
     else:
         notes += ss.notes + circuit_notes(twin, args.mill)
+    if calibration.breakage_map == "dem":  # the ore lines below print a textural index it does not read
+        notes.append("the dem calibration's breakage map reads each ore's hardness index, elastic modulus and "
+                     "density (twin.calibration.dem_map); its texture (the textural index) does not enter: "
+                     "--calibration table maps texture too")
     if args.json:
         mineralogy = {o.name: {"wt_pct": o.wt_pct, **o.summary()} for o in blend.ores}
         print(json.dumps({"mill": args.mill, "blend": dict(zip(blend.names, blend.fractions)),

@@ -172,3 +172,28 @@ def test_a_slurry_past_jamming_is_said(capsys, clay_ore):
     assert len(jam) == 1 and f"past the {limit:.0%} at which it jams" in jam[0] and "holds 90% clay" in jam[0]
     assert main(["steady", "--ore", "D", "--feed-tph", "0.031", "--json"]) == 0
     assert not any("jams" in n for n in json.loads(capsys.readouterr().out)["notes"])
+
+
+
+def test_steady_says_the_dem_calibration_does_not_read_texture(tmp_path, capsys):
+    """Two ores that differ only in grain size (10 vs 1000 um) give one P80 under the dem
+    calibration, whose map reads hardness, modulus and density; steady printed their textural
+    indices and said nothing. The table calibration maps texture: different P80s, no such note."""
+    b = {"mineralogy": {"quartz": 40.0, "k_feldspar": 12.0, "plagioclase": 6.0, "biotite": 18.0, "chlorite": 2.0,
+                        "kaolinite": 4.0, "illite": 3.0, "pyrite": 11.0, "chalcopyrite": 4.0}}
+    paths = []
+    for g in (10, 1000):
+        (tmp_path / f"g{g}").mkdir()
+        p = tmp_path / f"g{g}" / "ore.toml"
+        p.write_text("[mineralogy]\n" + "".join(f"{k} = {v}\n" for k, v in b["mineralogy"].items())
+                     + f"[texture]\nmean_grain_um = {g}.0\nuniformity = 0.6\nassociation_entropy = 0.55\n")
+        paths.append(p)
+    p80 = {}
+    for cal in ("dem", "table"):
+        for p in paths:
+            assert main(["steady", "--ore", str(p), "--feed-tph", "0.031", "--speed", "0.7", "--json",
+                         "--calibration", cal]) == 0
+            out = json.loads(capsys.readouterr().out)
+            p80[cal, p.parent.name] = out["p80_um"]
+            assert any("texture" in n and "does not enter" in n for n in out["notes"]) == (cal == "dem")
+    assert p80["dem", "g10"] == p80["dem", "g1000"] and p80["table", "g10"] != p80["table", "g1000"]
