@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
 from pathlib import Path
 
@@ -128,15 +129,22 @@ def _generate(fns, name: str, folder: Path) -> None:
 def check_out_dir(out) -> None:
     """Refuse a folder that is not empty and not a previous export (nothing written)."""
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise MpcInputError(f"--out {out}: exists and is not a folder.")
+    if out.is_symlink():  # an export replaces the folder as a whole: the link would be in the way
+        raise MpcInputError(f"--out {out}: is a symbolic link (to {os.readlink(out)}); give the folder itself.")
+    if any(p.exists() and not p.is_dir() for p in (out, *out.parents)):
+        raise MpcInputError(f"--out {out}: {next(p for p in (out, *out.parents) if p.exists() and not p.is_dir())} "
+                            "exists and is not a folder.")
     if out.is_dir() and any(out.iterdir()):
         man = out / MANIFEST
         if not man.is_file():
             raise MpcInputError(f"--out {out}: the folder is not empty and holds no {MANIFEST} (not an "
                                 f"export of ours); choose an empty or new folder.")
-        data = json.loads(man.read_text())
-        listed = set(data.get("files", [])) | set(data.get("build_products", []))
+        try:
+            data = json.loads(man.read_text())
+            listed = set(data.get("files", [])) | set(data.get("build_products", []))
+        except (ValueError, AttributeError, TypeError):
+            raise MpcInputError(f"--out {out}: its {MANIFEST} is not one this export wrote (not readable as an "
+                                "export's file list); choose another folder.") from None
         foreign = sorted(p.name for p in out.iterdir() if p.name not in listed)
         if foreign:
             raise MpcInputError(f"--out {out}: holds files this export did not write ({', '.join(foreign[:5])}); "

@@ -127,6 +127,8 @@ def _remove_ours(folder: Path, names=None) -> bool:
 
 
 def _check_place(final: Path, protect: tuple[Path, ...]) -> None:
+    if final.is_symlink():  # a result replaces DIR as a whole: the link would be renamed away
+        raise _refuse(final, f"it is a symbolic link (to {os.readlink(final)}); give the folder itself")
     here = Path.cwd().resolve()
     target = final.resolve()
     if target == here or target in here.parents:

@@ -137,6 +137,24 @@ def test_export_refuses_a_foreign_folder_and_writes_nothing(tmp_path, capsys):
     assert not (tmp_path / "theirs.partial").exists()
 
 
+def test_export_refuses_a_link_a_file_in_the_path_and_a_foreign_manifest(tmp_path, capsys):
+    """A symbolic link to a folder (export failed after the build, leaving a hidden partial
+    folder), a file where a parent folder should be (failed after the build), and a manifest that
+    is not an export's (a traceback): each refused first, with exit 2, and nothing written."""
+    (tmp_path / "real").mkdir()
+    (tmp_path / "link").symlink_to(tmp_path / "real")
+    (tmp_path / "afile").write_text("x")
+    (tmp_path / "odd").mkdir()
+    (tmp_path / "odd" / "grindtwin_export.json").write_text("{not json")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    for out, words in ((tmp_path / "link", "symbolic link"), (tmp_path / "afile" / "x", "is not a folder"),
+                       (tmp_path / "odd", "not one this export wrote")):
+        assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert words in err and "Traceback" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before and not any((tmp_path / "real").iterdir())
+
+
 def test_export_refuses_a_controller_it_cannot_export(tmp_path, capsys):
     scene = tmp_path / "pi.toml"
     scene.write_text(REFERENCE.read_text().replace('kind = "nmpc"', 'kind = "pi"'))

@@ -124,6 +124,17 @@ def test_a_users_lock_file_beside_out_is_refused_and_kept(tmp_path, capsys, no_w
     assert lock.read_text() == "version = 1\n" and not (tmp_path / "uv").exists()
 
 
+def test_an_out_that_is_a_symbolic_link_is_refused_before_the_run(tmp_path, capsys, no_work):
+    """A link to an empty folder failed after the run ('Not a directory', nothing saved); a link
+    to an earlier result was renamed away and replaced by a folder. Both refused first, link kept."""
+    (tmp_path / "real").mkdir()
+    (tmp_path / "link").symlink_to(tmp_path / "real")
+    scene = short_pyrite_scene(tmp_path, duration_h=0.25)
+    assert grindtwin(["run", scene, "--out", tmp_path / "link", "--quiet"]) == 2
+    assert "symbolic link" in capsys.readouterr().err
+    assert (tmp_path / "link").is_symlink() and not any((tmp_path / "real").iterdir())
+
+
 def test_a_lock_left_by_a_killed_run_is_taken_over(tmp_path, no_work):
     """A run killed with -9 leaves its DIR.lock (no flock held any more): the next run takes it."""
     from scenarios.output.write import LOCK_TAG, OutputClaim
