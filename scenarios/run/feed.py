@@ -45,6 +45,27 @@ def mineralogy_to_blend(wt_pct: pd.DataFrame, ores: dict) -> tuple[np.ndarray, n
     return fracs, resid
 
 
+#: NNLS residual [wt%, Euclidean over the minerals] above which a recorded mineralogy is not a mix
+#: of the scene's ores: several times the residual of the shipped day's history (max 0.9 wt%),
+#: whose assays are mixes of the ores plus noise; a mineral the ores lack moves it by its wt%.
+FIT_RESIDUAL_WARN_WT_PCT = 5.0
+def fit_warnings(feed: pd.DataFrame, components: list[str]) -> list[str]:
+    """A warning when a mineralogy history's samples are not mixes of the ores (the feed table's
+    ``history_fit_residual_wt_pct`` above :data:`FIT_RESIDUAL_WARN_WT_PCT`): the simulated feed is
+    not the recorded one there."""
+    if "history_fit_residual_wt_pct" not in feed.columns:
+        return []
+    resid = feed["history_fit_residual_wt_pct"].to_numpy(float)
+    misfit = resid > FIT_RESIDUAL_WARN_WT_PCT
+    if not misfit.any():
+        return []
+    t = feed["time_h"].to_numpy(float)
+    return [f"the recorded mineralogy is not a mix of the ores {', '.join(components)} on {misfit.mean():.0%} of the "
+            f"samples (from {t[misfit][0]:.4g} h; NNLS residual up to {resid.max():.3g} wt%, above "
+            f"{FIT_RESIDUAL_WARN_WT_PCT:g}): the simulated feed is not the recorded one there; add an ore that holds "
+            "the missing minerals"]
+
+
 def feed_schedule(scene: Scene, components: list[str], times_h: np.ndarray, ores: dict | None = None
                   ) -> tuple[pd.DataFrame, list[str]]:
     """The feed on the sample grid: columns ``ore_<c>_frac`` per component, the recorded

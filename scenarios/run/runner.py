@@ -50,7 +50,7 @@ from scenarios.errors import SceneError
 from scenarios.output import claim_output, write_files
 from scenarios.run.batch import run_batch
 from scenarios.run.closed_loop import run_closed
-from scenarios.run.feed import feed_schedule
+from scenarios.run.feed import feed_schedule, fit_warnings
 from scenarios.run.kpis import compute_kpis
 from scenarios.run.models import build_models, component_ores, is_batch
 from scenarios.run.open_loop import run_open_loop
@@ -133,7 +133,7 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
         frame, sizes, extra = run_closed(scene, models, feed, progress)
     psd = sizes["psd"]
     notes += extra.pop("notes", [])
-    warnings_ = extra.pop("warnings", [])
+    warnings_ = fit_warnings(feed, models.components) + extra.pop("warnings", [])
     health = extra.get("controller_health")
     for c in feed.columns:
         if c.startswith("recorded_") or c == "history_fit_residual_wt_pct":

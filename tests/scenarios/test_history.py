@@ -190,3 +190,29 @@ def test_replay_refuses_a_history_recorded_in_percent_of_critical(tmp_path, caps
     err = capsys.readouterr().err
     assert "speed 70 is outside (0, 1): fraction of critical expected, not percent" in err
     assert "data rows 1, 2, 3" in err and "Traceback" not in err and not out.exists()
+
+
+def test_a_recorded_mineralogy_the_ores_cannot_mix_is_a_warning():
+    """The shipped day's assays are mixes of the ores A-D (NNLS residual below 1 wt%): no warning.
+    Add 30 wt% of a mineral none of them holds (magnetite) from the second hour, the ores kept in
+    proportion: the residual jumps and the run warns (it was a note only, under KPIs computed on
+    a feed that is not the recorded one)."""
+    from scenarios.run.feed import feed_schedule, fit_warnings, mineralogy_to_blend
+    from scenarios.run.models import build_models, component_ores
+
+    scene = load_scene(ROOT / "scenarios" / "replay_day.toml")
+    models = build_models(scene)
+    times = scene.time_grid_h()[:41]  # two hours
+    feed, _ = feed_schedule(scene, models.components, times)
+    assert fit_warnings(feed, models.components) == []
+    history = read_history(ROOT / "scenarios" / "data" / "sample_history.csv", scene.scene.sample_period_h)
+    frame = history.frame.copy()
+    wt = [c for c in frame.columns if c.endswith("_wt_pct")]
+    frame = frame[frame.index < 2.0]
+    late = frame.index >= 1.0  # hours
+    frame.loc[late, wt] *= 0.7
+    frame["magnetite_wt_pct"] = np.where(late, 30.0, 0.0)
+    _, resid = mineralogy_to_blend(frame[[*wt, "magnetite_wt_pct"]], component_ores(scene))
+    table = pd.DataFrame({"time_h": frame.index, "history_fit_residual_wt_pct": resid})
+    (warning,) = fit_warnings(table, models.components)
+    assert "not a mix of the ores A, B, C, D" in warning and "from 1 h" in warning
