@@ -20,3 +20,14 @@ class Interrupted(BaseException):
     def __init__(self, signum: int):
         super().__init__(f"signal {signum}")
         self.signum = signum
+
+
+#: Signals the command's handler received (scenarios.cli.commands): a signal that lands inside a
+#: CasADi call can come out of it swallowed, the run going on; a result is then not committed.
+RECEIVED_SIGNALS: list[int] = []
+
+
+def raise_if_interrupted() -> None:
+    """Raise :class:`Interrupted` if a signal was received, even one a solver call swallowed."""
+    if RECEIVED_SIGNALS:
+        raise Interrupted(RECEIVED_SIGNALS[0])

@@ -17,7 +17,7 @@ import sys
 import threading
 from pathlib import Path
 
-from scenarios.errors import Interrupted, RunError, SceneError
+from scenarios.errors import RECEIVED_SIGNALS, Interrupted, RunError, SceneError
 
 
 def _fail(kind: str, command: str, exc: BaseException) -> int:
@@ -101,7 +101,8 @@ def _exit_codes(command: str):
     def wrap(fn):
         @functools.wraps(fn)
         def inner(args) -> int:
-            received: list[int] = []
+            received = RECEIVED_SIGNALS  # shared with the output's commit, which then writes nothing
+            received.clear()
             try:
                 with _signals_unwind(received):
                     return fn(args)

@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.errors import RunError, SceneError
+from scenarios.errors import RunError, SceneError, raise_if_interrupted
 from scenarios.output.plots import PLOTS, SWEEP_PLOT, write_plots
 from scenarios.output.workbook import PSD_FILES, RUN_WORKBOOK, STREAMS_FILE, SWEEP_WORKBOOK, write_size_csvs, write_workbook
 
@@ -243,12 +243,15 @@ class OutputClaim:
     # ------------------------------------------------------------------ commit
     def commit(self, write_files: Callable[[Path], None], kind: str = "run") -> Path:
         """Write the files (``write_files(partial_folder)``), the manifest, and put the folder
-        in place of ``DIR`` (a previous grindtwin result there is replaced as a whole)."""
+        in place of ``DIR`` (a previous grindtwin result there is replaced as a whole), unless a
+        signal came during the run (:func:`scenarios.errors.raise_if_interrupted`)."""
+        raise_if_interrupted()
         write_files(self.partial)
         files = sorted(p.name for p in self.partial.iterdir() if p.name != INCOMPLETE_MARKER)
         manifest = {"written_by": "grindtwin", "kind": kind, "files": files,
                     "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
         (self.partial / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n", encoding="utf-8")
+        raise_if_interrupted()
         (self.partial / INCOMPLETE_MARKER).unlink()
         self._replace_final()
         return self.final

@@ -135,6 +135,21 @@ def test_an_out_that_is_a_symbolic_link_is_refused_before_the_run(tmp_path, caps
     assert (tmp_path / "link").is_symlink() and not any((tmp_path / "real").iterdir())
 
 
+def test_a_signal_a_solver_swallowed_still_stops_the_commit(tmp_path, no_work):
+    """SIGTERM landing inside a CasADi call can come out of it swallowed: the run went on and
+    wrote its results with exit 0 (seen once in the suite). The handler's record stops the commit."""
+    from scenarios.errors import RECEIVED_SIGNALS, Interrupted
+    from scenarios.output.write import OutputClaim
+
+    RECEIVED_SIGNALS[:] = [15]
+    try:
+        with pytest.raises(Interrupted), OutputClaim(tmp_path / "out") as claim:
+            claim.commit(lambda folder: (folder / "summary.json").write_text("{}"))
+    finally:
+        RECEIVED_SIGNALS.clear()
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_lock_left_by_a_killed_run_is_taken_over(tmp_path, no_work):
     """A run killed with -9 leaves its DIR.lock (no flock held any more): the next run takes it."""
     from scenarios.output.write import LOCK_TAG, OutputClaim
