@@ -89,6 +89,12 @@ def test_calibrate_refuses_to_overwrite_a_file_it_did_not_write(tmp_path, capsys
     assert "Refusing to overwrite" in capsys.readouterr().err and foreign.read_text() == '{"mine": true}'
     assert main(["calibrate", "--map", "mineralogy", "--from", "dem", "--out", str(tmp_path / "x.json")]) == 2
     assert not (tmp_path / "x.json").exists()
+    # options of the DEM chain with --map mineralogy were recorded in the file's provenance, unused
+    capsys.readouterr()
+    assert main(["calibrate", "--map", "mineralogy", "--fast", "--seed", "5", "--out", str(tmp_path / "x.json")]) == 2
+    assert "--fast, --seed: options of the DEM chain" in capsys.readouterr().err
+    assert main(["calibrate", "--seed", "-5", "--out", str(tmp_path / "x.json")]) == 2
+    assert "--seed must be >= 0" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
 
 
 def test_a_fast_calibration_warns_in_one_line_on_the_command_line(tmp_path):

@@ -119,8 +119,14 @@ def calibrate(args: argparse.Namespace) -> int:
     out = check_writable(args.out if args.out is not None else default_output_path(name))
     if args.replicates is not None and args.replicates < 0:
         raise TwinInputError(f"--replicates must be >= 0. Got {args.replicates}.")
-    if args.map == "mineralogy" and args.source:
-        raise TwinInputError("--from reuses a DEM step; it cannot be combined with --map mineralogy.")
+    if args.map == "mineralogy":  # no DEM, no bootstrap: these options would be recorded, not used
+        given = [o for o, v in (("--from", args.source), ("--fast", args.fast), ("--seed", args.seed or None),
+                                ("--replicates", args.replicates)) if v]
+        if given:
+            raise TwinInputError(f"{', '.join(given)}: option{'s' * (len(given) > 1)} of the DEM chain; --map "
+                                 "mineralogy runs no DEM and no bootstrap (allowed with it: --out, --name, --quiet).")
+    if args.seed < 0:
+        raise TwinInputError(f"--seed must be >= 0 (numpy's seeds). Got {args.seed}.")
     source = load_calibration(args.source) if args.source else None
     if source is not None and "dem" not in source.record:
         raise TwinInputError(f"--from {args.source}: calibration {source.label()} has no DEM step.")
