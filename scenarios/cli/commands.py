@@ -655,7 +655,8 @@ def add_optimize_parser(subparsers):
     o.add_argument("--target-p80-um", required=True, type=_float_in("--target-p80-um", 1.0, 1e4))
     o.add_argument("--mill", default="lab", choices=["lab", "industrial"])
     o.add_argument("--mode", default="both", choices=["both", "feed", "speed"], help="which answer to pick")
-    o.add_argument("--objective", default="min_energy", choices=["min_energy", "max_throughput"])
+    o.add_argument("--objective", default=None, choices=["min_energy", "max_throughput"],
+                   help="with --mode both (default min_energy): one input alone has one answer")
     o.add_argument("--json", action="store_true", help="print the answer and the table as JSON")
     _add_calibration_option(o)
     o.set_defaults(func=cmd_optimize)
@@ -669,12 +670,15 @@ def cmd_optimize(args) -> int:
     from mpc import MpcInputError, optimal_setpoints
     from twin import Blend, Twin, load_ore
 
+    if args.objective is not None and args.mode != "both":
+        raise SceneError(f"--objective {args.objective}: with --mode {args.mode} one input holds the target and "
+                         "there is one answer; --objective chooses among --mode both's")
     blend = Blend.parse(args.blend) if args.blend else Blend.single(load_ore(args.ore))
     twin = Twin(blend, mill=args.mill, calibration=_calibration_arg(args.calibration))
     lo, hi = (f * twin.mill.feed_nominal_tph for f in OPTIMIZE_FEED_RANGE)
     try:
         sp = optimal_setpoints(twin, list(blend.fractions), args.target_p80_um, mode=args.mode,
-                               objective=args.objective, feed_bounds_tph=(lo, hi))
+                               objective=args.objective or "min_energy", feed_bounds_tph=(lo, hi))
     except MpcInputError as exc:
         raise SceneError(str(exc)) from None
     table = sp.table
@@ -686,7 +690,8 @@ def cmd_optimize(args) -> int:
         from scenarios.output.write import json_safe
 
         print(json.dumps(json_safe({"feasible": sp.feasible, "message": sp.message, "mode": sp.mode,
-                                    "objective": sp.objective, "feed_tph": sp.feed_tph,
+                                    "objective": sp.objective if args.mode == "both" else None,
+                                    "feed_tph": sp.feed_tph,
                                     "speed_frac_critical": sp.speed_frac_critical, "p80_um": sp.p80_um,
                                     "specific_energy_kwh_t": sp.specific_energy_kwh_t, "load_frac": sp.load_frac,
                                     "power_kw": sp.power_kw, "table": json.loads(table.to_json(orient="records")),

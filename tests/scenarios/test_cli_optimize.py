@@ -39,3 +39,10 @@ def test_an_answer_whose_slurry_jams_is_said(capsys, clay_ore):
     assert any("jams" in n for n in json.loads(capsys.readouterr().out)["notes"])
     assert main(["optimize", "--ore", "B", "--target-p80-um", "150", "--json"]) == 0
     assert not any("jams" in n for n in json.loads(capsys.readouterr().out)["notes"])
+
+
+def test_an_objective_with_one_input_is_refused(capsys):
+    """--mode feed --objective max_throughput was ignored (one input, one answer) and the JSON said
+    max_throughput; refused before any work."""
+    assert main(["optimize", "--target-p80-um", "210", "--mode", "feed", "--objective", "max_throughput"]) == 2
+    assert "--objective max_throughput: with --mode feed" in capsys.readouterr().err
