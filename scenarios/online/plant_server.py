@@ -245,8 +245,14 @@ class PlantServer(Stoppable):
             if ok:
                 self.writes.append((t, i, value))
             else:
-                log.error("%.3f h: %s wrote %s = %r: not a physical setpoint, the plant ignores it",
-                          t, user, role, value)
+                log.error("%.3f h: %s wrote %s = %r: not a physical setpoint, the plant ignores it and its "
+                          "node reads the setpoint in effect again", t, user, role, value)
+                if self.server is not None:  # the write was answered Good (PostWrite): undo it on the node
+                    kept = next((w[2] for w in reversed(self.writes) if w[1] == i), float(self.u[i]))
+                    asyncio.get_running_loop().create_task(self.server.write_attribute_value(
+                        ua.NodeId.from_string(self._node_ids[role]),
+                        ua.DataValue(ua.Variant(kept, ua.VariantType.Double), ua.StatusCode(ua.StatusCodes.Good),
+                                     self.clock.now())))
         elif role == "heartbeat":
             self.heartbeat_seen_h = t
         elif role == "mode":

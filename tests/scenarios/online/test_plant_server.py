@@ -170,3 +170,31 @@ def test_a_paused_plant_runs_at_the_speed_up_written_with_run(small_scene, small
     # left out the first sample: throughput one sample short of what the plant produced)
     assert [r["time_h"] for r in p.rows] == pytest.approx([0.0, *(k * small_scene.scene.sample_period_h
                                                                    for k in (1, 2, 3))])
+
+
+def test_an_ignored_setpoint_does_not_stay_on_its_node(small_scene, small_tags, small_parts, url):
+    """A client writes feed -5 t/h: answered Good (the write is PostWrite) while the plant runs on
+    the setpoint in effect, and the node read back -5, so every reader saw a setpoint the plant
+    does not run. The node now reads the setpoint in effect again."""
+    from asyncua import Client, ua
+
+    p = online.PlantServer(small_scene, small_tags, online.PlantServerSettings(
+        url, online.ServerSecurity(insecure=True), speedup=60.0), models=small_parts.models)
+    node_id = small_tags.setpoints.feed_tph.node
+
+    async def go():
+        serving = asyncio.create_task(p.run(install_signal_handlers=False))
+        while p.server is None or not p.published:
+            await asyncio.sleep(0.01)
+        await asyncio.sleep(0.2)
+        async with Client(url) as client:
+            node = client.get_node(ua.NodeId.from_string(node_id))
+            await node.write_value(ua.DataValue(ua.Variant(-5.0, ua.VariantType.Double)))
+            await asyncio.sleep(0.3)
+            back = await node.read_value()
+        p.request_stop("test end")
+        await serving
+        return back
+
+    back = asyncio.run(go())
+    assert back == pytest.approx(float(p.u[0])) and back > 0 and p.writes == []
