@@ -199,11 +199,11 @@ class NmpcSettings:
         if self.move_block > self.horizon_steps:
             bad("move_block", f"an int in [1, horizon_steps = {self.horizon_steps}]")
         for name in ("target_p80_um", "dt_h", "feed_rate_max_tph_per_h", "speed_rate_max_per_h",
-                     "tol", "power_max_kw"):  # power_max_kw may be inf (no limit); the others finite
-            v = getattr(self, name)
+                     "tol", "power_max_kw"):  # limits may be inf (none); the others finite
+            v, limit = getattr(self, name), name in ("power_max_kw", "feed_rate_max_tph_per_h", "speed_rate_max_per_h")
             if not (isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 and not math.isnan(v)
-                    and (math.isfinite(v) or name == "power_max_kw")):
-                bad(name, "a finite float > 0" if name != "power_max_kw" else "a float > 0 (inf: no limit)")
+                    and (math.isfinite(v) or limit)):
+                bad(name, "a float > 0 (inf: no limit)" if limit else "a finite float > 0")
         for name in ("warm_start", "preview"):  # "false" is a true string
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 bad(name, "True or False")

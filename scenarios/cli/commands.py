@@ -600,7 +600,10 @@ def cmd_steady(args) -> int:
         notes += [n for n in [centrifuging_note(kpis.get("speed_frac_critical") or 0.0)] if n]
     else:
         notes += ss.notes + circuit_notes(twin, args.mill)
-    if calibration.breakage_map == "dem":  # the ore lines below print a textural index it does not read
+    from twin.ore.ores import reference_ores
+
+    refs = reference_ores()
+    if calibration.breakage_map == "dem" and any(refs.get(o.name) != o for o in blend.ores):  # a user's ore's texture
         notes.append("the dem calibration's breakage map reads each ore's hardness index, elastic modulus and "
                      "density (twin.calibration.dem_map); its texture (the textural index) does not enter: "
                      "--calibration table maps texture too")
