@@ -64,8 +64,9 @@ def water_note(outputs: dict) -> str:
         return ""
     more = ", ".join(f"{k} {float(outputs[k]):.3g}" for k in ("cyclone_pressure_kpa", "cyclone_water_bypass_frac")
                      if k in outputs)
-    return ("the circuit's water balance needs water taken out (" + ", ".join(f"{k} {v:.3g}" for k, v in short.items())
-            + "): no plant runs so; the cyclones' operating point is far from a design's" + (f" ({more})" if more else ""))
+    taken = ", ".join(f"{k} {v:.3g}" for k, v in short.items())
+    return (f"the circuit's water balance needs water taken out ({taken}): no plant runs so; the cyclones' "
+            "operating point is far from a design's" + (f" ({more})" if more else ""))
 
 
 def _clay_crowding(spec, effect_names) -> float | None:

@@ -600,7 +600,7 @@ def cmd_steady(args) -> int:
         notes += [n for n in [centrifuging_note(kpis.get("speed_frac_critical") or 0.0)] if n]
     else:
         notes += ss.notes + circuit_notes(twin, args.mill)
-    from twin.ore.ores import reference_ores
+    from twin import reference_ores
 
     refs = reference_ores()
     if calibration.breakage_map == "dem" and any(refs.get(o.name) != o for o in blend.ores):  # a user's ore's texture

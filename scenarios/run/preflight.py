@@ -78,7 +78,8 @@ def settings_problems(scene: Scene) -> list[str]:
 def model_size_problems(scene: Scene, models) -> list[str]:
     """A batch charge the mill cannot hold, and the controller's NLP if its build is estimated
     above the memory limit."""
-    return _batch_charge_problems(scene, models) + _plant_output_problems(scene, models) + _nlp_size_problems(scene, models)
+    return (_batch_charge_problems(scene, models) + _plant_output_problems(scene, models)
+            + _nlp_size_problems(scene, models))
 
 
 #: What a closed loop reads off its plant every sample (mpc.closed_loop: the sensors and the KPIs)

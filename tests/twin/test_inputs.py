@@ -218,7 +218,7 @@ def test_a_feed_reaching_above_the_grid_is_refused_not_lumped():
     through, 19 %. Now refused naming the share; the default 3.2-mm feed (top particle 4.4 mm)
     is fine. Class fractions with a NaN are refused too (NaN passed both comparisons)."""
     for f80, share in ((20000.0, "66.6%"), (6600.0, "19.0%")):
-        with pytest.raises(TwinInputError, match=f"feed_p80_um {f80:g} with modulus 0.8 puts {share} of the feed above"):
+        with pytest.raises(TwinInputError, match=f"feed_p80_um {f80:g} with modulus 0.8 puts {share} of the feed"):
             Twin("B", feed_p80_um=f80)
     grid = SizeGrid()
     frac = np.full(grid.count, 1.0 / grid.count)
