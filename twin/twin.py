@@ -9,6 +9,8 @@
 
 from __future__ import annotations
 
+import math
+
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -152,7 +154,8 @@ class Twin:
             fr = np.asarray(blend, float)
         if not np.all(np.isfinite(fr)) or abs(fr.sum() - 1.0) > 1e-6 or np.any(fr < 0):
             raise bad_value("Twin", "blend", [float(v) for v in fr], "non-negative fractions summing to 1")
-        return self.model.d_vector(fr, hardness_scale)
+        # divides every breakage rate: 0, negative, NaN or inf made a solver error or a P80 of nothing
+        return self.model.d_vector(fr, check_range("Twin", "hardness_scale", hardness_scale, 0.0, math.inf))
 
 
 def _at_time(fn):

@@ -225,3 +225,12 @@ def test_a_feed_reaching_above_the_grid_is_refused_not_lumped():
     frac[3] = np.nan
     with pytest.raises(TwinInputError, match="feed_psd"):
         Twin("B", feed_psd=frac)
+
+
+def test_a_hardness_scale_that_is_not_a_positive_number_is_refused():
+    """It divides every breakage rate: 0 and NaN made a CasADi NaN error, -1 a 'tighten the
+    tolerances' failure, inf a P80 of 3182 um with only an overflow note."""
+    tw = Twin("B")
+    for h in (0.0, math.nan, -1.0, math.inf):
+        with pytest.raises(TwinInputError, match="'hardness_scale'"):
+            tw.steady(feed_tph=0.031, hardness_scale=h)
