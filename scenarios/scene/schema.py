@@ -22,6 +22,9 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 from mpc import DISTURBANCE_MODELS, QP_SOLVERS, SOLVERS
 from twin import get_mill
 
+#: How far mixer_volume_fracs may sum from 1 (rounded shares such as 0.7, 0.15, 0.15 or three
+#: thirds written 0.33); the twin rescales what is within it.
+MIXER_SHARES_SUM_TOL = 0.01
 #: The twin's default number of mixers in series (twin.Twin's ``n_mixers``).
 DEFAULT_N_MIXERS = 3
 
@@ -116,6 +119,9 @@ class Mill(Section):
         if fracs is not None:
             if any(not f > 0 for f in fracs):
                 raise ValueError(f"mixer_volume_fracs must be positive shares of the hold-up (got {fracs})")
+            if abs(sum(fracs) - 1.0) > MIXER_SHARES_SUM_TOL:  # 1.1 is a slip, not a rounding: say so
+                raise ValueError(f"mixer_volume_fracs must sum to 1 within {MIXER_SHARES_SUM_TOL:g} (shares of the "
+                                 f"hold-up; got {fracs}, sum {sum(fracs):.4g})")
             if self.n_mixers is not None and self.n_mixers != len(fracs):
                 raise ValueError(f"n_mixers = {self.n_mixers} but mixer_volume_fracs has {len(fracs)} shares: "
                                  "give one of them, or both agreeing")

@@ -55,6 +55,12 @@ def test_mixer_shares_and_count_must_agree(write_scene):
     assert any("mixer_volume_fracs has 3" in m for m in check_scene(write_scene(text)))
 
 
+def test_mixer_shares_that_do_not_sum_to_one_are_refused(write_scene):
+    """[0.7, 0.2, 0.2] (sum 1.1) was rescaled to 0.64/0.18/0.18 without a word."""
+    text = BASE_SCENE.replace('preset = "industrial"', 'preset = "industrial"\nmixer_volume_fracs = [0.7, 0.2, 0.2]')
+    assert any("must sum to 1 within 0.01" in m and "sum 1.1" in m for m in check_scene(write_scene(text)))
+
+
 def test_scene_inputs_reach_the_twin_as_written(write_scene, tmp_path):
     (tmp_path / "feed.csv").write_text("size_um,passing_pct\n6700,100\n1700,60\n425,30\n106,12\n")
     text = _with(BREAKAGE).replace("speed_frac_critical = 0.70", 'speed_frac_critical = 0.70\npsd_csv = "feed.csv"')
