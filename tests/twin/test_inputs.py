@@ -234,3 +234,16 @@ def test_a_hardness_scale_that_is_not_a_positive_number_is_refused():
     for h in (0.0, math.nan, -1.0, math.inf):
         with pytest.raises(TwinInputError, match="'hardness_scale'"):
             tw.steady(feed_tph=0.031, hardness_scale=h)
+
+
+def test_an_ore_file_with_a_key_nothing_reads_is_refused(tmp_path):
+    """A bond_wi_kwh_t beside [mineralogy] and [texture] was read by nothing, silently."""
+    from twin.ore.ores import load_ore
+
+    path = tmp_path / "ore.toml"
+    path.write_text("bond_wi_kwh_t = 25.0\n[mineralogy]\nquartz = 100.0\n"
+                    "[texture]\nmean_grain_um = 125.0\nuniformity = 0.6\nassociation_entropy = 0.55\n")
+    with pytest.raises(TwinInputError, match="unknown key bond_wi_kwh_t; allowed: description, mineralogy, texture"):
+        load_ore(path)
+    path.write_text(path.read_text().replace("bond_wi_kwh_t = 25.0\n", 'description = "mine"\n'))
+    assert load_ore(path).name == "ore"

@@ -22,10 +22,19 @@ def reference_ores() -> dict[str, Mineralogy]:
     return {k: _from_table(v, name=k) for k, v in tomllib.loads(text).items()}
 
 
+#: The keys of an ore file (and of each ore in twin/ore/data/ores.toml).
+ORE_FILE_KEYS = ("description", "mineralogy", "texture")
+
+
 def _from_table(table: dict, name: str, where: str = "ores.toml") -> Mineralogy:
     for key in ("mineralogy", "texture"):
         if key not in table:
             raise TwinInputError(f"{where}: ore {name!r} needs a [{key}] table.")
+    unknown = sorted(set(table) - set(ORE_FILE_KEYS))
+    if unknown:  # a bond_wi_kwh_t or a [breakage] here was read by nothing, silently
+        raise TwinInputError(f"{where}: ore {name!r}: unknown key{'s' * (len(unknown) > 1)} {', '.join(unknown)}; "
+                             f"allowed: {', '.join(ORE_FILE_KEYS)} (breakage parameters given directly go in a "
+                             "scene's [ores.NAME.breakage])")
     try:
         texture = Texture(**table["texture"])
     except TypeError as exc:
