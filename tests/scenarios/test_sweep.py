@@ -51,6 +51,17 @@ def test_unknown_key_path_is_refused_with_close_matches(write_scene, key, fragme
     assert fragment in str(info.value)
 
 
+def test_an_effect_option_nested_in_its_table_can_be_swept():
+    """effect_options.classification.cyclone.d50c_um was refused ("not a key ...; allowed: " and
+    nothing): below an effect's options the schema is free-form and the effect checks the keys."""
+    from pathlib import Path
+
+    moly = Path(__file__).resolve().parents[2] / "scenarios" / "molycop_ballsim.toml"
+    cases = expand_cases(read_toml(moly), {"effect_options.classification.cyclone.d50c_um": [150.0, 220.0]})
+    assert [c.data["effect_options"]["classification"]["cyclone"]["d50c_um"] for c in cases] == [150.0, 220.0]
+    assert cases[0].data["effect_options"]["classification"]["cyclone"]["count"] == 6  # the rest kept
+
+
 def test_an_invalid_case_is_refused_before_anything_runs(write_scene):
     with pytest.raises(SceneError) as info:
         run_sweep(write_scene(), {"feed.speed_frac_critical": [0.7, 1.2]}, cheap_kpis,
