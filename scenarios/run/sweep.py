@@ -112,6 +112,11 @@ def expand_cases(scene_dict: dict[str, Any], vary: dict[str, list],
     if not vary:
         raise SceneError("sweep: nothing to vary; give at least one KEY and its values")
     paths = {key: _checked_path(scene_dict, key) for key in vary}
+    idle = [k for k, loc in paths.items() if loc[0] == "controller" and loc[1:] != ("kind",)]
+    kind = (scene_dict.get("controller") or {}).get("kind", "none")
+    if idle and kind == "none" and "controller.kind" not in vary:  # every case the same, said nowhere
+        raise SceneError(f"sweep: {', '.join(idle)}: the scene has no controller (controller.kind = 'none'), so "
+                         "these keys change nothing; vary controller.kind too, or set it in the scene")
     lists = {key: list(values) for key, values in vary.items()}
     for key, values in lists.items():
         if not values:

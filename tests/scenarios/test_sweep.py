@@ -51,6 +51,15 @@ def test_unknown_key_path_is_refused_with_close_matches(write_scene, key, fragme
     assert fragment in str(info.value)
 
 
+def test_controller_keys_on_a_scene_without_controller_are_refused(write_scene):
+    """Four identical rows, no word: the open-loop scene's controller keys change nothing."""
+    base = read_toml(write_scene())
+    base["controller"] = {**base.get("controller", {}), "kind": "none"}
+    with pytest.raises(SceneError, match="controller.horizon_steps: the scene has no controller"):
+        expand_cases(base, {"controller.horizon_steps": [5, 50]})
+    assert len(expand_cases(base, {"controller.kind": ["none", "pi"], "controller.horizon_steps": [5, 50]})) == 4
+
+
 def test_an_effect_option_nested_in_its_table_can_be_swept():
     """effect_options.classification.cyclone.d50c_um was refused ("not a key ...; allowed: " and
     nothing): below an effect's options the schema is free-form and the effect checks the keys."""
