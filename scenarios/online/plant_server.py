@@ -48,6 +48,7 @@ from scenarios.run import build_models
 from scenarios.run.closed_loop import hold_schedule, plant_start, scene_sensors
 from scenarios.run.feed import component_blend, feed_schedule
 from scenarios.scene import Scene
+from twin import trajectory_notes
 
 log = logging.getLogger("grindtwin.online.plant")
 
@@ -120,6 +121,7 @@ class PlantServer(Stoppable):
         self.writes: list[tuple[float, int, float]] = []  # (plant time [h], input index, value)
         self.fed_t = self.produced_t = 0.0
         self.rows: list[dict] = []
+        self._outside = False  # the last sample lay outside what the models describe (_say_validity)
         self.published: dict[str, ua.DataValue] = {}
         self.server = None
         self.stop_reason: str | None = None
@@ -418,8 +420,20 @@ class PlantServer(Stoppable):
             "hardness_scale": 1.0, "mode": str(self.mode), "p80_fault": self.fault,
             "setpoint_applied_at_frac": self.applied_at_frac,
             "solve_time_s": math.nan, "fallback": None})
+        self._say_validity(self.rows[-1])
         if self.s.record_dir is not None and len(self.rows) % self.s.record_every == 0:
             self.write_record()
+
+    def _say_validity(self, row: dict) -> None:
+        """Log when the plant leaves (and re-enters) what its models describe, as a run warns
+        (:func:`twin.trajectory_notes`: hold-up past the shell, a centrifuging speed)."""
+        spec = self.plant.model.spec
+        notes = trajectory_notes(pd.DataFrame([row]), spec, self.plant.model.effect_names)
+        if notes and not self._outside:
+            log.warning("%.3f h: the plant left what its models describe: %s", self.t_h, "; ".join(notes))
+        elif self._outside and not notes:
+            log.info("%.3f h: the plant is back within what its models describe", self.t_h)
+        self._outside = bool(notes)
 
     def _check_record_dir(self) -> None:
         d = self.s.record_dir

@@ -53,6 +53,18 @@ def test_non_physical_setpoints_are_ignored(plant):
     assert p.writes == []
 
 
+def test_a_centrifuging_speed_is_logged_as_the_runs_warn(plant, caplog):
+    """A client set 0.99 of critical: the plant ran on, drawing power the model overestimates
+    there, and logged nothing. Now a warning when it leaves what its models describe, once."""
+    p, clock = plant
+    ticks(p, clock, 1)
+    p._apply_write("setpoints.speed_frac_critical", 0.99, p.plant_time(clock.now()), "test")
+    with caplog.at_level("INFO", logger="grindtwin.online.plant"):
+        ticks(p, clock, 3)
+    said = [r for r in caplog.records if "left what its models describe" in r.getMessage()]
+    assert len(said) == 1 and said[0].levelname == "WARNING" and "centrifuges" in said[0].getMessage()
+
+
 def test_the_analyser_is_sensor_state_with_the_scenes_seed(plant, small_scene):
     p, clock = plant
     ticks(p, clock, 12)
