@@ -26,9 +26,9 @@ import scipy.optimize
 import scipy.sparse.linalg
 
 from .effects.classification import Hydrocyclone
-from .errors import SolverError, check_range
+from .errors import SolverError, TwinInputError, check_range
 from .mill import INDUSTRIAL_BASE, Mill, get_mill
-from .twin import DEFAULT_EFFECTS, Twin
+from .twin import DEFAULT_EFFECTS, FEED_P80_UM, Twin
 
 #: Design circulating load (underflow over fresh feed) of a ball mill-cyclone circuit.
 DESIGN_CIRCULATING_LOAD = 2.5
@@ -97,6 +97,9 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
     calibration = load_calibration(calibration)
     check_range("size_mill", "feed_tph", feed_tph, 0.0, 1e5)
     check_range("size_mill", "target_p80_um", target_p80_um, 1.0, 1e4)
+    if not target_p80_um < FEED_P80_UM:  # the Newton failure said nothing of why
+        raise TwinInputError(f"The 'target_p80_um' parameter of size_mill must be finer than the feed the sizing "
+                             f"grinds (P80 {FEED_P80_UM:g} um): no mill coarsens its feed. Got {target_p80_um:g}.")
     check_range("size_mill", "speed_frac_critical", speed_frac_critical, 0.3, 0.95)
     base = get_mill(base)
     design = asdict(cyclone or Hydrocyclone())

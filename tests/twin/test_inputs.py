@@ -247,3 +247,12 @@ def test_an_ore_file_with_a_key_nothing_reads_is_refused(tmp_path):
         load_ore(path)
     path.write_text(path.read_text().replace("bond_wi_kwh_t = 25.0\n", 'description = "mine"\n'))
     assert load_ore(path).name == "ore"
+
+
+def test_size_mill_refuses_a_target_coarser_than_its_feed():
+    """5000 um against the 3.2-mm feed: the Newton failure of the first trial mill said nothing
+    of why; refused before any work."""
+    from twin.sizing import size_mill
+
+    with pytest.raises(TwinInputError, match="finer than the feed the sizing grinds"):
+        size_mill("B", 31.0, 5000.0)
