@@ -101,6 +101,8 @@ HPIPM_INF = 1e4
 HPIPM_MODES = ("robust", "balance", "speed")
 
 
+#: How far a previewed blend may sum from 1 (a belt analyser's rounded fractions)
+BLEND_SUM_TOL = 1e-3
 #: IPOPT's Hessians (NmpcSettings.hessian)
 HESSIANS = ("exact", "limited-memory")
 
@@ -614,6 +616,12 @@ class Controller:
             d = np.hstack([d, np.repeat(d[:, -1:], N - d.shape[1], axis=1)])
         if not np.all(np.isfinite(d)):
             raise MpcInputError("The 'd_preview' parameter must be finite.")
+        blend, hardness = d[:-1, :N], d[-1, :N]
+        if (np.any(blend < -1e-9) or np.any(blend > 1 + 1e-9) or np.any(np.abs(blend.sum(axis=0) - 1.0) > BLEND_SUM_TOL)
+                or not np.all(hardness > 0)):  # a plan on [5, -4] or a negative hardness is a plan on nothing
+            raise MpcInputError(f"The 'd_preview' parameter must hold blend fractions in [0, 1] summing to 1 (within "
+                                f"{BLEND_SUM_TOL:g}) and a hardness > 0 on every stage. Got blend sums "
+                                f"{np.round(blend.sum(axis=0), 6).tolist()[:3]}..., hardness {hardness.min():g} at least.")
         return d[:, :N]
 
     def _initial_guess(self, x0s, u_prev):

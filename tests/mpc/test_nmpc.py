@@ -110,6 +110,16 @@ def test_an_applied_input_outside_the_bounds_is_planned_from_its_projection(setu
     assert r.success and "input_outside_bounds" not in r.status
 
 
+def test_a_preview_that_is_no_blend_is_refused(setup):
+    """Blend [5, -4] and hardness -1 were planned on (a predicted P80 of -999784 um, reported only
+    as target_unreachable)."""
+    ctrl, ss = setup
+    ctrl.reset()
+    for d in (ctrl.model.d_vector([5.0, -4.0]), ctrl.model.d_vector([1.0, 0.0], -1.0)):
+        with pytest.raises(MpcInputError, match="'d_preview'.*blend fractions in \\[0, 1\\]"):
+            ctrl.make_step(ss.x, d, ss.u)
+
+
 def test_unreachable_target_is_reported(setup):
     ctrl, ss = setup
     ctrl.reset()
