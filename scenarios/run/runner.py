@@ -125,6 +125,10 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
     ores = component_ores(scene)
     feed, notes = feed_schedule(scene, models.components, times, ores)
     notes = models.notes + notes
+    recorded = [c[len("recorded_"):] for c in feed.columns if c in ("recorded_feed_tph", "recorded_speed_frac_critical")]
+    if recorded and not replay:  # they sat in the history, unused, and nothing said so
+        notes.append(f"the history records {' and '.join(recorded)}; run uses the scene's inputs (grindtwin replay "
+                     "drives the recorded ones)")
     if is_batch(scene):
         frame, sizes, extra = run_batch(scene, models, feed, progress)
     elif scene.controller.kind == "none":

@@ -142,6 +142,22 @@ def _history_csv(tmp_path: Path) -> Path:
     return path
 
 
+def test_run_says_it_does_not_drive_a_historys_recorded_inputs(tmp_path):
+    """A scene whose feed.history records feed and speed: `run` uses the scene's own inputs, as
+    documented, but said nothing; now a note points at `replay`, which drives them."""
+    from scenarios.scene.loader import load_scene, scene_from_dict
+
+    scene = load_scene(short_pyrite_scene(tmp_path, duration_h=0.25))
+    data = scene.model_dump(exclude_none=True)
+    data["feed"].pop("blend", None)
+    data["feed"].pop("schedule", None)
+    data["feed"]["history"] = str(_history_csv(tmp_path))
+    res = run_scene(scene_from_dict(data, scene.source_path), progress=False)
+    assert any("the history records feed_tph and speed_frac_critical; run uses the scene's inputs" in n
+               for n in res.summary["notes"])
+    assert res.frame["feed_tph"].iloc[-1] == scene.feed.feed_tph != 33.0
+
+
 def test_replay_drives_the_recorded_inputs_and_compares(tmp_path):
     scene = short_pyrite_scene(tmp_path, duration_h=1.0)
     res = replay_scene(scene, _history_csv(tmp_path), progress=False)
