@@ -202,7 +202,8 @@ class OutputClaim:
                 os.close(fd)
                 raise _refuse(self.final, f"another grindtwin run ({holder}) is writing to this "
                               f"folder (lock {self.lock_path.name})") from None
-            if not created and not os.read(fd, 64).decode(errors="replace").startswith(LOCK_TAG):
+            text = "" if created else os.read(fd, 64).decode(errors="replace")  # a bare pid: an older grindtwin's
+            if not created and not (text.startswith(LOCK_TAG) or text.strip().isdigit()):
                 os.close(fd)
                 raise _refuse(self.final, f"{self.lock_path.name} beside it is not grindtwin's (grindtwin "
                               "locks DIR with the file DIR.lock); choose another --out") from None
