@@ -43,4 +43,8 @@ def limit_move(proposed: float, reference: float | None, dt_h: float, lim: Limit
     bounded = min(max(value, lim.min), lim.max)
     if bounded != value:
         notes.append(f"{lim.name}: {value:.6g} clipped to the bound [{lim.min:g}, {lim.max:g}]")
+        if has_ref and math.isfinite(lim.rate_max_per_h) and abs(bounded - reference) > lim.rate_max_per_h * dt_h:
+            # the bounds win over the rate limit: a setpoint left outside them (a manual period) comes back at once
+            notes.append(f"{lim.name}: the move {bounded - reference:+.4g} from {reference:.6g}, outside the bounds, "
+                         f"exceeds the rate limit ({lim.rate_max_per_h * dt_h:.4g} a sample): the bounds come first")
     return bounded, notes

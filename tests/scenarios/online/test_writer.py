@@ -24,3 +24,11 @@ def test_no_reference_means_bounds_only_and_non_finite_is_refused():
 
 def test_an_infinite_rate_limit_is_no_limit():
     assert limit_move(44.0, 20.0, 0.05, Limit("f", 20.0, 45.0))[0] == 44.0
+
+
+def test_a_setpoint_left_outside_the_bounds_comes_back_at_once_and_says_so():
+    """After a manual period at 50 t/h (bounds 20-45, 1 t/h a sample) the first write is 45: the
+    bounds come first, a move of -5 against a rate limit of 1, which was said nowhere."""
+    value, notes = limit_move(40.0, 50.0, 0.05, FEED)
+    assert value == 45.0 and "exceeds the rate limit" in notes[-1] and "-5" in notes[-1]
+    assert len(limit_move(44.0, 45.0, 0.05, FEED)[1]) == 0
