@@ -59,7 +59,7 @@ class Mirror:
         vals = [*u_prev, *np.asarray(preview)[:-1, :].ravel(order="F")]
         self._proc.stdin.write("C " + " ".join(repr(float(v)) for v in vals) + "\n")
         self._proc.stdin.flush()
-        _, st, uf, us, it, c_s, c_cpu = self._proc.stdout.readline().split()
+        _, st, uf, us, it, c_s, c_cpu, _qp = self._proc.stdout.readline().split()
         self._rows.append({"python_feed": out.u_applied[0], "python_speed": out.u_applied[1],
                            "c_feed": float(uf), "c_speed": float(us), "c_status": int(st),
                            "c_qp_iterations": int(it), "c_step_s": float(c_s), "c_step_cpu_s": float(c_cpu),

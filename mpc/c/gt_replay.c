@@ -2,8 +2,8 @@
  * (a test and timing harness; a DCS calls gt_controller.h itself). Input lines on stdin:
  *   E y0 y1 y2 u0 u1 b_1 .. b_NB         gt_controller_estimate (nan for an absent y)
  *   C u0 u1 b_1 .. b_(NB*N)              gt_controller_step with u_applied = (u0, u1)
- * Output on stdout, one line per C: "U status u_feed u_speed qp_iterations step_s step_cpu_s"
- * (%.17g), and at the end "M allocations_during_calls" (counted when gt_malloc_count.so is
+ * Output on stdout, one line per C: "U status u_feed u_speed qp_iterations step_s step_cpu_s
+ * qp_status" (%.17g; u is nan when the step refused its input), and at the end "M allocations_during_calls" (counted when gt_malloc_count.so is
  * preloaded, else -1) and "B bytes_allocated_by_new". */
 #define _POSIX_C_SOURCE 199309L
 #include <stdio.h>
@@ -48,7 +48,7 @@ int main(void) {
             gt_controller_estimate(c, v, v + 3, v + 5);
             allocs += counted ? gt_malloc_calls() - before : 0;
         } else if (line[0] == 'C') {
-            double u[2], t0, c0, dt, dc;
+            double u[2] = {strtod("nan", NULL), strtod("nan", NULL)}, t0, c0, dt, dc;
             int st;
             if (!read_doubles(line + 1, v, 2 + GT_NB * GT_N)) { fprintf(stderr, "bad C line\n"); return 1; }
             before = counted ? gt_malloc_calls() : 0;
@@ -58,8 +58,12 @@ int main(void) {
             dc = clock_s(CLOCK_PROCESS_CPUTIME_ID) - c0;
             dt = clock_s(CLOCK_MONOTONIC) - t0;
             allocs += counted ? gt_malloc_calls() - before : 0;
-            printf("U %d %.17g %.17g %d %.9g %.9g\n", st, u[0], u[1], gt_controller_qp_iterations(c), dt, dc);
+            printf("U %d %.17g %.17g %d %.9g %.9g %d\n", st, u[0], u[1], gt_controller_qp_iterations(c), dt, dc,
+                   gt_controller_qp_status(c));
             fflush(stdout); /* one answer per C line: the harness can be driven through a pipe */
+        } else if (line[0] != '\n' && line[0] != '#') { /* a line it does not know was skipped silently */
+            fprintf(stderr, "unknown line (E, C or # comment): %.40s\n", line);
+            return 1;
         }
     }
     printf("M %ld\nB %ld\n", counted ? allocs : -1L, gt_controller_bytes());

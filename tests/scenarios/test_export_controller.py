@@ -102,6 +102,9 @@ def test_exported_controller_replays_the_reference_hour_like_python(tmp_path, mo
     assert odd[0][1] == "4"  # GT_STEP_BAD_INPUT
     lo, hi = [20.0, 0.6], [45.0, 0.85]  # the reference scene's controller bounds
     assert odd[1][1] == "0" and all(a <= float(v) <= b for a, v, b in zip(lo, odd[1][2:4], hi))
+    assert len(odd[1]) == 8 and odd[1][7] == "0"  # the QP status, 0: solved
+    unknown = subprocess.run([str(out / "gt_replay")], input="X 1 2\n", capture_output=True, text=True)
+    assert unknown.returncode == 1 and "unknown line" in unknown.stderr  # it was skipped silently
     assert moves.shape == py.shape
     assert np.max(np.abs(moves / py - 1.0)) <= 1e-9
     assert np.ptp(py[:, 0]) > 1e-3  # the hour moves the feed: the comparison can fail
