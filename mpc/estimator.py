@@ -128,8 +128,8 @@ class Ekf:
             raise MpcInputError(f"The 'x0' parameter of Ekf must be {self.nx} finite values. "
                                 f"Got {x0.size}.")
         self.hardness_bounds = tuple(float(v) for v in hardness_bounds)
-        lo_h, hi_h = (self.hardness_bounds + (np.nan, np.nan))[:2]
-        if len(self.hardness_bounds) != 2 or not 0 < lo_h < hi_h < np.inf:
+        lo_h, hi_h = self.hardness_bounds if len(self.hardness_bounds) == 2 else (np.nan, np.nan)
+        if not 0 < lo_h < hi_h < np.inf:
             raise MpcInputError(f"The 'hardness_bounds' parameter of Ekf must be (lo, hi) with 0 < lo < hi, finite. "
                                 f"Got {hardness_bounds!r}.")
         if not lo_h <= float(hardness0) <= hi_h:

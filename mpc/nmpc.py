@@ -211,7 +211,7 @@ class NmpcSettings:
                 bad(name, "True or False")
         if self.hessian not in HESSIANS:
             bad("hessian", f"one of {HESSIANS}")
-        if not (math.isfinite(self.feed_tph_max) and math.isfinite(self.feed_tph_min)):
+        if not math.isfinite(self.feed_tph_max):  # (feed_tph_min < feed_tph_max is checked below)
             bad("feed_tph_max", "finite")
         for name in ("weight_p80", "weight_du_feed", "weight_du_speed", "weight_energy",
                      "load_penalty_lin", "load_penalty_quad", "power_penalty_lin",

@@ -24,12 +24,14 @@ def overflow_note(holdup_t: float, capacity_t: float) -> str | None:
 
 
 def state_notes(spec, effect_names, speed_frac_critical: float, holdup_t: float,
-                clay_frac: float | None = None, outputs: dict | None = None) -> list[str]:
+                clay_frac: float | None = None, outputs: dict | None = None, product_mass=None) -> list[str]:
     """The notes of a state of a model built from ``spec`` (:class:`twin.model.ModelSpec`) with
     ``effect_names``, at a speed [fraction of critical], hold-up [t] and hold-up clay fraction
-    (and the state's other ``outputs``, for the circuit's water balance)."""
+    (and the state's other ``outputs``, for the circuit's water balance, and its product's mass
+    per size class, for a P80 the grid does not resolve)."""
     notes = [overflow_note(holdup_t, spec.mill.max_holdup_t(spec.solids_density_t_m3)),
-             centrifuging_note(speed_frac_critical), water_note(outputs or {})]
+             centrifuging_note(speed_frac_critical), water_note(outputs or {}),
+             sink_note(spec.grid, product_mass) if product_mass is not None else ""]
     k_clay = _clay_crowding(spec, effect_names)
     if k_clay is not None and clay_frac is not None:
         from .effects.rheology import jamming_note

@@ -122,6 +122,7 @@ class PlantServer(Stoppable):
         self.fed_t = self.produced_t = 0.0
         self.rows: list[dict] = []
         self._outside = False  # the last sample lay outside what the models describe (_say_validity)
+        self._restores: set[asyncio.Task] = set()  # node write-backs of ignored setpoints (_apply_write)
         self.published: dict[str, ua.DataValue] = {}
         self.server = None
         self.stop_reason: str | None = None
@@ -251,10 +252,12 @@ class PlantServer(Stoppable):
                           "node reads the setpoint in effect again", t, user, role, value)
                 if self.server is not None:  # the write was answered Good (PostWrite): undo it on the node
                     kept = next((w[2] for w in reversed(self.writes) if w[1] == i), float(self.u[i]))
-                    asyncio.get_running_loop().create_task(self.server.write_attribute_value(
+                    task = asyncio.get_running_loop().create_task(self.server.write_attribute_value(
                         ua.NodeId.from_string(self._node_ids[role]),
                         ua.DataValue(ua.Variant(kept, ua.VariantType.Double), ua.StatusCode(ua.StatusCodes.Good),
                                      self.clock.now())))
+                    self._restores.add(task)  # held until done (the loop keeps only a weak reference)
+                    task.add_done_callback(self._restores.discard)
         elif role == "heartbeat":
             self.heartbeat_seen_h = t
         elif role == "mode":

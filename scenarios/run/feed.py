@@ -49,6 +49,8 @@ def mineralogy_to_blend(wt_pct: pd.DataFrame, ores: dict) -> tuple[np.ndarray, n
 #: of the scene's ores: several times the residual of the shipped day's history (max 0.9 wt%),
 #: whose assays are mixes of the ores plus noise; a mineral the ores lack moves it by its wt%.
 FIT_RESIDUAL_WARN_WT_PCT = 5.0
+
+
 def fit_warnings(feed: pd.DataFrame, components: list[str]) -> list[str]:
     """A warning when a mineralogy history's samples are not mixes of the ores (the feed table's
     ``history_fit_residual_wt_pct`` above :data:`FIT_RESIDUAL_WARN_WT_PCT`): the simulated feed is

@@ -18,7 +18,7 @@ from ..errors import SolverError, TwinInputError
 from ..mill import load_status
 from .simulate import integrate_constant
 from ..sizes import pxx_um
-from ..validity import sink_note, state_notes
+from ..validity import state_notes
 
 #: Newton stops when the largest mass-rate residual is below this share of nominal flow [-].
 RESIDUAL_REL_TOL = 1e-10
@@ -168,7 +168,7 @@ def _result(model, x, u, d, method) -> SteadyState:
     p80 = pxx_um(model.spec.grid, psd) if psd.sum() > 0 else math.nan
     status = load_status(outs["load_frac"], model.spec.mill.stable_band) if "load_frac" in outs else "n/a"
     notes = state_notes(model.spec, model.effect_names, float(u[1]), outs.get("holdup_t", 0.0), outs.get("clay_frac"),
-                        outs) + [n for n in [sink_note(model.spec.grid, psd)] if n]
+                        outs, psd)
     return SteadyState(x, u, d, outs, p80, status, psd, method, notes)
 
 
