@@ -3,8 +3,8 @@
 ``vary`` maps a key path (``"feed.feed_tph"``, ``"controller.weights.p80"``,
 ``"feed.schedule[0].blend"``) to a list of values. ``cartesian`` runs every combination,
 ``paired`` runs the i-th value of every key together (lists of equal length). Every path is
-checked against the scene schema and every case is validated as a whole scene before any
-case runs. A case that fails while running is reported in the ``error`` column; the other
+checked against the scene schema (below ``effect_options``, against the effects' declared
+options) and every case is validated as a whole scene before any case runs. A case that fails while running is reported in the ``error`` column; the other
 cases are kept.
 
 Cases run in a local process pool (``workers``; 1 runs in this process) or, when
@@ -24,7 +24,7 @@ import re
 import signal
 import tomllib
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, is_dataclass
 from pathlib import Path
 from typing import Any, Callable, Literal
 
@@ -311,7 +311,54 @@ def _checked_path(scene_dict: dict, key: str) -> tuple:
                 size = len(seq) if isinstance(seq, list) else 0
                 raise SceneError(f"sweep: key path {key!r}: {format_path(loc[:n - 1])} has "
                                  f"{size} entries in the scene file; index {loc[n - 1]} is not one")
+    _check_effect_option_path(key, loc)
     return loc
+
+
+def _check_effect_option_path(key: str, loc: tuple) -> None:
+    """The steps of ``loc`` below an ``effect_options`` table, where the scene schema is
+    free-form, checked against what the twin declares there: effect names (its registry), an
+    effect's options (their :class:`twin.effects.Option` declarations) and the fields of an option
+    given as a table (the dataclass it builds: the classification's ``cyclone`` table is read by
+    :func:`twin.hydrocyclone_from` into a Hydrocyclone, whose fields it allows). A misspelt step
+    is refused here, before any case is built, rather than in every case (values are left to each
+    case's validation, the twin's own checks)."""
+    if "effect_options" not in loc:
+        return
+    from twin.effects import EFFECTS
+
+    top = loc.index("effect_options")
+    known: list | None = list(EFFECTS)  # the keys allowed at the next step; None: any
+    leaf = ""  # what the path names when no key may follow it
+    for n in range(top + 1, len(loc)):
+        where, step = format_path(loc[:n]), loc[n]
+        if known is None:
+            return
+        if not known:
+            raise SceneError(f"sweep: unknown key path {key!r}: {where} {leaf}, with no keys below it; "
+                             f"vary {where} itself")
+        if step not in known:
+            raise SceneError(f"sweep: unknown key path {key!r}: {step!r} is not a key of {where}"
+                             f"{did_you_mean(step, known)}; allowed: {', '.join(map(str, known))}")
+        depth = n - top
+        if depth == 1:
+            known = list(EFFECTS[step].options)
+        elif depth == 2:
+            option = EFFECTS[loc[top + 1]].options[step]
+            known = _option_table_fields(option)
+            leaf = f"takes {option.allowed()}"
+        else:
+            known, leaf = [], "is a field of a table and takes a value"
+
+
+def _option_table_fields(option) -> list[str] | None:
+    """The keys a table given for ``option`` may have: the fields of the dataclass the table
+    builds; ``[]`` when the option takes no table, None when it takes one of any keys."""
+    kinds = option.kind if isinstance(option.kind, tuple) else (option.kind,)
+    if dict not in kinds:
+        return []
+    built = [k for k in kinds if is_dataclass(k)]
+    return [f.name for k in built for f in fields(k)] if built else None
 
 
 def _lookup(data: Any, loc: tuple) -> Any:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pandas as pd
 import pytest
 
@@ -69,6 +71,45 @@ def test_an_effect_option_nested_in_its_table_can_be_swept():
     cases = expand_cases(read_toml(moly), {"effect_options.classification.cyclone.d50c_um": [150.0, 220.0]})
     assert [c.data["effect_options"]["classification"]["cyclone"]["d50c_um"] for c in cases] == [150.0, 220.0]
     assert cases[0].data["effect_options"]["classification"]["cyclone"]["count"] == 6  # the rest kept
+
+
+MOLYCOP = Path(__file__).resolve().parents[2] / "scenarios" / "molycop_ballsim.toml"
+
+
+@pytest.mark.parametrize("key,fragment", [
+    ("effect_options.classification.cyclone.d50_um",
+     "'d50_um' is not a key of effect_options.classification.cyclone (did you mean 'd50c_um'?)"),
+    ("effect_options.classification.cyclon.d50c_um",
+     "'cyclon' is not a key of effect_options.classification (did you mean 'cyclone'?)"),
+    ("effect_options.clasification.kind", "'clasification' is not a key of effect_options (did you mean "
+                                          "'classification'?)"),
+    ("plant.effect_options.classification.cyclone.d50_um",
+     "'d50_um' is not a key of plant.effect_options.classification.cyclone (did you mean 'd50c_um'?)"),
+    ("effect_options.classification.kind.grate", "effect_options.classification.kind takes one of 'grate', "
+                                                 "'hydrocyclone', with no keys below it"),
+])
+def test_a_misspelt_key_inside_an_effects_options_is_refused_before_any_case(key, fragment):
+    """Below effect_options the schema is free-form; the key path is checked against the effects'
+    declared options (and the cyclone table's fields) up front, not once per case."""
+    with pytest.raises(SceneError) as info:
+        expand_cases(read_toml(MOLYCOP), {key: [150.0, 220.0]})
+    assert f"sweep: unknown key path {key!r}" in str(info.value)
+    assert fragment in str(info.value)
+    assert "case 0" not in str(info.value)
+
+
+def test_sweep_command_refuses_a_misspelt_cyclone_field_with_exit_2_and_runs_nothing(monkeypatch, capsys):
+    from scenarios.cli import commands
+    from tests.scenarios.test_cli import grindtwin
+
+    ran = []
+    monkeypatch.setattr(commands, "sweep_case", lambda scene: ran.append(scene) or {})
+    assert grindtwin(["sweep", str(MOLYCOP), "--vary", "effect_options.classification.cyclone.d50_um=150,200",
+                      "--workers", "1", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown key path 'effect_options.classification.cyclone.d50_um'" in err
+    assert "did you mean 'd50c_um'?" in err and err.count("d50_um") == 2  # the key and its step, once
+    assert ran == []
 
 
 def test_an_invalid_case_is_refused_before_anything_runs(write_scene):
