@@ -37,10 +37,12 @@ lists), then with ``os.rmdir``, which fails rather than delete anything else.
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import json
 import math
 import os
+import tempfile
 import time
 from collections.abc import Callable
 from contextlib import nullcontext
@@ -188,13 +190,11 @@ class OutputClaim:
         """Hold ``DIR.lock`` (flock): a file this project writes (:data:`LOCK_TAG` and the pid),
         so a user's own ``DIR.lock`` (``uv.lock`` beside ``--out uv``) is refused, never emptied."""
         while True:
+            created = self._create_lock_file()
             try:
-                fd, created = os.open(self.lock_path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644), True
-            except FileExistsError:
-                try:
-                    fd, created = os.open(self.lock_path, os.O_RDWR), False
-                except FileNotFoundError:  # unlinked by the run that held it just now: again
-                    continue
+                fd = os.open(self.lock_path, os.O_RDWR)
+            except FileNotFoundError:  # unlinked by the run that held it just now: again
+                continue
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -202,7 +202,7 @@ class OutputClaim:
                 os.close(fd)
                 raise _refuse(self.final, f"another grindtwin run ({holder}) is writing to this "
                               f"folder (lock {self.lock_path.name})") from None
-            text = "" if created else os.read(fd, 64).decode(errors="replace")  # a bare pid: an older grindtwin's
+            text = os.read(fd, 64).decode(errors="replace")  # a bare pid: an older grindtwin's
             if not created and not (text.startswith(LOCK_TAG) or text.strip().isdigit()):
                 os.close(fd)
                 raise _refuse(self.final, f"{self.lock_path.name} beside it is not grindtwin's (grindtwin "
@@ -219,6 +219,33 @@ class OutputClaim:
                 self._lock_fd = fd
                 return
             os.close(fd)
+
+    def _create_lock_file(self) -> bool:
+        """Create ``DIR.lock`` holding :data:`LOCK_TAG` from its first instant (written to a new
+        temporary file, then hard-linked into place, which fails if the name exists), so another
+        run never finds it empty and takes it for a user's file; False if it exists already. On a
+        file system without hard links it is created exclusively and tagged just after."""
+        tag = f"{LOCK_TAG} pid {os.getpid()}\n".encode()
+        fd, aside = tempfile.mkstemp(prefix=f".{self.lock_path.name}.", dir=self.lock_path.parent)
+        try:
+            os.write(fd, tag)
+            os.close(fd)
+            os.link(aside, self.lock_path)
+            return True
+        except FileExistsError:
+            return False
+        except OSError as exc:
+            if exc.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EXDEV):
+                raise
+        finally:
+            os.unlink(aside)
+        try:  # no hard links here
+            fd = os.open(self.lock_path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        except FileExistsError:
+            return False
+        os.write(fd, tag)
+        os.close(fd)
+        return True
 
     def _unlock(self) -> None:
         if self._lock_fd is None:

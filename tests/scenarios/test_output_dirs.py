@@ -112,6 +112,28 @@ def test_a_second_run_to_a_locked_folder_is_refused_at_once(tmp_path, capsys, no
     assert sorted(p.name for p in out.iterdir()) == [MANIFEST, "summary.json"]
 
 
+def test_a_lock_file_holds_its_tag_from_its_first_instant(tmp_path, monkeypatch):
+    """A run's DIR.lock is never seen empty: a second run opening it between the first run's
+    create and its write used to find no tag and refuse with "not grindtwin's" (a wrong reason).
+    Every open of the lock name must find the tag, and no temporary file is left beside it."""
+    import scenarios.output.write as write
+    from scenarios.output.write import LOCK_TAG, OutputClaim
+
+    seen, real_open = [], os.open
+
+    def watching_open(path, flags, *args):
+        fd = real_open(path, flags, *args)
+        if Path(path).name == "out.lock":
+            seen.append(Path(path).read_text())
+        return fd
+
+    monkeypatch.setattr(write.os, "open", watching_open)
+    with OutputClaim(tmp_path / "out") as claim:
+        claim.commit(lambda folder: (folder / "summary.json").write_text("{}"))
+    assert seen and all(text.startswith(LOCK_TAG) for text in seen), seen
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
 def test_a_users_lock_file_beside_out_is_refused_and_kept(tmp_path, capsys, no_work):
     """``--out uv`` beside a project's ``uv.lock``: grindtwin's lock name is taken by a file it did
     not write, so the run is refused before any work and the file is left as it was (it was
