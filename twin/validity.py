@@ -40,6 +40,10 @@ def state_notes(spec, effect_names, speed_frac_critical: float, holdup_t: float,
     return [n for n in notes if n]
 
 
+#: The product's share below the grid's finest class bound from which its P80 lies in the sink.
+SINK_NOTE_FRAC = 0.8
+
+
 def sink_note(grid, product_mass) -> str:
     """A note when 80 % of the product lies in the grid's sink (below its finest class bound):
     its P80 is then :func:`twin.sizes.pxx_um`'s extrapolation, not a resolved size (a feed analysis
@@ -48,9 +52,11 @@ def sink_note(grid, product_mass) -> str:
     if not m.sum() > 0:
         return ""
     sink = float(m[-1] / m.sum())
-    if sink < 0.8:
-        return ""
-    return (f"{sink:.0%} of the product lies below the finest size class ({grid.upper_um[-1]:.3g} um): its P80 is "
+    return _sink_text(sink, grid.upper_um[-1]) if sink >= SINK_NOTE_FRAC else ""
+
+
+def _sink_text(sink: float, finest_um: float) -> str:
+    return (f"{sink:.0%} of the product lies below the finest size class ({finest_um:.3g} um): its P80 is "
             "extrapolated, not resolved (a finer mill.size_classes would resolve it; or check the feed's sizes "
             "for mm given as um and the breakage rates' units)")
 
@@ -79,13 +85,22 @@ def _clay_crowding(spec, effect_names) -> float | None:
     return k_clay if "rheology" in effect_names and isinstance(k_clay, Real) else None
 
 
-def trajectory_notes(frame, spec, effect_names) -> list[str]:
+def trajectory_notes(frame, spec, effect_names, product_psd=None) -> list[str]:
     """The notes of a run's samples (a frame with ``time_h`` and any of ``holdup_t``,
     ``speed_frac_critical``, ``clay_frac``), each saying when: the share of samples past the
     mill's shell and the largest hold-up, the centrifuging speed and the jammed slurry of its most
-    extreme sample."""
+    extreme sample; and, given the product's size snapshots (``product_psd``: rows = times [h],
+    columns = class upper sizes [um], values = cumulative fraction passing), when its P80 lies in
+    the grid's sink (:func:`sink_note`)."""
     t = frame["time_h"].to_numpy(float)
     notes = []
+    if product_psd is not None and len(product_psd):
+        sink = product_psd.iloc[:, -1].to_numpy(float)  # passing the finest class's upper size: the sink's share
+        deep = sink >= SINK_NOTE_FRAC
+        if deep.any():
+            when = product_psd.index.to_numpy(float)[deep]
+            notes.append(f"from {when[0]:.4g} h to {when[-1]:.4g} h ({deep.sum()} of {len(sink)} size snapshots) "
+                         + _sink_text(float(sink.max()), float(product_psd.columns[-1])))
     if "holdup_t" in frame.columns:
         capacity_t = spec.mill.max_holdup_t(spec.solids_density_t_m3)
         held = frame["holdup_t"].to_numpy(float)

@@ -145,7 +145,8 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
     kpis = compute_kpis(scene, frame, **extra)
     if not kpis["fed_t"] > 0 and not is_batch(scene):
         warnings_.append("specific energy is undefined: nothing was fed")
-    warnings_ += trajectory_notes(frame, models.plant.spec, models.plant.model.effect_names)
+    warnings_ += trajectory_notes(frame, models.plant.spec, models.plant.model.effect_names,
+                                  product_psd=None if is_batch(scene) else psd)
     summary = make_summary(scene, models, kpis, notes + warnings_, time.perf_counter() - t_start)
     summary["controller_health"] = health
     summary["warnings"] = warnings_

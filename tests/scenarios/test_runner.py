@@ -418,6 +418,21 @@ def test_a_run_at_a_centrifuging_speed_says_so(tmp_path, short_run):
     assert not any("centrifuges" in w for w in short_run.summary["warnings"])
 
 
+def test_a_run_whose_product_lies_in_the_grids_sink_says_so(tmp_path, short_run):
+    """Five classes of ratio 2 from 6.7 mm end at 419 um: the short scene's product (P80 ~260 um)
+    lies mostly below it, and its P80 is the sink's extrapolation; steady states said so, runs did
+    not. The warning gives the snapshots' times and the largest share, read here from the PSD."""
+    path = short_pyrite_scene(tmp_path)
+    text = path.read_text()
+    path.write_text(text.replace("size_classes = { ratio = 2.0, count = 13 }", "size_classes = { ratio = 2.0, count = 5 }"))
+    res = run_scene(path, progress=False)
+    (sunk,) = [w for w in res.summary["warnings"] if "below the finest size class (419 um)" in w]
+    share = res.psd.iloc[:, -1]
+    assert f"({int((share >= 0.8).sum())} of {len(share)} size snapshots)" in sunk
+    assert f"{share.max():.0%} of the product" in sunk and sunk in res.summary["notes"]
+    assert not any("finest size class" in w for w in short_run.summary["warnings"])
+
+
 def test_a_run_whose_slurry_jams_says_when():
     """trajectory_notes: the samples whose hold-up clay passes the jamming fraction, first to
     last; none below it, without the rheology effect, or without clay crowding."""
