@@ -3,7 +3,9 @@
 A reading is usable when its status is Good (or Uncertain where the tag map accepts it), its
 source timestamp is younger than the tag's ``max_age_h`` and, for a tag with ``frozen_after_h``,
 its value has changed within that time while its timestamps moved on (an analyser that keeps
-reporting one number). The first failing check names the verdict: bad, uncertain, stale, frozen.
+reporting one number), and its value lies in the tag's :class:`PlausibleRange` (a P80 of -5 um or a
+speed of 3 times critical is an instrument or scaling fault, Bad, never a state of the plant).
+The first failing check names the verdict: bad, uncertain, stale, frozen.
 """
 
 from __future__ import annotations
@@ -55,6 +57,28 @@ class Verdict:
         return math.isfinite(self.value)
 
 
+@dataclass(frozen=True)
+class PlausibleRange:
+    """The values a measurement can take: ``low`` to ``high`` in ``unit``, each end excluded
+    (open) or included; a reading outside is Bad."""
+
+    low: float = -math.inf
+    high: float = math.inf
+    low_open: bool = False
+    high_open: bool = False
+    unit: str = ""
+
+    def __contains__(self, value: float) -> bool:
+        above = value > self.low if self.low_open else value >= self.low
+        below = value < self.high if self.high_open else value <= self.high
+        return above and below
+
+    def __str__(self) -> str:
+        left = "(" if self.low_open or math.isinf(self.low) else "["
+        right = ")" if self.high_open or math.isinf(self.high) else "]"
+        return f"{left}{self.low:g}, {self.high:g}{right}" + (f" {self.unit}" if self.unit else "")
+
+
 def _number(value) -> float | None:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         return None
@@ -66,19 +90,22 @@ class TagQuality:
     """The quality rules of one tag and what it last saw (for freezes and new samples)."""
 
     def __init__(self, name: str, max_age_h: float | None, frozen_after_h: float | None = None,
-                 freeze_tolerance: float = 0.0, accept_uncertain: bool = False):
+                 freeze_tolerance: float = 0.0, accept_uncertain: bool = False,
+                 plausible: PlausibleRange | None = None):
         self.name = name
         self.max_age_h, self.frozen_after_h = max_age_h, frozen_after_h
         self.freeze_tolerance, self.accept_uncertain = freeze_tolerance, accept_uncertain
+        self.plausible = plausible  # None: no range check
         self._last_time: datetime | None = None
         self._value: float | None = None
         self._since: datetime | None = None
 
     @classmethod
-    def of(cls, name: str, rule) -> "TagQuality":
-        """From a tag map entry (a :class:`scenarios.online.tags.Measurement` or the belt analyser)."""
+    def of(cls, name: str, rule, plausible: PlausibleRange | None = None) -> "TagQuality":
+        """From a tag map entry (a :class:`scenarios.online.tags.Measurement` or the belt analyser)
+        and the range of its values (:func:`scenarios.online.tags.plausible_range`)."""
         return cls(name, rule.max_age_h, rule.frozen_after_h, rule.freeze_tolerance,
-                   rule.uncertain == "accept")
+                   rule.uncertain == "accept", plausible)
 
     def assess(self, reading: Reading, now: datetime, clock: Clock) -> Verdict:
         """The verdict on ``reading`` at wall-clock ``now``."""
@@ -94,6 +121,9 @@ class TagQuality:
         value = _number(reading.value)
         if value is None:
             return Verdict(math.nan, BAD, f"not a finite number: {reading.value!r}", new)
+        if self.plausible is not None and value not in self.plausible:
+            return Verdict(math.nan, BAD, f"{self.name} = {value:g} is outside its plausible range "
+                           f"{self.plausible}", new)
         if self.max_age_h is not None:
             if reading.time is None:
                 return Verdict(math.nan, STALE, "no timestamp", new)

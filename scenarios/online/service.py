@@ -4,7 +4,9 @@ One cycle every sample period (``sample_period_h / speedup`` wall-clock seconds)
 service's timer or, with the tag map's ``[cycle] on_new``, as soon as the plant publishes a new
 value of that measurement (the timer stands in when none comes):
 1. read every tag of the map in one request (values, status codes, source timestamps);
-2. judge each reading (:mod:`scenarios.online.quality`): usable, or bad / uncertain / stale / frozen;
+2. judge each reading (:mod:`scenarios.online.quality`): usable, or bad (a Bad status code, or a
+   value outside its plausible range, :func:`scenarios.online.tags.plausible_range`) / uncertain /
+   stale / frozen; an unusable reading is not used (the modes below say what stands in);
 3. estimate: the EKF predicts over the last period with the actual inputs and the blend that
    entered the mill (the belt analyser's reading ``lead_h`` ago), and updates with the usable
    measurements (a P80 only when the analyser reported a new one);
@@ -51,7 +53,7 @@ from scenarios.online.opcua import CONNECTION_ERRORS, PlantConnection, Trigger, 
 from scenarios.online.parts import ControlParts
 from scenarios.online.quality import GOOD, Reading, TagQuality, severity
 from scenarios.online.security import ClientSecurity
-from scenarios.online.tags import TagMap
+from scenarios.online.tags import TagMap, blend_range, plausible_range
 from scenarios.online.writer import Limit, limit_move
 from scenarios.run.closed_loop import ESTIMATOR_WARMUP_H
 from twin import TwinError
@@ -106,9 +108,13 @@ class Service(Stoppable):
         self.warmup_h = ESTIMATOR_WARMUP_H if settings.warmup_h is None else settings.warmup_h
         self.n_stages = parts.controller.settings.horizon_steps
         self.limits = {name: Limit.of(name, sp) for name, sp in tags.setpoints}
-        self.quality = {name: TagQuality.of(name, m) for name, m in tags.measurements if m is not None}
+        self.quality = {name: TagQuality.of(name, m, plausible_range(name, m, self.scene))
+                        for name, m in tags.measurements if m is not None}
         if tags.belt_analyser is not None:
-            self.quality |= {f"blend.{o}": TagQuality.of(f"blend.{o}", tags.belt_analyser) for o in parts.ores}
+            ba = tags.belt_analyser
+            self.quality |= {f"blend.{o}": TagQuality.of(f"blend.{o}", ba, blend_range(ba)) for o in parts.ores}
+        log.info("plausible ranges (a reading outside is bad): %s",
+                 ", ".join(f"{role} {q.plausible}" for role, q in self.quality.items()))
         self.audit = AuditLog(settings.audit_dir, settings.audit_flush_every)
         self.conn: PlantConnection | None = None
         self._reconnect_task: asyncio.Task | None = None

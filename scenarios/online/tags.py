@@ -3,8 +3,10 @@
 A TOML file validated as a whole like a scene (every problem at once, each as ``FILE: key.path:
 what is wrong and what is allowed (got VALUE)``), then checked against the scene it serves (the
 belt analyser names the scene's ores, a P80 freeze limit longer than the analyser's period, no
-node in two roles), then completed visibly from the scene (the returned :class:`TagMap` shows
-every default it took). Times are plant hours (a speed-up divides them in wall-clock time).
+node in two roles, a measurement's plausible range within its physical one), then completed
+visibly from the scene (the returned :class:`TagMap` shows every default it took; a range left
+unset is the physical one, :func:`plausible_range`). Times are plant hours (a speed-up divides
+them in wall-clock time).
 
 Node ids are OPC UA's string form: ``ns=2;s=Mill.P80_um`` (namespace index, then ``i=`` numeric,
 ``s=`` string, ``g=`` GUID or ``b=`` opaque id) or ``nsu=URI;s=...`` (namespace by its URI,
@@ -14,14 +16,17 @@ resolved on connection). Example: ``scenarios/online/data/virtual_plant_tags.tom
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from scenarios.errors import SceneError
+from scenarios.online.quality import PlausibleRange
 from scenarios.run.closed_loop import feed_bounds
 from scenarios.scene import Scene, pydantic_message, read_toml
+from scenarios.scene.ranges import FEED_MAX_NOMINAL_MULTIPLE
 
 #: A node id in OPC UA's string form (Part 6, 5.3.1.10): namespace, then identifier type and value.
 NODE_ID_PATTERN = r"^(ns=\d+|nsu=[^;]+);(i=\d+|s=.+|g=[0-9a-fA-F-]{36}|b=.+)$"
@@ -35,6 +40,35 @@ STALE_AFTER_SAMPLES = 3
 #: estimator and the rate limits use the last written setpoints; two samples of that is a hiccup,
 #: longer and the setpoints are held.
 INPUTS_HOLD_AFTER_SAMPLES = 2
+
+# Physical limits of the measurements: a reading outside is Bad (an instrument or scaling fault,
+# never a state of the plant) and is not used; a tag map may narrow a range, never widen it.
+#: The P80 of the product is a size: above 0 (0 is what a dead analyser sends); and a mill only
+#: breaks, so it lies below the top of the coarsest feed class (:func:`p80_max_um`).
+P80_MIN_UM = 0.0
+#: The mill's motor draws power: below 0 is a sign or scaling fault (a stopped mill reads 0).
+POWER_MIN_KW = 0.0
+#: The load is a hold-up (over nominal): an empty mill reads 0, never less.
+LOAD_MIN_FRAC = 0.0
+#: The actual feed is a weightometer's rate: a stopped belt reads 0, never less; above
+#: FEED_MAX_NOMINAL_MULTIPLE times the mill's nominal feed it is no operating point of the mill
+#: (the limit of recorded feeds, :mod:`scenarios.scene.ranges`).
+FEED_MIN_TPH = 0.0
+#: Mill speed as a fraction of critical, both ends excluded: 0 is a stopped mill, and at 1 the
+#: charge centrifuges and grinds nothing (scenes and recorded histories are held to it too).
+SPEED_RANGE_FRAC_CRITICAL = (0.0, 1.0)
+#: A belt analyser's ore fraction is >= 0, and at most 1 + ``sum_tolerance``: a larger one cannot
+#: sum to 1 with the other ores' within the tolerance.
+BLEND_FRAC_MIN = 0.0
+#: Why each measurement's physical range is what it is (in the tag map's messages).
+PHYSICAL_REASONS = {
+    "p80_um": "a size above 0 and below the top of the coarsest feed class: a mill only breaks",
+    "power_kw": "a motor draws power; a stopped mill reads 0",
+    "load_frac": "a hold-up; an empty mill reads 0",
+    "feed_tph": f"a stopped belt reads 0; above {FEED_MAX_NOMINAL_MULTIPLE:g} x the mill's nominal feed "
+                "(feed.feed_tph) is no operating point of it",
+    "speed_frac_critical": "0 is a stopped mill; at 1 the charge centrifuges",
+}
 
 
 class TagMapError(SceneError):
@@ -57,6 +91,11 @@ class Measurement(_Section):
     """Changes up to this size count as unchanged (0: exactly the same value)."""
     uncertain: Literal["reject", "accept"] = "reject"
     """What an Uncertain status code means here: reject the reading, or use it."""
+    plausible_min: float | None = Field(default=None, allow_inf_nan=False)
+    """A reading below this is Bad (default: the quantity's physical limit, PHYSICAL_REASONS); it
+    may narrow the physical range (an instrument's span), never widen it."""
+    plausible_max: float | None = Field(default=None, allow_inf_nan=False)
+    """A reading above this is Bad (default: the physical limit, as ``plausible_min``)."""
 
 
 class Measurements(_Section):
@@ -216,6 +255,7 @@ def scene_problems(tags: TagMap, scene: Scene) -> list[str]:
     for name, sp in tags.setpoints:
         if sp.min is not None and sp.max is not None and not sp.min < sp.max:
             out.append(f"setpoints.{name}: min must be below max (got min {sp.min!r}, max {sp.max!r})")
+    out += _range_problems(tags, scene)
     seen: dict[str, str] = {}
     for role, node in (tags.read_roles() | {k: v for k, v in tags.write_roles().items()}).items():
         if node in seen:
@@ -229,6 +269,67 @@ def scene_problems(tags: TagMap, scene: Scene) -> list[str]:
     if scene.controller.kind != "nmpc":
         out.append(f"(scene) controller.kind: grindtwin serve runs the scene's NMPC; must be 'nmpc' "
                    f"(got {scene.controller.kind!r})")
+    return out
+
+
+def p80_max_um(scene: Scene) -> float:
+    """The top of the coarsest feed class (``mill.size_classes.top_um``, the plant's if coarser):
+    no product particle of the mill, so no P80, is coarser."""
+    tops = [scene.mill.size_classes.top_um]
+    if scene.plant is not None and scene.plant.size_classes is not None:
+        tops.append(scene.plant.size_classes.top_um)
+    return float(max(tops))
+
+
+def physical_range(name: str, scene: Scene) -> PlausibleRange:
+    """The physically possible values of the measurement ``name`` of :class:`Measurements` on
+    the scene's mill (the constants above, the reasons in PHYSICAL_REASONS)."""
+    if name == "p80_um":
+        return PlausibleRange(P80_MIN_UM, p80_max_um(scene), True, True, "um")
+    if name == "power_kw":
+        return PlausibleRange(POWER_MIN_KW, math.inf, unit="kW")
+    if name == "load_frac":
+        return PlausibleRange(LOAD_MIN_FRAC, math.inf, unit="of the nominal hold-up")
+    if name == "feed_tph":
+        nominal = scene.feed.feed_tph
+        return PlausibleRange(FEED_MIN_TPH, math.inf if nominal is None else FEED_MAX_NOMINAL_MULTIPLE * nominal,
+                              unit="t/h")
+    if name == "speed_frac_critical":
+        return PlausibleRange(*SPEED_RANGE_FRAC_CRITICAL, True, True, "of critical")
+    raise KeyError(f"no physical range for measurement {name!r}; known: {', '.join(PHYSICAL_REASONS)}")
+
+
+def plausible_range(name: str, m: Measurement, scene: Scene) -> PlausibleRange:
+    """The range a reading of measurement ``name`` must lie in: the physical one, narrowed by the
+    map's ``plausible_min`` / ``plausible_max`` (included ends)."""
+    r = physical_range(name, scene)
+    if m.plausible_min is not None:
+        r = replace(r, low=m.plausible_min, low_open=False)
+    if m.plausible_max is not None:
+        r = replace(r, high=m.plausible_max, high_open=False)
+    return r
+
+
+def blend_range(ba: BeltAnalyser) -> PlausibleRange:
+    """The range of a belt analyser's ore fraction (BLEND_FRAC_MIN)."""
+    return PlausibleRange(BLEND_FRAC_MIN, 1.0 + ba.sum_tolerance, unit="of the belt")
+
+
+def _range_problems(tags: TagMap, scene: Scene) -> list[str]:
+    """A measurement's plausible_min / plausible_max outside its physical range, or not in order."""
+    out = []
+    for name, m in tags.measurements:
+        if m is None:
+            continue
+        physical = physical_range(name, scene)
+        for key in ("plausible_min", "plausible_max"):
+            value = getattr(m, key)
+            if value is not None and value not in physical:
+                out.append(f"measurements.{name}.{key}: must lie in the physical range {physical} "
+                           f"({PHYSICAL_REASONS[name]}); it may narrow it, not widen it (got {value!r})")
+        if m.plausible_min is not None and m.plausible_max is not None and not m.plausible_min < m.plausible_max:
+            out.append(f"measurements.{name}: plausible_min must be below plausible_max (got min "
+                       f"{m.plausible_min!r}, max {m.plausible_max!r})")
     return out
 
 

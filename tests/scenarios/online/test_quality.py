@@ -100,3 +100,33 @@ def test_a_saturated_hardness_estimate_is_logged_when_it_starts_and_ends(caplog)
     text = [r.getMessage() for r in caplog.records]
     assert sum("hardness sits at a bound" in m for m in text) == 1 and "0.200 h" in text[0]
     assert any(m.startswith("0.400 h: hardness_bound good again after 0.200 h") for m in text)
+
+
+def test_a_reading_outside_its_plausible_range_is_bad_with_tag_value_and_range():
+    from scenarios.online.quality import PlausibleRange
+
+    p80 = PlausibleRange(0.0, 6700.0, low_open=True, high_open=True, unit="um")
+    q = TagQuality("p80_um", max_age_h=1.0, frozen_after_h=0.2, plausible=p80)
+    v = q.assess(Reading(-5.0, 0, at(0)), at(0), CLOCK)
+    assert (v.quality, v.ok) == ("bad", False) and math.isnan(v.value)
+    assert v.reason == "p80_um = -5 is outside its plausible range (0, 6700) um"
+    assert q.assess(Reading(1e6, 0, at(0.1)), at(0.1), CLOCK).quality == "bad"
+    assert q.assess(Reading(0.0, 0, at(0.15)), at(0.15), CLOCK).quality == "bad"  # open end: a dead analyser's 0
+    v = q.assess(Reading(212.5, 0, at(0.2)), at(0.2), CLOCK)
+    assert (v.quality, v.value) == ("good", 212.5)
+    # an accepted Uncertain reading is range-checked too
+    unc = TagQuality("speed_frac_critical", None, accept_uncertain=True,
+                     plausible=PlausibleRange(0.0, 1.0, True, True, "of critical"))
+    v = unc.assess(Reading(3.0, ua.StatusCodes.UncertainLastUsableValue, at(0)), at(0), CLOCK)
+    assert v.quality == "bad"
+    assert v.reason == "speed_frac_critical = 3 is outside its plausible range (0, 1) of critical"
+
+
+def test_closed_ends_include_their_limit_and_an_open_top_reads_as_such():
+    from scenarios.online.quality import PlausibleRange
+
+    power = PlausibleRange(0.0, unit="kW")
+    assert 0.0 in power and 1e5 in power and -1e-9 not in power
+    assert str(power) == "[0, inf) kW"
+    span = PlausibleRange(20.0, 45.0)
+    assert 20.0 in span and 45.0 in span and 45.001 not in span and str(span) == "[20, 45]"

@@ -89,3 +89,51 @@ def test_a_cycle_trigger_must_be_a_measurement_the_map_reads(tmp_path, small_sce
     assert "cycle.on_new" in str(e.value) and "cycle.timeout_samples" in str(e.value)
     ok = online.load_tags(_write(tmp_path, SMALL_TAGS + '[cycle]\non_new = "p80_um"\n'), small_scene)
     assert (ok.cycle.on_new, ok.cycle.timeout_samples) == ("p80_um", 1.5)
+
+
+def test_each_measurement_gets_its_physical_range_from_the_scene(tmp_path, small_scene):
+    from scenarios.online.tags import FEED_MAX_NOMINAL_MULTIPLE, blend_range, physical_range, plausible_range
+
+    tags = online.load_tags(_write(tmp_path, SMALL_TAGS), small_scene)
+    got = {name: plausible_range(name, m, small_scene) for name, m in tags.measurements}
+    assert got == {name: physical_range(name, small_scene) for name in got}  # nothing narrowed in the map
+    top = small_scene.mill.size_classes.top_um
+    nominal = small_scene.feed.feed_tph
+    assert str(got["p80_um"]) == f"(0, {top:g}) um"
+    assert str(got["power_kw"]) == "[0, inf) kW"
+    assert str(got["load_frac"]) == "[0, inf) of the nominal hold-up"
+    assert str(got["feed_tph"]) == f"[0, {FEED_MAX_NOMINAL_MULTIPLE * nominal:g}] t/h"
+    assert str(got["speed_frac_critical"]) == "(0, 1) of critical"
+    assert -5.0 not in got["p80_um"] and 1e6 not in got["p80_um"] and 210.0 in got["p80_um"]
+    assert 3.0 not in got["speed_frac_critical"] and 0.0 in got["feed_tph"] and -0.1 not in got["feed_tph"]
+    belt = blend_range(tags.belt_analyser)  # 1 + sum_tolerance: a larger fraction cannot sum to 1 with the others
+    assert str(belt) == f"[0, {1 + tags.belt_analyser.sum_tolerance:g}] of the belt" and -0.01 not in belt
+
+
+def test_a_map_may_narrow_a_plausible_range_but_not_widen_it(tmp_path, small_scene):
+    from scenarios.online.tags import plausible_range
+
+    p80 = '[measurements.p80_um]\nnode = "ns=2;s=Mill.Analyser.P80_um"\n'
+    narrow = SMALL_TAGS.replace(p80, p80 + "plausible_min = 20\nplausible_max = 1000.0\n")
+    tags = online.load_tags(_write(tmp_path, narrow), small_scene)
+    r = plausible_range("p80_um", tags.measurements.p80_um, small_scene)
+    assert str(r) == "[20, 1000] um" and 20.0 in r and 19.9 not in r and 1000.5 not in r
+
+    wide = SMALL_TAGS.replace(p80, p80 + "plausible_min = -5.0\n")
+    wide = wide.replace('node = "ns=2;s=Mill.Power_kW"', 'node = "ns=2;s=Mill.Power_kW"\nplausible_min = -10.0')
+    wide = wide.replace('node = "ns=2;s=Mill.Speed.Actual_frac_critical"',
+                        'node = "ns=2;s=Mill.Speed.Actual_frac_critical"\nplausible_min = 0.8\nplausible_max = 0.7')
+    wide = wide.replace('node = "ns=2;s=Mill.Load_frac"', 'node = "ns=2;s=Mill.Load_frac"\nplausible_max = nan')
+    with pytest.raises(online.TagMapError) as e:
+        online.load_tags(_write(tmp_path, wide), small_scene)
+    msg = str(e.value)
+    assert "measurements.load_frac.plausible_max: Input should be a finite number (got nan)" in msg
+    with pytest.raises(online.TagMapError) as e:
+        online.load_tags(_write(tmp_path, wide.replace("plausible_max = nan", "")), small_scene)
+    msg = str(e.value)
+    assert "3 problems in the tag map" in msg
+    assert ("measurements.p80_um.plausible_min: must lie in the physical range (0, 6700) um (a size above 0 and "
+            "below the top of the coarsest feed class: a mill only breaks); it may narrow it, not widen it "
+            "(got -5.0)") in msg
+    assert "measurements.power_kw.plausible_min: must lie in the physical range [0, inf) kW" in msg
+    assert "measurements.speed_frac_critical: plausible_min must be below plausible_max (got min 0.8, max 0.7)" in msg
