@@ -9,8 +9,11 @@ File format. One row per record, a header row; lines starting with ``#`` are com
 Any other column is refused.
 
 Rules, applied in this order; each action is written to ``History.report``:
-1. Out-of-order rows are sorted by time (stable); the report names how many and the first.
-2. Duplicated timestamps: the last row in file order is kept, the others dropped and named.
+1. Out-of-order rows are sorted by time (stable); the report counts them (the fewest rows that,
+   moved, leave the others in order) and names the first. A row that repeats an earlier row's
+   time is counted under rule 2, not here.
+2. Duplicated timestamps: the last row in file order is kept, the others dropped; the report
+   counts the repeated rows, names the first and the time it repeats, and the rows dropped.
 3. NaN: a missing value is replaced by the previous valid value of its column (a row with any
    missing composition value has its whole composition replaced). A recorded column that is
    empty throughout is dropped.
@@ -32,6 +35,7 @@ Rules, applied in this order; each action is written to ``History.report``:
 
 from __future__ import annotations
 
+import bisect
 import functools
 import re
 from dataclasses import dataclass, field
@@ -94,18 +98,10 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
     raw = raw.assign(_t=time_h)
     comp_cols, kind, other_cols = _classify_columns(raw, where)
 
-    order = np.argsort(raw["_t"].to_numpy(), kind="stable")
-    if np.any(np.diff(raw["_t"].to_numpy()) < 0):
-        first = int(raw["_row"].iloc[np.argmax(np.diff(raw["_t"].to_numpy()) < 0) + 1])
-        moved = int(np.sum(order != np.arange(len(raw))))
-        report.append(f"{moved} rows were out of time order (first: data row {first}); sorted by time")
-    df = raw.iloc[order].reset_index(drop=True)
-
+    report += _order_report(raw)
+    df = raw.iloc[np.argsort(raw["_t"].to_numpy(), kind="stable")].reset_index(drop=True)
     dup = df["_t"].duplicated(keep="last").to_numpy()
-    if dup.any():
-        report.append(f"repeated timestamps: dropped data rows {_names(df['_row'][dup])}, "
-                      "keeping the last row of each time")
-        df = df[~dup].reset_index(drop=True)
+    df = df[~dup].reset_index(drop=True)
     if len(df) < 1:
         raise SceneError(f"{where}: no data rows")
 
@@ -166,6 +162,57 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
                       f"{sample_period_h * 60:g} min")
     return History(frame=frame, kind=kind, report=report, source=path, start=start,
                    span_h=float(t[-1]), composition_columns=comp_cols)
+
+
+def _order_report(raw: pd.DataFrame) -> list[str]:
+    """What rules 1 and 2 find, each counted and named apart: rows that repeat the time of an
+    earlier row (a record logged twice), and rows out of time order among the rest (the fewest
+    rows that, moved, leave the others in order; of equally few, the later ones)."""
+    t, rows = raw["_t"].to_numpy(), raw["_row"].to_numpy()
+    out = []
+    repeats = raw["_t"].duplicated(keep="first").to_numpy()
+    late = np.zeros(len(t), bool)
+    late[~repeats] = _out_of_order(t[~repeats])
+    if late.any():
+        n, first = int(late.sum()), int(rows[late][0])
+        more = "" if n == 1 else f"; all: data rows {_names(rows[late])}"
+        out.append(f"{n} row{'s' if n > 1 else ''} out of time order (first: data row {first}{more}); "
+                   "sorted by time")
+    if repeats.any():
+        time_col = "timestamp" if "timestamp" in raw.columns else "time_h"
+        i = int(np.argmax(repeats))
+        original = int(rows[np.flatnonzero(t == t[i])[0]])
+        dropped = raw["_t"].duplicated(keep="last").to_numpy()
+        n = int(repeats.sum())
+        out.append(f"{n} row{'s' if n > 1 else ''} repeat{'' if n > 1 else 's'} the time of an earlier row "
+                   f"(duplicated timestamps; first: data row {int(rows[i])}, {time_col} {raw[time_col].iloc[i]} "
+                   f"as data row {original}): dropped data rows {_names(rows[dropped])}, keeping the last row of "
+                   "each time")
+    return out
+
+
+def _out_of_order(t: np.ndarray) -> np.ndarray:
+    """Mask of the rows out of time order in distinct times ``t``: all but a longest increasing
+    run of rows (a longest increasing subsequence, built from the end so that of equally long
+    ones it keeps the earlier rows: 0, 1, 3, 2.5, 4 has 2.5 out of order, not 3)."""
+    if np.all(np.diff(t) > 0):
+        return np.zeros(len(t), bool)
+    tails: list[float] = []  # smallest -t ending an increasing run of each length (scanning backwards)
+    ends: list[int] = []
+    prev = np.full(len(t), -1)
+    for i in range(len(t) - 1, -1, -1):
+        k = bisect.bisect_left(tails, -t[i])
+        if k == len(tails):
+            tails.append(-t[i])
+            ends.append(i)
+        else:
+            tails[k], ends[k] = -t[i], i
+        prev[i] = ends[k - 1] if k else -1
+    keep = np.zeros(len(t), bool)
+    i = ends[-1]
+    while i != -1:
+        keep[i], i = True, prev[i]
+    return ~keep
 
 
 def _read_table(path: Path) -> pd.DataFrame:

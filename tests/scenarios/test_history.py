@@ -91,6 +91,39 @@ def test_messy_csv_beyond_the_rules_is_refused_naming_rows(tmp_path, text, fragm
         assert f in message, message
 
 
+def _day(n_rows: int = 60) -> list[str]:
+    """A clean one-minute history of ``n_rows`` rows (header first)."""
+    t = pd.date_range("2026-01-15T00:00", periods=n_rows, freq="1min").strftime("%Y-%m-%dT%H:%M:%S")
+    return ["timestamp,quartz_wt_pct,kaolinite_wt_pct,feed_tph"] + [f"{ts},60,40,{30 + i % 3}"
+                                                                     for i, ts in enumerate(t)]
+
+
+def test_rows_logged_twice_at_the_end_are_named_as_duplicated_timestamps_not_as_disorder(tmp_path):
+    """Two earlier rows appended again at the end were reported as dozens of rows out of order
+    (every row the sort moved); they are two repeated times, the first being data row 61."""
+    lines = _day()
+    h = read_history(write(tmp_path, "\n".join(lines + lines[41:43]) + "\n"), DT)
+    text = "\n".join(h.report)
+    assert "out of time order" not in text
+    assert ("2 rows repeat the time of an earlier row (duplicated timestamps; first: data row 61, timestamp "
+            "2026-01-15T00:40:00 as data row 41): dropped data rows 41, 42, keeping the last row of each time") in text
+    assert len(h.frame) == 60
+
+
+def test_rows_out_of_time_order_are_counted_as_the_rows_misplaced(tmp_path):
+    """Two late records appended at the end: 2 rows out of order (61 and 62), not every row the
+    sort moves; one row typed an hour late (row 11) is that one row."""
+    lines = _day()
+    late = [f"2026-01-15T00:{m:02d}:30,60,40,30" for m in (40, 41)]
+    text = "\n".join(read_history(write(tmp_path, "\n".join(lines + late) + "\n"), DT).report)
+    assert "2 rows out of time order (first: data row 61; all: data rows 61, 62); sorted by time" in text
+    assert "repeat" not in text
+    typo = lines.copy()
+    typo[11] = typo[11].replace("T00:10:00", "T01:10:00")
+    text = "\n".join(read_history(write(tmp_path, "\n".join(typo) + "\n"), DT, max_gap_h=2.0).report)
+    assert "1 row out of time order (first: data row 11); sorted by time" in text
+
+
 def test_gap_limit_is_a_parameter(tmp_path):
     path = write(tmp_path, MESSY + "2026-01-15T00:30:00,50,50,35\n")
     h = read_history(path, DT, max_gap_h=0.5)
