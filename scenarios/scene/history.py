@@ -25,7 +25,8 @@ Rules, applied in this order; each action is written to ``History.report``:
    ``speed_frac_critical`` in (0, 1) (a fraction of critical, not percent), ``p80_um`` > 0, the
    texture within the scene schema's ranges, and (when the scene's mill is known)
    ``feed_tph`` at most :data:`scenarios.scene.ranges.FEED_MAX_NOMINAL_MULTIPLE` times the
-   mill's nominal feed rate (a feed in kg/h is 1000x).
+   mill's nominal feed rate (a feed in kg/h is 1000x). A ``feed_tph`` column with no value
+   above 0 is refused: a mill never fed makes no product, so nothing of it can be replayed.
 6. Composition rows must sum to 100 wt% (or 1) within ``sum_tol_frac`` (relative, default 2 %);
    they are rescaled to sum exactly; rows further off are refused, naming them.
 7. Resampling to the scene's sample period: the value at grid time t_k = k*dt is the
@@ -109,10 +110,12 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
     if start is not None:
         start = start + pd.Timedelta(hours=float(df["_t"].iloc[0]))
     values = _numeric(df, comp_cols + other_cols, where)
-    neg = (values < 0).any(axis=1).to_numpy()
-    if neg.any():
-        raise SceneError(f"{where}: negative values in data rows {_names(df['_row'][neg])}")
+    neg = [f"column {c}: negative values in data rows {_names(df['_row'][values[c].to_numpy() < 0])}; "
+           "allowed: >= 0" for c in values.columns if (values[c] < 0).any()]
+    if neg:
+        raise SceneError(f"{where}: " + f"\n{where}: ".join(neg))
     _check_ranges(values, df["_row"], where, feed_nominal_tph)
+    _check_some_feed(values, where)
 
     comp = values[comp_cols]
     comp_missing = comp.isna().any(axis=1).to_numpy()
@@ -322,6 +325,17 @@ def _check_ranges(values: pd.DataFrame, rows: pd.Series, where: str, feed_nomina
             errors.append(f"column {col}: {bad[0][1]} in data rows {_names(rows.iloc[[i for i, _ in bad]])}")
     if errors:
         raise SceneError(f"{where}: " + f"\n{where}: ".join(errors))
+
+
+def _check_some_feed(values: pd.DataFrame, where: str) -> None:
+    """Refuse a recorded feed rate that is 0 in every row that has one (rule 5)."""
+    if "feed_tph" not in values:
+        return
+    feed = values["feed_tph"].dropna().to_numpy()
+    if len(feed) and not np.any(feed > 0):
+        raise SceneError(f"{where}: column feed_tph: 0 t/h in all {len(feed)} data rows that give it; allowed: "
+                         "rates >= 0 t/h with at least one above 0 (a mill never fed makes no product to replay); "
+                         "if the feed rate was not recorded, leave the column empty or remove it")
 
 
 @functools.lru_cache(maxsize=4096)

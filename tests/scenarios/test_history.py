@@ -71,7 +71,8 @@ def test_parquet_reads_like_csv(tmp_path):
      ["does not sum to 100 within 2%", "data rows 7", "80"]),
     (MESSY.replace("2026-01-15T00:00:00,60,40,30", "2026-01-15T00:00:00,,40,30"),
      ["composition: missing in the first data row 1"]),
-    (MESSY.replace("00:04:00,,55", "00:04:00,-5,55"), ["negative values in data rows 6"]),
+    (MESSY.replace("00:04:00,,55", "00:04:00,-5,55"), ["column quartz_wt_pct: negative values in data rows 6; "
+                                                       "allowed: >= 0"]),
     (MESSY.replace("2026-01-15T00:06:00", "yesterday noon"), ["unreadable or missing time in data rows 8"]),
     (MESSY.replace("kaolinite_wt_pct", "kaolinte_wt_pct"),
      ["'kaolinte_wt_pct': unknown mineral (did you mean 'kaolinite'"]),
@@ -122,6 +123,34 @@ def test_rows_out_of_time_order_are_counted_as_the_rows_misplaced(tmp_path):
     typo[11] = typo[11].replace("T00:10:00", "T01:10:00")
     text = "\n".join(read_history(write(tmp_path, "\n".join(typo) + "\n"), DT, max_gap_h=2.0).report)
     assert "1 row out of time order (first: data row 11); sorted by time" in text
+
+
+def test_a_feed_column_of_zeros_is_refused_naming_the_file_and_column(tmp_path):
+    path = write(tmp_path, GOOD_ROWS.replace(",30,", ",0,"))
+    with pytest.raises(SceneError) as info:
+        read_history(path, DT)
+    assert f"{path}: column feed_tph: 0 t/h in all 3 data rows that give it; allowed: rates >= 0 t/h with at " \
+           "least one above 0" in str(info.value)
+    stopped = GOOD_ROWS.replace("0.0,60,40,30", "0.0,60,40,0")  # a mill stopped for a while is a record
+    assert read_history(write(tmp_path, stopped), DT).frame["feed_tph"].iloc[0] == 0.0
+
+
+def test_replay_refuses_a_feed_column_of_zeros_before_it_runs(tmp_path, capsys):
+    """It ran the whole replay and failed on "Cumulative passing needs a positive total mass",
+    naming neither the file nor the column."""
+    from tests.scenarios.test_cli import grindtwin
+    from tests.scenarios.test_runner import _history_csv, short_pyrite_scene
+
+    scene = short_pyrite_scene(tmp_path, duration_h=0.5)
+    hist = _history_csv(tmp_path)
+    frame = pd.read_csv(hist)
+    frame["feed_tph"] = 0.0
+    frame.to_csv(hist, index=False)
+    out = tmp_path / "out"
+    assert grindtwin(["replay", scene, "--history", hist, "--out", out, "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"{hist}: column feed_tph: 0 t/h in all 31 data rows" in err
+    assert "Traceback" not in err and "Cumulative passing" not in err and not out.exists()
 
 
 def test_gap_limit_is_a_parameter(tmp_path):
