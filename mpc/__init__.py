@@ -10,7 +10,8 @@ from mpc.errors import MpcError, MpcInputError, MpcSolverError
 from mpc.codegen import CompileFallbackWarning, CompileReport, compiled
 from mpc.estimator import DISTURBANCE_MODELS, MEASUREMENTS, Ekf
 from mpc.export import check_out_dir, export_controller
-from mpc.kpis import P80_BAND_UM, cumulative, integral, loop_kpis, outside_band_frac, p80_iae_um_h, within_band_frac
+from mpc.kpis import (P80_BAND_UM, cumulative, fresh_feed_t, held_cumulative, held_integral, integral, loop_kpis,
+                      outside_band_frac, p80_iae_um_h, specific_energy_kwh_t, within_band_frac)
 from mpc.linear import (Fopdt, LinearMPC, OperatingPoint, StepMoments, discretize, fit_fopdt, fopdt_from_model,
                         gain_table, linearize, steady_target, step_moments, step_test)
 from mpc.nmpc import QP_SOLVERS, SOLVERS, Controller, NmpcSettings
@@ -26,6 +27,7 @@ __all__ = [
     "MEASUREMENTS", "MatchedTwin", "MpcError", "MpcInputError", "MpcSolverError", "NmpcSettings", "OperatingPoint",
     "P80_BAND_UM", "PiFeedback", "QP_SOLVERS", "SOLVERS", "RK4_RATE_SAFETY", "SensorState", "Sensors", "Setpoints", "StepMoments", "TwinPlant",
     "check_out_dir", "compiled", "cumulative", "cvodes_map", "discretize", "export_controller", "feed_for_target", "fit_fopdt", "fopdt_from_model", "gain_table",
+    "fresh_feed_t", "held_cumulative", "held_integral", "run_closed_loop", "specific_energy_kwh_t",
     "integral", "linearize", "loop_kpis", "matched_twin", "min_rk4_substeps", "optimal_setpoints",
     "outside_band_frac", "p80_iae_um_h", "pi_baseline", "pi_from_model", "rk4_map", "rk4_sensitivity_map", "simc_pi", "speed_for_target",
     "stable_rk4_substeps", "state_jacobian", "steady_target", "step_moments", "step_test", "within_band_frac",

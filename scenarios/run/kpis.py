@@ -3,7 +3,9 @@
 - ``p80_iae_um_h``: integral of |P80 - target| (plant P80 as the model computes it, not the
   analyser's; :func:`mpc.p80_iae_um_h`); NaN without ``controller.target_p80_um``.
 - ``p80_within_10um_frac``: share of samples with |P80 - target| <= 10 um; NaN without target.
-- ``specific_energy_kwh_t``: energy drawn / fresh feed; for a batch grind, / the charge.
+- ``specific_energy_kwh_t``: energy drawn / fresh feed (:func:`mpc.specific_energy_kwh_t`, the
+  closed loop's own definition: the feed is the plant's tally, integrated as held); for a batch
+  grind, / the charge.
 - ``throughput_t``: product discharged over the run [t]; for a batch grind the charge ground.
 - ``throughput_tph``: mean product rate over the run [t/h] (``throughput_t / duration_h``);
   NaN for a batch grind (no product flow).
@@ -21,7 +23,8 @@
 - P80 KPIs read the frame's ``p80_um``: the exact interpolation of the product's size
   distribution in every mode (open loop: the model's smooth output is ``p80_smooth_um``).
 - Also ``p80_final_um``, ``p80_mean_um``, ``energy_kwh``, ``fed_t``, ``duration_h``.
-Integrals are trapezoidal over the samples (:mod:`mpc.kpis`).
+Integrals of outputs are trapezoidal over the samples; a feed rate without the plant's ``fed_t``
+is integrated as held (:mod:`mpc.kpis`).
 """
 
 from __future__ import annotations
@@ -32,7 +35,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from mpc import cumulative, integral, outside_band_frac, p80_iae_um_h, within_band_frac
+from mpc import (cumulative, fresh_feed_t, held_cumulative, integral, outside_band_frac, p80_iae_um_h,
+                 specific_energy_kwh_t, within_band_frac)
 from scenarios.run.models import is_batch
 from scenarios.scene import Scene
 
@@ -61,16 +65,16 @@ def compute_kpis(scene: Scene, frame: pd.DataFrame, solve_times_s=None, batch_ch
         k["p80_iae_um_h"] = math.nan
         k["p80_within_10um_frac"] = math.nan
     energy = integral(t, frame["power_kw"]) if "power_kw" in frame else math.nan
-    if "fed_t" not in frame and "feed_tph" in frame:  # e.g. a closed-loop frame: integrate
-        frame["fed_t"] = cumulative(t, frame["feed_tph"])
+    if "fed_t" not in frame and "feed_tph" in frame:  # no tally of the plant's: the feed as held
+        frame["fed_t"] = held_cumulative(t, frame["feed_tph"])
     if "produced_t" not in frame and "throughput_tph" in frame:
         frame["produced_t"] = cumulative(t, frame["throughput_tph"])
-    fed = float(frame["fed_t"].iloc[-1]) if "fed_t" in frame else math.nan
+    fed = fresh_feed_t(frame)
     if batch_charge_t is not None:
         k["specific_energy_kwh_t"] = float(energy / batch_charge_t)
         k["throughput_t"] = float(batch_charge_t)
     else:
-        k["specific_energy_kwh_t"] = float(energy / fed) if fed > 0 else math.nan
+        k["specific_energy_kwh_t"] = specific_energy_kwh_t(frame)
         k["throughput_t"] = float(frame["produced_t"].iloc[-1]) if "produced_t" in frame else math.nan
     k["throughput_tph"] = (k["throughput_t"] / float(t[-1] - t[0])
                            if batch_charge_t is None and t[-1] > t[0] else math.nan)
