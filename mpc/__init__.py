@@ -3,7 +3,7 @@
 steady-state optimiser, sensors, plants (:mod:`mpc.plants`) and the closed loop."""
 
 from mpc.baselines import FixedInputs, PiFeedback, pi_baseline
-from mpc.closed_loop import ESTIMATOR_MEASUREMENTS, ClosedLoopResult, LoopSettings, run_closed_loop
+from mpc.closed_loop import CLOSED_LOOP_READS, ESTIMATOR_MEASUREMENTS, ClosedLoopResult, LoopSettings, run_closed_loop
 from mpc.discretize import (RK4_RATE_SAFETY, cvodes_map, min_rk4_substeps, rk4_map, rk4_sensitivity_map,
                              stable_rk4_substeps, state_jacobian)
 from mpc.errors import MpcError, MpcInputError, MpcSolverError
@@ -22,6 +22,7 @@ from mpc.results import ControllerStepResult
 from mpc.sensors import Sensors, SensorState
 
 __all__ = [
+    "CLOSED_LOOP_READS",
     "ClosedLoopResult", "CompileFallbackWarning", "CompileReport", "DISTURBANCE_MODELS", "Controller", "ControllerStepResult", "DiscretePI", "ESTIMATOR_MEASUREMENTS", "Ekf",
     "FixedInputs", "Fopdt", "LeRouxCircuit", "LeRouxParameters", "LeRouxPlant", "LinearMPC", "LoopSettings",
     "MEASUREMENTS", "MatchedTwin", "MpcError", "MpcInputError", "MpcSolverError", "NmpcSettings", "OperatingPoint",

@@ -31,6 +31,10 @@ from mpc.sensors import Sensors, SensorState
 
 #: Measurements the estimator can be given (order of :meth:`mpc.estimator.Ekf.make_step`).
 ESTIMATOR_MEASUREMENTS = MEASUREMENTS
+#: The outputs a closed loop reads off its plant's ``measure`` every sample, besides the P80 (the
+#: sensors' power and load, in :meth:`mpc.sensors.SensorState.make_step`'s order; the estimator
+#: and the KPIs read them from there). A plant model without one of them cannot run a closed loop.
+CLOSED_LOOP_READS = ("power_kw", "load_frac")
 
 
 @dataclass(frozen=True)
@@ -119,7 +123,7 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
         d_plant = plant.disturbance(t, blend, hard(t))
         vals = plant.measure(x, u_prev, d_plant)
         p80 = vals.pop("p80_um")
-        p80_new, p80_held, pw_m, ld_m = sens.make_step(t_sens0_h + t, p80, vals["power_kw"], vals["load_frac"])
+        p80_new, p80_held, pw_m, ld_m = sens.make_step(t_sens0_h + t, p80, *(vals[k] for k in CLOSED_LOOP_READS))
         if estimator is None:
             x_est, d_est, h_est = x, None, hard(t)
         elif d_prev_known is None:
@@ -159,7 +163,7 @@ def _warm_up(plant, estimator, schedule, sens, settings, x, u0, hard):
     n = int(round(settings.estimator_warmup_h / settings.dt_h))
     for k in range(n):
         m = plant.measure(x, u0, d0)
-        y = sens.make_step(k * settings.dt_h, m["p80_um"], m["power_kw"], m["load_frac"])
+        y = sens.make_step(k * settings.dt_h, m["p80_um"], *(m[key] for key in CLOSED_LOOP_READS))
         if k > 0:
             estimator.make_step(settings.for_estimator([y[0], y[2], y[3]]), u0, b0)
         x, _, _ = plant.step(x, u0, d0, settings.dt_h)

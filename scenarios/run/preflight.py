@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import re
 
-from mpc import MpcInputError
+from mpc import CLOSED_LOOP_READS, MpcInputError
 from scenarios.errors import RunError, SceneError
 from scenarios.run.closed_loop import check_rk4_substeps, loop_start, nmpc_settings
 from scenarios.run.feed import component_blend, feed_schedule
@@ -80,10 +80,6 @@ def model_size_problems(scene: Scene, models) -> list[str]:
     above the memory limit."""
     return (_batch_charge_problems(scene, models) + _plant_output_problems(scene, models)
             + _nlp_size_problems(scene, models))
-
-
-#: What a closed loop reads off its plant every sample (mpc.closed_loop: the sensors and the KPIs)
-CLOSED_LOOP_READS = ("power_kw", "load_frac")
 
 
 def _plant_output_problems(scene: Scene, models) -> list[str]:

@@ -79,3 +79,34 @@ def test_a_closed_loop_row_has_the_specific_energy_of_the_feed_it_measured(plant
     se = f["specific_energy_kwh_t"]
     assert cut == 2 and 3 < se.iloc[cut] < 30  # measured under 30 t/h
     assert se.iloc[cut + 1:].isna().all()
+
+
+def test_a_closed_loop_reads_off_its_plant_the_p80_and_closed_loop_reads(plant_twin):
+    """What the loop (its estimator's warm-up included) reads off the plant's measure is the P80
+    and CLOSED_LOOP_READS, all of them; the scene's preflight checks a plant model for that very
+    tuple (it kept a list of its own)."""
+    from mpc import CLOSED_LOOP_READS
+    from mpc.plants.twin_plant import TwinPlant
+    from scenarios.run import preflight
+
+    read = set()
+
+    class Reading(dict):
+        def __getitem__(self, key):
+            read.add(key)
+            return super().__getitem__(key)
+
+        def pop(self, key, *default):
+            read.add(key)
+            return super().pop(key, *default)
+
+    class Plant(TwinPlant):
+        def measure(self, x, u, d):
+            return Reading(super().measure(x, u, d))
+
+    ss = plant_twin.steady(feed_tph=30.0, speed_frac_critical=0.7, blend=[1.0, 0.0])
+    est = Ekf(plant_twin.model, 0.05, ss.x)
+    run_closed_loop(Plant(plant_twin.model), FixedInputs([30.0, 0.7]), est, lambda t: [1.0, 0.0], Sensors(),
+                    ss.x, ss.u, LoopSettings(0.1, 0.05, seed=1, estimator_warmup_h=0.1))
+    assert read == {"p80_um", *CLOSED_LOOP_READS}
+    assert preflight.CLOSED_LOOP_READS is CLOSED_LOOP_READS
