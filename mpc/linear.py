@@ -38,6 +38,7 @@ import scipy.linalg
 import scipy.optimize
 
 from mpc.errors import MpcInputError
+from mpc.qpsol import conic
 from mpc.results import ControllerStepResult
 
 if TYPE_CHECKING:
@@ -523,7 +524,7 @@ class LinearMPC:
             opts["print_iter"] = False
             opts["print_header"] = False
         self._solver_name = solver
-        self._qp = ca.conic("linear_mpc", solver, {"h": hs, "a": asp}, opts)
+        self._qp = conic("linear_mpc", solver, {"h": hs, "a": asp}, opts)
 
     def unconstrained_gain(self) -> np.ndarray:
         """``K`` with ``u_0 = -K x_0`` for the unconstrained problem (regulation to 0)."""

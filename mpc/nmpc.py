@@ -88,6 +88,7 @@ from mpc.codegen import RTI_CFLAGS, c_library, compiled
 from mpc.condense import RTI_C_SOURCES, RtiLibrary, condensed_qp_function, stage_functions
 from mpc.discretize import rk4_map, rk4_sensitivity_map
 from mpc.errors import MpcInputError, MpcSolverError
+from mpc.qpsol import conic
 from mpc.results import ControllerStepResult
 from twin import pxx_um
 
@@ -476,7 +477,7 @@ class Controller:
         if s.qpsol == "hpipm":  # the stage dimensions of the layout, so HPIPM's Riccati applies
             return {**self._dims, "error_on_fail": False, "inf": HPIPM_INF,
                     "hpipm": {"iter_max": 100, "mode": s.hpipm_mode}}
-        if s.qpsol == "condensed":  # the interpreted fallback's qpOASES
+        if s.qpsol == "condensed":  # the interpreted fallback's qpOASES (its banner: mpc.qpsol.conic)
             return {"printLevel": "none", "error_on_fail": False}
         if s.qpsol == "qrqp":
             return {"print_iter": False, "print_header": False, "error_on_fail": False}
@@ -527,14 +528,14 @@ class Controller:
             # interpreted: the dense condensed QP by qpOASES, the active-set solver made for
             # condensed MPC QPs (Ferreau et al. 2014); qrqp, a sparse solver, once failed on one
             self._qp_data = cond
-            self._qp = ca.conic("rti_qp", "qpoases", {"h": cond.sparsity_out("H"), "a": cond.sparsity_out("A")},
-                                self._qp_options())
+            self._qp = conic("rti_qp", "qpoases", {"h": cond.sparsity_out("H"), "a": cond.sparsity_out("A")},
+                             self._qp_options())
             return
         qp_fn = self._rti_qp_function()
         self._qp_data, rep_qp = compiled(qp_fn, mode)
         self.build_report = {"qp_data": rep_qp, "cost": rep_cost}
-        self._qp = ca.conic("rti_qp", self.settings.qpsol,
-                            {"h": qp_fn.sparsity_out("H"), "a": qp_fn.sparsity_out("A")}, self._qp_options())
+        self._qp = conic("rti_qp", self.settings.qpsol,
+                         {"h": qp_fn.sparsity_out("H"), "a": qp_fn.sparsity_out("A")}, self._qp_options())
 
     def _rti_solve(self, x0, p, lbx, ubx, lbg, ubg, **_):
         """``rti_iterations`` Gauss-Newton QPs from ``x0``; the nlpsol-like result dict. The

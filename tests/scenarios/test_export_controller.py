@@ -191,3 +191,13 @@ def test_exported_controller_with_a_p80_bias_and_gain_replays_like_python(tmp_pa
     assert status == [0] * len(py) and allocs == [0]
     assert np.max(np.abs(moves / py - 1.0)) <= 1e-9
     assert min(abs(b) for b in biases[-len(py):]) > 1e-3  # the weights moved on every step
+
+
+def test_an_export_prints_its_own_line_and_no_qpoases_banner(tmp_path, capfd):
+    """Every export printed qpOASES's copyright notice (the controller it builds makes the
+    interpreted condensed QP's qpOASES, which prints it when made, printLevel "none" or not)."""
+    out = tmp_path / "ctl"
+    assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 0
+    printed = capfd.readouterr()
+    assert "qpOASES" not in printed.out + printed.err
+    assert printed.out == f"{len(_export_files(out))} files in {out}: build with `make -C {out}`; API in gt_controller.h\n"
