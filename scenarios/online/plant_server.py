@@ -474,7 +474,8 @@ class PlantServer(Stoppable):
 
     # ------------------------------------------------------------------ run
     async def run(self, install_signal_handlers: bool = True) -> None:
-        """Serve and advance in (sped-up) real time until stopped or ``duration_h``."""
+        """Serve and advance in (sped-up) real time until stopped (SIGTERM, SIGINT) or ``duration_h``;
+        then stop the server and write the record (a second signal meanwhile changes nothing)."""
         loop = asyncio.get_running_loop()
         self._wake = asyncio.Event()
         signals = self.stop_on_signals(loop, install_signal_handlers)
@@ -501,9 +502,11 @@ class PlantServer(Stoppable):
                 if self.s.duration_h is not None and self.t_h >= self.s.duration_h - 1e-9:
                     self.request_stop(f"duration {self.s.duration_h:g} h reached")
         finally:
-            for sig in signals:
-                loop.remove_signal_handler(sig)
-            await self.stop_server()
-            if self.s.record_dir is not None:
-                self.write_record()
-            log.info("virtual plant stopped (%s) at plant time %.3f h", self.stop_reason or "ended", self.t_h)
+            try:
+                await self.stop_server()
+                if self.s.record_dir is not None:
+                    self.write_record()
+                log.info("virtual plant stopped (%s) at plant time %.3f h", self.stop_reason or "ended", self.t_h)
+            finally:  # only now: a second signal while stopping must not cut the stop short (it asks again)
+                for sig in signals:
+                    loop.remove_signal_handler(sig)

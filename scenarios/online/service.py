@@ -30,7 +30,8 @@ Modes (each change logged):
 - ``disconnected``: the estimator predicts with the last written setpoints, which the plant
   keeps; a task reconnects with exponential back-off.
 SIGTERM or SIGINT ends the service after the running cycle: only the status is written, the
-audit flushed, and the log names the setpoints left in the plant.
+audit flushed, and the log names the setpoints left in the plant; a second signal while it stops
+changes nothing. ``grindtwin serve`` then exits 0, a clean stop to a service manager.
 """
 
 from __future__ import annotations
@@ -505,9 +506,11 @@ class Service(Stoppable):
                 next_t = self._next_cycle(loop, next_t, started, triggered, period, row["service_time_h"])
                 await sleep_until(next_t, self._wake)
         finally:
-            for sig in signals:
-                loop.remove_signal_handler(sig)
-            await self.shutdown(self.stop_reason or "ended")
+            try:
+                await self.shutdown(self.stop_reason or "ended")
+            finally:  # only now: a second signal while stopping must not cut the stop short (it asks again)
+                for sig in signals:
+                    loop.remove_signal_handler(sig)
 
     def _next_cycle(self, loop, next_t: float, started: float, triggered: bool, period: float, t_h: float) -> float:
         """The loop time at which the timer starts the next cycle: a period on (overruns skip
