@@ -511,51 +511,6 @@ def refuse_overflow(twin, ss, allow: bool, what: str, blend=None) -> None:
                      f"beyond the mill. Allowed: {allowed}; --allow-overflow prints the extrapolation anyway.")
 
 
-#: Lowest mill speed [fraction of critical] the twin's breakage describes: Austin's speed factor
-#: (Austin, Klimpel & Luckie 1984, eq. 8.4; twin.breakage.austin_speed_factor), (speed - 0.1) / (1 + ...),
-#: which the ``speed`` effect multiplies into every breakage rate, is zero there and negative below:
-#: no breakage, then negative rates, whose "steady state" holds negative masses (the solver failed
-#: on it, advising tolerances the command has no option for).
-SPEED_MIN_FRAC_CRITICAL = 0.1
-
-
-def refuse_slow_speed(twin, speed, what: str) -> None:
-    """Refuse (bad input, exit 2) a speed at or below :data:`SPEED_MIN_FRAC_CRITICAL` for a twin whose
-    breakage follows the speed (its ``speed`` effect), before anything is solved."""
-    if speed is None or "speed" not in twin.model.effect_names or speed > SPEED_MIN_FRAC_CRITICAL:
-        return
-    raise SceneError(f"{what} {speed:g}: at or below {SPEED_MIN_FRAC_CRITICAL:g} of critical speed the twin's "
-                     "breakage rates are zero or negative (Austin et al. 1984, eq. 8.4, its speed effect), so it has "
-                     f"no steady state there; allowed: a speed in ({SPEED_MIN_FRAC_CRITICAL:g}, 1) of critical.")
-
-
-def min_replicates(level: float) -> int:
-    """Fewest bootstrap replicates a two-sided percentile interval at ``level`` is computed from:
-    the interval leaves (1 - level) / 2 of the replicates beyond each end, and only from
-    2 / (1 - level) replicates (20 at 90 %) is at least one of them there; with fewer, its ends are
-    the extreme replicates' own (interpolated): the spread of a few draws, not an interval at that level."""
-    return math.ceil(round(2.0 / (1.0 - level), 9))
-
-
-def refuse_few_replicates(n: int, calibration, level: float) -> None:
-    """Refuse (bad input, exit 2) ``--uncertainty N`` with 0 < N < :func:`min_replicates`, or a
-    calibration that keeps fewer converged replicates than that, before anything is solved."""
-    need = min_replicates(level)
-    reps = (calibration.record.get("bootstrap") or {}).get("replicates", [])
-    kept = sum(bool(r.get("success", True)) for r in reps)
-    why = (f"a {level:.0%} interval needs at least {need} bootstrap replicates (it leaves {(1 - level) / 2:.0%} of "
-           f"them beyond each end: one on each side takes 2 / (1 - {level:g}) = {need}; fewer give the spread of a "
-           "few draws, not the interval)")
-    if 0 < n < need:
-        what = f"give --uncertainty {need} or more, or 0 for all {kept}" if kept >= need else \
-            f"calibration {calibration.label()} keeps {kept}"
-        raise SceneError(f"--uncertainty {n}: {why}; {what}.")
-    if kept < need:
-        raise SceneError(f"--uncertainty: calibration {calibration.label()} keeps {kept} converged bootstrap "
-                         f"replicate{'s' * (kept != 1)}; {why}. Make a calibration with more (grindtwin calibrate "
-                         f"--replicates N, N >= {need}) and give it with --calibration.")
-
-
 def circuit_notes(twin, mill_name: str) -> list[str]:
     """A note when a mill sized with a hydrocyclone circuit runs its grate discharge (the
     calibration's effects): its numbers are not those of the circuit it was sized for."""
@@ -585,8 +540,6 @@ def _steady_scene(args) -> int:
         raise SceneError(f"{args.scene}: a batch scene (no feed.feed_tph) has no steady state.")
     speed = args.speed if args.speed is not None else scene.feed.speed_frac_critical
     blend = [scene.feed.blend.get(n, 0.0) for n in models.components] if scene.feed.blend else None
-    refuse_slow_speed(models.plant, speed, "--speed" if args.speed is not None else
-                      f"{args.scene}: feed.speed_frac_critical")
     ss = models.plant.steady(feed_tph=feed, speed_frac_critical=speed, blend=blend)
     refuse_overflow(models.plant, ss, args.allow_overflow,
                     "--feed-tph" if args.feed_tph is not None else f"{args.scene}: feed.feed_tph", blend)
@@ -617,10 +570,6 @@ def cmd_steady(args) -> int:
     calibration = load_calibration(_calibration_arg(args.calibration))
     if args.uncertainty is not None and (args.surrogate or args.uncertainty < 0):
         raise SceneError("--uncertainty N needs N >= 0 (0: all replicates) and the twin, not --surrogate.")
-    if args.uncertainty is not None:
-        from twin.calibration.uncertainty import INTERVAL_LEVEL
-
-        refuse_few_replicates(args.uncertainty, calibration, INTERVAL_LEVEL)
     if args.surrogate:
         from twin.surrogate import surrogate_steady
 
@@ -632,7 +581,6 @@ def cmd_steady(args) -> int:
         from twin import Twin
 
         twin = Twin(blend, mill=args.mill, calibration=calibration)
-        refuse_slow_speed(twin, args.speed, "--speed")
         if args.at_constant_load:
             ss = twin.steady_at_constant_load(speed_frac_critical=args.speed)
         else:
