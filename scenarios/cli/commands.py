@@ -511,6 +511,24 @@ def refuse_overflow(twin, ss, allow: bool, what: str, blend=None) -> None:
                      f"beyond the mill. Allowed: {allowed}; --allow-overflow prints the extrapolation anyway.")
 
 
+#: Lowest mill speed [fraction of critical] the twin's breakage describes: Austin's speed factor
+#: (Austin, Klimpel & Luckie 1984, eq. 8.4; twin.breakage.austin_speed_factor), (speed - 0.1) / (1 + ...),
+#: which the ``speed`` effect multiplies into every breakage rate, is zero there and negative below:
+#: no breakage, then negative rates, whose "steady state" holds negative masses (the solver failed
+#: on it, advising tolerances the command has no option for).
+SPEED_MIN_FRAC_CRITICAL = 0.1
+
+
+def refuse_slow_speed(twin, speed, what: str) -> None:
+    """Refuse (bad input, exit 2) a speed at or below :data:`SPEED_MIN_FRAC_CRITICAL` for a twin whose
+    breakage follows the speed (its ``speed`` effect), before anything is solved."""
+    if speed is None or "speed" not in twin.model.effect_names or speed > SPEED_MIN_FRAC_CRITICAL:
+        return
+    raise SceneError(f"{what} {speed:g}: at or below {SPEED_MIN_FRAC_CRITICAL:g} of critical speed the twin's "
+                     "breakage rates are zero or negative (Austin et al. 1984, eq. 8.4, its speed effect), so it has "
+                     f"no steady state there; allowed: a speed in ({SPEED_MIN_FRAC_CRITICAL:g}, 1) of critical.")
+
+
 def circuit_notes(twin, mill_name: str) -> list[str]:
     """A note when a mill sized with a hydrocyclone circuit runs its grate discharge (the
     calibration's effects): its numbers are not those of the circuit it was sized for."""
@@ -540,6 +558,8 @@ def _steady_scene(args) -> int:
         raise SceneError(f"{args.scene}: a batch scene (no feed.feed_tph) has no steady state.")
     speed = args.speed if args.speed is not None else scene.feed.speed_frac_critical
     blend = [scene.feed.blend.get(n, 0.0) for n in models.components] if scene.feed.blend else None
+    refuse_slow_speed(models.plant, speed, "--speed" if args.speed is not None else
+                      f"{args.scene}: feed.speed_frac_critical")
     ss = models.plant.steady(feed_tph=feed, speed_frac_critical=speed, blend=blend)
     refuse_overflow(models.plant, ss, args.allow_overflow,
                     "--feed-tph" if args.feed_tph is not None else f"{args.scene}: feed.feed_tph", blend)
@@ -581,6 +601,7 @@ def cmd_steady(args) -> int:
         from twin import Twin
 
         twin = Twin(blend, mill=args.mill, calibration=calibration)
+        refuse_slow_speed(twin, args.speed, "--speed")
         if args.at_constant_load:
             ss = twin.steady_at_constant_load(speed_frac_critical=args.speed)
         else:

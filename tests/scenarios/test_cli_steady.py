@@ -197,3 +197,28 @@ def test_steady_says_the_dem_calibration_does_not_read_texture(tmp_path, capsys)
             p80[cal, p.parent.name] = out["p80_um"]
             assert any("texture" in n and "does not enter" in n for n in out["notes"]) == (cal == "dem")
     assert p80["dem", "g10"] == p80["dem", "g1000"] and p80["table", "g10"] != p80["table", "g1000"]
+
+
+def test_a_speed_where_the_breakage_stops_is_refused_before_solving(capsys):
+    """0.001 of critical failed in the solver with "tighten the tolerances", which the command has
+    no option for: below 0.1 of critical Austin's speed factor, and so every breakage rate, is
+    negative. Refused with the allowed range, exit 2, on every path that solves a steady state."""
+    from pathlib import Path
+
+    from scenarios.cli.commands import SPEED_MIN_FRAC_CRITICAL
+    from twin.breakage import austin_speed_factor
+
+    assert austin_speed_factor(SPEED_MIN_FRAC_CRITICAL) == pytest.approx(0.0, abs=1e-12)  # the model's own zero
+    assert austin_speed_factor(SPEED_MIN_FRAC_CRITICAL - 0.01) < 0 < austin_speed_factor(SPEED_MIN_FRAC_CRITICAL + 0.01)
+    scene = str(Path(__file__).resolve().parents[2] / "scenarios" / "pyrite_surge.toml")
+    for argv in (["--ore", "B", "--feed-tph", "0.031", "--speed", "0.001"],
+                 ["--ore", "B", "--at-constant-load", "--speed", "0.05"],
+                 ["--scene", scene, "--speed", "0.1"]):
+        assert main(["steady", *argv]) == 2, argv
+        captured = capsys.readouterr()
+        speed = argv[-1]
+        assert f"--speed {speed}: at or below 0.1 of critical speed" in captured.err
+        assert "allowed: a speed in (0.1, 1) of critical" in captured.err
+        assert "tolerances" not in captured.err and captured.out == ""
+    assert main(["steady", "--ore", "B", "--mill", "industrial", "--speed", "0.11", "--json"]) == 0  # just above
+    assert json.loads(capsys.readouterr().out)["speed_frac_critical"] == pytest.approx(0.11)
