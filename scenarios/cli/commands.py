@@ -451,7 +451,8 @@ def add_steady_parser(subparsers):
     _add_calibration_option(s)
     s.add_argument("--uncertainty", nargs="?", type=int, const=0, default=None, metavar="N",
                    help="also print 90 %% intervals of P80, specific energy and throughput over the calibration's "
-                   "bootstrap replicates of the DEM's particle scatter (N replicates, default all)")
+                   "bootstrap replicates of the DEM's particle scatter (N replicates, at least 20: one beyond each "
+                   "end of the interval; default all)")
     s.add_argument("--scene", help="a scene file: its plant twin at the scene's initial feed and speed "
                    "(--feed-tph and --speed override them; --ore, --blend and --mill do not apply)")
     s.add_argument("--allow-overflow", action="store_true",
@@ -529,6 +530,31 @@ def refuse_slow_speed(twin, speed, what: str) -> None:
                      f"no steady state there; allowed: a speed in ({SPEED_MIN_FRAC_CRITICAL:g}, 1) of critical.")
 
 
+def min_replicates(level: float) -> int:
+    """Fewest bootstrap replicates a two-sided percentile interval at ``level`` is computed from:
+    the interval leaves (1 - level) / 2 of the replicates beyond each end, and only from
+    2 / (1 - level) replicates (20 at 90 %) is at least one of them there; with fewer, its ends are
+    the extreme replicates' own (interpolated): the spread of a few draws, not an interval at that level."""
+    return math.ceil(round(2.0 / (1.0 - level), 9))
+
+
+def refuse_few_replicates(n: int, calibration, level: float) -> None:
+    """Refuse (bad input, exit 2) ``--uncertainty N`` with 0 < N < :func:`min_replicates`, or a
+    calibration that keeps fewer converged replicates than that, before anything is solved."""
+    need = min_replicates(level)
+    reps = (calibration.record.get("bootstrap") or {}).get("replicates", [])
+    kept = sum(bool(r.get("success", True)) for r in reps)
+    why = (f"a {level:.0%} interval needs at least {need} bootstrap replicates (it leaves {(1 - level) / 2:.0%} of "
+           f"them beyond each end: one on each side takes 2 / (1 - {level:g}) = {need}; fewer give the spread of a "
+           "few draws, not the interval)")
+    if kept < need:
+        raise SceneError(f"--uncertainty{f' {n}' if n else ''}: calibration {calibration.label()} keeps {kept} "
+                         f"converged bootstrap replicate{'s' * (kept != 1)}; {why}. Make a calibration with more "
+                         f"(grindtwin calibrate --replicates N, N >= {need}) and give it with --calibration.")
+    if 0 < n < need:
+        raise SceneError(f"--uncertainty {n}: {why}; give --uncertainty {need} or more, or 0 for all {kept}.")
+
+
 def circuit_notes(twin, mill_name: str) -> list[str]:
     """A note when a mill sized with a hydrocyclone circuit runs its grate discharge (the
     calibration's effects): its numbers are not those of the circuit it was sized for."""
@@ -590,6 +616,10 @@ def cmd_steady(args) -> int:
     calibration = load_calibration(_calibration_arg(args.calibration))
     if args.uncertainty is not None and (args.surrogate or args.uncertainty < 0):
         raise SceneError("--uncertainty N needs N >= 0 (0: all replicates) and the twin, not --surrogate.")
+    if args.uncertainty is not None:
+        from twin.calibration.uncertainty import INTERVAL_LEVEL
+
+        refuse_few_replicates(args.uncertainty, calibration, INTERVAL_LEVEL)
     if args.surrogate:
         from twin.surrogate import surrogate_steady
 
@@ -615,6 +645,10 @@ def cmd_steady(args) -> int:
         unc = steady_intervals(blend, calibration, args.mill, args.feed_tph, args.speed,
                                at_load=args.at_constant_load, n=args.uncertainty or None)
     notes = undefined_to_none(kpis, unc)
+    if unc and unc["n"] < min_replicates(unc["level"]):  # steady states that failed left too few
+        notes.append(f"the {unc['level']:.0%} intervals are undefined: the steady state solved for {unc['n']} "
+                     f"replicates, fewer than the {min_replicates(unc['level'])} an interval needs")
+        unc["intervals"] = {key: None for key in unc["intervals"]}
     if args.surrogate:  # no hold-up or clay of its own: what its speed says
         from twin import centrifuging_note
 

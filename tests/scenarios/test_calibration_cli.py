@@ -73,9 +73,9 @@ def test_steady_calibration_by_name_and_by_path(capsys):
 
 
 def test_steady_uncertainty_prints_intervals(capsys):
-    assert main(["steady", "--ore", "B", "--at-constant-load", "--uncertainty", "6"]) == 0
+    assert main(["steady", "--ore", "B", "--at-constant-load", "--uncertainty", "20"]) == 0
     out = capsys.readouterr().out
-    assert "90% intervals over 6 bootstrap replicates" in out
+    assert "90% intervals over 20 bootstrap replicates" in out
     for key in ("p80_um", "specific_energy_kwh_t", "throughput_tph"):
         line = next(ln for ln in out.splitlines() if ln.strip().startswith(key) and "[" in ln)
         lo, hi = (float(v) for v in line.split("[")[1].rstrip("]").split(","))

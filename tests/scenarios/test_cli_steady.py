@@ -61,13 +61,13 @@ def test_steady_from_surrogate_is_close_to_the_twin(capsys):
 def test_zero_feed_reports_specific_energy_as_undefined(capsys):
     """Energy per tonne fed has no value without feed: null with a note, never the model's
     1e7 kWh/t from its division floor."""
-    assert main(["steady", "--ore", "B", "--feed-tph", "0", "--json", "--uncertainty", "3"]) == 0
+    assert main(["steady", "--ore", "B", "--feed-tph", "0", "--json", "--uncertainty", "20"]) == 0
     out = strict_json(capsys.readouterr().out)  # strict JSON: no NaN
     assert out["specific_energy_kwh_t"] is None and out["power_kw"] > 0
     assert out["p80_um"] is None  # no product, no P80
     assert out["notes"][0] == "specific_energy_kwh_t is undefined at zero feed"
     assert out["uncertainty"]["intervals"]["specific_energy_kwh_t"] is None
-    assert main(["steady", "--ore", "B", "--feed-tph", "0", "--uncertainty", "3"]) == 0
+    assert main(["steady", "--ore", "B", "--feed-tph", "0", "--uncertainty", "20"]) == 0
     text = capsys.readouterr().out
     assert "specific_energy_kwh_t    undefined" in text and "e+0" not in text
     assert "specific_energy_kwh_t  undefined" in text  # the interval line too
@@ -222,3 +222,38 @@ def test_a_speed_where_the_breakage_stops_is_refused_before_solving(capsys):
         assert "tolerances" not in captured.err and captured.out == ""
     assert main(["steady", "--ore", "B", "--mill", "industrial", "--speed", "0.11", "--json"]) == 0  # just above
     assert json.loads(capsys.readouterr().out)["speed_frac_critical"] == pytest.approx(0.11)
+
+
+def test_min_replicates_leaves_one_replicate_beyond_each_end():
+    from scenarios.cli.commands import min_replicates
+
+    assert [min_replicates(level) for level in (0.8, 0.9, 0.95)] == [10, 20, 40]
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--uncertainty", "1"], "--uncertainty 1: a 90% interval needs at least 20 bootstrap replicates"),
+    (["--uncertainty", "19"], "give --uncertainty 20 or more, or 0 for all 100"),
+    (["--calibration", "table", "--uncertainty"], "keeps 0 converged bootstrap replicates; a 90% interval needs at "
+                                                  "least 20"),
+])
+def test_too_few_replicates_for_an_interval_are_refused_before_solving(argv, message, capsys):
+    """--uncertainty 1 printed a "90 % interval" of one replicate, [x, x]."""
+    assert main(["steady", "--ore", "B", *argv]) == 2
+    captured = capsys.readouterr()
+    assert message in captured.err and captured.out == ""
+
+
+def test_intervals_left_with_too_few_solved_replicates_are_undefined(monkeypatch, capsys):
+    """20 replicates asked, 15 steady states failed: the 5 left make no 90 % interval."""
+    import twin.calibration
+
+    def five_left(*args, **kwargs):
+        return {"intervals": {"p80_um": (200.0, 201.0, 202.0)}, "n": 5, "failed": 15, "unconverged": 0,
+                "level": 0.9}
+
+    monkeypatch.setattr(twin.calibration, "steady_intervals", five_left)
+    assert main(["steady", "--ore", "B", "--uncertainty", "20", "--json"]) == 0
+    out = strict_json(capsys.readouterr().out)
+    assert out["uncertainty"]["intervals"] == {"p80_um": None}
+    assert "the 90% intervals are undefined: the steady state solved for 5 replicates, fewer than the 20 an " \
+           "interval needs" in out["notes"]
