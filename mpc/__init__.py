@@ -6,7 +6,7 @@ from mpc.baselines import FixedInputs, PiFeedback, pi_baseline
 from mpc.closed_loop import CLOSED_LOOP_READS, ESTIMATOR_MEASUREMENTS, ClosedLoopResult, LoopSettings, run_closed_loop
 from mpc.discretize import (RK4_RATE_SAFETY, cvodes_map, min_rk4_substeps, rk4_map, rk4_sensitivity_map,
                              stable_rk4_substeps, state_jacobian)
-from mpc.errors import MpcError, MpcInputError, MpcSolverError
+from mpc.errors import MpcError, MpcInputError, MpcSolverError, OutsideModelsWarning
 from mpc.codegen import CompileFallbackWarning, CompileReport, compiled
 from mpc.estimator import DISTURBANCE_MODELS, MEASUREMENTS, Ekf
 from mpc.export import check_out_dir, export_controller
@@ -14,7 +14,7 @@ from mpc.kpis import (P80_BAND_UM, cumulative, fresh_feed_t, held_cumulative, he
                       outside_band_frac, p80_iae_um_h, specific_energy_kwh_t, within_band_frac)
 from mpc.linear import (Fopdt, LinearMPC, OperatingPoint, StepMoments, discretize, fit_fopdt, fopdt_from_model,
                         gain_table, linearize, steady_target, step_moments, step_test)
-from mpc.nmpc import QP_SOLVERS, SOLVERS, Controller, NmpcSettings
+from mpc.nmpc import QP_SOLVERS, SOLVERS, Controller, NmpcSettings, speed_max_note
 from mpc.optimize import Setpoints, feed_for_target, optimal_setpoints, speed_for_target
 from mpc.pi import DiscretePI, pi_from_model, simc_pi
 from mpc.plants import LeRouxCircuit, LeRouxParameters, LeRouxPlant, MatchedTwin, TwinPlant, matched_twin
@@ -22,7 +22,7 @@ from mpc.results import ControllerStepResult
 from mpc.sensors import Sensors, SensorState
 
 __all__ = [
-    "CLOSED_LOOP_READS",
+    "CLOSED_LOOP_READS", "OutsideModelsWarning", "speed_max_note",
     "ClosedLoopResult", "CompileFallbackWarning", "CompileReport", "DISTURBANCE_MODELS", "Controller", "ControllerStepResult", "DiscretePI", "ESTIMATOR_MEASUREMENTS", "Ekf",
     "FixedInputs", "Fopdt", "LeRouxCircuit", "LeRouxParameters", "LeRouxPlant", "LinearMPC", "LoopSettings",
     "MEASUREMENTS", "MatchedTwin", "MpcError", "MpcInputError", "MpcSolverError", "NmpcSettings", "OperatingPoint",

@@ -11,3 +11,8 @@ class MpcInputError(MpcError, ValueError):
 
 class MpcSolverError(MpcError, RuntimeError):
     """The optimal-control problem could not be solved; carries the solver status."""
+
+
+class OutsideModelsWarning(UserWarning):
+    """A setting lets the controller take the plant where the twin's models do not describe it
+    (:mod:`twin.validity`); noted, not refused, as the twin notes such a state."""

@@ -27,6 +27,7 @@ import json
 import math
 import os
 import shutil
+import warnings
 from pathlib import Path
 
 import casadi as ca
@@ -34,7 +35,8 @@ import numpy as np
 
 from mpc.codegen import C_DIR
 from mpc.condense import stage_functions
-from mpc.errors import MpcInputError
+from mpc.errors import MpcInputError, OutsideModelsWarning
+from mpc.nmpc import speed_max_note
 from twin import new_folder_beside
 
 MANIFEST = "grindtwin_export.json"
@@ -153,8 +155,12 @@ def check_out_dir(out) -> None:
 
 def export_controller(controller, estimator, u0, out_dir, source: str = "") -> list[str]:
     """Write the controller and its estimator as C into ``out_dir`` (module docstring); returns
-    the names of the files written. ``u0``: the input applied before the first step."""
+    the names of the files written. ``u0``: the input applied before the first step. A speed
+    bound beyond what the twin's models describe (:func:`mpc.nmpc.speed_max_note`) is exported
+    with a note: warned (:class:`mpc.errors.OutsideModelsWarning`) and in the manifest's
+    ``notes``."""
     _check(controller, estimator)
+    notes = [n for n in [speed_max_note(controller.settings)] if n]
     out = Path(out_dir)
     check_out_dir(out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -172,7 +178,7 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "") -> l
                     "build_products": list(BUILD_PRODUCTS),
                     "horizon_steps": s.horizon_steps, "dt_h": s.dt_h, "n_x": controller.nx,
                     "estimator_state": int(estimator.z.size), "disturbance_model": estimator.disturbance_model,
-                    "api": "gt_controller.h", "build": "make"}
+                    "api": "gt_controller.h", "build": "make", "notes": notes}
         (partial / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
     except BaseException:
         shutil.rmtree(partial, ignore_errors=True)
@@ -180,4 +186,6 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "") -> l
     if out.exists():
         shutil.rmtree(out)  # a previous export of ours and nothing else (check_out_dir)
     partial.rename(out)
+    for note in notes:
+        warnings.warn(note, OutsideModelsWarning, stacklevel=2)
     return files

@@ -90,7 +90,7 @@ from mpc.discretize import rk4_map, rk4_sensitivity_map
 from mpc.errors import MpcInputError, MpcSolverError
 from mpc.qpsol import conic
 from mpc.results import ControllerStepResult
-from twin import pxx_um
+from twin import centrifuging_note, pxx_um
 
 SOLVERS = ("ipopt", "sqpmethod", "fatrop", "rti")
 QP_SOLVERS = ("hpipm", "qrqp", "osqp", "condensed")
@@ -252,6 +252,19 @@ class NmpcSettings:
     @classmethod
     def field_names(cls) -> tuple[str, ...]:
         return tuple(f.name for f in fields(cls))
+
+
+def speed_max_note(settings: NmpcSettings, key: str = "speed_max") -> str | None:
+    """A note when ``settings.speed_max`` lies beyond the speed where the charge centrifuges
+    (:data:`twin.CENTRIFUGING_FRAC_CRITICAL`, :func:`twin.centrifuging_note`), naming ``key``
+    (the setting as its reader knows it), its value and the limit; else None. The controller
+    would plan speeds the twin's models do not describe (breakage falls there, the power model
+    has no centrifuging loss). A note, not a refusal: the twin notes such a speed and goes on
+    (``grindtwin steady --speed 0.99``), and a run warns of it."""
+    note = centrifuging_note(settings.speed_max)
+    if note is None:
+        return None
+    return f"{key} = {settings.speed_max:g}: the controller may plan speeds its models do not describe; {note}"
 
 
 class Controller:

@@ -10,19 +10,24 @@ built, before any simulation.
   the closed loop's start exists (a feed rate that holds the target) and the RK4 sub-steps are
   stable there. The memory estimate is for the NMPC as built now (RTI's stage-wise compiled QP
   data, the exact-Hessian NLP of the others): benchmarks/mpc_nmpc_build.py measures it.
+
+``check`` also notes (warns, :class:`mpc.OutsideModelsWarning`, and still says OK) the speeds a
+scene lets the plant run at that the twin's models do not describe (:func:`speed_notes`), as
+``steady`` notes such a speed and a run warns of it.
 """
 
 from __future__ import annotations
 
 import re
+import warnings
 
-from mpc import CLOSED_LOOP_READS, MpcInputError
+from mpc import CLOSED_LOOP_READS, MpcInputError, OutsideModelsWarning, speed_max_note
 from scenarios.errors import RunError, SceneError
 from scenarios.run.closed_loop import check_rk4_substeps, loop_start, nmpc_settings
 from scenarios.run.feed import component_blend, feed_schedule
 from scenarios.run.models import build_models, component_ores, is_batch
 from scenarios.scene import Scene, check_scene as check_scene_file, load_scene
-from twin import TwinError
+from twin import TwinError, centrifuging_note
 
 #: NmpcSettings field -> the scene key it comes from (scenarios.run.closed_loop.nmpc_settings).
 NMPC_KEYS = {
@@ -73,6 +78,18 @@ def settings_problems(scene: Scene) -> list[str]:
         key = NMPC_KEYS.get(m.group(1), "controller") if m else "controller"
         return [f"{key}: {exc}"]
     return []
+
+
+def speed_notes(scene: Scene) -> list[str]:
+    """The speeds the scene sets beyond where the charge centrifuges (twin.CENTRIFUGING_FRAC_CRITICAL),
+    each naming its key, value and the limit: ``feed.speed_frac_critical`` (held open loop, a
+    closed loop's start) and an NMPC's ``controller.bounds.speed_max`` (the speeds it may plan);
+    call it on settings :func:`settings_problems` accepts."""
+    speed = scene.feed.speed_frac_critical
+    notes = [f"feed.speed_frac_critical = {speed:g}: {centrifuging_note(speed)}"] if centrifuging_note(speed) else []
+    if scene.controller.kind == "nmpc":
+        notes += [n for n in [speed_max_note(nmpc_settings(scene), NMPC_KEYS["speed_max"])] if n]
+    return notes
 
 
 def model_size_problems(scene: Scene, models) -> list[str]:
@@ -152,7 +169,8 @@ def start_problems(scene: Scene, models) -> list[str]:
 def check_scene(path) -> list[str]:
     """Every problem ``grindtwin check`` reports for a scene file: the file's own
     (:func:`scenarios.scene.check_scene`: schema and cross-field checks), then, when the file is
-    valid, everything the run would refuse (this module's checks, with the models built)."""
+    valid, everything the run would refuse (this module's checks, with the models built). Speeds
+    the models do not describe are warned, not returned (:func:`speed_notes`)."""
     problems = check_scene_file(path)
     if problems:
         return problems
@@ -160,6 +178,8 @@ def check_scene(path) -> list[str]:
     problems = [f"{path}: {m}" for m in settings_problems(scene)]
     if problems:
         return problems
+    for note in speed_notes(scene):
+        warnings.warn(f"{path}: {note}", OutsideModelsWarning, stacklevel=2)
     try:
         models = build_models(scene)
     except SceneError as exc:

@@ -188,3 +188,14 @@ def test_real_time_iteration_respects_bounds_rates_and_blocking(ctrl_twin, setup
         assert np.all(r.plan[:, 1] >= s.speed_min - 1e-6) and np.all(r.plan[:, 1] <= s.speed_max + 1e-6)
         np.testing.assert_allclose(r.plan[1], r.plan[0], atol=1e-7)
         u_prev = r.u_applied
+
+
+def test_a_speed_bound_where_the_charge_centrifuges_is_noted_with_key_value_and_limit():
+    """Up to the limit no note; beyond it one naming the key given, the value and the limit."""
+    from mpc.nmpc import speed_max_note
+    from twin import CENTRIFUGING_FRAC_CRITICAL as LIMIT
+
+    assert speed_max_note(NmpcSettings(speed_max=LIMIT)) is None
+    note = speed_max_note(NmpcSettings(speed_max=0.99), "controller.bounds.speed_max")
+    assert note.startswith("controller.bounds.speed_max = 0.99: ") and f"beyond {LIMIT} " in note
+    assert speed_max_note(NmpcSettings(speed_max=0.99)).startswith("speed_max = 0.99: ")

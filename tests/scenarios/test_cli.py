@@ -211,3 +211,28 @@ def test_size_mill_prints_its_design_points_notes(capsys, monkeypatch):
     with pytest.raises(SystemExit) as refused:
         grindtwin(["size-mill", "--feed-tph", "31", "--target-p80-um", "210", "--speed", "0.95"])
     assert refused.value.code == 2 and "--speed must be in (0.3, 0.95). Got 0.95." in capsys.readouterr().err
+
+
+@pytest.mark.filterwarnings("always::mpc.OutsideModelsWarning")
+def test_check_notes_a_speed_where_the_charge_centrifuges_and_still_says_ok(write_scene, capsys):
+    """check said OK and nothing else of a controller allowed 0.99 of critical, or of a scene held
+    at 0.96, speeds where the twin's models do not describe the charge. steady notes such a speed
+    and a run warns of it, both going on: check notes it (key, value, limit) and says OK."""
+    from scenarios.cli import main
+    from tests.scenarios.conftest import BASE_SCENE
+    from twin import CENTRIFUGING_FRAC_CRITICAL
+
+    reference = Path(__file__).resolve().parents[2] / "scenarios" / "reference_transition.toml"
+    assert reference.read_text().count("speed_max = 0.85\n") == 1
+    fast = write_scene(reference.read_text().replace("speed_max = 0.85\n", "speed_max = 0.99\n"), "fast.toml")
+    held = write_scene(BASE_SCENE.replace('kind = "nmpc"', 'kind = "none"')
+                       .replace("speed_frac_critical = 0.70", "speed_frac_critical = 0.96"), "held.toml")
+    slow = write_scene(reference.read_text(), "slow.toml")
+    assert main(["check", str(fast), str(held), str(slow)]) == 0
+    out, err = capsys.readouterr()
+    assert out.splitlines() == [f"{p}: OK" for p in (fast, held, slow)]
+    notes = err.splitlines()
+    assert len(notes) == 2 and all(f"beyond {CENTRIFUGING_FRAC_CRITICAL} where the charge centrifuges" in n
+                                   for n in notes)
+    assert notes[0].startswith(f"grindtwin: warning: {fast}: controller.bounds.speed_max = 0.99: ")
+    assert notes[1].startswith(f"grindtwin: warning: {held}: feed.speed_frac_critical = 0.96: ")

@@ -200,4 +200,28 @@ def test_an_export_prints_its_own_line_and_no_qpoases_banner(tmp_path, capfd):
     assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 0
     printed = capfd.readouterr()
     assert "qpOASES" not in printed.out + printed.err
-    assert printed.out == f"{len(_export_files(out))} files in {out}: build with `make -C {out}`; API in gt_controller.h\n"
+    n = len(_export_files(out))
+    assert printed.out == f"{n} files in {out}: build with `make -C {out}`; API in gt_controller.h\n"
+
+
+@pytest.mark.filterwarnings("always::mpc.OutsideModelsWarning")
+def test_an_export_allowed_to_centrifuge_notes_it_and_exports(tmp_path, capsys):
+    """A controller allowed 0.99 of critical was exported without a word, though the twin's
+    models do not describe a centrifuging charge; the twin notes such a speed and goes on, so the
+    export does too: warned (key, value, limit) and in the manifest's notes. The shipped bounds
+    have none."""
+    from twin import CENTRIFUGING_FRAC_CRITICAL
+
+    text = REFERENCE.read_text()
+    assert text.count("speed_max = 0.85\n") == 1
+    scene = tmp_path / "fast.toml"
+    scene.write_text(text.replace("speed_max = 0.85\n", "speed_max = 0.99\n"))
+    assert main(["export-controller", str(scene), "--out", str(tmp_path / "fast")]) == 0
+    err = capsys.readouterr().err
+    assert "speed_max = 0.99: the controller may plan speeds" in err
+    assert f"beyond {CENTRIFUGING_FRAC_CRITICAL} where the charge centrifuges" in err
+    notes = json.loads((tmp_path / "fast" / "grindtwin_export.json").read_text())["notes"]
+    assert len(notes) == 1 and f"grindtwin: warning: {notes[0]} (OutsideModelsWarning)" in err
+    assert main(["export-controller", str(REFERENCE), "--out", str(tmp_path / "shipped")]) == 0
+    assert "warning" not in capsys.readouterr().err
+    assert json.loads((tmp_path / "shipped" / "grindtwin_export.json").read_text())["notes"] == []
