@@ -3,12 +3,15 @@ QP, with a small C API (mpc/c/gt_controller.h: new, estimate, step, plan).
 
 What is written (``export_controller``): CasADi's generated C of the estimator's step
 (:attr:`mpc.estimator.Ekf.step_function`, ``gt_ekf_data.c``) and of the condensed QP data
-(:func:`mpc.condense.stage_functions`, ``gt_rti_data.c``), with their headers; the
+(:func:`mpc.condense.stage_functions`) with the plan's passing fraction (:func:`plan_passing_function`,
+``gt_rti_data.c``), with their headers; the
 hand-written C of mpc/c (the Goldfarb-Idnani QP solver, the condensing loop, the RTI step, the controller API, a
 replay harness and an allocation counter); ``gt_controller_config.h`` (dimensions, scales, bounds,
 passing weights, the initial estimate); a Makefile; and ``grindtwin_export.json`` listing every
-file written. The Python controller with ``qpsol = "condensed"`` runs the same generated code and
-the same solver, so the moves agree to rounding.
+file written, the step's statuses (:data:`STEP_STATUS`) and any notes. The Python controller with
+``qpsol = "condensed"`` runs the same generated code and the same solver, so the moves agree to
+rounding, and the step's status is the Python controller's: ok, a fallback, or target_unreachable
+(the plan misses the target at the horizon end, by the rule of :meth:`mpc.Controller.make_step`).
 
 Memory: ``gt_controller_new`` makes two allocations (the controller with the EKF's work, and the
 RTI's block: QP data, solver work); estimate and step allocate nothing (counted by
@@ -36,10 +39,22 @@ import numpy as np
 from mpc.codegen import C_DIR
 from mpc.condense import stage_functions
 from mpc.errors import MpcInputError, OutsideModelsWarning
-from mpc.nmpc import speed_max_note
+from mpc.nmpc import PASSING_TARGET, speed_max_note
 from twin import new_folder_beside
 
 MANIFEST = "grindtwin_export.json"
+#: gt_controller_step's statuses (mpc/c/gt_controller.h's enum gt_step_status), in the manifest.
+STEP_STATUS = {
+    0: "ok: the QP solved; u is the plan's first move",
+    1: "shifted_plan: the QP failed; u is the previous plan shifted by one sample",
+    2: "hold_input: the QP failed and no plan is left; u = u_applied",
+    3: "bad_bias: the estimated P80 bias is not finite or not below the target; nothing solved, u = u_applied",
+    4: "bad_input: u_applied or the preview is not finite; nothing solved, u left as it was",
+    5: "target_unreachable: the QP solved and u is the plan's first move, applied as for ok, but the plan's "
+       "passing fraction of the target at the horizon end (gt_controller_passing_end) misses 0.80 by more "
+       "than unreachable_tol_frac: the target is out of reach within the horizon (the Python controller's "
+       "status by the same rule)",
+}
 C_FILES = ("gt_qp.c", "gt_qp.h", "gt_cond.c", "gt_cond.h", "gt_rti.c", "gt_rti.h", "gt_controller.c", "gt_controller.h",
            "gt_replay.c", "gt_malloc_count.c")
 #: What the Makefile builds in the folder (a re-export may replace these too).
@@ -93,6 +108,18 @@ def _check(controller, estimator) -> None:
             raise MpcInputError("export-controller: the NLP's variable layout is not stage by stage.")
 
 
+def plan_passing_function(controller) -> ca.Function:
+    """``gt_plan_passing(x, u, d, wpass) -> passing``: the product's fraction passing the size of
+    the passing weights ``wpass`` at a model state, input and disturbance, the controller's own
+    (the first output of its ``_out_fn``), which :meth:`mpc.Controller.make_step` reads at the
+    plan's end for its target_unreachable status and the exported step reads for the same."""
+    c = controller
+    x, u, d = ca.SX.sym("x", c.nx), ca.SX.sym("u", c.nu), ca.SX.sym("d", c.nd)
+    wpass = ca.SX.sym("wpass", c._wpass.size)
+    return ca.Function("gt_plan_passing", [x, u, d, wpass], [c._out_fn(x, u, d, wpass)[0]],
+                       ["x", "u", "d", "wpass"], ["passing"])
+
+
 def config_header(controller, estimator, u0) -> str:
     """gt_controller_config.h: dimensions, scales, bounds and the initial estimate."""
     c, s, e = controller, controller.settings, estimator
@@ -109,7 +136,11 @@ def config_header(controller, estimator, u0) -> str:
     lines += [f"#define GT_TOL {s.tol!r}", f"#define GT_HARDNESS0 {e.hardness_est!r}",
               "/* the P80 target [um]; the analyser reads ref + gain (P80_model - ref) + bias (mpc.estimator) */",
               f"#define GT_TARGET_P80_UM {float(s.target_p80_um)!r}", f"#define GT_P80_GAIN {float(e.p80_gain)!r}",
-              f"#define GT_P80_REFERENCE_UM {float(e.p80_reference_um or 0.0)!r}", "",
+              f"#define GT_P80_REFERENCE_UM {float(e.p80_reference_um or 0.0)!r}",
+              "/* GT_STEP_TARGET_UNREACHABLE: the plan's passing fraction at the horizon end differs from",
+              " * GT_PASSING_TARGET by more than GT_UNREACHABLE_TOL (mpc.Controller.make_step's rule) */",
+              f"#define GT_PASSING_TARGET {PASSING_TARGET!r}",
+              f"#define GT_UNREACHABLE_TOL {float(s.unreachable_tol_frac)!r}", "",
               "/* state scales, input bounds, largest move per sample, passing weights of the target */",
               _c_array("gt_x_scale", c.x_scale),
               _c_array("gt_u_lo", [s.feed_tph_min, s.speed_min]), _c_array("gt_u_hi", [s.feed_tph_max, s.speed_max]),
@@ -166,7 +197,7 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "") -> l
     out.parent.mkdir(parents=True, exist_ok=True)
     partial = new_folder_beside(out)
     try:
-        _generate(stage_functions(controller), "gt_rti_data", partial)
+        _generate([*stage_functions(controller), plan_passing_function(controller)], "gt_rti_data", partial)
         _generate([estimator.step_function], "gt_ekf_data", partial)
         for name in C_FILES:
             shutil.copyfile(C_DIR / name, partial / name)
@@ -178,7 +209,9 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "") -> l
                     "build_products": list(BUILD_PRODUCTS),
                     "horizon_steps": s.horizon_steps, "dt_h": s.dt_h, "n_x": controller.nx,
                     "estimator_state": int(estimator.z.size), "disturbance_model": estimator.disturbance_model,
-                    "api": "gt_controller.h", "build": "make", "notes": notes}
+                    "api": "gt_controller.h", "build": "make",
+                    "step_status": {str(k): v for k, v in STEP_STATUS.items()},
+                    "unreachable_tol_frac": float(s.unreachable_tol_frac), "notes": notes}
         (partial / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
     except BaseException:
         shutil.rmtree(partial, ignore_errors=True)

@@ -1,7 +1,8 @@
 /* grindtwin's exported NMPC (gt_controller.h): the same arithmetic as mpc.Ekf.make_step and
  * mpc.Controller.make_step with qpsol "condensed" (the warm start shifted by one sample, the
  * real-time iterations of gt_rti.c, the plan clipped to the input bounds, the shifted-plan and
- * hold-input fallbacks), on the CasADi-generated ekf_step and stage functions (gt_cond.c). */
+ * hold-input fallbacks, the target_unreachable status), on the CasADi-generated ekf_step, stage
+ * functions (gt_cond.c) and gt_plan_passing. */
 #include "gt_controller.h"
 
 #include <math.h>
@@ -12,6 +13,7 @@
 #include "gt_ekf_data.h"
 #include "gt_qp.h"
 #include "gt_rti.h"
+#include "gt_rti_data.h" /* generated: gt_plan_passing (and gt_cond.c's stage functions) */
 
 #define GT_STRIDE (GT_NXL + GT_NUL) /* variables of one stage: X~_k then U~_k */
 
@@ -19,17 +21,29 @@ struct gt_controller {
     gt_rti *rti;
     double z[GT_NZ], P[GT_NZ * GT_NZ], P_next[GT_NZ * GT_NZ], innovation[3];
     double w[GT_NW], w_prev[GT_NW], w_next[GT_NW], p[GT_NP], wpass[GT_NPASS];
-    double plan[GT_N * 2], plan_prev[GT_N * 2];
+    double plan[GT_N * 2], plan_prev[GT_N * 2], passing_end;
     int have_w_prev, have_plan, plan_age, qp_iter, qp_status;
+    /* the work of the generated ekf_step and gt_plan_passing (called one at a time) */
     const casadi_real **ekf_arg;
     casadi_real **ekf_res;
     casadi_int *ekf_iw;
     casadi_real *ekf_w;
 };
 
+/* the larger of ekf_step's and gt_plan_passing's work sizes */
+static void work_sizes(casadi_int *a, casadi_int *r, casadi_int *i, casadi_int *w) {
+    casadi_int a2, r2, i2, w2;
+    ekf_step_work(a, r, i, w);
+    gt_plan_passing_work(&a2, &r2, &i2, &w2);
+    if (a2 > *a) *a = a2;
+    if (r2 > *r) *r = r2;
+    if (i2 > *i) *i = i2;
+    if (w2 > *w) *w = w2;
+}
+
 static long ekf_bytes(void) {
     casadi_int a, r, i, w;
-    ekf_step_work(&a, &r, &i, &w);
+    work_sizes(&a, &r, &i, &w);
     return (long)(sizeof(casadi_real *) * (size_t)(a + r) + sizeof(casadi_int) * (size_t)i +
                   sizeof(casadi_real) * (size_t)w) + 16;
 }
@@ -44,7 +58,7 @@ gt_controller *gt_controller_new(void) {
     if (!c) return NULL;
     c->rti = gt_rti_new();
     if (!c->rti) { free(mem); return NULL; }
-    ekf_step_work(&a, &r, &i, &w);
+    work_sizes(&a, &r, &i, &w);
     off = (off + 7) & ~7L;
     c->ekf_arg = (const casadi_real **)(mem + off); off += (long)sizeof(casadi_real *) * a;
     c->ekf_res = (casadi_real **)(mem + off); off += (long)sizeof(casadi_real *) * r;
@@ -66,6 +80,7 @@ void gt_controller_reset(gt_controller *c) {
     c->have_w_prev = c->have_plan = c->plan_age = 0;
     c->qp_iter = 0;
     c->qp_status = 0;
+    c->passing_end = NAN;
 }
 
 void gt_controller_estimate(gt_controller *c, const double *y, const double *u_applied,
@@ -152,6 +167,22 @@ static double controller_p80_bias(const gt_controller *c) {
 
 static double clip(double v, double lo, double hi) { return v < lo ? lo : (v > hi ? hi : v); }
 
+/* mpc.Controller._plan_info's passing_end: the product's fraction passing the size of wpass (the
+ * target the step held, biased or not) at the plan's last state X_N, with its last move and the
+ * last stage's disturbances; NaN if the generated function fails */
+static double plan_passing_end(gt_controller *c, const double *wpass) {
+    double x[GT_NX], passing = NAN;
+    int i;
+    for (i = 0; i < GT_NX; ++i) x[i] = c->w[GT_N * GT_STRIDE + i] * gt_x_scale[i];
+    c->ekf_arg[0] = x;
+    c->ekf_arg[1] = c->plan + 2 * (GT_N - 1);
+    c->ekf_arg[2] = c->p + GT_NX + (GT_N - 1) * GT_ND;
+    c->ekf_arg[3] = wpass;
+    c->ekf_res[0] = &passing;
+    if (gt_plan_passing(c->ekf_arg, c->ekf_res, c->ekf_iw, c->ekf_w, 0)) return NAN;
+    return passing;
+}
+
 /* mpc.Controller._fallback */
 static int fallback(gt_controller *c, const double *u_prev, double *u) {
     int k, i;
@@ -178,6 +209,7 @@ int gt_controller_step(gt_controller *c, const double *preview, const double *u_
     double *p = c->p, bias = controller_p80_bias(c), u_applied[GT_NU];
     const double *wpass = gt_wpass;
     int k, i, it, n_it = GT_RTI_ITERATIONS, ok = n_it > 0;
+    c->passing_end = NAN;
     for (i = 0; i < GT_NU; ++i) { /* mpc.Controller.make_step: refused, or projected onto the bounds */
         if (!isfinite(u_given[i])) return GT_STEP_BAD_INPUT;
         u_applied[i] = clip(u_given[i], gt_u_lo[i], gt_u_hi[i]);
@@ -234,10 +266,13 @@ int gt_controller_step(gt_controller *c, const double *preview, const double *u_
     c->plan_age = 0;
     u[0] = c->plan[0];
     u[1] = c->plan[1];
-    return GT_STEP_OK;
+    /* mpc.Controller.make_step: the plan's end misses the target (the plan is applied all the same) */
+    c->passing_end = plan_passing_end(c, wpass);
+    return fabs(c->passing_end - GT_PASSING_TARGET) > GT_UNREACHABLE_TOL ? GT_STEP_TARGET_UNREACHABLE : GT_STEP_OK;
 }
 
 const double *gt_controller_plan(const gt_controller *c) { return c->plan; }
 const double *gt_controller_estimate_state(const gt_controller *c) { return c->z; }
 int gt_controller_qp_iterations(const gt_controller *c) { return c->qp_iter; }
 int gt_controller_qp_status(const gt_controller *c) { return c->qp_status; }
+double gt_controller_passing_end(const gt_controller *c) { return c->passing_end; }

@@ -19,8 +19,16 @@ enum gt_step_status {
     GT_STEP_HOLD_INPUT = 2,   /* the QP failed and no plan is left; u = u_applied */
     GT_STEP_BAD_BIAS = 3,     /* the estimated P80 bias is not finite or not below the target (the
                                  Python controller raises); nothing solved, u = u_applied */
-    GT_STEP_BAD_INPUT = 4     /* u_applied or the preview holds a NaN or an infinity (the Python
+    GT_STEP_BAD_INPUT = 4,    /* u_applied or the preview holds a NaN or an infinity (the Python
                                  controller raises); nothing solved, u left as it was */
+    GT_STEP_TARGET_UNREACHABLE = 5 /* the QP solved and u is the plan's first move, to be applied as
+                                 for GT_STEP_OK, but the plan misses the P80 target at the horizon
+                                 end: its passing fraction there (gt_controller_passing_end) differs
+                                 from GT_PASSING_TARGET (0.80 passing the target) by more than
+                                 GT_UNREACHABLE_TOL (mpc.NmpcSettings.unreachable_tol_frac), the
+                                 Python controller's status "target_unreachable" by the same rule:
+                                 the bounds or rate limits keep the target out of reach within the
+                                 horizon */
 };
 /* u_applied outside the bounds gt_u_lo/gt_u_hi is planned from its projection onto them, as in
  * mpc.Controller.make_step (status input_outside_bounds there): the first move jumps into them */
@@ -45,6 +53,10 @@ const double *gt_controller_estimate_state(const gt_controller *c);
  * failure that stopped it, or GT_QP_REGULARISED if a QP was solved on a regularised Hessian) */
 int gt_controller_qp_iterations(const gt_controller *c);
 int gt_controller_qp_status(const gt_controller *c);
+/* the last step's plan: the product's fraction passing the target (the biased one when the EKF
+ * estimates a P80 bias) at the horizon end, the fraction GT_STEP_TARGET_UNREACHABLE reads; NaN
+ * when the step solved no QP (a fallback or a refused input) */
+double gt_controller_passing_end(const gt_controller *c);
 /* bytes allocated by gt_controller_new (two blocks: the controller with the EKF's work, and the
  * RTI's: QP data and solver work) */
 long gt_controller_bytes(void);

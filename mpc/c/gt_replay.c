@@ -3,7 +3,8 @@
  *   E y0 y1 y2 u0 u1 b_1 .. b_NB         gt_controller_estimate (nan for an absent y)
  *   C u0 u1 b_1 .. b_(NB*N)              gt_controller_step with u_applied = (u0, u1)
  * Output on stdout, one line per C: "U status u_feed u_speed qp_iterations step_s step_cpu_s
- * qp_status" (%.17g; u is nan when the step refused its input), and at the end
+ * qp_status" (status: gt_controller.h's gt_step_status; %.17g; u is nan when the step refused its
+ * input), and at the end
  * "M allocations_during_calls" (counted when gt_malloc_count.so is preloaded, else -1) and
  * "B bytes_allocated_by_new". Any other line but a blank one or a # comment is an error. */
 #define _POSIX_C_SOURCE 199309L

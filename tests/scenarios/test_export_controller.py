@@ -31,7 +31,7 @@ class Recording:
 
     def __init__(self, inner, log, kind, n_steps=None):
         self._inner, self._log, self._kind, self._n = inner, log, kind, n_steps
-        self.moves = []
+        self.moves, self.statuses, self.passing_end = [], [], []
 
     def __getattr__(self, name):
         return getattr(self._inner, name)
@@ -48,13 +48,16 @@ class Recording:
             blend = np.asarray(preview)[:-1, :].ravel(order="F")
             self._log.append("C " + " ".join(repr(float(v)) for v in [*u_prev, *blend]))
             self.moves.append(np.asarray(out.u_applied, float))
+            self.statuses.append(out.status)
+            self.passing_end.append(self._inner.last_info.get("passing_end", np.nan))
         return out
 
 
 def _replay_first_hour(scene_path: Path, out: Path, monkeypatch):
     """Export the scene's controller to ``out``, build it, record the Python closed loop's first
     hour (on the same compiled C) and replay it through gt_replay; ``(python moves, C moves, C
-    statuses, allocations in estimate/step, gt_replay's answers to a NaN and an out-of-bounds input)``."""
+    statuses, allocations in estimate/step, gt_replay's answers to a NaN and an out-of-bounds input,
+    the Python controller's recording: its statuses and plans' passing fractions at the horizon end)``."""
     cc = codegen.find_compiler()
     if cc is None or shutil.which("make") is None:
         pytest.skip("no C compiler or make on this machine")
@@ -91,17 +94,19 @@ def _replay_first_hour(scene_path: Path, out: Path, monkeypatch):
     bad = [*log[:log.index(c_line)], " ".join(["C", "nan", "0.7", *blend]), " ".join(["C", "1000", "5.0", *blend])]
     odd = subprocess.run([str(out / "gt_replay")], input="\n".join(bad) + "\n", capture_output=True, text=True,
                          check=True).stdout.split("\n")
-    return py, moves, status, allocs, [ln.split() for ln in odd if ln.startswith("U ")]
+    return py, moves, status, allocs, [ln.split() for ln in odd if ln.startswith("U ")], rec["C"]
 
 
 @pytest.mark.slow
 def test_exported_controller_replays_the_reference_hour_like_python(tmp_path, monkeypatch):
     out = tmp_path / "ctl"
-    py, moves, status, allocs, odd = _replay_first_hour(REFERENCE, out, monkeypatch)
-    assert status == [0] * len(py)
+    py, moves, status, allocs, odd, python = _replay_first_hour(REFERENCE, out, monkeypatch)
+    assert status == [0] * len(py) == _c_statuses(python.statuses)
     assert odd[0][1] == "4"  # GT_STEP_BAD_INPUT
     lo, hi = [20.0, 0.6], [45.0, 0.85]  # the reference scene's controller bounds
-    assert odd[1][1] == "0" and all(a <= float(v) <= b for a, v, b in zip(lo, odd[1][2:4], hi))
+    # solved, planned from the projection onto the bounds (45 t/h, 0.85 of critical); that plan
+    # misses the target at the horizon end: 5, GT_STEP_TARGET_UNREACHABLE
+    assert odd[1][1] == "5" and all(a <= float(v) <= b for a, v, b in zip(lo, odd[1][2:4], hi))
     assert len(odd[1]) == 8 and odd[1][7] == "0"  # the QP status, 0: solved
     unknown = subprocess.run([str(out / "gt_replay")], input="X 1 2\n", capture_output=True, text=True)
     assert unknown.returncode == 1 and "unknown line" in unknown.stderr  # it was skipped silently
@@ -124,6 +129,39 @@ def test_exported_controller_replays_the_reference_hour_like_python(tmp_path, mo
     (out / "mine.c").write_text("/* a user's file */")
     assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 2
     assert (out / "mine.c").exists()
+
+
+def _c_statuses(python_statuses) -> list[int]:
+    """The exported step's status for each of the Python controller's (all solved here):
+    GT_STEP_TARGET_UNREACHABLE (5) for its target_unreachable, else GT_STEP_OK (0)."""
+    assert all(st.startswith(("rti", "target_unreachable (rti")) for st in python_statuses), python_statuses
+    return [5 if st.startswith("target_unreachable") else 0 for st in python_statuses]
+
+
+@pytest.mark.slow
+def test_the_exported_step_says_target_unreachable_when_python_does(tmp_path, monkeypatch):
+    """The reference scene started at 30 t/h (P80 220 um) for a target of 190 um, with the rates
+    cut to 4 t/h and 0.01 of critical per hour: the first plans cannot reach the target within
+    the horizon, the later ones can. The exported step said ok throughout; it now reports
+    target_unreachable on the steps the Python controller does, by its rule (the plans' passing
+    fractions at the horizon end, away from the threshold on every step here)."""
+    text = REFERENCE.read_text()
+    slow = {'start = "target"': 'start = "scene"', "target_p80_um = 210.0": "target_p80_um = 190.0",
+            "feed_rate_max_tph_per_h = 20.0": "feed_rate_max_tph_per_h = 4.0",
+            "speed_rate_max_per_h = 0.10": "speed_rate_max_per_h = 0.01"}
+    for old, new in slow.items():
+        assert text.count(old) == 1
+        text = text.replace(old, new)
+    scene = tmp_path / "slow.toml"
+    scene.write_text(text)
+    py, moves, status, allocs, _, python = _replay_first_hour(scene, tmp_path / "ctl", monkeypatch)
+    assert status == _c_statuses(python.statuses)
+    assert 0 < status.count(5) < len(status)  # both answers on the hour: the comparison can fail
+    manifest = json.loads((tmp_path / "ctl" / "grindtwin_export.json").read_text())
+    assert manifest["step_status"]["5"].startswith("target_unreachable: ")
+    miss = np.abs(np.array(python.passing_end) - 0.80)
+    assert np.min(np.abs(miss - manifest["unreachable_tol_frac"])) > 1e-6
+    assert np.max(np.abs(moves / py - 1.0)) <= 1e-9 and allocs == [0]
 
 
 def _export_files(out: Path) -> list[str]:
@@ -187,8 +225,8 @@ def test_exported_controller_with_a_p80_bias_and_gain_replays_like_python(tmp_pa
     biases = []
     bias_of = Ekf.controller_p80_bias_um
     monkeypatch.setattr(Ekf, "controller_p80_bias_um", lambda self, t: biases.append(bias_of(self, t)) or biases[-1])
-    py, moves, status, allocs, _ = _replay_first_hour(scene, tmp_path / "ctl", monkeypatch)
-    assert status == [0] * len(py) and allocs == [0]
+    py, moves, status, allocs, _, python = _replay_first_hour(scene, tmp_path / "ctl", monkeypatch)
+    assert status == [0] * len(py) == _c_statuses(python.statuses) and allocs == [0]
     assert np.max(np.abs(moves / py - 1.0)) <= 1e-9
     assert min(abs(b) for b in biases[-len(py):]) > 1e-3  # the weights moved on every step
 
@@ -225,3 +263,14 @@ def test_an_export_allowed_to_centrifuge_notes_it_and_exports(tmp_path, capsys):
     assert main(["export-controller", str(REFERENCE), "--out", str(tmp_path / "shipped")]) == 0
     assert "warning" not in capsys.readouterr().err
     assert json.loads((tmp_path / "shipped" / "grindtwin_export.json").read_text())["notes"] == []
+
+
+def test_the_manifests_step_statuses_are_the_c_headers():
+    """The export's manifest names gt_controller_step's statuses as gt_controller.h numbers them."""
+    import re
+
+    from mpc.export import STEP_STATUS
+
+    header = (codegen.C_DIR / "gt_controller.h").read_text()
+    enum = {int(v): name.lower() for name, v in re.findall(r"GT_STEP_(\w+) = (\d+)", header)}
+    assert enum == {k: text.split(":")[0] for k, text in STEP_STATUS.items()} and 5 in enum
