@@ -6,8 +6,10 @@ compiled); every estimator and controller call is also sent, as it happens, to t
 controller's replay harness (gt_replay, built by the export's Makefile with -O2, run under the
 LD_PRELOAD allocation counter gt_malloc_count.so) through a pipe, so the two sides' steps
 alternate (Python, C, Python, C, ...). Recorded: the largest relative difference of the moves,
-the C step's wall time (median, p95, worst; measured inside gt_replay), the Python step's
-(make_step), allocations inside the C calls after gt_controller_new, and the bytes it allocates.
+the steps each side found the target unreachable (the C step's GT_STEP_TARGET_UNREACHABLE, a
+solved step, not a failed one), the C step's wall time (median, p95, worst; measured inside
+gt_replay), the Python step's (make_step), allocations inside the C calls after
+gt_controller_new, and the bytes it allocates.
 
 Writes benchmarks/results/mpc_export.csv and .md (``--tag T``: mpc_exportT.csv, .md).
 
@@ -31,6 +33,11 @@ from scenarios.cli import main as grindtwin
 from scenarios.run import closed_loop, run_scene
 from scenarios.scene import load_scene
 from dem_common import TAG
+
+#: gt_controller_step's statuses of a solved step (mpc/c/gt_controller.h): GT_STEP_OK and
+#: GT_STEP_TARGET_UNREACHABLE (the plan misses the target at the horizon end, applied all the same)
+C_TARGET_UNREACHABLE = 5
+C_SOLVED = (0, C_TARGET_UNREACHABLE)
 
 OUT = Path(__file__).parent / "results"
 SCENE = Path(__file__).parents[1] / "scenarios" / "reference_transition.toml"
@@ -61,6 +68,7 @@ class Mirror:
         self._proc.stdin.flush()
         _, st, uf, us, it, c_s, c_cpu, _qp = self._proc.stdout.readline().split()
         self._rows.append({"python_feed": out.u_applied[0], "python_speed": out.u_applied[1],
+                           "python_target_unreachable": out.status.startswith("target_unreachable"),
                            "c_feed": float(uf), "c_speed": float(us), "c_status": int(st),
                            "c_qp_iterations": int(it), "c_step_s": float(c_s), "c_step_cpu_s": float(c_cpu),
                            "python_step_s": py_s, "python_step_cpu_s": py_cpu,
@@ -108,7 +116,9 @@ def main(argv=None) -> pd.DataFrame:
     fr = pd.DataFrame(rows)
     rel = np.max(np.abs(fr[["c_feed", "c_speed"]].to_numpy() / fr[["python_feed", "python_speed"]].to_numpy() - 1))
     table = pd.DataFrame([{
-        "steps": len(fr), "move_rel_diff_max": rel, "c_failed_steps": int((fr.c_status != 0).sum()),
+        "steps": len(fr), "move_rel_diff_max": rel, "c_failed_steps": int((~fr.c_status.isin(C_SOLVED)).sum()),
+        "c_target_unreachable_steps": int((fr.c_status == C_TARGET_UNREACHABLE).sum()),
+        "python_target_unreachable_steps": int(fr.python_target_unreachable.sum()),
         "c_step_median_s": fr.c_step_s.median(), "c_step_p95_s": fr.c_step_s.quantile(0.95),
         "c_step_max_s": fr.c_step_s.max(), "c_step_cpu_median_s": fr.c_step_cpu_s.median(),
         "c_step_cpu_max_s": fr.c_step_cpu_s.max(), "python_step_median_s": fr.python_step_s.median(),
@@ -124,8 +134,11 @@ def main(argv=None) -> pd.DataFrame:
     md = ["# The exported C controller against the Python controller (reference scene, 8 h, lock-step)", "",
           "Python closed loop (plant twin, sensors, EKF, NMPC with qpsol \"condensed\", compiled) with every "
           "estimator and controller call mirrored to the export's gt_replay (gcc -O2) through a pipe as it "
-          "happens (Python, C, Python, C, ...). `c_step`: wall time of gt_controller_step measured inside C "
-          "(`_cpu`: the process's CPU time over it); `python_step`: make_step (`_cpu`: the thread's CPU time). "
+          "happens (Python, C, Python, C, ...). `c_failed_steps`: C steps that solved no QP (a fallback or a "
+          "refused input); `*_target_unreachable_steps`: steps whose plan misses the target at the horizon "
+          "end, C and Python by the same rule (solved, applied). `c_step`: wall time of gt_controller_step "
+          "measured inside C (`_cpu`: the process's CPU time over it); `python_step`: make_step (`_cpu`: the "
+          "thread's CPU time). "
           "The C harness sleeps on its pipe between steps (as a DCS task would) and is scheduled at once when "
           "woken, while the Python process also integrates the plant: under load the wall times differ by more "
           "than the work, the CPU times are the comparison. `c_allocations_in_steps`: malloc/calloc/realloc calls inside "
