@@ -94,6 +94,9 @@ from twin import centrifuging_note, pxx_um
 
 SOLVERS = ("ipopt", "sqpmethod", "fatrop", "rti")
 QP_SOLVERS = ("hpipm", "qrqp", "osqp", "condensed")
+#: OSQP's iteration cap: ADMM converges linearly, and to its 1e-8 tolerances on the stiff
+#: industrial mill's QP it needs more than OSQP's default 4,000 iterations.
+OSQP_MAX_ITER = 50_000
 PASSING_TARGET = 0.80
 #: HPIPM's stand-in for an infinite bound. Its default (1e8) keeps the interior point from
 #: meeting its tolerance in 200 iterations (measured); the decision variables here are scaled
@@ -494,7 +497,8 @@ class Controller:
             return {"printLevel": "none", "error_on_fail": False}
         if s.qpsol == "qrqp":
             return {"print_iter": False, "print_header": False, "error_on_fail": False}
-        return {"error_on_fail": False, "osqp": {"verbose": False, "eps_abs": 1e-8, "eps_rel": 1e-8}}
+        return {"error_on_fail": False, "osqp": {"verbose": False, "eps_abs": 1e-8, "eps_rel": 1e-8,
+                                                 "max_iter": OSQP_MAX_ITER}}
 
     def _nlp_options(self) -> dict:
         s = self.settings

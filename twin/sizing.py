@@ -4,13 +4,21 @@ product P80 (the job of Moly-Cop Tools's mill-sizing sheet, done here with the t
 Rules, stated: the mill keeps the shape and charge of the base mill (length over diameter, ball
 filling, ball size, speed as a fraction of critical); its breakage rates come from the laboratory
 calibration by the scale-up rules of :mod:`twin.scaleup` and its power from the base mill's power
-model; the circuit is the mill with the default effects and a cluster of hydrocyclones of the
-base design (Plitt's equations, twin.effects.classification) at the mill's nominal circulating
-load. For each count of cyclones the diameter is solved so that the steady overflow P80 meets the
-target; the count whose circulating load is nearest the design's (2.5, Wills & Finch 2016 ch. 9:
-250 % typical of ball-mill circuits) is the answer, provided the mill's load is in its stable
-band there. The result is written to ``twin/data/industrial_mill.json`` (with the command that
-made it) when it is the ``industrial`` preset.
+model; the circuit is the mill with the default effects and a cluster of hydrocyclones
+(Plitt's equations, twin.effects.classification) geometrically similar to the base design
+(inlet, vortex finder, apex and free vortex height in proportion to the cyclone's diameter).
+
+The design point, three conditions: the steady overflow P80 meets the target; the circulating
+load is the design's (2.5, Wills & Finch 2016 ch. 9: 250 % typical of ball-mill circuits); the
+cyclones run at the design feed pressure (:data:`DESIGN_CYCLONE_PRESSURE_KPA`). Three unknowns
+meet them: the mill's diameter (which sets the circulating load), the cyclones' diameter (their
+cut, which sets the product) and the sump's dilution, the cyclone feed's solids (the lever that
+brings the cut to the design pressure: Plitt's d50c grows as exp(0.063 phi) with the feed's
+solids phi by volume). They are solved by Newton's method for each count of cyclones, fewest
+first; the answer is the fewest cyclones of a diameter made for grinding circuits
+(:data:`CYCLONE_DIAMETER_RANGE_CM`) whose circuit has a stable load and needs no water taken out.
+The result is written to ``twin/data/industrial_mill.json`` (with the command that made it) when
+it is the ``industrial`` preset.
 """
 
 from __future__ import annotations
@@ -22,7 +30,7 @@ from pathlib import Path
 
 import warnings
 
-import scipy.optimize
+import numpy as np
 import scipy.sparse.linalg
 
 from .effects.classification import Hydrocyclone
@@ -32,9 +40,23 @@ from .twin import DEFAULT_EFFECTS, FEED_P80_UM, Twin
 
 #: Design circulating load (underflow over fresh feed) of a ball mill-cyclone circuit.
 DESIGN_CIRCULATING_LOAD = 2.5
-#: Mill diameters searched [m] and cyclone counts tried.
+#: Design feed pressure of the cyclones [kPa]: 7.7 psi, that of the six-cyclone cluster of the
+#: Moly-Cop Tools BallSim base case (scenarios/data/molycop_ballsim_published.toml).
+DESIGN_CYCLONE_PRESSURE_KPA = 53.0
+#: Design pressures allowed [kPa], 5-40 psi: below, too little head to classify; above, wear and roping.
+CYCLONE_PRESSURE_RANGE_KPA = (34.0, 276.0)
+#: Mill diameters allowed [m]; cyclone diameters made for grinding circuits [cm] (4 to 33 in).
 DIAMETER_RANGE_M = (0.8, 8.0)
+CYCLONE_DIAMETER_RANGE_CM = (10.16, 83.82)
+#: Cyclone counts tried, fewest first.
 MAX_CYCLONES = 16
+#: Newton's method on the design point: its unknowns are ln(mill diameter), ln(cyclone diameter)
+#: and the cyclone feed's solids % by volume / 10 (one scale); converged when every residual
+#: (ln of each result over its design value) is below NEWTON_TOL; a step moves an unknown by at
+#: most NEWTON_MAX_STEP (ln: 35 %); Jacobian by forward differences of NEWTON_FD_STEP.
+NEWTON_TOL, NEWTON_MAX_STEP, NEWTON_FD_STEP, NEWTON_ITERATIONS = 1e-5, 0.3, 1e-3, 30
+#: The first guess of the cyclone feed's solids [% by volume] (a dense coarse-cut feed).
+FEED_SOLIDS_VOL_PCT_START = 40.0
 
 
 @dataclass
@@ -52,9 +74,10 @@ class SizedMill:
     specific_energy_kwh_t: float
     load_frac: float
     load_status: str
-    tried: list = field(default_factory=list)  # (cyclones, diameter_m or None, circulating load)
+    tried: list = field(default_factory=list)  # per cyclone count: what the design point gave, or why none
     calibration: dict = field(default_factory=dict)  # the identity of the calibration it was sized with
     notes: list = field(default_factory=list)  # where the models do not describe the design point (twin.validity)
+    circuit: dict = field(default_factory=dict)  # the cyclones' operating point and the water balance (CIRCUIT_KEYS)
 
     def record(self, command: str) -> dict:
         mill = {k: v for k, v in asdict(self.mill).items() if k in PRESET_FIELDS}
@@ -62,13 +85,17 @@ class SizedMill:
                 "sizing": {"ore": self.ore, "feed_tph": self.feed_tph, "target_p80_um": self.target_p80_um,
                            "p80_um": self.p80_um, "circulating_load_frac": self.circulating_load_frac,
                            "power_kw": self.power_kw, "specific_energy_kwh_t": self.specific_energy_kwh_t,
-                           "load_frac": self.load_frac, "load_status": self.load_status, "tried": self.tried},
+                           "load_frac": self.load_frac, "load_status": self.load_status, **self.circuit,
+                           "tried": self.tried},
                 "calibration": self.calibration, "command": command}
 
 
 #: The Mill fields a sized preset records (the rest are the base mill's).
 PRESET_FIELDS = ("diameter_m", "length_m", "ball_filling_frac", "ball_size_mm", "speed_nominal_frac_critical",
                  "feed_nominal_tph", "power_model")
+#: The circuit's outputs a sizing records beside the mill's.
+CIRCUIT_KEYS = ("cyclone_pressure_kpa", "cyclone_d50c_um", "cyclone_water_bypass_frac", "cyclone_feed_solids_frac",
+                "underflow_solids_frac", "overflow_solids_frac", "sump_water_m3_h", "mill_water_m3_h")
 
 
 def circuit_twin(ore, mill: Mill, cyclone: dict, **kwargs) -> Twin:
@@ -78,21 +105,104 @@ def circuit_twin(ore, mill: Mill, cyclone: dict, **kwargs) -> Twin:
     return Twin(ore, mill=mill, effects=list(DEFAULT_EFFECTS), effect_options=options, **kwargs)
 
 
+def similar_cyclone(design: Hydrocyclone, diameter_cm: float, count: int, feed_solids_vol_pct: float) -> dict:
+    """``count`` cyclones geometrically similar to ``design`` at ``diameter_cm``, fed at
+    ``feed_solids_vol_pct`` solids by volume (a Hydrocyclone's fields)."""
+    r = diameter_cm / design.diameter_cm
+    return {**asdict(design), "diameter_cm": diameter_cm, "inlet_cm": design.inlet_cm * r,
+            "vortex_finder_cm": design.vortex_finder_cm * r, "apex_cm": design.apex_cm * r,
+            "free_vortex_height_cm": design.free_vortex_height_cm * r, "count": count,
+            "feed_solids_vol_pct": feed_solids_vol_pct, "feed_solids_frac": None}
+
+
 def _at(ore, base: Mill, diameter_m: float, cyclone: dict, feed_tph: float, speed: float, calibration):
     aspect = base.length_m / base.diameter_m
     mill = base.with_(diameter_m=diameter_m, length_m=aspect * diameter_m, feed_nominal_tph=feed_tph,
                       speed_nominal_frac_critical=speed, cyclone=tuple(sorted(cyclone.items())))
-    return mill, circuit_twin(ore, mill, cyclone, calibration=calibration).steady(
-        feed_tph=feed_tph, speed_frac_critical=speed)
+    with warnings.catch_warnings():  # Newton on an overloading trial mill: the SolverError is the answer
+        warnings.simplefilter("ignore", scipy.sparse.linalg.MatrixRankWarning)
+        return mill, circuit_twin(ore, mill, cyclone, calibration=calibration).steady(
+            feed_tph=feed_tph, speed_frac_critical=speed)
+
+
+class _DesignPoint:
+    """The design point's residuals for ``count`` cyclones of ``design``'s shape (module docstring)."""
+
+    def __init__(self, ore, base, design, count, feed_tph, target_p80_um, speed, calibration, pressure_kpa):
+        self.args = ore, base, feed_tph, speed, calibration
+        self.design, self.count, self.target, self.pressure_kpa = design, count, target_p80_um, pressure_kpa
+
+    def cyclone(self, x) -> dict:
+        return similar_cyclone(self.design, math.exp(x[1]), self.count, 10.0 * x[2])
+
+    def __call__(self, x):
+        ore, base, feed_tph, speed, calibration = self.args
+        if not 0.0 < 10.0 * x[2] < 70.0:  # outside what a Hydrocyclone's feed may be
+            raise SolverError(f"the cut would need a cyclone feed of {10.0 * x[2]:.3g} % solids by volume "
+                              "(a feed holds 0-70 %)")
+        mill, ss = _at(ore, base, math.exp(x[0]), self.cyclone(x), feed_tph, speed, calibration)
+        o = ss.outputs
+        r = np.array([math.log(ss.p80_um / self.target),
+                      math.log(o["circulating_load_frac"] / DESIGN_CIRCULATING_LOAD),
+                      math.log(o["cyclone_pressure_kpa"] / self.pressure_kpa)])
+        if not np.all(np.isfinite(r)):
+            raise SolverError("a non-finite design residual")
+        return r, mill, ss
+
+
+def _newton(point: _DesignPoint, x):
+    """Damped Newton's method from ``x`` (NEWTON_* constants); (x, mill, steady state), or
+    SolverError naming why it stopped."""
+    r, mill, ss = point(x)
+    for _ in range(NEWTON_ITERATIONS):
+        if np.max(np.abs(r)) < NEWTON_TOL:
+            return x, mill, ss
+        jac = np.empty((3, 3))
+        for j in range(3):
+            xj = x.copy()
+            xj[j] += NEWTON_FD_STEP
+            jac[:, j] = (point(xj)[0] - r) / NEWTON_FD_STEP
+        try:
+            step = np.linalg.solve(jac, -r)
+        except np.linalg.LinAlgError:
+            raise SolverError("the design point's Jacobian is singular") from None
+        step *= min(1.0, NEWTON_MAX_STEP / np.max(np.abs(step)))
+        for _ in range(6):  # halve a step into a circuit with no steady state (an overloaded trial mill)
+            try:
+                r_new, mill, ss = point(x + step)
+                break
+            except SolverError:
+                step /= 2.0
+        else:
+            raise SolverError("every step from the last design point lands on a circuit with no steady state")
+        x, r = x + step, r_new
+    if np.max(np.abs(r)) < NEWTON_TOL:
+        return x, mill, ss
+    raise SolverError(f"Newton's method did not converge in {NEWTON_ITERATIONS} iterations (residuals {r.round(4)})")
+
+
+def _first_guess(design: Hydrocyclone, base: Mill, count: int, feed_tph: float, rho: float,
+                 pressure_kpa: float) -> np.ndarray:
+    """Mill diameter by power proportional to feed at constant shape (P ~ D^3.5: Bond's D^2.5 L);
+    cyclone diameter from Plitt's pressure at the design's load and the starting dilution, at
+    which pressure scales as diameter^-3.33 for similar cyclones (Plitt's exponents summed)."""
+    d_mill = float(np.clip(base.diameter_m * (feed_tph / base.feed_nominal_tph) ** (1.0 / 3.5), *DIAMETER_RANGE_M))
+    cyc = Hydrocyclone(**similar_cyclone(design, design.diameter_cm, count, FEED_SOLIDS_VOL_PCT_START))
+    slurry_m3_h = feed_tph * (1.0 + DESIGN_CIRCULATING_LOAD) / rho / (FEED_SOLIDS_VOL_PCT_START / 100.0)
+    p_kpa = float(cyc.plitt(slurry_m3_h, rho)["pressure_kpa"])
+    d_cyc = design.diameter_cm * (p_kpa / pressure_kpa) ** (1.0 / 3.33)
+    return np.array([math.log(d_mill), math.log(d_cyc), FEED_SOLIDS_VOL_PCT_START / 10.0])
 
 
 def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, speed_frac_critical: float = 0.70,
               base: str | Mill = INDUSTRIAL_BASE, cyclone: Hydrocyclone | None = None,
-              calibration=None) -> SizedMill:
-    """Size the mill (module docstring) with ``calibration`` (default: the default calibration);
-    TwinInputError for bad inputs, SolverError if no cyclone count and diameter in range meet
-    the target with a stable load."""
+              calibration=None, cyclone_pressure_kpa: float = DESIGN_CYCLONE_PRESSURE_KPA) -> SizedMill:
+    """Size the mill and its cyclones (module docstring) with ``calibration`` (default: the
+    default calibration), the cyclones of ``cyclone``'s shape at ``cyclone_pressure_kpa``;
+    TwinInputError for bad inputs, SolverError naming why each cyclone count failed if none gives
+    a design point."""
     from .calibration import load_calibration
+    from .twin import _as_blend
 
     calibration = load_calibration(calibration)
     check_range("size_mill", "feed_tph", feed_tph, 0.0, 1e5)
@@ -101,63 +211,60 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
         raise TwinInputError(f"The 'target_p80_um' parameter of size_mill must be finer than the feed the sizing "
                              f"grinds (P80 {FEED_P80_UM:g} um): no mill coarsens its feed. Got {target_p80_um:g}.")
     check_range("size_mill", "speed_frac_critical", speed_frac_critical, 0.3, 0.95)
+    check_range("size_mill", "cyclone_pressure_kpa", cyclone_pressure_kpa, *CYCLONE_PRESSURE_RANGE_KPA)
     base = get_mill(base)
-    design = asdict(cyclone or Hydrocyclone())
-    tried, found, missed = [], [], {}
+    design = cyclone or Hydrocyclone()
+    rho = _as_blend(ore).density_t_m3
+    tried = []
     for count in range(1, MAX_CYCLONES + 1):
-        cyc = {**design, "count": count}
+        point = _DesignPoint(ore, base, design, count, feed_tph, target_p80_um, speed_frac_critical, calibration,
+                             cyclone_pressure_kpa)
+        try:
+            x, mill, ss = _newton(point, _first_guess(design, base, count, feed_tph, rho, cyclone_pressure_kpa))
+        except SolverError as exc:
+            tried.append({"count": count, "outcome": f"no design point: {exc}"})
+            if "cyclone feed" in str(exc):
+                break  # more cyclones would need a denser feed still
+            continue
+        d_cyc, o = math.exp(x[1]), ss.outputs
+        why = _unrunnable(mill, d_cyc, ss)
+        tried.append({"count": count, "diameter_m": mill.diameter_m, "cyclone_diameter_cm": d_cyc,
+                      "feed_solids_vol_pct": float(10.0 * x[2]), "outcome": why or "design"})
+        if why is None:
+            return SizedMill(mill, point.cyclone(x), getattr(ore, "name", str(ore)), feed_tph, target_p80_um,
+                             ss.p80_um, o["circulating_load_frac"], o["power_kw"], o["specific_energy_kwh_t"],
+                             o["load_frac"], ss.load_status, tried, calibration.identity(), ss.notes,
+                             {k: float(o[k]) for k in CIRCUIT_KEYS}
+                             | {"design_cyclone_pressure_kpa": cyclone_pressure_kpa})
+        if d_cyc < CYCLONE_DIAMETER_RANGE_CM[0] or o["sump_water_m3_h"] < 0.0:
+            break  # more cyclones are smaller and, at the design pressure, cut finer: they need a denser feed
+    raise SolverError(f"No circuit gives P80 {target_p80_um:g} um at {feed_tph:g} t/h with circulating load "
+                      f"{DESIGN_CIRCULATING_LOAD:g} and the cyclones at {cyclone_pressure_kpa:g} kPa: "
+                      + _misses_text(tried) + " (another design pressure may: size-mill --cyclone-pressure-kpa).")
 
-        def gap(log_d):
-            try:
-                with warnings.catch_warnings():  # Newton on an overloading trial mill: failure is the answer
-                    warnings.simplefilter("ignore", scipy.sparse.linalg.MatrixRankWarning)
-                    ss = _at(ore, base, math.exp(log_d), cyc, feed_tph, speed_frac_critical, calibration)[1]
-                return math.log(ss.p80_um / target_p80_um)
-            except SolverError:  # no steady state (the circuit overloads): the mill is too small
-                return 1.0
-        lo, hi = (math.log(d) for d in DIAMETER_RANGE_M)
-        if gap(lo) < 0:
-            tried.append((count, None, None))
-            missed.setdefault("finer", []).append(count)
-            continue
-        if gap(hi) > 0:
-            tried.append((count, None, None))
-            missed.setdefault("coarser", []).append(count)
-            continue
-        d = math.exp(scipy.optimize.brentq(gap, lo, hi, xtol=1e-4))
-        mill, ss = _at(ore, base, d, cyc, feed_tph, speed_frac_critical, calibration)
-        cl = ss.outputs["circulating_load_frac"]
-        tried.append((count, d, cl))
-        found.append((abs(cl - DESIGN_CIRCULATING_LOAD), count, mill, ss, cyc))
-        if cl <= DESIGN_CIRCULATING_LOAD:
-            break
-    stable = [f for f in found if f[3].load_status == "stable"]
-    if not stable:
-        raise SolverError(f"No mill from {DIAMETER_RANGE_M[0]} to {DIAMETER_RANGE_M[1]} m with 1-{count} "
-                          f"cyclones of the base design gives P80 {target_p80_um:g} um at {feed_tph:g} t/h with a "
-                          f"stable load: {_misses_text(missed, found, target_p80_um)}.")
-    _, count, mill, ss, cyc = min(stable, key=lambda f: f[0])
+
+def _unrunnable(mill: Mill, d_cyc: float, ss) -> str | None:
+    """Why a design point is not a circuit to build, or None."""
+    lo, hi = CYCLONE_DIAMETER_RANGE_CM
     o = ss.outputs
-    return SizedMill(mill, cyc, getattr(ore, "name", str(ore)), feed_tph, target_p80_um, ss.p80_um, o["circulating_load_frac"],
-                     o["power_kw"], o["specific_energy_kwh_t"], o["load_frac"], ss.load_status, tried,
-                     calibration.identity(), ss.notes)
+    if not lo <= d_cyc <= hi:
+        return f"cyclones of {d_cyc:.3g} cm, outside the {lo:g}-{hi:g} cm made"
+    if not DIAMETER_RANGE_M[0] <= mill.diameter_m <= DIAMETER_RANGE_M[1]:
+        return f"a {mill.diameter_m:.3g}-m mill, outside {DIAMETER_RANGE_M[0]:g}-{DIAMETER_RANGE_M[1]:g} m"
+    if ss.load_status != "stable":
+        return f"the mill's load {ss.load_status} its stable band (load {o['load_frac']:.3g} of nominal)"
+    short = [f"{k} {o[k]:.3g}" for k in ("sump_water_m3_h", "mill_water_m3_h") if o[k] < 0.0]
+    if short:
+        return "water taken out (" + ", ".join(short) + ")"
+    return None
 
 
-def _misses_text(missed: dict, found: list, target_p80_um: float) -> str:
-    """Why each cyclone count gave no answer, for :func:`size_mill`'s error: the diameter range's
-    smallest mill already grinds finer than the target, its largest still coarser (or overloads),
-    or the diameter found leaves the load outside its stable band."""
-    lo, hi = DIAMETER_RANGE_M
-    parts = []
-    if missed.get("finer"):
-        parts.append(f"with {_counts(missed['finer'])} cyclones even the {lo:g}-m mill grinds finer than "
-                     f"{target_p80_um:g} um")
-    if missed.get("coarser"):
-        parts.append(f"with {_counts(missed['coarser'])} cyclones even the {hi:g}-m mill grinds coarser than "
-                     f"{target_p80_um:g} um or overloads")
-    parts += [f"with {count} cyclones the {mill.diameter_m:.2f}-m mill that meets it runs its load {ss.load_status} "
-              f"its stable band (load {ss.outputs['load_frac']:.3g} of nominal)" for _, count, mill, ss, _ in found]
-    return "; ".join(parts)
+def _misses_text(tried: list) -> str:
+    """Why each cyclone count gave no circuit, counts with one reason joined (``1-3, 5``)."""
+    reasons: dict[str, list[int]] = {}
+    for t in tried:
+        reasons.setdefault(t["outcome"], []).append(t["count"])
+    return "; ".join(f"with {_counts(counts)} cyclone{'s' * (counts != [1])}, {why}" for why, counts in reasons.items())
 
 
 def _counts(counts: list[int]) -> str:

@@ -70,7 +70,7 @@ class Twin:
         mixer_fracs = _mixer_fracs(n_mixers, mixer_volume_fracs)
         given = _given_breakage(ore_breakage, self.blend.names)
         if solids_density_t_m3 is None:
-            density = 1.0 / sum(f / o.density_t_m3 for o, f in zip(self.blend.ores, self.blend.fractions))
+            density = self.blend.density_t_m3
         else:
             density = check_range("Twin", "solids_density_t_m3", solids_density_t_m3, 1.0, 25.0)
         holdup_nom = self.mill.nominal_holdup_t(density)

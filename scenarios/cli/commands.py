@@ -617,7 +617,7 @@ def cmd_steady(args) -> int:
     if args.uncertainty is not None and (args.surrogate or args.uncertainty < 0):
         raise SceneError("--uncertainty N needs N >= 0 (0: all replicates) and the twin, not --surrogate.")
     if args.uncertainty is not None:
-        from twin.calibration.uncertainty import INTERVAL_LEVEL
+        from twin.calibration import INTERVAL_LEVEL
 
         refuse_few_replicates(args.uncertainty, calibration, INTERVAL_LEVEL)
     if args.surrogate:
@@ -769,13 +769,18 @@ def cmd_optimize(args) -> int:
 def add_size_mill_parser(subparsers):
     z = subparsers.add_parser("size-mill", help="size a ball mill in closed circuit for an ore, feed and target P80",
                               description="The mill diameter (length 1.5 diameters, 35 % balls) and hydrocyclone "
-                              "count at which the twin's steady overflow P80 meets the target, rates scaled from the "
-                              "laboratory calibration by Austin's rules (twin.sizing, twin.scaleup).")
+                              "cluster (count, diameter, sump dilution) at which the twin's steady overflow P80 meets "
+                              "the target with a circulating load of 2.5 and the cyclones at their design pressure, "
+                              "rates scaled from the laboratory calibration by Austin's rules (twin.sizing, "
+                              "twin.scaleup).")
     z.add_argument("--ore", default="B", help="reference type A-D or a TOML file with [mineralogy] and [texture]")
     z.add_argument("--feed-tph", required=True, type=_float_in("--feed-tph", 0, 1e5, lo_open=True))
     z.add_argument("--target-p80-um", required=True, type=_float_in("--target-p80-um", 1.0, 1e4))
     z.add_argument("--speed", type=_float_in("--speed", 0.3, 0.95, True, True), default=0.70,
                    help="mill speed as a fraction of critical (0.70, not 70)")
+    z.add_argument("--cyclone-pressure-kpa", type=float, default=None,
+                   help="the cyclones' design feed pressure [kPa] (default twin.sizing.DESIGN_CYCLONE_PRESSURE_KPA, "
+                   "53: the Moly-Cop BallSim base case's cluster)")
     z.add_argument("--write-preset", metavar="PATH",
                    help="also write the answer as a preset file here (a new file or a preset grindtwin wrote; "
                    "the shipped `industrial` preset is twin/data/industrial_mill.json, written only when named)")
@@ -792,22 +797,26 @@ def cmd_size_mill(args) -> int:
 
     if args.write_preset:
         check_preset_path(args.write_preset)  # before the sizing's minutes of work
-    sized = size_mill(load_ore(args.ore), args.feed_tph, args.target_p80_um, args.speed)
+    pressure = {} if args.cyclone_pressure_kpa is None else {"cyclone_pressure_kpa": args.cyclone_pressure_kpa}
+    sized = size_mill(load_ore(args.ore), args.feed_tph, args.target_p80_um, args.speed, **pressure)
     command = (f"grindtwin size-mill --ore {args.ore} --feed-tph {args.feed_tph:g} --target-p80-um "
-               f"{args.target_p80_um:g} --speed {args.speed:g}")
+               f"{args.target_p80_um:g} --speed {args.speed:g}"
+               + "".join(f" --cyclone-pressure-kpa {v:g}" for v in pressure.values()))
     record = sized.record(command)
     if args.write_preset:
         print(f"wrote {write_preset(sized, f'{command} --write-preset {args.write_preset}', args.write_preset)}")
     if args.json:
         print(json.dumps(record | {"notes": sized.notes}, indent=2))
         return 0
-    m, z = sized.mill, record["sizing"]
+    m, z, c = sized.mill, record["sizing"], sized.cyclone
     print(f"Mill for ore {args.ore} at {args.feed_tph:g} t/h, P80 {args.target_p80_um:g} um, {args.speed:.2f} of critical:")
     print(f"  diameter_m                {m.diameter_m:.3f}\n  length_m                  {m.length_m:.3f}\n"
           f"  ball_filling_frac         {m.ball_filling_frac:.2f}\n  ball_size_mm              {m.ball_size_mm:g}\n"
-          f"  power_model               {m.power_model}\n  hydrocyclones             {sized.cyclone['count']} x "
-          f"{sized.cyclone['diameter_cm']:g} cm")
-    for key in ("p80_um", "circulating_load_frac", "power_kw", "specific_energy_kwh_t", "load_frac", "load_status"):
+          f"  power_model               {m.power_model}\n  hydrocyclones             {c['count']} x "
+          f"{c['diameter_cm']:.3g} cm (inlet {c['inlet_cm']:.3g}, vortex finder {c['vortex_finder_cm']:.3g}, apex "
+          f"{c['apex_cm']:.3g} cm), fed at {c['feed_solids_vol_pct']:.3g} % solids by volume")
+    for key in ("p80_um", "circulating_load_frac", "power_kw", "specific_energy_kwh_t", "load_frac", "load_status",
+                *sized.circuit):
         print(f"  {key:25s} {z[key]:.4g}" if isinstance(z[key], float) else f"  {key:25s} {z[key]}")
     for note in sized.notes:
         print(f"  note: {note}")

@@ -200,14 +200,24 @@ def test_size_mill_prints_its_design_points_notes(capsys, monkeypatch):
     import twin
     from twin.mill import INDUSTRIAL_BASE
 
+    from twin.effects.classification import Hydrocyclone
+    from twin.sizing import CIRCUIT_KEYS, similar_cyclone
+
     note = "speed 0.945 of critical is beyond 0.94 where the charge centrifuges"
-    sized = twin.SizedMill(INDUSTRIAL_BASE, {"count": 3, "diameter_cm": 25.0}, "B", 31.0, 210.0, 210.0, 2.5, 200.0,
-                           7.0, 0.99, "stable", notes=[note])
-    monkeypatch.setattr(twin, "size_mill", lambda *a, **k: sized)
+    circuit = {key: float(i) for i, key in enumerate(CIRCUIT_KEYS)}
+    sized = twin.SizedMill(INDUSTRIAL_BASE, similar_cyclone(Hydrocyclone(), 25.0, 3, 40.0), "B", 31.0, 210.0, 210.0,
+                           2.5, 200.0, 7.0, 0.99, "stable", notes=[note], circuit=circuit)
+    asked = []
+    monkeypatch.setattr(twin, "size_mill", lambda *a, **k: asked.append(k) or sized)
     assert grindtwin(["size-mill", "--feed-tph", "31", "--target-p80-um", "210", "--speed", "0.945"]) == 0
-    assert f"  note: {note}" in capsys.readouterr().out
-    assert grindtwin(["size-mill", "--feed-tph", "31", "--target-p80-um", "210", "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["notes"] == [note]
+    out = capsys.readouterr().out
+    assert f"  note: {note}" in out and "3 x 25 cm (inlet 7.24, vortex finder 8.55, apex 4.93 cm), fed at 40 %" in out
+    assert all(f"  {key:25s} {i:.4g}" in out for i, key in enumerate(CIRCUIT_KEYS))
+    assert grindtwin(["size-mill", "--feed-tph", "31", "--target-p80-um", "210", "--json",
+                      "--cyclone-pressure-kpa", "60"]) == 0
+    record = json.loads(capsys.readouterr().out)
+    assert record["notes"] == [note] and record["command"].endswith("--cyclone-pressure-kpa 60")
+    assert asked == [{}, {"cyclone_pressure_kpa": 60.0}]
     with pytest.raises(SystemExit) as refused:
         grindtwin(["size-mill", "--feed-tph", "31", "--target-p80-um", "210", "--speed", "0.95"])
     assert refused.value.code == 2 and "--speed must be in (0.3, 0.95). Got 0.95." in capsys.readouterr().err

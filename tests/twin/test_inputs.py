@@ -137,7 +137,11 @@ def test_scale_up_is_identity_on_the_calibration_mill_and_follows_austin_elsewhe
 
 
 def test_industrial_preset_is_the_sized_mill_and_meets_its_sizing_target():
-    """Depends on the shipped calibration: after a recalibration, rerun the command in the file."""
+    """Depends on the shipped calibration: after a recalibration, rerun the command in the file.
+    The preset's circuit meets the sizing's three conditions (P80, circulating load, cyclone
+    pressure) and needs no water taken out."""
+    from twin.sizing import DESIGN_CIRCULATING_LOAD, DESIGN_CYCLONE_PRESSURE_KPA
+
     record = json.loads(INDUSTRIAL_PRESET_PATH.read_text())
     mill = get_mill("industrial")
     assert mill.diameter_m == record["mill"]["diameter_m"] and dict(mill.cyclone) == record["cyclone"]
@@ -147,6 +151,32 @@ def test_industrial_preset_is_the_sized_mill_and_meets_its_sizing_target():
     ss = tw.steady(feed_tph=z["feed_tph"])
     assert ss.p80_um == pytest.approx(z["target_p80_um"], rel=0.01), record["command"]
     assert ss.load_status == "stable"
+    o = ss.outputs
+    assert o["circulating_load_frac"] == pytest.approx(DESIGN_CIRCULATING_LOAD, rel=0.01)
+    assert o["cyclone_pressure_kpa"] == pytest.approx(DESIGN_CYCLONE_PRESSURE_KPA, rel=0.01)
+    assert o["sump_water_m3_h"] >= 0 and o["mill_water_m3_h"] >= 0 and not ss.notes
+
+
+def test_sizing_at_the_molycop_base_cases_scale_designs_a_cluster_like_its_own():
+    """Moly-Cop's BallSim base case (scenarios/data/molycop_ballsim_published.toml: 504 t/h, P80
+    169.4 um) runs six 66-cm cyclones fed at 61 % solids with a 75.6 % underflow. size_mill at
+    that throughput and product, for type B (the case's ore is not ours), at that case's pressure,
+    chooses a cluster of the same kind: six cyclones, feed and underflow within 5 points."""
+    import tomllib
+    from pathlib import Path
+
+    from twin.sizing import size_mill
+
+    published = tomllib.loads((Path(__file__).resolve().parents[2] / "scenarios" / "data"
+                               / "molycop_ballsim_published.toml").read_text())
+    psi_kpa = 6.894757
+    sized = size_mill("B", 504.0, published["overflow_p80_um"],
+                      cyclone_pressure_kpa=published["cyclone_pressure_psi"] * psi_kpa)
+    assert sized.cyclone["count"] == 6
+    assert sized.circuit["cyclone_feed_solids_frac"] == pytest.approx(1902.5 / (1902.5 + 1204.2), abs=0.05)
+    assert sized.circuit["underflow_solids_frac"] == pytest.approx(published["underflow_solids_frac"], abs=0.05)
+    assert sized.circulating_load_frac == pytest.approx(2.5, rel=0.01)
+    assert sized.p80_um == pytest.approx(published["overflow_p80_um"], rel=0.01)
 
 
 def test_missing_preset_file_names_the_command(monkeypatch, tmp_path):
@@ -178,15 +208,18 @@ def test_a_preset_is_written_only_where_grindtwin_may_write(tmp_path):
     assert mine.read_text() == '{"mine": true}'
 
 
-def test_an_impossible_sizing_says_which_way_it_misses():
-    """size_mill at 1 kg/h: even the smallest mill of the range grinds finer than 75 um, for every
-    cyclone count; the error says so instead of listing empty tuples. _counts joins runs."""
+def test_an_impossible_sizing_says_why_each_cyclone_count_misses():
+    """size_mill at 1 kg/h: a 75-um cut at 53 kPa would need a feed denser than a slurry can be, and
+    more cyclones only a denser one; at 5 t/h and 210 um the one cyclone that cuts coarse enough
+    needs its feed denser than the mill discharges (water taken out of the sump). Each error says
+    so, naming the counts; _counts joins runs."""
     from twin.errors import SolverError
-    from twin.sizing import DIAMETER_RANGE_M, MAX_CYCLONES, _counts, size_mill
+    from twin.sizing import _counts, size_mill
 
-    with pytest.raises(SolverError, match=rf"with 1-{MAX_CYCLONES} cyclones even the {DIAMETER_RANGE_M[0]:g}-m mill "
-                                          r"grinds finer than 75 um\.$"):
+    with pytest.raises(SolverError, match=r"with 1 cyclone, no design point: the cut would need a cyclone feed of "):
         size_mill("B", 0.001, 75.0)
+    with pytest.raises(SolverError, match=r"with 1 cyclone, water taken out \(sump_water_m3_h -[0-9.]+\) \(another"):
+        size_mill("B", 5.0, 210.0)
     assert _counts([1, 2, 3, 5, 7, 8]) == "1-3, 5, 7-8" and _counts([4]) == "4"
 
 

@@ -89,17 +89,20 @@ def test_a_steady_state_carries_what_the_models_do_not_describe():
 
 
 def test_a_circuit_whose_water_balance_needs_water_taken_out_says_so():
-    """The industrial preset's cyclone cluster (16 of 38 cm, as `grindtwin size-mill` chose them)
-    at 31 t/h: ~1 kPa per cyclone, half the feed water bypassed to the underflow, so the mill's
-    feed water is negative (water taken out), which no plant runs; it printed nothing. The grate
-    discharge (the preset's default) has no water balance and no such note."""
+    """Twenty-four 38-cm cyclones at 30 % solids on the industrial mill at 31 t/h (an earlier
+    size-mill chose 16, for a larger mill): ~1 kPa per cyclone, half the feed water bypassed to the underflow,
+    so the mill's feed water is negative (water taken out), which no plant runs; it printed
+    nothing. The preset's own cluster (sized at its design pressure) and the grate discharge have
+    no such note."""
     from twin import Twin
 
-    tw = Twin("B", mill="industrial", effect_options={"classification": {"kind": "hydrocyclone"}})
-    ss = tw.steady(feed_tph=31.0, speed_frac_critical=0.70)
+    many = {"classification": {"kind": "hydrocyclone", "cyclone": {"count": 24}}}
+    ss = Twin("B", mill="industrial", effect_options=many).steady(feed_tph=31.0, speed_frac_critical=0.70)
     assert ss.outputs["mill_water_m3_h"] < 0
     assert [n for n in ss.notes if "water taken out" in n and "mill_water_m3_h" in n]
-    assert not [n for n in Twin("B", mill="industrial").steady(feed_tph=31.0).notes if "water" in n]
+    sized = Twin("B", mill="industrial", effect_options={"classification": {"kind": "hydrocyclone"}})
+    for tw in (sized, Twin("B", mill="industrial")):
+        assert not [n for n in tw.steady(feed_tph=31.0).notes if "water" in n]
 
 
 def test_a_p80_inside_the_grids_sink_is_said_to_be_extrapolated():

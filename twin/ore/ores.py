@@ -111,3 +111,9 @@ class Blend:
     @property
     def names(self) -> list[str]:
         return [o.name for o in self.ores]
+
+    @property
+    def density_t_m3(self) -> float:
+        """The blend's solids density [t/m3]: mass fractions over the components' densities, summed
+        volumes (the harmonic mean)."""
+        return 1.0 / sum(f / o.density_t_m3 for o, f in zip(self.ores, self.fractions))
