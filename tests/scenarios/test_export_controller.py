@@ -140,27 +140,32 @@ def _c_statuses(python_statuses) -> list[int]:
 
 @pytest.mark.slow
 def test_the_exported_step_says_target_unreachable_when_python_does(tmp_path, monkeypatch):
-    """The reference scene started at 30 t/h (P80 220 um) for a target of 190 um, with the rates
-    cut to 4 t/h and 0.01 of critical per hour: the first plans cannot reach the target within
-    the horizon, the later ones can. The exported step said ok throughout; it now reports
-    target_unreachable on the steps the Python controller does, by its rule (the plans' passing
-    fractions at the horizon end, away from the threshold on every step here)."""
-    text = REFERENCE.read_text()
-    slow = {'start = "target"': 'start = "scene"', "target_p80_um = 210.0": "target_p80_um = 190.0",
-            "feed_rate_max_tph_per_h = 20.0": "feed_rate_max_tph_per_h = 4.0",
-            "speed_rate_max_per_h = 0.10": "speed_rate_max_per_h = 0.01"}
-    for old, new in slow.items():
-        assert text.count(old) == 1
-        text = text.replace(old, new)
-    scene = tmp_path / "slow.toml"
-    scene.write_text(text)
-    py, moves, status, allocs, _, python = _replay_first_hour(scene, tmp_path / "ctl", monkeypatch)
+    """The exported step said ok where the Python controller says target_unreachable (its plan's
+    passing fraction at the horizon end misses 0.80 by more than unreachable_tol_frac). Over the
+    reference hour the two now give the same status on every step. The tolerance is set between the
+    misses of a first recording of the hour (the plans do not depend on it), inside their middle
+    half, so that a quarter of the steps at least take each answer: the comparison can fail either
+    way, whatever the model's misses are."""
+    import dataclasses
+
+    from mpc.nmpc import PASSING_TARGET
+
+    with monkeypatch.context() as first_pass:
+        *_, first = _replay_first_hour(REFERENCE, tmp_path / "first", first_pass)
+    miss = np.sort(np.abs(np.array(first.passing_end) - PASSING_TARGET))
+    quarter = len(miss) // 4
+    j = quarter + int(np.argmax(np.diff(miss[quarter:len(miss) - quarter])))  # the widest gap there
+    tol = 0.5 * (miss[j] + miss[j + 1])
+    assert miss[j + 1] - miss[j] > 1e-9  # no plan at the threshold (rounding could not tip one)
+    settings = closed_loop.nmpc_settings
+    monkeypatch.setattr(closed_loop, "nmpc_settings",
+                        lambda scene: dataclasses.replace(settings(scene), unreachable_tol_frac=tol))
+    py, moves, status, allocs, _, python = _replay_first_hour(REFERENCE, tmp_path / "ctl", monkeypatch)
+    assert python.passing_end == pytest.approx(first.passing_end, rel=1e-12)  # the same plans
     assert status == _c_statuses(python.statuses)
-    assert 0 < status.count(5) < len(status)  # both answers on the hour: the comparison can fail
+    assert quarter <= status.count(5) <= len(status) - quarter
     manifest = json.loads((tmp_path / "ctl" / "grindtwin_export.json").read_text())
-    assert manifest["step_status"]["5"].startswith("target_unreachable: ")
-    miss = np.abs(np.array(python.passing_end) - 0.80)
-    assert np.min(np.abs(miss - manifest["unreachable_tol_frac"])) > 1e-6
+    assert manifest["unreachable_tol_frac"] == tol and manifest["step_status"]["5"].startswith("target_unreachable: ")
     assert np.max(np.abs(moves / py - 1.0)) <= 1e-9 and allocs == [0]
 
 
