@@ -80,6 +80,9 @@ class Twin:
             breakage_map(o, self.coefficients) if breakage_map else self.calibration.breakage(o), density)
             for o in self.blend.ores]
         breakage = [_ore_breakage(self.grid, p, power_nom, holdup_nom) for p in params]
+        #: What a steady state of this twin cannot show of its ores (Calibration.texture_notes).
+        self.notes = [] if breakage_map else self.calibration.texture_notes(
+            [o for o in self.blend.ores if given.get(o.name) is None])
         feed = _feed_fractions(self.grid, feed_psd, feed_p80_um, feed_modulus)
         self.spec = ModelSpec(
             grid=self.grid, mill=self.mill, component_names=self.blend.names, breakage=breakage,
@@ -105,14 +108,18 @@ class Twin:
                blend=None, hardness_scale: float = 1.0):
         """Steady state at the given feed rate [t/h] and speed (defaults: the mill's nominal)."""
         feed = self.mill.feed_nominal_tph if feed_tph is None else feed_tph
-        return steady_state(self.model, self._u(feed, speed_frac_critical), self._d(blend, hardness_scale))
+        return self._noted(steady_state(self.model, self._u(feed, speed_frac_critical), self._d(blend, hardness_scale)))
 
     def steady_at_constant_load(self, speed_frac_critical: float | None = None, blend=None,
                                 load_frac: float = 1.0, hardness_scale: float = 1.0):
         """Steady state whose hold-up is ``load_frac`` of nominal: the feed rate is solved for
         (how the laboratory reports throughput 'at constant load')."""
-        return steady_state_at_load(self.model, self._u(self.mill.feed_nominal_tph, speed_frac_critical),
-                                    self._d(blend, hardness_scale), load_frac)
+        return self._noted(steady_state_at_load(self.model, self._u(self.mill.feed_nominal_tph, speed_frac_critical),
+                                                self._d(blend, hardness_scale), load_frac))
+
+    def _noted(self, ss):
+        ss.notes.extend(n for n in self.notes if n not in ss.notes)
+        return ss
 
     def simulate(self, duration_h: float, dt_h: float, feed_tph=None, speed_frac_critical=None,
                  blend=None, x0=None, **kwargs):

@@ -655,13 +655,8 @@ def cmd_steady(args) -> int:
         notes += [n for n in [centrifuging_note(kpis.get("speed_frac_critical") or 0.0)] if n]
     else:
         notes += ss.notes + circuit_notes(twin, args.mill)
-    from twin import reference_ores
-
-    refs = reference_ores()
-    if calibration.breakage_map == "dem" and any(refs.get(o.name) != o for o in blend.ores):  # a user's ore's texture
-        notes.append("the dem calibration's breakage map reads each ore's hardness index, elastic modulus and "
-                     "density (twin.calibration.dem_map); its texture (the textural index) does not enter: "
-                     "--calibration table maps texture too")
+    if args.surrogate:
+        notes += calibration.texture_notes(blend.ores)
     if args.json:
         mineralogy = {o.name: {"wt_pct": o.wt_pct, **o.summary()} for o in blend.ores}
         print(json.dumps({"mill": args.mill, "blend": dict(zip(blend.names, blend.fractions)),

@@ -7,7 +7,7 @@ import pytest
 
 from scenarios.cli import main
 
-from .conftest import strict_json
+from .conftest import BASE_SCENE, strict_json
 
 
 def test_steady_json_has_unit_suffixed_kpis(capsys):
@@ -195,8 +195,23 @@ def test_steady_says_the_dem_calibration_does_not_read_texture(tmp_path, capsys)
                          "--calibration", cal]) == 0
             out = json.loads(capsys.readouterr().out)
             p80[cal, p.parent.name] = out["p80_um"]
-            assert any("texture" in n and "does not enter" in n for n in out["notes"]) == (cal == "dem")
+            assert any("not its texture" in n for n in out["notes"]) == (cal == "dem")
     assert p80["dem", "g10"] == p80["dem", "g1000"] and p80["table", "g10"] != p80["table", "g1000"]
+    # optimize and a scene's run say it too (the note is the twin's: every steady state carries it);
+    # a reference ore does not get it
+    assert main(["optimize", "--ore", str(paths[0]), "--target-p80-um", "150", "--json"]) in (0, 1)
+    assert any("not its texture" in n for n in json.loads(capsys.readouterr().out)["notes"])
+    assert main(["optimize", "--ore", "B", "--target-p80-um", "150", "--json"]) in (0, 1)
+    assert not any("texture" in n for n in json.loads(capsys.readouterr().out)["notes"])
+    from scenarios.run.models import build_models
+    from scenarios.scene.loader import load_scene
+
+    scene = tmp_path / "user_ore.toml"
+    mineral = ", ".join(f"{k} = {v}" for k, v in b["mineralogy"].items())
+    user = (f"[ores.B]\nmineralogy = {{ {mineral} }}\n"
+            "texture = { mean_grain_um = 10.0, uniformity = 0.6, association_entropy = 0.55 }")
+    scene.write_text(BASE_SCENE.replace('[ores.B]\ntype = "B"', user))
+    assert any("ore B, not its texture" in n for n in build_models(load_scene(scene)).notes)
 
 
 def test_a_speed_where_the_breakage_stops_is_refused_before_solving(capsys):

@@ -88,6 +88,23 @@ class Calibration:
 
         return SizeGrid(**self.size_grid)
 
+    def texture_notes(self, ores) -> list[str]:
+        """What this calibration's breakage map leaves out of ``ores`` (those it maps): the dem map
+        reads each ore's hardness index, elastic modulus and density (twin.calibration.dem_map),
+        not its texture, so a user's ore (one that is not the reference type of its name) gets a
+        note; none for the reference ores or the mineralogy map, which reads texture too."""
+        if self.breakage_map != "dem":
+            return []
+        from ..ore import reference_ores
+
+        refs = reference_ores()
+        users = [o.name for o in ores if refs.get(o.name) != o]
+        if not users:
+            return []
+        return [f"the dem calibration's breakage map reads the hardness index, elastic modulus and density of "
+                f"ore {', '.join(users)}, not its texture (the textural index; twin.calibration.dem_map): the "
+                "table calibration (--calibration table) maps texture too"]
+
     def breakage(self, ore):
         """Breakage parameters of an ore by this calibration's map."""
         if self.breakage_map == "dem":
