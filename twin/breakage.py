@@ -165,13 +165,18 @@ def check_breakage_matrix(b: np.ndarray) -> None:
                          f"Got {sums[j]:.15g}.")
 
 
+#: The speed [fraction of critical] at which Austin's speed factor (eq. 8.4) is zero; below it the
+#: factor, and every breakage rate it multiplies, is negative: the slowest speed the twin describes.
+SPEED_FACTOR_ZERO_FRAC_CRITICAL = 0.1
+
+
 def austin_speed_factor(speed_frac_critical):
     """Relative breakage rate against mill speed (Austin et al. 1984, eq. 8.4); works on floats
     and CasADi expressions. Falls steeply above ~0.9 of critical as the charge centrifuges."""
     import casadi as ca
 
     exp = ca.exp if isinstance(speed_frac_critical, (ca.SX, ca.MX)) else np.exp
-    return (speed_frac_critical - 0.1) / (1.0 + exp(15.7 * (speed_frac_critical - 0.94)))
+    return (speed_frac_critical - SPEED_FACTOR_ZERO_FRAC_CRITICAL) / (1.0 + exp(15.7 * (speed_frac_critical - 0.94)))
 
 
 @dataclass(frozen=True)

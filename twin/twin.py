@@ -15,7 +15,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from .breakage import BreakageParams
+from .breakage import SPEED_FACTOR_ZERO_FRAC_CRITICAL, BreakageParams
 from .breakage import ore_breakage as _ore_breakage
 from .calibration import load_calibration
 from .errors import TwinInputError, bad_value, check_range
@@ -146,6 +146,10 @@ class Twin:
         if not 0.0 < float(speed) < 1.0:
             percent = " (a fraction of critical speed, not percent)" if 10.0 <= float(speed) <= 100.0 else ""
             raise bad_value("Twin", "speed_frac_critical", speed, f"a float in (0, 1){percent}")
+        if float(speed) <= SPEED_FACTOR_ZERO_FRAC_CRITICAL and "speed" in self.model.effect_names:
+            raise bad_value("Twin", "speed_frac_critical", speed,
+                            f"a float in ({SPEED_FACTOR_ZERO_FRAC_CRITICAL:g}, 1) with the speed effect: Austin's "
+                            "speed factor, and every breakage rate with it, is zero there and negative below")
         return np.array([feed_tph, speed], float)
 
     def _d(self, blend, hardness_scale):

@@ -512,22 +512,17 @@ def refuse_overflow(twin, ss, allow: bool, what: str, blend=None) -> None:
                      f"beyond the mill. Allowed: {allowed}; --allow-overflow prints the extrapolation anyway.")
 
 
-#: Lowest mill speed [fraction of critical] the twin's breakage describes: Austin's speed factor
-#: (Austin, Klimpel & Luckie 1984, eq. 8.4; twin.breakage.austin_speed_factor), (speed - 0.1) / (1 + ...),
-#: which the ``speed`` effect multiplies into every breakage rate, is zero there and negative below:
-#: no breakage, then negative rates, whose "steady state" holds negative masses (the solver failed
-#: on it, advising tolerances the command has no option for).
-SPEED_MIN_FRAC_CRITICAL = 0.1
-
-
 def refuse_slow_speed(twin, speed, what: str) -> None:
-    """Refuse (bad input, exit 2) a speed at or below :data:`SPEED_MIN_FRAC_CRITICAL` for a twin whose
-    breakage follows the speed (its ``speed`` effect), before anything is solved."""
-    if speed is None or "speed" not in twin.model.effect_names or speed > SPEED_MIN_FRAC_CRITICAL:
+    """Refuse (bad input, exit 2) a speed at or below twin.SPEED_FACTOR_ZERO_FRAC_CRITICAL for a
+    twin whose breakage follows the speed (its ``speed`` effect), naming the option, before
+    anything is solved (the twin refuses it too, naming its own parameter)."""
+    from twin import SPEED_FACTOR_ZERO_FRAC_CRITICAL as slowest
+
+    if speed is None or "speed" not in twin.model.effect_names or speed > slowest:
         return
-    raise SceneError(f"{what} {speed:g}: at or below {SPEED_MIN_FRAC_CRITICAL:g} of critical speed the twin's "
+    raise SceneError(f"{what} {speed:g}: at or below {slowest:g} of critical speed the twin's "
                      "breakage rates are zero or negative (Austin et al. 1984, eq. 8.4, its speed effect), so it has "
-                     f"no steady state there; allowed: a speed in ({SPEED_MIN_FRAC_CRITICAL:g}, 1) of critical.")
+                     f"no steady state there; allowed: a speed in ({slowest:g}, 1) of critical.")
 
 
 def min_replicates(level: float) -> int:

@@ -27,7 +27,7 @@ from scenarios.run.closed_loop import check_rk4_substeps, loop_start, nmpc_setti
 from scenarios.run.feed import component_blend, feed_schedule
 from scenarios.run.models import build_models, component_ores, is_batch
 from scenarios.scene import Scene, check_scene as check_scene_file, load_scene
-from twin import TwinError, centrifuging_note
+from twin import SPEED_FACTOR_ZERO_FRAC_CRITICAL, TwinError, centrifuging_note
 
 #: NmpcSettings field -> the scene key it comes from (scenarios.run.closed_loop.nmpc_settings).
 NMPC_KEYS = {
@@ -95,8 +95,25 @@ def speed_notes(scene: Scene) -> list[str]:
 def model_size_problems(scene: Scene, models) -> list[str]:
     """A batch charge the mill cannot hold, and the controller's NLP if its build is estimated
     above the memory limit."""
-    return (_batch_charge_problems(scene, models) + _plant_output_problems(scene, models)
-            + _nlp_size_problems(scene, models))
+    return (_slow_speed_problems(scene, models) + _batch_charge_problems(scene, models)
+            + _plant_output_problems(scene, models) + _nlp_size_problems(scene, models))
+
+
+def _slow_speed_problems(scene: Scene, models) -> list[str]:
+    """Speeds at or below twin.SPEED_FACTOR_ZERO_FRAC_CRITICAL for a plant with the ``speed``
+    effect: every breakage rate is zero there and negative below, and the run failed in the
+    solver. ``feed.speed_frac_critical`` (held, or a closed loop's start) and an NMPC's
+    ``controller.bounds.speed_min`` (the speeds it may plan)."""
+    effects = getattr(getattr(models.plant, "model", None), "effect_names", ())
+    if "speed" not in effects:
+        return []
+    speeds = {"feed.speed_frac_critical": scene.feed.speed_frac_critical}
+    if scene.controller.kind == "nmpc":
+        speeds[NMPC_KEYS["speed_min"]] = nmpc_settings(scene).speed_min
+    return [f"{key}: {v:g} is at or below {SPEED_FACTOR_ZERO_FRAC_CRITICAL:g} of critical, where the breakage rates "
+            "of the speed effect (Austin et al. 1984, eq. 8.4) are zero, and negative below; allowed: above "
+            f"{SPEED_FACTOR_ZERO_FRAC_CRITICAL:g}" for key, v in speeds.items()
+            if v is not None and v <= SPEED_FACTOR_ZERO_FRAC_CRITICAL]
 
 
 def _plant_output_problems(scene: Scene, models) -> list[str]:

@@ -220,7 +220,7 @@ def test_a_speed_where_the_breakage_stops_is_refused_before_solving(capsys):
     negative. Refused with the allowed range, exit 2, on every path that solves a steady state."""
     from pathlib import Path
 
-    from scenarios.cli.commands import SPEED_MIN_FRAC_CRITICAL
+    from twin import SPEED_FACTOR_ZERO_FRAC_CRITICAL as SPEED_MIN_FRAC_CRITICAL
     from twin.breakage import austin_speed_factor
 
     assert austin_speed_factor(SPEED_MIN_FRAC_CRITICAL) == pytest.approx(0.0, abs=1e-12)  # the model's own zero
@@ -237,6 +237,28 @@ def test_a_speed_where_the_breakage_stops_is_refused_before_solving(capsys):
         assert "tolerances" not in captured.err and captured.out == ""
     assert main(["steady", "--ore", "B", "--mill", "industrial", "--speed", "0.11", "--json"]) == 0  # just above
     assert json.loads(capsys.readouterr().out)["speed_frac_critical"] == pytest.approx(0.11)
+
+
+def test_a_speed_where_the_breakage_stops_is_refused_by_the_twin_and_by_check(tmp_path, capsys):
+    """The limit lives with the twin: Twin refuses such a speed with the speed effect (it tried to
+    solve), and `check` refuses a scene that holds or may plan one (it said OK and the run failed
+    in the solver). Without the speed effect the breakage does not follow the speed: allowed."""
+    from tests.scenarios.conftest import BASE_SCENE
+    from twin import Twin, TwinInputError
+
+    with pytest.raises(TwinInputError, match=r"'speed_frac_critical'.*\(0.1, 1\) with the speed effect"):
+        Twin("B").steady(feed_tph=0.031, speed_frac_critical=0.05)
+    assert Twin("B", effects=["breakage", "transport", "holdup"]).steady(
+        feed_tph=0.031, speed_frac_critical=0.05).p80_um > 0
+    slow = tmp_path / "slow.toml"
+    slow.write_text(BASE_SCENE.replace('effects = ["breakage", "transport", "holdup", "cushioning", "power"]',
+                                       'effects = ["breakage", "transport", "holdup", "speed", "cushioning", "power"]')
+                    .replace("speed_frac_critical = 0.70", "speed_frac_critical = 0.08")
+                    .replace("feed_tph_max = 45.0", "feed_tph_max = 45.0\nspeed_min = 0.05"))
+    assert main(["check", str(slow)]) == 2
+    err = capsys.readouterr().err
+    assert "feed.speed_frac_critical: 0.08 is at or below 0.1 of critical" in err
+    assert "controller.bounds.speed_min: 0.05 is at or below 0.1 of critical" in err
 
 
 def test_min_replicates_leaves_one_replicate_beyond_each_end():
