@@ -93,12 +93,18 @@ def psd_snapshots(model, samples: Samples, stream: str, batch: bool) -> pd.DataF
     rows = times [h], columns = class upper sizes [um] (``attrs['what']`` names the stream)."""
     grid = model.spec.grid
     idx = np.unique(np.linspace(0, len(samples.time_h) - 1, N_PSD_SNAPSHOTS).round().astype(int))
-    rows = {float(samples.time_h[i]): grid.cumulative_passing(
-        stream_masses(model, samples.x[i], samples.u[i], samples.d[i], batch)[stream]) for i in idx}
+    rows = {float(samples.time_h[i]): _passing(grid, stream_masses(model, samples.x[i], samples.u[i],
+                                                                   samples.d[i], batch)[stream]) for i in idx}
     psd = pd.DataFrame(rows, index=pd.Index(np.round(grid.upper_um, 4), name="size_um")).T
     psd.index.name = "time_h"
     psd.attrs["what"] = stream.replace("_", " ")
     return psd
+
+
+def _passing(grid, mass) -> np.ndarray:
+    """Cumulative fraction passing of a stream's mass per class; NaN when it carries nothing (a
+    stopped mill's product has no size distribution)."""
+    return grid.cumulative_passing(mass) if np.sum(mass) > 0 else np.full(grid.count, np.nan)
 
 
 def run_size_data(model, samples: Samples, batch: bool) -> dict:

@@ -153,6 +153,24 @@ def test_replay_refuses_a_feed_column_of_zeros_before_it_runs(tmp_path, capsys):
     assert "Traceback" not in err and "Cumulative passing" not in err and not out.exists()
 
 
+def test_a_replay_that_starts_with_the_mill_stopped_runs(tmp_path):
+    """A history whose feed starts at 0 (the mill stopped, fed later) failed at the end on
+    "Cumulative passing needs a positive total mass" (the first size snapshot has no product).
+    Its snapshots with no product are NaN, the later ones a distribution, and the run's product
+    comes to its usual P80 once fed."""
+    from scenarios.run import replay_scene
+    from tests.scenarios.test_runner import _history_csv, short_pyrite_scene
+
+    scene = short_pyrite_scene(tmp_path, duration_h=0.5)
+    hist = _history_csv(tmp_path)
+    frame = pd.read_csv(hist)
+    frame.loc[: len(frame) // 3, "feed_tph"] = 0.0
+    frame.to_csv(hist, index=False)
+    res = replay_scene(scene, hist, progress=False)
+    assert res.psd.iloc[0].isna().all() and res.psd.iloc[-1].notna().all()
+    assert res.psd.iloc[-1].is_monotonic_decreasing and res.frame["p80_um"].iloc[-1] > 0
+
+
 def test_gap_limit_is_a_parameter(tmp_path):
     path = write(tmp_path, MESSY + "2026-01-15T00:30:00,50,50,35\n")
     h = read_history(path, DT, max_gap_h=0.5)
