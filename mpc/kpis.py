@@ -59,8 +59,7 @@ def fresh_feed_t(frame: pd.DataFrame) -> float:
     Held, not trapezoidal: a closed loop's feed rate is a move, made at its sample and held until
     the next one (the plant's ``fed_t`` of such a run is exactly the held sum). The trapezoid
     averaged each move with the next one and counted half of the last row's move, a move made at
-    the end of the run and never applied within it (6.4341 kWh/t against the plant's 6.4313 on
-    one run)."""
+    the end of the run and never applied within it."""
     if "fed_t" in frame:
         fed = frame["fed_t"].to_numpy(float)
         return float(fed[-1] - fed[0])
