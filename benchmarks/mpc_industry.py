@@ -7,8 +7,8 @@ Engineering 79, 1-16: advanced control of grinding circuits reported 1-16 % more
 
 - ``transition``: the reference transition (the runs of benchmarks/mpc_reference_case.py);
 - ``day``: the shipped one-day replay, scenarios/replay_day.toml (24 h of recorded, synthetic
-  feed mineralogy), run as a scene with ``controller.kind`` none (the scene's feed and speed
-  held), pi, nmpc without preview (``preview_lead_h = 0``) and nmpc with the scene's 0.5-h
+  feed mineralogy), run as a scene with ``controller.kind`` none (the feed of the target's
+  steady state at the start held, the scene's ``feed.start = "target"``, and its speed), pi, nmpc without preview (``preview_lead_h = 0``) and nmpc with the scene's 0.5-h
   preview; the same KPIs from each run's frame (standard deviations over the samples, as
   :func:`mpc.kpis.loop_kpis`) and its summary.
 
@@ -100,7 +100,8 @@ def main(argv=None) -> pd.DataFrame:
         tables.append(out.assign(case="day"))
         md += ["## The one-day replay (scenarios/replay_day.toml)", "",
                "24 h of synthetic recorded feed mineralogy, the scene's plant, controller model, tuning, sensors "
-               "and seed; none holds the scene's feed and speed, nmpc runs without preview, nmpc_preview with "
+               "and seed; none holds the feed of the target's steady state at the start and the scene's speed, nmpc "
+               "runs without preview, nmpc_preview with "
                "the scene's 0.5 h. run_s: wall time of each run on a shared machine.", "",
                out.to_markdown(index=False, floatfmt=".4g"), ""]
     table = pd.concat(tables, ignore_index=True)

@@ -85,7 +85,7 @@ def transition_rows(repeat: int) -> list[dict]:
 def _replay_scene(duration_h: float | None = None):
     scene = load_scene(ROOT / "scenarios" / "replay_day.toml")
     data = scene.model_dump(exclude_none=True)
-    data["controller"] = {"kind": "none"}
+    data["controller"] = {"kind": "none", "target_p80_um": scene.controller.target_p80_um}  # its start: the target's
     if duration_h is not None:
         data["scene"]["duration_h"] = duration_h
     return scene_from_dict(data, scene.source_path)
