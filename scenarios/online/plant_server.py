@@ -39,7 +39,7 @@ import pandas as pd
 from asyncua import ua
 from asyncua.common.callback import CallbackType
 
-from mpc import SensorState, TwinPlant, loop_kpis
+from mpc import CLOSED_LOOP_READS, SensorState, TwinPlant, loop_kpis
 from scenarios.errors import SceneError
 from scenarios.online.clock import Clock, Stoppable, sleep_until
 from scenarios.online.security import ServerSecurity, make_server
@@ -360,8 +360,8 @@ class PlantServer(Stoppable):
         blend = np.asarray(self.schedule(max(self.t_h, 0.0)), float)
         vals = self.plant.measure(self.x, self.u, self.plant.disturbance(self.t_h, blend, 1.0))
         # the analyser's clock starts with the plant (SensorState counts samples from its t = 0)
-        new, held, pw, ld = self.sensor.make_step(self.t_h - self.t_start_h, vals["p80_um"], vals["power_kw"],
-                                                  vals["load_frac"])
+        new, held, pw, ld = self.sensor.make_step(self.t_h - self.t_start_h, vals["p80_um"],
+                                                  *(vals[k] for k in CLOSED_LOOP_READS))
         return vals | {"p80_new": new, "p80_held": held, "power_meas_kw": pw, "load_meas_frac": ld, "blend": blend}
 
     def _publish(self, vals: dict, wall: datetime) -> None:
