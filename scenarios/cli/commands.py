@@ -525,17 +525,11 @@ def refuse_slow_speed(twin, speed, what: str) -> None:
                      f"no steady state there; allowed: a speed in ({slowest:g}, 1) of critical.")
 
 
-def min_replicates(level: float) -> int:
-    """Fewest bootstrap replicates a two-sided percentile interval at ``level`` is computed from:
-    the interval leaves (1 - level) / 2 of the replicates beyond each end, and only from
-    2 / (1 - level) replicates (20 at 90 %) is at least one of them there; with fewer, its ends are
-    the extreme replicates' own (interpolated): the spread of a few draws, not an interval at that level."""
-    return math.ceil(round(2.0 / (1.0 - level), 9))
-
-
 def refuse_few_replicates(n: int, calibration, level: float) -> None:
-    """Refuse (bad input, exit 2) ``--uncertainty N`` with 0 < N < :func:`min_replicates`, or a
-    calibration that keeps fewer converged replicates than that, before anything is solved."""
+    """Refuse (bad input, exit 2) ``--uncertainty N`` with 0 < N < twin.calibration.min_replicates,
+    or a calibration that keeps fewer converged replicates than that, before anything is solved."""
+    from twin.calibration import min_replicates
+
     need = min_replicates(level)
     reps = (calibration.record.get("bootstrap") or {}).get("replicates", [])
     kept = sum(bool(r.get("success", True)) for r in reps)
@@ -635,7 +629,7 @@ def cmd_steady(args) -> int:
         kpis = {k: v for k, v in ss.summary().items() if k in STEADY_KEYS} | {"source": "twin"}
     unc = None
     if args.uncertainty is not None:
-        from twin.calibration import steady_intervals
+        from twin.calibration import min_replicates, steady_intervals
 
         unc = steady_intervals(blend, calibration, args.mill, args.feed_tph, args.speed,
                                at_load=args.at_constant_load, n=args.uncertainty or None)

@@ -261,10 +261,17 @@ def test_a_speed_where_the_breakage_stops_is_refused_by_the_twin_and_by_check(tm
     assert "controller.bounds.speed_min: 0.05 is at or below 0.1 of critical" in err
 
 
-def test_min_replicates_leaves_one_replicate_beyond_each_end():
-    from scenarios.cli.commands import min_replicates
+def test_min_replicates_leaves_one_replicate_beyond_each_end(monkeypatch):
+    """The rule is the library's: steady_intervals refuses too few replicates before solving
+    (the CLI refused them, the API computed a one-replicate '90 % interval')."""
+    import twin.calibration.uncertainty as uncertainty
+    from twin import TwinInputError
+    from twin.calibration import load_calibration, min_replicates, steady_intervals
 
     assert [min_replicates(level) for level in (0.8, 0.9, 0.95)] == [10, 20, 40]
+    monkeypatch.setattr(uncertainty, "replicate_steady_states", lambda *a, **k: pytest.fail("solved"))
+    with pytest.raises(TwinInputError, match=r"'n' parameter of steady_intervals must be .* at least 20.*Got 5"):
+        steady_intervals(["B"], load_calibration(), feed_tph=0.031, n=5)
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -21,7 +21,8 @@ _API = {
     "shipped_dem_calibration": ".files", "shipped_names": ".files", "write_json_atomically": ".files",
     "fit_log_ratios": ".fitting", "fit_to_table": ".fitting", "predict_table": ".fitting", "table_errors": ".fitting",
     "KPIS": ".reference", "reference_table": ".reference",
-    "INTERVAL_LEVEL": ".uncertainty", "intervals": ".uncertainty", "steady_intervals": ".uncertainty",
+    "INTERVAL_LEVEL": ".uncertainty", "intervals": ".uncertainty", "min_replicates": ".uncertainty",
+    "steady_intervals": ".uncertainty",
 }
 
 __all__ = sorted(_API)

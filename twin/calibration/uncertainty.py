@@ -150,13 +150,26 @@ def replicate_steady_states(ores, calibration: Calibration, mill: str = "lab", f
     return out
 
 
+def min_replicates(level: float) -> int:
+    """Fewest bootstrap replicates a two-sided percentile interval at ``level`` is computed from:
+    the interval leaves (1 - level) / 2 of the replicates beyond each end, and only from
+    2 / (1 - level) replicates (20 at 90 %) is at least one of them there; with fewer, its ends are
+    the extreme replicates' own (interpolated): the spread of a few draws, not an interval at that level."""
+    return math.ceil(round(2.0 / (1.0 - level), 9))
+
+
 def steady_intervals(ores, calibration: Calibration, mill: str = "lab", feed_tph: float | None = None,
                      speed_frac_critical: float | None = None, at_load: bool = False, n: int | None = None,
                      level: float = INTERVAL_LEVEL) -> dict:
     """Percentile intervals of a steady state's KPIs over the bootstrap replicates
     (:func:`replicate_steady_states`): {"intervals": {kpi: (low, median, high)}, "n", "failed"
     (steady states that failed), "unconverged" (replicates left out because their table step did
-    not converge when the calibration was made), "level"}."""
+    not converge when the calibration was made), "level"}. ``n`` below :func:`min_replicates` is
+    refused (TwinInputError) before anything is solved."""
+    if n and n < min_replicates(level):
+        raise TwinInputError(f"The 'n' parameter of steady_intervals must be 0/None (all replicates) or at least "
+                             f"{min_replicates(level)}: a {level:.0%} interval leaves {(1 - level) / 2:.0%} of the "
+                             f"replicates beyond each end. Got {n}.")
     states = replicate_steady_states(ores, calibration, mill, feed_tph, speed_frac_critical, at_load, n)
     ok = [s for s in states if s is not None]
     return {"intervals": intervals(ok, level), "n": len(ok), "failed": len(states) - len(ok),
