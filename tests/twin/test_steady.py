@@ -131,3 +131,16 @@ def test_a_trajectory_says_when_it_leaves_what_the_models_describe():
     over = run.frame["holdup_t"].to_numpy() > capacity
     (note,) = run.notes
     assert 0 < over.mean() < 1 and f"on {over.mean():.0%} of the samples" in note
+
+
+def test_a_feed_far_below_the_nominal_fails_saying_why():
+    """1e-9 t/h into the laboratory mill: Newton fails and the integration over 40 residence times
+    (~6e8 h) fails in IDAS; the error was the integrator's alone. It now names the feed against
+    the nominal and what to do. 1e-4 of the nominal still solves."""
+    from twin import SolverError, Twin
+
+    lab = Twin("B")
+    with pytest.raises(SolverError, match=r"feed 1e-09 t/h \(3.2e-08 of the mill's nominal 0.031 t/h\).*"
+                                          r"give a feed nearer the mill's nominal"):
+        lab.steady(feed_tph=1e-9)
+    assert lab.steady(feed_tph=0.031e-4).p80_um > 0

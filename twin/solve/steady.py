@@ -193,7 +193,15 @@ def steady_state(model, u, d, x_guess=None) -> SteadyState:
 
 
     tau = model.spec.holdup_nominal_t / u[0]
-    x_long = integrate_constant(model, guess, 40.0 * tau, u, d)
+    try:
+        x_long = integrate_constant(model, guess, 40.0 * tau, u, d)
+    except SolverError as exc:
+        nominal = model.spec.feed_nominal_tph
+        raise SolverError(f"Steady state not found at feed {u[0]:.4g} t/h ({u[0] / nominal:.2g} of the mill's nominal "
+                          f"{nominal:g} t/h), speed {u[1]:.3f}: Newton failed from the nominal guess and the "
+                          f"integration over 40 nominal residence times ({40.0 * tau:.3g} h) failed too "
+                          f"({str(exc).splitlines()[0][:160]}). A feed far below the nominal holds the mill "
+                          "nearly empty for a very long time: give a feed nearer the mill's nominal.") from exc
     x, _, ok = _newton(model, x_long, u, d)
     if not ok:
         raise SolverError("Steady state not found: Newton failed from the nominal guess and after "
