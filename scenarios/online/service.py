@@ -258,6 +258,7 @@ class Service(Stoppable):
         v = {role: self.quality[role].assess(r, now, self.clock) for role, r in readings.items() if role != "mode"}
         for role, verdict in v.items():
             row[f"{role}_quality"] = verdict.quality
+            row[f"{role}_quality_reason"] = verdict.reason  # the audit says why, each cycle (empty when good)
             self._condition(role, not verdict.ok, t_h, f"{role} unusable: {verdict.quality} ({verdict.reason})")
         auto = self._auto(readings["mode"], t_h)
         blend_now, preview = self._belt(v, t_h)
