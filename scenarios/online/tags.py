@@ -48,7 +48,9 @@ INPUTS_HOLD_AFTER_SAMPLES = 2
 P80_MIN_UM = 0.0
 #: The mill's motor draws power: below 0 is a sign or scaling fault (a stopped mill reads 0).
 POWER_MIN_KW = 0.0
-#: The load is a hold-up (over nominal): an empty mill reads 0, never less.
+#: The load is a hold-up (over nominal): an empty mill reads 0, never less; its upper limit is the
+#: mill filled to its shell around its balls (:meth:`twin.Mill.max_holdup_t` over the nominal hold-up,
+#: :func:`load_max_frac`): a mill holding more overflows.
 LOAD_MIN_FRAC = 0.0
 #: The actual feed is a weightometer's rate: a stopped belt reads 0, never less; above
 #: FEED_MAX_NOMINAL_MULTIPLE times the mill's nominal feed it is no operating point of the mill
@@ -64,7 +66,7 @@ BLEND_FRAC_MIN = 0.0
 PHYSICAL_REASONS = {
     "p80_um": "a size above 0 and below the top of the coarsest feed class: a mill only breaks",
     "power_kw": "a motor draws power; a stopped mill reads 0",
-    "load_frac": "a hold-up; an empty mill reads 0",
+    "load_frac": "a hold-up; an empty mill reads 0, and above the mill filled to its shell it overflows",
     "feed_tph": f"a stopped belt reads 0; above {FEED_MAX_NOMINAL_MULTIPLE:g} x the mill's nominal feed "
                 "(feed.feed_tph) is no operating point of it",
     "speed_frac_critical": "0 is a stopped mill; at 1 the charge centrifuges",
@@ -281,6 +283,15 @@ def p80_max_um(scene: Scene) -> float:
     return float(max(tops))
 
 
+def load_max_frac(scene: Scene) -> float:
+    """The hold-up of the scene's mill filled to its shell over its nominal hold-up (both scale
+    with the ore's density, which cancels)."""
+    from scenarios.run.models import scene_mill
+
+    mill = scene_mill(scene)
+    return mill.max_holdup_t(1.0) / mill.nominal_holdup_t(1.0)
+
+
 def physical_range(name: str, scene: Scene) -> PlausibleRange:
     """The physically possible values of the measurement ``name`` of :class:`Measurements` on
     the scene's mill (the constants above, the reasons in PHYSICAL_REASONS)."""
@@ -289,7 +300,7 @@ def physical_range(name: str, scene: Scene) -> PlausibleRange:
     if name == "power_kw":
         return PlausibleRange(POWER_MIN_KW, math.inf, unit="kW")
     if name == "load_frac":
-        return PlausibleRange(LOAD_MIN_FRAC, math.inf, unit="of the nominal hold-up")
+        return PlausibleRange(LOAD_MIN_FRAC, load_max_frac(scene), unit="of the nominal hold-up")
     if name == "feed_tph":
         nominal = scene.feed.feed_tph
         return PlausibleRange(FEED_MIN_TPH, math.inf if nominal is None else FEED_MAX_NOMINAL_MULTIPLE * nominal,

@@ -101,7 +101,13 @@ def test_each_measurement_gets_its_physical_range_from_the_scene(tmp_path, small
     nominal = small_scene.feed.feed_tph
     assert str(got["p80_um"]) == f"(0, {top:g}) um"
     assert str(got["power_kw"]) == "[0, inf) kW"
-    assert str(got["load_frac"]) == "[0, inf) of the nominal hold-up"
+    from scenarios.online.tags import load_max_frac
+    from scenarios.run.models import scene_mill
+
+    mill = scene_mill(small_scene)  # the load meter reads hold-up over nominal: at most the mill filled to its shell
+    full = mill.max_holdup_t(2.7) / mill.nominal_holdup_t(2.7)
+    assert load_max_frac(small_scene) == pytest.approx(full, rel=1e-12) and 3.0 < full < 10.0
+    assert str(got["load_frac"]) == f"[0, {full:g}] of the nominal hold-up" and 1.1 * full not in got["load_frac"]
     assert str(got["feed_tph"]) == f"[0, {FEED_MAX_NOMINAL_MULTIPLE * nominal:g}] t/h"
     assert str(got["speed_frac_critical"]) == "(0, 1) of critical"
     assert -5.0 not in got["p80_um"] and 1e6 not in got["p80_um"] and 210.0 in got["p80_um"]
