@@ -26,7 +26,7 @@ from scenarios.errors import SceneError
 from scenarios.online.quality import PlausibleRange
 from scenarios.run.closed_loop import feed_bounds
 from scenarios.scene import Scene, pydantic_message, read_toml
-from scenarios.scene.ranges import FEED_MAX_NOMINAL_MULTIPLE
+from scenarios.scene.ranges import FEED_MAX_NOMINAL_MULTIPLE, nominal_feed_tph
 
 #: A node id in OPC UA's string form (Part 6, 5.3.1.10): namespace, then identifier type and value.
 NODE_ID_PATTERN = r"^(ns=\d+|nsu=[^;]+);(i=\d+|s=.+|g=[0-9a-fA-F-]{36}|b=.+)$"
@@ -68,7 +68,7 @@ PHYSICAL_REASONS = {
     "power_kw": "a motor draws power; a stopped mill reads 0",
     "load_frac": "a hold-up; an empty mill reads 0, and above the mill filled to its shell it overflows",
     "feed_tph": f"a stopped belt reads 0; above {FEED_MAX_NOMINAL_MULTIPLE:g} x the mill's nominal feed "
-                "(feed.feed_tph) is no operating point of it",
+                "(its preset's, scaled by its power) is no operating point of it",
     "speed_frac_critical": "0 is a stopped mill; at 1 the charge centrifuges",
 }
 
@@ -301,8 +301,8 @@ def physical_range(name: str, scene: Scene) -> PlausibleRange:
         return PlausibleRange(POWER_MIN_KW, math.inf, unit="kW")
     if name == "load_frac":
         return PlausibleRange(LOAD_MIN_FRAC, load_max_frac(scene), unit="of the nominal hold-up")
-    if name == "feed_tph":
-        nominal = scene.feed.feed_tph
+    if name == "feed_tph":  # the mill's nominal feed, as scenes and recorded histories are judged
+        nominal = nominal_feed_tph(scene.mill.preset, scene.mill.model_dump())
         return PlausibleRange(FEED_MIN_TPH, math.inf if nominal is None else FEED_MAX_NOMINAL_MULTIPLE * nominal,
                               unit="t/h")
     if name == "speed_frac_critical":

@@ -98,7 +98,9 @@ def test_each_measurement_gets_its_physical_range_from_the_scene(tmp_path, small
     got = {name: plausible_range(name, m, small_scene) for name, m in tags.measurements}
     assert got == {name: physical_range(name, small_scene) for name in got}  # nothing narrowed in the map
     top = small_scene.mill.size_classes.top_um
-    nominal = small_scene.feed.feed_tph
+    from scenarios.scene.ranges import nominal_feed_tph
+
+    nominal = nominal_feed_tph(small_scene.mill.preset, small_scene.mill.model_dump())  # the mill's, not feed.feed_tph
     assert str(got["p80_um"]) == f"(0, {top:g}) um"
     assert str(got["power_kw"]) == "[0, inf) kW"
     from scenarios.online.tags import load_max_frac
