@@ -79,10 +79,15 @@ class PlausibleRange:
         return f"{left}{self.low:g}, {self.high:g}{right}" + (f" {self.unit}" if self.unit else "")
 
 
-def _number(value) -> float | None:
+def raw_number(value) -> float:
+    """A reading's value as a float for the audit, used or not (NaN when it is no number)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return None
-    v = float(value)
+        return math.nan
+    return float(value)
+
+
+def _number(value) -> float | None:
+    v = raw_number(value)
     return v if math.isfinite(v) else None
 
 

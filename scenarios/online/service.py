@@ -52,7 +52,7 @@ from scenarios.online.audit import AuditLog
 from scenarios.online.clock import Clock, Stoppable, sleep_until
 from scenarios.online.opcua import CONNECTION_ERRORS, PlantConnection, Trigger, status_name
 from scenarios.online.parts import ControlParts
-from scenarios.online.quality import GOOD, Reading, TagQuality, severity
+from scenarios.online.quality import GOOD, Reading, TagQuality, raw_number, severity
 from scenarios.online.security import ClientSecurity
 from scenarios.online.tags import TagMap, blend_range, plausible_range
 from scenarios.online.writer import Limit, limit_move
@@ -259,6 +259,7 @@ class Service(Stoppable):
         for role, verdict in v.items():
             row[f"{role}_quality"] = verdict.quality
             row[f"{role}_quality_reason"] = verdict.reason  # the audit says why, each cycle (empty when good)
+            row[f"{role}_raw"] = raw_number(readings[role].value)  # what the tag read, used or not
             self._condition(role, not verdict.ok, t_h, f"{role} unusable: {verdict.quality} ({verdict.reason})")
         auto = self._auto(readings["mode"], t_h)
         blend_now, preview = self._belt(v, t_h)

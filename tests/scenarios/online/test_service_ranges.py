@@ -74,4 +74,5 @@ def test_out_of_range_readings_are_bad_and_not_passed_on(small_scene, small_tags
     # the audit row says why, each cycle: the reason beside the quality (empty when good)
     assert bad["p80_um_quality_reason"] == f"p80_um = -5 is outside its plausible range (0, {top:g}) um"
     assert good["p80_um_quality_reason"] == ""
+    assert bad["p80_um_raw"] == -5.0 and good["p80_um_raw"] == 205.0  # what the tag read is kept, used or not
     assert seen[-1][0][0] == 205.0
