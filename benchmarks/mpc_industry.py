@@ -8,8 +8,8 @@ Engineering 79, 1-16: advanced control of grinding circuits reported 1-16 % more
 - ``transition``: the reference transition (the runs of benchmarks/mpc_reference_case.py);
 - ``day``: the shipped one-day replay, scenarios/replay_day.toml (24 h of recorded, synthetic
   feed mineralogy), run as a scene with ``controller.kind`` none (the feed of the target's
-  steady state at the start held, the scene's ``feed.start = "target"``, and its speed), pi, nmpc without preview (``preview_lead_h = 0``) and nmpc with the scene's 0.5-h
-  preview; the same KPIs from each run's frame (standard deviations over the samples, as
+  steady state at the start held, the scene's ``feed.start = "target"``, and its speed), pi,
+  nmpc without preview (``preview_lead_h = 0``) and nmpc with the scene's 0.5-h preview; the same KPIs from each run's frame (standard deviations over the samples, as
   :func:`mpc.kpis.loop_kpis`) and its summary.
 
 Writes benchmarks/results/mpc_industry.csv (a ``case`` column) and .md.

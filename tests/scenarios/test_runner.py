@@ -424,7 +424,8 @@ def test_a_run_whose_product_lies_in_the_grids_sink_says_so(tmp_path, short_run)
     not. The warning gives the snapshots' times and the largest share, read here from the PSD."""
     path = short_pyrite_scene(tmp_path)
     text = path.read_text()
-    path.write_text(text.replace("size_classes = { ratio = 2.0, count = 13 }", "size_classes = { ratio = 2.0, count = 5 }"))
+    path.write_text(text.replace("size_classes = { ratio = 2.0, count = 13 }",
+                                 "size_classes = { ratio = 2.0, count = 5 }"))
     res = run_scene(path, progress=False)
     (sunk,) = [w for w in res.summary["warnings"] if "below the finest size class (419 um)" in w]
     share = res.psd.iloc[:, -1]
