@@ -33,10 +33,11 @@ import warnings
 import numpy as np
 import scipy.sparse.linalg
 
-from .effects.classification import Hydrocyclone
+from .effects.classification import FEED_SOLIDS_VOL_PCT_MAX, Hydrocyclone, slurry_m3_h
 from .errors import SolverError, TwinInputError, check_range
 from .mill import INDUSTRIAL_BASE, Mill, get_mill
 from .twin import DEFAULT_EFFECTS, FEED_P80_UM, Twin
+from .validity import water_shortfalls
 
 #: Design circulating load (underflow over fresh feed) of a ball mill-cyclone circuit.
 DESIGN_CIRCULATING_LOAD = 2.5
@@ -125,6 +126,11 @@ def _at(ore, base: Mill, diameter_m: float, cyclone: dict, feed_tph: float, spee
             feed_tph=feed_tph, speed_frac_critical=speed)
 
 
+class _FeedOutOfRange(SolverError):
+    """The cut would need a cyclone feed no slurry can be: more cyclones (smaller, cutting finer at
+    the design pressure) would need a denser one still."""
+
+
 class _DesignPoint:
     """The design point's residuals for ``count`` cyclones of ``design``'s shape (module docstring)."""
 
@@ -137,9 +143,9 @@ class _DesignPoint:
 
     def __call__(self, x):
         ore, base, feed_tph, speed, calibration = self.args
-        if not 0.0 < 10.0 * x[2] < 70.0:  # outside what a Hydrocyclone's feed may be
-            raise SolverError(f"the cut would need a cyclone feed of {10.0 * x[2]:.3g} % solids by volume "
-                              "(a feed holds 0-70 %)")
+        if not 0.0 < 10.0 * x[2] < FEED_SOLIDS_VOL_PCT_MAX:
+            raise _FeedOutOfRange(f"the cut would need a cyclone feed of {10.0 * x[2]:.3g} % solids by volume "
+                                  f"(a feed holds 0-{FEED_SOLIDS_VOL_PCT_MAX:g} %)")
         mill, ss = _at(ore, base, math.exp(x[0]), self.cyclone(x), feed_tph, speed, calibration)
         o = ss.outputs
         r = np.array([math.log(ss.p80_um / self.target),
@@ -188,8 +194,7 @@ def _first_guess(design: Hydrocyclone, base: Mill, count: int, feed_tph: float, 
     which pressure scales as diameter^-3.33 for similar cyclones (Plitt's exponents summed)."""
     d_mill = float(np.clip(base.diameter_m * (feed_tph / base.feed_nominal_tph) ** (1.0 / 3.5), *DIAMETER_RANGE_M))
     cyc = Hydrocyclone(**similar_cyclone(design, design.diameter_cm, count, FEED_SOLIDS_VOL_PCT_START))
-    slurry_m3_h = feed_tph * (1.0 + DESIGN_CIRCULATING_LOAD) / rho / (FEED_SOLIDS_VOL_PCT_START / 100.0)
-    p_kpa = float(cyc.plitt(slurry_m3_h, rho)["pressure_kpa"])
+    p_kpa = float(cyc.plitt(slurry_m3_h(cyc, feed_tph * (1.0 + DESIGN_CIRCULATING_LOAD), rho), rho)["pressure_kpa"])
     d_cyc = design.diameter_cm * (p_kpa / pressure_kpa) ** (1.0 / 3.33)
     return np.array([math.log(d_mill), math.log(d_cyc), FEED_SOLIDS_VOL_PCT_START / 10.0])
 
@@ -223,8 +228,8 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
             x, mill, ss = _newton(point, _first_guess(design, base, count, feed_tph, rho, cyclone_pressure_kpa))
         except SolverError as exc:
             tried.append({"count": count, "outcome": f"no design point: {exc}"})
-            if "cyclone feed" in str(exc):
-                break  # more cyclones would need a denser feed still
+            if isinstance(exc, _FeedOutOfRange):
+                break
             continue
         d_cyc, o = math.exp(x[1]), ss.outputs
         why = _unrunnable(mill, d_cyc, ss)
@@ -253,10 +258,8 @@ def _unrunnable(mill: Mill, d_cyc: float, ss) -> str | None:
         return f"a {mill.diameter_m:.3g}-m mill, outside {DIAMETER_RANGE_M[0]:g}-{DIAMETER_RANGE_M[1]:g} m"
     if ss.load_status != "stable":
         return f"the mill's load {ss.load_status} its stable band (load {o['load_frac']:.3g} of nominal)"
-    short = [f"{k} {o[k]:.3g}" for k in ("sump_water_m3_h", "mill_water_m3_h") if o[k] < 0.0]
-    if short:
-        return "water taken out (" + ", ".join(short) + ")"
-    return None
+    short = water_shortfalls(o)
+    return "water taken out (" + ", ".join(f"{k} {v:.3g}" for k, v in short.items()) + ")" if short else None
 
 
 def _misses_text(tried: list) -> str:

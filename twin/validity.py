@@ -61,13 +61,18 @@ def _sink_text(sink: float, finest_um: float) -> str:
             "for mm given as um and the breakage rates' units)")
 
 
+def water_shortfalls(outputs: dict) -> dict[str, float]:
+    """The circuit's water additions [m3/h] that come out negative (water taken out), by output."""
+    return {k: float(outputs[k]) for k in ("mill_water_m3_h", "sump_water_m3_h")
+            if k in outputs and float(outputs[k]) < 0.0}
+
+
 def water_note(outputs: dict) -> str:
     """A note when the closed circuit's water balance (twin.effects.classification) needs water
     taken out of the mill's feed or the sump: the cyclone underflow carries more water than the
     mill discharges at its solids fraction (or the cyclone feed less than the discharge), which no
     plant can run; typically cyclones far from their operating pressure, with a large water bypass."""
-    short = {k: float(outputs[k]) for k in ("mill_water_m3_h", "sump_water_m3_h")
-             if k in outputs and float(outputs[k]) < 0.0}
+    short = water_shortfalls(outputs)
     if not short:
         return ""
     more = ", ".join(f"{k} {float(outputs[k]):.3g}" for k in ("cyclone_pressure_kpa", "cyclone_water_bypass_frac")

@@ -638,14 +638,13 @@ def cmd_steady(args) -> int:
         notes.append(f"the {unc['level']:.0%} intervals are undefined: the steady state solved for {unc['n']} "
                      f"replicates, fewer than the {min_replicates(unc['level'])} an interval needs")
         unc["intervals"] = {key: None for key in unc["intervals"]}
-    if args.surrogate:  # no hold-up or clay of its own: what its speed says
+    if args.surrogate:  # no hold-up or clay of its own: what its speed says, and the map's blind spot
         from twin import centrifuging_note
 
         notes += [n for n in [centrifuging_note(kpis.get("speed_frac_critical") or 0.0)] if n]
-    else:
-        notes += ss.notes + circuit_notes(twin, args.mill)
-    if args.surrogate:
         notes += calibration.texture_notes(blend.ores)
+    else:
+        notes += ss.notes + circuit_notes(twin, args.mill)  # a twin's steady state carries its texture note
     if args.json:
         mineralogy = {o.name: {"wt_pct": o.wt_pct, **o.summary()} for o in blend.ores}
         print(json.dumps({"mill": args.mill, "blend": dict(zip(blend.names, blend.fractions)),

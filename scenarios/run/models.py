@@ -163,5 +163,5 @@ def build_models(scene: Scene) -> Models:
             if fracs is not None and mixers != len(fracs):
                 notes.append(f"the plant's {mixers} mixers have equal shares (mill.mixer_volume_fracs gives "
                              f"{len(fracs)})")
-    notes += [n for n in dict.fromkeys(control.notes + plant.notes)]  # what the twins cannot show of the ores
+    notes += list(dict.fromkeys(control.notes + plant.notes))  # what the twins cannot show of the ores
     return Models(control=control, plant=plant, components=list(ores), notes=notes, calibration=cal)

@@ -42,6 +42,9 @@ PLITT_D50C, PLITT_PRESSURE, PLITT_SPLIT, PLITT_SHARPNESS = 39.7, 1.88, 1.9, 1.94
 #: Plitt's partition: corrected efficiency 1 - exp(-ln 2 (d/d50c)^m) (0.693 = ln 2: E_c(d50c) = 1/2).
 LN2 = math.log(2.0)
 WATER_DENSITY_T_M3 = 1.0
+#: Densest cyclone feed [solids % by volume] a Hydrocyclone takes: past ~70 % a slurry no longer
+#: flows (a packed bed of particles holds ~60-65 % solids by volume).
+FEED_SOLIDS_VOL_PCT_MAX = 70.0
 
 
 def _exp(v):
@@ -87,7 +90,7 @@ class Hydrocyclone:
             check_range(o, name, getattr(self, name), 0.0, 1000.0)
         if not isinstance(self.count, int) or isinstance(self.count, bool) or not 1 <= self.count <= 200:
             raise bad_value(o, "count", self.count, "an integer in [1, 200]")
-        check_range(o, "feed_solids_vol_pct", self.feed_solids_vol_pct, 0.0, 70.0)
+        check_range(o, "feed_solids_vol_pct", self.feed_solids_vol_pct, 0.0, FEED_SOLIDS_VOL_PCT_MAX)
         check_range(o, "viscosity_cp", self.viscosity_cp, 0.0, 1e4)
         for name in ("d50c_factor", "pressure_factor", "sharpness_factor", "split_factor"):
             check_range(o, name, getattr(self, name), 0.0, 1e3)
@@ -222,7 +225,7 @@ class Classification(Effect):
         cyc = hydrocyclone_from(dict(spec.mill.cyclone) if given is None else given)
         rho = spec.solids_density_t_m3
         solids_nom = spec.feed_nominal_tph * (1.0 + cl)  # cyclone feed solids at nominal
-        at_nominal = cyc.plitt(_slurry_m3_h(cyc, solids_nom, rho), rho)
+        at_nominal = cyc.plitt(slurry_m3_h(cyc, solids_nom, rho), rho)
         for key, val in at_nominal.items():
             ctx.param(f"cyclone_{key}", float(val), "", f"{cyc.mode} cyclone at nominal feed")
         ctx.provide("flow_multiplier", 1.0 + cl)
@@ -233,7 +236,7 @@ class Classification(Effect):
 
         def split(discharge):
             solids = sum(ca.sum1(dc) for dc in discharge)
-            state = cyc.plitt(_slurry_m3_h(cyc, smooth_max(solids, 1e-3 * solids_nom, 1e-3 * solids_nom), rho), rho)
+            state = cyc.plitt(slurry_m3_h(cyc, smooth_max(solids, 1e-3 * solids_nom, 1e-3 * solids_nom), rho), rho)
             d50 = state["d50c_um"] * cut
             rf = state["water_bypass_frac"]
             rs = cyc.solids_bypass(rf)
@@ -257,7 +260,7 @@ class Classification(Effect):
                  "at nominal; underflow to mixer 0; water balance")
 
 
-def _slurry_m3_h(cyc: Hydrocyclone, solids_tph, rho):
+def slurry_m3_h(cyc: Hydrocyclone, solids_tph, rho):
     """Cyclone feed slurry [m3/h] for a solids flow [t/h] diluted at the sump."""
     phi = cyc.feed_volume_pct(rho) / 100.0
     return solids_tph / rho / phi
