@@ -13,12 +13,14 @@ import base64
 import html
 import json
 import math
+import warnings
 from pathlib import Path
 
 from scenarios.errors import SceneError
 from scenarios.output.labels import KPI_LABELS
 from scenarios.output.plots import PLOTS
-from scenarios.output.write import INCOMPLETE_MARKER, MANIFEST, manifest_files
+from scenarios.output.write import (INCOMPLETE_MARKER, MANIFEST, file_sha256, installed_version, manifest_files,
+                                    read_manifest)
 from twin.calibration import FAST_LABEL
 
 _CSS = """body{font-family:system-ui,sans-serif;max-width:60em;margin:2em auto;padding:0 1em;color:#222}
@@ -27,6 +29,46 @@ td.num{text-align:right;font-variant-numeric:tabular-nums}code{font-size:90%}
 pre{background:#f6f6f6;padding:.7em;overflow-x:auto;font-size:80%;white-space:pre-wrap}img{max-width:100%}
 .na{color:#888}.models{display:grid;grid-template-columns:1fr 1fr;gap:1em}.models h3{margin:.2em 0}
 .warnings{border:2px solid #c60;background:#fff4e5;padding:.2em 1em;margin:1em 0}"""
+
+
+class RunFolderWarning(UserWarning):
+    """The run folder a report reads is not as its run left it (files missing or changed, or
+    written by another grindtwin version): the report says so at its top."""
+
+
+def folder_problems(run_dir: Path, summary: dict) -> list[str]:
+    """What makes the folder differ from what its run wrote, each as one sentence: files its
+    manifest lists that are missing, files whose sha256 differs from the manifest's (edited by
+    hand, or copied over), a manifest without checksums (an earlier grindtwin's), and a run
+    written by another grindtwin version than the one reporting it."""
+    problems = []
+    manifest = read_manifest(run_dir)
+    if manifest is None:
+        problems.append(f"no {MANIFEST} written by grindtwin here: nothing can be checked against what the "
+                        "run wrote")
+    else:
+        listed = [str(f) for f in manifest["files"]]
+        missing = [f for f in listed if not (run_dir / f).is_file()]
+        if missing:
+            problems.append(f"files the run wrote are missing: {', '.join(missing)}; the report shows what "
+                            "is left")
+        sums = manifest.get("sha256")
+        if isinstance(sums, dict):
+            changed = [f for f in listed if f not in missing and sums.get(f) != file_sha256(run_dir / f)]
+            if changed:
+                problems.append(f"changed since the run wrote them (their sha256 differs from {MANIFEST}'s): "
+                                f"{', '.join(changed)}; what the report shows from them may not be the run's")
+        else:
+            problems.append(f"{MANIFEST} records no checksums (an earlier grindtwin wrote it): its files cannot "
+                            "be checked against what the run wrote")
+    versions = summary.get("versions")
+    ran = (versions.get("grindtwin") if isinstance(versions, dict) else None) or (manifest or {}).get(
+        "grindtwin_version")
+    here = installed_version()
+    if ran and here and ran != here:
+        problems.append(f"the run was written by grindtwin {ran} and this report by {here}: KPI names and "
+                        "definitions are those of the run's version")
+    return problems
 
 
 def _fmt(key: str, value) -> str:
@@ -84,21 +126,44 @@ def versions_section(versions: dict) -> str:
     return f"<h2>Versions</h2><p>{libs}</p><p>{commit}{source}</p>"
 
 
-def render_report(run_dir) -> str:
-    """The HTML text of the report of ``run_dir`` (SceneError if it is not a complete run)."""
-    run_dir = Path(run_dir)
+def _run_summary(run_dir: Path) -> dict:
+    """The summary of a complete run folder; SceneError for anything else."""
     if not run_dir.is_dir():
         raise SceneError(f"{run_dir}: run directory not found")
     if (run_dir / INCOMPLETE_MARKER).exists():
         raise SceneError(f"{run_dir}: the run is incomplete ({INCOMPLETE_MARKER} present)")
     summary_path = run_dir / "summary.json"
     if not summary_path.is_file():
-        raise SceneError(f"{run_dir}: no summary.json; not a grindtwin run directory "
-                         "(write one with: grindtwin run SCENE --out DIR)")
+        kind = (read_manifest(run_dir) or {}).get("kind")
+        what = (f"a grindtwin {kind} folder, not a run's" if kind and kind != "run"
+                else "not a grindtwin run directory")
+        raise SceneError(f"{run_dir}: no summary.json; {what} (write one with: grindtwin run SCENE --out DIR)")
+    return read_summary(summary_path)
+
+
+def render_report(run_dir) -> str:
+    """The HTML text of the report of ``run_dir`` (SceneError if it is not a complete run); what
+    makes the folder differ from what its run wrote opens the page (:func:`folder_problems`)."""
+    run_dir = Path(run_dir)
+    summary = _run_summary(run_dir)
+    return _render(run_dir, summary, folder_problems(run_dir, summary))
+
+
+def read_summary(path: Path) -> dict:
+    """A run's summary.json; SceneError naming the file and the field when it is not a run's
+    summary (an object with a ``kpis`` object)."""
     try:
-        summary = json.loads(summary_path.read_text())
-    except json.JSONDecodeError as exc:
-        raise SceneError(f"{summary_path}: not valid JSON: {exc}") from None
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise SceneError(f"{path}: not valid JSON: {exc}") from None
+    if not isinstance(summary, dict):
+        raise SceneError(f"{path}: a run's summary is a JSON object, got a {type(summary).__name__}")
+    if not isinstance(summary.get("kpis"), dict):
+        raise SceneError(f"{path}: 'kpis' must be an object of KPI name -> number, got {summary.get('kpis')!r}")
+    return summary
+
+
+def _render(run_dir: Path, summary: dict, problems: list[str]) -> str:
     name = html.escape(str(summary.get("scene", run_dir.name)))
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>grindtwin: {name}</title>"
              f"<style>{_CSS}</style></head><body>",
@@ -113,10 +178,11 @@ def render_report(run_dir) -> str:
              ("scene file", summary.get("source"))]
     parts.append("<table>" + "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
                                      for k, v in facts if v is not None) + "</table>")
-    warnings = [str(w) for w in summary.get("warnings") or []]
-    if warnings:  # before the numbers they qualify, not among the notes at the end
+    run_warnings = [str(w) for w in summary.get("warnings") or []]
+    shown = problems + run_warnings  # the folder's problems first: they qualify everything below
+    if shown:  # before the numbers they qualify, not among the notes at the end
         parts.append('<div class="warnings"><h2>Warnings</h2><ul>'
-                     + "".join(f"<li>{html.escape(w)}</li>" for w in warnings) + "</ul></div>")
+                     + "".join(f"<li>{html.escape(w)}</li>" for w in shown) + "</ul></div>")
     parts.append("<h2>Key performance indicators</h2>")
     parts.append(kpi_table(summary.get("kpis", {})))
     if summary.get("replay"):
@@ -126,7 +192,7 @@ def render_report(run_dir) -> str:
     for fname, caption in PLOTS.items():
         if (run_dir / fname).is_file():
             parts.append(_img(run_dir / fname, caption))
-    notes = [str(n) for n in summary.get("notes") or [] if str(n) not in warnings]
+    notes = [str(n) for n in summary.get("notes") or [] if str(n) not in run_warnings]
     if notes:
         parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in notes) + "</ul>")
     parts.append(models_section(summary))
@@ -139,13 +205,18 @@ def render_report(run_dir) -> str:
 def write_report(run_dir) -> Path:
     """Write ``run_dir/report.html`` (via a temporary file, renamed when complete), only into a
     folder grindtwin wrote (its manifest lists summary.json): a ``report.html`` of the user's
-    beside a ``summary.json`` of their own is never replaced."""
+    beside a ``summary.json`` of their own is never replaced. What makes the folder differ from
+    what its run wrote opens the page and is warned of (:class:`RunFolderWarning`)."""
     run_dir = Path(run_dir)
-    text = render_report(run_dir)
+    summary = _run_summary(run_dir)
     if "summary.json" not in (manifest_files(run_dir) or []):
         raise SceneError(f"{run_dir}: summary.json is not listed in a {MANIFEST} written by grindtwin; the report "
                          "is written only into a run folder grindtwin made (grindtwin run SCENE --out DIR), "
                          "so nothing of yours there is replaced")
+    problems = folder_problems(run_dir, summary)
+    text = _render(run_dir, summary, problems)
+    for problem in problems:  # on stderr too, not only inside the page
+        warnings.warn(f"{run_dir}: {problem}", RunFolderWarning, stacklevel=2)
     out = run_dir / "report.html"
     tmp = run_dir / "report.html.partial"
     tmp.write_text(text, encoding="utf-8")

@@ -12,8 +12,9 @@ Layout of a run directory::
     DIR/summary.json         scene, KPIs (unit-suffixed keys; NaN written as null), model
                              description, effects, versions, seed, notes
     DIR/*.png                plots (see :data:`scenarios.output.plots.PLOTS`)
-    DIR/grindtwin-manifest.json  what grindtwin wrote here (written last): how a later run
-                             knows the folder is a grindtwin result it may replace
+    DIR/grindtwin-manifest.json  what grindtwin wrote here (written last), each file with its
+                             sha256: how a later run knows the folder is a grindtwin result it
+                             may replace, and the report that a file is missing or was changed
     DIR/report.html          written later by ``grindtwin report DIR``
 
 The folder is claimed before any work (:func:`claim_output`), so a bad ``DIR`` costs nothing:
@@ -39,6 +40,7 @@ from __future__ import annotations
 
 import errno
 import fcntl
+import hashlib
 import json
 import math
 import os
@@ -46,6 +48,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from contextlib import nullcontext
+from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -87,14 +90,37 @@ def _refuse(final: Path, why: str) -> SceneError:
                       f"runs/NAME), or move the folder away yourself.")
 
 
-def manifest_files(folder: Path) -> list[str] | None:
-    """The files a grindtwin manifest in ``folder`` lists, or ``None`` if it has none."""
+def file_sha256(path: Path) -> str:
+    """The sha256 of a file's bytes (hex), read in blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def installed_version() -> str | None:
+    """The installed grindtwin's version (None when run from a checkout that is not installed)."""
+    try:
+        return metadata.version("grindtwin")
+    except metadata.PackageNotFoundError:
+        return None
+
+
+def read_manifest(folder: Path) -> dict | None:
+    """The grindtwin manifest of ``folder`` (a dict whose ``files`` is a list), or None."""
     try:
         data = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    files = data.get("files") if isinstance(data, dict) and data.get("written_by") == "grindtwin" else None
-    return [str(f) for f in files] if isinstance(files, list) else None
+    ok = isinstance(data, dict) and data.get("written_by") == "grindtwin" and isinstance(data.get("files"), list)
+    return data if ok else None
+
+
+def manifest_files(folder: Path) -> list[str] | None:
+    """The files a grindtwin manifest in ``folder`` lists, or ``None`` if it has none."""
+    data = read_manifest(folder)
+    return None if data is None else [str(f) for f in data["files"]]
 
 
 def strangers(folder: Path) -> list[str] | None:
@@ -277,6 +303,8 @@ class OutputClaim:
         write_files(self.partial)
         files = sorted(p.name for p in self.partial.iterdir() if p.name != INCOMPLETE_MARKER)
         manifest = {"written_by": "grindtwin", "kind": kind, "files": files,
+                    "sha256": {name: file_sha256(self.partial / name) for name in files},
+                    "grindtwin_version": installed_version(),
                     "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
         (self.partial / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n", encoding="utf-8")
         raise_if_interrupted()

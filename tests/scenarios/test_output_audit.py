@@ -1,0 +1,91 @@
+"""What a run folder shows is the run's: the report says when its folder is not as the run left
+it (files missing or changed, an earlier manifest, another version), and a summary that is not a
+run's is refused naming the file and the field before anything is written."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import pytest
+
+from scenarios.errors import SceneError
+from scenarios.output.report import RunFolderWarning, render_report, write_report
+from scenarios.output.write import MANIFEST, file_sha256
+from tests.scenarios.test_cli import grindtwin
+from tests.scenarios.test_report import fake_run
+
+
+def _warnings_box(text: str) -> str:
+    found = re.search(r'<div class="warnings">(.*?)</div>', text, re.S)
+    return found.group(1) if found else ""
+
+
+def _edit_summary(run, **changes) -> None:
+    summary = json.loads((run / "summary.json").read_text())
+    summary.update(changes)
+    (run / "summary.json").write_text(json.dumps(summary))
+
+
+def test_manifest_records_the_sha256_of_every_file_it_lists(tmp_path):
+    run = fake_run(tmp_path)
+    manifest = json.loads((run / MANIFEST).read_text())
+    assert manifest["sha256"] == {name: file_sha256(run / name) for name in manifest["files"]}
+    assert "summary.json" in manifest["sha256"] and "p80.png" in manifest["sha256"]
+
+
+def test_report_of_an_untouched_run_has_no_folder_warning(tmp_path):
+    assert _warnings_box(render_report(fake_run(tmp_path))) == ""
+
+
+def test_report_names_a_hand_edited_summary_and_a_missing_plot(tmp_path):
+    """A KPI edited by hand in summary.json and a plot deleted: the report was written with exit 0
+    showing the edited number and without the plot, without a word. Now both open the page and
+    reach stderr."""
+    run = fake_run(tmp_path)
+    summary = json.loads((run / "summary.json").read_text())
+    summary["kpis"]["p80_iae_um_h"] = 1.0
+    (run / "summary.json").write_text(json.dumps(summary))
+    (run / "p80.png").unlink()
+    box = _warnings_box(render_report(run))
+    assert "summary.json" in box and "changed since the run wrote them" in box
+    assert "missing: p80.png" in box
+    with pytest.warns(RunFolderWarning) as caught:
+        out = write_report(run)
+    said = " | ".join(str(w.message) for w in caught)
+    assert "summary.json" in said and "p80.png" in said
+    text = out.read_text(encoding="utf-8")
+    assert text.index("changed since") < text.index("Key performance indicators")
+
+
+def test_report_says_an_earlier_manifest_cannot_be_checked_and_another_version_wrote_it(tmp_path):
+    run = fake_run(tmp_path)
+    manifest = json.loads((run / MANIFEST).read_text())
+    del manifest["sha256"]  # as an earlier grindtwin wrote it
+    (run / MANIFEST).write_text(json.dumps(manifest))
+    box = _warnings_box(render_report(run))
+    assert "records no checksums" in box and "version" not in box  # the same version wrote it
+    _edit_summary(run, versions={"grindtwin": "0.0.1-old", "git": None, "git_source": None})
+    assert "written by grindtwin 0.0.1-old" in _warnings_box(render_report(run))
+
+
+@pytest.mark.parametrize("summary, field", [([1, 2], "JSON object"), ({"scene": "x", "kpis": None}, "'kpis'"),
+                                            ({"scene": "x", "kpis": [1.0]}, "'kpis'")])
+def test_a_summary_that_is_not_a_runs_is_refused_naming_the_file_and_field(tmp_path, capsys, summary, field):
+    run = fake_run(tmp_path)
+    (run / "summary.json").write_text(json.dumps(summary))
+    with pytest.raises(SceneError, match=re.escape(field)):
+        render_report(run)
+    assert grindtwin(["report", run]) == 2
+    err = capsys.readouterr().err
+    assert "summary.json" in err and "Traceback" not in err
+    assert not (run / "report.html").exists() and not (run / "report.html.partial").exists()
+
+
+def test_a_sweep_folder_is_named_as_such(tmp_path):
+    from scenarios.output.write import OutputClaim
+
+    with OutputClaim(tmp_path / "sweep") as claim:
+        out = claim.commit(lambda folder: (folder / "sweep.csv").write_text("case\n1\n"), kind="sweep")
+    with pytest.raises(SceneError, match="a grindtwin sweep folder, not a run's"):
+        render_report(out)
