@@ -29,3 +29,46 @@ KPI_LABELS = {
     "p80_um_mean_diff": ("P80, mean of run - recorded [µm]", "{:.4g}"),
     "p80_um_mean_abs_diff": ("P80, mean |run - recorded| [µm]", "{:.4g}"),
 }
+
+#: Most decimals a share is shown with before it is written as "< 0.0001 %" or "> 99.9999 %".
+PERCENT_MAX_DECIMALS = 4
+
+
+def percent_decimals(frac: float) -> int:
+    """Decimals a share needs as a percentage (one at least) so that a share strictly between
+    0 and 1 never reads 0.0 % or 100.0 % (one sample outside a band in 3000 is 99.97 %, not
+    100.0 %); :data:`PERCENT_MAX_DECIMALS` at most."""
+    d = 1
+    while d < PERCENT_MAX_DECIMALS and _rounds_to_bound(frac, d):
+        d += 1
+    return d
+
+
+def _rounds_to_bound(frac: float, d: int) -> bool:
+    """A share strictly between 0 and 1 within half a unit of the d-th decimal of a percentage of
+    0 or 100 (with a margin, so that no rounding rule, Excel's included, shows it as 0 or 100)."""
+    half = 0.5 * 10.0 ** -d + 1e-9
+    return 0.0 < frac < 1.0 and (100.0 * frac < half or 100.0 * frac > 100.0 - half)
+
+
+def percent_text(frac: float) -> str:
+    """A share as a percentage with :func:`percent_decimals` decimals; a share too close to 0 or
+    1 for those says so ("< 0.0001%"), never "0%" or "100%"."""
+    d = percent_decimals(frac)
+    text = f"{100.0 * frac:.{d}f}%"
+    if _rounds_to_bound(frac, d):
+        text = f"< {10.0 ** -d:.{d}f}%" if frac < 0.5 else f"> {100.0 - 10.0 ** -d:.{d}f}%"
+    return text
+
+
+def is_percent(key: str) -> bool:
+    """Whether a KPI is a share shown as a percentage (its label's format is a percentage)."""
+    return KPI_LABELS.get(key, ("", ""))[1].endswith("%}")
+
+
+def kpi_text(key: str, value) -> str:
+    """A KPI's value as the report shows it: its label's format, shares by :func:`percent_text`."""
+    if is_percent(key) and isinstance(value, (int, float)) and not isinstance(value, bool):
+        return percent_text(float(value))
+    fmt = KPI_LABELS.get(key, (key, "{:.4g}"))[1]
+    return fmt.format(value)

@@ -17,7 +17,7 @@ import warnings
 from pathlib import Path
 
 from scenarios.errors import SceneError
-from scenarios.output.labels import KPI_LABELS
+from scenarios.output.labels import KPI_LABELS, kpi_text
 from scenarios.output.plots import PLOTS
 from scenarios.output.write import (INCOMPLETE_MARKER, MANIFEST, file_sha256, installed_version, manifest_files,
                                     read_manifest)
@@ -74,9 +74,8 @@ def folder_problems(run_dir: Path, summary: dict) -> list[str]:
 def _fmt(key: str, value) -> str:
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return '<span class="na">n/a</span>'
-    fmt = KPI_LABELS.get(key, (key, "{:.4g}"))[1]
     try:
-        return html.escape(fmt.format(value))
+        return html.escape(kpi_text(key, value))
     except (ValueError, TypeError):
         return html.escape(str(value))
 

@@ -15,13 +15,15 @@ from pathlib import Path
 
 import pandas as pd
 
-from scenarios.output.labels import KPI_LABELS
+from scenarios.output.labels import KPI_LABELS, is_percent, percent_decimals
 
 #: Size distributions a run writes as CSV: the stream (``attrs['what']``) -> file name.
 PSD_FILES = {"product": "product_psd.csv", "mill content": "mill_psd.csv"}
 #: The size-by-size table of every stream at the end of a run.
 STREAMS_FILE = "streams.csv"
 RUN_WORKBOOK = "run.xlsx"
+#: The KPI sheet's note beside an empty value (the report's "n/a").
+UNDEFINED_NOTE = "n/a: not defined for this run (no P80 target, no controller, a batch grind or nothing fed)"
 SWEEP_WORKBOOK = "sweep.xlsx"
 
 
@@ -50,19 +52,26 @@ def write_size_csvs(result, folder: Path) -> list[Path]:
     return written
 
 
-#: Excel number format of a fraction shown as a percentage (labels' "{:.1%}")
-PERCENT_FORMAT = "0.0%"
-
-
 def kpi_rows(kpis: dict) -> pd.DataFrame:
-    """KPI key, meaning with its unit, value (None where undefined)."""
-    rows = [{"kpi": k, "meaning [unit]": KPI_LABELS.get(k, (k, ""))[0],
-             "value": None if v is None or (isinstance(v, float) and not math.isfinite(v)) else v}
-            for k, v in kpis.items()]
-    table = pd.DataFrame(rows, columns=["kpi", "meaning [unit]", "value"])
-    # a fraction labelled [%] is shown as a percentage (the cell keeps the fraction), as the report does
-    table.attrs["percent_cells"] = [(i, 2) for i, k in enumerate(kpis) if KPI_LABELS.get(k, ("", ""))[1].endswith("%}")]
+    """KPI key, meaning with its unit, value (None where undefined, and the note says so: an empty
+    cell alone reads as a value lost)."""
+    rows = []
+    for k, v in kpis.items():
+        undefined = v is None or (isinstance(v, float) and not math.isfinite(v))
+        rows.append({"kpi": k, "meaning [unit]": KPI_LABELS.get(k, (k, ""))[0], "value": None if undefined else v,
+                     "note": UNDEFINED_NOTE if undefined else None})
+    table = pd.DataFrame(rows, columns=["kpi", "meaning [unit]", "value", "note"])
+    # a fraction labelled [%] is shown as a percentage (the cell keeps the fraction), with the decimals
+    # the report gives it (a share just short of 1 never reads 100.0 %)
+    table.attrs["percent_cells"] = [(i, 2, percent_format(v)) for i, (k, v) in enumerate(kpis.items())
+                                    if is_percent(k)]
     return table
+
+
+def percent_format(value) -> str:
+    """Excel's number format of a share: :func:`scenarios.output.labels.percent_decimals` decimals."""
+    ok = isinstance(value, (int, float)) and math.isfinite(value)
+    return "0." + "0" * (percent_decimals(float(value)) if ok else 1) + "%"
 
 
 def flat_keys(data, prefix: str = "") -> list[tuple[str, object]]:
@@ -113,8 +122,8 @@ def _write_sheets(path: Path, sheets: dict[str, tuple[pd.DataFrame, bool]]) -> P
             table.to_excel(xl, sheet_name=name, index=index)
             ws = xl.sheets[name]
             ws.freeze_panes = "B2" if index else "A2"
-            for row, col in table.attrs.get("percent_cells", []):  # (row, column) of the table
-                ws.cell(row=row + 2, column=col + 1 + bool(index)).number_format = PERCENT_FORMAT
+            for row, col, fmt in table.attrs.get("percent_cells", []):  # (row, column, format) of the table
+                ws.cell(row=row + 2, column=col + 1 + bool(index)).number_format = fmt
             for cells in ws.iter_cols(min_row=1, max_row=1):
                 width = max(10, min(60, len(str(cells[0].value or "")) + 2))
                 ws.column_dimensions[cells[0].column_letter].width = width

@@ -1,17 +1,24 @@
 """What a run folder shows is the run's: the report says when its folder is not as the run left
-it (files missing or changed, an earlier manifest, another version), and a summary that is not a
-run's is refused naming the file and the field before anything is written."""
+it (files missing or changed, an earlier manifest, another version), a share just short of 1 is
+never shown as 100 %, an undefined KPI is never an unexplained empty cell, and a summary that is
+not a run's is refused naming the file and the field before anything is written."""
 
 from __future__ import annotations
 
 import json
 import re
 
+import numpy as np
+import openpyxl
+import pandas as pd
 import pytest
 
+from mpc import outside_band_frac, within_band_frac
 from scenarios.errors import SceneError
 from scenarios.output.report import RunFolderWarning, render_report, write_report
-from scenarios.output.write import MANIFEST, file_sha256
+from scenarios.output.workbook import UNDEFINED_NOTE
+from scenarios.output.write import MANIFEST, file_sha256, write_run
+from scenarios.run.runner import RunResult
 from tests.scenarios.test_cli import grindtwin
 from tests.scenarios.test_report import fake_run
 
@@ -67,6 +74,57 @@ def test_report_says_an_earlier_manifest_cannot_be_checked_and_another_version_w
     assert "records no checksums" in box and "version" not in box  # the same version wrote it
     _edit_summary(run, versions={"grindtwin": "0.0.1-old", "git": None, "git_source": None})
     assert "written by grindtwin 0.0.1-old" in _warnings_box(render_report(run))
+
+
+def _shares_run(tmp_path) -> tuple:
+    """A run whose P80 leaves the target's band on one sample in 4001 and whose load leaves its band
+    on one: both shares are computed by the KPIs' own functions."""
+    t = np.linspace(0.0, 40.0, 4001)
+    p80 = np.full(t.size, 210.0)
+    p80[2000] = 230.0
+    load = np.ones(t.size)
+    load[10] = 1.5
+    frame = pd.DataFrame({"time_h": t, "feed_tph": 30.0, "speed_frac_critical": 0.7, "p80_um": p80,
+                          "power_kw": 300.0, "load_frac": load})
+    kpis = {"p80_within_10um_frac": within_band_frac(p80, 210.0),
+            "load_outside_band_frac": outside_band_frac(load, (0.8, 1.2)),
+            "p80_iae_um_h": float("nan")}
+    summary = {"scene": "shares", "kpis": kpis, "target_p80_um": 210.0, "load_band_frac": [0.8, 1.2]}
+    return write_run(RunResult(frame, summary), tmp_path / "run", plots=False, xlsx=True), kpis
+
+
+def _shown_percent(text: str, key: str) -> str:
+    return re.search(rf"<code>{key}</code>.*?<td class=\"num\">([^<]*)</td>", text).group(1)
+
+
+def test_a_share_just_short_of_one_or_above_zero_is_never_shown_as_100_or_0_percent(tmp_path):
+    run, kpis = _shares_run(tmp_path)
+    assert 0.0 < kpis["load_outside_band_frac"] < 1e-3 < 1.0 - 1e-3 < kpis["p80_within_10um_frac"] < 1.0
+    text = render_report(run)
+    book = openpyxl.load_workbook(run / "run.xlsx")
+    cells = {row[0].value: row[2] for row in list(book["KPIs"].iter_rows())[1:]}
+    for key in ("p80_within_10um_frac", "load_outside_band_frac"):
+        value = kpis[key]
+        shown = _shown_percent(text, key)
+        assert shown not in ("100.0%", "0.0%")
+        decimals = len(shown.rstrip("%").split(".")[1])
+        assert float(shown.rstrip("%")) == pytest.approx(100 * value, abs=0.5 * 10 ** -decimals)
+        # the workbook keeps the fraction and shows it with as many decimals as the report
+        cell = cells[key]
+        assert cell.value == pytest.approx(value, rel=1e-12)
+        assert cell.number_format == "0." + "0" * decimals + "%"
+        assert round(100 * value, decimals) not in (0.0, 100.0)
+
+
+def test_workbook_says_why_a_kpi_cell_is_empty(tmp_path):
+    run, kpis = _shares_run(tmp_path)
+    book = openpyxl.load_workbook(run / "run.xlsx", read_only=True)
+    rows = list(book["KPIs"].values)
+    header, rows = rows[0], {r[0]: r for r in rows[1:]}
+    assert header[3] == "note"
+    assert np.isnan(kpis["p80_iae_um_h"])
+    assert rows["p80_iae_um_h"][2] is None and rows["p80_iae_um_h"][3] == UNDEFINED_NOTE
+    assert rows["p80_within_10um_frac"][3] is None
 
 
 @pytest.mark.parametrize("summary, field", [([1, 2], "JSON object"), ({"scene": "x", "kpis": None}, "'kpis'"),
