@@ -320,7 +320,8 @@ def _check_effect_option_path(key: str, loc: tuple) -> None:
     free-form, checked against what the twin declares there: effect names (its registry), an
     effect's options (their :class:`twin.effects.Option` declarations) and the fields of an option
     given as a table (the dataclass it builds: the classification's ``cyclone`` table is read by
-    :func:`twin.hydrocyclone_from` into a Hydrocyclone, whose fields it allows). A misspelt step
+    :func:`twin.hydrocyclone_from` into a Hydrocyclone, whose fields it allows, and its ``survey``
+    table into a CycloneSurvey, the dataclass's ``tables``). A misspelt step
     is refused here, before any case is built, rather than in every case (values are left to each
     case's validation, the twin's own checks)."""
     if "effect_options" not in loc:
@@ -348,7 +349,9 @@ def _check_effect_option_path(key: str, loc: tuple) -> None:
             known = _option_table_fields(option)
             leaf = f"takes {option.allowed()}"
         else:
-            known, leaf = [], "is a field of a table and takes a value"
+            nested = _nested_table(EFFECTS[loc[top + 1]].options[loc[top + 2]], step) if depth == 3 else None
+            known = [f.name for f in fields(nested)] if nested else []
+            leaf = "is a field of a table and takes a value"
 
 
 def _option_table_fields(option) -> list[str] | None:
@@ -358,7 +361,14 @@ def _option_table_fields(option) -> list[str] | None:
     if dict not in kinds:
         return []
     built = [k for k in kinds if is_dataclass(k)]
-    return [f.name for k in built for f in fields(k)] if built else None
+    return [f.name for k in built for f in fields(k)] + [t for k in built for t in getattr(k, "tables", {})] \
+        if built else None
+
+
+def _nested_table(option, key: str):
+    """The dataclass a table under ``key`` of ``option``'s table builds (a Hydrocyclone's ``survey``), or None."""
+    kinds = option.kind if isinstance(option.kind, tuple) else (option.kind,)
+    return next((k.tables[key] for k in kinds if is_dataclass(k) and key in getattr(k, "tables", {})), None)
 
 
 def _lookup(data: Any, loc: tuple) -> Any:

@@ -15,7 +15,9 @@ hydrocyclone whose underflow returns to the mill feed (the industrial configurat
   Turak (1987, CIM Bull. 80, 39-50): corrected cut size d50c, pressure, volumetric flow split and
   sharpness m from the cyclone geometry and its feed, each evaluated at the actual cyclone feed
   (the mill discharge diluted at the sump to a set solids content), each with a calibration
-  factor; or d50c, m and the bypasses of a surveyed cyclone given directly. Corrected efficiency
+  factor; or d50c, m and the bypasses of a surveyed cyclone given directly; or the factors
+  calibrated on a survey (:class:`CycloneSurvey`, Flintoff et al.'s one factor per equation), so a
+  surveyed cyclone still answers changes of its feed as Plitt's equations do. Corrected efficiency
   E_c = 1 - exp(-ln 2 (d/d50c)^m), partition to underflow E = R_s + (1 - R_s) E_c with R_s the
   solids bypass; water splits by the water bypass R_f. Water and solids are balanced apart: the
   solids fraction of the mill discharge (the mill's), cyclone feed, overflow and underflow are
@@ -24,7 +26,8 @@ hydrocyclone whose underflow returns to the mill feed (the industrial configurat
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import ClassVar
 
 import casadi as ca
 import numpy as np
@@ -49,6 +52,51 @@ FEED_SOLIDS_VOL_PCT_MAX = 70.0
 
 def _exp(v):
     return ca.exp(v) if isinstance(v, (ca.SX, ca.MX)) else np.exp(v)
+
+
+#: kPa per psi (a cyclone's pressure gauge often reads psi).
+KPA_PER_PSI = 6.894757293168361
+
+
+@dataclass(frozen=True)
+class CycloneSurvey:
+    """One survey of a hydrocyclone cluster: the feed it classified (solids [t/h] and water [m3/h]
+    to the whole cluster, the solids' density [t/m3]) and how it performed: corrected cut size
+    d50c [um], Plitt sharpness m, water bypass R_f (the feed water to the underflow) and feed pressure
+    [kPa, or psi as ``pressure_psi``]."""
+
+    feed_solids_tph: float
+    feed_water_m3_h: float
+    solids_density_t_m3: float
+    d50c_um: float
+    sharpness: float
+    water_bypass_frac: float
+    pressure_kpa: float | None = None
+    pressure_psi: float | None = None
+
+    def __post_init__(self):
+        o = "CycloneSurvey"
+        for name, lo, hi in (("feed_solids_tph", 0.0, 1e6), ("feed_water_m3_h", 0.0, 1e6),
+                             ("solids_density_t_m3", WATER_DENSITY_T_M3, 25.0), ("d50c_um", 0.0, 1e5),
+                             ("sharpness", 0.0, 20.0), ("water_bypass_frac", 0.0, 1.0)):
+            check_range(o, name, getattr(self, name), lo, hi)
+        if (self.pressure_kpa is None) == (self.pressure_psi is None):
+            raise bad_value(o, "pressure_kpa", self.pressure_kpa,
+                            f"given, or 'pressure_psi' instead, not both (pressure_psi = {self.pressure_psi!r})")
+        name = "pressure_kpa" if self.pressure_psi is None else "pressure_psi"
+        check_range(o, name, getattr(self, name), 0.0, 1e4)
+
+    @property
+    def kpa(self) -> float:
+        return float(self.pressure_kpa if self.pressure_psi is None else self.pressure_psi * KPA_PER_PSI)
+
+    @property
+    def slurry_m3_h(self) -> float:
+        return self.feed_solids_tph / self.solids_density_t_m3 + self.feed_water_m3_h / WATER_DENSITY_T_M3
+
+    @property
+    def feed_solids_frac(self) -> float:
+        return self.feed_solids_tph / (self.feed_solids_tph + self.feed_water_m3_h * WATER_DENSITY_T_M3)
 
 
 @dataclass(frozen=True)
@@ -83,6 +131,8 @@ class Hydrocyclone:
     sharpness: float | None = None
     water_bypass_frac: float | None = None
     solids_bypass_frac: float | None = None
+    #: A table's keys beside the fields: a table built into the named dataclass (hydrocyclone_from).
+    tables: ClassVar[dict] = {"survey": CycloneSurvey}
 
     def __post_init__(self):
         o = "Hydrocyclone"
@@ -144,16 +194,59 @@ class Hydrocyclone:
         return water_bypass if self.solids_bypass_frac is None else self.solids_bypass_frac
 
 
+#: Flintoff, Plitt & Turak (1987): one factor per Plitt equation, each the surveyed value over the
+#: equation's, in this order (the split reads the pressure's head, the sharpness the split).
+SURVEY_FACTORS = (("pressure_factor", "pressure_kpa"), ("split_factor", "volume_split"),
+                  ("sharpness_factor", "sharpness_m"), ("d50c_factor", "d50c_um"))
+
+
+def calibrate_plitt(cyclone: Hydrocyclone, survey: CycloneSurvey) -> Hydrocyclone:
+    """``cyclone`` with the Plitt factors (:data:`SURVEY_FACTORS`) at which its equations give the
+    survey's performance at the survey's feed (its geometry and count; its own sump dilution kept)."""
+    rho, rf = survey.solids_density_t_m3, survey.water_bypass_frac
+    target = {"pressure_kpa": survey.kpa, "volume_split": rf / (1.0 - rf), "sharpness_m": survey.sharpness,
+              "d50c_um": survey.d50c_um}
+    at = replace(cyclone, feed_solids_frac=survey.feed_solids_frac, **{f: 1.0 for f, _ in SURVEY_FACTORS})
+    for factor, key in SURVEY_FACTORS:
+        at = replace(at, **{factor: target[key] / float(at.plitt(survey.slurry_m3_h, rho)[key])})
+    return replace(cyclone, **{f: getattr(at, f) for f, _ in SURVEY_FACTORS})
+
+
+#: What a surveyed cyclone may not also give: its factors come from the survey.
+_NOT_WITH_SURVEY = tuple(f for f, _ in SURVEY_FACTORS) + ("d50c_um", "sharpness", "water_bypass_frac")
+
+
 def hydrocyclone_from(value) -> Hydrocyclone:
-    """A Hydrocyclone, or one built from a table of its fields (errors name the field)."""
+    """A Hydrocyclone, or one built from a table of its fields (errors name the field); a table
+    with a ``survey`` (a CycloneSurvey's fields) gets Plitt's factors from it (:func:`calibrate_plitt`)
+    and, unless it sets the sump's dilution, the survey's."""
     if isinstance(value, Hydrocyclone):
         return value
-    unknown = sorted(set(value) - set(Hydrocyclone.__dataclass_fields__))
+    where = "the 'cyclone' option of effect 'classification'"
+    _refuse_unknown(value, list(Hydrocyclone.__dataclass_fields__) + list(Hydrocyclone.tables), where)
+    table = dict(value)
+    survey = table.pop("survey", None)
+    if survey is None:
+        return Hydrocyclone(**table)
+    if not isinstance(survey, dict):
+        raise ModelError(f"The 'survey' of {where} must be a table of "
+                         f"{', '.join(CycloneSurvey.__dataclass_fields__)}. Got {survey!r}.")
+    clash = [k for k in _NOT_WITH_SURVEY if k in table]
+    if clash:
+        raise ModelError(f"{where}: {clash[0]!r} and 'survey' are given together; a surveyed cyclone's Plitt factors "
+                         "come from its survey (give one or the other).")
+    _refuse_unknown(survey, CycloneSurvey.__dataclass_fields__, f"the 'survey' of {where}")
+    survey = CycloneSurvey(**survey)
+    if "feed_solids_frac" not in table and "feed_solids_vol_pct" not in table:
+        table["feed_solids_frac"] = survey.feed_solids_frac
+    return calibrate_plitt(Hydrocyclone(**table), survey)
+
+
+def _refuse_unknown(table: dict, known, where: str) -> None:
+    unknown = sorted(set(table) - set(known))
     if unknown:
-        raise ModelError(f"Unknown field {unknown[0]!r} of the 'cyclone' option of effect 'classification'."
-                         f"{close_matches(unknown[0], Hydrocyclone.__dataclass_fields__)} Fields: "
-                         f"{', '.join(Hydrocyclone.__dataclass_fields__)}.")
-    return Hydrocyclone(**value)
+        raise ModelError(f"Unknown field {unknown[0]!r} of {where}.{close_matches(unknown[0], known)} Fields: "
+                         f"{', '.join(known)}.")
 
 
 def grate_factor(size_um: np.ndarray, d50_um: float, sharpness: float) -> np.ndarray:
@@ -190,7 +283,10 @@ class Classification(Effect):
         "circulating_load_nominal": Option(2.5, "underflow / fresh feed at nominal (hydrocyclone)", float,
                                            lo=0.0, hi=50.0),
         "cyclone": Option(None, "hydrocyclone geometry, feed dilution and model (hydrocyclone): a Hydrocyclone "
-                          "or a table of its fields; None: the mill's own (Mill.cyclone), else Hydrocyclone()",
+                          "or a table of its fields, which may hold a 'survey' table (feed_solids_tph, "
+                          "feed_water_m3_h, solids_density_t_m3, d50c_um, sharpness, water_bypass_frac, "
+                          "pressure_kpa or pressure_psi) that gives Plitt's factors; None: the mill's own "
+                          "(Mill.cyclone), else Hydrocyclone()",
                           (Hydrocyclone, dict, type(None))),
     }
 
@@ -255,9 +351,12 @@ class Classification(Effect):
             return over, under
 
         ctx.provide("product_split", split)
+        factors = ", ".join(f"{f.removesuffix('_factor')} {getattr(cyc, f):.4g}" for f, _ in SURVEY_FACTORS
+                            if cyc.mode == "plitt" and getattr(cyc, f) != 1.0)
         ctx.note(f"hydrocyclone ({cyc.mode}): d50c {float(at_nominal['d50c_um']):.0f} um, m "
                  f"{float(at_nominal['sharpness_m']):.2f}, water bypass {float(at_nominal['water_bypass_frac']):.2f} "
-                 "at nominal; underflow to mixer 0; water balance")
+                 "at nominal" + (f" (Plitt factors {factors})" if factors else "")
+                 + "; underflow to mixer 0; water balance")
 
 
 def slurry_m3_h(cyc: Hydrocyclone, solids_tph, rho):
