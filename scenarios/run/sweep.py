@@ -144,16 +144,20 @@ def expand_cases(scene_dict: dict[str, Any], vary: dict[str, list],
 
 
 def validate_cases(cases: list[Case], source_path: str | Path | None) -> list[Scene]:
-    """Every case as a validated Scene; SceneError naming each invalid case and its problems."""
-    scenes, problems = [], []
+    """Every case as a validated Scene; SceneError naming each invalid case and its problems (a
+    problem every case has, the base scene's, is named once)."""
+    scenes, per_case = [], []
     for case in cases:
         scene, errors = validate_scene_dict(case.data, source_path)
-        if errors:
-            setting = ", ".join(f"{k}={v!r}" for k, v in case.values.items())
-            problems += [f"case {case.index} ({setting}): {e}" for e in errors]
+        per_case.append((case, [str(e) for e in errors]))
         scenes.append(scene)
+    shared = [e for e in per_case[0][1] if all(e in errors for _, errors in per_case)] if len(per_case) > 1 else []
+    problems = [f"every case: {e}" for e in shared]
+    for case, errors in per_case:
+        setting = ", ".join(f"{k}={v!r}" for k, v in case.values.items())
+        problems += [f"case {case.index} ({setting}): {e}" for e in errors if e not in shared]
     if problems:
-        raise SceneError(f"sweep of {source_path}: {len(problems)} problems\n  "
+        raise SceneError(f"sweep of {source_path}: {len(problems)} problem{'s' * (len(problems) != 1)}\n  "
                          + "\n  ".join(problems))
     return scenes
 

@@ -9,7 +9,7 @@ import pytest
 
 from scenarios.errors import RunError, SceneError
 from scenarios.scene.loader import read_toml
-from scenarios.run.sweep import expand_cases, parse_vary, run_sweep
+from scenarios.run.sweep import expand_cases, parse_vary, run_sweep, validate_cases
 
 VARY = {"feed.feed_tph": [25.0, 30.0, 44.0], "controller.weights.p80": [1.0, 2.0]}
 
@@ -243,3 +243,19 @@ def test_a_case_that_warns_says_so_in_its_row_and_on_screen(tmp_path, capsys):
     assert table["warnings"].isna().tolist() == [True, False]
     assert "0.96 of critical is beyond 0.94 where the charge centrifuges" in table["warnings"][1]
     assert "grindtwin: warning: case 1 (feed.speed_frac_critical=0.96): from 0 h" in capsys.readouterr().err
+
+
+def test_a_problem_of_the_base_scene_is_named_once_and_each_cases_own_with_its_case():
+    """A bad value every case inherits was listed once per case (three identical lines)."""
+    raw = read_toml(MOLYCOP)
+    raw["feed"]["feed_tph"] = -5.0
+    cases = expand_cases(raw, {"feed.speed_frac_critical": [0.6, 0.7, 2.0]})
+    with pytest.raises(SceneError) as info:
+        validate_cases(cases, MOLYCOP)
+    lines = str(info.value).splitlines()
+    assert lines[0].endswith("2 problems")
+    assert [line for line in lines if "feed.feed_tph" in line] == [
+        f"  every case: {MOLYCOP}: feed.feed_tph: Input should be greater than 0 (got -5.0)"]
+    assert [line for line in lines if "speed_frac_critical:" in line] == [
+        f"  case 2 (feed.speed_frac_critical=2.0): {MOLYCOP}: feed.speed_frac_critical: Input should be less "
+        "than 1 (got 2.0)"]
