@@ -13,6 +13,9 @@ and falls with speed (over the usable range), so
 
 Every answer says whether it is feasible (a root inside the bounds and the load in the band);
 an unreachable target is reported in ``message``, never replaced by the nearest point silently.
+An answer of ``"both"`` that sits on a constraint (a speed bound, an end of the load band, or
+where no feed within the feed bounds holds the target) names it in the table's ``active`` column
+and in ``message``: the objective would improve beyond it.
 """
 
 from __future__ import annotations
@@ -46,20 +49,38 @@ class Setpoints:
     objective: str
     message: str
     table: pd.DataFrame
+    active: str = ""  # the constraints the answer sits on ("" when none; module docstring)
+
+
+#: The default feed search range, as multiples of the mill's nominal feed rate (the range of
+#: ``grindtwin optimize``): fixed t/h bounds fit one mill size only (5-60 t/h held no root for the
+#: 0.031 t/h laboratory mill).
+FEED_RANGE_NOMINAL = (0.2, 2.0)
+#: A root's feed (or speed) is found to this share of its search interval: an absolute 1e-4 t/h
+#: was 0.3 % of the laboratory mill's feed and left its P80 0.15 um off the target.
+ROOT_XTOL_REL = 1e-8
+#: An answer holds the target when its P80 is within this share of it (0.5 um at 210 um was 2.5 %
+#: at 20 um); the roots above meet it by orders of magnitude.
+P80_TOL_REL = 1e-3
+
+
+def default_feed_bounds(twin) -> tuple:
+    """The feed search range [t/h] of :data:`FEED_RANGE_NOMINAL` for ``twin``'s mill."""
+    return tuple(f * twin.mill.feed_nominal_tph for f in FEED_RANGE_NOMINAL)
 
 
 def _row(twin, blend, feed, speed, target, option, objective, hardness_scale, band):
     ss = twin.steady(feed_tph=feed, speed_frac_critical=speed, blend=blend,
                      hardness_scale=hardness_scale)
     load = ss.outputs["load_frac"]
-    ok = abs(ss.p80_um - target) <= 0.5 and band[0] <= load <= band[1]
-    note = "" if ok else ("load outside the stable band" if abs(ss.p80_um - target) <= 0.5
-                          else "target not reached")
+    held = abs(ss.p80_um - target) <= P80_TOL_REL * target
+    ok = held and band[0] <= load <= band[1]
+    note = "" if ok else ("load outside the stable band" if held else "target not reached")
     return {"option": option, "objective": objective, "feasible": ok, "feed_tph": feed,
             "speed_frac_critical": speed, "p80_um": ss.p80_um, "target_p80_um": target,
             "specific_energy_kwh_t": ss.outputs["specific_energy_kwh_t"], "load_frac": load,
             "power_kw": ss.outputs["power_kw"], "throughput_tph": ss.outputs["throughput_tph"],
-            "note": note}
+            "note": note, "active": ""}
 
 
 def _root_in(g, bounds, xtol) -> float:
@@ -76,10 +97,11 @@ OVERLOAD_HALVINGS = 6
 
 
 def feed_for_target(twin, blend, target_p80_um: float, speed_frac_critical: float,
-                    feed_bounds_tph=(5.0, 60.0), hardness_scale: float = 1.0) -> float:
-    """Feed rate [t/h] with steady P80 = target at the given speed; nan if outside the bounds.
-    Where the mill overloads at the upper bound (no steady state, twin.SolverError), the bracket
-    ends at the highest feed, halving towards the lower bound, that it holds."""
+                    feed_bounds_tph=None, hardness_scale: float = 1.0) -> float:
+    """Feed rate [t/h] with steady P80 = target at the given speed; nan if outside the bounds
+    (default :func:`default_feed_bounds`). Where the mill overloads at the upper bound (no steady
+    state, twin.SolverError), the bracket ends at the highest feed, halving towards the lower
+    bound, that it holds."""
     from twin import SolverError
 
     @functools.cache  # the bracket's end is solved once, for the overload test and the root
@@ -87,7 +109,8 @@ def feed_for_target(twin, blend, target_p80_um: float, speed_frac_critical: floa
         return twin.steady(feed_tph=f, speed_frac_critical=speed_frac_critical, blend=blend,
                            hardness_scale=hardness_scale).p80_um - target_p80_um
 
-    lo, hi = feed_bounds_tph
+    lo, hi = default_feed_bounds(twin) if feed_bounds_tph is None else feed_bounds_tph
+    xtol = ROOT_XTOL_REL * (hi - lo)
     for _ in range(OVERLOAD_HALVINGS):
         try:
             gap(hi)
@@ -96,7 +119,7 @@ def feed_for_target(twin, blend, target_p80_um: float, speed_frac_critical: floa
             hi = 0.5 * (lo + hi)
     else:
         return math.nan
-    return _root_in(gap, (lo, hi), xtol=1e-4)
+    return _root_in(gap, (lo, hi), xtol=xtol)
 
 
 #: Points of the speed scan that brackets the roots of P80(speed) = target: P80 is not monotonic
@@ -126,8 +149,14 @@ def speed_for_target(twin, blend, target_p80_um: float, feed_tph: float,
     return min(roots, key=lambda s: state(s).outputs["specific_energy_kwh_t"])
 
 
+#: Speeds [fraction of critical] this close to a speed bound, or to a speed that breaks a
+#: constraint, put the answer of ``"both"`` on that constraint: a few times the bounded search's
+#: ``xatol`` (1e-4), within which it stops short of an edge it approaches.
+SPEED_EDGE = 5e-4
+
+
 def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
-                      objective: str = "min_energy", feed_bounds_tph=(5.0, 60.0),
+                      objective: str = "min_energy", feed_bounds_tph=None,
                       speed_bounds=(0.55, 0.90), feed_tph: float | None = None,
                       speed_frac_critical: float | None = None, hardness_scale: float = 1.0,
                       load_band=None) -> Setpoints:
@@ -135,7 +164,9 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
     ``target_p80_um``; ``mode`` in ``("both", "feed", "speed")`` picks the answer, the table
     always lists every option: feed only (speed held at ``speed_frac_critical``, default
     nominal), speed only (feed held at ``feed_tph``, default nominal), both for least specific
-    energy and both for most throughput."""
+    energy and both for most throughput. ``feed_bounds_tph`` defaults to
+    :func:`default_feed_bounds`; the table's ``active`` column names the constraints an answer
+    of ``"both"`` sits on."""
     if mode not in MODES:
         raise MpcInputError(f"The 'mode' parameter of optimal_setpoints must be one of {MODES}. "
                             f"Got {mode!r}.")
@@ -148,17 +179,18 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
     mill = twin.mill
     speed0 = mill.speed_nominal_frac_critical if speed_frac_critical is None else speed_frac_critical
     feed0 = mill.feed_nominal_tph if feed_tph is None else feed_tph
+    feed_bounds_tph = tuple(default_feed_bounds(twin) if feed_bounds_tph is None else feed_bounds_tph)
     band = tuple(load_band or mill.stable_band)
     blend = list(blend)
     rows = []
 
-    def add(option, obj, feed, speed):
+    def add(option, obj, feed, speed, why="target unreachable within the bounds"):
         if math.isnan(feed) or math.isnan(speed):
             rows.append({"option": option, "objective": obj, "feasible": False, "feed_tph": feed,
                          "speed_frac_critical": speed, "p80_um": math.nan,
                          "target_p80_um": target_p80_um, "specific_energy_kwh_t": math.nan,
                          "load_frac": math.nan, "power_kw": math.nan, "throughput_tph": math.nan,
-                         "note": "target unreachable within the bounds"})
+                         "note": why, "active": ""})
         else:
             rows.append(_row(twin, blend, feed, speed, target_p80_um, option, obj,
                              hardness_scale, band))
@@ -168,6 +200,7 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
     add("speed", "hold target", feed0, speed_for_target(twin, blend, target_p80_um, feed0,
                                                         speed_bounds, hardness_scale))
 
+    @functools.cache
     def on_curve(speed):
         f = feed_for_target(twin, blend, target_p80_um, speed, feed_bounds_tph, hardness_scale)
         if math.isnan(f):
@@ -176,8 +209,30 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
                          hardness_scale=hardness_scale)
         return f, ss.outputs["specific_energy_kwh_t"], ss.outputs["load_frac"]
 
+    def broken(speed) -> str:
+        """The constraint the point of the curve P80 = target at ``speed`` breaks ("" if none)."""
+        f, _, load = on_curve(float(speed))
+        if math.isnan(f):
+            return (f"the feed bounds {feed_bounds_tph[0]:.4g}-{feed_bounds_tph[1]:.4g} t/h (no feed "
+                    "within them holds the target)")
+        if load > band[1]:
+            return f"the load band's upper end {band[1]:g}"
+        if load < band[0]:
+            return f"the load band's lower end {band[0]:g}"
+        return ""
+
+    def active_at(speed) -> str:
+        """The constraints an optimum at ``speed`` sits on: a speed bound it is at, or what a
+        speed just beside it breaks (the objective improves past the edge of the feasible set)."""
+        found = [f"the speed's {end} bound {b:g}" for end, b in zip(("lower", "upper"), speed_bounds)
+                 if abs(speed - b) <= SPEED_EDGE]
+        for side in (speed - SPEED_EDGE, speed + SPEED_EDGE):
+            if speed_bounds[0] <= side <= speed_bounds[1] and broken(side):
+                found.append(broken(side))
+        return "; ".join(dict.fromkeys(found))
+
     grid = np.linspace(speed_bounds[0], speed_bounds[1], 9)
-    pts = [(s, *on_curve(s)) for s in grid]
+    pts = [(s, *on_curve(float(s))) for s in grid]
     for obj in OBJECTIVES:
         def score(p):
             s, f, se, load = p
@@ -186,25 +241,34 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
             return se if obj == "min_energy" else -f
         best = min(pts, key=score)
         if not math.isfinite(score(best)):
-            add("both", obj, math.nan, math.nan)
+            # say which constraint leaves no candidate: the target itself, or the load band
+            held = [p for p in pts if not math.isnan(p[1])]
+            add("both", obj, math.nan, math.nan,
+                "load outside the stable band at every speed that holds the target" if held
+                else "target unreachable within the bounds")
             continue
         i = int(np.argmin([score(p) for p in pts]))
         lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
-        r = scipy.optimize.minimize_scalar(lambda s: score((s, *on_curve(s))), bounds=(lo, hi),
+        r = scipy.optimize.minimize_scalar(lambda s: score((s, *on_curve(float(s)))), bounds=(lo, hi),
                                            method="bounded", options={"xatol": 1e-4})
-        s_best = float(r.x) if math.isfinite(r.fun) and r.fun <= score(best) else best[0]
+        s_best = float(r.x) if math.isfinite(r.fun) and r.fun <= score(best) else float(best[0])
         add("both", obj, on_curve(s_best)[0], s_best)
+        if rows[-1]["feasible"]:
+            rows[-1]["active"] = active_at(s_best)
     table = pd.DataFrame(rows)
     pick = table[(table.option == mode)
                  & ((table.objective == objective) if mode == "both" else True)].iloc[0]
     if pick.feasible:
-        msg = (f"P80 {target_p80_um:g} um with feed {pick.feed_tph:.4g} t/h, speed "
+        msg = (f"P80 {pick.p80_um:.4g} um (target {target_p80_um:g}) with feed {pick.feed_tph:.4g} t/h, speed "
                f"{pick.speed_frac_critical:.3f} of critical, {pick.specific_energy_kwh_t:.2f} "
                f"kWh/t, load {pick.load_frac:.2f}")
+        if pick.active:
+            aim = "least specific energy" if objective == "min_energy" else "most throughput"
+            msg += f"; on a constraint: {pick.active} (the {aim} without it lies beyond)"
     else:
         msg = (f"Target P80 {target_p80_um:g} um is infeasible in mode {mode!r} ({pick.note}; "
                f"feed bounds {feed_bounds_tph[0]:.4g}-{feed_bounds_tph[1]:.4g} t/h, speed bounds "
                f"{speed_bounds[0]:g}-{speed_bounds[1]:g}, load band {band[0]:g}-{band[1]:g}).")
     return Setpoints(bool(pick.feasible), float(pick.feed_tph), float(pick.speed_frac_critical),
                      float(pick.p80_um), float(pick.specific_energy_kwh_t), float(pick.load_frac),
-                     float(pick.power_kw), mode, objective, msg, table)
+                     float(pick.power_kw), mode, objective, msg, table, str(pick.active))

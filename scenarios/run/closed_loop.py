@@ -96,6 +96,11 @@ def start_mode(scene: Scene) -> str:
     return "scene" if scene.controller.kind == "none" else "target"
 
 
+#: The feed range [t/h] searched for the target's steady state (feed.start = "target"): given here,
+#: since feed_for_target's default follows the mill's nominal feed, which a scene sets to its feed_tph.
+START_FEED_BOUNDS_TPH = (5.0, 60.0)
+
+
 def start_feed_tph(scene: Scene, models, blend0) -> float:
     """The run's initial feed rate (``feed.start``, :func:`start_mode`): the steady state holding
     the target P80 at the scene's speed and initial blend (:func:`mpc.optimize.feed_for_target`)
@@ -103,9 +108,10 @@ def start_feed_tph(scene: Scene, models, blend0) -> float:
     c = scene.controller
     if c.target_p80_um is None or start_mode(scene) == "scene":
         return float(scene.feed.feed_tph)
-    feed0 = feed_for_target(models.plant, blend0, c.target_p80_um, scene.feed.speed_frac_critical)
+    lo, hi = START_FEED_BOUNDS_TPH
+    feed0 = feed_for_target(models.plant, blend0, c.target_p80_um, scene.feed.speed_frac_critical, (lo, hi))
     if not math.isfinite(feed0):
-        raise RunError(f"scene {scene.scene.name}: no feed rate in 5-60 t/h holds the target P80 "
+        raise RunError(f"scene {scene.scene.name}: no feed rate in {lo:g}-{hi:g} t/h holds the target P80 "
                        f"{c.target_p80_um} um at speed {scene.feed.speed_frac_critical} with the initial blend")
     return float(feed0)
 

@@ -1,0 +1,93 @@
+"""The steady set-point optimiser says what its answer rests on: roots to the mill's own scale, the
+constraints an optimum sits on, and which constraint leaves no answer. Each claim is checked
+against the twin's steady states computed here, not against the optimiser's own numbers."""
+
+import math
+
+import pytest
+
+from mpc.optimize import default_feed_bounds, feed_for_target, optimal_setpoints
+from twin import Twin
+
+
+@pytest.fixture(scope="module")
+def twins():
+    return {ore: Twin(ore) for ore in "ABC"}
+
+
+def _on_curve(twin, target, speed):
+    """(feed, specific energy, load) of the steady state holding ``target`` at ``speed``."""
+    feed = feed_for_target(twin, [1.0], target, speed, default_feed_bounds(twin))
+    ss = twin.steady(feed_tph=feed, speed_frac_critical=speed)
+    return feed, ss.outputs["specific_energy_kwh_t"], ss.outputs["load_frac"]
+
+
+def test_the_default_feed_range_follows_the_mill(twins):
+    """The default range was 5-60 t/h whatever the mill: on the 0.031 t/h laboratory mill it held
+    no steady state, and the target was called unreachable. The root now brackets the target
+    between two steady states computed here."""
+    lab = twins["B"]
+    feed = feed_for_target(lab, [1.0], 210.0, 0.70)
+    assert math.isfinite(feed)
+    below, above = (lab.steady(feed_tph=feed * f, speed_frac_critical=0.70).p80_um for f in (0.999, 1.001))
+    assert below < 210.0 < above  # P80 rises with feed through the target at the root
+
+
+def test_a_feed_root_holds_the_target_on_the_laboratory_scale(twins):
+    """An absolute 1e-4 t/h root tolerance is 0.3 % of the laboratory feed: its answer held
+    210.15 um for a 210-um target, and the message said 210."""
+    lab = twins["B"]
+    feed = feed_for_target(lab, [1.0], 210.0, 0.70, default_feed_bounds(lab))
+    assert lab.steady(feed_tph=feed, speed_frac_critical=0.70).p80_um == pytest.approx(210.0, abs=1e-3)
+    sp = optimal_setpoints(lab, [1.0], 210.0, mode="feed", feed_bounds_tph=default_feed_bounds(lab))
+    assert sp.p80_um == pytest.approx(210.0, abs=1e-3)
+    assert f"P80 {sp.p80_um:.4g} um" in sp.message
+
+
+def test_an_optimum_at_a_speed_bound_says_so(twins):
+    """Least energy with the speed limited to 0.60-0.68: the answer is 0.68, and the energy on the
+    target curve keeps falling beyond it (computed here), so the bound is what stops it."""
+    lab = twins["B"]
+    sp = optimal_setpoints(lab, [1.0], 210.0, mode="both", speed_bounds=(0.60, 0.68),
+                           feed_bounds_tph=default_feed_bounds(lab))
+    assert sp.feasible and sp.speed_frac_critical == pytest.approx(0.68, abs=5e-4)
+    assert _on_curve(lab, 210.0, 0.69)[1] < _on_curve(lab, 210.0, 0.68)[1]  # the test can fail
+    assert "upper bound 0.68" in sp.active and "upper bound 0.68" in sp.message
+    row = sp.table[(sp.table.option == "both") & (sp.table.objective == "min_energy")].iloc[0]
+    assert "upper bound 0.68" in row.active
+
+
+def test_an_optimum_on_the_load_band_says_so(twins):
+    """Most throughput for ore C at 350 um: the feed would rise further with the speed, but the
+    load leaves its band (checked here one step beyond the answer)."""
+    c = twins["C"]
+    sp = optimal_setpoints(c, [1.0], 350.0, mode="both", objective="max_throughput",
+                           feed_bounds_tph=default_feed_bounds(c))
+    assert sp.feasible
+    hi = c.mill.stable_band[1]
+    feed_beyond, _, load_beyond = _on_curve(c, 350.0, sp.speed_frac_critical + 0.005)
+    assert feed_beyond > sp.feed_tph and load_beyond > hi  # more throughput, outside the band
+    assert sp.load_frac == pytest.approx(hi, abs=2e-3)
+    assert f"load band's upper end {hi:g}" in sp.active and "on a constraint" in sp.message
+
+
+def test_an_interior_optimum_names_no_constraint(twins):
+    """Least energy for ore B at 210 um: the energy on the target curve is higher on both sides
+    (computed here), and no constraint is named."""
+    lab = twins["B"]
+    sp = optimal_setpoints(lab, [1.0], 210.0, mode="both", feed_bounds_tph=default_feed_bounds(lab))
+    s = sp.speed_frac_critical
+    here = _on_curve(lab, 210.0, s)[1]
+    assert _on_curve(lab, 210.0, s - 0.01)[1] > here < _on_curve(lab, 210.0, s + 0.01)[1]
+    assert sp.active == "" and "constraint" not in sp.message
+
+
+def test_no_answer_for_the_load_band_is_not_called_unreachable(twins):
+    """Ore A at 120 um: a feed holds the target at nominal speed (found here), but with the load
+    below its band; 'both' said 'target unreachable within the bounds'."""
+    a = twins["A"]
+    feed, _, load = _on_curve(a, 120.0, 0.70)
+    assert math.isfinite(feed) and load < a.mill.stable_band[0]
+    sp = optimal_setpoints(a, [1.0], 120.0, mode="both", feed_bounds_tph=default_feed_bounds(a))
+    assert not sp.feasible
+    assert "load outside the stable band" in sp.message and "unreachable" not in sp.message
