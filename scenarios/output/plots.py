@@ -86,7 +86,8 @@ def plot_p80(plt, result):
         ax.axhspan(target - P80_BAND_UM, target + P80_BAND_UM, color="0.85", alpha=0.6, lw=0,
                    label=f"target ± {P80_BAND_UM:g} µm")
     mark_transitions(ax, s)
-    ax.set(xlabel="time [h]", ylabel="product P80 [µm]", title=s["scene"])
+    ylabel = "product P80 [µm]" if "p80_um" in fr else "P80 of the mill content [µm]"
+    ax.set(xlabel="time [h]", ylabel=ylabel, title=s["scene"])
     ax.legend(fontsize=7, ncol=2)
     return fig
 
@@ -140,12 +141,17 @@ def plot_feed(plt, result):
 
 def plot_estimates(plt, result):
     fr = result.frame
-    if "hardness_est" not in fr or "p80_model_um" not in fr:
+    est = "p80_est_um" if "p80_est_um" in fr else "p80_model_um"  # an older frame has the model's alone
+    if "hardness_est" not in fr or est not in fr:
         return None
     t = fr["time_h"].to_numpy(float)
     fig, (a1, a2) = _time_axes(plt, 2, 4.6)
     a1.plot(t, fr["p80_um"], label="plant (truth)")
-    a1.plot(t, fr["p80_model_um"], ls="--", label="estimator's model")
+    # the estimate of the plant's P80 is the model's through the estimated bias and gain, not the model's
+    a1.plot(t, fr[est], ls="--", label="estimate of the plant's P80")
+    if est != "p80_model_um" and "p80_model_um" in fr and not np.allclose(fr[est], fr["p80_model_um"], rtol=0,
+                                                                          atol=1e-9, equal_nan=True):
+        a1.plot(t, fr["p80_model_um"], ls=":", lw=0.9, label="estimator's model, before its P80 bias")
     if "p80_measured_um" in fr:
         a1.step(t, fr["p80_measured_um"], where="post", lw=0.7, alpha=0.6, label="analyser")
     a1.set_ylabel("product P80 [µm]")
@@ -168,7 +174,9 @@ def plot_energy(plt, result):
     a1.set_ylabel("mill power [kW]")
     if "specific_energy_kwh_t" in fr:
         a2.plot(t, fr["specific_energy_kwh_t"])
-    a2.set(xlabel="time [h]", ylabel="specific energy [kWh/t]")
+    # the column is the instant's power / feed rate (a batch's energy so far / charge), not the run's KPI
+    how = "energy so far / charge" if result.summary.get("mode") == "batch" else "power / feed rate"
+    a2.set(xlabel="time [h]", ylabel=f"specific energy [kWh/t]\n({how})")
     for ax in (a1, a2):
         mark_transitions(ax, result.summary, label=ax is a1)
     if a1.get_legend_handles_labels()[0]:
@@ -302,13 +310,15 @@ def write_sweep_plot(table, traces, folder: Path, target_p80_um: float | None = 
     grid = fig.add_gridspec(2, max(len(kpis), 1), height_ratios=(1.3, 1))
     top = fig.add_subplot(grid[0, :])
     colors = _colors(len(table))
+    p80 = "p80_um" if traces is None or "p80_um" in traces else "content_p80_um"  # batch: the mill content's
     for (case, label), color in zip(zip(table["case"], labels), colors):
         tr = traces[traces["case"] == case] if traces is not None and len(traces) else None
         if tr is not None and len(tr):
-            top.plot(tr["time_h"], tr["p80_um" if "p80_um" in tr else "content_p80_um"], color=color, label=label)
+            top.plot(tr["time_h"], tr[p80], color=color, label=label)
     if target_p80_um is not None:
         top.axhline(target_p80_um, color="k", ls="--", lw=1, label=f"target {target_p80_um:g} µm")
-    top.set(xlabel="time [h]", ylabel="product P80 [µm]", title=f"sweep of {table.attrs.get('scene', '')}")
+    ylabel = "product P80 [µm]" if p80 == "p80_um" else "P80 of the mill content [µm]"
+    top.set(xlabel="time [h]", ylabel=ylabel, title=f"sweep of {table.attrs.get('scene', '')}")
     top.legend(fontsize=7, ncol=2)
     for j, key in enumerate(kpis):
         ax = fig.add_subplot(grid[1, j])

@@ -147,3 +147,37 @@ def test_a_sweep_folder_is_named_as_such(tmp_path):
         out = claim.commit(lambda folder: (folder / "sweep.csv").write_text("case\n1\n"), kind="sweep")
     with pytest.raises(SceneError, match="a grindtwin sweep folder, not a run's"):
         render_report(out)
+
+
+def _lines(fig) -> dict:
+    return {line.get_label(): np.asarray(line.get_ydata(), float) for ax in fig.axes for line in ax.get_lines()}
+
+
+def test_estimates_plot_draws_the_estimate_of_the_plants_p80_not_the_model_before_its_bias():
+    """With a P80 bias estimated (disturbance_model "hardness+p80_bias") the estimator's belief of
+    the plant's P80 is ``p80_est_um``; the plot drew the model's ``p80_model_um`` alone under
+    a caption saying it shows the estimator's P80 beside the plant's."""
+    from scenarios.output.plots import _plt, plot_estimates
+
+    t = np.linspace(0.0, 1.0, 21)
+    model = 205.0 + t
+    frame = pd.DataFrame({"time_h": t, "p80_um": 210.0 + t, "p80_model_um": model, "p80_bias_est_um": 4.0,
+                          "p80_est_um": model + 4.0, "hardness_scale": 1.0, "hardness_est": 0.98})
+    plt = _plt()
+    fig = plot_estimates(plt, RunResult(frame, {"scene": "bias"}))
+    lines = _lines(fig)
+    np.testing.assert_array_equal(lines["estimate of the plant's P80"], frame["p80_est_um"].to_numpy())
+    np.testing.assert_array_equal(lines["estimator's model, before its P80 bias"], model)
+    plt.close(fig)
+
+
+def test_a_batch_p80_plot_does_not_call_the_mill_content_the_product():
+    from scenarios.output.plots import _plt, plot_p80
+
+    t = np.linspace(0.0, 0.5, 11)
+    frame = pd.DataFrame({"time_h": t, "content_p80_um": 3000.0 - 5000.0 * t, "holdup_t": 0.012})
+    plt = _plt()
+    fig = plot_p80(plt, RunResult(frame, {"scene": "batch", "mode": "batch", "target_p80_um": None}))
+    assert fig.axes[0].get_ylabel() == "P80 of the mill content [µm]"
+    np.testing.assert_array_equal(_lines(fig)["P80 of the mill content (batch)"], frame["content_p80_um"])
+    plt.close(fig)
