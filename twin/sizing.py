@@ -199,6 +199,33 @@ def _first_guess(design: Hydrocyclone, base: Mill, count: int, feed_tph: float, 
     return np.array([math.log(d_mill), math.log(d_cyc), FEED_SOLIDS_VOL_PCT_START / 10.0])
 
 
+def load_design_cyclone(path) -> Hydrocyclone:
+    """The cyclone whose shape and Plitt model a sizing scales: a TOML file holding one cyclone
+    table, as a scene's ``effect_options.classification.cyclone`` (geometry, Plitt factors or a
+    ``survey``); its count and dilution are the sizing's to choose. TwinInputError naming the file."""
+    import tomllib
+
+    from .errors import TwinError
+    from .effects.classification import hydrocyclone_from
+
+    path = Path(path)
+    try:
+        table = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise TwinInputError(f"The cyclone file {path} was not found.") from None
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise TwinInputError(f"The cyclone file {path} is not a readable TOML file: {exc}.") from None
+    try:
+        cyclone = hydrocyclone_from(table)
+    except TwinError as exc:
+        raise TwinInputError(f"The cyclone file {path}: {exc}") from None
+    if cyclone.mode == "direct":
+        raise TwinInputError(f"The cyclone file {path} gives d50c_um, sharpness and water_bypass_frac, which stay "
+                             "fixed whatever the cyclone: a sizing needs Plitt's equations (give its factors or "
+                             "its 'survey' instead).")
+    return cyclone
+
+
 def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, speed_frac_critical: float = 0.70,
               base: str | Mill = INDUSTRIAL_BASE, cyclone: Hydrocyclone | None = None,
               calibration=None, cyclone_pressure_kpa: float = DESIGN_CYCLONE_PRESSURE_KPA) -> SizedMill:
@@ -219,6 +246,9 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
     check_range("size_mill", "cyclone_pressure_kpa", cyclone_pressure_kpa, *CYCLONE_PRESSURE_RANGE_KPA)
     base = get_mill(base)
     design = cyclone or Hydrocyclone()
+    if design.mode == "direct":  # a fixed cut cannot be sized to the target
+        raise TwinInputError("The 'cyclone' parameter of size_mill must be a cyclone modelled by Plitt's equations "
+                             "(its factors, or a survey), not one given by a fixed d50c_um, sharpness and bypass.")
     rho = _as_blend(ore).density_t_m3
     tried = []
     for count in range(1, MAX_CYCLONES + 1):

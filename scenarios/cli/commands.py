@@ -764,6 +764,11 @@ def add_size_mill_parser(subparsers):
     z.add_argument("--cyclone-pressure-kpa", type=float, default=None,
                    help="the cyclones' design feed pressure [kPa] (default twin.sizing.DESIGN_CYCLONE_PRESSURE_KPA, "
                    "53: the Moly-Cop BallSim base case's cluster)")
+    z.add_argument("--cyclone", metavar="FILE",
+                   help="a TOML file of one cyclone table, as a scene's effect_options.classification.cyclone "
+                   "(geometry and Plitt factors, or a 'survey'): the cyclones are of its shape and model; the "
+                   "sizing chooses their count, diameter and dilution (default: twin.Hydrocyclone's shape, "
+                   "Plitt's equations uncalibrated)")
     z.add_argument("--write-preset", metavar="PATH",
                    help="also write the answer as a preset file here (a new file or a preset grindtwin wrote; "
                    "the shipped `industrial` preset is twin/data/industrial_mill.json, written only when named)")
@@ -777,14 +782,17 @@ def cmd_size_mill(args) -> int:
     import json
 
     from twin import check_preset_path, load_ore, size_mill, write_preset
+    from twin.sizing import load_design_cyclone
 
     if args.write_preset:
         check_preset_path(args.write_preset)  # before the sizing's minutes of work
     pressure = {} if args.cyclone_pressure_kpa is None else {"cyclone_pressure_kpa": args.cyclone_pressure_kpa}
-    sized = size_mill(load_ore(args.ore), args.feed_tph, args.target_p80_um, args.speed, **pressure)
+    cyclone = {} if args.cyclone is None else {"cyclone": load_design_cyclone(args.cyclone)}
+    sized = size_mill(load_ore(args.ore), args.feed_tph, args.target_p80_um, args.speed, **cyclone, **pressure)
     command = (f"grindtwin size-mill --ore {args.ore} --feed-tph {args.feed_tph:g} --target-p80-um "
                f"{args.target_p80_um:g} --speed {args.speed:g}"
-               + "".join(f" --cyclone-pressure-kpa {v:g}" for v in pressure.values()))
+               + "".join(f" --cyclone-pressure-kpa {v:g}" for v in pressure.values())
+               + ("" if args.cyclone is None else f" --cyclone {args.cyclone}"))
     record = sized.record(command)
     if args.write_preset:
         print(f"wrote {write_preset(sized, f'{command} --write-preset {args.write_preset}', args.write_preset)}")
@@ -798,6 +806,10 @@ def cmd_size_mill(args) -> int:
           f"  power_model               {m.power_model}\n  hydrocyclones             {c['count']} x "
           f"{c['diameter_cm']:.3g} cm (inlet {c['inlet_cm']:.3g}, vortex finder {c['vortex_finder_cm']:.3g}, apex "
           f"{c['apex_cm']:.3g} cm), fed at {c['feed_solids_vol_pct']:.3g} % solids by volume")
+    factors = [f"{k.removesuffix('_factor')} {c[k]:.4g}" for k in ("d50c_factor", "pressure_factor", "split_factor",
+                                                                  "sharpness_factor") if c[k] != 1.0]
+    if factors:
+        print(f"  Plitt factors             {', '.join(factors)}")
     for key in ("p80_um", "circulating_load_frac", "power_kw", "specific_energy_kwh_t", "load_frac", "load_status",
                 *sized.circuit):
         print(f"  {key:25s} {z[key]:.4g}" if isinstance(z[key], float) else f"  {key:25s} {z[key]}")

@@ -223,6 +223,74 @@ def test_size_mill_prints_its_design_points_notes(capsys, monkeypatch):
     assert refused.value.code == 2 and "--speed must be in (0.3, 0.95). Got 0.95." in capsys.readouterr().err
 
 
+MOLYCOP_CYCLONE = """count = 6                   # the Moly-Cop base case's cluster and its published survey
+diameter_cm = 66.04
+free_vortex_height_cm = 198.12
+inlet_cm = 16.51
+vortex_finder_cm = 23.114
+apex_cm = 11.4554
+[survey]
+feed_solids_tph = 1902.5
+feed_water_m3_h = 1204.2
+solids_density_t_m3 = 2.8
+d50c_um = 183.3
+sharpness = 1.34
+water_bypass_frac = 0.375
+pressure_psi = 7.7
+"""
+
+
+def test_size_mill_sizes_cyclones_of_a_surveyed_shape_and_model(tmp_path, capsys, monkeypatch):
+    """--cyclone FILE: the cluster is geometrically similar to the file's cyclone and carries the
+    Plitt factors of its survey; the sized circuit, run again from its record, meets the target
+    at the design pressure (it would not with the factors lost)."""
+    import tomllib
+
+    import twin
+    from twin.effects.classification import CycloneSurvey, Hydrocyclone, calibrate_plitt
+    from twin.sizing import DESIGN_CYCLONE_PRESSURE_KPA, circuit_twin
+
+    path = tmp_path / "cyclone.toml"
+    path.write_text(MOLYCOP_CYCLONE)
+    table = tomllib.loads(MOLYCOP_CYCLONE)
+    survey = table.pop("survey")
+    expected = calibrate_plitt(Hydrocyclone(**table), CycloneSurvey(**survey))
+    real, sized = twin.size_mill, []
+    monkeypatch.setattr(twin, "size_mill", lambda *a, **k: sized.append(real(*a, **k)) or sized[-1])
+    assert grindtwin(["size-mill", "--feed-tph", "31", "--target-p80-um", "180", "--cyclone", str(path),
+                      "--json"]) == 0
+    record = json.loads(capsys.readouterr().out)
+    assert record["command"].endswith(f"--cyclone {path}")
+    cyc = record["cyclone"]
+    for f in ("d50c_factor", "pressure_factor", "split_factor", "sharpness_factor"):
+        assert cyc[f] == pytest.approx(getattr(expected, f), rel=1e-12)
+    ratio = cyc["diameter_cm"] / table["diameter_cm"]
+    assert cyc["apex_cm"] == pytest.approx(table["apex_cm"] * ratio, rel=1e-12)
+    ss = circuit_twin("B", sized[0].mill, cyc).steady(feed_tph=31.0)
+    assert ss.p80_um == pytest.approx(180.0, rel=0.01)
+    assert ss.outputs["cyclone_pressure_kpa"] == pytest.approx(DESIGN_CYCLONE_PRESSURE_KPA, rel=0.01)
+
+
+@pytest.mark.parametrize("text,fragment", [
+    (MOLYCOP_CYCLONE.replace("[survey]", "d50c_um = 180.0\nsharpness = 1.3\nwater_bypass_frac = 0.3\n[x]"),
+     "Unknown field 'x'"),
+    ("count = 6\nd50c_um = 180.0\nsharpness = 1.3\nwater_bypass_frac = 0.3\n",
+     "stay fixed whatever the cyclone: a sizing needs Plitt's equations"),
+    (MOLYCOP_CYCLONE.replace("count = 6", "#"), "needs its 'count'"),
+    ("count = [", "is not a readable TOML file"),
+])
+def test_size_mill_refuses_a_cyclone_file_it_cannot_size_with_before_sizing(tmp_path, capsys, monkeypatch, text,
+                                                                            fragment):
+    import twin
+
+    path = tmp_path / "cyclone.toml"
+    path.write_text(text)
+    monkeypatch.setattr(twin, "size_mill", lambda *a, **k: pytest.fail("sized with a refused cyclone file"))
+    assert grindtwin(["size-mill", "--feed-tph", "31", "--target-p80-um", "180", "--cyclone", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert f"The cyclone file {path}" in err and fragment in err
+
+
 @pytest.mark.filterwarnings("always::mpc.OutsideModelsWarning")
 def test_check_notes_a_speed_where_the_charge_centrifuges_and_still_says_ok(write_scene, capsys):
     """check said OK and nothing else of a controller allowed 0.99 of critical, or of a scene held

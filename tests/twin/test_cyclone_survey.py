@@ -113,6 +113,8 @@ def test_the_moly_cop_circuit_with_its_survey_runs_plitts_cut_at_its_own_cyclone
     ({**GEOMETRY, "survey": {**SURVEY, "water_bypass_frac": 1.2}}, "'water_bypass_frac' parameter of CycloneSurvey"),
     ({**GEOMETRY, "survey": {**SURVEY, "solids_density_t_m3": 0.9}}, "'solids_density_t_m3'"),
     ({**GEOMETRY, "survey": 183.3}, "'survey' of the 'cyclone' option of effect 'classification' must be a table"),
+    ({**{k: v for k, v in GEOMETRY.items() if k != "count"}, "survey": SURVEY},
+     "a cyclone with a 'survey' needs its 'count'"),
 ])
 def test_a_bad_survey_is_refused_naming_the_field(cyclone, fragment):
     with pytest.raises(TwinError) as info:

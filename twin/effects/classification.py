@@ -231,6 +231,9 @@ def hydrocyclone_from(value) -> Hydrocyclone:
     if not isinstance(survey, dict):
         raise ModelError(f"The 'survey' of {where} must be a table of "
                          f"{', '.join(CycloneSurvey.__dataclass_fields__)}. Got {survey!r}.")
+    if "count" not in table:  # the survey's feed is the whole cluster's: a default count would misplace it
+        raise ModelError(f"{where}: a cyclone with a 'survey' needs its 'count', the number of cyclones the "
+                         "surveyed feed was shared by.")
     clash = [k for k in _NOT_WITH_SURVEY if k in table]
     if clash:
         raise ModelError(f"{where}: {clash[0]!r} and 'survey' are given together; a surveyed cyclone's Plitt factors "
