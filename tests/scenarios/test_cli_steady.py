@@ -28,7 +28,8 @@ def test_steady_blend_at_constant_load(capsys):
 
 def test_steady_ore_from_toml(tmp_path, capsys):
     ore = tmp_path / "quartzite.toml"
-    ore.write_text("[mineralogy]\nquartz = 90.0\nk_feldspar = 10.0\n[texture]\nmean_grain_um = 300.0\n")
+    ore.write_text("[mineralogy]\nquartz = 90.0\nk_feldspar = 10.0\n[texture]\nmean_grain_um = 300.0\n"
+                   "uniformity = 0.6\nassociation_entropy = 0.5\n")
     assert main(["steady", "--ore", str(ore), "--feed-tph", "0.03", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["mineralogy"]["quartzite"]["hardness_index_gpa"] > 10
 

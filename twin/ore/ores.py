@@ -9,7 +9,7 @@ from importlib import resources
 from pathlib import Path
 
 from ..errors import TwinInputError, close_matches
-from .mineralogy import Mineralogy, Texture
+from .mineralogy import TEXTURE_COLUMNS, Mineralogy, Texture
 
 #: A blend's fractions must sum to 1 within this tolerance.
 BLEND_SUM_TOLERANCE = 1e-6
@@ -35,12 +35,32 @@ def _from_table(table: dict, name: str, where: str = "ores.toml") -> Mineralogy:
         raise TwinInputError(f"{where}: ore {name!r}: unknown key{'s' * (len(unknown) > 1)} {', '.join(unknown)}; "
                              f"allowed: {', '.join(ORE_FILE_KEYS)} (breakage parameters given directly go in a "
                              "scene's [ores.NAME.breakage])")
+    for key in ("mineralogy", "texture"):
+        _check_numbers(table[key], key, name, where)
+    texture = table["texture"]
+    unknown = sorted(set(texture) - set(TEXTURE_COLUMNS))
+    missing = [k for k in TEXTURE_COLUMNS if k not in texture]
+    if unknown or missing:  # a missing one took Texture's default silently (0.5 entropy moves the textural index)
+        what = ([f"unknown key{'s' * (len(unknown) > 1)} {', '.join(unknown)}"] if unknown else []) + (
+            [f"missing {', '.join(missing)}"] if missing else [])
+        raise TwinInputError(f"{where}: [texture] of ore {name!r}: {'; '.join(what)}. Allowed and required: "
+                             f"{', '.join(TEXTURE_COLUMNS)} (as a scene's [ores.NAME.texture]).")
     try:
-        texture = Texture(**table["texture"])
-    except TypeError as exc:
-        raise TwinInputError(f"{where}: [texture] of ore {name!r}: {exc}. Allowed keys: "
-                             "mean_grain_um, uniformity, association_entropy.") from None
-    return Mineralogy(dict(table["mineralogy"]), texture, name=name)
+        return Mineralogy(dict(table["mineralogy"]), Texture(**texture), name=name)
+    except TwinInputError as exc:  # the range checks of Texture and Mineralogy, with the file named
+        raise TwinInputError(f"{where}: ore {name!r}: {exc}") from None
+
+
+def _check_numbers(section, key: str, name: str, where: str) -> None:
+    """A table of numbers: TOML's true read as 1 wt% and "40" as 40, and a text grain size
+    failed later with a traceback."""
+    if not isinstance(section, dict):
+        raise TwinInputError(f"{where}: ore {name!r}: {key} must be a table ([{key}]). Got {section!r}.")
+    bad = {k: v for k, v in section.items() if isinstance(v, bool) or not isinstance(v, (int, float))}
+    if bad:
+        k, v = next(iter(bad.items()))
+        raise TwinInputError(f"{where}: [{key}] of ore {name!r}: {k} = {v!r} must be a number "
+                             f"(a TOML integer or float, not {type(v).__name__}).")
 
 
 def load_ore(spec: str | Path | Mineralogy) -> Mineralogy:

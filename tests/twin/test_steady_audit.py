@@ -1,0 +1,70 @@
+"""What `grindtwin steady` reads and answers: a user's ore file is taken as written or refused
+before any work, naming the file, the key, the value and what is allowed."""
+
+import pytest
+
+from twin import TwinInputError
+from twin.ore.ores import load_ore
+
+TEXTURE = "[texture]\nmean_grain_um = 125.0\nuniformity = 0.6\nassociation_entropy = 0.8\n"
+MINERALOGY = "[mineralogy]\nquartz = 40.0\nbiotite = 30.0\nk_feldspar = 30.0\n"
+
+
+def _ore(tmp_path, text, name="mine"):
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    return path
+
+
+def test_an_ore_file_is_read_as_written(tmp_path):
+    """The control: every number of the file is the ore's."""
+    ore = load_ore(_ore(tmp_path, MINERALOGY + TEXTURE))
+    assert ore.wt_pct == {"quartz": 40.0, "biotite": 30.0, "k_feldspar": 30.0}
+    assert (ore.texture.mean_grain_um, ore.texture.uniformity, ore.texture.association_entropy) == (125.0, 0.6, 0.8)
+
+
+@pytest.mark.parametrize("key", ["uniformity", "association_entropy"])
+def test_a_texture_key_left_out_is_refused_not_defaulted(tmp_path, key):
+    """Without association_entropy the ore took Texture's 0.5 silently (its textural index, which
+    the table calibration and the surrogate read, moved with it); a scene's texture requires all three."""
+    text = MINERALOGY + "".join(line + "\n" for line in TEXTURE.splitlines() if not line.startswith(key))
+    path = _ore(tmp_path, text)
+    with pytest.raises(TwinInputError, match=rf"{path}: \[texture\] of ore 'mine': missing {key}\. Allowed and "
+                                             "required: mean_grain_um, uniformity, association_entropy"):
+        load_ore(path)
+
+
+def test_a_misspelt_texture_key_is_named_with_the_one_it_left_out(tmp_path):
+    path = _ore(tmp_path, MINERALOGY + TEXTURE.replace("uniformity", "uniformty"))
+    with pytest.raises(TwinInputError, match="unknown key uniformty; missing uniformity"):
+        load_ore(path)
+
+
+@pytest.mark.parametrize("section, line, shown", [
+    ("mineralogy", "quartz = true", "quartz = True"),  # read as 1 wt%: with 99 wt% beside it, accepted
+    ("mineralogy", 'quartz = "1"', "quartz = '1'"),
+    ("texture", 'mean_grain_um = "125"', "mean_grain_um = '125'"),  # a TypeError traceback later
+])
+def test_a_value_that_is_not_a_number_is_refused(tmp_path, section, line, shown):
+    key = line.split(" = ")[0]
+    mineralogy = MINERALOGY.replace("quartz = 40.0", "quartz = 1.0").replace("biotite = 30.0", "biotite = 69.0")
+    text = mineralogy + TEXTURE
+    text = text.replace(next(k for k in text.splitlines() if k.startswith(key + " =")), line)
+    path = _ore(tmp_path, text)
+    with pytest.raises(TwinInputError, match=rf"\[{section}\] of ore 'mine': {shown} must be a number"):
+        load_ore(path)
+    # the same file with the number it meant loads: the refusal is of the type alone
+    assert load_ore(_ore(tmp_path, mineralogy + TEXTURE, "meant")).wt_pct["quartz"] == 1.0
+
+
+def test_a_mineralogy_that_is_not_a_table_is_refused(tmp_path):
+    path = _ore(tmp_path, "mineralogy = 5\n" + TEXTURE)
+    with pytest.raises(TwinInputError, match="mineralogy must be a table"):
+        load_ore(path)
+
+
+def test_an_out_of_range_value_names_the_file(tmp_path):
+    path = _ore(tmp_path, MINERALOGY + TEXTURE.replace("association_entropy = 0.8", "association_entropy = 1.5"))
+    with pytest.raises(TwinInputError, match=rf"{path}: ore 'mine': The 'association_entropy' parameter of Texture "
+                                             r"must be a float in \[0, 1\]\. Got 1\.5"):
+        load_ore(path)
