@@ -22,9 +22,22 @@ PSD_FILES = {"product": "product_psd.csv", "mill content": "mill_psd.csv"}
 #: The size-by-size table of every stream at the end of a run.
 STREAMS_FILE = "streams.csv"
 RUN_WORKBOOK = "run.xlsx"
+#: Rows an Excel sheet holds (Excel's limit), its header row included.
+EXCEL_MAX_ROWS = 1_048_576
 #: The KPI sheet's note beside an empty value (the report's "n/a").
 UNDEFINED_NOTE = "n/a: not defined for this run (no P80 target, no controller, a batch grind or nothing fed)"
 SWEEP_WORKBOOK = "sweep.xlsx"
+
+
+def workbook_problem(n_samples: int) -> str | None:
+    """Why a run of ``n_samples`` samples cannot have a workbook (its time series is one row per
+    sample below a header), or None; asked before the run, so the run is never lost at its end."""
+    if n_samples + 1 <= EXCEL_MAX_ROWS:
+        return None
+    return (f"--xlsx: the run has {n_samples:,} samples, more than an Excel sheet holds ({EXCEL_MAX_ROWS - 1:,} "
+            "rows below its header); allowed: at most that many samples (scene.duration_h / "
+            "scene.sample_period_h + 1). Leave out --xlsx (timeseries.parquet holds every sample) or use a "
+            "longer sample period")
 
 
 def psd_table(psd: pd.DataFrame) -> pd.DataFrame:

@@ -47,7 +47,7 @@ import numpy as np
 import pandas as pd
 
 from scenarios.errors import SceneError
-from scenarios.output import claim_output, write_files
+from scenarios.output import claim_output, workbook_problem, write_files
 from scenarios.run.batch import run_batch
 from scenarios.run.closed_loop import run_closed
 from scenarios.run.feed import feed_schedule, fit_warnings
@@ -99,10 +99,19 @@ def run_scene(scene_or_path, out_dir=None, progress: bool = True, *, csv: bool =
     """
     scene = _as_scene(scene_or_path)
     refuse(scene, settings_problems(scene))
+    _check_workbook(scene, xlsx)
     with claim_output(out_dir, protect=_scene_files(scene)) as claim:
         result = _run(scene, progress, replay)
         _commit(claim, result, csv, plots, xlsx)
     return result
+
+
+def _check_workbook(scene: Scene, xlsx: bool) -> None:
+    """Refuse ``xlsx`` for a run whose time series no workbook sheet holds, before the run: the
+    workbook is written last, and its failure lost every file of a finished run."""
+    problem = workbook_problem(len(scene.time_grid_h())) if xlsx else None
+    if problem:
+        raise SceneError(f"{scene.source_path or 'scene'}: {problem}")
 
 
 def _scene_files(scene: Scene) -> tuple:
@@ -176,12 +185,13 @@ def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True
     refuse(scene, settings_problems(scene))
     history_path = Path(history_csv).resolve()
     with claim_output(out_dir, protect=(*_scene_files(scene), history_path)) as claim:
-        result = _replay(scene, history_path, progress, duration_h)
+        result = _replay(scene, history_path, progress, duration_h, xlsx)
         _commit(claim, result, csv, plots, xlsx)
     return result
 
 
-def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float | None) -> RunResult:
+def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float | None,
+            xlsx: bool = False) -> RunResult:
     data = scene.model_dump(exclude_none=True)
     data["feed"].pop("blend", None)
     data["feed"].pop("schedule", None)
@@ -198,6 +208,7 @@ def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float 
     data["scene"]["duration_h"] = float(duration_h)
     src = scene.source_path
     new = scene_from_dict(data, src if src is not None else Path.cwd() / "scene.toml")
+    _check_workbook(new, xlsx)  # the replay's length is known only now
     result = _run(new, progress, replay=True)
     frame = result.frame
     cmp = {}

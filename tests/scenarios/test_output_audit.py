@@ -181,3 +181,33 @@ def test_a_batch_p80_plot_does_not_call_the_mill_content_the_product():
     assert fig.axes[0].get_ylabel() == "P80 of the mill content [µm]"
     np.testing.assert_array_equal(_lines(fig)["P80 of the mill content (batch)"], frame["content_p80_um"])
     plt.close(fig)
+
+
+@pytest.fixture
+def no_run(monkeypatch):
+    """Fail the test if a run gets as far as building its models."""
+    import scenarios.run.runner as runner
+
+    def boom(scene):
+        raise AssertionError("the run started although it should have been refused")
+
+    monkeypatch.setattr(runner, "build_models", boom)
+
+
+def test_a_workbook_no_sheet_holds_is_refused_before_the_run_not_after_it(tmp_path, capsys, no_run):
+    """A year at 28.8 s samples is 1,098,001 rows, more than an Excel sheet holds: the workbook is
+    written last, so --xlsx failed after the whole run and took every file of it along."""
+    from scenarios.output.workbook import EXCEL_MAX_ROWS
+    from tests.scenarios.test_runner import short_pyrite_scene
+
+    scene = short_pyrite_scene(tmp_path, duration_h=8784.0)
+    text = scene.read_text()
+    assert "sample_period_h = " in text
+    scene.write_text(re.sub(r"sample_period_h = [0-9./]+", "sample_period_h = 0.008", text))
+    n = int(round(8784.0 / 0.008)) + 1
+    assert n + 1 > EXCEL_MAX_ROWS
+    out = tmp_path / "year"
+    assert grindtwin(["run", scene, "--out", out, "--xlsx", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "--xlsx" in err and f"{n:,} samples" in err and "Traceback" not in err
+    assert not out.exists() and not (tmp_path / "year.partial").exists()
