@@ -218,6 +218,10 @@ def write_report(run_dir) -> Path:
         warnings.warn(f"{run_dir}: {problem}", RunFolderWarning, stacklevel=2)
     out = run_dir / "report.html"
     tmp = run_dir / "report.html.partial"
-    tmp.write_text(text, encoding="utf-8")
-    tmp.replace(out)
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        tmp.replace(out)
+    except BaseException:  # a full disk, a report.html that is a folder, Ctrl-C: no half-written page left
+        tmp.unlink(missing_ok=True)
+        raise
     return out

@@ -211,3 +211,13 @@ def test_a_workbook_no_sheet_holds_is_refused_before_the_run_not_after_it(tmp_pa
     err = capsys.readouterr().err
     assert "--xlsx" in err and f"{n:,} samples" in err and "Traceback" not in err
     assert not out.exists() and not (tmp_path / "year.partial").exists()
+
+
+def test_a_report_that_cannot_be_put_in_place_leaves_no_half_written_page(tmp_path, capsys):
+    run = fake_run(tmp_path)
+    (run / "report.html").mkdir()  # the rename onto it fails
+    (run / "report.html" / "keep.txt").write_text("x")
+    assert grindtwin(["report", run]) == 1
+    assert "report.html" in capsys.readouterr().err
+    assert not (run / "report.html.partial").exists()
+    assert (run / "report.html" / "keep.txt").read_text() == "x"
