@@ -1,5 +1,7 @@
 """What each KPI means, with its unit, and how it is printed: the report's table and the
-workbook's KPI sheet read the same labels."""
+workbook's KPI sheet read the same labels (and the same calibration text)."""
+
+from twin.calibration import FAST_LABEL
 
 #: KPI key -> (label, format).
 KPI_LABELS = {
@@ -72,3 +74,11 @@ def kpi_text(key: str, value) -> str:
         return percent_text(float(value))
     fmt = KPI_LABELS.get(key, (key, "{:.4g}"))[1]
     return fmt.format(value)
+
+
+def calibration_text(cal) -> str | None:
+    """Name, file and hash of the calibration a run used (summary.json's ``calibration``)."""
+    if not cal:
+        return None
+    sha = f", sha256 {cal['sha256'][:12]}" if cal.get("sha256") else ""
+    return f"{cal.get('name')} ({cal.get('path') or 'in memory'}{sha}{FAST_LABEL if cal.get('fast') else ''})"

@@ -17,11 +17,10 @@ import warnings
 from pathlib import Path
 
 from scenarios.errors import SceneError
-from scenarios.output.labels import KPI_LABELS, kpi_text
+from scenarios.output.labels import KPI_LABELS, calibration_text, kpi_text
 from scenarios.output.plots import PLOTS
 from scenarios.output.write import (INCOMPLETE_MARKER, MANIFEST, file_sha256, installed_version, manifest_files,
                                     read_manifest)
-from twin.calibration import FAST_LABEL
 
 _CSS = """body{font-family:system-ui,sans-serif;max-width:60em;margin:2em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:.3em .7em;text-align:left}
@@ -78,14 +77,6 @@ def _fmt(key: str, value) -> str:
         return html.escape(kpi_text(key, value))
     except (ValueError, TypeError):
         return html.escape(str(value))
-
-
-def _calibration_text(cal) -> str | None:
-    """Name, file and hash of the calibration a run used (summary.json's ``calibration``)."""
-    if not cal:
-        return None
-    sha = f", sha256 {cal['sha256'][:12]}" if cal.get("sha256") else ""
-    return f"{cal.get('name')} ({cal.get('path') or 'in memory'}{sha}{FAST_LABEL if cal.get('fast') else ''})"
 
 
 def kpi_table(kpis: dict) -> str:
@@ -173,7 +164,7 @@ def _render(run_dir: Path, summary: dict, problems: list[str]) -> str:
              ("target P80 [µm]", summary.get("target_p80_um")), ("seed", summary.get("seed")),
              ("effects", ", ".join(summary.get("effects", []))),
              ("components", ", ".join(summary.get("components", []))),
-             ("calibration", _calibration_text(summary.get("calibration"))),
+             ("calibration", calibration_text(summary.get("calibration"))),
              ("scene file", summary.get("source"))]
     parts.append("<table>" + "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
                                      for k, v in facts if v is not None) + "</table>")

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from scenarios.output.labels import KPI_LABELS, is_percent, percent_decimals
+from scenarios.output.labels import KPI_LABELS, calibration_text, is_percent, percent_decimals
 
 #: Size distributions a run writes as CSV: the stream (``attrs['what']``) -> file name.
 PSD_FILES = {"product": "product_psd.csv", "mill content": "mill_psd.csv"}
@@ -111,8 +111,13 @@ def summary_rows(summary: dict) -> pd.DataFrame:
     keys = ("scene", "description", "mode", "controller", "target_p80_um", "seed", "source", "wall_time_s")
     rows = [(k, summary.get(k)) for k in keys]
     rows += [("effects", ", ".join(summary.get("effects", []))),
-             ("components", ", ".join(summary.get("components", [])))]
-    rows += [(f"note {i + 1}", n) for i, n in enumerate(summary.get("notes", []))]
+             ("components", ", ".join(summary.get("components", []))),
+             ("calibration", calibration_text(summary.get("calibration")))]
+    # the warnings apart, as the report puts them (a run's notes hold its warnings too)
+    warnings = [str(w) for w in summary.get("warnings") or []]
+    rows += [(f"warning {i + 1}", w) for i, w in enumerate(warnings)]
+    notes = [str(n) for n in summary.get("notes") or [] if str(n) not in warnings]
+    rows += [(f"note {i + 1}", n) for i, n in enumerate(notes)]
     rows += [(f"version: {k}", v) for k, v in (summary.get("versions") or {}).items()]
     return pd.DataFrame(rows, columns=["item", "value"])
 

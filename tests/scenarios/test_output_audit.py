@@ -221,3 +221,23 @@ def test_a_report_that_cannot_be_put_in_place_leaves_no_half_written_page(tmp_pa
     assert "report.html" in capsys.readouterr().err
     assert not (run / "report.html.partial").exists()
     assert (run / "report.html" / "keep.txt").read_text() == "x"
+
+
+def test_workbook_summary_names_the_calibration_and_sets_the_warnings_apart(tmp_path):
+    """The report shows the calibration that ran and opens with the run's warnings; the workbook's
+    summary sheet had neither (its warnings sat among the notes as 'note N')."""
+    from scenarios.output.labels import calibration_text
+
+    run = fake_run(tmp_path)
+    summary = json.loads((run / "summary.json").read_text())
+    warning = "the plant's hold-up exceeds what its mill holds filled to its shell"
+    summary |= {"warnings": [warning], "notes": summary["notes"] + [warning],
+                "calibration": {"name": "dem", "path": "/x/dem.json", "sha256": "cd" * 32}}
+    frame = pd.read_parquet(run / "timeseries.parquet")
+    out = write_run(RunResult(frame, summary), tmp_path / "again", plots=False, xlsx=True)
+    book = openpyxl.load_workbook(out / "run.xlsx", read_only=True)
+    rows = dict(list(book["summary"].values)[1:])
+    assert rows["calibration"] == calibration_text(summary["calibration"]) and "/x/dem.json" in rows["calibration"]
+    assert rows["warning 1"] == warning
+    notes = [v for k, v in rows.items() if k.startswith("note ")]
+    assert notes == [n for n in summary["notes"] if n != warning]
