@@ -68,3 +68,23 @@ def test_an_out_of_range_value_names_the_file(tmp_path):
     with pytest.raises(TwinInputError, match=rf"{path}: ore 'mine': The 'association_entropy' parameter of Texture "
                                              r"must be a float in \[0, 1\]\. Got 1\.5"):
         load_ore(path)
+
+
+def test_a_stopped_feed_is_steady_in_every_state():
+    """At zero feed the masses were set to zero and every other state left at its initial guess:
+    the feed inventory kept 0.031 t (dI/dt = F - I/tau gives I = F tau = 0) and the analyser's lag
+    200 um, a residual of ~7e3. Now every state is steady, and a P80 of no product is undefined."""
+    import math
+
+    import numpy as np
+
+    from twin import DEFAULT_EFFECTS, Twin
+
+    tw = Twin("B", effects=[*DEFAULT_EFFECTS, "feed_inventory", "sensor_delay"])
+    tau_h = tw.model.spec.effect_options.get("feed_inventory", {}).get("time_constant_h", 1.0)
+    for feed in (0.031, 0.0):
+        ss = tw.steady(feed_tph=feed)
+        assert np.abs(np.asarray(tw.model.f(ss.x, ss.u, ss.d))).max() < 1e-9 * tw.mill.feed_nominal_tph
+        assert ss.outputs["feed_inventory_t"] == pytest.approx(feed * tau_h, abs=1e-12)
+    assert ss.outputs["holdup_t"] == 0.0 and math.isnan(ss.p80_um)
+    assert math.isnan(ss.outputs["p80_measured_um"]) and math.isnan(ss.outputs["content_p80_um"])

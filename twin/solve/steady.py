@@ -166,6 +166,11 @@ def _result(model, x, u, d, method) -> SteadyState:
         outs["specific_energy_kwh_t"] = math.nan             # twin.solve.simulate.outputs_frame
     psd = np.asarray(_product_psd(model)(x, u, d)).ravel()
     p80 = pxx_um(model.spec.grid, psd) if psd.sum() > 0 else math.nan
+    # sizes of nothing are undefined: the model's smooth P80 gives ~1.6 um for no product, which an
+    # analyser's lag (p80_measured_um) then reports; the content's P80 of an empty mill likewise
+    undefined = [k for k in ("p80_um", "p80_measured_um") if not psd.sum() > 0]
+    undefined += ["content_p80_um"] if not outs.get("holdup_t", 1.0) > 0.0 else []
+    outs.update({k: math.nan for k in undefined if k in outs})
     status = load_status(outs["load_frac"], model.spec.mill.stable_band) if "load_frac" in outs else "n/a"
     notes = state_notes(model.spec, model.effect_names, float(u[1]), outs.get("holdup_t", 0.0), outs.get("clay_frac"),
                         outs, psd)
@@ -182,10 +187,16 @@ def steady_state(model, u, d, x_guess=None) -> SteadyState:
     """Steady state at inputs u and disturbances d (Newton; long integration if Newton fails)."""
     _require_transport(model)
     u, d = np.asarray(u, float), np.asarray(d, float)
-    if u[0] <= 0.0:  # no feed: the mill empties
+    if u[0] <= 0.0:  # no feed: the mill empties, and its other states settle with it
         x = np.zeros(model.n_x)
         x[model.n_mass:] = model.initial_state(d[:model.n_components])[model.n_mass:]
-        return _result(model, x, u, d, "empty (no feed)")
+        if model.n_x > model.n_mass:  # a feed inventory drains, lags follow: their initial guess was not steady
+            x, _, ok = _newton(model, x, u, d)
+            if not ok:
+                raise SolverError(f"Steady state not found at zero feed (speed {u[1]:.3f}): Newton failed on the "
+                                  "states beside the masses (feed inventory, lags).")
+            x[:model.n_mass] = 0.0  # Newton's round-off (~1e-37 t) would make a product of nothing a P80
+        return _result(model, _check(model, x, u, d, "empty (no feed)"), u, d, "empty (no feed)")
     guess = model.initial_state(d[:model.n_components]) if x_guess is None else np.asarray(x_guess, float)
     x, _, ok = _newton(model, guess, u, d)
     if ok:
