@@ -139,6 +139,12 @@ def render_report(run_dir) -> str:
     return _render(run_dir, summary, folder_problems(run_dir, summary))
 
 
+#: Fields of summary.json the report reads -> their JSON type (a hand-edited one raised a traceback).
+SUMMARY_FIELDS = {"replay": dict, "versions": dict, "calibration": dict, "effects": list, "components": list,
+                  "notes": list, "warnings": list}
+_JSON_NAMES = {dict: "object", list: "array"}
+
+
 def read_summary(path: Path) -> dict:
     """A run's summary.json; SceneError naming the file and the field when it is not a run's
     summary (an object with a ``kpis`` object)."""
@@ -150,6 +156,13 @@ def read_summary(path: Path) -> dict:
         raise SceneError(f"{path}: a run's summary is a JSON object, got a {type(summary).__name__}")
     if not isinstance(summary.get("kpis"), dict):
         raise SceneError(f"{path}: 'kpis' must be an object of KPI name -> number, got {summary.get('kpis')!r}")
+    for key, kind in SUMMARY_FIELDS.items():  # the fields the report reads, when present
+        value = summary.get(key)
+        if value is not None and not isinstance(value, kind):
+            raise SceneError(f"{path}: '{key}' must be a JSON {_JSON_NAMES[kind]}, got {value!r}")
+    if summary.get("replay") and not isinstance(summary["replay"].get("run_minus_recorded", {}), dict):
+        raise SceneError(f"{path}: 'replay.run_minus_recorded' must be a JSON object, got "
+                         f"{summary['replay']['run_minus_recorded']!r}")
     return summary
 
 

@@ -127,8 +127,13 @@ def test_workbook_says_why_a_kpi_cell_is_empty(tmp_path):
     assert rows["p80_within_10um_frac"][3] is None
 
 
-@pytest.mark.parametrize("summary, field", [([1, 2], "JSON object"), ({"scene": "x", "kpis": None}, "'kpis'"),
-                                            ({"scene": "x", "kpis": [1.0]}, "'kpis'")])
+@pytest.mark.parametrize("summary, field", [
+    ([1, 2], "JSON object"), ({"scene": "x", "kpis": None}, "'kpis'"), ({"scene": "x", "kpis": [1.0]}, "'kpis'"),
+    ({"scene": "x", "kpis": {}, "replay": [1]}, "'replay'"),
+    ({"scene": "x", "kpis": {}, "versions": "1.0"}, "'versions'"),
+    ({"scene": "x", "kpis": {}, "effects": 3}, "'effects'"),
+    ({"scene": "x", "kpis": {}, "warnings": "w"}, "'warnings'"),
+    ({"scene": "x", "kpis": {}, "replay": {"run_minus_recorded": 2}}, "'replay.run_minus_recorded'")])
 def test_a_summary_that_is_not_a_runs_is_refused_naming_the_file_and_field(tmp_path, capsys, summary, field):
     run = fake_run(tmp_path)
     (run / "summary.json").write_text(json.dumps(summary))
