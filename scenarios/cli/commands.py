@@ -562,6 +562,7 @@ def _steady_scene(args) -> int:
 
     from scenarios.run.models import build_models
     from scenarios.scene import load_scene
+    from twin.effects.classification import circuit_cyclone, plitt_factors
 
     if args.surrogate or args.at_constant_load or args.blend or args.uncertainty is not None:
         raise SceneError("--scene runs the scene's own twin: --surrogate, --at-constant-load, --blend and "
@@ -580,13 +581,19 @@ def _steady_scene(args) -> int:
                     "--feed-tph" if args.feed_tph is not None else f"{args.scene}: feed.feed_tph", blend)
     kpis = {"scene": scene.scene.name, **ss.summary()}
     notes = undefined_to_none(kpis) + ss.notes
+    cyclone = circuit_cyclone(models.plant.spec)  # its Plitt factors: a survey's are computed, not typed
+    factors = {} if cyclone is None else plitt_factors(cyclone)
     if args.json:
-        print(json.dumps(kpis | {"notes": notes}, indent=2, allow_nan=False))
+        print(json.dumps(kpis | ({"cyclone_plitt_factors": factors} if factors else {}) | {"notes": notes},
+                         indent=2, allow_nan=False))
         return 0
     print(f"Scene {scene.scene.name} ({args.scene}), steady state")
     for key, val in kpis.items():
         text = "undefined" if val is None else f"{val:.4g}" if isinstance(val, float) else val
         print(f"  {key:28s} {text}")
+    if factors:
+        print(f"  {'cyclone_plitt_factors':28s} " + ", ".join(f"{k.removesuffix('_factor')} {v:.4g}"
+                                                            for k, v in factors.items()))
     for note in notes:
         print(f"  note: {note}")
     return 0

@@ -144,3 +144,30 @@ def test_the_survey_file_values_are_the_shipped_scenes_direct_classifier():
         s.d50c_um, s.sharpness, s.water_bypass_frac)
     assert cyc["feed_solids_frac"] == pytest.approx(s.feed_solids_frac, rel=1e-9)
     assert replace(s, pressure_psi=None, pressure_kpa=1.0).kpa == 1.0
+
+
+def test_steady_scene_gives_the_factors_its_survey_made(tmp_path, capsys):
+    """The factors are the survey's calibration, computed, not typed: steady --scene shows them
+    (JSON and text); a cyclone given directly has none to show."""
+    import json
+
+    from scenarios.cli import main
+
+    text = MOLYCOP.read_text()
+    for line in ("d50c_um = 183.3\n", "sharpness = 1.34\n", "water_bypass_frac = 0.375\n"):
+        assert text.count(line) == 1
+        text = text.replace(line, "")
+    text = text.replace("feed_solids_frac = 0.6123861331", "# feed_solids_frac")
+    text += "\n[effect_options.classification.cyclone.survey]\n" + "".join(
+        f"{k} = {v!r}\n" for k, v in SURVEY.items())
+    scene = tmp_path / "surveyed.toml"
+    scene.write_text(text)
+    assert main(["steady", "--scene", str(scene), "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)["cyclone_plitt_factors"]
+    expected = surveyed()
+    assert got == {f: pytest.approx(getattr(expected, f), rel=1e-12) for f in got}
+    assert sorted(got) == ["d50c_factor", "pressure_factor", "sharpness_factor", "split_factor"]
+    assert main(["steady", "--scene", str(scene)]) == 0
+    assert f"cyclone_plitt_factors        pressure {expected.pressure_factor:.4g}, split" in capsys.readouterr().out
+    assert main(["steady", "--scene", str(MOLYCOP), "--json"]) == 0
+    assert "cyclone_plitt_factors" not in json.loads(capsys.readouterr().out)

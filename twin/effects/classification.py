@@ -320,8 +320,7 @@ class Classification(Effect):
     def _hydrocyclone(self, ctx: EffectContext) -> None:
         spec = ctx.spec
         cl = self.settings["circulating_load_nominal"]
-        given = self.settings["cyclone"]
-        cyc = hydrocyclone_from(dict(spec.mill.cyclone) if given is None else given)
+        cyc = circuit_cyclone(spec)
         rho = spec.solids_density_t_m3
         solids_nom = spec.feed_nominal_tph * (1.0 + cl)  # cyclone feed solids at nominal
         at_nominal = cyc.plitt(slurry_m3_h(cyc, solids_nom, rho), rho)
@@ -354,12 +353,28 @@ class Classification(Effect):
             return over, under
 
         ctx.provide("product_split", split)
-        factors = ", ".join(f"{f.removesuffix('_factor')} {getattr(cyc, f):.4g}" for f, _ in SURVEY_FACTORS
-                            if cyc.mode == "plitt" and getattr(cyc, f) != 1.0)
+        factors = ", ".join(f"{f.removesuffix('_factor')} {v:.4g}" for f, v in plitt_factors(cyc).items() if v != 1.0)
         ctx.note(f"hydrocyclone ({cyc.mode}): d50c {float(at_nominal['d50c_um']):.0f} um, m "
                  f"{float(at_nominal['sharpness_m']):.2f}, water bypass {float(at_nominal['water_bypass_frac']):.2f} "
                  "at nominal" + (f" (Plitt factors {factors})" if factors else "")
                  + "; underflow to mixer 0; water balance")
+
+
+def circuit_cyclone(spec) -> Hydrocyclone | None:
+    """The hydrocyclones of a model spec's circuit (its classification option, else its mill's
+    own), or None when it has none (no classification effect, or a grate)."""
+    if "classification" not in spec.effects:
+        return None
+    options = spec.effect_options.get("classification") or {}
+    if options.get("kind", Classification.options["kind"].default) != "hydrocyclone":
+        return None
+    given = options.get("cyclone")
+    return hydrocyclone_from(dict(spec.mill.cyclone or {}) if given is None else given)
+
+
+def plitt_factors(cyc: Hydrocyclone) -> dict:
+    """A Plitt cyclone's four calibration factors by name (empty for one given directly)."""
+    return {} if cyc.mode == "direct" else {f: getattr(cyc, f) for f, _ in SURVEY_FACTORS}
 
 
 def slurry_m3_h(cyc: Hydrocyclone, solids_tph, rho):
