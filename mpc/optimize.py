@@ -244,7 +244,7 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
             # say which constraint leaves no candidate: the target itself, or the load band
             held = [p for p in pts if not math.isnan(p[1])]
             add("both", obj, math.nan, math.nan,
-                "load outside the stable band at every speed that holds the target" if held
+                "load outside the stable band at every scanned speed that holds the target" if held
                 else "target unreachable within the bounds")
             continue
         i = int(np.argmin([score(p) for p in pts]))
