@@ -16,6 +16,9 @@ _API = {
     "hogg_fuerstenau_power_kw": ".mill", "load_status": ".mill", "centrifuging_note": ".mill",
     "CENTRIFUGING_FRAC_CRITICAL": ".mill", "POWER_MODELS": ".mill", "power_kw": ".mill",
     "Hydrocyclone": ".effects.classification", "hydrocyclone_from": ".effects.classification",
+    "CycloneSurvey": ".effects.classification", "calibrate_plitt": ".effects.classification",
+    "circuit_cyclone": ".effects.classification", "plitt_factors": ".effects.classification",
+    "load_design_cyclone": ".sizing",
     "TabulatedPSD": ".sizes", "SizedMill": ".sizing", "size_mill": ".sizing", "write_preset": ".sizing", "check_preset_path": ".sizing",
     "INPUT_NAMES": ".model", "Model": ".model", "ModelSpec": ".model",
     "Blend": ".ore", "Mineralogy": ".ore", "Texture": ".ore", "load_ore": ".ore", "reference_ores": ".ore",
@@ -34,6 +37,7 @@ __all__ = [
     "SPEED_FACTOR_ZERO_FRAC_CRITICAL", "SizeGrid", "SizedMill", "SolverError", "SteadyState", "TabulatedPSD",
     "Texture", "Trajectory", "Twin", "TwinError",
     "TwinInputError", "austin_selection", "bond_power_kw", "centrifuging_note", "hydrocyclone_from", "power_kw", "size_mill", "write_preset", "check_preset_path",
+    "CycloneSurvey", "calibrate_plitt", "circuit_cyclone", "plitt_factors", "load_design_cyclone",
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
     "new_folder_beside", "pxx_um", "reference_ores", "trajectory_notes", "write_text_atomically",
 ]

@@ -562,7 +562,7 @@ def _steady_scene(args) -> int:
 
     from scenarios.run.models import build_models
     from scenarios.scene import load_scene
-    from twin.effects.classification import circuit_cyclone, plitt_factors
+    from twin import circuit_cyclone, plitt_factors
 
     if args.surrogate or args.at_constant_load or args.blend or args.uncertainty is not None:
         raise SceneError("--scene runs the scene's own twin: --surrogate, --at-constant-load, --blend and "
@@ -788,8 +788,7 @@ def add_size_mill_parser(subparsers):
 def cmd_size_mill(args) -> int:
     import json
 
-    from twin import check_preset_path, load_ore, size_mill, write_preset
-    from twin.sizing import load_design_cyclone
+    from twin import check_preset_path, load_design_cyclone, load_ore, size_mill, write_preset
 
     if args.write_preset:
         check_preset_path(args.write_preset)  # before the sizing's minutes of work
