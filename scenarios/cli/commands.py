@@ -123,15 +123,22 @@ def _exit_codes(command: str):
     return wrap
 
 
+def _value_text(key: str, value) -> str:
+    """A KPI on the terminal: n/a when undefined, a share as a percentage that never rounds to 0 or
+    100 % (0.99996 printed as "1" said every sample was in the band), else 4 significant digits."""
+    from scenarios.output.labels import is_percent, percent_text
+
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "n/a"
+    return percent_text(float(value)) if is_percent(key) else f"{value:.4g}"
+
+
 def _print_kpis(summary: dict, out=None) -> None:
     out = out or sys.stdout
     out.write(f"{summary['scene']} ({summary.get('mode')}, controller {summary.get('controller')})\n")
+    width = max([26, *map(len, summary["kpis"])])
     for key, value in summary["kpis"].items():
-        if value is None or (isinstance(value, float) and not math.isfinite(value)):
-            text = "n/a"
-        else:
-            text = f"{value:.4g}"
-        out.write(f"  {key:26s} {text}\n")
+        out.write(f"  {key:{width}s} {_value_text(key, value)}\n")
     for warning in summary.get("warnings") or []:
         sys.stderr.write(f"grindtwin: warning: {warning}\n")
 
@@ -237,8 +244,10 @@ def cmd_replay(args) -> int:
                           progress=not args.quiet, duration_h=args.duration_h, csv=args.csv,
                           plots=not args.no_plots, xlsx=args.xlsx)
     _print_kpis(result.summary)
-    for key, value in result.summary.get("replay", {}).get("run_minus_recorded", {}).items():
-        print(f"  {key:26s} {value:.4g}")
+    differences = result.summary.get("replay", {}).get("run_minus_recorded", {})
+    width = max([26, *map(len, differences)])
+    for key, value in differences.items():
+        print(f"  {key:{width}s} {_value_text(key, value)}")
     _where_results_went(result)
     return 0
 
@@ -322,7 +331,7 @@ def cmd_sweep(args) -> int:
     with claim_output(args.out, protect=(Path(args.scene),)) as claim:
         table = run_sweep(args.scene, vary, sweep_case, mode=args.mode, workers=args.workers,
                           scheduler=args.scheduler, progress=not args.quiet,
-                          max_cases=args.max_cases or MAX_CASES)
+                          max_cases=args.max_cases or MAX_CASES, check=_sweep_workbook_fits if args.xlsx else None)
         traces = _pop_traces(table)
         if claim is not None:
             claim.commit(lambda folder: _write_sweep(folder, table, traces, args.scene, args.xlsx), kind="sweep")
@@ -353,6 +362,19 @@ def cmd_sweep(args) -> int:
 
 #: Failed cases listed on stderr by ``grindtwin sweep`` (the rest are in the table's error column).
 SWEEP_FAILURES_SHOWN = 10
+
+
+def _sweep_workbook_fits(scenes) -> None:
+    """--xlsx: refuse, before any case runs, a sweep whose P80 traces sheet (one row per sample time
+    of any case) no Excel sheet holds; it failed only after every case had run."""
+    import numpy as np
+
+    from scenarios.output import workbook_problem
+
+    times = np.unique(np.round(np.concatenate([s.time_grid_h() for s in scenes]), 9))
+    problem = workbook_problem(len(times))
+    if problem:
+        raise SceneError(f"sweep {problem}")
 
 
 def _write_sweep(folder: Path, table, traces, scene_path, xlsx: bool) -> None:

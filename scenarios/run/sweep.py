@@ -164,17 +164,21 @@ def validate_cases(cases: list[Case], source_path: str | Path | None) -> list[Sc
 
 def run_sweep(scene_path: str | Path, vary: dict[str, list], run_case: RunCase, *,
               mode: Literal["cartesian", "paired"] = "cartesian", workers: int | None = None,
-              scheduler: Any = None, progress: bool = True, max_cases: int = MAX_CASES) -> pd.DataFrame:
+              scheduler: Any = None, progress: bool = True, max_cases: int = MAX_CASES,
+              check: Callable[[list[Scene]], None] | None = None) -> pd.DataFrame:
     """Run ``run_case(scene) -> dict of KPIs`` for every case; one row per case.
 
     Columns: ``case``, the varied key paths, the KPIs (union over cases), ``error`` (``None``
     for a case that ran). ``run_case`` must be picklable (a module-level function). The
-    scheduler address is checked and the cluster reached before any case runs.
+    scheduler address is checked and the cluster reached before any case runs; so is ``check``
+    (given the validated scenes of the cases; it raises to refuse them).
     """
     cases = expand_cases(read_toml(scene_path), vary, mode, max_cases)
     if isinstance(scheduler, str):
         check_scheduler_address(scheduler)
     scenes = validate_cases(cases, scene_path)
+    if check is not None:
+        check(scenes)
     if scheduler is not None:
         outcomes = _run_dask(run_case, scenes, scheduler, progress)
     else:

@@ -246,3 +246,35 @@ def test_workbook_summary_names_the_calibration_and_sets_the_warnings_apart(tmp_
     assert rows["warning 1"] == warning
     notes = [v for k, v in rows.items() if k.startswith("note ")]
     assert notes == [n for n in summary["notes"] if n != warning]
+
+
+def test_a_sweep_whose_traces_no_sheet_holds_is_refused_before_any_case(tmp_path, capsys, monkeypatch):
+    """sweep --xlsx wrote its workbook after every case had run: a year at 28.8 s samples then
+    failed at the end. It is refused before the first case, naming the samples."""
+    import scenarios.cli.commands as commands
+    from tests.scenarios.test_runner import short_pyrite_scene
+
+    scene = short_pyrite_scene(tmp_path, duration_h=8784.0)
+    scene.write_text(re.sub(r"sample_period_h = [0-9./]+", "sample_period_h = 0.008", scene.read_text()))
+    monkeypatch.setattr(commands, "sweep_case", lambda s: pytest.fail("a case ran although the sweep is refused"))
+    out = tmp_path / "sweep"
+    assert grindtwin(["sweep", scene, "--vary", "feed.feed_tph=0.03,0.031", "--out", out, "--xlsx", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "--xlsx" in err and f"{int(round(8784.0 / 0.008)) + 1:,} samples" in err
+    assert not out.exists()
+
+
+def test_the_terminal_shows_a_share_short_of_one_as_a_percentage_and_an_undefined_value_as_n_a():
+    """run/replay printed shares with 4 significant digits: 0.99996 of the samples in the band
+    printed as "1"; a NaN difference of a replay printed "nan"."""
+    import io
+
+    from scenarios.cli.commands import _print_kpis, _value_text
+
+    out = io.StringIO()
+    _print_kpis({"scene": "s", "kpis": {"p80_within_10um_frac": 0.99996, "p80_iae_um_h": float("nan"),
+                                        "specific_energy_kwh_t": 6.6031}}, out)
+    lines = out.getvalue().splitlines()
+    assert lines[1].split() == ["p80_within_10um_frac", "99.996%"]
+    assert lines[2].split() == ["p80_iae_um_h", "n/a"] and lines[3].split() == ["specific_energy_kwh_t", "6.603"]
+    assert _value_text("p80_iae_um_h", None) == "n/a" and _value_text("p80_iae_um_h", float("nan")) == "n/a"
