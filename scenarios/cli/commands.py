@@ -456,17 +456,35 @@ def _float_in(name, lo, hi, lo_open=False, hi_open=False):
     return parse
 
 
+#: What `steady` and `optimize` run without --ore, --blend or --mill.
+DEFAULT_ORE, DEFAULT_MILL = "B", "lab"
+
+
+def _add_ore_options(p) -> None:
+    p.add_argument("--ore", default=None, help=f"reference type A-D or a TOML file with [mineralogy] and [texture] "
+                   f"(default {DEFAULT_ORE})")
+    p.add_argument("--blend", help="blend of ores, e.g. B=0.6,D=0.4 (instead of --ore)")
+
+
+def _blend_of(args):
+    """The blend --ore or --blend names; both given was --ore silently dropped."""
+    from twin import Blend, load_ore
+
+    if args.blend and args.ore is not None:
+        raise SceneError(f"--ore {args.ore} and --blend {args.blend}: give one (a blend names its ores)")
+    return Blend.parse(args.blend) if args.blend else Blend.single(load_ore(args.ore or DEFAULT_ORE))
+
+
 def add_steady_parser(subparsers):
     s = subparsers.add_parser("steady", help="steady-state KPIs of the mill for an ore or a blend")
-    s.add_argument("--ore", default="B", help="reference type A-D or a TOML file with [mineralogy] and [texture]")
-    s.add_argument("--blend", help="blend of ores, e.g. B=0.6,D=0.4 (overrides --ore)")
+    _add_ore_options(s)
     g = s.add_mutually_exclusive_group()
     g.add_argument("--feed-tph", type=_float_in("--feed-tph", 0, 1e5), help="fresh feed rate [t/h]")
     g.add_argument("--at-constant-load", action="store_true",
                    help="solve for the feed rate that holds the nominal hold-up")
     s.add_argument("--speed", type=_float_in("--speed", 0, 1, True, True), default=None,
                    help="mill speed as a fraction of critical (0.70, not 70)")
-    s.add_argument("--mill", default="lab", choices=["lab", "industrial"])
+    s.add_argument("--mill", default=None, choices=["lab", "industrial"], help=f"default {DEFAULT_MILL}")
     s.add_argument("--json", action="store_true", help="print the KPIs as JSON (unit-suffixed keys)")
     s.add_argument("--surrogate", action="store_true",
                    help="answer from the PLS surrogate (lab mill; refuses inputs outside its training domain)")
@@ -586,9 +604,12 @@ def _steady_scene(args) -> int:
     from scenarios.scene import load_scene
     from twin import circuit_cyclone, plitt_factors
 
-    if args.surrogate or args.at_constant_load or args.blend or args.uncertainty is not None:
-        raise SceneError("--scene runs the scene's own twin: --surrogate, --at-constant-load, --blend and "
-                         "--uncertainty do not apply.")
+    given = [name for name, v in (("--surrogate", args.surrogate), ("--at-constant-load", args.at_constant_load),
+                                  ("--blend", args.blend), ("--ore", args.ore), ("--mill", args.mill),
+                                  ("--uncertainty", args.uncertainty)) if v not in (None, False)]
+    if given:  # --ore and --mill were ignored without a word
+        raise SceneError(f"--scene runs the scene's own twin (its ores and mill): {', '.join(given)} "
+                         "do not apply.")
     scene = _with_calibration(load_scene(args.scene), args.calibration)
     models = build_models(scene)
     feed = args.feed_tph if args.feed_tph is not None else scene.feed.feed_tph
@@ -625,12 +646,12 @@ def _steady_scene(args) -> int:
 def cmd_steady(args) -> int:
     import json
 
-    from twin import Blend, load_ore  # light: the surrogate's answer needs neither CasADi nor scikit-learn
-    from twin.calibration import load_calibration
+    from twin.calibration import load_calibration  # light: the surrogate needs neither CasADi nor scikit-learn
 
     if args.scene:
         return _steady_scene(args)
-    blend = Blend.parse(args.blend) if args.blend else Blend.single(load_ore(args.ore))
+    args.mill = args.mill or DEFAULT_MILL
+    blend = _blend_of(args)
     calibration = load_calibration(_calibration_arg(args.calibration))
     if args.uncertainty is not None and (args.surrogate or args.uncertainty < 0):
         raise SceneError("--uncertainty N needs N >= 0 (0: all replicates) and the twin, not --surrogate.")
@@ -711,19 +732,14 @@ def _print_intervals(unc: dict, at_load: bool) -> None:
 
 
 # --------------------------------------------------------------------------- optimize
-#: The feed search range of `optimize`, as multiples of the mill's nominal feed rate.
-OPTIMIZE_FEED_RANGE = (0.2, 2.0)
-
-
 def add_optimize_parser(subparsers):
     o = subparsers.add_parser("optimize", help="feed rate and speed that hold a target P80 at least energy",
                               description="Steady set points for an ore or blend that hold the target P80 with "
                               "the load in its stable band; a table of alternatives (feed only, speed only, both "
                               "for least energy, both for most throughput).")
-    o.add_argument("--ore", default="B", help="reference type A-D or a TOML file with [mineralogy] and [texture]")
-    o.add_argument("--blend", help="blend of ores, e.g. B=0.6,D=0.4 (overrides --ore)")
+    _add_ore_options(o)
     o.add_argument("--target-p80-um", required=True, type=_float_in("--target-p80-um", 1.0, 1e4))
-    o.add_argument("--mill", default="lab", choices=["lab", "industrial"])
+    o.add_argument("--mill", default=DEFAULT_MILL, choices=["lab", "industrial"])
     o.add_argument("--mode", default="both", choices=["both", "feed", "speed"], help="which answer to pick")
     o.add_argument("--objective", default=None, choices=["min_energy", "max_throughput"],
                    help="with --mode both (default min_energy): one input alone has one answer")
@@ -737,18 +753,17 @@ def add_optimize_parser(subparsers):
 def cmd_optimize(args) -> int:
     import json
 
-    from mpc import MpcInputError, optimal_setpoints
-    from twin import Blend, Twin, load_ore
+    from mpc import MpcInputError, default_feed_bounds, optimal_setpoints
+    from twin import Twin
 
     if args.objective is not None and args.mode != "both":
         raise SceneError(f"--objective {args.objective}: with --mode {args.mode} one input holds the target and "
                          "there is one answer; --objective chooses among --mode both's")
-    blend = Blend.parse(args.blend) if args.blend else Blend.single(load_ore(args.ore))
+    blend = _blend_of(args)
     twin = Twin(blend, mill=args.mill, calibration=_calibration_arg(args.calibration))
-    lo, hi = (f * twin.mill.feed_nominal_tph for f in OPTIMIZE_FEED_RANGE)
     try:
         sp = optimal_setpoints(twin, list(blend.fractions), args.target_p80_um, mode=args.mode,
-                               objective=args.objective or "min_energy", feed_bounds_tph=(lo, hi))
+                               objective=args.objective or "min_energy", feed_bounds_tph=default_feed_bounds(twin))
     except MpcInputError as exc:
         raise SceneError(str(exc)) from None
     table = sp.table
@@ -759,7 +774,8 @@ def cmd_optimize(args) -> int:
     if args.json:
         from scenarios.output.write import json_safe
 
-        print(json.dumps(json_safe({"feasible": sp.feasible, "message": sp.message, "mode": sp.mode,
+        print(json.dumps(json_safe({"feasible": sp.feasible, "message": sp.message, "active": sp.active,
+                                    "mode": sp.mode,
                                     "objective": sp.objective if args.mode == "both" else None,
                                     "feed_tph": sp.feed_tph,
                                     "speed_frac_critical": sp.speed_frac_critical, "p80_um": sp.p80_um,

@@ -18,6 +18,9 @@ def test_optimize_holds_the_target_at_least_energy(capsys):
     assert out["specific_energy_kwh_t"] == pytest.approx(min(r["specific_energy_kwh_t"] for r in both), rel=1e-6)
     assert 0.8 <= out["load_frac"] <= 1.2
     assert any("hydrocyclone" in n for n in out["notes"])  # the preset's sized circuit is not what ran
+    # the constraints the answer sits on, as the table's row of the answer says (it was in the table alone)
+    answer = min(both, key=lambda r: abs(r["specific_energy_kwh_t"] - out["specific_energy_kwh_t"]))
+    assert "active" in out and out["active"] == answer["active"]
 
 
 def test_unreachable_target_is_reported_with_exit_1(capsys):

@@ -39,6 +39,12 @@ def test_steady_ore_from_toml(tmp_path, capsys):
     (["steady", "--feed-tph", "-1"], "--feed-tph must be in [0, 100000]. Got -1."),
     (["steady", "--ore", "E"], "must be a reference type (A, B, C, D)"),
     (["steady", "--blend", "B=0.6,D=0.3"], "must sum to 1"),
+    (["steady", "--ore", "A", "--blend", "B=0.6,D=0.4"], "--ore A and --blend B=0.6,D=0.4: give one"),
+    (["optimize", "--ore", "A", "--blend", "B=0.6,D=0.4", "--target-p80-um", "210"],
+     "--ore A and --blend B=0.6,D=0.4: give one"),
+    (["steady", "--scene", "scenarios/molycop_ballsim.toml", "--ore", "A"], "--ore do not apply"),
+    (["steady", "--scene", "scenarios/molycop_ballsim.toml", "--mill", "lab", "--blend", "B=1"],
+     "--blend, --mill do not apply"),
 ])
 def test_bad_arguments_give_one_line_and_exit_2(argv, message, capsys):
     with pytest.raises(SystemExit) as exc:
