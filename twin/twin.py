@@ -80,8 +80,8 @@ class Twin:
             breakage_map(o, self.coefficients) if breakage_map else self.calibration.breakage(o), density)
             for o in self.blend.ores]
         breakage = [_ore_breakage(self.grid, p, power_nom, holdup_nom) for p in params]
-        #: What a steady state of this twin cannot show of its ores (Calibration.texture_notes).
-        self.notes = [] if breakage_map else self.calibration.texture_notes(
+        #: What a steady state of this twin cannot show of its ores (Calibration.ore_notes).
+        self.notes = [] if breakage_map else self.calibration.ore_notes(
             [o for o in self.blend.ores if given.get(o.name) is None])
         feed = _feed_fractions(self.grid, feed_psd, feed_p80_um, feed_modulus)
         self.spec = ModelSpec(
@@ -179,6 +179,11 @@ def _at_time(fn):
     return checked
 
 
+#: How far mixer_volume_fracs may sum from 1 (rounded shares such as 0.7, 0.15, 0.15 or three
+#: thirds written 0.33); what is within it is rescaled, what is not is a slip and refused.
+MIXER_SHARES_SUM_TOL = 0.01
+
+
 def _mixer_fracs(n_mixers, fracs) -> tuple:
     """The mixers' shares of the hold-up: ``fracs`` normalised, or ``n_mixers`` equal shares."""
     if fracs is None:
@@ -188,6 +193,9 @@ def _mixer_fracs(n_mixers, fracs) -> tuple:
     f = np.asarray(fracs, float)
     if f.ndim != 1 or not 1 <= f.size <= 20 or np.any(~np.isfinite(f)) or np.any(f <= 0):
         raise bad_value("Twin", "mixer_volume_fracs", fracs, "1 to 20 positive shares of the hold-up")
+    if abs(f.sum() - 1.0) > MIXER_SHARES_SUM_TOL:  # (1, 1, 1) was read as thirds without a word
+        raise bad_value("Twin", "mixer_volume_fracs", fracs, f"shares of the hold-up summing to 1 within "
+                        f"{MIXER_SHARES_SUM_TOL:g} (sum {f.sum():.4g})")
     return tuple(float(v) for v in f / f.sum())
 
 

@@ -692,7 +692,7 @@ def cmd_steady(args) -> int:
         from twin import centrifuging_note
 
         notes += [n for n in [centrifuging_note(kpis.get("speed_frac_critical") or 0.0)] if n]
-        notes += calibration.texture_notes(blend.ores)
+        notes += calibration.ore_notes(blend.ores)
     else:
         notes += ss.notes + circuit_notes(twin, args.mill)  # a twin's steady state carries its texture note
     if args.json:

@@ -20,11 +20,8 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 
 from mpc import DISTURBANCE_MODELS, QP_SOLVERS, SOLVERS
-from twin import get_mill
+from twin import MIXER_SHARES_SUM_TOL, get_mill
 
-#: How far mixer_volume_fracs may sum from 1 (rounded shares such as 0.7, 0.15, 0.15 or three
-#: thirds written 0.33); the twin rescales what is within it.
-MIXER_SHARES_SUM_TOL = 0.01
 #: The twin's default number of mixers in series (twin.Twin's ``n_mixers``).
 DEFAULT_N_MIXERS = 3
 

@@ -221,6 +221,37 @@ def test_steady_says_the_dem_calibration_does_not_read_texture(tmp_path, capsys)
     assert any("ore B, not its texture" in n for n in build_models(load_scene(scene)).notes)
 
 
+def test_an_ore_beyond_the_calibrations_fitted_ores_is_said_to_be_extrapolated(tmp_path, capsys):
+    """95 % quartz: its energy group Pi (the dem map's input) and its hardness index (the table
+    map's) lie above the reference ores' the calibrations were fitted on, and steady said nothing.
+    The fitted ores themselves and a blend of them get no such note."""
+    import math
+
+    from twin import load_ore, reference_ores
+    from twin.calibration import load_calibration
+    from twin.calibration.dem_map import energy_group
+
+    ore = tmp_path / "quartzite.toml"
+    ore.write_text("[mineralogy]\nquartz = 95.0\npyrite = 5.0\n[texture]\nmean_grain_um = 300.0\n"
+                   "uniformity = 0.6\nassociation_entropy = 0.5\n")
+    law = load_calibration("dem").record["law"]
+    pi = energy_group(load_ore(str(ore)), law["reference"])
+    top = max(math.exp(v) for v in law["ln_energy_group"].values())
+    assert pi > top  # the independent check of what the note must say
+    assert main(["steady", "--ore", str(ore), "--feed-tph", "0.031", "--json"]) == 0
+    notes = json.loads(capsys.readouterr().out)["notes"]
+    assert [n for n in notes if f"energy group Pi {pi:.3g} lies outside the" in n and f"-{top:.3g} of the ores the "
+            "dem calibration was fitted on (A, B, C, D)" in n and "extrapolation" in n]
+    hard = max(o.hardness_index_gpa for o in reference_ores().values())
+    assert main(["steady", "--ore", str(ore), "--feed-tph", "0.031", "--json", "--calibration", "table"]) == 0
+    notes = json.loads(capsys.readouterr().out)["notes"]
+    assert [n for n in notes if "hardness index 12 GPa lies outside" in n and f"-{hard:.3g} GPa" in n]
+    for cal in ("dem", "table"):
+        for argv in (["--ore", "A"], ["--ore", "D"], ["--blend", "A=0.5,D=0.5"]):
+            assert main(["steady", *argv, "--feed-tph", "0.031", "--json", "--calibration", cal]) == 0
+            assert not [n for n in json.loads(capsys.readouterr().out)["notes"] if "extrapolation" in n], (cal, argv)
+
+
 def test_a_speed_where_the_breakage_stops_is_refused_before_solving(capsys):
     """0.001 of critical failed in the solver with "tighten the tolerances", which the command has
     no option for: below 0.1 of critical Austin's speed factor, and so every breakage rate, is

@@ -85,6 +85,11 @@ def test_unequal_mixers_hold_their_shares_of_the_holdup():
 def test_mixer_shares_are_validated():
     with pytest.raises(TwinInputError, match="mixer_volume_fracs"):
         Twin("B", mill="lab", effects=LEAN, mixer_volume_fracs=(0.7, -0.1))
+    # (1, 1, 1) was rescaled to thirds without a word; a scene refuses it, the twin now too
+    with pytest.raises(TwinInputError, match=r"summing to 1 within 0.01 \(sum 3\)"):
+        Twin("B", mill="lab", effects=LEAN, mixer_volume_fracs=(1.0, 1.0, 1.0))
+    rounded = Twin("B", mill="lab", effects=LEAN, mixer_volume_fracs=(0.33, 0.33, 0.33))  # thirds, rounded
+    assert rounded.spec.mixer_fracs == pytest.approx((1 / 3, 1 / 3, 1 / 3), rel=1e-12)
 
 
 def test_given_net_power_is_drawn_at_nominal_speed_and_shaped_by_the_model():

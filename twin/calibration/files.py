@@ -38,6 +38,9 @@ BREAKAGE_MAPS = ("dem", "mineralogy")
 MEASUREMENT_EFFECTS = ("sensor_delay",)
 #: What every mention of a --fast calibration says (:attr:`Calibration.fast`).
 FAST_LABEL = "; made with --fast: a check of the machinery on a few particles, not a calibration"
+#: Relative margin past the fitted ores' range before an input is called an extrapolation (the
+#: reference ores' own values, recomputed, may differ from the record's in the last digits).
+EXTRAPOLATION_TOL = 1e-9
 REQUIRED_KEYS = ("name", "breakage_map", "effects", "size_grid", "n_mixers", "mill", "coefficients", "mills")
 
 
@@ -104,6 +107,44 @@ class Calibration:
         return [f"the dem calibration's breakage map reads the hardness index, elastic modulus and density of "
                 f"ore {', '.join(users)}, not its texture (the textural index; twin.calibration.dem_map): the "
                 "table calibration (--calibration table) maps texture too"]
+
+    def extrapolation_notes(self, ores) -> list[str]:
+        """The ores of ``ores`` whose inputs to this calibration's breakage map lie outside those of
+        the ores it was fitted on, so their breakage is the map's extrapolation: the dem map's energy
+        group Pi (twin.calibration.dem_map s1: its law is the bonded model's, the strength index F(M)
+        is untested there), the mineralogy map's hardness and textural indices."""
+        from ..ore import reference_ores
+
+        refs = reference_ores()
+        if self.breakage_map == "dem":
+            import math
+
+            from .dem_map import energy_group
+
+            law = self.record["law"]
+            fitted = law["ln_energy_group"]
+            inputs = {"energy group Pi": (lambda o: energy_group(o, law["reference"]),
+                                          [math.exp(v) for v in fitted.values()], "")}
+            names = list(fitted)
+        else:
+            names = list(self.record["fit"]["ores"])
+            inputs = {"hardness index": (lambda o: o.hardness_index_gpa,
+                                         [refs[n].hardness_index_gpa for n in names], " GPa"),
+                      "textural index": (lambda o: o.textural_index, [refs[n].textural_index for n in names], "")}
+        notes = []
+        for ore in ores:
+            for what, (of, values, unit) in inputs.items():
+                v, lo, hi = of(ore), min(values), max(values)
+                if not lo * (1 - EXTRAPOLATION_TOL) <= v <= hi * (1 + EXTRAPOLATION_TOL):
+                    notes.append(f"ore {ore.name}'s {what} {v:.3g}{unit} lies outside the {lo:.3g}-{hi:.3g}{unit} "
+                                 f"of the ores the {self.name} calibration was fitted on ({', '.join(names)}): its "
+                                 "breakage is the map's extrapolation")
+        return notes
+
+    def ore_notes(self, ores) -> list[str]:
+        """What a steady state cannot show of ``ores``: :meth:`texture_notes` and
+        :meth:`extrapolation_notes`."""
+        return self.texture_notes(ores) + self.extrapolation_notes(ores)
 
     def breakage(self, ore):
         """Breakage parameters of an ore by this calibration's map."""
