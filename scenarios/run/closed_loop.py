@@ -9,13 +9,14 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from mpc import (RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, MpcInputError, NmpcSettings, Sensors,
-                 TwinPlant, check_out_dir, export_controller, feed_for_target, pi_baseline, run_closed_loop,
+from mpc import (FEED_RANGE_NOMINAL, RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, MpcInputError, NmpcSettings,
+                 Sensors, TwinPlant, check_out_dir, export_controller, feed_for_target, pi_baseline, run_closed_loop,
                  stable_rk4_substeps)
 from scenarios.errors import RunError, SceneError
 from scenarios.run.feed import component_blend
 from scenarios.run.streams import Samples, run_size_data
 from scenarios.scene import Scene
+from scenarios.scene.ranges import nominal_feed_tph
 
 #: Scalar outputs of the plant's model recorded beside the loop's columns when the model has
 #: them (the hydrocyclone's cut size and circulating load).
@@ -96,9 +97,13 @@ def start_mode(scene: Scene) -> str:
     return "scene" if scene.controller.kind == "none" else "target"
 
 
-#: The feed range [t/h] searched for the target's steady state (feed.start = "target"): given here,
-#: since feed_for_target's default follows the mill's nominal feed, which a scene sets to its feed_tph.
-START_FEED_BOUNDS_TPH = (5.0, 60.0)
+def start_feed_bounds_tph(scene: Scene) -> tuple:
+    """The feed range [t/h] searched for the target's steady state (feed.start = "target"):
+    mpc.optimize's range around the nominal feed of the scene's mill (its preset's, scaled by its
+    power: scenarios.scene.ranges), not the twin's, which a scene sets to its own feed_tph. A fixed
+    5-60 t/h held no steady state of a laboratory mill."""
+    nominal = nominal_feed_tph(scene.mill.preset, scene.mill.model_dump()) or float(scene.feed.feed_tph)
+    return tuple(f * nominal for f in FEED_RANGE_NOMINAL)
 
 
 def start_feed_tph(scene: Scene, models, blend0) -> float:
@@ -108,7 +113,7 @@ def start_feed_tph(scene: Scene, models, blend0) -> float:
     c = scene.controller
     if c.target_p80_um is None or start_mode(scene) == "scene":
         return float(scene.feed.feed_tph)
-    lo, hi = START_FEED_BOUNDS_TPH
+    lo, hi = start_feed_bounds_tph(scene)
     feed0 = feed_for_target(models.plant, blend0, c.target_p80_um, scene.feed.speed_frac_critical, (lo, hi))
     if not math.isfinite(feed0):
         raise RunError(f"scene {scene.scene.name}: no feed rate in {lo:g}-{hi:g} t/h holds the target P80 "

@@ -52,3 +52,17 @@ def test_a_sweep_over_the_controller_starts_every_case_where_the_scene_says(writ
     # below the steady state's own p80_um at the same state; the closed loop's from the model output)
     assert table.loc["none", "start_p80_um"] == pytest.approx(table.loc["pi", "start_p80_um"], abs=0.1)
     assert table.loc["none", "start_p80_um"] == pytest.approx(210.0, abs=0.5)
+
+
+def test_start_target_finds_the_laboratory_mills_feed_too(write_scene):
+    """The target's feed was searched in 5-60 t/h whatever the mill: a laboratory scene (0.031 t/h
+    nominal) with start = "target" failed ("no feed rate in 5-60 t/h holds the target"). The range
+    now follows the mill's nominal feed; the found feed holds the target."""
+    scene = (OPEN.replace('preset = "industrial"', 'preset = "lab"')
+             .replace("feed_tph = 30.0", 'feed_tph = 0.03\nstart = "target"')
+             .replace("feed_tph_min = 20.0", "feed_tph_min = 0.02").replace("feed_tph_max = 45.0", "feed_tph_max = 0.045"))
+    assert 'preset = "lab"' in scene
+    res = run_scene(load_scene(write_scene(scene)), progress=False, plots=False)
+    k = res.kpis
+    assert 0.0062 <= k["start_feed_tph"] <= 0.062  # 0.2-2x the lab mill's 0.031 t/h
+    assert k["start_p80_um"] == pytest.approx(210.0, rel=1e-3)
