@@ -229,7 +229,7 @@ def test_an_ore_beyond_the_calibrations_fitted_ores_is_said_to_be_extrapolated(t
 
     from twin import load_ore, reference_ores
     from twin.calibration import load_calibration
-    from twin.calibration.dem_map import energy_group
+    from twin.calibration.strength import energy_group
 
     ore = tmp_path / "quartzite.toml"
     ore.write_text("[mineralogy]\nquartz = 95.0\npyrite = 5.0\n[texture]\nmean_grain_um = 300.0\n"

@@ -98,7 +98,8 @@ from ..errors import TwinInputError
 from ..ore.mineralogy import Mineralogy
 from ..ore.ores import load_ore
 from ..ore.fracture_energy import fit_fracture_energy
-from .dem_map import TARGET_B_N, fit_austin_B, target_peak_force_N
+from .dem_map import fit_austin_B
+from .strength import TARGET_B_N, target_peak_force_N
 
 REFERENCE_ORES = ("A", "B", "C", "D")
 PARTICLE_DIAMETER_M = 0.022

@@ -119,7 +119,7 @@ class Calibration:
         if self.breakage_map == "dem":
             import math
 
-            from .dem_map import energy_group
+            from .strength import energy_group
 
             law = self.record["law"]
             fitted = law["ln_energy_group"]
