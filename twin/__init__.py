@@ -25,14 +25,15 @@ _API = {
     "GatesGaudinSchuhmann": ".sizes", "RosinRammler": ".sizes", "SizeGrid": ".sizes", "discretise": ".sizes",
     "pxx_um": ".sizes",
     "SteadyState": ".solve", "Trajectory": ".solve",
-    "DEFAULT_EFFECTS": ".twin", "MIXER_SHARES_SUM_TOL": ".twin", "Twin": ".twin",
+    "DEFAULT_EFFECTS": ".twin", "MIXER_SHARES_SUM_TOL": ".twin", "mixer_shares_sum_ok": ".twin",
+    "Twin": ".twin",
     "new_folder_beside": ".atomic", "write_text_atomically": ".atomic",
     "trajectory_notes": ".validity",
 }
 
 __all__ = [
     "Blend", "BreakageParams", "CENTRIFUGING_FRAC_CRITICAL", "DEFAULT_EFFECTS", "EFFECTS", "Effect", "FastCalibrationWarning", "GatesGaudinSchuhmann",
-    "INPUT_NAMES", "MILLS", "MIXER_SHARES_SUM_TOL",
+    "INPUT_NAMES", "MILLS", "MIXER_SHARES_SUM_TOL", "mixer_shares_sum_ok",
     "Hydrocyclone", "Mill", "Mineralogy", "Model", "ModelError", "ModelSpec", "OreBreakage", "POWER_MODELS", "RosinRammler",
     "SPEED_FACTOR_ZERO_FRAC_CRITICAL", "SizeGrid", "SizedMill", "SolverError", "SteadyState", "TabulatedPSD",
     "Texture", "Trajectory", "Twin", "TwinError",

@@ -184,6 +184,12 @@ def _at_time(fn):
 MIXER_SHARES_SUM_TOL = 0.01
 
 
+def mixer_shares_sum_ok(total: float) -> bool:
+    """Whether mixer shares summing to ``total`` are shares of the hold-up (within the tolerance,
+    its end included: three thirds written 0.33 sum to 0.99 give or take a rounding of the floats)."""
+    return abs(total - 1.0) <= MIXER_SHARES_SUM_TOL * (1.0 + 1e-9)
+
+
 def _mixer_fracs(n_mixers, fracs) -> tuple:
     """The mixers' shares of the hold-up: ``fracs`` normalised, or ``n_mixers`` equal shares."""
     if fracs is None:
@@ -193,7 +199,7 @@ def _mixer_fracs(n_mixers, fracs) -> tuple:
     f = np.asarray(fracs, float)
     if f.ndim != 1 or not 1 <= f.size <= 20 or np.any(~np.isfinite(f)) or np.any(f <= 0):
         raise bad_value("Twin", "mixer_volume_fracs", fracs, "1 to 20 positive shares of the hold-up")
-    if abs(f.sum() - 1.0) > MIXER_SHARES_SUM_TOL:  # (1, 1, 1) was read as thirds without a word
+    if not mixer_shares_sum_ok(f.sum()):  # (1, 1, 1) was read as thirds without a word
         raise bad_value("Twin", "mixer_volume_fracs", fracs, f"shares of the hold-up summing to 1 within "
                         f"{MIXER_SHARES_SUM_TOL:g} (sum {f.sum():.4g})")
     return tuple(float(v) for v in f / f.sum())

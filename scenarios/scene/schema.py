@@ -20,7 +20,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 
 from mpc import DISTURBANCE_MODELS, QP_SOLVERS, SOLVERS
-from twin import MIXER_SHARES_SUM_TOL, get_mill
+from twin import MIXER_SHARES_SUM_TOL, get_mill, mixer_shares_sum_ok
 
 #: The twin's default number of mixers in series (twin.Twin's ``n_mixers``).
 DEFAULT_N_MIXERS = 3
@@ -116,7 +116,7 @@ class Mill(Section):
         if fracs is not None:
             if any(not f > 0 for f in fracs):
                 raise ValueError(f"mixer_volume_fracs must be positive shares of the hold-up (got {fracs})")
-            if abs(sum(fracs) - 1.0) > MIXER_SHARES_SUM_TOL:  # 1.1 is a slip, not a rounding: say so
+            if not mixer_shares_sum_ok(sum(fracs)):  # 1.1 is a slip, not a rounding: say so
                 raise ValueError(f"mixer_volume_fracs must sum to 1 within {MIXER_SHARES_SUM_TOL:g} (shares of the "
                                  f"hold-up; got {fracs}, sum {sum(fracs):.4g})")
             if self.n_mixers is not None and self.n_mixers != len(fracs):

@@ -59,6 +59,10 @@ def test_mixer_shares_that_do_not_sum_to_one_are_refused(write_scene):
     """[0.7, 0.2, 0.2] (sum 1.1) was rescaled to 0.64/0.18/0.18 without a word."""
     text = BASE_SCENE.replace('preset = "industrial"', 'preset = "industrial"\nmixer_volume_fracs = [0.7, 0.2, 0.2]')
     assert any("must sum to 1 within 0.01" in m and "sum 1.1" in m for m in check_scene(write_scene(text)))
+    # three thirds written 0.33 sum to 0.99 (0.010000000000000009 off in floats): within, not refused
+    thirds = BASE_SCENE.replace('preset = "industrial"',
+                                'preset = "industrial"\nmixer_volume_fracs = [0.33, 0.33, 0.33]')
+    assert not [m for m in check_scene(write_scene(thirds, "thirds.toml")) if "mixer_volume_fracs" in m]
 
 
 def test_scene_inputs_reach_the_twin_as_written(write_scene, tmp_path):
