@@ -74,3 +74,14 @@ def clay_ore(tmp_path) -> Path:
     ore.write_text("[mineralogy]\nkaolinite = 90.0\nquartz = 10.0\n\n[texture]\nmean_grain_um = 20.0\n"
                    "uniformity = 0.6\nassociation_entropy = 0.5\n")
     return ore
+
+
+@pytest.fixture
+def no_run(monkeypatch):
+    """Fail the test if a run gets as far as building its models (it should have been refused)."""
+    import scenarios.run.runner as runner
+
+    def boom(scene):
+        raise AssertionError("the run started although it should have been refused")
+
+    monkeypatch.setattr(runner, "build_models", boom)

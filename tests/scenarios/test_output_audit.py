@@ -188,17 +188,6 @@ def test_a_batch_p80_plot_does_not_call_the_mill_content_the_product():
     plt.close(fig)
 
 
-@pytest.fixture
-def no_run(monkeypatch):
-    """Fail the test if a run gets as far as building its models."""
-    import scenarios.run.runner as runner
-
-    def boom(scene):
-        raise AssertionError("the run started although it should have been refused")
-
-    monkeypatch.setattr(runner, "build_models", boom)
-
-
 def test_a_workbook_no_sheet_holds_is_refused_before_the_run_not_after_it(tmp_path, capsys, no_run):
     """A year at 28.8 s samples is 1,098,001 rows, more than an Excel sheet holds: the workbook is
     written last, so --xlsx failed after the whole run and took every file of it along."""

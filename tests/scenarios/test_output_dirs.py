@@ -26,18 +26,7 @@ def tiny_result(seed: int = 7) -> RunResult:
     return RunResult(frame, {"scene": "tiny", "seed": seed, "kpis": {}, "target_p80_um": None})
 
 
-@pytest.fixture
-def no_work(monkeypatch):
-    """Fail the test if a run gets as far as building its models."""
-    import scenarios.run.runner as runner
-
-    def boom(scene):
-        raise AssertionError("the run started although --out should have been refused")
-
-    monkeypatch.setattr(runner, "build_models", boom)
-
-
-def test_a_folder_with_the_users_files_is_refused_and_left_alone(tmp_path, capsys, no_work):
+def test_a_folder_with_the_users_files_is_refused_and_left_alone(tmp_path, capsys, no_run):
     """The issue's reproduction: the scene and a note in p/, then run --out p."""
     p = tmp_path / "p"
     p.mkdir()
@@ -51,7 +40,7 @@ def test_a_folder_with_the_users_files_is_refused_and_left_alone(tmp_path, capsy
     assert not (tmp_path / "p.partial").exists() and not (tmp_path / "p.lock").exists()
 
 
-def test_the_scene_folder_and_the_current_folder_are_refused(tmp_path, monkeypatch, capsys, no_work):
+def test_the_scene_folder_and_the_current_folder_are_refused(tmp_path, monkeypatch, capsys, no_run):
     scene = short_pyrite_scene(tmp_path)
     monkeypatch.chdir(tmp_path)
     for out in (".", str(tmp_path)):
@@ -98,7 +87,7 @@ def test_a_file_of_that_name_is_refused(tmp_path):
     assert target.read_text() == "not a folder"
 
 
-def test_a_second_run_to_a_locked_folder_is_refused_at_once(tmp_path, capsys, no_work):
+def test_a_second_run_to_a_locked_folder_is_refused_at_once(tmp_path, capsys, no_run):
     """Two runs to one --out cannot mix: while one holds DIR.lock another is refused before it
     starts (flock: a separate open file description conflicts even in the same process)."""
     from scenarios.output.write import MANIFEST, OutputClaim
@@ -134,7 +123,7 @@ def test_a_lock_file_holds_its_tag_from_its_first_instant(tmp_path, monkeypatch)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
 
 
-def test_a_users_lock_file_beside_out_is_refused_and_kept(tmp_path, capsys, no_work):
+def test_a_users_lock_file_beside_out_is_refused_and_kept(tmp_path, capsys, no_run):
     """``--out uv`` beside a project's ``uv.lock``: grindtwin's lock name is taken by a file it did
     not write, so the run is refused before any work and the file is left as it was (it was
     emptied and deleted before)."""
@@ -146,7 +135,7 @@ def test_a_users_lock_file_beside_out_is_refused_and_kept(tmp_path, capsys, no_w
     assert lock.read_text() == "version = 1\n" and not (tmp_path / "uv").exists()
 
 
-def test_an_out_that_is_a_symbolic_link_is_refused_before_the_run(tmp_path, capsys, no_work):
+def test_an_out_that_is_a_symbolic_link_is_refused_before_the_run(tmp_path, capsys, no_run):
     """A link to an empty folder failed after the run ('Not a directory', nothing saved); a link
     to an earlier result was renamed away and replaced by a folder. Both refused first, link kept."""
     (tmp_path / "real").mkdir()
@@ -157,7 +146,7 @@ def test_an_out_that_is_a_symbolic_link_is_refused_before_the_run(tmp_path, caps
     assert (tmp_path / "link").is_symlink() and not any((tmp_path / "real").iterdir())
 
 
-def test_a_signal_a_solver_swallowed_still_stops_the_commit(tmp_path, no_work):
+def test_a_signal_a_solver_swallowed_still_stops_the_commit(tmp_path, no_run):
     """SIGTERM landing inside a CasADi call can come out of it swallowed: the run went on and
     wrote its results with exit 0 (seen once in the suite). The handler's record stops the commit."""
     from scenarios.errors import RECEIVED_SIGNALS, Interrupted
@@ -172,7 +161,7 @@ def test_a_signal_a_solver_swallowed_still_stops_the_commit(tmp_path, no_work):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_lock_left_by_a_killed_run_is_taken_over(tmp_path, no_work):
+def test_a_lock_left_by_a_killed_run_is_taken_over(tmp_path, no_run):
     """A run killed with -9 leaves its DIR.lock (no flock held any more): the next run takes it."""
     from scenarios.output.write import LOCK_TAG, OutputClaim
 
@@ -192,7 +181,7 @@ def _read_only_place(tmp_path) -> Path:
     return ro / "out"
 
 
-def test_an_unwritable_out_is_refused_before_the_run(tmp_path, capsys, no_work):
+def test_an_unwritable_out_is_refused_before_the_run(tmp_path, capsys, no_run):
     out = _read_only_place(tmp_path)
     scene = short_pyrite_scene(tmp_path, duration_h=0.25)
     assert grindtwin(["run", scene, "--out", out, "--quiet"]) == 2
