@@ -270,7 +270,7 @@ def grate_density_factor(solids_density_t_m3: float) -> float:
 class Classification(Effect):
     name = "classification"
     requires = ("transport",)
-    provides = ("discharge_class_factor", "product_split", "flow_multiplier")
+    provides = ("discharge_class_factor", "product_split", "flow_multiplier", "feed_to_classifier")
     outputs = ("cyclone_d50c_um", "circulating_load_frac", "cyclone_feed_tph", "cyclone_underflow_tph",
                "cyclone_pressure_kpa", "cyclone_sharpness", "cyclone_water_bypass_frac", "cyclone_feed_solids_frac",
                "overflow_solids_frac", "underflow_solids_frac", "overflow_water_m3_h", "sump_water_m3_h",
@@ -285,6 +285,13 @@ class Classification(Effect):
                        "(closed circuit, underflow to the mill feed)", choices=("grate", "hydrocyclone")),
         "circulating_load_nominal": Option(2.5, "underflow / fresh feed at nominal (hydrocyclone)", float,
                                            lo=0.0, hi=50.0),
+        "circuit": Option("direct", "'direct' (fresh feed to the mill with the underflow) or 'reverse' (fresh feed "
+                          "to the cyclone feed sump, the mill fed by the underflow alone: the ball mill of most "
+                          "SAG-ball circuits) (hydrocyclone)", choices=("direct", "reverse")),
+        "fresh_feed_solids_frac": Option(None, "solids mass fraction of the fresh feed slurry (0.7, not 70) "
+                                         "entering the sump of a reverse circuit; None: the feed's water is "
+                                         "counted in the sump's water addition (hydrocyclone, reverse)",
+                                         (float, type(None)), lo=0.0, hi=1.0),
         "cyclone": Option(None, "hydrocyclone geometry, feed dilution and model (hydrocyclone): a Hydrocyclone "
                           "or a table of its fields, which may hold a 'survey' table (feed_solids_tph, "
                           "feed_water_m3_h, solids_density_t_m3, d50c_um, sharpness, water_bypass_frac, "
@@ -293,11 +300,22 @@ class Classification(Effect):
                           (Hydrocyclone, dict, type(None))),
     }
 
+    def __init__(self, **options):
+        super().__init__(**options)
+        reverse = self.settings["circuit"] == "reverse"
+        if self.settings["kind"] == "grate" and (reverse or self.settings["fresh_feed_solids_frac"] is not None):
+            raise ModelError("Effect 'classification': 'circuit' = 'reverse' and 'fresh_feed_solids_frac' are "
+                             "options of kind = 'hydrocyclone' (a grate classifies inside the mill).")
+        if not reverse and self.settings["fresh_feed_solids_frac"] is not None:
+            raise ModelError("Effect 'classification': 'fresh_feed_solids_frac' is the slurry a reverse circuit's "
+                             "fresh feed brings to the sump; a direct circuit's feed water is the mill's addition. "
+                             "Set 'circuit' = 'reverse' or leave it out.")
+
     def apply(self, ctx: EffectContext) -> None:
         if self.settings["kind"] == "grate":
             self._grate(ctx)
         else:
-            self._hydrocyclone(ctx)
+            self._hydrocyclone(ctx, self.settings["circuit"] == "reverse")
 
     def _grate(self, ctx: EffectContext) -> None:
         spec = ctx.spec
@@ -317,33 +335,40 @@ class Classification(Effect):
         ctx.note(f"grate factor on the last mixer's discharge, d50 {d50:g} um (quartz slurry) x {density:.3f} "
                  "for the ore's density")
 
-    def _hydrocyclone(self, ctx: EffectContext) -> None:
+    def _hydrocyclone(self, ctx: EffectContext, reverse: bool) -> None:
         spec = ctx.spec
         cl = self.settings["circulating_load_nominal"]
+        s_f = self.settings["fresh_feed_solids_frac"]
         cyc = circuit_cyclone(spec)
         rho = spec.solids_density_t_m3
-        solids_nom = spec.feed_nominal_tph * (1.0 + cl)  # cyclone feed solids at nominal
+        solids_nom = spec.feed_nominal_tph * (1.0 + cl)  # cyclone feed solids at nominal (D + F = F + U reverse)
         at_nominal = cyc.plitt(slurry_m3_h(cyc, solids_nom, rho), rho)
         for key, val in at_nominal.items():
             ctx.param(f"cyclone_{key}", float(val), "", f"{cyc.mode} cyclone at nominal feed")
-        ctx.provide("flow_multiplier", 1.0 + cl)
+        ctx.provide("flow_multiplier", cl if reverse else 1.0 + cl)  # the mill's through-flow over the feed
+        ctx.provide("feed_to_classifier", reverse)
         xs = ca.DM(spec.grid.mid_um)
         cut = ctx.get("cut_size_factor", 1.0)
         s_d = spec.mill.discharge_solids_frac
         feed_floor = 1e-6 * spec.feed_nominal_tph
 
-        def split(discharge):
-            solids = sum(ca.sum1(dc) for dc in discharge)
+        def split(discharge, fresh=None):
+            """The cyclones' overflow and underflow per component of the mill discharge (with the
+            fresh feed ``fresh`` in a reverse circuit)."""
+            stream = discharge if fresh is None else [dc + fc for dc, fc in zip(discharge, fresh)]
+            solids = sum(ca.sum1(dc) for dc in stream)
             state = cyc.plitt(slurry_m3_h(cyc, smooth_max(solids, 1e-3 * solids_nom, 1e-3 * solids_nom), rho), rho)
             d50 = state["d50c_um"] * cut
             rf = state["water_bypass_frac"]
             rs = cyc.solids_bypass(rf)
             e = rs + (1.0 - rs) * (1.0 - ca.exp(-LN2 * (xs / d50) ** state["sharpness_m"]))
-            under = [e * dc for dc in discharge]
-            over = [dc - uc for dc, uc in zip(discharge, under)]
-            _water_balance(ctx, cyc, solids, sum(ca.sum1(u) for u in under), rf, rho, s_d, feed_floor)
+            under = [e * dc for dc in stream]
+            over = [dc - uc for dc, uc in zip(stream, under)]
+            fresh_water = 0.0 if fresh is None or s_f is None else sum(ca.sum1(fc) for fc in fresh) * (1.0 - s_f) / s_f
+            _water_balance(ctx, cyc, solids, sum(ca.sum1(dc) for dc in discharge), fresh_water,
+                           sum(ca.sum1(u) for u in under), rf, rho, s_d, feed_floor)
             ctx.output("cyclone_d50c_um", d50)
-            ctx.output("cyclone_feed_tph", sum(discharge))  # per size class, as the underflow below
+            ctx.output("cyclone_feed_tph", sum(stream))  # per size class, as the underflow below
             ctx.output("cyclone_underflow_tph", sum(under))
             ctx.output("cyclone_pressure_kpa", state["pressure_kpa"])
             ctx.output("cyclone_sharpness", state["sharpness_m"])
@@ -357,6 +382,7 @@ class Classification(Effect):
         ctx.note(f"hydrocyclone ({cyc.mode}): d50c {float(at_nominal['d50c_um']):.0f} um, m "
                  f"{float(at_nominal['sharpness_m']):.2f}, water bypass {float(at_nominal['water_bypass_frac']):.2f} "
                  "at nominal" + (f" (Plitt factors {factors})" if factors else "")
+                 + ("; reverse circuit: fresh feed to the cyclones" if reverse else "")
                  + "; underflow to mixer 0; water balance")
 
 
@@ -383,18 +409,19 @@ def slurry_m3_h(cyc: Hydrocyclone, solids_tph, rho):
     return solids_tph / rho / phi
 
 
-def _water_balance(ctx, cyc, solids, under_solids, rf, rho, s_d, floor):
+def _water_balance(ctx, cyc, solids, discharge_solids, fresh_water, under_solids, rf, rho, s_d, floor):
     """Water [m3/h] and solids fractions of the circuit's streams: the mill discharge at the mill's
-    solids fraction, the sump adds water to the cyclone feed's, the cyclone sends R_f of the feed
-    water to the underflow; the mill's feed water is what the discharge holds less the underflow's."""
+    solids fraction (and a reverse circuit's fresh feed with ``fresh_water`` [t/h]) enter the sump,
+    which adds water to the cyclone feed's; the cyclone sends R_f of the feed water to the
+    underflow; the mill's feed water is what the discharge holds less the underflow's."""
     phi = cyc.feed_volume_pct(rho) / 100.0
     feed_water = solids / rho * (1.0 - phi) / phi * WATER_DENSITY_T_M3
-    discharge_water = solids * (1.0 - s_d) / s_d
+    discharge_water = discharge_solids * (1.0 - s_d) / s_d
     under_water, over_water = rf * feed_water, (1.0 - rf) * feed_water
     over_solids = solids - under_solids
     ctx.output("cyclone_feed_solids_frac", solids / smooth_max(solids + feed_water, floor, floor))
     ctx.output("overflow_solids_frac", over_solids / smooth_max(over_solids + over_water, floor, floor))
     ctx.output("underflow_solids_frac", under_solids / smooth_max(under_solids + under_water, floor, floor))
     ctx.output("overflow_water_m3_h", over_water / WATER_DENSITY_T_M3)
-    ctx.output("sump_water_m3_h", (feed_water - discharge_water) / WATER_DENSITY_T_M3)
+    ctx.output("sump_water_m3_h", (feed_water - discharge_water - fresh_water) / WATER_DENSITY_T_M3)
     ctx.output("mill_water_m3_h", (discharge_water - under_water) / WATER_DENSITY_T_M3)

@@ -5,8 +5,10 @@ Whiten 1974, in Napier-Munn et al. 1996, JKMRC Monograph 2, ch. 10; Austin et al
 report industrial ball mills as one large mixer of ~0.7 of the mean residence time and two
 small ones).
 
-Fresh feed [t/h] (or what arrives of it through ``feed_inventory``) enters mixer 0 split by the blend fractions, each component with the feed
-size distribution; mixer k discharges ``r_k m_k`` into mixer k+1; the last mixer's discharge
+Fresh feed [t/h] (or what arrives of it through ``feed_inventory``) enters mixer 0 split by the
+blend fractions, each component with the feed size distribution (in a reverse circuit it joins
+the mill discharge at the classifier instead); mixer k discharges ``r_k m_k`` into mixer k+1;
+the last mixer's discharge
 (times the class factor of a grate, if listed) is the mill discharge, split by a classifier
 into product and recycle when one is listed. Without ``holdup`` the rate is fixed by the
 nominal mean residence time tau = H_nom / Q_nom (Q_nom the mill's free discharge at nominal
@@ -24,7 +26,8 @@ from .base import Effect, EffectContext
 
 class Transport(Effect):
     name = "transport"
-    uses = ("discharge_rate_law", "discharge_class_factor", "product_split", "flow_multiplier", "feed_arrival_tph")
+    uses = ("discharge_rate_law", "discharge_class_factor", "product_split", "flow_multiplier", "feed_arrival_tph",
+            "feed_to_classifier")
     outputs = ("product_tph", "throughput_tph", "discharge_tph", "p80_um", "psd_frac")
     source = "Austin, Klimpel & Luckie (1984), ch. 9 (mixers in series)"
     summary = "feed in, discharge out, N mixers in series; product P80"
@@ -40,9 +43,11 @@ class Transport(Effect):
         class_factor = ctx.get("discharge_class_factor")
         feed = ca.DM(spec.feed_frac)
         arrival_tph = ctx.get("feed_arrival_tph", ctx.feed_tph)  # the fresh feed, or through an inventory
-        discharge = []
+        to_classifier = ctx.get("feed_to_classifier", False)  # a reverse circuit: fresh feed to the cyclones
+        discharge, fresh = [], []
         for c in range(ctx.n_components):
-            inflow = arrival_tph * ctx.blend(c) * feed
+            fresh.append(arrival_tph * ctx.blend(c) * feed)
+            inflow = 0.0 * feed if to_classifier else fresh[c]
             for k in range(n_mix):
                 out = rate(k) * ctx.mass[c][k]
                 if k == n_mix - 1 and class_factor is not None:
@@ -52,7 +57,7 @@ class Transport(Effect):
             discharge.append(inflow)
         split = ctx.get("product_split")
         if split is not None:
-            product, recycle = split(discharge)
+            product, recycle = split(discharge, fresh if to_classifier else None)
             for c in range(ctx.n_components):
                 ctx.add_rhs(ctx.mass[c][0], recycle[c])
         else:

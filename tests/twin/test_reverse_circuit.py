@@ -1,0 +1,67 @@
+"""The reverse closed circuit (classification option ``circuit = "reverse"``): fresh feed to the
+cyclone feed sump, the mill fed by the underflow alone. Checked by conservation (solids, water),
+a limiting classifier that sends everything to the overflow (the product is then the fresh
+feed itself) and the refusals of options that do not belong together."""
+
+from __future__ import annotations
+
+import pytest
+
+from twin import ModelError, Twin, pxx_um
+
+FEED = 31.0
+#: A surveyed cyclone given directly (fixed cut), so the limits below are exact.
+DIRECT = {"count": 1, "d50c_um": 350.0, "sharpness": 1.4, "water_bypass_frac": 0.35, "feed_solids_frac": 0.65}
+
+
+def circuit(circuit="reverse", **options) -> Twin:
+    return Twin("B", mill="industrial", effect_options={"classification": {
+        "kind": "hydrocyclone", "circuit": circuit, **options}})
+
+
+@pytest.fixture(scope="module")
+def reverse():
+    tw = circuit(cyclone=DIRECT)
+    return tw, tw.steady(feed_tph=FEED)
+
+
+def test_the_product_is_the_fresh_feed_and_the_mill_is_fed_by_the_underflow(reverse):
+    tw, ss = reverse
+    o = ss.outputs
+    assert o["throughput_tph"] == pytest.approx(FEED, rel=1e-8)
+    # the mill's discharge is its feed, the underflow: D = U = CL F (a direct circuit's is F + U)
+    assert o["discharge_tph"] == pytest.approx(o["circulating_load_frac"] * FEED, rel=1e-8)
+    assert any("reverse circuit" in t.what for t in tw.model.terms)
+
+
+def test_water_in_is_water_out_and_a_wet_feed_takes_its_water_from_the_sumps_addition(reverse):
+    _, dry = reverse
+    o = dry.outputs
+    assert o["mill_water_m3_h"] + o["sump_water_m3_h"] == pytest.approx(o["overflow_water_m3_h"], rel=1e-9)
+    wet = circuit(cyclone=DIRECT, fresh_feed_solids_frac=0.8).steady(feed_tph=FEED).outputs
+    assert wet["sump_water_m3_h"] == pytest.approx(o["sump_water_m3_h"] - FEED * 0.2 / 0.8, rel=1e-9)
+    assert wet["mill_water_m3_h"] == pytest.approx(o["mill_water_m3_h"], rel=1e-9)
+    assert wet["throughput_tph"] == pytest.approx(FEED, rel=1e-8)
+
+
+def test_a_classifier_that_keeps_nothing_passes_the_fresh_feed_through_unground():
+    """A cut far above the feed's top size and no bypass to the underflow: in a reverse circuit
+    the fresh feed leaves as product as it came; in a direct one it is ground first."""
+    none_kept = {**DIRECT, "d50c_um": 5e4, "sharpness": 6.0, "water_bypass_frac": 1e-6, "solids_bypass_frac": 1e-6}
+    tw = circuit(cyclone=none_kept)
+    ss = tw.steady(feed_tph=FEED)
+    assert ss.outputs["circulating_load_frac"] < 1e-5
+    assert ss.p80_um == pytest.approx(pxx_um(tw.grid, tw.spec.feed_frac), rel=1e-4)
+    direct = circuit("direct", cyclone=none_kept).steady(feed_tph=FEED)
+    assert direct.p80_um < 0.5 * ss.p80_um
+
+
+@pytest.mark.parametrize("options,fragment", [
+    ({"kind": "grate", "circuit": "reverse"}, "options of kind = 'hydrocyclone'"),
+    ({"kind": "hydrocyclone", "fresh_feed_solids_frac": 0.7}, "Set 'circuit' = 'reverse'"),
+    ({"kind": "hydrocyclone", "circuit": "revers"}, "Did you mean 'reverse'?"),
+])
+def test_options_that_do_not_belong_together_are_refused(options, fragment):
+    with pytest.raises(ModelError) as info:
+        Twin("B", mill="industrial", effect_options={"classification": options})
+    assert fragment in str(info.value)
