@@ -46,8 +46,13 @@ INPUTS_HOLD_AFTER_SAMPLES = 2
 #: The P80 of the product is a size: above 0 (0 is what a dead analyser sends); and a mill only
 #: breaks, so it lies below the top of the coarsest feed class (:func:`p80_max_um`).
 P80_MIN_UM = 0.0
-#: The mill's motor draws power: below 0 is a sign or scaling fault (a stopped mill reads 0).
+#: The mill's motor draws power: below 0 is a sign or scaling fault (a stopped mill reads 0); above
+#: POWER_MAX_MODEL_MULTIPLE times the most the mill's power model draws (at critical speed, clay-free
+#: slurry: :func:`power_max_kw`) it is one too. The multiple allows the drive's losses in a gross
+#: reading (gross over net 1.11 in the Moly-Cop BallSim base case: 4316 over 3885 kW) and the power
+#: model's own error, and still catches a reading in W, or a digit too many.
 POWER_MIN_KW = 0.0
+POWER_MAX_MODEL_MULTIPLE = 2.0
 #: The load is a hold-up (over nominal): an empty mill reads 0, never less; its upper limit is the
 #: mill filled to its shell around its balls (:meth:`twin.Mill.max_holdup_t` over the nominal hold-up,
 #: :func:`load_max_frac`): a mill holding more overflows.
@@ -65,7 +70,8 @@ BLEND_FRAC_MIN = 0.0
 #: Why each measurement's physical range is what it is (in the tag map's messages).
 PHYSICAL_REASONS = {
     "p80_um": "a size above 0 and below the top of the coarsest feed class: a mill only breaks",
-    "power_kw": "a motor draws power; a stopped mill reads 0",
+    "power_kw": f"a motor draws power; a stopped mill reads 0, and it draws at most {POWER_MAX_MODEL_MULTIPLE:g} x "
+                "what its power model gives at critical speed",
     "load_frac": "a hold-up; an empty mill reads 0, and above the mill filled to its shell it overflows",
     "feed_tph": f"a stopped belt reads 0; above {FEED_MAX_NOMINAL_MULTIPLE:g} x the mill's nominal feed "
                 "(its preset's, scaled by its power) is no operating point of it",
@@ -292,13 +298,28 @@ def load_max_frac(scene: Scene) -> float:
     return mill.max_holdup_t(1.0) / mill.nominal_holdup_t(1.0)
 
 
+def power_max_kw(scene: Scene) -> float:
+    """The most net power the scene's mill draws by its power models (the mill's and any the scene's
+    or its plant's power effect names): at critical speed, where both models are largest (Bond's
+    grows with speed below it, Hogg & Fuerstenau's is linear in it), in a clay-free slurry (the
+    rheology's factor is at most 1: clay only thickens it)."""
+    from scenarios.run.models import scene_mill
+    from twin import power_kw
+
+    mill = scene_mill(scene)
+    tables = [scene.effect_options, getattr(scene.plant, "effect_options", None)]
+    models = {mill.power_model} | {t["power"]["model"] for t in tables
+                                   if isinstance((t or {}).get("power"), dict) and t["power"].get("model")}
+    return max(float(power_kw(mill.with_(power_model=m), 1.0)) for m in models)
+
+
 def physical_range(name: str, scene: Scene) -> PlausibleRange:
     """The physically possible values of the measurement ``name`` of :class:`Measurements` on
     the scene's mill (the constants above, the reasons in PHYSICAL_REASONS)."""
     if name == "p80_um":
         return PlausibleRange(P80_MIN_UM, p80_max_um(scene), True, True, "um")
     if name == "power_kw":
-        return PlausibleRange(POWER_MIN_KW, math.inf, unit="kW")
+        return PlausibleRange(POWER_MIN_KW, POWER_MAX_MODEL_MULTIPLE * power_max_kw(scene), unit="kW")
     if name == "load_frac":
         return PlausibleRange(LOAD_MIN_FRAC, load_max_frac(scene), unit="of the nominal hold-up")
     if name == "feed_tph":  # the mill's nominal feed, as scenes and recorded histories are judged

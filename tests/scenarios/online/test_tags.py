@@ -92,7 +92,9 @@ def test_a_cycle_trigger_must_be_a_measurement_the_map_reads(tmp_path, small_sce
 
 
 def test_each_measurement_gets_its_physical_range_from_the_scene(tmp_path, small_scene):
-    from scenarios.online.tags import FEED_MAX_NOMINAL_MULTIPLE, blend_range, physical_range, plausible_range
+    from scenarios.online.tags import (FEED_MAX_NOMINAL_MULTIPLE, POWER_MAX_MODEL_MULTIPLE, blend_range,
+                                       physical_range, plausible_range)
+    from scenarios.run.models import scene_mill
 
     tags = online.load_tags(_write(tmp_path, SMALL_TAGS), small_scene)
     got = {name: plausible_range(name, m, small_scene) for name, m in tags.measurements}
@@ -102,9 +104,14 @@ def test_each_measurement_gets_its_physical_range_from_the_scene(tmp_path, small
 
     nominal = nominal_feed_tph(small_scene.mill.preset, small_scene.mill.model_dump())  # the mill's, not feed.feed_tph
     assert str(got["p80_um"]) == f"(0, {top:g}) um"
-    assert str(got["power_kw"]) == "[0, inf) kW"
+    from twin import power_kw
+
+    # the power meter: at most twice what the mill's power model draws at critical speed (a reading in W,
+    # or with a digit too many, is Bad); it was unbounded
+    most = POWER_MAX_MODEL_MULTIPLE * float(power_kw(scene_mill(small_scene), 1.0))
+    assert str(got["power_kw"]) == f"[0, {most:g}] kW" and 1000.0 * 300.0 not in got["power_kw"]
+    assert float(power_kw(scene_mill(small_scene), 0.7)) in got["power_kw"]  # its draw at the usual speed is
     from scenarios.online.tags import load_max_frac
-    from scenarios.run.models import scene_mill
 
     mill = scene_mill(small_scene)  # the load meter reads hold-up over nominal: at most the mill filled to its shell
     full = mill.max_holdup_t(2.7) / mill.nominal_holdup_t(2.7)
@@ -143,5 +150,5 @@ def test_a_map_may_narrow_a_plausible_range_but_not_widen_it(tmp_path, small_sce
     assert ("measurements.p80_um.plausible_min: must lie in the physical range (0, 6700) um (a size above 0 and "
             "below the top of the coarsest feed class: a mill only breaks); it may narrow it, not widen it "
             "(got -5.0)") in msg
-    assert "measurements.power_kw.plausible_min: must lie in the physical range [0, inf) kW" in msg
+    assert "measurements.power_kw.plausible_min: must lie in the physical range [0, " in msg
     assert "measurements.speed_frac_critical: plausible_min must be below plausible_max (got min 0.8, max 0.7)" in msg
