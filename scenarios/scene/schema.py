@@ -21,6 +21,7 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 
 from mpc import DISTURBANCE_MODELS, QP_SOLVERS, SOLVERS
 from twin import MIXER_SHARES_SUM_TOL, get_mill, mixer_shares_sum_ok
+from twin.ore import MEAN_GRAIN_RANGE_UM
 
 #: The twin's default number of mixers in series (twin.Twin's ``n_mixers``).
 DEFAULT_N_MIXERS = 3
@@ -178,7 +179,7 @@ class Texture(Section):
     equigranular), mineral-association entropy in [0, 1] (1 = fully intergrown); as
     ``twin.ore.mineralogy.Texture``."""
 
-    mean_grain_um: float = Field(gt=0, le=1e5)
+    mean_grain_um: float = Field(ge=MEAN_GRAIN_RANGE_UM[0], le=MEAN_GRAIN_RANGE_UM[1])
     """Mean mineral grain size [um] (automated mineralogy)."""
     uniformity: float = Field(gt=0, le=1, json_schema_extra={"unit": "-"})
     """Grain-size uniformity: 1 = equigranular."""

@@ -88,3 +88,14 @@ def test_a_stopped_feed_is_steady_in_every_state():
         assert ss.outputs["feed_inventory_t"] == pytest.approx(feed * tau_h, abs=1e-12)
     assert ss.outputs["holdup_t"] == 0.0 and math.isnan(ss.p80_um)
     assert math.isnan(ss.outputs["p80_measured_um"]) and math.isnan(ss.outputs["content_p80_um"])
+
+
+@pytest.mark.parametrize("grain", [0.001, 0.05, 2e4])
+def test_a_grain_size_no_rock_has_is_refused(tmp_path, grain):
+    """0.001 um gave a textural index of 447 (table calibration: P80 307 against 204) with no word:
+    a unit slip (mm or nm for um) is refused, naming the field and the range; the range's ends pass."""
+    from twin.ore import MEAN_GRAIN_RANGE_UM, Texture
+
+    with pytest.raises(TwinInputError, match=r"'mean_grain_um' parameter of Texture must be a float in \[0.1, 10000\]"):
+        Texture(grain)
+    assert [Texture(g).mean_grain_um for g in MEAN_GRAIN_RANGE_UM] == list(MEAN_GRAIN_RANGE_UM)

@@ -16,7 +16,7 @@ _API = {
     "analyse_curves": ".indentation", "oliver_pharr": ".indentation", "read_curves": ".indentation",
     "reduced_modulus_gpa": ".indentation", "synthesize_curve": ".indentation",
     "youngs_from_reduced_gpa": ".indentation",
-    "Mineralogy": ".mineralogy", "Texture": ".mineralogy",
+    "MEAN_GRAIN_RANGE_UM": ".mineralogy", "Mineralogy": ".mineralogy", "Texture": ".mineralogy",
     "CLAY_MINERALS": ".minerals", "CUSHIONING_MINERALS": ".minerals", "MICA_MINERALS": ".minerals",
     "SULFIDE_MINERALS": ".minerals", "Mineral": ".minerals", "mineral_names": ".minerals",
     "mineral_table": ".minerals", "source_table": ".minerals",
@@ -28,6 +28,7 @@ _API = {
 }
 
 __all__ = [
+    "MEAN_GRAIN_RANGE_UM",
     "AreaFunction", "BLEND_SUM_TOLERANCE", "Blend", "BreakageOutcomeFit", "CLAY_MINERALS", "CUSHIONING_MINERALS",
     "FractureEnergyFit", "IndentationResult", "Indenter", "MICA_MINERALS", "Mineral", "Mineralogy", "OreTyper",
     "SULFIDE_MINERALS", "SampleTableError", "SizeDependence", "Texture", "analyse_curves", "breakage_probability",

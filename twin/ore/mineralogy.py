@@ -25,6 +25,10 @@ TEXTURE_COLUMNS = ("mean_grain_um", "uniformity", "association_entropy")
 
 #: Reference grain size of the textural index [um]: the coarse, equigranular Type A texture.
 TEXTURE_REFERENCE_GRAIN_UM = 200.0
+#: Mean grain sizes an ore's texture may have [um]: from clay platelets (~0.1 um) to the coarsest
+#: igneous textures (pegmatites, ~1 cm); beyond, the value is a unit slip (mm or nm for um), and the
+#: textural index ~ d^-1/2 it enters would be off by a factor of ~30.
+MEAN_GRAIN_RANGE_UM = (0.1, 1e4)
 
 
 @dataclass(frozen=True)
@@ -38,7 +42,7 @@ class Texture:
     association_entropy: float = 0.5
 
     def __post_init__(self):
-        check_range("Texture", "mean_grain_um", self.mean_grain_um, 0.0, 1e5)
+        check_range("Texture", "mean_grain_um", self.mean_grain_um, *MEAN_GRAIN_RANGE_UM, lo_open=False, hi_open=False)
         check_range("Texture", "uniformity", self.uniformity, 0.0, 1.0, hi_open=False)
         check_range("Texture", "association_entropy", self.association_entropy, 0.0, 1.0,
                     lo_open=False, hi_open=False)
