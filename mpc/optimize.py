@@ -149,6 +149,39 @@ def speed_for_target(twin, blend, target_p80_um: float, feed_tph: float,
     return min(roots, key=lambda s: state(s).outputs["specific_energy_kwh_t"])
 
 
+#: Speeds scanned along the curve P80 = target by ``"both"`` before its bounded search.
+SPEED_SCAN_POINTS = 9
+
+
+class _LeftFeedBounds(Exception):
+    """No feed within the bounds holds the target at a speed the band search tried."""
+
+
+def _band_crossings(pts, band, on_curve) -> list:
+    """Points of the curve P80 = target inside the load band between two scanned neighbours whose
+    loads lie on opposite sides of it: the load on the curve is continuous in speed, so a feasible
+    window narrower than the scan's step lies between them (the scan alone called it infeasible).
+    The point found is where the load is mid-band (Brent's method)."""
+    mid = 0.5 * (band[0] + band[1])
+    out = []
+    for (s0, f0, _, l0), (s1, f1, _, l1) in zip(pts, pts[1:]):
+        if math.isnan(f0) or math.isnan(f1) or not (l0 - band[0]) * (l1 - band[0]) < 0 \
+                or not (l0 - band[1]) * (l1 - band[1]) < 0:
+            continue  # not one below the band and the other above it
+
+        def gap(s):
+            load = on_curve(float(s))[2]
+            if math.isnan(load):
+                raise _LeftFeedBounds
+            return load - mid
+        try:
+            s = scipy.optimize.brentq(gap, s0, s1, xtol=1e-6)
+        except _LeftFeedBounds:  # the target left the feed bounds between them: no crossing to find
+            continue
+        out.append((s, *on_curve(float(s))))
+    return out
+
+
 #: Speeds [fraction of critical] this close to a speed bound, or to a speed that breaks a
 #: constraint, put the answer of ``"both"`` on that constraint: a few times the bounded search's
 #: ``xatol`` (1e-4), within which it stops short of an edge it approaches.
@@ -231,8 +264,10 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
                 found.append(broken(side))
         return "; ".join(dict.fromkeys(found))
 
-    grid = np.linspace(speed_bounds[0], speed_bounds[1], 9)
+    grid = np.linspace(speed_bounds[0], speed_bounds[1], SPEED_SCAN_POINTS)
     pts = [(s, *on_curve(float(s))) for s in grid]
+    pts = sorted(pts + _band_crossings(pts, band, on_curve), key=lambda p: p[0])
+    grid = np.array([p[0] for p in pts])
     for obj in OBJECTIVES:
         def score(p):
             s, f, se, load = p

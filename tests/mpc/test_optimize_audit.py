@@ -91,3 +91,23 @@ def test_no_answer_for_the_load_band_is_not_called_unreachable(twins):
     sp = optimal_setpoints(a, [1.0], 120.0, mode="both", feed_bounds_tph=default_feed_bounds(a))
     assert not sp.feasible
     assert "load outside the stable band" in sp.message and "unreachable" not in sp.message
+
+
+def test_a_feasible_window_between_two_scanned_speeds_is_found(twins):
+    """A load band narrower than the load's change between two of the 9 scanned speeds: every
+    scanned point lies outside it, and "both" said infeasible (exit 1) though the curve crosses
+    the band between two of them. The crossing is found, inside the band, holding the target."""
+    import numpy as np
+
+    from mpc.optimize import SPEED_SCAN_POINTS
+
+    lab = twins["B"]
+    speeds = np.linspace(0.55, 0.90, SPEED_SCAN_POINTS)
+    s_mid = 0.5 * (speeds[2] + speeds[3])
+    load_mid = _on_curve(lab, 210.0, s_mid)[2]
+    band = (load_mid - 0.002, load_mid + 0.002)
+    assert all(not band[0] <= _on_curve(lab, 210.0, s)[2] <= band[1] for s in speeds)  # the scan misses it
+    sp = optimal_setpoints(lab, [1.0], 210.0, load_band=band)
+    assert sp.feasible, sp.message
+    assert band[0] <= sp.load_frac <= band[1] and speeds[2] < sp.speed_frac_critical < speeds[3]
+    assert sp.p80_um == pytest.approx(210.0, rel=1e-3)
