@@ -88,6 +88,12 @@ def test_a_stopped_feed_is_steady_in_every_state():
         assert ss.outputs["feed_inventory_t"] == pytest.approx(feed * tau_h, abs=1e-12)
     assert ss.outputs["holdup_t"] == 0.0 and math.isnan(ss.p80_um)
     assert math.isnan(ss.outputs["p80_measured_um"]) and math.isnan(ss.outputs["content_p80_um"])
+    # nor are the empty mill's minerals and slurry (its viscosity read 14.2); with ore it has them
+    from twin.solve.steady import CONTENT_OUTPUTS
+
+    clay = Twin("D")
+    assert all(math.isnan(clay.steady(feed_tph=0.0).outputs[k]) for k in CONTENT_OUTPUTS)
+    assert all(np.isfinite(clay.steady(feed_tph=0.031).outputs[k]) for k in CONTENT_OUTPUTS)
 
 
 @pytest.mark.parametrize("grain", [0.001, 0.05, 2e4])

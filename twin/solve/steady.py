@@ -57,6 +57,10 @@ def _scalar_output_function(model) -> tuple[list, ca.Function]:
     return names, ca.Function("scalar_outputs", [model.x, model.u, model.d], [ca.vertcat(*exprs)])
 
 
+#: Outputs that describe the mill's content (its size, minerals and slurry): undefined when it is empty.
+CONTENT_OUTPUTS = ("content_p80_um", "soft_frac", "clay_frac", "slurry_relative_viscosity")
+
+
 def _scalar_outputs(model, x, u, d) -> dict:
     names, fn = _scalar_output_function(model)
     return dict(zip(names, np.asarray(fn(x, u, d), float).ravel().tolist()))
@@ -167,9 +171,10 @@ def _result(model, x, u, d, method) -> SteadyState:
     psd = np.asarray(_product_psd(model)(x, u, d)).ravel()
     p80 = pxx_um(model.spec.grid, psd) if psd.sum() > 0 else math.nan
     # sizes of nothing are undefined: the model's smooth P80 gives ~1.6 um for no product, which an
-    # analyser's lag (p80_measured_um) then reports; the content's P80 of an empty mill likewise
+    # analyser's lag (p80_measured_um) then reports; the content of an empty mill likewise (its
+    # slurry's viscosity read 14.2 for a slurry that is not there)
     undefined = [k for k in ("p80_um", "p80_measured_um") if not psd.sum() > 0]
-    undefined += ["content_p80_um"] if not outs.get("holdup_t", 1.0) > 0.0 else []
+    undefined += list(CONTENT_OUTPUTS) if not outs.get("holdup_t", 1.0) > 0.0 else []
     outs.update({k: math.nan for k in undefined if k in outs})
     status = load_status(outs["load_frac"], model.spec.mill.stable_band) if "load_frac" in outs else "n/a"
     notes = state_notes(model.spec, model.effect_names, float(u[1]), outs.get("holdup_t", 0.0), outs.get("clay_frac"),
