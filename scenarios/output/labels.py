@@ -82,3 +82,13 @@ def calibration_text(cal) -> str | None:
         return None
     sha = f", sha256 {cal['sha256'][:12]}" if cal.get("sha256") else ""
     return f"{cal.get('name')} ({cal.get('path') or 'in memory'}{sha}{FAST_LABEL if cal.get('fast') else ''})"
+
+
+def effects_rows(summary: dict) -> list[tuple[str, str]]:
+    """The run's effects as the report and workbook name them: the scene's, and the plant's when a
+    [plant] table runs others (it showed the scene's alone, as if the plant had run them)."""
+    scene = list(summary.get("effects") or [])
+    plant = summary.get("plant_effects")
+    if plant is None or set(plant) == set(scene):
+        return [("effects", ", ".join(scene))]
+    return [("effects (controller's model)", ", ".join(scene)), ("plant effects", ", ".join(plant))]

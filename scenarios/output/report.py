@@ -17,7 +17,7 @@ import warnings
 from pathlib import Path
 
 from scenarios.errors import SceneError
-from scenarios.output.labels import KPI_LABELS, calibration_text, kpi_text
+from scenarios.output.labels import KPI_LABELS, calibration_text, effects_rows, kpi_text
 from scenarios.output.plots import PLOTS
 from scenarios.output.write import (INCOMPLETE_MARKER, MANIFEST, file_sha256, installed_version, manifest_files,
                                     read_manifest)
@@ -140,7 +140,8 @@ def render_report(run_dir) -> str:
 
 
 #: Fields of summary.json the report reads -> their JSON type (a hand-edited one raised a traceback).
-SUMMARY_FIELDS = {"replay": dict, "versions": dict, "calibration": dict, "effects": list, "components": list,
+SUMMARY_FIELDS = {"replay": dict, "versions": dict, "calibration": dict, "effects": list, "plant_effects": list,
+                  "components": list,
                   "notes": list, "warnings": list}
 _JSON_NAMES = {dict: "object", list: "array"}
 
@@ -175,7 +176,7 @@ def _render(run_dir: Path, summary: dict, problems: list[str]) -> str:
         parts.append(f"<p>{html.escape(summary['description'])}</p>")
     facts = [("mode", summary.get("mode")), ("controller", summary.get("controller")),
              ("target P80 [µm]", summary.get("target_p80_um")), ("seed", summary.get("seed")),
-             ("effects", ", ".join(summary.get("effects", []))),
+             *effects_rows(summary),
              ("components", ", ".join(summary.get("components", []))),
              ("calibration", calibration_text(summary.get("calibration"))),
              ("scene file", summary.get("source"))]

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from scenarios.output.labels import KPI_LABELS, calibration_text, is_percent, percent_decimals
+from scenarios.output.labels import KPI_LABELS, calibration_text, effects_rows, is_percent, percent_decimals
 
 #: Size distributions a run writes as CSV: the stream (``attrs['what']``) -> file name.
 PSD_FILES = {"product": "product_psd.csv", "mill content": "mill_psd.csv"}
@@ -110,7 +110,7 @@ def scene_rows(scene) -> pd.DataFrame:
 def summary_rows(summary: dict) -> pd.DataFrame:
     keys = ("scene", "description", "mode", "controller", "target_p80_um", "seed", "source", "wall_time_s")
     rows = [(k, summary.get(k)) for k in keys]
-    rows += [("effects", ", ".join(summary.get("effects", []))),
+    rows += [*effects_rows(summary),
              ("components", ", ".join(summary.get("components", []))),
              ("calibration", calibration_text(summary.get("calibration")))]
     # the warnings apart, as the report puts them (a run's notes hold its warnings too)

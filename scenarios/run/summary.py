@@ -103,6 +103,8 @@ def make_summary(scene: Scene, models: Models, kpis: dict, notes: list[str], wal
         "preview_lead_h": scene.controller.preview_lead_h,
         "mode": "batch" if is_batch(scene) else ("closed_loop" if closed else "open_loop"),
         "effects": list(scene.effects),
+        "plant_effects": sorted(models.plant.model.effect_names,  # what the plant ran ([plant] may differ),
+                                key=lambda e: (list(scene.effects) + [e]).index(e)),  # in the scene's order
         "calibration": models.calibration.identity() if models.calibration is not None else None,
         "components": models.components,
         "schedule": [ev.model_dump() for ev in scene.feed.schedule],

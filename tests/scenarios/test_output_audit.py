@@ -267,3 +267,24 @@ def test_the_terminal_shows_a_share_short_of_one_as_a_percentage_and_an_undefine
     assert lines[1].split() == ["p80_within_10um_frac", "99.996%"]
     assert lines[2].split() == ["p80_iae_um_h", "n/a"] and lines[3].split() == ["specific_energy_kwh_t", "6.603"]
     assert _value_text("p80_iae_um_h", None) == "n/a" and _value_text("p80_iae_um_h", float("nan")) == "n/a"
+
+
+def test_the_report_and_workbook_name_the_plants_effects_when_they_are_not_the_scenes(tmp_path):
+    """The report's effects row showed the scene's (the controller's model) as if the plant had run
+    them; a [plant] table that runs others is now named apart. One row when they are the same."""
+    run = fake_run(tmp_path)
+    summary = json.loads((run / "summary.json").read_text())
+    frame = pd.read_parquet(run / "timeseries.parquet")
+    plant = ["breakage", "transport", "holdup"]
+    apart = write_run(RunResult(frame, {**summary, "plant_effects": plant}), tmp_path / "apart", plots=False,
+                      xlsx=True)
+    text = render_report(apart)
+    assert "<th>effects (controller&#x27;s model)</th><td>breakage, transport</td>" in text
+    assert "<th>plant effects</th><td>breakage, transport, holdup</td>" in text
+    book = openpyxl.load_workbook(apart / "run.xlsx", read_only=True)
+    rows = {r[0]: r[1] for r in book["summary"].values if r and r[0]}
+    assert rows["plant effects"] == "breakage, transport, holdup"
+    same = write_run(RunResult(frame, {**summary, "plant_effects": ["transport", "breakage"]}), tmp_path / "same",
+                     plots=False)
+    text = render_report(same)
+    assert "<th>effects</th><td>breakage, transport</td>" in text and "plant effects" not in text
