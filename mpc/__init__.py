@@ -9,6 +9,7 @@ from mpc.discretize import (RK4_RATE_SAFETY, cvodes_map, min_rk4_substeps, rk4_m
 from mpc.errors import MpcError, MpcInputError, MpcSolverError, OutsideModelsWarning
 from mpc.codegen import CompileFallbackWarning, CompileReport, compiled
 from mpc.estimator import DISTURBANCE_MODELS, MEASUREMENTS, Ekf
+from mpc.estimator import RK4_SUBSTEPS as EKF_RK4_SUBSTEPS
 from mpc.export import check_out_dir, export_controller
 from mpc.kpis import (P80_BAND_UM, cumulative, fresh_feed_t, held_cumulative, held_integral, integral, loop_kpis,
                       outside_band_frac, p80_iae_um_h, specific_energy_kwh_t, within_band_frac)
@@ -23,6 +24,7 @@ from mpc.results import ControllerStepResult
 from mpc.sensors import Sensors, SensorState
 
 __all__ = [
+    "EKF_RK4_SUBSTEPS",
     "CLOSED_LOOP_READS", "OutsideModelsWarning", "speed_max_note",
     "ClosedLoopResult", "CompileFallbackWarning", "CompileReport", "DISTURBANCE_MODELS", "Controller", "ControllerStepResult", "DiscretePI", "ESTIMATOR_MEASUREMENTS", "Ekf",
     "FixedInputs", "Fopdt", "LeRouxCircuit", "LeRouxParameters", "LeRouxPlant", "LinearMPC", "LoopSettings",

@@ -50,6 +50,12 @@ HARDNESS_NOISE_PER_SQRT_H = 0.03
 #: over hours, not minutes).
 P80_BIAS_NOISE_UM_PER_SQRT_H = 5.0
 DISTURBANCE_MODELS = ("hardness", "p80_bias", "hardness+p80_bias")
+#: Default RK4 steps per sample of the filter's prediction, the NMPC's default
+#: (:attr:`mpc.nmpc.NmpcSettings.rk4_substeps`: stable for the 15-class model at 0.05 h). Explicit
+#: RK4 past its stability limit amplifies the fastest mode every step, and the covariance with it
+#: (``A P A^T``): the filter diverges. A caller that knows the stable count of its model (a scene's
+#: ``controller.rk4_substeps``, checked by the runner) passes at least that.
+RK4_SUBSTEPS = 3
 
 
 class Ekf:
@@ -80,7 +86,8 @@ class Ekf:
     p0_rel, hardness_p0, p80_bias_p0_um : float
         Initial standard deviations (relative for the states, absolute for the disturbances).
     rk4_substeps : int
-        RK4 steps per sample.
+        RK4 steps per sample (:data:`RK4_SUBSTEPS`); at least the stable count of the model at
+        its operating points, else the prediction and the covariance grow without bound.
     hardness_bounds : tuple
         The estimate is clipped to this range.
     disturbance_model : str
@@ -98,7 +105,7 @@ class Ekf:
                  power_noise_kw: float = 30.0, load_noise_frac: float = 0.1,
                  state_noise_rel: float = 1e-4,
                  hardness_noise_per_sqrt_h: float = HARDNESS_NOISE_PER_SQRT_H,
-                 p0_rel: float = 0.05, hardness_p0: float = 0.1, rk4_substeps: int = 3,
+                 p0_rel: float = 0.05, hardness_p0: float = 0.1, rk4_substeps: int = RK4_SUBSTEPS,
                  hardness_bounds: tuple = (0.3, 3.0), disturbance_model: str = "hardness",
                  p80_bias_noise_um_per_sqrt_h: float = P80_BIAS_NOISE_UM_PER_SQRT_H,
                  p80_bias_p0_um: float = 10.0, p80_gain: float = 1.0, p80_reference_um: float | None = None,
@@ -149,7 +156,10 @@ class Ekf:
         self._x0, self._h0 = x0.copy(), float(hardness0)
         p0_d = ([hardness_p0 ** 2] if self.has_hardness else []) + ([p80_bias_p0_um ** 2] if self.has_p80_bias else [])
         self._p0 = np.diag(np.r_[(p0_rel * self.scale) ** 2, p0_d])
-        self.step_function = self._step_function(rk4_substeps)
+        if not isinstance(rk4_substeps, (int, np.integer)) or isinstance(rk4_substeps, bool) or rk4_substeps < 1:
+            raise MpcInputError(f"The 'rk4_substeps' parameter of Ekf must be an int >= 1. Got {rk4_substeps!r}.")
+        self.rk4_substeps = int(rk4_substeps)
+        self.step_function = self._step_function(self.rk4_substeps)
         self._step, self.build_report = compiled(self.step_function, codegen)
         self.reset()
 

@@ -9,9 +9,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from mpc import (FEED_RANGE_NOMINAL, RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, MpcInputError, NmpcSettings,
-                 Sensors, TwinPlant, check_out_dir, export_controller, feed_for_target, pi_baseline, run_closed_loop,
-                 stable_rk4_substeps)
+from mpc import (EKF_RK4_SUBSTEPS, FEED_RANGE_NOMINAL, RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, MpcInputError,
+                 NmpcSettings, Sensors, TwinPlant, check_out_dir, export_controller, feed_for_target, pi_baseline,
+                 run_closed_loop, stable_rk4_substeps)
 from scenarios.errors import RunError, SceneError
 from scenarios.run.feed import component_blend
 from scenarios.run.streams import Samples, run_size_data
@@ -123,9 +123,14 @@ def start_feed_tph(scene: Scene, models, blend0) -> float:
 
 def make_estimator(scene: Scene, twin, css, codegen: str = "auto"):
     """The NMPC's EKF on the controller's twin, started at the steady state ``css``, with the
-    scene's disturbance model."""
-    return Ekf(twin.model, scene.scene.sample_period_h, css.x, disturbance_model=scene.controller.disturbance_model,
-               codegen=codegen)
+    scene's disturbance model. Its prediction takes the scene's ``controller.rk4_substeps`` (the
+    count :func:`check_rk4_substeps` found stable for this model), or the EKF's default where that
+    is more: it integrates the same model over the same sample as the NMPC, and with fewer steps
+    than the stable count its prediction and covariance grow without bound (a reverse circuit at
+    rk4_substeps = 4 diverged on the EKF's 3 once the load passed 0.88)."""
+    c = scene.controller
+    return Ekf(twin.model, scene.scene.sample_period_h, css.x, disturbance_model=c.disturbance_model,
+               rk4_substeps=max(c.rk4_substeps, EKF_RK4_SUBSTEPS), codegen=codegen)
 
 
 def scene_sensors(scene: Scene) -> Sensors:

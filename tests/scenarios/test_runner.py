@@ -383,6 +383,34 @@ def test_an_unstable_rk4_substep_count_is_refused_with_the_needed_one():
         run_scene(scene, progress=False)
 
 
+@pytest.mark.parametrize(("scene_substeps", "ekf_substeps", "not_substeps"), [(2, 3, 2), (5, 5, 3)])
+def test_the_estimator_predicts_with_the_scenes_rk4_substeps_or_its_own_where_more(scene_substeps, ekf_substeps,
+                                                                                   not_substeps):
+    """The EKF predicts with the model the NMPC runs, over the same sample: with fewer RK4 steps
+    than the count the runner checked stable (``controller.rk4_substeps``) its prediction and
+    covariance grew without bound (a reverse circuit at rk4_substeps = 4 on the EKF's 3, once the
+    load passed 0.88: five resets in 4 h). Its prediction (no measurement) is the RK4 map of the
+    larger of the scene's count and its own default, to rounding, and not the other's."""
+    from mpc import rk4_map
+    from scenarios.run.closed_loop import make_estimator
+    from scenarios.scene.loader import load_scene
+
+    scene = load_scene(LIBRARY / "reference_transition.toml")
+    scene.controller.rk4_substeps = scene_substeps
+    tw = build_models(scene).control
+    css = tw.steady(feed_tph=23.4, speed_frac_critical=0.70, blend=[1.0, 0.0])
+    ekf = make_estimator(scene, tw, css, codegen="off")
+    m, dt = tw.model, scene.scene.sample_period_h
+    x = css.x * (1.0 + 0.3 * np.sin(np.arange(css.x.size)))  # off the steady state: the prediction moves
+    u, blend, hardness = np.array([27.0, 0.73]), np.array([1.0, 0.0]), 1.0
+    z, _, _ = ekf.step_function(np.r_[x, hardness], ekf.P, u, blend, np.zeros(3), np.zeros(3))
+    predicted = np.asarray(z, float).ravel()[: x.size]
+    own = np.asarray(rk4_map(m.f, dt, ekf_substeps)(x, u, np.r_[blend, hardness]), float).ravel()
+    other = np.asarray(rk4_map(m.f, dt, not_substeps)(x, u, np.r_[blend, hardness]), float).ravel()
+    np.testing.assert_allclose(predicted, own, rtol=1e-10, atol=1e-12 * np.abs(own).max())
+    assert np.max(np.abs(predicted - other)) > 1e-6 * np.abs(own).max()
+
+
 def test_a_run_whose_plant_overflows_its_mill_says_so(tmp_path, short_run):
     """A replay at 250 t/h into the 30-t/h mill: its hold-up passes what the mill holds filled to
     its shell; the run warns (summary warnings and notes, so the screen and the report) with the
