@@ -39,6 +39,8 @@ from .mill import INDUSTRIAL_BASE, Mill, get_mill
 from .twin import DEFAULT_EFFECTS, FEED_P80_UM, Twin
 from .validity import water_shortfalls
 
+#: Where a sized circuit's fresh feed enters: the mill (direct) or the cyclones' sump (reverse).
+CIRCUITS = ("direct", "reverse")
 #: Design circulating load (underflow over fresh feed) of a ball mill-cyclone circuit.
 DESIGN_CIRCULATING_LOAD = 2.5
 #: Design feed pressure of the cyclones [kPa]: 7.7 psi, that of the six-cyclone cluster of the
@@ -99,9 +101,10 @@ CIRCUIT_KEYS = ("cyclone_pressure_kpa", "cyclone_d50c_um", "cyclone_water_bypass
                 "underflow_solids_frac", "overflow_solids_frac", "sump_water_m3_h", "mill_water_m3_h")
 
 
-def circuit_twin(ore, mill: Mill, cyclone: dict, **kwargs) -> Twin:
-    """The twin of a mill in closed circuit with its hydrocyclones (default effects)."""
-    options = {"classification": {"kind": "hydrocyclone", "cyclone": dict(cyclone),
+def circuit_twin(ore, mill: Mill, cyclone: dict, circuit: str = "direct", **kwargs) -> Twin:
+    """The twin of a mill in closed circuit with its hydrocyclones (default effects), fresh feed to
+    the mill (``"direct"``) or to the cyclones (``"reverse"``)."""
+    options = {"classification": {"kind": "hydrocyclone", "cyclone": dict(cyclone), "circuit": circuit,
                                   "circulating_load_nominal": DESIGN_CIRCULATING_LOAD}}
     return Twin(ore, mill=mill, effects=list(DEFAULT_EFFECTS), effect_options=options, **kwargs)
 
@@ -116,13 +119,13 @@ def similar_cyclone(design: Hydrocyclone, diameter_cm: float, count: int, feed_s
             "feed_solids_vol_pct": feed_solids_vol_pct, "feed_solids_frac": None}
 
 
-def _at(ore, base: Mill, diameter_m: float, cyclone: dict, feed_tph: float, speed: float, calibration):
+def _at(ore, base: Mill, diameter_m: float, cyclone: dict, feed_tph: float, speed: float, calibration, circuit):
     aspect = base.length_m / base.diameter_m
     mill = base.with_(diameter_m=diameter_m, length_m=aspect * diameter_m, feed_nominal_tph=feed_tph,
                       speed_nominal_frac_critical=speed, cyclone=tuple(sorted(cyclone.items())))
     with warnings.catch_warnings():  # Newton on an overloading trial mill: the SolverError is the answer
         warnings.simplefilter("ignore", scipy.sparse.linalg.MatrixRankWarning)
-        return mill, circuit_twin(ore, mill, cyclone, calibration=calibration).steady(
+        return mill, circuit_twin(ore, mill, cyclone, circuit, calibration=calibration).steady(
             feed_tph=feed_tph, speed_frac_critical=speed)
 
 
@@ -134,19 +137,20 @@ class _FeedOutOfRange(SolverError):
 class _DesignPoint:
     """The design point's residuals for ``count`` cyclones of ``design``'s shape (module docstring)."""
 
-    def __init__(self, ore, base, design, count, feed_tph, target_p80_um, speed, calibration, pressure_kpa):
-        self.args = ore, base, feed_tph, speed, calibration
+    def __init__(self, ore, base, design, count, feed_tph, target_p80_um, speed, calibration, pressure_kpa,
+                 circuit):
+        self.args = ore, base, feed_tph, speed, calibration, circuit
         self.design, self.count, self.target, self.pressure_kpa = design, count, target_p80_um, pressure_kpa
 
     def cyclone(self, x) -> dict:
         return similar_cyclone(self.design, math.exp(x[1]), self.count, 10.0 * x[2])
 
     def __call__(self, x):
-        ore, base, feed_tph, speed, calibration = self.args
+        ore, base, feed_tph, speed, calibration, circuit = self.args
         if not 0.0 < 10.0 * x[2] < FEED_SOLIDS_VOL_PCT_MAX:
             raise _FeedOutOfRange(f"the cut would need a cyclone feed of {10.0 * x[2]:.3g} % solids by volume "
                                   f"(a feed holds 0-{FEED_SOLIDS_VOL_PCT_MAX:g} %)")
-        mill, ss = _at(ore, base, math.exp(x[0]), self.cyclone(x), feed_tph, speed, calibration)
+        mill, ss = _at(ore, base, math.exp(x[0]), self.cyclone(x), feed_tph, speed, calibration, circuit)
         o = ss.outputs
         r = np.array([math.log(ss.p80_um / self.target),
                       math.log(o["circulating_load_frac"] / DESIGN_CIRCULATING_LOAD),
@@ -228,10 +232,11 @@ def load_design_cyclone(path) -> Hydrocyclone:
 
 def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, speed_frac_critical: float = 0.70,
               base: str | Mill = INDUSTRIAL_BASE, cyclone: Hydrocyclone | None = None,
-              calibration=None, cyclone_pressure_kpa: float = DESIGN_CYCLONE_PRESSURE_KPA) -> SizedMill:
+              calibration=None, cyclone_pressure_kpa: float = DESIGN_CYCLONE_PRESSURE_KPA,
+              circuit: str = "direct") -> SizedMill:
     """Size the mill and its cyclones (module docstring) with ``calibration`` (default: the
-    default calibration), the cyclones of ``cyclone``'s shape at ``cyclone_pressure_kpa``;
-    TwinInputError for bad inputs, SolverError naming why each cyclone count failed if none gives
+    default calibration), the cyclones of ``cyclone``'s shape at ``cyclone_pressure_kpa``, in a
+    ``circuit`` of :data:`CIRCUITS`; TwinInputError for bad inputs, SolverError naming why each cyclone count failed if none gives
     a design point."""
     from .calibration import load_calibration
     from .twin import _as_blend
@@ -244,6 +249,9 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
                              f"grinds (P80 {FEED_P80_UM:g} um): no mill coarsens its feed. Got {target_p80_um:g}.")
     check_range("size_mill", "speed_frac_critical", speed_frac_critical, 0.3, 0.95)
     check_range("size_mill", "cyclone_pressure_kpa", cyclone_pressure_kpa, *CYCLONE_PRESSURE_RANGE_KPA)
+    if circuit not in CIRCUITS:
+        raise TwinInputError(f"The 'circuit' parameter of size_mill must be one of {', '.join(map(repr, CIRCUITS))} "
+                             f"(fresh feed to the mill, or to the cyclones). Got {circuit!r}.")
     base = get_mill(base)
     design = cyclone or Hydrocyclone()
     if design.mode == "direct":  # a fixed cut cannot be sized to the target
@@ -253,7 +261,7 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
     tried = []
     for count in range(1, MAX_CYCLONES + 1):
         point = _DesignPoint(ore, base, design, count, feed_tph, target_p80_um, speed_frac_critical, calibration,
-                             cyclone_pressure_kpa)
+                             cyclone_pressure_kpa, circuit)
         try:
             x, mill, ss = _newton(point, _first_guess(design, base, count, feed_tph, rho, cyclone_pressure_kpa))
         except SolverError as exc:
@@ -270,7 +278,7 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
                              ss.p80_um, o["circulating_load_frac"], o["power_kw"], o["specific_energy_kwh_t"],
                              o["load_frac"], ss.load_status, tried, calibration.identity(), ss.notes,
                              {k: float(o[k]) for k in CIRCUIT_KEYS}
-                             | {"design_cyclone_pressure_kpa": cyclone_pressure_kpa})
+                             | {"design_cyclone_pressure_kpa": cyclone_pressure_kpa, "circuit": circuit})
         if d_cyc < CYCLONE_DIAMETER_RANGE_CM[0] or o["sump_water_m3_h"] < 0.0:
             break  # more cyclones are smaller and, at the design pressure, cut finer: they need a denser feed
     raise SolverError(f"No circuit gives P80 {target_p80_um:g} um at {feed_tph:g} t/h with circulating load "

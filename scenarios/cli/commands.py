@@ -809,6 +809,9 @@ def add_size_mill_parser(subparsers):
     z.add_argument("--cyclone-pressure-kpa", type=float, default=None,
                    help="the cyclones' design feed pressure [kPa] (default twin.sizing.DESIGN_CYCLONE_PRESSURE_KPA, "
                    "53: the Moly-Cop BallSim base case's cluster)")
+    z.add_argument("--circuit", choices=["direct", "reverse"], default="direct",
+                   help="fresh feed to the mill (direct, default) or to the cyclones' sump (reverse: the ball "
+                   "mill of most SAG-ball circuits)")
     z.add_argument("--cyclone", metavar="FILE",
                    help="a TOML file of one cyclone table, as a scene's effect_options.classification.cyclone "
                    "(geometry and Plitt factors, or a 'survey'): the cyclones are of its shape and model; the "
@@ -832,11 +835,14 @@ def cmd_size_mill(args) -> int:
         check_preset_path(args.write_preset)  # before the sizing's minutes of work
     pressure = {} if args.cyclone_pressure_kpa is None else {"cyclone_pressure_kpa": args.cyclone_pressure_kpa}
     cyclone = {} if args.cyclone is None else {"cyclone": load_design_cyclone(args.cyclone)}
-    sized = size_mill(load_ore(args.ore), args.feed_tph, args.target_p80_um, args.speed, **cyclone, **pressure)
+    circuit = {} if args.circuit == "direct" else {"circuit": args.circuit}
+    sized = size_mill(load_ore(args.ore), args.feed_tph, args.target_p80_um, args.speed, **cyclone, **pressure,
+                      **circuit)
     command = (f"grindtwin size-mill --ore {args.ore} --feed-tph {args.feed_tph:g} --target-p80-um "
                f"{args.target_p80_um:g} --speed {args.speed:g}"
                + "".join(f" --cyclone-pressure-kpa {v:g}" for v in pressure.values())
-               + ("" if args.cyclone is None else f" --cyclone {args.cyclone}"))
+               + ("" if args.cyclone is None else f" --cyclone {args.cyclone}")
+               + "".join(f" --circuit {v}" for v in circuit.values()))
     record = sized.record(command)
     if args.write_preset:
         print(f"wrote {write_preset(sized, f'{command} --write-preset {args.write_preset}', args.write_preset)}")

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-from twin import ModelError, Twin, pxx_um
+from twin import ModelError, Twin, TwinInputError, pxx_um
 
 FEED = 31.0
 #: A surveyed cyclone given directly (fixed cut), so the limits below are exact.
@@ -65,3 +65,22 @@ def test_options_that_do_not_belong_together_are_refused(options, fragment):
     with pytest.raises(ModelError) as info:
         Twin("B", mill="industrial", effect_options={"classification": options})
     assert fragment in str(info.value)
+
+
+def test_a_mill_sized_for_a_reverse_circuit_meets_its_design_point_in_that_circuit():
+    """size_mill(circuit="reverse"): the sized mill and cyclones, run again as a reverse circuit,
+    hold the target at the design circulating load and pressure; run as a direct circuit they miss
+    them (the sizing used the circuit it was asked for)."""
+    from twin.sizing import DESIGN_CIRCULATING_LOAD, DESIGN_CYCLONE_PRESSURE_KPA, circuit_twin, size_mill
+
+    sized = size_mill("B", FEED, 210.0, circuit="reverse")
+    assert sized.circuit["circuit"] == "reverse"
+    ss = circuit_twin("B", sized.mill, sized.cyclone, "reverse").steady(feed_tph=FEED)
+    assert ss.p80_um == pytest.approx(210.0, rel=1e-3)
+    assert ss.outputs["circulating_load_frac"] == pytest.approx(DESIGN_CIRCULATING_LOAD, rel=1e-3)
+    assert ss.outputs["cyclone_pressure_kpa"] == pytest.approx(DESIGN_CYCLONE_PRESSURE_KPA, rel=1e-3)
+    direct = circuit_twin("B", sized.mill, sized.cyclone, "direct").steady(feed_tph=FEED).outputs
+    assert abs(direct["circulating_load_frac"] / DESIGN_CIRCULATING_LOAD - 1) > 0.1  # 1.85 here
+    assert abs(direct["cyclone_pressure_kpa"] / DESIGN_CYCLONE_PRESSURE_KPA - 1) > 0.1
+    with pytest.raises(TwinInputError, match="'circuit' parameter of size_mill must be one of 'direct', 'reverse'"):
+        size_mill("B", FEED, 210.0, circuit="closed")
