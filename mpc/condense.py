@@ -212,8 +212,9 @@ class RtiLibrary:
 
     STATUS = {0: "solved", 1: "infeasible", 2: "Hessian not positive definite", 3: "iteration limit",
               4: "dependent equality constraints", 5: "solved with a regularised Hessian",
-              -1: "QP data evaluation failed"}
+              6: "QP data not finite (nan or inf in H, g or A)", -1: "QP data evaluation failed"}
     REGULARISED = 5  # solved on H + GT_QP_REG max(diag H) I (mpc/c/gt_qp.h)
+    NOT_FINITE = 6  # a nan or an infinity in the QP data: nothing solved
     SOLVED = (0, REGULARISED)
 
     def __init__(self, path):

@@ -586,10 +586,19 @@ class Controller:
             return (w_next - w, None) if st in RtiLibrary.SOLVED else (None, RtiLibrary.STATUS.get(st, str(st)))
         if self.settings.qpsol == "condensed":
             H, grad, A, lba, uba, lbv, ubv, Gw, hw = self._qp_data(w, p)
-            sol = self._qp(h=H, g=grad, a=A, lba=lba, uba=uba, lbx=lbv, ubx=ubv)
+            data, bounds = (H, grad, A), (lba, uba)
         else:
             H, grad, g, A = self._qp_data(w, p)
             g = np.asarray(g, float).ravel()
+            data, bounds = (H, grad, A, g), ()
+        # as the compiled step (mpc/c/gt_qp.c): a nan or an infinity in the data, or a nan bound (an
+        # infinite one is none), is refused before the QP solver, which would fail on it for another reason
+        if not (all(ca.DM(v).is_regular() for v in data) and not any(np.any(np.isnan(np.asarray(v, float)))
+                                                                     for v in bounds)):
+            return None, RtiLibrary.STATUS[RtiLibrary.NOT_FINITE]
+        if self.settings.qpsol == "condensed":
+            sol = self._qp(h=H, g=grad, a=A, lba=lba, uba=uba, lbx=lbv, ubx=ubv)
+        else:
             sol = self._qp(h=H, g=grad, a=A, lba=lbg - g, uba=ubg - g, lbx=lbx - w, ubx=ubx - w)
         st = self._qp.stats()
         self.qp_iterations += int(st.get("iter_count", 0))

@@ -180,6 +180,17 @@ static void j_times_from(int n, const double *J, const double *d, int q, double 
     }
 }
 
+/* 0 unless H, g or A holds a nan or an infinity or a bound is nan (an infinite bound is absent) */
+static int data_not_finite(int n, int m, const double *H, const double *g, const double *A,
+                           const double *lba, const double *uba, const double *lbx, const double *ubx) {
+    long i;
+    for (i = 0; i < (long)n * n; ++i) if (!isfinite(H[i])) return 1;
+    for (i = 0; i < (long)m * n; ++i) if (!isfinite(A[i])) return 1;
+    for (i = 0; i < n; ++i) if (!isfinite(g[i]) || isnan(lbx[i]) || isnan(ubx[i])) return 1;
+    for (i = 0; i < m; ++i) if (isnan(lba[i]) || isnan(uba[i])) return 1;
+    return 0;
+}
+
 int gt_qp_solve(int n, int m, const double *H, const double *g, const double *A,
                 const double *lba, const double *uba, const double *lbx, const double *ubx,
                 double *x, double *lam, int *iter, int max_iter, double *work, int *iwork) {
@@ -188,6 +199,10 @@ int gt_qp_solve(int n, int m, const double *H, const double *g, const double *A,
     double *J = work, *R = J + (long)n * n, *d = R + (long)n * n, *z = d + n, *r = z + n;
     double *np_ = r + n, *u = np_ + n, *ax = u + n + 1, *cnorm = ax + m;
     int *act = iwork, *act_flip = act + n, *is_active = act_flip + n;
+    if (data_not_finite(n, m, H, g, A, lba, uba, lbx, ubx)) {
+        if (iter) *iter = 0;
+        return GT_QP_NOT_FINITE;
+    }
     if (cholesky(n, H, 0.0, J)) { /* semi-definite to rounding: regularise once, reported */
         double dmax = 0.0;
         for (i = 0; i < n; ++i) dmax = H[i + n * i] > dmax ? H[i + n * i] : dmax;

@@ -3,7 +3,8 @@
  *   min 0.5 x'Hx + g'x   s.t.  lba <= A x <= uba,  lbx <= x <= ubx
  *
  * H (n x n, symmetric positive definite) and A (m x n) dense, column-major. A bound or row with
- * lb == ub is an equality; an infinite bound (|b| >= GT_QP_INF) is absent. No allocation: the
+ * lb == ub is an equality; an infinite bound (|b| >= GT_QP_INF) is absent. H, g and A must be
+ * finite and no bound nan (else GT_QP_NOT_FINITE). No allocation: the
  * caller passes gt_qp_work_size(n, m) doubles and gt_qp_iwork_size(n, m) ints.
  */
 #ifndef GT_QP_H
@@ -17,8 +18,10 @@ enum gt_qp_status {
     GT_QP_NOT_CONVEX = 2,   /* the Cholesky factorisation of H failed (H not positive definite) */
     GT_QP_MAX_ITER = 3,     /* iteration limit */
     GT_QP_DEPENDENT = 4,    /* an equality constraint is linearly dependent on the active ones */
-    GT_QP_REGULARISED = 5   /* solved, but H's Cholesky failed (H semi-definite to rounding) and
+    GT_QP_REGULARISED = 5,  /* solved, but H's Cholesky failed (H semi-definite to rounding) and
                                H + GT_QP_REG max(diag H) I was factorised instead */
+    GT_QP_NOT_FINITE = 6    /* H, g or A holds a nan or an infinity, or a bound a nan: nothing solved
+                               (checked first: a nan in H failed its Cholesky as if H were indefinite) */
 };
 
 #define GT_QP_REG 1e-10

@@ -173,3 +173,23 @@ def test_goldfarb_idnani_reports_infeasible_and_nonconvex(gi):
     st, x, _ = gi(np.ones((2, 2)), np.array([-1.0, -1.0]), np.zeros((0, 2)), np.zeros(0), np.zeros(0),
                   -np.ones(2), np.ones(2))
     assert st == 5 and x[0] + x[1] == pytest.approx(1.0, abs=1e-6)
+
+
+@pytest.mark.parametrize("where", ["H", "g", "A", "lba", "ubx"])
+def test_goldfarb_idnani_reports_qp_data_that_is_not_finite_as_such(gi, where):
+    """A nan in the data (the prediction of an NMPC overflowed on a diverged state estimate) is
+    status 6, not a Hessian that is not positive definite (2: a nan failed the Cholesky as an
+    indefinite H would) nor a solution (0: a nan in g passed the Cholesky and gave a nan x); the
+    same QP with an infinite bound (absent) solves."""
+    data = dict(H=np.eye(2), g=np.array([1.0, -1.0]), A=np.array([[1.0, 1.0]]), lba=np.array([-1.0]),
+                uba=np.array([np.inf]), lbx=-np.ones(2), ubx=np.ones(2))
+    st, x, _ = gi(**data)
+    assert st == 0 and np.all(np.isfinite(x))
+    bad = {k: v.copy() for k, v in data.items()}
+    bad[where].flat[0] = np.nan
+    st, _, _ = gi(**bad)
+    assert st == 6
+    if where != "lba":
+        bad[where].flat[0] = np.inf
+        st, _, _ = gi(**bad)
+        assert st == (0 if where == "ubx" else 6)

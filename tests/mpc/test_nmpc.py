@@ -199,3 +199,25 @@ def test_a_speed_bound_where_the_charge_centrifuges_is_noted_with_key_value_and_
     note = speed_max_note(NmpcSettings(speed_max=0.99), "controller.bounds.speed_max")
     assert note.startswith("controller.bounds.speed_max = 0.99: ") and f"beyond {LIMIT} " in note
     assert speed_max_note(NmpcSettings(speed_max=0.99)).startswith("speed_max = 0.99: ")
+
+
+@pytest.mark.parametrize(("qpsol", "codegen"), [("hpipm", "off"), ("condensed", "off"), ("condensed", "on")])
+def test_a_prediction_that_overflows_is_reported_as_qp_data_not_finite(ctrl_twin, qpsol, codegen):
+    """A state estimate far outside the model (a diverged estimator's: here 1e150 times the
+    steady hold-up, finite) overflows the RK4 prediction, and nan enters the Gauss-Newton QP's
+    data. The step fails as "QP data not finite", checked before the QP solver, whichever it is:
+    the compiled one had reported "Hessian not positive definite" (its Cholesky failed on the nan;
+    a Gauss-Newton Hessian 2 Jr' Jr is never indefinite) and the others their own failures. The
+    steady state itself solves."""
+    from mpc import codegen as cg
+
+    if codegen == "on" and cg.find_compiler() is None:
+        pytest.skip("no C compiler on this machine")
+    ss = ctrl_twin.steady(feed_tph=27.0, speed_frac_critical=0.70, blend=[1.0, 0.0])
+    ctrl = Controller(ctrl_twin.model, NmpcSettings(horizon_steps=N, dt_h=0.05, solver="rti", qpsol=qpsol,
+                                                    codegen=codegen))
+    d = ctrl_twin.model.d_vector([1.0, 0.0])
+    assert ctrl.make_step(ss.x, d, ss.u).success
+    ctrl.reset()
+    r = ctrl.make_step(ss.x * 1e150, d, ss.u)
+    assert not r.success and r.status == "rti QP failed: QP data not finite (nan or inf in H, g or A)"
