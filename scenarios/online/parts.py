@@ -12,7 +12,7 @@ import numpy as np
 from mpc import ClosedLoopResult, FixedInputs, LoopSettings, run_closed_loop
 from scenarios.run import build_models
 from scenarios.run.closed_loop import (ESTIMATOR_WARMUP_H, check_rk4_substeps, hold_schedule, make_controller,
-                                       make_estimator, plant_start, scene_sensors)
+                                       make_estimator, plant_start, scene_sensors, schedule_blends)
 from scenarios.run.feed import component_blend, feed_schedule
 from scenarios.run.models import component_ores
 from scenarios.online.soft_sensor import SoftSensor
@@ -50,7 +50,7 @@ def build_parts(scene: Scene, soft_sensor: bool = False, surrogate: bool = False
     blend0 = initial_blend(scene, models.components)
     css = models.control.steady(feed_tph=scene.feed.feed_tph, speed_frac_critical=scene.feed.speed_frac_critical,
                                 blend=blend0)
-    check_rk4_substeps(scene, models.control.model, css)
+    check_rk4_substeps(scene, models.control, css, schedule_blends(scene, models))
     ores = component_ores(scene)
     soft = SoftSensor(models.control, ores, scene.mill.preset, with_surrogate=surrogate) if soft_sensor else None
     return ControlParts(scene, models, make_controller(scene, models.control),

@@ -72,14 +72,77 @@ def nmpc_settings(scene: Scene):
         solver=c.solver, qpsol=c.qpsol, preview=c.preview_lead_h > 0)
 
 
-def check_rk4_substeps(scene: Scene, model, css) -> None:
+#: Bisections of the feed range for the top of the load band (:func:`band_top_steady`): the feed to
+#: 1/4096 of the range (0.006 t/h on 20-45 t/h), the rates there to far less than RK4_RATE_SAFETY's margin.
+BAND_TOP_BISECTIONS = 12
+
+
+def band_top_steady(scene: Scene, twin, blend, feed_lo_tph: float):
+    """The controller model's steady state at the scene's speed and ``blend`` with the highest feed in
+    [``feed_lo_tph``, the controller's feed bound] whose load stays within the top of the load band (a
+    feed with no steady state counts as past it: the mill fills); None when ``feed_lo_tph`` passes it."""
+    m, hi = twin.model, scene.controller.load_band_frac[1]
+    speed = scene.feed.speed_frac_critical
+
+    def within(feed):
+        try:
+            ss = twin.steady(feed_tph=feed, speed_frac_critical=speed, blend=blend)
+        except Exception:  # noqa: BLE001 - no steady state: past the band
+            return None
+        return ss if float(m.outputs["load_frac"](ss.x, ss.u, ss.d)) <= hi else None
+
+    lo, up = float(feed_lo_tph), feed_bounds(scene)[1]
+    best = within(up)
+    if best is not None or lo >= up:
+        return best
+    best = within(lo)
+    for _ in range(BAND_TOP_BISECTIONS if best is not None else 0):
+        mid = 0.5 * (lo + up)
+        ss = within(mid)
+        lo, up, best = (mid, up, ss) if ss is not None else (lo, mid, best)
+    return best
+
+
+#: A feed of more distinct blends than this (a recorded history) is represented by its extremes
+#: (:func:`schedule_blends`): each band-top check solves about a dozen steady states.
+MAX_CHECKED_BLENDS = 8
+
+
+def schedule_blends(scene: Scene, models) -> list:
+    """The distinct blends (component fractions) of the scene's feed over its run; of more than
+    :data:`MAX_CHECKED_BLENDS`, the first and those richest and poorest in each component."""
+    from scenarios.run.feed import feed_schedule
+    from scenarios.run.models import component_ores
+
+    feed, _ = feed_schedule(scene, models.components, scene.time_grid_h(), component_ores(scene))
+    blends = np.round(component_blend(feed, models.components), 12)
+    rows = np.unique(blends, axis=0)
+    if len(rows) > MAX_CHECKED_BLENDS:
+        pick = {0} | {int(f(blends[:, j])) for j in range(blends.shape[1]) for f in (np.argmax, np.argmin)}
+        rows = np.unique(blends[sorted(pick)], axis=0)
+    return list(rows)
+
+
+def check_rk4_substeps(scene: Scene, twin, css, blends=()) -> None:
     """Refuse ``controller.rk4_substeps`` below the RK4 stability count of the controller's
-    model at its initial steady state (mpc.discretize.stable_rk4_substeps)."""
-    need = stable_rk4_substeps(model.f, css.x, css.u, css.d, scene.scene.sample_period_h)
-    if scene.controller.rk4_substeps < need:
-        raise SceneError(f"controller.rk4_substeps = {scene.controller.rk4_substeps} is unstable for the "
-                         f"controller's model at the initial steady state: RK4 needs at least {need} "
-                         f"steps per {scene.scene.sample_period_h} h sample (rates x {RK4_RATE_SAFETY})")
+    model (mpc.discretize.stable_rk4_substeps) at its initial steady state ``css`` and, for each of
+    ``blends``, at the top of the load band (:func:`band_top_steady`, from the start's feed): the
+    controller may take the plant anywhere in its band, and the model's fastest rate, the mill's
+    through-flow over its hold-up, grows with the load; in a closed circuit with the circulating
+    load too (a reverse circuit: 139/h at its start, 20.7 t/h and load 0.73, against 214/h at 30 t/h
+    and load 1.09, below the band's top, where the NMPC's 4 steps of RK4 overflowed)."""
+    dt, n = scene.scene.sample_period_h, scene.controller.rk4_substeps
+    points = [("at the initial steady state", css)]
+    for b in blends:
+        top = band_top_steady(scene, twin, b, float(css.u[0]))
+        if top is not None:
+            points.append((f"at the top of the load band (load {scene.controller.load_band_frac[1]:g}, feed "
+                           f"{float(top.u[0]):.4g} t/h, blend {np.round(b, 3).tolist()})", top))
+    for where, ss in points:
+        need = stable_rk4_substeps(twin.model.f, ss.x, ss.u, ss.d, dt)
+        if n < need:
+            raise SceneError(f"controller.rk4_substeps = {n} is unstable for the controller's model {where}: RK4 "
+                             f"needs at least {need} steps per {dt} h sample (rates x {RK4_RATE_SAFETY})")
 
 
 def make_controller(scene: Scene, twin, codegen: str = "auto"):
@@ -182,7 +245,7 @@ def loop_start(scene: Scene, models, blend0) -> LoopStart:
 def nmpc_parts(scene: Scene, models, start: LoopStart, codegen: str = "auto"):
     """The NMPC's EKF (started at the controller model's steady state ``start.control``) and the
     NMPC itself, after the RK4 stability check."""
-    check_rk4_substeps(scene, models.control.model, start.control)
+    check_rk4_substeps(scene, models.control, start.control, schedule_blends(scene, models))
     return make_estimator(scene, models.control, start.control, codegen), make_controller(scene, models.control, codegen)
 
 

@@ -23,7 +23,7 @@ import warnings
 
 from mpc import CLOSED_LOOP_READS, MpcInputError, OutsideModelsWarning, speed_max_note
 from scenarios.errors import RunError, SceneError
-from scenarios.run.closed_loop import check_rk4_substeps, loop_start, nmpc_settings
+from scenarios.run.closed_loop import check_rk4_substeps, loop_start, nmpc_settings, schedule_blends
 from scenarios.run.feed import component_blend, feed_schedule
 from scenarios.run.models import build_models, component_ores, is_batch
 from scenarios.scene import Scene, check_scene as check_scene_file, load_scene
@@ -177,7 +177,7 @@ def start_problems(scene: Scene, models) -> list[str]:
     try:
         start = loop_start(scene, models, component_blend(feed, models.components)[0])
         if scene.controller.kind == "nmpc":
-            check_rk4_substeps(scene, models.control.model, start.control)
+            check_rk4_substeps(scene, models.control, start.control, schedule_blends(scene, models))
     except (SceneError, RunError, TwinError) as exc:
         return [f"{scene.source_path or scene.scene.name}: the closed loop cannot start: {exc}"]
     return []

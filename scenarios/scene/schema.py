@@ -367,8 +367,9 @@ class Controller(Section):
     move_block: int = Field(default=5, ge=1, json_schema_extra={"unit": "samples"})
     """NMPC samples per input block (1: a free move every sample); at most ``horizon_steps``."""
     rk4_substeps: int = Field(default=3, ge=1, le=100, json_schema_extra={"unit": "per sample"})
-    """RK4 steps per sample in the NMPC's prediction; a count below the stable one at the
-    initial steady state is refused before the run."""
+    """RK4 steps per sample in the NMPC's prediction (and the EKF's, which takes at least 3); a
+    count below the stable one at the initial steady state, or at the top of the load band (the
+    highest feed whose steady load stays in it, each blend of the feed), is refused before the run."""
     preview_lead_h: float = Field(default=0.0, ge=0)
     """How far ahead [h] the feed blend is known (a belt analyser): the NMPC sees the blend over
     its horizon up to this lead (0: feedback only)."""

@@ -411,6 +411,38 @@ def test_the_estimator_predicts_with_the_scenes_rk4_substeps_or_its_own_where_mo
     assert np.max(np.abs(predicted - other)) > 1e-6 * np.abs(own).max()
 
 
+def reverse_reference_scene(tmp_path, rk4_substeps: int) -> Path:
+    """The reference scene in a reverse closed circuit (fresh feed to the cyclone sump), 4 h, at a
+    P80 target its start reaches (195 um)."""
+    text = (LIBRARY / "reference_transition.toml").read_text()
+    text = text.replace("[effect_options.sensor_delay]", '[effect_options.classification]\nkind = "hydrocyclone"\n'
+                        'circuit = "reverse"\n\n[effect_options.sensor_delay]', 1)
+    text = text.replace("duration_h = 8.0", "duration_h = 4.0", 1)
+    text = text.replace("target_p80_um = 210.0", "target_p80_um = 195.0", 1)
+    text = re.sub(r"(?m)^rk4_substeps = \d+", f"rk4_substeps = {rk4_substeps}", text, count=1)
+    path = tmp_path / "reverse.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+@pytest.mark.slow
+def test_rk4_substeps_stable_at_the_start_but_not_at_the_top_of_the_load_band_are_refused(tmp_path):
+    """In a reverse circuit the mill's through-flow is the circulating load times the feed, and both
+    grow along the load band: the fastest rate of the controller's model goes from 139/h at the start
+    (20.7 t/h, load 0.73) to 214/h at 30 t/h (load 1.09), below the band's top (1.2 at 31.8 t/h). 4 RK4
+    steps, stable at the start, let the NMPC's prediction overflow there (7 steps with nan QP data, 2
+    infeasible, in 4 h); the runner refuses
+    them, naming the top of the band and the count it needs, and with that count the loop runs
+    without a failed step or an estimator reset."""
+    from scenarios.errors import SceneError
+
+    with pytest.raises(SceneError, match=r"rk4_substeps = 4 is unstable .* at the top of the load band .* at "
+                                         r"least 6 steps"):
+        run_scene(reverse_reference_scene(tmp_path, 4), progress=False)
+    k = run_scene(reverse_reference_scene(tmp_path, 6), progress=False).kpis
+    assert k["controller_failed_steps"] == 0 and k["estimator_resets"] == 0
+
+
 def test_a_run_whose_plant_overflows_its_mill_says_so(tmp_path, short_run):
     """A replay at 250 t/h into the 30-t/h mill: its hold-up passes what the mill holds filled to
     its shell; the run warns (summary warnings and notes, so the screen and the report) with the
