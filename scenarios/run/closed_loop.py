@@ -17,6 +17,7 @@ from scenarios.run.feed import component_blend
 from scenarios.run.streams import Samples, run_size_data
 from scenarios.scene import Scene
 from scenarios.scene.ranges import nominal_feed_tph
+from twin import SolverError
 
 #: Scalar outputs of the plant's model recorded beside the loop's columns when the model has
 #: them (the hydrocyclone's cut size and circulating load).
@@ -87,7 +88,7 @@ def band_top_steady(scene: Scene, twin, blend, feed_lo_tph: float):
     def within(feed):
         try:
             ss = twin.steady(feed_tph=feed, speed_frac_critical=speed, blend=blend)
-        except Exception:  # noqa: BLE001 - no steady state: past the band
+        except SolverError:  # no steady state: the mill fills, past the band
             return None
         return ss if float(m.outputs["load_frac"](ss.x, ss.u, ss.d)) <= hi else None
 
