@@ -236,8 +236,8 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
               circuit: str = "direct") -> SizedMill:
     """Size the mill and its cyclones (module docstring) with ``calibration`` (default: the
     default calibration), the cyclones of ``cyclone``'s shape at ``cyclone_pressure_kpa``, in a
-    ``circuit`` of :data:`CIRCUITS`; TwinInputError for bad inputs, SolverError naming why each cyclone count failed if none gives
-    a design point."""
+    ``circuit`` of :data:`CIRCUITS`; TwinInputError for bad inputs, SolverError naming why each
+    cyclone count failed if none gives a design point."""
     from .calibration import load_calibration
     from .twin import _as_blend
 

@@ -60,7 +60,8 @@ def test_start_target_finds_the_laboratory_mills_feed_too(write_scene):
     now follows the mill's nominal feed; the found feed holds the target."""
     scene = (OPEN.replace('preset = "industrial"', 'preset = "lab"')
              .replace("feed_tph = 30.0", 'feed_tph = 0.03\nstart = "target"')
-             .replace("feed_tph_min = 20.0", "feed_tph_min = 0.02").replace("feed_tph_max = 45.0", "feed_tph_max = 0.045"))
+             .replace("feed_tph_min = 20.0", "feed_tph_min = 0.02")
+             .replace("feed_tph_max = 45.0", "feed_tph_max = 0.045"))
     assert 'preset = "lab"' in scene
     res = run_scene(load_scene(write_scene(scene)), progress=False, plots=False)
     k = res.kpis
