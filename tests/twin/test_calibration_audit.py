@@ -1,0 +1,97 @@
+"""A calibration file is refused, naming the file, the field, its value and what is allowed,
+when it was edited by hand or cut short: a changed or missing coefficient, a wrong type, a NaN,
+laws that are not its DEM step's. A file as grindtwin wrote it runs as the shipped one."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from twin import Twin, TwinInputError
+from twin.calibration import DEM_NAMES, load_calibration
+from twin.calibration.breakage_map import COEFFICIENT_NAMES
+from twin.calibration.files import MAP_COEFFICIENTS
+
+
+def _copy(name: str) -> dict:
+    return json.loads(json.dumps(load_calibration(name).record))
+
+
+def _write(tmp_path, record, stem="edited"):
+    path = tmp_path / f"{stem}.json"
+    path.write_text(json.dumps(record))
+    return path
+
+
+def test_the_light_list_of_coefficients_is_the_maps():
+    assert MAP_COEFFICIENTS["dem"] == tuple(n for n in DEM_NAMES if not n.startswith("lab_"))
+    assert MAP_COEFFICIENTS["mineralogy"] == COEFFICIENT_NAMES
+
+
+@pytest.mark.parametrize("name", ["dem", "table"])
+def test_an_unedited_copy_runs_as_the_shipped_file(tmp_path, name):
+    path = _write(tmp_path, _copy(name), stem=f"copy-{name}")
+    shipped = Twin("B", calibration=name).steady(0.031, 0.70).p80_um
+    assert Twin("B", calibration=path).steady(0.031, 0.70).p80_um == shipped
+
+
+def _edits(rec):
+    """(what, edit, field named, value shown) of each hand edit; values from the file itself."""
+    coef = rec["coefficients"]["dem_capture_scale"]
+    return [
+        ("a coefficient changed", lambda r: r["coefficients"].update(dem_capture_scale=coef * 1.3),
+         "coefficients.dem_capture_scale", repr(coef * 1.3)),
+        ("a coefficient missing", lambda r: r["coefficients"].pop("cushioning_rate_coeff"),
+         "coefficients.cushioning_rate_coeff", "(missing)"),
+        ("a coefficient as text", lambda r: r["coefficients"].update(dem_capture_scale=str(coef)),
+         "coefficients.dem_capture_scale", repr(str(coef))),
+        ("a NaN coefficient", lambda r: r["coefficients"].update(slurry_power_coeff=float("nan")),
+         "coefficients.slurry_power_coeff", "nan"),
+        ("a mill value missing", lambda r: r["mills"]["lab"].pop("power_factor"), "mills.lab.power_factor",
+         "(missing)"),
+        ("a mill value changed", lambda r: r["mills"]["lab"].update(grate_d50_um=400.0), "mills.lab.grate_d50_um",
+         "400.0"),
+        ("the mills emptied", lambda r: r.update(mills={}), "mills", "{}"),
+        ("a grid count as text", lambda r: r["size_grid"].update(count="25"), "size_grid", "'count': '25'"),
+        ("n_mixers as text", lambda r: r.update(n_mixers="3"), "n_mixers", "'3'"),
+        ("another mill", lambda r: r.update(mill="industrial"), "mill", "'industrial'"),
+        ("effects as text", lambda r: r.update(effects="breakage"), "effects", "'breakage'"),
+        ("the fit removed", lambda r: r.pop("fit"), "fit", "None"),
+        ("the fast flag removed", lambda r: r["dem"]["settings"].pop("fast"), "dem.settings.fast", "(missing)"),
+    ]
+
+
+@pytest.mark.parametrize("index", range(13), ids=[e[0] for e in _edits(_copy("dem"))])
+def test_a_hand_edited_file_is_refused_naming_file_field_and_value(tmp_path, index):
+    rec = _copy("dem")
+    _, edit, field, shown = _edits(rec)[index]
+    edit(rec)
+    path = _write(tmp_path, rec)
+    with pytest.raises(TwinInputError) as err:  # when read, before any twin is built
+        load_calibration(path)
+    msg = str(err.value)
+    assert str(path) in msg and f"'{field}'" in msg and shown in msg, msg
+    assert "must be" in msg
+
+
+def test_a_changed_coefficient_is_refused_with_the_value_its_fit_recorded(tmp_path):
+    rec = _copy("table")
+    fitted = rec["fitted"]["se_ref_t_kwh"]["value"]
+    rec["coefficients"]["se_ref_t_kwh"] = fitted * 0.9
+    with pytest.raises(TwinInputError, match="coefficients.se_ref_t_kwh") as err:
+        load_calibration(_write(tmp_path, rec))
+    assert repr(fitted) in str(err.value) and "fitted.se_ref_t_kwh" in str(err.value)
+
+
+def test_laws_that_are_not_the_files_dem_step_are_refused(tmp_path):
+    rec = _copy("dem")
+    c0 = rec["law"]["energy"]["c0"]
+    rec["law"]["energy"]["c0"] = c0 + 0.1
+    path = _write(tmp_path, rec)
+    with pytest.raises(TwinInputError) as err:
+        Twin("B", calibration=path)
+    msg = str(err.value)
+    assert str(path) in msg and "'law.energy.c0'" in msg and repr(c0 + 0.1) in msg and repr(c0) in msg, msg
+    with pytest.raises(TwinInputError, match="law.energy.c0"):  # every time, not only the first
+        Twin("B", calibration=path)
