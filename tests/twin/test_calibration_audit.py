@@ -95,3 +95,41 @@ def test_laws_that_are_not_the_files_dem_step_are_refused(tmp_path):
     assert str(path) in msg and "'law.energy.c0'" in msg and repr(c0 + 0.1) in msg and repr(c0) in msg, msg
     with pytest.raises(TwinInputError, match="law.energy.c0"):  # every time, not only the first
         Twin("B", calibration=path)
+
+
+# --------------------------------------------------------------------------- grindtwin calibrate
+def _calibrate(argv) -> int:
+    from twin.calibration import main
+
+    return main([*argv, "--quiet"])
+
+
+def test_a_new_file_is_named_after_itself_and_never_takes_a_shipped_name(tmp_path, capsys):
+    mine = tmp_path / "mine.json"
+    assert _calibrate(["--from", "dem", "--replicates", "0", "--out", str(mine)]) == 0
+    made = load_calibration(mine)
+    assert made.name == "mine" and made.label().startswith("'mine'")
+    for argv, out in ((["--out", str(tmp_path / "dem.json")], tmp_path / "dem.json"),
+                      (["--name", "table", "--out", str(tmp_path / "t.json")], tmp_path / "t.json")):
+        capsys.readouterr()
+        assert _calibrate(["--from", "dem", "--replicates", "0", *argv]) == 2
+        err = capsys.readouterr().err
+        assert "is the name of a shipped calibration" in err and str(out) in err and not out.exists(), err
+
+
+def test_a_shipped_file_keeps_its_own_name(capsys):
+    shipped = load_calibration("table")
+    before = shipped.path.read_bytes()
+    assert _calibrate(["--map", "mineralogy", "--name", "mine", "--out", str(shipped.path)]) == 2
+    assert "a shipped calibration file's name is its file's, 'table'" in capsys.readouterr().err
+    assert shipped.path.read_bytes() == before
+
+
+def test_from_a_file_whose_dem_step_is_cut_short_is_refused_before_any_work(tmp_path, capsys):
+    rec = _copy("dem")
+    ore = sorted(rec["dem"]["ores"])[0]
+    del rec["dem"]["ores"][ore]["fracture_energy"]
+    source, out = _write(tmp_path, rec, stem="cut"), tmp_path / "new.json"
+    assert _calibrate(["--from", str(source), "--replicates", "0", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"--from {source}" in err and "'dem'" in err and "fracture_energy" in err and not out.exists(), err

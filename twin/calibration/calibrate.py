@@ -24,8 +24,8 @@ from pathlib import Path
 from ..errors import TwinError, TwinInputError
 from .dem_link import fit_sizes_um, per_ore_selection, run_dem
 from .dem_map import fit_law
-from .files import (Calibration, base_record, check_writable, default_output_path, load_calibration, provenance,
-                    write_calibration)
+from .files import (CALIBRATION_DIR, Calibration, base_record, check_dem_step, check_writable, default_output_path,
+                    load_calibration, provenance, shipped_names, write_calibration)
 from .fitted import DEM_BOUNDS, DEM_FITTED, DEM_NAMES
 from .fitting import fit_to_table, predict_table, table_errors
 
@@ -87,8 +87,9 @@ def add_arguments(ap: argparse.ArgumentParser) -> argparse.ArgumentParser:
                     help="dem: the DEM chain (default); mineralogy: the 'table' calibration")
     ap.add_argument("--from", dest="source", metavar="FILE_OR_NAME",
                     help="reuse the DEM step of this DEM calibration (a name such as 'dem' or a file): no DEM runs")
-    ap.add_argument("--out", type=Path, help="output file (default: a new calibration-<name>-<time>.json here)")
-    ap.add_argument("--name", help="the calibration's name (default: dem, or table for --map mineralogy)")
+    ap.add_argument("--out", type=Path, help="output file (default: a new calibration-<dem|table>-<time>.json here)")
+    ap.add_argument("--name", help="the calibration's name (default: the output file's name without .json; a "
+                    "shipped name such as dem only for the shipped file)")
     ap.add_argument("--fast", action="store_true", help="a quick check of the machinery (few particles), not a calibration")
     ap.add_argument("--seed", type=int, default=0, help="seed of the DEM packings and tests")
     ap.add_argument("--replicates", type=int, default=None,
@@ -115,8 +116,9 @@ def command_of(args: argparse.Namespace) -> str:
 
 def calibrate(args: argparse.Namespace) -> int:
     """Run what the parsed options ask for and write the file (module docstring)."""
-    name = args.name or ("table" if args.map == "mineralogy" else "dem")
-    out = check_writable(args.out if args.out is not None else default_output_path(name))
+    out = check_writable(args.out if args.out is not None else
+                         default_output_path("table" if args.map == "mineralogy" else "dem"))
+    name = _name_of(args.name, out)
     if args.replicates is not None and args.replicates < 0:
         raise TwinInputError(f"--replicates must be >= 0. Got {args.replicates}.")
     if args.map == "mineralogy":  # no DEM, no bootstrap: these options would be recorded, not used
@@ -128,8 +130,11 @@ def calibrate(args: argparse.Namespace) -> int:
     if args.seed < 0:
         raise TwinInputError(f"--seed must be >= 0 (numpy's seeds). Got {args.seed}.")
     source = load_calibration(args.source) if args.source else None
-    if source is not None and "dem" not in source.record:
-        raise TwinInputError(f"--from {args.source}: calibration {source.label()} has no DEM step.")
+    if source is not None and (source.breakage_map != "dem" or "dem" not in source.record):
+        raise TwinInputError(f"--from {args.source}: calibration {source.label()} has no DEM step (its breakage "
+                             f"map is {source.breakage_map!r}); --from takes a DEM calibration, such as 'dem'.")
+    if source is not None:  # its DEM step is what is reused: it must give the file's own laws
+        check_dem_step(source.record, f"--from {args.source}")
     t0 = time.perf_counter()
     if args.map == "mineralogy":
         from .table import calibrate_mineralogy_map
@@ -143,6 +148,24 @@ def calibrate(args: argparse.Namespace) -> int:
     cal = write_calibration(out, record)
     _print_outcome(out, cal, times)
     return 0
+
+
+def _name_of(name: str | None, out: Path) -> str:
+    """The new calibration's name: ``--name``, else the output file's name without ``.json``. A
+    shipped file's name is its file's; no other file takes a shipped name, which a run's record
+    and labels would show as the shipped calibration's."""
+    shipped_file = out.resolve().parent == CALIBRATION_DIR.resolve()
+    name = name if name is not None else out.stem
+    if not name.strip():
+        raise TwinInputError(f"--name must not be empty. Got {name!r}.")
+    if shipped_file and name != out.stem:
+        raise TwinInputError(f"--name {name}: a shipped calibration file's name is its file's, {out.stem!r} "
+                             f"({out}).")
+    if not shipped_file and name in shipped_names():
+        raise TwinInputError(f"--name {name} (the calibration written to {out}): {name!r} is the name of a shipped "
+                             f"calibration ({', '.join(shipped_names())}); a file of yours takes another "
+                             "(--name NAME), or regenerate the shipped one by naming its file with --out.")
+    return name
 
 
 def _dem_calibration(args, name: str, source: Calibration | None) -> tuple[dict, dict]:

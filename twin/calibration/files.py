@@ -421,6 +421,26 @@ def _check_law(record: dict, where: str) -> None:
                    "to it, not edited by hand: make a new calibration with `grindtwin calibrate --from`)")
 
 
+def check_dem_step(record: dict, where: str) -> dict:
+    """A DEM calibration's record whose DEM step gives its laws (:func:`_check_law`) and each
+    ore's own selection function (what ``--from`` recomputes), else TwinInputError naming
+    ``where`` and the field."""
+    from .dem_link import fit_sizes_um, per_ore_selection
+    from ..sizes import SizeGrid
+
+    _check_law(record, where)
+    try:
+        own = per_ore_selection(record["dem"], fit_sizes_um(SizeGrid(**record["size_grid"])))
+    except (KeyError, TypeError, ValueError, IndexError, ArithmeticError) as exc:
+        raise _bad(where, "dem", f"({type(exc).__name__}: {exc})", "the record of a DEM step "
+                   "(grindtwin calibrate; its ores, drum and settings)") from None
+    recorded = (record.get("derived") or {}).get("per_ore_own_selection", own)
+    diff = _first_difference(recorded, own, "derived.per_ore_own_selection")
+    if diff:
+        raise _bad(where, diff[0], diff[1], f"{_short(diff[2])}, what the record's own DEM step gives")
+    return record
+
+
 def _first_difference(got, want, field: str):
     """(field, got, want) of the first value of ``got`` that is not ``want`` (numbers to
     :data:`LAW_TOL`), or None."""
