@@ -134,9 +134,8 @@ def build_models(scene: Scene) -> Models:
     cal = scene_calibration(scene)
     control = build_twin(scene, ores, scene.effects, scene.effect_options, scene.mill.size_classes, calibration=cal)
     notes = [f"calibration {cal.label()}"]
-    grid = scene.mill.size_classes
-    for problem in cal.mismatch(scene.effects, SizeGrid(grid.top_um, grid.ratio, grid.count)):
-        notes.append(f"calibration_mismatch_ok: {problem}")
+    # what the scene runs unlike its calibration, on the twin's own grid (its scheme too)
+    notes += [f"calibration_mismatch_ok: {problem}" for problem in cal.mismatch(scene.effects, control.grid)]
     if not scene.ores:
         notes.append("no [ores]: components are the reference types " + ", ".join(ores))
     plant = control
@@ -159,6 +158,8 @@ def build_models(scene: Scene) -> Models:
                 list(scene.effects), dict(scene.effect_options), scene.mill.size_classes, scene.mill.n_mixers):
             plant = build_twin(scene, ores, effects, options, sizes, mixers, calibration=cal)
             notes.append("the plant is a separate twin (effects " + ", ".join(effects) + ")")
+            notes += [f"calibration_mismatch_ok: the plant's {problem}"
+                      for problem in cal.mismatch(effects, plant.grid)]
             fracs = scene.mill.mixer_volume_fracs
             if fracs is not None and mixers != len(fracs):
                 notes.append(f"the plant's {mixers} mixers have equal shares (mill.mixer_volume_fracs gives "

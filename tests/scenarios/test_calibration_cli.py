@@ -114,3 +114,22 @@ def test_a_fast_calibration_warns_in_one_line_on_the_command_line(tmp_path):
     assert lines == [f"grindtwin: warning: calibration 'dem' ({path}, sha256 {sha}; made with --fast: a check of the "
                      "machinery on a few particles, not a calibration) (FastCalibrationWarning)"], res.stderr
     assert "not a calibration" in res.stdout and "p80_um" in res.stdout  # and so does the header
+
+
+def test_a_run_that_means_a_mismatch_records_each_twins(write_scene):
+    """calibration_mismatch_ok = true runs the scene, and its notes say every way each twin
+    differs from the calibration: the size grid's scheme too, and a separate plant's effects."""
+    from scenarios.run.models import build_models
+    from scenarios.scene import load_scene
+    from twin import SizeGrid
+
+    text = BASE_SCENE.replace("[mill]\n", "[mill]\nsize_classes = { scheme = \"austin\" }\n") + (
+        "\n[plant]\nmodel = \"twin\"\neffects = [\"breakage\", \"transport\", \"holdup\", \"power\"]\n")
+    models = build_models(load_scene(write_scene(text)))
+    cal, scene = models.calibration, load_scene(write_scene(text))
+    want = cal.mismatch(scene.effects, SizeGrid(scheme="austin"))
+    assert any("size grid" in m and "'austin'" in m for m in want)  # the scheme is a difference
+    mine = [n for n in models.notes if n.startswith("calibration_mismatch_ok")]
+    assert mine[:len(want)] == [f"calibration_mismatch_ok: {m}" for m in want]
+    plant = cal.mismatch(scene.plant.effects, SizeGrid(scheme="austin"))
+    assert mine[len(want):] == [f"calibration_mismatch_ok: the plant's {m}" for m in plant]
