@@ -256,9 +256,16 @@ def export_scene_controller(scene: Scene, out_dir, source: str = "") -> list[str
     from scenarios.run.feed import feed_schedule
     from scenarios.run.models import build_models, component_ores
 
-    if scene.controller.kind != "nmpc":
-        raise SceneError(f"controller.kind = {scene.controller.kind!r}: export-controller exports an NMPC "
+    c = scene.controller
+    if c.kind != "nmpc":
+        raise SceneError(f"controller.kind = {c.kind!r}: export-controller exports an NMPC "
                          f"(controller.kind = 'nmpc')")
+    if c.solver != "rti" or c.qpsol != "condensed":  # before the models: an IPOPT build took 10 s to be refused
+        key, value, allowed = (("controller.solver", c.solver, "rti") if c.solver != "rti"
+                               else ("controller.qpsol", c.qpsol, "condensed"))
+        raise SceneError(f"{key} = {value!r}: export-controller exports only {key} = {allowed!r} (the real-time "
+                         f"iteration on the condensed QP, the same QP as HPIPM's: controller.solver = 'rti' and "
+                         f"controller.qpsol = 'condensed')")
     try:
         check_out_dir(out_dir)  # before any work
     except MpcInputError as exc:
