@@ -8,7 +8,8 @@ What is written (``export_controller``): CasADi's generated C of the estimator's
 hand-written C of mpc/c (the Goldfarb-Idnani QP solver, the condensing loop, the RTI step, the controller API, a
 replay harness and an allocation counter); ``gt_controller_config.h`` (dimensions, scales, bounds,
 passing weights, the initial estimate); a Makefile; and ``grindtwin_export.json`` listing every
-file written, the step's statuses (:data:`STEP_STATUS`) and any notes. The Python controller with
+file written, the step's and the estimate's statuses (:data:`STEP_STATUS`,
+:data:`ESTIMATE_STATUS`) and any notes. The Python controller with
 ``qpsol = "condensed"`` runs the same generated code and the same solver, so the moves agree to
 rounding, and the step's status is the Python controller's: ok, a fallback, or target_unreachable
 (the plan misses the target at the horizon end, by the rule of :meth:`mpc.Controller.make_step`).
@@ -39,7 +40,7 @@ import numpy as np
 from mpc.codegen import C_DIR
 from mpc.condense import stage_functions
 from mpc.errors import MpcInputError, OutsideModelsWarning
-from mpc.nmpc import PASSING_TARGET, speed_max_note
+from mpc.nmpc import BLEND_SUM_TOL, PASSING_TARGET, speed_max_note
 from twin import new_folder_beside
 
 MANIFEST = "grindtwin_export.json"
@@ -49,11 +50,21 @@ STEP_STATUS = {
     1: "shifted_plan: the QP failed; u is the previous plan shifted by one sample",
     2: "hold_input: the QP failed and no plan is left; u = u_applied",
     3: "bad_bias: the estimated P80 bias is not finite or not below the target; nothing solved, u = u_applied",
-    4: "bad_input: u_applied or the preview is not finite; nothing solved, u left as it was",
+    4: "bad_input: c, preview, u_applied or u is NULL, u_applied or the preview is not finite, or a stage's blend "
+       "is not fractions in [0, 1] summing to 1 within GT_BLEND_SUM_TOL (the Python controller raises on each); "
+       "nothing solved, u left as it was",
     5: "target_unreachable: the QP solved and u is the plan's first move, applied as for ok, but the plan's "
        "passing fraction of the target at the horizon end (gt_controller_passing_end) misses 0.80 by more "
        "than unreachable_tol_frac: the target is out of reach within the horizon (the Python controller's "
        "status by the same rule)",
+}
+#: gt_controller_estimate's statuses (mpc/c/gt_controller.h's enum gt_estimate_status), in the manifest.
+ESTIMATE_STATUS = {
+    0: "ok: estimated",
+    1: "bad_input: c, y, u_applied or blend is NULL, or u_applied or blend is not finite (the Python EKF raises); "
+       "nothing estimated, the estimate left as it was",
+    2: "reset: the update left a non-finite estimate or covariance; both back to the exported initial estimate "
+       "(as the scene's closed loop resets its EKF), the plan kept",
 }
 C_FILES = ("gt_qp.c", "gt_qp.h", "gt_cond.c", "gt_cond.h", "gt_rti.c", "gt_rti.h", "gt_controller.c", "gt_controller.h",
            "gt_replay.c", "gt_malloc_count.c")
@@ -140,6 +151,8 @@ def config_header(controller, estimator, u0) -> str:
               "/* GT_STEP_TARGET_UNREACHABLE: the plan's passing fraction at the horizon end differs from",
               " * GT_PASSING_TARGET by more than GT_UNREACHABLE_TOL (mpc.Controller.make_step's rule) */",
               f"#define GT_PASSING_TARGET {PASSING_TARGET!r}",
+              "/* a previewed stage's blend fractions may sum this far from 1 (mpc.nmpc.BLEND_SUM_TOL) */",
+              f"#define GT_BLEND_SUM_TOL {BLEND_SUM_TOL!r}",
               f"#define GT_UNREACHABLE_TOL {float(s.unreachable_tol_frac)!r}", "",
               "/* state scales, input bounds, largest move per sample, passing weights of the target */",
               _c_array("gt_x_scale", c.x_scale),
@@ -211,6 +224,7 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "") -> l
                     "estimator_state": int(estimator.z.size), "disturbance_model": estimator.disturbance_model,
                     "api": "gt_controller.h", "build": "make",
                     "step_status": {str(k): v for k, v in STEP_STATUS.items()},
+                    "estimate_status": {str(k): v for k, v in ESTIMATE_STATUS.items()},
                     "unreachable_tol_frac": float(s.unreachable_tol_frac), "notes": notes}
         (partial / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
     except BaseException:

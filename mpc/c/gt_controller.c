@@ -48,6 +48,21 @@ static long ekf_bytes(void) {
                   sizeof(casadi_real) * (size_t)w) + 16;
 }
 
+/* the EKF alone back to the exported initial estimate (CountingEstimator's reset) */
+static void reset_estimate(gt_controller *c) {
+    int i;
+    memcpy(c->z, gt_z0, sizeof(c->z));
+    memcpy(c->P, gt_p0, sizeof(c->P));
+    for (i = 0; i < 3; ++i) c->innovation[i] = NAN;
+}
+
+static int all_finite(const double *v, int n) {
+    int i;
+    for (i = 0; i < n; ++i)
+        if (!isfinite(v[i])) return 0;
+    return 1;
+}
+
 long gt_controller_bytes(void) { return (long)sizeof(gt_controller) + ekf_bytes() + gt_rti_bytes(); }
 
 gt_controller *gt_controller_new(void) {
@@ -75,18 +90,21 @@ void gt_controller_free(gt_controller *c) {
 }
 
 void gt_controller_reset(gt_controller *c) {
-    memcpy(c->z, gt_z0, sizeof(c->z));
-    memcpy(c->P, gt_p0, sizeof(c->P));
+    if (!c) return;
+    reset_estimate(c);
     c->have_w_prev = c->have_plan = c->plan_age = 0;
     c->qp_iter = 0;
     c->qp_status = 0;
     c->passing_end = NAN;
 }
 
-void gt_controller_estimate(gt_controller *c, const double *y, const double *u_applied,
-                            const double *blend) {
+int gt_controller_estimate(gt_controller *c, const double *y, const double *u_applied,
+                           const double *blend) {
     double yy[3], mask[3], z[GT_NZ];
-    int i;
+    int i, failed;
+    /* mpc.Ekf.make_step refuses these: a NaN input once made the clipped update an empty mill */
+    if (!c || !y || !u_applied || !blend || !all_finite(u_applied, GT_NU) || !all_finite(blend, GT_NB))
+        return GT_ESTIMATE_BAD_INPUT;
     for (i = 0; i < 3; ++i) {
         int ok = isfinite(y[i]);
         yy[i] = ok ? y[i] : 0.0;
@@ -102,10 +120,15 @@ void gt_controller_estimate(gt_controller *c, const double *y, const double *u_a
     c->ekf_res[0] = c->z;
     c->ekf_res[1] = c->P_next;
     c->ekf_res[2] = c->innovation;
-    ekf_step(c->ekf_arg, c->ekf_res, c->ekf_iw, c->ekf_w, 0);
+    failed = ekf_step(c->ekf_arg, c->ekf_res, c->ekf_iw, c->ekf_w, 0);
     memcpy(c->P, c->P_next, sizeof(c->P));
     for (i = 0; i < 3; ++i)
         if (!mask[i]) c->innovation[i] = NAN;
+    if (failed || !all_finite(c->z, GT_NZ) || !all_finite(c->P, GT_NZ * GT_NZ)) {
+        reset_estimate(c); /* as the scene's closed loop resets its EKF (CountingEstimator) */
+        return GT_ESTIMATE_RESET;
+    }
+    return GT_ESTIMATE_OK;
 }
 
 /* mpc.Controller._initial_guess: the previous solution shifted by one sample, its first lifted
@@ -204,18 +227,39 @@ static int fallback(gt_controller *c, const double *u_prev, double *u) {
     return GT_STEP_HOLD_INPUT;
 }
 
+/* mpc.Controller._d_traj's check of the stages read (GT_PREVIEW 0: the first, held): finite
+ * fractions in [0, 1] summing to 1 within GT_BLEND_SUM_TOL; a plan on [5, -4] was a plan on nothing */
+static int preview_ok(const double *preview) {
+    int k, i;
+    for (k = 0; k < (GT_PREVIEW ? GT_N : 1); ++k) {
+        const double *b = preview + k * GT_NB;
+        double sum = 0.0;
+        for (i = 0; i < GT_NB; ++i) {
+            if (!isfinite(b[i]) || b[i] < -1e-9 || b[i] > 1.0 + 1e-9) return 0;
+            sum += b[i];
+        }
+        if (fabs(sum - 1.0) > GT_BLEND_SUM_TOL) return 0;
+    }
+    return 1;
+}
+
 int gt_controller_step(gt_controller *c, const double *preview, const double *u_given, double *u) {
-    double x0s[GT_NX], h = GT_HAS_HARDNESS ? c->z[GT_NX] : GT_HARDNESS0;
-    double *p = c->p, bias = controller_p80_bias(c), u_applied[GT_NU];
+    double x0s[GT_NX], h, *p, bias, u_applied[GT_NU];
     const double *wpass = gt_wpass;
     int k, i, it, n_it = GT_RTI_ITERATIONS, ok = n_it > 0;
+    if (!c) return GT_STEP_BAD_INPUT;
+    h = GT_HAS_HARDNESS ? c->z[GT_NX] : GT_HARDNESS0;
+    p = c->p;
+    bias = controller_p80_bias(c);
     c->passing_end = NAN;
+    c->qp_iter = 0; /* a refused step solved no QP: not the last one's counts */
+    c->qp_status = 0;
+    if (!preview || !u_given || !u) return GT_STEP_BAD_INPUT;
     for (i = 0; i < GT_NU; ++i) { /* mpc.Controller.make_step: refused, or projected onto the bounds */
         if (!isfinite(u_given[i])) return GT_STEP_BAD_INPUT;
         u_applied[i] = clip(u_given[i], gt_u_lo[i], gt_u_hi[i]);
     }
-    for (i = 0; i < (GT_PREVIEW ? GT_N : 1) * GT_NB; ++i)
-        if (!isfinite(preview[i])) return GT_STEP_BAD_INPUT;
+    if (!preview_ok(preview)) return GT_STEP_BAD_INPUT;
     if (!isfinite(bias) || bias >= GT_TARGET_P80_UM) { /* mpc.Controller.make_step refuses it */
         u[0] = u_applied[0];
         u[1] = u_applied[1];
@@ -271,8 +315,9 @@ int gt_controller_step(gt_controller *c, const double *preview, const double *u_
     return fabs(c->passing_end - GT_PASSING_TARGET) > GT_UNREACHABLE_TOL ? GT_STEP_TARGET_UNREACHABLE : GT_STEP_OK;
 }
 
-const double *gt_controller_plan(const gt_controller *c) { return c->plan; }
-const double *gt_controller_estimate_state(const gt_controller *c) { return c->z; }
-int gt_controller_qp_iterations(const gt_controller *c) { return c->qp_iter; }
-int gt_controller_qp_status(const gt_controller *c) { return c->qp_status; }
-double gt_controller_passing_end(const gt_controller *c) { return c->passing_end; }
+/* NULL (NaN, -1) for no controller rather than a crash */
+const double *gt_controller_plan(const gt_controller *c) { return c ? c->plan : NULL; }
+const double *gt_controller_estimate_state(const gt_controller *c) { return c ? c->z : NULL; }
+int gt_controller_qp_iterations(const gt_controller *c) { return c ? c->qp_iter : -1; }
+int gt_controller_qp_status(const gt_controller *c) { return c ? c->qp_status : -1; }
+double gt_controller_passing_end(const gt_controller *c) { return c ? c->passing_end : NAN; }

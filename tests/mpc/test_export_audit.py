@@ -7,13 +7,188 @@ a listed name, an unsupported solver refused before any work, no folder left by 
 
 from __future__ import annotations
 
+import json
+import re
+import shutil
+import subprocess
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from mpc import codegen
+from mpc.errors import MpcInputError
 from scenarios.cli import main
+from scenarios.run import closed_loop
 
 REFERENCE = Path(__file__).parents[2] / "scenarios" / "reference_transition.toml"
+
+
+def _tools():
+    cc = codegen.find_compiler()
+    if cc is None or shutil.which("make") is None:
+        pytest.skip("no C compiler or make on this machine")
+    return cc
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    """The reference scene exported and built (make, -O1), with the Python EKF and NMPC the export
+    was made from: ``(folder, estimator, controller, config)``."""
+    cc = _tools()
+    out = tmp_path_factory.mktemp("export") / "ctl"
+    parts = {}
+    real = closed_loop.nmpc_parts
+
+    def keep(*a, **k):
+        parts["est"], parts["ctrl"] = real(*a, **k)
+        return parts["est"], parts["ctrl"]
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(closed_loop, "nmpc_parts", keep)
+        assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 0
+    build = subprocess.run(["make", "-j2", "-C", str(out), "CFLAGS=-O1", f"CC={cc}"], capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr[-2000:]
+    config = {k: float(v) for k, v in re.findall(r"#define (GT_\w+) ([-0-9.e]+)\n",
+                                                 (out / "gt_controller_config.h").read_text())}
+    return out, parts["est"], parts["ctrl"], config
+
+
+def _replay(out: Path, lines) -> subprocess.CompletedProcess:
+    return subprocess.run([str(out / "gt_replay")], input="\n".join(lines) + "\n", capture_output=True, text=True)
+
+
+def _c_line(u, preview) -> str:
+    return "C " + " ".join(repr(float(v)) for v in [*u, *np.asarray(preview, float).ravel(order="F")])
+
+
+def test_a_preview_that_is_not_a_blend_is_refused_as_python_refuses_it(built):
+    """A preview of [5, -4] (sum 1), of fractions summing to 0.5, or with a negative fraction was
+    planned on and answered with moves (status ok, target_unreachable or shifted_plan); the Python
+    controller raises on each. Now the C step refuses exactly the previews Python refuses
+    (GT_STEP_BAD_INPUT, no move); fractions within BLEND_SUM_TOL of 1 pass in both."""
+    out, _, ctrl, cfg = built
+    n, nb = int(cfg["GT_N"]), int(cfg["GT_NB"])
+    assert cfg["GT_PREVIEW"] == 1 and nb == 2
+    h = ctrl.model.d_vector([1.0, 0.0])[-1]
+    good = np.tile([[1.0], [0.0]], (1, n))
+    cases = {"good": good, "five_minus_four": np.tile([[5.0], [-4.0]], (1, n)),
+             "half": np.tile([[0.5], [0.0]], (1, n)), "late_negative": good.copy(),
+             "rounded": np.tile([[0.6004], [0.4]], (1, n)), "late_sum_off": good.copy()}
+    cases["late_negative"][:, -1] = [1.1, -0.1]
+    cases["late_sum_off"][:, 3] = [0.7, 0.4]
+    python_refuses = {}
+    for name, blend in cases.items():
+        try:
+            ctrl._d_traj(np.vstack([blend, np.full((1, n), h)]))
+            python_refuses[name] = False
+        except MpcInputError:
+            python_refuses[name] = True
+    assert sum(python_refuses.values()) == 4  # both answers are taken: the comparison can fail
+    run = _replay(out, [_c_line([27.0, 0.70], blend) for blend in cases.values()])
+    assert run.returncode == 0, run.stderr
+    rows = [ln.split() for ln in run.stdout.splitlines() if ln.startswith("U ")]
+    for (name, refused), row in zip(python_refuses.items(), rows):
+        assert (row[1] == "4") == refused, (name, row)
+        assert (row[2] == "nan") == refused, (name, row)  # no move for a refused preview
+
+
+DRIVER = r"""
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include "gt_controller.h"
+#include "gt_controller_config.h"
+
+static void show(const char *tag, int st, gt_controller *c) {
+    const double *z = gt_controller_estimate_state(c);
+    int i;
+    printf("%s %d", tag, st);
+    for (i = 0; i < GT_NZ; ++i) printf(" %.17g", z[i]);
+    printf("\n");
+}
+
+int main(void) {
+    gt_controller *c = gt_controller_new();
+    double y[3] = {210.0, NAN, NAN}, u[2] = {27.0, 0.7}, blend[GT_NB] = {1.0, 0.0};
+    double bad_u[2] = {NAN, 0.7}, inf_blend[GT_NB] = {INFINITY, 0.0}, huge_u[2] = {1e300, 0.7};
+    double preview[GT_NB * GT_N], move[2] = {-1.0, -1.0};
+    int i;
+    for (i = 0; i < GT_N; ++i) { preview[i * GT_NB] = 1.0; preview[i * GT_NB + 1] = 0.0; }
+    show("start", 0, c);
+    show("nan_u", gt_controller_estimate(c, y, bad_u, blend), c);
+    show("inf_blend", gt_controller_estimate(c, y, u, inf_blend), c);
+    show("null_y", gt_controller_estimate(c, NULL, u, blend), c);
+    show("ok", gt_controller_estimate(c, y, u, blend), c);
+    show("huge_u", gt_controller_estimate(c, y, huge_u, blend), c);
+    printf("null_c_estimate %d\n", gt_controller_estimate(NULL, y, u, blend));
+    printf("null_c_step %d\n", gt_controller_step(NULL, preview, u, move));
+    printf("null_preview %d %g\n", gt_controller_step(c, NULL, u, move), move[0]);
+    printf("null_u %d\n", gt_controller_step(c, preview, u, NULL));
+    printf("null_accessors %d %d %d %d\n", gt_controller_plan(NULL) == NULL,
+           gt_controller_estimate_state(NULL) == NULL, gt_controller_qp_iterations(NULL),
+           isnan(gt_controller_passing_end(NULL)));
+    gt_controller_free(c);
+    return 0;
+}
+"""
+
+
+def test_the_estimate_refuses_a_non_finite_input_and_resets_a_non_finite_estimate(built, tmp_path):
+    """gt_controller_estimate returned nothing and took a NaN feed rate: the update's clipping
+    turned the NaN masses into an empty mill, and the next step answered with moves and status
+    ok. Now it returns a status: a NaN or infinite input or blend (the Python EKF raises) or a NULL
+    argument is GT_ESTIMATE_BAD_INPUT with the estimate untouched; an update that leaves a
+    non-finite covariance (a feed of 1e300) is GT_ESTIMATE_RESET, back to the exported initial
+    estimate, where the scene's closed loop resets its EKF. The step and the accessors answer NULL
+    with a status (or NULL, NaN, -1), not a crash."""
+    out, est, _, _ = built
+    cc = _tools()
+    (tmp_path / "driver.c").write_text(DRIVER)
+    exe = tmp_path / "driver"
+    build = subprocess.run([cc, "-O1", f"-I{out}", str(tmp_path / "driver.c"), str(out / "libgtcontroller.a"),
+                            "-lm", "-o", str(exe)], capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr[-2000:]
+    rows = {ln.split()[0]: ln.split()[1:] for ln in subprocess.run([str(exe)], capture_output=True, text=True,
+                                                                   check=True).stdout.splitlines()}
+    z = {k: np.array(v[1:], float) for k, v in rows.items() if len(v) > 2}
+    np.testing.assert_array_equal(z["start"], est.z)  # the exported initial estimate is the EKF's
+    for name in ("nan_u", "inf_blend", "null_y"):
+        assert rows[name][0] == "1" and np.array_equal(z[name], z["start"]), name  # GT_ESTIMATE_BAD_INPUT
+    for u, blend in (([np.nan, 0.7], [1.0, 0.0]), ([27.0, 0.7], [np.inf, 0.0])):
+        with pytest.raises(MpcInputError):
+            est.make_step([210.0, np.nan, np.nan], u, blend)
+    # the Python EKF from the same state: the same update, then the reset the closed loop makes
+    zn, _, _ = est.step_function(est.z, est.P, [27.0, 0.7], [1.0, 0.0], [210.0, 0, 0], [1.0, 0, 0])
+    assert rows["ok"][0] == "0"
+    np.testing.assert_allclose(z["ok"], np.asarray(zn, float).ravel(), rtol=1e-12, atol=1e-12 * np.abs(z["ok"]).max())
+    assert not np.allclose(z["ok"], z["start"])
+    counted = closed_loop.CountingEstimator(est)
+    counted.ekf.z, counted.ekf.P = z["ok"].copy(), np.asarray(est.step_function(
+        est.z, est.P, [27.0, 0.7], [1.0, 0.0], [210.0, 0, 0], [1.0, 0, 0])[1], float)
+    counted.make_step([210.0, np.nan, np.nan], [1e300, 0.7], [1.0, 0.0])
+    assert counted.resets == [1]  # Python resets here too
+    assert rows["huge_u"][0] == "2" and np.array_equal(z["huge_u"], z["start"])  # GT_ESTIMATE_RESET
+    est.reset()
+    assert rows["null_c_estimate"] == ["1"] and rows["null_c_step"] == ["4"] and rows["null_u"] == ["4"]
+    assert rows["null_preview"] == ["4", "-1"]  # u left as it was
+    assert rows["null_accessors"] == ["1", "1", "-1", "1"]
+
+
+def test_the_status_tables_of_the_header_and_the_manifest_agree(built):
+    """The manifest names gt_controller_estimate's statuses (new) and gt_controller_step's as the
+    header numbers them; the exported header is the shipped one."""
+    from mpc.export import ESTIMATE_STATUS, STEP_STATUS
+
+    out = built[0]
+    header = (out / "gt_controller.h").read_text()
+    assert header == (codegen.C_DIR / "gt_controller.h").read_text()
+    manifest = json.loads((out / "grindtwin_export.json").read_text())
+    for prefix, table, key in (("GT_ESTIMATE_", ESTIMATE_STATUS, "estimate_status"), ("GT_STEP_", STEP_STATUS,
+                                                                                        "step_status")):
+        enum = {int(v): name.lower() for name, v in re.findall(prefix + r"(\w+) = (\d+)", header)}
+        assert enum == {k: text.split(":")[0] for k, text in table.items()} and len(enum) >= 3
+        assert manifest[key] == {str(k): v for k, v in table.items()}
 
 
 @pytest.mark.parametrize("solver, qpsol, key", [("ipopt", None, "controller.solver = 'ipopt'"),
