@@ -5,8 +5,10 @@
  * Output on stdout, one line per C: "U status u_feed u_speed qp_iterations step_s step_cpu_s
  * qp_status" (status: gt_controller.h's gt_step_status; %.17g; u is nan when the step refused its
  * input), and at the end
- * "M allocations_during_calls" (counted when gt_malloc_count.so is preloaded, else -1) and
- * "B bytes_allocated_by_new". Any other line but a blank one or a # comment is an error. */
+ * "M allocations_during_calls" (counted when gt_malloc_count.so is preloaded, else -1),
+ * "B bytes_allocated_by_new" and "R estimates_not_ok" (E lines whose gt_controller_estimate status
+ * was not GT_ESTIMATE_OK, each also named on stderr with its line and status). A line with fewer or
+ * more numbers than its kind takes, or any other line but a blank one or a # comment, is an error. */
 #define _POSIX_C_SOURCE 199309L
 #include <stdio.h>
 #include <stdlib.h>
@@ -24,6 +26,7 @@ static double clock_s(clockid_t id) {
     return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
 }
 
+/* exactly n numbers: a longer line (a preview of another horizon) was read in part, silently */
 static int read_doubles(char *s, double *v, int n) {
     int i;
     char *end;
@@ -32,27 +35,40 @@ static int read_doubles(char *s, double *v, int n) {
         if (end == s) return 0;
         s = end;
     }
-    return 1;
+    while (*s == ' ' || *s == '\t' || *s == '\r' || *s == '\n') ++s;
+    return *s == '\0';
 }
 
 int main(void) {
     static char line[1 << 16];
     static double v[3 + 2 + GT_NB * GT_N];
-    long allocs = 0;
+    long allocs = 0, n_line = 0, not_ok = 0;
     int counted = gt_malloc_calls != NULL;
     gt_controller *c = gt_controller_new();
     if (!c) { fprintf(stderr, "gt_controller_new failed\n"); return 1; }
     while (fgets(line, sizeof line, stdin)) {
         long before;
+        ++n_line;
         if (line[0] == 'E') {
-            if (!read_doubles(line + 1, v, 5 + GT_NB)) { fprintf(stderr, "bad E line\n"); return 1; }
+            int est;
+            if (!read_doubles(line + 1, v, 5 + GT_NB)) {
+                fprintf(stderr, "bad E line %ld (E and %d numbers)\n", n_line, 5 + GT_NB);
+                return 1;
+            }
             before = counted ? gt_malloc_calls() : 0;
-            gt_controller_estimate(c, v, v + 3, v + 5);
+            est = gt_controller_estimate(c, v, v + 3, v + 5);
             allocs += counted ? gt_malloc_calls() - before : 0;
+            if (est != GT_ESTIMATE_OK) {
+                ++not_ok;
+                fprintf(stderr, "E line %ld: gt_controller_estimate status %d\n", n_line, est);
+            }
         } else if (line[0] == 'C') {
             double u[2] = {strtod("nan", NULL), strtod("nan", NULL)}, t0, c0, dt, dc;
             int st;
-            if (!read_doubles(line + 1, v, 2 + GT_NB * GT_N)) { fprintf(stderr, "bad C line\n"); return 1; }
+            if (!read_doubles(line + 1, v, 2 + GT_NB * GT_N)) {
+                fprintf(stderr, "bad C line %ld (C and %d numbers)\n", n_line, 2 + GT_NB * GT_N);
+                return 1;
+            }
             before = counted ? gt_malloc_calls() : 0;
             t0 = clock_s(CLOCK_MONOTONIC);
             c0 = clock_s(CLOCK_PROCESS_CPUTIME_ID);
@@ -68,7 +84,7 @@ int main(void) {
             return 1;
         }
     }
-    printf("M %ld\nB %ld\n", counted ? allocs : -1L, gt_controller_bytes());
+    printf("M %ld\nB %ld\nR %ld\n", counted ? allocs : -1L, gt_controller_bytes(), not_ok);
     gt_controller_free(c);
     return 0;
 }

@@ -175,6 +175,23 @@ def test_the_estimate_refuses_a_non_finite_input_and_resets_a_non_finite_estimat
     assert rows["null_accessors"] == ["1", "1", "-1", "1"]
 
 
+def test_replay_refuses_a_line_of_another_length(built):
+    """gt_replay read the numbers it needed and ignored the rest: a preview of another horizon (a log
+    of another export) was replayed in part without a word. A line longer or shorter than its kind
+    is now an error naming the line and the count; the exact length runs."""
+    out, _, _, cfg = built
+    n_c, n_e = 2 + int(cfg["GT_NB"] * cfg["GT_N"]), 5 + int(cfg["GT_NB"])
+    c_ok = "C 27 0.7 " + " ".join(["1 0"] * int(cfg["GT_N"]))
+    e_ok = "E 210 nan nan 27 0.7 1 0"
+    assert len(c_ok.split()) == 1 + n_c and len(e_ok.split()) == 1 + n_e
+    assert _replay(out, [e_ok, c_ok]).returncode == 0
+    for lines, words in (([c_ok + " 1 0"], f"bad C line 1 (C and {n_c} numbers)"),
+                         ([e_ok, e_ok + " 0.5"], f"bad E line 2 (E and {n_e} numbers)"),
+                         ([c_ok.rsplit(" ", 2)[0]], "bad C line 1")):
+        run = _replay(out, lines)
+        assert run.returncode == 1 and words in run.stderr, (lines, run.stderr)
+
+
 def test_the_status_tables_of_the_header_and_the_manifest_agree(built):
     """The manifest names gt_controller_estimate's statuses (new) and gt_controller_step's as the
     header numbers them; the exported header is the shipped one."""
