@@ -77,6 +77,8 @@ MAKEFILE = """\
 CC ?= cc
 CFLAGS ?= -O2
 OBJS = gt_rti_data.o gt_ekf_data.o gt_qp.o gt_cond.o gt_rti.o gt_controller.o
+# every object depends on every header: an edited gt_controller_config.h rebuilds everything
+HEADERS = gt_controller.h gt_controller_config.h gt_cond.h gt_qp.h gt_rti.h gt_rti_data.h gt_ekf_data.h
 
 all: libgtcontroller.a gt_replay gt_malloc_count.so
 
@@ -89,11 +91,12 @@ gt_replay: gt_replay.o libgtcontroller.a
 gt_malloc_count.so: gt_malloc_count.c
 \t$(CC) -O2 -shared -fPIC -o $@ gt_malloc_count.c -ldl
 
-%.o: %.c
+%.o: %.c $(HEADERS)
 \t$(CC) $(CFLAGS) -c $< -o $@
 
+# what `make` built and nothing else (not *.o: an object of yours here stays)
 clean:
-\trm -f *.o libgtcontroller.a gt_replay gt_malloc_count.so
+\trm -f $(OBJS) gt_replay.o libgtcontroller.a gt_replay gt_malloc_count.so
 
 .PHONY: all clean
 """

@@ -8,9 +8,11 @@ a listed name, an unsupported solver refused before any work, no folder left by 
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
 import subprocess
+import time
 from pathlib import Path
 
 import numpy as np
@@ -206,6 +208,26 @@ def test_the_status_tables_of_the_header_and_the_manifest_agree(built):
         enum = {int(v): name.lower() for name, v in re.findall(prefix + r"(\w+) = (\d+)", header)}
         assert enum == {k: text.split(":")[0] for k, text in table.items()} and len(enum) >= 3
         assert manifest[key] == {str(k): v for k, v in table.items()}
+
+
+def test_an_edited_config_header_is_rebuilt_and_make_clean_leaves_a_users_objects(built, tmp_path):
+    """The Makefile's objects did not depend on the headers: a user who edited the tuning in
+    gt_controller_config.h and ran make got the old objects, silently. Now every object depends on
+    every header; and `make clean` removed every *.o, a user's own too: now only what it built."""
+    out = tmp_path / "ctl"
+    shutil.copytree(built[0], out, copy_function=shutil.copy2)
+    assert subprocess.run(["make", "-q", "-C", str(out), "CFLAGS=-O1"]).returncode == 0  # up to date
+    config = out / "gt_controller_config.h"
+    later = time.time() + 5
+    os.utime(config, (later, later))
+    plan = subprocess.run(["make", "-n", "-C", str(out), "CFLAGS=-O1"], capture_output=True, text=True).stdout
+    rebuilt = set(re.findall(r"-c (\w+)\.c", plan))
+    assert rebuilt == {"gt_rti_data", "gt_ekf_data", "gt_qp", "gt_cond", "gt_rti", "gt_controller", "gt_replay"}
+    (out / "dcs_task.o").write_text("a user's object")
+    assert subprocess.run(["make", "-s", "-C", str(out), "clean"]).returncode == 0
+    from mpc.export import BUILD_PRODUCTS
+    assert not any((out / name).exists() for name in BUILD_PRODUCTS)
+    assert (out / "dcs_task.o").read_text() == "a user's object"
 
 
 @pytest.mark.parametrize("solver, qpsol, key", [("ipopt", None, "controller.solver = 'ipopt'"),
