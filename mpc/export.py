@@ -8,7 +8,7 @@ What is written (``export_controller``): CasADi's generated C of the estimator's
 hand-written C of mpc/c (the Goldfarb-Idnani QP solver, the condensing loop, the RTI step, the controller API, a
 replay harness and an allocation counter); ``gt_controller_config.h`` (dimensions, scales, bounds,
 passing weights, the initial estimate); a Makefile; and ``grindtwin_export.json`` listing every
-file written, the step's and the estimate's statuses (:data:`STEP_STATUS`,
+file written with its sha256, the step's and the estimate's statuses (:data:`STEP_STATUS`,
 :data:`ESTIMATE_STATUS`) and any notes. The Python controller with
 ``qpsol = "condensed"`` runs the same generated code and the same solver, so the moves agree to
 rounding, and the step's status is the Python controller's: ok, a fallback, or target_unreachable
@@ -20,13 +20,16 @@ RTI's block: QP data, solver work); estimate and step allocate nothing (counted 
 
 The folder: created if absent; an existing folder is used only if it holds a previous export
 and nothing else (its manifest names every file it wrote and every file its Makefile builds),
-which is then replaced; anything else is refused, nothing written. Files are written into a new
-hidden folder beside it (``.DIR.<random>.partial``, :func:`twin.atomic.new_folder_beside`) and
-renamed when complete.
+with none of its sources changed since (their sha256 in the manifest: a tuned config header is
+the user's work), which is then replaced; anything else (the current folder or a parent of it
+too) is refused, nothing written. Files are written into a new hidden folder beside it
+(``.DIR.<random>.partial``, :func:`twin.atomic.new_folder_beside`) and renamed when complete;
+the previous export is moved aside first and removed by the names its manifest lists.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -175,29 +178,76 @@ def _generate(fns, name: str, folder: Path) -> None:
     gen.generate(str(folder) + "/")
 
 
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _previous_export(out: Path) -> dict:
+    """The manifest of the previous export in ``out``; MpcInputError if ``out`` holds anything else."""
+    man = out / MANIFEST
+    if not man.is_file():
+        raise MpcInputError(f"--out {out}: the folder is not empty and holds no {MANIFEST} (not an "
+                            f"export of ours); choose an empty or new folder.")
+    try:
+        data = json.loads(man.read_text())
+        listed = set(data.get("files", [])) | set(data.get("build_products", []))
+        hashes = dict(data.get("sha256", {}))
+    except (ValueError, AttributeError, TypeError):
+        raise MpcInputError(f"--out {out}: its {MANIFEST} is not one this export wrote (not readable as an "
+                            "export's file list); choose another folder.") from None
+    # an export writes no folder: one of a listed name is the user's (it would be deleted whole)
+    foreign = sorted(p.name for p in out.iterdir() if p.name not in listed or p.is_dir() or p.is_symlink())
+    if foreign:
+        raise MpcInputError(f"--out {out}: holds files this export did not write ({', '.join(foreign[:5])}); "
+                            f"move them away or choose another folder.")
+    # a source edited since (a tuned gt_controller_config.h) is the user's work: not replaced
+    edited = sorted(name for name, digest in hashes.items() if (out / name).is_file() and _sha256(out / name) != digest)
+    if edited:
+        raise MpcInputError(f"--out {out}: {', '.join(edited[:5])} changed since the export wrote "
+                            f"{'it' if len(edited) == 1 else 'them'}; keep your changes elsewhere or choose "
+                            "another folder.")
+    return data
+
+
 def check_out_dir(out) -> None:
-    """Refuse a folder that is not empty and not a previous export (nothing written)."""
+    """Refuse a folder that is not empty and not a previous export (nothing written): the current
+    folder or one of its parents, a link, a file in the path, files the export did not write, or
+    a source file changed since the export wrote it (its sha256 in the manifest)."""
     out = Path(out)
     if out.is_symlink():  # an export replaces the folder as a whole: the link would be in the way
         raise MpcInputError(f"--out {out}: is a symbolic link (to {os.readlink(out)}); give the folder itself.")
     if any(p.exists() and not p.is_dir() for p in (out, *out.parents)):
         raise MpcInputError(f"--out {out}: {next(p for p in (out, *out.parents) if p.exists() and not p.is_dir())} "
                             "exists and is not a folder.")
+    here, target = Path.cwd().resolve(), out.resolve()
+    if target == here or target in here.parents:  # "." was emptied and its rename failed (exit 1)
+        raise MpcInputError(f"--out {out}: is the current folder or one of its parents, which the export would "
+                            "have to replace; give a folder of its own.")
     if out.is_dir() and any(out.iterdir()):
-        man = out / MANIFEST
-        if not man.is_file():
-            raise MpcInputError(f"--out {out}: the folder is not empty and holds no {MANIFEST} (not an "
-                                f"export of ours); choose an empty or new folder.")
-        try:
-            data = json.loads(man.read_text())
-            listed = set(data.get("files", [])) | set(data.get("build_products", []))
-        except (ValueError, AttributeError, TypeError):
-            raise MpcInputError(f"--out {out}: its {MANIFEST} is not one this export wrote (not readable as an "
-                                "export's file list); choose another folder.") from None
-        foreign = sorted(p.name for p in out.iterdir() if p.name not in listed)
-        if foreign:
-            raise MpcInputError(f"--out {out}: holds files this export did not write ({', '.join(foreign[:5])}); "
-                                f"move them away or choose another folder.")
+        _previous_export(out)
+
+
+def _replace(out: Path, partial: Path) -> None:
+    """Put ``partial`` in place of ``out``; a previous export there is moved aside first and removed
+    only by the names its manifest lists (then rmdir, which fails rather than delete anything else)."""
+    if not out.exists():
+        partial.rename(out)
+        return
+    data = _previous_export(out)  # again, just before: nothing of the user's arrived meanwhile
+    old = new_folder_beside(out)
+    out.rename(old)  # onto the new empty folder
+    try:
+        partial.rename(out)
+    except BaseException:
+        old.rename(out)
+        raise
+    for name in set(data.get("files", [])) | set(data.get("build_products", [])):
+        if (old / name).is_file() or (old / name).is_symlink():
+            (old / name).unlink()
+    try:
+        old.rmdir()
+    except OSError:
+        pass  # something else arrived there: left, hidden beside DIR, rather than deleted
 
 
 def export_controller(controller, estimator, u0, out_dir, source: str = "") -> list[str]:
@@ -210,6 +260,7 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "") -> l
     notes = [n for n in [speed_max_note(controller.settings)] if n]
     out = Path(out_dir)
     check_out_dir(out)
+    made = [p for p in out.parents if not p.exists()]  # removed again if the export fails
     out.parent.mkdir(parents=True, exist_ok=True)
     partial = new_folder_beside(out)
     try:
@@ -228,14 +279,18 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "") -> l
                     "api": "gt_controller.h", "build": "make",
                     "step_status": {str(k): v for k, v in STEP_STATUS.items()},
                     "estimate_status": {str(k): v for k, v in ESTIMATE_STATUS.items()},
-                    "unreachable_tol_frac": float(s.unreachable_tol_frac), "notes": notes}
+                    "unreachable_tol_frac": float(s.unreachable_tol_frac), "notes": notes,
+                    "sha256": {name: _sha256(partial / name) for name in files if name != MANIFEST}}
         (partial / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
+        _replace(out, partial)
     except BaseException:
         shutil.rmtree(partial, ignore_errors=True)
+        for p in made:  # deepest first; only if still empty
+            try:
+                p.rmdir()
+            except OSError:
+                break
         raise
-    if out.exists():
-        shutil.rmtree(out)  # a previous export of ours and nothing else (check_out_dir)
-    partial.rename(out)
     for note in notes:
         warnings.warn(note, OutsideModelsWarning, stacklevel=2)
     return files

@@ -230,6 +230,42 @@ def test_an_edited_config_header_is_rebuilt_and_make_clean_leaves_a_users_object
     assert (out / "dcs_task.o").read_text() == "a user's object"
 
 
+def test_a_re_export_keeps_a_users_edits_and_folders(tmp_path, capsys):
+    """A re-export replaced the previous one whole: a tuned gt_controller_config.h was lost, and a
+    folder of the user's under a name the export lists (gt_replay) was deleted with its files. Both
+    now refuse the export (exit 2), naming the file, and leave everything as it was (an unchanged
+    previous export is still replaced: tests/scenarios/test_export_controller.py)."""
+    out = tmp_path / "ctl"
+    assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 0
+    config = out / "gt_controller_config.h"
+    tuned = config.read_text().replace("#define GT_TOL", "/* tuned */\n#define GT_TOL")
+    config.write_text(tuned)
+    capsys.readouterr()
+    assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 2
+    assert "gt_controller_config.h changed since the export" in capsys.readouterr().err
+    assert config.read_text() == tuned
+    config.unlink()  # the user moved it away: a listed file missing is not theirs to lose
+    (out / "gt_replay").mkdir()
+    (out / "gt_replay" / "notes.txt").write_text("mine")
+    assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 2
+    assert "gt_replay" in capsys.readouterr().err
+    assert (out / "gt_replay" / "notes.txt").read_text() == "mine"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ctl"]  # no partial or moved-aside folder
+
+
+def test_the_current_folder_is_refused(tmp_path, monkeypatch, capsys):
+    """`--out .` in an empty folder built the models, emptied the folder and failed to rename it
+    (exit 1, "[Errno 22] Invalid argument: '.'"). It is now refused first (exit 2), as a run's
+    --out is, and nothing is written beside it."""
+    here = tmp_path / "here"
+    here.mkdir()
+    monkeypatch.chdir(here)
+    for out in (".", str(tmp_path)):
+        assert main(["export-controller", str(REFERENCE), "--out", out]) == 2
+        assert "current folder or one of its parents" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["here"] and not any(here.iterdir())
+
+
 @pytest.mark.parametrize("solver, qpsol, key", [("ipopt", None, "controller.solver = 'ipopt'"),
                                                ("rti", "hpipm", "controller.qpsol = 'hpipm'")])
 def test_a_solver_it_does_not_export_is_refused_before_any_work(tmp_path, monkeypatch, capsys, solver, qpsol, key):
@@ -251,3 +287,17 @@ def test_a_solver_it_does_not_export_is_refused_before_any_work(tmp_path, monkey
     err = capsys.readouterr().err
     assert key in err and "controller.solver = 'rti' and controller.qpsol = 'condensed'" in err
     assert not (tmp_path / "x").exists()
+
+
+def test_a_failed_export_leaves_no_folder_it_made(tmp_path, monkeypatch, capsys):
+    """An export that fails while writing (here the code generation) removed its partial folder but
+    left the parents of --out it had made (a/b for --out a/b/c). Now they go too."""
+    import mpc.export as export
+
+    def fail(*a, **k):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(export, "_generate", fail)
+    assert main(["export-controller", str(REFERENCE), "--out", str(tmp_path / "a" / "b" / "c")]) == 1
+    assert "No space left" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())
