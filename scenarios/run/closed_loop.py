@@ -180,8 +180,10 @@ def start_feed_tph(scene: Scene, models, blend0) -> float:
     lo, hi = start_feed_bounds_tph(scene)
     feed0 = feed_for_target(models.plant, blend0, c.target_p80_um, scene.feed.speed_frac_critical, (lo, hi))
     if not math.isfinite(feed0):
-        raise RunError(f"scene {scene.scene.name}: no feed rate in {lo:g}-{hi:g} t/h holds the target P80 "
-                       f"{c.target_p80_um} um at speed {scene.feed.speed_frac_critical} with the initial blend")
+        raise SceneError(f"scene {scene.scene.name}: controller.target_p80_um = {c.target_p80_um:g} um cannot be "
+                         f"the start: no feed rate in {lo:g}-{hi:g} t/h (0.2-2x the mill's nominal) holds it at "
+                         f"feed.speed_frac_critical = {scene.feed.speed_frac_critical:g} with the initial blend; give "
+                         "a target the plant reaches there, or feed.start = \"scene\" to start at feed.feed_tph")
     return float(feed0)
 
 
@@ -214,7 +216,7 @@ def hold_schedule(times_h, blend, dt_h: float):
 
 def plant_start(scene: Scene, models, blend0):
     """Where a closed loop starts: the plant's steady state at :func:`start_feed_tph`
-    (``feed.start``), the scene's speed and ``blend0``; RunError if no feed rate holds the target."""
+    (``feed.start``), the scene's speed and ``blend0``; SceneError if no feed rate holds the target."""
     return models.plant.steady(feed_tph=start_feed_tph(scene, models, blend0),
                                speed_frac_critical=scene.feed.speed_frac_critical, blend=blend0)
 

@@ -67,3 +67,16 @@ def test_start_target_finds_the_laboratory_mills_feed_too(write_scene):
     k = res.kpis
     assert 0.0062 <= k["start_feed_tph"] <= 0.062  # 0.2-2x the lab mill's 0.031 t/h
     assert k["start_p80_um"] == pytest.approx(210.0, rel=1e-3)
+
+
+def test_a_start_target_no_feed_holds_is_refused_as_a_scene_problem_naming_its_keys(write_scene):
+    """A target no feed rate holds at the start failed as a run error (exit 1) naming no key: it is
+    the scene's problem (exit 2), and the message names the target, the speed and the way out."""
+    scene = OPEN.replace("feed_tph = 30.0", 'feed_tph = 30.0\nstart = "target"').replace(
+        "target_p80_um = 210.0", "target_p80_um = 20.0")
+    assert "target_p80_um = 20.0" in scene
+    with pytest.raises(SceneError) as info:
+        run_scene(load_scene(write_scene(scene)), progress=False, plots=False)
+    msg = str(info.value)
+    assert "controller.target_p80_um = 20 um cannot be the start" in msg and "feed.speed_frac_critical = 0.7" in msg
+    assert 'feed.start = "scene"' in msg
