@@ -11,7 +11,7 @@ import pytest
 from twin import Twin, TwinInputError
 from twin.calibration import DEM_NAMES, load_calibration
 from twin.calibration.breakage_map import COEFFICIENT_NAMES
-from twin.calibration.files import MAP_COEFFICIENTS
+from twin.calibration.record_checks import MAP_COEFFICIENTS
 
 
 def _copy(name: str) -> dict:

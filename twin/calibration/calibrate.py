@@ -24,10 +24,11 @@ from pathlib import Path
 from ..errors import TwinError, TwinInputError
 from .dem_link import fit_sizes_um, per_ore_selection, run_dem
 from .dem_map import fit_law
-from .files import (CALIBRATION_DIR, Calibration, base_record, check_dem_step, check_writable, default_output_path,
+from .files import (CALIBRATION_DIR, Calibration, base_record, check_writable, default_output_path,
                     load_calibration, provenance, shipped_names, write_calibration)
 from .fitted import DEM_BOUNDS, DEM_FITTED, DEM_NAMES
 from .fitting import fit_to_table, predict_table, table_errors
+from .record_checks import check_dem_step
 
 #: Replicates of the bootstrap (90 % percentile intervals from 100 replicates: the 5th and 96th
 #: order statistics; Efron & Tibshirani 1993 ch. 13 suggest >= 100 for percentile intervals).
