@@ -82,7 +82,7 @@ def band_top_steady(scene: Scene, twin, blend, feed_lo_tph: float):
     """The controller model's steady state at the scene's speed and ``blend`` with the highest feed in
     [``feed_lo_tph``, the controller's feed bound] whose load stays within the top of the load band (a
     feed with no steady state counts as past it: the mill fills); None when ``feed_lo_tph`` passes it."""
-    m, hi = twin.model, scene.controller.load_band_frac[1]
+    hi = scene.controller.load_band_frac[1]
     speed = scene.feed.speed_frac_critical
 
     def within(feed):
@@ -90,7 +90,7 @@ def band_top_steady(scene: Scene, twin, blend, feed_lo_tph: float):
             ss = twin.steady(feed_tph=feed, speed_frac_critical=speed, blend=blend)
         except SolverError:  # no steady state: the mill fills, past the band
             return None
-        return ss if float(m.outputs["load_frac"](ss.x, ss.u, ss.d)) <= hi else None
+        return ss if ss.outputs["load_frac"] <= hi else None
 
     lo, up = float(feed_lo_tph), feed_bounds(scene)[1]
     best = within(up)
@@ -129,9 +129,8 @@ def check_rk4_substeps(scene: Scene, twin, css, blends=()) -> None:
     model (mpc.discretize.stable_rk4_substeps) at its initial steady state ``css`` and, for each of
     ``blends``, at the top of the load band (:func:`band_top_steady`, from the start's feed): the
     controller may take the plant anywhere in its band, and the model's fastest rate, the mill's
-    through-flow over its hold-up, grows with the load; in a closed circuit with the circulating
-    load too (a reverse circuit: 139/h at its start, 20.7 t/h and load 0.73, against 214/h at 30 t/h
-    and load 1.09, below the band's top, where the NMPC's 4 steps of RK4 overflowed)."""
+    through-flow over its hold-up, grows with the load, and in a closed circuit with the
+    circulating load too (a reverse circuit's mill passes CL x feed)."""
     dt, n = scene.scene.sample_period_h, scene.controller.rk4_substeps
     points = [("at the initial steady state", css)]
     for b in blends:
