@@ -29,7 +29,6 @@ the previous export is moved aside first and removed by the names its manifest l
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import os
@@ -44,7 +43,7 @@ from mpc.codegen import C_DIR
 from mpc.condense import stage_functions
 from mpc.errors import MpcInputError, OutsideModelsWarning
 from mpc.nmpc import BLEND_SUM_TOL, PASSING_TARGET, speed_max_note
-from twin import new_folder_beside
+from twin import file_sha256, new_folder_beside
 
 MANIFEST = "grindtwin_export.json"
 #: gt_controller_step's statuses (mpc/c/gt_controller.h's enum gt_step_status), in the manifest.
@@ -178,10 +177,6 @@ def _generate(fns, name: str, folder: Path) -> None:
     gen.generate(str(folder) + "/")
 
 
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
 def _previous_export(out: Path) -> dict:
     """The manifest of the previous export in ``out``; MpcInputError if ``out`` holds anything else."""
     man = out / MANIFEST
@@ -201,7 +196,7 @@ def _previous_export(out: Path) -> dict:
         raise MpcInputError(f"--out {out}: holds files this export did not write ({', '.join(foreign[:5])}); "
                             f"move them away or choose another folder.")
     # a source edited since (a tuned gt_controller_config.h) is the user's work: not replaced
-    edited = sorted(name for name, digest in hashes.items() if (out / name).is_file() and _sha256(out / name) != digest)
+    edited = sorted(name for name, digest in hashes.items() if (out / name).is_file() and file_sha256(out / name) != digest)
     if edited:
         raise MpcInputError(f"--out {out}: {', '.join(edited[:5])} changed since the export wrote "
                             f"{'it' if len(edited) == 1 else 'them'}; keep your changes elsewhere or choose "
@@ -280,7 +275,7 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "") -> l
                     "step_status": {str(k): v for k, v in STEP_STATUS.items()},
                     "estimate_status": {str(k): v for k, v in ESTIMATE_STATUS.items()},
                     "unreachable_tol_frac": float(s.unreachable_tol_frac), "notes": notes,
-                    "sha256": {name: _sha256(partial / name) for name in files if name != MANIFEST}}
+                    "sha256": {name: file_sha256(partial / name) for name in files if name != MANIFEST}}
         (partial / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
         _replace(out, partial)
     except BaseException:

@@ -27,7 +27,7 @@ _API = {
     "SteadyState": ".solve", "Trajectory": ".solve",
     "DEFAULT_EFFECTS": ".twin", "MIXER_SHARES_SUM_TOL": ".twin", "mixer_shares_sum_ok": ".twin",
     "Twin": ".twin",
-    "new_folder_beside": ".atomic", "write_text_atomically": ".atomic",
+    "file_sha256": ".atomic", "new_folder_beside": ".atomic", "write_text_atomically": ".atomic",
     "trajectory_notes": ".validity",
 }
 
@@ -40,6 +40,6 @@ __all__ = [
     "TwinInputError", "austin_selection", "bond_power_kw", "centrifuging_note", "hydrocyclone_from", "power_kw", "size_mill", "write_preset", "check_preset_path",
     "CycloneSurvey", "calibrate_plitt", "circuit_cyclone", "plitt_factors", "load_design_cyclone",
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
-    "new_folder_beside", "pxx_um", "reference_ores", "trajectory_notes", "write_text_atomically",
+    "file_sha256", "new_folder_beside", "pxx_um", "reference_ores", "trajectory_notes", "write_text_atomically",
 ]
 __getattr__, __dir__ = lazy_face(__name__, _API)

@@ -2,10 +2,11 @@
 else holds, created exclusively beside the target (:mod:`tempfile`), and is renamed over the
 target when complete. A reader never sees half a file, and no other file is touched: a fixed
 name such as ``X.tmp`` or ``DIR.partial`` could be the user's own, and would be overwritten or
-removed."""
+removed. A written file is known again by its sha256 (:func:`file_sha256`)."""
 
 from __future__ import annotations
 
+import hashlib
 import os
 import tempfile
 from pathlib import Path
@@ -41,3 +42,12 @@ def new_folder_beside(path) -> Path:
     folder = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.", suffix=".partial"))
     os.chmod(folder, _default_mode(0o777))  # mkdtemp makes it private (0700)
     return folder
+
+
+def file_sha256(path) -> str:
+    """The sha256 of a file's bytes (hex), read in blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()

@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import errno
 import fcntl
-import hashlib
 import json
 import math
 import os
@@ -54,6 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from scenarios.errors import RunError, SceneError, raise_if_interrupted
+from twin import file_sha256
 from scenarios.output.plots import PLOTS, SWEEP_PLOT, write_plots
 from scenarios.output.workbook import PSD_FILES, RUN_WORKBOOK, STREAMS_FILE, SWEEP_WORKBOOK, write_size_csvs, write_workbook
 
@@ -88,15 +88,6 @@ def json_safe(obj):
 def _refuse(final: Path, why: str) -> SceneError:
     return SceneError(f"--out {final}: {why}; nothing was run. Choose a new folder (e.g. --out "
                       f"runs/NAME), or move the folder away yourself.")
-
-
-def file_sha256(path: Path) -> str:
-    """The sha256 of a file's bytes (hex), read in blocks."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def installed_version() -> str | None:

@@ -11,7 +11,8 @@ import pytest
 import twin.surrogate as S
 from twin.errors import TwinError, TwinInputError
 from twin.surrogate import files
-from twin.surrogate.compiled import CompiledSurrogate, file_sha256
+from twin import file_sha256
+from twin.surrogate.compiled import CompiledSurrogate
 
 
 def test_shipped_npz_is_the_shipped_joblib_compiled_on_the_shipped_calibration():

@@ -12,7 +12,6 @@ it is that joblib's and was made from the current calibration.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from dataclasses import dataclass, field
@@ -186,5 +185,3 @@ class CompiledSurrogate:
         return cls(tuple(doc["feature_names"]), doc["arrays"], doc["score_range"], doc["q_limit"], meta)
 
 
-def file_sha256(path: str | Path) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()

@@ -9,9 +9,10 @@ import platform
 from functools import cache
 from pathlib import Path
 
+from ..atomic import file_sha256
 from ..calibration.files import Calibration, load_calibration
 from ..errors import TwinError, TwinInputError
-from .compiled import TARGETS, CompiledSurrogate, file_sha256
+from .compiled import TARGETS, CompiledSurrogate
 
 DATA_DIR = Path(__file__).resolve().parent / "data"
 TABLE_PATH = DATA_DIR / "surrogate_training.parquet"
