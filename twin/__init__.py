@@ -18,6 +18,7 @@ _API = {
     "Hydrocyclone": ".effects.classification", "hydrocyclone_from": ".effects.classification",
     "CycloneSurvey": ".effects.classification", "calibrate_plitt": ".effects.classification",
     "circuit_cyclone": ".effects.classification", "plitt_factors": ".effects.classification",
+    "plitt_factors_text": ".effects.classification",
     "load_design_cyclone": ".sizing",
     "TabulatedPSD": ".sizes", "SizedMill": ".sizing", "size_mill": ".sizing", "write_preset": ".sizing", "check_preset_path": ".sizing",
     "INPUT_NAMES": ".model", "Model": ".model", "ModelSpec": ".model",
@@ -38,7 +39,7 @@ __all__ = [
     "SPEED_FACTOR_ZERO_FRAC_CRITICAL", "SizeGrid", "SizedMill", "SolverError", "SteadyState", "TabulatedPSD",
     "Texture", "Trajectory", "Twin", "TwinError",
     "TwinInputError", "austin_selection", "bond_power_kw", "centrifuging_note", "hydrocyclone_from", "power_kw", "size_mill", "write_preset", "check_preset_path",
-    "CycloneSurvey", "calibrate_plitt", "circuit_cyclone", "plitt_factors", "load_design_cyclone",
+    "CycloneSurvey", "calibrate_plitt", "circuit_cyclone", "plitt_factors", "plitt_factors_text", "load_design_cyclone",
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
     "file_sha256", "new_folder_beside", "pxx_um", "reference_ores", "trajectory_notes", "write_text_atomically",
 ]

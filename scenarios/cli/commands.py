@@ -602,7 +602,7 @@ def _steady_scene(args) -> int:
 
     from scenarios.run.models import build_models
     from scenarios.scene import load_scene
-    from twin import circuit_cyclone, plitt_factors
+    from twin import circuit_cyclone, plitt_factors, plitt_factors_text
 
     given = [name for name, v in (("--surrogate", args.surrogate), ("--at-constant-load", args.at_constant_load),
                                   ("--blend", args.blend), ("--ore", args.ore), ("--mill", args.mill),
@@ -635,8 +635,7 @@ def _steady_scene(args) -> int:
         text = "undefined" if val is None else f"{val:.4g}" if isinstance(val, float) else val
         print(f"  {key:28s} {text}")
     if factors:
-        print(f"  {'cyclone_plitt_factors':28s} " + ", ".join(f"{k.removesuffix('_factor')} {v:.4g}"
-                                                            for k, v in factors.items()))
+        print(f"  {'cyclone_plitt_factors':28s} {plitt_factors_text(factors)}")
     for note in notes:
         print(f"  note: {note}")
     return 0
@@ -829,7 +828,8 @@ def add_size_mill_parser(subparsers):
 def cmd_size_mill(args) -> int:
     import json
 
-    from twin import check_preset_path, load_design_cyclone, load_ore, size_mill, write_preset
+    from twin import (Hydrocyclone, check_preset_path, load_design_cyclone, load_ore, plitt_factors,
+                      plitt_factors_text, size_mill, write_preset)
 
     if args.write_preset:
         check_preset_path(args.write_preset)  # before the sizing's minutes of work
@@ -856,10 +856,9 @@ def cmd_size_mill(args) -> int:
           f"  power_model               {m.power_model}\n  hydrocyclones             {c['count']} x "
           f"{c['diameter_cm']:.3g} cm (inlet {c['inlet_cm']:.3g}, vortex finder {c['vortex_finder_cm']:.3g}, apex "
           f"{c['apex_cm']:.3g} cm), fed at {c['feed_solids_vol_pct']:.3g} % solids by volume")
-    factors = [f"{k.removesuffix('_factor')} {c[k]:.4g}" for k in ("d50c_factor", "pressure_factor", "split_factor",
-                                                                  "sharpness_factor") if c[k] != 1.0]
+    factors = plitt_factors_text(plitt_factors(Hydrocyclone(**c)), calibrated_only=True)
     if factors:
-        print(f"  Plitt factors             {', '.join(factors)}")
+        print(f"  Plitt factors             {factors}")
     for key in ("p80_um", "circulating_load_frac", "power_kw", "specific_energy_kwh_t", "load_frac", "load_status",
                 *sized.circuit):
         print(f"  {key:25s} {z[key]:.4g}" if isinstance(z[key], float) else f"  {key:25s} {z[key]}")

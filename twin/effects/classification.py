@@ -378,7 +378,7 @@ class Classification(Effect):
             return over, under
 
         ctx.provide("product_split", split)
-        factors = ", ".join(f"{f.removesuffix('_factor')} {v:.4g}" for f, v in plitt_factors(cyc).items() if v != 1.0)
+        factors = plitt_factors_text(plitt_factors(cyc), calibrated_only=True)
         ctx.note(f"hydrocyclone ({cyc.mode}): d50c {float(at_nominal['d50c_um']):.0f} um, m "
                  f"{float(at_nominal['sharpness_m']):.2f}, water bypass {float(at_nominal['water_bypass_frac']):.2f} "
                  "at nominal" + (f" (Plitt factors {factors})" if factors else "")
@@ -401,6 +401,13 @@ def circuit_cyclone(spec) -> Hydrocyclone | None:
 def plitt_factors(cyc: Hydrocyclone) -> dict:
     """A Plitt cyclone's four calibration factors by name (empty for one given directly)."""
     return {} if cyc.mode == "direct" else {f: getattr(cyc, f) for f, _ in SURVEY_FACTORS}
+
+
+def plitt_factors_text(factors: dict, calibrated_only: bool = False) -> str:
+    """``factors`` (:func:`plitt_factors`) as "pressure 0.46, split 2.05, ..."; with
+    ``calibrated_only`` only those not 1 (the empty string when none is)."""
+    return ", ".join(f"{f.removesuffix('_factor')} {v:.4g}" for f, v in factors.items()
+                     if not (calibrated_only and v == 1.0))
 
 
 def slurry_m3_h(cyc: Hydrocyclone, solids_tph, rho):
