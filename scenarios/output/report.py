@@ -19,8 +19,8 @@ from pathlib import Path
 from scenarios.errors import SceneError
 from scenarios.output.labels import KPI_LABELS, calibration_text, effects_rows, kpi_text
 from scenarios.output.plots import PLOTS
-from scenarios.output.write import (INCOMPLETE_MARKER, MANIFEST, file_sha256, installed_version, manifest_files,
-                                    read_manifest)
+from scenarios.output.write import (INCOMPLETE_MARKER, MANIFEST, file_sha256, installed_version,
+                                    later_file_is_as_written, manifest_files, read_manifest, record_later_file)
 
 _CSS = """body{font-family:system-ui,sans-serif;max-width:60em;margin:2em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:.3em .7em;text-align:left}
@@ -209,8 +209,11 @@ def _render(run_dir: Path, summary: dict, problems: list[str]) -> str:
 def write_report(run_dir) -> Path:
     """Write ``run_dir/report.html`` (via a temporary file, renamed when complete), only into a
     folder grindtwin wrote (its manifest lists summary.json): a ``report.html`` of the user's
-    beside a ``summary.json`` of their own is never replaced. What makes the folder differ from
-    what its run wrote opens the page and is warned of (:class:`RunFolderWarning`)."""
+    beside a ``summary.json`` of their own is never replaced. The report's sha256 is recorded in
+    the manifest (``later_sha256``); a ``report.html`` whose content is not what grindtwin last
+    wrote there (edited by hand, a file of the user's) is refused, not replaced, unless it holds
+    the very page about to be written. What makes the folder differ from what its run wrote opens
+    the page and is warned of (:class:`RunFolderWarning`)."""
     run_dir = Path(run_dir)
     summary = _run_summary(run_dir)
     if "summary.json" not in (manifest_files(run_dir) or []):
@@ -223,10 +226,26 @@ def write_report(run_dir) -> Path:
         warnings.warn(f"{run_dir}: {problem}", RunFolderWarning, stacklevel=2)
     out = run_dir / "report.html"
     tmp = run_dir / "report.html.partial"
+    if (out.is_symlink() or out.is_file()) and not (later_file_is_as_written(run_dir, out.name)
+                                                   or _holds(out, text)):
+        raise SceneError(f"{out}: this report.html is not the one grindtwin last wrote here (edited since, a file of "
+                         "yours, or written by a grindtwin that kept no record of it), so it was left as it is "
+                         "and no report was written. Move it out of the folder (or delete it if you do not need "
+                         f"it), then run again: grindtwin report {run_dir}")
     try:
         tmp.write_text(text, encoding="utf-8")
+        sha256 = file_sha256(tmp)
         tmp.replace(out)
     except BaseException:  # a full disk, a report.html that is a folder, Ctrl-C: no half-written page left
         tmp.unlink(missing_ok=True)
         raise
+    record_later_file(run_dir, out.name, sha256)  # killed before this: the page is refused next time, not lost
     return out
+
+
+def _holds(path: Path, text: str) -> bool:
+    """Whether the regular file ``path`` holds exactly ``text`` (replacing it loses nothing)."""
+    try:
+        return not path.is_symlink() and path.read_text(encoding="utf-8") == text
+    except (OSError, UnicodeDecodeError):
+        return False

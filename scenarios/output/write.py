@@ -14,13 +14,17 @@ Layout of a run directory::
     DIR/*.png                plots (see :data:`scenarios.output.plots.PLOTS`)
     DIR/grindtwin-manifest.json  what grindtwin wrote here (written last), each file with its
                              sha256: how a later run knows the folder is a grindtwin result it
-                             may replace, and the report that a file is missing or was changed
-    DIR/report.html          written later by ``grindtwin report DIR``
+                             may replace, and the report that a file is missing or was changed;
+                             ``later_sha256``: the sha256 of the report.html ``grindtwin report``
+                             last wrote (the manifest is rewritten as a whole to record it)
+    DIR/report.html          written later by ``grindtwin report DIR``; replaced by the next report
+                             (or removed with the folder by the next run) only while its sha256 is
+                             the recorded one: one edited by hand, or the user's, is refused and kept
 
 The folder is claimed before any work (:func:`claim_output`), so a bad ``DIR`` costs nothing:
 - ``DIR`` missing or empty, or a previous grindtwin result (its manifest lists every file in
-  it, apart from ``report.html``): accepted; a previous result is replaced as a whole, only
-  once the new one is complete;
+  it, apart from a ``report.html`` grindtwin wrote and nobody changed since): accepted; a
+  previous result is replaced as a whole, only once the new one is complete;
 - anything else (a folder with files grindtwin did not write, a file, the current folder or one
   of its parents, the scene file's own folder) is refused;
 - ``DIR.lock`` is locked (``fcntl.flock``, exclusive): a second run to the same ``DIR`` is
@@ -61,8 +65,15 @@ INCOMPLETE_MARKER = "_INCOMPLETE"
 MANIFEST = "grindtwin-manifest.json"
 #: first words of DIR.lock, by which a run knows the lock is grindtwin's (not a user's file)
 LOCK_TAG = "grindtwin lock"
-#: Files grindtwin may add to a finished run folder later (``grindtwin report``).
-LATER_FILES = ("report.html", "report.html.partial")
+#: Files grindtwin may add to a finished run folder later (``grindtwin report``), and the temporary
+#: copy of the manifest by which it records them.
+LATER_FILES = ("report.html", "report.html.partial", MANIFEST + ".partial")
+#: The later files whose sha256 the manifest records (its :data:`LATER_SHA256`): one whose content is
+#: not what grindtwin last wrote (edited by hand, or the user's own) is never replaced or removed.
+RECORDED_LATER_FILES = ("report.html",)
+#: The manifest's key of the later files' sha256 (name -> hex); apart from ``sha256``, which is the
+#: run's own files, checked by the report.
+LATER_SHA256 = "later_sha256"
 #: Every name a run or a sweep writes, so that a stale partial folder is removed by name.
 RUN_FILES = ("timeseries.parquet", "timeseries.csv", *PSD_FILES.values(), STREAMS_FILE, RUN_WORKBOOK,
              "summary.json", *PLOTS, "sweep.csv", "sweep.parquet", "sweep_traces.csv", SWEEP_PLOT, SWEEP_WORKBOOK,
@@ -114,19 +125,50 @@ def manifest_files(folder: Path) -> list[str] | None:
     return None if data is None else [str(f) for f in data["files"]]
 
 
+def later_file_is_as_written(folder: Path, name: str, manifest: dict | None = None) -> bool:
+    """Whether ``folder/name`` (one of :data:`RECORDED_LATER_FILES`) is a regular file whose sha256
+    is the one the manifest recorded when grindtwin wrote it; False for a file edited since, one
+    of the user's, a symbolic link, or one a grindtwin that recorded none wrote."""
+    manifest = read_manifest(folder) if manifest is None else manifest
+    recorded = (manifest or {}).get(LATER_SHA256)
+    path = folder / name
+    if not isinstance(recorded, dict) or path.is_symlink() or not path.is_file():
+        return False
+    return recorded.get(name) == file_sha256(path)
+
+
+def record_later_file(folder: Path, name: str, sha256: str) -> None:
+    """Record in ``folder``'s manifest that grindtwin wrote ``name`` with this ``sha256`` (the
+    manifest is replaced via a temporary file, as a whole)."""
+    manifest = read_manifest(folder)
+    if manifest is None:
+        raise RunError(f"{folder}: its {MANIFEST} is gone or unreadable; {name} was written but not recorded")
+    later = manifest.get(LATER_SHA256)
+    manifest[LATER_SHA256] = {**(later if isinstance(later, dict) else {}), name: sha256}
+    tmp = folder / (MANIFEST + ".partial")
+    try:
+        tmp.write_text(json.dumps(manifest, indent=2) + "\n", encoding="utf-8")
+        tmp.replace(folder / MANIFEST)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
 def strangers(folder: Path) -> list[str] | None:
     """Names in an existing ``folder`` that grindtwin did not write (``[]``: all ours, or
-    empty); ``None`` if ``folder`` is not a directory."""
+    empty); ``None`` if ``folder`` is not a directory. A :data:`RECORDED_LATER_FILES` file that is
+    not as grindtwin last wrote it (:func:`later_file_is_as_written`) is the user's."""
     if not folder.is_dir():
         return None
     names = sorted(p.name for p in folder.iterdir())
     if not names:
         return []
-    ours = manifest_files(folder)
-    if ours is None:
+    manifest = read_manifest(folder)
+    if manifest is None:
         return names
-    allowed = set(ours) | {MANIFEST, *LATER_FILES}
-    return [n for n in names if n not in allowed]
+    allowed = {str(f) for f in manifest["files"]} | {MANIFEST, *LATER_FILES}
+    return [n for n in names if n not in allowed
+            or (n in RECORDED_LATER_FILES and not later_file_is_as_written(folder, n, manifest))]
 
 
 def _remove_ours(folder: Path, names=None) -> bool:
@@ -161,7 +203,10 @@ def _check_place(final: Path, protect: tuple[Path, ...]) -> None:
     others = strangers(final)
     if others:
         shown = ", ".join(others[:5]) + (f" and {len(others) - 5} more" if len(others) > 5 else "")
-        raise _refuse(final, f"the folder exists and holds files grindtwin did not write ({shown})")
+        edited = [n for n in others if n in RECORDED_LATER_FILES]
+        why = (f"; {', '.join(edited)} is not the one grindtwin last wrote (edited since, or yours), so "
+               "it is kept" if edited else "")
+        raise _refuse(final, f"the folder exists and holds files grindtwin did not write ({shown}){why}")
 
 
 class OutputClaim:
