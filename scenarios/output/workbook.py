@@ -27,6 +27,20 @@ EXCEL_MAX_ROWS = 1_048_576
 #: The KPI sheet's note beside an empty value (the report's "n/a").
 UNDEFINED_NOTE = "n/a: not defined for this run (no P80 target, no controller, a batch grind or nothing fed)"
 SWEEP_WORKBOOK = "sweep.xlsx"
+#: How every CSV of a run folder writes a number that is not defined (NaN: the P80 of an empty mill,
+#: a KPI with no target): the text ``NaN``, which pandas, numpy, R and Python's ``float`` read back as
+#: NaN; an empty cell (pandas' default) reads as a sample lost. Other numbers are written with every
+#: digit (Python's repr), so they read back exactly.
+CSV_NA = "NaN"
+#: The same in a workbook's tables of numbers: Excel's own error value, which a chart skips and a sum
+#: or mean carries (an empty cell reads as lost, text as zero in a chart); pandas reads it back as NaN.
+XLSX_NA = "#N/A"
+
+
+def write_csv(table: pd.DataFrame, path: Path, index: bool = True) -> Path:
+    """``table`` as CSV at ``path``, an undefined number written :data:`CSV_NA`."""
+    table.to_csv(path, index=index, na_rep=CSV_NA)
+    return Path(path)
 
 
 def workbook_problem(n_samples: int) -> str | None:
@@ -56,11 +70,11 @@ def write_size_csvs(result, folder: Path) -> list[Path]:
     for psd in (result.psd, getattr(result, "mill_psd", None)):
         if psd is not None and len(psd):
             path = Path(folder) / PSD_FILES[psd.attrs.get("what", "product")]
-            psd_table(psd).to_csv(path)
+            write_csv(psd_table(psd), path)
             written.append(path)
     end = (getattr(result, "streams", None) or {}).get("end")
     if end is not None:
-        end.to_csv(Path(folder) / STREAMS_FILE)
+        write_csv(end, Path(folder) / STREAMS_FILE)
         written.append(Path(folder) / STREAMS_FILE)
     return written
 
@@ -131,13 +145,18 @@ def model_rows(summary: dict) -> pd.DataFrame:
                          "controller's model": ctl + [""] * (n - len(ctl))})
 
 
+#: Sheets of text and settings, where an empty cell means "not set" (the KPI sheet's note says why a
+#: value is empty); every other sheet is a table of numbers, an undefined one written :data:`XLSX_NA`.
+TEXT_SHEETS = ("summary", "KPIs", "models", "scene", "varied keys")
+
+
 def _write_sheets(path: Path, sheets: dict[str, tuple[pd.DataFrame, bool]]) -> Path:
     """Write ``name -> (table, keep its index)`` sheets to ``path`` via ``path.partial``; header
     row frozen, columns sized to their header."""
     tmp = path.with_name(path.name + ".partial")
     with pd.ExcelWriter(tmp, engine="openpyxl") as xl:
         for name, (table, index) in sheets.items():
-            table.to_excel(xl, sheet_name=name, index=index)
+            table.to_excel(xl, sheet_name=name, index=index, na_rep="" if name in TEXT_SHEETS else XLSX_NA)
             ws = xl.sheets[name]
             ws.freeze_panes = "B2" if index else "A2"
             for row, col, fmt in table.attrs.get("percent_cells", []):  # (row, column, format) of the table

@@ -21,6 +21,13 @@ Layout of a run directory::
                              (or removed with the folder by the next run) only while its sha256 is
                              the recorded one: one edited by hand, or the user's, is refused and kept
 
+In every CSV an undefined number (NaN: the P80 of an empty mill, a sample the model leaves
+undefined) is the text ``NaN`` (:data:`scenarios.output.workbook.CSV_NA`), never an empty cell,
+and every other number has all its digits, so ``pd.read_csv`` reads back the run's numbers
+exactly, NaN as NaN; Excel shows ``NaN`` as text. In the workbook's tables of numbers (time
+series, size distributions, streams, P80 traces) it is Excel's ``#N/A``; summary.json writes it
+as null, and the workbook's KPI sheet leaves its cell empty with a note saying why.
+
 The folder is claimed before any work (:func:`claim_output`), so a bad ``DIR`` costs nothing:
 - ``DIR`` missing or empty, or a previous grindtwin result (its manifest lists every file in
   it, apart from a ``report.html`` grindtwin wrote and nobody changed since): accepted; a
@@ -59,7 +66,8 @@ import numpy as np
 from scenarios.errors import RunError, SceneError, raise_if_interrupted
 from twin import file_sha256
 from scenarios.output.plots import PLOTS, SWEEP_PLOT, write_plots
-from scenarios.output.workbook import PSD_FILES, RUN_WORKBOOK, STREAMS_FILE, SWEEP_WORKBOOK, write_size_csvs, write_workbook
+from scenarios.output.workbook import (PSD_FILES, RUN_WORKBOOK, STREAMS_FILE, SWEEP_WORKBOOK, write_csv,
+                                      write_size_csvs, write_workbook)
 
 INCOMPLETE_MARKER = "_INCOMPLETE"
 MANIFEST = "grindtwin-manifest.json"
@@ -378,7 +386,7 @@ def write_files(result, folder: Path, csv: bool = False, plots: bool = True, xls
     frame = result.frame
     frame.to_parquet(folder / "timeseries.parquet", index=False)
     if csv:
-        frame.to_csv(folder / "timeseries.csv", index=False)
+        write_csv(frame, folder / "timeseries.csv", index=False)
     write_size_csvs(result, folder)
     if xlsx:
         write_workbook(result, folder / RUN_WORKBOOK)

@@ -288,3 +288,32 @@ def test_the_report_and_workbook_name_the_plants_effects_when_they_are_not_the_s
                      plots=False)
     text = render_report(same)
     assert "<th>effects</th><td>breakage, transport</td>" in text and "plant effects" not in text
+
+
+def test_an_undefined_number_is_written_nan_in_every_csv_and_na_in_the_workbook_and_reads_back(tmp_path):
+    """The P80 of an empty mill is NaN (undefined): every CSV wrote it as an empty cell, which
+    an engineer cannot tell from a sample lost. Now ``NaN`` (read back as NaN, with every other
+    number exact) and Excel's #N/A in the workbook's tables of numbers."""
+    t = np.linspace(0.0, 1.0, 5)
+    p80 = np.array([np.nan, 0.1 + 0.2, 250.0 / 3.0, np.nan, 1e-300])
+    frame = pd.DataFrame({"time_h": t, "feed_tph": 30.0, "p80_um": p80, "load_frac": 1.0})
+    psd = pd.DataFrame([[1.0, np.nan], [1.0, 0.4]], index=pd.Index([0.0, 1.0], name="time_h"),
+                       columns=[1000.0, 50.0])
+    streams = pd.DataFrame({"size_um": [1000.0, 50.0], "product_tph": [np.nan, 2.0 / 3.0]}).set_index("size_um")
+    result = RunResult(frame, {"scene": "empty mill", "kpis": {"p80_iae_um_h": float("nan")}}, psd=psd,
+                       streams={"end": streams})
+    run = write_run(result, tmp_path / "run", csv=True, plots=False, xlsx=True)
+    text = (run / "timeseries.csv").read_text()
+    assert text.splitlines()[1].split(",")[2] == "NaN" and ",," not in text
+    back = pd.read_csv(run / "timeseries.csv")
+    np.testing.assert_array_equal(back["p80_um"].to_numpy(), p80)  # NaN where NaN, every other number exact
+    assert "NaN" in (run / "product_psd.csv").read_text()
+    assert np.isnan(pd.read_csv(run / "product_psd.csv", index_col=0).iloc[0, 1])
+    streams_back = pd.read_csv(run / "streams.csv", index_col=0)
+    assert np.isnan(streams_back["product_tph"].iloc[0]) and streams_back["product_tph"].iloc[1] == 2.0 / 3.0
+    book = openpyxl.load_workbook(run / "run.xlsx")
+    cells = [c for c in book["time series"]["C"]][1:]
+    assert [(c.value, c.data_type) for c in cells][0] == ("#N/A", "e") and cells[1].data_type == "n"
+    assert np.isnan(pd.read_excel(run / "run.xlsx", sheet_name="time series")["p80_um"].iloc[3])
+    kpis = list(book["KPIs"].values)[1]
+    assert kpis[2] is None and kpis[3] == UNDEFINED_NOTE  # the KPI sheet keeps its empty cell and its note
