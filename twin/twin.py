@@ -54,6 +54,14 @@ class Twin:
     (``calibrated_mill``, the laboratory mill): on another mill they are scaled to it by
     :func:`twin.scaleup.scale_breakage` (Austin's diameter and ball-size rules); parameters given
     in ``ore_breakage`` are taken as this mill's own.
+
+    A twin whose effects, size grid or (on the calibration's own mill) mixers differ from those
+    the calibration was fitted with (:meth:`twin.calibration.Calibration.mismatch`) is built, not
+    refused (benchmarks and studies do so on purpose), but says so: ``calibration_mismatch`` lists
+    each difference and ``notes`` (which every steady state carries) has one note for each. This
+    holds with a ``breakage_map`` or ``ore_breakage`` too: the calibration's coefficients (read by
+    the effects) and its fitted mill values are used whatever maps the breakage. Scenes refuse
+    such a twin unless ``calibration_mismatch_ok = true`` (scenarios.run.models).
     """
 
     def __init__(self, ores="B", mill: str | Mill = "lab", effects: Sequence[str] = DEFAULT_EFFECTS,
@@ -80,9 +88,14 @@ class Twin:
             breakage_map(o, self.coefficients) if breakage_map else self.calibration.breakage(o), density)
             for o in self.blend.ores]
         breakage = [_ore_breakage(self.grid, p, power_nom, holdup_nom) for p in params]
-        #: What a steady state of this twin cannot show of its ores (Calibration.ore_notes).
-        self.notes = [] if breakage_map else self.calibration.ore_notes(
-            [o for o in self.blend.ores if given.get(o.name) is None])
+        #: What differs from the calibration's effects, grid and mixers (Calibration.mismatch).
+        self.calibration_mismatch = self.calibration.mismatch(effects, self.grid, self.mill, mixer_fracs)
+        #: The notes of those differences, worded for a user of the Python API.
+        self.mismatch_notes = [calibration_mismatch_note(p) for p in self.calibration_mismatch]
+        #: What a steady state of this twin cannot show: the differences from its calibration and
+        #: what the calibration's map leaves out of its ores (Calibration.ore_notes).
+        self.notes = self.mismatch_notes + ([] if breakage_map else self.calibration.ore_notes(
+            [o for o in self.blend.ores if given.get(o.name) is None]))
         feed = _feed_fractions(self.grid, feed_psd, feed_p80_um, feed_modulus)
         self.spec = ModelSpec(
             grid=self.grid, mill=self.mill, component_names=self.blend.names, breakage=breakage,
@@ -167,6 +180,14 @@ class Twin:
             raise bad_value("Twin", "blend", [float(v) for v in fr], "non-negative fractions summing to 1")
         # divides every breakage rate: 0, negative, NaN or inf made a solver error or a P80 of nothing
         return self.model.d_vector(fr, check_range("Twin", "hardness_scale", hardness_scale, 0.0, math.inf))
+
+
+def calibration_mismatch_note(problem: str) -> str:
+    """The note of a twin that differs from its calibration (``problem``, one item of
+    :meth:`twin.calibration.Calibration.mismatch`): what it means and what to do."""
+    return (f"{problem}: the calibration's numbers were fitted with its own, so this twin runs them outside their "
+            "fit; build the twin with the calibration's, or make a calibration with these (grindtwin calibrate); a "
+            "scene that means it says calibration_mismatch_ok = true")
 
 
 def _at_time(fn):

@@ -1,7 +1,7 @@
 """A scene's models: the controller's twin and, where ``[plant]`` differs, the plant's twin,
 each built once from the scene's ores, mill, effects and size classes, with the scene's
-calibration (refused where a twin's effects or grid differ from it, unless the scene says
-``calibration_mismatch_ok = true``)."""
+calibration (refused where a twin's effects, grid or, on the calibration's own mill, mixers differ
+from it, unless the scene says ``calibration_mismatch_ok = true``)."""
 
 from __future__ import annotations
 
@@ -101,24 +101,21 @@ def scene_breakage(scene: Scene, ores: dict, mill) -> tuple[dict, float | None]:
 
 
 def build_twin(scene: Scene, ores: dict, effects, effect_options, size_classes, n_mixers=None,
-               calibration: Calibration | None = None):
-    """A twin of the scene's mill and feed with the given effects and grid; SceneError if the
-    twin refuses it, or if its effects or grid differ from the calibration's and the scene does
-    not say ``calibration_mismatch_ok = true``."""
+                calibration: Calibration | None = None):
+    """A twin of the scene's mill and feed with the given effects, grid and mixers; SceneError if
+    the twin refuses it, or if its effects, grid or mixers differ from the calibration's (the
+    twin's ``calibration_mismatch``, twin.calibration.Calibration.mismatch: mixers on the
+    calibration's own mill only) and the scene does not say ``calibration_mismatch_ok = true``."""
     cal = calibration or scene_calibration(scene)
     src = scene.source_path or scene.scene.name
     grid = SizeGrid(size_classes.top_um, size_classes.ratio, size_classes.count, size_classes.scheme)
-    mismatch = cal.mismatch(effects, grid)
-    if mismatch and not scene.calibration_mismatch_ok:
-        raise SceneError(f"{src}: " + "; ".join(mismatch) + " (set calibration_mismatch_ok = true if the scene "
-                         "means it)")
     try:
         mill = scene_mill(scene, cal)
         breakage, density = scene_breakage(scene, ores, mill)
         fracs = scene.mill.mixer_volume_fracs  # the mill's shares, for any twin with its number of mixers
         if fracs is not None and n_mixers is not None and int(n_mixers) != len(fracs):
             fracs = None
-        return Twin(list(ores.values()), mill=mill, effects=list(effects),
+        twin = Twin(list(ores.values()), mill=mill, effects=list(effects),
                     effect_options=dict(effect_options or {}), grid=grid,
                     n_mixers=int(n_mixers or scene.mill.n_mixers), feed_p80_um=scene.feed.p80_um,
                     feed_modulus=scene.feed.ggs_modulus, feed_psd=scene_feed_psd(scene),
@@ -126,6 +123,10 @@ def build_twin(scene: Scene, ores: dict, effects, effect_options, size_classes, 
                     calibration=cal)
     except TwinError as exc:
         raise SceneError(f"{src}: the twin refused the scene: {exc}") from None
+    if twin.calibration_mismatch and not scene.calibration_mismatch_ok:
+        raise SceneError(f"{src}: " + "; ".join(twin.calibration_mismatch) + " (set calibration_mismatch_ok = true "
+                         "if the scene means it)")
+    return twin
 
 
 def build_models(scene: Scene) -> Models:
@@ -134,8 +135,8 @@ def build_models(scene: Scene) -> Models:
     cal = scene_calibration(scene)
     control = build_twin(scene, ores, scene.effects, scene.effect_options, scene.mill.size_classes, calibration=cal)
     notes = [f"calibration {cal.label()}"]
-    # what the scene runs unlike its calibration, on the twin's own grid (its scheme too)
-    notes += [f"calibration_mismatch_ok: {problem}" for problem in cal.mismatch(scene.effects, control.grid)]
+    # what the scene runs unlike its calibration (the twin's own words: one text, not a copy)
+    notes += [f"calibration_mismatch_ok: {problem}" for problem in control.calibration_mismatch]
     if not scene.ores:
         notes.append("no [ores]: components are the reference types " + ", ".join(ores))
     plant = control
@@ -158,11 +159,11 @@ def build_models(scene: Scene) -> Models:
                 list(scene.effects), dict(scene.effect_options), scene.mill.size_classes, scene.mill.n_mixers):
             plant = build_twin(scene, ores, effects, options, sizes, mixers, calibration=cal)
             notes.append("the plant is a separate twin (effects " + ", ".join(effects) + ")")
-            notes += [f"calibration_mismatch_ok: the plant's {problem}"
-                      for problem in cal.mismatch(effects, plant.grid)]
+            notes += [f"calibration_mismatch_ok: the plant's {problem}" for problem in plant.calibration_mismatch]
             fracs = scene.mill.mixer_volume_fracs
             if fracs is not None and mixers != len(fracs):
                 notes.append(f"the plant's {mixers} mixers have equal shares (mill.mixer_volume_fracs gives "
                              f"{len(fracs)})")
-    notes += list(dict.fromkeys(control.notes + plant.notes))  # what the twins cannot show of the ores
+    # what the twins cannot show of the ores; their mismatch notes are the calibration_mismatch_ok ones above
+    notes += list(dict.fromkeys(n for t in (control, plant) for n in t.notes if n not in t.mismatch_notes))
     return Models(control=control, plant=plant, components=list(ores), notes=notes, calibration=cal)

@@ -18,6 +18,7 @@ from scenarios.errors import SceneError
 from scenarios.scene.history import read_history
 from scenarios.scene.keypaths import did_you_mean, format_path
 from scenarios.scene.ranges import feed_problem, nominal_feed_tph
+from scenarios.scene.schema import DEFAULT_N_MIXERS
 from twin import SizeGrid, TwinError, hydrocyclone_from
 from twin.calibration import DEFAULT_CALIBRATION, load_calibration
 from twin.effects import problems as effect_problems
@@ -385,9 +386,27 @@ def _grid_of(table) -> SizeGrid | None:
         return None  # the schema pass reports bad sizes
 
 
+def _mixers_of(mill, plant) -> list | None:
+    """The mixers' shares of the hold-up of the controller's model (``plant`` None) or of a
+    separate plant, as scenarios.run.models.build_twin gives them to the twin (the mill's shares
+    for a twin with their number, else equal ones); None where the table has the wrong types."""
+    mill = mill if isinstance(mill, dict) else {}
+    fracs = mill.get("mixer_volume_fracs")
+    if fracs is not None and not (isinstance(fracs, list) and fracs and all(
+            isinstance(f, (int, float)) and not isinstance(f, bool) and f > 0 for f in fracs)):
+        return None  # the schema pass reports it
+    n = mill.get("n_mixers", len(fracs) if fracs else DEFAULT_N_MIXERS)
+    if plant is not None:
+        n = plant.get("n_mixers", n)
+    if not isinstance(n, int) or isinstance(n, bool) or n < 1:
+        return None
+    return list(fracs) if fracs and len(fracs) == n else [1.0 / n] * n
+
+
 def _check_calibration(data, base_dir: Path, r: _Report) -> None:
     """The calibration exists, and each twin of the scene (the controller's model and a
-    separate plant) has its effects and size grid, unless ``calibration_mismatch_ok = true``."""
+    separate plant) has its effects and size grid and, on the calibration's own mill, its mixers
+    (twin.calibration.Calibration.mismatch), unless ``calibration_mismatch_ok = true``."""
     name = data.get("calibration", DEFAULT_CALIBRATION)
     if not isinstance(name, str):
         return
@@ -399,16 +418,21 @@ def _check_calibration(data, base_dir: Path, r: _Report) -> None:
         return
     if data.get("calibration_mismatch_ok") is True:
         return
+    advice = ("the calibration's numbers were fitted with its own; use a calibration made with these (grindtwin "
+              "calibrate) or set calibration_mismatch_ok = true if the scene means it")
     effects = data.get("effects")
     plant = data.get("plant") if isinstance(data.get("plant"), dict) else None
-    models = [(("effects",), effects, _get(data, "mill", "size_classes"))]
+    mill = data.get("mill") if isinstance(data.get("mill"), dict) else {}
+    mixers_loc = ("mill", "mixer_volume_fracs") if "mixer_volume_fracs" in mill else ("mill", "n_mixers")
+    models = [(("effects",), effects, _get(data, "mill", "size_classes"), mixers_loc, _mixers_of(mill, None))]
     if plant is not None and plant.get("model", "twin") == "twin":
         models.append((("plant", "effects"), plant.get("effects", effects),
-                       plant.get("size_classes", _get(data, "mill", "size_classes"))))
-    for loc, eff, sizes in models:
+                       plant.get("size_classes", _get(data, "mill", "size_classes")),
+                       ("plant", "n_mixers"), _mixers_of(mill, plant) if "n_mixers" in plant else None))
+    for loc, eff, sizes, loc_mixers, fracs in models:
         grid = _grid_of(sizes)
-        if not isinstance(eff, list) or grid is None:
-            continue
-        for problem in cal.mismatch(eff, grid):
-            r.add(loc, f"{problem}: the calibration's numbers were fitted with its own; use a calibration made "
-                  "with these (grindtwin calibrate) or set calibration_mismatch_ok = true if the scene means it")
+        if isinstance(eff, list) and grid is not None:
+            for problem in cal.mismatch(eff, grid):
+                r.add(loc, f"{problem}: {advice}")
+        for problem in cal.mixers_mismatch(mill.get("preset"), fracs):
+            r.add(loc_mixers, f"{problem}: {advice}")

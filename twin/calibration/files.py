@@ -178,9 +178,10 @@ class Calibration:
                 "command": self.record.get("provenance", {}).get("command"),
                 **({"fast": True} if self.fast else {})}
 
-    def mismatch(self, effects, grid) -> list[str]:
+    def mismatch(self, effects, grid, mill=None, mixer_fracs=None) -> list[str]:
         """What differs between a model's effects and size grid and this calibration's (empty:
-        none). Measurement effects (:data:`MEASUREMENT_EFFECTS`) are not compared."""
+        none), and with ``mill`` and ``mixer_fracs`` its mixers (:meth:`mixers_mismatch`).
+        Measurement effects (:data:`MEASUREMENT_EFFECTS`) are not compared."""
         mine = [e for e in self.effects if e not in MEASUREMENT_EFFECTS]
         theirs = [e for e in effects if e not in MEASUREMENT_EFFECTS]
         out = []
@@ -196,7 +197,30 @@ class Calibration:
         if not same_scheme or not all(math.isclose(float(g[k]), float(theirs_g[k]), rel_tol=1e-9)
                                       for k in ("top_um", "ratio", "count")):
             out.append(f"size grid {theirs_g} differs from the grid of calibration {self.name!r} {g}")
-        return out
+        return out + self.mixers_mismatch(mill, mixer_fracs)
+
+    def mixers_mismatch(self, mill, mixer_fracs) -> list[str]:
+        """What differs between a twin's mixers (``mixer_fracs``: their shares of the hold-up, in
+        series) and the calibration's ``n_mixers`` equal ones (empty: none, or nothing to compare).
+        The fitted mill values (record ``mills``) of the calibration's mill (record ``mill``) were
+        fitted with those mixers, so a twin of that mill (``mill``: a twin.Mill or a preset name,
+        compared by name) with another number or unequal shares runs them outside their fit. On
+        another mill the mixers are that mill's own (its breakage is scaled to it, twin.scaleup):
+        not compared."""
+        name = getattr(mill, "name", mill)
+        if name is None or mixer_fracs is None or name != self.mill:
+            return []
+        total = float(sum(mixer_fracs))
+        shares = [float(f) / total for f in mixer_fracs]
+        n = len(shares)
+        why = (f"calibration {self.name!r} fitted its {self.mill!r} mill's values (its record's mills.{self.mill}) "
+               f"with n_mixers = {self.n_mixers} equal mixers")
+        if n != self.n_mixers:
+            return [f"n_mixers = {n} on the {name!r} mill differs from the calibration's: {why}"]
+        if not all(math.isclose(f, 1.0 / n, rel_tol=1e-9) for f in shares):
+            return [f"mixer_volume_fracs {[round(f, 4) for f in shares]} on the {name!r} mill are not the equal "
+                    f"shares of the calibration: {why}"]
+        return []
 
     def with_values(self, coefficients: dict | None = None, mills: dict | None = None, **record) -> "Calibration":
         """A copy in memory with coefficients / mill values (and other record keys) replaced."""
