@@ -1,15 +1,18 @@
 """A calibration records what it was fitted with (effects, size grid, mixers of its mill, the
 reference table) and is not used silently with something else: the Python API notes a twin
 that differs from it, scenes refuse one unless ``calibration_mismatch_ok = true`` (then note it
-once)."""
+once), and a file fitted to another reference table than the shipped one is refused."""
+
+import json
 
 import pytest
 
 from scenarios.errors import SceneError
 from scenarios.run.models import build_models
 from scenarios.scene import check_scene, load_scene
-from twin import SizeGrid, Twin
-from twin.calibration import load_calibration
+from twin import SizeGrid, Twin, TwinInputError
+from twin.calibration import CALIBRATION_DIR, load_calibration, shipped_names
+from twin.calibration import reference
 from twin.twin import DEFAULT_EFFECTS
 
 
@@ -93,3 +96,42 @@ def test_a_separate_plant_with_other_mixers_on_the_lab_mill_is_refused_at_its_ke
                     + '[plant]\nmodel = "twin"\nn_mixers = 2\n')
     (message,) = check_scene(path)
     assert f"{path}: plant.n_mixers: " in message and "n_mixers = 2" in message
+
+
+def test_the_shipped_calibrations_were_fitted_to_the_shipped_table():
+    now = reference.reference_identity()["sha256"]
+    for name in shipped_names():
+        record = json.loads((CALIBRATION_DIR / f"{name}.json").read_text())
+        assert record["fit"]["fitted_to"]["sha256"] == now, name
+        assert load_calibration(name).name == name
+
+
+def test_a_calibration_fitted_to_another_table_is_refused_naming_both_hashes(tmp_path):
+    record = json.loads((CALIBRATION_DIR / "table.json").read_text())
+    now = record["fit"]["fitted_to"]["sha256"]
+    record["fit"]["fitted_to"]["sha256"] = old = "0" * 64
+    path = tmp_path / "old.json"
+    path.write_text(json.dumps(record))
+    for spec, where in ((path, str(path)), (record, "the calibration record")):
+        with pytest.raises(TwinInputError) as err:
+            load_calibration(spec)
+        text = str(err.value)
+        assert where in text and old in text and now in text and "grindtwin calibrate" in text
+
+
+def test_an_edited_reference_table_refuses_the_calibrations_fitted_to_it(tmp_path, monkeypatch):
+    """Someone edits the shipped table after the fit: every calibration fitted to it is refused
+    (even one already read in this process), naming its file and both hashes."""
+    before = reference.reference_identity()["sha256"]
+    load_calibration("table")  # read and cached before the edit
+    edited = tmp_path / "reference_table.csv"
+    edited.write_text(reference.REFERENCE_TABLE_PATH.read_text() + "\n# edited\n")
+    monkeypatch.setattr(reference, "REFERENCE_TABLE_PATH", edited)
+    after = reference.reference_identity()["sha256"]
+    assert after != before
+    with pytest.raises(TwinInputError) as err:
+        load_calibration("table")
+    text = str(err.value)
+    assert str(CALIBRATION_DIR / "table.json") in text and before in text and after in text
+    assert "grindtwin calibrate --map mineralogy" in text
+    assert load_calibration("table", check_table=False).name == "table"  # for reusing a file's DEM step only

@@ -22,7 +22,7 @@ from pathlib import Path
 
 from ..atomic import write_text_atomically
 from ..errors import FastCalibrationWarning, TwinInputError, close_matches
-from .record_checks import check_fields, check_fitted, check_law
+from .record_checks import check_data, check_fields, check_fitted, check_law
 
 #: The folder of shipped calibration files, one per name (``<name>.json``).
 CALIBRATION_DIR = Path(__file__).resolve().parent / "files"
@@ -266,11 +266,12 @@ def shipped_names() -> list[str]:
     return sorted(p.stem for p in CALIBRATION_DIR.glob("*.json"))
 
 
-def check_record(record: dict, where: str, law: bool = True) -> dict:
+def check_record(record: dict, where: str, law: bool = True, data: bool = True) -> dict:
     """The record if it is a calibration of this format whose fields have their types and whose
-    numbers are those it was fitted to (:func:`check_fields`, :func:`check_fitted`, and with
-    ``law`` :func:`check_law`), else TwinInputError naming the file, the field, its value and what
-    is allowed: a hand-edited or truncated file is refused, not run. (A file's laws are checked
+    numbers are those it was fitted to (:func:`check_fields`, :func:`check_fitted`, with ``data``
+    :func:`check_data`: the reference table it was fitted to is the table now, and with ``law``
+    :func:`check_law`), else TwinInputError naming the file, the field, its value and what is
+    allowed: a hand-edited or truncated file is refused, not run. (A file's laws are checked
     when its breakage map first runs, :meth:`Calibration.breakage`: the refit needs numpy, which
     the surrogate's answer does not load.)"""
     if not isinstance(record, dict) or record.get("format") != FILE_FORMAT:
@@ -292,6 +293,8 @@ def check_record(record: dict, where: str, law: bool = True) -> dict:
                                  "step they are fitted to).")
     check_fields(record, where)
     check_fitted(record, where)
+    if data:
+        check_data(record, where)
     if record["breakage_map"] == "dem" and law:
         check_law(record, where)
     return record
@@ -302,8 +305,11 @@ _LOADED: dict = {}
 _LAWS_CHECKED: set = set()
 
 
-def read_calibration(path: Path) -> Calibration:
-    """A calibration file, checked; cached by path and content hash."""
+def read_calibration(path: Path, check_table: bool = True) -> Calibration:
+    """A calibration file, checked; cached by path and content hash. The reference table it was
+    fitted to is compared with the table's current hash at every read (:func:`check_data`; the
+    table is small); ``check_table=False`` skips that (a caller that reuses only a file's DEM step, which
+    does not read the table)."""
     path = Path(path).resolve()
     try:
         data = path.read_bytes()
@@ -316,27 +322,31 @@ def read_calibration(path: Path) -> Calibration:
             record = json.loads(data.decode("utf-8"))
         except (UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise TwinInputError(f"Calibration file {path} is not valid JSON: {exc}.") from None
-        _LOADED[key] = Calibration(check_record(record, str(path), law=False), path, sha)
+        _LOADED[key] = Calibration(check_record(record, str(path), law=False, data=False), path, sha)
         if _LOADED[key].fast:  # once per file and process
             warnings.warn(f"calibration {_LOADED[key].label()}", FastCalibrationWarning, stacklevel=2)
+    if check_table:
+        check_data(_LOADED[key].record, str(path))
     return _LOADED[key]
 
 
-def load_calibration(spec=None) -> Calibration:
+def load_calibration(spec=None, check_table: bool = True) -> Calibration:
     """A Calibration from a shipped name (``"dem"``, ``"table"``), a path to a calibration file,
-    a Calibration, or a record dict; ``None`` is :data:`DEFAULT_CALIBRATION`."""
+    a Calibration, or a record dict; ``None`` is :data:`DEFAULT_CALIBRATION`. A file or record
+    fitted to another reference table than the current one is refused (:func:`check_data`)
+    unless ``check_table=False`` (for reusing only its DEM step, ``grindtwin calibrate --from``)."""
     if spec is None:
         spec = DEFAULT_CALIBRATION
     if isinstance(spec, Calibration):
         return spec
     if isinstance(spec, dict):
-        return Calibration(check_record(spec, "the calibration record"))
+        return Calibration(check_record(spec, "the calibration record", data=check_table))
     if isinstance(spec, (str, Path)):
         text = str(spec)
         if text in shipped_names():
-            return read_calibration(CALIBRATION_DIR / f"{text}.json")
+            return read_calibration(CALIBRATION_DIR / f"{text}.json", check_table)
         if Path(text).is_file():
-            return read_calibration(Path(text))
+            return read_calibration(Path(text), check_table)
         raise TwinInputError(f"The 'calibration' must be a shipped name ({', '.join(shipped_names())}) or the "
                              f"path of a calibration file. Got {text!r}.{close_matches(text, shipped_names())}")
     raise TwinInputError(f"The 'calibration' must be a name, a path, a Calibration or a record dict. Got {spec!r}.")

@@ -127,6 +127,30 @@ def check_fitted(record: dict, where: str) -> None:
             raise _bad(where, f"fitted.{name}", "(missing)", "the fitted value of that coefficient")
 
 
+def check_data(record: dict, where: str) -> None:
+    """The data the record was fitted to (``fit.fitted_to``: the reference table's path and
+    SHA-256, twin.calibration.reference.reference_identity) is the shipped table as it is now: a
+    table edited after the fit leaves the fitted numbers answering other data, so the file is
+    refused (as a fitted number edited by hand is, :func:`check_fitted`), naming both hashes and
+    the command that refits it."""
+    from .reference import reference_identity
+
+    fitted_to = record["fit"]["fitted_to"]
+    recorded = fitted_to.get("sha256") if isinstance(fitted_to, dict) else None
+    if not isinstance(recorded, str):
+        raise _bad(where, "fit.fitted_to", fitted_to, "the data it was fitted to: a table of its 'path' and "
+                   "'sha256' (twin.calibration.reference.reference_identity)")
+    now = reference_identity()
+    if recorded != now["sha256"]:
+        command = str((record.get("provenance") or {}).get("command") or "")
+        refit = command if command.startswith("grindtwin calibrate") else \
+            "grindtwin calibrate" + (" --map mineralogy" if record["breakage_map"] == "mineralogy" else "")
+        raise TwinInputError(
+            f"{where} was fitted to the reference table {fitted_to.get('path', now['path'])} with sha256 {recorded}, "
+            f"but the table's sha256 is now {now['sha256']} ({now['path']} changed after the fit): its fitted "
+            f"numbers answer other data. Make a new calibration (`{refit}`), or restore the table.")
+
+
 #: Relative tolerance of the DEM laws recomputed from the record's DEM step against the record's
 #: (the same fit on another machine's BLAS may differ in the last digits, not more).
 LAW_TOL = 1e-6
