@@ -9,10 +9,15 @@ hand-written C of mpc/c (the Goldfarb-Idnani QP solver, the condensing loop, the
 replay harness and an allocation counter); ``gt_controller_config.h`` (dimensions, scales, bounds,
 passing weights, the initial estimate); a Makefile; and ``grindtwin_export.json`` listing every
 file written with its sha256, the step's and the estimate's statuses (:data:`STEP_STATUS`,
-:data:`ESTIMATE_STATUS`) and any notes. The Python controller with
+:data:`ESTIMATE_STATUS`), the preview's lead (``preview_lead_h``), the layout the caller's buffers
+follow and its hash (``abi``: :func:`abi_layout`, GT_ABI_HASH) and any notes. The Python controller with
 ``qpsol = "condensed"`` runs the same generated code and the same solver, so the moves agree to
 rounding, and the step's status is the Python controller's: ok, a fallback, or target_unreachable
 (the plan misses the target at the horizon end, by the rule of :meth:`mpc.Controller.make_step`).
+
+The caller's headers: ``GT_CONTROLLER_NEW(&status)`` (gt_controller.h) passes the lengths and
+GT_ABI_HASH of the headers the caller was compiled with to the library, which refuses another
+export's (``GT_ABI_SIZES_DIFFER``, ``GT_ABI_LAYOUT_DIFFERS``) rather than read past its buffers.
 
 Memory: ``gt_controller_new`` makes two allocations (the controller with the EKF's work, and the
 RTI's block: QP data, solver work); estimate and step allocate nothing (counted by
@@ -29,6 +34,9 @@ the previous export is moved aside first and removed by the names its manifest l
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
+import hashlib
 import json
 import math
 import os
@@ -42,19 +50,24 @@ import numpy as np
 from mpc.codegen import C_DIR
 from mpc.condense import stage_functions
 from mpc.errors import MpcInputError, OutsideModelsWarning
+from mpc.estimator import MEASUREMENTS
 from mpc.nmpc import BLEND_SUM_TOL, PASSING_TARGET, speed_max_note
 from twin import file_sha256, new_folder_beside
 
 MANIFEST = "grindtwin_export.json"
+#: The C API's version (gt_controller.h), in GT_ABI_HASH: 2 added gt_controller_check_abi.
+API_VERSION = 2
 #: gt_controller_step's statuses (mpc/c/gt_controller.h's enum gt_step_status), in the manifest.
 STEP_STATUS = {
     0: "ok: the QP solved; u is the plan's first move",
     1: "shifted_plan: the QP failed; u is the previous plan shifted by one sample",
-    2: "hold_input: the QP failed and no plan is left; u = u_applied",
-    3: "bad_bias: the estimated P80 bias is not finite or not below the target; nothing solved, u = u_applied",
+    2: "hold_input: the QP failed and no plan is left; u = u_applied projected onto the input bounds",
+    3: "bad_bias: the estimated P80 bias is not finite or not below the target; nothing solved, u = u_applied "
+       "projected onto the input bounds",
     4: "bad_input: c, preview, u_applied or u is NULL, u_applied or the preview is not finite, or a stage's blend "
        "is not fractions in [0, 1] summing to 1 within GT_BLEND_SUM_TOL (the Python controller raises on each); "
-       "nothing solved, u left as it was",
+       "nothing solved and nothing written into u (it keeps the caller's values; not a move to apply), the plan "
+       "and the estimate unchanged",
     5: "target_unreachable: the QP solved and u is the plan's first move, applied as for ok, but the plan's "
        "passing fraction of the target at the horizon end (gt_controller_passing_end) misses 0.80 by more "
        "than unreachable_tol_frac: the target is out of reach within the horizon (the Python controller's "
@@ -136,19 +149,52 @@ def plan_passing_function(controller) -> ca.Function:
                        ["x", "u", "d", "wpass"], ["passing"])
 
 
-def config_header(controller, estimator, u0) -> str:
-    """gt_controller_config.h: dimensions, scales, bounds and the initial estimate."""
+def abi_layout(controller, estimator) -> dict:
+    """What a caller's buffers and their meaning depend on (the lengths, the order of the blend's
+    components, the measurements, the inputs, the estimate's states, the preview setting, the API's
+    version): GT_ABI_HASH is a hash of it (:func:`abi_hash`), and the manifest lists it."""
+    c, s = controller, controller.settings
+    return {"api_version": API_VERSION, "nx": c.nx, "nu": c.nu, "ny": len(MEASUREMENTS), "nb": c.nd - 1,
+            "n": s.horizon_steps, "nz": int(estimator.z.size), "preview_len": (c.nd - 1) * s.horizon_steps,
+            "preview": bool(s.preview), "components": [str(n) for n in c.model.spec.component_names],
+            "model_shape": [int(v) for v in c.model.shape], "measurements": list(MEASUREMENTS),
+            "inputs": ["feed_tph", "speed_frac_critical"], "disturbance_model": estimator.disturbance_model}
+
+
+def abi_hash(layout: dict) -> int:
+    """GT_ABI_HASH: the first 32 bits of the sha256 of the layout's JSON (keys sorted)."""
+    return int(hashlib.sha256(json.dumps(layout, sort_keys=True).encode()).hexdigest()[:8], 16)
+
+
+def config_header(controller, estimator, u0, preview_lead_h: float | None = None) -> str:
+    """gt_controller_config.h: dimensions, the ABI hash, the preview's lead, scales, bounds and
+    the initial estimate."""
     c, s, e = controller, controller.settings, estimator
     du_max = np.array([s.feed_rate_max_tph_per_h, s.speed_rate_max_per_h]) * s.dt_h
+    layout = abi_layout(controller, estimator)
     dims = {"GT_NX": c.nx, "GT_NU": c.nu, "GT_ND": c.nd, "GT_NB": c.nd - 1, "GT_N": s.horizon_steps,
             "GT_NXL": c._nxl, "GT_NUL": c._nul, "GT_NW": c._nw,
             "GT_NP": c.nx + c.nd * s.horizon_steps + c.nu + c._wpass.size, "GT_NPASS": c._wpass.size,
             "GT_NZ": e.z.size, "GT_HAS_HARDNESS": int(e.has_hardness), "GT_HAS_P80_BIAS": int(e.has_p80_bias),
             "GT_PREVIEW": int(s.preview),
             "GT_WARM_START": int(s.warm_start), "GT_RTI_ITERATIONS": min(s.rti_iterations, s.max_iter)}
+    if preview_lead_h is None:
+        lead = ["/* GT_PREVIEW_LEAD_H: not given to the export (mpc.export_controller's preview_lead_h) */"]
+    else:
+        lead = [f"#define GT_PREVIEW_LEAD_H {float(preview_lead_h)!r}"]
+    abi = ["/* the layout the caller's buffers follow (gt_controller.h: GT_CONTROLLER_CHECK_ABI): y holds",
+           f" * {', '.join(layout['measurements'])}; u {', '.join(layout['inputs'])}; blend and each preview stage",
+           f" * the fractions of {', '.join(layout['components'])}, in this order; GT_ABI_HASH hashes it all",
+           " * (mpc.export.abi_layout, in the manifest) */",
+           f"#define GT_API_VERSION {API_VERSION}", f"#define GT_NY {layout['ny']}",
+           "#define GT_PREVIEW_LEN (GT_NB * GT_N)", f"#define GT_ABI_HASH 0x{abi_hash(layout):08x}UL",
+           "/* the sample period [h]; the preview's lead [h]: the feed blend is known this far ahead",
+           " * (scene controller.preview_lead_h), stage k of the preview is the blend at t + min(k GT_DT_H,",
+           " * GT_PREVIEW_LEAD_H) (gt_controller.h, gt_controller_step) */",
+           f"#define GT_DT_H {float(s.dt_h)!r}", *lead]
     lines = ["/* generated by grindtwin export-controller: the controller's dimensions and constants */",
              "#ifndef GT_CONTROLLER_CONFIG_H", "#define GT_CONTROLLER_CONFIG_H", "#include <math.h>", ""]
-    lines += [f"#define {k} {v}" for k, v in dims.items()]
+    lines += [f"#define {k} {v}" for k, v in dims.items()] + abi
     lines += [f"#define GT_TOL {s.tol!r}", f"#define GT_HARDNESS0 {e.hardness_est!r}",
               "/* the P80 target [um]; the analyser reads ref + gain (P80_model - ref) + bias (mpc.estimator) */",
               f"#define GT_TARGET_P80_UM {float(s.target_p80_um)!r}", f"#define GT_P80_GAIN {float(e.p80_gain)!r}",
@@ -245,15 +291,49 @@ def _replace(out: Path, partial: Path) -> None:
         pass  # something else arrived there: left, hidden beside DIR, rather than deleted
 
 
-def export_controller(controller, estimator, u0, out_dir, source: str = "") -> list[str]:
+#: Loop settings the controller's own do not hold (the preview's lead), for an export made where
+#: they cannot be passed to :func:`export_controller` (the CLI, through
+#: ``scenarios.run.export_scene_controller``): :func:`loop_settings`.
+_LOOP: contextvars.ContextVar[dict] = contextvars.ContextVar("grindtwin_export_loop", default={})
+
+
+@contextlib.contextmanager
+def loop_settings(preview_lead_h: float | None = None):
+    """Within it, :func:`export_controller` exports ``preview_lead_h`` (the scene's
+    ``controller.preview_lead_h``) when its own argument is None."""
+    token = _LOOP.set({"preview_lead_h": preview_lead_h})
+    try:
+        yield
+    finally:
+        _LOOP.reset(token)
+
+
+def export_controller(controller, estimator, u0, out_dir, source: str = "",
+                      preview_lead_h: float | None = None) -> list[str]:
     """Write the controller and its estimator as C into ``out_dir`` (module docstring); returns
-    the names of the files written. ``u0``: the input applied before the first step. A speed
-    bound beyond what the twin's models describe (:func:`mpc.nmpc.speed_max_note`) is exported
-    with a note: warned (:class:`mpc.errors.OutsideModelsWarning`) and in the manifest's
+    the names of the files written. ``u0``: the input applied before the first step.
+    ``preview_lead_h``: how far ahead [h] the loop knows the feed blend (the scene's
+    ``controller.preview_lead_h``; None: the one of :func:`loop_settings`, else not stated),
+    exported as GT_PREVIEW_LEAD_H and in the manifest, for the DCS to fill the preview the same way.
+    A speed bound beyond what the twin's models describe (:func:`mpc.nmpc.speed_max_note`) is
+    exported with a note: warned (:class:`mpc.errors.OutsideModelsWarning`) and in the manifest's
     ``notes``."""
     _check(controller, estimator)
+    if preview_lead_h is None:
+        preview_lead_h = _LOOP.get().get("preview_lead_h")
+    if preview_lead_h is not None and not (isinstance(preview_lead_h, (int, float)) and math.isfinite(preview_lead_h)
+                                           and preview_lead_h >= 0):
+        raise MpcInputError(f"The 'preview_lead_h' parameter of export_controller must be a float >= 0 [h]. "
+                            f"Got {preview_lead_h!r}.")
     notes = [n for n in [speed_max_note(controller.settings)] if n]
     out = Path(out_dir)
+    files = _export(controller, estimator, u0, out, source, preview_lead_h, notes)
+    for note in notes:
+        warnings.warn(note, OutsideModelsWarning, stacklevel=2)
+    return files
+
+
+def _export(controller, estimator, u0, out: Path, source: str, preview_lead_h, notes) -> list[str]:
     check_out_dir(out)
     made = [p for p in out.parents if not p.exists()]  # removed again if the export fails
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -263,13 +343,15 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "") -> l
         _generate([estimator.step_function], "gt_ekf_data", partial)
         for name in C_FILES:
             shutil.copyfile(C_DIR / name, partial / name)
-        (partial / "gt_controller_config.h").write_text(config_header(controller, estimator, u0))
+        (partial / "gt_controller_config.h").write_text(config_header(controller, estimator, u0, preview_lead_h))
         (partial / "Makefile").write_text(MAKEFILE)
         files = sorted(p.name for p in partial.iterdir()) + [MANIFEST]
-        s = controller.settings
+        s, layout = controller.settings, abi_layout(controller, estimator)
         manifest = {"source": source, "casadi": ca.__version__, "files": files,
                     "build_products": list(BUILD_PRODUCTS),
                     "horizon_steps": s.horizon_steps, "dt_h": s.dt_h, "n_x": controller.nx,
+                    "preview": bool(s.preview), "preview_lead_h": preview_lead_h,
+                    "abi": {"hash": f"0x{abi_hash(layout):08x}", "layout": layout},
                     "estimator_state": int(estimator.z.size), "disturbance_model": estimator.disturbance_model,
                     "api": "gt_controller.h", "build": "make",
                     "step_status": {str(k): v for k, v in STEP_STATUS.items()},
@@ -286,6 +368,4 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "") -> l
             except OSError:
                 break
         raise
-    for note in notes:
-        warnings.warn(note, OutsideModelsWarning, stacklevel=2)
     return files

@@ -65,6 +65,23 @@ static int all_finite(const double *v, int n) {
 
 long gt_controller_bytes(void) { return (long)sizeof(gt_controller) + ekf_bytes() + gt_rti_bytes(); }
 
+int gt_controller_check_abi(unsigned long abi_hash, int nx, int nu, int ny, int nb, int n, int nz,
+                            int preview_len) {
+    if (nx != GT_NX || nu != GT_NU || ny != GT_NY || nb != GT_NB || n != GT_N || nz != GT_NZ ||
+        preview_len != GT_PREVIEW_LEN)
+        return GT_ABI_SIZES_DIFFER;
+    return abi_hash == GT_ABI_HASH ? GT_ABI_OK : GT_ABI_LAYOUT_DIFFERS;
+}
+
+unsigned long gt_controller_abi_hash(void) { return GT_ABI_HASH; }
+
+gt_controller *gt_controller_new_checked(int *abi_status, unsigned long abi_hash, int nx, int nu, int ny,
+                                         int nb, int n, int nz, int preview_len) {
+    int st = gt_controller_check_abi(abi_hash, nx, nu, ny, nb, n, nz, preview_len);
+    if (abi_status) *abi_status = st;
+    return st == GT_ABI_OK ? gt_controller_new() : NULL;
+}
+
 gt_controller *gt_controller_new(void) {
     casadi_int a, r, i, w;
     char *mem = (char *)calloc(1, (size_t)(gt_controller_bytes() - gt_rti_bytes()));

@@ -44,8 +44,12 @@ int main(void) {
     static double v[3 + 2 + GT_NB * GT_N];
     long allocs = 0, n_line = 0, not_ok = 0;
     int counted = gt_malloc_calls != NULL;
-    gt_controller *c = gt_controller_new();
-    if (!c) { fprintf(stderr, "gt_controller_new failed\n"); return 1; }
+    int abi;
+    gt_controller *c = GT_CONTROLLER_NEW(&abi);
+    if (!c) {
+        fprintf(stderr, "gt_controller_new failed (abi status %d: 0 out of memory, else gt_abi_status)\n", abi);
+        return 1;
+    }
     while (fgets(line, sizeof line, stdin)) {
         long before;
         ++n_line;

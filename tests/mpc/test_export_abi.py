@@ -1,0 +1,219 @@
+"""The exported C controller against a caller's build: a caller compiled with another export's
+headers is refused with a named status (GT_ABI_SIZES_DIFFER, GT_ABI_LAYOUT_DIFFERS) before any call
+could read past its buffers; the preview's lead (the scene's controller.preview_lead_h) is in the
+exported header and manifest; what u holds after GT_STEP_BAD_INPUT (nothing written) and
+GT_STEP_HOLD_INPUT (u_applied projected onto the bounds) is what the header says."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from mpc import codegen
+from scenarios.cli import main
+
+REFERENCE = Path(__file__).parents[2] / "scenarios" / "reference_transition.toml"
+HEADERS = ("gt_controller.h", "gt_controller_config.h")
+
+
+def _tools() -> str:
+    cc = codegen.find_compiler()
+    if cc is None or shutil.which("make") is None:
+        pytest.skip("no C compiler or make on this machine")
+    return cc
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    """The reference scene exported and built (make, -O1): ``(folder, config defines)``."""
+    cc = _tools()
+    out = tmp_path_factory.mktemp("abi") / "ctl"
+    assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 0
+    build = subprocess.run(["make", "-j2", "-C", str(out), "CFLAGS=-O1", f"CC={cc}"], capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr[-2000:]
+    config = dict(re.findall(r"#define (GT_\w+) (\S+)\n", (out / "gt_controller_config.h").read_text()))
+    return out, config
+
+
+def _compile(cc: str, source: str, folder: Path, include: Path, objects) -> Path:
+    """``source`` compiled in ``folder`` against the headers of ``include`` and linked with ``objects``."""
+    (folder / "driver.c").write_text(source)
+    exe = folder / "driver"
+    run = subprocess.run([cc, "-O1", "-Wall", f"-I{include}", str(folder / "driver.c"), *map(str, objects), "-lm",
+                          "-o", str(exe)], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-2000:]
+    return exe
+
+
+ABI_DRIVER = r"""
+#include <stdio.h>
+#include "gt_controller.h"
+
+int main(void) {
+    int st = -1;
+    gt_controller *c = GT_CONTROLLER_NEW(&st);
+    printf("%d %d %d %lx\n", GT_CONTROLLER_CHECK_ABI(), st, c == NULL, gt_controller_abi_hash());
+    gt_controller_free(c);
+    return 0;
+}
+"""
+
+
+def test_a_caller_compiled_with_another_exports_headers_is_refused(built, tmp_path):
+    """A caller compiled against gt_controller.h of one export and linked with the library of
+    another (another horizon, components, estimator) sized its buffers by its own GT_N, GT_NB,
+    GT_NZ: the library read and wrote past them without a word. Now GT_CONTROLLER_NEW passes the
+    caller's header values and the library refuses a mismatch: GT_ABI_SIZES_DIFFER (1) for a
+    length, GT_ABI_LAYOUT_DIFFERS (2) for the same lengths with another GT_ABI_HASH (the
+    components in another order); NULL, nothing allocated. The export's own headers pass (0)."""
+    out, config = built
+    cc = _tools()
+    library_hash = config["GT_ABI_HASH"]
+    assert re.fullmatch(r"0x[0-9a-f]{8}UL", library_hash)
+    variants = {"same": ({}, "0"), "horizon": ({"GT_N": str(int(config["GT_N"]) + 1)}, "1"),
+                "components": ({"GT_NB": "3"}, "1"), "estimator": ({"GT_NZ": str(int(config["GT_NZ"]) + 1)}, "1"),
+                "measurements": ({"GT_NY": "4"}, "1"),
+                "layout": ({"GT_ABI_HASH": f"0x{int(library_hash[2:-2], 16) ^ 1:08x}UL"}, "2")}
+    for name, (changes, status) in variants.items():
+        hdr = tmp_path / name
+        hdr.mkdir()
+        for h in HEADERS:
+            shutil.copyfile(out / h, hdr / h)
+        text = (hdr / "gt_controller_config.h").read_text()
+        for macro, value in changes.items():
+            text, n = re.subn(rf"#define {macro} \S+\n", f"#define {macro} {value}\n", text)
+            assert n == 1, macro
+        (hdr / "gt_controller_config.h").write_text(text)
+        exe = _compile(cc, ABI_DRIVER, hdr, hdr, [out / "libgtcontroller.a"])
+        check, new_status, is_null, lib_hash = subprocess.run([str(exe)], capture_output=True, text=True,
+                                                              check=True).stdout.split()
+        assert (check, new_status, is_null) == (status, status, "0" if status == "0" else "1"), name
+        assert f"0x{lib_hash}UL" == library_hash
+    header = (out / "gt_controller.h").read_text()
+    for named in ("GT_ABI_OK = 0", "GT_ABI_SIZES_DIFFER = 1", "GT_ABI_LAYOUT_DIFFERS = 2"):
+        assert named in header
+
+
+def test_the_abi_hash_covers_the_order_of_the_components():
+    """Two exports of the same sizes whose blends list the components in another order pass the
+    length checks: the hash tells them apart (and the API version's)."""
+    from mpc.export import abi_hash
+
+    layout = {"api_version": 2, "n": 10, "nb": 2, "components": ["B", "D"], "disturbance_model": "hardness"}
+    assert abi_hash(layout) == abi_hash(dict(reversed(list(layout.items()))))  # keys sorted
+    assert abi_hash(layout) != abi_hash({**layout, "components": ["D", "B"]})
+    assert abi_hash(layout) != abi_hash({**layout, "api_version": 3})
+
+
+def test_the_preview_lead_is_exported(built, tmp_path):
+    """The Python loop fills stage k of the preview with the blend at t + min(k dt, lead); the
+    export did not say the lead, so a DCS engineer could not fill it the same way. Now the header
+    has GT_PREVIEW_LEAD_H and GT_DT_H (the rule in gt_controller.h) and the manifest
+    preview_lead_h: the reference scene's 0.5 h, and a scene's other lead."""
+    out, config = built
+    assert float(config["GT_PREVIEW_LEAD_H"]) == 0.5 and float(config["GT_DT_H"]) == 0.05
+    assert json.loads((out / "grindtwin_export.json").read_text())["preview_lead_h"] == 0.5
+    text = REFERENCE.read_text()
+    assert text.count("preview_lead_h = 0.5\n") == 1
+    scene = tmp_path / "lead.toml"
+    scene.write_text(text.replace("preview_lead_h = 0.5\n", "preview_lead_h = 0.2\n"))
+    other = tmp_path / "lead"
+    assert main(["export-controller", str(scene), "--out", str(other)]) == 0
+    assert "#define GT_PREVIEW_LEAD_H 0.2\n" in (other / "gt_controller_config.h").read_text()
+    manifest = json.loads((other / "grindtwin_export.json").read_text())
+    assert manifest["preview_lead_h"] == 0.2 and manifest["preview"] is True
+    assert "t + min(k GT_DT_H, GT_PREVIEW_LEAD_H)" in (out / "gt_controller.h").read_text()
+
+
+U_DRIVER = r"""
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include "gt_controller.h"
+
+int main(void) {
+    int st, i, abi;
+    gt_controller *c = GT_CONTROLLER_NEW(&abi);
+    double good[GT_PREVIEW_LEN], bad[GT_PREVIEW_LEN], u_ok[2] = {27.0, 0.7}, u_nan[2] = {NAN, 0.7};
+    double u_out[2] = {1000.0, 5.0}, u[2], plan[GT_N * 2], z[GT_NZ];
+    for (i = 0; i < GT_N; ++i) {
+        good[i * GT_NB] = 1.0; good[i * GT_NB + 1] = 0.0;
+        bad[i * GT_NB] = 5.0; bad[i * GT_NB + 1] = -4.0;
+    }
+    st = gt_controller_step(c, good, u_out, u);
+    printf("first %d %.17g %.17g\n", st, u[0], u[1]);
+    memcpy(plan, gt_controller_plan(c), sizeof plan);
+    memcpy(z, gt_controller_estimate_state(c), sizeof z);
+    {
+        const double *previews[3] = {bad, good, NULL};
+        const double *applied[3] = {u_ok, u_nan, u_ok};
+        for (i = 0; i < 3; ++i) {
+            u[0] = 123.25; u[1] = -7.5;
+            st = gt_controller_step(c, previews[i], applied[i], u);
+            printf("bad %d %d %d %d\n", st, u[0] == 123.25 && u[1] == -7.5,
+                   memcmp(plan, gt_controller_plan(c), sizeof plan) == 0,
+                   memcmp(z, gt_controller_estimate_state(c), sizeof z) == 0);
+        }
+    }
+    printf("bounds %.17g %.17g %.17g %.17g\n", gt_u_lo[0], gt_u_lo[1], gt_u_hi[0], gt_u_hi[1]);
+    gt_controller_free(c);
+    return 0;
+}
+"""
+
+
+def _status_text(header: str, name: str) -> str:
+    """The comment of ``GT_STEP_<name>`` in enum gt_step_status, as one line."""
+    m = re.search(rf"GT_STEP_{name} = \d+,?\s*/\*(.*?)\*/", header, re.S)
+    assert m, name
+    return " ".join(m.group(1).split())
+
+
+def test_what_u_holds_after_a_refused_or_held_step_is_what_the_header_says(built, tmp_path):
+    """The header said GT_STEP_BAD_INPUT leaves u "as it was" and GT_STEP_HOLD_INPUT gives
+    u = u_applied, though the step holds u_applied projected onto the bounds. Now every status
+    says what u holds, and the C does it: after a bad input u keeps the caller's values bit for bit
+    (a preview of [5, -4], a NaN u_applied, a NULL preview), with the plan and the estimate
+    unchanged; a hold (the library rebuilt with no real-time iteration, so every step falls back
+    with no plan) is u_applied = (1000, 5) projected onto the bounds."""
+    out, config = built
+    cc = _tools()
+    header = (out / "gt_controller.h").read_text()
+    assert "nothing written into u: both elements keep the caller's values" in _status_text(header, "BAD_INPUT")
+    for name in ("HOLD_INPUT", "BAD_BIAS"):
+        assert "u = u_applied projected onto the bounds" in _status_text(header, name), name
+    for name in ("OK", "SHIFTED_PLAN", "TARGET_UNREACHABLE"):
+        assert " u " in f" {_status_text(header, name)} ", name
+    from mpc.export import STEP_STATUS
+    assert "nothing written into u" in STEP_STATUS[4] and "projected onto the input bounds" in STEP_STATUS[2]
+
+    exe = _compile(cc, U_DRIVER, tmp_path, out, [out / "libgtcontroller.a"])
+    rows = [ln.split() for ln in subprocess.run([str(exe)], capture_output=True, text=True,
+                                                check=True).stdout.splitlines()]
+    lo_f, lo_s, hi_f, hi_s = map(float, rows[-1][1:])
+    assert rows[0][1] in ("0", "5") and float(rows[0][2]) <= hi_f  # solved, from the projection
+    assert [r for r in rows if r[0] == "bad"] == [["bad", "4", "1", "1", "1"]] * 3
+
+    # the hold: gt_controller.c built against a config with no real-time iteration (a QP never
+    # solved), linked with the export's other objects
+    hold = tmp_path / "hold"
+    hold.mkdir()
+    for name in (*HEADERS, "gt_controller.c"):
+        shutil.copyfile(out / name, hold / name)
+    cfg = hold / "gt_controller_config.h"
+    text, n = re.subn(r"#define GT_RTI_ITERATIONS \d+\n", "#define GT_RTI_ITERATIONS 0\n", cfg.read_text())
+    assert n == 1
+    cfg.write_text(text)
+    obj = hold / "gt_controller.o"
+    run = subprocess.run([cc, "-O1", "-c", f"-I{out}", str(hold / "gt_controller.c"), "-o", str(obj)],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-2000:]
+    others = [out / f"{name}.o" for name in ("gt_rti_data", "gt_ekf_data", "gt_qp", "gt_cond", "gt_rti")]
+    exe = _compile(cc, U_DRIVER, hold, hold, [obj, *others])
+    first = subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.splitlines()[0].split()
+    assert first[1] == "2" and [float(first[2]), float(first[3])] == [hi_f, hi_s] == [45.0, 0.85]
