@@ -426,9 +426,10 @@ def _check_calibration(data, base_dir: Path, r: _Report) -> None:
     mixers_loc = ("mill", "mixer_volume_fracs") if "mixer_volume_fracs" in mill else ("mill", "n_mixers")
     models = [(("effects",), effects, _get(data, "mill", "size_classes"), mixers_loc, _mixers_of(mill, None))]
     if plant is not None and plant.get("model", "twin") == "twin":
+        plant_mixers = _mixers_of(mill, plant)  # the mill's are reported at mill.*
         models.append((("plant", "effects"), plant.get("effects", effects),
                        plant.get("size_classes", _get(data, "mill", "size_classes")),
-                       ("plant", "n_mixers"), _mixers_of(mill, plant) if "n_mixers" in plant else None))
+                       ("plant", "n_mixers"), plant_mixers if plant_mixers != models[0][4] else None))
     for loc, eff, sizes, loc_mixers, fracs in models:
         grid = _grid_of(sizes)
         if isinstance(eff, list) and grid is not None:
