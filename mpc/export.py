@@ -29,18 +29,24 @@ with none of its sources changed since (their sha256 in the manifest: a tuned co
 the user's work), which is then replaced; anything else (the current folder or a parent of it
 too) is refused, nothing written. Files are written into a new hidden folder beside it
 (``.DIR.<random>.partial``, :func:`twin.atomic.new_folder_beside`) and renamed when complete;
-the previous export is moved aside first and removed by the names its manifest lists.
+the previous export is moved aside first and removed by the names its manifest lists. One export
+at a time: it holds ``.DIR.export.lock`` beside ``DIR`` (:func:`export_lock`, ``fcntl.flock``), so a
+second export to the same folder is refused at once; the file is removed at the end, and one left
+by a killed export (no longer locked) is taken over by the next export.
 """
 
 from __future__ import annotations
 
 import contextlib
 import contextvars
+import fcntl
 import hashlib
 import json
 import math
 import os
 import shutil
+import tempfile
+import threading
 import warnings
 from pathlib import Path
 
@@ -291,6 +297,119 @@ def _replace(out: Path, partial: Path) -> None:
         pass  # something else arrived there: left, hidden beside DIR, rather than deleted
 
 
+#: The first words of an export's lock file (``.DIR.export.lock`` beside ``DIR``): a file of that
+#: name without them is not ours, refused and never written.
+LOCK_TAG = "grindtwin export-controller lock"
+_HELD: dict[str, list] = {}  # lock path -> [thread id, depth]: re-entered by the thread holding it
+_HELD_GUARD = threading.Lock()
+
+
+def lock_path(out) -> Path:
+    """The lock file of an export to ``out``: ``.DIR.export.lock`` in its parent folder (not in
+    ``out``, which an export replaces as a whole)."""
+    out = Path(out)
+    return out.parent / f".{out.name}.export.lock"
+
+
+def _create_lock_file(path: Path) -> bool:
+    """Create ``path`` holding :data:`LOCK_TAG` from its first instant (a tagged temporary file
+    hard-linked into place, which fails if the name exists): another export never finds it empty.
+    False if it exists already."""
+    fd, aside = tempfile.mkstemp(prefix=f"{path.name}.", dir=path.parent)
+    try:
+        os.write(fd, f"{LOCK_TAG} pid {os.getpid()}\n".encode())
+        os.close(fd)
+        os.link(aside, path)
+        return True
+    except FileExistsError:
+        return False
+    finally:
+        os.unlink(aside)
+
+
+def _lock(path: Path, out: Path) -> int:
+    """The open, flocked lock file ``path``; MpcInputError if another process holds it or it is
+    not ours."""
+    while True:
+        created = _create_lock_file(path)
+        try:
+            fd = os.open(path, os.O_RDWR)
+        except FileNotFoundError:  # removed by the export that held it just now: again
+            continue
+        text = os.read(fd, 200).decode(errors="replace")
+        if not created and not text.startswith(LOCK_TAG):
+            os.close(fd)
+            raise MpcInputError(f"--out {out}: {path} is in the way (not the lock file of a grindtwin export, "
+                                "which it would be); move it away or choose another folder.")
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            holder = text[len(LOCK_TAG):].strip() or "?"
+            raise MpcInputError(f"--out {out}: another export-controller to this folder is running ({holder}, "
+                                f"lock {path}); wait for it to end or choose another folder.") from None
+        try:  # unlinked by the export that held it between our open and flock: lock the new one
+            same = os.fstat(fd).st_ino == os.stat(path).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{LOCK_TAG} pid {os.getpid()}\n".encode(), 0)
+            return fd
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def export_lock(out):
+    """Hold the lock of an export to ``out`` (:func:`lock_path`, ``fcntl.flock``, exclusive): a
+    second export to the same folder, from another process or thread, is refused at once
+    (MpcInputError naming the folder) rather than mixing its files with this one's. Re-entered by
+    the thread holding it (the CLI locks before it builds the models, :func:`export_controller`
+    again). The folder is checked first (:func:`check_out_dir`: a refused one gets no lock file);
+    missing parents of ``out`` are created, and removed again at the end if still empty. The lock
+    file is removed when the export ends, well or not; after a killed export it stays, unlocked
+    (the kernel drops a flock with its process), and the next export takes it over and removes it.
+    """
+    out = Path(out)
+    check_out_dir(out)
+    path = lock_path(out)
+    key = str(path.parent.resolve() / path.name)
+    me = threading.get_ident()
+    with _HELD_GUARD:
+        held = _HELD.get(key)
+        if held is not None and held[0] != me:
+            raise MpcInputError(f"--out {out}: another export-controller to this folder is running in this "
+                                f"process (lock {path}); wait for it to end or choose another folder.")
+        if held is not None:
+            held[1] += 1
+    if held is not None:
+        try:
+            yield path
+        finally:
+            with _HELD_GUARD:
+                held[1] -= 1
+        return
+    made = [p for p in out.parents if not p.exists()]  # removed again at the end if still empty
+    fd = None
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        fd = _lock(path, out)
+        with _HELD_GUARD:
+            _HELD[key] = [me, 0]
+        yield path
+    finally:
+        if fd is not None:
+            with _HELD_GUARD:
+                _HELD.pop(key, None)
+            path.unlink(missing_ok=True)  # ours while we hold it: no other export removes it
+            os.close(fd)  # closing releases the flock
+        for p in made:  # deepest first; only if empty (a failed export's, or nothing was written)
+            try:
+                p.rmdir()
+            except OSError:
+                break
+
+
 #: Loop settings the controller's own do not hold (the preview's lead), for an export made where
 #: they cannot be passed to :func:`export_controller` (the CLI, through
 #: ``scenarios.run.export_scene_controller``): :func:`loop_settings`.
@@ -317,7 +436,7 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "",
     exported as GT_PREVIEW_LEAD_H and in the manifest, for the DCS to fill the preview the same way.
     A speed bound beyond what the twin's models describe (:func:`mpc.nmpc.speed_max_note`) is
     exported with a note: warned (:class:`mpc.errors.OutsideModelsWarning`) and in the manifest's
-    ``notes``."""
+    ``notes``. The export holds :func:`export_lock` on ``out_dir`` throughout."""
     _check(controller, estimator)
     if preview_lead_h is None:
         preview_lead_h = _LOOP.get().get("preview_lead_h")
@@ -327,16 +446,15 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "",
                             f"Got {preview_lead_h!r}.")
     notes = [n for n in [speed_max_note(controller.settings)] if n]
     out = Path(out_dir)
-    files = _export(controller, estimator, u0, out, source, preview_lead_h, notes)
+    with export_lock(out):
+        files = _export(controller, estimator, u0, out, source, preview_lead_h, notes)
     for note in notes:
         warnings.warn(note, OutsideModelsWarning, stacklevel=2)
     return files
 
 
 def _export(controller, estimator, u0, out: Path, source: str, preview_lead_h, notes) -> list[str]:
-    check_out_dir(out)
-    made = [p for p in out.parents if not p.exists()]  # removed again if the export fails
-    out.parent.mkdir(parents=True, exist_ok=True)
+    check_out_dir(out)  # again, under the lock
     partial = new_folder_beside(out)
     try:
         _generate([*stage_functions(controller), plan_passing_function(controller)], "gt_rti_data", partial)
@@ -362,10 +480,5 @@ def _export(controller, estimator, u0, out: Path, source: str, preview_lead_h, n
         _replace(out, partial)
     except BaseException:
         shutil.rmtree(partial, ignore_errors=True)
-        for p in made:  # deepest first; only if still empty
-            try:
-                p.rmdir()
-            except OSError:
-                break
         raise
     return files

@@ -933,12 +933,13 @@ def add_export_controller_parser(subparsers):
 
 @_exit_codes("export-controller")
 def cmd_export_controller(args) -> int:
-    from mpc.export import loop_settings
+    from mpc.export import export_lock, loop_settings
     from scenarios.scene import load_scene
     from scenarios.run import export_scene_controller
 
     scene = load_scene(args.scene)
-    with loop_settings(preview_lead_h=scene.controller.preview_lead_h):  # the lead, for the exported header
+    # the folder locked before the models are built: a second export to it is refused at once
+    with export_lock(args.out), loop_settings(preview_lead_h=scene.controller.preview_lead_h):
         files = export_scene_controller(scene, args.out, source=str(args.scene))
     print(f"{len(files)} files in {args.out}: build with `make -C {args.out}`; API in gt_controller.h")
     return 0

@@ -2,14 +2,17 @@
 headers is refused with a named status (GT_ABI_SIZES_DIFFER, GT_ABI_LAYOUT_DIFFERS) before any call
 could read past its buffers; the preview's lead (the scene's controller.preview_lead_h) is in the
 exported header and manifest; what u holds after GT_STEP_BAD_INPUT (nothing written) and
-GT_STEP_HOLD_INPUT (u_applied projected onto the bounds) is what the header says."""
+GT_STEP_HOLD_INPUT (u_applied projected onto the bounds) is what the header says; and two exports
+to one folder at once: the second is refused at once (a lock beside the folder, removed after)."""
 
 from __future__ import annotations
 
 import json
 import re
 import shutil
+import signal
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -217,3 +220,62 @@ def test_what_u_holds_after_a_refused_or_held_step_is_what_the_header_says(built
     exe = _compile(cc, U_DRIVER, hold, hold, [obj, *others])
     first = subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.splitlines()[0].split()
     assert first[1] == "2" and [float(first[2]), float(first[3])] == [hi_f, hi_s] == [45.0, 0.85]
+
+
+HOLDER = r"""
+import sys
+from mpc.export import export_lock
+with export_lock(sys.argv[1]):
+    print("held", flush=True)
+    sys.stdin.read()
+"""
+
+
+def _hold(out: Path) -> subprocess.Popen:
+    """Another process holding the export lock of ``out`` until its stdin closes."""
+    proc = subprocess.Popen([sys.executable, "-c", HOLDER, str(out)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            text=True)
+    assert proc.stdout.readline() == "held\n"
+    return proc
+
+
+def test_a_second_export_to_one_folder_is_refused_at_once(tmp_path, monkeypatch, capsys):
+    """Two exports to one --out at once had no lock: both wrote, and the second's replace could
+    move the first's export aside mid-way. Now an export holds .DIR.export.lock beside DIR (flock):
+    another to the same folder is refused (exit 2) before it builds anything, naming the folder;
+    the lock file is gone when the holder ends, and a lock left by a killed export is taken over
+    by the next one and removed. A file of that name that is not a lock is refused, left as it
+    was."""
+    import scenarios.run.models as models
+
+    out = tmp_path / "sub" / "ctl"  # its parent is created for the lock, and removed again
+    lock = tmp_path / "sub" / ".ctl.export.lock"
+    holder = _hold(out)
+    try:
+        assert lock.is_file()
+        built = []
+        real = models.build_models
+        monkeypatch.setattr(models, "build_models", lambda *a, **k: built.append(1) or real(*a, **k))
+        assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert f"--out {out}: another export-controller to this folder is running" in err
+        assert f"pid {holder.pid}" in err and not built and not out.exists()
+    finally:
+        holder.stdin.close()
+        holder.stdout.close()
+        assert holder.wait(30) == 0
+    assert not (tmp_path / "sub").exists()  # the holder removed its lock and the parent it made
+
+    holder = _hold(out)
+    holder.send_signal(signal.SIGKILL)
+    holder.wait(30)
+    holder.stdin.close()
+    holder.stdout.close()
+    assert lock.is_file()  # left by the killed holder, no longer locked
+    assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 0
+    assert built and sorted(p.name for p in out.parent.iterdir()) == ["ctl"]  # taken over and removed
+
+    lock.write_text("a user's notes\n")
+    assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 2
+    assert "is in the way (not the lock file of a grindtwin export" in capsys.readouterr().err
+    assert lock.read_text() == "a user's notes\n"
