@@ -25,7 +25,8 @@ typedef struct gt_controller gt_controller;
 enum gt_step_status {
     GT_STEP_OK = 0,           /* the QP solved; u is the plan's first move (within gt_u_lo/gt_u_hi) */
     GT_STEP_SHIFTED_PLAN = 1, /* the QP failed; u is the previous plan shifted by one sample, each
-                                 move within gt_du_max of u_applied projected onto the bounds */
+                                 of its two inputs clipped to within gt_du_max of u_applied
+                                 projected onto the bounds */
     GT_STEP_HOLD_INPUT = 2,   /* the QP failed and no plan is left; u = u_applied projected onto the
                                  bounds gt_u_lo/gt_u_hi (u_applied itself when inside them) */
     GT_STEP_BAD_BIAS = 3,     /* the estimated P80 bias is not finite or not below the target (the
