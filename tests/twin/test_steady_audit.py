@@ -82,9 +82,13 @@ def test_a_stopped_feed_is_steady_in_every_state():
 
     tw = Twin("B", effects=[*DEFAULT_EFFECTS, "feed_inventory", "sensor_delay"])
     tau_h = tw.model.spec.effect_options.get("feed_inventory", {}).get("time_constant_h", 1.0)
+    lag_rate_per_h = 3 / tw.model.parameters["analyser_dead_time_h"][0]  # 3 lags of dead time / 3
+    n_t = tw.model.n_mass + 1  # the masses and the feed inventory [t]; then the lags [um]
     for feed in (0.031, 0.0):
         ss = tw.steady(feed_tph=feed)
-        assert np.abs(np.asarray(tw.model.f(ss.x, ss.u, ss.d))).max() < 1e-9 * tw.mill.feed_nominal_tph
+        f = np.abs(np.asarray(tw.model.f(ss.x, ss.u, ss.d))).ravel()
+        assert f[:n_t].max() < 1e-9 * tw.mill.feed_nominal_tph  # t/h
+        assert f[n_t:].max() < 1e-9 * 1000.0 * lag_rate_per_h  # um/h: the lags within 1e-6 um
         assert ss.outputs["feed_inventory_t"] == pytest.approx(feed * tau_h, abs=1e-12)
     assert ss.outputs["holdup_t"] == 0.0 and math.isnan(ss.p80_um)
     assert math.isnan(ss.outputs["p80_measured_um"]) and math.isnan(ss.outputs["content_p80_um"])

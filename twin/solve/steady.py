@@ -116,12 +116,11 @@ def _newton(model, x, u, d, load_target=None, max_iter: int = 60):
     h_nom = model.spec.holdup_nominal_t
     nm, nx = model.n_mass, model.n_x
     w = np.concatenate([x, model.z_of(x)])
-    # row scaling: mass rates by nominal flow, aggregates by nominal hold-up
-    scale = np.concatenate([np.full(nx, 1.0 / q_nom), np.full(w.size - nx, 1.0 / h_nom)])
     u = u.copy()
     for _ in range(max_iter):
         r_dm, j_dm, ju_dm, jh_dm = jac(w, u, d)
         r = np.asarray(r_dm, float).ravel()
+        scale = _row_scale(model, j_dm)
         load_res = (float(model.outputs["holdup_t"](w[:nx], u, d)) / h_nom - load_target
                     if load_target is not None else 0.0)
         if max(np.abs(r * scale).max(), abs(load_res)) < RESIDUAL_REL_TOL:
@@ -151,9 +150,28 @@ def _newton(model, x, u, d, load_target=None, max_iter: int = 60):
     return w[:nx], u, False
 
 
+def _row_scale(model, j_dm) -> np.ndarray:
+    """Weights that make each row of the Newton residual [ode; alg] a relative error: mass rates
+    [t/h] by the nominal flow, aggregates [t] by the nominal hold-up; a state beside the masses
+    (an analyser's lag in um, a feed inventory in t, a log rate) by its own rate |J_ii| [1/h],
+    at least the nominal residence time's, times its initial value (its unit's scale; 1 if that
+    is 0). By nominal flow alone, an analyser lag of dead time 1e-7 h weighed its round-off
+    (3e7/h x 1e-14 um) above the tolerance, and Newton could never converge."""
+    q_nom, h_nom = model.spec.feed_nominal_tph, model.spec.holdup_nominal_t
+    nm, nx = model.n_mass, model.n_x
+    scale = np.concatenate([np.full(nm, 1.0 / q_nom), np.zeros(nx - nm), np.full(j_dm.size1() - nx, 1.0 / h_nom)])
+    if nx > nm:
+        rate = np.maximum(np.abs(np.asarray(ca.diag(j_dm[nm:nx, nm:nx]), float).ravel()), q_nom / h_nom)
+        size = np.abs(model.initial_state()[nm:nx])
+        scale[nm:nx] = 1.0 / (rate * np.where(size > 0.0, size, 1.0))
+    return scale
+
+
 def _check(model, x, u, d, how: str):
     x = model.checked_state(x, f"the steady state ({how})")
-    res = np.abs(np.asarray(model.f(x, u, d))).max() / model.spec.feed_nominal_tph
+    w = np.concatenate([x, model.z_of(x)])
+    r_dm, j_dm, _, _ = _jacobians(model)(w, u, d)
+    res = np.abs(np.asarray(r_dm, float).ravel() * _row_scale(model, j_dm))[:model.n_x].max()
     if not res < 1e3 * RESIDUAL_REL_TOL:
         raise SolverError(f"Steady state ({how}) did not converge: residual {res:.3g} of nominal flow.")
     return x
