@@ -8,10 +8,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+import scipy.linalg
 
 from mpc import (EKF_RK4_SUBSTEPS, FEED_RANGE_NOMINAL, RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, MpcInputError,
                  NmpcSettings, Sensors, TwinPlant, check_out_dir, export_controller, feed_for_target, pi_baseline,
-                 run_closed_loop, stable_rk4_substeps)
+                 run_closed_loop, stable_rk4_substeps, state_jacobian)
 from scenarios.errors import RunError, SceneError
 from scenarios.run.feed import component_blend
 from scenarios.run.streams import Samples, run_size_data
@@ -139,10 +140,32 @@ def check_rk4_substeps(scene: Scene, twin, css, blends=()) -> None:
             points.append((f"at the top of the load band (load {scene.controller.load_band_frac[1]:g}, feed "
                            f"{float(top.u[0]):.4g} t/h, blend {np.round(b, 3).tolist()})", top))
     for where, ss in points:
-        need = stable_rk4_substeps(twin.model.f, ss.x, ss.u, ss.d, dt)
+        try:
+            need = stable_rk4_substeps(twin.model.f, ss.x, ss.u, ss.d, dt)
+        except MpcInputError as exc:
+            raise SceneError(f"the controller's model {where}: {exc} {fastest_state(twin.model, ss)}") from None
         if n < need:
             raise SceneError(f"controller.rk4_substeps = {n} is unstable for the controller's model {where}: RK4 "
-                             f"needs at least {need} steps per {dt} h sample (rates x {RK4_RATE_SAFETY})")
+                             f"needs at least {need} steps per {dt} h sample (rates x {RK4_RATE_SAFETY}); "
+                             + fastest_state(twin.model, ss))
+
+
+def fastest_state(model, ss) -> str:
+    """Which of the model's states the fastest mode of df/dx at the steady state ``ss`` lives
+    in, as a sentence naming its state group and effect: a short analyser dead time, not the
+    mill, can be what an RK4 step count has to follow. The state of largest participation factor
+    |w_i v_i| (left and right eigenvectors; Perez-Arriaga, Verghese & Schweppe 1982, IEEE Trans.
+    PAS 101), which unlike the eigenvector alone does not depend on the states' units."""
+    lam, left, right = scipy.linalg.eig(state_jacobian(model.f, ss.x, ss.u, ss.d), left=True, right=True)
+    k = int(np.argmax(np.abs(lam)))
+    i = int(np.argmax(np.abs(left[:, k].conj() * right[:, k])))
+    start = 0
+    for name, size in model.state_groups:
+        if i < start + size:
+            break
+        start += size
+    owner = "the mill's masses" if i < model.n_mass else f"{name} (effect {model.effect_of.get(name, '?')})"
+    return f"its fastest rate, {abs(lam[k]):.3g} /h, is in {owner}"
 
 
 def make_controller(scene: Scene, twin, codegen: str = "auto"):
@@ -277,7 +300,7 @@ def export_scene_controller(scene: Scene, out_dir, source: str = "") -> list[str
     estimator, controller = nmpc_parts(scene, models, start, codegen="off")
     try:
         return export_controller(controller, estimator, [start.feed_tph, scene.feed.speed_frac_critical],
-                                 out_dir, source=source)
+                                 out_dir, source=source, preview_lead_h=c.preview_lead_h)
     except MpcInputError as exc:
         raise SceneError(str(exc)) from None
 

@@ -379,7 +379,24 @@ def test_an_unstable_rk4_substep_count_is_refused_with_the_needed_one():
     scene.scene.duration_h = 0.2
     scene.scene.sample_period_h = 0.1  # the 3-mixer controller model needs 2 RK4 steps at 0.05 h, 3 at 0.1 h
     scene.controller.rk4_substeps = 2
-    with pytest.raises(SceneError, match=r"controller.rk4_substeps = 2 is unstable.*at least 3 steps"):
+    with pytest.raises(SceneError, match=r"controller.rk4_substeps = 2 is unstable.*at least 3 steps.*"
+                                         r"fastest rate, [0-9.]+ /h, is in the mill's masses"):
+        run_scene(scene, progress=False)
+
+
+@pytest.mark.parametrize(("dead_time_h", "what"), [(1e-3, r"at least \d+ steps"), (1e-7, "No stable RK4 sub-step")])
+def test_a_refused_rk4_count_names_the_fastest_state_an_analyser_lag(dead_time_h, what):
+    """A short analyser dead time, not the mill, sets the step count: the refusal says so (its
+    fastest mode's largest participation is in the lag chain). At 1e-7 h the run failed before
+    (exit 1) on the controller model's steady state, blaming a low feed."""
+    from scenarios.errors import SceneError
+    from scenarios.scene.loader import read_toml, scene_from_dict
+
+    data = read_toml(LIBRARY / "reference_transition.toml")
+    data["effect_options"]["sensor_delay"]["dead_time_h"] = dead_time_h
+    scene = scene_from_dict(data, source_path=LIBRARY / "reference_transition.toml")
+    lag = r".*fastest rate, [0-9.e+]+ /h, is in p80_lag_um \(effect sensor_delay\)"
+    with pytest.raises(SceneError, match=what + lag):
         run_scene(scene, progress=False)
 
 
