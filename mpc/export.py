@@ -38,7 +38,6 @@ by a killed export (no longer locked) is taken over by the next export.
 from __future__ import annotations
 
 import contextlib
-import contextvars
 import fcntl
 import hashlib
 import json
@@ -410,36 +409,17 @@ def export_lock(out):
                 break
 
 
-#: Loop settings the controller's own do not hold (the preview's lead), for an export made where
-#: they cannot be passed to :func:`export_controller` (the CLI, through
-#: ``scenarios.run.export_scene_controller``): :func:`loop_settings`.
-_LOOP: contextvars.ContextVar[dict] = contextvars.ContextVar("grindtwin_export_loop", default={})
-
-
-@contextlib.contextmanager
-def loop_settings(preview_lead_h: float | None = None):
-    """Within it, :func:`export_controller` exports ``preview_lead_h`` (the scene's
-    ``controller.preview_lead_h``) when its own argument is None."""
-    token = _LOOP.set({"preview_lead_h": preview_lead_h})
-    try:
-        yield
-    finally:
-        _LOOP.reset(token)
-
-
 def export_controller(controller, estimator, u0, out_dir, source: str = "",
                       preview_lead_h: float | None = None) -> list[str]:
     """Write the controller and its estimator as C into ``out_dir`` (module docstring); returns
     the names of the files written. ``u0``: the input applied before the first step.
     ``preview_lead_h``: how far ahead [h] the loop knows the feed blend (the scene's
-    ``controller.preview_lead_h``; None: the one of :func:`loop_settings`, else not stated),
+    ``controller.preview_lead_h``; None: not stated),
     exported as GT_PREVIEW_LEAD_H and in the manifest, for the DCS to fill the preview the same way.
     A speed bound beyond what the twin's models describe (:func:`mpc.nmpc.speed_max_note`) is
     exported with a note: warned (:class:`mpc.errors.OutsideModelsWarning`) and in the manifest's
     ``notes``. The export holds :func:`export_lock` on ``out_dir`` throughout."""
     _check(controller, estimator)
-    if preview_lead_h is None:
-        preview_lead_h = _LOOP.get().get("preview_lead_h")
     if preview_lead_h is not None and not (isinstance(preview_lead_h, (int, float)) and math.isfinite(preview_lead_h)
                                            and preview_lead_h >= 0):
         raise MpcInputError(f"The 'preview_lead_h' parameter of export_controller must be a float >= 0 [h]. "

@@ -381,9 +381,10 @@ def _write_sweep(folder: Path, table, traces, scene_path, xlsx: bool) -> None:
     """sweep.csv, sweep.parquet, sweep_traces.csv and sweep.png (P80 of every case, KPIs per
     case) into the claimed folder; sweep.xlsx on request."""
     from scenarios.output import write_sweep_plot, write_sweep_workbook
+    from scenarios.output.workbook import write_csv
     from scenarios.scene import load_scene
 
-    table.to_csv(folder / "sweep.csv", index=False)
+    write_csv(table, folder / "sweep.csv", index=False)  # NaN written as such, as in a run folder
     flat = table.copy()
     for c in flat.columns:  # blends etc. are dicts: parquet wants plain columns
         if flat[c].map(lambda v: isinstance(v, (dict, list))).any():
@@ -391,7 +392,7 @@ def _write_sweep(folder: Path, table, traces, scene_path, xlsx: bool) -> None:
     flat.to_parquet(folder / "sweep.parquet", index=False)
     scene = load_scene(scene_path)
     if traces is not None:
-        traces.to_csv(folder / "sweep_traces.csv", index=False)
+        write_csv(traces, folder / "sweep_traces.csv", index=False)
     write_sweep_plot(table, traces, folder, scene.controller.target_p80_um)
     if xlsx:
         write_sweep_workbook(table, traces, scene, folder / "sweep.xlsx")
@@ -933,13 +934,13 @@ def add_export_controller_parser(subparsers):
 
 @_exit_codes("export-controller")
 def cmd_export_controller(args) -> int:
-    from mpc.export import export_lock, loop_settings
+    from mpc.export import export_lock
     from scenarios.scene import load_scene
     from scenarios.run import export_scene_controller
 
     scene = load_scene(args.scene)
     # the folder locked before the models are built: a second export to it is refused at once
-    with export_lock(args.out), loop_settings(preview_lead_h=scene.controller.preview_lead_h):
+    with export_lock(args.out):
         files = export_scene_controller(scene, args.out, source=str(args.scene))
     print(f"{len(files)} files in {args.out}: build with `make -C {args.out}`; API in gt_controller.h")
     return 0

@@ -133,6 +133,8 @@ def test_sweep_on_the_local_pool(tmp_path, capsys):
     assert code == 0, capsys.readouterr().err
     table = pd.read_csv(out / "sweep.csv")
     assert list(table["case"]) == [0, 1] and table["error"].isna().all()
+    text = (out / "sweep.csv").read_text()  # nothing undefined is an empty cell (a sample lost?): NaN
+    assert ",NaN," in text and not any(",," in ln or ln.endswith(",") for ln in text.splitlines())
     assert list(table["feed.feed_tph"]) == [24, 30]
     assert table["fed_t"].tolist() == pytest.approx([6.0, 7.5])
     # a lighter feed is ground finer with more energy per tonne

@@ -130,7 +130,8 @@ def calibrate(args: argparse.Namespace) -> int:
                                  "mineralogy runs no DEM and no bootstrap (allowed with it: --out, --name, --quiet).")
     if args.seed < 0:
         raise TwinInputError(f"--seed must be >= 0 (numpy's seeds). Got {args.seed}.")
-    source = load_calibration(args.source) if args.source else None
+    # only its DEM step is reused, which does not read the reference table: the table step refits
+    source = load_calibration(args.source, check_table=False) if args.source else None
     if source is not None and (source.breakage_map != "dem" or "dem" not in source.record):
         raise TwinInputError(f"--from {args.source}: calibration {source.label()} has no DEM step (its breakage "
                              f"map is {source.breakage_map!r}); --from takes a DEM calibration, such as 'dem'.")
