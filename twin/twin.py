@@ -186,8 +186,8 @@ def calibration_mismatch_note(problem: str) -> str:
     """The note of a twin that differs from its calibration (``problem``, one item of
     :meth:`twin.calibration.Calibration.mismatch`): what it means and what to do."""
     return (f"{problem}: the calibration's numbers were fitted with its own, so this twin runs them outside their "
-            "fit; build the twin with the calibration's, or make a calibration with these (grindtwin calibrate); a "
-            "scene that means it says calibration_mismatch_ok = true")
+            "fit; build the twin with the calibration's (grindtwin calibrate fits the twin's default effects, grid "
+            "and mixers only); a scene that means it says calibration_mismatch_ok = true")
 
 
 def _at_time(fn):

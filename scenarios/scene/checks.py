@@ -418,8 +418,9 @@ def _check_calibration(data, base_dir: Path, r: _Report) -> None:
         return
     if data.get("calibration_mismatch_ok") is True:
         return
-    advice = ("the calibration's numbers were fitted with its own; use a calibration made with these (grindtwin "
-              "calibrate) or set calibration_mismatch_ok = true if the scene means it")
+    advice = ("the calibration's numbers were fitted with its own; use the calibration's (grindtwin calibrate fits "
+              "the twin's default effects, grid and mixers only) or set calibration_mismatch_ok = true if the scene "
+              "means it")
     effects = data.get("effects")
     plant = data.get("plant") if isinstance(data.get("plant"), dict) else None
     mill = data.get("mill") if isinstance(data.get("mill"), dict) else {}

@@ -447,8 +447,8 @@ class Scene(Section):
     against those the twin's effect declares; values are passed to the twin as written).
     ``calibration`` names the calibration the twins run (a shipped name such as ``"dem"``, the
     default, or a calibration file, relative to the scene's folder); a model whose effects or
-    size grid differ from the calibration's is refused unless ``calibration_mismatch_ok = true``
-    says the scene means it (the check names both lists).
+    size grid (or, on the calibration's own mill, mixers) differ from the calibration's is refused
+    unless ``calibration_mismatch_ok = true`` says the scene means it (the check names both).
     ``source_path`` is the file it came from (``None`` if built from a dict); relative paths
     in the scene (``feed.history``) are resolved against its folder.
     """
@@ -481,8 +481,10 @@ class Scene(Section):
     a calibration file made by ``grindtwin calibrate`` (a path relative to the scene's folder); a
     top-level key."""
     calibration_mismatch_ok: bool = False
-    """``true`` runs a model whose effects or size grid differ from the calibration's (which
-    ``grindtwin check`` otherwise refuses, naming both lists): the scene says it means it."""
+    """``true`` runs a model whose effects or size grid differ from the calibration's, or, on the
+    calibration's own mill (``lab``), whose mixers (``n_mixers``, ``mixer_volume_fracs``) differ
+    from the equal mixers its mill values were fitted with (which ``grindtwin check`` otherwise
+    refuses, naming both): the scene says it means it."""
 
     _source_path: Path | None = PrivateAttr(default=None)
 
