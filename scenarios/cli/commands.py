@@ -901,14 +901,26 @@ def add_bench_parser(subparsers):
     return b
 
 
+def _is_grindtwin_checkout(folder: Path) -> bool:
+    """Whether ``folder`` holds the grindtwin repository: its pyproject.toml names the project."""
+    import tomllib
+
+    try:
+        with open(folder / "pyproject.toml", "rb") as fh:
+            return tomllib.load(fh).get("project", {}).get("name") == "grindtwin"
+    except (OSError, tomllib.TOMLDecodeError):
+        return False
+
+
 @_exit_codes("bench")
 def cmd_bench(args) -> int:
     import subprocess
 
     root = Path("benchmarks")
-    if not root.is_dir():
-        raise SceneError("grindtwin bench runs from a checkout of the repository: no benchmarks/ folder in "
-                         f"{Path.cwd()}.")
+    if not (root.is_dir() and _is_grindtwin_checkout(Path.cwd())):
+        # another project's benchmarks/ would have its scripts run, and results written into it
+        raise SceneError("grindtwin bench runs from a checkout of the grindtwin repository (its pyproject.toml "
+                         f"names the project grindtwin, beside benchmarks/): {Path.cwd()} is not one.")
     layers = [args.layer] if args.layer else list(BENCH_LAYERS)
     # a benchmark is a script with a __main__ block (helper modules and Yade-side scripts are not)
     scripts = sorted(p for layer in layers for p in root.glob(f"{layer}_*.py")

@@ -316,3 +316,25 @@ def test_check_notes_a_speed_where_the_charge_centrifuges_and_still_says_ok(writ
                                    for n in notes)
     assert notes[0].startswith(f"grindtwin: warning: {fast}: controller.bounds.speed_max = 0.99: ")
     assert notes[1].startswith(f"grindtwin: warning: {held}: feed.speed_frac_critical = 0.96: ")
+
+
+def test_bench_lists_the_checkouts_benchmarks_and_runs_no_other_projects(tmp_path, monkeypatch, capsys):
+    """`grindtwin bench` (README's command; the benchmarks themselves take hours, so --list): in the
+    checkout it lists every benchmark script of the layer; in another project's folder with a
+    benchmarks/ of its own it is refused (exit 2) and runs nothing there."""
+    repo = Path(__file__).resolve().parents[2]
+    monkeypatch.chdir(repo)
+    assert grindtwin(["bench", "dem", "--list"]) == 0
+    listed = capsys.readouterr().out.split()
+    mains = sorted(str(p.relative_to(repo)) for p in (repo / "benchmarks").glob("dem_*.py")
+                   if '__name__ == "__main__"' in p.read_text(encoding="utf-8"))
+    assert listed == mains and "benchmarks/dem_parallel.py" in listed
+    other = tmp_path / "theirs"
+    (other / "benchmarks").mkdir(parents=True)
+    (other / "pyproject.toml").write_text('[project]\nname = "their-tool"\n')
+    marker = other / "ran"
+    (other / "benchmarks" / "twin_x.py").write_text(
+        f'if __name__ == "__main__":\n    open({str(marker)!r}, "w").write("ran")\n')
+    monkeypatch.chdir(other)
+    assert grindtwin(["bench", "twin"]) == 2
+    assert "is not one" in capsys.readouterr().err and not marker.exists()
