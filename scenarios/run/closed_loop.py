@@ -349,7 +349,8 @@ def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
     frame = res.frame.copy()
     sizes = run_size_data(models.plant.model, plant.samples(frame["time_h"].to_numpy(float)), batch=False)
     k = dict(res.kpis)
-    health = controller_health(frame, estimator)
+    checked_top = c.load_band_frac[1] if c.kind == "nmpc" else None  # the top check_rk4_substeps checked
+    health = controller_health(frame, estimator, checked_top)
     extra = {"notes": notes, "warnings": health_notes(health), "controller_health": health,
              "solve_times_s": frame["solve_time_s"].dropna().to_numpy() if "solve_time_s" in frame else None,
              "solve_time_median_s": k.get("solve_time_median_s", math.nan),
@@ -402,9 +403,11 @@ class CountingEstimator:
                                      self.ekf.hardness_est]
 
 
-def controller_health(frame: pd.DataFrame, estimator) -> dict:
+def controller_health(frame: pd.DataFrame, estimator, checked_load_top: float | None = None) -> dict:
     """What went wrong in a closed loop, counted over its samples: steps whose solve failed,
-    fallbacks by kind, steps that reached no plan for the target, estimator resets."""
+    fallbacks by kind, steps that reached no plan for the target, estimator resets, and (with
+    ``checked_load_top``, the load up to which the NMPC's RK4 step count was checked stable,
+    :func:`check_rk4_substeps`) samples whose plant load was above it."""
     n = len(frame)
     success = frame["success"].astype(bool) if "success" in frame else pd.Series(True, index=frame.index)
     fallback = frame["fallback"] if "fallback" in frame else pd.Series(None, index=frame.index)
@@ -418,7 +421,20 @@ def controller_health(frame: pd.DataFrame, estimator) -> dict:
             "first_failure_time_h": float(frame.loc[failed, "time_h"].iloc[0]) if failed.any() else None,
             "failure_statuses": {str(k): int(v) for k, v in status[failed].value_counts().head(5).items()},
             "estimator_resets": len(estimator.resets) if estimator is not None else 0,
-            "hardness_at_bound_steps": _hardness_at_bound(frame, estimator)}
+            "hardness_at_bound_steps": _hardness_at_bound(frame, estimator),
+            **_above_checked_load(frame, checked_load_top)}
+
+
+def _above_checked_load(frame: pd.DataFrame, top: float | None) -> dict:
+    """Samples whose plant load was above ``top`` (none without it), and the highest load with its
+    time: the controller's model was checked for RK4 stability up to that load only."""
+    if top is None or "load_frac" not in frame:
+        return {}
+    load = frame["load_frac"].to_numpy(float)
+    above = load > top
+    k = int(np.nanargmax(load)) if np.isfinite(load).any() else 0
+    return {"above_checked_load_steps": int(above.sum()), "checked_load_top": float(top),
+            "load_max": float(load[k]), "load_max_time_h": float(frame["time_h"].iloc[k])}
 
 
 def _hardness_at_bound(frame: pd.DataFrame, estimator) -> int:
@@ -450,4 +466,9 @@ def health_notes(health: dict) -> list[str]:
         notes.append(f"on {health['hardness_at_bound_steps']} of {health['steps']} steps the estimator's hardness sat "
                      "at a bound of its range (estimator hardness_bounds): the ore differs from the model by more "
                      "than the estimator may say, and the controller ran a model it knew to be wrong")
+    if health.get("above_checked_load_steps"):
+        notes.append(f"on {health['above_checked_load_steps']} of {health['steps']} steps the mill's load was above "
+                     f"{health['checked_load_top']:g} of nominal, the top of the load band up to which the "
+                     f"controller's RK4 step count was checked stable (it reached {health['load_max']:.3g} at "
+                     f"{health['load_max_time_h']:.3g} h): its predictions there were not checked")
     return notes

@@ -105,3 +105,23 @@ def test_a_saturated_hardness_estimate_and_unreachable_targets_are_said():
     assert any("on 1 of 4 steps the controller found no plan that reaches the P80 target" in n for n in notes)
     calm = controller_health(frame.assign(hardness_est=1.0, status="ok"), est)
     assert health_notes(calm) == []
+
+
+def test_a_load_above_the_checked_band_top_is_said():
+    """The NMPC's RK4 step count is checked stable up to the load band's top; samples whose plant
+    load went beyond it are counted and said (with the highest load and when), none below it or
+    without a checked top (PI)."""
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from scenarios.run.closed_loop import controller_health, health_notes
+
+    est = SimpleNamespace(resets=[], ekf=None)
+    frame = pd.DataFrame({"time_h": [0.0, 0.1, 0.2, 0.3], "load_frac": [1.0, 1.25, 1.31, 1.19]})
+    health = controller_health(frame, est, 1.2)
+    assert health["above_checked_load_steps"] == 2 and health["load_max"] == 1.31 and health["load_max_time_h"] == 0.2
+    assert any("on 2 of 4 steps the mill's load was above 1.2 of nominal" in n and "reached 1.31 at 0.2 h" in n
+               for n in health_notes(health))
+    assert health_notes(controller_health(frame, est, 1.4)) == []
+    assert health_notes(controller_health(frame, est)) == []
