@@ -45,6 +45,11 @@ class Section(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, use_attribute_docstrings=True)
 
 
+#: The most samples a run may have: the longest run (a year) at one-minute samples, an analyser's
+#: usual period; memory and time grow with the count (the feed schedule alone ~0.2 kB a sample).
+MAX_SAMPLES = 24 * 366 * 60
+
+
 class SceneInfo(Section):
     """``[scene]``: identity, time axis and seed of the run."""
 
@@ -59,6 +64,15 @@ class SceneInfo(Section):
     the time series has one row per sample (1/60 = one minute)."""
     seed: int = Field(default=0, ge=0)
     """Seed of the sensors' noise (analyser, power and load readings): runs are reproducible."""
+
+    @model_validator(mode="after")
+    def _samples(self):
+        n = round(self.duration_h / self.sample_period_h)
+        if n > MAX_SAMPLES:  # 5e-8 h (seconds written as hours?) took 18 GB before any check
+            raise ValueError(f"duration_h = {self.duration_h:g} at sample_period_h = {self.sample_period_h:g} is {n:,} "
+                             f"samples; at most {MAX_SAMPLES:,} (a year of one-minute samples): a longer sample "
+                             "period or a shorter run")
+        return self
 
 
 class SizeClasses(Section):
