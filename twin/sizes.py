@@ -52,6 +52,8 @@ class SizeGrid:
     def spanning(cls, top_um: float, bottom_um: float, count: int, scheme: str = "cell_average") -> "SizeGrid":
         """``count`` classes whose upper sizes run from ``top_um`` to ``bottom_um`` (the sink's)."""
         check_range("SizeGrid.spanning", "bottom_um", bottom_um, 0.0, top_um)
+        if not isinstance(count, int) or isinstance(count, bool) or not 3 <= count <= 400:  # 1 divided by zero
+            raise bad_value("SizeGrid.spanning", "count", count, "an integer in [3, 400]")
         return cls(top_um, (top_um / bottom_um) ** (1.0 / (count - 1)), count, scheme)
 
     @property
@@ -162,32 +164,58 @@ def smooth_pxx(grid: SizeGrid, mass, percent: float = 80.0, sharpness: float = S
 
 @dataclass(frozen=True)
 class RosinRammler:
-    """Cumulative passing ``1 - exp(-(x/x63)^n)`` (Rosin & Rammler 1933)."""
+    """Cumulative passing ``1 - exp(-(x/x63)^n)`` (Rosin & Rammler 1933); ``x63_um`` > 0 [um], ``n`` > 0."""
 
     x63_um: float
     n: float
+
+    def __post_init__(self):  # a NaN or negative size made every class fraction NaN, without an error
+        check_range("RosinRammler", "x63_um", self.x63_um, 0.0, math.inf)
+        check_range("RosinRammler", "n", self.n, 0.0, math.inf)
 
     def passing(self, x_um):
         return 1.0 - np.exp(-(np.asarray(x_um, dtype=float) / self.x63_um) ** self.n)
 
     @classmethod
     def from_p80(cls, p80_um: float, n: float = 1.0) -> "RosinRammler":
+        check_range("RosinRammler.from_p80", "p80_um", p80_um, 0.0, math.inf)
+        check_range("RosinRammler.from_p80", "n", n, 0.0, math.inf)
         return cls(p80_um / math.log(5.0) ** (1.0 / n), n)
+
+
+#: The largest Gates-Gaudin-Schuhmann modulus allowed: crushed ores lie at 0.5-1.5 (Gupta & Yan
+#: 2016, ch. 3); far beyond, the feed is one size and the value a slip (80 for 0.80).
+GGS_MODULUS_MAX = 20.0
 
 
 @dataclass(frozen=True)
 class GatesGaudinSchuhmann:
-    """Cumulative passing ``min(1, (x/x_max)^m)`` (Gates-Gaudin-Schuhmann)."""
+    """Cumulative passing ``min(1, (x/x_max)^m)`` (Gates-Gaudin-Schuhmann); ``x_max_um`` > 0 [um],
+    ``m`` in (0, :data:`GGS_MODULUS_MAX`) (a Twin's ``feed_modulus``)."""
 
     x_max_um: float
     m: float
+
+    def __post_init__(self):  # a NaN or negative size made every class fraction NaN, without an error
+        check_range("GatesGaudinSchuhmann", "x_max_um", self.x_max_um, 0.0, math.inf)
+        check_range("GatesGaudinSchuhmann", "m", self.m, 0.0, GGS_MODULUS_MAX)
 
     def passing(self, x_um):
         return np.minimum(1.0, (np.asarray(x_um, dtype=float) / self.x_max_um) ** self.m)
 
     @classmethod
     def from_p80(cls, p80_um: float, m: float = 0.8) -> "GatesGaudinSchuhmann":
+        """The distribution whose P80 is ``p80_um`` [um] (a Twin's ``feed_p80_um``) with modulus ``m``."""
+        o = "GatesGaudinSchuhmann.from_p80 (a Twin's feed_p80_um and feed_modulus)"
+        check_range(o, "p80_um", p80_um, 0.0, math.inf)
+        check_range(o, "m", m, 0.0, GGS_MODULUS_MAX)  # m = 0 divided by zero
         return cls(p80_um * 0.8 ** (-1.0 / m), m)
+
+
+#: A screen analysis whose every sieve passes at most this many percent is refused by
+#: :meth:`TabulatedPSD.from_sieves`: it is fractions given as percentages (0.94 for 94 %), and read
+#: as such it would put nearly all the feed above the coarsest sieve.
+PASSING_PCT_AS_FRACTION_MAX = 1.0
 
 
 @dataclass(frozen=True)
@@ -204,10 +232,12 @@ class TabulatedPSD:
 
     def __post_init__(self):
         s, p = np.asarray(self.sizes_um, float), np.asarray(self.passing_frac, float)
-        if s.shape != p.shape or s.size < 2 or np.any(s <= 0) or np.any(np.diff(s) <= 0):
-            raise bad_value("TabulatedPSD", "sizes_um", list(self.sizes_um),
+        # NaN compares false: a NaN size or passing went through to NaN class fractions
+        if s.ndim != 1 or s.shape != p.shape or s.size < 2 or not np.all(np.isfinite(s)) or np.any(s <= 0) \
+                or np.any(np.diff(s) <= 0):
+            raise bad_value("TabulatedPSD", "sizes_um", np.ravel(s).tolist(),
                             ">= 2 strictly increasing positive sieve sizes [um], one passing_frac each")
-        if np.any(np.diff(p) < 0) or p[0] <= 0 or p[-1] > 1:
+        if not np.all(np.isfinite(p)) or np.any(np.diff(p) < 0) or p[0] <= 0 or p[-1] > 1:
             raise bad_value("TabulatedPSD", "passing_frac", list(self.passing_frac),
                             "fractions passing (0.5, not 50) non-decreasing with size, within (0, 1]")
 
@@ -216,10 +246,16 @@ class TabulatedPSD:
         """From sieve sizes [um] and cumulative % passing in any order (as a screen analysis is
         written, coarsest first); % as 94.43, not 0.9443."""
         s, p = np.asarray(sizes_um, float), np.asarray(passing_pct, float)
+        if s.ndim != 1:
+            raise bad_value("TabulatedPSD", "sizes_um", s.tolist(), "a flat sequence of sieve sizes [um]")
         if s.shape != p.shape:
-            raise bad_value("TabulatedPSD", "passing_pct", list(p), f"one value per sieve ({s.size} sieves)")
-        if np.any(p < 0) or np.any(p > 100):
-            raise bad_value("TabulatedPSD", "passing_pct", list(p), "percentages in [0, 100]")
+            raise bad_value("TabulatedPSD", "passing_pct", p.tolist(), f"one value per sieve ({s.size} sieves)")
+        if not np.all(np.isfinite(p)) or np.any(p < 0) or np.any(p > 100):
+            raise bad_value("TabulatedPSD", "passing_pct", p.tolist(), "percentages in [0, 100]")
+        if p.size and p.max() <= PASSING_PCT_AS_FRACTION_MAX:  # 0.94 read as 0.94 %: the feed piled above the top sieve
+            raise bad_value("TabulatedPSD", "passing_pct", p.tolist(),
+                            f"percentages passing (94.43, not 0.9443); all are <= {PASSING_PCT_AS_FRACTION_MAX:g} %, "
+                            "fractions of 1 by their look: give them times 100")
         order = np.argsort(s)
         return cls(tuple(s[order]), tuple(p[order] / 100.0))
 
@@ -250,10 +286,21 @@ class TabulatedPSD:
         return np.where(lx < s[0], fine, inside)
 
 
+#: Round-off allowed in a distribution's passing fractions by :func:`discretise`.
+DISCRETISE_TOL = 1e-9
+
+
 def discretise(grid: SizeGrid, psd) -> np.ndarray:
     """Mass fraction in each class of a cumulative-passing distribution; mass above the top
     size is put in the top class so the fractions sum to 1 exactly."""
     passing = np.asarray(psd.passing(grid.upper_um), dtype=float)
+    # a distribution of the user's own: NaN, percentages or a passing that falls with size were
+    # clipped and renormalised into some other feed without a word
+    if passing.shape != (grid.count,) or not np.all(np.isfinite(passing)) or np.any(passing < -DISCRETISE_TOL) \
+            or np.any(passing > 1.0 + DISCRETISE_TOL) or np.any(np.diff(passing) > DISCRETISE_TOL):
+        raise TwinInputError(f"The size distribution {type(psd).__name__} must give from passing(x_um) one fraction "
+                             f"passing (0.8, not 80) per size, within [0, 1] and not decreasing with size. Got "
+                             f"{np.ravel(passing).tolist()} at the grid's upper sizes {grid.upper_um.tolist()} um.")
     frac = np.empty(grid.count)
     frac[:-1] = passing[:-1] - passing[1:]
     frac[-1] = passing[-1]

@@ -1,0 +1,81 @@
+"""What a process engineer scripting the twin's Python API gets for a plausible mistake: a clear
+error naming the parameter, the value and what is allowed, before any work, never a wrong number
+returned in silence or a traceback from deep inside."""
+
+import math
+
+import numpy as np
+import pytest
+
+from twin import GatesGaudinSchuhmann, RosinRammler, SizeGrid, TabulatedPSD, Twin, TwinInputError, discretise
+
+GRID = SizeGrid(top_um=6700.0, count=16)
+
+
+# ---------------------------------------------------------------- feed size distributions
+
+@pytest.mark.parametrize("kwargs, field", [(dict(feed_p80_um=math.nan), "p80_um"), (dict(feed_p80_um=-3200.0), "p80_um"),
+                                           (dict(feed_modulus=0.0), "m"), (dict(feed_modulus=80.0), "m")])
+def test_a_feed_p80_or_modulus_that_is_no_distribution_is_refused(kwargs, field):
+    # NaN or a negative P80 made every feed class fraction NaN without an error; a modulus of 0
+    # divided by zero; 80 (for 0.80) a feed of one size
+    with pytest.raises(TwinInputError, match=f"'{field}' parameter .*feed_p80_um and feed_modulus"):
+        Twin("B", grid=GRID, **kwargs)
+
+
+@pytest.mark.parametrize("make", [lambda: GatesGaudinSchuhmann(-1.0, 0.8), lambda: GatesGaudinSchuhmann(4000.0, math.nan),
+                                  lambda: RosinRammler(math.nan, 1.0), lambda: RosinRammler(200.0, 0.0),
+                                  lambda: RosinRammler.from_p80(200.0, 0.0)])
+def test_distributions_refuse_sizes_and_moduli_that_give_nan(make):
+    with pytest.raises(TwinInputError, match="must be a float in"):
+        make()
+
+
+@pytest.mark.parametrize("sizes, passing", [((100.0, math.nan, 300.0), (0.3, 0.5, 1.0)),
+                                            ((100.0, 200.0, 300.0), (0.3, math.nan, 1.0)),
+                                            ((100.0, 200.0, 300.0), (0.3, 0.5, math.nan))])
+def test_a_screen_analysis_with_nan_is_refused(sizes, passing):
+    with pytest.raises(TwinInputError, match="TabulatedPSD"):
+        TabulatedPSD(sizes, passing)
+    with pytest.raises(TwinInputError, match="TabulatedPSD"):
+        TabulatedPSD.from_sieves(sizes, [100 * p for p in passing])
+
+
+def test_a_screen_analysis_given_as_fractions_is_refused_not_read_as_percent():
+    # read as 0.94 % passing 4 mm, 99 % of the feed sat just above the coarsest sieve: a P80 of ~250 um
+    # came out of the twin for a feed whose analysis says 94 % passes 4 mm
+    with pytest.raises(TwinInputError, match=r"'passing_pct'.*94.43, not 0.9443"):
+        TabulatedPSD.from_sieves([1000, 2000, 4000], [0.3, 0.5, 0.94])
+    assert TabulatedPSD.from_sieves([1000, 2000, 4000], [30, 50, 94]).passing(4000.0) == pytest.approx(0.94)
+
+
+def test_a_screen_analysis_as_a_table_is_refused_clearly():
+    with pytest.raises(TwinInputError, match="'sizes_um'.*flat sequence"):
+        TabulatedPSD.from_sieves([[100, 200]], [[30, 100]])
+
+
+class _PercentPSD:
+    """A user's own distribution whose passing is in percent."""
+
+    def passing(self, x_um):
+        return 100.0 * np.minimum(1.0, np.asarray(x_um, float) / 4000.0) ** 0.8
+
+
+class _NanPSD:
+    def passing(self, x_um):
+        return np.full(np.shape(x_um), math.nan)
+
+
+@pytest.mark.parametrize("psd", [_PercentPSD(), _NanPSD()])
+def test_a_distribution_object_in_percent_or_nan_is_refused(psd):
+    # percent was clipped and renormalised: the top class's mass vanished; NaN went into the model
+    with pytest.raises(TwinInputError, match=r"fraction passing \(0.8, not 80\)"):
+        discretise(GRID, psd)
+    with pytest.raises(TwinInputError, match="passing"):
+        Twin("B", grid=GRID, feed_psd=psd)
+
+
+@pytest.mark.parametrize("count", [1, 2, 16.0])
+def test_a_spanning_grid_names_its_count(count):
+    with pytest.raises(TwinInputError, match="'count' parameter of SizeGrid.spanning"):
+        SizeGrid.spanning(1000.0, 10.0, count)
