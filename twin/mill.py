@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from functools import cache
 from pathlib import Path
 
@@ -19,6 +19,11 @@ G_M_S2 = 9.80665
 #: The solids density [t/m3] the mills' ``discharge_factor`` is stated at: a quartz slurry
 #: (twin/ore/data/minerals.csv; Mill.free_discharge_tph).
 DISCHARGE_REFERENCE_DENSITY_T_M3 = mineral_table()["quartz"].density_t_m3
+#: Densities a grinding ball may have [t/m3]: alumina ceramic (~3.6) to tungsten carbide (~15);
+#: beyond, the value is in kg/m3 (7800 for steel's 7.8).
+BALL_DENSITY_RANGE_T_M3 = (1.0, 25.0)
+#: The smallest make-up ball size of a tumbling ball mill [mm]; below, the value is in m (0.025 for 25 mm).
+BALL_SIZE_MIN_MM = 1.0
 #: The net-power models a Mill may name (functions in :data:`POWER_MODELS`).
 POWER_MODEL_NAMES = ("bond", "hogg_fuerstenau")
 
@@ -72,10 +77,15 @@ class Mill:
         check_range(o, "diameter_m", self.diameter_m, 0.0, 20.0)
         check_range(o, "length_m", self.length_m, 0.0, 30.0)
         check_range(o, "ball_filling_frac", self.ball_filling_frac, 0.0, 0.5)
+        # 7800 (kg/m3) drew a thousand times the power: 335 kW from the 0.5 m laboratory mill
+        check_range(o, "ball_density_t_m3", self.ball_density_t_m3, *BALL_DENSITY_RANGE_T_M3)
         check_range(o, "bed_porosity", self.bed_porosity, 0.0, 1.0)
         check_range(o, "powder_filling_nominal", self.powder_filling_nominal, 0.0, 3.0)
         check_range(o, "speed_nominal_frac_critical", self.speed_nominal_frac_critical, 0.0, 1.0)
-        lo, hi = self.stable_band
+        try:
+            lo, hi = (float(v) for v in self.stable_band)
+        except (TypeError, ValueError):
+            raise bad_value(o, "stable_band", self.stable_band, "a pair (lo, hi) with 0 < lo < 1 < hi") from None
         if not 0 < lo < 1 < hi:
             raise bad_value(o, "stable_band", self.stable_band, "a pair (lo, hi) with 0 < lo < 1 < hi")
         check_range(o, "grate_d50_um", self.grate_d50_um, 0.0, 1e6)
@@ -84,7 +94,8 @@ class Mill:
         check_range(o, "discharge_factor", self.discharge_factor, 0.0, 100.0)
         check_range(o, "feed_nominal_tph", self.feed_nominal_tph, 0.0, 1e5)
         check_range(o, "power_factor", self.power_factor, 0.0, 10.0)
-        check_range(o, "ball_size_mm", self.ball_size_mm, 0.0, 200.0)
+        # 0.025 (m) scaled the calibrated breakage rates by Austin's ball-size rule a thousandfold
+        check_range(o, "ball_size_mm", self.ball_size_mm, BALL_SIZE_MIN_MM, 200.0, lo_open=False)
         check_range(o, "discharge_solids_frac", self.discharge_solids_frac, 0.0, 1.0)
         if self.power_model not in POWER_MODEL_NAMES:
             raise bad_value(o, "power_model", self.power_model, "one of " + ", ".join(map(repr, POWER_MODEL_NAMES)))
@@ -130,6 +141,12 @@ class Mill:
                 * solids_density_t_m3 / DISCHARGE_REFERENCE_DENSITY_T_M3)
 
     def with_(self, **changes) -> "Mill":
+        """This mill with ``changes`` (field names as the dataclass's, units in them)."""
+        known = [f.name for f in fields(self)]
+        for name in changes:
+            if name not in known:  # a TypeError from dataclasses.replace named no field to use
+                raise TwinInputError(f"Mill {self.name!r} has no field {name!r}.{close_matches(name, known)} "
+                                     f"Fields: {', '.join(known)}.")
         return replace(self, **changes)
 
 

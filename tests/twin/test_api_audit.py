@@ -8,13 +8,15 @@ import numpy as np
 import pytest
 
 from twin import GatesGaudinSchuhmann, RosinRammler, SizeGrid, TabulatedPSD, Twin, TwinInputError, discretise
+from twin.mill import LAB
 
 GRID = SizeGrid(top_um=6700.0, count=16)
 
 
 # ---------------------------------------------------------------- feed size distributions
 
-@pytest.mark.parametrize("kwargs, field", [(dict(feed_p80_um=math.nan), "p80_um"), (dict(feed_p80_um=-3200.0), "p80_um"),
+@pytest.mark.parametrize("kwargs, field", [(dict(feed_p80_um=math.nan), "p80_um"),
+                                           (dict(feed_p80_um=-3200.0), "p80_um"),
                                            (dict(feed_modulus=0.0), "m"), (dict(feed_modulus=80.0), "m")])
 def test_a_feed_p80_or_modulus_that_is_no_distribution_is_refused(kwargs, field):
     # NaN or a negative P80 made every feed class fraction NaN without an error; a modulus of 0
@@ -23,8 +25,9 @@ def test_a_feed_p80_or_modulus_that_is_no_distribution_is_refused(kwargs, field)
         Twin("B", grid=GRID, **kwargs)
 
 
-@pytest.mark.parametrize("make", [lambda: GatesGaudinSchuhmann(-1.0, 0.8), lambda: GatesGaudinSchuhmann(4000.0, math.nan),
-                                  lambda: RosinRammler(math.nan, 1.0), lambda: RosinRammler(200.0, 0.0),
+@pytest.mark.parametrize("make", [lambda: GatesGaudinSchuhmann(-1.0, 0.8),
+                                  lambda: GatesGaudinSchuhmann(4000.0, math.nan), lambda: RosinRammler(math.nan, 1.0),
+                                  lambda: RosinRammler(200.0, 0.0),
                                   lambda: RosinRammler.from_p80(200.0, 0.0)])
 def test_distributions_refuse_sizes_and_moduli_that_give_nan(make):
     with pytest.raises(TwinInputError, match="must be a float in"):
@@ -79,3 +82,21 @@ def test_a_distribution_object_in_percent_or_nan_is_refused(psd):
 def test_a_spanning_grid_names_its_count(count):
     with pytest.raises(TwinInputError, match="'count' parameter of SizeGrid.spanning"):
         SizeGrid.spanning(1000.0, 10.0, count)
+
+
+# ---------------------------------------------------------------- mills
+
+@pytest.mark.parametrize("changes, field", [(dict(ball_density_t_m3=7800.0), "ball_density_t_m3"),
+                                            (dict(ball_density_t_m3=math.nan), "ball_density_t_m3"),
+                                            (dict(ball_size_mm=0.025), "ball_size_mm"),
+                                            (dict(stable_band=1.2), "stable_band")])
+def test_a_mill_in_the_wrong_units_is_refused(changes, field):
+    # kg/m3 for t/m3 drew 335 kW from the 0.5 m lab mill; NaN made the power NaN; a ball size in m
+    # scaled the breakage rates by Austin's ball-size rule; a scalar band failed on unpacking
+    with pytest.raises(TwinInputError, match=f"'{field}' parameter of Mill 'lab'"):
+        LAB.with_(**changes)
+
+
+def test_a_mistyped_mill_field_is_named_with_the_right_one():
+    with pytest.raises(TwinInputError, match="no field 'diameter'.*Did you mean 'diameter_m'"):
+        LAB.with_(diameter=0.6)
