@@ -100,3 +100,40 @@ def test_a_mill_in_the_wrong_units_is_refused(changes, field):
 def test_a_mistyped_mill_field_is_named_with_the_right_one():
     with pytest.raises(TwinInputError, match="no field 'diameter'.*Did you mean 'diameter_m'"):
         LAB.with_(diameter=0.6)
+
+
+# ---------------------------------------------------------------- open-loop runs
+
+@pytest.fixture(scope="module")
+def lab_twin():
+    return Twin("B", mill="lab", grid=GRID)
+
+
+@pytest.mark.parametrize("duration_h, dt_h, field", [(0.12, 0.05, "duration_h"), (0.01, 0.05, "dt_h"),
+                                                     (math.inf, 0.05, "duration_h"), (1.0, math.inf, "dt_h")])
+def test_a_run_off_its_sample_grid_is_refused(lab_twin, duration_h, dt_h, field):
+    # 0.12 h at 0.05 h ran 0.1 h and returned it as asked; a sample longer than the run, or an
+    # infinite one, failed on a reshape or an integer conversion
+    with pytest.raises(TwinInputError, match=f"'{field}' parameter of simulate"):
+        lab_twin.simulate(duration_h, dt_h)
+
+
+def test_a_run_on_its_grid_ends_where_asked(lab_twin):
+    assert lab_twin.simulate(0.15, 0.05).frame["time_h"].iloc[-1] == pytest.approx(0.15)
+
+
+@pytest.mark.parametrize("kwargs, field", [(dict(rtol=-1.0), "rtol"), (dict(atol_rel=0.0), "atol_rel")])
+def test_integrator_tolerances_are_checked_before_casadi_sees_them(lab_twin, kwargs, field):
+    with pytest.raises(TwinInputError, match=f"'{field}' parameter of simulate"):
+        lab_twin.simulate(0.1, 0.05, **kwargs)
+
+
+def test_an_initial_state_of_the_wrong_length_or_negative_is_the_users_error(lab_twin):
+    x0 = lab_twin.model.initial_state(lab_twin.nominal_blend)
+    with pytest.raises(TwinInputError, match=f"'x0' parameter of simulate must be a state vector of {x0.size}"):
+        lab_twin.simulate(0.1, 0.05, x0=x0[:3])
+    with pytest.raises(TwinInputError, match="'x0'.*non-negative masses"):  # was a SolverError
+        lab_twin.simulate(0.1, 0.05, x0=-x0)
+    with pytest.raises(TwinInputError, match="'x0'.*finite"):
+        lab_twin.simulate(0.1, 0.05, x0=np.full(x0.size, math.nan))
+    assert lab_twin.simulate(0.1, 0.05, x0=list(x0)).states.shape == (3, x0.size)

@@ -16,7 +16,8 @@ import numpy as np
 import pandas as pd
 import scipy.linalg
 
-from ..errors import SolverError, TwinInputError
+from ..errors import SolverError, bad_value, check_range
+from ..model import NEGATIVE_ROUNDOFF_REL
 from ..sizes import pxx_um
 from ..validity import trajectory_notes
 
@@ -146,6 +147,48 @@ def input_stretches(values: np.ndarray, before: np.ndarray) -> list[tuple[int, i
     return list(zip([0, *cuts], [*cuts, n]))
 
 
+#: How far a run's duration may lie from a whole number of samples, relative to it: a duration
+#: of 0.12 h at 0.05 h samples ran 0.1 h and returned it as the run asked for.
+SAMPLE_GRID_RTOL = 1e-6
+
+
+def check_run(duration_h, dt_h, rtol, atol_rel) -> int:
+    """The number of samples of a run of ``duration_h`` [h] at ``dt_h`` [h]; TwinInputError naming
+    the value when either is not a finite positive number, ``dt_h`` is longer than the run or does
+    not divide it, or a tolerance is not in (0, 1)."""
+    o = "simulate"
+    duration = check_range(o, "duration_h", duration_h, 0.0, math.inf)
+    dt = check_range(o, "dt_h", dt_h, 0.0, math.inf)
+    if dt > duration * (1.0 + SAMPLE_GRID_RTOL):  # no sample: a reshape error deep inside
+        raise bad_value(o, "dt_h", dt_h, f"a sample period no longer than the run's duration_h ({duration:g} h)")
+    n = int(round(duration / dt))
+    if abs(n * dt - duration) > SAMPLE_GRID_RTOL * duration:
+        raise bad_value(o, "duration_h", duration_h, f"a whole number of samples of dt_h {dt:g} h (e.g. {n * dt:g} or "
+                                                     f"{(n + 1) * dt:g} h)")
+    check_range(o, "rtol", rtol, 0.0, 1.0)  # a negative one was CVODES's "CV_ILL_INPUT" from CasADi
+    check_range(o, "atol_rel", atol_rel, 0.0, 1.0)
+    return n
+
+
+def check_initial_state(model, x0) -> np.ndarray:
+    """``x0`` as the model's state vector; TwinInputError naming it when it has another length, is
+    not finite or holds a negative mass (the masses come first, t)."""
+    try:
+        x = np.array(x0, dtype=float)
+    except (TypeError, ValueError):
+        raise bad_value("simulate", "x0", x0, f"a state vector of {model.n_x} numbers") from None
+    if x.shape != (model.n_x,):
+        raise bad_value("simulate", "x0", f"an array of shape {x.shape}",
+                        f"a state vector of {model.n_x} numbers (e.g. a Trajectory's states[-1] or a SteadyState's x)")
+    if not np.all(np.isfinite(x)):
+        raise bad_value("simulate", "x0", f"a state with {int(np.sum(~np.isfinite(x)))} non-finite entries",
+                        "finite numbers")
+    worst = x[: model.n_mass].min()
+    if worst < -NEGATIVE_ROUNDOFF_REL * model.spec.holdup_nominal_t:
+        raise bad_value("simulate", "x0", f"a state with a mass of {worst:.3g} t", "non-negative masses [t]")
+    return model.checked_state(x, "initial state")
+
+
 def simulate(model, x0, duration_h: float, dt_h: float, u_fn, d_fn, rtol=RTOL, atol_rel=ATOL_REL,
              exact_p80: bool = True) -> Trajectory:
     """Open-loop run with the inputs ``u_fn(t)``, ``d_fn(t)`` (functions of time [h], state-free).
@@ -156,10 +199,8 @@ def simulate(model, x0, duration_h: float, dt_h: float, u_fn, d_fn, rtol=RTOL, a
     (:func:`input_stretches`); the integrator restarts only where an input jumps or bends
     (SUNDIALS' BDF history must not straddle a jump: across one a feed step fails the error
     test), the value just before held up to a jump."""
-    if not duration_h > 0 or not dt_h > 0:
-        raise TwinInputError(f"The 'duration_h' and 'dt_h' of simulate must be > 0. Got {duration_h}, {dt_h}.")
-    n = int(round(duration_h / dt_h))
-    x0 = model.checked_state(np.asarray(x0, float).copy(), "initial state")
+    n = check_run(duration_h, dt_h, rtol, atol_rel)
+    x0 = check_initial_state(model, x0)
     times = np.arange(n + 1) * dt_h
     us = np.array([u_fn(t) for t in times], float)
     ds = np.array([d_fn(t) for t in times], float)
