@@ -137,3 +137,23 @@ def test_an_initial_state_of_the_wrong_length_or_negative_is_the_users_error(lab
     with pytest.raises(TwinInputError, match="'x0'.*finite"):
         lab_twin.simulate(0.1, 0.05, x0=np.full(x0.size, math.nan))
     assert lab_twin.simulate(0.1, 0.05, x0=list(x0)).states.shape == (3, x0.size)
+
+
+# ---------------------------------------------------------------- ores and blends
+
+def test_a_blend_takes_ores_by_name_as_the_twin_does():
+    from twin.ore import Blend, load_ore
+    # was AttributeError: 'str' object has no attribute 'name'
+    blend = Blend(("B", "D"), (0.6, 0.4))
+    assert blend.ores == (load_ore("B"), load_ore("D")) and blend.fractions == (0.6, 0.4)
+    assert blend.density_t_m3 == pytest.approx(Blend((load_ore("B"), load_ore("D")), (0.6, 0.4)).density_t_m3)
+    with pytest.raises(TwinInputError, match="fraction of ore 'B' in Blend must be a float in \\[0, 1\\]. Got '0.6'"):
+        Blend(("B", "D"), ("0.6", 0.4))  # was a TypeError from '<='
+
+
+def test_a_mineralogy_names_a_texture_that_is_no_texture():
+    from twin.ore import Mineralogy
+    with pytest.raises(TwinInputError, match="'texture' parameter of Mineralogy"):  # failed later on .textural_index
+        Mineralogy({"quartz": 100.0}, texture=150.0)
+    with pytest.raises(TwinInputError, match="Unknown mineral 1"):  # was a TypeError in the suggestion
+        Mineralogy({1: 100.0})

@@ -64,12 +64,15 @@ class Mineralogy:
 
     def __post_init__(self):
         known = mineral_table()
+        if not isinstance(self.texture, Texture):  # a grain size given here failed later on .textural_index
+            raise bad_value("Mineralogy", "texture", self.texture,
+                            "a twin.ore.Texture (e.g. Texture(mean_grain_um=150))")
         clean = {}
         for mineral, value in dict(self.wt_pct).items():
             if mineral not in known:
                 raise TwinInputError(
                     f"Unknown mineral {mineral!r} in Mineralogy."
-                    f"{close_matches(mineral, known)} Known minerals: {', '.join(known)}.")
+                    f"{close_matches(str(mineral), known)} Known minerals: {', '.join(known)}.")
             try:
                 v = float(value)
             except (TypeError, ValueError):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numbers
 import tomllib
 from dataclasses import dataclass
 from functools import cache
@@ -96,6 +97,15 @@ class Blend:
     def __post_init__(self):
         if len(self.ores) != len(self.fractions) or not self.ores:
             raise TwinInputError("A Blend needs one fraction per ore and at least one ore.")
+        # ores named as Twin takes them ('B', a TOML path) failed on .name; a text fraction on '<='
+        object.__setattr__(self, "ores", tuple(load_ore(o) if isinstance(o, (str, Path)) else o for o in self.ores))
+        fractions = []
+        for ore, f in zip(self.ores, self.fractions):
+            if isinstance(f, bool) or not isinstance(f, numbers.Real):
+                raise TwinInputError(f"The fraction of ore {ore.name!r} in Blend must be a float in [0, 1]. "
+                                     f"Got {f!r}.")
+            fractions.append(float(f))
+        object.__setattr__(self, "fractions", tuple(fractions))
         names = [ore.name for ore in self.ores]
         twice = sorted({n for n in names if names.count(n) > 1})
         if twice:  # components are keyed by name (results, JSON): a second one would overwrite the first
