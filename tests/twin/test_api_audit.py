@@ -157,3 +157,22 @@ def test_a_mineralogy_names_a_texture_that_is_no_texture():
         Mineralogy({"quartz": 100.0}, texture=150.0)
     with pytest.raises(TwinInputError, match="Unknown mineral 1"):  # was a TypeError in the suggestion
         Mineralogy({1: 100.0})
+
+
+# ---------------------------------------------------------------- effects and their options
+
+@pytest.mark.parametrize("option", [{"circulating_load_nominal": 3.0}, {"cyclone": {"count": 2}}])
+def test_hydrocyclone_options_given_with_a_grate_are_refused_not_ignored(option):
+    from twin import ModelError
+    # the grate (the default kind) reads neither: the twin was built and ran as if they were not there
+    with pytest.raises(ModelError, match=f"{next(iter(option))!r} is an option of kind = 'hydrocyclone'"):
+        Twin("B", grid=GRID, effect_options={"classification": option})
+
+
+def test_effect_options_and_effects_of_the_wrong_shape_are_named():
+    from twin import ModelError
+    from twin.effects.registry import resolve
+    with pytest.raises(ModelError, match="options of effect 'classification' must be a table"):  # was AttributeError
+        Twin("B", grid=GRID, effect_options={"classification": "grate"})
+    with pytest.raises(ModelError, match="list of effect names, not one string"):  # was "Unknown effect 'b'"
+        resolve("breakage")

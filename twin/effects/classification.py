@@ -300,8 +300,18 @@ class Classification(Effect):
                           (Hydrocyclone, dict, type(None))),
     }
 
+    #: Options only a hydrocyclone circuit reads (beside 'circuit' and 'fresh_feed_solids_frac',
+    #: checked below): given with a grate they changed nothing, silently.
+    GRATE_UNREAD = ("circulating_load_nominal", "cyclone")
+
     def __init__(self, **options):
         super().__init__(**options)
+        unread = [k for k in self.GRATE_UNREAD if options.get(k) is not None]
+        if self.settings["kind"] == "grate" and unread:
+            raise ModelError(f"Effect 'classification': {', '.join(map(repr, unread))} "
+                             f"{'is an option' if len(unread) == 1 else 'are options'} of kind = 'hydrocyclone', "
+                             "which a grate (the default kind) does not read. Set 'kind' = 'hydrocyclone' or leave "
+                             f"{'it' if len(unread) == 1 else 'them'} out.")
         reverse = self.settings["circuit"] == "reverse"
         if self.settings["kind"] == "grate" and (reverse or self.settings["fresh_feed_solids_frac"] is not None):
             raise ModelError("Effect 'classification': 'circuit' = 'reverse' and 'fresh_feed_solids_frac' are "

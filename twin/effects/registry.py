@@ -50,6 +50,9 @@ def problems(names, options: dict | None = None, registry: dict | None = None) -
     effect provides, variables provided twice, and options of unlisted effects, unknown options
     and option values outside their declared types and ranges."""
     registry = EFFECTS if registry is None else registry
+    if isinstance(names, str):  # list("breakage") was read as the effects 'b', 'r', ...
+        return [Problem(("effects",), f"The effects must be a list of effect names, not one string. Got {names!r}; "
+                                      f"write [{names!r}].")]
     names, options = list(names), dict(options or {})
     out, seen = [], []
     for i, name in enumerate(names):
@@ -74,6 +77,11 @@ def problems(names, options: dict | None = None, registry: dict | None = None) -
                                                          "effects or remove these options."))
             continue
         declared = registry[name].options
+        if table is not None and not isinstance(table, dict):  # was an AttributeError on .items()
+            out.append(Problem(("effect_options", name), f"The options of effect {name!r} must be a table of option "
+                                                         f"names and values (a dict). Got {table!r}; allowed options: "
+                                                         f"{', '.join(declared) or 'none'}."))
+            continue
         for key, value in (table or {}).items():
             if key not in declared:
                 out.append(Problem(("effect_options", name, key),
