@@ -17,24 +17,17 @@ from pathlib import Path
 
 import pytest
 
-from mpc import codegen
 from scenarios.cli import main
+from tests.mpc.conftest import c_tools
 
 REFERENCE = Path(__file__).parents[2] / "scenarios" / "reference_transition.toml"
 HEADERS = ("gt_controller.h", "gt_controller_config.h")
 
 
-def _tools() -> str:
-    cc = codegen.find_compiler()
-    if cc is None or shutil.which("make") is None:
-        pytest.skip("no C compiler or make on this machine")
-    return cc
-
-
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     """The reference scene exported and built (make, -O1): ``(folder, config defines)``."""
-    cc = _tools()
+    cc = c_tools()
     out = tmp_path_factory.mktemp("abi") / "ctl"
     assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 0
     build = subprocess.run(["make", "-j2", "-C", str(out), "CFLAGS=-O1", f"CC={cc}"], capture_output=True, text=True)
@@ -75,7 +68,7 @@ def test_a_caller_compiled_with_another_exports_headers_is_refused(built, tmp_pa
     length, GT_ABI_LAYOUT_DIFFERS (2) for the same lengths with another GT_ABI_HASH (the
     components in another order); NULL, nothing allocated. The export's own headers pass (0)."""
     out, config = built
-    cc = _tools()
+    cc = c_tools()
     library_hash = config["GT_ABI_HASH"]
     assert re.fullmatch(r"0x[0-9a-f]{8}UL", library_hash)
     variants = {"same": ({}, "0"), "horizon": ({"GT_N": str(int(config["GT_N"]) + 1)}, "1"),
@@ -185,7 +178,7 @@ def test_what_u_holds_after_a_refused_or_held_step_is_what_the_header_says(built
     unchanged; a hold (the library rebuilt with no real-time iteration, so every step falls back
     with no plan) is u_applied = (1000, 5) projected onto the bounds."""
     out, config = built
-    cc = _tools()
+    cc = c_tools()
     header = (out / "gt_controller.h").read_text()
     assert "nothing written into u: both elements keep the caller's values" in _status_text(header, "BAD_INPUT")
     for name in ("HOLD_INPUT", "BAD_BIAS"):

@@ -21,23 +21,17 @@ import pytest
 from mpc import codegen
 from mpc.errors import MpcInputError
 from scenarios.cli import main
+from tests.mpc.conftest import c_tools
 from scenarios.run import closed_loop
 
 REFERENCE = Path(__file__).parents[2] / "scenarios" / "reference_transition.toml"
-
-
-def _tools():
-    cc = codegen.find_compiler()
-    if cc is None or shutil.which("make") is None:
-        pytest.skip("no C compiler or make on this machine")
-    return cc
 
 
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     """The reference scene exported and built (make, -O1), with the Python EKF and NMPC the export
     was made from: ``(folder, estimator, controller, config)``."""
-    cc = _tools()
+    cc = c_tools()
     out = tmp_path_factory.mktemp("export") / "ctl"
     parts = {}
     real = closed_loop.nmpc_parts
@@ -145,7 +139,7 @@ def test_the_estimate_refuses_a_non_finite_input_and_resets_a_non_finite_estimat
     estimate, where the scene's closed loop resets its EKF. The step and the accessors answer NULL
     with a status (or NULL, NaN, -1), not a crash."""
     out, est, _, _ = built
-    cc = _tools()
+    cc = c_tools()
     (tmp_path / "driver.c").write_text(DRIVER)
     exe = tmp_path / "driver"
     build = subprocess.run([cc, "-O1", f"-I{out}", str(tmp_path / "driver.c"), str(out / "libgtcontroller.a"),
