@@ -150,7 +150,14 @@ class _DesignPoint:
         if not 0.0 < 10.0 * x[2] < FEED_SOLIDS_VOL_PCT_MAX:
             raise _FeedOutOfRange(f"the cut would need a cyclone feed of {10.0 * x[2]:.3g} % solids by volume "
                                   f"(a feed holds 0-{FEED_SOLIDS_VOL_PCT_MAX:g} %)")
-        mill, ss = _at(ore, base, math.exp(x[0]), self.cyclone(x), feed_tph, speed, calibration, circuit)
+        cyclone = self.cyclone(x)
+        try:  # a trial outside what the models take (a 15-m cyclone, a 25-m mill) is a miss, not the user's input
+            Hydrocyclone(**cyclone)
+            base.with_(diameter_m=math.exp(x[0]), length_m=base.length_m / base.diameter_m * math.exp(x[0]))
+        except TwinInputError as exc:
+            raise SolverError(f"a trial of {math.exp(x[1]):.3g}-cm cyclones and a {math.exp(x[0]):.3g}-m mill, "
+                              f"outside what the models take ({exc})") from None
+        mill, ss = _at(ore, base, math.exp(x[0]), cyclone, feed_tph, speed, calibration, circuit)
         o = ss.outputs
         r = np.array([math.log(ss.p80_um / self.target),
                       math.log(o["circulating_load_frac"] / DESIGN_CIRCULATING_LOAD),
@@ -281,23 +288,32 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
                              | {"design_cyclone_pressure_kpa": cyclone_pressure_kpa, "circuit": circuit})
         if d_cyc < CYCLONE_DIAMETER_RANGE_CM[0] or o["sump_water_m3_h"] < 0.0:
             break  # more cyclones are smaller and, at the design pressure, cut finer: they need a denser feed
+        if not DIAMETER_RANGE_M[0] <= mill.diameter_m <= DIAMETER_RANGE_M[1]:
+            break  # the grind sets the mill: other counts of cyclones, or another pressure, barely move it
+    mill_out = any(not DIAMETER_RANGE_M[0] <= t.get("diameter_m", DIAMETER_RANGE_M[0]) <= DIAMETER_RANGE_M[1]
+                   for t in tried)
     raise SolverError(f"No circuit gives P80 {target_p80_um:g} um at {feed_tph:g} t/h with circulating load "
                       f"{DESIGN_CIRCULATING_LOAD:g} and the cyclones at {cyclone_pressure_kpa:g} kPa: "
-                      + _misses_text(tried) + " (another design pressure may: size-mill --cyclone-pressure-kpa).")
+                      + _misses_text(tried)
+                      + (" (the grind sets the mill's diameter, which neither the cyclones nor their pressure move: "
+                         "another feed rate per mill or another target may)" if mill_out else
+                         " (another design pressure may: size-mill --cyclone-pressure-kpa)."))
 
 
 def _unrunnable(mill: Mill, d_cyc: float, ss) -> str | None:
-    """Why a design point is not a circuit to build, or None."""
+    """Why a design point is not a circuit to build (every reason, joined), or None."""
     lo, hi = CYCLONE_DIAMETER_RANGE_CM
-    o = ss.outputs
+    o, why = ss.outputs, []
     if not lo <= d_cyc <= hi:
-        return f"cyclones of {d_cyc:.3g} cm, outside the {lo:g}-{hi:g} cm made"
+        why.append(f"cyclones of {d_cyc:.3g} cm, outside the {lo:g}-{hi:g} cm made")
     if not DIAMETER_RANGE_M[0] <= mill.diameter_m <= DIAMETER_RANGE_M[1]:
-        return f"a {mill.diameter_m:.3g}-m mill, outside {DIAMETER_RANGE_M[0]:g}-{DIAMETER_RANGE_M[1]:g} m"
+        why.append(f"a {mill.diameter_m:.3g}-m mill, outside {DIAMETER_RANGE_M[0]:g}-{DIAMETER_RANGE_M[1]:g} m")
     if ss.load_status != "stable":
-        return f"the mill's load {ss.load_status} its stable band (load {o['load_frac']:.3g} of nominal)"
+        why.append(f"the mill's load {ss.load_status} its stable band (load {o['load_frac']:.3g} of nominal)")
     short = water_shortfalls(o)
-    return "water taken out (" + ", ".join(f"{k} {v:.3g}" for k, v in short.items()) + ")" if short else None
+    if short:
+        why.append("water taken out (" + ", ".join(f"{k} {v:.3g}" for k, v in short.items()) + ")")
+    return " and ".join(why) or None
 
 
 def _misses_text(tried: list) -> str:

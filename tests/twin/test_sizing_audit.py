@@ -1,0 +1,39 @@
+"""size_mill and `grindtwin size-mill`: trials outside the models, misses that name their cause,
+where a preset may be written, and what a design point at another speed cannot show."""
+
+import math
+
+import numpy as np
+import pytest
+
+from twin.errors import SolverError
+
+
+def test_a_trial_cyclone_outside_the_models_is_a_miss_not_an_input_error():
+    """At 3000 t/h the first guess of one cyclone is 15 m tall: Hydrocyclone's TwinInputError
+    (a 'free_vortex_height_cm' the user never gave) ended the whole sizing; it is a miss of that
+    count, and the next count is tried."""
+    from twin.calibration import load_calibration
+    from twin.effects.classification import Hydrocyclone
+    from twin.mill import INDUSTRIAL_BASE
+    from twin.sizing import _DesignPoint
+
+    point = _DesignPoint("B", INDUSTRIAL_BASE, Hydrocyclone(), 1, 3000.0, 100.0, 0.7, load_calibration(None), 53.0,
+                         "direct")
+    with pytest.raises(SolverError, match=r"a trial of 2e\+03-cm cyclones and a 10-m mill, outside what the models"):
+        point(np.array([math.log(10.0), math.log(2000.0), 4.0]))
+    with pytest.raises(SolverError, match=r"a 25-m mill, outside what the models take"):
+        point(np.array([math.log(25.0), math.log(50.0), 4.0]))
+
+
+def test_a_mill_outside_its_sizes_is_named_and_no_pressure_is_advised():
+    """Lab scale, 30 kg/h: the design point's mill is 0.39 m, below the sizes allowed, and its
+    cyclones are under 1 cm. Only the cyclones were named, with advice to change their pressure,
+    which cannot move the mill."""
+    from twin.sizing import size_mill
+
+    with pytest.raises(SolverError) as err:
+        size_mill("B", 0.03, 210.0)
+    text = str(err.value)
+    assert "cyclones of 0.847 cm, outside" in text and "a 0.391-m mill, outside 0.8-8 m" in text
+    assert "another design pressure" not in text and "neither the cyclones nor their pressure" in text
