@@ -338,14 +338,41 @@ def _counts(counts: list[int]) -> str:
 PRESET_KEYS = ("mill", "cyclone", "sizing", "command")
 
 
+#: The packages of the grindtwin distribution (pyproject.toml), folders beside this one.
+DISTRIBUTION_PACKAGES = ("twin", "dem", "mpc", "scenarios")
+
+
+def _in_checkout(root: Path) -> bool:
+    """Whether ``root`` (the folder holding the twin package) is a checkout of the grindtwin
+    repository: its pyproject.toml names the project (an installed package has none)."""
+    import tomllib
+
+    try:
+        with open(root / "pyproject.toml", "rb") as fh:
+            return tomllib.load(fh).get("project", {}).get("name") == "grindtwin"
+    except (OSError, tomllib.TOMLDecodeError):
+        return False
+
+
 def check_preset_path(path) -> Path:
     """``path`` if a preset may be written there: a new file in an existing folder, or a preset
-    file grindtwin wrote; TwinInputError otherwise (called before any sizing work)."""
+    file grindtwin wrote; never inside grindtwin's own packages, but for the shipped ``industrial``
+    preset in a checkout of the repository; TwinInputError otherwise (called before any sizing work)."""
     from .errors import TwinInputError
+    from .mill import INDUSTRIAL_PRESET_PATH
 
     path = Path(path)
     if path.is_dir():
         raise TwinInputError(f"The preset output {path} is a folder; give a file path.")
+    root, resolved = Path(__file__).resolve().parents[1], path.resolve()
+    for name in DISTRIBUTION_PACKAGES:
+        if resolved.is_relative_to(root / name):
+            shipped = resolved == INDUSTRIAL_PRESET_PATH.resolve()
+            if not (shipped and _in_checkout(root)):
+                raise TwinInputError(
+                    f"Refusing to write the preset {path} inside grindtwin's package {root / name}: give a path "
+                    "outside it" + (" (the shipped industrial preset is rewritten only in a checkout of the "
+                                    "grindtwin repository, not in an installed package)." if shipped else "."))
     if path.exists():
         try:
             record = json.loads(path.read_text(encoding="utf-8"))
@@ -354,7 +381,8 @@ def check_preset_path(path) -> Path:
         if not (isinstance(record, dict) and all(k in record for k in PRESET_KEYS)):
             raise TwinInputError(f"Refusing to overwrite {path}: it is not a mill preset grindtwin wrote.")
     if not path.parent.is_dir():
-        raise TwinInputError(f"The folder of the preset output {path} does not exist.")
+        raise TwinInputError(f"The folder of the preset output {path} "
+                             + ("is a file." if path.parent.exists() else "does not exist."))
     return path
 
 

@@ -37,3 +37,25 @@ def test_a_mill_outside_its_sizes_is_named_and_no_pressure_is_advised():
     text = str(err.value)
     assert "cyclones of 0.847 cm, outside" in text and "a 0.391-m mill, outside 0.8-8 m" in text
     assert "another design pressure" not in text and "neither the cyclones nor their pressure" in text
+
+
+def test_a_preset_is_never_written_into_grindtwins_packages(tmp_path, monkeypatch):
+    """A new file in twin/data, or in scenarios/, passed (any existing folder did): the preset was
+    written into the installed package. The shipped industrial preset is written only in a checkout
+    of the repository. A path under a file is named as such (it said the folder does not exist)."""
+    import twin.sizing as sizing
+    from twin.errors import TwinInputError
+    from twin.mill import INDUSTRIAL_PRESET_PATH
+
+    package = INDUSTRIAL_PRESET_PATH.parent
+    for path in (package / "mine.json", package.parents[1] / "scenarios" / "mine.json"):
+        with pytest.raises(TwinInputError, match=r"Refusing to write the preset .*mine.json inside grindtwin's package"):
+            sizing.check_preset_path(path)
+        assert not path.exists()
+    assert sizing.check_preset_path(INDUSTRIAL_PRESET_PATH) == INDUSTRIAL_PRESET_PATH  # this checkout's
+    monkeypatch.setattr(sizing, "_in_checkout", lambda root: False)
+    with pytest.raises(TwinInputError, match="rewritten only in a checkout of the grindtwin repository"):
+        sizing.check_preset_path(INDUSTRIAL_PRESET_PATH)
+    (tmp_path / "afile").write_text("x")
+    with pytest.raises(TwinInputError, match="afile/p.json is a file"):
+        sizing.check_preset_path(tmp_path / "afile" / "p.json")
