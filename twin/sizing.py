@@ -265,6 +265,7 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
         raise TwinInputError("The 'cyclone' parameter of size_mill must be a cyclone modelled by Plitt's equations "
                              "(its factors, or a survey), not one given by a fixed d50c_um, sharpness and bypass.")
     rho = _as_blend(ore).density_t_m3
+    calibrated_speed = get_mill("lab", calibration.record).speed_nominal_frac_critical  # Twin's calibrated_mill
     tried = []
     for count in range(1, MAX_CYCLONES + 1):
         point = _DesignPoint(ore, base, design, count, feed_tph, target_p80_um, speed_frac_critical, calibration,
@@ -281,6 +282,8 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
         tried.append({"count": count, "diameter_m": mill.diameter_m, "cyclone_diameter_cm": d_cyc,
                       "feed_solids_vol_pct": float(10.0 * x[2]), "outcome": why or "design"})
         if why is None:
+            if speed_frac_critical != calibrated_speed:
+                ss.notes.append(_speed_note(speed_frac_critical, calibrated_speed))
             return SizedMill(mill, point.cyclone(x), getattr(ore, "name", str(ore)), feed_tph, target_p80_um,
                              ss.p80_um, o["circulating_load_frac"], o["power_kw"], o["specific_energy_kwh_t"],
                              o["load_frac"], ss.load_status, tried, calibration.identity(), ss.notes,
@@ -298,6 +301,17 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
                       + (" (the grind sets the mill's diameter, which neither the cyclones nor their pressure move: "
                          "another feed rate per mill or another target may)" if mill_out else
                          " (another design pressure may: size-mill --cyclone-pressure-kpa)."))
+
+
+def _speed_note(speed: float, calibrated_speed: float) -> str:
+    """The note of a design at another speed than the calibrated mill's: twin.scaleup divides each
+    mill's power per hold-up at its own nominal speed out of the rates, so a mill's rates at its
+    nominal speed do not depend on that speed, whereas one mill run at another speed follows
+    Austin's speed factor (Austin, Klimpel & Luckie 1984, eq. 8.4; twin.effects.speed)."""
+    return (f"sized at {speed:g} of critical, not the calibrated mill's {calibrated_speed:g}: the scale-up "
+            f"(twin.scaleup) gives a mill the calibrated mill's rates at its own nominal speed, so the diameter is "
+            f"the one sized at {calibrated_speed:g} and only the power and specific energy follow the speed; the "
+            f"same mill sized at {calibrated_speed:g} and run at {speed:g} grinds otherwise (Austin's speed factor)")
 
 
 def _unrunnable(mill: Mill, d_cyc: float, ss) -> str | None:

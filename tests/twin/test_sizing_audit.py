@@ -59,3 +59,15 @@ def test_a_preset_is_never_written_into_grindtwins_packages(tmp_path, monkeypatc
     (tmp_path / "afile").write_text("x")
     with pytest.raises(TwinInputError, match="afile/p.json is a file"):
         sizing.check_preset_path(tmp_path / "afile" / "p.json")
+
+
+def test_a_design_at_another_speed_than_the_calibrated_mills_says_what_it_cannot_show():
+    """--speed 0.9 gave the diameter sized at 0.7 (the scale-up cancels a mill's own nominal speed
+    out of its rates) with 19 % more power and no word; the same mill sized at 0.7 and run at 0.9
+    grinds coarser (Austin's speed factor). The design's notes say so."""
+    from twin.mill import get_mill
+    from twin.sizing import size_mill
+
+    sized = size_mill("B", 31.0, 210.0, speed_frac_critical=0.9)
+    assert sized.mill.diameter_m == pytest.approx(get_mill("industrial").diameter_m, rel=1e-3)  # what the note says
+    assert any(n.startswith("sized at 0.9 of critical, not the calibrated mill's 0.7") for n in sized.notes)
