@@ -828,25 +828,33 @@ def add_size_mill_parser(subparsers):
 @_exit_codes("size-mill")
 def cmd_size_mill(args) -> int:
     import json
+    import shlex
 
     from twin import (Hydrocyclone, check_preset_path, load_design_cyclone, load_ore, plitt_factors,
                       plitt_factors_text, size_mill, write_preset)
 
     if args.write_preset:
         check_preset_path(args.write_preset)  # before the sizing's minutes of work
+        replaces = os.path.exists(args.write_preset)  # a preset grindtwin wrote (check_preset_path): said so
     pressure = {} if args.cyclone_pressure_kpa is None else {"cyclone_pressure_kpa": args.cyclone_pressure_kpa}
     cyclone = {} if args.cyclone is None else {"cyclone": load_design_cyclone(args.cyclone)}
     circuit = {} if args.circuit == "direct" else {"circuit": args.circuit}
     sized = size_mill(load_ore(args.ore), args.feed_tph, args.target_p80_um, args.speed, **cyclone, **pressure,
                       **circuit)
-    command = (f"grindtwin size-mill --ore {args.ore} --feed-tph {args.feed_tph:g} --target-p80-um "
-               f"{args.target_p80_um:g} --speed {args.speed:g}"
-               + "".join(f" --cyclone-pressure-kpa {v:g}" for v in pressure.values())
-               + ("" if args.cyclone is None else f" --cyclone {args.cyclone}")
+
+    def num(v):  # the record's command sizes this design again: 6 digits of %g rounded 31.1234567 t/h
+        return f"{v:g}" if float(f"{v:g}") == v else repr(v)
+
+    command = (f"grindtwin size-mill --ore {shlex.quote(args.ore)} --feed-tph {num(args.feed_tph)} --target-p80-um "
+               f"{num(args.target_p80_um)} --speed {num(args.speed)}"
+               + "".join(f" --cyclone-pressure-kpa {num(v)}" for v in pressure.values())
+               + ("" if args.cyclone is None else f" --cyclone {shlex.quote(args.cyclone)}")
                + "".join(f" --circuit {v}" for v in circuit.values()))
     record = sized.record(command)
     if args.write_preset:
-        print(f"wrote {write_preset(sized, f'{command} --write-preset {args.write_preset}', args.write_preset)}")
+        path = write_preset(sized, f"{command} --write-preset {shlex.quote(args.write_preset)}", args.write_preset)
+        print(f"wrote {path}" + (" (replacing the preset it held)" if replaces else ""),
+              file=sys.stderr if args.json else sys.stdout)  # --json: stdout is the JSON alone
     if args.json:
         print(json.dumps(record | {"notes": sized.notes}, indent=2))
         return 0

@@ -1,6 +1,7 @@
 """size_mill and `grindtwin size-mill`: trials outside the models, misses that name their cause,
 where a preset may be written, and what a design point at another speed cannot show."""
 
+import json
 import math
 
 import numpy as np
@@ -71,3 +72,35 @@ def test_a_design_at_another_speed_than_the_calibrated_mills_says_what_it_cannot
     sized = size_mill("B", 31.0, 210.0, speed_frac_critical=0.9)
     assert sized.mill.diameter_m == pytest.approx(get_mill("industrial").diameter_m, rel=1e-3)  # what the note says
     assert any(n.startswith("sized at 0.9 of critical, not the calibrated mill's 0.7") for n in sized.notes)
+
+
+def test_size_mill_json_with_a_preset_is_json_and_its_command_sizes_the_same_design(tmp_path, capsys, monkeypatch):
+    """--json --write-preset printed 'wrote PATH' before the JSON (stdout no longer parsed); the
+    recorded command rounded --feed-tph 31.1234567 to 31.1235 (%g) and left an ore path with a
+    space unquoted; a preset replaced was not said."""
+    import shlex
+
+    import twin
+    from scenarios.cli import main
+    from twin.effects.classification import Hydrocyclone
+    from twin.mill import INDUSTRIAL_BASE
+    from twin.sizing import CIRCUIT_KEYS, similar_cyclone
+
+    sized = twin.SizedMill(INDUSTRIAL_BASE, similar_cyclone(Hydrocyclone(), 25.0, 3, 40.0), "B", 31.1234567, 210.0,
+                           210.0, 2.5, 200.0, 7.0, 0.99, "stable", circuit={k: 1.0 for k in CIRCUIT_KEYS})
+    monkeypatch.setattr(twin, "size_mill", lambda *a, **k: sized)
+    ore = tmp_path / "my ores" / "b.toml"
+    ore.parent.mkdir()
+    ore.write_text("[mineralogy]\nquartz = 100.0\n[texture]\nmean_grain_um = 125.0\nuniformity = 0.6\n"
+                   "association_entropy = 0.55\n")
+    preset = tmp_path / "p.json"
+    argv = ["size-mill", "--ore", str(ore), "--feed-tph", "31.1234567", "--target-p80-um", "210", "--json",
+            "--write-preset", str(preset)]
+    for replaced in (False, True):
+        assert main(argv) == 0
+        out, err = capsys.readouterr()
+        command = shlex.split(json.loads(out)["command"])
+        assert command[command.index("--feed-tph") + 1] == "31.1234567"
+        assert command[command.index("--ore") + 1] == str(ore)
+        assert err.startswith(f"wrote {preset}") and ("replacing the preset it held" in err) == replaced
+    assert shlex.split(json.loads(preset.read_text())["command"])[-1] == str(preset)
