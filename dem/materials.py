@@ -23,6 +23,7 @@ Sources
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -38,18 +39,33 @@ RAYLEIGH_SAFETY_FACTOR = 0.2
 HERTZ_DURATION_COEF = 2.8683
 
 
-def _check_positive(owner: str, name: str, value: float) -> float:
-    value = float(value)
-    if not math.isfinite(value) or value <= 0.0:
+#: Smallest Young's modulus a :class:`Material` takes (Pa): softer than any solid a mill grinds
+#: or is lined with; a modulus given in GPa or MPa (30 for 30 GPa) falls below it.
+MIN_YOUNGS_MODULUS_PA = 1e4
+#: Smallest density a :class:`Material` (or :class:`dem.system.System`) takes (kg/m3): a
+#: density given in g/cm3 or t/m3 (2.7 for 2700 kg/m3) falls below it.
+MIN_DENSITY_KG_M3 = 100.0
+
+
+def _real(owner: str, name: str, value) -> float:
+    """``value`` as a float if it is a real number (not a string, None or a bool)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise DemInputError(f"The '{name}' parameter of {owner} must be a float. Got {value!r}.")
+    return float(value)
+
+
+def _check_positive(owner: str, name: str, value: float, lo: float = 0.0, hint: str = "") -> float:
+    value = _real(owner, name, value)
+    if not math.isfinite(value) or value <= lo:
         raise DemInputError(
-            f"The '{name}' parameter of {owner} must be a finite float > 0. Got {value!r}."
+            f"The '{name}' parameter of {owner} must be a finite float > {lo:g}{hint}. Got {value!r}."
         )
     return value
 
 
 def _check_range(owner: str, name: str, value: float, lo: float, hi: float,
                  lo_open: bool = False, hi_open: bool = False) -> float:
-    value = float(value)
+    value = _real(owner, name, value)
     ok = math.isfinite(value)
     ok = ok and (value > lo if lo_open else value >= lo)
     ok = ok and (value < hi if hi_open else value <= hi)
@@ -62,17 +78,24 @@ def _check_range(owner: str, name: str, value: float, lo: float, hi: float,
     return value
 
 
+def check_density(owner: str, name: str, value: float) -> float:
+    """A density in kg/m3, above :data:`MIN_DENSITY_KG_M3` (a value in g/cm3 is refused)."""
+    return _check_positive(owner, name, value, MIN_DENSITY_KG_M3, " kg/m3 (2700 for 2.7 g/cm3)")
+
+
 @dataclass(frozen=True)
 class Material:
     """Elastic and frictional properties of a sphere (or wall) material, SI units.
 
     Fields
     ------
-    youngs_modulus_Pa : Young's modulus E of the solid (Hertz contacts).
+    youngs_modulus_Pa : Young's modulus E of the solid (Hertz contacts), Pa, at least
+        :data:`MIN_YOUNGS_MODULUS_PA` (a modulus in GPa is refused, not run).
     poisson_ratio : nu in [0, 0.5).
-    density_kg_m3 : density of the sphere material.
+    density_kg_m3 : density of the sphere material, kg/m3, at least :data:`MIN_DENSITY_KG_M3`.
     friction_coef : Coulomb friction coefficient mu of contacts (tan of the friction angle).
-    restitution : normal coefficient of restitution e in (0, 1] (1 = no damping).
+    restitution : normal coefficient of restitution e in (0, 1] (1 = no damping); a
+        :class:`dem.system.System` takes at least 0.05 (see :func:`damping_coefficient`).
     """
 
     youngs_modulus_Pa: float = 30e9
@@ -82,9 +105,10 @@ class Material:
     restitution: float = 0.5
 
     def __post_init__(self) -> None:
-        _check_positive("Material", "youngs_modulus_Pa", self.youngs_modulus_Pa)
+        _check_positive("Material", "youngs_modulus_Pa", self.youngs_modulus_Pa, MIN_YOUNGS_MODULUS_PA,
+                        " Pa (30e9 for 30 GPa)")
         _check_range("Material", "poisson_ratio", self.poisson_ratio, 0.0, 0.5, hi_open=True)
-        _check_positive("Material", "density_kg_m3", self.density_kg_m3)
+        check_density("Material", "density_kg_m3", self.density_kg_m3)
         _check_range("Material", "friction_coef", self.friction_coef, 0.0, 10.0)
         _check_range("Material", "restitution", self.restitution, 0.0, 1.0, lo_open=True)
 

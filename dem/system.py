@@ -18,10 +18,10 @@ import numpy as np
 from numba.core.errors import NumbaPerformanceWarning
 
 from dem import kernels as K
-from dem.bonds import BROKEN_SHEAR_SLIDING, INTACT, P_OVERLAP0, BondParams, BondSet
+from dem.bonds import BROKEN_SHEAR_SLIDING, INTACT, P_LENGTH0, P_OVERLAP0, BondParams, BondSet
 from dem.contacts import CONTACT_LAW_HERTZ_MINDLIN, CONTACT_LAW_LINEAR_YADE
 from dem.errors import DemInputError, DemInstabilityError
-from dem.materials import (RAYLEIGH_SAFETY_FACTOR, STEEL, Material, bond_time_step_s,
+from dem.materials import (RAYLEIGH_SAFETY_FACTOR, STEEL, Material, bond_time_step_s, check_density,
                            damping_coefficient, effective_shear_Pa, effective_youngs_Pa,
                            rayleigh_time_step_s)
 from dem.state import DrumArrays, SphereArrays, WallArrays
@@ -101,6 +101,9 @@ class System:
                  contact_law: str = "hertz_mindlin", damping_velocity: str = "mid_step") -> None:
         pos, rad = _checked_spheres(pos_m, radius_m)
         _check_options(local_damping, time_step_factor, contact_law, damping_velocity)
+        periodic_z_m, gravity_m_s2 = _check_setup(rad, material, wall_material, density_kg_m3, bonds,
+                                                  walls, drum, gravity_m_s2, periodic_z_m, skin_fraction)
+        _check_placement(pos, rad, bonds, drum, periodic_z_m)
         n = pos.shape[0]
         self.n = n
         self.contact_law = contact_law
@@ -136,6 +139,7 @@ class System:
         self.pairs = K.new_pair_arrays(*K.build_neighbour_list(
             self.pos, self.rad, self.cp[K.CP_SKIN], self.cp[K.CP_LZ], self.bonds.partner,
             self.bonds.index), self.bonds.state)
+        _check_pair_distances(self.pos, self.rad, self.pairs.i, self.pairs.j, periodic_z_m)
         self._forces(0.0)
 
     def _set_time_step(self, time_step_factor: float, dt_s: float | None) -> None:
@@ -186,9 +190,12 @@ class System:
                                 self.hist_pw, False, False, self.pos_ref, 0.0)[:2]
 
     def run(self, n_steps: int) -> None:
-        """Advance ``n_steps`` steps and append the per-step records."""
-        n_steps = int(n_steps)
-        if n_steps <= 0:
+        """Advance ``n_steps`` steps (a whole number >= 0) and append the per-step records.
+
+        Raises :class:`DemInstabilityError` if the state is not finite after any step: the run
+        stops there, and its records up to that step are kept."""
+        n_steps = _checked_step_count(n_steps)
+        if n_steps == 0:
             return
         nw = self.w_p.shape[0]
         rec_f = np.zeros((n_steps, nw))
@@ -208,6 +215,10 @@ class System:
         self.records.wall_pos_m.append(rec_p[:done])
         self.records.torque_Nm.append(rec_t[:done])
         self.records.broken.append(rec_b[:done])
+        if status == K.STATUS_OK and not self._state_finite():
+            # the kernel samples three numbers after a step's forces and checks every position
+            # at the next drift only: a force gone non-finite in the call's last step is found here
+            status = K.STATUS_NONFINITE
         if status == K.STATUS_NONFINITE:
             raise DemInstabilityError(
                 f"Non-finite state at step {self.steps} (t = {self.time_s:.4g} s, dt = {self.dt_s:.3g} s); "
@@ -238,8 +249,19 @@ class System:
                            self.walls, self.drum_arrays, self.cp, self.pos_ref, self.drum_angle,
                            self.hist_pp, self.hist_pw, rec_f, rec_p, rec_t, rec_b, drifted)
 
+    def _state_finite(self) -> bool:
+        """Every sphere's position, velocity, spin, force and torque, and the walls' positions,
+        velocities and forces are finite."""
+        return all(bool(np.isfinite(a).all()) for a in (self.pos, self.vel, self.omega, self.force,
+                                                        self.torque, self.w_p, self.w_v, self.w_f))
+
     def set_wall_velocity(self, k: int, velocity_m_s) -> None:
-        self.w_v[k, :] = velocity_m_s
+        """Set the velocity (m/s, 3 finite components) of wall ``k``."""
+        nw = self.w_p.shape[0]
+        if not (isinstance(k, (int, np.integer)) and -nw <= k < nw):
+            raise DemInputError(
+                f"The 'k' parameter of System.set_wall_velocity must be a wall index in [0, {nw}). Got {k!r}.")
+        self.w_v[k, :] = _vector3("set_wall_velocity", "velocity_m_s", velocity_m_s)
 
     def record_arrays(self) -> dict[str, np.ndarray]:
         """Concatenated per-step records."""
@@ -285,10 +307,25 @@ class System:
 
 
 def _checked_spheres(pos_m, radius_m) -> tuple[np.ndarray, np.ndarray]:
-    pos = np.array(pos_m, dtype=np.float64).reshape(-1, 3)
-    rad = np.array(radius_m, dtype=np.float64).reshape(-1)
+    """Fresh C-ordered float64 copies (integer, Fortran-ordered or strided input alike) of the
+    centres, shape (n, 3) (or (3,) for one sphere), and of the radii, one per sphere."""
+    arrays = []
+    for name, value in (("pos_m", pos_m), ("radius_m", radius_m)):
+        try:
+            arrays.append(np.array(value, dtype=np.float64))
+        except (TypeError, ValueError):
+            raise DemInputError(
+                f"The '{name}' parameter of System must be an array of numbers (m). Got {value!r}.") from None
+    pos, rad = arrays
+    if pos.shape == (3,):
+        pos = pos.reshape(1, 3)
+    if pos.ndim != 2 or pos.shape[1] != 3 or pos.shape[0] < 1:
+        raise DemInputError(
+            "The 'pos_m' parameter of System must be an (n, 3) array of sphere centres (m), n >= 1. "
+            f"Got shape {pos.shape}.")
+    rad = rad.reshape(-1)
     n = pos.shape[0]
-    if n < 1 or rad.shape[0] != n:
+    if rad.shape[0] != n:
         raise DemInputError(
             f"The 'radius_m' parameter of System must have one entry per sphere ({n}). Got {rad.shape[0]}.")
     if not np.all(np.isfinite(pos)):
@@ -297,6 +334,137 @@ def _checked_spheres(pos_m, radius_m) -> tuple[np.ndarray, np.ndarray]:
         raise DemInputError(
             f"The 'radius_m' parameter of System must be finite and > 0. Got min {rad.min()!r}.")
     return pos, rad
+
+
+def _vector3(owner: str, name: str, value) -> np.ndarray:
+    """``value`` as 3 finite floats, or a DemInputError naming it."""
+    try:
+        v = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        v = np.zeros(0)
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise DemInputError(f"The '{name}' parameter of {owner} must be 3 finite floats (x, y, z). Got {value!r}.")
+    return v
+
+
+def _finite(owner: str, name: str, value, lo: float, hi: float = math.inf, lo_open: bool = False) -> float:
+    """``value`` as a finite float in [lo, hi] ((lo, hi] with ``lo_open``), or a DemInputError."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = math.nan
+    if isinstance(value, (bool, np.bool_, str)) or not (math.isfinite(v) and (v > lo if lo_open else v >= lo)
+                                                        and v <= hi):
+        raise DemInputError(
+            f"The '{name}' parameter of {owner} must be a finite float in {'(' if lo_open else '['}{lo}, {hi}]. "
+            f"Got {value!r}.")
+    return v
+
+
+def _checked_step_count(n_steps) -> int:
+    """A whole number of steps >= 0 (a float such as 1e4 is taken if it is whole)."""
+    ok = isinstance(n_steps, (int, np.integer, float, np.floating)) and not isinstance(n_steps, (bool, np.bool_))
+    if ok:
+        f = float(n_steps)
+        ok = math.isfinite(f) and f >= 0 and f == math.floor(f)
+    if not ok:
+        raise DemInputError(f"The 'n_steps' parameter of System.run must be a whole number >= 0. Got {n_steps!r}.")
+    return int(n_steps)
+
+
+def _check_setup(rad, material, wall_material, density_kg_m3, bonds, walls, drum, gravity_m_s2,
+                 periodic_z_m, skin_fraction) -> tuple[float, np.ndarray]:
+    """System's arguments besides the spheres, checked before any array is built. Returns the
+    periodic length and gravity as checked numbers."""
+    o = "System"
+    for name, m in (("material", material), ("wall_material", wall_material)):
+        if not isinstance(m, Material):
+            raise DemInputError(f"The '{name}' parameter of System must be a dem.materials.Material. Got {m!r}.")
+    if density_kg_m3 is not None:
+        check_density(o, "density_kg_m3", density_kg_m3)
+    g = _vector3(o, "gravity_m_s2", gravity_m_s2)
+    lz = _finite(o, "periodic_z_m", periodic_z_m, 0.0)
+    if 0.0 < lz < 4.0 * float(np.max(rad)):
+        raise DemInputError(
+            "The 'periodic_z_m' parameter of System must be 0 (not periodic) or at least two largest "
+            f"sphere diameters ({4.0 * float(np.max(rad)):.4g} m; a sphere must meet one image of a "
+            f"neighbour only). Got {periodic_z_m!r}.")
+    _finite(o, "skin_fraction", skin_fraction, 0.0, 2.0, lo_open=True)
+    if bonds is not None:
+        if not isinstance(bonds, BondSet):
+            raise DemInputError(f"The 'bonds' parameter of System must be a dem.bonds.BondSet or None. Got {bonds!r}.")
+        if bonds.n_spheres != rad.shape[0]:
+            raise DemInputError(
+                f"The 'bonds' parameter of System must be a BondSet made for its {rad.shape[0]} spheres. "
+                f"Got one made for {bonds.n_spheres}.")
+    for k, w in enumerate(walls or []):
+        if not isinstance(w, PlaneWall):
+            raise DemInputError(f"The 'walls' parameter of System must be a list of PlaneWall. Got {w!r} at {k}.")
+        _vector3(o, f"walls[{k}].point_m", w.point_m)
+        _vector3(o, f"walls[{k}].velocity_m_s", w.velocity_m_s)
+        if not np.linalg.norm(_vector3(o, f"walls[{k}].normal", w.normal)) > 0.0:
+            raise DemInputError(
+                f"The 'walls[{k}].normal' parameter of System must be a non-zero vector (it is scaled to "
+                f"unit length). Got {w.normal!r}.")
+        _finite(o, f"walls[{k}].mass_kg", w.mass_kg, 0.0)
+    if drum is not None:
+        if not isinstance(drum, DrumGeometry):
+            raise DemInputError(f"The 'drum' parameter of System must be a DrumGeometry or None. Got {drum!r}.")
+        r_d = _finite(o, "drum.radius_m", drum.radius_m, 0.0, lo_open=True)
+        _finite(o, "drum.omega_rad_s", drum.omega_rad_s, -math.inf)
+        nl = drum.n_lifters
+        if not (isinstance(nl, (int, np.integer)) and not isinstance(nl, (bool, np.bool_)) and 0 <= nl <= 64):
+            raise DemInputError(f"The 'drum.n_lifters' parameter of System must be an int in [0, 64]. Got {nl!r}.")
+        _finite(o, "drum.lifter_height_m", drum.lifter_height_m, 0.0, r_d)
+        _finite(o, "drum.lifter_width_m", drum.lifter_width_m, 0.0, r_d)
+    return lz, g
+
+
+def _check_placement(pos, rad, bonds, drum, lz) -> None:
+    """Spheres inside the drum; bonds at the length they were made (a BondSet of other positions
+    would start pre-stressed, and a bond across the periodic boundary would take the image's
+    distance)."""
+    if drum is not None:
+        out = np.nonzero(np.hypot(pos[:, 0], pos[:, 1]) >= drum.radius_m)[0]
+        if out.size:
+            raise DemInputError(
+                f"The 'pos_m' parameter of System must put every sphere centre inside the drum (radius "
+                f"{drum.radius_m!r} m about the z axis). Got sphere {int(out[0])} at {pos[out[0]].tolist()} "
+                f"({out.size} outside).")
+    if bonds is not None and bonds.n_bonds:
+        d = pos[bonds.ij[:, 1]] - pos[bonds.ij[:, 0]]
+        if lz > 0:
+            d[:, 2] -= lz * np.floor(d[:, 2] / lz + 0.5)
+        length = np.linalg.norm(d, axis=1)
+        tol = 1e-9 * (rad[bonds.ij[:, 0]] + rad[bonds.ij[:, 1]])
+        bad = np.nonzero(np.abs(length - bonds.props[:, P_LENGTH0]) > tol)[0]
+        if bad.size:
+            b = int(bad[0])
+            raise DemInputError(
+                f"The 'bonds' parameter of System must be a BondSet made at these positions: bond {b} "
+                f"(spheres {bonds.ij[b].tolist()}) was made {bonds.props[b, P_LENGTH0]:.6g} m long, its spheres "
+                f"are {length[b]:.6g} m apart here ({bad.size} bonds differ; a bond across the periodic "
+                "boundary is not supported).")
+
+
+def _check_pair_distances(pos, rad, pi, pj, lz) -> None:
+    """No sphere centre inside another sphere (coincident centres give no contact normal; the
+    Hertz law is far outside its range there): usually positions and radii in different units."""
+    if pi.shape[0] == 0:
+        return
+    d = pos[pj] - pos[pi]
+    if lz > 0:
+        d[:, 2] -= lz * np.floor(d[:, 2] / lz + 0.5)
+    dist = np.linalg.norm(d, axis=1)
+    bad = np.nonzero(dist < np.maximum(rad[pi], rad[pj]))[0]
+    if bad.size:
+        k = int(bad[0])
+        i, j = int(pi[k]), int(pj[k])
+        raise DemInputError(
+            "The 'pos_m' parameter of System must not put a sphere centre inside another sphere "
+            f"(centre distance at least the larger radius). Got spheres {i} and {j} {dist[k]:.4g} m apart "
+            f"with radii {rad[i]:.4g} and {rad[j]:.4g} m ({bad.size} such pairs; are pos_m and radius_m "
+            "in the same unit, m?).")
 
 
 def _check_options(local_damping, time_step_factor, contact_law, damping_velocity) -> None:
