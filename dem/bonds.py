@@ -25,6 +25,7 @@ Model (MISSION.md eqs. 3–4; Potyondy & Cundall, IJRMMS 41 (2004) 1329, §2.2.2
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 import numba as nb
@@ -97,6 +98,11 @@ class BondParams:
     youngs_modulus_Pa: float = 0.0
 
     def __post_init__(self) -> None:
+        for name in ("kn_Pa_m", "ks_Pa_m", "tensile_strength_Pa", "cohesion_Pa", "friction_angle_deg",
+                     "radius_multiplier", "moment_factor", "youngs_modulus_Pa"):
+            v = getattr(self, name)
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real):
+                raise DemInputError(f"The '{name}' parameter of BondParams must be a float. Got {v!r}.")
         if self.convention not in CONVENTIONS:
             raise DemInputError(
                 f"The 'convention' parameter of BondParams must be one of {CONVENTIONS}. Got {self.convention!r}.")
@@ -162,6 +168,7 @@ def find_bond_pairs(pos_m: np.ndarray, radius_m: np.ndarray, factor: float = 1.3
     if not (1.0 <= factor <= 2.0):
         raise DemInputError(
             f"The 'bond_distance_factor' parameter must be a float in [1, 2]. Got {factor!r}.")
+    pos_m, radius_m = _spheres("find_bond_pairs", pos_m, radius_m)
     tree = cKDTree(pos_m)
     cand = tree.query_pairs(r=factor * 2.0 * float(np.max(radius_m)), output_type="ndarray")
     if cand.size == 0:
@@ -173,8 +180,61 @@ def find_bond_pairs(pos_m: np.ndarray, radius_m: np.ndarray, factor: float = 1.3
     return pairs[order]
 
 
+def _spheres(owner: str, pos_m, radius_m) -> tuple[np.ndarray, np.ndarray]:
+    """Float64 centres (n, 3), n >= 1, and radii (n,), finite (radii > 0), or a DemInputError."""
+    try:
+        pos = np.asarray(pos_m, dtype=np.float64)
+        rad = np.asarray(radius_m, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise DemInputError(
+            f"The 'pos_m' and 'radius_m' parameters of {owner} must be arrays of numbers (m).") from None
+    if pos.ndim != 2 or pos.shape[1] != 3 or pos.shape[0] < 1 or not np.all(np.isfinite(pos)):
+        raise DemInputError(
+            f"The 'pos_m' parameter of {owner} must be a finite (n, 3) array of sphere centres (m), n >= 1. "
+            f"Got shape {pos.shape}{'' if np.all(np.isfinite(pos)) else ' with non-finite entries'}.")
+    if rad.shape != (pos.shape[0],) or not np.all(np.isfinite(rad) & (rad > 0)):
+        raise DemInputError(
+            f"The 'radius_m' parameter of {owner} must be {pos.shape[0]} finite radii > 0 (m), one per "
+            f"sphere. Got shape {rad.shape}.")
+    return pos, rad
+
+
+def _bond_pairs(pairs, n: int) -> np.ndarray:
+    """Pairs as an (m, 2) int64 array of distinct sphere indices in [0, n), each pair once, or a
+    DemInputError (a float index is not truncated; a repeated pair would double the bond)."""
+    try:
+        raw = np.asarray(pairs)
+        ok = raw.dtype.kind in "iu" or (raw.dtype.kind == "f" and bool(np.all(raw == np.round(raw))))
+    except (TypeError, ValueError):
+        raw, ok = None, False
+    flat_ok = raw is not None and raw.ndim == 1 and raw.size in (0, 2)
+    if not ok or not (flat_ok or (raw.ndim == 2 and raw.shape[1] == 2)):
+        raise DemInputError(
+            "The 'pairs' parameter of BondSet must be an (m, 2) array of whole sphere indices. Got "
+            + (f"{pairs!r}." if raw is None else f"shape {raw.shape}, dtype {raw.dtype}."))
+    ij = raw.astype(np.int64).reshape(-1, 2)
+    if ij.size == 0:
+        return ij
+    bad = np.nonzero((ij.min(axis=1) < 0) | (ij.max(axis=1) >= n) | (ij[:, 0] == ij[:, 1]))[0]
+    if bad.size:
+        raise DemInputError(
+            f"The 'pairs' parameter of BondSet must join two different spheres of [0, {n}). "
+            f"Got {ij[bad[0]].tolist()} (row {int(bad[0])}).")
+    key = np.sort(ij, axis=1)
+    uniq, count = np.unique(key, axis=0, return_counts=True)
+    if np.any(count > 1):
+        raise DemInputError(
+            f"The 'pairs' parameter of BondSet must list each pair once. Got {uniq[count > 1][0].tolist()} "
+            f"{int(count.max())} times.")
+    return ij
+
+
 class BondSet:
     """Arrays of the bonds of one system (intact and broken), created stress-free.
+
+    ``pairs`` (m, 2) whole sphere indices, each pair once (either order); ``pos_m`` (n, 3) and
+    ``radius_m`` (n,) the spheres (m) at which the bonds are made; ``n_spheres`` = n (a
+    :class:`dem.system.System` takes the set only for as many spheres, at these positions).
 
     ``arrays`` is the :class:`dem.state.BondArrays` bundle the kernels take; ``ij``, ``props``,
     ``fn``, ``fs``, ``mb``, ``mt``, ``length`` and ``state`` are the same arrays.
@@ -182,9 +242,13 @@ class BondSet:
 
     def __init__(self, pairs: np.ndarray, pos_m: np.ndarray, radius_m: np.ndarray,
                  params: BondParams) -> None:
-        pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
-        nbnd = pairs.shape[0]
+        if not isinstance(params, BondParams):
+            raise DemInputError(f"The 'params' parameter of BondSet must be a BondParams. Got {params!r}.")
+        pos_m, radius_m = _spheres("BondSet", pos_m, radius_m)
         n = pos_m.shape[0]
+        pairs = _bond_pairs(pairs, n)
+        nbnd = pairs.shape[0]
+        self.n_spheres = n
         self.params = params
         self.beta = float(params.moment_factor)
         self.ij = pairs

@@ -149,11 +149,35 @@ def _components(n: int, edges: np.ndarray) -> np.ndarray:
 def find_fragments(bond_pairs: np.ndarray, intact: np.ndarray, sphere_volume_m3: np.ndarray,
                    original_size_m: float, *, min_side_spheres: int = 2,
                    n_sieves: int = 16) -> FragmentResult:
-    """Pieces (see the module rule), their sizes, the sqrt(2) sieve distribution and t10."""
-    vol = np.asarray(sphere_volume_m3, dtype=float)
+    """Pieces (see the module rule), their sizes, the sqrt(2) sieve distribution and t10.
+
+    ``bond_pairs`` (m, 2) whole sphere indices; ``intact`` (m,) booleans, True for an intact bond
+    (:attr:`dem.bonds.BondSet.intact`; integer state codes are refused: 0 is the *intact* code);
+    ``sphere_volume_m3`` (n,) finite volumes > 0; ``original_size_m`` finite > 0;
+    ``n_sieves`` an int >= 1."""
+    vol = np.asarray(sphere_volume_m3, dtype=float).reshape(-1)
     n = vol.shape[0]
-    pairs = np.asarray(bond_pairs, dtype=np.int64).reshape(-1, 2)
-    intact = np.asarray(intact, dtype=bool)
+    if n < 1 or not np.all(np.isfinite(vol) & (vol > 0)):
+        raise DemInputError(
+            "The 'sphere_volume_m3' parameter of find_fragments must be one finite volume > 0 per sphere "
+            f"(at least one). Got {n} entries, min {vol.min() if n else None!r}.")
+    raw = np.asarray(bond_pairs)
+    if raw.size and not (raw.dtype.kind in "iu" or (raw.dtype.kind == "f" and np.all(raw == np.round(raw)))):
+        raise DemInputError(
+            f"The 'bond_pairs' parameter of find_fragments must hold whole sphere indices. Got dtype {raw.dtype}.")
+    pairs = raw.astype(np.int64).reshape(-1, 2)
+    if pairs.size and (pairs.min() < 0 or pairs.max() >= n):
+        raise DemInputError(
+            f"The 'bond_pairs' parameter of find_fragments must index the {n} spheres of sphere_volume_m3. "
+            f"Got indices from {int(pairs.min())} to {int(pairs.max())}.")
+    intact = np.asarray(intact)
+    if intact.size and intact.dtype != np.bool_:
+        raise DemInputError(
+            "The 'intact' parameter of find_fragments must be booleans (BondSet.intact: True = intact), not "
+            f"bond state codes (0 = intact). Got dtype {intact.dtype}.")
+    intact = intact.astype(bool).reshape(-1)
+    if not (isinstance(n_sieves, (int, np.integer)) and n_sieves >= 1):
+        raise DemInputError(f"The 'n_sieves' parameter of find_fragments must be an int >= 1. Got {n_sieves!r}.")
     if intact.shape[0] != pairs.shape[0]:
         raise DemInputError(
             f"The 'intact' parameter of find_fragments must have one entry per bond ({pairs.shape[0]}). "
@@ -161,9 +185,9 @@ def find_fragments(bond_pairs: np.ndarray, intact: np.ndarray, sphere_volume_m3:
     if not (isinstance(min_side_spheres, (int, np.integer)) and min_side_spheres >= 1):
         raise DemInputError(
             f"The 'min_side_spheres' parameter of find_fragments must be an int >= 1. Got {min_side_spheres!r}.")
-    if not (original_size_m > 0):
+    if not (original_size_m > 0 and math.isfinite(original_size_m)):
         raise DemInputError(
-            f"The 'original_size_m' parameter of find_fragments must be a float > 0. Got {original_size_m!r}.")
+            f"The 'original_size_m' parameter of find_fragments must be a finite float > 0. Got {original_size_m!r}.")
     edges = pairs[intact]
     ids, child, other = _find_bridges(n, edges)
     cut = ids[(child >= min_side_spheres) & (other >= min_side_spheres)]
