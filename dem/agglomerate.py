@@ -124,8 +124,26 @@ def morton_order(pos_m: np.ndarray, cell_m: float) -> np.ndarray:
     return np.argsort(key, kind="stable")
 
 
+#: Radii of the packing grow from START_SCALE to full size by SCALE_STEP every RELAX_PASSES
+#: passes (see :func:`make_agglomerate`)
+START_SCALE = 0.6
+SCALE_STEP = 0.01
+RELAX_PASSES = 10
+#: Fewest ``max_passes``: those that grow the radii to full size and relax once at it (with
+#: fewer the packing is returned at shrunken radii and its overlap measured at them)
+MIN_PASSES = RELAX_PASSES * (round((1.0 - START_SCALE) / SCALE_STEP) + 1)
+
+
 def _validate(diameter_m, n_spheres, radius_spread, target_solid_fraction, aspect,
-              bond_distance_factor):
+              bond_distance_factor, random_state=0, max_passes=4000):
+    if not (isinstance(max_passes, (int, np.integer)) and MIN_PASSES <= max_passes <= 10**8):
+        raise DemInputError(
+            f"The 'max_passes' parameter of make_agglomerate must be an int in [{MIN_PASSES}, 100000000] (the "
+            f"radii reach full size after {MIN_PASSES - RELAX_PASSES} passes). Got {max_passes!r}.")
+    if not (isinstance(random_state, (int, np.integer)) and not isinstance(random_state, bool)
+            and random_state >= 0):
+        raise DemInputError(
+            f"The 'random_state' parameter of make_agglomerate must be an int >= 0. Got {random_state!r}.")
     if not (math.isfinite(diameter_m) and diameter_m > 0):
         raise DemInputError(
             f"The 'diameter_m' parameter of make_agglomerate must be a float > 0. Got {diameter_m!r}.")
@@ -159,7 +177,7 @@ def make_agglomerate(diameter_m: float = 0.022, n_spheres: int = 250, *, radius_
     e.g. ``(1, 0.8, 0.6)`` = ellipsoid). Returns an :class:`Agglomerate`.
     """
     _validate(float(diameter_m), n_spheres, float(radius_spread), float(target_solid_fraction),
-              tuple(aspect), float(bond_distance_factor))
+              tuple(aspect), float(bond_distance_factor), random_state, max_passes)
     rng = np.random.default_rng(random_state)
     axes = 0.5 * float(diameter_m) * np.asarray(aspect, dtype=float)
     volume = 4.0 / 3.0 * math.pi * float(np.prod(axes))
@@ -179,14 +197,14 @@ def make_agglomerate(diameter_m: float = 0.022, n_spheres: int = 250, *, radius_
     dummy_p = np.full((n_spheres, 1), -1, dtype=np.int64)
     skin = 0.6 * r_mean
     worst = math.inf
-    scale = 0.6
+    scale = START_SCALE
     passes = 0
     while passes < max_passes:
         pi, pj, _, _ = build_neighbour_list(pos, rad, skin, 0.0, dummy_p, dummy_p)
-        worst = _relax(pos, rad, scale, axes, pi, pj, 10)
-        passes += 10
+        worst = _relax(pos, rad, scale, axes, pi, pj, RELAX_PASSES)
+        passes += RELAX_PASSES
         if scale < 1.0:
-            scale = min(1.0, scale + 0.01)
+            scale = min(1.0, scale + SCALE_STEP)
         elif worst < 1e-3 * r_mean:
             break
     solid = float(np.sum(4.0 / 3.0 * math.pi * rad**3) / volume)

@@ -30,7 +30,7 @@ from dem.agglomerate import make_agglomerate
 from dem.bonds import BondParams, kn_from_modulus_Pa_m
 from dem.errors import DemError, DemInputError
 from dem.lab import DEFAULT_TIME_STEP_FACTOR, compression_test
-from dem.materials import Material
+from dem.materials import MIN_YOUNGS_MODULUS_PA, Material
 
 
 def _pos(owner, name, value, lo=0.0, hi=math.inf, integer=False):
@@ -103,14 +103,26 @@ class BondCalibrator:
         _pos(o, "n_particles", self.n_particles, 0, 10_000, integer=True)
         _pos(o, "particle_diameter_m", self.particle_diameter_m, 0.0, 1.0)
         _pos(o, "spheres_per_particle", self.spheres_per_particle, 1, 200_000, integer=True)
-        _pos(o, "bond_modulus_Pa", self.bond_modulus_Pa, 0.0, 1e13)
+        _pos(o, "bond_modulus_Pa", self.bond_modulus_Pa, MIN_YOUNGS_MODULUS_PA, 1e13)  # a modulus in GPa is refused
         _pos(o, "stiffness_ratio", self.stiffness_ratio, 0.0, 10.0)
         _pos(o, "cohesion_ratio", self.cohesion_ratio, 0.0, 100.0)
         _pos(o, "initial_tensile_strength_Pa", self.initial_tensile_strength_Pa, 0.0, 1e11)
         _pos(o, "tol_pct", self.tol_pct, 0.0, 100.0)
         _pos(o, "max_iter", self.max_iter, 0, 100, integer=True)
-        if not isinstance(self.random_state, (int, np.integer)):
-            raise DemInputError(f"The 'random_state' parameter of BondCalibrator must be an int. Got {self.random_state!r}.")
+        if not isinstance(self.random_state, (int, np.integer)) or self.random_state < 0:
+            raise DemInputError(
+                f"The 'random_state' parameter of BondCalibrator must be an int >= 0. Got {self.random_state!r}.")
+        if not isinstance(self.material, Material):
+            raise DemInputError(
+                f"The 'material' parameter of BondCalibrator must be a dem.materials.Material. Got {self.material!r}.")
+        # what the compression tests and bonds would refuse, refused before any packing is made
+        _pos(o, "platen_speed_m_s", self.platen_speed_m_s, 0.0, 10.0)
+        _pos(o, "time_step_factor", self.time_step_factor, 0.0, 1.0)
+        ld = self.local_damping
+        if not (isinstance(ld, (int, float, np.floating, np.integer)) and 0.0 <= float(ld) < 1.0):
+            raise DemInputError(
+                f"The 'local_damping' parameter of BondCalibrator must be a float in [0, 1). Got {ld!r}.")
+        self.params(1e12, float(self.initial_tensile_strength_Pa))  # friction angle, radius, moment factor
 
     def particle(self, k: int):
         """The k-th of the calibration's packings (seeded ``random_state + k``)."""

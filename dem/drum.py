@@ -160,7 +160,10 @@ def drum_system(speed_frac_critical: float = 0.7, ball_filling: float = 0.35, *,
             f"The 'section_length_m' parameter of {owner} must be a float in "
             f"[{2.5 * ball_diameter_m:.4g}, {mill_length_m}] (at least 2.5 ball diameters, at most the mill). "
             f"Got {section_length_m!r}.")
-    if not (isinstance(n_lifters, (int, np.integer)) and 0 <= n_lifters <= 64):
+    if not (isinstance(random_state, (int, np.integer)) and not isinstance(random_state, bool)
+            and random_state >= 0):
+        raise DemInputError(f"The 'random_state' parameter of {owner} must be an int >= 0. Got {random_state!r}.")
+    if not (isinstance(n_lifters, (int, np.integer)) and not isinstance(n_lifters, bool) and 0 <= n_lifters <= 64):
         raise DemInputError(f"The 'n_lifters' parameter of {owner} must be an int in [0, 64]. Got {n_lifters!r}.")
     rng = np.random.default_rng(random_state)
     r = 0.5 * ball_diameter_m

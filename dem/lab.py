@@ -160,6 +160,21 @@ def _check(name: str, value: float, lo: float, hi: float, owner: str) -> float:
     return value
 
 
+def _check_inputs(owner: str, agglomerate, bonds, chunk_steps) -> None:
+    """The test's particle, bonds and chunk length (the System checks materials, damping and
+    time step before any step)."""
+    if not isinstance(agglomerate, Agglomerate):
+        raise DemInputError(
+            f"The 'agglomerate' parameter of {owner} must be a dem.agglomerate.Agglomerate "
+            f"(make_agglomerate). Got {type(agglomerate).__name__}.")
+    if not isinstance(bonds, BondParams):
+        raise DemInputError(f"The 'bonds' parameter of {owner} must be a dem.bonds.BondParams. Got {bonds!r}.")
+    if not (isinstance(chunk_steps, (int, np.integer)) and not isinstance(chunk_steps, bool)
+            and 1 <= chunk_steps <= 10**7):
+        raise DemInputError(
+            f"The 'chunk_steps' parameter of {owner} must be an int in [1, 10000000]. Got {chunk_steps!r}.")
+
+
 def _sphere_density(agg: Agglomerate, material: Material) -> float:
     return material.density_kg_m3 / agg.solid_fraction
 
@@ -205,6 +220,7 @@ def compression_test(agglomerate: Agglomerate, bonds: BondParams, *, material: M
     ``damping_velocity="at_force"`` the test is Yade's JCFpm model (benchmarks/dem_yade.py).
     """
     owner = "compression_test"
+    _check_inputs(owner, agglomerate, bonds, chunk_steps)
     v = _check("platen_speed_m_s", platen_speed_m_s, 0.0, 10.0, owner)
     _check("max_strain", max_strain, 0.0, 0.9, owner)
     _check("stop_force_fraction", stop_force_fraction, 0.0, 1.0, owner)
@@ -269,6 +285,7 @@ def drop_weight_test(agglomerate: Agglomerate, bonds: BondParams, specific_energ
                      max_time_factor: float = 3.0, chunk_steps: int = 250) -> ImpactResult:
     """Drop-weight impact at ``specific_energy_J_kg`` (J per kg of particle); see the module docstring."""
     owner = "drop_weight_test"
+    _check_inputs(owner, agglomerate, bonds, chunk_steps)
     es = _check("specific_energy_J_kg", specific_energy_J_kg, 0.0, 1e6, owner)
     m_dw = _check("drop_mass_kg", drop_mass_kg, 0.0, 1e4, owner)
     _check("max_time_factor", max_time_factor, 0.0, 100.0, owner)
