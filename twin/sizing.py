@@ -375,6 +375,8 @@ def check_preset_path(path) -> Path:
     from .errors import TwinInputError
     from .mill import INDUSTRIAL_PRESET_PATH
 
+    if not str(path).strip():  # Path("") is the current folder
+        raise TwinInputError(f"The preset output path is empty ({str(path)!r}); give a file path.")
     path = Path(path)
     if path.is_dir():
         raise TwinInputError(f"The preset output {path} is a folder; give a file path.")

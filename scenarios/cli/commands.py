@@ -833,7 +833,7 @@ def cmd_size_mill(args) -> int:
     from twin import (Hydrocyclone, check_preset_path, load_design_cyclone, load_ore, plitt_factors,
                       plitt_factors_text, size_mill, write_preset)
 
-    if args.write_preset:
+    if args.write_preset is not None:  # an empty path was no preset, silently
         check_preset_path(args.write_preset)  # before the sizing's minutes of work
         replaces = os.path.exists(args.write_preset)  # a preset grindtwin wrote (check_preset_path): said so
     pressure = {} if args.cyclone_pressure_kpa is None else {"cyclone_pressure_kpa": args.cyclone_pressure_kpa}
@@ -851,7 +851,7 @@ def cmd_size_mill(args) -> int:
                + ("" if args.cyclone is None else f" --cyclone {shlex.quote(args.cyclone)}")
                + "".join(f" --circuit {v}" for v in circuit.values()))
     record = sized.record(command)
-    if args.write_preset:
+    if args.write_preset is not None:
         path = write_preset(sized, f"{command} --write-preset {shlex.quote(args.write_preset)}", args.write_preset)
         print(f"wrote {path}" + (" (replacing the preset it held)" if replaces else ""),
               file=sys.stderr if args.json else sys.stdout)  # --json: stdout is the JSON alone

@@ -104,3 +104,13 @@ def test_size_mill_json_with_a_preset_is_json_and_its_command_sizes_the_same_des
         assert command[command.index("--ore") + 1] == str(ore)
         assert err.startswith(f"wrote {preset}") and ("replacing the preset it held" in err) == replaced
     assert shlex.split(json.loads(preset.read_text())["command"])[-1] == str(preset)
+
+
+def test_an_empty_preset_path_is_refused_before_sizing(capsys, monkeypatch):
+    """--write-preset '' (an unset shell variable) wrote nothing and said nothing, exit 0."""
+    import twin
+    from scenarios.cli import main
+
+    monkeypatch.setattr(twin, "size_mill", lambda *a, **k: pytest.fail("sized although the output is refused"))
+    assert main(["size-mill", "--feed-tph", "31", "--target-p80-um", "210", "--write-preset", ""]) == 2
+    assert "The preset output path is empty ('')" in capsys.readouterr().err
