@@ -70,6 +70,8 @@ class Twin:
                  breakage_map: Callable | None = None, calibration=None,
                  ore_breakage: dict | None = None, solids_density_t_m3: float | None = None,
                  mixer_volume_fracs: Sequence[float] | None = None, calibrated_mill: str | Mill = "lab"):
+        if isinstance(effects, str):  # list("breakage") is its letters
+            raise bad_value("Twin", "effects", effects, "a list of effect names, e.g. ['breakage', 'transport']")
         self.blend = _as_blend(ores)
         self.calibration = load_calibration(calibration)
         self.coefficients = dict(self.calibration.coefficients)
@@ -154,6 +156,8 @@ class Twin:
 
     def _u(self, feed_tph, speed):
         speed = self.mill.speed_nominal_frac_critical if speed is None else speed
+        feed_tph = _one_number("feed_tph", feed_tph, "t/h")
+        speed = _one_number("speed_frac_critical", speed, "fraction of critical")
         if not 0.0 <= float(feed_tph) < 1e5:
             raise bad_value("Twin", "feed_tph", feed_tph, "a float in [0, 1e5)")
         if not 0.0 < float(speed) < 1.0:
@@ -174,12 +178,34 @@ class Twin:
             if missing:
                 raise TwinInputError(f"Blend ores {sorted(missing)} are not components of this twin "
                                      f"{self.blend.names}.")
+        elif isinstance(blend, dict):  # {ore: fraction}, ores not named have none
+            unknown = sorted(set(blend) - set(self.blend.names))
+            if unknown:
+                raise TwinInputError(f"Blend ores {unknown} are not components of this twin {self.blend.names}.")
+            fr = np.array([_one_number(f"blend[{n!r}]", blend.get(n, 0.0), "fraction") for n in self.blend.names])
+        elif isinstance(blend, (str, bytes)):
+            raise bad_value("Twin", "blend", blend, f"a Blend, a dict {{ore: fraction}} or fractions in the order "
+                            f"{self.blend.names} (text such as 'B=0.6,D=0.4': Blend.parse)")
         else:
             fr = np.asarray(blend, float)
+        if fr.shape != (len(self.blend.names),):
+            raise bad_value("Twin", "blend", blend, f"{len(self.blend.names)} fractions, of {self.blend.names}")
         if not np.all(np.isfinite(fr)) or abs(fr.sum() - 1.0) > 1e-6 or np.any(fr < 0):
             raise bad_value("Twin", "blend", [float(v) for v in fr], "non-negative fractions summing to 1")
         # divides every breakage rate: 0, negative, NaN or inf made a solver error or a P80 of nothing
         return self.model.d_vector(fr, check_range("Twin", "hardness_scale", hardness_scale, 0.0, math.inf))
+
+
+def _one_number(name: str, value, unit: str) -> float:
+    """``value`` as one float, or the user's error naming ``name``: a list, an array of more than one
+    value or text is refused (text read as a number hid a column of strings; a one-element list
+    gave a TypeError from deep inside)."""
+    if isinstance(value, (str, bytes, bool)) or np.ndim(value) != 0:
+        raise bad_value("Twin", name, value, f"one number [{unit}] (a callable must return one)")
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise bad_value("Twin", name, value, f"one number [{unit}]") from None
 
 
 def calibration_mismatch_note(problem: str) -> str:
@@ -256,11 +282,23 @@ def _feed_fractions(grid, feed_psd, feed_p80_um, feed_modulus) -> np.ndarray:
                                  f"({grid.top_um:g} um), which would be lumped into the top class (a finer feed "
                                  f"than given); allowed: at most {FEED_ABOVE_TOP_MAX_FRAC:.0%}. Raise the grid's "
                                  "top size (mill.size_classes.top_um in a scene) or give the feed's own analysis.")
-        return discretise(grid, dist)
+        return _feed_on_grid(grid, discretise(grid, dist), feed_p80_um if feed_psd is None else None)
     frac = np.asarray(feed_psd, float)
     if frac.shape != (grid.count,) or not np.all(np.isfinite(frac)) or np.any(frac < 0) or abs(frac.sum() - 1.0) > 1e-9:
         raise bad_value("Twin", "feed_psd", feed_psd,
                         f"a size distribution or {grid.count} non-negative class fractions summing to 1")
+    return _feed_on_grid(grid, frac, None)
+
+
+def _feed_on_grid(grid, frac: np.ndarray, feed_p80_um: float | None) -> np.ndarray:
+    """``frac`` if the feed's P80 lies on the grid, else the user's error: with 80 % of the feed in
+    the sink class (below the finest sieve) its P80, and every finer product's, is an extrapolation
+    inside one class; a feed_p80_um of 3.2 (mm written for um) gave a product coarser than the feed."""
+    if frac[-1] >= 0.8:
+        given = f"feed_p80_um {feed_p80_um:g}" if feed_p80_um is not None else "the feed_psd"
+        raise TwinInputError(f"{given} puts {frac[-1]:.1%} of the feed below the size grid's finest sieve "
+                             f"({grid.upper_um[-1]:.4g} um): its P80 is not on the grid. Give the size in um, or a "
+                             "grid reaching finer (more classes or a smaller top size; mill.size_classes in a scene).")
     return frac
 
 

@@ -176,3 +176,39 @@ def test_effect_options_and_effects_of_the_wrong_shape_are_named():
         Twin("B", grid=GRID, effect_options={"classification": "grate"})
     with pytest.raises(ModelError, match="list of effect names, not one string"):  # was "Unknown effect 'b'"
         resolve("breakage")
+
+
+def test_inputs_that_are_not_one_number_are_named():
+    """feed_tph and speed take one number: a one-element list failed with a TypeError from inside,
+    and text was read as a number; a blend is a Blend, a dict by ore or fractions in the twin's
+    order, and effects a list (one string was read letter by letter)."""
+    t = Twin(["B", "D"], mill="lab", grid=GRID)
+    for bad in ([0.03], np.array([0.03, 0.02]), "0.03", True):
+        with pytest.raises(TwinInputError, match="'feed_tph' parameter of Twin must be one number"):
+            t.steady(feed_tph=bad)
+    with pytest.raises(TwinInputError, match="'speed_frac_critical' parameter of Twin must be one number"):
+        t.steady(feed_tph=0.03, speed_frac_critical=[0.7])
+    by_dict = t.steady(feed_tph=0.03, blend={"B": 0.6, "D": 0.4})
+    assert by_dict.p80_um == t.steady(feed_tph=0.03, blend=[0.6, 0.4]).p80_um
+    assert t.steady(feed_tph=0.03, blend={"B": 1.0}).p80_um == t.steady(feed_tph=0.03, blend=[1.0, 0.0]).p80_um
+    with pytest.raises(TwinInputError, match=r"Blend ores \['E'\] are not components"):
+        t.steady(feed_tph=0.03, blend={"B": 0.6, "E": 0.4})
+    with pytest.raises(TwinInputError, match="'blend' parameter of Twin must be a Blend, a dict"):
+        t.steady(feed_tph=0.03, blend="B=0.6,D=0.4")
+    with pytest.raises(TwinInputError, match=r"must be 2 fractions, of \['B', 'D'\]"):
+        t.steady(feed_tph=0.03, blend=[0.6, 0.3, 0.1])
+    with pytest.raises(TwinInputError, match="'effects' parameter of Twin must be a list of effect names"):
+        Twin("B", mill="lab", grid=GRID, effects="breakage")
+
+
+def test_a_feed_whose_p80_lies_below_the_grid_is_refused():
+    """feed_p80_um = 3.2 (mm written for um) put the feed in the sink class, and the twin returned a
+    product P80 (34 um) coarser than its feed without a word; a feed whose P80 is on the grid runs."""
+    with pytest.raises(TwinInputError, match=r"feed_p80_um 3.2 puts 100.0% of the feed below the size grid's "
+                                             r"finest sieve \(.* um\): its P80 is not on the grid"):
+        Twin("B", mill="lab", grid=GRID, feed_p80_um=3.2)
+    sink_heavy = np.r_[np.zeros(GRID.count - 1), 1.0]
+    with pytest.raises(TwinInputError, match="the feed_psd puts 100.0% of the feed below"):
+        Twin("B", mill="lab", grid=GRID, feed_psd=sink_heavy)
+    fine = Twin("B", mill="lab", grid=GRID, feed_p80_um=400.0).steady(feed_tph=0.03)
+    assert fine.p80_um < 400.0

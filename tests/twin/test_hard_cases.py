@@ -7,6 +7,7 @@ import pytest
 
 from twin.breakage import BreakageParams
 from twin.sizes import SizeGrid
+from twin.errors import TwinInputError
 from twin.twin import DEFAULT_EFFECTS, Twin
 
 EFFECTS = [*DEFAULT_EFFECTS, "slowing_down"]
@@ -46,12 +47,21 @@ def test_zero_feed_empties_the_mill():
     assert run.frame["specific_energy_kwh_t"].isna().all() and (run.frame["power_kw"] > 0).all()
 
 
-def test_all_fines_feed_passes_straight_through():
-    t = Twin("B", effects=EFFECTS, feed_p80_um=1.0)  # everything below the grid: the sink
+def test_a_feed_mostly_of_fines_passes_them_straight_through():
+    """Three quarters of the feed in the sink (below the finest sieve) leaves as product unchanged,
+    mass conserved; a feed whose P80 itself lies in the sink is refused (its P80 is not on the grid,
+    and the product's read as an extrapolation inside one class)."""
+    grid = SizeGrid()
+    feed = np.zeros(grid.count)
+    feed[-2:] = (0.25, 0.75)
+    t = Twin("B", effects=EFFECTS, feed_psd=feed)
     ss = t.steady()
-    assert ss.psd[-1] == pytest.approx(ss.feed_tph, rel=1e-9)
+    assert ss.psd.sum() == pytest.approx(ss.feed_tph, rel=1e-9)
+    assert ss.psd[-1] >= 0.75 * ss.feed_tph * (1 - 1e-9)
     run = t.simulate(3.0, 0.1)
     _check(run, t.model)
+    with pytest.raises(TwinInputError, match="below the size grid's finest sieve"):
+        Twin("B", effects=EFFECTS, feed_p80_um=1.0)
 
 
 def test_single_class_feed():
