@@ -954,7 +954,7 @@ def add_export_controller_parser(subparsers):
 
 @_exit_codes("export-controller")
 def cmd_export_controller(args) -> int:
-    from mpc.export import export_lock
+    from mpc import export_lock
     from scenarios.scene import load_scene
     from scenarios.run import export_scene_controller
 

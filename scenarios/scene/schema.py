@@ -45,9 +45,10 @@ class Section(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, use_attribute_docstrings=True)
 
 
-#: The most samples a run may have: the longest run (a year) at one-minute samples, an analyser's
-#: usual period; memory and time grow with the count (the feed schedule alone ~0.2 kB a sample).
-MAX_SAMPLES = 24 * 366 * 60
+#: The most samples a run may have: the longest run (a year) at 15-s samples, about the fastest a
+#: plant historian logs; memory and time grow with the count (the feed schedule alone ~0.2 kB a
+#: sample). Above Excel's 1,048,576 rows, so a workbook too long is its own refusal.
+MAX_SAMPLES = 24 * 366 * 240
 
 
 class SceneInfo(Section):
@@ -70,7 +71,7 @@ class SceneInfo(Section):
         n = round(self.duration_h / self.sample_period_h)
         if n > MAX_SAMPLES:  # 5e-8 h (seconds written as hours?) took 18 GB before any check
             raise ValueError(f"duration_h = {self.duration_h:g} at sample_period_h = {self.sample_period_h:g} is {n:,} "
-                             f"samples; at most {MAX_SAMPLES:,} (a year of one-minute samples): a longer sample "
+                             f"samples; at most {MAX_SAMPLES:,} (a year of 15-s samples): a longer sample "
                              "period or a shorter run")
         return self
 

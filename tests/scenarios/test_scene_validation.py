@@ -74,7 +74,7 @@ BROKEN = [
     ("integer expected", edit('name = "base"', 'name = "base"\nseed = 1.5'),
      ["scene.seed", "valid integer", "1.5"]),
     ("too many samples", edit("sample_period_h = 0.25", "sample_period_h = 5e-8"),  # it took 18 GB unchecked
-     ["scene", "160,000,000 samples", "at most 527,040", "sample_period_h = 5e-08"]),
+     ["scene", "160,000,000 samples", "at most 2,108,160", "sample_period_h = 5e-08"]),
 ]
 
 
