@@ -133,3 +133,14 @@ def test_a_run_that_means_a_mismatch_records_each_twins(write_scene):
     assert mine[:len(want)] == [f"calibration_mismatch_ok: {m}" for m in want]
     plant = cal.mismatch(scene.plant.effects, SizeGrid(scheme="austin"))
     assert mine[len(want):] == [f"calibration_mismatch_ok: the plant's {m}" for m in plant]
+
+
+def test_the_shipped_table_calibration_is_what_its_command_makes(tmp_path):
+    """README's `grindtwin calibrate --map mineralogy` run end to end (a few seconds): it makes
+    exactly the shipped table.json's coefficients and mill values. It failed with a KeyError on
+    the record it was fitting (the extrapolation note read a fit that did not exist yet)."""
+    out = tmp_path / "table_again.json"
+    assert main(["calibrate", "--map", "mineralogy", "--out", str(out)]) == 0
+    made, shipped = json.loads(out.read_text()), load_calibration("table").record
+    assert made["coefficients"] == shipped["coefficients"] and made["mills"] == shipped["mills"]
+    assert shipped["provenance"]["command"] == "grindtwin calibrate --map mineralogy --out twin/calibration/files/table.json"

@@ -125,6 +125,8 @@ class Calibration:
             inputs = {"energy group Pi": (lambda o: energy_group(o, law["reference"]),
                                           [math.exp(v) for v in fitted.values()], "")}
             names = list(fitted)
+        elif "fit" not in self.record:  # a record being fitted (grindtwin calibrate --map mineralogy): no range yet
+            return []
         else:
             names = list(self.record["fit"]["ores"])
             inputs = {"hardness index": (lambda o: o.hardness_index_gpa,
