@@ -131,7 +131,13 @@ def _at(ore, base: Mill, diameter_m: float, cyclone: dict, feed_tph: float, spee
 
 class _FeedOutOfRange(SolverError):
     """The cut would need a cyclone feed no slurry can be: more cyclones (smaller, cutting finer at
-    the design pressure) would need a denser one still."""
+    the design pressure) would need a denser one still, once the cyclones are no larger than any
+    made (``cyclone_cm``: their diameter at that trial); larger ones are no design anyway, and
+    more of them may be."""
+
+    def __init__(self, message: str, cyclone_cm: float):
+        super().__init__(message)
+        self.cyclone_cm = cyclone_cm
 
 
 class _DesignPoint:
@@ -149,7 +155,7 @@ class _DesignPoint:
         ore, base, feed_tph, speed, calibration, circuit = self.args
         if not 0.0 < 10.0 * x[2] < FEED_SOLIDS_VOL_PCT_MAX:
             raise _FeedOutOfRange(f"the cut would need a cyclone feed of {10.0 * x[2]:.3g} % solids by volume "
-                                  f"(a feed holds 0-{FEED_SOLIDS_VOL_PCT_MAX:g} %)")
+                                  f"(a feed holds 0-{FEED_SOLIDS_VOL_PCT_MAX:g} %)", math.exp(x[1]))
         cyclone = self.cyclone(x)
         try:  # a trial outside what the models take (a 15-m cyclone, a 25-m mill) is a miss, not the user's input
             Hydrocyclone(**cyclone)
@@ -274,7 +280,7 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
             x, mill, ss = _newton(point, _first_guess(design, base, count, feed_tph, rho, cyclone_pressure_kpa))
         except SolverError as exc:
             tried.append({"count": count, "outcome": f"no design point: {exc}"})
-            if isinstance(exc, _FeedOutOfRange):
+            if isinstance(exc, _FeedOutOfRange) and exc.cyclone_cm <= CYCLONE_DIAMETER_RANGE_CM[1]:
                 break
             continue
         d_cyc, o = math.exp(x[1]), ss.outputs
