@@ -188,15 +188,25 @@ def get_mill(spec, calibration: dict | None = None) -> Mill:
     raise TwinInputError(f"The 'mill' must be one of {', '.join(MILLS)}. Got {spec!r}.{close_matches(str(spec), MILLS)}")
 
 
+#: Bond's ball-mill power constant in Rowland's metric form [kW per tonne of balls, D in m]: Bond's
+#: 3.1 kW per short ton with D in ft (Bond 1961) times 3.281^0.3 x 1.1023.
+ROWLAND_KW_PER_T = 4.879
+
+
 def bond_power_kw(mill: Mill, speed_frac_critical):
-    """Net power of an overflow ball mill [kW], Bond (1961) in metric form
-    P = power_factor x 7.33 J phi_c (1 - 0.937 J) (1 - 0.1 / 2^(9 - 10 phi_c)) rho_b L D^2.3
-    (Gupta & Yan 2016, *Mineral Processing Design and Operations*, 2nd ed., eq. 9.28; rho_b
-    the ball bed's bulk density t/m3, D and L in m). Works on floats and CasADi expressions."""
+    """Net power of an overflow ball mill [kW]: Bond's power per tonne of balls in Rowland's
+    metric form, 4.879 D^0.3 (3.2 - 3 J) phi_c (1 - 0.1 / 2^(9 - 10 phi_c)) kW/t (D in m;
+    Rowland 1982, in Mular & Jergensen (eds.), *Design and Installation of Comminution Circuits*,
+    SME, 393-438; Bond 1961), times the mass of the ball bed J (pi/4) D^2 L rho_bulk [t], times the
+    mill's ``power_factor``. The same as Gupta & Yan's (2016, eq. 9.28) 7.33 J phi_c (1 - 0.937 J)
+    (...) rho_b L D^2.3 with rho_b the balls' own density (its 7.33 = 12.26 x 0.6 holds the bed's
+    40 % voids); read with the bulk density, as this was, it gave 0.6x Bond's power. Works on
+    floats and CasADi expressions."""
     J = mill.ball_filling_frac
     phi = speed_frac_critical
-    return (mill.power_factor * 7.33 * J * phi * (1.0 - 0.937 * J) * (1.0 - 0.1 / 2.0 ** (9.0 - 10.0 * phi))
-            * mill.ball_bulk_density_t_m3 * mill.length_m * mill.diameter_m ** 2.3)
+    per_tonne = (ROWLAND_KW_PER_T * mill.diameter_m ** 0.3 * (3.2 - 3.0 * J) * phi
+                 * (1.0 - 0.1 / 2.0 ** (9.0 - 10.0 * phi)))
+    return mill.power_factor * per_tonne * J * mill.volume_m3 * mill.ball_bulk_density_t_m3
 
 
 #: Dynamic angle of repose of a ball charge at 70-80 % of critical speed [deg]: measured 30-40

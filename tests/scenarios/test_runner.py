@@ -275,7 +275,7 @@ def test_nmpc_settings_from_the_scene():
     from scenarios.scene import load_scene
 
     s = nmpc_settings(load_scene(LIBRARY / "reference_transition.toml"))
-    assert (s.target_p80_um, s.horizon_steps, s.move_block, s.rk4_substeps) == (210.0, 10, 1, 2)
+    assert (s.target_p80_um, s.horizon_steps, s.move_block, s.rk4_substeps) == (210.0, 10, 1, 3)
     assert s.dt_h == pytest.approx(0.05) and s.weight_energy == 0.01
     assert (s.feed_tph_min, s.feed_tph_max, s.speed_rate_max_per_h) == (20.0, 45.0, 0.10)
     assert tuple(s.load_band_frac) == (0.8, 1.2) and s.power_max_kw == math.inf and s.preview
@@ -377,9 +377,9 @@ def test_an_unstable_rk4_substep_count_is_refused_with_the_needed_one():
 
     scene = load_scene(LIBRARY / "reference_transition.toml")
     scene.scene.duration_h = 0.2
-    scene.scene.sample_period_h = 0.1  # the 3-mixer controller model needs 2 RK4 steps at 0.05 h, 3 at 0.1 h
+    scene.scene.sample_period_h = 0.1  # the controller model needs 2 RK4 steps at 0.05 h at its start, 4 at 0.1 h
     scene.controller.rk4_substeps = 2
-    with pytest.raises(SceneError, match=r"controller.rk4_substeps = 2 is unstable.*at least 3 steps.*"
+    with pytest.raises(SceneError, match=r"controller.rk4_substeps = 2 is unstable.*at least 4 steps.*"
                                          r"fastest rate, [0-9.]+ /h, is in the mill's masses"):
         run_scene(scene, progress=False)
 
@@ -445,18 +445,17 @@ def reverse_reference_scene(tmp_path, rk4_substeps: int) -> Path:
 @pytest.mark.slow
 def test_rk4_substeps_stable_at_the_start_but_not_at_the_top_of_the_load_band_are_refused(tmp_path):
     """In a reverse circuit the mill's through-flow is the circulating load times the feed, and both
-    grow along the load band: the fastest rate of the controller's model goes from 139/h at the start
-    (20.7 t/h, load 0.73) to 214/h at 30 t/h (load 1.09), below the band's top (1.2 at 31.8 t/h). 4 RK4
-    steps, stable at the start, let the NMPC's prediction overflow there (7 steps with nan QP data, 2
-    infeasible, in 4 h); the runner refuses
-    them, naming the top of the band and the count it needs, and with that count the loop runs
-    without a failed step or an estimator reset."""
+    grow along the load band: on the sized mill the controller's model needs 6 RK4 steps a sample at
+    the start and 9 at the band's top (load 1.2; its fastest rate 356/h). Fewer steps, stable at the
+    start, let the NMPC's prediction overflow there (steps with nan QP data, infeasible ones,
+    estimator resets); the runner refuses them, naming the top of the band and the count it needs,
+    and with that count the loop runs without a failed step or an estimator reset."""
     from scenarios.errors import SceneError
 
-    with pytest.raises(SceneError, match=r"rk4_substeps = 4 is unstable .* at the top of the load band .* at "
-                                         r"least 6 steps"):
-        run_scene(reverse_reference_scene(tmp_path, 4), progress=False)
-    k = run_scene(reverse_reference_scene(tmp_path, 6), progress=False).kpis
+    with pytest.raises(SceneError, match=r"rk4_substeps = 6 is unstable .* at the top of the load band .* at "
+                                         r"least 9 steps"):
+        run_scene(reverse_reference_scene(tmp_path, 6), progress=False)
+    k = run_scene(reverse_reference_scene(tmp_path, 9), progress=False).kpis
     assert k["controller_failed_steps"] == 0 and k["estimator_resets"] == 0
 
 

@@ -108,15 +108,17 @@ def test_in_lock_step_the_served_loop_is_the_in_process_loop(short, tmp_path):
     """Same scene, seed, warm-up and analyser: over OPC UA the loop is the in-process one, to
     rounding; a move 0.9 of a sample late (the service cycling just before the plant's next
     sample) is far outside that rounding. Its KPIs move less than the real-time test's tolerances
-    on this short run (IAE +0.15 um*h, energy +0.03 %), so that test tells a late loop by the
-    lateness it measures (MAX_LATE_FRAC), not by its KPIs."""
+    on this short run, so that test tells a late loop by the lateness it measures (MAX_LATE_FRAC),
+    not by its KPIs."""
     _, _, tags, parts = short
     ref = online.run_in_process(parts, 2, WARMUP_H).kpis
     same = asyncio.run(online.run_lock_step(parts, tags, 2, tmp_path / "a0", WARMUP_H)).kpis()
     for k in KEYS:  # specific energy: the in-process frame's last row holds a move never applied
         assert same[k] == pytest.approx(ref[k], rel=5e-4 if k == "specific_energy_kwh_t" else 1e-6, abs=1e-9), k
     late = asyncio.run(online.run_lock_step(parts, tags, 2, tmp_path / "a1", WARMUP_H, late_frac=0.9)).kpis()
-    assert late["p80_iae_um_h"] != pytest.approx(ref["p80_iae_um_h"], rel=0.05)  # the lock step tells it apart
+    # the lock step tells it apart: 100x the rounding it holds the in-process loop to (on the sized
+    # mill the late move costs ~0.1 % of this short run's IAE)
+    assert late["p80_iae_um_h"] != pytest.approx(ref["p80_iae_um_h"], rel=1e-4)
 
 
 async def _listening(url, proc, timeout_s=180):
