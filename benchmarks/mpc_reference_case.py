@@ -57,7 +57,7 @@ def add_case_arguments(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--duration-h", type=float, default=8.0)
     ap.add_argument("--dt-h", type=float, default=0.05)
     ap.add_argument("--horizon", type=int, default=10)
-    ap.add_argument("--rk4-substeps", type=int, default=2, help="RK4 steps per sample of the NMPC model")
+    ap.add_argument("--rk4-substeps", type=int, default=3, help="RK4 steps per sample of the NMPC model (the scene's)")
     ap.add_argument("--count", type=int, default=CONTROLLER_GRID["count"], help="size classes of the controller model")
     ap.add_argument("--ratio", type=float, default=CONTROLLER_GRID["ratio"], help="sieve ratio of the controller model")
     ap.add_argument("--mixers", type=int, default=CONTROLLER_GRID["n_mixers"],
