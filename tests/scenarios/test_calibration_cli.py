@@ -143,4 +143,5 @@ def test_the_shipped_table_calibration_is_what_its_command_makes(tmp_path):
     assert main(["calibrate", "--map", "mineralogy", "--out", str(out)]) == 0
     made, shipped = json.loads(out.read_text()), load_calibration("table").record
     assert made["coefficients"] == shipped["coefficients"] and made["mills"] == shipped["mills"]
-    assert shipped["provenance"]["command"] == "grindtwin calibrate --map mineralogy --out twin/calibration/files/table.json"
+    command = "grindtwin calibrate --map mineralogy --out twin/calibration/files/table.json"
+    assert shipped["provenance"]["command"] == command

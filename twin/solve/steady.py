@@ -112,7 +112,6 @@ def _newton(model, x, u, d, load_target=None, max_iter: int = 60):
     a target is given), on the sparse DAE form. Steps are cut so masses stay non-negative.
     Returns (x, u, ok)."""
     jac = _jacobians(model)
-    q_nom = model.spec.feed_nominal_tph
     h_nom = model.spec.holdup_nominal_t
     nm, nx = model.n_mass, model.n_x
     w = np.concatenate([x, model.z_of(x)])
