@@ -290,6 +290,9 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
         if why is None:
             if speed_frac_critical != calibrated_speed:
                 ss.notes.append(_speed_note(speed_frac_critical, calibrated_speed))
+            if cyclone is not None and count != cyclone.count:  # the user's table had its own count
+                ss.notes.append(f"{count} cyclone{'s' * (count > 1)}, not the cyclone table's {cyclone.count}: a "
+                                "sizing chooses the count; the table gives the shape and the Plitt model")
             return SizedMill(mill, point.cyclone(x), getattr(ore, "name", str(ore)), feed_tph, target_p80_um,
                              ss.p80_um, o["circulating_load_frac"], o["power_kw"], o["specific_energy_kwh_t"],
                              o["load_frac"], ss.load_status, tried, calibration.identity(), ss.notes,

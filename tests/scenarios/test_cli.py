@@ -264,6 +264,9 @@ def test_size_mill_sizes_cyclones_of_a_surveyed_shape_and_model(tmp_path, capsys
     record = json.loads(capsys.readouterr().out)
     assert record["command"].endswith(f"--cyclone {path}")
     cyc = record["cyclone"]
+    # the table's count (the surveyed cluster's 6) is not kept, and the record says so
+    assert cyc["count"] != 6 and any("not the cyclone table's 6: a sizing chooses the count" in n
+                                     for n in record["notes"])
     for f in ("d50c_factor", "pressure_factor", "split_factor", "sharpness_factor"):
         assert cyc[f] == pytest.approx(getattr(expected, f), rel=1e-12)
     ratio = cyc["diameter_cm"] / table["diameter_cm"]
