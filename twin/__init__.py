@@ -28,7 +28,7 @@ _API = {
     "SteadyState": ".solve", "Trajectory": ".solve",
     "DEFAULT_EFFECTS": ".twin", "MIXER_SHARES_SUM_TOL": ".twin", "mixer_shares_sum_ok": ".twin",
     "Twin": ".twin",
-    "file_sha256": ".atomic", "new_folder_beside": ".atomic", "write_text_atomically": ".atomic",
+    "file_sha256": ".atomic", "is_grindtwin_checkout": ".atomic", "new_folder_beside": ".atomic", "write_text_atomically": ".atomic",
     "trajectory_notes": ".validity",
 }
 
@@ -41,6 +41,6 @@ __all__ = [
     "TwinInputError", "austin_selection", "bond_power_kw", "centrifuging_note", "hydrocyclone_from", "power_kw", "size_mill", "write_preset", "check_preset_path",
     "CycloneSurvey", "calibrate_plitt", "circuit_cyclone", "plitt_factors", "plitt_factors_text", "load_design_cyclone",
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
-    "file_sha256", "new_folder_beside", "pxx_um", "reference_ores", "trajectory_notes", "write_text_atomically",
+    "file_sha256", "is_grindtwin_checkout", "new_folder_beside", "pxx_um", "reference_ores", "trajectory_notes", "write_text_atomically",
 ]
 __getattr__, __dir__ = lazy_face(__name__, _API)

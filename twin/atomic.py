@@ -2,7 +2,9 @@
 else holds, created exclusively beside the target (:mod:`tempfile`), and is renamed over the
 target when complete. A reader never sees half a file, and no other file is touched: a fixed
 name such as ``X.tmp`` or ``DIR.partial`` could be the user's own, and would be overwritten or
-removed. A written file is known again by its sha256 (:func:`file_sha256`)."""
+removed. A written file is known again by its sha256 (:func:`file_sha256`); a checkout of the
+repository (where grindtwin may write its own shipped files) by its pyproject.toml
+(:func:`is_grindtwin_checkout`)."""
 
 from __future__ import annotations
 
@@ -51,3 +53,15 @@ def file_sha256(path) -> str:
         for block in iter(lambda: fh.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
+
+
+def is_grindtwin_checkout(folder) -> bool:
+    """Whether ``folder`` holds a checkout of the grindtwin repository: its pyproject.toml names the
+    project (an installed package, or another project's folder, has none that does)."""
+    import tomllib
+
+    try:
+        with open(Path(folder) / "pyproject.toml", "rb") as fh:
+            return tomllib.load(fh).get("project", {}).get("name") == "grindtwin"
+    except (OSError, tomllib.TOMLDecodeError):
+        return False

@@ -34,6 +34,7 @@ import numpy as np
 import scipy.sparse.linalg
 
 from .effects.classification import FEED_SOLIDS_VOL_PCT_MAX, Hydrocyclone, slurry_m3_h
+from .atomic import is_grindtwin_checkout
 from .errors import SolverError, TwinInputError, check_range
 from .mill import INDUSTRIAL_BASE, Mill, get_mill
 from .twin import DEFAULT_EFFECTS, FEED_P80_UM, Twin
@@ -365,18 +366,6 @@ PRESET_KEYS = ("mill", "cyclone", "sizing", "command")
 DISTRIBUTION_PACKAGES = ("twin", "dem", "mpc", "scenarios")
 
 
-def _in_checkout(root: Path) -> bool:
-    """Whether ``root`` (the folder holding the twin package) is a checkout of the grindtwin
-    repository: its pyproject.toml names the project (an installed package has none)."""
-    import tomllib
-
-    try:
-        with open(root / "pyproject.toml", "rb") as fh:
-            return tomllib.load(fh).get("project", {}).get("name") == "grindtwin"
-    except (OSError, tomllib.TOMLDecodeError):
-        return False
-
-
 def check_preset_path(path) -> Path:
     """``path`` if a preset may be written there: a new file in an existing folder, or a preset
     file grindtwin wrote; never inside grindtwin's own packages, but for the shipped ``industrial``
@@ -393,7 +382,7 @@ def check_preset_path(path) -> Path:
     for name in DISTRIBUTION_PACKAGES:
         if resolved.is_relative_to(root / name):
             shipped = resolved == INDUSTRIAL_PRESET_PATH.resolve()
-            if not (shipped and _in_checkout(root)):
+            if not (shipped and is_grindtwin_checkout(root)):
                 raise TwinInputError(
                     f"Refusing to write the preset {path} inside grindtwin's package {root / name}: give a path "
                     "outside it" + (" (the shipped industrial preset is rewritten only in a checkout of the "

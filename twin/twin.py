@@ -170,15 +170,11 @@ class Twin:
         return np.array([feed_tph, speed], float)
 
     def _d(self, blend, hardness_scale):
+        if isinstance(blend, Blend):
+            blend = dict(zip(blend.names, blend.fractions))
         if blend is None:
             fr = self.nominal_blend
-        elif isinstance(blend, Blend):
-            fr = np.array([dict(zip(blend.names, blend.fractions)).get(n, 0.0) for n in self.blend.names])
-            missing = set(blend.names) - set(self.blend.names)
-            if missing:
-                raise TwinInputError(f"Blend ores {sorted(missing)} are not components of this twin "
-                                     f"{self.blend.names}.")
-        elif isinstance(blend, dict):  # {ore: fraction}, ores not named have none
+        elif isinstance(blend, dict):  # {ore: fraction} or a Blend's, ores not named have none
             unknown = sorted(set(blend) - set(self.blend.names))
             if unknown:
                 raise TwinInputError(f"Blend ores {unknown} are not components of this twin {self.blend.names}.")

@@ -909,23 +909,14 @@ def add_bench_parser(subparsers):
     return b
 
 
-def _is_grindtwin_checkout(folder: Path) -> bool:
-    """Whether ``folder`` holds the grindtwin repository: its pyproject.toml names the project."""
-    import tomllib
-
-    try:
-        with open(folder / "pyproject.toml", "rb") as fh:
-            return tomllib.load(fh).get("project", {}).get("name") == "grindtwin"
-    except (OSError, tomllib.TOMLDecodeError):
-        return False
-
-
 @_exit_codes("bench")
 def cmd_bench(args) -> int:
     import subprocess
 
+    from twin import is_grindtwin_checkout
+
     root = Path("benchmarks")
-    if not (root.is_dir() and _is_grindtwin_checkout(Path.cwd())):
+    if not (root.is_dir() and is_grindtwin_checkout(Path.cwd())):
         # another project's benchmarks/ would have its scripts run, and results written into it
         raise SceneError("grindtwin bench runs from a checkout of the grindtwin repository (its pyproject.toml "
                          f"names the project grindtwin, beside benchmarks/): {Path.cwd()} is not one.")

@@ -54,7 +54,7 @@ def test_a_preset_is_never_written_into_grindtwins_packages(tmp_path, monkeypatc
             sizing.check_preset_path(path)
         assert not path.exists()
     assert sizing.check_preset_path(INDUSTRIAL_PRESET_PATH) == INDUSTRIAL_PRESET_PATH  # this checkout's
-    monkeypatch.setattr(sizing, "_in_checkout", lambda root: False)
+    monkeypatch.setattr(sizing, "is_grindtwin_checkout", lambda root: False)
     with pytest.raises(TwinInputError, match="rewritten only in a checkout of the grindtwin repository"):
         sizing.check_preset_path(INDUSTRIAL_PRESET_PATH)
     (tmp_path / "afile").write_text("x")
