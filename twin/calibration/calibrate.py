@@ -28,6 +28,7 @@ from .files import (CALIBRATION_DIR, Calibration, base_record, check_writable, d
                     load_calibration, provenance, shipped_names, write_calibration)
 from .fitted import DEM_BOUNDS, DEM_FITTED, DEM_NAMES
 from .fitting import fit_to_table, predict_table, table_errors
+from .model_code import dem_step_note
 from .record_checks import check_dem_step
 
 #: Replicates of the bootstrap (90 % percentile intervals from 100 replicates: the 5th and 96th
@@ -182,7 +183,10 @@ def _dem_calibration(args, name: str, source: Calibration | None) -> tuple[dict,
     record, times = dem_record(dem, name, start=start, replicates=n_rep, progress=not args.quiet)
     times["dem_step_s"] = 0.0 if source is not None else dem["dem_seconds"]
     if source is not None:
-        record["dem_step_from"] = source.identity()
+        note = dem_step_note(dem)
+        record["dem_step_from"] = source.identity() | ({"note": note} if note else {})
+        if note:
+            print(f"note: {note}", file=sys.stderr)
     return record, times
 
 

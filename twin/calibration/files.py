@@ -22,6 +22,7 @@ from pathlib import Path
 
 from ..atomic import write_text_atomically
 from ..errors import FastCalibrationWarning, TwinInputError, close_matches
+from .model_code import model_identity
 from .record_checks import check_data, check_fields, check_fitted, check_law
 
 #: The folder of shipped calibration files, one per name (``<name>.json``).
@@ -260,7 +261,7 @@ def base_record(name: str, breakage_map: str, description: str) -> dict:
             "breakage_map": breakage_map, "effects": list(DEFAULT_EFFECTS),
             "size_grid": {"top_um": float(g.top_um), "ratio": float(g.ratio), "count": int(g.count),
                           "scheme": g.scheme},
-            "n_mixers": n_mixers, "mill": "lab"}
+            "n_mixers": n_mixers, "mill": "lab", "model_code": model_identity()}
 
 
 def shipped_names() -> list[str]:

@@ -62,6 +62,10 @@ def check_fields(record: dict, where: str) -> None:
             and grid.get("scheme", "austin") in ("austin", "cell_average")):
         raise _bad(where, "size_grid", grid, "a size grid (top_um > 0, ratio > 1, count in [3, 400], scheme "
                    "'cell_average' or 'austin'; twin.SizeGrid)")
+    code = record.get("model_code", {"sha256": "(none: the file predates it)"})
+    if not isinstance(code, dict) or not isinstance(code.get("sha256"), str):
+        raise _bad(where, "model_code", code, "a table with the 'sha256' of the model's sources at the fit "
+                   "(twin.calibration.model_code)")
     n = record["n_mixers"]
     if not isinstance(n, int) or isinstance(n, bool) or n < 1:
         raise _bad(where, "n_mixers", n, "an integer >= 1")
@@ -142,9 +146,9 @@ def check_data(record: dict, where: str) -> None:
                    "'sha256' (twin.calibration.reference.reference_identity)")
     now = reference_identity()
     if recorded != now["sha256"]:
-        command = str((record.get("provenance") or {}).get("command") or "")
-        refit = command if command.startswith("grindtwin calibrate") else \
-            "grindtwin calibrate" + (" --map mineralogy" if record["breakage_map"] == "mineralogy" else "")
+        from .model_code import refit_command
+
+        refit = refit_command(record)
         raise TwinInputError(
             f"{where} was fitted to the reference table {fitted_to.get('path', now['path'])} with sha256 {recorded}, "
             f"but the table's sha256 is now {now['sha256']} ({now['path']} changed after the fit): its fitted "
