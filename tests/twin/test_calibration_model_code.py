@@ -118,3 +118,12 @@ def test_from_records_the_sources_and_says_when_its_dem_step_is_another_dems(tmp
     record = json.loads(out.read_text())
     record["dem"]["sources_sha256"] = model_code.dem_step_digest()
     assert model_code.dem_step_note(record["dem"]) is None
+
+
+def test_a_record_given_as_a_dict_is_checked_too(fresh_checks, monkeypatch):
+    record = json.loads((CALIBRATION_DIR / "table.json").read_text())
+    Twin("B", calibration=record)  # its own predictions: accepted
+    monkeypatch.setattr(twin.mill, "ROWLAND_KW_PER_T", 0.6 * twin.mill.ROWLAND_KW_PER_T)
+    record["description"] += " (a copy)"  # another record: checked again
+    with pytest.raises(TwinInputError, match="fitted with other model equations"):
+        Twin("B", calibration=record)

@@ -22,7 +22,7 @@ from pathlib import Path
 
 from ..atomic import write_text_atomically
 from ..errors import FastCalibrationWarning, TwinInputError, close_matches
-from .model_code import model_identity
+from .model_code import check_model, model_identity
 from .record_checks import check_data, check_fields, check_fitted, check_law
 
 #: The folder of shipped calibration files, one per name (``<name>.json``).
@@ -342,8 +342,10 @@ def load_calibration(spec=None, check_table: bool = True) -> Calibration:
         spec = DEFAULT_CALIBRATION
     if isinstance(spec, Calibration):
         return spec
-    if isinstance(spec, dict):
-        return Calibration(check_record(spec, "the calibration record", data=check_table))
+    if isinstance(spec, dict):  # a user's record: checked like a file's, keyed by its content
+        cal = Calibration(check_record(spec, "the calibration record", data=check_table))
+        check_model(cal, ("record", hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()))
+        return cal
     if isinstance(spec, (str, Path)):
         text = str(spec)
         if text in shipped_names():

@@ -118,12 +118,13 @@ def refit_command(record: dict, path=None) -> str:
 _CHECKED: set = set()
 
 
-def check_model(calibration) -> None:
-    """Refuse ``calibration`` (a file's) if the twin's equations now give other table KPIs than its
-    fit recorded (module docstring). Once per file and process; nothing for a calibration made in
-    memory (a fit's trial values: their ``fit.predicted`` is not theirs yet)."""
-    key = (calibration.path, calibration.sha256)
-    if calibration.path is None or key in _CHECKED:
+def check_model(calibration, key=None) -> None:
+    """Refuse ``calibration`` if the twin's equations now give other table KPIs than its fit
+    recorded (module docstring). Once per ``key`` (default: its file and hash) and process;
+    nothing for a calibration made in memory without a key (a fit's trial values: their
+    ``fit.predicted`` is not theirs yet)."""
+    key = key or (calibration.path, calibration.sha256)
+    if key[0] is None or key in _CHECKED:
         return
     recorded = calibration.record.get("model_code")
     if isinstance(recorded, dict) and recorded.get("sha256") == model_digest():
