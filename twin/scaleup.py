@@ -1,18 +1,25 @@
 """Scale-up of breakage parameters from the mill they were calibrated in to another mill.
 
 Rules (Austin, Klimpel & Luckie 1984, *Process Engineering of Size Reduction*, ch. 8 and 10;
-Austin, Shoji & Luckie 1976, Powder Technol. 14, 71-79), at the same fractional ball filling,
-powder filling and fraction of critical speed:
+Austin, Shoji & Luckie 1976, Powder Technol. 14, 71-79), at the same fractional ball filling and
+powder filling:
 - mill diameter: the rate constant A of S grows as D^0.5 up to D = 3.81 m and as D^0.3 beyond
   (larger mills lift balls higher: more energetic impacts), and the size of the maximum of S,
   set by mu, as D^0.2;
 - ball size: A falls as 1/d (fewer contacts per unit ball mass) and mu grows as d^2 (bigger
-  balls break bigger particles: Austin's x_m ~ d^2).
+  balls break bigger particles: Austin's x_m ~ d^2);
+- nominal speed: A follows Austin's speed factor f(phi_c) = (phi_c - 0.1) / (1 + exp(15.7 (phi_c
+  - 0.94))) (eq. 8.4) from the calibrated mill's nominal speed to the mill's, as his scale-up
+  carries it; a mill at its nominal speed then breaks as the same mill run at that speed
+  (twin.effects.speed normalises the factor at the nominal speed).
 The twin's rates are energy-specific, S = S^E P / H, so S^E carries Austin's factor on A over the
 change of net power per unit hold-up, (P/H)_to / (P/H)_from, of the mills' power models without
-their corrections (``power_factor``, a given ``net_power_kw``): with Bond's D^2.3 power, S^E
-grows as D^0.2; with Hogg-Fuerstenau's D^2.5, S^E is invariant (Herbst & Fuerstenau's 1980
-scale-up claim). A mill that draws more than its model (a fitted power factor, a measured
+their corrections (``power_factor``, a given ``net_power_kw``), each at its mill's nominal speed
+(the power's own speed term cancels; Austin's factor above is the speed's effect on S): with
+Bond's D^2.3 power, S^E grows as D^0.2 up to 3.81 m and is constant beyond, Rowland's diameter
+efficiency factor EF3 = (2.44/D)^0.2 (0.914 from 3.81 m) on Bond's specific energy (Rowland
+1982); with Hogg-Fuerstenau's D^2.5, S^E is invariant (Herbst & Fuerstenau's 1980 scale-up
+claim). A mill that draws more than its model (a fitted power factor, a measured
 power) breaks faster in proportion, as the energy-specific form has it. B does not change.
 """
 
@@ -20,7 +27,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from .breakage import BreakageParams
+from .breakage import SPEED_FACTOR_ZERO_FRAC_CRITICAL, BreakageParams, austin_speed_factor
+from .errors import bad_value
 from .mill import Mill, power_kw
 
 #: Austin et al. (1984) eq. 10.6-10.8: exponents of the rate constant A on mill diameter below and
@@ -51,11 +59,19 @@ def power_per_holdup(mill: Mill, solids_density_t_m3: float) -> float:
 
 def scale_breakage(params: BreakageParams, from_mill: Mill, to_mill: Mill, solids_density_t_m3: float) -> BreakageParams:
     """``params`` calibrated in ``from_mill``, scaled to ``to_mill`` by the module's rules."""
-    if (from_mill.diameter_m, from_mill.ball_size_mm) == (to_mill.diameter_m, to_mill.ball_size_mm) and \
+    same = ("diameter_m", "ball_size_mm", "speed_nominal_frac_critical")
+    if all(getattr(from_mill, k) == getattr(to_mill, k) for k in same) and \
             power_per_holdup(from_mill, solids_density_t_m3) == power_per_holdup(to_mill, solids_density_t_m3):
         return params
+    for mill in (from_mill, to_mill):  # Austin's speed factor is zero there and negative below: rates of nothing
+        if not mill.speed_nominal_frac_critical > SPEED_FACTOR_ZERO_FRAC_CRITICAL:
+            raise bad_value(f"Mill {mill.name!r}", "speed_nominal_frac_critical", mill.speed_nominal_frac_critical,
+                            f"a float in ({SPEED_FACTOR_ZERO_FRAC_CRITICAL:g}, 1) to scale breakage rates to or from "
+                            "(Austin's speed factor)")
     ball = to_mill.ball_size_mm / from_mill.ball_size_mm
-    factor_a = diameter_factor_a(from_mill.diameter_m, to_mill.diameter_m) * ball ** BALL_EXPONENT_A
+    speed = austin_speed_factor(to_mill.speed_nominal_frac_critical) / austin_speed_factor(
+        from_mill.speed_nominal_frac_critical)
+    factor_a = diameter_factor_a(from_mill.diameter_m, to_mill.diameter_m) * ball ** BALL_EXPONENT_A * speed
     energy = power_per_holdup(from_mill, solids_density_t_m3) / power_per_holdup(to_mill, solids_density_t_m3)
     mu = params.mu_um * (to_mill.diameter_m / from_mill.diameter_m) ** DIAMETER_EXPONENT_MU * ball ** BALL_EXPONENT_MU
     return replace(params, se_1mm_t_kwh=params.se_1mm_t_kwh * factor_a * energy, mu_um=mu,

@@ -2,9 +2,9 @@
 product P80 (the job of Moly-Cop Tools's mill-sizing sheet, done here with the twin itself).
 
 Rules, stated: the mill keeps the shape and charge of the base mill (length over diameter, ball
-filling, ball size, speed as a fraction of critical); its breakage rates come from the laboratory
-calibration by the scale-up rules of :mod:`twin.scaleup` and its power from the base mill's power
-model; the circuit is the mill with the default effects and a cluster of hydrocyclones
+filling, ball size) and runs at the speed asked (a fraction of critical); its breakage rates come
+from the laboratory calibration by the scale-up rules of :mod:`twin.scaleup` (Austin's diameter,
+ball-size and speed factors) and its power from the base mill's power model; the circuit is the mill with the default effects and a cluster of hydrocyclones
 (Plitt's equations, twin.effects.classification) geometrically similar to the base design
 (inlet, vortex finder, apex and free vortex height in proportion to the cyclone's diameter).
 
@@ -272,7 +272,6 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
         raise TwinInputError("The 'cyclone' parameter of size_mill must be a cyclone modelled by Plitt's equations "
                              "(its factors, or a survey), not one given by a fixed d50c_um, sharpness and bypass.")
     rho = _as_blend(ore).density_t_m3
-    calibrated_speed = get_mill("lab", calibration.record).speed_nominal_frac_critical  # Twin's calibrated_mill
     tried = []
     for count in range(1, MAX_CYCLONES + 1):
         point = _DesignPoint(ore, base, design, count, feed_tph, target_p80_um, speed_frac_critical, calibration,
@@ -289,8 +288,6 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
         tried.append({"count": count, "diameter_m": mill.diameter_m, "cyclone_diameter_cm": d_cyc,
                       "feed_solids_vol_pct": float(10.0 * x[2]), "outcome": why or "design"})
         if why is None:
-            if speed_frac_critical != calibrated_speed:
-                ss.notes.append(_speed_note(speed_frac_critical, calibrated_speed))
             if cyclone is not None and count != cyclone.count:  # the user's table had its own count
                 ss.notes.append(f"{count} cyclone{'s' * (count > 1)}, not the cyclone table's {cyclone.count}: a "
                                 "sizing chooses the count; the table gives the shape and the Plitt model")
@@ -311,17 +308,6 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
                       + (" (the grind sets the mill's diameter, which neither the cyclones nor their pressure move: "
                          "another feed rate per mill or another target may)" if mill_out else
                          " (another design pressure may: size-mill --cyclone-pressure-kpa)."))
-
-
-def _speed_note(speed: float, calibrated_speed: float) -> str:
-    """The note of a design at another speed than the calibrated mill's: twin.scaleup divides each
-    mill's power per hold-up at its own nominal speed out of the rates, so a mill's rates at its
-    nominal speed do not depend on that speed, whereas one mill run at another speed follows
-    Austin's speed factor (Austin, Klimpel & Luckie 1984, eq. 8.4; twin.effects.speed)."""
-    return (f"sized at {speed:g} of critical, not the calibrated mill's {calibrated_speed:g}: the scale-up "
-            f"(twin.scaleup) gives a mill the calibrated mill's rates at its own nominal speed, so the diameter is "
-            f"the one sized at {calibrated_speed:g} and only the power and specific energy follow the speed; the "
-            f"same mill sized at {calibrated_speed:g} and run at {speed:g} grinds otherwise (Austin's speed factor)")
 
 
 def _unrunnable(mill: Mill, d_cyc: float, ss) -> str | None:

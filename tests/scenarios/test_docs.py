@@ -79,3 +79,27 @@ def test_readmes_python_example_runs_as_written(capsys):
     assert ns["ss"].notes == [] and 100.0 < ns["ss"].p80_um < 1000.0
     assert len(ns["run"].frame) == 8 * 60 + 1
     assert "Effects:" in capsys.readouterr().out
+
+
+def test_the_regeneration_pages_commands_are_those_the_shipped_files_record():
+    """docs/regenerate.md: each command parses, and the shipped files' own commands are its."""
+    import json
+    import shlex
+
+    from scenarios.cli import build_parser
+
+    page = (REPO / "docs" / "regenerate.md").read_text(encoding="utf-8")
+    commands = re.findall(r"`(grindtwin [^`]+|python -m [^`]+)`", page)
+    parser = build_parser()
+    for command in commands:
+        words = shlex.split(command)
+        if words[0] == "grindtwin" and words[1] in ("calibrate", "size-mill"):
+            parser.parse_args(words[1:])  # SystemExit on an unknown option
+    recorded = [json.loads((REPO / p).read_text())["provenance"]["command"]
+                for p in ("twin/calibration/files/dem.json", "twin/calibration/files/table.json")]
+    recorded.append(json.loads((REPO / "twin/data/industrial_mill.json").read_text())["command"])
+    for command in recorded:
+        assert command in commands, f"docs/regenerate.md does not give {command!r}"
+    from twin.surrogate import GENERATE_COMMAND
+
+    assert any(c.startswith(GENERATE_COMMAND) for c in commands)

@@ -1,0 +1,39 @@
+"""The scale-up and sizing against published correlations: Austin's speed factor in the scale-up,
+Rowland's diameter efficiency factor EF3 on Bond's specific energy, the cyclones' roping limit, and
+the size-mill parser's ranges (twin.sizing's)."""
+
+import pytest
+
+
+def test_a_mill_at_its_nominal_speed_breaks_as_the_same_mill_run_at_that_speed():
+    """The scale-up divided each mill's own power per hold-up out of its rates, so a mill whose
+    nominal speed is 0.8 broke as the calibrated mill at 0.7; the same mill with nominal 0.7 run
+    at 0.8 broke f(0.8)/f(0.7) = 1.07 faster (Austin's speed factor, twin.effects.speed). Austin's
+    scale-up carries f(phi_c) from the calibrated mill's speed: the two are one mill at one speed."""
+    from twin import Twin
+    from twin.mill import get_mill
+
+    lab = get_mill("lab")
+    at_07 = Twin("B", mill=lab).steady(speed_frac_critical=0.8)
+    at_08 = Twin("B", mill=lab.with_(speed_nominal_frac_critical=0.8)).steady(speed_frac_critical=0.8)
+    assert at_08.p80_um == pytest.approx(at_07.p80_um, rel=1e-6)
+    assert at_08.outputs["power_kw"] == pytest.approx(at_07.outputs["power_kw"], rel=1e-9)
+
+
+def test_energy_specific_rates_follow_rowlands_diameter_efficiency_factor():
+    """Bond's specific energy for a grind carries Rowland's EF3 = (2.44/D)^0.2, 0.914 from 3.81 m
+    (Rowland 1982): S^E, the rate per unit energy, must move as 1/EF3. The scale-up gives it Austin's
+    A ~ D^0.5 (D^0.3 beyond 3.81 m) over Bond's power per hold-up ~ D^0.3."""
+    from twin.breakage import BreakageParams
+    from twin.mill import INDUSTRIAL_BASE
+    from twin.scaleup import scale_breakage
+
+    def ef3(d):
+        return max((2.44 / d) ** 0.2, 0.914)
+
+    base = BreakageParams(se_1mm_t_kwh=1.0, alpha=1.0, mu_um=500.0, Lambda=2.0, gamma=0.3, beta=4.0, phi=1.0)
+    small = INDUSTRIAL_BASE.with_(diameter_m=2.5, length_m=3.75)
+    for d in (3.0, 3.81, 5.5):
+        big = small.with_(diameter_m=d, length_m=1.5 * d)
+        ratio = scale_breakage(base, small, big, 2.9).se_1mm_t_kwh / base.se_1mm_t_kwh
+        assert ratio == pytest.approx(ef3(2.5) / ef3(d), rel=2e-3), d
