@@ -27,8 +27,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from .breakage import SPEED_FACTOR_ZERO_FRAC_CRITICAL, BreakageParams, austin_speed_factor
-from .errors import bad_value
+from .breakage import BreakageParams, austin_speed_factor
 from .mill import Mill, power_kw
 
 #: Austin et al. (1984) eq. 10.6-10.8: exponents of the rate constant A on mill diameter below and
@@ -63,11 +62,6 @@ def scale_breakage(params: BreakageParams, from_mill: Mill, to_mill: Mill, solid
     if all(getattr(from_mill, k) == getattr(to_mill, k) for k in same) and \
             power_per_holdup(from_mill, solids_density_t_m3) == power_per_holdup(to_mill, solids_density_t_m3):
         return params
-    for mill in (from_mill, to_mill):  # Austin's speed factor is zero there and negative below: rates of nothing
-        if not mill.speed_nominal_frac_critical > SPEED_FACTOR_ZERO_FRAC_CRITICAL:
-            raise bad_value(f"Mill {mill.name!r}", "speed_nominal_frac_critical", mill.speed_nominal_frac_critical,
-                            f"a float in ({SPEED_FACTOR_ZERO_FRAC_CRITICAL:g}, 1) to scale breakage rates to or from "
-                            "(Austin's speed factor)")
     ball = to_mill.ball_size_mm / from_mill.ball_size_mm
     speed = austin_speed_factor(to_mill.speed_nominal_frac_critical) / austin_speed_factor(
         from_mill.speed_nominal_frac_critical)
