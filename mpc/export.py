@@ -38,13 +38,11 @@ by a killed export (no longer locked) is taken over by the next export.
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import hashlib
 import json
 import math
 import os
 import shutil
-import tempfile
 import threading
 import warnings
 from pathlib import Path
@@ -58,6 +56,7 @@ from mpc.errors import MpcInputError, OutsideModelsWarning
 from mpc.estimator import MEASUREMENTS
 from mpc.nmpc import BLEND_SUM_TOL, PASSING_TARGET, speed_max_note
 from twin import file_sha256, new_folder_beside
+from twin.atomic import LockError, acquire_lock, release_lock, replace_folder
 
 MANIFEST = "grindtwin_export.json"
 #: The C API's version (gt_controller.h), in GT_ABI_HASH: 2 added gt_controller_check_abi.
@@ -274,26 +273,14 @@ def check_out_dir(out) -> None:
 
 
 def _replace(out: Path, partial: Path) -> None:
-    """Put ``partial`` in place of ``out``; a previous export there is moved aside first and removed
-    only by the names its manifest lists (then rmdir, which fails rather than delete anything else)."""
-    if not out.exists():
-        partial.rename(out)
-        return
-    data = _previous_export(out)  # again, just before: nothing of the user's arrived meanwhile
-    old = new_folder_beside(out)
-    out.rename(old)  # onto the new empty folder
-    try:
-        partial.rename(out)
-    except BaseException:
-        old.rename(out)
-        raise
-    for name in set(data.get("files", [])) | set(data.get("build_products", [])):
-        if (old / name).is_file() or (old / name).is_symlink():
-            (old / name).unlink()
-    try:
-        old.rmdir()
-    except OSError:
-        pass  # something else arrived there: left, hidden beside DIR, rather than deleted
+    """Put ``partial`` in place of ``out`` (:func:`twin.atomic.replace_folder`): a previous export there
+    is moved aside first and removed only by the names its manifest lists; one holding anything else
+    is left, hidden beside DIR, rather than deleted."""
+    names = []
+    if out.exists():
+        data = _previous_export(out)  # again, just before: nothing of the user's arrived meanwhile
+        names = set(data.get("files", [])) | set(data.get("build_products", []))
+    replace_folder(out, partial, names)
 
 
 #: The first words of an export's lock file (``.DIR.export.lock`` beside ``DIR``): a file of that
@@ -310,52 +297,18 @@ def lock_path(out) -> Path:
     return out.parent / f".{out.name}.export.lock"
 
 
-def _create_lock_file(path: Path) -> bool:
-    """Create ``path`` holding :data:`LOCK_TAG` from its first instant (a tagged temporary file
-    hard-linked into place, which fails if the name exists): another export never finds it empty.
-    False if it exists already."""
-    fd, aside = tempfile.mkstemp(prefix=f"{path.name}.", dir=path.parent)
-    try:
-        os.write(fd, f"{LOCK_TAG} pid {os.getpid()}\n".encode())
-        os.close(fd)
-        os.link(aside, path)
-        return True
-    except FileExistsError:
-        return False
-    finally:
-        os.unlink(aside)
-
-
 def _lock(path: Path, out: Path) -> int:
-    """The open, flocked lock file ``path``; MpcInputError if another process holds it or it is
-    not ours."""
-    while True:
-        created = _create_lock_file(path)
-        try:
-            fd = os.open(path, os.O_RDWR)
-        except FileNotFoundError:  # removed by the export that held it just now: again
-            continue
-        text = os.read(fd, 200).decode(errors="replace")
-        if not created and not text.startswith(LOCK_TAG):
-            os.close(fd)
-            raise MpcInputError(f"--out {out}: {path} is in the way (not the lock file of a grindtwin export, "
-                                "which it would be); move it away or choose another folder.")
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            os.close(fd)
-            holder = text[len(LOCK_TAG):].strip() or "?"
+    """The open, flocked lock file ``path`` (:func:`twin.atomic.acquire_lock`); MpcInputError if
+    another process holds it or it is not ours (left as it was)."""
+    try:
+        return acquire_lock(path, LOCK_TAG)
+    except LockError as exc:
+        if exc.busy:
+            holder = exc.text[len(LOCK_TAG):].strip() or "?"
             raise MpcInputError(f"--out {out}: another export-controller to this folder is running ({holder}, "
                                 f"lock {path}); wait for it to end or choose another folder.") from None
-        try:  # unlinked by the export that held it between our open and flock: lock the new one
-            same = os.fstat(fd).st_ino == os.stat(path).st_ino
-        except FileNotFoundError:
-            same = False
-        if same:
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, f"{LOCK_TAG} pid {os.getpid()}\n".encode(), 0)
-            return fd
-        os.close(fd)
+        raise MpcInputError(f"--out {out}: {path} is in the way (not the lock file of a grindtwin export, "
+                            "which it would be); move it away or choose another folder.") from None
 
 
 @contextlib.contextmanager
@@ -400,8 +353,7 @@ def export_lock(out):
         if fd is not None:
             with _HELD_GUARD:
                 _HELD.pop(key, None)
-            path.unlink(missing_ok=True)  # ours while we hold it: no other export removes it
-            os.close(fd)  # closing releases the flock
+            release_lock(path, fd)
         for p in made:  # deepest first; only if empty (a failed export's, or nothing was written)
             try:
                 p.rmdir()

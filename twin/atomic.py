@@ -4,13 +4,22 @@ target when complete. A reader never sees half a file, and no other file is touc
 name such as ``X.tmp`` or ``DIR.partial`` could be the user's own, and would be overwritten or
 removed. A written file is known again by its sha256 (:func:`file_sha256`); a checkout of the
 repository (where grindtwin may write its own shipped files) by its pyproject.toml
-(:func:`is_grindtwin_checkout`)."""
+(:func:`is_grindtwin_checkout`).
+
+A folder of results is replaced as a whole (:func:`replace_folder`) and written by one process at
+a time: a lock file beside it (:func:`acquire_lock`, ``fcntl.flock``) that holds its tag from its
+first instant, is refused when another process holds it or when it is not a lock (a user's file of
+that name is never emptied or removed), and is taken over when left by a killed process (the
+kernel drops a flock with its process)."""
 
 from __future__ import annotations
 
+import errno
+import fcntl
 import hashlib
 import os
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 
@@ -24,11 +33,18 @@ def _default_mode(base: int) -> int:
 def write_text_atomically(path, text: str) -> Path:
     """Write ``text`` (UTF-8) to ``path`` via a fresh temporary file beside it; on any error the
     temporary file is removed and ``path`` is as it was."""
+    return write_atomically(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+
+
+def write_atomically(path, write: Callable[[Path], object]) -> Path:
+    """``write(tmp)`` writes the file's content at the path ``tmp``, a fresh temporary file beside
+    ``path`` (``.NAME.<random>.partial``, :func:`temporaries_of`) renamed over ``path`` when done;
+    on any error it is removed and ``path`` is as it was."""
     path = Path(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".partial")
+    os.close(fd)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
+        write(Path(tmp))
         os.chmod(tmp, _default_mode(0o666))  # mkstemp makes it private (0600)
         os.replace(tmp, path)
     except BaseException:
@@ -37,11 +53,18 @@ def write_text_atomically(path, text: str) -> Path:
     return path
 
 
-def new_folder_beside(path) -> Path:
+def temporaries_of(folder, names) -> list[str]:
+    """The temporary files :func:`write_atomically` left in ``folder`` for any of ``names`` (a
+    process killed while writing), by their names."""
+    return sorted(p.name for p in Path(folder).iterdir()
+                  if p.name.endswith(".partial") and any(p.name.startswith(f".{n}.") for n in names))
+
+
+def new_folder_beside(path, suffix: str = ".partial") -> Path:
     """A new, empty folder beside ``path`` (same file system, so it can be renamed to ``path``),
     under a name no one else holds; the caller fills it and renames it, or removes it."""
     path = Path(path)
-    folder = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.", suffix=".partial"))
+    folder = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.", suffix=suffix))
     os.chmod(folder, _default_mode(0o777))  # mkdtemp makes it private (0700)
     return folder
 
@@ -65,3 +88,118 @@ def is_grindtwin_checkout(folder) -> bool:
             return tomllib.load(fh).get("project", {}).get("name") == "grindtwin"
     except (OSError, tomllib.TOMLDecodeError):
         return False
+
+
+def remove_by_name(folder, names=None) -> bool:
+    """Unlink the files (or links) ``names`` in ``folder`` (None: every one in it), then rmdir it,
+    which fails rather than delete anything else; False if anything is left (the folder stays)."""
+    folder = Path(folder)
+    for name in [p.name for p in folder.iterdir()] if names is None else names:
+        p = folder / name
+        if p.is_file() or p.is_symlink():
+            p.unlink()
+    try:
+        folder.rmdir()
+    except OSError:
+        return False
+    return True
+
+
+def replace_folder(target, new, names) -> Path | None:
+    """Rename the folder ``new`` to ``target``. A folder at ``target`` is first moved aside (into a
+    fresh folder beside it, :func:`new_folder_beside`: no name of the user's is taken), put back if
+    ``new`` cannot be put in place, and then removed by ``names`` only (:func:`remove_by_name`).
+    Returns the moved-aside folder when something else kept it, else None."""
+    target, new = Path(target), Path(new)
+    if not target.exists():
+        new.rename(target)
+        return None
+    old = new_folder_beside(target, suffix=".replaced")
+    try:
+        target.rename(old)  # onto the new empty folder
+    except BaseException:
+        old.rmdir()
+        raise
+    try:
+        new.rename(target)
+    except BaseException:
+        old.rename(target)
+        raise
+    return None if remove_by_name(old, names) else old
+
+
+class LockError(Exception):
+    """The lock file ``path`` is held by another process (``busy``), or is not a lock (its ``text``
+    lacks the tag): the caller refuses, in its own words."""
+
+    def __init__(self, path: Path, text: str, busy: bool):
+        super().__init__(f"{path}: {'held by another process' if busy else 'not a lock file'} ({text.strip()!r})")
+        self.path, self.text, self.busy = path, text, busy
+
+
+def acquire_lock(path, tag: str, accepts: Callable[[str], bool] | None = None) -> int:
+    """Create or take over the lock file ``path`` and hold its flock (exclusive); returns its open
+    descriptor, for :func:`release_lock`. ``tag``: its first words, with the pid after them;
+    ``accepts(text)``: whether an existing file is a lock (default: it starts with ``tag``).
+    LockError if another process holds it or it is not a lock (left as it was)."""
+    path = Path(path)
+    accepts = accepts or (lambda text: text.startswith(tag))
+    stamp = f"{tag} pid {os.getpid()}\n".encode()
+    while True:
+        created = _create_tagged(path, stamp)
+        try:
+            fd = os.open(path, os.O_RDWR)
+        except FileNotFoundError:  # removed by the process that held it just now: again
+            continue
+        text = os.read(fd, 200).decode(errors="replace")
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise LockError(path, text, busy=True) from None
+        if not created and not accepts(text):
+            os.close(fd)
+            raise LockError(path, text, busy=False)
+        try:  # removed by the process that held it between our open and flock: lock the new one
+            same = os.fstat(fd).st_ino == os.stat(path).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, stamp, 0)
+            return fd
+        os.close(fd)
+
+
+def release_lock(path, fd: int) -> None:
+    """Remove the lock file ``path`` (ours while we hold it: nobody else removes it), then close
+    ``fd``, which releases the flock."""
+    Path(path).unlink(missing_ok=True)
+    os.close(fd)
+
+
+def _create_tagged(path: Path, stamp: bytes) -> bool:
+    """Create ``path`` holding ``stamp`` from its first instant (written to a new temporary file,
+    then hard-linked into place, which fails if the name exists), so that no other process finds
+    it empty and takes it for a user's file; False if it exists already. On a file system without
+    hard links it is created exclusively and written just after."""
+    fd, aside = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        os.write(fd, stamp)
+        os.close(fd)
+        os.link(aside, path)
+        return True
+    except FileExistsError:
+        return False
+    except OSError as exc:
+        if exc.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EXDEV):
+            raise
+    finally:
+        os.unlink(aside)
+    try:  # no hard links here
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+    except FileExistsError:
+        return False
+    os.write(fd, stamp)
+    os.close(fd)
+    return True
