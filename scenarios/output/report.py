@@ -19,8 +19,10 @@ from pathlib import Path
 from scenarios.errors import SceneError
 from scenarios.output.labels import KPI_LABELS, calibration_text, effects_rows, kpi_text
 from scenarios.output.plots import PLOTS
-from scenarios.output.write import (INCOMPLETE_MARKER, MANIFEST, file_sha256, installed_version,
-                                    later_file_is_as_written, manifest_files, read_manifest, record_later_file)
+from scenarios.output.write import (INCOMPLETE_MARKER, JSON_INF, MANIFEST, file_sha256, installed_version,
+                                    later_file_is_as_written, lock_folder, lock_path, manifest_files, read_manifest,
+                                    record_later_file)
+from twin.atomic import release_lock
 
 _CSS = """body{font-family:system-ui,sans-serif;max-width:60em;margin:2em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:.3em .7em;text-align:left}
@@ -71,7 +73,9 @@ def folder_problems(run_dir: Path, summary: dict) -> list[str]:
 
 
 def _fmt(key: str, value) -> str:
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+    if value in JSON_INF.values():  # summary.json's infinity: a value, not n/a
+        value = float(value)
+    if value is None or (isinstance(value, float) and math.isnan(value)):
         return '<span class="na">n/a</span>'
     try:
         return html.escape(kpi_text(key, value))
@@ -213,8 +217,24 @@ def write_report(run_dir) -> Path:
     the manifest (``later_sha256``); a ``report.html`` whose content is not what grindtwin last
     wrote there (edited by hand, a file of the user's) is refused, not replaced, unless it holds
     the very page about to be written. What makes the folder differ from what its run wrote opens
-    the page and is warned of (:class:`RunFolderWarning`)."""
+    the page and is warned of (:class:`RunFolderWarning`). It holds the folder's ``DIR.lock``
+    throughout, as ``grindtwin run --out DIR`` does (:func:`scenarios.output.write.lock_folder`): a
+    run replacing the folder meanwhile put the page of the old run into the new run's folder."""
     run_dir = Path(run_dir)
+    _run_summary(run_dir)  # a folder that is no run's is refused before a lock is made beside it
+    try:
+        fd = lock_folder(run_dir, lambda why: SceneError(f"{run_dir}: {why}; no report was written"))
+    except OSError as exc:
+        raise SceneError(f"{run_dir}: cannot make its lock {lock_path(run_dir).name} beside it "
+                         f"({exc.strerror or exc}); no report was written") from None
+    try:
+        return _write_locked(run_dir)
+    finally:
+        release_lock(lock_path(run_dir), fd)
+
+
+def _write_locked(run_dir: Path) -> Path:
+    """:func:`write_report`'s work, under the folder's lock."""
     summary = _run_summary(run_dir)
     if "summary.json" not in (manifest_files(run_dir) or []):
         raise SceneError(f"{run_dir}: summary.json is not listed in a {MANIFEST} written by grindtwin; the report "
@@ -223,7 +243,7 @@ def write_report(run_dir) -> Path:
     problems = folder_problems(run_dir, summary)
     text = _render(run_dir, summary, problems)
     for problem in problems:  # on stderr too, not only inside the page
-        warnings.warn(f"{run_dir}: {problem}", RunFolderWarning, stacklevel=2)
+        warnings.warn(f"{run_dir}: {problem}", RunFolderWarning, stacklevel=3)
     out = run_dir / "report.html"
     tmp = run_dir / "report.html.partial"
     if (out.is_symlink() or out.is_file()) and not (later_file_is_as_written(run_dir, out.name)

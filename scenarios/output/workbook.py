@@ -6,6 +6,10 @@ size-by-size table of every stream at the start and the end of the run (as a sim
 circuit), the product and mill-content size distributions over time, the models, the scene.
 Sweep workbook (``sweep.xlsx``): the cases with their KPIs, the P80 of every case against time,
 the scene the cases vary. Units are in every column name or header.
+
+A workbook's numbers have 16 significant digits (openpyxl writes every number as ``%.16g``; Excel
+shows 15): a number that needs 17 to read back exactly is off by one unit in its last digit
+(0.30000000000000004 reads back 0.3). The CSV and parquet files hold every digit.
 """
 
 from __future__ import annotations
@@ -13,9 +17,11 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from scenarios.output.labels import KPI_LABELS, calibration_text, effects_rows, is_percent, percent_decimals
+from twin.atomic import write_atomically
 
 #: Size distributions a run writes as CSV: the stream (``attrs['what']``) -> file name.
 PSD_FILES = {"product": "product_psd.csv", "mill content": "mill_psd.csv"}
@@ -56,11 +62,19 @@ def workbook_problem(n_samples: int) -> str | None:
 
 def psd_table(psd: pd.DataFrame) -> pd.DataFrame:
     """A size distribution over time with its units in the header: ``time [h]``, then one
-    column per sieve size, ``cumulative % passing <size> µm``."""
+    column per sieve size, ``cumulative % passing <size> µm``, the size with every digit it has
+    (:func:`size_text`: a reader maps a column to its size by the header)."""
     out = 100.0 * psd.astype(float)
-    out.columns = [f"cumulative % passing {float(s):g} µm" for s in psd.columns]
+    out.columns = [f"cumulative % passing {size_text(s)} µm" for s in psd.columns]
     out.index = pd.Index(psd.index.astype(float), name="time [h]")
     return out
+
+
+def size_text(size_um) -> str:
+    """A size as the shortest text that reads back as the same float (6700, 4737.6154); ``:g``'s six
+    digits named a sieve of 4737.6154 µm "4737.62" and gave sieves of 6699.991 and 6699.994 µm one
+    header."""
+    return np.format_float_positional(float(size_um), unique=True, trim="-")
 
 
 def write_size_csvs(result, folder: Path) -> list[Path]:
@@ -84,7 +98,7 @@ def kpi_rows(kpis: dict) -> pd.DataFrame:
     cell alone reads as a value lost)."""
     rows = []
     for k, v in kpis.items():
-        undefined = v is None or (isinstance(v, float) and not math.isfinite(v))
+        undefined = v is None or (isinstance(v, float) and math.isnan(v))  # an infinity is a value: "inf"
         rows.append({"kpi": k, "meaning [unit]": KPI_LABELS.get(k, (k, ""))[0], "value": None if undefined else v,
                      "note": UNDEFINED_NOTE if undefined else None})
     table = pd.DataFrame(rows, columns=["kpi", "meaning [unit]", "value", "note"])
@@ -151,9 +165,13 @@ TEXT_SHEETS = ("summary", "KPIs", "models", "scene", "varied keys")
 
 
 def _write_sheets(path: Path, sheets: dict[str, tuple[pd.DataFrame, bool]]) -> Path:
-    """Write ``name -> (table, keep its index)`` sheets to ``path`` via ``path.partial``; header
-    row frozen, columns sized to their header."""
-    tmp = path.with_name(path.name + ".partial")
+    """Write ``name -> (table, keep its index)`` sheets to ``path`` via a temporary file of a name
+    nobody else holds (:func:`twin.atomic.write_atomically`; ``path.partial`` could be the user's);
+    header row frozen, columns sized to their header."""
+    return write_atomically(path, lambda tmp: _fill_book(tmp, sheets))
+
+
+def _fill_book(tmp: Path, sheets: dict[str, tuple[pd.DataFrame, bool]]) -> None:
     with pd.ExcelWriter(tmp, engine="openpyxl") as xl:
         for name, (table, index) in sheets.items():
             table.to_excel(xl, sheet_name=name, index=index, na_rep="" if name in TEXT_SHEETS else XLSX_NA)
@@ -164,8 +182,6 @@ def _write_sheets(path: Path, sheets: dict[str, tuple[pd.DataFrame, bool]]) -> P
             for cells in ws.iter_cols(min_row=1, max_row=1):
                 width = max(10, min(60, len(str(cells[0].value or "")) + 2))
                 ws.column_dimensions[cells[0].column_letter].width = width
-    tmp.replace(path)
-    return path
 
 
 def write_workbook(result, path: Path) -> Path:

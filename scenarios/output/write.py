@@ -9,8 +9,9 @@ Layout of a run directory::
                              mill_psd.csv the same of the mill content, streams.csv every
                              stream size by size at the end (scenarios.output.workbook)
     DIR/run.xlsx             the workbook, on request (``xlsx=True``)
-    DIR/summary.json         scene, KPIs (unit-suffixed keys; NaN written as null), model
-                             description, effects, versions, seed, notes
+    DIR/summary.json         scene, KPIs (unit-suffixed keys; NaN written as null, an infinity
+                             as the text "inf" or "-inf"), model description, effects, versions,
+                             seed, notes
     DIR/*.png                plots (see :data:`scenarios.output.plots.PLOTS`)
     DIR/grindtwin-manifest.json  what grindtwin wrote here (written last), each file with its
                              sha256: how a later run knows the folder is a grindtwin result it
@@ -26,7 +27,10 @@ undefined) is the text ``NaN`` (:data:`scenarios.output.workbook.CSV_NA`), never
 and every other number has all its digits, so ``pd.read_csv`` reads back the run's numbers
 exactly, NaN as NaN; Excel shows ``NaN`` as text. In the workbook's tables of numbers (time
 series, size distributions, streams, P80 traces) it is Excel's ``#N/A``; summary.json writes it
-as null, and the workbook's KPI sheet leaves its cell empty with a note saying why.
+as null, and the workbook's KPI sheet leaves its cell empty with a note saying why. An infinity
+(a number, not undefined) is ``inf`` / ``-inf`` everywhere: in the CSVs, as text in the
+workbook (Excel has no infinity) and as a string in summary.json (JSON has none; null would
+read as undefined).
 
 The folder is claimed before any work (:func:`claim_output`), so a bad ``DIR`` costs nothing:
 - ``DIR`` missing or empty, or a previous grindtwin result (its manifest lists every file in
@@ -34,27 +38,26 @@ The folder is claimed before any work (:func:`claim_output`), so a bad ``DIR`` c
   previous result is replaced as a whole, only once the new one is complete;
 - anything else (a folder with files grindtwin did not write, a file, the current folder or one
   of its parents, the scene file's own folder) is refused;
-- ``DIR.lock`` is locked (``fcntl.flock``, exclusive): a second run to the same ``DIR`` is
-  refused at once, so two runs can never mix their files; the kernel drops the lock when a
-  process dies, so a killed run leaves no stale lock;
+- ``DIR.lock`` is locked (:func:`lock_folder`, ``fcntl.flock``, exclusive): a second run to the
+  same ``DIR``, or a ``grindtwin report DIR``, is refused at once, so two can never mix their
+  files; the kernel drops the lock when a process dies, so a killed run leaves no stale lock;
 - ``DIR.partial`` is created, with an ``_INCOMPLETE`` marker as its first file: this is the
   writability check. Everything is written there; only when every file is written is the
   marker removed and the folder renamed to ``DIR``. If the run fails or is interrupted the
   partial folder is removed; if the process is killed outright, what remains is
   ``DIR.partial`` with its marker, never a ``DIR`` that looks complete.
 Removing: a partial folder this run made is emptied and removed; a stale one (with the
-marker) and a previous result only by name (the names a run writes, or the ones its manifest
-lists), then with ``os.rmdir``, which fails rather than delete anything else.
+marker) and a previous result only by name (the names a run writes and their scratch files, or
+the ones its manifest lists), then with ``os.rmdir``, which fails rather than delete anything
+else. A previous result is moved aside into a fresh hidden folder first, and put back if the
+new one cannot be put in place (:func:`twin.atomic.replace_folder`).
 """
 
 from __future__ import annotations
 
-import errno
-import fcntl
 import json
 import math
 import os
-import tempfile
 import time
 from collections.abc import Callable
 from contextlib import nullcontext
@@ -65,6 +68,7 @@ import numpy as np
 
 from scenarios.errors import RunError, SceneError, raise_if_interrupted
 from twin import file_sha256
+from twin.atomic import LockError, acquire_lock, release_lock, remove_by_name, replace_folder, temporaries_of
 from scenarios.output.plots import PLOTS, SWEEP_PLOT, write_plots
 from scenarios.output.workbook import (PSD_FILES, RUN_WORKBOOK, STREAMS_FILE, SWEEP_WORKBOOK, write_csv,
                                       write_size_csvs, write_workbook)
@@ -88,15 +92,21 @@ RUN_FILES = ("timeseries.parquet", "timeseries.csv", *PSD_FILES.values(), STREAM
              MANIFEST, INCOMPLETE_MARKER)
 
 
+#: How summary.json writes an infinity (a number the run computed, unlike NaN: null, undefined): the
+#: text the CSV files write for it, which Python's ``float`` and pandas read back as the infinity.
+JSON_INF = {math.inf: "inf", -math.inf: "-inf"}
+
+
 def json_safe(obj):
-    """NaN and infinities -> None; numpy scalars -> Python; recursively."""
+    """NaN -> None (undefined); an infinity -> :data:`JSON_INF`'s text (null made it
+    indistinguishable from undefined); numpy scalars -> Python; recursively."""
     if isinstance(obj, dict):
         return {str(k): json_safe(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
         return [json_safe(v) for v in obj]
     if isinstance(obj, (np.floating, float)):
         v = float(obj)
-        return v if math.isfinite(v) else None
+        return None if math.isnan(v) else JSON_INF.get(v, v)
     if isinstance(obj, np.integer):
         return int(obj)
     if isinstance(obj, np.bool_):
@@ -179,22 +189,6 @@ def strangers(folder: Path) -> list[str] | None:
             or (n in RECORDED_LATER_FILES and not later_file_is_as_written(folder, n, manifest))]
 
 
-def _remove_ours(folder: Path, names=None) -> bool:
-    """Unlink ``names`` in ``folder`` (those that exist; None: every file in it), then rmdir it;
-    False if anything else is left (then the folder stays)."""
-    if names is None:
-        names = [p.name for p in folder.iterdir()]
-    for name in names:
-        p = folder / name
-        if p.is_file() or p.is_symlink():
-            p.unlink()
-    try:
-        folder.rmdir()
-    except OSError:
-        return False
-    return True
-
-
 def _check_place(final: Path, protect: tuple[Path, ...]) -> None:
     if final.is_symlink():  # a result replaces DIR as a whole: the link would be renamed away
         raise _refuse(final, f"it is a symbolic link (to {os.readlink(final)}); give the folder itself")
@@ -217,6 +211,28 @@ def _check_place(final: Path, protect: tuple[Path, ...]) -> None:
         raise _refuse(final, f"the folder exists and holds files grindtwin did not write ({shown}){why}")
 
 
+def lock_path(folder) -> Path:
+    """``DIR.lock``: the lock file of the folder ``DIR``, beside it (not in it: a run replaces it)."""
+    final = Path(os.path.abspath(folder))  # "." and ".." get a name of their own
+    return final.with_name(final.name + ".lock")
+
+
+def lock_folder(folder, refuse: Callable[[str], Exception]) -> int:
+    """Hold ``DIR.lock`` (:func:`twin.atomic.acquire_lock`, tagged :data:`LOCK_TAG`; a bare pid is an
+    older grindtwin's): one run or report writes a folder at a time. ``refuse(why)``: the error raised
+    when another run or report holds it, or when it is not grindtwin's (``uv.lock`` beside ``--out
+    uv``), which is left as it was. Returns the descriptor for :func:`twin.atomic.release_lock`."""
+    path = lock_path(folder)
+    try:
+        return acquire_lock(path, LOCK_TAG, lambda text: text.startswith(LOCK_TAG) or text.strip().isdigit())
+    except LockError as exc:
+        if exc.busy:
+            why = f"another grindtwin run or report ({exc.text.strip() or '?'}) is writing to this folder"
+        else:
+            why = f"{path.name} beside it is not grindtwin's (grindtwin locks DIR with the file DIR.lock)"
+        raise refuse(f"{why} (lock {path.name})") from None
+
+
 class OutputClaim:
     """An output folder claimed for one run: checked, locked, ``DIR.partial`` created.
 
@@ -229,7 +245,7 @@ class OutputClaim:
         self.given = Path(out_dir)
         self.final = Path(os.path.abspath(out_dir))  # "." and ".." get a name of their own
         self.partial = self.final.with_name(self.final.name + ".partial")
-        self.lock_path = self.final.with_name(self.final.name + ".lock")
+        self.lock_path = lock_path(self.final)
         self._protect = tuple(Path(p) for p in protect if p is not None)
         self._lock_fd: int | None = None
         self._keep_partial = False
@@ -253,85 +269,23 @@ class OutputClaim:
 
     def __exit__(self, exc_type, exc, tb) -> None:
         if self.partial.exists() and not self._keep_partial:
-            _remove_ours(self.partial)  # this run made it: everything in it is this run's
+            remove_by_name(self.partial)  # this run made it: everything in it is this run's
         self._unlock()
 
     def _lock(self) -> None:
-        """Hold ``DIR.lock`` (flock): a file this project writes (:data:`LOCK_TAG` and the pid),
-        so a user's own ``DIR.lock`` (``uv.lock`` beside ``--out uv``) is refused, never emptied."""
-        while True:
-            created = self._create_lock_file()
-            try:
-                fd = os.open(self.lock_path, os.O_RDWR)
-            except FileNotFoundError:  # unlinked by the run that held it just now: again
-                continue
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                holder = os.read(fd, 64).decode(errors="replace").strip() or "?"
-                os.close(fd)
-                raise _refuse(self.final, f"another grindtwin run ({holder}) is writing to this "
-                              f"folder (lock {self.lock_path.name})") from None
-            text = os.read(fd, 64).decode(errors="replace")  # a bare pid: an older grindtwin's
-            if not created and not (text.startswith(LOCK_TAG) or text.strip().isdigit()):
-                os.close(fd)
-                raise _refuse(self.final, f"{self.lock_path.name} beside it is not grindtwin's (grindtwin "
-                              "locks DIR with the file DIR.lock); choose another --out") from None
-            # the file may have been unlinked by the run that held it just before: lock again
-            try:
-                same = os.fstat(fd).st_ino == os.stat(self.lock_path).st_ino
-            except FileNotFoundError:
-                same = False
-            if same:
-                os.ftruncate(fd, 0)
-                os.lseek(fd, 0, os.SEEK_SET)
-                os.write(fd, f"{LOCK_TAG} pid {os.getpid()}\n".encode())
-                self._lock_fd = fd
-                return
-            os.close(fd)
-
-    def _create_lock_file(self) -> bool:
-        """Create ``DIR.lock`` holding :data:`LOCK_TAG` from its first instant (written to a new
-        temporary file, then hard-linked into place, which fails if the name exists), so another
-        run never finds it empty and takes it for a user's file; False if it exists already. On a
-        file system without hard links it is created exclusively and tagged just after."""
-        tag = f"{LOCK_TAG} pid {os.getpid()}\n".encode()
-        fd, aside = tempfile.mkstemp(prefix=f".{self.lock_path.name}.", dir=self.lock_path.parent)
-        try:
-            os.write(fd, tag)
-            os.close(fd)
-            os.link(aside, self.lock_path)
-            return True
-        except FileExistsError:
-            return False
-        except OSError as exc:
-            if exc.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EXDEV):
-                raise
-        finally:
-            os.unlink(aside)
-        try:  # no hard links here
-            fd = os.open(self.lock_path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
-        except FileExistsError:
-            return False
-        os.write(fd, tag)
-        os.close(fd)
-        return True
+        self._lock_fd = lock_folder(self.final, lambda why: _refuse(self.final, why))
 
     def _unlock(self) -> None:
-        if self._lock_fd is None:
-            return
-        try:
-            self.lock_path.unlink()
-        except FileNotFoundError:
-            pass
-        os.close(self._lock_fd)  # closing releases the flock
-        self._lock_fd = None
+        if self._lock_fd is not None:
+            release_lock(self.lock_path, self._lock_fd)
+            self._lock_fd = None
 
     def _fresh_partial(self) -> None:
         if self.partial.exists():  # left by a killed run: ours if marked, or as far as its manifest says
             marked = (self.partial / INCOMPLETE_MARKER).exists()
-            names = RUN_FILES if marked else [*(manifest_files(self.partial) or []), MANIFEST]
-            if not _remove_ours(self.partial, names):
+            names = ([*RUN_FILES, *temporaries_of(self.partial, RUN_FILES)] if marked
+                     else [*(manifest_files(self.partial) or []), MANIFEST])
+            if not remove_by_name(self.partial, names):
                 raise _refuse(self.final, f"{self.partial.name} is left from an earlier run and holds "
                               "files grindtwin did not write")
         self.partial.mkdir()
@@ -357,7 +311,7 @@ class OutputClaim:
         return self.final
 
     def _replace_final(self) -> None:
-        old = None
+        listed = []
         if self.final.exists():
             if strangers(self.final):  # a file was added while this run was computing
                 self._keep_partial = True
@@ -365,14 +319,9 @@ class OutputClaim:
                                f"folder during the run; it was left alone and the results are in "
                                f"{self.partial}")
             listed = (manifest_files(self.final) or []) + [MANIFEST, *LATER_FILES]
-            if not any(self.final.iterdir()):
-                self.final.rmdir()
-            else:
-                old = self.final.with_name(f"{self.final.name}.replaced-{os.getpid()}")
-                self.final.rename(old)
-        self.partial.rename(self.final)
-        if old is not None and not _remove_ours(old, listed):
-            self.notes.append(f"kept {old}: it holds files grindtwin did not write")
+        kept = replace_folder(self.final, self.partial, listed)
+        if kept is not None:
+            self.notes.append(f"kept {kept}: the previous result there holds files grindtwin did not write")
 
 
 def claim_output(out_dir, protect=()):

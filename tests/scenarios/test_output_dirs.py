@@ -97,7 +97,7 @@ def test_a_second_run_to_a_locked_folder_is_refused_at_once(tmp_path, capsys, no
     scene = short_pyrite_scene(tmp_path, duration_h=0.25)
     with OutputClaim(out) as first:
         assert grindtwin(["run", scene, "--out", out, "--quiet"]) == 2
-        assert f"another grindtwin run (grindtwin lock pid {os.getpid()})" in capsys.readouterr().err
+        assert f"another grindtwin run or report (grindtwin lock pid {os.getpid()})" in capsys.readouterr().err
         first.commit(lambda folder: (folder / "summary.json").write_text("{}"))
     assert sorted(p.name for p in out.iterdir()) == [MANIFEST, "summary.json"]
 
