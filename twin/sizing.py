@@ -244,6 +244,21 @@ def load_design_cyclone(path) -> Hydrocyclone:
     return cyclone
 
 
+#: The open intervals size_mill takes its numbers in (`grindtwin size-mill`'s parser checks them here too).
+SIZE_MILL_RANGES = {"feed_tph": (0.0, 1e5), "target_p80_um": (1.0, 1e4), "speed_frac_critical": (0.3, 0.95),
+                    "cyclone_pressure_kpa": CYCLONE_PRESSURE_RANGE_KPA}
+
+
+def check_size_mill_input(name: str, value) -> float:
+    """``value`` of size_mill's parameter ``name`` as a float, or TwinInputError naming it and its
+    range (:data:`SIZE_MILL_RANGES`; a target no finer than the feed is refused too)."""
+    v = check_range("size_mill", name, value, *SIZE_MILL_RANGES[name])
+    if name == "target_p80_um" and not v < FEED_P80_UM:  # the Newton failure said nothing of why
+        raise TwinInputError(f"The 'target_p80_um' parameter of size_mill must be finer than the feed the sizing "
+                             f"grinds (P80 {FEED_P80_UM:g} um): no mill coarsens its feed. Got {v:g}.")
+    return v
+
+
 def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, speed_frac_critical: float = 0.70,
               base: str | Mill = INDUSTRIAL_BASE, cyclone: Hydrocyclone | None = None,
               calibration=None, cyclone_pressure_kpa: float = DESIGN_CYCLONE_PRESSURE_KPA,
@@ -255,14 +270,10 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
     from .calibration import load_calibration
     from .twin import _as_blend
 
+    for name, value in (("feed_tph", feed_tph), ("target_p80_um", target_p80_um),
+                        ("speed_frac_critical", speed_frac_critical), ("cyclone_pressure_kpa", cyclone_pressure_kpa)):
+        check_size_mill_input(name, value)
     calibration = load_calibration(calibration)
-    check_range("size_mill", "feed_tph", feed_tph, 0.0, 1e5)
-    check_range("size_mill", "target_p80_um", target_p80_um, 1.0, 1e4)
-    if not target_p80_um < FEED_P80_UM:  # the Newton failure said nothing of why
-        raise TwinInputError(f"The 'target_p80_um' parameter of size_mill must be finer than the feed the sizing "
-                             f"grinds (P80 {FEED_P80_UM:g} um): no mill coarsens its feed. Got {target_p80_um:g}.")
-    check_range("size_mill", "speed_frac_critical", speed_frac_critical, 0.3, 0.95)
-    check_range("size_mill", "cyclone_pressure_kpa", cyclone_pressure_kpa, *CYCLONE_PRESSURE_RANGE_KPA)
     if circuit not in CIRCUITS:
         raise TwinInputError(f"The 'circuit' parameter of size_mill must be one of {', '.join(map(repr, CIRCUITS))} "
                              f"(fresh feed to the mill, or to the cyclones). Got {circuit!r}.")

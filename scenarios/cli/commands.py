@@ -802,11 +802,11 @@ def add_size_mill_parser(subparsers):
                               "rates scaled from the laboratory calibration by Austin's rules (twin.sizing, "
                               "twin.scaleup).")
     z.add_argument("--ore", default="B", help="reference type A-D or a TOML file with [mineralogy] and [texture]")
-    z.add_argument("--feed-tph", required=True, type=_float_in("--feed-tph", 0, 1e5, lo_open=True))
-    z.add_argument("--target-p80-um", required=True, type=_float_in("--target-p80-um", 1.0, 1e4))
-    z.add_argument("--speed", type=_float_in("--speed", 0.3, 0.95, True, True), default=0.70,
+    z.add_argument("--feed-tph", required=True, type=_size_mill_input("feed_tph"))
+    z.add_argument("--target-p80-um", required=True, type=_size_mill_input("target_p80_um"))
+    z.add_argument("--speed", type=_size_mill_input("speed_frac_critical"), default=0.70,
                    help="mill speed as a fraction of critical (0.70, not 70)")
-    z.add_argument("--cyclone-pressure-kpa", type=float, default=None,
+    z.add_argument("--cyclone-pressure-kpa", type=_size_mill_input("cyclone_pressure_kpa"), default=None,
                    help="the cyclones' design feed pressure [kPa] (default twin.sizing.DESIGN_CYCLONE_PRESSURE_KPA, "
                    "53: the Moly-Cop BallSim base case's cluster)")
     z.add_argument("--circuit", choices=["direct", "reverse"], default="direct",
@@ -823,6 +823,26 @@ def add_size_mill_parser(subparsers):
     z.add_argument("--json", action="store_true", help="print the answer as JSON")
     z.set_defaults(func=cmd_size_mill)
     return z
+
+
+def _size_mill_input(name):
+    """argparse type: a number size_mill takes as ``name`` (twin.sizing.check_size_mill_input: its
+    ranges and message, so the parser and the sizing refuse the same values alike)."""
+    import argparse
+
+    def parse(text):
+        from twin.errors import TwinInputError
+        from twin.sizing import check_size_mill_input
+
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be a number. Got {text!r}.") from None
+        try:
+            return check_size_mill_input(name, value)
+        except TwinInputError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+    return parse
 
 
 @_exit_codes("size-mill")

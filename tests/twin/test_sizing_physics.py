@@ -37,3 +37,24 @@ def test_energy_specific_rates_follow_rowlands_diameter_efficiency_factor():
         big = small.with_(diameter_m=d, length_m=1.5 * d)
         ratio = scale_breakage(base, small, big, 2.9).se_1mm_t_kwh / base.se_1mm_t_kwh
         assert ratio == pytest.approx(ef3(2.5) / ef3(d), rel=2e-3), d
+
+
+@pytest.mark.parametrize("option, value", [("--feed-tph", "1e5"), ("--target-p80-um", "1e4"),
+                                           ("--cyclone-pressure-kpa", "500")])
+def test_size_mill_refuses_at_its_parser_what_the_sizing_refuses_with_its_message(option, value, capsys, monkeypatch):
+    """--feed-tph 1e5 and --target-p80-um 1e4 passed the parser ([0, 1e5], [1, 1e4]) and were refused
+    inside the sizing ((0, 1e5), (1, 1e4)); --cyclone-pressure-kpa 500 was not checked at the parser.
+    One range, twin.sizing's, and one message."""
+    import twin
+    from scenarios.cli import main
+    from twin.errors import TwinInputError
+    from twin.sizing import check_size_mill_input
+
+    monkeypatch.setattr(twin, "size_mill", lambda *a, **k: pytest.fail("sized although the parser must refuse"))
+    name = {"--feed-tph": "feed_tph", "--target-p80-um": "target_p80_um"}.get(option, "cyclone_pressure_kpa")
+    with pytest.raises(TwinInputError) as inside:
+        check_size_mill_input(name, float(value))
+    argv = ["size-mill", "--feed-tph", "31", "--target-p80-um", "210", option, value]
+    with pytest.raises(SystemExit) as refused:
+        main(argv)
+    assert refused.value.code == 2 and f"argument {option}: {inside.value}" in capsys.readouterr().err
