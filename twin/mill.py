@@ -12,6 +12,7 @@ from dataclasses import dataclass, fields, replace
 from functools import cache
 from pathlib import Path
 
+from .breakage import SPEED_FACTOR_ZERO_FRAC_CRITICAL
 from .errors import TwinInputError, bad_value, check_range, close_matches
 from .ore.minerals import mineral_table
 
@@ -22,8 +23,20 @@ DISCHARGE_REFERENCE_DENSITY_T_M3 = mineral_table()["quartz"].density_t_m3
 #: Densities a grinding ball may have [t/m3]: alumina ceramic (~3.6) to tungsten carbide (~15);
 #: beyond, the value is in kg/m3 (7800 for steel's 7.8).
 BALL_DENSITY_RANGE_T_M3 = (1.0, 25.0)
-#: The smallest make-up ball size of a tumbling ball mill [mm]; below, the value is in m (0.025 for 25 mm).
-BALL_SIZE_MIN_MM = 1.0
+#: The smallest make-up ball size of a tumbling ball mill [mm]: regrind mills' balls are ~12 mm (1/2 in), finer
+#: media (1-6 mm beads) belong to stirred mills; below, the value is in m (0.025 for 25 mm) or inches (1 for 25.4).
+BALL_SIZE_MIN_MM = 10.0
+#: The largest ball diameter over the mill's diameter: the power and breakage models treat the balls as a bed
+#: (Bond's power per tonne of balls, Austin's rates), and a laboratory mill holds some 8 balls across (Bond's
+#: 305 mm test mill with balls up to 36.8 mm; Bond 1961): a fifth leaves room for that, a larger ball is a slip.
+BALL_MILL_DIAMETER_RATIO_MAX = 0.2
+#: The most net energy a ball mill spends per tonne of its feed [kWh/t]: Bond's law, 10 Wi (P80^-1/2 - F80^-1/2)
+#: (Bond 1961, sizes in um), for the hardest ores (Wi ~50 kWh/t) ground to a P80 of 1 um, 10 x 50 x 1; a draw
+#: in W for kW is 1000 times the mill's.
+SPECIFIC_ENERGY_MAX_KWH_T = 500.0
+#: The smallest grate cut size [um]: the calibrations fit the laboratory grate's within 10-3000 um
+#: (twin/calibration/fitted.py); finer particles follow the water. Below, the cut is in mm (0.5 for 500 um).
+GRATE_D50_MIN_UM = 10.0
 #: The net-power models a Mill may name (functions in :data:`POWER_MODELS`).
 POWER_MODEL_NAMES = ("bond", "hogg_fuerstenau")
 
@@ -74,6 +87,7 @@ class Mill:
 
     def __post_init__(self):
         o = f"Mill {self.name!r}"
+        refuse_bool_fields(o, self)
         check_range(o, "diameter_m", self.diameter_m, 0.0, 20.0)
         check_range(o, "length_m", self.length_m, 0.0, 30.0)
         check_range(o, "ball_filling_frac", self.ball_filling_frac, 0.0, 0.5)
@@ -81,14 +95,18 @@ class Mill:
         check_range(o, "ball_density_t_m3", self.ball_density_t_m3, *BALL_DENSITY_RANGE_T_M3)
         check_range(o, "bed_porosity", self.bed_porosity, 0.0, 1.0)
         check_range(o, "powder_filling_nominal", self.powder_filling_nominal, 0.0, 3.0)
-        check_range(o, "speed_nominal_frac_critical", self.speed_nominal_frac_critical, 0.0, 1.0)
+        # at or below 0.1 Austin's speed factor, by which the rates are normalised at the nominal speed, is zero or
+        # negative: 0.05 gave negative breakage rates (a percent slip, 70 for 0.70, is above 1)
+        check_range(o, "speed_nominal_frac_critical", self.speed_nominal_frac_critical,
+                    SPEED_FACTOR_ZERO_FRAC_CRITICAL, 1.0)
         try:
             lo, hi = (float(v) for v in self.stable_band)
         except (TypeError, ValueError):
             raise bad_value(o, "stable_band", self.stable_band, "a pair (lo, hi) with 0 < lo < 1 < hi") from None
         if not 0 < lo < 1 < hi:
             raise bad_value(o, "stable_band", self.stable_band, "a pair (lo, hi) with 0 < lo < 1 < hi")
-        check_range(o, "grate_d50_um", self.grate_d50_um, 0.0, 1e6)
+        # 0.5 (mm) held every class back: a hold-up of 2e9 t in a 0.08 t mill and a P80 of 69 um
+        check_range(o, "grate_d50_um", self.grate_d50_um, GRATE_D50_MIN_UM, 1e6, lo_open=False)
         check_range(o, "grate_sharpness", self.grate_sharpness, 0.0, 50.0)
         check_range(o, "discharge_exponent", self.discharge_exponent, 0.0, 10.0)
         check_range(o, "discharge_factor", self.discharge_factor, 0.0, 100.0)
@@ -96,11 +114,21 @@ class Mill:
         check_range(o, "power_factor", self.power_factor, 0.0, 10.0)
         # 0.025 (m) scaled the calibrated breakage rates by Austin's ball-size rule a thousandfold
         check_range(o, "ball_size_mm", self.ball_size_mm, BALL_SIZE_MIN_MM, 200.0, lo_open=False)
+        ball_max_mm = BALL_MILL_DIAMETER_RATIO_MAX * 1000.0 * self.diameter_m
+        if self.ball_size_mm > ball_max_mm:  # a 25 mm ball in a 0.02 m mill (cm for m) was a mill
+            raise bad_value(o, "ball_size_mm", self.ball_size_mm, f"at most {BALL_MILL_DIAMETER_RATIO_MAX:g} of the "
+                            f"mill's diameter ({ball_max_mm:.4g} mm of diameter_m {self.diameter_m:g}): a bed of balls")
         check_range(o, "discharge_solids_frac", self.discharge_solids_frac, 0.0, 1.0)
         if self.power_model not in POWER_MODEL_NAMES:
             raise bad_value(o, "power_model", self.power_model, "one of " + ", ".join(map(repr, POWER_MODEL_NAMES)))
         if self.net_power_kw is not None:
             check_range(o, "net_power_kw", self.net_power_kw, 0.0, 1e5)
+            # 500 (W) on the 0.5 m laboratory mill drew 500 kW, 16,000 kWh/t of its feed, without a word
+            power_max = SPECIFIC_ENERGY_MAX_KWH_T * self.feed_nominal_tph
+            if self.net_power_kw > power_max:
+                raise bad_value(o, "net_power_kw", self.net_power_kw, f"at most {power_max:.4g} kW, "
+                                f"{SPECIFIC_ENERGY_MAX_KWH_T:g} kWh/t of the nominal feed "
+                                f"{self.feed_nominal_tph:g} t/h (the net draw in kW, not W)")
 
     @property
     def volume_m3(self) -> float:
@@ -148,6 +176,15 @@ class Mill:
                 raise TwinInputError(f"Mill {self.name!r} has no field {name!r}.{close_matches(name, known)} "
                                      f"Fields: {', '.join(known)}.")
         return replace(self, **changes)
+
+
+def refuse_bool_fields(owner: str, obj) -> None:
+    """Refuse a bool in any field of the dataclass ``obj``: True passed every range check as 1.0 (a bool is an
+    int in Python), e.g. a power factor or a 1 m diameter typed as a flag."""
+    for f in fields(obj):
+        value = getattr(obj, f.name)
+        if isinstance(value, bool):
+            raise bad_value(owner, f.name, value, "a number, not a bool")
 
 
 #: The laboratory mill of MISSION.md: 0.5 m x 0.3 m, 70 % of critical, 25 mm balls (the ball size

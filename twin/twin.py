@@ -100,7 +100,8 @@ class Twin:
         #: what the calibration's map leaves out of its ores (Calibration.ore_notes).
         self.notes = self.mismatch_notes + ([] if breakage_map else self.calibration.ore_notes(
             [o for o in self.blend.ores if given.get(o.name) is None]))
-        feed = _feed_fractions(self.grid, feed_psd, feed_p80_um, feed_modulus)
+        feed = _feed_fractions(self.grid, feed_psd, _one_number("feed_p80_um", feed_p80_um, "um"),
+                               _one_number("feed_modulus", feed_modulus, "-"))
         self.spec = ModelSpec(
             grid=self.grid, mill=self.mill, component_names=self.blend.names, breakage=breakage,
             feed_frac=feed, feed_nominal_tph=self.mill.feed_nominal_tph, holdup_nominal_t=holdup_nom,
@@ -191,7 +192,9 @@ class Twin:
         if not np.all(np.isfinite(fr)) or abs(fr.sum() - 1.0) > 1e-6 or np.any(fr < 0):
             raise bad_value("Twin", "blend", [float(v) for v in fr], "non-negative fractions summing to 1")
         # divides every breakage rate: 0, negative, NaN or inf made a solver error or a P80 of nothing
-        return self.model.d_vector(fr, check_range("Twin", "hardness_scale", hardness_scale, 0.0, math.inf))
+        # True passed as 1.0 (a bool is an int)
+        hardness = _one_number("hardness_scale", hardness_scale, "multiple of the ore's hardness")
+        return self.model.d_vector(fr, check_range("Twin", "hardness_scale", hardness, 0.0, math.inf))
 
 
 def _one_number(name: str, value, unit: str) -> float:
@@ -238,7 +241,7 @@ def mixer_shares_sum_ok(total: float) -> bool:
 def _mixer_fracs(n_mixers, fracs) -> tuple:
     """The mixers' shares of the hold-up: ``fracs`` normalised, or ``n_mixers`` equal shares."""
     if fracs is None:
-        if not isinstance(n_mixers, int) or not 1 <= n_mixers <= 20:
+        if not isinstance(n_mixers, int) or isinstance(n_mixers, bool) or not 1 <= n_mixers <= 20:  # True was 1
             raise bad_value("Twin", "n_mixers", n_mixers, "an integer in [1, 20]")
         return tuple([1.0 / n_mixers] * n_mixers)
     f = np.asarray(fracs, float)

@@ -34,7 +34,7 @@ import numpy as np
 from scipy.constants import g as G_M_S2
 
 from ..errors import ModelError, bad_value, check_range, close_matches
-from ..mill import DISCHARGE_REFERENCE_DENSITY_T_M3
+from ..mill import DISCHARGE_REFERENCE_DENSITY_T_M3, refuse_bool_fields
 from .base import Effect, EffectContext, Option, smooth_max
 
 
@@ -76,6 +76,7 @@ class CycloneSurvey:
 
     def __post_init__(self):
         o = "CycloneSurvey"
+        refuse_bool_fields(o, self)
         for name, lo, hi in (("feed_solids_tph", 0.0, 1e6), ("feed_water_m3_h", 0.0, 1e6),
                              ("solids_density_t_m3", WATER_DENSITY_T_M3, 25.0), ("d50c_um", 0.0, 1e5),
                              ("sharpness", 0.0, 20.0), ("water_bypass_frac", 0.0, 1.0)):
@@ -136,6 +137,7 @@ class Hydrocyclone:
 
     def __post_init__(self):
         o = "Hydrocyclone"
+        refuse_bool_fields(o, self)
         for name in ("diameter_cm", "inlet_cm", "vortex_finder_cm", "apex_cm", "free_vortex_height_cm"):
             check_range(o, name, getattr(self, name), 0.0, 1000.0)
         if not isinstance(self.count, int) or isinstance(self.count, bool) or not 1 <= self.count <= 200:

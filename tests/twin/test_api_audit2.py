@@ -1,0 +1,82 @@
+"""Unit slips and wrong types that fell inside the twin's ranges and gave a wrong number without a
+word: each is refused before any work, naming the field, the value and what is allowed."""
+
+import pytest
+
+from twin import SizeGrid, Twin, TwinInputError
+from twin.effects.classification import CycloneSurvey, Hydrocyclone
+from twin.mill import LAB, industrial_preset
+
+GRID = SizeGrid(top_um=6700.0, count=16)
+SURVEY = dict(feed_solids_tph=100.0, feed_water_m3_h=60.0, solids_density_t_m3=2.7, d50c_um=120.0,
+              sharpness=2.0, water_bypass_frac=0.3, pressure_kpa=60.0)
+
+
+def test_a_net_power_in_watts_is_refused_by_the_energy_it_would_spend():
+    # 500 (W for the lab mill's 0.5 kW) was taken as a 500 kW draw: 16,000 kWh/t of its 0.031 t/h
+    with pytest.raises(TwinInputError, match=r"'net_power_kw' parameter of Mill 'lab' must be at most 15.5 kW, "
+                                             r"500 kWh/t of the nominal feed 0.031 t/h \(the net draw in kW, not W\)"
+                                             r". Got 500.0"):
+        LAB.with_(net_power_kw=500.0)
+    assert LAB.with_(net_power_kw=0.5).net_power_kw == 0.5
+    # the Moly-Cop scene's published 3885 kW on the industrial mill's stand-in dimensions stays allowed
+    assert industrial_preset().with_(net_power_kw=3885.0).net_power_kw == 3885.0
+
+
+@pytest.mark.parametrize("field", ["power_factor", "discharge_factor", "diameter_m", "net_power_kw",
+                                   "powder_filling_nominal", "discharge_exponent"])
+def test_true_is_no_number_for_a_mill(field):
+    # True passed every range check as 1.0 (a bool is an int): a power factor of 1, a 1 m mill
+    with pytest.raises(TwinInputError, match=f"'{field}' parameter of Mill 'lab' must be a number, not a bool. "
+                                             "Got True"):
+        LAB.with_(**{field: True})
+
+
+def test_true_is_no_number_for_a_cyclone():
+    with pytest.raises(TwinInputError, match="'d50c_factor' parameter of Hydrocyclone must be a number, not a bool"):
+        Hydrocyclone(d50c_factor=True)
+    with pytest.raises(TwinInputError, match="'sharpness' parameter of CycloneSurvey must be a number, not a bool"):
+        CycloneSurvey(**{**SURVEY, "sharpness": True})
+
+
+@pytest.fixture(scope="module")
+def lab_twin():
+    return Twin("B", mill="lab", grid=GRID)
+
+
+@pytest.mark.parametrize("make, field", [
+    (lambda t: t.steady(feed_tph=0.03, hardness_scale=True), "'hardness_scale' parameter of Twin must be one number"),
+    (lambda t: Twin("B", mill="lab", grid=GRID, n_mixers=True),  # was one mixer
+     r"'n_mixers' parameter of Twin must be an integer in \[1, 20\]"),
+    (lambda t: Twin("B", mill="lab", grid=GRID, feed_modulus=True),  # was a GGS modulus of 1
+     "'feed_modulus' parameter of Twin must be one number")])
+def test_true_is_no_number_for_a_twin(lab_twin, make, field):
+    with pytest.raises(TwinInputError, match=f"{field}.*Got True"):
+        make(lab_twin)
+
+
+@pytest.mark.parametrize("changes, allowed", [
+    (dict(diameter_m=0.1), r"at most 0.2 of the mill's diameter \(20 mm of diameter_m 0.1\)"),  # 25 mm balls
+    (dict(diameter_m=0.02), r"at most 0.2 of the mill's diameter"),  # a ball wider than the mill
+    (dict(ball_size_mm=1.0), r"a float in \[10, 200\)")])  # 1 (inch) was a 1 mm ball: 25x the rates
+def test_a_ball_too_large_for_its_mill_or_in_inches_is_refused(changes, allowed):
+    with pytest.raises(TwinInputError, match=f"'ball_size_mm' parameter of Mill 'lab' must be {allowed}"):
+        LAB.with_(**changes)
+    assert LAB.with_(ball_size_mm=50.0).ball_size_mm == 50.0  # a fifth of the 0.5 m mill is 100 mm
+
+
+def test_a_grate_cut_in_mm_is_refused():
+    # 0.5 (mm for 500 um) held every class back: a steady hold-up of 2e9 t in a mill holding 0.08 t
+    # and a P80 of 69 um, with exit 0
+    with pytest.raises(TwinInputError, match=r"'grate_d50_um' parameter of Mill 'lab' must be a float in "
+                                             r"\[10, 1e\+06\). Got 0.5"):
+        LAB.with_(grate_d50_um=0.5)
+    assert LAB.with_(grate_d50_um=10.0).grate_d50_um == 10.0  # the calibrations' own lower bound
+
+
+def test_a_nominal_speed_where_the_rates_vanish_is_refused():
+    # the rates are normalised by Austin's speed factor at the nominal speed: zero at 0.1 of critical,
+    # negative below (0.05 made the breakage parameters negative, or a solver failure after 19 h of integration)
+    with pytest.raises(TwinInputError, match=r"'speed_nominal_frac_critical' parameter of Mill 'lab' must be a "
+                                             r"float in \(0.1, 1\). Got 0.05"):
+        LAB.with_(speed_nominal_frac_critical=0.05)
