@@ -3,9 +3,10 @@ word: each is refused before any work, naming the field, the value and what is a
 
 import pytest
 
-from twin import SizeGrid, Twin, TwinInputError
+from twin import ModelError, SizeGrid, Twin, TwinInputError
 from twin.effects.classification import CycloneSurvey, Hydrocyclone
 from twin.mill import LAB, industrial_preset
+from twin.twin import DEFAULT_EFFECTS
 
 GRID = SizeGrid(top_um=6700.0, count=16)
 SURVEY = dict(feed_solids_tph=100.0, feed_water_m3_h=60.0, solids_density_t_m3=2.7, d50c_um=120.0,
@@ -80,3 +81,14 @@ def test_a_nominal_speed_where_the_rates_vanish_is_refused():
     with pytest.raises(TwinInputError, match=r"'speed_nominal_frac_critical' parameter of Mill 'lab' must be a "
                                              r"float in \(0.1, 1\). Got 0.05"):
         LAB.with_(speed_nominal_frac_critical=0.05)
+
+
+def test_an_analyser_dead_time_in_minutes_is_refused_by_the_mills_residence_time():
+    effects = list(DEFAULT_EFFECTS) + ["sensor_delay"]
+    # 5 (min for 0.083 h) was a 5 h dead time, 15 residence times of the lab mill, within the option's 24 h
+    with pytest.raises(ModelError, match=r"'dead_time_h' option of effect 'sensor_delay' must be at most 10 of the "
+                                         r"mill's nominal residence times \(3.\d+ h; one is 0.3\d+ h\), in hours"
+                                         r".*Got 5.0"):
+        Twin("B", mill="lab", grid=GRID, effects=effects, effect_options={"sensor_delay": {"dead_time_h": 5.0}})
+    twin = Twin("B", mill="lab", grid=GRID, effects=effects, effect_options={"sensor_delay": {"dead_time_h": 0.1}})
+    assert twin.model.describe().count("analyser_dead_time_h") == 1

@@ -7,7 +7,14 @@ from __future__ import annotations
 
 import casadi as ca
 
+from ..errors import ModelError
 from .base import Effect, EffectContext, Option
+
+#: The longest analyser dead time over the mill's nominal residence time (without recycle): a
+#: mill's product answers a step within a few residence times (a chain of mixers, Austin et al.
+#: 1984 ch. 9), and on-line analysers report in minutes; ten residence times is a dead time given
+#: in minutes where hours are expected (5 for 5 min is 15 residence times of the laboratory mill).
+DEAD_TIME_MAX_RESIDENCE_TIMES = 10.0
 
 
 class SensorDelay(Effect):
@@ -21,6 +28,7 @@ class SensorDelay(Effect):
 
     def apply(self, ctx: EffectContext) -> None:
         theta = ctx.param("analyser_dead_time_h", float(self.settings["dead_time_h"]), "h", "scene")
+        _check_dead_time(ctx.spec, theta)
         n = int(self.settings["stages"])
         z = ctx.add_state("p80_lag_um", n, ctx.spec.p80_initial_um)
         upstream = ctx.get("p80_um")
@@ -29,6 +37,17 @@ class SensorDelay(Effect):
             upstream = z[i]
         ctx.output("p80_measured_um", z[n - 1])
         ctx.note(f"{n} lag states, dead time {theta * 60:.1f} min")
+
+
+def _check_dead_time(spec, theta_h: float) -> None:
+    """Refuse a dead time [h] longer than :data:`DEAD_TIME_MAX_RESIDENCE_TIMES` nominal residence
+    times of the mill (H_nom over its free discharge, as twin.effects.transport without recycle)."""
+    tau_h = spec.holdup_nominal_t / spec.mill.free_discharge_tph(spec.solids_density_t_m3)
+    if theta_h > DEAD_TIME_MAX_RESIDENCE_TIMES * tau_h:
+        raise ModelError(f"The 'dead_time_h' option of effect 'sensor_delay' must be at most "
+                         f"{DEAD_TIME_MAX_RESIDENCE_TIMES:g} of the mill's nominal residence times "
+                         f"({DEAD_TIME_MAX_RESIDENCE_TIMES * tau_h:.3g} h; one is {tau_h:.3g} h), in hours "
+                         f"(5 min is 0.0833 h). Got {theta_h!r}.")
 
 
 def _unit(n, i):
