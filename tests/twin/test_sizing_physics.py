@@ -58,3 +58,20 @@ def test_size_mill_refuses_at_its_parser_what_the_sizing_refuses_with_its_messag
     with pytest.raises(SystemExit) as refused:
         main(argv)
     assert refused.value.code == 2 and f"argument {option}: {inside.value}" in capsys.readouterr().err
+
+
+def test_a_design_whose_cyclone_underflow_would_rope_says_so():
+    """The shipped preset's design (`size-mill --ore B --feed-tph 31 --target-p80-um 210`) sends its
+    underflow at 81.8 % solids by mass, ~61 % by volume for ore B: past the 50-60 % at which cyclones
+    rope, which Plitt's equations do not see; the design said nothing. A dilute underflow is not noted."""
+    from twin.sizing import ROPING_UNDERFLOW_SOLIDS_VOL_PCT, _roping_note, size_mill
+    from twin.twin import _as_blend
+
+    rho = _as_blend("B").density_t_m3
+    sized = size_mill("B", 31.0, 210.0)
+    mass = sized.circuit["underflow_solids_frac"]
+    vol_pct = 100.0 * (mass / rho) / (mass / rho + (1.0 - mass))  # water 1 t/m3
+    assert vol_pct > ROPING_UNDERFLOW_SOLIDS_VOL_PCT[1]
+    assert any(n.startswith(f"the cyclone underflow is {vol_pct:.3g} % solids by volume") and "rope" in n
+               for n in sized.notes)
+    assert _roping_note(sized.cyclone, 0.6, rho) is None  # 34 % by volume
