@@ -40,6 +40,14 @@ def test_true_is_no_number_for_a_cyclone():
         CycloneSurvey(**{**SURVEY, "sharpness": True})
 
 
+def test_a_cyclone_feed_dilution_given_as_a_fraction_is_refused():
+    # 0.42 (for 42 % solids by volume) ran the industrial circuit at a cyclone pressure of 1e15 kPa
+    # and returned a P80 of 119 um for 202
+    with pytest.raises(TwinInputError, match=r"'feed_solids_vol_pct' parameter of Hydrocyclone must be a float in "
+                                             r"\[1, 70\). Got 0.42"):
+        Hydrocyclone(feed_solids_vol_pct=0.42)
+
+
 @pytest.fixture(scope="module")
 def lab_twin():
     return Twin("B", mill="lab", grid=GRID)

@@ -48,6 +48,10 @@ WATER_DENSITY_T_M3 = 1.0
 #: Densest cyclone feed [solids % by volume] a Hydrocyclone takes: past ~70 % a slurry no longer
 #: flows (a packed bed of particles holds ~60-65 % solids by volume).
 FEED_SOLIDS_VOL_PCT_MAX = 70.0
+#: The most dilute cyclone feed [solids % by volume] a Hydrocyclone takes: grinding circuits feed their cyclones
+#: at some 15-45 % (the Moly-Cop base case 36 %); below 1 % the value is a fraction given for percent (0.42 for
+#: 42 %), which put Plitt's pressure at 1e15 kPa.
+FEED_SOLIDS_VOL_PCT_MIN = 1.0
 
 
 def _exp(v):
@@ -142,7 +146,8 @@ class Hydrocyclone:
             check_range(o, name, getattr(self, name), 0.0, 1000.0)
         if not isinstance(self.count, int) or isinstance(self.count, bool) or not 1 <= self.count <= 200:
             raise bad_value(o, "count", self.count, "an integer in [1, 200]")
-        check_range(o, "feed_solids_vol_pct", self.feed_solids_vol_pct, 0.0, FEED_SOLIDS_VOL_PCT_MAX)
+        check_range(o, "feed_solids_vol_pct", self.feed_solids_vol_pct, FEED_SOLIDS_VOL_PCT_MIN,
+                    FEED_SOLIDS_VOL_PCT_MAX, lo_open=False)
         check_range(o, "viscosity_cp", self.viscosity_cp, 0.0, 1e4)
         for name in ("d50c_factor", "pressure_factor", "sharpness_factor", "split_factor"):
             check_range(o, name, getattr(self, name), 0.0, 1e3)
