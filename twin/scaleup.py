@@ -56,7 +56,8 @@ def power_per_holdup(mill: Mill, solids_density_t_m3: float) -> float:
     return power_kw(model, mill.speed_nominal_frac_critical) / mill.nominal_holdup_t(solids_density_t_m3)
 
 
-def scale_breakage(params: BreakageParams, from_mill: Mill, to_mill: Mill, solids_density_t_m3: float) -> BreakageParams:
+def scale_breakage(params: BreakageParams, from_mill: Mill, to_mill: Mill,
+                   solids_density_t_m3: float) -> BreakageParams:
     """``params`` calibrated in ``from_mill``, scaled to ``to_mill`` by the module's rules."""
     same = ("diameter_m", "ball_size_mm", "speed_nominal_frac_critical")
     if all(getattr(from_mill, k) == getattr(to_mill, k) for k in same) and \

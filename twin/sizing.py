@@ -4,9 +4,10 @@ product P80 (the job of Moly-Cop Tools's mill-sizing sheet, done here with the t
 Rules, stated: the mill keeps the shape and charge of the base mill (length over diameter, ball
 filling, ball size) and runs at the speed asked (a fraction of critical); its breakage rates come
 from the laboratory calibration by the scale-up rules of :mod:`twin.scaleup` (Austin's diameter,
-ball-size and speed factors) and its power from the base mill's power model; the circuit is the mill with the default effects and a cluster of hydrocyclones
-(Plitt's equations, twin.effects.classification) geometrically similar to the base design
-(inlet, vortex finder, apex and free vortex height in proportion to the cyclone's diameter).
+ball-size and speed factors) and its power from the base mill's power model; the circuit is the
+mill with the default effects and a cluster of hydrocyclones (Plitt's equations,
+twin.effects.classification) geometrically similar to the base design (inlet, vortex finder, apex
+and free vortex height in proportion to the cyclone's diameter).
 
 The design point, three conditions: the steady overflow P80 meets the target; the circulating
 load is the design's (2.5, Wills & Finch 2016 ch. 9: 250 % typical of ball-mill circuits); the

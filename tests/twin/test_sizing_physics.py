@@ -75,3 +75,26 @@ def test_a_design_whose_cyclone_underflow_would_rope_says_so():
     assert any(n.startswith(f"the cyclone underflow is {vol_pct:.3g} % solids by volume") and "rope" in n
                for n in sized.notes)
     assert _roping_note(sized.cyclone, 0.6, rho) is None  # 34 % by volume
+
+
+def test_sized_specific_energy_falls_with_mill_size_between_rowland_and_austins_mu():
+    """Bond's specific energy for one grind moves with the mill only by Rowland's EF3 (2.44/D)^0.2,
+    0.914 from 3.81 m (Rowland 1982). The sized twin falls faster: its rate constant reproduces EF3
+    (test above), and Austin's mu ~ D^0.2 (Austin et al. 1984, ch. 10) adds to it, since the feed
+    (P80 3.2 mm) lies above mu, where S ~ mu^Lambda. Band: at least EF3's fall, at most EF3's times
+    (D ratio)^(-0.2 Lambda), the whole grind in that region (docs/sizing.md has the measured trend)."""
+    from twin.calibration import load_calibration
+    from twin.scaleup import DIAMETER_EXPONENT_MU
+    from twin.sizing import size_mill
+    from twin.twin import _as_blend
+
+    def ef3(d):
+        return max((2.44 / d) ** 0.2, 0.914)
+
+    lam = load_calibration(None).breakage(_as_blend("B").ores[0]).Lambda
+    small, big = size_mill("B", 31.0, 210.0), size_mill("B", 300.0, 210.0)
+    d_small, d_big = small.mill.diameter_m, big.mill.diameter_m
+    rowland = ef3(d_big) / ef3(d_small)
+    austin_mu = (d_big / d_small) ** (-DIAMETER_EXPONENT_MU * lam)
+    assert d_big > 3.81 > d_small
+    assert rowland * austin_mu < big.specific_energy_kwh_t / small.specific_energy_kwh_t < rowland
