@@ -95,7 +95,7 @@ def psd_snapshots(model, samples: Samples, stream: str, batch: bool) -> pd.DataF
     idx = np.unique(np.linspace(0, len(samples.time_h) - 1, N_PSD_SNAPSHOTS).round().astype(int))
     rows = {float(samples.time_h[i]): _passing(grid, stream_masses(model, samples.x[i], samples.u[i],
                                                                    samples.d[i], batch)[stream]) for i in idx}
-    psd = pd.DataFrame(rows, index=pd.Index(np.round(grid.upper_um, 4), name="size_um")).T
+    psd = pd.DataFrame(rows, index=pd.Index(grid.upper_um, name="size_um")).T
     psd.index.name = "time_h"
     psd.attrs["what"] = stream.replace("_", " ")
     return psd

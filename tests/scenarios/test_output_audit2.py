@@ -142,3 +142,21 @@ def test_a_workbook_scratch_file_left_by_a_killed_run_does_not_refuse_the_next_r
     (stale / ".run.xlsx.k2j4x9.partial").write_bytes(b"PK")
     run = write_run(_result(), tmp_path / "out", plots=False, xlsx=True)
     assert (run / "run.xlsx").is_file() and sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_the_size_distributions_name_the_streams_sizes_exactly(write_scene, tmp_path):
+    """product_psd.csv's sizes were rounded to 4 decimals (4737.6154 where streams.csv holds
+    4737.615433...): a join of the two on size found nothing."""
+    from tests.scenarios.conftest import BASE_SCENE
+
+    text = BASE_SCENE
+    for old, new in (("duration_h = 8.0", "duration_h = 0.5"), ('kind = "nmpc"', 'kind = "none"'),
+                     ("at_h = 2.0", "at_h = 0.2"), ("ramp_h = 1.0", "ramp_h = 0.2")):
+        text = text.replace(old, new)
+    out = tmp_path / "run"
+    assert grindtwin(["run", str(write_scene(text)), "--out", str(out), "--no-plots"]) == 0
+    streams = set(pd.read_csv(out / "streams.csv")["size_upper_um"])
+    for name in ("product_psd.csv", "mill_psd.csv"):
+        assert set(_sizes(pd.read_csv(out / name, index_col=0).columns)) == streams, name
+    final = json.loads((out / "summary.json").read_text())["final_psd"]["size_um"]
+    assert set(final) == streams
