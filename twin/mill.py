@@ -37,6 +37,8 @@ SPECIFIC_ENERGY_MAX_KWH_T = 500.0
 #: The smallest grate cut size [um]: the calibrations fit the laboratory grate's within 10-3000 um
 #: (twin/calibration/fitted.py); finer particles follow the water. Below, the cut is in mm (0.5 for 500 um).
 GRATE_D50_MIN_UM = 10.0
+#: Where a closed circuit's fresh feed enters: the mill (direct) or the cyclones' sump (reverse).
+CYCLONE_CIRCUITS = ("direct", "reverse")
 #: The net-power models a Mill may name (functions in :data:`POWER_MODELS`).
 POWER_MODEL_NAMES = ("bond", "hogg_fuerstenau")
 
@@ -62,7 +64,10 @@ class Mill:
     given, is the net power at the nominal speed (a measured or published draw), and the model
     then only shapes how power moves with speed. ``cyclone`` is the hydrocyclone cluster the mill
     is sized with (its twin.Hydrocyclone fields as (name, value) pairs; the classification effect's
-    default when it runs a hydrocyclone circuit), empty when none."""
+    default when it runs a hydrocyclone circuit), empty when none; ``cyclone_circuit`` the circuit
+    it was sized in (twin.sizing.CIRCUITS: fresh feed to the mill, ``"direct"``, or to the
+    cyclones' sump, ``"reverse"``), which a twin running another says
+    (twin.effects.classification.sized_circuit_notes)."""
 
     name: str
     diameter_m: float
@@ -84,6 +89,7 @@ class Mill:
     power_model: str = "bond"
     net_power_kw: float | None = None
     cyclone: tuple = ()
+    cyclone_circuit: str = "direct"
 
     def __post_init__(self):
         o = f"Mill {self.name!r}"
@@ -119,6 +125,9 @@ class Mill:
             raise bad_value(o, "ball_size_mm", self.ball_size_mm, f"at most {BALL_MILL_DIAMETER_RATIO_MAX:g} of the "
                             f"mill's diameter ({ball_max_mm:.4g} mm of diameter_m {self.diameter_m:g}): a bed of balls")
         check_range(o, "discharge_solids_frac", self.discharge_solids_frac, 0.0, 1.0)
+        if self.cyclone_circuit not in CYCLONE_CIRCUITS:
+            raise bad_value(o, "cyclone_circuit", self.cyclone_circuit,
+                            "one of " + ", ".join(map(repr, CYCLONE_CIRCUITS)))
         if self.power_model not in POWER_MODEL_NAMES:
             raise bad_value(o, "power_model", self.power_model, "one of " + ", ".join(map(repr, POWER_MODEL_NAMES)))
         if self.net_power_kw is not None:
@@ -207,7 +216,8 @@ def industrial_preset() -> Mill:
         raise TwinError(f"No industrial mill preset {INDUSTRIAL_PRESET_PATH}: run "
                         "`grindtwin size-mill --ore B --feed-tph 31 --target-p80-um 210 --write-preset twin/data/industrial_mill.json`.")
     record = json.loads(INDUSTRIAL_PRESET_PATH.read_text(encoding="utf-8"))
-    return INDUSTRIAL_BASE.with_(**record["mill"], cyclone=tuple(sorted(record["cyclone"].items())))
+    return INDUSTRIAL_BASE.with_(**record["mill"], cyclone=tuple(sorted(record["cyclone"].items())),
+                                 cyclone_circuit=record.get("sizing", {}).get("circuit", "direct"))
 
 
 MILLS = {"lab": LAB, "industrial": INDUSTRIAL_BASE}

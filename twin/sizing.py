@@ -37,12 +37,12 @@ import scipy.sparse.linalg
 from .effects.classification import FEED_SOLIDS_VOL_PCT_MAX, Hydrocyclone, slurry_m3_h
 from .atomic import is_grindtwin_checkout
 from .errors import SolverError, TwinInputError, check_range
-from .mill import INDUSTRIAL_BASE, Mill, get_mill
+from .mill import CYCLONE_CIRCUITS, INDUSTRIAL_BASE, Mill, get_mill
 from .twin import DEFAULT_EFFECTS, FEED_P80_UM, Twin
 from .validity import water_shortfalls
 
-#: Where a sized circuit's fresh feed enters: the mill (direct) or the cyclones' sump (reverse).
-CIRCUITS = ("direct", "reverse")
+#: Where a sized circuit's fresh feed enters (twin.mill.CYCLONE_CIRCUITS).
+CIRCUITS = CYCLONE_CIRCUITS
 #: Design circulating load (underflow over fresh feed) of a ball mill-cyclone circuit.
 DESIGN_CIRCULATING_LOAD = 2.5
 #: Design feed pressure of the cyclones [kPa]: 7.7 psi, that of the six-cyclone cluster of the
@@ -129,7 +129,8 @@ def similar_cyclone(design: Hydrocyclone, diameter_cm: float, count: int, feed_s
 def _at(ore, base: Mill, diameter_m: float, cyclone: dict, feed_tph: float, speed: float, calibration, circuit):
     aspect = base.length_m / base.diameter_m
     mill = base.with_(diameter_m=diameter_m, length_m=aspect * diameter_m, feed_nominal_tph=feed_tph,
-                      speed_nominal_frac_critical=speed, cyclone=tuple(sorted(cyclone.items())))
+                      speed_nominal_frac_critical=speed, cyclone=tuple(sorted(cyclone.items())),
+                      cyclone_circuit=circuit)
     with warnings.catch_warnings():  # Newton on an overloading trial mill: the SolverError is the answer
         warnings.simplefilter("ignore", scipy.sparse.linalg.MatrixRankWarning)
         return mill, circuit_twin(ore, mill, cyclone, circuit, calibration=calibration).steady(

@@ -19,6 +19,7 @@ from .breakage import SPEED_FACTOR_ZERO_FRAC_CRITICAL, BreakageParams
 from .breakage import ore_breakage as _ore_breakage
 from .calibration import load_calibration
 from .calibration.model_code import check_model
+from .effects.classification import sized_circuit_notes
 from .errors import TwinInputError, bad_value, check_range
 from .mill import Mill, get_mill, power_kw
 from .model import Model, ModelSpec
@@ -96,8 +97,9 @@ class Twin:
         self.calibration_mismatch = self.calibration.mismatch(effects, self.grid, self.mill, mixer_fracs)
         #: The notes of those differences, worded for a user of the Python API.
         self.mismatch_notes = [calibration_mismatch_note(p) for p in self.calibration_mismatch]
-        #: What a steady state of this twin cannot show: the differences from its calibration and
-        #: what the calibration's map leaves out of its ores (Calibration.ore_notes).
+        #: What a steady state of this twin cannot show: the differences from its calibration, what
+        #: the calibration's map leaves out of its ores (Calibration.ore_notes) and a mill run in
+        #: another circuit than it was sized in (sized_circuit_notes).
         self.notes = self.mismatch_notes + ([] if breakage_map else self.calibration.ore_notes(
             [o for o in self.blend.ores if given.get(o.name) is None]))
         feed = _feed_fractions(self.grid, feed_psd, _one_number("feed_p80_um", feed_p80_um, "um"),
@@ -110,6 +112,7 @@ class Twin:
             clay_frac=[o.group_fraction(CLAY_MINERALS) for o in self.blend.ores],
             coefficients=self.coefficients, n_mixers=len(mixer_fracs), mixer_fracs=mixer_fracs, effects=list(effects),
             effect_options=dict(effect_options or {}))
+        self.notes += sized_circuit_notes(self.spec)  # a mill sized in one circuit, run in another
         self.model = Model(self.spec)
 
     def scaled_breakage(self, params: BreakageParams, density_t_m3: float | None = None) -> BreakageParams:

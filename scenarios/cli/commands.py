@@ -585,18 +585,6 @@ def refuse_few_replicates(n: int, calibration, level: float) -> None:
         raise SceneError(f"--uncertainty {n}: {why}; give --uncertainty {need} or more, or 0 for all {kept}.")
 
 
-def circuit_notes(twin, mill_name: str) -> list[str]:
-    """A note when a mill sized with a hydrocyclone circuit runs its grate discharge (the
-    calibration's effects): its numbers are not those of the circuit it was sized for."""
-    if "classification" not in twin.spec.effects or not twin.mill.cyclone:
-        return []
-    if (twin.spec.effect_options.get("classification") or {}).get("kind", "grate") != "grate":
-        return []
-    return [f"mill {mill_name!r} was sized with a hydrocyclone circuit; this is its grate discharge (the "
-            "calibration's effects); a scene with effect_options.classification.kind = \"hydrocyclone\" "
-            "runs the sized circuit"]
-
-
 def _steady_scene(args) -> int:
     """`grindtwin steady --scene FILE`: the scene's plant twin at its initial operating point."""
     import json
@@ -694,7 +682,7 @@ def cmd_steady(args) -> int:
         notes += [n for n in [centrifuging_note(kpis.get("speed_frac_critical") or 0.0)] if n]
         notes += calibration.ore_notes(blend.ores)
     else:
-        notes += ss.notes + circuit_notes(twin, args.mill)  # a twin's steady state carries its texture note
+        notes += ss.notes  # a twin's steady state carries its notes (texture, a sized circuit not run)
     if args.json:
         mineralogy = {o.name: {"wt_pct": o.wt_pct, **o.summary()} for o in blend.ores}
         print(json.dumps({"mill": args.mill, "blend": dict(zip(blend.names, blend.fractions)),
@@ -767,10 +755,10 @@ def cmd_optimize(args) -> int:
     except MpcInputError as exc:
         raise SceneError(str(exc)) from None
     table = sp.table
-    notes = circuit_notes(twin, args.mill)
+    notes = list(twin.notes)
     if sp.feasible:  # the answer's own steady state, for what the models do not describe there
-        notes += twin.steady(feed_tph=sp.feed_tph, speed_frac_critical=sp.speed_frac_critical,
-                             blend=list(blend.fractions)).notes
+        notes = twin.steady(feed_tph=sp.feed_tph, speed_frac_critical=sp.speed_frac_critical,
+                            blend=list(blend.fractions)).notes
     if args.json:
         from scenarios.output.write import json_safe
 

@@ -84,3 +84,32 @@ def test_a_mill_sized_for_a_reverse_circuit_meets_its_design_point_in_that_circu
     assert abs(direct["cyclone_pressure_kpa"] / DESIGN_CYCLONE_PRESSURE_KPA - 1) > 0.1
     with pytest.raises(TwinInputError, match="'circuit' parameter of size_mill must be one of 'direct', 'reverse'"):
         size_mill("B", FEED, 210.0, circuit="closed")
+
+
+def test_a_mill_sized_in_one_circuit_says_so_when_run_in_another(tmp_path, monkeypatch):
+    """A preset written with --circuit reverse recorded its circuit, which loading ignored: a
+    hydrocyclone twin ran its cyclones (sized for fresh feed to the sump) in the direct circuit
+    without a word. The preset's circuit is now the mill's (Mill.cyclone_circuit), and a twin
+    running another, or the grate, notes it."""
+    import json
+
+    import twin.mill as M
+
+    record = json.loads(M.INDUSTRIAL_PRESET_PATH.read_text())
+    assert record["sizing"]["circuit"] == "direct" and M.industrial_preset().cyclone_circuit == "direct"
+    record["sizing"]["circuit"] = "reverse"
+    path = tmp_path / "preset.json"
+    path.write_text(json.dumps(record))
+    try:
+        with monkeypatch.context() as m:
+            m.setattr(M, "INDUSTRIAL_PRESET_PATH", path)
+            M.industrial_preset.cache_clear()
+            assert M.industrial_preset().cyclone_circuit == "reverse"
+            other = "were sized in a reverse circuit; this runs them in a direct one"
+            assert any(other in n for n in circuit("direct").notes)
+            assert not any("sized" in n for n in circuit("reverse").notes)
+            assert any("this is its grate discharge" in n for n in Twin("B", mill="industrial").notes)
+            with pytest.raises(TwinInputError, match="'cyclone_circuit'.*'sideways'"):
+                M.industrial_preset().with_(cyclone_circuit="sideways")
+    finally:
+        M.industrial_preset.cache_clear()

@@ -34,7 +34,7 @@ import numpy as np
 from scipy.constants import g as G_M_S2
 
 from ..errors import ModelError, bad_value, check_range, close_matches
-from ..mill import DISCHARGE_REFERENCE_DENSITY_T_M3, refuse_bool_fields
+from ..mill import CYCLONE_CIRCUITS, DISCHARGE_REFERENCE_DENSITY_T_M3, refuse_bool_fields
 from .base import Effect, EffectContext, Option, smooth_max
 
 
@@ -294,7 +294,7 @@ class Classification(Effect):
                                            lo=0.0, hi=50.0),
         "circuit": Option("direct", "'direct' (fresh feed to the mill with the underflow) or 'reverse' (fresh feed "
                           "to the cyclone feed sump, the mill fed by the underflow alone: the ball mill of most "
-                          "SAG-ball circuits) (hydrocyclone)", choices=("direct", "reverse")),
+                          "SAG-ball circuits) (hydrocyclone)", choices=CYCLONE_CIRCUITS),
         "fresh_feed_solids_frac": Option(None, "solids mass fraction of the fresh feed slurry (0.7, not 70) "
                                          "entering the sump of a reverse circuit; None: the feed's water is "
                                          "counted in the sump's water addition (hydrocyclone, reverse)",
@@ -413,6 +413,26 @@ def circuit_cyclone(spec) -> Hydrocyclone | None:
         return None
     given = options.get("cyclone")
     return hydrocyclone_from(dict(spec.mill.cyclone or {}) if given is None else given)
+
+
+def sized_circuit_notes(spec) -> list[str]:
+    """What a model spec runs of a mill sized in closed circuit with hydrocyclones (``Mill.cyclone``)
+    that is not the sized circuit: its grate discharge, or its own cyclones in the other circuit
+    (``Mill.cyclone_circuit``); its numbers are then not those it was sized for."""
+    mill = spec.mill
+    if "classification" not in spec.effects or not mill.cyclone:
+        return []
+    options = spec.effect_options.get("classification") or {}
+    if options.get("kind", Classification.options["kind"].default) != "hydrocyclone":
+        return [f"mill {mill.name!r} was sized with a hydrocyclone circuit; this is its grate discharge (the "
+                "calibration's effects); a scene with effect_options.classification.kind = \"hydrocyclone\" "
+                "runs the sized circuit"]
+    circuit = options.get("circuit", Classification.options["circuit"].default)
+    if options.get("cyclone") is None and circuit != mill.cyclone_circuit:
+        return [f"mill {mill.name!r} and its cyclones were sized in a {mill.cyclone_circuit} circuit; this runs them "
+                f"in a {circuit} one (effect_options.classification.circuit = \"{mill.cyclone_circuit}\" runs the "
+                "sized circuit)"]
+    return []
 
 
 def plitt_factors(cyc: Hydrocyclone) -> dict:
