@@ -48,7 +48,10 @@ def close_matches(name: str, known: Iterable[str]) -> str:
 
 def check_range(owner: str, field: str, value: float, lo: float, hi: float,
                 lo_open: bool = True, hi_open: bool = True) -> float:
-    """Return ``float(value)`` if it lies in the interval, else raise :func:`bad_value`."""
+    """Return ``float(value)`` if it lies in the interval, else raise :func:`bad_value`. A bool is
+    refused: it is an int in Python, so True passed as 1.0 (a flag typed for a number)."""
+    if isinstance(value, bool):
+        raise bad_value(owner, field, value, _interval(lo, hi, lo_open, hi_open) + ", not a bool")
     try:
         v = float(value)
     except (TypeError, ValueError):

@@ -6,6 +6,7 @@ import pytest
 from twin import ModelError, SizeGrid, Twin, TwinInputError
 from twin.effects.classification import CycloneSurvey, Hydrocyclone
 from twin.mill import LAB, industrial_preset
+from twin.ore.mineralogy import Texture
 from twin.twin import DEFAULT_EFFECTS
 
 GRID = SizeGrid(top_um=6700.0, count=16)
@@ -100,3 +101,12 @@ def test_an_analyser_dead_time_in_minutes_is_refused_by_the_mills_residence_time
         Twin("B", mill="lab", grid=GRID, effects=effects, effect_options={"sensor_delay": {"dead_time_h": 5.0}})
     twin = Twin("B", mill="lab", grid=GRID, effects=effects, effect_options={"sensor_delay": {"dead_time_h": 0.1}})
     assert twin.model.describe().count("analyser_dead_time_h") == 1
+
+
+@pytest.mark.parametrize("make", [lambda: SizeGrid(count=25, ratio=True), lambda: Texture(True)],
+                         ids=["SizeGrid.ratio", "Texture.mean_grain_um"])
+def test_true_is_no_number_wherever_a_range_is_checked(make):
+    """twin.errors.check_range refuses a bool itself: SizeGrid, Texture and the other callers
+    without a field-by-field bool check took True as 1.0."""
+    with pytest.raises(TwinInputError, match="not a bool"):
+        make()
