@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import warnings
@@ -53,11 +53,6 @@ CYCLONE_PRESSURE_RANGE_KPA = (34.0, 276.0)
 #: Mill diameters allowed [m]; cyclone diameters made for grinding circuits [cm] (4 to 33 in).
 DIAMETER_RANGE_M = (0.8, 8.0)
 CYCLONE_DIAMETER_RANGE_CM = (10.16, 83.82)
-#: Underflow solids [% by volume] at which hydrocyclones rope (the air core collapses, the underflow
-#: leaves as a solid rope and coarse solids go to the overflow): ~50-60 % (Laguitton 1985, SPOC manual
-#: ch. 3.1; Plitt, Conil & Broussaud 1990, Miner. Eng. 3, 533-535; Concha et al. 1996, Int. J. Miner.
-#: Process. 44-45, 743-749). A design is noted from the band's lower edge; Plitt's equations do not see it.
-ROPING_UNDERFLOW_SOLIDS_VOL_PCT = (50.0, 60.0)
 #: Cyclone counts tried, fewest first.
 MAX_CYCLONES = 16
 #: Newton's method on the design point: its unknowns are ln(mill diameter), ln(cyclone diameter)
@@ -306,9 +301,6 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
         tried.append({"count": count, "diameter_m": mill.diameter_m, "cyclone_diameter_cm": d_cyc,
                       "feed_solids_vol_pct": float(10.0 * x[2]), "outcome": why or "design"})
         if why is None:
-            roping = _roping_note(point.cyclone(x), o["underflow_solids_frac"], rho)
-            if roping:
-                ss.notes.append(roping)
             if cyclone is not None and count != cyclone.count:  # the user's table had its own count
                 ss.notes.append(f"{count} cyclone{'s' * (count > 1)}, not the cyclone table's {cyclone.count}: a "
                                 "sizing chooses the count; the table gives the shape and the Plitt model")
@@ -329,21 +321,6 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
                       + (" (the grind sets the mill's diameter, which neither the cyclones nor their pressure move: "
                          "another feed rate per mill or another target may)" if mill_out else
                          " (another design pressure may: size-mill --cyclone-pressure-kpa)."))
-
-
-def _roping_note(cyclone: dict, underflow_solids_frac: float, rho: float) -> str | None:
-    """A note when the cyclones' underflow is as dense as cyclones rope at
-    (:data:`ROPING_UNDERFLOW_SOLIDS_VOL_PCT`), else None."""
-    lo, hi = ROPING_UNDERFLOW_SOLIDS_VOL_PCT
-    # the underflow's solids by volume, by the cyclone's own mass-to-volume conversion
-    vol_pct = replace(Hydrocyclone(**cyclone), feed_solids_frac=float(underflow_solids_frac)).feed_volume_pct(rho)
-    if vol_pct < lo:
-        return None
-    return (f"the cyclone underflow is {vol_pct:.3g} % solids by volume ({100 * underflow_solids_frac:.3g} % by "
-            f"mass), {'above' if vol_pct > hi else 'within'} the {lo:g}-{hi:g} % at which hydrocyclones rope "
-            "(Laguitton 1985; Plitt, Conil & Broussaud 1990; Concha et al. 1996): Plitt's equations do not describe "
-            "a roping cyclone, which sends coarse solids to the overflow; a larger apex (more water to the "
-            "underflow) keeps it below")
 
 
 def _unrunnable(mill: Mill, d_cyc: float, ss) -> str | None:

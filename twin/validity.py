@@ -1,7 +1,8 @@
 """Where a state of the twin lies outside what its models describe, one note each (empty when
 inside): a hold-up beyond the mill filled to its shell (:meth:`twin.Mill.max_holdup_t`: the mill
 would overflow), a speed where the charge centrifuges (:func:`twin.mill.centrifuging_note`) and,
-with the rheology effect, a slurry past jamming (:func:`twin.effects.rheology.jamming_note`).
+with the rheology effect, a slurry past jamming (:func:`twin.effects.rheology.jamming_note`),
+and in a hydrocyclone circuit a roping underflow (:func:`roping_note`).
 Every steady state carries them (:attr:`twin.solve.SteadyState.notes`), every trajectory states
 them over its samples (:func:`trajectory_notes`, :attr:`twin.solve.Trajectory.notes`; a scene's
 run warns with them)."""
@@ -13,6 +14,32 @@ from numbers import Real
 import numpy as np
 
 from .mill import CENTRIFUGING_FRAC_CRITICAL, centrifuging_note
+
+
+#: Underflow solids [% by volume] at which hydrocyclones rope (the air core collapses, the underflow
+#: leaves as a solid rope and coarse solids go to the overflow): ~50-60 % (Laguitton 1985, SPOC manual
+#: ch. 3.1; Plitt, Conil & Broussaud 1990, Miner. Eng. 3, 533-535; Concha et al. 1996, Int. J. Miner.
+#: Process. 44-45, 743-749). A design is noted from the band's lower edge; Plitt's equations do not see it.
+ROPING_UNDERFLOW_SOLIDS_VOL_PCT = (50.0, 60.0)
+
+
+def roping_note(spec, outputs: dict) -> str:
+    """A note when a hydrocyclone circuit's underflow (``outputs['underflow_solids_frac']``, by mass)
+    is as dense as cyclones rope at (:data:`ROPING_UNDERFLOW_SOLIDS_VOL_PCT`), else ""."""
+    if "underflow_solids_frac" not in outputs:
+        return ""
+    from .effects.classification import solids_volume_pct
+
+    lo, hi = ROPING_UNDERFLOW_SOLIDS_VOL_PCT
+    mass = float(outputs["underflow_solids_frac"])
+    vol_pct = solids_volume_pct(mass, spec.solids_density_t_m3)
+    if not vol_pct >= lo:
+        return ""
+    return (f"the cyclone underflow is {vol_pct:.3g} % solids by volume ({100 * mass:.3g} % by "
+            f"mass), {'above' if vol_pct > hi else 'within'} the {lo:g}-{hi:g} % at which hydrocyclones rope "
+            "(Laguitton 1985; Plitt, Conil & Broussaud 1990; Concha et al. 1996): Plitt's equations do not describe "
+            "a roping cyclone, which sends coarse solids to the overflow; a larger apex (more water to the "
+            "underflow) keeps it below")
 
 
 def overflow_note(holdup_t: float, capacity_t: float) -> str | None:
@@ -30,7 +57,7 @@ def state_notes(spec, effect_names, speed_frac_critical: float, holdup_t: float,
     (and the state's other ``outputs``, for the circuit's water balance, and its product's mass
     per size class, for a P80 the grid does not resolve)."""
     notes = [overflow_note(holdup_t, spec.mill.max_holdup_t(spec.solids_density_t_m3)),
-             centrifuging_note(speed_frac_critical), water_note(outputs or {}),
+             centrifuging_note(speed_frac_critical), water_note(outputs or {}), roping_note(spec, outputs or {}),
              sink_note(spec.grid, product_mass) if product_mass is not None else ""]
     k_clay = _clay_crowding(spec, effect_names)
     if k_clay is not None and clay_frac is not None:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import pytest
 
 from twin import ModelError, Twin, TwinInputError, pxx_um
+from twin.effects.classification import solids_volume_pct
 
 FEED = 31.0
 #: A surveyed cyclone given directly (fixed cut), so the limits below are exact.
@@ -113,3 +114,16 @@ def test_a_mill_sized_in_one_circuit_says_so_when_run_in_another(tmp_path, monke
                 M.industrial_preset().with_(cyclone_circuit="sideways")
     finally:
         M.industrial_preset.cache_clear()
+
+
+def test_any_cyclone_circuit_notes_a_roping_underflow_not_only_a_sizing():
+    """The roping note (twin.validity.roping_note) was a sizing's alone: a scene or a Python twin
+    running the shipped preset's own cyclones, at 81.8 % solids by mass in the underflow, said
+    nothing. A surveyed cyclone with a dilute underflow is not noted."""
+    ss = circuit("direct").steady(feed_tph=FEED)
+    assert ss.outputs["underflow_solids_frac"] > 0.8
+    assert any("at which hydrocyclones rope" in n for n in ss.notes)
+    tw = circuit("direct", cyclone={**DIRECT, "water_bypass_frac": 0.6})
+    dilute = tw.steady(feed_tph=FEED)
+    assert solids_volume_pct(dilute.outputs["underflow_solids_frac"], tw.spec.solids_density_t_m3) < 50.0
+    assert not any("rope" in n for n in dilute.notes)

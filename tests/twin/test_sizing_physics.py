@@ -64,8 +64,11 @@ def test_a_design_whose_cyclone_underflow_would_rope_says_so():
     """The shipped preset's design (`size-mill --ore B --feed-tph 31 --target-p80-um 210`) sends its
     underflow at 81.8 % solids by mass, ~61 % by volume for ore B: past the 50-60 % at which cyclones
     rope, which Plitt's equations do not see; the design said nothing. A dilute underflow is not noted."""
-    from twin.sizing import ROPING_UNDERFLOW_SOLIDS_VOL_PCT, _roping_note, size_mill
+    from types import SimpleNamespace
+
+    from twin.sizing import size_mill
     from twin.twin import _as_blend
+    from twin.validity import ROPING_UNDERFLOW_SOLIDS_VOL_PCT, roping_note
 
     rho = _as_blend("B").density_t_m3
     sized = size_mill("B", 31.0, 210.0)
@@ -74,7 +77,7 @@ def test_a_design_whose_cyclone_underflow_would_rope_says_so():
     assert vol_pct > ROPING_UNDERFLOW_SOLIDS_VOL_PCT[1]
     assert any(n.startswith(f"the cyclone underflow is {vol_pct:.3g} % solids by volume") and "rope" in n
                for n in sized.notes)
-    assert _roping_note(sized.cyclone, 0.6, rho) is None  # 34 % by volume
+    assert roping_note(SimpleNamespace(solids_density_t_m3=rho), {"underflow_solids_frac": 0.6}) == ""  # 34 % by vol
 
 
 def test_sized_specific_energy_falls_with_mill_size_between_rowland_and_austins_mu():

@@ -169,8 +169,7 @@ class Hydrocyclone:
         """Solids % by volume of the cyclone feed."""
         if self.feed_solids_frac is None:
             return self.feed_solids_vol_pct
-        c, rho = self.feed_solids_frac, solids_density_t_m3
-        return 100.0 * (c / rho) / (c / rho + (1.0 - c) / WATER_DENSITY_T_M3)
+        return solids_volume_pct(self.feed_solids_frac, solids_density_t_m3)
 
     def plitt(self, slurry_flow_m3_h, solids_density_t_m3: float) -> dict:
         """Plitt's d50c [um], sharpness m, pressure [kPa], volumetric split S = Qu/Qo and water
@@ -413,6 +412,12 @@ def circuit_cyclone(spec) -> Hydrocyclone | None:
         return None
     given = options.get("cyclone")
     return hydrocyclone_from(dict(spec.mill.cyclone or {}) if given is None else given)
+
+
+def solids_volume_pct(solids_mass_frac, solids_density_t_m3: float):
+    """Solids % by volume of a slurry of solids mass fraction ``solids_mass_frac`` in water."""
+    c, rho = solids_mass_frac, solids_density_t_m3
+    return 100.0 * (c / rho) / (c / rho + (1.0 - c) / WATER_DENSITY_T_M3)
 
 
 def sized_circuit_notes(spec) -> list[str]:
