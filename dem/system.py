@@ -38,6 +38,11 @@ HIST_NBINS = 44
 #: dem_parallel_drum.md)
 PARALLEL_MIN_SPHERES = 500
 
+#: how far from 1 the length of a wall's normal may be (a normal typed to six digits, 0.707107,
+#: passes and is scaled to unit length): a normal of another length, (1, 1, 0) for
+#: (0.7071, 0.7071, 0) or a typo, is refused rather than scaled into another wall than written
+WALL_NORMAL_TOL = 1e-6
+
 #: ``contact_law`` choices of :class:`System`: Hertz–Mindlin with restitution damping
 #: (default) or Yade's linear spring (``Law2_ScGeom_FrictPhys_CundallStrack``; the material's
 #: ``poisson_ratio`` is then Yade's ks/kn ratio; see :data:`dem.contacts.CONTACT_LAW_LINEAR_YADE`)
@@ -47,7 +52,8 @@ CONTACT_LAWS = {"hertz_mindlin": float(CONTACT_LAW_HERTZ_MINDLIN),
 
 @dataclass
 class PlaneWall:
-    """An infinite plane: a point on it, the unit normal pointing into the domain, its velocity.
+    """An infinite plane: a point on it, the unit normal pointing into the domain (length 1 within
+    :data:`WALL_NORMAL_TOL`), its velocity. Every sphere centre must start on the normal's side.
 
     ``mass_kg > 0`` makes it a free body moving along its normal (a drop weight).
     """
@@ -103,7 +109,7 @@ class System:
         _check_options(local_damping, time_step_factor, contact_law, damping_velocity)
         periodic_z_m, gravity_m_s2 = _check_setup(rad, material, wall_material, density_kg_m3, bonds,
                                                   walls, drum, gravity_m_s2, periodic_z_m, skin_fraction)
-        _check_placement(pos, rad, bonds, drum, periodic_z_m)
+        _check_placement(pos, rad, bonds, walls or [], drum, periodic_z_m)
         n = pos.shape[0]
         self.n = n
         self.contact_law = contact_law
@@ -159,15 +165,29 @@ class System:
         self.critical_dt_s = min(dt_r, dt_b)
         self.rayleigh_dt_s = dt_r
         self.bond_dt_s = dt_b
-        if dt_s is None:
-            self.dt_s = time_step_factor * self.critical_dt_s
-            return
-        dt_s = float(dt_s)
-        if not (0.0 < dt_s <= self.critical_dt_s):
+        self.dt_s = time_step_factor * self.critical_dt_s if dt_s is None else dt_s
+
+    @property
+    def dt_s(self) -> float:
+        """The time step (s), in (0, ``critical_dt_s``]; assigning it is checked as the
+        constructor's ``dt_s`` is (past the critical step a run may blow up or, before it does,
+        break bonds and miss forces without a word: benchmarks/results/dem_time_step.md).
+        Stability studies go past it with :meth:`set_dt_beyond_critical`."""
+        return self._dt_s
+
+    @dt_s.setter
+    def dt_s(self, value: float) -> None:
+        dt = _finite("System", "dt_s", value, 0.0, lo_open=True)
+        if dt > self.critical_dt_s:
             raise DemInputError(
-                f"The 'dt_s' parameter of System must be a float in (0, {self.critical_dt_s:.4g}] "
-                f"(the critical time step). Got {dt_s!r}.")
-        self.dt_s = dt_s
+                f"The 'dt_s' parameter of System must be a float in (0, {self.critical_dt_s:.4g}] (the critical "
+                f"time step; set_dt_beyond_critical for stability studies). Got {value!r}.")
+        self._dt_s = dt
+
+    def set_dt_beyond_critical(self, dt_s: float) -> None:
+        """Set a time step (s, finite and > 0) past ``critical_dt_s`` on purpose: for studies of
+        where the integration becomes unstable only; the results of such a run are not trusted."""
+        self._dt_s = _finite("System.set_dt_beyond_critical", "dt_s", dt_s, 0.0, lo_open=True)
 
     # ------------------------------------------------------------------
     @property
@@ -402,10 +422,11 @@ def _check_setup(rad, material, wall_material, density_kg_m3, bonds, walls, drum
             raise DemInputError(f"The 'walls' parameter of System must be a list of PlaneWall. Got {w!r} at {k}.")
         _vector3(o, f"walls[{k}].point_m", w.point_m)
         _vector3(o, f"walls[{k}].velocity_m_s", w.velocity_m_s)
-        if not np.linalg.norm(_vector3(o, f"walls[{k}].normal", w.normal)) > 0.0:
+        norm = float(np.linalg.norm(_vector3(o, f"walls[{k}].normal", w.normal)))
+        if not abs(norm - 1.0) <= WALL_NORMAL_TOL:
             raise DemInputError(
-                f"The 'walls[{k}].normal' parameter of System must be a non-zero vector (it is scaled to "
-                f"unit length). Got {w.normal!r}.")
+                f"The 'walls[{k}].normal' parameter of System must be a unit vector (length 1 within "
+                f"{WALL_NORMAL_TOL:g}; divide it by its length {norm:.6g} if that wall is meant). Got {w.normal!r}.")
         _finite(o, f"walls[{k}].mass_kg", w.mass_kg, 0.0)
     if drum is not None:
         if not isinstance(drum, DrumGeometry):
@@ -420,10 +441,21 @@ def _check_setup(rad, material, wall_material, density_kg_m3, bonds, walls, drum
     return lz, g
 
 
-def _check_placement(pos, rad, bonds, drum, lz) -> None:
-    """Spheres inside the drum; bonds at the length they were made (a BondSet of other positions
-    would start pre-stressed, and a bond across the periodic boundary would take the image's
-    distance)."""
+def _check_placement(pos, rad, bonds, walls, drum, lz) -> None:
+    """Spheres in front of every wall and inside the drum; bonds at the length they were made (a
+    BondSet of other positions would start pre-stressed, and a bond across the periodic boundary
+    would take the image's distance). A centre behind a wall (a normal of the wrong sign) has an
+    overlap of its radius plus its depth: a Hertz force far outside the law's range."""
+    for k, w in enumerate(walls):
+        n = np.asarray(w.normal, dtype=np.float64)
+        h = (pos - np.asarray(w.point_m, dtype=np.float64)) @ (n / np.linalg.norm(n))
+        behind = np.nonzero(h <= 0.0)[0]
+        if behind.size:
+            i = int(behind[0])
+            raise DemInputError(
+                f"The 'walls[{k}]' parameter of System must have every sphere centre on the side its normal "
+                f"{tuple(w.normal)} points to. Got sphere {i} at {pos[i].tolist()}, {-h[i]:.4g} m behind the "
+                f"plane ({behind.size} behind; is the normal's sign right?).")
     if drum is not None:
         out = np.nonzero(np.hypot(pos[:, 0], pos[:, 1]) >= drum.radius_m)[0]
         if out.size:
