@@ -32,6 +32,7 @@ import numba as nb
 import numpy as np
 
 from dem.errors import DemInputError
+from dem.materials import MAX_YOUNGS_MODULUS_PA, MIN_YOUNGS_MODULUS_PA
 from dem.state import (LOAD_F, LOAD_TI, LOAD_TJ, N_FORCE, N_LOAD, BondArrays, csr_of_rows, rotate_into_plane,
                        write_pair_load)
 
@@ -57,6 +58,12 @@ MIN_TABLE_ROWS = 2
 #: bond conventions of :class:`BondParams`
 CONVENTIONS = ("parallel", "yade_jcfpm")
 
+#: Smallest bond tensile strength and cohesion (Pa), some ten times below the tensile strength of
+#: the weakest rock: ISRM (1981) grade R0 "extremely weak", UCS from 0.25 MPa, tensile strength
+#: sigma_ci / m_i with m_i up to ~33 (Hoek & Brown, IJRMMS 34 (1997) 1165); calibrated parallel-bond
+#: strengths lie above the rock's own (Potyondy & Cundall 2004, §3). 10 meant as 10 MPa is refused.
+MIN_BOND_STRENGTH_PA = 1e3
+
 
 @dataclass(frozen=True)
 class BondParams:
@@ -69,8 +76,9 @@ class BondParams:
         *central* bond: a normal spring ``k_n A`` along the line of centres only, breaking in
         tension (the spring bonds of LAMMPS' BPM package, Clemmer & Robbins 2022, in tension),
         on a faster kernel path with no shear spring and no torques.
-    tensile_strength_Pa : bond tensile strength.
-    cohesion_Pa : bond shear strength at zero normal stress.
+    tensile_strength_Pa : bond tensile strength (Pa), at least :data:`MIN_BOND_STRENGTH_PA`.
+    cohesion_Pa : bond shear strength at zero normal stress (Pa), at least
+        :data:`MIN_BOND_STRENGTH_PA`.
     friction_angle_deg : Mohr–Coulomb friction angle of the bond shear strength (0 = constant).
     radius_multiplier : lambda, bond radius / smaller sphere radius.
     moment_factor : beta in [0, 1], weight of bending/twist moments (0 = forces only).
@@ -84,7 +92,11 @@ class BondParams:
         strength ``c A + F_n tan(phi_b)`` with the *signed* normal force (compression positive:
         tension lowers it, as in Yade); ``moment_factor`` must be 0 (JCFpm has no bond moments).
         Build it with :meth:`BondParams.yade_jcfpm`.
-    youngs_modulus_Pa : E of the ``"yade_jcfpm"`` convention (unused by ``"parallel"``).
+    youngs_modulus_Pa : E of the ``"yade_jcfpm"`` convention (unused by ``"parallel"``), in
+        [:data:`dem.materials.MIN_YOUNGS_MODULUS_PA`, :data:`dem.materials.MAX_YOUNGS_MODULUS_PA`].
+
+    A ``"parallel"`` ``kn_Pa_m`` is checked where the radii are known (:class:`BondSet`): the bond
+    modulus it means, ``k_n (R_i + R_j)`` (Potyondy & Cundall 2004, eq. 9), must lie in that band.
     """
 
     kn_Pa_m: float = 30e9 / 2.2e-3
@@ -108,10 +120,10 @@ class BondParams:
                 f"The 'convention' parameter of BondParams must be one of {CONVENTIONS}. Got {self.convention!r}.")
         if self.convention == "yade_jcfpm":
             e = float(self.youngs_modulus_Pa)
-            if not math.isfinite(e) or e <= 0.0:
+            if not MIN_YOUNGS_MODULUS_PA <= e <= MAX_YOUNGS_MODULUS_PA:
                 raise DemInputError(
-                    "The 'youngs_modulus_Pa' parameter of BondParams must be a finite float > 0 "
-                    f"with convention 'yade_jcfpm'. Got {e!r}.")
+                    f"The 'youngs_modulus_Pa' parameter of BondParams must be a float in [{MIN_YOUNGS_MODULUS_PA:g}, "
+                    f"{MAX_YOUNGS_MODULUS_PA:g}] Pa with convention 'yade_jcfpm' (30e9 for 30 GPa). Got {e!r}.")
             if float(self.moment_factor) != 0.0 or float(self.radius_multiplier) != 1.0:
                 raise DemInputError(
                     "BondParams with convention 'yade_jcfpm' needs moment_factor 0 and "
@@ -126,6 +138,12 @@ class BondParams:
                     f"The '{name}' parameter of BondParams must be a finite float > 0"
                     + (" (or 0 for a central bond, convention 'parallel')" if name == "ks_Pa_m" else "")
                     + f". Got {v!r}.")
+        for name in ("tensile_strength_Pa", "cohesion_Pa"):
+            v = float(getattr(self, name))
+            if v < MIN_BOND_STRENGTH_PA:
+                raise DemInputError(
+                    f"The '{name}' parameter of BondParams must be a float >= {MIN_BOND_STRENGTH_PA:g} Pa "
+                    f"(below any rock's; 10e6 for 10 MPa). Got {v!r}.")
         phi = float(self.friction_angle_deg)
         if not (0.0 <= phi < 90.0):
             raise DemInputError(
@@ -247,6 +265,7 @@ class BondSet:
         pos_m, radius_m = _spheres("BondSet", pos_m, radius_m)
         n = pos_m.shape[0]
         pairs = _bond_pairs(pairs, n)
+        _check_bond_modulus(pairs, radius_m, params)
         nbnd = pairs.shape[0]
         self.n_spheres = n
         self.params = params
@@ -335,6 +354,20 @@ class BondSet:
                                                  self.mt, self.beta)
                 out[b] = max(s / smax, t / tmax)
         return out
+
+
+def _check_bond_modulus(pairs, radius_m, params: BondParams) -> None:
+    """A "parallel" ``kn_Pa_m`` means the bond modulus ``k_n (R_i + R_j)`` (Potyondy & Cundall 2004,
+    eq. 9): it must be a solid's (the band of :mod:`dem.materials`); a k_n in GPa/m or per mm is not."""
+    if params.convention != "parallel" or pairs.shape[0] == 0:
+        return
+    r_sum = radius_m[pairs[:, 0]] + radius_m[pairs[:, 1]]
+    lo, hi = params.kn_Pa_m * float(r_sum.min()), params.kn_Pa_m * float(r_sum.max())
+    if lo < MIN_YOUNGS_MODULUS_PA or hi > MAX_YOUNGS_MODULUS_PA:
+        raise DemInputError(
+            f"The 'kn_Pa_m' parameter of BondSet's params must give these spheres a bond modulus k_n (R_i + R_j) in "
+            f"[{MIN_YOUNGS_MODULUS_PA:g}, {MAX_YOUNGS_MODULUS_PA:g}] Pa (kn_from_modulus_Pa_m makes it from one). "
+            f"Got {params.kn_Pa_m!r} Pa/m: moduli {lo:.3g} to {hi:.3g} Pa.")
 
 
 def _property_table(pairs, pos_m, radius_m, params: BondParams) -> np.ndarray:

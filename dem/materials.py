@@ -42,6 +42,14 @@ HERTZ_DURATION_COEF = 2.8683
 #: Smallest Young's modulus a :class:`Material` takes (Pa): softer than any solid a mill grinds
 #: or is lined with; a modulus given in GPa or MPa (30 for 30 GPa) falls below it.
 MIN_YOUNGS_MODULUS_PA = 1e4
+#: Largest Young's modulus a bond takes (Pa, :mod:`dem.bonds`): diamond's, some 1.1 TPa (Klein &
+#: Cardinale, Diamond Relat. Mater. 2 (1993) 918), the stiffest bulk solid; a modulus in kPa or
+#: a stiffness per mm lies above it.
+MAX_YOUNGS_MODULUS_PA = 1.2e12
+#: Smallest restitution a :class:`Material` takes: :func:`damping_coefficient` finds eta on
+#: [0, 5], where e(eta) falls to e(5) = 0.028 (:func:`_restitution_of_eta`); 0.05 keeps a margin.
+#: Below it the damping is not solved; a near-plastic contact is outside this model.
+MIN_RESTITUTION = 0.05
 #: Smallest density a :class:`Material` (or :class:`dem.system.System`) takes (kg/m3): a
 #: density given in g/cm3 or t/m3 (2.7 for 2700 kg/m3) falls below it.
 MIN_DENSITY_KG_M3 = 100.0
@@ -83,6 +91,16 @@ def check_density(owner: str, name: str, value: float) -> float:
     return _check_positive(owner, name, value, MIN_DENSITY_KG_M3, " kg/m3 (2700 for 2.7 g/cm3)")
 
 
+def check_restitution(owner: str, value: float) -> float:
+    """A restitution in (0, 1] that the damping is solved for: at least :data:`MIN_RESTITUTION`."""
+    e = _check_range(owner, "restitution", value, 0.0, 1.0, lo_open=True)
+    if e < MIN_RESTITUTION:
+        raise DemInputError(
+            f"The 'restitution' parameter of {owner} must be a float in [{MIN_RESTITUTION}, 1] (the damping "
+            f"of a Hertz contact is solved for no lower one). Got {e!r}.")
+    return e
+
+
 @dataclass(frozen=True)
 class Material:
     """Elastic and frictional properties of a sphere (or wall) material, SI units.
@@ -94,8 +112,8 @@ class Material:
     poisson_ratio : nu in [0, 0.5).
     density_kg_m3 : density of the sphere material, kg/m3, at least :data:`MIN_DENSITY_KG_M3`.
     friction_coef : Coulomb friction coefficient mu of contacts (tan of the friction angle).
-    restitution : normal coefficient of restitution e in (0, 1] (1 = no damping); a
-        :class:`dem.system.System` takes at least 0.05 (see :func:`damping_coefficient`).
+    restitution : normal coefficient of restitution e in [:data:`MIN_RESTITUTION`, 1] (1 = no
+        damping; see :func:`damping_coefficient`).
     """
 
     youngs_modulus_Pa: float = 30e9
@@ -110,7 +128,7 @@ class Material:
         _check_range("Material", "poisson_ratio", self.poisson_ratio, 0.0, 0.5, hi_open=True)
         check_density("Material", "density_kg_m3", self.density_kg_m3)
         _check_range("Material", "friction_coef", self.friction_coef, 0.0, 10.0)
-        _check_range("Material", "restitution", self.restitution, 0.0, 1.0, lo_open=True)
+        check_restitution("Material", self.restitution)
 
     @property
     def shear_modulus_Pa(self) -> float:
@@ -172,13 +190,9 @@ def damping_coefficient(restitution: float) -> float:
     """
     from scipy.optimize import brentq
 
-    e = _check_range("damping_coefficient", "restitution", restitution, 0.0, 1.0, lo_open=True)
+    e = check_restitution("damping_coefficient", restitution)
     if e >= 1.0:
         return 0.0
-    if e < 0.05:
-        raise DemInputError(
-            f"The 'restitution' parameter of damping_coefficient must be a float in [0.05, 1]. Got {e!r}."
-        )
     return float(brentq(lambda eta: _restitution_of_eta(eta) - e, 0.0, 5.0, xtol=1e-10))
 
 

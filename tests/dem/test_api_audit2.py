@@ -43,6 +43,16 @@ def test_a_stability_study_sets_a_step_past_critical_on_purpose():
         s.set_dt_beyond_critical(math.inf)
 
 
+# ---------------------------------------------------------------- restitution
+def test_a_restitution_the_damping_cannot_give_is_refused_where_the_material_is_made():
+    """Material(restitution=0.01) was made; the refusal came only when a System was built from it."""
+    with pytest.raises(DemInputError, match=r"'restitution' parameter of Material.*\[0.05, 1"):
+        Material(restitution=0.01)
+    with pytest.raises(DemInputError, match=r"'restitution' parameter of damping_coefficient.*\[0.05, 1"):
+        damping_coefficient(0.01)
+    assert Material(restitution=0.05).restitution == 0.05
+
+
 # ---------------------------------------------------------------- walls
 @pytest.mark.parametrize("normal", [(0.0, 0.0, 2.0), (1.0, 1.0, 0.0), (0.0, 0.1, 1.0)])
 def test_a_wall_normal_that_is_not_unit_is_refused_not_scaled(normal):
@@ -62,5 +72,29 @@ def test_a_sphere_centre_behind_a_wall_is_refused():
     twice their radius: a force of some 100 kN on each 1-mm sphere, which left at 3 km/s, silently."""
     with pytest.raises(DemInputError, match=r"'walls\[0\]'.*sphere 0 .*behind the plane.*normal's sign"):
         System(TWO, [R, R], Material(), walls=[PlaneWall((0, 0, -R), (0, 0, -1))])
+
+
+# ---------------------------------------------------------------- bonds
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(tensile_strength_Pa=24.5), r"'tensile_strength_Pa'.*>= 1000 Pa.*10e6 for 10 MPa\)\. Got 24.5"),
+    (dict(cohesion_Pa=49.0), r"'cohesion_Pa'.*>= 1000 Pa"),
+    (dict(tensile_strength_Pa=24.5e6, cohesion_Pa=0.5), "'cohesion_Pa'"),
+])
+def test_bond_strengths_in_mpa_are_refused(kwargs, match):
+    """The calibration file keeps MPa: 24.5 (MPa) given as Pa made bonds a million times too weak."""
+    with pytest.raises(DemInputError, match=match):
+        BondParams(**kwargs)
+
+
+def test_a_bond_stiffness_that_means_no_solid_is_refused():
+    """k_n 22683 (the calibration file's GPa/m) gave these 1-mm spheres a bond modulus of 45 Pa; 1e18
+    (Pa/mm) one of 2e15 Pa, a thousand times diamond's. Both ran."""
+    for kn in (22683.0, 1e18):
+        with pytest.raises(DemInputError, match=r"'kn_Pa_m'.*bond modulus k_n \(R_i \+ R_j\) in \[10000, 1.2e\+12\]"):
+            BondSet([[0, 1]], THREE, np.full(3, R), BondParams(kn_Pa_m=kn, ks_Pa_m=0.4 * kn))
+    kn = kn_from_modulus_Pa_m(30e9, R)
+    assert BondSet([[0, 1]], THREE, np.full(3, R), BondParams(kn_Pa_m=kn, ks_Pa_m=0.4 * kn)).n_bonds == 1
+    with pytest.raises(DemInputError, match=r"'youngs_modulus_Pa'.*30e9 for 30 GPa"):
+        BondParams.yade_jcfpm(30.0, 0.4, 10e6, 20e6, 30.0)
 
 
