@@ -44,6 +44,13 @@ from dem.system import HIST_DLOG10, HIST_LO_LOG10, HIST_NBINS, DrumGeometry, Sys
 #: standard gravity (scipy.constants.g, 9.80665 m/s^2: the one value of g in the project)
 G_M_S2 = scipy.constants.g
 BED_POROSITY = 0.4
+#: most time steps :func:`drum_test` starts (``max_steps``): a budget, not physics, hours of one
+#: core for the lab drum's charge. The runs the project makes (the calibration's 2 revolutions, the
+#: drum benchmark's 4, at 0.5-0.9 of critical) take some hundred times fewer; a speed fraction typed
+#: 100x too small (0.007 for 0.7) takes 100x the steps per revolution. Raise it to mean it.
+DRUM_MAX_STEPS = 10**7
+#: highest speed fraction of critical a drum takes (twice critical: well into centrifuging)
+SPEED_MAX = 2.0
 
 #: default ball material: steel with a reduced Young's modulus (see the module docstring)
 SOFT_STEEL_BALL = Material(youngs_modulus_Pa=1e9, poisson_ratio=0.3, density_kg_m3=7800.0,
@@ -92,9 +99,10 @@ class DrumResult:
     spectrum: pd.DataFrame = field(repr=False)
 
     def summary(self) -> dict:
+        per_rev = self.power_per_rev_W
         return {"speed_frac_critical": self.speed_frac_critical, "ball_filling": self.ball_filling,
                 "power_W": self.power_W,
-                "power_rev_std_W": float(np.std(self.power_per_rev_W, ddof=1)) if self.power_per_rev_W.size > 1 else float("nan"),
+                "power_rev_std_W": float(np.std(per_rev, ddof=1)) if per_rev.size > 1 else float("nan"),
                 "torque_Nm": self.torque_Nm, "collisions_per_s": self.collisions_per_s,
                 "n_balls": self.n_balls, "length_scale": self.length_scale, "dt_s": self.dt_s,
                 "n_steps": self.n_steps, "wall_time_s": self.wall_time_s}
@@ -146,7 +154,7 @@ def drum_system(speed_frac_critical: float = 0.7, ball_filling: float = 0.35, *,
     """The ball charge of :func:`drum_test` at rest, checked and placed (seeded), as a
     :class:`DrumSetup`. Exposed so studies of the run (e.g. the accuracy benchmark's
     snapshots) start from exactly the same set-up."""
-    checks = [("speed_frac_critical", speed_frac_critical, 0.0, 2.0),
+    checks = [("speed_frac_critical", speed_frac_critical, 0.0, SPEED_MAX),
               ("ball_filling", ball_filling, 0.0, 0.6), ("mill_diameter_m", mill_diameter_m, 0.0, 20.0),
               ("mill_length_m", mill_length_m, 0.0, 50.0), ("ball_diameter_m", ball_diameter_m, 0.0, 0.2),
               ("lifter_height_m", lifter_height_m, -1e-12, 0.25 * mill_diameter_m),
@@ -186,10 +194,14 @@ def drum_system(speed_frac_critical: float = 0.7, ball_filling: float = 0.35, *,
 
 def drum_test(speed_frac_critical: float = 0.7, ball_filling: float = 0.35, *,
               settle_revolutions: float = 1.0, measure_revolutions: float = 2.0,
-              **setup) -> DrumResult:
+              max_steps: int = DRUM_MAX_STEPS, **setup) -> DrumResult:
     """Simulate the ball charge of a drum mill; see the module docstring. ``setup``: the
     keywords of :func:`drum_system` (mill and ball sizes, slice length, lifters, materials,
-    time-step factor, seed) with its defaults."""
+    time-step factor, seed) with its defaults. A run of more than ``max_steps`` time steps is
+    refused before its first step (see :data:`DRUM_MAX_STEPS`)."""
+    if not (isinstance(max_steps, (int, np.integer)) and not isinstance(max_steps, bool) and max_steps >= 1):
+        raise DemInputError(
+            f"The 'max_steps' parameter of drum_test must be an int >= 1. Got {max_steps!r}.")
     for name, val, lo, hi in (("settle_revolutions", settle_revolutions, -1e-12, 100.0),
                               ("measure_revolutions", measure_revolutions, 0.0, 1000.0)):
         if not (math.isfinite(float(val)) and lo < float(val) <= hi):
@@ -199,6 +211,15 @@ def drum_test(speed_frac_critical: float = 0.7, ball_filling: float = 0.35, *,
     st = drum_system(speed_frac_critical, ball_filling, owner="drum_test", **setup)
     sys_, omega, steps_rev, scale = st.system, st.omega_rad_s, st.steps_per_rev, st.length_scale
     n_settle = int(round(settle_revolutions * steps_rev))
+    n_meas = max(1, int(round(measure_revolutions * steps_rev)))
+    if n_settle + n_meas > max_steps:
+        slowest = speed_frac_critical * (n_settle + n_meas) / max_steps
+        raise DemInputError(
+            f"drum_test would run {n_settle + n_meas:.3g} time steps of {sys_.dt_s:.3g} s ({settle_revolutions!r} + "
+            f"{measure_revolutions!r} revolutions at speed_frac_critical {speed_frac_critical!r}), more than "
+            f"max_steps = {max_steps:.3g}. Allowed: "
+            + (f"speed_frac_critical at least {slowest:.3g} at these revolutions, " if slowest <= SPEED_MAX else "")
+            + "fewer revolutions, or a larger max_steps to mean it.")
     chunk = max(1, steps_rev // 8)
     done = 0
     while done < n_settle:
@@ -208,7 +229,6 @@ def drum_test(speed_frac_critical: float = 0.7, ball_filling: float = 0.35, *,
     sys_.hist_pp[:] = 0.0
     sys_.hist_pw[:] = 0.0
     start = len(sys_.records.torque_Nm)
-    n_meas = max(1, int(round(measure_revolutions * steps_rev)))
     done = 0
     while done < n_meas:
         k = min(chunk, n_meas - done)

@@ -53,6 +53,23 @@ def test_a_restitution_the_damping_cannot_give_is_refused_where_the_material_is_
     assert Material(restitution=0.05).restitution == 0.05
 
 
+# ---------------------------------------------------------------- drum
+def test_a_drum_run_of_more_steps_than_its_budget_is_refused_before_a_step(monkeypatch):
+    """A speed fraction of 0.007 (0.7 typed 100x too small) started 11 million steps (hours) without
+    a word; 1e-300 some 1e304."""
+    def no_step(*a, **k):
+        raise AssertionError("a step ran before the work was bounded")
+    monkeypatch.setattr(drum_module.System, "run", no_step)
+    for speed in (0.007, 1e-300):
+        with pytest.raises(DemInputError, match=r"run .* steps .*speed_frac_critical .*max_steps = 1e\+07.*least 0.00"):
+            drum_test(speed, 0.35)
+    with pytest.raises(DemInputError, match=r"max_steps = 1e\+03. Allowed: fewer revolutions"):
+        drum_test(0.7, 0.35, max_steps=1000)
+    for bad in (0, 2.5, True):
+        with pytest.raises(DemInputError, match="'max_steps' parameter of drum_test"):
+            drum_test(0.7, 0.35, max_steps=bad)
+
+
 # ---------------------------------------------------------------- walls
 @pytest.mark.parametrize("normal", [(0.0, 0.0, 2.0), (1.0, 1.0, 0.0), (0.0, 0.1, 1.0)])
 def test_a_wall_normal_that_is_not_unit_is_refused_not_scaled(normal):
