@@ -115,3 +115,13 @@ def test_a_bond_stiffness_that_means_no_solid_is_refused():
         BondParams.yade_jcfpm(30.0, 0.4, 10e6, 20e6, 30.0)
 
 
+# ---------------------------------------------------------------- packings
+def test_a_packing_reports_the_overlap_it_returns():
+    """max_overlap_rel was the largest overlap seen before the last relaxation pass moved the spheres
+    (and a boundary estimate): 0.217 for a packing whose spheres overlap by 0.220 of the mean radius."""
+    agg = make_agglomerate(0.022, 30, random_state=2)
+    p, r = agg.pos_m, agg.radius_m
+    i, j = np.triu_indices(agg.n_spheres, 1)
+    measured = np.max(r[i] + r[j] - np.linalg.norm(p[j] - p[i], axis=1)) / np.mean(r)
+    assert measured > 0.1                    # few spheres at the target fraction: it does not relax
+    assert agg.max_overlap_rel == pytest.approx(measured, rel=1e-12)
