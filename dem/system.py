@@ -463,6 +463,7 @@ def _check_placement(pos, rad, bonds, walls, drum, lz) -> None:
                 f"The 'pos_m' parameter of System must put every sphere centre inside the drum (radius "
                 f"{drum.radius_m!r} m about the z axis). Got sphere {int(out[0])} at {pos[out[0]].tolist()} "
                 f"({out.size} outside).")
+        _check_lifters(pos, drum)
     if bonds is not None and bonds.n_bonds:
         d = pos[bonds.ij[:, 1]] - pos[bonds.ij[:, 0]]
         if lz > 0:
@@ -477,6 +478,22 @@ def _check_placement(pos, rad, bonds, walls, drum, lz) -> None:
                 f"(spheres {bonds.ij[b].tolist()}) was made {bonds.props[b, P_LENGTH0]:.6g} m long, its spheres "
                 f"are {length[b]:.6g} m apart here ({bad.size} bonds differ; a bond across the periodic "
                 "boundary is not supported).")
+
+
+def _check_lifters(pos, drum: DrumGeometry) -> None:
+    """No sphere centre inside a lifter bar at the start (drum angle 0): the bar is the capsule
+    of :func:`dem.contacts.drum_walls`, a radial segment from the shell inwards of height
+    ``lifter_height_m``, widened by half ``lifter_width_m``."""
+    r_d, h, hw = float(drum.radius_m), float(drum.lifter_height_m), 0.5 * float(drum.lifter_width_m)
+    for k in range(drum.n_lifters):
+        a = k * (2.0 * math.pi / drum.n_lifters)    # the lifter angles System gives the kernels
+        u = np.array([math.cos(a), math.sin(a)])
+        s = np.clip(r_d - pos[:, :2] @ u, 0.0, h)
+        inside = np.nonzero(np.linalg.norm(pos[:, :2] - (r_d - s)[:, None] * u, axis=1) < hw)[0]
+        if inside.size:
+            raise DemInputError(
+                f"The 'pos_m' parameter of System must put no sphere centre inside a lifter bar of the drum. Got "
+                f"sphere {int(inside[0])} at {pos[inside[0]].tolist()} inside lifter {k} ({inside.size} inside).")
 
 
 def _check_pair_distances(pos, rad, pi, pj, lz) -> None:

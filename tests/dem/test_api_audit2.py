@@ -12,7 +12,7 @@ from dem.bonds import BondParams, BondSet, kn_from_modulus_Pa_m
 from dem.drum import drum_test
 from dem.errors import DemInputError
 from dem.materials import Material, damping_coefficient
-from dem.system import PlaneWall, System
+from dem.system import DrumGeometry, PlaneWall, System
 
 R = 1e-3
 TWO = [[0.0, 0.0, 0.0], [2.1 * R, 0.0, 0.0]]
@@ -89,6 +89,15 @@ def test_a_sphere_centre_behind_a_wall_is_refused():
     twice their radius: a force of some 100 kN on each 1-mm sphere, which left at 3 km/s, silently."""
     with pytest.raises(DemInputError, match=r"'walls\[0\]'.*sphere 0 .*behind the plane.*normal's sign"):
         System(TWO, [R, R], Material(), walls=[PlaneWall((0, 0, -R), (0, 0, -1))])
+
+
+def test_a_sphere_centre_inside_a_lifter_bar_is_refused():
+    """A sphere placed 5 mm inside a lifter bar (its centre 1 mm off the bar's axis) was pushed with
+    some 400 kN and left at 2 km/s, silently; the drum shell itself was checked."""
+    drum = DrumGeometry(0.1, 1.0, n_lifters=4, lifter_height_m=0.02, lifter_width_m=0.01)
+    with pytest.raises(DemInputError, match=r"'pos_m'.*inside a lifter bar.*sphere 1 .*lifter 0"):
+        System([[0.0, 0.0, 0.0], [0.085, 0.001, 0.0]], [R, R], Material(), drum=drum)
+    System([[0.0, 0.0, 0.0], [0.085, 0.01, 0.0]], [R, R], Material(), drum=drum)   # beside it: taken
 
 
 # ---------------------------------------------------------------- bonds
