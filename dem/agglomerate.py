@@ -132,6 +132,10 @@ def morton_order(pos_m: np.ndarray, cell_m: float) -> np.ndarray:
     return np.argsort(key, kind="stable")
 
 
+#: Largest particle diameter (m): breakage tests take tens of mm (the JK drop-weight test
+#: 13-63 mm, Napier-Munn et al. 1996, "Mineral Comminution Circuits", ch. 4) and mill feeds a
+#: few hundred mm; a diameter in mm (22 for 22 mm) lies above it.
+MAX_DIAMETER_M = 1.0
 #: Radii of the packing grow from START_SCALE to full size by SCALE_STEP every RELAX_PASSES
 #: passes (see :func:`make_agglomerate`)
 START_SCALE = 0.6
@@ -152,9 +156,10 @@ def _validate(diameter_m, n_spheres, radius_spread, target_solid_fraction, aspec
             and random_state >= 0):
         raise DemInputError(
             f"The 'random_state' parameter of make_agglomerate must be an int >= 0. Got {random_state!r}.")
-    if not (math.isfinite(diameter_m) and diameter_m > 0):
+    if not (math.isfinite(diameter_m) and 0 < diameter_m <= MAX_DIAMETER_M):
         raise DemInputError(
-            f"The 'diameter_m' parameter of make_agglomerate must be a float > 0. Got {diameter_m!r}.")
+            f"The 'diameter_m' parameter of make_agglomerate must be a float in (0, {MAX_DIAMETER_M:g}] m "
+            f"(0.022 for 22 mm). Got {diameter_m!r}.")
     if not (isinstance(n_spheres, (int, np.integer)) and 2 <= n_spheres <= 200_000):
         raise DemInputError(
             f"The 'n_spheres' parameter of make_agglomerate must be an int in [2, 200000]. Got {n_spheres!r}.")

@@ -134,3 +134,9 @@ def test_a_packing_reports_the_overlap_it_returns():
     measured = np.max(r[i] + r[j] - np.linalg.norm(p[j] - p[i], axis=1)) / np.mean(r)
     assert measured > 0.1                    # few spheres at the target fraction: it does not relax
     assert agg.max_overlap_rel == pytest.approx(measured, rel=1e-12)
+
+
+def test_a_particle_diameter_in_mm_is_refused():
+    """make_agglomerate(22, ...) packed a 22-m particle, and the lab tests broke it, silently."""
+    with pytest.raises(DemInputError, match=r"'diameter_m'.*\(0, 1\] m \(0.022 for 22 mm\). Got 22"):
+        make_agglomerate(22, 30)
