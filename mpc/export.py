@@ -55,8 +55,7 @@ from mpc.condense import stage_functions
 from mpc.errors import MpcInputError, OutsideModelsWarning
 from mpc.estimator import MEASUREMENTS
 from mpc.nmpc import BLEND_SUM_TOL, PASSING_TARGET, speed_max_note
-from twin import file_sha256, new_folder_beside
-from twin.atomic import LockError, acquire_lock, release_lock, replace_folder
+from twin import LockError, acquire_lock, file_sha256, new_folder_beside, release_lock, replace_folder
 
 MANIFEST = "grindtwin_export.json"
 #: The C API's version (gt_controller.h), in GT_ABI_HASH: 2 added gt_controller_check_abi.

@@ -8,7 +8,7 @@ from ._lazy import lazy_face
 #: Public name -> the module that defines it, imported on first use (PEP 562).
 _API = {
     "BreakageParams": ".breakage", "OreBreakage": ".breakage", "austin_selection": ".breakage",
-    "ore_breakage": ".breakage", "SPEED_FACTOR_ZERO_FRAC_CRITICAL": ".breakage",
+    "ore_breakage": ".breakage", "SPEED_FACTOR_ZERO_FRAC_CRITICAL": ".mill",
     "EFFECTS": ".effects", "Effect": ".effects", "known_effects": ".effects",
     "FastCalibrationWarning": ".errors", "ModelError": ".errors", "SolverError": ".errors", "TwinError": ".errors",
     "TwinInputError": ".errors",
@@ -29,6 +29,9 @@ _API = {
     "DEFAULT_EFFECTS": ".twin", "MIXER_SHARES_SUM_TOL": ".twin", "mixer_shares_sum_ok": ".twin",
     "Twin": ".twin",
     "file_sha256": ".atomic", "is_grindtwin_checkout": ".atomic", "new_folder_beside": ".atomic", "write_text_atomically": ".atomic",
+    "LockError": ".atomic", "acquire_lock": ".atomic", "release_lock": ".atomic", "remove_by_name": ".atomic",
+    "replace_folder": ".atomic", "temporaries_of": ".atomic", "write_atomically": ".atomic",
+    "check_size_mill_input": ".sizing",
     "trajectory_notes": ".validity",
 }
 
@@ -42,5 +45,7 @@ __all__ = [
     "CycloneSurvey", "calibrate_plitt", "circuit_cyclone", "plitt_factors", "plitt_factors_text", "load_design_cyclone",
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
     "file_sha256", "is_grindtwin_checkout", "new_folder_beside", "pxx_um", "reference_ores", "trajectory_notes", "write_text_atomically",
+    "LockError", "acquire_lock", "release_lock", "remove_by_name", "replace_folder", "temporaries_of", "write_atomically",
+    "check_size_mill_input",
 ]
 __getattr__, __dir__ = lazy_face(__name__, _API)

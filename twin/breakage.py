@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ModelError, check_range
+from .mill import SPEED_FACTOR_ZERO_FRAC_CRITICAL
 from .sizes import SizeGrid
 
 #: Reference size of the selection function [um] (Austin's x0 = 1 mm).
@@ -165,9 +166,6 @@ def check_breakage_matrix(b: np.ndarray) -> None:
                          f"Got {sums[j]:.15g}.")
 
 
-#: The speed [fraction of critical] at which Austin's speed factor (eq. 8.4) is zero; below it the
-#: factor, and every breakage rate it multiplies, is negative: the slowest speed the twin describes.
-SPEED_FACTOR_ZERO_FRAC_CRITICAL = 0.1
 
 
 def austin_speed_factor(speed_frac_critical):

@@ -12,7 +12,6 @@ from dataclasses import dataclass, fields, replace
 from functools import cache
 from pathlib import Path
 
-from .breakage import SPEED_FACTOR_ZERO_FRAC_CRITICAL
 from .errors import TwinInputError, bad_value, check_range, close_matches
 from .ore.minerals import mineral_table
 
@@ -26,6 +25,9 @@ BALL_DENSITY_RANGE_T_M3 = (1.0, 25.0)
 #: The smallest make-up ball size of a tumbling ball mill [mm]: regrind mills' balls are ~12 mm (1/2 in), finer
 #: media (1-6 mm beads) belong to stirred mills; below, the value is in m (0.025 for 25 mm) or inches (1 for 25.4).
 BALL_SIZE_MIN_MM = 10.0
+#: The speed [fraction of critical] at which Austin's speed factor (eq. 8.4) is zero; below it the
+#: factor, and every breakage rate it multiplies, is negative: the slowest speed the twin describes.
+SPEED_FACTOR_ZERO_FRAC_CRITICAL = 0.1
 #: The largest ball diameter over the mill's diameter: the power and breakage models treat the balls as a bed
 #: (Bond's power per tonne of balls, Austin's rates), and a laboratory mill holds some 8 balls across (Bond's
 #: 305 mm test mill with balls up to 36.8 mm; Bond 1961): a fifth leaves room for that, a larger ball is a slip.

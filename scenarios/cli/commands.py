@@ -819,8 +819,7 @@ def _size_mill_input(name):
     import argparse
 
     def parse(text):
-        from twin.errors import TwinInputError
-        from twin.sizing import check_size_mill_input
+        from twin import TwinInputError, check_size_mill_input
 
         try:
             value = float(text)

@@ -22,7 +22,7 @@ from scenarios.output.plots import PLOTS
 from scenarios.output.write import (INCOMPLETE_MARKER, JSON_INF, MANIFEST, file_sha256, installed_version,
                                     later_file_is_as_written, lock_folder, lock_path, manifest_files, read_manifest,
                                     record_later_file)
-from twin.atomic import release_lock
+from twin import release_lock
 
 _CSS = """body{font-family:system-ui,sans-serif;max-width:60em;margin:2em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:.3em .7em;text-align:left}

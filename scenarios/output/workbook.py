@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from scenarios.output.labels import KPI_LABELS, calibration_text, effects_rows, is_percent, percent_decimals
-from twin.atomic import write_atomically
+from twin import write_atomically
 
 #: Size distributions a run writes as CSV: the stream (``attrs['what']``) -> file name.
 PSD_FILES = {"product": "product_psd.csv", "mill content": "mill_psd.csv"}

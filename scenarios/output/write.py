@@ -67,8 +67,7 @@ from pathlib import Path
 import numpy as np
 
 from scenarios.errors import RunError, SceneError, raise_if_interrupted
-from twin import file_sha256
-from twin.atomic import LockError, acquire_lock, release_lock, remove_by_name, replace_folder, temporaries_of
+from twin import LockError, acquire_lock, file_sha256, release_lock, remove_by_name, replace_folder, temporaries_of
 from scenarios.output.plots import PLOTS, SWEEP_PLOT, write_plots
 from scenarios.output.workbook import (PSD_FILES, RUN_WORKBOOK, STREAMS_FILE, SWEEP_WORKBOOK, write_csv,
                                       write_size_csvs, write_workbook)
