@@ -17,8 +17,7 @@ import numpy as np
 
 from .breakage import SPEED_FACTOR_ZERO_FRAC_CRITICAL, BreakageParams
 from .breakage import ore_breakage as _ore_breakage
-from .calibration import load_calibration
-from .calibration.model_code import check_model
+from .calibration import check_model, load_calibration
 from .effects.classification import sized_circuit_notes
 from .errors import TwinInputError, bad_value, check_range
 from .mill import Mill, get_mill, power_kw
@@ -76,7 +75,9 @@ class Twin:
             raise bad_value("Twin", "effects", effects, "a list of effect names, e.g. ['breakage', 'transport']")
         self.blend = _as_blend(ores)
         self.calibration = load_calibration(calibration)
-        check_model(self.calibration)  # its fit's equations are these (once per file and process)
+        from .calibration import predict_table  # scipy's optimiser with it: only when a twin is built
+
+        check_model(self.calibration, predict_table)  # its fit's equations are these (once per file, process)
         self.coefficients = dict(self.calibration.coefficients)
         self.mill = get_mill(mill, self.calibration.record)
         self.grid = grid or SizeGrid()

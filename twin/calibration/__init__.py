@@ -20,7 +20,7 @@ _API = {
     "check_writable": ".files", "load_calibration": ".files", "shipped_calibration": ".files",
     "shipped_dem_calibration": ".files", "shipped_names": ".files", "write_json_atomically": ".files",
     "fit_log_ratios": ".fitting", "fit_to_table": ".fitting", "predict_table": ".fitting", "table_errors": ".fitting",
-    "KPIS": ".reference", "reference_table": ".reference",
+    "KPIS": ".reference", "reference_table": ".reference", "check_model": ".model_code",
     "INTERVAL_LEVEL": ".uncertainty", "intervals": ".uncertainty", "min_replicates": ".uncertainty",
     "steady_intervals": ".uncertainty",
 }

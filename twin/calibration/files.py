@@ -22,7 +22,7 @@ from pathlib import Path
 
 from ..atomic import write_text_atomically
 from ..errors import FastCalibrationWarning, TwinInputError, close_matches
-from .model_code import check_model, model_identity
+from .model_code import model_identity
 from .record_checks import check_data, check_fields, check_fitted, check_law
 
 #: The folder of shipped calibration files, one per name (``<name>.json``).
@@ -48,8 +48,9 @@ REQUIRED_KEYS = ("name", "breakage_map", "effects", "size_grid", "n_mixers", "mi
 
 @dataclass(frozen=True, eq=False)
 class Calibration:
-    """One calibration: its record (the file's content), name, file and SHA-256 of the file
-    (``None`` for a calibration made in memory, e.g. during a fit)."""
+    """One calibration: its record (the file's content), name, file and SHA-256 of the file (of
+    the record's JSON, keys sorted, for a record given as a dict; ``None`` for a calibration made
+    in memory, e.g. during a fit)."""
 
     record: dict = field(repr=False)
     path: Path | None = None
@@ -342,10 +343,9 @@ def load_calibration(spec=None, check_table: bool = True) -> Calibration:
         spec = DEFAULT_CALIBRATION
     if isinstance(spec, Calibration):
         return spec
-    if isinstance(spec, dict):  # a user's record: checked like a file's, keyed by its content
-        cal = Calibration(check_record(spec, "the calibration record", data=check_table))
-        check_model(cal, ("record", hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()))
-        return cal
+    if isinstance(spec, dict):  # a user's record, known by the hash of its content (twin.calibration.model_code)
+        return Calibration(check_record(spec, "the calibration record", data=check_table), None,
+                           hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest())
     if isinstance(spec, (str, Path)):
         text = str(spec)
         if text in shipped_names():

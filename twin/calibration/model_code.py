@@ -98,33 +98,31 @@ def model_identity() -> dict:
             "(twin.calibration.model_code)"}
 
 
-def refit_command(record: dict, path=None) -> str:
-    """The command that makes ``record`` again: for a DEM calibration read from ``path``, with its
-    DEM step reused (``--from``, into the same file); else the command it was made with."""
-    from .files import _shown_path, shipped_names
-
+def refit_command(record: dict, shown_path: str | None = None) -> str:
+    """The command that makes ``record`` again: for a DEM calibration read from a file (its path as
+    a run records it, twin.calibration.Calibration.identity), with its DEM step reused
+    (``--from``, into the same file); else the command it was made with."""
     command = str((record.get("provenance") or {}).get("command") or "")
-    if record.get("breakage_map") == "dem" and path is not None:
-        shown = _shown_path(path)
-        source = record["name"] if shown.startswith("twin/calibration/files/") and record["name"] in shipped_names() \
-            else shown
-        return f"grindtwin calibrate --from {source} --out {shown}"
+    if record.get("breakage_map") == "dem" and shown_path is not None:
+        source = record["name"] if shown_path.startswith("twin/calibration/files/") else shown_path
+        return f"grindtwin calibrate --from {source} --out {shown_path}"
     if command.startswith("grindtwin calibrate"):
         return command
     return "grindtwin calibrate" + (" --map mineralogy" if record.get("breakage_map") == "mineralogy" else "")
 
 
-#: (path, sha256) of the calibration files whose predictions were checked in this process.
+#: (path, sha256) of the calibrations whose predictions were checked in this process.
 _CHECKED: set = set()
 
 
-def check_model(calibration, key=None) -> None:
+def check_model(calibration, predict) -> None:
     """Refuse ``calibration`` if the twin's equations now give other table KPIs than its fit
-    recorded (module docstring). Once per ``key`` (default: its file and hash) and process;
-    nothing for a calibration made in memory without a key (a fit's trial values: their
+    recorded (module docstring); ``predict(calibration, ores)`` computes them
+    (twin.calibration.fitting.predict_table). Once per file or record (its hash) and process;
+    nothing for a calibration made in memory without a hash (a fit's trial values: their
     ``fit.predicted`` is not theirs yet)."""
-    key = key or (calibration.path, calibration.sha256)
-    if key[0] is None or key in _CHECKED:
+    key = (calibration.path, calibration.sha256)
+    if calibration.sha256 is None or key in _CHECKED:
         return
     recorded = calibration.record.get("model_code")
     if isinstance(recorded, dict) and recorded.get("sha256") == model_digest():
@@ -132,17 +130,15 @@ def check_model(calibration, key=None) -> None:
         return
     _CHECKED.add(key)  # the recomputation builds twins of this calibration: no recursion
     try:
-        _compare_predictions(calibration, recorded)
+        _compare_predictions(calibration, recorded, predict)
     except BaseException:
         _CHECKED.discard(key)
         raise
 
 
-def _compare_predictions(calibration, recorded) -> None:
-    from .fitting import predict_table
-
+def _compare_predictions(calibration, recorded, predict) -> None:
     want = calibration.record["fit"]["predicted"]
-    got = predict_table(calibration, tuple(want))
+    got = predict(calibration, tuple(want))
     worst = max(((ore, kpi) for ore in want for kpi in want[ore]),
                 key=lambda ok: abs(got[ok[0]][ok[1]] / want[ok[0]][ok[1]] - 1.0))
     ore, kpi = worst
@@ -155,4 +151,4 @@ def _compare_predictions(calibration, recorded) -> None:
         f"recorded ore {ore}'s {kpi} = {then:.6g} at the table's operating point (fit.predicted), the twin now "
         f"computes {now:.6g} ({100 * (now / then - 1):+.3g} %; model sources {at_fit} at the fit, "
         f"{model_digest()} now). Its fitted numbers answer other equations: make a new calibration "
-        f"(`{refit_command(calibration.record, calibration.path)}`).")
+        f"(`{refit_command(calibration.record, calibration.identity()['path'])}`).")
