@@ -78,7 +78,7 @@ MODELS = {"jcfpm": (loading_system, (500, 2000)), "calibration": (calibration_lo
 
 def loading(agg, factor: float, model: str = "jcfpm") -> dict:
     s = MODELS[model][0](agg, 1e-12)        # any valid step; the factor's is set next
-    s.dt_s = factor * s.critical_dt_s
+    s.set_dt_beyond_critical(factor * s.critical_dt_s)
     steps = int(round(T_END_S / s.dt_s))
     try:
         s.run(steps)

@@ -343,7 +343,7 @@ def test_largest_allowed_time_step_is_stable_for_a_spinning_bonded_pair(ks_over_
     for factor, bounded in ((1.0, True), (1.6, False)):
         pos, bs = _spinning_pair(ks_over_kn)
         s = System(pos, [R, R], Material(), bonds=bs, dt_s=1e-12)
-        s.dt_s = factor * s.critical_dt_s
+        s.set_dt_beyond_critical(factor * s.critical_dt_s)
         rng = np.random.default_rng(0)
         s.vel[:] = rng.normal(0, 1e-3, (2, 3))
         s.omega[:] = rng.normal(0, 1.0, (2, 3))

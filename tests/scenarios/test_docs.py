@@ -71,12 +71,15 @@ def test_help_texts_have_no_doubled_percent_signs():
 
 def test_readmes_python_example_runs_as_written(capsys):
     """README's python block, executed as a user would paste it: the blend's steady state lies
-    inside what the models describe (no notes), and the 8-h run has one row per minute."""
+    inside what the models describe (its one note: the preset mill, sized in a cyclone circuit,
+    runs on its grate), and the 8-h run has one row per minute."""
     readme = (REPO / "README.md").read_text(encoding="utf-8")
     (block,) = re.findall(r"```python\n(.*?)```", readme, re.S)
     ns: dict = {}
     exec(compile(block, "README.md", "exec"), ns)  # noqa: S102 - the README's own example
-    assert ns["ss"].notes == [] and 100.0 < ns["ss"].p80_um < 1000.0
+    (note,) = ns["ss"].notes
+    assert note.startswith("mill 'industrial' was sized with a hydrocyclone circuit")
+    assert 100.0 < ns["ss"].p80_um < 1000.0
     assert len(ns["run"].frame) == 8 * 60 + 1
     assert "Effects:" in capsys.readouterr().out
 
