@@ -159,7 +159,10 @@ def test_industrial_preset_is_the_sized_mill_and_meets_its_sizing_target():
     o = ss.outputs
     assert o["circulating_load_frac"] == pytest.approx(DESIGN_CIRCULATING_LOAD, rel=0.01)
     assert o["cyclone_pressure_kpa"] == pytest.approx(DESIGN_CYCLONE_PRESSURE_KPA, rel=0.01)
-    assert o["sump_water_m3_h"] >= 0 and o["mill_water_m3_h"] >= 0 and not ss.notes
+    assert o["sump_water_m3_h"] >= 0 and o["mill_water_m3_h"] >= 0
+    # its one note: the underflow (61 % solids by volume) is as dense as cyclones rope at, which the
+    # sizing, keeping the cyclone's shape, does not design out (README, Limitations)
+    assert [n for n in ss.notes if "hydrocyclones rope" not in n] == [] and len(ss.notes) == 1
 
 
 def test_sizing_at_the_molycop_base_cases_scale_designs_a_cluster_like_its_own():
