@@ -102,7 +102,7 @@ def test_a_circuit_whose_water_balance_needs_water_taken_out_says_so():
     assert [n for n in ss.notes if "water taken out" in n and "mill_water_m3_h" in n]
     sized = Twin("B", mill="industrial", effect_options={"classification": {"kind": "hydrocyclone"}})
     for tw in (sized, Twin("B", mill="industrial")):
-        assert not [n for n in tw.steady(feed_tph=31.0).notes if "water" in n]
+        assert not [n for n in tw.steady(feed_tph=31.0).notes if "water taken out" in n]
 
 
 def test_a_p80_inside_the_grids_sink_is_said_to_be_extrapolated():
