@@ -222,8 +222,8 @@ def test_size_mill_prints_its_design_points_notes(capsys, monkeypatch):
     assert asked == [{}, {"cyclone_pressure_kpa": 60.0}]
     with pytest.raises(SystemExit) as refused:
         grindtwin(["size-mill", "--feed-tph", "31", "--target-p80-um", "210", "--speed", "0.95"])
-    assert refused.value.code == 2 and ("argument --speed: The 'speed_frac_critical' parameter of size_mill must be a float in (0.3, 0.95). "
-                                        "Got 0.95.") in capsys.readouterr().err
+    assert refused.value.code == 2 and ("argument --speed: The 'speed_frac_critical' parameter of size_mill must be "
+                                        "a float in (0.3, 0.95). Got 0.95.") in capsys.readouterr().err
 
 
 MOLYCOP_CYCLONE = """count = 6                   # the Moly-Cop base case's cluster and its published survey

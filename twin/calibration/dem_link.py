@@ -297,7 +297,8 @@ def run_dem(fast: bool = False, seed: int = 0, ores=REFERENCE_ORES, progress: bo
                          "cohesion_ratio": COHESION_RATIO, "drop_mass_kg": DROP_MASS_KG, "drum": DRUM,
                          "time_step_factor": DEFAULT_TIME_STEP_FACTOR, "drop_time_step_factor": DROP_TIME_STEP_FACTOR,
                          "seed": seed, "fast": fast},
-            "sources_sha256": dem_step_digest(), "drum": drum, "ores": {n: out[n] for n in ores}, "dem_seconds": time.perf_counter() - t0}
+            "sources_sha256": dem_step_digest(), "drum": drum, "ores": {n: out[n] for n in ores},
+            "dem_seconds": time.perf_counter() - t0}
 
 
 def _dem_ore(name: str, target: dict, settings: dict, seed: int, sigma_b: float | None, bar):
