@@ -110,3 +110,17 @@ def test_true_is_no_number_wherever_a_range_is_checked(make):
     without a field-by-field bool check took True as 1.0."""
     with pytest.raises(TwinInputError, match="not a bool"):
         make()
+
+
+def test_a_nominal_feed_in_kg_per_hour_given_as_t_per_hour_is_noted():
+    """LAB.with_(feed_nominal_tph=31.0) (31 kg/h meant) ran to a P80 of 3 mm with no word: the
+    mill then holds its charge under 2 s (twin.validity.residence_note); its design feed, 25 min."""
+    from twin.validity import MIN_NOMINAL_RESIDENCE_H
+
+    slip = Twin("B", mill=LAB.with_(feed_nominal_tph=31.0))
+    tau_s = 3600.0 * slip.spec.holdup_nominal_t / slip.spec.feed_nominal_tph
+    assert tau_s < 3600.0 * MIN_NOMINAL_RESIDENCE_H
+    notes = slip.steady(feed_tph=31.0).notes
+    assert any("is feed_nominal_tph in kg/h?" in n and f"for {tau_s:.3g} s" in n for n in notes), notes
+    assert any("kg/h?" in n for n in slip.simulate(0.1, 0.05, feed_tph=31.0).notes)
+    assert not any("kg/h?" in n for n in Twin("B", mill="lab").steady().notes)
