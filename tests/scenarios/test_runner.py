@@ -522,7 +522,7 @@ def test_a_run_whose_slurry_jams_says_when():
     limit = jamming_clay_frac(k)
     frame = pd.DataFrame({"time_h": [0.0, 0.5, 1.0, 1.5, 2.0],
                           "clay_frac": [0.1, limit + 0.01, 0.2, limit + 0.05, 0.1]})
-    spec = SimpleNamespace(coefficients={"clay_crowding_coeff": k})
+    spec = SimpleNamespace(coefficients={"clay_crowding_coeff": k}, holdup_nominal_t=1.0, feed_nominal_tph=1.0)
     (w,) = trajectory_notes(frame, spec, ("rheology",))
     assert w.startswith("from 0.5 h to 1.5 h the mill slurry holds") and f"past the {limit:.0%}" in w
     assert trajectory_notes(frame.assign(clay_frac=limit - 0.01), spec, ("rheology",)) == []
