@@ -45,7 +45,7 @@ __all__ = [
     "CycloneSurvey", "calibrate_plitt", "circuit_cyclone", "plitt_factors", "plitt_factors_text", "load_design_cyclone",
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
     "file_sha256", "is_grindtwin_checkout", "new_folder_beside", "pxx_um", "reference_ores", "trajectory_notes", "write_text_atomically",
-    "LockError", "acquire_lock", "release_lock", "remove_by_name", "replace_folder", "temporaries_of", "write_atomically",
-    "check_size_mill_input",
+    "LockError", "acquire_lock", "release_lock", "remove_by_name", "replace_folder", "temporaries_of",
+    "write_atomically", "check_size_mill_input",
 ]
 __getattr__, __dir__ = lazy_face(__name__, _API)

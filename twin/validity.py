@@ -54,8 +54,8 @@ def residence_note(spec) -> str:
     tau_h = spec.holdup_nominal_t / spec.feed_nominal_tph
     if not tau_h < MIN_NOMINAL_RESIDENCE_H:
         return ""
-    return (f"mill {spec.mill.name!r} holds its nominal charge ({spec.holdup_nominal_t:.3g} t) for {3600 * tau_h:.3g} s "
-            f"at its nominal feed ({spec.feed_nominal_tph:.4g} t/h): ball mills hold theirs minutes; is "
+    return (f"mill {spec.mill.name!r} holds its nominal charge ({spec.holdup_nominal_t:.3g} t) for "
+            f"{3600 * tau_h:.3g} s at its nominal feed ({spec.feed_nominal_tph:.4g} t/h): ball mills hold theirs minutes; is "
             "feed_nominal_tph in kg/h?")
 
 
