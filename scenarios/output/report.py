@@ -22,7 +22,7 @@ from scenarios.output.plots import PLOTS
 from scenarios.output.write import (INCOMPLETE_MARKER, JSON_INF, MANIFEST, file_sha256, installed_version,
                                     later_file_is_as_written, lock_folder, lock_path, manifest_files, read_manifest,
                                     record_later_file)
-from twin import release_lock
+from twin import release_lock, write_text_atomically
 
 _CSS = """body{font-family:system-ui,sans-serif;max-width:60em;margin:2em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:.3em .7em;text-align:left}
@@ -245,20 +245,16 @@ def _write_locked(run_dir: Path) -> Path:
     for problem in problems:  # on stderr too, not only inside the page
         warnings.warn(f"{run_dir}: {problem}", RunFolderWarning, stacklevel=3)
     out = run_dir / "report.html"
-    tmp = run_dir / "report.html.partial"
     if (out.is_symlink() or out.is_file()) and not (later_file_is_as_written(run_dir, out.name)
                                                    or _holds(out, text)):
         raise SceneError(f"{out}: this report.html is not the one grindtwin last wrote here (edited since, a file of "
                          "yours, or written by a grindtwin that kept no record of it), so it was left as it is "
                          "and no report was written. Move it out of the folder (or delete it if you do not need "
                          f"it), then run again: grindtwin report {run_dir}")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        sha256 = file_sha256(tmp)
-        tmp.replace(out)
-    except BaseException:  # a full disk, a report.html that is a folder, Ctrl-C: no half-written page left
-        tmp.unlink(missing_ok=True)
-        raise
+    # via a temporary file no one else holds: a full disk, a report.html that is a folder, Ctrl-C leave
+    # no half-written page, and a report.html.partial of the user's is not taken
+    write_text_atomically(out, text)
+    sha256 = file_sha256(out)
     record_later_file(run_dir, out.name, sha256)  # killed before this: the page is refused next time, not lost
     return out
 

@@ -67,7 +67,8 @@ from pathlib import Path
 import numpy as np
 
 from scenarios.errors import RunError, SceneError, raise_if_interrupted
-from twin import LockError, acquire_lock, file_sha256, release_lock, remove_by_name, replace_folder, temporaries_of
+from twin import (LockError, acquire_lock, file_sha256, release_lock, remove_by_name, replace_folder, temporaries_of,
+                  write_text_atomically)
 from scenarios.output.plots import PLOTS, SWEEP_PLOT, write_plots
 from scenarios.output.workbook import (PSD_FILES, RUN_WORKBOOK, STREAMS_FILE, SWEEP_WORKBOOK, write_csv,
                                       write_size_csvs, write_workbook)
@@ -76,9 +77,10 @@ INCOMPLETE_MARKER = "_INCOMPLETE"
 MANIFEST = "grindtwin-manifest.json"
 #: first words of DIR.lock, by which a run knows the lock is grindtwin's (not a user's file)
 LOCK_TAG = "grindtwin lock"
-#: Files grindtwin may add to a finished run folder later (``grindtwin report``), and the temporary
-#: copy of the manifest by which it records them.
-LATER_FILES = ("report.html", "report.html.partial", MANIFEST + ".partial")
+#: Files grindtwin may add to a finished run folder later (``grindtwin report``); each, and the
+#: manifest that records them, is written via a temporary file of a name no one else holds
+#: (:func:`later_names` counts those a killed process left).
+LATER_FILES = ("report.html",)
 #: The later files whose sha256 the manifest records (its :data:`LATER_SHA256`): one whose content is
 #: not what grindtwin last wrote (edited by hand, or the user's own) is never replaced or removed.
 RECORDED_LATER_FILES = ("report.html",)
@@ -162,13 +164,13 @@ def record_later_file(folder: Path, name: str, sha256: str) -> None:
         raise RunError(f"{folder}: its {MANIFEST} is gone or unreadable; {name} was written but not recorded")
     later = manifest.get(LATER_SHA256)
     manifest[LATER_SHA256] = {**(later if isinstance(later, dict) else {}), name: sha256}
-    tmp = folder / (MANIFEST + ".partial")
-    try:
-        tmp.write_text(json.dumps(manifest, indent=2) + "\n", encoding="utf-8")
-        tmp.replace(folder / MANIFEST)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    write_text_atomically(folder / MANIFEST, json.dumps(manifest, indent=2) + "\n")
+
+
+def later_names(folder: Path) -> list[str]:
+    """The names grindtwin may have added to a finished run folder: :data:`LATER_FILES` and the
+    temporary files a killed report left of them or of the manifest (twin.atomic.temporaries_of)."""
+    return [*LATER_FILES, *temporaries_of(folder, (MANIFEST, *LATER_FILES))]
 
 
 def strangers(folder: Path) -> list[str] | None:
@@ -183,7 +185,7 @@ def strangers(folder: Path) -> list[str] | None:
     manifest = read_manifest(folder)
     if manifest is None:
         return names
-    allowed = {str(f) for f in manifest["files"]} | {MANIFEST, *LATER_FILES}
+    allowed = {str(f) for f in manifest["files"]} | {MANIFEST, *later_names(folder)}
     return [n for n in names if n not in allowed
             or (n in RECORDED_LATER_FILES and not later_file_is_as_written(folder, n, manifest))]
 
@@ -317,7 +319,7 @@ class OutputClaim:
                 raise RunError(f"--out {self.final}: files grindtwin did not write appeared in the "
                                f"folder during the run; it was left alone and the results are in "
                                f"{self.partial}")
-            listed = (manifest_files(self.final) or []) + [MANIFEST, *LATER_FILES]
+            listed = (manifest_files(self.final) or []) + [MANIFEST, *later_names(self.final)]
         kept = replace_folder(self.final, self.partial, listed)
         if kept is not None:
             self.notes.append(f"kept {kept}: the previous result there holds files grindtwin did not write")

@@ -160,3 +160,22 @@ def test_the_size_distributions_name_the_streams_sizes_exactly(write_scene, tmp_
         assert set(_sizes(pd.read_csv(out / name, index_col=0).columns)) == streams, name
     final = json.loads((out / "summary.json").read_text())["final_psd"]["size_um"]
     assert set(final) == streams
+
+
+def test_a_users_partial_file_in_a_run_folder_is_never_taken(tmp_path):
+    """The report and the manifest's rewrite went through the fixed names report.html.partial and
+    grindtwin-manifest.json.partial, and a later run counted those names as its own: a user's file
+    of that name was overwritten by the report, then removed with the folder. They now go through
+    names no one holds, and a file of the user's by those names is theirs: kept, the folder refused."""
+    run = fake_run(tmp_path)
+    mine = run / "report.html.partial"
+    mine.write_text("my notes")
+    write_report(run)
+    assert mine.read_text() == "my notes" and (run / "report.html").is_file()
+    with pytest.raises(SceneError, match="report.html.partial"):
+        OutputClaim(run).__enter__()
+    assert mine.read_text() == "my notes"
+    mine.unlink()
+    (run / ".report.html.x1y2.partial").write_text("<html")  # left by a report killed while writing
+    with OutputClaim(run):
+        pass  # a later run may replace the folder: the leftover is grindtwin's
