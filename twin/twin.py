@@ -15,12 +15,12 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from .breakage import SPEED_FACTOR_ZERO_FRAC_CRITICAL, BreakageParams
+from .breakage import BreakageParams
 from .breakage import ore_breakage as _ore_breakage
 from .calibration import check_model, load_calibration
 from .effects.classification import sized_circuit_notes
 from .errors import TwinInputError, bad_value, check_range
-from .mill import Mill, get_mill, power_kw
+from .mill import SPEED_FACTOR_ZERO_FRAC_CRITICAL, Mill, get_mill, power_kw
 from .model import Model, ModelSpec
 from .scaleup import scale_breakage
 from .ore import CLAY_MINERALS, CUSHIONING_MINERALS, Blend, Mineralogy, load_ore
@@ -196,7 +196,6 @@ class Twin:
         if not np.all(np.isfinite(fr)) or abs(fr.sum() - 1.0) > 1e-6 or np.any(fr < 0):
             raise bad_value("Twin", "blend", [float(v) for v in fr], "non-negative fractions summing to 1")
         # divides every breakage rate: 0, negative, NaN or inf made a solver error or a P80 of nothing
-        # True passed as 1.0 (a bool is an int)
         hardness = _one_number("hardness_scale", hardness_scale, "multiple of the ore's hardness")
         return self.model.d_vector(fr, check_range("Twin", "hardness_scale", hardness, 0.0, math.inf))
 
