@@ -9,6 +9,7 @@ from ._lazy import lazy_face
 _API = {
     "BreakageParams": ".breakage", "OreBreakage": ".breakage", "austin_selection": ".breakage",
     "ore_breakage": ".breakage", "SPEED_FACTOR_ZERO_FRAC_CRITICAL": ".mill",
+    "BALL_SIZE_MIN_MM": ".mill", "BALL_SIZE_MAX_MM": ".mill",
     "EFFECTS": ".effects", "Effect": ".effects", "known_effects": ".effects",
     "FastCalibrationWarning": ".errors", "ModelError": ".errors", "SolverError": ".errors", "TwinError": ".errors",
     "TwinInputError": ".errors",
@@ -36,7 +37,7 @@ _API = {
 }
 
 __all__ = [
-    "Blend", "BreakageParams", "CENTRIFUGING_FRAC_CRITICAL", "DEFAULT_EFFECTS", "EFFECTS", "Effect", "FastCalibrationWarning", "GatesGaudinSchuhmann",
+    "BALL_SIZE_MAX_MM", "BALL_SIZE_MIN_MM", "Blend", "BreakageParams", "CENTRIFUGING_FRAC_CRITICAL", "DEFAULT_EFFECTS", "EFFECTS", "Effect", "FastCalibrationWarning", "GatesGaudinSchuhmann",
     "INPUT_NAMES", "MILLS", "MIXER_SHARES_SUM_TOL", "mixer_shares_sum_ok",
     "Hydrocyclone", "Mill", "Mineralogy", "Model", "ModelError", "ModelSpec", "OreBreakage", "POWER_MODELS", "RosinRammler",
     "SPEED_FACTOR_ZERO_FRAC_CRITICAL", "SizeGrid", "SizedMill", "SolverError", "SteadyState", "TabulatedPSD",

@@ -25,6 +25,9 @@ BALL_DENSITY_RANGE_T_M3 = (1.0, 25.0)
 #: The smallest make-up ball size of a tumbling ball mill [mm]: regrind mills' balls are ~12 mm (1/2 in), finer
 #: media (1-6 mm beads) belong to stirred mills; below, the value is in m (0.025 for 25 mm) or inches (1 for 25.4).
 BALL_SIZE_MIN_MM = 10.0
+#: The largest make-up ball [mm]: primary ball mills take up to 100-125 mm (4-5 in; Rowland's top-size formula);
+#: 200 leaves room, more is not a ball mill's ball (um for mm).
+BALL_SIZE_MAX_MM = 200.0
 #: The speed [fraction of critical] at which Austin's speed factor (eq. 8.4) is zero; below it the
 #: factor, and every breakage rate it multiplies, is negative: the slowest speed the twin describes.
 SPEED_FACTOR_ZERO_FRAC_CRITICAL = 0.1
@@ -121,7 +124,7 @@ class Mill:
         check_range(o, "feed_nominal_tph", self.feed_nominal_tph, 0.0, 1e5)
         check_range(o, "power_factor", self.power_factor, 0.0, 10.0)
         # 0.025 (m) scaled the calibrated breakage rates by Austin's ball-size rule a thousandfold
-        check_range(o, "ball_size_mm", self.ball_size_mm, BALL_SIZE_MIN_MM, 200.0, lo_open=False)
+        check_range(o, "ball_size_mm", self.ball_size_mm, BALL_SIZE_MIN_MM, BALL_SIZE_MAX_MM, lo_open=False)
         ball_max_mm = BALL_MILL_DIAMETER_RATIO_MAX * 1000.0 * self.diameter_m
         if self.ball_size_mm > ball_max_mm:  # a 25 mm ball in a 0.02 m mill (cm for m) was a mill
             raise bad_value(o, "ball_size_mm", self.ball_size_mm, f"at most {BALL_MILL_DIAMETER_RATIO_MAX:g} of the "

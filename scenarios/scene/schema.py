@@ -20,7 +20,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 
 from mpc import DISTURBANCE_MODELS, QP_SOLVERS, SOLVERS
-from twin import MIXER_SHARES_SUM_TOL, get_mill, mixer_shares_sum_ok
+from twin import BALL_SIZE_MAX_MM, BALL_SIZE_MIN_MM, MIXER_SHARES_SUM_TOL, get_mill, mixer_shares_sum_ok
 from twin.ore import MEAN_GRAIN_RANGE_UM
 
 #: The twin's default number of mixers in series (twin.Twin's ``n_mixers``).
@@ -116,7 +116,8 @@ class Mill(Section):
                                                    json_schema_extra={"unit": "fraction of hold-up"})
     """The mixers' shares of the hold-up, e.g. Whiten's one large and two small [0.7, 0.15, 0.15];
     sets ``n_mixers`` (which must agree if given); default: equal shares."""
-    ball_size_mm: float | None = Field(default=None, gt=0, le=200, examples=[25.0], json_schema_extra={"unit": "mm"})
+    ball_size_mm: float | None = Field(default=None, ge=BALL_SIZE_MIN_MM, le=BALL_SIZE_MAX_MM, examples=[25.0],
+                                       json_schema_extra={"unit": "mm"})
     """Make-up ball size [mm] (Austin's scale-up factors on S); default: the preset's (25)."""
     discharge_solids_frac: float | None = Field(default=None, gt=0, lt=1)
     """Solids mass fraction of the mill discharge (0.72, not 72), held by the mill's feed water;

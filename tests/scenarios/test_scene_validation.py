@@ -71,6 +71,8 @@ BROKEN = [
      'effects = ["breakage"]\n', ["plant.effects", "not used with model = \"leroux2013\""]),
     ("le Roux plant not run by scenes", BASE_SCENE + '\n[plant]\nmodel = "leroux2013"\n',
      ["plant.model", "not run by scenes yet", "mpc_leroux_case.py", "leroux2013"]),
+    ("ball size in metres", edit('preset = "industrial"', 'preset = "industrial"\nball_size_mm = 0.025'),
+     ["mill.ball_size_mm", "greater than or equal to 10", "0.025"]),
     ("integer expected", edit('name = "base"', 'name = "base"\nseed = 1.5'),
      ["scene.seed", "valid integer", "1.5"]),
     ("too many samples", edit("sample_period_h = 0.25", "sample_period_h = 5e-8"),  # it took 18 GB unchecked
