@@ -54,6 +54,12 @@ FEED_SOLIDS_VOL_PCT_MAX = 70.0
 FEED_SOLIDS_VOL_PCT_MIN = 1.0
 
 
+def _feed_range_text(what: str, vol_pct: float) -> str:
+    """What a cyclone feed's solids may be, for an error that found them at ``vol_pct`` % by volume."""
+    return (f"{what} a feed of {FEED_SOLIDS_VOL_PCT_MIN:g}-{FEED_SOLIDS_VOL_PCT_MAX:g} % solids by volume (Plitt's "
+            f"phi; a slurry that flows), not {vol_pct:.3g} %")
+
+
 def _exp(v):
     return ca.exp(v) if isinstance(v, (ca.SX, ca.MX)) else np.exp(v)
 
@@ -90,6 +96,11 @@ class CycloneSurvey:
                             f"given, or 'pressure_psi' instead, not both (pressure_psi = {self.pressure_psi!r})")
         name = "pressure_kpa" if self.pressure_psi is None else "pressure_psi"
         check_range(o, name, getattr(self, name), 0.0, 1e4)
+        vol_pct = solids_volume_pct(self.feed_solids_frac, self.solids_density_t_m3)
+        if not FEED_SOLIDS_VOL_PCT_MIN <= vol_pct <= FEED_SOLIDS_VOL_PCT_MAX:  # Plitt's phi, and a slurry that flows
+            raise bad_value(o, "feed_water_m3_h", self.feed_water_m3_h, _feed_range_text(
+                f"a water flow that makes, with feed_solids_tph = {self.feed_solids_tph!r} at "
+                f"{self.solids_density_t_m3:g} t/m3,", vol_pct))
 
     @property
     def kpa(self) -> float:
@@ -144,6 +155,10 @@ class Hydrocyclone:
         refuse_bool_fields(o, self)
         for name in ("diameter_cm", "inlet_cm", "vortex_finder_cm", "apex_cm", "free_vortex_height_cm"):
             check_range(o, name, getattr(self, name), 0.0, 1000.0)
+        for name in ("inlet_cm", "vortex_finder_cm", "apex_cm"):  # openings in the cyclone's wall, roof and cone
+            if not getattr(self, name) < self.diameter_cm:
+                raise bad_value(o, name, getattr(self, name), f"below the cyclone's diameter_cm = {self.diameter_cm!r} "
+                                "(an opening of the cyclone's body; the same unit, cm)")
         if not isinstance(self.count, int) or isinstance(self.count, bool) or not 1 <= self.count <= 200:
             raise bad_value(o, "count", self.count, "an integer in [1, 200]")
         check_range(o, "feed_solids_vol_pct", self.feed_solids_vol_pct, FEED_SOLIDS_VOL_PCT_MIN,
@@ -169,12 +184,19 @@ class Hydrocyclone:
         """Solids % by volume of the cyclone feed."""
         if self.feed_solids_frac is None:
             return self.feed_solids_vol_pct
-        return solids_volume_pct(self.feed_solids_frac, solids_density_t_m3)
+        vol_pct = solids_volume_pct(self.feed_solids_frac, solids_density_t_m3)
+        if not FEED_SOLIDS_VOL_PCT_MIN <= vol_pct <= FEED_SOLIDS_VOL_PCT_MAX:  # as feed_solids_vol_pct's range
+            raise bad_value("Hydrocyclone", "feed_solids_frac", self.feed_solids_frac, _feed_range_text(
+                f"a solids mass fraction that makes, at the solids' {solids_density_t_m3:g} t/m3,", vol_pct))
+        return vol_pct
 
     def plitt(self, slurry_flow_m3_h, solids_density_t_m3: float) -> dict:
         """Plitt's d50c [um], sharpness m, pressure [kPa], volumetric split S = Qu/Qo and water
         bypass R_f = S/(1+S) (each with its factor; the given values in the direct mode), for the
         total slurry flow [m3/h] shared by ``count`` cyclones. Floats or CasADi expressions."""
+        if not isinstance(slurry_flow_m3_h, (ca.SX, ca.MX)):  # q**0.45 of a negative flow is complex, of 0 inf
+            check_range("Hydrocyclone.plitt", "slurry_flow_m3_h", slurry_flow_m3_h, 0.0, math.inf)
+        check_range("Hydrocyclone.plitt", "solids_density_t_m3", solids_density_t_m3, WATER_DENSITY_T_M3, 25.0)
         q = slurry_flow_m3_h * 1000.0 / 60.0 / self.count  # L/min per cyclone
         dc, di, do, du, h = (self.diameter_cm, self.inlet_cm, self.vortex_finder_cm,
                              self.apex_cm, self.free_vortex_height_cm)
