@@ -31,6 +31,13 @@ TEXTURE_REFERENCE_GRAIN_UM = 200.0
 MEAN_GRAIN_RANGE_UM = (0.1, 1e4)
 
 
+def fractions_hint(total: float) -> str:
+    """A hint for a modal analysis given as mass fractions (summing to 1) where wt% (summing to 100) is meant."""
+    if abs(total - 1.0) <= SUM_TOLERANCE_WT_PCT / 100.0:
+        return " (mass fractions summing to 1? give wt%: x 100)"
+    return ""
+
+
 @dataclass(frozen=True)
 class Texture:
     """Texture of an ore: mean grain size [um], grain-size uniformity in (0, 1]
@@ -73,6 +80,8 @@ class Mineralogy:
                 raise TwinInputError(
                     f"Unknown mineral {mineral!r} in Mineralogy."
                     f"{close_matches(str(mineral), known)} Known minerals: {', '.join(known)}.")
+            if isinstance(value, bool):  # True was read as 1 wt%
+                raise bad_value("Mineralogy", f"wt_pct[{mineral}]", value, "a number >= 0, not a bool")
             try:
                 v = float(value)
             except (TypeError, ValueError):
@@ -83,8 +92,8 @@ class Mineralogy:
         total = sum(clean.values())
         if abs(total - 100.0) > SUM_TOLERANCE_WT_PCT:
             raise TwinInputError(
-                f"The wt% of Mineralogy {self.name or ''} must sum to 100 within "
-                f"{SUM_TOLERANCE_WT_PCT} wt%. Got {total:.3f}.")
+                f"The wt% of Mineralogy{f' {self.name!r}' if self.name else ''} must sum to 100 within "
+                f"{SUM_TOLERANCE_WT_PCT} wt%. Got {total:.3f}{fractions_hint(total)}.")
         # renormalise the rounding residue so fractions sum to exactly 1
         object.__setattr__(self, "wt_pct", {k: v * 100.0 / total for k, v in clean.items() if v > 0})
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import io
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,13 +30,15 @@ import pandas as pd
 
 from ..errors import TwinInputError, close_matches
 from .minerals import mineral_table
-from .mineralogy import SUM_TOLERANCE_WT_PCT, TEXTURE_COLUMNS, WT_SUFFIX, Mineralogy, Texture
+from .mineralogy import (MEAN_GRAIN_RANGE_UM, SUM_TOLERANCE_WT_PCT, TEXTURE_COLUMNS, WT_SUFFIX, Mineralogy, Texture,
+                         fractions_hint)
 
 ID_COLUMN = "sample_id"
 
-#: allowed interval of each texture column: (lo, hi, lo_open, hi_open)
+#: allowed interval of each texture column: (lo, hi, lo_open, hi_open); the grain size's is Texture's own
+#: (a row outside it passed here and failed later in to_mineralogy, without its row)
 _TEXTURE_RANGES = {
-    "mean_grain_um": (0.0, 1e5, True, True),
+    "mean_grain_um": (*MEAN_GRAIN_RANGE_UM, False, False),
     "uniformity": (0.0, 1.0, True, False),
     "association_entropy": (0.0, 1.0, False, False),
 }
@@ -77,10 +80,30 @@ def mineral_of(column: str) -> str:
     return column[: -len(WT_SUFFIX)]
 
 
+#: pandas' name for the second and later copies of a repeated CSV header: 'quartz_wt_pct.1'
+_REPEAT = re.compile(r"^(.+)\.(\d+)$")
+
+
+def _column_problems(frame: pd.DataFrame, known) -> list[RowProblem]:
+    """A column given twice (its second copy was read by nothing: 'quartz_wt_pct.1'), and a column named
+    after a mineral without the wt% suffix ('kaolinite_wt_frac', 'pyrite'), also read by nothing."""
+    cols = [str(c) for c in frame.columns]
+    problems = []
+    for col in sorted({c for c in cols if cols.count(c) > 1}):
+        problems.append(RowProblem(0, "", col, col, "given once (it appears more than once in the header)"))
+    for col in cols:
+        m = _REPEAT.match(col)
+        if m and m.group(1) in cols and (m.group(1).endswith(WT_SUFFIX) or m.group(1) in TEXTURE_COLUMNS):
+            problems.append(RowProblem(0, "", m.group(1), col, "given once (it appears more than once in the header)"))
+        elif not col.endswith(WT_SUFFIX) and not m and col.split("_wt")[0].split("_pct")[0] in known:
+            problems.append(RowProblem(0, "", col, col, f"named '<mineral>{WT_SUFFIX}' (modal mineralogy in wt%)"))
+    return problems
+
+
 def check_samples(frame: pd.DataFrame) -> list[RowProblem]:
     """Every problem of a sample table, row by row; an empty list when the table is valid."""
-    problems: list[RowProblem] = []
     known = mineral_table()
+    problems: list[RowProblem] = _column_problems(frame, known)
     if ID_COLUMN not in frame.columns:
         problems.append(RowProblem(0, "", ID_COLUMN, None,
                                    f"a column of the table (columns found: {', '.join(map(str, frame.columns))})"))
@@ -123,7 +146,7 @@ def check_samples(frame: pd.DataFrame) -> list[RowProblem]:
                 total += v
         if row_ok and abs(total - 100.0) > SUM_TOLERANCE_WT_PCT:
             problems.append(RowProblem(i, sid, f"sum of {WT_SUFFIX} columns", round(total, 4),
-                                       f"100 wt% within {SUM_TOLERANCE_WT_PCT} wt%"))
+                                       f"100 wt% within {SUM_TOLERANCE_WT_PCT} wt%{fractions_hint(total)}"))
         for col, (lo, hi, lo_open, hi_open) in _TEXTURE_RANGES.items():
             v = _number(rec[col])
             ok = v is not None and (v > lo if lo_open else v >= lo) and (v < hi if hi_open else v <= hi)
