@@ -15,7 +15,7 @@ draws less power from the mill.
 - Transport: a particle leaves with the slurry when its settling velocity is below the slurry's
   through-flow; Stokes' law, v_s = g d^2 (rho_s - rho) / (18 mu), makes the cut size grow as
   sqrt(mu). Relative to a clay-free slurry of the same solids, the grate's d50 (and a
-  hydrocyclone's d50c, which Plitt 1976 also scales as mu^0.5) is multiplied by
+  hydrocyclone's d50c, which Flintoff, Plitt & Turak 1987 also scale as mu^0.5) is multiplied by
   sqrt(mu_r(phi) / mu_r(phi_v)). So clay ore leaves the mill coarser and faster at the same
   load, the throughput rise at constant load of MISSION.md's soft ores.
 - Power: a viscous slurry damps the charge's motion (it pools at the toe and is carried less
@@ -98,7 +98,8 @@ class Rheology(Effect):
     provides = ("cut_size_factor",)
     contributes = ("power_factor",)
     outputs = ("clay_frac", "slurry_relative_viscosity")
-    source = "Thomas (1965) viscosity; Stokes settling cut size; Morrell (2016) slurry and power; coefficients from the calibration"
+    source = ("Thomas (1965) viscosity; Stokes settling cut size; Morrell (2016) slurry and power; coefficients from "
+              "the calibration")
     summary = ("cut size x sqrt(mu_r(clay) / mu_r(no clay)); power / (1 + k (mu_r(clay) / mu_r(no clay) - 1)); "
                "mu_r by Thomas at phi_v (1 + k w_clay)")
 
