@@ -196,6 +196,23 @@ def test_ore_typing_limits_are_hotelling_and_box_by_hand():
     assert typer.spe_limit_ == pytest.approx(var / (2 * mean) * stats.chi2.ppf(q, 2 * mean ** 2 / var), rel=1e-9)
 
 
+def test_clr_zero_replacement_is_martin_fernandez_multiplicative_replacement():
+    """Martin-Fernandez et al. (2003): zeros -> d', the other parts x (1 - n0 d'/100); then clr = ln x - mean ln x
+    (Aitchison 1986). The typer's clr scores equal it at d' = d / (1 + n0 d/100), as its docstring says."""
+    frame = load_reference_samples()
+    typer = OreTyper(transform="clr", n_types=4, k_range=(4, 4), random_state=0).fit(frame)
+    m = frame[list(typer.feature_names_in_)].to_numpy(float)
+    d = typer.detection_limit_wt_pct
+    n0 = (m == 0).sum(axis=1, keepdims=True)
+    d_mult = d / (1.0 + n0 * d / 100.0)
+    replaced = np.where(m > 0, m * (1.0 - n0 * d_mult / 100.0), d_mult)
+    logs = np.log(replaced)
+    clr = logs - logs.mean(axis=1, keepdims=True)
+    assert (n0 > 0).any()
+    np.testing.assert_allclose(typer.transform_scores(frame), typer.pca_.transform(typer.scaler_.transform(clr)),
+                               rtol=1e-10, atol=1e-10)
+
+
 # ------------------------------------------------------------------ ore inputs that gave silent wrong numbers
 def test_mass_fractions_for_wt_pct_are_refused_with_a_hint():
     with pytest.raises(TwinInputError, match=r"must sum to 100 within 0.5 wt%. Got 1.000 \(mass fractions summing "
