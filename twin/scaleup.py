@@ -21,6 +21,9 @@ efficiency factor EF3 = (2.44/D)^0.2 (0.914 from 3.81 m) on Bond's specific ener
 1982); with Hogg-Fuerstenau's D^2.5, S^E is invariant (Herbst & Fuerstenau's 1980 scale-up
 claim). A mill that draws more than its model (a fitted power factor, a measured
 power) breaks faster in proportion, as the energy-specific form has it. B does not change.
+Austin's rules above hold at the same ball and powder filling; a change of either keeps S^E
+(Herbst & Fuerstenau 1980), so S follows the power per hold-up, as the holdup effect has it for
+a change of load: S^E carries over the fillings, Austin's factor only the diameter, balls and speed.
 """
 
 from __future__ import annotations
@@ -67,7 +70,10 @@ def scale_breakage(params: BreakageParams, from_mill: Mill, to_mill: Mill,
     speed = austin_speed_factor(to_mill.speed_nominal_frac_critical) / austin_speed_factor(
         from_mill.speed_nominal_frac_critical)
     factor_a = diameter_factor_a(from_mill.diameter_m, to_mill.diameter_m) * ball ** BALL_EXPONENT_A * speed
-    energy = power_per_holdup(from_mill, solids_density_t_m3) / power_per_holdup(to_mill, solids_density_t_m3)
+    # the calibrated mill at the new fillings: their change of P/H reaches S, as S = S^E P / H has it
+    filled = replace(from_mill, ball_filling_frac=to_mill.ball_filling_frac,
+                     powder_filling_nominal=to_mill.powder_filling_nominal)
+    energy = power_per_holdup(filled, solids_density_t_m3) / power_per_holdup(to_mill, solids_density_t_m3)
     mu = params.mu_um * (to_mill.diameter_m / from_mill.diameter_m) ** DIAMETER_EXPONENT_MU * ball ** BALL_EXPONENT_MU
     return replace(params, se_1mm_t_kwh=params.se_1mm_t_kwh * factor_a * energy, mu_um=mu,
                    source=f"{params.source}; scaled from mill {from_mill.name!r} to {to_mill.name!r} (twin.scaleup)")

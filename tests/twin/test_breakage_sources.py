@@ -121,6 +121,27 @@ def test_scaled_rates_follow_austins_scale_up(power_model, diameter_m, ball_mm, 
     assert (q.alpha, q.Lambda, q.gamma, q.beta, q.phi) == (p.alpha, p.Lambda, p.gamma, p.beta, p.phi)
 
 
+def test_scale_up_to_other_fillings_keeps_the_energy_specific_rate():
+    """Austin's scale-up rules hold at the same ball filling J and powder filling U; across fillings the
+    energy-specific form keeps S^E (Herbst & Fuerstenau 1980), so S ~ P/H: with Bond's P ~ J (3.2 - 3 J) at one
+    diameter and speed and H ~ J U, S ~ (3.2 - 3 J) / U. The scale-up held S itself, so a mill filled to half
+    the powder of its calibrated twin broke at half the rate of the same mill, the same power and hold-up, called
+    at half load (P80 430 um against 204 um for ore B)."""
+    from twin.breakage import BreakageParams
+    from twin.mill import power_kw
+    from twin.scaleup import scale_breakage
+
+    p = BreakageParams(se_1mm_t_kwh=1.0)
+    to = LAB.with_(name="filled", ball_filling_frac=0.45, powder_filling_nominal=0.5)
+    q = scale_breakage(p, LAB, to, 2.7)
+
+    def rate(params, mill):
+        return params.se_1mm_t_kwh * power_kw(mill, mill.speed_nominal_frac_critical) / mill.nominal_holdup_t(2.7)
+
+    expected = (3.2 - 3 * 0.45) / (3.2 - 3 * 0.35) * (1.0 / 0.5)
+    assert rate(q, to) / rate(p, LAB) == pytest.approx(expected, rel=1e-9)
+
+
 def test_nominal_rates_are_the_energy_specific_rate_times_power_per_holdup():
     """S_i = S^E_i P / H (Herbst & Fuerstenau 1980): S^E 1 t/kWh at 1 mm, 3 kW on 0.06 t is 50 /h."""
     grid = SizeGrid(top_um=2000.0, ratio=2.0, count=4, scheme="austin")  # class 1's geometric mean: 707 um
@@ -169,3 +190,54 @@ def test_slowing_down_halves_the_rates_at_seventy_percent_fines():
     assert FINES_SIZE_UM == 75.0
     assert 1.0 / (1.0 + SLOPE * max(0.7 - ONSET_FINES_FRAC, 0.0)) == pytest.approx(0.5, rel=1e-12)
     assert 1.0 / (1.0 + SLOPE * max(0.3 - ONSET_FINES_FRAC, 0.0)) == 1.0
+
+
+class _HoldupCtx:
+    """The few things the holdup effect reads from a model build, with the hold-up [t] a number."""
+
+    def __init__(self, mill, holdup_t):
+        from types import SimpleNamespace
+        self.spec = SimpleNamespace(mill=mill, holdup_nominal_t=mill.nominal_holdup_t(2.7), solids_density_t_m3=2.7,
+                                    mixer_fracs=(1.0,))
+        self._h, self.factors = holdup_t, []
+
+    def get(self, name, default=None):
+        return default
+
+    def param(self, name, value, unit, source):
+        return value
+
+    def holdup(self, k=None):
+        return self._h
+
+    def contribute(self, name, factor):
+        self.factors.append(float(factor))
+
+    def provide(self, name, value):
+        pass
+
+    def output(self, name, expr):
+        pass
+
+    def note(self, what):
+        pass
+
+
+def _holdup_rate_factor(mill, powder_filling):
+    """The holdup effect's selection factor at a powder filling U (the ore's fraction of the bed voids)."""
+    from twin.effects.holdup import Holdup
+
+    ctx = _HoldupCtx(mill, mill.nominal_holdup_t(2.7) * powder_filling / mill.powder_filling_nominal)
+    Holdup().apply(ctx)
+    return ctx.factors[0]
+
+
+@pytest.mark.parametrize("u_nominal", [1.0, 0.5])
+def test_holdup_rates_saturate_below_half_the_bed_voids_whatever_the_nominal_filling(u_nominal):
+    """Austin et al. (1984, fig. 8.3): below a powder filling U ~ 0.5 of the bed voids the rates stop rising;
+    above, the same power is shared by more ore, S ~ 1/H (Herbst & Fuerstenau 1980). U is the ore's volume over
+    the voids, so a mill filled to U_nom = 0.5 at nominal load is there at load 1, not 0.5: the saturation was
+    taken at load 0.5 (U 0.25 in such a mill), and rates at U 0.4 ran 1.6 times those at U 0.2."""
+    mill = LAB.with_(name="u", powder_filling_nominal=u_nominal)
+    assert _holdup_rate_factor(mill, 0.2) / _holdup_rate_factor(mill, 0.4) == pytest.approx(1.0, abs=0.01)
+    assert _holdup_rate_factor(mill, 1.0) / _holdup_rate_factor(mill, 2.0) == pytest.approx(2.0, rel=0.01)

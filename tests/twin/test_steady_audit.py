@@ -106,6 +106,6 @@ def test_a_grain_size_no_rock_has_is_refused(tmp_path, grain):
     a unit slip (mm or nm for um) is refused, naming the field and the range; the range's ends pass."""
     from twin.ore import MEAN_GRAIN_RANGE_UM, Texture
 
-    with pytest.raises(TwinInputError, match=r"'mean_grain_um' parameter of Texture must be a float in \[0.1, 10000\]"):
+    with pytest.raises(TwinInputError, match=r"'mean_grain_um' parameter of Texture must be a float in \[1, 10000\]"):
         Texture(grain)
     assert [Texture(g).mean_grain_um for g in MEAN_GRAIN_RANGE_UM] == list(MEAN_GRAIN_RANGE_UM)

@@ -10,16 +10,17 @@
 - Breakage: energy-specific selection S = S^E P / H (Herbst & Fuerstenau 1980): above the
   powder filling where rates saturate, the same power is shared by more ore, so S ~ 1/H;
   below it (U < 0.5, Austin et al. 1984, fig. 8.3, ball-on-ball impacts waste energy) the
-  rates stop rising. The smooth maximum keeps the model differentiable near an empty mill.
+  rates stop rising; the powder filling is U_nom x load (U_nom the mill's ``powder_filling_nominal``).
+  The smooth maximum keeps the model differentiable near an empty mill.
 - Load status from load = H / H_nom: under, stable, over by the mill's stable band."""
 
 from __future__ import annotations
 
 from .base import Effect, EffectContext, smooth_max
 
-#: Load (hold-up over nominal) below which selection rates stop rising: Austin et al. (1984),
-#: fig. 8.3, rates per unit power level off below a powder filling of ~0.5 of the bed voids.
-RATE_SATURATION_LOAD = 0.5
+#: Powder filling U (fraction of the ball bed's voids) below which selection rates stop rising: Austin et al.
+#: (1984), fig. 8.3, rates per unit power level off below a powder filling of ~0.5 of the bed voids.
+RATE_SATURATION_POWDER_FILLING = 0.5
 
 
 class Holdup(Effect):
@@ -37,7 +38,9 @@ class Holdup(Effect):
         h_nom = spec.holdup_nominal_t
         q_nom = spec.mill.free_discharge_tph(spec.solids_density_t_m3, ctx.get("flow_multiplier", 1.0))
         n = ctx.param("discharge_exponent", spec.mill.discharge_exponent, "-", "le Roux et al. 2013")
-        h_sat = ctx.param("rate_saturation_load", RATE_SATURATION_LOAD, "H/H_nom", "Austin et al. 1984")
+        # U = 0.5 is load 0.5 / U_nom: a mill filled to U_nom = 0.5 at nominal saturates at its nominal load
+        h_sat = ctx.param("rate_saturation_load", RATE_SATURATION_POWDER_FILLING / spec.mill.powder_filling_nominal,
+                          "H/H_nom", "Austin et al. 1984, at U = 0.5")
 
         fracs = spec.mixer_fracs
 
@@ -50,4 +53,4 @@ class Holdup(Effect):
         load = ctx.holdup() / h_nom
         ctx.contribute("selection_rate_factor", 1.0 / smooth_max(load, h_sat, 0.05))
         ctx.output("load_frac", load)
-        ctx.note("discharge law on every mixer; selection factor 1/max(load, 0.5)")
+        ctx.note(f"discharge law on every mixer; selection factor 1/max(load, {h_sat:.3g})")

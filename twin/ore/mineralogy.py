@@ -25,10 +25,11 @@ TEXTURE_COLUMNS = ("mean_grain_um", "uniformity", "association_entropy")
 
 #: Reference grain size of the textural index [um]: the coarse, equigranular Type A texture.
 TEXTURE_REFERENCE_GRAIN_UM = 200.0
-#: Mean grain sizes an ore's texture may have [um]: from clay platelets (~0.1 um) to the coarsest
-#: igneous textures (pegmatites, ~1 cm); beyond, the value is a unit slip (mm or nm for um), and the
-#: textural index ~ d^-1/2 it enters would be off by a factor of ~30.
-MEAN_GRAIN_RANGE_UM = (0.1, 1e4)
+#: Mean grain sizes an ore's texture may have [um]: from 1 um, the finest mean grain size automated
+#: mineralogy (QEMSCAN, MLA: pixels of 1 um and more) measures, to the coarsest igneous textures
+#: (pegmatites, ~1 cm); beyond, the value is a unit slip, and the textural index ~ d^-1/2 it enters would be
+#: off by a factor of ~30: a grain given in mm (Table 1's 30-250 um are 0.03-0.25 mm) lies below 1.
+MEAN_GRAIN_RANGE_UM = (1.0, 1e4)
 
 
 def fractions_hint(total: float) -> str:
