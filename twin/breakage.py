@@ -39,6 +39,12 @@ from .sizes import SizeGrid
 
 #: Reference size of the selection function [um] (Austin's x0 = 1 mm).
 SELECTION_REFERENCE_UM = 1000.0
+#: Austin's rate form is quoted per sqrt(2) sieve interval at the interval's top size x_i (Austin,
+#: Klimpel & Luckie 1984, eq. 4.5: x_i the upper limit of size interval i); the twin's S(x)
+#: is a particle size's (a class's geometric mean, or integrated over the class), a factor 2^(1/4)
+#: below that top size: A (x 2^(1/4))^alpha / (1 + (x 2^(1/4) / mu)^Lambda) is A 2^(alpha/4) x^alpha /
+#: (1 + (x / (mu 2^(-1/4)))^Lambda).
+AUSTIN_TOP_OVER_MEAN = 2.0 ** 0.25
 #: Column sums of b must equal 1 to this tolerance (mass conservation, checked on build).
 B_COLUMN_TOLERANCE = 1e-12
 #: Gauss-Legendre nodes per parent interval of the cell-average scheme: the integrands are
@@ -94,13 +100,15 @@ class BreakageParams:
     def austin_rate(cls, a_per_min: float, alpha: float, mu_um: float, Lambda: float, gamma: float, beta: float,
                     phi: float, power_kw: float, holdup_t: float, delta: float = 0.0,
                     source: str = "") -> "BreakageParams":
-        """Austin's form with its rate constant A [1/min] at 1 mm, measured at a net power [kW] and
-        hold-up [t]: S^E(1 mm) = 60 A H / P (Herbst & Fuerstenau 1980), the rest as given."""
+        """Austin's form with its rate constant A [1/min] of the sqrt(2) interval whose top size is 1 mm,
+        measured at a net power [kW] and hold-up [t]: S^E(1 mm) = 60 A H / P (Herbst & Fuerstenau 1980),
+        moved from Austin's top sizes to the twin's particle sizes (:data:`AUSTIN_TOP_OVER_MEAN`)."""
         o = "BreakageParams.austin_rate"
         check_range(o, "a_per_min", a_per_min, 0.0, 1e6)
         check_range(o, "power_kw", power_kw, 0.0, math.inf)
         check_range(o, "holdup_t", holdup_t, 0.0, math.inf)
-        return cls(se_1mm_t_kwh=60.0 * a_per_min * holdup_t / power_kw, alpha=alpha, mu_um=mu_um, Lambda=Lambda,
+        return cls(se_1mm_t_kwh=60.0 * a_per_min * holdup_t / power_kw * AUSTIN_TOP_OVER_MEAN ** alpha, alpha=alpha,
+                   mu_um=mu_um / AUSTIN_TOP_OVER_MEAN, Lambda=Lambda,
                    gamma=gamma, beta=beta, phi=phi, delta=delta, source=source or "Austin parameters (rate form)")
 
 

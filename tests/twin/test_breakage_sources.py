@@ -39,16 +39,19 @@ def test_selection_is_austins_eq_4_5_at_each_class_geometric_mean():
     assert got[-1] == 0.0
 
 
-def test_austins_rate_constant_comes_back_in_per_hour_through_the_energy_specific_form():
-    """A [1/min] measured at net power P [kW] and hold-up H [t] is S^E(1 mm) = 60 A H / P [t/kWh]
-    (Herbst & Fuerstenau 1980); the twin's rate at that power and hold-up is then 60 A [1/h] at 1 mm
-    times Austin's Q(1 mm) = 1 / (1 + (1 mm / mu)^Lambda)."""
+@pytest.mark.parametrize("top_um", [1000.0, 300.0, 4750.0])
+def test_austins_rate_constant_comes_back_in_per_hour_through_the_energy_specific_form(top_um):
+    """A [1/min] measured at net power P [kW] and hold-up H [t] gives S^E = 60 A H / P [t/kWh] (Herbst &
+    Fuerstenau 1980). Austin's S_i = A (x_i / 1 mm)^alpha / (1 + (x_i / mu)^Lambda) is the rate of the sqrt(2)
+    interval whose upper limit is x_i (Austin, Klimpel & Luckie 1984, eq. 4.5); the twin's S(x) is a particle
+    size's, so its rate at that interval's geometric mean x_i / 2^(1/4), at that power and hold-up, is Austin's
+    S_i in 1/h. The twin read Austin's x_i as the mean: rates 2^(-alpha/4) = 16 % low below mu for alpha 1."""
     power, holdup = 2.0, 0.05  # kW, t
     p = BreakageParams.austin_rate(A_PER_MIN, ALPHA, MU_UM, LAMBDA, GAMMA, BETA, PHI, power_kw=power, holdup_t=holdup)
-    assert p.se_1mm_t_kwh == pytest.approx(A_PER_MIN * 60.0 * holdup / power, rel=1e-12)  # 1.05 t/kWh
     a_per_h = p.se_1mm_t_kwh * power / holdup
-    assert selection_at(1000.0, a_per_h, ALPHA, MU_UM, LAMBDA) == pytest.approx(
-        42.0 / (1.0 + (1000.0 / 3000.0) ** 3.0), rel=1e-12)
+    austin_per_h = 60.0 * A_PER_MIN * (top_um / 1000.0) ** ALPHA / (1.0 + (top_um / MU_UM) ** LAMBDA)
+    mean_um = top_um / 2.0 ** 0.25
+    assert selection_at(mean_um, a_per_h, p.alpha, p.mu_um, p.Lambda) == pytest.approx(austin_per_h, rel=1e-12)
 
 
 def test_energy_specific_selection_is_moly_cops_form_in_um():

@@ -30,7 +30,8 @@ def test_energy_specific_parameters_map_onto_austin_form():
 
 def test_austin_rate_converts_by_power_and_holdup():
     p = BreakageParams.austin_rate(0.5, 1.0, 3000.0, 2.5, 1.0, 4.0, 0.5, power_kw=100.0, holdup_t=4.0)
-    assert p.se_1mm_t_kwh == pytest.approx(60 * 0.5 * 4.0 / 100.0)
+    assert p.se_1mm_t_kwh == pytest.approx(60 * 0.5 * 4.0 / 100.0 * 2.0 ** 0.25)  # Austin's top size to a mean
+    assert p.mu_um == pytest.approx(3000.0 / 2.0 ** 0.25)
 
 
 @pytest.mark.parametrize("kwargs, field", [
