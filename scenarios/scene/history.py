@@ -338,11 +338,15 @@ def _check_some_feed(values: pd.DataFrame, where: str) -> None:
                          "if the feed rate was not recorded, leave the column empty or remove it")
 
 
+#: A texture inside every key's range (the reference ores' own scale), the other keys of one checked cell.
+_TEXTURE_INSIDE = {"mean_grain_um": 100.0, "uniformity": 0.5, "association_entropy": 0.5}
+
+
 @functools.lru_cache(maxsize=4096)
 def _texture_problem(key: str, value: float) -> str | None:
     """The scene schema's range of a texture key (``[ores.NAME.texture]``), applied to a cell."""
     try:
-        Texture.model_validate({k: (value if k == key else 0.5) for k in TEXTURE_COLUMNS})
+        Texture.model_validate({**_TEXTURE_INSIDE, key: value})
     except ValidationError as exc:
         return f"{value:g} {exc.errors()[0]['msg'].lower()}"
     return None
