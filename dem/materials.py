@@ -35,7 +35,7 @@ from dem.errors import DemInputError
 RAYLEIGH_SAFETY_FACTOR = 0.2
 
 #: Coefficient in the Hertz contact duration ``t_c = HERTZ_DURATION_COEF (m*^2/(R* E*^2 v))^(1/5)``
-#: (Johnson 1985, eq. 11.24; 2.868 = 2 * 1.4716...).
+#: (Johnson 1985, eq. 11.24; 2.868 = 2 (15/16)^(2/5) * 1.4716...).
 HERTZ_DURATION_COEF = 2.8683
 
 

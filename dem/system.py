@@ -107,6 +107,7 @@ class System:
                  contact_law: str = "hertz_mindlin", damping_velocity: str = "mid_step") -> None:
         pos, rad = _checked_spheres(pos_m, radius_m)
         _check_options(local_damping, time_step_factor, contact_law, damping_velocity)
+        _check_law_restitution(contact_law, material, wall_material if walls or drum is not None else None)
         periodic_z_m, gravity_m_s2 = _check_setup(rad, material, wall_material, density_kg_m3, bonds,
                                                   walls, drum, gravity_m_s2, periodic_z_m, skin_fraction)
         _check_placement(pos, rad, bonds, walls or [], drum, periodic_z_m)
@@ -532,6 +533,20 @@ def _check_options(local_damping, time_step_factor, contact_law, damping_velocit
             f"Got {damping_velocity!r}.")
 
 
+def _check_law_restitution(contact_law, material, wall_material) -> None:
+    """Yade's linear law (Law2_ScGeom_FrictPhys_CundallStrack) has no viscous damping, and the kernels'
+    damping is solved for a Hertz spring (materials.damping_coefficient): on a linear spring e = 0.3 gave
+    0.326. Energy leaves the Yade mirror by Cundall's local damping, so its restitutions are 1 (the wall's, if
+    the system has walls: ``wall_material`` None otherwise)."""
+    if contact_law != "linear_yade":
+        return
+    for owner, m in (("material", material), ("wall_material", wall_material)):
+        if m is not None and m.restitution != 1.0:
+            raise DemInputError(
+                f"The '{owner}' of System has restitution {m.restitution!r}; contact_law 'linear_yade' (Yade's "
+                "undamped linear law) takes restitution 1 (energy leaves by local_damping), or use 'hertz_mindlin'.")
+
+
 def _wall_arrays(walls: list[PlaneWall], n: int) -> WallArrays:
     nw = len(walls)
     wn = np.array([w.normal for w in walls], dtype=np.float64).reshape(nw, 3)
@@ -546,7 +561,9 @@ def _wall_arrays(walls: list[PlaneWall], n: int) -> WallArrays:
 
 def _contact_parameters(material, wall_material, contact_law, local_damping, damping_velocity,
                         gravity_m_s2, periodic_z_m, skin_m, bonds, drum) -> np.ndarray:
-    """The kernels' scalar parameter vector (indices ``kernels.CP_*``)."""
+    """The kernels' scalar parameter vector (indices ``kernels.CP_*``). A sphere-wall pair takes the
+    geometric mean of the two restitutions and the lower friction coefficient: a convention of this
+    package (EDEM and LIGGGHTS take a value per pair of materials, given by the user)."""
     cp = np.zeros(K.N_CP)
     cp[K.CP_ESTAR_PP] = effective_youngs_Pa(material, material)
     cp[K.CP_GSTAR_PP] = effective_shear_Pa(material, material)
