@@ -34,7 +34,7 @@ import warnings
 import numpy as np
 import scipy.sparse.linalg
 
-from .effects.classification import FEED_SOLIDS_VOL_PCT_MAX, Hydrocyclone, slurry_m3_h
+from .effects.classification import CYCLONE_PRESSURE_RANGE_KPA, FEED_SOLIDS_VOL_PCT_MAX, Hydrocyclone, slurry_m3_h
 from .atomic import is_grindtwin_checkout
 from .errors import SolverError, TwinInputError, check_range
 from .mill import CYCLONE_CIRCUITS, INDUSTRIAL_BASE, Mill, get_mill
@@ -48,8 +48,6 @@ DESIGN_CIRCULATING_LOAD = 2.5
 #: Design feed pressure of the cyclones [kPa]: 7.7 psi, that of the six-cyclone cluster of the
 #: Moly-Cop Tools BallSim base case (scenarios/data/molycop_ballsim_published.toml).
 DESIGN_CYCLONE_PRESSURE_KPA = 53.0
-#: Design pressures allowed [kPa], 5-40 psi: below, too little head to classify; above, wear and roping.
-CYCLONE_PRESSURE_RANGE_KPA = (34.0, 276.0)
 #: Mill diameters allowed [m]; cyclone diameters made for grinding circuits [cm] (4 to 33 in).
 DIAMETER_RANGE_M = (0.8, 8.0)
 CYCLONE_DIAMETER_RANGE_CM = (10.16, 83.82)

@@ -2,7 +2,8 @@
 inside): a hold-up beyond the mill filled to its shell (:meth:`twin.Mill.max_holdup_t`: the mill
 would overflow), a speed where the charge centrifuges (:func:`twin.mill.centrifuging_note`) and,
 with the rheology effect, a slurry past jamming (:func:`twin.effects.rheology.jamming_note`),
-and in a hydrocyclone circuit a roping underflow (:func:`roping_note`).
+and in a hydrocyclone circuit a roping underflow (:func:`roping_note`) or a feed pressure outside
+what cyclones run at (:func:`pressure_note`).
 Every steady state carries them (:attr:`twin.solve.SteadyState.notes`), every trajectory states
 them over its samples (:func:`trajectory_notes`, :attr:`twin.solve.Trajectory.notes`; a scene's
 run warns with them)."""
@@ -42,6 +43,22 @@ def roping_note(spec, outputs: dict) -> str:
             "underflow) keeps it below")
 
 
+def pressure_note(outputs: dict) -> str:
+    """A note when a hydrocyclone circuit's feed pressure (``outputs['cyclone_pressure_kpa']``, Plitt's
+    equation or a survey's) lies outside the range cyclones run at, else "": a cyclone's sizes in m for cm put
+    it at 1e8 kPa, a survey's psi read as kPa 6.9 times low."""
+    if "cyclone_pressure_kpa" not in outputs:
+        return ""
+    from .effects.classification import CYCLONE_PRESSURE_RANGE_KPA
+
+    lo, hi = CYCLONE_PRESSURE_RANGE_KPA
+    p_kpa = float(outputs["cyclone_pressure_kpa"])
+    if lo <= p_kpa <= hi:
+        return ""
+    return (f"the cyclone feed pressure is {p_kpa:.4g} kPa, outside the {lo:g}-{hi:g} kPa (5-40 psi) grinding "
+            "cyclones run at: are the cyclone's sizes in cm, and a survey's pressure in kPa, not psi?")
+
+
 #: The shortest nominal residence time [h] of a mill's charge taken as meant: 30 s, several times
 #: below the sized industrial mills' (2.6-4.9 min at 31-1000 t/h) and the laboratory mill's (25 min
 #: at 31 kg/h); a nominal feed in kg/h given as t/h puts the laboratory mill at 1.5 s.
@@ -75,6 +92,7 @@ def state_notes(spec, effect_names, speed_frac_critical: float, holdup_t: float,
     per size class, for a P80 the grid does not resolve)."""
     notes = [overflow_note(holdup_t, spec.mill.max_holdup_t(spec.solids_density_t_m3)),
              centrifuging_note(speed_frac_critical), water_note(outputs or {}), roping_note(spec, outputs or {}),
+             pressure_note(outputs or {}),
              sink_note(spec.grid, product_mass) if product_mass is not None else "", residence_note(spec)]
     k_clay = _clay_crowding(spec, effect_names)
     if k_clay is not None and clay_frac is not None:

@@ -127,3 +127,21 @@ def test_any_cyclone_circuit_notes_a_roping_underflow_not_only_a_sizing():
     dilute = tw.steady(feed_tph=FEED)
     assert solids_volume_pct(dilute.outputs["underflow_solids_frac"], tw.spec.solids_density_t_m3) < 50.0
     assert not any("rope" in n for n in dilute.notes)
+
+
+def test_a_cyclone_in_metres_notes_its_pressure():
+    """A cyclone's sizes in m for cm (0.41 for a 41-cm cyclone) ran Plitt's pressure to ~1e9 kPa with no word;
+    a steady state now notes a feed pressure outside the 5-40 psi cyclones run at. The preset's own cyclones
+    (53 kPa) are not noted; neither is a survey's 7.7 psi given in kPa (52 kPa), but 7.7 kPa is."""
+    from twin import get_mill
+    from twin.validity import pressure_note
+
+    assert not any("cyclone feed pressure" in n for n in circuit("direct").steady(feed_tph=FEED).notes)
+    sizes = ("diameter_cm", "inlet_cm", "vortex_finder_cm", "apex_cm", "free_vortex_height_cm")
+    metres = {k: (v / 100.0 if k in sizes else v) for k, v in dict(get_mill("industrial").cyclone).items()
+              if v is not None}
+    ss = circuit("direct", cyclone=metres).steady(feed_tph=FEED)
+    assert ss.outputs["cyclone_pressure_kpa"] > 1e6
+    assert any(n.startswith("the cyclone feed pressure is") and "sizes in cm" in n for n in ss.notes)
+    assert pressure_note({"cyclone_pressure_kpa": 7.7 * 6.894757}) == ""
+    assert "7.7 kPa" in pressure_note({"cyclone_pressure_kpa": 7.7})

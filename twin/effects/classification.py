@@ -52,6 +52,9 @@ FEED_SOLIDS_VOL_PCT_MAX = 70.0
 #: at some 15-45 % (the Moly-Cop base case 36 %); below 1 % the value is a fraction given for percent (0.42 for
 #: 42 %), which put Plitt's pressure at 1e15 kPa.
 FEED_SOLIDS_VOL_PCT_MIN = 1.0
+#: Feed pressures grinding-circuit cyclones run at [kPa], 5-40 psi: below, too little head to classify; above,
+#: wear and roping (a design's range, :func:`twin.size_mill`; outside it a steady state carries a note).
+CYCLONE_PRESSURE_RANGE_KPA = (34.0, 276.0)
 
 
 def _feed_range_text(what: str, vol_pct: float) -> str:
