@@ -145,13 +145,25 @@ class Mineralogy:
     def mix(self, other: "Mineralogy", frac_self: float) -> "Mineralogy":
         """Mass-weighted mixture (for blends): frac_self of this ore, the rest of ``other``."""
         f = check_range("Mineralogy.mix", "frac_self", frac_self, 0.0, 1.0, False, False)
-        names = set(self.wt_pct) | set(other.wt_pct)
-        wt = {m: f * self.wt_pct.get(m, 0.0) + (1 - f) * other.wt_pct.get(m, 0.0) for m in names}
-        g = f * self.texture.mean_grain_um ** -1 + (1 - f) * other.texture.mean_grain_um ** -1
-        tex = Texture(1.0 / g,
-                      f * self.texture.uniformity + (1 - f) * other.texture.uniformity,
-                      f * self.texture.association_entropy + (1 - f) * other.texture.association_entropy)
-        return Mineralogy(wt, tex, name=f"{self.name}{f:.2f}+{other.name}{1 - f:.2f}")
+        return Mineralogy.blend((self, other), (f, 1 - f))
+
+    @staticmethod
+    def blend(ores, fractions) -> "Mineralogy":
+        """Mass-weighted mixture of ``ores`` at mass ``fractions`` (summing to 1): wt% linear, the mean
+        grain size harmonic (grains per unit mass add), uniformity and association entropy linear (kept
+        in their ranges against rounding). One ore is itself."""
+        fr = [float(f) for f in fractions]
+        if len(ores) == 1:
+            return ores[0]
+        wt: dict = {}
+        for ore, f in zip(ores, fr):
+            for m, v in ore.wt_pct.items():
+                wt[m] = wt.get(m, 0.0) + f * v
+        grain = 1.0 / sum(f * o.texture.mean_grain_um ** -1 for o, f in zip(ores, fr))
+        uni = sum(f * o.texture.uniformity for o, f in zip(ores, fr))
+        ent = sum(f * o.texture.association_entropy for o, f in zip(ores, fr))
+        name = "+".join(f"{o.name}{f:.2f}" for o, f in zip(ores, fr))
+        return Mineralogy(wt, Texture(grain, min(uni, 1.0), min(max(ent, 0.0), 1.0)), name=name)
 
     def summary(self) -> dict:
         """Derived indices, unit-suffixed, for reports and the CLI."""

@@ -4,7 +4,7 @@ texture and operating conditions."""
 from __future__ import annotations
 
 from ..errors import TwinInputError
-from ..ore.mineralogy import TEXTURE_COLUMNS, WT_SUFFIX, Mineralogy, Texture
+from ..ore.mineralogy import TEXTURE_COLUMNS, WT_SUFFIX, Mineralogy
 from ..ore.minerals import mineral_table
 from ..ore.ores import Blend, load_ore
 
@@ -18,20 +18,8 @@ def mineral_names() -> list[str]:
 
 
 def blend_mineralogy(blend: Blend) -> Mineralogy:
-    """Mass-weighted mineralogy of a blend (texture as in :meth:`Mineralogy.mix`: harmonic
-    mean grain size, linear uniformity and entropy)."""
-    fr = [float(f) for f in blend.fractions]
-    if len(blend.ores) == 1:
-        return blend.ores[0]
-    wt: dict = {}
-    for ore, f in zip(blend.ores, fr):
-        for m, v in ore.wt_pct.items():
-            wt[m] = wt.get(m, 0.0) + f * v
-    grain = 1.0 / sum(f / o.texture.mean_grain_um for o, f in zip(blend.ores, fr))
-    uni = sum(f * o.texture.uniformity for o, f in zip(blend.ores, fr))
-    ent = sum(f * o.texture.association_entropy for o, f in zip(blend.ores, fr))
-    name = "+".join(f"{o.name}{f:.2f}" for o, f in zip(blend.ores, fr))
-    return Mineralogy(wt, Texture(grain, min(uni, 1.0), min(max(ent, 0.0), 1.0)), name=name)
+    """Mass-weighted mineralogy of a blend (:meth:`Mineralogy.blend`)."""
+    return Mineralogy.blend(blend.ores, blend.fractions)
 
 
 def as_mineralogy(ore) -> Mineralogy:
