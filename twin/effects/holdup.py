@@ -2,11 +2,10 @@
 
 - Discharge: the flow out of a mixer rises with its content, Q = Q_nom (H/H_nom)^n, Q_nom the
   mill's free discharge at nominal hold-up (:meth:`twin.mill.Mill.free_discharge_tph`: a volume
-  flow, so its mass grows with the solids density as H_nom does); n = 2
-  follows the overflow-discharge law of the le Roux et al. (2013) circuit model, where mill
-  outflow is proportional to the square of its slurry content (Minerals Engineering 43-44,
-  eq. 9), and Morrell & Stephenson (1996, Powder Technol. 88, 63-69) for slurry hold-up
-  against flow.
+  flow, so its mass grows with the solids density as H_nom does); n = 2 is Morrell & Stephenson's
+  grate-discharge law (1996, Powder Technol. 88, 63-69), the flow through a grate rising as the
+  square of the mill's slurry hold-up (le Roux et al.'s circuit model, 2013, eq. 9, discharges in
+  proportion to the content at a fixed slurry composition).
 - Breakage: energy-specific selection S = S^E P / H (Herbst & Fuerstenau 1980): above the
   powder filling where rates saturate, the same power is shared by more ore, so S ~ 1/H;
   below it (U < 0.5, Austin et al. 1984, fig. 8.3, ball-on-ball impacts waste energy) the
@@ -30,14 +29,14 @@ class Holdup(Effect):
     contributes = ("selection_rate_factor",)
     outputs = ("load_frac",)
     uses = ("flow_multiplier",)
-    source = "Herbst & Fuerstenau (1980); le Roux et al. (2013) eq. 9; Austin et al. (1984) fig. 8.3"
+    source = "Herbst & Fuerstenau (1980); Morrell & Stephenson (1996); Austin et al. (1984) fig. 8.3"
     summary = "discharge Q_nom (H/H_nom)^n; S ~ H_nom / max(H, H_sat); load status"
 
     def apply(self, ctx: EffectContext) -> None:
         spec = ctx.spec
         h_nom = spec.holdup_nominal_t
         q_nom = spec.mill.free_discharge_tph(spec.solids_density_t_m3, ctx.get("flow_multiplier", 1.0))
-        n = ctx.param("discharge_exponent", spec.mill.discharge_exponent, "-", "le Roux et al. 2013")
+        n = ctx.param("discharge_exponent", spec.mill.discharge_exponent, "-", "Morrell & Stephenson 1996")
         # U = 0.5 is load 0.5 / U_nom: a mill filled to U_nom = 0.5 at nominal saturates at its nominal load
         h_sat = ctx.param("rate_saturation_load", RATE_SATURATION_POWDER_FILLING / spec.mill.powder_filling_nominal,
                           "H/H_nom", "Austin et al. 1984, at U = 0.5")
