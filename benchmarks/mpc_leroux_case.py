@@ -43,8 +43,7 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 
-from mpc import FixedInputs, LoopSettings, Sensors, pi_baseline, run_closed_loop
-from mpc.estimator import Ekf
+from mpc import ChangeDetector, Ekf, FixedInputs, LoopSettings, Sensors, pi_baseline, run_closed_loop
 from mpc.plants.leroux import LeRouxCircuit, LeRouxPlant, matched_twin
 from mpc.nmpc import Controller, NmpcSettings
 from dem_common import TAG
@@ -101,7 +100,8 @@ def make_estimator(args, case) -> Ekf:
     return Ekf(mt.twin.model, dt, mt.steady.x, hardness0=mt.hardness0, rk4_substeps=mt.rk4_substeps(dt),
                p80_noise_um=case.sensors.p80_noise_um, hardness_noise_per_sqrt_h=args.hardness_noise,
                disturbance_model=args.disturbance_model, p80_bias_noise_um_per_sqrt_h=args.p80_bias_noise,
-               p80_gain=mt.p80_gain, p80_reference_um=mt.target_p80_um)
+               p80_gain=mt.p80_gain, p80_reference_um=mt.target_p80_um,
+               change_detector=ChangeDetector() if args.change_detector else None)
 
 
 def make_nmpc(args, case) -> Controller:
@@ -227,6 +227,8 @@ def parser() -> argparse.ArgumentParser:
                     help="EKF random-walk intensity of the P80 bias [um/sqrt(h)]")
     ap.add_argument("--hardness-noise", type=float, default=0.15,
                     help="EKF random-walk intensity of the twin's hardness scale [1/sqrt(h)]")
+    ap.add_argument("--change-detector", action="store_true",
+                    help="a CUSUM change detector in front of the EKF (mpc.ChangeDetector, its defaults)")
     ap.add_argument("--p80-noise", type=float, default=3.0, help="analyser noise [um]")
     ap.add_argument("--warmup-h", type=float, default=2.0,
                     help="estimator warm-up on the steady plant before t = 0 [h]")
@@ -266,7 +268,8 @@ def main(argv=None) -> pd.DataFrame:
           f"qpsol {args.qpsol}, no preview), seeds {args.seeds}; weights p80 {args.weight_p80}, du_feed "
           f"{args.weight_du_feed}, du_speed {args.weight_du_speed}, energy {args.weight_energy}; EKF on the P80 analyser only, "
           f"disturbance model {args.disturbance_model}, hardness noise "
-          f"{args.hardness_noise}/sqrt(h), warm-up {args.warmup_h} h; sensors: P80 noise "
+          f"{args.hardness_noise}/sqrt(h){', CUSUM change detector (mpc.ChangeDetector)' if args.change_detector else ''}"
+          f", warm-up {args.warmup_h} h; sensors: P80 noise "
           f"{args.p80_noise} um, dead time 0.1 h, sampling 0.05 h. Band: +-{BAND_REL:.0%} of "
           "target. final_offset_um: mean (P80 - target) over the last hour; "
           "hardness_est_final_rel: the EKF's hardness over its survey-3 value (plant: "

@@ -7,11 +7,8 @@ controller the ore's hardness.
 
 And a change detector in front of the EKF (``EKF + change detector``): ore hardness drifts slowly
 within a pit and jumps at an ore change, so the hardness walks at the estimator's default
-intensity (:data:`mpc.estimator.HARDNESS_NOISE_PER_SQRT_H`) and a two-sided CUSUM (Page 1954,
-Biometrika 41, 100-115) of the analyser's innovation signals a jump; the filter is then rewound
-to the sample where the CUSUM last left zero, its hardness variance raised by a jump's prior, and
-rerun over the buffered samples (:data:`DETECTOR`). An ablation of the estimator, not the
-product's.
+intensity (:data:`mpc.estimator.HARDNESS_NOISE_PER_SQRT_H`) and a two-sided CUSUM of the
+analyser's innovation signals a jump (:class:`mpc.ChangeDetector`).
 
 Where the IAE is spent: each run's IAE split into three windows, before the step (0-1 h), the
 transient (1-3 h) and the settled hours (3 h to the end), for the PI and every NMPC variant.
@@ -45,56 +42,12 @@ from mpc.kpis import p80_iae_um_h  # noqa: E402
 TRANSIENT_H = 2.0
 
 
-#: The change detector: CUSUM drift and threshold in units of the analyser's noise (0.5 and 4: one
-#: false alarm per ~170 samples without a change, a 1-sigma shift found in ~8; Montgomery,
-#: *Introduction to Statistical Quality Control*, the tabular CUSUM's ARLs), the jump's prior
-#: standard deviation on the hardness scale (ore types differ in hardness by tens of per cent) and
-#: the samples kept to rewind over (1 h at 3-min samples).
-DETECTOR = {"drift": 0.5, "threshold": 4.0, "jump_sd": 0.15, "buffer": 20}
-
-
 def detecting_estimator(args, case):
     """The case's EKF with the hardness walking at the default intensity and the change detector
-    of the module docstring in front of it."""
-    est = case_mod.make_estimator(SimpleNamespace(**{**vars(args), "hardness_noise": HARDNESS_NOISE_PER_SQRT_H}), case)
-    if not est.has_hardness:
-        raise SystemExit("--disturbance-model must estimate the hardness for this ablation")
-    buf, j, sigma = [], est.nx, est.r_diag[0] ** 0.5
-    cusum = {"up": 0.0, "down": 0.0, "up_from": 0, "down_from": 0, "n": 0}
-
-    def run(z, P, records):
-        for rec in records:
-            zn, pn, e = est._step(z, P, *rec[2:])
-            z, P = np.asarray(zn, float).ravel(), np.asarray(pn, float)
-        return z, P, np.asarray(e, float).ravel()
-
-    def make_step(y, u, d):
-        u = np.asarray(u, float).reshape(-1)
-        db = np.asarray(d, float).reshape(-1)[: est.nd - 1]
-        y = np.asarray(y, float).reshape(-1)
-        ok = np.isfinite(y)
-        buf.append((est.z.copy(), est.P.copy(), u, db, np.where(ok, y, 0.0), ok.astype(float)))
-        del buf[:-DETECTOR["buffer"]]
-        cusum["n"] += 1
-        est.z, est.P, e = run(est.z, est.P, buf[-1:])
-        if ok[0]:
-            v = e[0] / sigma
-            for side, sign in (("up", 1.0), ("down", -1.0)):
-                cusum[side] = max(0.0, cusum[side] + sign * v - DETECTOR["drift"])
-                if cusum[side] == 0.0:
-                    cusum[side + "_from"] = cusum["n"]
-            side = max(("up", "down"), key=lambda k: cusum[k])
-            if cusum[side] > DETECTOR["threshold"]:
-                first = max(0, cusum[side + "_from"] - (cusum["n"] - len(buf)))
-                z, P = buf[first][0].copy(), buf[first][1].copy()
-                P[j, j] += (DETECTOR["jump_sd"] * est.hardness_est) ** 2
-                est.z, est.P, e = run(z, P, buf[first:])
-                cusum.update(up=0.0, down=0.0, up_from=cusum["n"], down_from=cusum["n"])
-        est.innovation = np.where(ok, e, np.nan)
-        return est.x_est, np.r_[db, est.hardness_est]
-
-    est.make_step = make_step
-    return est
+    (:class:`mpc.ChangeDetector`, its defaults) in front of it: ``mpc_leroux_case.py --hardness-noise 0.03
+    --change-detector``."""
+    return case_mod.make_estimator(SimpleNamespace(**{**vars(args), "hardness_noise": HARDNESS_NOISE_PER_SQRT_H,
+                                                      "change_detector": True}), case)
 
 
 def oracle_estimator(args, case, delay_h: float):

@@ -8,7 +8,7 @@ from mpc.discretize import (RK4_RATE_SAFETY, cvodes_map, min_rk4_substeps, rk4_m
                              stable_rk4_substeps, state_jacobian)
 from mpc.errors import MpcError, MpcInputError, MpcSolverError, OutsideModelsWarning
 from mpc.codegen import CompileFallbackWarning, CompileReport, compiled
-from mpc.estimator import DISTURBANCE_MODELS, MEASUREMENTS, Ekf
+from mpc.estimator import DISTURBANCE_MODELS, MEASUREMENTS, ChangeDetector, Ekf
 from mpc.estimator import RK4_SUBSTEPS as EKF_RK4_SUBSTEPS
 from mpc.export import check_out_dir, export_controller, export_lock
 from mpc.kpis import (P80_BAND_UM, cumulative, fresh_feed_t, held_cumulative, held_integral, integral, loop_kpis,
@@ -26,7 +26,7 @@ from mpc.sensors import Sensors, SensorState
 __all__ = [
     "EKF_RK4_SUBSTEPS",
     "CLOSED_LOOP_READS", "OutsideModelsWarning", "speed_max_note",
-    "ClosedLoopResult", "CompileFallbackWarning", "CompileReport", "DISTURBANCE_MODELS", "Controller", "ControllerStepResult", "DiscretePI", "ESTIMATOR_MEASUREMENTS", "Ekf",
+    "ChangeDetector", "ClosedLoopResult", "CompileFallbackWarning", "CompileReport", "DISTURBANCE_MODELS", "Controller", "ControllerStepResult", "DiscretePI", "ESTIMATOR_MEASUREMENTS", "Ekf",
     "FixedInputs", "Fopdt", "LeRouxCircuit", "LeRouxParameters", "LeRouxPlant", "LinearMPC", "LoopSettings",
     "MEASUREMENTS", "MatchedTwin", "MpcError", "MpcInputError", "MpcSolverError", "NmpcSettings", "OperatingPoint",
     "P80_BAND_UM", "PiFeedback", "QP_SOLVERS", "SOLVERS", "RK4_RATE_SAFETY", "SensorState", "Sensors", "Setpoints", "StepMoments", "TwinPlant",

@@ -28,9 +28,15 @@ the model's): the analyser then reads ``ref + g (P80(x) - ref) + b`` about a ref
 (:meth:`Ekf.controller_p80_bias_um`). An analyser sampling every few
 minutes gives a new value only at its sample instants; the closed loop passes ``nan`` in
 between so a held value is not counted twice.
+
+Ore hardness drifts slowly within a pit and jumps at an ore change: a :class:`ChangeDetector` in
+front of the filter lets a slow hardness walk (little analyser noise passed to the inputs) still
+follow a jump.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
@@ -56,6 +62,32 @@ DISTURBANCE_MODELS = ("hardness", "p80_bias", "hardness+p80_bias")
 #: (``A P A^T``): the filter diverges. A caller that knows the stable count of its model (a scene's
 #: ``controller.rk4_substeps``, checked by the runner) passes at least that.
 RK4_SUBSTEPS = 3
+
+
+@dataclass(frozen=True)
+class ChangeDetector:
+    """A two-sided CUSUM (Page 1954, Biometrika 41, 100-115) on the P80 analyser's innovation in units of
+    its noise. On an alarm the filter is rewound to the sample where the alarming sum last left zero, the
+    hardness variance raised by a jump's prior, and rerun over the samples kept.
+
+    ``drift`` and ``threshold``: the CUSUM's k and h in noise units (0.5 and 4: one false alarm per ~170
+    samples without a change, a 1-sigma shift found in ~8; Montgomery, *Introduction to Statistical
+    Quality Control*, the tabular CUSUM's average run lengths). ``jump_sd``: the jump's prior standard
+    deviation relative to the hardness estimate (ore types differ in hardness by tens of per cent).
+    ``buffer``: samples kept to rewind over (20: 1 h at 3-min samples)."""
+
+    drift: float = 0.5
+    threshold: float = 4.0
+    jump_sd: float = 0.15
+    buffer: int = 20
+
+    def __post_init__(self):
+        for name in ("drift", "threshold", "jump_sd"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+                raise MpcInputError(f"The '{name}' parameter of ChangeDetector must be a float > 0. Got {v!r}.")
+        if isinstance(self.buffer, bool) or not isinstance(self.buffer, (int, np.integer)) or self.buffer < 1:
+            raise MpcInputError(f"The 'buffer' parameter of ChangeDetector must be an int >= 1. Got {self.buffer!r}.")
 
 
 class Ekf:
@@ -99,6 +131,9 @@ class Ekf:
         needed with any other gain.
     codegen : str
         The filter step compiled (:func:`mpc.codegen.compiled` mode).
+    change_detector : ChangeDetector or None
+        A CUSUM in front of the filter that lets the hardness jump (needs a disturbance model with
+        the hardness).
     """
 
     def __init__(self, model, dt_h: float, x0, hardness0: float = 1.0, p80_noise_um: float = 3.0,
@@ -109,7 +144,7 @@ class Ekf:
                  hardness_bounds: tuple = (0.3, 3.0), disturbance_model: str = "hardness",
                  p80_bias_noise_um_per_sqrt_h: float = P80_BIAS_NOISE_UM_PER_SQRT_H,
                  p80_bias_p0_um: float = 10.0, p80_gain: float = 1.0, p80_reference_um: float | None = None,
-                 codegen: str = "auto"):
+                 codegen: str = "auto", change_detector: ChangeDetector | None = None):
         self.model = model
         if not (np.isfinite(dt_h) and dt_h > 0):
             raise MpcInputError(f"The 'dt_h' parameter of Ekf must be a float > 0. Got {dt_h!r}.")
@@ -128,6 +163,11 @@ class Ekf:
         self.disturbance_model = disturbance_model
         self.has_hardness = "hardness" in disturbance_model
         self.has_p80_bias = "p80_bias" in disturbance_model
+        if change_detector is not None and (not isinstance(change_detector, ChangeDetector) or not self.has_hardness):
+            raise MpcInputError(f"The 'change_detector' parameter of Ekf must be a ChangeDetector, with a disturbance "
+                                f"model that estimates the hardness. Got {change_detector!r} with "
+                                f"{disturbance_model!r}.")
+        self.change_detector = change_detector
         self.nx = model.f.size1_in(0)
         self.nd = model.f.size1_in(2)
         x0 = np.asarray(x0, float).reshape(-1)
@@ -213,6 +253,10 @@ class Ekf:
         self.z = np.r_[x, [h] if self.has_hardness else [], [0.0] if self.has_p80_bias else []]
         self.P = self._p0.copy()
         self.innovation = np.full(3, np.nan)
+        self._kept = []  # the change detector's samples: (z, P before it, its step's arguments)
+        #: The samples (counted from the last reset, 0 the first) each detected jump was placed at.
+        self.jumps: list[int] = []
+        self._cusum = {"up": 0.0, "down": 0.0, "up_from": 0, "down_from": 0, "n": 0}
 
     @property
     def x_est(self) -> np.ndarray:
@@ -269,11 +313,43 @@ class Ekf:
             raise MpcInputError(f"The 'd_known' parameter of Ekf.make_step must be the {self.nd - 1} blend "
                                 f"fractions (a trailing hardness is ignored), finite. Got {d_all.tolist()}.")
         ok = np.isfinite(y)
-        zn, pn, e = self._step(self.z, self.P, u, db, np.where(ok, y, 0.0), ok.astype(float))
-        self.z = np.asarray(zn, float).ravel()
-        self.P = np.asarray(pn, float)
-        self.innovation = np.where(ok, np.asarray(e, float).ravel(), np.nan)
+        args = (u, db, np.where(ok, y, 0.0), ok.astype(float))
+        if self.change_detector is not None:
+            self._kept.append((self.z.copy(), self.P.copy(), args))
+            del self._kept[:-self.change_detector.buffer]
+            self._cusum["n"] += 1  # samples, with or without an analyser value: the rewind's index
+        self.z, self.P, e = self._run(self.z, self.P, [args])
+        if self.change_detector is not None and ok[0]:
+            e = self._detect(e)
+        self.innovation = np.where(ok, e, np.nan)
         return self.x_est, np.r_[db, self.hardness_est]
+
+    def _run(self, z, P, steps):
+        """The filter over ``steps`` (each its step's arguments) from ``(z, P)``: ``(z, P, last innovation)``."""
+        for args in steps:
+            zn, pn, e = self._step(z, P, *args)
+            z, P = np.asarray(zn, float).ravel(), np.asarray(pn, float)
+        return z, P, np.asarray(e, float).ravel()
+
+    def _detect(self, e):
+        """The change detector's CUSUM on this sample's P80 innovation ``e[0]``; on an alarm the rewind and
+        rerun (:class:`ChangeDetector`). Returns the innovation of this sample as the filter now has it."""
+        det, c = self.change_detector, self._cusum
+        v = e[0] / self.r_diag[0] ** 0.5
+        for side, sign in (("up", 1.0), ("down", -1.0)):
+            c[side] = max(0.0, c[side] + sign * v - det.drift)
+            if c[side] == 0.0:
+                c[side + "_from"] = c["n"]
+        side = max(("up", "down"), key=lambda k: c[k])
+        if not c[side] > det.threshold:
+            return e
+        first = max(0, c[side + "_from"] - (c["n"] - len(self._kept)))
+        self.jumps.append(c["n"] - len(self._kept) + first)
+        z, P = self._kept[first][0].copy(), self._kept[first][1].copy()
+        P[self.nx, self.nx] += (det.jump_sd * self.hardness_est) ** 2
+        self.z, self.P, e = self._run(z, P, [k[2] for k in self._kept[first:]])
+        c.update(up=0.0, down=0.0, up_from=c["n"], down_from=c["n"])
+        return e
 
 
 def _p80_gain(gain, reference_um) -> tuple[float, float | None]:

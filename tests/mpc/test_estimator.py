@@ -91,3 +91,49 @@ def test_ekf_refuses_a_bad_p80_gain(ctrl_twin):
         Ekf(ctrl_twin.model, 0.05, x0, p80_gain=2.0)
     with pytest.raises(MpcInputError, match="'p80_reference_um'.*Got -1"):
         Ekf(ctrl_twin.model, 0.05, x0, p80_gain=2.0, p80_reference_um=-1.0)
+
+
+def _hardness_run(m, ss, ekf, h_after, n_before=10, n_after=25, noise_um=0.0, every=1):
+    """The estimator's own model as the plant, hardness 1.0 then ``h_after``, its P80 read every ``every``
+    samples; the estimates per sample."""
+    rng = np.random.default_rng(5)
+    x, hs = ss.x.copy(), []
+    for k in range(n_before + n_after):
+        d_plant = m.d_vector([1.0, 0.0], 1.0 if k < n_before else h_after)
+        x, _, _ = step(m, x, ss.u, d_plant, 0.05)
+        y = [float(m.outputs[name](x, ss.u, d_plant)) for name in ("p80_measured_um", "power_kw", "load_frac")]
+        y[0] += rng.normal(0, noise_um) if noise_um else 0.0
+        hs.append(ekf.make_step([y[0] if k % every == 0 else np.nan, np.nan, np.nan], ss.u, [1.0, 0.0])[1][-1])
+    return np.array(hs)
+
+
+def test_change_detector_places_a_jump_where_it_happened_and_follows_it(ctrl_twin):
+    """A CUSUM in front of the filter (Page 1954): a +25 % hardness jump at sample 10, the analyser read every
+    second sample with 3 um noise: the detector places the jump at sample 10 or the next (where its sum
+    left zero), rewinds there and the estimate follows to within 0.03. Without a change and without noise
+    it leaves the filter as it is, bit for bit."""
+    from mpc import ChangeDetector
+
+    m = ctrl_twin.model
+    ss = ctrl_twin.steady(feed_tph=27.0, speed_frac_critical=0.70, blend=[1.0, 0.0])
+
+    def ekf(det):
+        return Ekf(m, 0.05, ss.x, p80_noise_um=3.0, hardness_noise_per_sqrt_h=0.03, change_detector=det)
+
+    assert np.array_equal(_hardness_run(m, ss, ekf(None), 1.0), _hardness_run(m, ss, ekf(ChangeDetector()), 1.0))
+    est = ekf(ChangeDetector())
+    hs = _hardness_run(m, ss, est, 1.25, noise_um=3.0, every=2)
+    assert est.jumps and est.jumps[0] in (10, 11)
+    assert abs(hs[-1] - 1.25) < 0.03
+
+
+def test_change_detector_refuses_what_it_cannot_use(ctrl_twin):
+    from mpc import ChangeDetector
+
+    for kw, name in ((dict(drift=0.0), "drift"), (dict(threshold=float("nan")), "threshold"),
+                     (dict(jump_sd=True), "jump_sd"), (dict(buffer=0), "buffer"), (dict(buffer=2.5), "buffer")):
+        with pytest.raises(MpcInputError, match=f"'{name}' parameter of ChangeDetector"):
+            ChangeDetector(**kw)
+    x0 = ctrl_twin.model.initial_state([1.0, 0.0])
+    with pytest.raises(MpcInputError, match="'change_detector' parameter of Ekf .* estimates the hardness"):
+        Ekf(ctrl_twin.model, 0.05, x0, disturbance_model="p80_bias", change_detector=ChangeDetector())
