@@ -37,7 +37,8 @@ _API = {
 }
 
 __all__ = [
-    "BALL_SIZE_MAX_MM", "BALL_SIZE_MIN_MM", "Blend", "BreakageParams", "CENTRIFUGING_FRAC_CRITICAL", "DEFAULT_EFFECTS", "EFFECTS", "Effect", "FastCalibrationWarning", "GatesGaudinSchuhmann",
+    "BALL_SIZE_MAX_MM", "BALL_SIZE_MIN_MM",
+    "Blend", "BreakageParams", "CENTRIFUGING_FRAC_CRITICAL", "DEFAULT_EFFECTS", "EFFECTS", "Effect", "FastCalibrationWarning", "GatesGaudinSchuhmann",
     "INPUT_NAMES", "MILLS", "MIXER_SHARES_SUM_TOL", "mixer_shares_sum_ok",
     "Hydrocyclone", "Mill", "Mineralogy", "Model", "ModelError", "ModelSpec", "OreBreakage", "POWER_MODELS", "RosinRammler",
     "SPEED_FACTOR_ZERO_FRAC_CRITICAL", "SizeGrid", "SizedMill", "SolverError", "SteadyState", "TabulatedPSD",

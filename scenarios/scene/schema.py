@@ -150,7 +150,8 @@ class OreBreakage(Section):
     d^alpha1 / (1 + (d / critical_size_um)^alpha2), d in um. ``form = "austin"``: Austin's rate
     S = a_per_min (d/1 mm)^alpha / (1 + (d/mu_um)^Lambda) [1/min], measured at the scene mill's
     nominal power and hold-up, d the upper size of Austin's sqrt(2) interval (Austin, Klimpel &
-    Luckie 1984, eq. 4.5; the twin moves it to its particle sizes). Breakage B = beta0 (x/y)^beta1 + (1 - beta0)(x/y)^beta2 (Austin's
+    Luckie 1984, eq. 4.5; the twin moves it to its particle sizes).
+    Breakage B = beta0 (x/y)^beta1 + (1 - beta0)(x/y)^beta2 (Austin's
     phi, gamma, beta) for both."""
 
     form: Literal["energy_specific", "austin"] = "energy_specific"
