@@ -222,33 +222,25 @@ def _turn_until_broken(params, axis, dtheta):
     raise AssertionError("the bond did not break")
 
 
-def test_parallel_bond_breaks_in_bending_at_sigma_t_I_over_R():
-    """Potyondy & Cundall (2004) eqs. 5-11: dM_b = -k_n I dtheta, I = pi R_b^4 / 4, R_b = lambda R; tension
-    at the periphery |M_b| R_b / I reaches sigma_t at M_b = sigma_t I / R_b."""
-    sig_t = 5e6
-    p = BondParams(KN, KS, tensile_strength_Pa=sig_t, cohesion_Pa=1e12, radius_multiplier=LAMBDA, moment_factor=1.0)
+@pytest.mark.parametrize("mode", ["bending", "twist"])
+def test_parallel_bond_breaks_at_its_strength_times_the_area_moment_over_R(mode):
+    """Potyondy & Cundall (2004) eqs. 5-11, R_b = lambda R: bending dM_b = -k_n I dtheta, I = pi R_b^4 / 4,
+    tension at the periphery |M_b| R_b / I reaches sigma_t at M_b = sigma_t I / R_b; twist dM_t = -k_s J dtheta,
+    J = pi R_b^4 / 2 = 2 I, shear |M_t| R_b / J reaches the cohesion at M_t = c J / R_b."""
     r_b = LAMBDA * R1
-    inertia = math.pi * r_b**4 / 4
-    dtheta = 1e-6 / (KN * inertia)                # moment increment of 1e-6 N m a step
-    bs, moments = _turn_until_broken(p, 1, dtheta)
-    assert moments[1] == pytest.approx(KN * inertia * dtheta, rel=1e-9)
-    assert bs.state[0] == BROKEN_TENSION
-    m_break = sig_t * inertia / r_b
-    assert m_break - 1.01e-6 <= moments[-1] <= m_break
-
-
-def test_parallel_bond_breaks_in_twist_at_cohesion_J_over_R():
-    """Potyondy & Cundall (2004): dM_t = -k_s J dtheta, J = pi R_b^4 / 2 = 2 I; shear at the periphery
-    |M_t| R_b / J reaches the cohesion at M_t = c J / R_b."""
-    coh = 8e6
-    p = BondParams(KN, KS, tensile_strength_Pa=1e12, cohesion_Pa=coh, radius_multiplier=LAMBDA, moment_factor=1.0)
-    r_b = LAMBDA * R1
-    polar = math.pi * r_b**4 / 2
-    dtheta = 1e-6 / (KS * polar)
-    bs, moments = _turn_until_broken(p, 0, dtheta)
-    assert moments[1] == pytest.approx(KS * polar * dtheta, rel=1e-9)
-    assert bs.state[0] == BROKEN_SHEAR
-    m_break = coh * polar / r_b
+    if mode == "bending":
+        strength, k, moment, axis, broken = 5e6, KN, math.pi * r_b**4 / 4, 1, BROKEN_TENSION
+        p = BondParams(KN, KS, tensile_strength_Pa=strength, cohesion_Pa=1e12, radius_multiplier=LAMBDA,
+                       moment_factor=1.0)
+    else:
+        strength, k, moment, axis, broken = 8e6, KS, math.pi * r_b**4 / 2, 0, BROKEN_SHEAR
+        p = BondParams(KN, KS, tensile_strength_Pa=1e12, cohesion_Pa=strength, radius_multiplier=LAMBDA,
+                       moment_factor=1.0)
+    dtheta = 1e-6 / (k * moment)                # moment increment of 1e-6 N m a step
+    bs, moments = _turn_until_broken(p, axis, dtheta)
+    assert moments[1] == pytest.approx(k * moment * dtheta, rel=1e-9)
+    assert bs.state[0] == broken
+    m_break = strength * moment / r_b
     assert m_break - 1.01e-6 <= moments[-1] <= m_break
 
 
