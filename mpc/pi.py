@@ -61,7 +61,7 @@ def simc_pi(model: Fopdt, tau_c_h: float | None = None) -> tuple[float, float]:
     if not (np.isfinite(model.delay_h) and model.delay_h >= 0):
         raise MpcInputError(f"The 'delay_h' of the FOPDT model must be >= 0. "
                             f"Got {model.delay_h!r}.")
-    tau_c = model.delay_h if tau_c_h is None else float(tau_c_h)
+    tau_c = model.delay_h if tau_c_h is None else _float("tau_c_h", tau_c_h, "simc_pi")
     if not (np.isfinite(tau_c) and tau_c > 0):
         raise MpcInputError(
             f"The 'tau_c_h' parameter of simc_pi must be > 0 (it defaults to the dead time, "
@@ -72,8 +72,18 @@ def simc_pi(model: Fopdt, tau_c_h: float | None = None) -> tuple[float, float]:
     return float(kc), float(ti)
 
 
+def _float(name: str, value, owner: str = "DiscretePI") -> float:
+    """``value`` as a float, or a refusal naming the parameter (a string or a bool is not a number here)."""
+    if not isinstance(value, (bool, np.bool_, str)):
+        try:
+            return float(value)
+        except (TypeError, ValueError):
+            pass
+    raise MpcInputError(f"The '{name}' parameter of {owner} must be a float. Got {value!r}.")
+
+
 def _positive(name: str, value: float) -> float:
-    value = float(value)
+    value = _float(name, value)
     if not (np.isfinite(value) and value > 0):
         raise MpcInputError(f"The '{name}' parameter of DiscretePI must be a float > 0. "
                             f"Got {value!r}.")
@@ -110,7 +120,7 @@ class DiscretePI:
     def __init__(self, kc: float, ti_h: float, dt_h: float, setpoint: float, u_bias: float,
                  u_min: float = -np.inf, u_max: float = np.inf, du_max: float = np.inf,
                  anti_windup: str = "back_calculation", tt_h: float | None = None):
-        kc = float(kc)
+        kc = _float("kc", kc)
         if not (np.isfinite(kc) and kc != 0):
             raise MpcInputError(f"The 'kc' parameter of DiscretePI must be finite and nonzero. "
                                 f"Got {kc!r}.")
@@ -125,16 +135,16 @@ class DiscretePI:
         if anti_windup == "back_calculation" and self.dt_h > self.tt_h:
             raise MpcInputError(f"The 'tt_h' parameter of DiscretePI must be >= dt_h "
                                 f"({self.dt_h}) for a stable back-calculation. Got {self.tt_h}.")
-        self.u_min, self.u_max = float(u_min), float(u_max)
+        self.u_min, self.u_max = _float("u_min", u_min), _float("u_max", u_max)
         if not self.u_min < self.u_max:
             raise MpcInputError(f"The 'u_min' parameter of DiscretePI must be < u_max "
                                 f"({self.u_max}). Got {self.u_min}.")
-        self.du_max = float(du_max)
+        self.du_max = _float("du_max", du_max)
         if not (self.du_max > 0):  # inf allowed: no rate limit
             raise MpcInputError(f"The 'du_max' parameter of DiscretePI must be > 0 (inf for no "
                                 f"rate limit). Got {du_max!r}.")
-        self.setpoint = float(setpoint)
-        self.u_bias = float(u_bias)
+        self.setpoint = _float("setpoint", setpoint)
+        self.u_bias = _float("u_bias", u_bias)
         if not (np.isfinite(self.setpoint) and np.isfinite(self.u_bias)):
             raise MpcInputError("The 'setpoint' and 'u_bias' parameters of DiscretePI must be "
                                 f"finite. Got {setpoint!r}, {u_bias!r}.")

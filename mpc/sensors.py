@@ -28,14 +28,15 @@ class Sensors:
     """Load (hold-up / nominal) noise."""
 
     def __post_init__(self):
-        for name in ("p80_noise_um", "p80_dead_time_h", "power_noise_kw", "load_noise_frac"):
+        # a string failed inside np.isfinite without the field's name; True read as a 1 h dead time
+        for name in ("p80_noise_um", "p80_dead_time_h", "p80_sample_period_h", "power_noise_kw", "load_noise_frac"):
             v = getattr(self, name)
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
+                raise MpcInputError(f"The '{name}' parameter of Sensors must be a float. Got {v!r}.")
+            if name == "p80_sample_period_h" and not (np.isfinite(v) and v > 0):
+                raise MpcInputError(f"The 'p80_sample_period_h' parameter of Sensors must be a float > 0. Got {v!r}.")
             if not (np.isfinite(v) and v >= 0):
-                raise MpcInputError(f"The '{name}' parameter of Sensors must be a float >= 0. "
-                                    f"Got {v!r}.")
-        if not (np.isfinite(self.p80_sample_period_h) and self.p80_sample_period_h > 0):
-            raise MpcInputError(f"The 'p80_sample_period_h' parameter of Sensors must be a float "
-                                f"> 0. Got {self.p80_sample_period_h!r}.")
+                raise MpcInputError(f"The '{name}' parameter of Sensors must be a float >= 0. Got {v!r}.")
 
 
 class SensorState:
@@ -57,6 +58,8 @@ class SensorState:
         """Record the true values at ``t_h`` (not before the previous call's); return (new P80
         reading or nan, held reading, power reading, load reading)."""
         s = self.s
+        if not math.isfinite(t_h):  # a NaN first time failed later, inside math.floor, without the field's name
+            raise MpcInputError(f"The 't_h' of SensorState.make_step must be a finite time. Got {t_h!r}.")
         if self.times and not t_h >= self.times[-1]:
             raise MpcInputError(f"The 't_h' of SensorState.make_step must not go back in time: got "
                                 f"{t_h!r} after {self.times[-1]!r}.")
