@@ -1,9 +1,10 @@
 """The tables an engineer opens after a run: size distributions as labelled CSV files, and one
 Excel workbook per run or per sweep (written with openpyxl through pandas).
 
-Run workbook (``run.xlsx``): summary, KPIs (with their meaning and unit), the time series, the
-size-by-size table of every stream at the start and the end of the run (as a simulator prints a
-circuit), the product and mill-content size distributions over time, the models, the scene.
+Run workbook (``run.xlsx``): summary, KPIs (with their meaning and unit), a replay's run minus
+recorded (summary.json's ``replay``, as the report shows it), the time series, the size-by-size
+table of every stream at the start and the end of the run (as a simulator prints a circuit), the
+product and mill-content size distributions over time, the models, the scene.
 Sweep workbook (``sweep.xlsx``): the cases with their KPIs, the P80 of every case against time,
 the scene the cases vary. Units are in every column name or header.
 
@@ -138,6 +139,8 @@ def scene_rows(scene) -> pd.DataFrame:
 def summary_rows(summary: dict) -> pd.DataFrame:
     keys = ("scene", "description", "mode", "controller", "target_p80_um", "seed", "source", "wall_time_s")
     rows = [(k, summary.get(k)) for k in keys]
+    if summary.get("replay"):
+        rows.append(("replayed history", summary["replay"].get("history")))
     rows += [*effects_rows(summary),
              ("components", ", ".join(summary.get("components", []))),
              ("calibration", calibration_text(summary.get("calibration")))]
@@ -161,7 +164,7 @@ def model_rows(summary: dict) -> pd.DataFrame:
 
 #: Sheets of text and settings, where an empty cell means "not set" (the KPI sheet's note says why a
 #: value is empty); every other sheet is a table of numbers, an undefined one written :data:`XLSX_NA`.
-TEXT_SHEETS = ("summary", "KPIs", "models", "scene", "varied keys")
+TEXT_SHEETS = ("summary", "KPIs", "replay", "models", "scene", "varied keys")
 
 
 def _write_sheets(path: Path, sheets: dict[str, tuple[pd.DataFrame, bool]]) -> Path:
@@ -187,8 +190,10 @@ def _fill_book(tmp: Path, sheets: dict[str, tuple[pd.DataFrame, bool]]) -> None:
 def write_workbook(result, path: Path) -> Path:
     """The run's workbook (module docstring)."""
     s = result.summary
-    sheets = {"summary": (summary_rows(s), False), "KPIs": (kpi_rows(s.get("kpis", {})), False),
-              "time series": (result.frame, False)}
+    sheets = {"summary": (summary_rows(s), False), "KPIs": (kpi_rows(s.get("kpis", {})), False)}
+    if s.get("replay"):  # the run beside its record, as summary.json and the report give it
+        sheets["replay"] = (kpi_rows(s["replay"].get("run_minus_recorded", {})), False)
+    sheets["time series"] = (result.frame, False)
     for when, table in (getattr(result, "streams", None) or {}).items():
         sheets[f"streams at {when}"] = (table, True)
     for attr, label in (("psd", "PSD " + (result.psd.attrs.get("what", "product") if result.psd is not None
