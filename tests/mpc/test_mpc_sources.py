@@ -133,6 +133,15 @@ def test_a_hardness_walk_adds_its_intensity_squared_times_dt_per_sample():
         assert ekf.P[1, 1] == pytest.approx(p0 ** 2 + k * q ** 2 * dt, rel=1e-12)
 
 
+@pytest.mark.parametrize("kwargs,name", [({"dt_h": "0.05"}, "dt_h"), ({"p80_noise_um": True}, "p80_noise_um"),
+                                         ({"hardness_noise_per_sqrt_h": None}, "hardness_noise_per_sqrt_h")])
+def test_an_ekf_setting_that_is_not_a_number_is_named(kwargs, name):
+    """A string or None failed inside np.isfinite with no parameter named; True ran as a 1 um analyser noise."""
+    args = {"dt_h": 0.05, **kwargs}
+    with pytest.raises(MpcInputError, match=f"'{name}'"):
+        Ekf(scalar_model(2.0, 3.0), args.pop("dt_h"), [5.0], codegen="off", **args)
+
+
 # --------------------------------------------------------------------------- RK4
 def test_rk4_is_the_classical_tableau_and_fourth_order_on_exponential_decay():
     """One RK4 step of x' = -x is the Taylor series of exp(-h) to h^4 (the classical tableau; a wrong
