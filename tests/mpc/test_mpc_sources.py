@@ -18,7 +18,7 @@ from mpc.discretize import rk4_map, rk4_sensitivity_map
 from mpc.errors import MpcInputError
 from mpc.estimator import Ekf
 from mpc.kpis import loop_kpis
-from mpc.linear import Fopdt
+from mpc.linear import Fopdt, fit_fopdt
 from mpc.pi import DiscretePI, simc_pi
 
 
@@ -57,6 +57,17 @@ def test_back_calculation_drives_the_integral_by_the_saturation_over_tt():
     u = pi.make_step(9.0)  # e = 1: v = 5 + 2 + I1, inside the bounds
     assert u == pytest.approx(5.0 + kc * 1.0 + i1, rel=1e-14)
     assert pi.integral == pytest.approx(i1 + kc * dt / ti * 1.0, rel=1e-14)
+
+
+def test_the_fopdt_fit_recovers_a_first_order_plus_dead_time_response():
+    """The SIMC input: fit_fopdt on the exact step response k (1 - exp(-(t - theta)/tau)) for t > theta
+    (written out here) gives back k, tau and theta; a step of du scales the response, not the gain."""
+    k, tau, theta, du = -1.7, 0.8, 0.15, 2.5
+    t = np.linspace(0.0, 6.0, 601)
+    y = k * du * (1.0 - np.exp(-np.clip(t - theta, 0.0, None) / tau))
+    fit = fit_fopdt(t, y, du=du)
+    assert (fit.gain, fit.tau_h, fit.delay_h) == pytest.approx((k, tau, theta), rel=1e-6)
+    assert fit.rms_error < 1e-8
 
 
 @pytest.mark.parametrize("kwargs,name", [({"kc": "fast"}, "kc"), ({"ti_h": "1"}, "ti_h"), ({"u_max": None}, "u_max"),
