@@ -70,9 +70,11 @@ class ChangeDetector:
     its noise. On an alarm the filter is rewound to the sample where the alarming sum last left zero, the
     hardness variance raised by a jump's prior, and rerun over the samples kept.
 
-    ``drift`` and ``threshold``: the CUSUM's k and h in noise units (0.5 and 4: one false alarm per ~170
-    samples without a change, a 1-sigma shift found in ~8; Montgomery, *Introduction to Statistical
-    Quality Control*, the tabular CUSUM's average run lengths). ``jump_sd``: the jump's prior standard
+    ``drift`` and ``threshold``: the CUSUM's k and h in units of the analyser's noise sqrt(R) (0.5 and 4:
+    one false alarm per ~170 samples without a change, a 1-sigma shift found in ~8, for innovations of that
+    standard deviation; Montgomery, *Introduction to Statistical Quality Control*, the tabular CUSUM's average
+    run lengths). The filter's own uncertainty widens the innovations (sqrt(C P C^T + R): 1.07 sqrt(R) on a
+    settled small twin, ~105 samples between false alarms). ``jump_sd``: the jump's prior standard
     deviation relative to the hardness estimate (ore types differ in hardness by tens of per cent).
     ``buffer``: samples kept to rewind over (20: 1 h at 3-min samples)."""
 

@@ -6,11 +6,11 @@ from twin.calibration import FAST_LABEL
 #: KPI key -> (label, format).
 KPI_LABELS = {
     "p80_iae_um_h": ("P80 integral absolute error [µm h]", "{:.4g}"),
-    "p80_within_10um_frac": ("share of time P80 within ±10 µm of target [%]", "{:.1%}"),
+    "p80_within_10um_frac": ("share of samples with P80 within ±10 µm of target [%]", "{:.1%}"),
     "specific_energy_kwh_t": ("specific energy [kWh/t]", "{:.4g}"),
-    "throughput_t": ("product discharged over the run [t]", "{:.4g}"),
+    "throughput_t": ("product discharged over the run (a batch: its charge) [t]", "{:.4g}"),
     "throughput_tph": ("throughput, mean product rate [t/h]", "{:.4g}"),
-    "load_outside_band_frac": ("share of time load outside its band [%]", "{:.1%}"),
+    "load_outside_band_frac": ("share of samples with load outside its band [%]", "{:.1%}"),
     "solve_time_median_s": ("controller solve time, median [s]", "{:.3g}"),
     "solve_time_p95_s": ("controller solve time, 95th percentile [s]", "{:.3g}"),
     "mass_balance_error": ("mass balance error [relative]", "{:.2e}"),

@@ -86,7 +86,7 @@ def test_report_shows_plant_beside_controller_units_and_commit(tmp_path):
     plant, ctl = re.findall(r"<h3>(.*?)</h3><pre>(.*?)</pre>", models)
     assert plant == ("Plant (simulated)", "Model: 2 effect(s), plant")
     assert ctl == ("Controller&#x27;s model", "Model: 3 effect(s), &lt;coarse&gt;")
-    assert "throughput [t]<" not in text and "product discharged over the run [t]" in text
+    assert "throughput [t]<" not in text and "product discharged over the run (a batch: its charge) [t]" in text
     assert "git commit <code>0123456789ab</code> (checkout)" in text
 
 

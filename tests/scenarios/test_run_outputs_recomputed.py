@@ -122,6 +122,17 @@ def test_csv_reads_back_the_parquet_time_series_exactly(open_dir):
     pd.testing.assert_frame_equal(ts, pq, check_dtype=False, rtol=0, atol=0)
 
 
+def test_a_closed_loop_row_holds_the_plant_before_its_move(pi_dir):
+    """A closed loop's row k holds the plant measured at t_k, under the input applied over the sample before,
+    and the move the controller made at t_k (feed_tph, speed_frac_critical, held to the next row), as README
+    says: row k's specific energy is its power over row k-1's feed (the first row's over the start state's)."""
+    summary, ts = _read(pi_dir)
+    feed_before = np.r_[summary["kpis"]["start_feed_tph"], ts["feed_tph"].to_numpy()[:-1]]
+    np.testing.assert_allclose(ts["specific_energy_kwh_t"], ts["power_kw"] / feed_before, rtol=1e-12)
+    # the PI moves the feed, so the row's own feed does not give it (the convention shows)
+    assert not np.allclose(ts["specific_energy_kwh_t"], ts["power_kw"] / ts["feed_tph"], rtol=1e-6)
+
+
 def test_column_units_hold_their_cross_relations(open_dir):
     """Open loop every column is at its sample's instant: specific energy [kWh/t] = power [kW] /
     feed [t/h] in the same row, the mill holds t (not kg), the P80s are um of a product finer than
