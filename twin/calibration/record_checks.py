@@ -116,6 +116,7 @@ def check_fitted(record: dict, where: str) -> None:
         value = item.get("value") if isinstance(item, dict) else None
         if not _is_number(value):
             raise _bad(where, f"fitted.{name}.value", value, "a finite number")
+        _check_named(item, name, value, where)
         if name.startswith("lab_"):
             field, used = f"mills.lab.{name[len('lab_'):]}", lab.get(name[len("lab_"):])
         else:
@@ -129,6 +130,50 @@ def check_fitted(record: dict, where: str) -> None:
     for name in MAP_COEFFICIENTS[record["breakage_map"]]:
         if name not in fitted:
             raise _bad(where, f"fitted.{name}", "(missing)", "the fitted value of that coefficient")
+    _check_nothing_typed_in(record, where)
+
+
+#: Relative slack of a fitted value past its recorded bound: the fit packs a positive parameter as
+#: its logarithm (twin.calibration.fitting.TableProblem), and exp(log(10)) is 10 + 2e-15.
+BOUND_RTOL = 1e-9
+
+
+def _check_named(item: dict, name: str, value: float, where: str) -> None:
+    """A fitted number says the range it was fitted in (``bounds``, holding its value) and why it
+    is fitted rather than derived (``why_not_derivable``): what the project asks of every fitted
+    number, and what a reader checks a value at its bound against."""
+    bounds = item.get("bounds", "(missing)")
+    if not (isinstance(bounds, list) and len(bounds) == 2 and all(_is_number(b) for b in bounds)
+            and bounds[0] < bounds[1]):
+        raise _bad(where, f"fitted.{name}.bounds", bounds, "[lower, upper], the range it was fitted in")
+    slack = BOUND_RTOL * max(abs(bounds[0]), abs(bounds[1]))
+    if not bounds[0] - slack <= value <= bounds[1] + slack:
+        raise _bad(where, f"fitted.{name}.value", value, f"within its bounds {bounds} (fitted.{name}.bounds)")
+    why = item.get("why_not_derivable", "(missing)")
+    if not isinstance(why, str) or not why.strip():
+        raise _bad(where, f"fitted.{name}.why_not_derivable", why, "a sentence saying why it is fitted, not derived")
+
+
+def _check_nothing_typed_in(record: dict, where: str) -> None:
+    """Every number the twin reads from ``coefficients`` and ``mills`` is a fitted one: a number
+    added by hand (a lab mill field such as its ball filling, another mill's values, which
+    twin.mill.get_mill applies to that preset, another coefficient) would run silently."""
+    fitted = record["fitted"]
+    typed = "a number typed into the file, not fitted; make a new calibration with `grindtwin calibrate`"
+    for mill, values in record["mills"].items():
+        if mill != CALIBRATED_MILL:
+            raise _bad(where, f"mills.{mill}", values, f"absent: a calibration fits the {CALIBRATED_MILL!r} mill's "
+                       f"values only, and these would replace the {mill!r} preset's ({typed})")
+    lab_fitted = sorted(n[len("lab_"):] for n in fitted if n.startswith("lab_"))
+    for key, value in record["mills"][CALIBRATED_MILL].items():
+        if key not in lab_fitted:
+            raise _bad(where, f"mills.{CALIBRATED_MILL}.{key}", value, f"absent: the {CALIBRATED_MILL!r} mill's "
+                       f"values are its fitted ones {lab_fitted} ({typed})")
+    coef_fitted = sorted(n for n in fitted if not n.startswith("lab_"))
+    for name, value in record["coefficients"].items():
+        if name not in coef_fitted:
+            raise _bad(where, f"coefficients.{name}", value, f"absent: the coefficients are the fitted ones "
+                       f"{coef_fitted} ({typed})")
 
 
 def check_data(record: dict, where: str) -> None:

@@ -1,0 +1,101 @@
+"""A calibration's numbers are fitted by its command, each named with its range and why it is
+fitted; nothing in the file is typed in by hand; and it is not run silently with another mill,
+grid or DEM than it records (helper 37's audit; the other refusals are in
+test_calibration_audit.py, test_calibration_consistency.py and test_calibration_model_code.py)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from twin import SizeGrid, Twin, TwinInputError
+from twin.calibration import DEM_FITTED, DEM_NAMES, load_calibration
+from twin.calibration import table as table_map
+from twin.calibration.model_code import dem_step_digest
+
+
+def _copy(name: str) -> dict:
+    return json.loads(json.dumps(load_calibration(name).record))
+
+
+def _refused(tmp_path, record) -> str:
+    path = tmp_path / "edited.json"
+    path.write_text(json.dumps(record))
+    with pytest.raises(TwinInputError) as err:  # when read, before any twin is built
+        load_calibration(path)
+    assert str(path) in str(err.value)
+    return str(err.value)
+
+
+#: (what, edit, field, value shown) of numbers added by hand to a file; each ran before, with no
+#: word: the lab mill's ball filling 0.45 gave Type B a P80 of 184.7 um for 203.6, the industrial
+#: preset took a power factor 2 from the file.
+TYPED_IN = [
+    ("a lab mill field that is not fitted", lambda r: r["mills"]["lab"].update(ball_filling_frac=0.45),
+     "mills.lab.ball_filling_frac", "0.45"),
+    ("another mill's values", lambda r: r["mills"].update(industrial={"power_factor": 2.0}), "mills.industrial",
+     "'power_factor': 2.0"),
+    ("a coefficient that is not fitted", lambda r: r["coefficients"].update(power_exponent=0.3),
+     "coefficients.power_exponent", "0.3"),
+]
+
+
+@pytest.mark.parametrize("edit,field,shown", [t[1:] for t in TYPED_IN], ids=[t[0] for t in TYPED_IN])
+def test_a_number_typed_into_the_file_is_refused(tmp_path, edit, field, shown):
+    record = _copy("dem")
+    edit(record)
+    message = _refused(tmp_path, record)
+    assert f"'{field}' must be absent" in message and shown in message and "grindtwin calibrate" in message
+
+
+NAMING = [
+    ("bounds missing", lambda f: f.pop("bounds"), "fitted.lab_grate_sharpness.bounds", "(missing)"),
+    ("value outside its bounds", lambda f: f.update(bounds=[0.5, 5.0]), "fitted.lab_grate_sharpness.value",
+     "[0.5, 5.0]"),
+    ("no reason", lambda f: f.update(why_not_derivable=" "), "fitted.lab_grate_sharpness.why_not_derivable",
+     "' '"),
+]
+
+
+@pytest.mark.parametrize("edit,field,shown", [t[1:] for t in NAMING], ids=[t[0] for t in NAMING])
+def test_a_fitted_number_says_its_range_and_why(tmp_path, edit, field, shown):
+    record = _copy("dem")
+    edit(record["fitted"]["lab_grate_sharpness"])
+    message = _refused(tmp_path, record)
+    assert f"'{field}' must be" in message and shown in message
+
+
+@pytest.mark.parametrize("name,names,bounds,why", [
+    ("dem", DEM_NAMES, {n: v["bounds"] for n, v in DEM_FITTED.items()}, {n: v["why"] for n, v in DEM_FITTED.items()}),
+    ("table", table_map.NAMES, table_map.BOUNDS,
+     {n: DEM_FITTED.get(n, {}).get("why", table_map.WHY_MAP) for n in table_map.NAMES}),
+])
+def test_a_shipped_file_records_the_ranges_its_command_fits_in_and_which_it_ends_at(name, names, bounds, why):
+    """A changed range in the code leaves a file fitted in the old one (its value at a bound that
+    is no longer one); ``fit.at_bounds`` is what the values and ranges say."""
+    record = load_calibration(name).record
+    assert record["fit"]["parameters_fitted"] == list(names) == list(record["fitted"])
+    for n in names:
+        assert record["fitted"][n]["bounds"] == list(bounds[n]), n
+        assert record["fitted"][n]["why_not_derivable"] == why[n], n
+    at = [n for n, f in record["fitted"].items()
+          if min(abs(f["value"] - b) for b in f["bounds"]) <= 1e-6 * max(1.0, abs(f["value"]))]
+    assert record["fit"]["at_bounds"] == at
+
+
+def test_the_shipped_dem_step_was_run_by_todays_dem_sources():
+    """The twin's sources are checked at every first use (model_code); the DEM's only by ``--from``,
+    which notes another DEM. A change of dem/ or of the virtual tests leaves the shipped breakage
+    another DEM's: rerun ``grindtwin calibrate --out twin/calibration/files/dem.json``."""
+    assert load_calibration("dem").record["dem"]["sources_sha256"] == dem_step_digest()
+
+
+def test_a_twin_on_the_other_discretisation_scheme_is_noted():
+    """The same classes discretised by Austin's first-order form are another model (lab P80 -2.5 %
+    at 49 classes, twin_grid.md): the calibration's numbers were fitted with the cell-average one."""
+    grid = load_calibration("dem").size_grid
+    assert grid["scheme"] == "cell_average"
+    austin = SizeGrid(top_um=grid["top_um"], ratio=grid["ratio"], count=grid["count"], scheme="austin")
+    (problem,) = Twin("B", grid=austin).calibration_mismatch
+    assert problem.startswith("size grid") and "'austin'" in problem
