@@ -9,10 +9,11 @@ import json
 
 import pytest
 
-from twin import SizeGrid, Twin, TwinInputError
+from twin import SizeGrid, Twin, TwinInputError, get_mill
 from twin.calibration import DEM_FITTED, DEM_NAMES, load_calibration
 from twin.calibration import table as table_map
 from twin.calibration.model_code import dem_step_digest
+from twin.mill import LAB
 
 
 def _copy(name: str) -> dict:
@@ -89,6 +90,21 @@ def test_the_shipped_dem_step_was_run_by_todays_dem_sources():
     which notes another DEM. A change of dem/ or of the virtual tests leaves the shipped breakage
     another DEM's: rerun ``grindtwin calibrate --out twin/calibration/files/dem.json``."""
     assert load_calibration("dem").record["dem"]["sources_sha256"] == dem_step_digest()
+
+
+def test_a_lab_mill_without_its_fitted_values_is_noted():
+    """twin.mill.LAB given as a Mill ran the calibration with the preset's grate (400 um,
+    sharpness 3), discharge and power factor 1 where the fit has 517 um, 10, 0.75: Type B's P80 150.9
+    um for 203.6, 17.7 kWh/t for 13.4, with no word."""
+    dem = load_calibration("dem")
+    twin = Twin("B", mill=LAB)
+    (problem,) = twin.calibration_mismatch
+    fitted = dem.record["mills"]["lab"]["power_factor"]
+    assert f"power_factor 1 (fitted {fitted:.6g})" in problem and "get_mill('lab', calibration.record)" in problem
+    assert any(problem in n for n in twin.steady(0.031, 0.70).notes)
+    assert Twin("B", mill=get_mill("lab", dem.record)).calibration_mismatch == []
+    (other,) = Twin("B", mill=get_mill("lab", dem.record), calibration="table").calibration_mismatch
+    assert "calibration 'table'" in other
 
 
 def test_a_twin_on_the_other_discretisation_scheme_is_noted():

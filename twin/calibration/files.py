@@ -184,7 +184,8 @@ class Calibration:
 
     def mismatch(self, effects, grid, mill=None, mixer_fracs=None) -> list[str]:
         """What differs between a model's effects and size grid and this calibration's (empty:
-        none), and with ``mill`` and ``mixer_fracs`` its mixers (:meth:`mixers_mismatch`).
+        none), with ``mill`` its fitted values (:meth:`mill_values_mismatch`) and with ``mixer_fracs``
+        its mixers (:meth:`mixers_mismatch`).
         Measurement effects (:data:`MEASUREMENT_EFFECTS`) are not compared."""
         mine = [e for e in self.effects if e not in MEASUREMENT_EFFECTS]
         theirs = [e for e in effects if e not in MEASUREMENT_EFFECTS]
@@ -201,7 +202,24 @@ class Calibration:
         if not same_scheme or not all(math.isclose(float(g[k]), float(theirs_g[k]), rel_tol=1e-9)
                                       for k in ("top_um", "ratio", "count")):
             out.append(f"size grid {theirs_g} differs from the grid of calibration {self.name!r} {g}")
-        return out + self.mixers_mismatch(mill, mixer_fracs)
+        return out + self.mill_values_mismatch(mill) + self.mixers_mismatch(mill, mixer_fracs)
+
+    def mill_values_mismatch(self, mill) -> list[str]:
+        """What differs between ``mill`` (a twin.Mill) and the values this calibration fitted for
+        it (record ``mills``) when it is the calibration's own mill by name (empty: none): a Mill
+        made without them (twin.mill.LAB, ``get_mill("lab")`` without the record) ran the
+        calibration's breakage and coefficients with another grate, discharge and power factor, with
+        no word. A preset name takes them (twin.mill.get_mill): nothing to compare."""
+        if getattr(mill, "name", None) != self.mill:
+            return []
+        fitted = self.record["mills"].get(self.mill, {})
+        off = [f"{k} {getattr(mill, k):.6g} (fitted {v:.6g})" for k, v in fitted.items()
+               if not math.isclose(float(getattr(mill, k)), float(v), rel_tol=1e-12)]
+        if not off:
+            return []
+        return [f"mill {self.mill!r} has {', '.join(off)}: calibration {self.name!r} fitted these values of its "
+                f"{self.mill!r} mill (its record's mills.{self.mill}); a Mill of it takes them from "
+                f"twin.get_mill({self.mill!r}, calibration.record)"]
 
     def mixers_mismatch(self, mill, mixer_fracs) -> list[str]:
         """What differs between a twin's mixers (``mixer_fracs``: their shares of the hold-up, in
