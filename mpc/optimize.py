@@ -157,29 +157,44 @@ class _LeftFeedBounds(Exception):
     """No feed within the bounds holds the target at a speed the band search tried."""
 
 
+#: How far inside the load band [load fraction] the points found on its ends are put, so that a root found to
+#: Brent's tolerance counts as inside (a millionth of the load: far below what the twin resolves).
+BAND_EDGE_INSIDE = 1e-6
+
+
 def _band_crossings(pts, band, on_curve) -> list:
-    """Points of the curve P80 = target inside the load band between two scanned neighbours whose
-    loads lie on opposite sides of it: the load on the curve is continuous in speed, so a feasible
-    window narrower than the scan's step lies between them (the scan alone called it infeasible).
-    The point found is where the load is mid-band (Brent's method)."""
+    """Points of the curve P80 = target inside the load band that the scan stepped over: the load on the
+    curve is continuous in speed, so between two scanned neighbours
+    - one below the band and the other above it, the point where the load is mid-band;
+    - both below it (or both above), a load that peaks into the band (or dips into it) between them: the
+      extreme and the window's two ends, where the load meets the band (a window narrower than the scan's
+      step: the scan alone called the target infeasible).
+    Brent's method for each (a bounded scalar search for the extreme)."""
     mid = 0.5 * (band[0] + band[1])
     out = []
-    for (s0, f0, _, l0), (s1, f1, _, l1) in zip(pts, pts[1:]):
-        if math.isnan(f0) or math.isnan(f1) or not (l0 - band[0]) * (l1 - band[0]) < 0 \
-                or not (l0 - band[1]) * (l1 - band[1]) < 0:
-            continue  # not one below the band and the other above it
 
-        def gap(s):
-            load = on_curve(float(s))[2]
-            if math.isnan(load):
-                raise _LeftFeedBounds
-            return load - mid
-        try:
-            s = scipy.optimize.brentq(gap, s0, s1, xtol=1e-6)
-        except _LeftFeedBounds:  # the target left the feed bounds between them: no crossing to find
+    def load_at(s):
+        load = on_curve(float(s))[2]
+        if math.isnan(load):
+            raise _LeftFeedBounds
+        return load
+
+    for (s0, f0, _, l0), (s1, f1, _, l1) in zip(pts, pts[1:]):
+        if math.isnan(f0) or math.isnan(f1):
             continue
-        out.append((s, *on_curve(float(s))))
-    return out
+        try:
+            if (l0 - band[0]) * (l1 - band[0]) < 0 and (l0 - band[1]) * (l1 - band[1]) < 0:
+                out.append(scipy.optimize.brentq(lambda s: load_at(s) - mid, s0, s1, xtol=1e-6))
+            elif max(l0, l1) < band[0] or min(l0, l1) > band[1]:
+                sign, edge = (1.0, band[0] + BAND_EDGE_INSIDE) if l0 < band[0] else (-1.0, band[1] - BAND_EDGE_INSIDE)
+                peak = scipy.optimize.minimize_scalar(lambda s: -sign * load_at(s), bounds=(s0, s1),
+                                                      method="bounded", options={"xatol": 1e-6}).x
+                if sign * (load_at(peak) - edge) >= 0:
+                    out += [peak] + [scipy.optimize.brentq(lambda s: load_at(s) - edge, a, b, xtol=1e-9)
+                                     for a, b in ((s0, peak), (peak, s1))]
+        except _LeftFeedBounds:  # the target left the feed bounds between them: nothing to find
+            continue
+    return [(float(s), *on_curve(float(s))) for s in out]
 
 
 #: Speeds [fraction of critical] this close to a speed bound, or to a speed that breaks a
@@ -284,8 +299,9 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
             continue
         i = int(np.argmin([score(p) for p in pts]))
         lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
-        r = scipy.optimize.minimize_scalar(lambda s: score((s, *on_curve(float(s)))), bounds=(lo, hi),
-                                           method="bounded", options={"xatol": 1e-4})
+        with np.errstate(invalid="ignore"):  # Brent's parabola through infinite scores (outside the band)
+            r = scipy.optimize.minimize_scalar(lambda s: score((s, *on_curve(float(s)))), bounds=(lo, hi),
+                                               method="bounded", options={"xatol": 1e-4})
         s_best = float(r.x) if math.isfinite(r.fun) and r.fun <= score(best) else float(best[0])
         add("both", obj, on_curve(s_best)[0], s_best)
         if rows[-1]["feasible"]:

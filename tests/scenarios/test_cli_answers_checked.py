@@ -159,11 +159,12 @@ def _brute_force(twin, target, feeds, n=8):
 
 @pytest.mark.parametrize("ore, target", [
     ("B", 210.0),  # least energy inside the feasible set
-    ("A", 135.0),  # on the load band's lower end
-    # on its upper end, with a second feasible window at high speed; scipy's bounded search warns
-    # on the optimiser's infinite score outside the band (reported: mpc/optimize.py)
-    pytest.param("C", 370.0, marks=pytest.mark.filterwarnings(
-        "ignore:invalid value encountered in scalar multiply:RuntimeWarning")),
+    # on its upper end, with a second feasible window at high speed; scipy's bounded search warned (numpy's
+    # RuntimeWarning, printed by the CLI) on the optimiser's infinite score outside the band
+    ("C", 370.0),
+    # on the load band's lower end, in a feasible window (speeds ~0.778-0.808) narrower than the 9-point scan's
+    # step, both neighbouring scan points below the band: it was called infeasible, exit 1
+    ("A", 134.0),
 ])
 def test_optimize_answer_holds_the_target_at_least_energy_within_bounds(ore, target, capsys):
     """At the answer's (feed, speed) the steady P80 is the target (within the optimiser's stated
