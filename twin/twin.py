@@ -96,6 +96,11 @@ class Twin:
         breakage = [_ore_breakage(self.grid, p, power_nom, holdup_nom) for p in params]
         #: What differs from the calibration's effects, grid and mixers (Calibration.mismatch).
         self.calibration_mismatch = self.calibration.mismatch(effects, self.grid, self.mill, mixer_fracs)
+        if self.calibrated_mill.name != self.calibration.mill:  # its breakage read as another mill's
+            self.calibration_mismatch.append(
+                f"calibrated_mill {self.calibrated_mill.name!r}: calibration {self.calibration.name!r} was fitted on "
+                f"mill {self.calibration.mill!r}, whose breakage the twin would scale as if measured in "
+                f"{self.calibrated_mill.name!r}")
         #: The notes of those differences, worded for a user of the Python API.
         self.mismatch_notes = [calibration_mismatch_note(p) for p in self.calibration_mismatch]
         #: What a steady state of this twin cannot show: the differences from its calibration, what

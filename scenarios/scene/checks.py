@@ -19,7 +19,7 @@ from scenarios.scene.history import read_history
 from scenarios.scene.keypaths import did_you_mean, format_path
 from scenarios.scene.ranges import feed_problem, nominal_feed_tph
 from scenarios.scene.schema import DEFAULT_N_MIXERS
-from twin import SizeGrid, TwinError, hydrocyclone_from
+from twin import SizeGrid, TwinError, get_mill, hydrocyclone_from
 from twin.calibration import DEFAULT_CALIBRATION, load_calibration
 from twin.effects import problems as effect_problems
 from twin.ore import mineral_names
@@ -438,3 +438,10 @@ def _check_calibration(data, base_dir: Path, r: _Report) -> None:
                 r.add(loc, f"{problem}: {advice}")
         for problem in cal.mixers_mismatch(mill.get("preset"), fracs):
             r.add(loc_mixers, f"{problem}: {advice}")
+    if mill.get("preset") == cal.mill and isinstance(mill.get("power_model"), str):
+        try:  # the fitted power factor belongs to the power model it was fitted with
+            own = get_mill(cal.mill, cal.record).with_(power_model=mill["power_model"])
+        except TwinError:
+            return  # an unknown model is the schema's to report
+        for problem in cal.mill_values_mismatch(own):
+            r.add(("mill", "power_model"), f"{problem}: {advice}")

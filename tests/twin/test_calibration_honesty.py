@@ -115,3 +115,28 @@ def test_a_twin_on_the_other_discretisation_scheme_is_noted():
     austin = SizeGrid(top_um=grid["top_um"], ratio=grid["ratio"], count=grid["count"], scheme="austin")
     (problem,) = Twin("B", grid=austin).calibration_mismatch
     assert problem.startswith("size grid") and "'austin'" in problem
+
+
+def test_another_power_model_on_the_calibrated_mill_or_another_calibrated_mill_is_noted(tmp_path):
+    """The lab mill's power factor (0.755) was fitted to Bond's power: on Hogg & Fuerstenau's the lab mill ran at
+    7.9 kWh/t for 13.4 with no word (a Twin, and a scene that passed grindtwin check); a twin told the lab
+    calibration was measured in the industrial mill ran Type B to 565 um for 204, silently. Both are noted now,
+    and the scene's check names the key."""
+    from scenarios.scene.loader import check_scene
+
+    cal = load_calibration(None)
+    own = get_mill(cal.mill, cal.record)
+    assert Twin("B").calibration_mismatch == []
+    hf = Twin("B", mill=own.with_(power_model="hogg_fuerstenau")).calibration_mismatch
+    assert hf and "power_model 'hogg_fuerstenau'" in hf[0] and "to the power of 'bond'" in hf[0]
+    other = Twin("B", calibrated_mill="industrial").calibration_mismatch
+    assert other and other[0].startswith("calibrated_mill 'industrial': calibration 'dem' was fitted on mill 'lab'")
+    scene = tmp_path / "lab_hf.toml"
+    effects = ", ".join(f'"{e}"' for e in cal.effects)
+    scene.write_text(f"effects = [{effects}]\n[scene]\nname = \"lab_hf\"\nduration_h = 1.0\nsample_period_h = 0.25\n"
+                     "[mill]\npreset = \"lab\"\npower_model = \"hogg_fuerstenau\"\n[ores.B]\ntype = \"B\"\n"
+                     "[feed]\nblend = { B = 1.0 }\nfeed_tph = 0.031\nspeed_frac_critical = 0.70\n"
+                     "[controller]\nkind = \"none\"\n")
+    assert [m for m in check_scene(scene) if "mill.power_model" in m and "to the power of 'bond'" in m]
+    scene.write_text(scene.read_text().replace('"hogg_fuerstenau"', '"bond"'))
+    assert check_scene(scene) == []

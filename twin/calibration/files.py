@@ -212,14 +212,19 @@ class Calibration:
         no word. A preset name takes them (twin.mill.get_mill): nothing to compare."""
         if getattr(mill, "name", None) != self.mill:
             return []
+        from ..mill import MILLS
+
         fitted = self.record["mills"].get(self.mill, {})
         off = [f"{k} {getattr(mill, k):.6g} (fitted {v:.6g})" for k, v in fitted.items()
                if not math.isclose(float(getattr(mill, k)), float(v), rel_tol=1e-12)]
-        if not off:
-            return []
-        return [f"mill {self.mill!r} has {', '.join(off)}: calibration {self.name!r} fitted these values of its "
-                f"{self.mill!r} mill (its record's mills.{self.mill}); a Mill of it takes them from "
-                f"twin.get_mill({self.mill!r}, calibration.record)"]
+        out = [f"mill {self.mill!r} has {', '.join(off)}: calibration {self.name!r} fitted these values of its "
+               f"{self.mill!r} mill (its record's mills.{self.mill}); a Mill of it takes them from "
+               f"twin.get_mill({self.mill!r}, calibration.record)"] if off else []
+        model = MILLS[self.mill].power_model if self.mill in MILLS else mill.power_model
+        if mill.power_model != model:  # the fitted power factor corrects the model it was fitted with
+            out.append(f"mill {self.mill!r} has power_model {mill.power_model!r}: calibration {self.name!r} fitted its "
+                       f"power factor ({mill.power_factor:.4g}) to the power of {model!r}")
+        return out
 
     def mixers_mismatch(self, mill, mixer_fracs) -> list[str]:
         """What differs between a twin's mixers (``mixer_fracs``: their shares of the hold-up, in
