@@ -1,4 +1,12 @@
-"""Exception family of the ``mpc`` package."""
+"""Exception family of the ``mpc`` package, and the test of a numeric setting they share."""
+
+from numbers import Real
+
+
+def is_real(value) -> bool:
+    """A real number, not a bool (True read as 1: a 1 h dead time, a 1 um noise) nor a string (it failed inside
+    np.isfinite or float() without the setting's name)."""
+    return isinstance(value, Real) and not isinstance(value, bool)
 
 
 class MpcError(Exception):

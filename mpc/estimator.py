@@ -43,7 +43,7 @@ import numpy as np
 
 from mpc.codegen import compiled
 from mpc.discretize import rk4_sensitivity_map
-from mpc.errors import MpcInputError
+from mpc.errors import MpcInputError, is_real
 
 MEASUREMENTS = ("p80_um", "power_kw", "load_frac")
 #: Default random-walk intensity of the hardness scale [1/sqrt(h)]: a 1-sigma drift of
@@ -86,7 +86,7 @@ class ChangeDetector:
     def __post_init__(self):
         for name in ("drift", "threshold", "jump_sd"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+            if not (is_real(v) and np.isfinite(v) and v > 0):
                 raise MpcInputError(f"The '{name}' parameter of ChangeDetector must be a float > 0. Got {v!r}.")
         if isinstance(self.buffer, bool) or not isinstance(self.buffer, (int, np.integer)) or self.buffer < 1:
             raise MpcInputError(f"The 'buffer' parameter of ChangeDetector must be an int >= 1. Got {self.buffer!r}.")
@@ -148,7 +148,7 @@ class Ekf:
                  p80_bias_p0_um: float = 10.0, p80_gain: float = 1.0, p80_reference_um: float | None = None,
                  codegen: str = "auto", change_detector: ChangeDetector | None = None):
         self.model = model
-        if not (_is_number(dt_h) and np.isfinite(dt_h) and dt_h > 0):
+        if not (is_real(dt_h) and np.isfinite(dt_h) and dt_h > 0):
             raise MpcInputError(f"The 'dt_h' parameter of Ekf must be a float > 0. Got {dt_h!r}.")
         if disturbance_model not in DISTURBANCE_MODELS:
             raise MpcInputError(f"The 'disturbance_model' parameter of Ekf must be one of "
@@ -159,7 +159,7 @@ class Ekf:
                         ("hardness_noise_per_sqrt_h", hardness_noise_per_sqrt_h),
                         ("p80_bias_noise_um_per_sqrt_h", p80_bias_noise_um_per_sqrt_h),
                         ("p0_rel", p0_rel), ("hardness_p0", hardness_p0), ("p80_bias_p0_um", p80_bias_p0_um)):
-            if not (_is_number(v) and np.isfinite(v) and v > 0):
+            if not (is_real(v) and np.isfinite(v) and v > 0):
                 raise MpcInputError(f"The '{name}' parameter of Ekf must be a float > 0. Got {v!r}.")
         self.p80_gain, self.p80_reference_um = _p80_gain(p80_gain, p80_reference_um)
         self.disturbance_model = disturbance_model
@@ -352,12 +352,6 @@ class Ekf:
         self.z, self.P, e = self._run(z, P, [k[2] for k in self._kept[first:]])
         c.update(up=0.0, down=0.0, up_from=c["n"], down_from=c["n"])
         return e
-
-
-def _is_number(v) -> bool:
-    """A real number, not a bool (True was read as a 1 um noise) nor a string (it failed inside np.isfinite
-    without the parameter's name)."""
-    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
 
 
 def _p80_gain(gain, reference_um) -> tuple[float, float | None]:

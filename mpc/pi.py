@@ -38,7 +38,7 @@ import time
 
 import numpy as np
 
-from mpc.errors import MpcInputError
+from mpc.errors import MpcInputError, is_real
 from mpc.linear import Fopdt, fopdt_from_model, linearize
 from mpc.results import ControllerStepResult
 
@@ -74,11 +74,8 @@ def simc_pi(model: Fopdt, tau_c_h: float | None = None) -> tuple[float, float]:
 
 def _float(name: str, value, owner: str = "DiscretePI") -> float:
     """``value`` as a float, or a refusal naming the parameter (a string or a bool is not a number here)."""
-    if not isinstance(value, (bool, np.bool_, str)):
-        try:
-            return float(value)
-        except (TypeError, ValueError):
-            pass
+    if is_real(value):
+        return float(value)
     raise MpcInputError(f"The '{name}' parameter of {owner} must be a float. Got {value!r}.")
 
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mpc.errors import MpcInputError
+from mpc.errors import MpcInputError, is_real
 
 
 @dataclass(frozen=True)
@@ -31,7 +31,7 @@ class Sensors:
         # a string failed inside np.isfinite without the field's name; True read as a 1 h dead time
         for name in ("p80_noise_um", "p80_dead_time_h", "p80_sample_period_h", "power_noise_kw", "load_noise_frac"):
             v = getattr(self, name)
-            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
+            if not is_real(v):
                 raise MpcInputError(f"The '{name}' parameter of Sensors must be a float. Got {v!r}.")
             if name == "p80_sample_period_h" and not (np.isfinite(v) and v > 0):
                 raise MpcInputError(f"The 'p80_sample_period_h' parameter of Sensors must be a float > 0. Got {v!r}.")

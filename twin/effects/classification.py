@@ -57,10 +57,13 @@ FEED_SOLIDS_VOL_PCT_MIN = 1.0
 CYCLONE_PRESSURE_RANGE_KPA = (34.0, 276.0)
 
 
-def _feed_range_text(what: str, vol_pct: float) -> str:
-    """What a cyclone feed's solids may be, for an error that found them at ``vol_pct`` % by volume."""
-    return (f"{what} a feed of {FEED_SOLIDS_VOL_PCT_MIN:g}-{FEED_SOLIDS_VOL_PCT_MAX:g} % solids by volume (Plitt's "
-            f"phi; a slurry that flows), not {vol_pct:.3g} %")
+def _check_feed_vol_pct(owner: str, field: str, value, what: str, vol_pct: float) -> float:
+    """``vol_pct``, the cyclone feed's solids % by volume that ``field`` = ``value`` makes, if a slurry that flows
+    (:data:`FEED_SOLIDS_VOL_PCT_MIN`-:data:`FEED_SOLIDS_VOL_PCT_MAX`, Plitt's phi); else an error saying ``what``."""
+    if not FEED_SOLIDS_VOL_PCT_MIN <= vol_pct <= FEED_SOLIDS_VOL_PCT_MAX:
+        raise bad_value(owner, field, value, f"{what} a feed of {FEED_SOLIDS_VOL_PCT_MIN:g}-{FEED_SOLIDS_VOL_PCT_MAX:g} "
+                        f"% solids by volume (Plitt's phi; a slurry that flows), not {vol_pct:.3g} %")
+    return vol_pct
 
 
 def _exp(v):
@@ -99,11 +102,10 @@ class CycloneSurvey:
                             f"given, or 'pressure_psi' instead, not both (pressure_psi = {self.pressure_psi!r})")
         name = "pressure_kpa" if self.pressure_psi is None else "pressure_psi"
         check_range(o, name, getattr(self, name), 0.0, 1e4)
-        vol_pct = solids_volume_pct(self.feed_solids_frac, self.solids_density_t_m3)
-        if not FEED_SOLIDS_VOL_PCT_MIN <= vol_pct <= FEED_SOLIDS_VOL_PCT_MAX:  # Plitt's phi, and a slurry that flows
-            raise bad_value(o, "feed_water_m3_h", self.feed_water_m3_h, _feed_range_text(
-                f"a water flow that makes, with feed_solids_tph = {self.feed_solids_tph!r} at "
-                f"{self.solids_density_t_m3:g} t/m3,", vol_pct))
+        _check_feed_vol_pct(o, "feed_water_m3_h", self.feed_water_m3_h,
+                            f"a water flow that makes, with feed_solids_tph = {self.feed_solids_tph!r} at "
+                            f"{self.solids_density_t_m3:g} t/m3,",
+                            solids_volume_pct(self.feed_solids_frac, self.solids_density_t_m3))
 
     @property
     def kpa(self) -> float:
@@ -187,11 +189,9 @@ class Hydrocyclone:
         """Solids % by volume of the cyclone feed."""
         if self.feed_solids_frac is None:
             return self.feed_solids_vol_pct
-        vol_pct = solids_volume_pct(self.feed_solids_frac, solids_density_t_m3)
-        if not FEED_SOLIDS_VOL_PCT_MIN <= vol_pct <= FEED_SOLIDS_VOL_PCT_MAX:  # as feed_solids_vol_pct's range
-            raise bad_value("Hydrocyclone", "feed_solids_frac", self.feed_solids_frac, _feed_range_text(
-                f"a solids mass fraction that makes, at the solids' {solids_density_t_m3:g} t/m3,", vol_pct))
-        return vol_pct
+        return _check_feed_vol_pct("Hydrocyclone", "feed_solids_frac", self.feed_solids_frac,
+                                   f"a solids mass fraction that makes, at the solids' {solids_density_t_m3:g} t/m3,",
+                                   solids_volume_pct(self.feed_solids_frac, solids_density_t_m3))
 
     def plitt(self, slurry_flow_m3_h, solids_density_t_m3: float) -> dict:
         """Plitt's d50c [um], sharpness m, pressure [kPa], volumetric split S = Qu/Qo and water
