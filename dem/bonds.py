@@ -33,7 +33,7 @@ import numpy as np
 
 from dem.errors import DemInputError
 from dem.materials import MAX_YOUNGS_MODULUS_PA, MIN_YOUNGS_MODULUS_PA
-from dem.state import (LOAD_F, LOAD_TI, LOAD_TJ, N_FORCE, N_LOAD, BondArrays, csr_of_rows, rotate_into_plane,
+from dem.state import (LOAD_F, LOAD_TI, LOAD_TJ, N_FORCE, N_LOAD, BondArrays, csr_of_rows, rotated_into_plane,
                        write_pair_load)
 
 #: bond state codes
@@ -290,9 +290,10 @@ class BondSet:
         start, entry = csr_of_rows(pairs[:, 0].copy(), pairs[:, 1].copy(), n)
         # central bonds load their spheres through the centres: rows of the force columns only
         load = np.zeros((nbnd, N_FORCE if self.central else N_LOAD))
+        scratch = np.empty((nb.config.NUMBA_NUM_THREADS, N_ROWS, BOND_BLOCK))
         self.arrays = BondArrays(self.ij, table, self.fn, self.fs, self.mb, self.mt,
                                  self.length, self.state, load, start, entry,
-                                 self.partner, self.index)
+                                 self.partner, self.index, scratch)
 
     @property
     def n_bonds(self) -> int:
@@ -451,66 +452,131 @@ def bond_stresses(b, props, fn, fs, mb, mt, beta):
     return sigma, tau, props[b, P_SIGT], props[b, P_COH] + comp * props[b, P_TANPHI]
 
 
+#: bonds per block of :func:`bond_block`: the block's scratch table (N_ROWS x BOND_BLOCK doubles,
+#: 18 kB) stays in a core's 32 kB L1 data cache
+BOND_BLOCK = 64
+# rows of the scratch table, one column per bond of the block: centre-to-centre vector (then the
+# unit axis n), radii, velocity of j minus that of i, spins of i and j, shear force, normal force,
+# k_n A, length, k_s A dt, 1 for the JCFpm convention; centre distance d, lever arms, the
+# relative-velocity factors of the convention; bending moment, twisting moment, k_s J, k_n I
+(G_NX, G_NY, G_NZ, G_RI, G_RJ, G_DVX, G_DVY, G_DVZ, G_OIX, G_OIY, G_OIZ, G_OJX, G_OJY, G_OJZ,
+ G_FSX, G_FSY, G_FSZ, G_FN, G_KNA, G_LEN, G_KSDT, G_YADE, G_D, G_AI, G_AJ, G_ALPHA, G_QI, G_QJ,
+ G_MBX, G_MBY, G_MBZ, G_MT, G_KSJ, G_KNI) = range(34)
+N_ROWS = 34
+
+
 @nb.njit(cache=True, inline="always")
-def _axis(i, j, pos, rad, lz):
+def _gather(b0, b1, ij, props, fn, fs, mb, mt, length, pos, vel, om, rad, lz, dt, full, moments, g):
+    """Copy what bonds b0..b1-1 read into columns of the scratch table ``g`` (broken bonds too:
+    their columns are computed and not used)."""
+    for t in range(b1 - b0):
+        b = b0 + t
+        i = ij[b, 0]
+        j = ij[b, 1]
+        dz = pos[j, 2] - pos[i, 2]
+        if lz > 0.0:
+            dz -= lz * math.floor(dz / lz + 0.5)
+        g[G_NX, t] = pos[j, 0] - pos[i, 0]
+        g[G_NY, t] = pos[j, 1] - pos[i, 1]
+        g[G_NZ, t] = dz
+        g[G_RI, t] = rad[i]
+        g[G_RJ, t] = rad[j]
+        g[G_FN, t] = fn[b]
+        g[G_KNA, t] = props[b, P_KN_A]
+        g[G_LEN, t] = length[b]
+        if not full:
+            continue
+        for c in range(3):
+            g[G_DVX + c, t] = vel[j, c] - vel[i, c]
+            g[G_OIX + c, t] = om[i, c]
+            g[G_OJX + c, t] = om[j, c]
+            g[G_FSX + c, t] = fs[b, c]
+        g[G_KSDT, t] = props[b, P_KS_A] * dt
+        g[G_YADE, t] = props[b, P_SIGNED_MC]
+        if moments:
+            for c in range(3):
+                g[G_MBX + c, t] = mb[b, c]
+            g[G_MT, t] = mt[b]
+            g[G_KSJ, t] = props[b, P_KS_J]
+            g[G_KNI, t] = props[b, P_KN_I]
+
+
+@nb.njit(cache=True, inline="always")
+def _axes(m, g):
     """Centre distance d, unit axis n from i to j, lever arms ai, aj to the bond centre (midway
-    across the gap between the surfaces)."""
-    dx = pos[j, 0] - pos[i, 0]
-    dy = pos[j, 1] - pos[i, 1]
-    dz = pos[j, 2] - pos[i, 2]
-    if lz > 0.0:
-        dz -= lz * math.floor(dz / lz + 0.5)
-    d = math.sqrt(dx * dx + dy * dy + dz * dz)
-    inv_d = 1.0 / d
-    half_gap = 0.5 * (d - rad[i] - rad[j])
-    return d, dx * inv_d, dy * inv_d, dz * inv_d, rad[i] + half_gap, rad[j] + half_gap
+    across the gap between the surfaces) of the block's m bonds, and the factors of the relative
+    velocity: centre velocities times alpha, spins times the arms qi, qj; Yade's
+    ScGeom::getIncidentVel (avoidGranularRatcheting) for JCFpm bonds: alpha = (R1+R2)/d, the
+    sphere radii as arms. Branch-free, so the compiler computes two bonds per instruction."""
+    for t in range(m):
+        dx = g[G_NX, t]
+        dy = g[G_NY, t]
+        dz = g[G_NZ, t]
+        d = math.sqrt(dx * dx + dy * dy + dz * dz)
+        inv_d = 1.0 / d
+        ri = g[G_RI, t]
+        rj = g[G_RJ, t]
+        half_gap = 0.5 * (d - ri - rj)
+        ai = ri + half_gap
+        aj = rj + half_gap
+        yade = g[G_YADE, t] != 0.0
+        g[G_D, t] = d
+        g[G_NX, t] = dx * inv_d
+        g[G_NY, t] = dy * inv_d
+        g[G_NZ, t] = dz * inv_d
+        g[G_AI, t] = ai
+        g[G_AJ, t] = aj
+        g[G_ALPHA, t] = (ri + rj) / d if yade else 1.0
+        g[G_QI, t] = ri if yade else ai
+        g[G_QJ, t] = rj if yade else aj
 
 
 @nb.njit(cache=True, inline="always")
-def _relative_velocity(i, j, vel, om, rad, d, nx, ny, nz, ai, aj, yade):
-    """Velocity of j relative to i at the bond centre (mid-step velocities). ``yade``: Yade's
-    ScGeom::getIncidentVel (avoidGranularRatcheting): centre velocities scaled by (R1+R2)/d,
-    spins times the sphere radii."""
-    if yade:
-        alpha = (rad[i] + rad[j]) / d
-        qi = rad[i]
-        qj = rad[j]
-    else:
-        alpha = 1.0
-        qi = ai
-        qj = aj
-    vrx = alpha * (vel[j, 0] - vel[i, 0]) - qj * (om[j, 1] * nz - om[j, 2] * ny) - qi * (om[i, 1] * nz - om[i, 2] * ny)
-    vry = alpha * (vel[j, 1] - vel[i, 1]) - qj * (om[j, 2] * nx - om[j, 0] * nz) - qi * (om[i, 2] * nx - om[i, 0] * nz)
-    vrz = alpha * (vel[j, 2] - vel[i, 2]) - qj * (om[j, 0] * ny - om[j, 1] * nx) - qi * (om[i, 0] * ny - om[i, 1] * nx)
-    return vrx, vry, vrz
+def _springs(m, g):
+    """Incremental update of the block's m bonds (Potyondy & Cundall 2004, eqs. 5-8): dF_n = k_n A
+    du_n with du_n the exact change of the centre distance; the stored shear force rotated into
+    the new tangent plane, then dF_s = -k_s A du_s with du_s the tangential part of the velocity
+    of j relative to i at the bond centre times dt (mid-step velocities)."""
+    for t in range(m):
+        nx = g[G_NX, t]
+        ny = g[G_NY, t]
+        nz = g[G_NZ, t]
+        alpha = g[G_ALPHA, t]
+        qi = g[G_QI, t]
+        qj = g[G_QJ, t]
+        vrx = (alpha * g[G_DVX, t] - qj * (g[G_OJY, t] * nz - g[G_OJZ, t] * ny)
+               - qi * (g[G_OIY, t] * nz - g[G_OIZ, t] * ny))
+        vry = (alpha * g[G_DVY, t] - qj * (g[G_OJZ, t] * nx - g[G_OJX, t] * nz)
+               - qi * (g[G_OIZ, t] * nx - g[G_OIX, t] * nz))
+        vrz = (alpha * g[G_DVZ, t] - qj * (g[G_OJX, t] * ny - g[G_OJY, t] * nx)
+               - qi * (g[G_OIX, t] * ny - g[G_OIY, t] * nx))
+        vn = vrx * nx + vry * ny + vrz * nz
+        x, y, z = rotated_into_plane(g[G_FSX, t], g[G_FSY, t], g[G_FSZ, t], nx, ny, nz)
+        ksa_dt = g[G_KSDT, t]
+        g[G_FSX, t] = x - ksa_dt * (vrx - vn * nx)
+        g[G_FSY, t] = y - ksa_dt * (vry - vn * ny)
+        g[G_FSZ, t] = z - ksa_dt * (vrz - vn * nz)
 
 
 @nb.njit(cache=True, inline="always")
-def _update_springs(b, i, j, props, fn, fs, mb, mt, length, om, d, nx, ny, nz, vrx, vry, vrz,
-                    dt, beta):
-    """Incremental update (Potyondy & Cundall 2004, eqs. 5-8): dF_n = k_n A du_n with du_n the
-    exact change of the centre distance; the stored shear force (and bending moment) rotated
-    into the new tangent plane, then dF_s = -k_s A du_s, dM_t = -k_s J dtheta_t,
-    dM_b = -k_n I dtheta_b."""
-    fn[b] += props[b, P_KN_A] * (d - length[b])
-    length[b] = d
-    vn = vrx * nx + vry * ny + vrz * nz
-    rotate_into_plane(fs, b, nx, ny, nz)
-    ksa_dt = props[b, P_KS_A] * dt
-    fs[b, 0] -= ksa_dt * (vrx - vn * nx)
-    fs[b, 1] -= ksa_dt * (vry - vn * ny)
-    fs[b, 2] -= ksa_dt * (vrz - vn * nz)
-    if beta > 0.0:
-        wx = (om[j, 0] - om[i, 0]) * dt
-        wy = (om[j, 1] - om[i, 1]) * dt
-        wz = (om[j, 2] - om[i, 2]) * dt
+def _moments(m, g, dt):
+    """The block's bond moments (beta > 0): dM_t = -k_s J dtheta_t, the stored bending moment
+    rotated into the new tangent plane, then dM_b = -k_n I dtheta_b, dtheta the relative rotation
+    of j over dt (Potyondy & Cundall 2004, eqs. 7-8)."""
+    for t in range(m):
+        nx = g[G_NX, t]
+        ny = g[G_NY, t]
+        nz = g[G_NZ, t]
+        wx = (g[G_OJX, t] - g[G_OIX, t]) * dt
+        wy = (g[G_OJY, t] - g[G_OIY, t]) * dt
+        wz = (g[G_OJZ, t] - g[G_OIZ, t]) * dt
         wt = wx * nx + wy * ny + wz * nz
-        mt[b] -= props[b, P_KS_J] * wt
-        rotate_into_plane(mb, b, nx, ny, nz)
-        kni = props[b, P_KN_I]
-        mb[b, 0] -= kni * (wx - wt * nx)
-        mb[b, 1] -= kni * (wy - wt * ny)
-        mb[b, 2] -= kni * (wz - wt * nz)
+        g[G_MT, t] -= g[G_KSJ, t] * wt
+        x, y, z = rotated_into_plane(g[G_MBX, t], g[G_MBY, t], g[G_MBZ, t], nx, ny, nz)
+        kni = g[G_KNI, t]
+        g[G_MBX, t] = x - kni * (wx - wt * nx)
+        g[G_MBY, t] = y - kni * (wy - wt * ny)
+        g[G_MBZ, t] = z - kni * (wz - wt * nz)
 
 
 @nb.njit(cache=True, inline="always")
@@ -582,40 +648,38 @@ def _write_load(b, fn, fs, mb, mt, load, nx, ny, nz, ai, aj, beta):
 
 
 @nb.njit(cache=True, inline="always")
-def _central_step(b, i, j, props, fn, length, state, load, pos, rad, lz):
+def _central_finish(b, t, g, props, fn, length, state, load):
     """A central bond (k_s = 0, no moments): the normal spring along the line of centres,
     broken when F_n/A exceeds the tensile strength; its force acts through both centres, so
     it exerts no torque (only a row's force columns are written). Returns 1 if it broke, else 0."""
-    d, nx, ny, nz, _, _ = _axis(i, j, pos, rad, lz)
-    fn[b] += props[b, P_KN_A] * (d - length[b])
-    length[b] = d
+    fn[b] = g[G_FN, t]
+    length[b] = g[G_D, t]
     broke = fn[b] * props[b, P_INV_AREA] > props[b, P_SIGT]
     if broke:
         state[b] = BROKEN_TENSION
         fn[b] = 0.0
-    load[b, LOAD_F] = -fn[b] * nx
-    load[b, LOAD_F + 1] = -fn[b] * ny
-    load[b, LOAD_F + 2] = -fn[b] * nz
+    load[b, LOAD_F] = -fn[b] * g[G_NX, t]
+    load[b, LOAD_F + 1] = -fn[b] * g[G_NY, t]
+    load[b, LOAD_F + 2] = -fn[b] * g[G_NZ, t]
     return 1 if broke else 0
 
 
 @nb.njit(cache=True, inline="always")
-def bond_step(b, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om, rad, lz, dt, beta):
-    """Update bond b incrementally, test it for failure, write its loads. Returns 1 if it broke
-    (a JCFpm bond that starts to slide counts), else 0."""
+def _finish(b, t, g, props, fn, fs, mb, mt, length, state, load, beta):
+    """Store bond b's updated springs (block column t), test it for failure, write its loads.
+    Returns 1 if it broke (a JCFpm bond that starts to slide counts), else 0."""
     st = state[b]
-    if st != INTACT and st != BROKEN_SHEAR_SLIDING:
-        return 0
-    i = ij[b, 0]
-    j = ij[b, 1]
     if beta == 0.0 and props[b, P_KS_A] == 0.0:
-        return _central_step(b, i, j, props, fn, length, state, load, pos, rad, lz)
-    d, nx, ny, nz, ai, aj = _axis(i, j, pos, rad, lz)
-    vrx, vry, vrz = _relative_velocity(i, j, vel, om, rad, d, nx, ny, nz, ai, aj,
-                                       props[b, P_SIGNED_MC] != 0.0)
-    _update_springs(b, i, j, props, fn, fs, mb, mt, length, om, d, nx, ny, nz, vrx, vry, vrz,
-                    dt, beta)
-    pen = rad[i] + rad[j] - d
+        return _central_finish(b, t, g, props, fn, length, state, load)
+    fn[b] = g[G_FN, t]
+    length[b] = g[G_D, t]
+    for c in range(3):
+        fs[b, c] = g[G_FSX + c, t]
+    if beta > 0.0:
+        for c in range(3):
+            mb[b, c] = g[G_MBX + c, t]
+        mt[b] = g[G_MT, t]
+    pen = g[G_RI, t] + g[G_RJ, t] - g[G_D, t]
     broke = 0
     if st == BROKEN_SHEAR_SLIDING:
         # JCFpm after a shear break: no tension (the interaction is erased when the pair is
@@ -631,20 +695,49 @@ def bond_step(b, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om, r
         if state[b] != BROKEN_SHEAR_SLIDING:
             _clear(b, fn, fs, mb, mt, load)
             return 1
-    _write_load(b, fn, fs, mb, mt, load, nx, ny, nz, ai, aj, beta)
+    _write_load(b, fn, fs, mb, mt, load, g[G_NX, t], g[G_NY, t], g[G_NZ, t], g[G_AI, t], g[G_AJ, t], beta)
     return broke
 
 
 @nb.njit(cache=True, inline="always")
-def bond_update(b, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om, rad, lz, dt, beta):
-    """Bond b's step if it is active (intact, or JCFpm's sliding), writing only its own row.
+def bond_block(b0, b1, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om, rad, lz, dt, beta,
+               central, g):
+    """Step bonds b0..b1-1 (at most BOND_BLOCK) that are active (intact, or JCFpm's sliding):
+    update them incrementally, test them for failure, write their loads, each into its own row.
     Velocities must be mid-step values (those that moved the spheres over the last ``dt``).
-    Returns (1 if it broke, 1 if it stopped carrying its pair: its contact starts next step).
-    The loads are summed per sphere by :func:`dem.kernels.compute_forces`, which runs this in
-    parallel over the bonds."""
-    st = state[b]
-    if st != INTACT and st != BROKEN_SHEAR_SLIDING:
-        return 0, 0
-    broke = bond_step(b, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om, rad, lz, dt, beta)
-    after = state[b]
-    return broke, 1 if after != INTACT and after != BROKEN_SHEAR_SLIDING else 0
+    ``central``: every bond of the set is central (no velocities read); ``g`` a scratch table
+    (N_ROWS, BOND_BLOCK). Returns (bonds that broke, bonds that stopped carrying their pair: their
+    contacts start next step). The loads are summed per sphere by
+    :func:`dem.kernels.compute_forces`, which runs the blocks in parallel.
+
+    The geometry and spring updates run as loops over the block's columns with no branch, which
+    the compiler vectorises; each bond's arithmetic is the same IEEE operations in the same order
+    as one bond at a time, so the results are too."""
+    m = b1 - b0
+    moments = beta > 0.0
+    _gather(b0, b1, ij, props, fn, fs, mb, mt, length, pos, vel, om, rad, lz, dt, not central, moments, g)
+    _axes(m, g)
+    for t in range(m):
+        g[G_FN, t] = g[G_FN, t] + g[G_KNA, t] * (g[G_D, t] - g[G_LEN, t])
+    if not central:
+        _springs(m, g)
+        if moments:
+            _moments(m, g, dt)
+    broke = released = 0
+    for t in range(m):
+        b = b0 + t
+        st = state[b]
+        if st != INTACT and st != BROKEN_SHEAR_SLIDING:
+            continue
+        broke += _finish(b, t, g, props, fn, fs, mb, mt, length, state, load, beta)
+        after = state[b]
+        released += 1 if after != INTACT and after != BROKEN_SHEAR_SLIDING else 0
+    return broke, released
+
+
+@nb.njit(cache=True, error_model="numpy")
+def bond_step(b, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om, rad, lz, dt, beta):
+    """:func:`bond_block` of bond b alone. Returns 1 if it broke, else 0."""
+    g = np.empty((N_ROWS, BOND_BLOCK))
+    return bond_block(b, b + 1, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om, rad, lz, dt,
+                      beta, False, g)[0]

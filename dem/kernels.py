@@ -5,10 +5,10 @@
   half the skin since the last build (Allen & Tildesley, *Computer Simulation of Liquids*,
   §5.3), the contact histories carried over pair by pair. Optional periodicity along z (drum
   slice).
-- Parallel (numba ``prange``) over bonds, pairs and spheres (the neighbour search is serial),
-  each writing only its own rows; per-sphere sums in a fixed order (:mod:`dem.state`), so the
-  results do not depend on the number of threads (``NUMBA_NUM_THREADS`` or
-  ``numba.set_num_threads``). Element functions (one contact, one bond, one sphere's walls)
+- Parallel (numba ``prange``) over blocks of bonds and of pairs, and over spheres (the
+  neighbour search is serial), each writing only its own rows; per-sphere sums in a fixed
+  order (:mod:`dem.state`), so the results do not depend on the number of threads
+  (``NUMBA_NUM_THREADS`` or ``numba.set_num_threads``). Element functions (one contact, one bond, one sphere's walls)
   are inlined and take plain arrays and scalars: a call that passes arrays, or a view made per
   contact, costs reference counting that the threads contend for.
 - Integration: velocity Verlet (kick–drift–kick), the standard explicit DEM scheme
@@ -34,7 +34,7 @@ import os
 import numba as nb
 import numpy as np
 
-from dem.bonds import BROKEN_SHEAR_SLIDING, INTACT, P_OVERLAP0, P_SIGNED_MC, bond_update
+from dem.bonds import BOND_BLOCK, BROKEN_SHEAR_SLIDING, INTACT, P_OVERLAP0, P_SIGNED_MC, bond_block
 from dem.contacts import drum_walls, hist_add, pair_contact, plane_walls
 from dem.state import N_LOAD, PairArrays, add_rows, fill_csr
 
@@ -410,21 +410,25 @@ def _collect(pr, wl, dr, cp, hist_pp, hist_pw):
     return tq
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, parallel=True, error_model="numpy")
 def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw, kick=False, advance=False,
                    pos_ref=None, lim2=0.0):
     """All forces and torques at the current positions (mid-step velocities): bonds and contacts
-    (every active pair of the Verlet list, those no bond carries) in one parallel loop, each
-    writing its own row; a bond that breaks now leaves its contact to the next step (the active
-    pairs are refreshed after the loop); then per sphere (with ``kick``, the step's closing half
-    kick too). One loop for both saves a parallel region, whose barrier costs the threads
-    more the less work a step has.
+    (every active pair of the Verlet list, those no bond carries) in one parallel loop over blocks
+    of BOND_BLOCK bonds or contacts, each writing its own rows; a bond that breaks now leaves its
+    contact to the next step (the active pairs are refreshed after the loop); then per sphere
+    (with ``kick``, the step's closing half kick too). One loop for both saves a parallel region,
+    whose barrier costs the threads more the less work a step has.
 
     With ``kick`` and ``advance``, the next step's opening half kick and drift too, checked
     against ``pos_ref`` (:func:`_advance`). Returns (drum torque N m, number of bonds broken in
     this call, the next step's drift counts: moved beyond half the skin, non-finite). A caller of this (and of
     any parallel kernel) must itself be compiled with ``parallel=True``: called from a plain
     njit function the parallel loops run 2-3x slower even on one thread (measured).
+
+    ``error_model="numpy"``: a division by zero gives inf or nan (found by the callers' check of
+    the state) instead of a test before every division, which would keep the bond blocks' loops
+    from being vectorised.
     """
     pi, pj, pb, xi, touch, load, impact = pr.i, pr.j, pr.bond, pr.xi, pr.touch, pr.load, pr.impact_J
     active = pr.active
@@ -433,22 +437,30 @@ def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw, kic
     length, b_state, b_load = bd.length, bd.state, bd.load
     lz = cp[CP_LZ]
     beta = cp[CP_BETA]
+    central = cp[CP_CENTRAL_BONDS] != 0.0
     law = cp[CP_CONTACT_LAW]
     e_star, g_star, mu, eta = cp[CP_ESTAR_PP], cp[CP_GSTAR_PP], cp[CP_MU_PP], cp[CP_ETA_PP]
     nbond = ij.shape[0]
+    n_act = pr.n_active[0]
+    nb_blocks = (nbond + BOND_BLOCK - 1) // BOND_BLOCK
+    scratch = bd.scratch
     nbroken = 0
     nreleased = 0
-    for q in nb.prange(nbond + pr.n_active[0]):
-        if q < nbond:
-            broke, released = bond_update(q, ij, b_props, fn, fs, mb, mt, length, b_state, b_load,
-                                          pos, vel, om, rad, lz, dt, beta)
+    for q in nb.prange(nb_blocks + (n_act + BOND_BLOCK - 1) // BOND_BLOCK):
+        if q < nb_blocks:
+            b0 = q * BOND_BLOCK
+            broke, released = bond_block(b0, min(b0 + BOND_BLOCK, nbond), ij, b_props, fn, fs, mb, mt, length,
+                                         b_state, b_load, pos, vel, om, rad, lz, dt, beta, central,
+                                         scratch[nb.get_thread_id()])
             nbroken += broke
             nreleased += released
         else:
-            k = active[q - nbond]
-            ov0 = _contact_overlap0(k, pi, pj, pb, b_state, b_props, pos, rad, lz)
-            pair_contact(k, pi, pj, xi, touch, load, impact, pos, vel, om, rad, mass, lz, e_star,
-                         g_star, mu, eta, dt, ov0, law)
+            a0 = (q - nb_blocks) * BOND_BLOCK
+            for a in range(a0, min(a0 + BOND_BLOCK, n_act)):
+                k = active[a]
+                ov0 = _contact_overlap0(k, pi, pj, pb, b_state, b_props, pos, rad, lz)
+                pair_contact(k, pi, pj, xi, touch, load, impact, pos, vel, om, rad, mass, lz, e_star,
+                             g_star, mu, eta, dt, ov0, law)
     if nreleased > 0:
         refresh_active(pr, b_state)
     ref = sp.pos if pos_ref is None else pos_ref

@@ -46,7 +46,9 @@ class BondArrays(NamedTuple):
     """Bonds (see :mod:`dem.bonds`): sphere pairs ``ij`` (m, 2), property table ``props``
     (m, N_PROPS), stored normal force ``fn``, shear force ``fs`` (m, 3), bending moment ``mb``
     (m, 3), twisting moment ``mt``, current length, state code; ``load`` (m, 9); the per-sphere
-    CSR list of bonds; ``partner``/``index`` (n, max bonds a sphere) for pair look-ups."""
+    CSR list of bonds; ``partner``/``index`` (n, max bonds a sphere) for pair look-ups; ``scratch``
+    one table per thread for :func:`dem.bonds.bond_block` (numba's largest thread count, so that
+    every thread id has one)."""
 
     ij: np.ndarray
     props: np.ndarray
@@ -61,6 +63,7 @@ class BondArrays(NamedTuple):
     sphere_entry: np.ndarray
     partner: np.ndarray
     index: np.ndarray
+    scratch: np.ndarray
 
 
 class PairArrays(NamedTuple):
@@ -210,18 +213,17 @@ def add_rows(load, start, entry, s, force, torque, torques=True):
 
 
 @nb.njit(cache=True, inline="always")
-def rotate_into_plane(vec, b, nx, ny, nz):
-    """Rotate the stored vector vec[b] into the plane normal to n, keeping its magnitude (the
+def rotated_into_plane(x, y, z, nx, ny, nz):
+    """The stored vector (x, y, z) rotated into the plane normal to n, keeping its magnitude (the
     incremental update of a bond's shear force or bending moment, or of a contact's tangential
-    spring, as the axis turns; Potyondy & Cundall 2004, sec. 2.2)."""
-    old2 = vec[b, 0] ** 2 + vec[b, 1] ** 2 + vec[b, 2] ** 2
-    along = vec[b, 0] * nx + vec[b, 1] * ny + vec[b, 2] * nz
-    vec[b, 0] -= along * nx
-    vec[b, 1] -= along * ny
-    vec[b, 2] -= along * nz
-    new2 = vec[b, 0] ** 2 + vec[b, 1] ** 2 + vec[b, 2] ** 2
-    if new2 > 0.0:
-        sc = math.sqrt(old2 / new2)
-        vec[b, 0] *= sc
-        vec[b, 1] *= sc
-        vec[b, 2] *= sc
+    spring, as the axis turns; Potyondy & Cundall 2004, sec. 2.2). Branch-free, so that loops
+    over many bonds are vectorised."""
+    old2 = x * x + y * y + z * z
+    along = x * nx + y * ny + z * nz
+    x -= along * nx
+    y -= along * ny
+    z -= along * nz
+    new2 = x * x + y * y + z * z
+    turn = new2 > 0.0
+    sc = math.sqrt(old2 / (new2 if turn else 1.0))
+    return (x * sc, y * sc, z * sc) if turn else (x, y, z)

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from dem.bonds import (BROKEN_SHEAR, BROKEN_TENSION, INTACT, P_AREA, BondParams, BondSet,
-                       bond_step, find_bond_pairs)
+from dem.bonds import (BOND_BLOCK, BROKEN_SHEAR, BROKEN_SHEAR_SLIDING, BROKEN_TENSION, INTACT, N_ROWS, P_AREA,
+                       BondParams, BondSet, bond_block, bond_step, find_bond_pairs)
 from dem.errors import DemInputError, DemInstabilityError
 from dem.materials import Material
 from dem.reference import reference_bond
@@ -151,6 +151,46 @@ def test_bond_kernel_matches_reference(seed):
         np.testing.assert_allclose(t[0], t_i, rtol=1e-8, atol=1e-15)
         np.testing.assert_allclose(t[1], t_j, rtol=1e-8, atol=1e-15)
         assert p_old is not pos
+
+
+@pytest.mark.parametrize("params", [BondParams(kn_Pa_m=KN, ks_Pa_m=KS, tensile_strength_Pa=2e7, cohesion_Pa=3e7,
+                                               friction_angle_deg=20.0),
+                                    BondParams.yade_jcfpm(30e9, 0.4, 1e7, 2e7, 30.0)], ids=["parallel", "jcfpm"])
+def test_a_block_of_bonds_gives_each_bond_what_stepping_it_alone_gives(params):
+    """The kernel steps bonds in blocks whose columns the compiler computes two at a time
+    (dem.bonds.bond_block): every bond of every block, whatever its column, its state and its
+    neighbours', must get exactly what stepping it alone gives (a column read from its neighbour,
+    a block offset off by one or a broken bond's column written back would not)."""
+    from dem.agglomerate import make_agglomerate
+
+    agg = make_agglomerate(0.008, 60, random_state=1)
+    n, m = agg.n_spheres, agg.bond_pairs.shape[0]
+    assert m > 3 * BOND_BLOCK  # several blocks, the last one partly filled
+    rng = np.random.default_rng(4)
+    vel = rng.normal(0.0, 1.0, (n, 3))
+    om = rng.normal(0.0, 3e3, (n, 3))
+    sets = [BondSet(agg.bond_pairs, agg.pos_m, agg.radius_m, params) for _ in range(2)]
+    for bs in sets:
+        bs.state[::7] = BROKEN_TENSION
+        bs.state[3::11] = BROKEN_SHEAR_SLIDING if params.convention == "yade_jcfpm" else BROKEN_SHEAR
+    pos = [agg.pos_m.copy(), agg.pos_m.copy()]
+    g = np.empty((N_ROWS, BOND_BLOCK))
+    dt = 2e-7
+    for _ in range(6):
+        for p in pos:
+            p += vel * dt
+        a, b = sets
+        for b0 in range(0, m, BOND_BLOCK):
+            bond_block(b0, min(b0 + BOND_BLOCK, m), a.ij, a.props, a.fn, a.fs, a.mb, a.mt, a.length, a.state,
+                       a.arrays.load, pos[0], vel, om, agg.radius_m, 0.0, dt, a.beta, False, g)
+        for k in range(m):
+            bond_step(k, b.ij, b.props, b.fn, b.fs, b.mb, b.mt, b.length, b.state, b.arrays.load, pos[1], vel,
+                      om, agg.radius_m, 0.0, dt, b.beta)
+    a, b = sets
+    assert len(set(a.state.tolist())) >= 3  # intact, broken this run or before, (sliding)
+    for name in ("fn", "fs", "mb", "mt", "length", "state", "props"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    np.testing.assert_array_equal(a.arrays.load, b.arrays.load)
 
 
 def test_energy_drift_without_damping_or_breakage():

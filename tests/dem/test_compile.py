@@ -80,8 +80,8 @@ def test_a_changed_source_of_dem_gets_a_new_kernel_cache(tmp_path):
     assert before == str(tmp_path / "cache" / "grindtwin" / "numba" / f"dem-{kernel_source_hash()}")
     bonds = copy / "dem" / "bonds.py"
     text = bonds.read_text()
-    assert "fn[b] += props[b, P_KN_A]" in text
-    bonds.write_text(text.replace("fn[b] += props[b, P_KN_A]", "fn[b] += 2.0 * props[b, P_KN_A]"))
+    assert "+ g[G_KNA, t] * " in text
+    bonds.write_text(text.replace("+ g[G_KNA, t] * ", "+ 2.0 * g[G_KNA, t] * "))
     after = in_fresh_interpreter(where, CACHE_VARS + ("PYTHONPATH",), **env).split()[1]
     assert Path(after).parent == Path(before).parent and after != before
 
