@@ -507,7 +507,7 @@ def _axes(m, g):
     across the gap between the surfaces) of the block's m bonds, and the factors of the relative
     velocity: centre velocities times alpha, spins times the arms qi, qj; Yade's
     ScGeom::getIncidentVel (avoidGranularRatcheting) for JCFpm bonds: alpha = (R1+R2)/d, the
-    sphere radii as arms. Branch-free, so the compiler computes two bonds per instruction."""
+    sphere radii as arms."""
     for t in range(m):
         dx = g[G_NX, t]
         dy = g[G_NY, t]
@@ -710,8 +710,8 @@ def bond_block(b0, b1, ij, props, fn, fs, mb, mt, length, state, load, pos, vel,
     contacts start next step). The loads are summed per sphere by
     :func:`dem.kernels.compute_forces`, which runs the blocks in parallel.
 
-    The geometry and spring updates run as loops over the block's columns with no branch, which
-    the compiler vectorises; each bond's arithmetic is the same IEEE operations in the same order
+    The geometry and spring updates run as loops over the block's columns, which the compiler
+    vectorises; each bond's arithmetic is the same IEEE operations in the same order
     as one bond at a time, so the results are too."""
     m = b1 - b0
     moments = beta > 0.0

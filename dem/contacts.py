@@ -24,7 +24,7 @@ import math
 
 import numba as nb
 
-from dem.state import N_LOAD, rotated_into_plane, write_pair_load
+from dem.state import N_LOAD, write_pair_load
 
 #: contact laws (``law`` argument of the kernels): Hertz–Mindlin (default) and the linear
 #: spring of Yade (``Ip2_FrictMat_FrictMat_FrictPhys`` + ``Law2_ScGeom_FrictPhys_CundallStrack``,
@@ -78,7 +78,17 @@ def hertz_mindlin(delta, nx, ny, nz, vrx, vry, vrz, r_eff, m_eff, e_star, g_star
     vty = vry - vn * ny
     vtz = vrz - vn * nz
     # rotate the spring into the current tangent plane, keeping its length
-    x0, x1, x2 = rotated_into_plane(x0, x1, x2, nx, ny, nz)
+    old2 = x0 * x0 + x1 * x1 + x2 * x2
+    xn = x0 * nx + x1 * ny + x2 * nz
+    x0 -= xn * nx
+    x1 -= xn * ny
+    x2 -= xn * nz
+    new2 = x0 * x0 + x1 * x1 + x2 * x2
+    if new2 > 0.0:
+        sc = math.sqrt(old2 / new2)
+        x0 *= sc
+        x1 *= sc
+        x2 *= sc
     x0 += vtx * dt
     x1 += vty * dt
     x2 += vtz * dt

@@ -5,7 +5,7 @@
   half the skin since the last build (Allen & Tildesley, *Computer Simulation of Liquids*,
   §5.3), the contact histories carried over pair by pair. Optional periodicity along z (drum
   slice).
-- Parallel (numba ``prange``) over blocks of bonds and of pairs, and over spheres (the
+- Parallel (numba ``prange``) over blocks of bonds, over pairs and over spheres (the
   neighbour search is serial), each writing only its own rows; per-sphere sums in a fixed
   order (:mod:`dem.state`), so the results do not depend on the number of threads
   (``NUMBA_NUM_THREADS`` or ``numba.set_num_threads``). Element functions (one contact, one bond, one sphere's walls)
@@ -413,12 +413,14 @@ def _collect(pr, wl, dr, cp, hist_pp, hist_pw):
 @nb.njit(cache=True, parallel=True, error_model="numpy")
 def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw, kick=False, advance=False,
                    pos_ref=None, lim2=0.0):
-    """All forces and torques at the current positions (mid-step velocities): bonds and contacts
-    (every active pair of the Verlet list, those no bond carries) in one parallel loop over blocks
-    of BOND_BLOCK bonds or contacts, each writing its own rows; a bond that breaks now leaves its
-    contact to the next step (the active pairs are refreshed after the loop); then per sphere
-    (with ``kick``, the step's closing half kick too). One loop for both saves a parallel region,
-    whose barrier costs the threads more the less work a step has.
+    """All forces and torques at the current positions (mid-step velocities): the bonds, in
+    parallel over blocks of BOND_BLOCK, then the contacts (every active pair of the Verlet list,
+    those no bond carries), in parallel over pairs, each writing its own rows; a bond that breaks
+    now leaves its contact to the next step (the active pairs are refreshed after the loops); then
+    per sphere (with ``kick``, the step's closing half kick too). Each loop runs only when it has
+    work: a bonded agglomerate before damage has no active pair, the drum no bond. (One loop for
+    both, which saves a barrier when both have work, made the drum's contacts 6-17 % slower once
+    the bond blocks were compiled into the same loop.)
 
     With ``kick`` and ``advance``, the next step's opening half kick and drift too, checked
     against ``pos_ref`` (:func:`_advance`). Returns (drum torque N m, number of bonds broken in
@@ -446,21 +448,20 @@ def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw, kic
     scratch = bd.scratch
     nbroken = 0
     nreleased = 0
-    for q in nb.prange(nb_blocks + (n_act + BOND_BLOCK - 1) // BOND_BLOCK):
-        if q < nb_blocks:
+    if nb_blocks > 0:
+        for q in nb.prange(nb_blocks):
             b0 = q * BOND_BLOCK
             broke, released = bond_block(b0, min(b0 + BOND_BLOCK, nbond), ij, b_props, fn, fs, mb, mt, length,
                                          b_state, b_load, pos, vel, om, rad, lz, dt, beta, central,
                                          scratch[nb.get_thread_id()])
             nbroken += broke
             nreleased += released
-        else:
-            a0 = (q - nb_blocks) * BOND_BLOCK
-            for a in range(a0, min(a0 + BOND_BLOCK, n_act)):
-                k = active[a]
-                ov0 = _contact_overlap0(k, pi, pj, pb, b_state, b_props, pos, rad, lz)
-                pair_contact(k, pi, pj, xi, touch, load, impact, pos, vel, om, rad, mass, lz, e_star,
-                             g_star, mu, eta, dt, ov0, law)
+    if n_act > 0:
+        for q in nb.prange(n_act):
+            k = active[q]
+            ov0 = _contact_overlap0(k, pi, pj, pb, b_state, b_props, pos, rad, lz)
+            pair_contact(k, pi, pj, xi, touch, load, impact, pos, vel, om, rad, mass, lz, e_star,
+                         g_star, mu, eta, dt, ov0, law)
     if nreleased > 0:
         refresh_active(pr, b_state)
     ref = sp.pos if pos_ref is None else pos_ref

@@ -216,14 +216,15 @@ def add_rows(load, start, entry, s, force, torque, torques=True):
 def rotated_into_plane(x, y, z, nx, ny, nz):
     """The stored vector (x, y, z) rotated into the plane normal to n, keeping its magnitude (the
     incremental update of a bond's shear force or bending moment, or of a contact's tangential
-    spring, as the axis turns; Potyondy & Cundall 2004, sec. 2.2). Branch-free, so that loops
-    over many bonds are vectorised."""
+    spring, as the axis turns; Potyondy & Cundall 2004, sec. 2.2). Values in, values out, so that
+    the compiler vectorises a loop over many bonds (its branch becomes a select)."""
     old2 = x * x + y * y + z * z
     along = x * nx + y * ny + z * nz
     x -= along * nx
     y -= along * ny
     z -= along * nz
     new2 = x * x + y * y + z * z
-    turn = new2 > 0.0
-    sc = math.sqrt(old2 / (new2 if turn else 1.0))
-    return (x * sc, y * sc, z * sc) if turn else (x, y, z)
+    if new2 > 0.0:
+        sc = math.sqrt(old2 / new2)
+        return x * sc, y * sc, z * sc
+    return x, y, z
