@@ -351,7 +351,7 @@ class BondSet:
         out = np.zeros(self.n_bonds)
         for b in range(self.n_bonds):
             if self.state[b] == INTACT:
-                s, t, smax, tmax = bond_stresses(b, self.props, self.fn, self.fs, self.mb,
+                s, t, smax, tmax = bond_stresses(b, self.props, self.fn, shear_magnitude(self.fs, b), self.mb,
                                                  self.mt, self.beta)
                 out[b] = max(s / smax, t / tmax)
         return out
@@ -436,9 +436,15 @@ def _bond_partners(pairs, n):
 # per bond costs reference counting of every array in it (measured: ~10x the bond's own work).
 
 @nb.njit(cache=True, inline="always")
-def bond_stresses(b, props, fn, fs, mb, mt, beta):
-    """(sigma, tau, tensile strength, shear strength) of bond b, tension positive."""
-    fsm = math.sqrt(fs[b, 0] ** 2 + fs[b, 1] ** 2 + fs[b, 2] ** 2)
+def shear_magnitude(fs, b):
+    """|F_s| of bond b."""
+    return math.sqrt(fs[b, 0] * fs[b, 0] + fs[b, 1] * fs[b, 1] + fs[b, 2] * fs[b, 2])
+
+
+@nb.njit(cache=True, inline="always")
+def bond_stresses(b, props, fn, fsm, mb, mt, beta):
+    """(sigma, tau, tensile strength, shear strength) of bond b, tension positive; ``fsm`` its
+    shear force's magnitude."""
     inv_a = props[b, P_INV_AREA]
     sigma = fn[b] * inv_a
     tau = fsm * inv_a
@@ -458,11 +464,11 @@ BOND_BLOCK = 64
 # rows of the scratch table, one column per bond of the block: centre-to-centre vector (then the
 # unit axis n), radii, velocity of j minus that of i, spins of i and j, shear force, normal force,
 # k_n A, length, k_s A dt, 1 for the JCFpm convention; centre distance d, lever arms, the
-# relative-velocity factors of the convention; bending moment, twisting moment, k_s J, k_n I
+# relative-velocity factors of the convention; bending moment, twisting moment, k_s J, k_n I; |F_s|
 (G_NX, G_NY, G_NZ, G_RI, G_RJ, G_DVX, G_DVY, G_DVZ, G_OIX, G_OIY, G_OIZ, G_OJX, G_OJY, G_OJZ,
  G_FSX, G_FSY, G_FSZ, G_FN, G_KNA, G_LEN, G_KSDT, G_YADE, G_D, G_AI, G_AJ, G_ALPHA, G_QI, G_QJ,
- G_MBX, G_MBY, G_MBZ, G_MT, G_KSJ, G_KNI) = range(34)
-N_ROWS = 34
+ G_MBX, G_MBY, G_MBZ, G_MT, G_KSJ, G_KNI, G_FSM) = range(35)
+N_ROWS = 35
 
 
 @nb.njit(cache=True, inline="always")
@@ -553,9 +559,13 @@ def _springs(m, g):
         vn = vrx * nx + vry * ny + vrz * nz
         x, y, z = rotated_into_plane(g[G_FSX, t], g[G_FSY, t], g[G_FSZ, t], nx, ny, nz)
         ksa_dt = g[G_KSDT, t]
-        g[G_FSX, t] = x - ksa_dt * (vrx - vn * nx)
-        g[G_FSY, t] = y - ksa_dt * (vry - vn * ny)
-        g[G_FSZ, t] = z - ksa_dt * (vrz - vn * nz)
+        x -= ksa_dt * (vrx - vn * nx)
+        y -= ksa_dt * (vry - vn * ny)
+        z -= ksa_dt * (vrz - vn * nz)
+        g[G_FSX, t] = x
+        g[G_FSY, t] = y
+        g[G_FSZ, t] = z
+        g[G_FSM, t] = math.sqrt(x * x + y * y + z * z)
 
 
 @nb.njit(cache=True, inline="always")
@@ -582,7 +592,7 @@ def _moments(m, g, dt):
 @nb.njit(cache=True, inline="always")
 def _scale_shear(fs, b, limit_N):
     """Cut the stored shear force to ``limit_N`` (Coulomb or strength limit) if above it."""
-    fsm = math.sqrt(fs[b, 0] ** 2 + fs[b, 1] ** 2 + fs[b, 2] ** 2)
+    fsm = shear_magnitude(fs, b)
     if fsm > limit_N:
         sc = limit_N / fsm
         fs[b, 0] *= sc
@@ -591,12 +601,12 @@ def _scale_shear(fs, b, limit_N):
 
 
 @nb.njit(cache=True, inline="always")
-def _failure(b, props, fn, fs, mb, mt, state, beta, pen):
+def _failure(b, props, fn, fs, fsm, mb, mt, state, beta, pen):
     """Test an intact bond (sigma > tensile strength: tension, else tau > shear strength: shear)
     and set its state. Returns True if it broke. JCFpm erases the interaction of a broken bond;
     a new stress-free contact forms at the current overlap ``pen`` if the spheres still
     overlap (its initD)."""
-    sigma, tau, smax, tmax = bond_stresses(b, props, fn, fs, mb, mt, beta)
+    sigma, tau, smax, tmax = bond_stresses(b, props, fn, fsm, mb, mt, beta)
     jcfpm = props[b, P_SIGNED_MC] != 0.0
     if sigma > smax:
         state[b] = BROKEN_TENSION
@@ -690,7 +700,7 @@ def _finish(b, t, g, props, fn, fs, mb, mt, length, state, load, beta):
             _clear(b, fn, fs, mb, mt, load)
             return 0
         _scale_shear(fs, b, -fn[b] * props[b, P_TANPHI])
-    elif _failure(b, props, fn, fs, mb, mt, state, beta, pen):
+    elif _failure(b, props, fn, fs, g[G_FSM, t], mb, mt, state, beta, pen):
         broke = 1
         if state[b] != BROKEN_SHEAR_SLIDING:
             _clear(b, fn, fs, mb, mt, load)
