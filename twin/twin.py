@@ -103,11 +103,13 @@ class Twin:
                 f"{self.calibrated_mill.name!r}")
         #: The notes of those differences, worded for a user of the Python API.
         self.mismatch_notes = [calibration_mismatch_note(p) for p in self.calibration_mismatch]
-        #: What a steady state of this twin cannot show: the differences from its calibration, what
-        #: the calibration's map leaves out of its ores (Calibration.ore_notes) and a mill run in
-        #: another circuit than it was sized in (sized_circuit_notes).
-        self.notes = self.mismatch_notes + ([] if breakage_map else self.calibration.ore_notes(
-            [o for o in self.blend.ores if given.get(o.name) is None]))
+        #: What a steady state of this twin cannot show: the differences from its calibration, a
+        #: calibration whose fit did not converge (Calibration.fit_notes), what the calibration's map
+        #: leaves out of its ores (Calibration.ore_notes) and a mill run in another circuit than it
+        #: was sized in (sized_circuit_notes).
+        self.notes = self.mismatch_notes + self.calibration.fit_notes()
+        if not breakage_map:
+            self.notes += self.calibration.ore_notes([o for o in self.blend.ores if given.get(o.name) is None])
         feed = _feed_fractions(self.grid, feed_psd, _one_number("feed_p80_um", feed_p80_um, "um"),
                                _one_number("feed_modulus", feed_modulus, "-"))
         self.spec = ModelSpec(

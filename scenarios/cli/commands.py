@@ -680,7 +680,7 @@ def cmd_steady(args) -> int:
         from twin import centrifuging_note
 
         notes += [n for n in [centrifuging_note(kpis.get("speed_frac_critical") or 0.0)] if n]
-        notes += calibration.ore_notes(blend.ores)
+        notes += calibration.fit_notes() + calibration.ore_notes(blend.ores)
     else:
         notes += ss.notes  # a twin's steady state carries its notes (texture, a sized circuit not run)
     if args.json:

@@ -55,6 +55,16 @@ def test_the_table_step_converged_without_solver_failures(shipped):
     assert "exact" in opt["jacobian"]
 
 
+def test_a_fit_that_did_not_converge_is_said_with_every_answer():
+    """A calibration written after its optimizer stopped short (``grindtwin calibrate`` prints "NOT
+    converged" once) ran silently ever after: every steady state now carries the note."""
+    record = json.loads(json.dumps(load_calibration("table").record))
+    assert not any("did not converge" in n for n in Twin("B", calibration=record).steady().notes)
+    record["fit"]["optimizer"] |= {"success": False, "message": "Iteration limit reached"}
+    notes = Twin("B", calibration=record).steady().notes
+    assert any("did not converge" in n and "Iteration limit reached" in n and "'table'" in n for n in notes), notes
+
+
 def test_the_dem_chain_fits_only_ore_independent_numbers():
     cal = load_calibration("dem")
     assert tuple(cal.record["fit"]["parameters_fitted"]) == DEM_NAMES == tuple(DEM_FITTED)

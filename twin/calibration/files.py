@@ -144,6 +144,17 @@ class Calibration:
                                  "breakage is the map's extrapolation")
         return notes
 
+    def fit_notes(self) -> list[str]:
+        """That the fit's optimizer did not converge, if it did not: the file's numbers are then its
+        last step, not a fit (``grindtwin calibrate`` says so when it writes the file; a twin built
+        on the file says it with every answer)."""
+        opt = self.record.get("fit", {}).get("optimizer", {})
+        if opt.get("success", True):
+            return []
+        return [f"calibration {self.name!r}: its fit did not converge when it was made "
+                f"({opt.get('message', 'no message recorded')}), so its numbers are the optimizer's last step, "
+                "not a fit; refit it with `grindtwin calibrate`"]
+
     def ore_notes(self, ores) -> list[str]:
         """What a steady state cannot show of ``ores``: :meth:`texture_notes` and
         :meth:`extrapolation_notes`."""
