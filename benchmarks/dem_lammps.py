@@ -304,8 +304,8 @@ def main(argv=None):
     cmd = (f"NUMBA_NUM_THREADS=1 python benchmarks/dem_lammps.py --lammps-python LAMMPS_VENV/bin/python "
            f"--sizes {','.join(map(str, sizes))} --repeats {repeats}" + (f" --tag {o.tag}" if o.tag else ""))
     note = NOTES.format(cmd=cmd, start=start, machine=cpu_model(), tag=o.tag) + __doc__[__doc__.index("The test:"):]
-    write_table(pd.DataFrame(rows), f"dem_lammps{o.tag}", "grindtwin central bonds against LAMMPS BPM bpm/spring, one core",
-                note)
+    title = "grindtwin central bonds against LAMMPS BPM bpm/spring, one core"
+    write_table(pd.DataFrame(rows), f"dem_lammps{o.tag}", title, note)
     pd.concat(curves).to_csv(os.path.join(HERE, "results", f"dem_lammps{o.tag}_curve.csv"), index=False)
 
 
