@@ -309,6 +309,10 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
     table = pd.DataFrame(rows)
     pick = table[(table.option == mode)
                  & ((table.objective == objective) if mode == "both" else True)].iloc[0]
+    # what was searched, said with the answer or its absence
+    scope = (f"feed bounds {feed_bounds_tph[0]:.4g}-{feed_bounds_tph[1]:.4g} t/h, speed bounds "
+             f"{speed_bounds[0]:g}-{speed_bounds[1]:g}, load band {band[0]:g}-{band[1]:g}, the target held "
+             f"to {P80_TOL_REL:.1%} of it")
     if pick.feasible:
         msg = (f"P80 {pick.p80_um:.4g} um (target {target_p80_um:g}) with feed {pick.feed_tph:.4g} t/h, speed "
                f"{pick.speed_frac_critical:.3f} of critical, {pick.specific_energy_kwh_t:.2f} "
@@ -316,10 +320,9 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
         if pick.active:
             aim = "least specific energy" if objective == "min_energy" else "most throughput"
             msg += f"; on a constraint: {pick.active} (the {aim} without it lies beyond)"
+        msg += f" ({scope})"
     else:
-        msg = (f"Target P80 {target_p80_um:g} um is infeasible in mode {mode!r} ({pick.note}; "
-               f"feed bounds {feed_bounds_tph[0]:.4g}-{feed_bounds_tph[1]:.4g} t/h, speed bounds "
-               f"{speed_bounds[0]:g}-{speed_bounds[1]:g}, load band {band[0]:g}-{band[1]:g}).")
+        msg = f"Target P80 {target_p80_um:g} um is infeasible in mode {mode!r} ({pick.note}; {scope})."
     return Setpoints(bool(pick.feasible), float(pick.feed_tph), float(pick.speed_frac_critical),
                      float(pick.p80_um), float(pick.specific_energy_kwh_t), float(pick.load_frac),
                      float(pick.power_kw), mode, objective, msg, table, str(pick.active))

@@ -44,6 +44,22 @@ def test_a_feed_root_holds_the_target_on_the_laboratory_scale(twins):
     assert f"P80 {sp.p80_um:.4g} um" in sp.message
 
 
+def test_an_answer_says_what_was_searched_and_how_closely_the_target_is_held(twins):
+    """An answer printed no bounds and no tolerance (only its absence did): a user could not tell a
+    narrow search from a true optimum. Both messages now name them, as given and as defaulted."""
+    from mpc.optimize import P80_TOL_REL
+
+    lab = twins["B"]
+    lo, hi = default_feed_bounds(lab)
+    band = lab.mill.stable_band
+    for target, speeds in ((210.0, (0.6, 0.8)), (5.0, (0.6, 0.8))):  # an answer; no answer
+        sp = optimal_setpoints(lab, [1.0], target, mode="both", speed_bounds=speeds)
+        said = (f"feed bounds {lo:.4g}-{hi:.4g} t/h, speed bounds {speeds[0]:g}-{speeds[1]:g}, load band "
+                f"{band[0]:g}-{band[1]:g}, the target held to {P80_TOL_REL:.1%} of it")
+        assert said in sp.message, (target, sp.message)
+        assert sp.feasible == (target == 210.0)
+
+
 def test_an_optimum_at_a_speed_bound_says_so(twins):
     """Least energy with the speed limited to 0.60-0.68: the answer is 0.68, and the energy on the
     target curve keeps falling beyond it (computed here), so the bound is what stops it."""
