@@ -730,8 +730,8 @@ def bond_block(b0, b1, ij, props, fn, fs, mb, mt, length, state, load, pos, vel,
     The geometry and spring updates run as loops over the block's columns, which the compiler
     vectorises; each bond's arithmetic is the same IEEE operations in the same order as one bond
     at a time, so the results are too. Central bonds, one square root and one division each, are
-    stepped one at a time: through the block they ran 1.27x slower (gathering cost more than the
-    vector loop saved)."""
+    stepped one at a time: through the block they ran slower, the gather costing more than the
+    vector loop saved (measured: docs/benchmarks.md, the LAMMPS comparison)."""
     broke = released = 0
     if central:
         for b in range(b0, b1):

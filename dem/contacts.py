@@ -79,7 +79,7 @@ def hertz_mindlin(delta, nx, ny, nz, vrx, vry, vrz, r_eff, m_eff, e_star, g_star
     vtz = vrz - vn * nz
     # rotate the spring into the current tangent plane, keeping its length: the arithmetic of
     # dem.state.rotated_into_plane written out, because called here (inlined, returning a tuple)
-    # it made the drum's step 12 % slower (numba 0.68, 8,064 balls, in one process)
+    # it made the drum's step slower (numba 0.68; docs/benchmarks.md, the bond blocks)
     old2 = x0 * x0 + x1 * x1 + x2 * x2
     xn = x0 * nx + x1 * ny + x2 * nz
     x0 -= xn * nx

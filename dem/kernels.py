@@ -419,8 +419,8 @@ def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw, kic
     now leaves its contact to the next step (the active pairs are refreshed after the loops); then
     per sphere (with ``kick``, the step's closing half kick too). Each loop runs only when it has
     work: a bonded agglomerate before damage has no active pair, the drum no bond. (One loop for
-    both, which saves a barrier when both have work, made the drum's contacts 6-17 % slower once
-    the bond blocks were compiled into the same loop.)
+    both, which saves a barrier when both have work, made the drum's contacts slower once the
+    bond blocks were compiled into the same loop: docs/benchmarks.md.)
 
     With ``kick`` and ``advance``, the next step's opening half kick and drift too, checked
     against ``pos_ref`` (:func:`_advance`). Returns (drum torque N m, number of bonds broken in

@@ -215,9 +215,10 @@ def add_rows(load, start, entry, s, force, torque, torques=True):
 @nb.njit(cache=True, inline="always")
 def rotated_into_plane(x, y, z, nx, ny, nz):
     """The stored vector (x, y, z) rotated into the plane normal to n, keeping its magnitude (the
-    incremental update of a bond's shear force or bending moment, or of a contact's tangential
-    spring, as the axis turns; Potyondy & Cundall 2004, sec. 2.2). Values in, values out, so that
-    the compiler vectorises a loop over many bonds (its branch becomes a select)."""
+    incremental update of a bond's shear force or bending moment as the axis turns; Potyondy &
+    Cundall 2004, sec. 2.2; dem.contacts.hertz_mindlin writes the same arithmetic out for a
+    contact's tangential spring). Values in, values out, so that the compiler vectorises a loop
+    over many bonds (its branch becomes a select)."""
     old2 = x * x + y * y + z * z
     along = x * nx + y * ny + z * nz
     x -= along * nx
