@@ -1,5 +1,6 @@
 """A DEM kernel change against an earlier revision, interleaved in one run: the compression test's
-loading phase (benchmarks/dem_parallel_worker.py, the same packing) and the drum, run from this
+loading phase (benchmarks/dem_parallel_worker.py, the same packing), the drum and a drop-weight
+test that breaks an agglomerate (``--drop``, energies J/kg; most of its steps after the damage), run from this
 checkout (B) and from a temporary git worktree of ``--base`` (A), alternating A, B, B, A, ...
 in fresh processes (each process loads its own tree's cached kernels). Reports the median over
 pairs of A's wall time over B's and of A's CPU time over B's (above 1: this checkout is faster)
@@ -9,7 +10,7 @@ the hypervisor gives to others is not counted); on two it includes OpenMP's spin
 Writes benchmarks/results/dem_ab.md and .csv (``--tag T``: dem_abT.md, .csv). Needs git; the
 worktree is made in a temporary folder and removed afterwards.
 
-    python benchmarks/dem_ab.py --base REV [--sizes 500,2000,8000] [--repeats 9] [--tag T]
+    python benchmarks/dem_ab.py --base REV [--sizes 500,2000,8000] [--drop 300,5000] [--repeats 9] [--tag T]
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ sys.path.insert(0, str(HERE))
 from dem_common import LOADING_STEPS, TAG, base_worktree, git_short, load_average, write_pack, write_table  # noqa: E402
 
 DRUM = {504: (0.025, 0.1, 20000), 1512: (0.025, 0.3, 12000), 8064: (0.0125, 0.2, 3000)}
+DROP_SPHERES = 150  # the DEM calibration step's agglomerate (twin.calibration.dem_link.SPHERES)
 
 
 def run(tree: Path, args: list[str], threads: int) -> tuple[float, float]:
@@ -66,17 +68,24 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--base", required=True, help="git revision to compare against (A)")
     ap.add_argument("--sizes", default="500,2000,8000", help="sphere counts of the compression test")
     ap.add_argument("--drum", default="1512,8064", help=f"ball counts of the drum ({', '.join(map(str, DRUM))})")
+    ap.add_argument("--drop", default="", help=f"specific energies, J/kg, of drop-weight tests on a "
+                    f"{DROP_SPHERES}-sphere agglomerate")
     ap.add_argument("--repeats", type=int, default=9)
     ap.add_argument("--tag", type=TAG, default="", help="suffix of the result files (dem_ab{TAG}.md, .csv)")
     args = ap.parse_args(argv)
     sizes = [int(v) for v in args.sizes.split(",") if v]
     drums = [int(v) for v in args.drum.split(",") if v]
+    try:
+        drops = [float(v) for v in args.drop.split(",") if v]
+    except ValueError:
+        ap.error(f"--drop {args.drop!r}: not a comma-separated list of numbers (J/kg). Nothing written.")
     bad = [f"--sizes {n} (choose from {sorted(LOADING_STEPS)})" for n in sizes if n not in LOADING_STEPS]
     bad += [f"--drum {n} (choose from {sorted(DRUM)})" for n in drums if n not in DRUM]
     if args.repeats < 1:
         bad.append(f"--repeats {args.repeats} (at least 1)")
-    if not sizes + drums:
-        bad.append("--sizes and --drum both empty (nothing to compare)")
+    bad += [f"--drop {e:g} (a specific energy, J/kg, above 0)" for e in drops if not e > 0.0]
+    if not sizes + drums + drops:
+        bad.append("--sizes, --drum and --drop all empty (nothing to compare)")
     if bad:
         ap.error("; ".join(bad) + ". Nothing written.")
     head = git_short(ROOT, "HEAD")
@@ -87,6 +96,8 @@ def main(argv=None) -> pd.DataFrame:
                  for n in sizes for _, pack, dt in [write_pack(n, 0, tmp)]]
         cases += [(f"drum {n} balls", ["drum", repr(DRUM[n][0]), repr(DRUM[n][1]), str(DRUM[n][2])])
                   for n in drums]
+        cases += [(f"drop weight {DROP_SPHERES} spheres {e:g} J/kg", ["drop", str(DROP_SPHERES), repr(e)])
+                  for e in drops]
         for name, worker_args in cases:
             for threads in (1, 2):
                 rows.append({"case": name, **compare(base, worker_args, threads, args.repeats)})

@@ -6,6 +6,8 @@ phase on the packing PACK (x y z r per line, as written for Yade) with the Yade-
 physics and prints one JSON line: steps, wall and CPU seconds of the stepping alone.
 ``... PACK DT_S full`` runs the whole compression test instead and prints its peak force and energy.
 ``... drum BALL_D_M SECTION_M STEPS`` times the lab drum's ball charge instead.
+``... drop SPHERES J_KG`` times a drop-weight test that breaks an agglomerate of SPHERES spheres
+(22 mm, the DEM calibration step's size) at J_KG; most of its steps are taken after the damage.
 """
 
 from __future__ import annotations
@@ -24,10 +26,10 @@ import numpy as np
 
 from dem_common import COUNT, POSITIVE, option_type
 from dem_mirror import BONDS, MIRROR, PLATEN, ROCK
-from dem.agglomerate import Agglomerate
+from dem.agglomerate import Agglomerate, make_agglomerate
 from dem.bonds import BondSet, find_bond_pairs
 from dem.drum import drum_system
-from dem.lab import compression_test
+from dem.lab import compression_test, drop_weight_test
 from dem.system import PlaneWall, System
 import dem.system
 
@@ -68,7 +70,17 @@ def drum(ball_d_m: float, section_m: float, steps: int) -> dict:
             "n_spheres": s.n, "n_pairs": int(s.pairs.i.shape[0])}
 
 
-USAGE = "%(prog)s PACK DT_S {STEPS,full}\n       %(prog)s drum BALL_D_M SECTION_M STEPS"
+def drop(spheres: int, energy_J_kg: float) -> dict:
+    """A drop-weight test (1 kg weight, the mirror's bonds and rock) of a 22 mm agglomerate."""
+    agg = make_agglomerate(0.022, spheres, random_state=3)
+    w0, c0 = time.perf_counter(), time.process_time()
+    r = drop_weight_test(agg, BONDS, energy_J_kg, drop_mass_kg=1.0, material=ROCK)
+    return {"steps": r.n_steps, "wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0,
+            "threads": numba.get_num_threads(), "broken_fraction": r.broken_fraction, "n_bonds": r.n_bonds}
+
+
+USAGE = ("%(prog)s PACK DT_S {STEPS,full}\n       %(prog)s drum BALL_D_M SECTION_M STEPS\n"
+         "       %(prog)s drop SPHERES J_KG")
 STEPS_OR_FULL = option_type(lambda t: t if t == "full" else int(t), lambda v: v == "full" or v >= 1,
                             "an integer >= 1 or 'full'")
 
@@ -82,6 +94,11 @@ def options(argv=None) -> argparse.Namespace:
         ap.add_argument("ball_d_m", metavar="BALL_D_M", type=POSITIVE, help="ball diameter, m")
         ap.add_argument("section_m", metavar="SECTION_M", type=POSITIVE, help="slice length, m")
         ap.add_argument("steps", metavar="STEPS", type=COUNT, help="timed steps")
+        return ap.parse_args(argv)
+    if argv[:1] == ["drop"]:
+        ap.add_argument("pack", choices=["drop"], help="a drop-weight test instead of a packing")
+        ap.add_argument("spheres", metavar="SPHERES", type=COUNT, help="spheres of the agglomerate")
+        ap.add_argument("energy", metavar="J_KG", type=POSITIVE, help="specific impact energy, J/kg")
         return ap.parse_args(argv)
     ap.add_argument("pack", metavar="PACK", help="packing, x y z r per line as written for Yade (or 'drum')")
     ap.add_argument("dt_s", metavar="DT_S", type=POSITIVE, help="time step, s")
@@ -97,6 +114,9 @@ def main(argv=None):
     o = options(argv)
     if o.pack == "drum":
         print(json.dumps(drum(o.ball_d_m, o.section_m, o.steps)))
+        return
+    if o.pack == "drop":
+        print(json.dumps(drop(o.spheres, o.energy)))
         return
     agg = read_pack(o.pack)
     dt = o.dt_s

@@ -290,10 +290,24 @@ class BondSet:
         start, entry = csr_of_rows(pairs[:, 0].copy(), pairs[:, 1].copy(), n)
         # central bonds load their spheres through the centres: rows of the force columns only
         load = np.zeros((nbnd, N_FORCE if self.central else N_LOAD))
-        scratch = np.empty((nb.config.NUMBA_NUM_THREADS, N_ROWS, BOND_BLOCK))
         self.arrays = BondArrays(self.ij, table, self.fn, self.fs, self.mb, self.mt,
                                  self.length, self.state, load, start, entry,
-                                 self.partner, self.index, scratch)
+                                 self.partner, self.index, _block_scratch())
+
+    def __getstate__(self) -> dict:
+        # the scratch tables are this process's working memory, one per numba thread: a process
+        # with more threads (its numba.config.NUMBA_NUM_THREADS) needs more, and the kernels do
+        # not check bounds. ``props`` is a view of the table, which pickle would copy apart.
+        state = self.__dict__.copy()
+        state["arrays"] = self.arrays._replace(scratch=None)
+        del state["props"]
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        arrays = state["arrays"]
+        state["arrays"] = arrays._replace(scratch=_block_scratch())
+        state["props"] = arrays.props[:state["ij"].shape[0]]
+        self.__dict__.update(state)
 
     @property
     def n_bonds(self) -> int:
@@ -369,6 +383,11 @@ def _check_bond_modulus(pairs, radius_m, params: BondParams) -> None:
             f"The 'kn_Pa_m' parameter of BondSet's params must give these spheres a bond modulus k_n (R_i + R_j) in "
             f"[{MIN_YOUNGS_MODULUS_PA:g}, {MAX_YOUNGS_MODULUS_PA:g}] Pa (kn_from_modulus_Pa_m makes it from one). "
             f"Got {params.kn_Pa_m!r} Pa/m: moduli {lo:.3g} to {hi:.3g} Pa.")
+
+
+def _block_scratch() -> np.ndarray:
+    """One scratch table of :func:`bond_block` per thread numba can run in this process."""
+    return np.empty((nb.config.NUMBA_NUM_THREADS, N_ROWS, BOND_BLOCK))
 
 
 def _property_table(pairs, pos_m, radius_m, params: BondParams) -> np.ndarray:
@@ -717,6 +736,16 @@ def _finish(b, t, g, props, fn, fs, mb, mt, length, state, load, beta):
 
 
 @nb.njit(cache=True, inline="always")
+def _any_active(b0, b1, state):
+    """Is any of bonds b0..b1-1 intact or sliding? (Stops at the first: an intact block costs
+    one look.)"""
+    for b in range(b0, b1):
+        if state[b] == INTACT or state[b] == BROKEN_SHEAR_SLIDING:
+            return True
+    return False
+
+
+@nb.njit(cache=True, inline="always")
 def bond_block(b0, b1, ij, props, fn, fs, mb, mt, length, state, load, pos, vel, om, rad, lz, dt, beta,
                central, g):
     """Step bonds b0..b1-1 (at most BOND_BLOCK) that are active (intact, or JCFpm's sliding):
@@ -741,6 +770,8 @@ def bond_block(b0, b1, ij, props, fn, fs, mb, mt, length, state, load, pos, vel,
             d, nx, ny, nz = _unit_axis(dx, dy, dz)
             broke += _central_spring(b, d, nx, ny, nz, props, fn, length, state, load)
         return broke, broke
+    if not _any_active(b0, b1, state):  # a block of broken bonds: nothing to gather
+        return 0, 0
     m = b1 - b0
     moments = beta > 0.0
     _gather(b0, b1, ij, props, fn, fs, mb, mt, length, pos, vel, om, rad, lz, dt, moments, g)

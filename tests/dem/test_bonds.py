@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dem.bonds import (BOND_BLOCK, BROKEN_SHEAR, BROKEN_SHEAR_SLIDING, BROKEN_TENSION, INTACT, N_ROWS, P_AREA,
-                       BondParams, BondSet, bond_block, bond_step, find_bond_pairs)
+                       P_LENGTH0, BondParams, BondSet, bond_block, bond_step, find_bond_pairs)
 from dem.errors import DemInputError, DemInstabilityError
 from dem.materials import Material
 from dem.reference import reference_bond
@@ -173,6 +173,8 @@ def test_a_block_of_bonds_gives_each_bond_what_stepping_it_alone_gives(params):
     for bs in sets:
         bs.state[::7] = BROKEN_TENSION
         bs.state[3::11] = BROKEN_SHEAR_SLIDING if params.convention == "yade_jcfpm" else BROKEN_SHEAR
+        bs.state[BOND_BLOCK:2 * BOND_BLOCK] = BROKEN_TENSION  # a block of broken bonds, skipped
+        bs.state[2 * BOND_BLOCK:3 * BOND_BLOCK - 1] = BROKEN_TENSION  # one whose last bond holds
     pos = [agg.pos_m.copy(), agg.pos_m.copy()]
     g = np.empty((N_ROWS, BOND_BLOCK))
     dt = 2e-7
@@ -188,9 +190,32 @@ def test_a_block_of_bonds_gives_each_bond_what_stepping_it_alone_gives(params):
                       om, agg.radius_m, 0.0, dt, b.beta)
     a, b = sets
     assert len(set(a.state.tolist())) >= 3  # intact, broken this run or before, (sliding)
+    lone = 3 * BOND_BLOCK - 1  # stepped (its length stored), so its block was not skipped
+    assert a.length[lone] != a.props[lone, P_LENGTH0]
     for name in ("fn", "fs", "mb", "mt", "length", "state", "props"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
     np.testing.assert_array_equal(a.arrays.load, b.arrays.load)
+
+
+def test_a_pickled_bond_set_gets_this_processs_scratch_tables_and_keeps_its_table_shared():
+    """The block kernel's scratch tables are indexed by numba's thread id without a bounds check:
+    a BondSet carried into another process (pickled) must get one table per thread of that
+    process, not keep the tables of the one it came from; and its ``props`` must stay a view of
+    the kernels' table (pickle would copy the view apart)."""
+    import pickle
+
+    import numba as nb
+    from dem.agglomerate import make_agglomerate
+
+    agg = make_agglomerate(0.008, 30, random_state=2)
+    bs = BondSet(agg.bond_pairs, agg.pos_m, agg.radius_m, BondParams(kn_Pa_m=KN, ks_Pa_m=KS))
+    bs.arrays = bs.arrays._replace(scratch=np.empty((0, N_ROWS, BOND_BLOCK)))  # as if from elsewhere
+    c = pickle.loads(pickle.dumps(bs))
+    assert c.arrays.scratch.shape == (nb.config.NUMBA_NUM_THREADS, N_ROWS, BOND_BLOCK)
+    assert c.arrays.fn is c.fn and c.arrays.state is c.state
+    c.arrays.props[0, P_AREA] = 123.0
+    assert c.props[0, P_AREA] == 123.0 and c.props.shape == bs.props.shape
+    np.testing.assert_array_equal(c.props[1:], bs.props[1:])
 
 
 def test_energy_drift_without_damping_or_breakage():
