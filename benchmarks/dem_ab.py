@@ -1,11 +1,12 @@
 """A DEM kernel change against an earlier revision, interleaved in one run: the compression test's
-loading phase (benchmarks/dem_parallel_worker.py, the same packing), the drum and a drop-weight
-test that breaks an agglomerate (``--drop``, energies J/kg; most of its steps after the damage), run from this
-checkout (B) and from a temporary git worktree of ``--base`` (A), alternating A, B, B, A, ...
-in fresh processes (each process loads its own tree's cached kernels). Reports the median over
-pairs of A's wall time over B's and of A's CPU time over B's (above 1: this checkout is faster)
-at 1 and 2 threads. On one thread the CPU time is the steadier measure on a shared machine (time
-the hypervisor gives to others is not counted); on two it includes OpenMP's spinning at barriers.
+loading phase (the same packing), the drum and a drop-weight test that breaks an agglomerate
+(``--drop``, energies J/kg; most of its steps after the damage), each by this checkout's
+benchmarks/dem_parallel_worker.py on this checkout's dem/ (B) and on that of a temporary git
+worktree of ``--base`` (A), alternating A, B, B, A, ... in fresh processes (each loads its own
+tree's cached kernels). Reports the median over pairs of A's wall time over B's and of A's CPU
+time over B's (above 1: this checkout is faster) at 1 and 2 threads. On one thread the CPU time is
+the steadier measure on a shared machine (time the hypervisor gives to others is not counted); on
+two it includes OpenMP's spinning at barriers.
 
 Writes benchmarks/results/dem_ab.md and .csv (``--tag T``: dem_abT.md, .csv). Needs git; the
 worktree is made in a temporary folder and removed afterwards.
@@ -37,11 +38,14 @@ DROP_SPHERES = 150  # the DEM calibration step's agglomerate (twin.calibration.d
 
 
 def run(tree: Path, args: list[str], threads: int) -> tuple[float, float]:
-    """Wall and CPU time [s] (all threads) of the timed steps of one worker process from ``tree``."""
-    env = dict(os.environ, NUMBA_NUM_THREADS=str(threads), OMP_NUM_THREADS="1", PYTHONPATH=str(tree))
-    out = subprocess.run([sys.executable, str(tree / "benchmarks" / "dem_parallel_worker.py"), *args], env=env,
+    """Wall and CPU time [s] (all threads) of the timed steps of one process of this checkout's
+    worker on ``tree``'s dem/ (the same driver on both sides; it says which dem/ it ran)."""
+    env = dict(os.environ, NUMBA_NUM_THREADS=str(threads), OMP_NUM_THREADS="1", DEM_TREE=str(tree))
+    out = subprocess.run([sys.executable, str(HERE / "dem_parallel_worker.py"), *args], env=env,
                          check=True, capture_output=True, text=True).stdout
     res = json.loads(out.strip().splitlines()[-1])
+    if Path(res["dem"]).resolve() != (tree / "dem").resolve():
+        raise RuntimeError(f"the worker ran {res['dem']}, not {tree / 'dem'}: the comparison would be void")
     return float(res["wall_s"]), float(res["cpu_s"])
 
 

@@ -25,6 +25,13 @@ import numba
 import numpy as np
 
 from dem_common import COUNT, POSITIVE, option_type
+
+# dem_ab.py drives an earlier revision's dem/ with this worker (the same driver on both sides):
+# DEM_TREE names that revision's tree, put first on the path before anything imports dem
+if os.environ.get("DEM_TREE"):
+    sys.path.insert(0, os.environ["DEM_TREE"])
+
+import dem
 from dem_mirror import BONDS, MIRROR, PLATEN, ROCK
 from dem.agglomerate import Agglomerate, make_agglomerate
 from dem.bonds import BondSet, find_bond_pairs
@@ -112,11 +119,9 @@ def options(argv=None) -> argparse.Namespace:
 
 def main(argv=None):
     o = options(argv)
-    if o.pack == "drum":
-        print(json.dumps(drum(o.ball_d_m, o.section_m, o.steps)))
-        return
-    if o.pack == "drop":
-        print(json.dumps(drop(o.spheres, o.energy)))
+    if o.pack in ("drum", "drop"):
+        res = drum(o.ball_d_m, o.section_m, o.steps) if o.pack == "drum" else drop(o.spheres, o.energy)
+        print(json.dumps({**res, "dem": os.path.dirname(dem.__file__)}))
         return
     agg = read_pack(o.pack)
     dt = o.dt_s
@@ -134,6 +139,7 @@ def main(argv=None):
     s.run(steps)
     print(json.dumps({"steps": steps, "wall_s": time.perf_counter() - w0,
                       "cpu_s": time.process_time() - c0, "threads": numba.get_num_threads(),
+                      "dem": os.path.dirname(dem.__file__),
                       "threading_layer": numba.threading_layer(),
                       "n_spheres": agg.n_spheres, "n_bonds": agg.n_bonds}))
 
