@@ -9,7 +9,9 @@ Public API (``dem`` imports nothing from twin, mpc or scenarios):
 - :mod:`dem.lab`: ``compression_test`` -> ``CompressionResult``, ``drop_weight_test`` -> ``ImpactResult``,
   ``DEFAULT_TIME_STEP_FACTOR``;
 - :mod:`dem.fragments`: ``find_fragments`` -> ``FragmentResult``;
-- :mod:`dem.calibrate`: ``BondCalibrator``;
+- :mod:`dem.calibrate`: ``BondCalibrator`` (``n_jobs`` processes);
+- :mod:`dem.parallel`: ``run_in_processes`` (independent runs on several processes, the answers
+  those of one), ``available_cores``;
 - :mod:`dem.drum`: ``drum_test`` -> ``DrumResult``, ``critical_speed_rad_s``;
 - :mod:`dem.system`: ``System`` (low level: state + kernels), ``PlaneWall``, ``DrumGeometry``;
 - :mod:`dem.errors`: ``DemError``, ``DemInputError``, ``DemInstabilityError``;
@@ -124,6 +126,7 @@ try:
     from dem.lab import (DEFAULT_TIME_STEP_FACTOR, CompressionResult, ImpactResult, compression_test,
                          drop_weight_test)
     from dem.materials import RAYLEIGH_SAFETY_FACTOR, STEEL, Material
+    from dem.parallel import available_cores, run_in_processes
 finally:
     numba.config.CACHE_DIR = _user_cache_dir
 
@@ -132,4 +135,4 @@ __all__ = ["Agglomerate", "make_agglomerate", "BondParams", "kn_from_modulus_Pa_
            "DemInputError", "DemInstabilityError", "FragmentResult", "find_fragments",
            "CompressionResult", "ImpactResult", "compression_test", "drop_weight_test", "DEFAULT_TIME_STEP_FACTOR",
            "RAYLEIGH_SAFETY_FACTOR", "STEEL", "Material", "kernel_cache_dir", "kernel_source_hash",
-           "prune_stale_kernel_caches", "STALE_KERNEL_DAYS"]
+           "prune_stale_kernel_caches", "STALE_KERNEL_DAYS", "available_cores", "run_in_processes"]

@@ -31,6 +31,7 @@ from dem.bonds import BondParams, kn_from_modulus_Pa_m
 from dem.errors import DemError, DemInputError
 from dem.lab import DEFAULT_TIME_STEP_FACTOR, compression_test
 from dem.materials import MIN_YOUNGS_MODULUS_PA, Material
+from dem.parallel import run_in_processes
 
 
 def _pos(owner, name, value, lo=0.0, hi=math.inf, integer=False):
@@ -60,6 +61,8 @@ class BondCalibrator:
     tol_pct : stop when the peak-force (and stiffness) errors are below this (%).
     max_iter : most scaling iterations.
     verbose : print each iteration.
+    n_jobs : processes that run an iteration's compression tests (1: this one); the fit is the
+        same for any number (:mod:`dem.parallel`).
     """
 
     def __init__(self, n_particles: int = 10, particle_diameter_m: float = 0.022,
@@ -70,7 +73,7 @@ class BondCalibrator:
                  radius_multiplier: float = 1.0, moment_factor: float = 1.0,
                  platen_speed_m_s: float = 0.1, time_step_factor: float = DEFAULT_TIME_STEP_FACTOR,
                  local_damping: float = 0.7, tol_pct: float = 1.0, max_iter: int = 6,
-                 verbose: bool = False) -> None:
+                 verbose: bool = False, n_jobs: int = 1) -> None:
         self.n_particles = n_particles
         self.particle_diameter_m = particle_diameter_m
         self.spheres_per_particle = spheres_per_particle
@@ -89,6 +92,7 @@ class BondCalibrator:
         self.tol_pct = tol_pct
         self.max_iter = max_iter
         self.verbose = verbose
+        self.n_jobs = n_jobs
 
     def get_params(self) -> dict:
         return {k: getattr(self, k) for k in (
@@ -96,7 +100,7 @@ class BondCalibrator:
             "material", "bond_modulus_Pa", "stiffness_ratio", "cohesion_ratio",
             "initial_tensile_strength_Pa", "friction_angle_deg", "radius_multiplier",
             "moment_factor", "platen_speed_m_s", "time_step_factor", "local_damping", "tol_pct",
-            "max_iter", "verbose")}
+            "max_iter", "verbose", "n_jobs")}
 
     def _validate(self) -> None:
         o = "BondCalibrator"
@@ -109,6 +113,7 @@ class BondCalibrator:
         _pos(o, "initial_tensile_strength_Pa", self.initial_tensile_strength_Pa, 0.0, 1e11)
         _pos(o, "tol_pct", self.tol_pct, 0.0, 100.0)
         _pos(o, "max_iter", self.max_iter, 0, 100, integer=True)
+        _pos(o, "n_jobs", self.n_jobs, 0, 1024, integer=True)
         if not isinstance(self.random_state, (int, np.integer)) or self.random_state < 0:
             raise DemInputError(
                 f"The 'random_state' parameter of BondCalibrator must be an int >= 0. Got {self.random_state!r}.")
@@ -140,10 +145,9 @@ class BondCalibrator:
 
     def run(self, aggs, params: BondParams):
         """The compression tests of packings ``aggs`` with bonds ``params``, as :meth:`fit` runs them."""
-        return [compression_test(a, params, material=self.material,
-                                 platen_speed_m_s=self.platen_speed_m_s,
-                                 local_damping=self.local_damping,
-                                 time_step_factor=self.time_step_factor) for a in aggs]
+        kw = {"material": self.material, "platen_speed_m_s": self.platen_speed_m_s,
+              "local_damping": self.local_damping, "time_step_factor": self.time_step_factor}
+        return run_in_processes(compression_test, [((a, params), kw) for a in aggs], self.n_jobs)
 
     def fit(self, target_peak_force_N: float, target_stiffness_N_m: float | None = None) -> "BondCalibrator":
         """Fit strengths (and stiffnesses if ``target_stiffness_N_m`` is given); returns self.

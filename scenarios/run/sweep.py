@@ -18,7 +18,6 @@ from __future__ import annotations
 import copy
 import itertools
 import math
-import os
 import pickle
 import re
 import signal
@@ -203,7 +202,9 @@ def run_one(run_case: RunCase, scene: Scene) -> tuple[dict | None, str | None]:
 
 
 def _run_local(run_case: RunCase, scenes: list[Scene], workers: int | None, progress: bool):
-    workers = min(workers or os.cpu_count() or 1, len(scenes))
+    from dem import available_cores
+
+    workers = min(workers or available_cores(), len(scenes))
     if workers > 1:
         _check_picklable(run_case)
     bar = tqdm(total=len(scenes), desc="sweep", unit="case", disable=not progress)

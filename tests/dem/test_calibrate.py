@@ -1,6 +1,7 @@
 """BondCalibrator: scikit-learn contract and fit to a peak-force target (tiny agglomerates)."""
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from dem.calibrate import BondCalibrator
@@ -40,8 +41,24 @@ def test_fit_matches_target_peak_force_with_few_simulations():
     assert c2.tensile_strength_Pa_ == c.tensile_strength_Pa_
 
 
+def test_a_fit_on_two_processes_is_the_fit_on_one():
+    """n_jobs runs an iteration's compression tests on several processes: each test is a pure
+    function of its packing and bonds, so the fit, every iteration and every particle's numbers
+    must be exactly those of one process (a test answered out of order or by a worker's other
+    kernel settings would not be)."""
+    one = _cal(n_particles=4, max_iter=2).fit(2000.0)
+    two = _cal(n_particles=4, max_iter=2, n_jobs=2).fit(2000.0)
+    assert two.n_jobs == 2 and two.bond_params_ == one.bond_params_
+    np.testing.assert_array_equal(two.peak_force_N_, one.peak_force_N_)
+    assert len(set(one.peak_force_N_.tolist())) == 4  # four different packings, in their order
+    np.testing.assert_array_equal(two.specific_fracture_energy_J_kg_, one.specific_fracture_energy_J_kg_)
+    pd.testing.assert_frame_equal(two.history_, one.history_)
+
+
 def test_fit_rejects_bad_input():
     with pytest.raises(DemInputError, match="target_peak_force_N"):
         _cal().fit(-1.0)
+    with pytest.raises(DemInputError, match="n_jobs"):
+        _cal(n_jobs=0).fit(1000.0)
     with pytest.raises(DemInputError, match="n_particles"):
         _cal(n_particles=0).fit(1000.0)

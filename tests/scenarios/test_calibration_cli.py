@@ -95,6 +95,12 @@ def test_calibrate_refuses_to_overwrite_a_file_it_did_not_write(tmp_path, capsys
     assert "--fast, --seed: options of the DEM chain" in capsys.readouterr().err
     assert main(["calibrate", "--seed", "-5", "--out", str(tmp_path / "x.json")]) == 2
     assert "--seed must be >= 0" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
+    assert main(["calibrate", "--workers", "0", "--out", str(tmp_path / "x.json")]) == 2
+    assert "--workers must be >= 1" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
+    assert main(["calibrate", "--from", "dem", "--workers", "2", "--out", str(tmp_path / "x.json")]) == 2
+    assert "no DEM test runs" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
+    assert main(["calibrate", "--map", "mineralogy", "--workers", "2", "--out", str(tmp_path / "x.json")]) == 2
+    assert "--workers: option of the DEM chain" in capsys.readouterr().err
 
 
 def test_a_fast_calibration_warns_in_one_line_on_the_command_line(tmp_path):

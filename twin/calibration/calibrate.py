@@ -96,6 +96,9 @@ def add_arguments(ap: argparse.ArgumentParser) -> argparse.ArgumentParser:
     ap.add_argument("--seed", type=int, default=0, help="seed of the DEM packings and tests")
     ap.add_argument("--replicates", type=int, default=None,
                     help=f"bootstrap replicates (default {DEFAULT_REPLICATES}, {FAST_REPLICATES} with --fast)")
+    ap.add_argument("--workers", type=int, default=None, metavar="N",
+                    help="local processes that run the DEM step's tests (default: all cores; the calibration is "
+                         "the same for any number)")
     ap.add_argument("--quiet", action="store_true", help="no progress bars")
     return ap
 
@@ -125,12 +128,17 @@ def calibrate(args: argparse.Namespace) -> int:
         raise TwinInputError(f"--replicates must be >= 0. Got {args.replicates}.")
     if args.map == "mineralogy":  # no DEM, no bootstrap: these options would be recorded, not used
         given = [o for o, v in (("--from", args.source), ("--fast", args.fast), ("--seed", args.seed or None),
-                                ("--replicates", args.replicates)) if v]
+                                ("--replicates", args.replicates), ("--workers", args.workers)) if v]
         if given:
             raise TwinInputError(f"{', '.join(given)}: option{'s' * (len(given) > 1)} of the DEM chain; --map "
                                  "mineralogy runs no DEM and no bootstrap (allowed with it: --out, --name, --quiet).")
     if args.seed < 0:
         raise TwinInputError(f"--seed must be >= 0 (numpy's seeds). Got {args.seed}.")
+    if args.workers is not None and args.workers < 1:
+        raise TwinInputError(f"--workers must be >= 1 (processes of the DEM step). Got {args.workers}.")
+    if args.workers is not None and args.source:
+        raise TwinInputError(f"--workers {args.workers}: --from {args.source} reuses that file's DEM step, so no "
+                             "DEM test runs; drop --workers, or --from to rerun the DEM step.")
     # only its DEM step is reused, which does not read the reference table: the table step refits
     source = load_calibration(args.source, check_table=False) if args.source else None
     if source is not None and (source.breakage_map != "dem" or "dem" not in source.record):
@@ -178,7 +186,7 @@ def _dem_calibration(args, name: str, source: Calibration | None) -> tuple[dict,
         start = {k: v for k, v in source.coefficients.items() if k in DEM_FITTED}
         start |= {f"lab_{k}": v for k, v in source.record["mills"]["lab"].items() if f"lab_{k}" in DEM_FITTED}
     else:
-        dem, start = run_dem(fast=args.fast, seed=args.seed, progress=not args.quiet), None
+        dem, start = run_dem(fast=args.fast, seed=args.seed, progress=not args.quiet, workers=args.workers), None
     n_rep = args.replicates if args.replicates is not None else (FAST_REPLICATES if args.fast else DEFAULT_REPLICATES)
     record, times = dem_record(dem, name, start=start, replicates=n_rep, progress=not args.quiet)
     times["dem_step_s"] = 0.0 if source is not None else dem["dem_seconds"]

@@ -157,8 +157,9 @@ def _material(ore: Mineralogy):
     return Material(youngs_modulus_Pa=ore.youngs_gpa * 1e9, density_kg_m3=ore.density_t_m3 * 1000.0)
 
 
-def bond_calibrator(ore: Mineralogy, settings: dict, seed: int, initial_tensile_Pa: float):
-    """The DEM step's bond calibrator of ``ore`` (its packings, test and bond ratios), not fitted."""
+def bond_calibrator(ore: Mineralogy, settings: dict, seed: int, initial_tensile_Pa: float, workers: int = 1):
+    """The DEM step's bond calibrator of ``ore`` (its packings, test and bond ratios), not fitted;
+    its compression tests on ``workers`` processes."""
     from dem import BondCalibrator
 
     return BondCalibrator(n_particles=settings["n_particles"], particle_diameter_m=PARTICLE_DIAMETER_M,
@@ -166,11 +167,12 @@ def bond_calibrator(ore: Mineralogy, settings: dict, seed: int, initial_tensile_
                           bond_modulus_Pa=ore.youngs_gpa * 1e9, stiffness_ratio=STIFFNESS_RATIO,
                           cohesion_ratio=COHESION_RATIO, initial_tensile_strength_Pa=initial_tensile_Pa,
                           platen_speed_m_s=PLATEN_SPEED_M_S, tol_pct=settings["calibration_tol_pct"],
-                          max_iter=settings["max_iter"])
+                          max_iter=settings["max_iter"], n_jobs=workers)
 
 
-def calibrate_bonds(ore: Mineralogy, target_N: float, settings: dict, seed: int, initial_tensile_Pa: float):
-    return bond_calibrator(ore, settings, seed, initial_tensile_Pa).fit(target_N)
+def calibrate_bonds(ore: Mineralogy, target_N: float, settings: dict, seed: int, initial_tensile_Pa: float,
+                    workers: int = 1):
+    return bond_calibrator(ore, settings, seed, initial_tensile_Pa, workers).fit(target_N)
 
 
 # ---------------------------------------------------------------------- 3. fragments
@@ -192,29 +194,26 @@ def fit_t10(e_kwh_t, t10) -> dict:
             "r2": float(1.0 - np.sum(sol.fun ** 2) / ss) if ss > 0 else float("nan")}
 
 
-def drop_test(agg, bond_params, specific_energy_J_kg: float, material):
-    """One of the DEM step's drop-weight tests (its drop mass and time steps)."""
-    from dem import drop_weight_test
+def drop_tests(ore: Mineralogy, bond_params, e50_j_kg: float, settings: dict, seed: int, tick=None,
+               workers: int = 1) -> dict:
+    """Drop-weight tests at ``drop_energy_multiples`` x E50 on ``drop_particles`` packings, on
+    ``workers`` processes (the same answer for any number); each row keeps its packing index and
+    energy multiple (for the bootstrap and the pooled B)."""
+    from dem import drop_weight_test, make_agglomerate, run_in_processes
 
-    return drop_weight_test(agg, bond_params, specific_energy_J_kg, drop_mass_kg=DROP_MASS_KG, material=material,
-                            time_step_factor=DROP_TIME_STEP_FACTOR, max_time_factor=DROP_MAX_TIME_FACTOR)
-
-
-def drop_tests(ore: Mineralogy, bond_params, e50_j_kg: float, settings: dict, seed: int, tick=None) -> dict:
-    """Drop-weight tests at ``drop_energy_multiples`` x E50 on ``drop_particles`` packings; each
-    row keeps its packing index and energy multiple (for the bootstrap and the pooled B)."""
-    from dem import make_agglomerate
-
-    mat = _material(ore)
+    kw = {"drop_mass_kg": DROP_MASS_KG, "material": _material(ore), "time_step_factor": DROP_TIME_STEP_FACTOR,
+          "max_time_factor": DROP_MAX_TIME_FACTOR}
     aggs = [make_agglomerate(PARTICLE_DIAMETER_M, SPHERES, random_state=seed + k)
             for k in range(settings["drop_particles"])]
+    energies = [float(mult * e50_j_kg) for mult in settings["drop_energy_multiples"]]
+    results = iter(run_in_processes(drop_weight_test, [((agg, bond_params, e), kw) for e in energies for agg in aggs],
+                                    workers, on_result=tick))
     y_min = SPHERES ** (-1.0 / 3.0)
     rows, per_energy = [], []
-    for mult in settings["drop_energy_multiples"]:
-        e = float(mult * e50_j_kg)
+    for mult, e in zip(settings["drop_energy_multiples"], energies):
         ys, ps = [], []
-        for k, agg in enumerate(aggs):
-            r = drop_test(agg, bond_params, e, mat)
+        for k in range(len(aggs)):
+            r = next(results)
             sd = r.fragments.size_distribution
             keep = (sd["sieve_size_rel"] >= y_min) & (sd["sieve_size_rel"] < 1.0)
             ys.append(sd["sieve_size_rel"][keep].to_numpy())
@@ -225,8 +224,6 @@ def drop_tests(ore: Mineralogy, bond_params, e50_j_kg: float, settings: dict, se
                         if key in ("t2", "t4", "broken_fraction", "largest_fragment_frac", "n_fragments",
                                    "absorbed_energy_J", "wall_time_s")})
             rows.append(row)
-            if tick:
-                tick()
         fit = fit_austin_B(np.concatenate(ys), np.concatenate(ps))
         fit.update({"n_tests": len(aggs), "energy_multiple": float(mult), "specific_energy_J_kg": e,
                     "specific_energy_kwh_t": e / 3600.0})
@@ -265,10 +262,13 @@ def _progress_total(settings: dict, n_ores: int) -> int:
     return 1 + n_ores * per_ore
 
 
-def run_dem(fast: bool = False, seed: int = 0, ores=REFERENCE_ORES, progress: bool = True) -> dict:
+def run_dem(fast: bool = False, seed: int = 0, ores=REFERENCE_ORES, progress: bool = True,
+            workers: int | None = None) -> dict:
     """Steps 1-4 on the reference ores: the DEM record of a calibration file (per ore: target,
     bonds, per-particle fracture energies, drop tests; the drum spectrum; settings; times).
-    A progress bar (tqdm, on stderr) counts the simulations and shows the wall time."""
+    A progress bar (tqdm, on stderr) counts the simulations and shows the wall time. The
+    compression and drop-weight tests run on ``workers`` processes (default: every core this
+    process may use); the record is the same for any number (dem.parallel)."""
     from tqdm.auto import tqdm
 
     from dem import DEFAULT_TIME_STEP_FACTOR
@@ -279,6 +279,7 @@ def run_dem(fast: bool = False, seed: int = 0, ores=REFERENCE_ORES, progress: bo
     if unknown:
         raise TwinInputError(f"The DEM step runs reference ores {REFERENCE_ORES}. Got {unknown}.")
     settings = SETTINGS["fast" if fast else "full"]
+    workers = check_workers(workers)
     t0 = time.perf_counter()
     tg = targets(ores)
     order = ["B"] + [o for o in ores if o != "B"] if "B" in ores else list(ores)
@@ -289,7 +290,7 @@ def run_dem(fast: bool = False, seed: int = 0, ores=REFERENCE_ORES, progress: bo
         bar.update(1)
         for name in order:
             bar.set_postfix_str(f"ore {name}")
-            out[name], sigma = _dem_ore(name, tg[name], settings, seed, sigma_b, bar)
+            out[name], sigma = _dem_ore(name, tg[name], settings, seed, sigma_b, bar, workers)
             sigma_b = sigma_b or sigma
     return {"settings": {**{k: list(v) if isinstance(v, tuple) else v for k, v in settings.items()},
                          "spheres_per_particle": SPHERES, "particle_diameter_m": PARTICLE_DIAMETER_M,
@@ -301,7 +302,19 @@ def run_dem(fast: bool = False, seed: int = 0, ores=REFERENCE_ORES, progress: bo
             "dem_seconds": time.perf_counter() - t0}
 
 
-def _dem_ore(name: str, target: dict, settings: dict, seed: int, sigma_b: float | None, bar):
+def check_workers(workers) -> int:
+    """``workers`` processes for the DEM step's tests (None: every core this process may use);
+    TwinInputError unless a whole number >= 1."""
+    from dem import available_cores
+
+    if workers is None:
+        return available_cores()
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise TwinInputError(f"The DEM step's 'workers' (processes) must be a whole number >= 1. Got {workers!r}.")
+    return int(workers)
+
+
+def _dem_ore(name: str, target: dict, settings: dict, seed: int, sigma_b: float | None, bar, workers: int):
     """One ore's bond calibration and drop tests; returns (record, fitted bond strength)."""
     ore = load_ore(name)
     t1 = time.perf_counter()
@@ -311,10 +324,11 @@ def _dem_ore(name: str, target: dict, settings: dict, seed: int, sigma_b: float 
     # from B's fitted strength scaled with the force (Potyondy & Cundall 2004 s3.2)
     s0 = (sigma_b * force / TARGET_B_N if sigma_b else
           START_BOND_TO_PARTICLE_STRENGTH * 2.8 * force / (math.pi * PARTICLE_DIAMETER_M ** 2))
-    cal = calibrate_bonds(ore, force, settings, seed, s0)
+    cal = calibrate_bonds(ore, force, settings, seed, s0, workers)
     bar.update(settings["max_iter"] * settings["n_particles"])  # counted at the most iterations
     fe = fit_fracture_energy(cal.specific_fracture_energy_J_kg_)
-    drops = drop_tests(ore, cal.bond_params_, fe.e50_j_kg, settings, seed, tick=lambda: bar.update(1))
+    drops = drop_tests(ore, cal.bond_params_, fe.e50_j_kg, settings, seed, tick=lambda: bar.update(1),
+                       workers=workers)
     rec = {
         "target_peak_force_N": force, "youngs_gpa": ore.youngs_gpa,
         "hardness_index_gpa": ore.hardness_index_gpa, "density_t_m3": ore.density_t_m3,
