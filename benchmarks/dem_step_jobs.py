@@ -82,13 +82,15 @@ def main(argv=None) -> pd.DataFrame:
     one = np.array([r["wall_s"] for r in runs[1]])
     many = np.array([r["wall_s"] for r in runs[args.jobs]])
     ratio = one / many
-    table = pd.DataFrame([{"ores": ",".join(args.ores), "jobs": args.jobs, "one_process_s_median": float(np.median(one)),
+    table = pd.DataFrame([{"ores": ",".join(args.ores), "jobs": args.jobs,
+                           "one_process_s_median": float(np.median(one)),
                            f"{args.jobs}_processes_s_median": float(np.median(many)),
                            "speedup_median": float(np.median(ratio)), "speedup_min": float(ratio.min()),
                            "speedup_max": float(ratio.max()), "record_digest": digests.pop(),
                            "load_after": load_average()}])
     note = (f"Command: `python benchmarks/dem_step_jobs.py {shlex.join(argv if argv is not None else sys.argv[1:])}` "
-            f"at {git_short(ROOT, 'HEAD')} (plus any uncommitted change). The DEM step (full settings) of the ores named, on 1 process and on "
+            f"at {git_short(ROOT, 'HEAD')} (plus any uncommitted change). The DEM step (full settings) of the ores "
+            f"named, on 1 process and on "
             f"{args.jobs}, {args.pairs} pairs alternated in fresh processes; speed-up = one process's wall time over "
             f"{args.jobs}'s, pair by pair. Every run gave the same record (its wall times aside). Machine: "
             f"{len(os.sched_getaffinity(0))} cores; load average (1/5/15 min) after the runs.")

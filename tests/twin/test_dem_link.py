@@ -72,10 +72,11 @@ RECALIBRATE = ("the shipped DEM calibration's numbers do not come out of today's
 def test_todays_kernels_reproduce_the_shipped_dem_step_bit_for_bit(cal):
     """Parts of the shipped calibration's DEM step, rerun, give the file's numbers exactly: the
     drum's power and collision spectrum, and ore B's first two packings in their compression
-    tests and their lowest-energy drop tests at the fitted bonds, run on two processes. The tests are chaotic once bonds break, so
-    a change of the kernels' rounding (fused multiply-adds, a reordered sum) moves them and
-    fails here: the file would no longer come from its command (checked by mutation: fused
-    multiply-adds in dem.kernels move the drum's power by 0.13 % and fail it)."""
+    tests and their lowest-energy drop tests at the fitted bonds, run on two processes. The
+    tests are chaotic once bonds break, so a change of the kernels' rounding (fused
+    multiply-adds, a reordered sum) moves them and fails here: the file would no longer come
+    from its command (checked by mutation: fused multiply-adds in dem.kernels move the drum's
+    power by 0.13 % and fail it)."""
     dem = cal.record["dem"]
     s = dem["settings"]
     drum = dem_link.drum_spectrum(s, s["seed"])
@@ -92,8 +93,9 @@ def test_todays_kernels_reproduce_the_shipped_dem_step_bit_for_bit(cal):
     rows = rec["drop_weight"]["tests"][:2]  # energies outer, packings inner: the lowest energy's first two
     lowest = min(s["drop_energy_multiples"])
     assert [(row["particle"], row["energy_multiple"]) for row in rows] == [(0, lowest), (1, lowest)]
-    drops = dem_link.drop_tests(load_ore("B"), bonds, rec["fracture_energy"]["e50_j_kg"], {**s, "drop_particles": 2, "drop_energy_multiples": (lowest,)},
-                                s["seed"], workers=2)["tests"]
+    two_lowest = {**s, "drop_particles": 2, "drop_energy_multiples": (lowest,)}
+    drops = dem_link.drop_tests(load_ore("B"), bonds, rec["fracture_energy"]["e50_j_kg"], two_lowest, s["seed"],
+                                workers=2)["tests"]
     keys = ("particle", "specific_energy_J_kg", "absorbed_energy_J", "n_fragments", "passing_frac")
     assert [{k: d[k] for k in keys} for d in drops] == [{k: row[k] for k in keys} for row in rows], RECALIBRATE
 
