@@ -60,6 +60,28 @@ def test_readme_cli_table_lists_every_command():
     assert listed == set(COMMANDS), f"README's CLI table: missing {set(COMMANDS) - listed}, extra {listed - set(COMMANDS)}"
 
 
+def test_readme_cli_table_names_only_options_its_commands_take():
+    """A synopsis in README's CLI table naming an option its command does not take (one renamed,
+    say) sends a user to an argparse error: every --option of each row's synopsis must be one of
+    that command's."""
+    import argparse
+
+    from scenarios.cli import build_parser
+    from twin.calibration.calibrate import add_arguments
+
+    sub = next(a for a in build_parser()._actions if a.choices and "run" in a.choices)
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    table = readme[readme.index("## The CLI"):readme.index("Exit codes:")]
+    parsers = dict(sub.choices)
+    # calibrate passes its options through to the calibration's own parser
+    parsers["calibrate"] = add_arguments(argparse.ArgumentParser())
+    unknown = []
+    for command, synopsis in re.findall(r"^\| `grindtwin ([a-z][a-z-]*)([^`]*)`", table, re.M):
+        known = {o for a in parsers[command]._actions for o in a.option_strings}
+        unknown += [f"{command} {o}" for o in re.findall(r"--[a-z][a-z0-9-]*", synopsis) if o not in known]
+    assert unknown == [], f"README's CLI table names options its commands do not take: {unknown}"
+
+
 def test_help_texts_have_no_doubled_percent_signs():
     from scenarios.cli import build_parser
 
