@@ -33,10 +33,14 @@ ROOT = HERE.parent
 ORES = option_type(str, lambda o: o in ("A", "B", "C", "D"), "one of A, B, C, D", many=True)
 
 
+#: the record's wall times, the only keys that may differ between runs
+WALL_TIMES = ("wall_time_s", "dem_seconds")
+
+
 def _untimed(record):
     """The record less its wall times (what must not depend on the number of processes)."""
     if isinstance(record, dict):
-        return {k: _untimed(v) for k, v in record.items() if not (k.endswith("_s") or k == "dem_seconds")}
+        return {k: _untimed(v) for k, v in record.items() if k not in WALL_TIMES}
     if isinstance(record, list):
         return [_untimed(v) for v in record]
     return record
