@@ -16,6 +16,7 @@ import scipy.sparse.linalg
 
 from ..errors import SolverError, TwinInputError
 from ..mill import load_status
+from .numeric import Evaluator
 from .simulate import integrate_constant
 from ..sizes import pxx_um
 from ..validity import state_notes
@@ -78,26 +79,27 @@ def _jacobians(model) -> ca.Function:
                        [res, ca.jacobian(res, w), ca.jacobian(res, model.u[0]), ca.jacobian(h, w)])
 
 
-def _sparse(dm) -> scipy.sparse.csc_matrix:
-    return dm.sparse() if hasattr(dm, "sparse") else scipy.sparse.csc_matrix(np.asarray(dm))
-
-
 #: Up to this many unknowns the Newton matrix is solved dense (LAPACK): for the lab twin's ~80
 #: unknowns scipy's sparse construction and solve cost ~10x a dense LU.
 DENSE_MAX_UNKNOWNS = 600
 
 
-def _newton_matrix(j_dm, ju_dm=None, jh_dm=None):
-    """The Newton matrix [[J, J_feed], [dH/dw, 0]] (or J alone), dense when small."""
-    n = j_dm.size1() + (ju_dm is not None)
-    if n <= DENSE_MAX_UNKNOWNS:
-        J = np.asarray(ca.DM(j_dm), float)
-        if ju_dm is None:
-            return J
-        return np.block([[J, np.asarray(ca.DM(ju_dm), float)], [np.asarray(ca.DM(jh_dm), float), np.zeros((1, 1))]])
-    if ju_dm is None:
-        return _sparse(j_dm).tocsc()
-    return scipy.sparse.bmat([[_sparse(j_dm), _sparse(ju_dm)], [_sparse(jh_dm), None]], format="csc")
+def _jacobian_evaluator(model) -> Evaluator:
+    """:func:`_jacobians` of ``model`` evaluated on numpy: (residual, J, J_feed, dH/dw), the
+    three Jacobians as arrays, or as CSC matrices above DENSE_MAX_UNKNOWNS unknowns (with the
+    feed). One per solve (its buffers are its own)."""
+    fn = _jacobians(model)
+    return Evaluator(fn, matrices=(1, 2, 3), sparse=fn.size1_out(1) + 1 > DENSE_MAX_UNKNOWNS)
+
+
+def _newton_matrix(J, ju=None, jh=None):
+    """The Newton matrix [[J, J_feed], [dH/dw, 0]] (or J alone) of :func:`_jacobian_evaluator`'s
+    blocks: dense when they are arrays, CSC when they are sparse."""
+    if isinstance(J, np.ndarray):
+        return J if ju is None else np.block([[J, ju], [jh, np.zeros((1, 1))]])
+    if ju is None:
+        return J
+    return scipy.sparse.bmat([[J, ju], [jh, None]], format="csc")
 
 
 def _solve(A, b):
@@ -111,25 +113,24 @@ def _newton(model, x, u, d, load_target=None, max_iter: int = 60):
     """Damped Newton on f(x) = 0 (and holdup(x) = load_target x H_nom, solving for the feed when
     a target is given), on the sparse DAE form. Steps are cut so masses stay non-negative.
     Returns (x, u, ok)."""
-    jac = _jacobians(model)
+    jac = _jacobian_evaluator(model)
+    holdup = Evaluator(model.outputs["holdup_t"]) if load_target is not None else None
     h_nom = model.spec.holdup_nominal_t
     nm, nx = model.n_mass, model.n_x
     w = np.concatenate([x, model.z_of(x)])
     u = u.copy()
     for _ in range(max_iter):
-        r_dm, j_dm, ju_dm, jh_dm = jac(w, u, d)
-        r = np.asarray(r_dm, float).ravel()
-        scale = _row_scale(model, j_dm)
-        load_res = (float(model.outputs["holdup_t"](w[:nx], u, d)) / h_nom - load_target
-                    if load_target is not None else 0.0)
+        r, J, ju, jh = jac(w, u, d)
+        scale = _row_scale(model, J)
+        load_res = float(holdup(w[:nx], u, d)[0][0]) / h_nom - load_target if holdup is not None else 0.0
         if max(np.abs(r * scale).max(), abs(load_res)) < RESIDUAL_REL_TOL:
             return w[:nx], u, True
         try:
             if load_target is None:
-                step = _solve(_newton_matrix(j_dm), -r)
+                step = _solve(_newton_matrix(J), -r)
                 dfeed = 0.0
             else:
-                sol = _solve(_newton_matrix(j_dm, ju_dm, jh_dm), -np.concatenate([r, [load_res * h_nom]]))
+                sol = _solve(_newton_matrix(J, ju, jh), -np.concatenate([r, [load_res * h_nom]]))
                 step, dfeed = sol[:-1], sol[-1]
         except (RuntimeError, ValueError, np.linalg.LinAlgError):
             return w[:nx], u, False
@@ -149,7 +150,7 @@ def _newton(model, x, u, d, load_target=None, max_iter: int = 60):
     return w[:nx], u, False
 
 
-def _row_scale(model, j_dm) -> np.ndarray:
+def _row_scale(model, J) -> np.ndarray:
     """Weights that make each row of the Newton residual [ode; alg] a relative error: mass rates
     [t/h] by the nominal flow, aggregates [t] by the nominal hold-up; a state beside the masses
     (an analyser's lag in um, a feed inventory in t, a log rate) by its own rate |J_ii| [1/h],
@@ -158,9 +159,9 @@ def _row_scale(model, j_dm) -> np.ndarray:
     (3e7/h x 1e-14 um) above the tolerance, and Newton could never converge."""
     q_nom, h_nom = model.spec.feed_nominal_tph, model.spec.holdup_nominal_t
     nm, nx = model.n_mass, model.n_x
-    scale = np.concatenate([np.full(nm, 1.0 / q_nom), np.zeros(nx - nm), np.full(j_dm.size1() - nx, 1.0 / h_nom)])
+    scale = np.concatenate([np.full(nm, 1.0 / q_nom), np.zeros(nx - nm), np.full(J.shape[0] - nx, 1.0 / h_nom)])
     if nx > nm:
-        rate = np.maximum(np.abs(np.asarray(ca.diag(j_dm[nm:nx, nm:nx]), float).ravel()), q_nom / h_nom)
+        rate = np.maximum(np.abs(J[nm:nx, nm:nx].diagonal()), q_nom / h_nom)
         size = np.abs(model.initial_state()[nm:nx])
         scale[nm:nx] = 1.0 / (rate * np.where(size > 0.0, size, 1.0))
     return scale
@@ -169,8 +170,8 @@ def _row_scale(model, j_dm) -> np.ndarray:
 def _check(model, x, u, d, how: str):
     x = model.checked_state(x, f"the steady state ({how})")
     w = np.concatenate([x, model.z_of(x)])
-    r_dm, j_dm, _, _ = _jacobians(model)(w, u, d)
-    res = np.abs(np.asarray(r_dm, float).ravel() * _row_scale(model, j_dm))[:model.n_x].max()
+    r, J, _, _ = _jacobian_evaluator(model)(w, u, d)
+    res = np.abs(r * _row_scale(model, J))[:model.n_x].max()
     if not res < 1e3 * RESIDUAL_REL_TOL:
         raise SolverError(f"Steady state ({how}) did not converge: residual {res:.3g} of nominal flow.")
     return x
@@ -317,15 +318,15 @@ def steady_sensitivities(model, ss: SteadyState, at_load: bool, n_d: int | None 
     :data:`SENSITIVITY_OUTPUTS` the model has."""
     x, u, d = ss.x, ss.u, ss.d
     w = np.concatenate([x, model.z_of(x)])
-    _, j_dm, ju_dm, jh_dm = _jacobians(model)(w, u, d)
+    _, J, ju, jh = _jacobian_evaluator(model)(w, u, d)
     n_d = model.d.numel() if n_d is None else int(n_d)
     r_d, psd, psd_x, psd_u, psd_d, y_x, y_u, y_d = _sensitivity_functions(model, n_d)(w, u, d)
     rhs = -np.asarray(ca.DM(r_d), float)
     if at_load:
-        A = _newton_matrix(j_dm, ju_dm, jh_dm)
+        A = _newton_matrix(J, ju, jh)
         rhs = np.vstack([rhs, np.zeros((1, rhs.shape[1]))])
     else:
-        A = _newton_matrix(j_dm)
+        A = _newton_matrix(J)
     try:
         sol = _solve(A, rhs)
     except (RuntimeError, np.linalg.LinAlgError) as exc:  # a singular Newton matrix
