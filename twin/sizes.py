@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import casadi as ca
 import numpy as np
@@ -128,11 +129,24 @@ def smooth_pxx(grid: SizeGrid, mass, percent: float = 80.0, sharpness: float = S
     ln-size per kink, i.e. < 1.3 % of Pxx at the default sharpness and ratio sqrt 2, and it
     vanishes away from class bounds (tested).
     """
+    if isinstance(mass, (ca.SX, ca.MX)):  # the expression is built once per grid (it costs ~10 ms)
+        return _smooth_pxx_function(grid, float(percent), float(sharpness))(mass)
+    return _smooth_pxx(grid, mass, percent, sharpness)
+
+
+@lru_cache(maxsize=32)
+def _smooth_pxx_function(grid: SizeGrid, percent: float, sharpness: float) -> ca.Function:
+    """:func:`smooth_pxx` on ``grid`` as a CasADi function of the mass vector."""
+    m = ca.SX.sym("mass", grid.count)
+    return ca.Function("smooth_pxx", [m], [_smooth_pxx(grid, m, percent, sharpness)])
+
+
+def _smooth_pxx(grid: SizeGrid, mass, percent: float, sharpness: float):
     f = percent / 100.0
     n = grid.count
     up = grid.upper_um
     lnr = math.log(grid.ratio)
-    is_sym = isinstance(mass, (ca.SX, ca.MX))
+    is_sym = isinstance(mass, ca.SX)
     m = mass if is_sym else np.asarray(mass, dtype=float)
     total = ca.sum1(m) if is_sym else m.sum()
     exp, log = (ca.exp, ca.log) if is_sym else (np.exp, np.log)

@@ -73,3 +73,16 @@ def test_tabulated_psd_rejects_decreasing_passing():
 def test_grid_rejects_bad_ratio():
     with pytest.raises(TwinInputError, match="'ratio' parameter of SizeGrid"):
         SizeGrid(ratio=0.5)
+
+
+def test_symbolic_pxx_is_remade_for_each_grid_and_percent():
+    """The symbolic Pxx is built once per (grid, percent, sharpness) and reused: each grid's and
+    percent's expression must still be its own (the numeric formula's value to round-off)."""
+    rng = np.random.default_rng(3)
+    for g in (SizeGrid(), SizeGrid(top_um=3350.0), SizeGrid(count=30, ratio=2 ** 0.25)):
+        m = ca.SX.sym("m", g.count)
+        for percent in (80.0, 50.0, 80.0):
+            fn = ca.Function("p", [m], [smooth_pxx(g, m, percent)])
+            for _ in range(5):
+                f = discretise(g, RosinRammler.from_p80(float(rng.uniform(60.0, 900.0)), 1.0))
+                assert float(fn(f)) == pytest.approx(smooth_pxx(g, f, percent), rel=1e-12)

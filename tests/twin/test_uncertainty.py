@@ -2,6 +2,7 @@
 paired resampling, intervals that shrink with more particles, the replicates the file keeps and
 the intervals of a steady state."""
 
+import json
 import math
 
 import numpy as np
@@ -103,3 +104,19 @@ def test_intervals_on_another_mill_scale_the_breakage_as_the_twin_does(cal):
     assert mid == pytest.approx(nominal.p80_um, rel=0.05)
     assert unc["intervals"]["load_frac"][1] == pytest.approx(float(nominal.outputs["load_frac"]), rel=0.02)
 
+
+
+def test_remembered_breakage_follows_its_inputs(cal):
+    """dem_breakage remembers its answers: a changed law, capture scale or ore is a new answer,
+    the same inputs the same one."""
+    law = cal.record["law"]
+    b, d = load_ore("B"), load_ore("D")
+    first = dem_breakage(b, law)
+    assert dem_breakage(b, law) == first and dem_breakage(d, law) != first
+    assert dem_breakage(b, law, 2.0).se_1mm_t_kwh == 2.0 * first.se_1mm_t_kwh
+    other = {**law, "energy": {**law["energy"], "sigma": 1.5 * law["energy"]["sigma"]}}
+    assert dem_breakage(b, other).se_1mm_t_kwh != first.se_1mm_t_kwh
+    law_copy = json.loads(json.dumps(law))  # a law read again: equal, so the same answer
+    assert dem_breakage(b, law_copy) == first
+    law_copy["energy"]["sigma"] *= 1.5  # the same dict, changed in place: not the answer remembered
+    assert dem_breakage(b, law_copy) == dem_breakage(b, other)

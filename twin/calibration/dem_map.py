@@ -46,6 +46,7 @@ outside them (stated extrapolation: B is taken as saturated beyond the highest m
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -217,9 +218,27 @@ def fit_law(ores: dict, drum: dict, sizes_um, multiples) -> dict:
                                           "ball_diameter_m")}}
 
 
+#: dem_breakage's answers by (ore, law, capture scale): a pure function whose fit of Austin's
+#: selection costs ~10 ms, asked again by every twin of the same ore (a sizing builds hundreds).
+_BREAKAGE_MEMO: dict = {}
+_BREAKAGE_MEMO_MAX = 256
+
+
 def dem_breakage(ore: Mineralogy, law: dict, capture_scale: float = 1.0) -> BreakageParams:
     """Breakage parameters of any ore from the law (module docstring); ``capture_scale``
     multiplies S^E (the fitted fraction of the captured mass that is nipped)."""
+    if not isinstance(capture_scale, (int, float)):  # a symbol: nothing to remember it by
+        return _dem_breakage(ore, law, capture_scale)
+    key = (type(ore), tuple(sorted(ore.wt_pct.items())), ore.texture, ore.name, json.dumps(law, sort_keys=True),
+           float(capture_scale))
+    if key not in _BREAKAGE_MEMO:
+        if len(_BREAKAGE_MEMO) >= _BREAKAGE_MEMO_MAX:
+            _BREAKAGE_MEMO.clear()
+        _BREAKAGE_MEMO[key] = _dem_breakage(ore, law, capture_scale)
+    return _BREAKAGE_MEMO[key]
+
+
+def _dem_breakage(ore: Mineralogy, law: dict, capture_scale) -> BreakageParams:
     e50 = law_e50_j_kg(law, ore)
     sigma = law["energy"]["sigma"]
     rho = ore.density_t_m3 * 1000.0
