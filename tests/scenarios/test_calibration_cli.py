@@ -141,13 +141,16 @@ def test_a_run_that_means_a_mismatch_records_each_twins(write_scene):
     assert mine[len(want):] == [f"calibration_mismatch_ok: the plant's {m}" for m in plant]
 
 
-def test_the_shipped_table_calibration_is_what_its_command_makes(tmp_path):
+def test_the_shipped_table_calibration_is_what_its_command_makes(tmp_path, capsys):
     """README's `grindtwin calibrate --map mineralogy` run end to end (a few seconds): it makes
     exactly the shipped table.json's coefficients and mill values. It failed with a KeyError on
-    the record it was fitting (the extrapolation note read a fit that did not exist yet)."""
+    the record it was fitting (the extrapolation note read a fit that did not exist yet). It says
+    which fitted numbers ended on a bound of their ranges."""
     out = tmp_path / "table_again.json"
     assert main(["calibrate", "--map", "mineralogy", "--out", str(out)]) == 0
     made, shipped = json.loads(out.read_text()), load_calibration("table").record
     assert made["coefficients"] == shipped["coefficients"] and made["mills"] == shipped["mills"]
+    said = capsys.readouterr().out
+    assert made["fit"]["at_bounds"] and all(f"{n} " in said for n in made["fit"]["at_bounds"]), said
     command = "grindtwin calibrate --map mineralogy --out twin/calibration/files/table.json"
     assert shipped["provenance"]["command"] == command

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
+
 import pytest
 
 from twin import Twin, TwinInputError
@@ -107,6 +109,7 @@ def _calibrate(argv) -> int:
 def test_a_new_file_is_named_after_itself_and_never_takes_a_shipped_name(tmp_path, capsys):
     mine = tmp_path / "mine.json"
     assert _calibrate(["--from", "dem", "--replicates", "0", "--out", str(mine)]) == 0
+    _says_what_is_on_a_bound(capsys.readouterr().out, json.loads(mine.read_text()))
     made = load_calibration(mine)
     assert made.name == "mine" and made.label().startswith("'mine'")
     for argv, out in ((["--out", str(tmp_path / "dem.json")], tmp_path / "dem.json"),
@@ -133,3 +136,55 @@ def test_from_a_file_whose_dem_step_is_cut_short_is_refused_before_any_work(tmp_
     assert _calibrate(["--from", str(source), "--replicates", "0", "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert f"--from {source}" in err and "'dem'" in err and "fracture_energy" in err and not out.exists(), err
+
+
+def test_from_a_file_fitted_by_other_twin_sources_refits_its_laws(tmp_path, capsys):
+    """A law fit that changed since the file was made (here: a key today's fit adds): --from
+    refits the laws from the file's DEM step and says so. By the same sources the same change
+    is an edit, refused with a way out that is not --from itself."""
+    rec = _copy("dem")
+    del rec["law"]["breakage_function"]["at_bounds"]
+    rec["model_code"]["sha256"] = "0" * 16
+    source, out = _write(tmp_path, rec, stem="older"), tmp_path / "new.json"
+    assert _calibrate(["--from", str(source), "--replicates", "0", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "was fitted by other twin sources" in err and "refitted by today's" in err, err
+    assert json.loads(out.read_text())["law"] == load_calibration("dem").record["law"]
+    rec["model_code"] = load_calibration("dem").record["model_code"]
+    source = _write(tmp_path, rec, stem="edited")
+    assert _calibrate(["--from", str(source), "--replicates", "0", "--out", str(tmp_path / "no.json")]) == 2
+    err = capsys.readouterr().err
+    assert "law.breakage_function.at_bounds" in err and "rerun its DEM step" in err, err
+    assert not (tmp_path / "no.json").exists()
+
+
+def _says_what_is_on_a_bound(out: str, record: dict) -> None:
+    """calibrate's report names every fitted number its record marks as on a bound, and each
+    parameter of Austin's B with the energies at which it is; the marks are the values'."""
+    for name in record["fit"]["at_bounds"]:
+        value, bounds = record["fitted"][name]["value"], record["fitted"][name]["bounds"]
+        assert min(abs(value - b) for b in bounds) <= 1e-6 * (bounds[1] - bounds[0])
+        assert f"{name} {value:.4g}" in out, out
+    b = record["law"]["breakage_function"]
+    for name in ("gamma", "phi"):
+        lo, hi = b["bounds"][name]
+        on = [m for m, v in zip(b["energy_multiple"], b[name]) if min(v - lo, hi - v) < 1e-6 * (hi - lo)]
+        assert [m for m, names in zip(b["energy_multiple"], b["at_bounds"]) if name in names] == on
+        assert (f"{name} at {', '.join(f'{m:g}' for m in on)} x E50" in out) == bool(on), out
+
+
+def test_austins_b_on_a_bound_is_marked_where_the_tests_ask_for_more():
+    """Fragments drawn from Austin's B with gamma 0.1 (below the fit's range) are fitted at its
+    lower bound and marked; those of gamma 0.8, phi 0.4 are fitted inside it, unmarked."""
+    from twin.calibration.dem_map import AUSTIN_B_BOUNDS, fit_breakage_function_law
+
+    y = 2.0 ** -0.5 * 2.0 ** (-0.5 * np.arange(0, 12))  # the parent's first sieve and 11 below it
+
+    def tests(gamma, phi, mult):
+        b = phi * (y / y[0]) ** gamma + (1 - phi) * (y / y[0]) ** 4.0
+        return [{"energy_multiple": mult, "sieve_size_rel": y.tolist(), "passing_frac": (0.7 * b).tolist()}]
+
+    law = fit_breakage_function_law([tests(0.1, 0.6, 1.0) + tests(0.8, 0.4, 2.0)], [1.0, 2.0])
+    assert law["gamma"][0] == pytest.approx(AUSTIN_B_BOUNDS["gamma"][0]) and law["at_bounds"][0] == ["gamma"]
+    assert law["gamma"][1] == pytest.approx(0.8, rel=1e-6) and law["at_bounds"][1] == []
+    assert law["bounds"] == {k: list(v) for k, v in AUSTIN_B_BOUNDS.items()}

@@ -28,7 +28,7 @@ from .files import (CALIBRATION_DIR, Calibration, base_record, check_writable, d
                     load_calibration, provenance, shipped_names, write_calibration)
 from .fitted import DEM_BOUNDS, DEM_FITTED, DEM_NAMES
 from .fitting import fit_to_table, predict_table, table_errors
-from .model_code import dem_step_note
+from .model_code import dem_step_note, model_digest
 from .record_checks import check_dem_step
 
 #: Replicates of the bootstrap (90 % percentile intervals from 100 replicates: the 5th and 96th
@@ -145,7 +145,7 @@ def calibrate(args: argparse.Namespace) -> int:
         raise TwinInputError(f"--from {args.source}: calibration {source.label()} has no DEM step (its breakage "
                              f"map is {source.breakage_map!r}); --from takes a DEM calibration, such as 'dem'.")
     if source is not None:  # its DEM step is what is reused: it must give the file's own laws
-        check_dem_step(source.record, f"--from {args.source}")
+        _check_source(source, args.source)
     t0 = time.perf_counter()
     if args.map == "mineralogy":
         from .table import calibrate_mineralogy_map
@@ -198,16 +198,54 @@ def _dem_calibration(args, name: str, source: Calibration | None) -> tuple[dict,
     return record, times
 
 
+def _check_source(source: Calibration, given: str) -> None:
+    """--from's DEM step gives the file's own laws, unless the file was fitted by other twin
+    sources: the laws are then refitted from its DEM step by today's, which may fit them
+    otherwise, and that is said."""
+    then = (source.record.get("model_code") or {}).get("sha256", "not recorded")
+    same = then == model_digest()
+    check_dem_step(source.record, f"--from {given}", compare=same)
+    if not same:
+        print(f"note: --from {given}: {source.label()} was fitted by other twin sources (digest {then}; now "
+              f"{model_digest()}): its DEM step's laws are refitted by today's, not compared with the file's",
+              file=sys.stderr)
+
+
 def _print_outcome(out: Path, cal: Calibration, times: dict) -> None:
     fit = cal.record["fit"]
     print(f"wrote {out}")
     print(f"  table step: {'converged' if fit['optimizer']['success'] else 'NOT converged'} "
           f"({fit['optimizer']['message']}), max |error| {fit['max_abs_error_pct']:.2f} %, "
           f"{times['table_step_s']:.1f} s; solver failures {fit['solver_failures']['count']}")
+    for line in bound_lines(cal.record):
+        print(f"  {line}")
     for key in ("dem_step_s", "bootstrap_s", "total_s"):
         if key in times:
             print(f"  {key[:-2].replace('_', ' ')}: {times[key]:.0f} s")
     print(f"  sha256 {cal.sha256}")
+
+
+def bound_lines(record: dict) -> list[str]:
+    """What a calibration's fits left on a bound of their ranges: the table step's fitted numbers
+    (``fit.at_bounds``, ranges in ``fitted``) and Austin's B per energy (``law.breakage_function``).
+    A number on its bound is the bound's, not one the data determine."""
+    lines = []
+    fitted = record.get("fitted", {})
+    on = []
+    for name in record.get("fit", {}).get("at_bounds", []):
+        value, (lo, hi) = fitted[name]["value"], fitted[name]["bounds"]
+        on.append(f"{name} {value:.4g} ({'lower' if abs(value - lo) <= abs(hi - value) else 'upper'} bound)")
+    if on:
+        lines.append("on a bound of its range (the bound's number, not the table's): " + ", ".join(on))
+    b = record.get("law", {}).get("breakage_function", {})
+    on = {}
+    for mult, names in zip(b.get("energy_multiple", []), b.get("at_bounds", [])):
+        for name in names:
+            on.setdefault(name, []).append(f"{mult:g}")
+    if on:
+        lines.append("Austin's B on a bound of its range (the bound's number, not the DEM's): " + "; ".join(
+            f"{name} at {', '.join(mults)} x E50 (range {b['bounds'][name]})" for name, mults in on.items()))
+    return lines
 
 
 def main(argv=None) -> int:

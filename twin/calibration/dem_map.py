@@ -138,6 +138,19 @@ def typical_specific_energy_j_kg(drum: dict, density_kg_m3: float) -> float:
 
 
 # ---------------------------------------------------------------------- 3. breakage function
+#: The box Austin's gamma and phi are fitted in: gamma in [0.3, 3] around the 0.5-1.5 Austin,
+#: Klimpel & Luckie (1984) report, phi a mass share in [0.01, 1]. A fit that ends on it
+#: (``at_bounds``) says the tests ask for a value outside the box: the bound is then the number
+#: used, not one the tests determine (README, limitations).
+AUSTIN_B_BOUNDS = {"gamma": (0.3, 3.0), "phi": (0.01, 1.0)}
+#: A fitted value within this share of its range's width of a bound is on it.
+AT_BOUND_RTOL = 1e-6
+
+
+def _at_bound(value: float, lo: float, hi: float) -> bool:
+    return min(value - lo, hi - value) < AT_BOUND_RTOL * (hi - lo)
+
+
 def _austin_B(y, gamma, phi, beta):
     return phi * y ** gamma + (1.0 - phi) * y ** beta
 
@@ -150,7 +163,7 @@ def fit_austin_B(y, passing, beta: float = AUSTIN_SHAPE["beta"]) -> dict:
     B = 1 at the parent's lower size, sizes relative to it), so the product is renormalised by
     the mass passing the first sieve below the parent, y0 = 1/sqrt(2):
     ``B(r) = passing(y) / passing(y0)``, ``r = y / y0``, and ``t10 = passing(y0) B(0.1 / y0)``.
-    Bounds gamma in [0.3, 3], phi in [0.01, 1] (Austin et al. 1984 report gamma 0.5-1.5)."""
+    In the box :data:`AUSTIN_B_BOUNDS`."""
     y = np.asarray(y, float)
     p = np.asarray(passing, float)
     y0 = 2.0 ** -0.5
@@ -166,7 +179,8 @@ def fit_austin_B(y, passing, beta: float = AUSTIN_SHAPE["beta"]) -> dict:
     def res(q):
         return _austin_B(r, q[0], q[1], beta) - b
 
-    sol = scipy.optimize.least_squares(res, [1.0, 0.5], bounds=([0.3, 0.01], [3.0, 1.0]))
+    (g_lo, g_hi), (p_lo, p_hi) = AUSTIN_B_BOUNDS["gamma"], AUSTIN_B_BOUNDS["phi"]
+    sol = scipy.optimize.least_squares(res, [1.0, 0.5], bounds=([g_lo, p_lo], [g_hi, p_hi]))
     g, ph = sol.x
     return {"gamma": float(g), "phi": float(ph), "beta": float(beta),
             "rmse": float(np.sqrt(np.mean(sol.fun ** 2))), "passing_y0": p0,
@@ -174,10 +188,11 @@ def fit_austin_B(y, passing, beta: float = AUSTIN_SHAPE["beta"]) -> dict:
 
 
 def fit_breakage_function_law(tests_by_ore: list, multiples) -> dict:
-    """Austin's B pooled over the ores' drop-weight tests at each multiple of E50 (module s3).
+    """Austin's B pooled over the ores' drop-weight tests at each multiple of E50 (module s3), and at
+    each the parameters the fit left on a bound of :data:`AUSTIN_B_BOUNDS` (``at_bounds``).
     ``tests_by_ore[i]``: ore i's test rows (``energy_multiple``, ``sieve_size_rel``,
     ``passing_frac``)."""
-    gamma, phi, n = [], [], []
+    gamma, phi, n, at = [], [], [], []
     for m in multiples:
         rows = [t for tests in tests_by_ore for t in tests if math.isclose(t["energy_multiple"], m)]
         fit = fit_austin_B(np.concatenate([t["sieve_size_rel"] for t in rows] or [[]]),
@@ -185,9 +200,11 @@ def fit_breakage_function_law(tests_by_ore: list, multiples) -> dict:
         gamma.append(fit["gamma"])
         phi.append(fit["phi"])
         n.append(len(rows))
+        at.append([k for k in ("gamma", "phi") if np.isfinite(fit[k]) and _at_bound(fit[k], *AUSTIN_B_BOUNDS[k])])
     ok = [i for i in range(len(multiples)) if np.isfinite(gamma[i])]
     return {"energy_multiple": [float(multiples[i]) for i in ok], "gamma": [gamma[i] for i in ok],
-            "phi": [phi[i] for i in ok], "n_tests": [n[i] for i in ok], "beta": AUSTIN_SHAPE["beta"]}
+            "phi": [phi[i] for i in ok], "n_tests": [n[i] for i in ok], "beta": AUSTIN_SHAPE["beta"],
+            "bounds": {k: list(v) for k, v in AUSTIN_B_BOUNDS.items()}, "at_bounds": [at[i] for i in ok]}
 
 
 def breakage_function_at(law: dict, multiple: float) -> tuple[float, float]:

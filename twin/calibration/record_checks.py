@@ -205,11 +205,13 @@ def check_data(record: dict, where: str) -> None:
 LAW_TOL = 1e-6
 
 
-def check_law(record: dict, where: str) -> None:
+def check_law(record: dict, where: str, compare: bool = True) -> None:
     """The DEM laws are those of the record's own DEM step (refitted, twin.calibration.dem_map.fit_law,
-    ~10 ms): a law edited by hand, or a DEM step that is not the law's, is refused."""
+    ~10 ms): a law edited by hand, or a DEM step that is not the law's, is refused. With
+    ``compare=False`` only the DEM step is checked to be one the laws can be fitted to."""
     from .dem_link import fit_sizes_um
     from .dem_map import fit_law
+    from .model_code import model_digest
     from ..sizes import SizeGrid
 
     dem = record["dem"]
@@ -219,28 +221,33 @@ def check_law(record: dict, where: str) -> None:
     except (KeyError, TypeError, ValueError, IndexError, ArithmeticError) as exc:
         raise _bad(where, "dem", f"({type(exc).__name__}: {exc})", "the record of a DEM step "
                    "(grindtwin calibrate; its ores, drum and settings)") from None
-    diff = _first_difference(record["law"], law, "law")
+    diff = _first_difference(record["law"], law, "law") if compare else None
     if diff:
         field, got, refit = diff
+        if (record.get("model_code") or {}).get("sha256") == model_digest():  # the same fit gave other laws
+            how = "restore the file, or rerun its DEM step with `grindtwin calibrate`"
+        else:
+            how = "this twin's sources fit them otherwise: `grindtwin calibrate --from` refits them"
         raise _bad(where, field, got, f"{_short(refit)}, what the record's own DEM step gives (the laws are fitted "
-                   "to it, not edited by hand: make a new calibration with `grindtwin calibrate --from`)")
+                   f"to it, not edited by hand; {how})")
 
 
-def check_dem_step(record: dict, where: str) -> dict:
+def check_dem_step(record: dict, where: str, compare: bool = True) -> dict:
     """A DEM calibration's record whose DEM step gives its laws (:func:`check_law`) and each
     ore's own selection function (what ``--from`` recomputes), else TwinInputError naming
-    ``where`` and the field."""
+    ``where`` and the field. With ``compare=False`` (a record fitted by other twin sources, whose
+    laws today's fit may change) the DEM step is only checked to be one they can be fitted to."""
     from .dem_link import fit_sizes_um, per_ore_selection
     from ..sizes import SizeGrid
 
-    check_law(record, where)
+    check_law(record, where, compare)
     try:
         own = per_ore_selection(record["dem"], fit_sizes_um(SizeGrid(**record["size_grid"])))
     except (KeyError, TypeError, ValueError, IndexError, ArithmeticError) as exc:
         raise _bad(where, "dem", f"({type(exc).__name__}: {exc})", "the record of a DEM step "
                    "(grindtwin calibrate; its ores, drum and settings)") from None
     recorded = (record.get("derived") or {}).get("per_ore_own_selection", own)
-    diff = _first_difference(recorded, own, "derived.per_ore_own_selection")
+    diff = _first_difference(recorded, own, "derived.per_ore_own_selection") if compare else None
     if diff:
         raise _bad(where, diff[0], diff[1], f"{_short(diff[2])}, what the record's own DEM step gives")
     return record
