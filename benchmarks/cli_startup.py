@@ -1,12 +1,16 @@
-"""How fast the command line gives its first answer: whole ``grindtwin`` processes, wall time,
-this checkout against an earlier revision, interleaved.
+"""How fast the command line answers: whole ``grindtwin`` processes, wall time, this checkout
+against an earlier revision, interleaved.
 
-Commands (each a fresh Python process):
+Commands (each a fresh Python process; ``--commands`` chooses, default the start-up set):
 - ``help``: ``grindtwin --help``;
 - ``surrogate``: ``grindtwin steady --surrogate --ore B --feed-tph 0.031 --speed 0.70``;
 - ``twin``: ``grindtwin steady --ore B --feed-tph 0.031 --speed 0.70`` (builds the CasADi twin);
 - ``check``: ``grindtwin check scenarios/reference_transition.toml`` (this checkout's scene on both
   sides: a revision too old to read it fails, and says so);
+- ``optimize``: ``grindtwin optimize --ore A --target-p80-um 134 --json`` (some 2,000 steady
+  states: the steady-state Newton's cost), not in the default set;
+- ``size-mill``: ``grindtwin size-mill`` of the industrial preset (``--ore B --feed-tph 31
+  --target-p80-um 210 --speed 0.7``: some 40 twins built and solved), not in the default set;
 - floors: ``python -c pass`` (the interpreter) and ``python -c "import numpy"``.
 Each runs from this checkout ("now") and from ``--before REV``
 (default: the commit before the fast start, 757bf8f), exported by ``git archive``. Both sides
@@ -18,7 +22,7 @@ ratio of the medians. The machine is 2 cores shared with other jobs: times are u
 
 Writes ``benchmarks/results/cli_startup{TAG}.csv`` (every timing) and ``.md``.
 
-Run: ``python benchmarks/cli_startup.py [--rounds 15] [--before REV] [--tag TAG]``.
+Run: ``python benchmarks/cli_startup.py [--rounds 15] [--before REV] [--commands a,b] [--tag TAG]``.
 """
 
 from __future__ import annotations
@@ -42,7 +46,11 @@ RESULTS = ROOT / "benchmarks" / "results"
 DEFAULT_BEFORE = "757bf8f"
 STEADY = ["steady", "--ore", "B", "--feed-tph", "0.031", "--speed", "0.70"]
 COMMANDS = {"help": ["--help"], "surrogate": [*STEADY, "--surrogate"], "twin": STEADY,
-            "check": ["check", str(ROOT / "scenarios" / "reference_transition.toml")]}
+            "check": ["check", str(ROOT / "scenarios" / "reference_transition.toml")],
+            "optimize": ["optimize", "--ore", "A", "--target-p80-um", "134", "--json"],
+            "size-mill": ["size-mill", "--ore", "B", "--feed-tph", "31", "--target-p80-um", "210", "--speed", "0.7"]}
+#: The commands run without --commands: the start-up set.
+STARTUP = ("help", "surrogate", "twin", "check")
 MAIN = "import sys; from scenarios.cli import main; sys.exit(main(sys.argv[1:]))"
 FLOORS = {"python -c pass": "pass", "python -c 'import numpy'": "import numpy"}
 
@@ -75,17 +83,28 @@ def wall(cmd: list[str], cwd: Path) -> float:
     return dt
 
 
+def _commands(text: str) -> tuple:
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    unknown = [n for n in names if n not in COMMANDS]
+    if unknown or not names:
+        raise argparse.ArgumentTypeError(f"unknown command(s) {', '.join(unknown) or '(none)'}; "
+                                         f"known: {', '.join(COMMANDS)}")
+    return names
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rounds", type=int, default=15)
     ap.add_argument("--before", default=DEFAULT_BEFORE, help="the revision to compare with")
+    ap.add_argument("--commands", default=",".join(STARTUP), type=_commands,
+                    help=f"comma-separated, of {', '.join(COMMANDS)}")
     ap.add_argument("--tag", default="", type=TAG, help="suffix of the result files")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="cli-startup-") as tmp:
         tmp = Path(tmp)
         sides = {"now": tree_python(ROOT, tmp, "now"),
                  "before": tree_python(export(args.before, tmp / "before"), tmp, "before")}
-        runs = [(name, side, [str(py), "-c", MAIN, *argv_]) for name, argv_ in COMMANDS.items()
+        runs = [(name, side, [str(py), "-c", MAIN, *COMMANDS[name]]) for name in args.commands
                 for side, py in sides.items()]
         runs += [(name, "floor", [sys.executable, "-c", code]) for name, code in FLOORS.items()]
         for _, _, cmd in runs:  # warm the file cache and the bytecode of both trees
@@ -103,13 +122,14 @@ def main(argv=None) -> int:
 def summary(df: pd.DataFrame, args) -> str:
     med = df.groupby(["command", "side"])["wall_s"].median().unstack()
     q = df.groupby(["command", "side"])["wall_s"].quantile(0.9).unstack()
-    lines = ["# Command-line start-up: wall time of whole processes", "",
+    lines = ["# Command line: wall time of whole processes", "",
              f"`python benchmarks/cli_startup.py --rounds {args.rounds} --before {args.before}"
+             + (f" --commands {','.join(args.commands)}" if args.commands != STARTUP else "")
              + (f" --tag {args.tag}" if args.tag else "") + "`; "
              f"{platform.python_version()}, {os.cpu_count()} cores shared with other jobs (upper bounds). "
              "Medians (90th percentile) over the rounds, every command once a round, interleaved.", "",
              "| command | now [s] | before [s] | now / before |", "|---|---|---|---|"]
-    for name in [*COMMANDS, *FLOORS]:
+    for name in [*args.commands, *FLOORS]:
         side = "now" if name in COMMANDS else "floor"
         now, qn = med.loc[name, side], q.loc[name, side]
         before, qb = med.loc[name].get("before", np.nan), q.loc[name].get("before", np.nan)
