@@ -140,3 +140,19 @@ def test_another_power_model_on_the_calibrated_mill_or_another_calibrated_mill_i
     assert [m for m in check_scene(scene) if "mill.power_model" in m and "to the power of 'bond'" in m]
     scene.write_text(scene.read_text().replace('"hogg_fuerstenau"', '"bond"'))
     assert check_scene(scene) == []
+
+
+def test_what_readme_says_of_the_table_calibration_holds():
+    """README (limitations): the table fit leaves its hardness and texture exponents and the
+    cushioning at zero, their lower bounds, so every reference ore gets one specific selection
+    rate; the dem calibration's rates differ between them."""
+    from twin.ore.ores import load_ore
+
+    table, dem = load_calibration("table"), load_calibration("dem")
+    on = set(table.record["fit"]["at_bounds"])
+    assert {"hardness_exponent", "texture_exponent", "cushioning_rate_coeff"} <= on
+    ores = [load_ore(n) for n in "ABCD"]
+    rates = [table.breakage(o).se_1mm_t_kwh for o in ores]
+    assert max(rates) / min(rates) - 1.0 < 1e-9, rates
+    rates = [dem.breakage(o).se_1mm_t_kwh for o in ores]
+    assert max(rates) / min(rates) > 1.2, rates
