@@ -16,7 +16,8 @@ meet them: the mill's diameter (which sets the circulating load), the cyclones' 
 cut, which sets the product) and the sump's dilution, the cyclone feed's solids (the lever that
 brings the cut to the design pressure: Plitt's d50c grows as exp(0.063 phi) with the feed's
 solids phi by volume). They are solved by Newton's method for each count of cyclones, fewest
-first; the answer is the fewest cyclones of a diameter made for grinding circuits
+first (each count after the first from the last count's design point, else from its own first
+guess); the answer is the fewest cyclones of a diameter made for grinding circuits
 (:data:`CYCLONE_DIAMETER_RANGE_CM`) whose circuit has a stable load and needs no water taken out.
 The result is written to ``twin/data/industrial_mill.json`` (with the command that made it) when
 it is the ``industrial`` preset.
@@ -217,6 +218,24 @@ def _first_guess(design: Hydrocyclone, base: Mill, count: int, feed_tph: float, 
     return np.array([math.log(d_mill), math.log(d_cyc), FEED_SOLIDS_VOL_PCT_START / 10.0])
 
 
+def _newton_from(point: _DesignPoint, starts: list):
+    """:func:`_newton` from each start in turn until one converges; the last one's SolverError
+    if none does."""
+    for k, start in enumerate(starts):
+        try:
+            return _newton(point, start)
+        except SolverError:
+            if k == len(starts) - 1:
+                raise
+
+
+def _from_last(first: np.ndarray, x_last: np.ndarray, first_last: np.ndarray) -> np.ndarray:
+    """A count's start from the last count's design point: its mill and its feed's dilution (the
+    grind sets the mill, which the count barely moves), its cyclones scaled as the two counts'
+    first guesses are (Plitt's pressure at the design's flow)."""
+    return np.array([x_last[0], x_last[1] + first[1] - first_last[1], x_last[2]])
+
+
 def load_design_cyclone(path) -> Hydrocyclone:
     """The cyclone whose shape and Plitt model a sizing scales: a TOML file holding one cyclone
     table, as a scene's ``effect_options.classification.cyclone`` (geometry, Plitt factors or a
@@ -283,17 +302,19 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
         raise TwinInputError("The 'cyclone' parameter of size_mill must be a cyclone modelled by Plitt's equations "
                              "(its factors, or a survey), not one given by a fixed d50c_um, sharpness and bypass.")
     rho = _as_blend(ore).density_t_m3
-    tried = []
+    tried, last = [], None  # last: the design point of the last count that had one, and its first guess
     for count in range(1, MAX_CYCLONES + 1):
         point = _DesignPoint(ore, base, design, count, feed_tph, target_p80_um, speed_frac_critical, calibration,
                              cyclone_pressure_kpa, circuit)
+        first = _first_guess(design, base, count, feed_tph, rho, cyclone_pressure_kpa)
         try:
-            x, mill, ss = _newton(point, _first_guess(design, base, count, feed_tph, rho, cyclone_pressure_kpa))
+            x, mill, ss = _newton_from(point, [first] if last is None else [_from_last(first, *last), first])
         except SolverError as exc:
             tried.append({"count": count, "outcome": f"no design point: {exc}"})
             if isinstance(exc, _FeedOutOfRange) and exc.cyclone_cm <= CYCLONE_DIAMETER_RANGE_CM[1]:
                 break
             continue
+        last = (x, first)
         d_cyc, o = math.exp(x[1]), ss.outputs
         why = _unrunnable(mill, d_cyc, ss)
         tried.append({"count": count, "diameter_m": mill.diameter_m, "cyclone_diameter_cm": d_cyc,

@@ -298,3 +298,24 @@ def test_size_mill_refuses_a_target_coarser_than_its_feed():
 
     with pytest.raises(TwinInputError, match="finer than the feed the sizing grinds"):
         size_mill("B", 31.0, 5000.0)
+
+
+def test_a_count_whose_start_from_the_last_design_fails_starts_again_from_its_first_guess():
+    """size_mill starts each count after the first from the last count's design point; where
+    Newton fails from there, it starts again from the count's own first guess, as it did before."""
+    from twin.errors import SolverError
+    from twin.sizing import _newton_from
+
+    target = np.array([0.5, 3.0, 4.0])
+    starts_seen = []
+
+    def point(x):  # no steady state for x[0] > 1 (an overloaded trial mill); else linear residuals
+        starts_seen.append(x.copy())
+        if x[0] > 1.0:
+            raise SolverError("no steady state")
+        return x - target, "mill", "steady state"
+
+    x, mill, ss = _newton_from(point, [np.array([2.0, 3.0, 4.0]), np.array([0.0, 2.5, 3.5])])
+    assert np.allclose(x, target, atol=1e-9) and starts_seen[0][0] == 2.0 and starts_seen[1][0] == 0.0
+    with pytest.raises(SolverError, match="no steady state"):
+        _newton_from(point, [np.array([2.0, 3.0, 4.0]), np.array([3.0, 3.0, 4.0])])  # neither: the last's error
