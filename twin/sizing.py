@@ -17,7 +17,8 @@ cut, which sets the product) and the sump's dilution, the cyclone feed's solids 
 brings the cut to the design pressure: Plitt's d50c grows as exp(0.063 phi) with the feed's
 solids phi by volume). They are solved by Newton's method for each count of cyclones, fewest
 first (each count after the first from the last count's design point, else from its own first
-guess); the answer is the fewest cyclones of a diameter made for grinding circuits
+guess; a count whose Newton failed is tried again from the first design found, so that a
+solver's miss does not add cyclones); the answer is the fewest cyclones of a diameter made for grinding circuits
 (:data:`CYCLONE_DIAMETER_RANGE_CM`) whose circuit has a stable load and needs no water taken out.
 The result is written to ``twin/data/industrial_mill.json`` (with the command that made it) when
 it is the ``industrial`` preset.
@@ -218,6 +219,30 @@ def _first_guess(design: Hydrocyclone, base: Mill, count: int, feed_tph: float, 
     return np.array([math.log(d_mill), math.log(d_cyc), FEED_SOLIDS_VOL_PCT_START / 10.0])
 
 
+def _fewer(trial, unsolved: list, tried: list, found: tuple, first: np.ndarray) -> tuple:
+    """The design with the fewest cyclones: ``found`` (point, count, x, mill, steady state, from
+    its first guess ``first``), or that of a count in ``unsolved`` (fewer cyclones, whose Newton
+    failed from its own start) that Newton reaches from ``found``'s design point. Its ``tried``
+    entry then says so."""
+    _, count, x, _, _ = found
+    for c in unsolved:
+        point_c, first_c = trial(c)
+        try:
+            x_c, mill_c, ss_c = _newton(point_c, _from_last(first_c, x, first))
+        except SolverError:
+            continue
+        d_cyc = math.exp(x_c[1])
+        why = _unrunnable(mill_c, d_cyc, ss_c)
+        entry = next(t for t in tried if t["count"] == c)
+        entry.update({"diameter_m": mill_c.diameter_m, "cyclone_diameter_cm": d_cyc,
+                      "feed_solids_vol_pct": float(10.0 * x_c[2]),
+                      "outcome": f"{why or 'design'} (from the {count}-cyclone design point; from its own first guess, "
+                                 f"{entry['outcome']})"})
+        if why is None:
+            return point_c, c, x_c, mill_c, ss_c
+    return found
+
+
 def _newton_from(point: _DesignPoint, starts: list):
     """:func:`_newton` from each start in turn until one converges; the last one's SolverError
     if none does."""
@@ -302,24 +327,32 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
         raise TwinInputError("The 'cyclone' parameter of size_mill must be a cyclone modelled by Plitt's equations "
                              "(its factors, or a survey), not one given by a fixed d50c_um, sharpness and bypass.")
     rho = _as_blend(ore).density_t_m3
+
+    def trial(count):  # the design point's residuals and Newton's first guess for ``count`` cyclones
+        return (_DesignPoint(ore, base, design, count, feed_tph, target_p80_um, speed_frac_critical, calibration,
+                             cyclone_pressure_kpa, circuit),
+                _first_guess(design, base, count, feed_tph, rho, cyclone_pressure_kpa))
+
     tried, last = [], None  # last: the design point of the last count that had one, and its first guess
+    unsolved = []  # counts whose Newton failed (not a feed no slurry can be): the solver's, not the circuit's
     for count in range(1, MAX_CYCLONES + 1):
-        point = _DesignPoint(ore, base, design, count, feed_tph, target_p80_um, speed_frac_critical, calibration,
-                             cyclone_pressure_kpa, circuit)
-        first = _first_guess(design, base, count, feed_tph, rho, cyclone_pressure_kpa)
+        point, first = trial(count)
         try:
             x, mill, ss = _newton_from(point, [first] if last is None else [_from_last(first, *last), first])
         except SolverError as exc:
             tried.append({"count": count, "outcome": f"no design point: {exc}"})
             if isinstance(exc, _FeedOutOfRange) and exc.cyclone_cm <= CYCLONE_DIAMETER_RANGE_CM[1]:
                 break
+            unsolved += [] if isinstance(exc, _FeedOutOfRange) else [count]
             continue
         last = (x, first)
-        d_cyc, o = math.exp(x[1]), ss.outputs
+        d_cyc = math.exp(x[1])
         why = _unrunnable(mill, d_cyc, ss)
         tried.append({"count": count, "diameter_m": mill.diameter_m, "cyclone_diameter_cm": d_cyc,
                       "feed_solids_vol_pct": float(10.0 * x[2]), "outcome": why or "design"})
         if why is None:
+            point, count, x, mill, ss = _fewer(trial, unsolved, tried, (point, count, x, mill, ss), first)
+            o = ss.outputs
             if cyclone is not None and count != cyclone.count:  # the user's table had its own count
                 ss.notes.append(f"{count} cyclone{'s' * (count > 1)}, not the cyclone table's {cyclone.count}: a "
                                 "sizing chooses the count; the table gives the shape and the Plitt model")
@@ -328,7 +361,7 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
                              o["load_frac"], ss.load_status, tried, calibration.identity(), ss.notes,
                              {k: float(o[k]) for k in CIRCUIT_KEYS}
                              | {"design_cyclone_pressure_kpa": cyclone_pressure_kpa, "circuit": circuit})
-        if d_cyc < CYCLONE_DIAMETER_RANGE_CM[0] or o["sump_water_m3_h"] < 0.0:
+        if d_cyc < CYCLONE_DIAMETER_RANGE_CM[0] or ss.outputs["sump_water_m3_h"] < 0.0:
             break  # more cyclones are smaller and, at the design pressure, cut finer: they need a denser feed
         if not DIAMETER_RANGE_M[0] <= mill.diameter_m <= DIAMETER_RANGE_M[1]:
             break  # the grind sets the mill: other counts of cyclones, or another pressure, barely move it

@@ -319,3 +319,25 @@ def test_a_count_whose_start_from_the_last_design_fails_starts_again_from_its_fi
     assert np.allclose(x, target, atol=1e-9) and starts_seen[0][0] == 2.0 and starts_seen[1][0] == 0.0
     with pytest.raises(SolverError, match="no steady state"):
         _newton_from(point, [np.array([2.0, 3.0, 4.0]), np.array([3.0, 3.0, 4.0])])  # neither: the last's error
+
+
+def test_a_count_newton_missed_is_tried_again_from_the_design_of_more_cyclones(monkeypatch):
+    """One cyclone whose Newton fails from its first guess (here: a 100-m mill guessed, outside
+    what the models take) is tried again from the two-cyclone design point, and the sizing keeps
+    the fewest cyclones: the design it finds from a good guess."""
+    import twin.sizing as sizing
+
+    good = sizing.size_mill()
+    assert good.cyclone["count"] == 1
+    first_guess = sizing._first_guess
+
+    def bad_for_one(design, base, count, *args):
+        x = first_guess(design, base, count, *args)
+        return np.array([math.log(100.0), *x[1:]]) if count == 1 else x
+
+    monkeypatch.setattr(sizing, "_first_guess", bad_for_one)
+    sized = sizing.size_mill()
+    assert sized.cyclone["count"] == 1 and sized.p80_um == pytest.approx(210.0, rel=1e-4)
+    assert sized.mill.diameter_m == pytest.approx(good.mill.diameter_m, rel=1e-4)
+    one = sized.tried[0]
+    assert one["outcome"].startswith("design (from the 2-cyclone design point; from its own first guess, no design")
