@@ -11,6 +11,8 @@ Commands (each a fresh Python process; ``--commands`` chooses, default the start
   states: the steady-state Newton's cost), not in the default set;
 - ``size-mill``: ``grindtwin size-mill`` of the industrial preset (``--ore B --feed-tph 31
   --target-p80-um 210 --speed 0.7``: some 40 twins built and solved), not in the default set;
+- ``size-mill-molycop``: ``grindtwin size-mill`` at Moly-Cop BallSim's base case (``--feed-tph 504
+  --target-p80-um 169.4 --cyclone-pressure-kpa 53.09``, its 7.7 psi: six cyclone counts tried), likewise;
 - floors: ``python -c pass`` (the interpreter) and ``python -c "import numpy"``.
 Each runs from this checkout ("now") and from ``--before REV``
 (default: the commit before the fast start, 757bf8f), exported by ``git archive``. Both sides
@@ -48,7 +50,9 @@ STEADY = ["steady", "--ore", "B", "--feed-tph", "0.031", "--speed", "0.70"]
 COMMANDS = {"help": ["--help"], "surrogate": [*STEADY, "--surrogate"], "twin": STEADY,
             "check": ["check", str(ROOT / "scenarios" / "reference_transition.toml")],
             "optimize": ["optimize", "--ore", "A", "--target-p80-um", "134", "--json"],
-            "size-mill": ["size-mill", "--ore", "B", "--feed-tph", "31", "--target-p80-um", "210", "--speed", "0.7"]}
+            "size-mill": ["size-mill", "--ore", "B", "--feed-tph", "31", "--target-p80-um", "210", "--speed", "0.7"],
+            "size-mill-molycop": ["size-mill", "--ore", "B", "--feed-tph", "504", "--target-p80-um", "169.4",
+                                  "--speed", "0.7", "--cyclone-pressure-kpa", "53.09"]}
 #: The commands run without --commands: the start-up set.
 STARTUP = ("help", "surrogate", "twin", "check")
 MAIN = "import sys; from scenarios.cli import main; sys.exit(main(sys.argv[1:]))"
