@@ -102,6 +102,13 @@ PASSING_TARGET = 0.80
 #: meeting its tolerance in 200 iterations (measured); the decision variables here are scaled
 #: to O(1) (states) or are inputs and slacks below ~100, so 1e4 is inactive and converges in ~7.
 HPIPM_INF = 1e4
+#: HPIPM's primal regularisation of its Newton step (``reg_prim``; its default 1e-15). The
+#: Gauss-Newton Hessian ``2 Jr^T Jr`` is positive semi-definite only to rounding (eigenvalues down
+#: to about -1e-13 at a largest diagonal of 2e4, measured on the RTI's QPs), and the LQ
+#: factorisation of the robust mode then stalls at iter_max on some QPs, far from the optimum.
+#: 1e-10 covers that rounding a thousandfold and is far below any curvature of the QP; it enters
+#: the step only, the residuals are the QP's, so the solution is unchanged (to HPIPM's tolerances).
+HPIPM_REG_PRIM = 1e-10
 HPIPM_MODES = ("robust", "balance", "speed")
 
 
@@ -492,7 +499,7 @@ class Controller:
         s = self.settings
         if s.qpsol == "hpipm":  # the stage dimensions of the layout, so HPIPM's Riccati applies
             return {**self._dims, "error_on_fail": False, "inf": HPIPM_INF,
-                    "hpipm": {"iter_max": 100, "mode": s.hpipm_mode}}
+                    "hpipm": {"iter_max": 100, "mode": s.hpipm_mode, "reg_prim": HPIPM_REG_PRIM}}
         if s.qpsol == "condensed":  # the interpreted fallback's qpOASES (its banner: mpc.qpsol.conic)
             return {"printLevel": "none", "error_on_fail": False}
         if s.qpsol == "qrqp":

@@ -1,3 +1,6 @@
+from pathlib import Path
+
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -129,6 +132,29 @@ def test_unreachable_target_is_reported(setup):
         assert r.status.startswith("target_unreachable")
     finally:
         ctrl.set_target(210.0)
+
+
+def test_hpipm_solves_a_qp_whose_hessian_is_semidefinite_only_to_rounding(ctrl_twin):
+    """The RTI's Gauss-Newton Hessian 2 Jr'Jr is positive semi-definite only to rounding. On this
+    QP (the second step of test_codegen's HPIPM-equivalence test, with a calibration refitted to
+    round-off) HPIPM's robust mode with its own primal regularisation stalled at iter_max, cost
+    75.9 against 1.955. With the controller's options it solves it, as qpOASES does."""
+    z = np.load(Path(__file__).parent / "data" / "hpipm_semidefinite_qp.npz")
+    H, A = (ca.DM(ca.Sparsity.triplet(*map(int, z[f"{k}_shape"]), z[f"{k}_row"], z[f"{k}_col"]), z[f"{k}_val"])
+            for k in ("h", "a"))
+    assert np.linalg.eigvalsh(H.full()).min() < 0  # the case: semi-definite to rounding
+    m = ctrl_twin.model
+    ss = ctrl_twin.steady(feed_tph=27.0, speed_frac_critical=0.70, blend=[1.0, 0.0])
+    c = Controller(m, NmpcSettings(horizon_steps=4, dt_h=0.05, solver="rti", move_block=2, qpsol="hpipm",
+                                   power_max_kw=1.02 * float(m.outputs["power_kw"](ss.x, ss.u, ss.d)),
+                                   codegen="off"))
+    args = dict(h=H, g=z["g"], a=A, lba=z["lba"], uba=z["uba"], lbx=z["lbx"], ubx=z["ubx"])
+    hp = ca.conic("hp", "hpipm", {"h": H.sparsity(), "a": A.sparsity()}, c._qp_options())
+    qo = ca.conic("qo", "qpoases", {"h": H.sparsity(), "a": A.sparsity()}, {"printLevel": "none"})
+    a, b = hp(**args), qo(**args)
+    assert hp.stats()["success"] and hp.stats()["iter_count"] < 20
+    assert float(a["cost"]) == pytest.approx(float(b["cost"]), rel=1e-6)
+    assert np.allclose(a["x"].full(), b["x"].full(), rtol=0, atol=1e-6)
 
 
 def test_sqpmethod_with_hpipm_is_refused_clearly():
