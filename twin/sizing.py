@@ -18,8 +18,8 @@ brings the cut to the design pressure: Plitt's d50c grows as exp(0.063 phi) with
 solids phi by volume). They are solved by Newton's method for each count of cyclones, fewest
 first (each count after the first from the last count's design point, else from its own first
 guess; a count whose Newton failed is tried again from the first design found, so that a
-solver's miss does not add cyclones); the answer is the fewest cyclones of a diameter made for grinding circuits
-(:data:`CYCLONE_DIAMETER_RANGE_CM`) whose circuit has a stable load and needs no water taken out.
+solver's miss does not add cyclones); the answer is the fewest cyclones of a diameter made for
+grinding circuits (:data:`CYCLONE_DIAMETER_RANGE_CM`) whose circuit has a stable load and needs no water taken out.
 The result is written to ``twin/data/industrial_mill.json`` (with the command that made it) when
 it is the ``industrial`` preset.
 """
@@ -231,16 +231,19 @@ def _fewer(trial, unsolved: list, tried: list, found: tuple, first: np.ndarray) 
             x_c, mill_c, ss_c = _newton(point_c, _from_last(first_c, x, first))
         except SolverError:
             continue
-        d_cyc = math.exp(x_c[1])
-        why = _unrunnable(mill_c, d_cyc, ss_c)
+        why = _unrunnable(mill_c, math.exp(x_c[1]), ss_c)
         entry = next(t for t in tried if t["count"] == c)
-        entry.update({"diameter_m": mill_c.diameter_m, "cyclone_diameter_cm": d_cyc,
-                      "feed_solids_vol_pct": float(10.0 * x_c[2]),
-                      "outcome": f"{why or 'design'} (from the {count}-cyclone design point; from its own first guess, "
-                                 f"{entry['outcome']})"})
+        entry.update(_tried(c, x_c, mill_c, f"{why or 'design'} (from the {count}-cyclone design point; from its "
+                                            f"own first guess, {entry['outcome']})"))
         if why is None:
             return point_c, c, x_c, mill_c, ss_c
     return found
+
+
+def _tried(count: int, x: np.ndarray, mill: Mill, outcome: str) -> dict:
+    """What a sizing records of a count whose Newton converged (``tried``)."""
+    return {"count": count, "diameter_m": mill.diameter_m, "cyclone_diameter_cm": math.exp(x[1]),
+            "feed_solids_vol_pct": float(10.0 * x[2]), "outcome": outcome}
 
 
 def _newton_from(point: _DesignPoint, starts: list):
@@ -343,13 +346,13 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
             tried.append({"count": count, "outcome": f"no design point: {exc}"})
             if isinstance(exc, _FeedOutOfRange) and exc.cyclone_cm <= CYCLONE_DIAMETER_RANGE_CM[1]:
                 break
-            unsolved += [] if isinstance(exc, _FeedOutOfRange) else [count]
+            if not isinstance(exc, _FeedOutOfRange):
+                unsolved.append(count)
             continue
         last = (x, first)
         d_cyc = math.exp(x[1])
         why = _unrunnable(mill, d_cyc, ss)
-        tried.append({"count": count, "diameter_m": mill.diameter_m, "cyclone_diameter_cm": d_cyc,
-                      "feed_solids_vol_pct": float(10.0 * x[2]), "outcome": why or "design"})
+        tried.append(_tried(count, x, mill, why or "design"))
         if why is None:
             point, count, x, mill, ss = _fewer(trial, unsolved, tried, (point, count, x, mill, ss), first)
             o = ss.outputs

@@ -11,6 +11,7 @@ the function's own, bit for bit (tested).
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import casadi as ca
 import numpy as np
@@ -25,9 +26,7 @@ class Evaluator:
     serves one caller (make one per solve, not one per thread)."""
 
     def __init__(self, fn: ca.Function, matrices=(), sparse: bool = False):
-        for i in range(fn.n_in()):
-            if not (fn.sparsity_in(i).is_dense() and fn.sparsity_in(i).is_vector()):
-                raise ValueError(f"Evaluator: argument {fn.name_in(i)!r} of {fn.name()!r} is not a dense vector.")
+        self._layout = _layout(fn, tuple(matrices), sparse)
         self._buffer, self._evaluate = fn.buffer()
         self._args = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
         self._res = [np.zeros(fn.nnz_out(i)) for i in range(fn.n_out())]
@@ -35,18 +34,6 @@ class Evaluator:
             self._buffer.set_arg(i, memoryview(a))
         for i, r in enumerate(self._res):
             self._buffer.set_res(i, memoryview(r))
-        self._layout = []
-        for i in range(fn.n_out()):
-            sp = fn.sparsity_out(i)
-            rows, cols = (np.array(v, dtype=np.intp) for v in sp.get_triplet())
-            if i in matrices and sparse:
-                self._layout.append(("csc", np.array(sp.row()), np.array(sp.colind()), sp.shape))
-            elif i in matrices:  # row-major positions of the stored entries
-                self._layout.append(("matrix", rows * sp.size2() + cols, sp.shape))
-            elif sp.is_dense():
-                self._layout.append(("flat",))
-            else:  # column-major positions of the stored entries
-                self._layout.append(("vector", cols * sp.size1() + rows, (sp.numel(),)))
 
     def __call__(self, *args):
         for a, v in zip(self._args, args, strict=True):
@@ -58,10 +45,33 @@ class Evaluator:
                 out.append(r.copy())
             elif layout[0] == "csc":
                 _, row, colind, shape = layout
-                out.append(scipy.sparse.csc_matrix((r.copy(), row, colind), shape=shape))
+                out.append(scipy.sparse.csc_matrix((r.copy(), row.copy(), colind.copy()), shape=shape))  # layout shared
             else:
                 _, where, shape = layout
                 full = np.zeros(math.prod(shape))
                 full[where] = r
                 out.append(full.reshape(shape))
         return out
+
+
+@lru_cache(maxsize=128)
+def _layout(fn: ca.Function, matrices: tuple, sparse: bool) -> tuple:
+    """How :class:`Evaluator` lays out each result of ``fn`` (made once per function: a Newton
+    solve makes an evaluator, and reading the sparsity patterns cost more than its iterations'
+    arithmetic on the circuit twin); ValueError if an argument is not a dense vector."""
+    for i in range(fn.n_in()):
+        if not (fn.sparsity_in(i).is_dense() and fn.sparsity_in(i).is_vector()):
+            raise ValueError(f"Evaluator: argument {fn.name_in(i)!r} of {fn.name()!r} is not a dense vector.")
+    layout = []
+    for i in range(fn.n_out()):
+        sp = fn.sparsity_out(i)
+        rows, cols = (np.array(v, dtype=np.intp) for v in sp.get_triplet())
+        if i in matrices and sparse:
+            layout.append(("csc", np.array(sp.row()), np.array(sp.colind()), sp.shape))
+        elif i in matrices:  # row-major positions of the stored entries
+            layout.append(("matrix", rows * sp.size2() + cols, sp.shape))
+        elif sp.is_dense():
+            layout.append(("flat",))
+        else:  # column-major positions of the stored entries
+            layout.append(("vector", cols * sp.size1() + rows, (sp.numel(),)))
+    return tuple(layout)
