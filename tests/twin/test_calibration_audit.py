@@ -13,7 +13,7 @@ import pytest
 from twin import Twin, TwinInputError
 from twin.calibration import DEM_NAMES, load_calibration
 from twin.calibration.breakage_map import COEFFICIENT_NAMES
-from twin.calibration.record_checks import MAP_COEFFICIENTS
+from twin.calibration.record_checks import MAP_COEFFICIENTS, dem_step_sha256
 
 
 def _copy(name: str) -> dict:
@@ -156,6 +156,30 @@ def test_from_a_file_fitted_by_other_twin_sources_refits_its_laws(tmp_path, caps
     err = capsys.readouterr().err
     assert "law.breakage_function.at_bounds" in err and "rerun its DEM step" in err, err
     assert not (tmp_path / "no.json").exists()
+
+
+def test_an_edited_dem_step_is_refused_where_its_laws_cannot_be_compared(tmp_path, capsys):
+    """A file fitted by other twin sources has its laws refitted from its DEM step, not compared
+    (above): the step's own digest (dem.sha256) still tells an edit of it, refused before any work.
+    An older file without that digest is taken, with a note that the step cannot be checked."""
+    rec = _copy("dem")
+    assert rec["dem"]["sha256"] == dem_step_sha256(rec["dem"])
+    rec["model_code"]["sha256"] = "0" * 16
+    step = rec["dem"]["ores"]["B"]["specific_fracture_energy_J_kg"]
+    ran = step[0]
+    step[0] = 1.1 * ran
+    out = tmp_path / "new.json"
+    source = _write(tmp_path, rec, stem="edited_step")
+    assert _calibrate(["--from", str(source), "--replicates", "0", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "dem.sha256" in err and dem_step_sha256(rec["dem"]) in err and not out.exists(), err
+    step[0] = ran
+    del rec["dem"]["sha256"]
+    source = _write(tmp_path, rec, stem="older_step")
+    assert _calibrate(["--from", str(source), "--replicates", "0", "--out", str(out)]) == 0
+    assert "records no digest of its DEM step" in capsys.readouterr().err
+    made = json.loads(out.read_text())["dem"]
+    assert made["sha256"] == dem_step_sha256(made) == load_calibration("dem").record["dem"]["sha256"]
 
 
 def _says_what_is_on_a_bound(out: str, record: dict) -> None:

@@ -29,7 +29,7 @@ from .files import (CALIBRATION_DIR, Calibration, base_record, check_writable, d
 from .fitted import DEM_BOUNDS, DEM_FITTED, DEM_NAMES
 from .fitting import fit_to_table, predict_table, table_errors
 from .model_code import dem_step_note, model_digest
-from .record_checks import check_dem_step
+from .record_checks import check_dem_step, dem_step_sha256
 
 #: Replicates of the bootstrap (90 % percentile intervals from 100 replicates: the 5th and 96th
 #: order statistics; Efron & Tibshirani 1993 ch. 13 suggest >= 100 for percentile intervals).
@@ -55,7 +55,7 @@ def dem_record(dem: dict, name: str = "dem", start: dict | None = None, replicat
     start = {n: v["start"] for n, v in DEM_FITTED.items()} | dict(start or {})
     record["coefficients"] = {n: start[n] for n in DEM_NAMES if not n.startswith("lab_")}
     record["mills"] = {"lab": {n[len("lab_"):]: start[n] for n in DEM_NAMES if n.startswith("lab_")}}
-    record["dem"] = dem
+    record["dem"] = {**dem, "sha256": dem_step_sha256(dem)}
     fitted, fit = fit_to_table(Calibration(record), DEM_NAMES, DEM_BOUNDS)
     times["table_step_s"] = fit["optimizer"]["seconds"]
     predicted = predict_table(fitted)
@@ -206,9 +206,12 @@ def _check_source(source: Calibration, given: str) -> None:
     same = then == model_digest()
     check_dem_step(source.record, f"--from {given}", compare=same)
     if not same:
+        unchecked = "" if "sha256" in source.record["dem"] else (
+            "; the file records no digest of its DEM step (dem.sha256; an older file), so an edit of the step "
+            "cannot be told")
         print(f"note: --from {given}: {source.label()} was fitted by other twin sources (digest {then}; now "
-              f"{model_digest()}): its DEM step's laws are refitted by today's, not compared with the file's",
-              file=sys.stderr)
+              f"{model_digest()}): its DEM step's laws are refitted by today's, not compared with the file's"
+              f"{unchecked}", file=sys.stderr)
 
 
 def _print_outcome(out: Path, cal: Calibration, times: dict) -> None:

@@ -5,6 +5,8 @@ truncated file is refused, naming the file, the field, its value and what is all
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 
 from ..errors import TwinInputError
@@ -205,6 +207,14 @@ def check_data(record: dict, where: str) -> None:
 LAW_TOL = 1e-6
 
 
+def dem_step_sha256(dem: dict) -> str:
+    """Digest of a DEM step's record (its JSON with sorted keys, less this digest), recorded in it
+    as ``dem.sha256`` when a calibration is made: a step edited after it ran is told from one run
+    even where its laws cannot be compared (a file fitted by other twin sources)."""
+    body = {k: v for k, v in dem.items() if k != "sha256"}
+    return hashlib.sha256(json.dumps(body, sort_keys=True).encode()).hexdigest()[:16]
+
+
 def check_law(record: dict, where: str, compare: bool = True) -> None:
     """The DEM laws are those of the record's own DEM step (refitted, twin.calibration.dem_map.fit_law,
     ~10 ms): a law edited by hand, or a DEM step that is not the law's, is refused. With
@@ -236,7 +246,8 @@ def check_dem_step(record: dict, where: str, compare: bool = True) -> dict:
     """A DEM calibration's record whose DEM step gives its laws (:func:`check_law`) and each
     ore's own selection function (what ``--from`` recomputes), else TwinInputError naming
     ``where`` and the field. With ``compare=False`` (a record fitted by other twin sources, whose
-    laws today's fit may change) the DEM step is only checked to be one they can be fitted to."""
+    laws today's fit may change) the DEM step is only checked to be one they can be fitted to.
+    A step that records its digest (:func:`dem_step_sha256`) must have it."""
     from .dem_link import fit_sizes_um, per_ore_selection
     from ..sizes import SizeGrid
 
@@ -246,6 +257,10 @@ def check_dem_step(record: dict, where: str, compare: bool = True) -> dict:
     except (KeyError, TypeError, ValueError, IndexError, ArithmeticError) as exc:
         raise _bad(where, "dem", f"({type(exc).__name__}: {exc})", "the record of a DEM step "
                    "(grindtwin calibrate; its ores, drum and settings)") from None
+    step = record["dem"].get("sha256")  # where the laws are not compared, the step's own digest tells an edit
+    if step is not None and step != dem_step_sha256(record["dem"]):
+        raise _bad(where, "dem.sha256", step, f"{dem_step_sha256(record['dem'])}, the digest of the DEM step the "
+                   "file records: the step was edited after it ran; rerun it with `grindtwin calibrate`")
     recorded = (record.get("derived") or {}).get("per_ore_own_selection", own)
     diff = _first_difference(recorded, own, "derived.per_ore_own_selection") if compare else None
     if diff:
