@@ -12,6 +12,7 @@ from twin import Twin, TwinInputError
 from twin.calibration import model_code
 from twin.calibration.files import CALIBRATION_DIR, load_calibration
 from twin.calibration.model_code import source_digest
+from twin.calibration.record_checks import dem_step_sha256
 
 
 @pytest.fixture
@@ -104,6 +105,7 @@ def test_from_records_the_sources_and_says_when_its_dem_step_is_another_dems(tmp
 
     record = json.loads((CALIBRATION_DIR / "dem.json").read_text())
     record["dem"]["sources_sha256"] = "0000aaaa0000aaaa"
+    record["dem"]["sha256"] = dem_step_sha256(record["dem"])  # a step that ran so (an edited one is refused)
     source, out = tmp_path / "old.json", tmp_path / "mine.json"
     source.write_text(json.dumps(record))
     assert main(["--from", str(source), "--replicates", "0", "--out", str(out), "--quiet"]) == 0
