@@ -56,6 +56,7 @@ from ..breakage import BreakageParams
 from ..ore.fracture_energy import breakage_probability
 from ..ore.mineralogy import Mineralogy
 from .breakage_map import AUSTIN_SHAPE
+from .fitted import on_bound
 from .strength import REFERENCE_ORE, energy_group
 
 #: Porosity of the particle bed a ball pair captures (a loose random packing; Austin et al. 1984).
@@ -143,12 +144,6 @@ def typical_specific_energy_j_kg(drum: dict, density_kg_m3: float) -> float:
 #: (``at_bounds``) says the tests ask for a value outside the box: the bound is then the number
 #: used, not one the tests determine (README, limitations).
 AUSTIN_B_BOUNDS = {"gamma": (0.3, 3.0), "phi": (0.01, 1.0)}
-#: A fitted value within this share of its range's width of a bound is on it.
-AT_BOUND_RTOL = 1e-6
-
-
-def _at_bound(value: float, lo: float, hi: float) -> bool:
-    return min(value - lo, hi - value) < AT_BOUND_RTOL * (hi - lo)
 
 
 def _austin_B(y, gamma, phi, beta):
@@ -200,7 +195,7 @@ def fit_breakage_function_law(tests_by_ore: list, multiples) -> dict:
         gamma.append(fit["gamma"])
         phi.append(fit["phi"])
         n.append(len(rows))
-        at.append([k for k in ("gamma", "phi") if np.isfinite(fit[k]) and _at_bound(fit[k], *AUSTIN_B_BOUNDS[k])])
+        at.append([k for k in ("gamma", "phi") if np.isfinite(fit[k]) and on_bound(fit[k], *AUSTIN_B_BOUNDS[k])])
     ok = [i for i in range(len(multiples)) if np.isfinite(gamma[i])]
     return {"energy_multiple": [float(multiples[i]) for i in ok], "gamma": [gamma[i] for i in ok],
             "phi": [phi[i] for i in ok], "n_tests": [n[i] for i in ok], "beta": AUSTIN_SHAPE["beta"],

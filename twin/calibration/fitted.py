@@ -4,6 +4,16 @@ calibration (twin.calibration.table) gives the same reasons for the numbers it s
 
 from ..effects.rheology import CLAY_CROWDING_MAX
 
+#: A fitted value within this share of its range's width (in the space the fit searched) of a
+#: bound is on it: the bound is then the number used, not one the data determine.
+AT_BOUND_RTOL = 1e-6
+
+
+def on_bound(value: float, lo: float, hi: float) -> bool:
+    """Whether a fitted ``value`` in [lo, hi] is on a bound (:data:`AT_BOUND_RTOL`)."""
+    return min(value - lo, hi - value) < AT_BOUND_RTOL * (hi - lo)
+
+
 _WHY_GRATE = ("the lab mill's grate and discharge geometry is not given (MISSION.md gives the mill's size and "
               "speed only), and the DEM drum has no grate")
 #: The DEM chain's table step: the only numbers fitted to the table, each ore-independent (a

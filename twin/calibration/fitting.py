@@ -17,6 +17,7 @@ import numpy as np
 import scipy.optimize
 
 from ..errors import SolverError, TwinInputError
+from .fitted import on_bound
 from .parametric import ParametricTwin, calibration_values
 from .reference import KPIS, reference_identity, reference_table
 
@@ -167,7 +168,7 @@ def fit_problem(problem: TableProblem, start: dict | None = None, max_iter: int 
     z0 = problem.pack({**problem.base, **(start or {})})
     sol = fit_log_ratios(lambda z: problem.evaluate(z)[0], lambda z: problem.evaluate(z)[1], z0, lo, hi, max_iter,
                          least_squares_first)
-    at_bound = [n for n, z, a, b in zip(problem.names, sol.x, lo, hi) if min(z - a, b - z) < 1e-6 * max(1.0, abs(z))]
+    at_bound = [n for n, z, a, b in zip(problem.names, sol.x, lo, hi) if on_bound(z, a, b)]  # in the packed space
     return {
         "fitted_to": reference_identity(),
         "ores": list(problem.ref), "parameters_fitted": list(problem.names), "values": problem.unpack(sol.x),
