@@ -106,8 +106,8 @@ HPIPM_INF = 1e4
 #: Gauss-Newton Hessian ``2 Jr^T Jr`` is positive semi-definite only to rounding (eigenvalues down
 #: to about -1e-13 at a largest diagonal of 2e4, measured on the RTI's QPs), and the LQ
 #: factorisation of the robust mode then stalls at iter_max on some QPs, far from the optimum.
-#: 1e-10 covers that rounding a thousandfold and is far below any curvature of the QP; it enters
-#: the step only, the residuals are the QP's, so the solution is unchanged (to HPIPM's tolerances).
+#: 1e-10 covers that rounding a thousandfold. It enters the Newton step only (the residuals are
+#: the QP's), so the solution is the QP's to HPIPM's tolerances (benchmarks/mpc_hpipm_regularisation.py).
 HPIPM_REG_PRIM = 1e-10
 HPIPM_MODES = ("robust", "balance", "speed")
 
