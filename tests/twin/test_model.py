@@ -2,13 +2,14 @@
 every effect combination; errors for unknown or incompatible effects."""
 
 import itertools
+import re
 import time
 
 import casadi as ca
 import numpy as np
 import pytest
 
-from twin.errors import ModelError
+from twin.errors import ModelError, SolverError
 from twin.sizes import SizeGrid
 from twin.twin import DEFAULT_EFFECTS, Twin
 
@@ -63,9 +64,21 @@ def test_integrated_mass_balance_closes(effects):
 def test_hydrocyclone_circuit_reports_circulating_load():
     t = Twin("B", mill="industrial", effects=["breakage", "transport", "holdup", "power", "classification"],
              effect_options={"classification": {"kind": "hydrocyclone"}})
-    ss = t.steady(feed_tph=25.0)  # the calibrated rates hold 25 t/h of B; 30 t/h overloads the circuit
+    ss = t.steady(feed_tph=25.0)  # the calibrated rates hold 25 t/h of B; 60 t/h overloads the circuit (below)
     assert 0.5 < ss.outputs["circulating_load_frac"] < 6.0
     assert ss.outputs["throughput_tph"] == pytest.approx(25.0, rel=1e-8)
+
+
+def test_a_circuit_with_no_steady_state_is_said_to_overload():
+    """At twice the sized feed the circuit has no steady state (its hold-up grows without bound):
+    the error says the mill overloads, with the hold-up it reached and what its shell holds."""
+    t = Twin("B", mill="industrial", effects=["breakage", "transport", "holdup", "power", "classification"],
+             effect_options={"classification": {"kind": "hydrocyclone"}})
+    shell = t.model.spec.mill.max_holdup_t(t.model.spec.solids_density_t_m3)
+    with pytest.raises(SolverError, match="The mill overloads") as err:
+        t.steady(feed_tph=60.0)
+    held = float(re.search(r"by then it held ([0-9.e+]+) t of ore", str(err.value)).group(1))
+    assert held > shell and f"filled to its shell ({shell:.3g} t)" in str(err.value)
 
 
 def test_dropping_an_effect_removes_its_states_terms_and_outputs():

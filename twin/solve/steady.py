@@ -239,8 +239,20 @@ def steady_state(model, u, d, x_guess=None) -> SteadyState:
     x, _, ok = _newton(model, x_long, u, d)
     if not ok:
         raise SolverError("Steady state not found: Newton failed from the nominal guess and after "
-                          f"40 residence times of integration at feed {u[0]:.4g} t/h, speed {u[1]:.3f}.")
+                          f"40 residence times of integration at feed {u[0]:.4g} t/h, speed {u[1]:.3f}."
+                          + _overload_text(model, x_long, u, d))
     return _result(model, _check(model, x, u, d, "long integration + Newton"), u, d, "integration+newton")
+
+
+def _overload_text(model, x, u, d) -> str:
+    """What the state ``x`` at the end of the integration says when it holds more ore than the mill
+    filled to its shell (:meth:`twin.Mill.max_holdup_t`): the mill overloads ("" if it does not)."""
+    held = float(model.outputs["holdup_t"](x, u, d))
+    shell = model.spec.mill.max_holdup_t(model.spec.solids_density_t_m3)
+    if not held > shell:
+        return ""
+    return (f" The mill overloads: by then it held {held:.3g} t of ore ({held / model.spec.holdup_nominal_t:.3g}x its "
+            f"nominal hold-up), more than it holds filled to its shell ({shell:.3g} t). A lower feed may have one.")
 
 
 #: Largest hold-up over nominal :func:`steady_state_at_load` solves for: above any ball mill filled to
