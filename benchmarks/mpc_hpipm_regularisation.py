@@ -122,10 +122,11 @@ def solve_all(qps: list) -> pd.DataFrame:
             dt = time.perf_counter() - t0
             st = s.stats()
             x = np.asarray(r["x"]).ravel()
+            cost_rel = np.nan if f_ref is None else (float(r["cost"]) - f_ref) / max(1.0, abs(f_ref))
             rows.append({"case": q["case"], "config": name, "qp": i, "n": q["H"].shape[0], "success": st["success"],
                          "iterations": st["iter_count"], "seconds": dt,
                          "dx_max_vs_qpoases": np.nan if x_ref is None else float(np.max(np.abs(x - x_ref))),
-                         "cost_rel_vs_qpoases": np.nan if f_ref is None else (float(r["cost"]) - f_ref) / max(1.0, abs(f_ref))})
+                         "cost_rel_vs_qpoases": cost_rel})
     return pd.DataFrame(rows)
 
 
