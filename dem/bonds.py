@@ -34,7 +34,7 @@ import numpy as np
 from dem.errors import DemInputError
 from dem.materials import MAX_YOUNGS_MODULUS_PA, MIN_YOUNGS_MODULUS_PA
 from dem.state import (LOAD_F, LOAD_TI, LOAD_TJ, N_FORCE, N_LOAD, BondArrays, csr_of_rows, rotated_into_plane,
-                       write_pair_load)
+                       unsigned, write_pair_load)
 
 #: bond state codes
 INTACT = 0
@@ -512,9 +512,9 @@ def _gather(b0, b1, ij, props, fn, fs, mb, mt, length, pos, vel, om, rad, lz, dt
     """Copy what bonds b0..b1-1 read into columns of the scratch table ``g`` (broken bonds too:
     their columns are computed and not used)."""
     for t in range(b1 - b0):
-        b = b0 + t
-        i = ij[b, 0]
-        j = ij[b, 1]
+        b = unsigned(b0 + t)
+        i = unsigned(ij[b, 0])
+        j = unsigned(ij[b, 1])
         g[G_NX, t], g[G_NY, t], g[G_NZ, t] = _centre_vector(i, j, pos, lz)
         g[G_RI, t] = rad[i]
         g[G_RJ, t] = rad[j]
@@ -763,10 +763,11 @@ def bond_block(b0, b1, ij, props, fn, fs, mb, mt, length, state, load, pos, vel,
     vector loop saved (measured: docs/benchmarks.md, the LAMMPS comparison)."""
     broke = released = 0
     if central:
-        for b in range(b0, b1):
+        for q in range(b0, b1):
+            b = unsigned(q)
             if state[b] != INTACT:
                 continue
-            dx, dy, dz = _centre_vector(ij[b, 0], ij[b, 1], pos, lz)
+            dx, dy, dz = _centre_vector(unsigned(ij[b, 0]), unsigned(ij[b, 1]), pos, lz)
             d, nx, ny, nz = _unit_axis(dx, dy, dz)
             broke += _central_spring(b, d, nx, ny, nz, props, fn, length, state, load)
         return broke, broke
@@ -782,7 +783,7 @@ def bond_block(b0, b1, ij, props, fn, fs, mb, mt, length, state, load, pos, vel,
     if moments:
         _moments(m, g, dt)
     for t in range(m):
-        b = b0 + t
+        b = unsigned(b0 + t)
         st = state[b]
         if st != INTACT and st != BROKEN_SHEAR_SLIDING:
             continue

@@ -24,7 +24,7 @@ import math
 
 import numba as nb
 
-from dem.state import N_LOAD, write_pair_load
+from dem.state import N_LOAD, unsigned, write_pair_load
 
 #: contact laws (``law`` argument of the kernels): Hertz–Mindlin (default) and the linear
 #: spring of Yade (``Ip2_FrictMat_FrictMat_FrictPhys`` + ``Law2_ScGeom_FrictPhys_CundallStrack``,
@@ -129,8 +129,9 @@ def pair_contact(k, pi, pj, xi, touch, load, impact, pos, vel, om, rad, mass, lz
     ``overlap0`` is subtracted from the geometric overlap (the overlap at bonding of a pair
     whose bond has broken, else 0).
     """
-    i = pi[k]
-    j = pj[k]
+    k = unsigned(k)
+    i = unsigned(pi[k])
+    j = unsigned(pj[k])
     impact[k] = -1.0
     dx = pos[j, 0] - pos[i, 0]
     dy = pos[j, 1] - pos[i, 1]

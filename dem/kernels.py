@@ -36,7 +36,7 @@ import numpy as np
 
 from dem.bonds import BOND_BLOCK, BROKEN_SHEAR_SLIDING, INTACT, P_OVERLAP0, P_SIGNED_MC, bond_block
 from dem.contacts import drum_walls, hist_add, pair_contact, plane_walls
-from dem.state import N_LOAD, PairArrays, add_rows, fill_csr
+from dem.state import N_LOAD, PairArrays, add_rows, fill_csr, unsigned
 
 # indices of the scalar parameter vector ``cp``
 (CP_ESTAR_PP, CP_GSTAR_PP, CP_MU_PP, CP_ETA_PP, CP_ESTAR_PW, CP_GSTAR_PW, CP_MU_PW, CP_ETA_PW,
@@ -286,16 +286,17 @@ def _cundall_damped(f, v, alpha):
 def _contact_overlap0(k, pi, pj, pb, b_state, b_props, pos, rad, lz):
     """Overlap subtracted from active pair k's geometric overlap: 0 without a bond, else the
     overlap its broken bond had (JCFpm: lowered as the pair separates)."""
-    b = pb[k]
-    if b < 0:
+    k = unsigned(k)
+    if pb[k] < 0:
         return 0.0
+    b = unsigned(pb[k])
     ov0 = b_props[b, P_OVERLAP0]
     if b_props[b, P_SIGNED_MC] != 0.0:
         # "yade_jcfpm": the contact of a broken bond is erased while the spheres are apart by
         # more than its initD, and re-created stress-free at the overlap they then have (Yade
         # JCFpm: initD = penetration depth at creation)
-        i = pi[k]
-        j = pj[k]
+        i = unsigned(pi[k])
+        j = unsigned(pj[k])
         ex = pos[j, 0] - pos[i, 0]
         ey = pos[j, 1] - pos[i, 1]
         ez = pos[j, 2] - pos[i, 2]
@@ -346,7 +347,8 @@ def sphere_loads(sp, bd, pr, wl, dr, d_torque, cp, dt, drum_angle, kick, advance
     nw = w_p.shape[0]
     moved = 0
     bad = 0
-    for i in nb.prange(pos.shape[0]):
+    for q in nb.prange(pos.shape[0]):
+        i = unsigned(q)
         f[i, 0] = mass[i] * gx
         f[i, 1] = mass[i] * gy
         f[i, 2] = mass[i] * gz
