@@ -94,7 +94,7 @@ def stalled_qp(qps: list) -> None:
             for k in ("h", "a"))
     qps.append({"case": "kept stalled QP", "H": H, "g": z["g"], "A": A, "lba": z["lba"], "uba": z["uba"],
                 "lbx": z["lbx"], "ubx": z["ubx"],
-                "dims": {"N": 4, "nx": [27] * 5, "nu": [4] * 4 + [0], "ng": [29, 5, 5, 5, 3]}})
+                "dims": {"N": int(z["dims_N"]), **{k: z[f"dims_{k}"].tolist() for k in ("nx", "nu", "ng")}}})
 
 
 def solve_all(qps: list) -> pd.DataFrame:

@@ -148,6 +148,7 @@ def test_hpipm_solves_a_qp_whose_hessian_is_semidefinite_only_to_rounding(ctrl_t
     c = Controller(m, NmpcSettings(horizon_steps=4, dt_h=0.05, solver="rti", move_block=2, qpsol="hpipm",
                                    power_max_kw=1.02 * float(m.outputs["power_kw"](ss.x, ss.u, ss.d)),
                                    codegen="off"))
+    assert c._dims == {"N": int(z["dims_N"]), **{k: z[f"dims_{k}"].tolist() for k in ("nx", "nu", "ng")}}
     args = dict(h=H, g=z["g"], a=A, lba=z["lba"], uba=z["uba"], lbx=z["lbx"], ubx=z["ubx"])
     hp = ca.conic("hp", "hpipm", {"h": H.sparsity(), "a": A.sparsity()}, c._qp_options())
     qo = ca.conic("qo", "qpoases", {"h": H.sparsity(), "a": A.sparsity()}, {"printLevel": "none"})
