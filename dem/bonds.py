@@ -25,6 +25,7 @@ Model (MISSION.md eqs. 3–4; Potyondy & Cundall, IJRMMS 41 (2004) 1329, §2.2.2
 from __future__ import annotations
 
 import math
+import mmap
 import numbers
 from dataclasses import dataclass
 
@@ -386,8 +387,19 @@ def _check_bond_modulus(pairs, radius_m, params: BondParams) -> None:
 
 
 def _block_scratch() -> np.ndarray:
-    """One scratch table of :func:`bond_block` per thread numba can run in this process."""
-    return np.empty((nb.config.NUMBA_NUM_THREADS, N_ROWS, BOND_BLOCK))
+    """One scratch table of :func:`bond_block` per thread numba can run in this process, each
+    starting a memory page of its own and padded to whole pages (its rows beyond ``N_ROWS`` are
+    never used). numpy aligns an array to 16 bytes only; with the tables packed end to end, the
+    thread whose table followed another's ran its bond blocks 10-15 % slower than the other
+    (per-thread timings on two threads), and the step on two threads was 5-8 % slower
+    (docs/benchmarks.md)."""
+    row = BOND_BLOCK * 8
+    rows = -(-N_ROWS * row // mmap.PAGESIZE) * mmap.PAGESIZE // row
+    shape = (nb.config.NUMBA_NUM_THREADS, rows, BOND_BLOCK)
+    size = shape[0] * rows * BOND_BLOCK
+    buf = np.empty(size + mmap.PAGESIZE // 8)
+    skip = (-buf.ctypes.data % mmap.PAGESIZE) // 8
+    return buf[skip:skip + size].reshape(shape)
 
 
 def _property_table(pairs, pos_m, radius_m, params: BondParams) -> np.ndarray:

@@ -211,11 +211,26 @@ def test_a_pickled_bond_set_gets_this_processs_scratch_tables_and_keeps_its_tabl
     bs = BondSet(agg.bond_pairs, agg.pos_m, agg.radius_m, BondParams(kn_Pa_m=KN, ks_Pa_m=KS))
     bs.arrays = bs.arrays._replace(scratch=np.empty((0, N_ROWS, BOND_BLOCK)))  # as if from elsewhere
     c = pickle.loads(pickle.dumps(bs))
-    assert c.arrays.scratch.shape == (nb.config.NUMBA_NUM_THREADS, N_ROWS, BOND_BLOCK)
+    threads, rows, block = c.arrays.scratch.shape
+    assert threads == nb.config.NUMBA_NUM_THREADS and rows >= N_ROWS and block == BOND_BLOCK
     assert c.arrays.fn is c.fn and c.arrays.state is c.state
     c.arrays.props[0, P_AREA] = 123.0
     assert c.props[0, P_AREA] == 123.0 and c.props.shape == bs.props.shape
     np.testing.assert_array_equal(c.props[1:], bs.props[1:])
+
+
+def test_each_threads_scratch_table_starts_a_page_and_fills_whole_pages():
+    """Packed end to end at numpy's 16-byte alignment, the thread whose table followed another's
+    ran its bond blocks slower: every table starts a page of its own, C-contiguous (the type the
+    kernels are compiled for)."""
+    import mmap
+
+    from dem.bonds import _block_scratch
+
+    s = _block_scratch()
+    assert s.flags.c_contiguous and s.dtype == np.float64 and s.shape[1] >= N_ROWS
+    assert s.strides[0] % mmap.PAGESIZE == 0
+    assert all(s[t].ctypes.data % mmap.PAGESIZE == 0 for t in range(s.shape[0]))
 
 
 def test_energy_drift_without_damping_or_breakage():
