@@ -390,9 +390,8 @@ def _block_scratch() -> np.ndarray:
     """One scratch table of :func:`bond_block` per thread numba can run in this process, each
     starting a memory page of its own and padded to whole pages (its rows beyond ``N_ROWS`` are
     never used). numpy aligns an array to 16 bytes only; with the tables packed end to end, the
-    thread whose table followed another's ran its bond blocks 10-15 % slower than the other
-    (per-thread timings on two threads), and the step on two threads was 5-8 % slower
-    (docs/benchmarks.md)."""
+    thread whose table followed another's ran its bond blocks slower than the other, and the step
+    on two threads was slower (measured: docs/benchmarks.md)."""
     row = BOND_BLOCK * 8
     rows = -(-N_ROWS * row // mmap.PAGESIZE) * mmap.PAGESIZE // row
     shape = (nb.config.NUMBA_NUM_THREADS, rows, BOND_BLOCK)
