@@ -763,7 +763,7 @@ def bond_block(b0, b1, ij, props, fn, fs, mb, mt, length, state, load, pos, vel,
     update them incrementally, test them for failure, write their loads, each into its own row.
     Velocities must be mid-step values (those that moved the spheres over the last ``dt``).
     ``central``: every bond of the set is central (no velocities read, no block); ``g`` a scratch
-    table (N_ROWS, BOND_BLOCK). Returns (bonds that broke, bonds that stopped carrying their pair:
+    table (N_ROWS or more rows, BOND_BLOCK columns). Returns (bonds that broke, bonds that stopped carrying their pair:
     their contacts start next step). The loads are summed per sphere by
     :func:`dem.kernels.compute_forces`, which runs the blocks in parallel.
 
