@@ -9,10 +9,11 @@ Yade, the same time step on both sides (0.5 of grindtwin's critical step).
 
 1. speed: the loading phase, ``LOADING_STEPS[n]`` steps (benchmarks/dem_common.py), nothing
    recorded on either side (grindtwin records its platen force per step in memory, Yade
-   nothing); each repeat runs grindtwin with NUMBA_NUM_THREADS=1 and 2 and ``yade -j1`` and
-   ``-j2`` one after the other (A, B, C, D, then D, C, B, A), each in its own process; ratios
-   pair by pair within a repeat, then medians. CPU = user + system time of the stepping (all
-   threads).
+   nothing); each repeat runs grindtwin with NUMBA_NUM_THREADS=1 and 2, ``yade -j1`` and
+   ``-j2``, and independent arithmetic on 1 and 2 threads (the worker's ``arith``: what a
+   second thread gains on this machine at best, in the same minutes) one after the other (A, B,
+   C, D, E, F, then F, E, D, C, B, A), each in its own process; ratios pair by pair within a
+   repeat, then medians. CPU = user + system time of the stepping (all threads).
 2. peak force: full compression tests at 500 and 2000 spheres on packings seeds 0-2, grindtwin
    against Yade (one thread each: the physics, not the speed; grindtwin's result does not depend
    on the thread count; Yade records every 20 steps to catch its peak), same dt.
@@ -55,6 +56,8 @@ SCALE_FAST = {500: 300, 2000: 80}
 DRUM = ((0.025, 0.1, 3000), (0.025, 0.3, 2000), (0.0125, 0.2, 500), (0.01, 0.3, 200))
 DRUM_FAST = ((0.025, 0.1, 1000),)
 PARTS = ("speed", "peak", "scale", "drum")
+#: iterations of each chain of the worker's ``arith`` (about a second on one thread)
+ARITH_ITERS = 5_000_000
 
 
 def options(argv=None) -> argparse.Namespace:
@@ -96,6 +99,13 @@ def grindtwin(pack, dt, steps, threads):
     return json.loads(out.strip().splitlines()[-1])
 
 
+def arith(threads):
+    """The worker's independent arithmetic on ``threads`` threads (wall and CPU time)."""
+    out = subprocess.run([sys.executable, WORKER, "arith", str(ARITH_ITERS)], check=True, capture_output=True,
+                         text=True, env=dict(os.environ, NUMBA_NUM_THREADS=str(threads), OMP_NUM_THREADS="1"))
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
 def yade(pack, dt, steps, threads, folder):
     out = os.path.join(folder, "yade_out.txt")
     args = [shutil.which("yade"), "-n", "-j", str(threads), "-x", YADE_SCRIPT, pack, out, f"dt={dt!r}"]
@@ -121,16 +131,17 @@ def speed(folder, o):
     for n, steps in o.steps.items():
         agg, pack, dt = write_pack(n, 0, folder)
         grindtwin(pack, dt, 10, 1)            # compile once into the cache
-        runs = {k: [] for k in ("gt1", "gt2", "yade1", "yade2")}
         sides = {"gt1": lambda: grindtwin(pack, dt, steps, 1), "gt2": lambda: grindtwin(pack, dt, steps, 2),
-                 "yade1": lambda: yade(pack, dt, steps, 1, folder), "yade2": lambda: yade(pack, dt, steps, 2, folder)}
+                 "yade1": lambda: yade(pack, dt, steps, 1, folder), "yade2": lambda: yade(pack, dt, steps, 2, folder),
+                 "arith1": lambda: arith(1), "arith2": lambda: arith(2)}
+        runs = {k: [] for k in sides}
         for rep in range(o.repeats):
             for k in (list(sides) if rep % 2 == 0 else list(sides)[::-1]):
                 runs[k].append(sides[k]())
             print(n, rep, {k: (round(v[-1]["wall_s"], 3), round(v[-1]["cpu_s"], 3)) for k, v in runs.items()},
                   "load", load_average(), flush=True)
         ps = n * steps
-        raw += [{"n_spheres": n, "steps": steps, "repeat": i, "side": k, "wall_s": r["wall_s"], "cpu_s": r["cpu_s"]}
+        raw += [{"n_spheres": n, "steps": r["steps"], "repeat": i, "side": k, "wall_s": r["wall_s"], "cpu_s": r["cpu_s"]}
                 for k, v in runs.items() for i, r in enumerate(v)]
         cpu = {k: np.array([r["cpu_s"] for r in v]) for k, v in runs.items()}
         wall = {k: np.array([r["wall_s"] for r in v]) for k, v in runs.items()}
@@ -144,7 +155,8 @@ def speed(folder, o):
                      "gt_2nd_core_speedup": float(np.median(second)),
                      "gt_2nd_core_range": f"{second.min():.2f}-{second.max():.2f}",
                      "yade_2nd_core_speedup": float(np.median(wall["yade1"] / wall["yade2"])),
-                     "load_after": load_average()})
+                     "arith_2nd_core_speedup": float(np.median(wall["arith1"] / wall["arith2"])),
+                     "gt_threading_layer": runs["gt2"][0]["threading_layer"], "load_after": load_average()})
     return pd.DataFrame(rows), pd.DataFrame(raw)
 
 
@@ -232,7 +244,9 @@ def main(argv=None):
                         note + " us = microseconds of CPU (user + system, all threads) or wall time per "
                         "particle-step; gt1/gt2 = grindtwin on 1/2 threads, yade1/yade2 = yade -j1/-j2; "
                         "per_core_x_yade = Yade -j1 CPU / grindtwin 1-thread CPU; second core: 1-thread "
-                        "wall / 2-thread wall. Every repeat's times: dem_parallel_speed"
+                        "wall / 2-thread wall; arith = independent arithmetic in one parallel loop, the "
+                        "most a second thread gains on this machine in the same minutes (in the repeats "
+                        "file, steps = iterations of each of its chains). Every repeat's times: dem_parallel_speed"
                         f"{o.tag}_repeats.csv.")
             raw.to_csv(os.path.join(OUT, f"dem_parallel_speed{o.tag}_repeats.csv"), index=False)
         if "peak" in o.parts:

@@ -8,6 +8,8 @@ physics and prints one JSON line: steps, wall and CPU seconds of the stepping al
 ``... drum BALL_D_M SECTION_M STEPS`` times the lab drum's ball charge instead.
 ``... drop SPHERES J_KG`` times a drop-weight test that breaks an agglomerate of SPHERES spheres
 (22 mm, the DEM calibration step's size) at J_KG; most of its steps are taken after the damage.
+``... arith ITERS`` times independent floating-point chains in one parallel loop (no memory
+traffic, nothing shared): what a second thread gains on this machine at best, beside the DEM's.
 """
 
 from __future__ import annotations
@@ -77,6 +79,34 @@ def drum(ball_d_m: float, section_m: float, steps: int) -> dict:
             "n_spheres": s.n, "n_pairs": int(s.pairs.i.shape[0])}
 
 
+#: chains of :func:`_arithmetic`: many more than threads, an even split on 1 or 2 threads
+ARITH_CHAINS = 64
+
+
+@numba.njit(parallel=True)
+def _arithmetic(chains, iters):
+    """Four independent multiply-adds per iteration in each chain, all in registers."""
+    out = np.empty(chains)
+    for c in numba.prange(chains):
+        x0 = x1 = x2 = x3 = 1.0 + c
+        for _ in range(iters):
+            x0 = x0 * 0.9999999 + 1e-9
+            x1 = x1 * 0.9999998 + 1e-9
+            x2 = x2 * 0.9999997 + 1e-9
+            x3 = x3 * 0.9999996 + 1e-9
+        out[c] = x0 + x1 + x2 + x3
+    return out
+
+
+def arith(iters: int) -> dict:
+    """:func:`_arithmetic` of :data:`ARITH_CHAINS` chains of ``iters`` iterations (compiled first)."""
+    _arithmetic(ARITH_CHAINS, 1)
+    w0, c0 = time.perf_counter(), time.process_time()
+    _arithmetic(ARITH_CHAINS, iters)
+    return {"steps": iters, "wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0,
+            "threads": numba.get_num_threads(), "threading_layer": numba.threading_layer()}
+
+
 def drop(spheres: int, energy_J_kg: float) -> dict:
     """A drop-weight test (1 kg weight, the mirror's bonds and rock) of a 22 mm agglomerate."""
     agg = make_agglomerate(0.022, spheres, random_state=3)
@@ -87,7 +117,7 @@ def drop(spheres: int, energy_J_kg: float) -> dict:
 
 
 USAGE = ("%(prog)s PACK DT_S {STEPS,full}\n       %(prog)s drum BALL_D_M SECTION_M STEPS\n"
-         "       %(prog)s drop SPHERES J_KG")
+         "       %(prog)s drop SPHERES J_KG\n       %(prog)s arith ITERS")
 STEPS_OR_FULL = option_type(lambda t: t if t == "full" else int(t), lambda v: v == "full" or v >= 1,
                             "an integer >= 1 or 'full'")
 
@@ -107,6 +137,10 @@ def options(argv=None) -> argparse.Namespace:
         ap.add_argument("spheres", metavar="SPHERES", type=COUNT, help="spheres of the agglomerate")
         ap.add_argument("energy", metavar="J_KG", type=POSITIVE, help="specific impact energy, J/kg")
         return ap.parse_args(argv)
+    if argv[:1] == ["arith"]:
+        ap.add_argument("pack", choices=["arith"], help="independent arithmetic instead of a packing")
+        ap.add_argument("iters", metavar="ITERS", type=COUNT, help="iterations of each chain")
+        return ap.parse_args(argv)
     ap.add_argument("pack", metavar="PACK", help="packing, x y z r per line as written for Yade (or 'drum')")
     ap.add_argument("dt_s", metavar="DT_S", type=POSITIVE, help="time step, s")
     ap.add_argument("steps", metavar="STEPS", type=STEPS_OR_FULL,
@@ -119,8 +153,9 @@ def options(argv=None) -> argparse.Namespace:
 
 def main(argv=None):
     o = options(argv)
-    if o.pack in ("drum", "drop"):
-        res = drum(o.ball_d_m, o.section_m, o.steps) if o.pack == "drum" else drop(o.spheres, o.energy)
+    if o.pack in ("drum", "drop", "arith"):
+        res = {"drum": lambda: drum(o.ball_d_m, o.section_m, o.steps), "drop": lambda: drop(o.spheres, o.energy),
+               "arith": lambda: arith(o.iters)}[o.pack]()
         print(json.dumps({**res, "dem": os.path.dirname(dem.__file__)}))
         return
     agg = read_pack(o.pack)
