@@ -10,8 +10,8 @@ Yade, the same time step on both sides (0.5 of grindtwin's critical step).
 1. speed: the loading phase, ``LOADING_STEPS[n]`` steps (benchmarks/dem_common.py), nothing
    recorded on either side (grindtwin records its platen force per step in memory, Yade
    nothing); each repeat runs grindtwin with NUMBA_NUM_THREADS=1 and 2, ``yade -j1`` and
-   ``-j2``, and independent arithmetic on 1 and 2 threads (the worker's ``arith``: what a
-   second thread gains on this machine at best, in the same minutes) one after the other (A, B,
+   ``-j2``, and independent arithmetic on 1 and 2 threads (the worker's ``arith``: what the
+   machine gives a second thread of register-only work in the same minutes) one after the other (A, B,
    C, D, E, F, then F, E, D, C, B, A), each in its own process; ratios pair by pair within a
    repeat, then medians. CPU = user + system time of the stepping (all threads).
 2. peak force: full compression tests at 500 and 2000 spheres on packings seeds 0-2, grindtwin
@@ -141,8 +141,8 @@ def speed(folder, o):
             print(n, rep, {k: (round(v[-1]["wall_s"], 3), round(v[-1]["cpu_s"], 3)) for k, v in runs.items()},
                   "load", load_average(), flush=True)
         ps = n * steps
-        raw += [{"n_spheres": n, "steps": r["steps"], "repeat": i, "side": k, "wall_s": r["wall_s"], "cpu_s": r["cpu_s"]}
-                for k, v in runs.items() for i, r in enumerate(v)]
+        raw += [{"n_spheres": n, "steps": r["steps"], "repeat": i, "side": k, "wall_s": r["wall_s"],
+                 "cpu_s": r["cpu_s"]} for k, v in runs.items() for i, r in enumerate(v)]
         cpu = {k: np.array([r["cpu_s"] for r in v]) for k, v in runs.items()}
         wall = {k: np.array([r["wall_s"] for r in v]) for k, v in runs.items()}
         per_core = cpu["yade1"] / cpu["gt1"]
@@ -244,8 +244,9 @@ def main(argv=None):
                         note + " us = microseconds of CPU (user + system, all threads) or wall time per "
                         "particle-step; gt1/gt2 = grindtwin on 1/2 threads, yade1/yade2 = yade -j1/-j2; "
                         "per_core_x_yade = Yade -j1 CPU / grindtwin 1-thread CPU; second core: 1-thread "
-                        "wall / 2-thread wall; arith = independent arithmetic in one parallel loop, the "
-                        "most a second thread gains on this machine in the same minutes (in the repeats "
+                        "wall / 2-thread wall; arith = independent arithmetic in one parallel loop, what "
+                        "the machine gives a second thread of register-only work in the same minutes (no "
+                        "memory traffic: memory-bound work may gain more or less; in the repeats "
                         "file, steps = iterations of each of its chains). Every repeat's times: dem_parallel_speed"
                         f"{o.tag}_repeats.csv.")
             raw.to_csv(os.path.join(OUT, f"dem_parallel_speed{o.tag}_repeats.csv"), index=False)

@@ -9,7 +9,7 @@ physics and prints one JSON line: steps, wall and CPU seconds of the stepping al
 ``... drop SPHERES J_KG`` times a drop-weight test that breaks an agglomerate of SPHERES spheres
 (22 mm, the DEM calibration step's size) at J_KG; most of its steps are taken after the damage.
 ``... arith ITERS`` times independent floating-point chains in one parallel loop (no memory
-traffic, nothing shared): what a second thread gains on this machine at best, beside the DEM's.
+traffic, nothing shared): the machine's own two-thread scaling, timed beside the DEM's.
 """
 
 from __future__ import annotations
