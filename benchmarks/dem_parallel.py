@@ -92,18 +92,21 @@ def options(argv=None) -> argparse.Namespace:
     return o
 
 
-def grindtwin(pack, dt, steps, threads):
+def _worker(args, threads):
+    """The JSON line of one worker process on ``threads`` numba threads."""
     env = dict(os.environ, NUMBA_NUM_THREADS=str(threads), OMP_NUM_THREADS="1")
-    out = subprocess.run([sys.executable, WORKER, pack, repr(dt), str(steps)], env=env,
-                         check=True, capture_output=True, text=True).stdout
+    out = subprocess.run([sys.executable, WORKER, *args], env=env, check=True, capture_output=True,
+                         text=True).stdout
     return json.loads(out.strip().splitlines()[-1])
+
+
+def grindtwin(pack, dt, steps, threads):
+    return _worker([pack, repr(dt), str(steps)], threads)
 
 
 def arith(threads):
     """The worker's independent arithmetic on ``threads`` threads (wall and CPU time)."""
-    out = subprocess.run([sys.executable, WORKER, "arith", str(ARITH_ITERS)], check=True, capture_output=True,
-                         text=True, env=dict(os.environ, NUMBA_NUM_THREADS=str(threads), OMP_NUM_THREADS="1"))
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    return _worker(["arith", str(ARITH_ITERS)], threads)
 
 
 def yade(pack, dt, steps, threads, folder):
