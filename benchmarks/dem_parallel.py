@@ -93,7 +93,8 @@ def options(argv=None) -> argparse.Namespace:
 
 
 def _worker(args, threads):
-    """The JSON line of one worker process on ``threads`` numba threads."""
+    """The JSON line of one worker process on ``threads`` numba threads (BLAS on one thread in
+    every part: OpenBLAS's threads spin for a while after each call of the set-up)."""
     env = dict(os.environ, NUMBA_NUM_THREADS=str(threads), OMP_NUM_THREADS="1")
     out = subprocess.run([sys.executable, WORKER, *args], env=env, check=True, capture_output=True,
                          text=True).stdout
@@ -168,9 +169,7 @@ def peaks(folder, o):
     for n in o.peak_sizes:
         for seed in PEAK_SEEDS:
             agg, pack, dt = write_pack(n, seed, folder)
-            g = json.loads(subprocess.run([sys.executable, WORKER, pack, repr(dt), "full"],
-                                          env=dict(os.environ, NUMBA_NUM_THREADS="1"), check=True,
-                                          capture_output=True, text=True).stdout.strip().splitlines()[-1])
+            g = _worker([pack, repr(dt), "full"], 1)
             y = yade(pack, dt, "full", 1, folder)
             rows.append({"n_spheres": n, "seed": seed, "dt_s": dt, "gt_peak_N": g["peak_force_N"],
                          "yade_peak_N": y["peak_force_N"], "peak_ratio": g["peak_force_N"] / y["peak_force_N"],
@@ -211,13 +210,11 @@ def drum_scale(o):
     and the slice length of the 0.5 m x 0.3 m lab drum."""
     rows = []
     for ball_d, section, steps in o.drum:
-        args = [sys.executable, WORKER, "drum", repr(ball_d), repr(section), str(steps)]
+        args = ["drum", repr(ball_d), repr(section), str(steps)]
         runs = {1: [], 2: []}
         for rep in range(o.repeats):
             for t in (1, 2):
-                out = subprocess.run(args, env=dict(os.environ, NUMBA_NUM_THREADS=str(t)), check=True,
-                                     capture_output=True, text=True).stdout
-                runs[t].append(json.loads(out.strip().splitlines()[-1]))
+                runs[t].append(_worker(args, t))
         n = runs[1][0]["n_spheres"]
         w = {t: np.array([r["wall_s"] for r in v]) for t, v in runs.items()}
         rows.append({"n_balls": n, "ball_d_m": ball_d, "section_m": section, "n_pairs": runs[1][0]["n_pairs"],
