@@ -110,10 +110,30 @@ def _slow_speed_problems(scene: Scene, models) -> list[str]:
     speeds = {"feed.speed_frac_critical": scene.feed.speed_frac_critical}
     if scene.controller.kind == "nmpc":
         speeds[NMPC_KEYS["speed_min"]] = nmpc_settings(scene).speed_min
-    return [f"{key}: {v:g} is at or below {SPEED_FACTOR_ZERO_FRAC_CRITICAL:g} of critical, where the breakage rates "
-            "of the speed effect (Austin et al. 1984, eq. 8.4) are zero, and negative below; allowed: above "
-            f"{SPEED_FACTOR_ZERO_FRAC_CRITICAL:g}" for key, v in speeds.items()
+    return [f"{key}: {v:g} {_SLOW_SPEED}" for key, v in speeds.items()
             if v is not None and v <= SPEED_FACTOR_ZERO_FRAC_CRITICAL]
+
+
+_SLOW_SPEED = (f"is at or below {SPEED_FACTOR_ZERO_FRAC_CRITICAL:g} of critical, where the breakage rates of the speed "
+               f"effect (Austin et al. 1984, eq. 8.4) are zero, and negative below; allowed: above "
+               f"{SPEED_FACTOR_ZERO_FRAC_CRITICAL:g}")
+
+
+def replay_speed_problems(scene: Scene, models, feed) -> list[str]:
+    """:func:`_slow_speed_problems` of the recorded speeds a replay drives (``feed``: the feed table on the
+    sample grid): the history's own checks allow any speed in (0, 1), and a replay through a stop failed
+    in the solver after the run had started."""
+    effects = getattr(getattr(models.plant, "model", None), "effect_names", ())
+    if "speed" not in effects or "recorded_speed_frac_critical" not in feed:
+        return []
+    speed = feed["recorded_speed_frac_critical"].to_numpy(float)
+    slow = speed <= SPEED_FACTOR_ZERO_FRAC_CRITICAL
+    if not slow.any():
+        return []
+    t = feed["time_h"].to_numpy(float)[slow]
+    return [f"feed.history {scene.history_path()}: column speed_frac_critical: {speed[slow].min():g} (the lowest "
+            f"sample-period mean; {int(slow.sum())} samples from t = {t[0]:g} h to {t[-1]:g} h) {_SLOW_SPEED}; a "
+            "stopped mill cannot be replayed: replay the history before or after the stop"]
 
 
 def _plant_output_problems(scene: Scene, models) -> list[str]:

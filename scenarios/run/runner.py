@@ -54,7 +54,7 @@ from scenarios.run.feed import feed_schedule, fit_warnings
 from scenarios.run.kpis import compute_kpis
 from scenarios.run.models import build_models, component_ores, is_batch
 from scenarios.run.open_loop import run_open_loop
-from scenarios.run.preflight import model_size_problems, refuse, settings_problems
+from scenarios.run.preflight import model_size_problems, refuse, replay_speed_problems, settings_problems
 from scenarios.run.summary import make_summary
 from scenarios.scene import Scene, load_scene, read_history, scene_from_dict
 from twin import trajectory_notes
@@ -133,6 +133,8 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
     times = scene.time_grid_h()
     ores = component_ores(scene)
     feed, notes = feed_schedule(scene, models.components, times, ores)
+    if replay:
+        refuse(scene, replay_speed_problems(scene, models, feed))
     notes = models.notes + notes
     recorded = [c[len("recorded_"):] for c in feed.columns if c in ("recorded_feed_tph", "recorded_speed_frac_critical")]
     if recorded and not replay:  # they sat in the history, unused, and nothing said so

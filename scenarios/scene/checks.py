@@ -198,6 +198,11 @@ def _check_feed(data, ore_names: list[str], r: _Report, base_dir: Path = Path(".
         if _get(data, "controller", "kind") not in (None, "none"):
             r.add(("controller", "kind"), "a batch scene (effects without `transport`) has "
                   "nothing to control; use kind = \"none\"", _get(data, "controller", "kind"))
+        for key in ("schedule", "history"):  # the charge was ground as feed.blend, whatever they said later
+            if feed.get(key):
+                r.add(("feed", key), "a batch scene (effects without `transport`) grinds one charge of "
+                      "feed.blend at feed.speed_frac_critical: a feed schedule or history (grindtwin replay's too) "
+                      "is not used; add `transport` to effects for a continuous mill")
     if feed.get("start") == "target" and _get(data, "controller", "target_p80_um") is None:
         r.add(("feed", "start"), "\"target\" needs controller.target_p80_um (the P80 whose steady "
               "state the run starts at)", "target")

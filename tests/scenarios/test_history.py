@@ -272,6 +272,47 @@ def test_replay_refuses_a_history_recorded_in_percent_of_critical(tmp_path, caps
     assert "data rows 1, 2, 3" in err and "Traceback" not in err and not out.exists()
 
 
+def test_replay_refuses_a_recorded_speed_where_the_breakage_rates_vanish_before_it_runs(tmp_path, capsys):
+    """Speed 0.05 in rows 10-19 (a stop) passed the history's (0, 1) check, then the run failed in
+    the solver with exit 1 naming no row; now refused with the scene's own bound before any work."""
+    from tests.scenarios.test_cli import grindtwin
+    from tests.scenarios.test_runner import _history_csv, short_pyrite_scene
+
+    scene = short_pyrite_scene(tmp_path, duration_h=0.5)
+    hist = _history_csv(tmp_path)
+    frame = pd.read_csv(hist)
+    frame.loc[9:18, "speed_frac_critical"] = 0.05
+    frame.to_csv(hist, index=False)
+    out = tmp_path / "out"
+    assert grindtwin(["replay", scene, "--history", hist, "--out", out, "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"feed.history {hist}: column speed_frac_critical: 0.05 (the lowest sample-period mean" in err
+    assert "is at or below 0.1 of critical" in err and "a stopped mill cannot be replayed" in err
+    assert "Traceback" not in err and not out.exists()
+    frame.loc[9:18, "speed_frac_critical"] = 0.11  # above the bound: it replays
+    frame.to_csv(hist, index=False)
+    assert grindtwin(["replay", scene, "--history", hist, "--out", out, "--quiet", "--no-plots"]) == 0
+
+
+def test_replay_refuses_a_batch_scene_whose_charge_a_history_cannot_change(tmp_path, capsys):
+    """A batch scene replayed with a history switching ore and speed at 0.25 h ran with the scene's
+    speed and its first blend throughout (the content's P80 that of a pure-B charge) while its
+    time series showed the recorded blend and speed, exit 0."""
+    from tests.scenarios.test_cli import grindtwin
+
+    t = np.arange(31) / 60
+    late = t >= 0.25
+    hist = tmp_path / "batch_history.csv"
+    pd.DataFrame({"time_h": t, "ore_B_frac": np.where(late, 0.0, 1.0), "ore_D_frac": np.where(late, 1.0, 0.0),
+                  "speed_frac_critical": np.where(late, 0.8, 0.7)}).to_csv(hist, index=False)
+    out = tmp_path / "out"
+    assert grindtwin(["replay", ROOT / "scenarios" / "batch_50B_50D.toml", "--history", hist, "--out", out,
+                      "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "feed.history: a batch scene (effects without `transport`) grinds one charge of feed.blend" in err
+    assert "Traceback" not in err and not out.exists()
+
+
 def test_a_recorded_mineralogy_the_ores_cannot_mix_is_a_warning():
     """The shipped day's assays are mixes of the ores A-D (NNLS residual below 1 wt%): no warning.
     Add 30 wt% of a mineral none of them holds (magnetite) from the second hour, the ores kept in

@@ -64,6 +64,9 @@ BROKEN = [
     ("batch scene with a feed rate", edit('"transport", "holdup", ', "").replace(
         'kind = "nmpc"', 'kind = "none"'),
      ["feed.feed_tph", "batch scene", "batch_charge_kg"]),
+    ("batch scene with a schedule", edit('"transport", "holdup", ', "").replace('kind = "nmpc"', 'kind = "none"')
+     .replace("feed_tph = 30.0", "batch_charge_kg = 12.0"),
+     ["feed.schedule", "batch scene", "grinds one charge of feed.blend", "not used"]),
     ("not TOML", BASE_SCENE + "\n[feed\n", ["not valid TOML"]),
     ("top-level key inside a table", BASE_SCENE + '\nseed = 3\neffects = ["breakage"]\n',
      ["controller.bounds.effects", "'effects' is a top-level key", "before the first [table]"]),
