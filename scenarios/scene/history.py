@@ -374,16 +374,20 @@ def _check_holds(t: np.ndarray, missing: np.ndarray, rows: pd.Series, what: str,
 
 
 def _time_average(t: np.ndarray, values: np.ndarray, grid: np.ndarray, dt: float) -> np.ndarray:
-    """Mean of the zero-order-hold signal (values held from t_i) over [g, g + dt)."""
-    seg = np.diff(t)
-    cum = np.vstack([np.zeros((1, values.shape[1])),
-                     np.cumsum(values[:-1] * seg[:, None], axis=0)])
-
-    def integral(x: np.ndarray) -> np.ndarray:
-        j = np.clip(np.searchsorted(t, x, side="right") - 1, 0, len(t) - 1)
-        return cum[j] + values[j] * (x - t[j])[:, None]
-
-    return (integral(grid + dt) - integral(grid)) / dt
+    """Mean of the zero-order-hold signal (values held from t_i; values[0] before t_0) over each cell
+    [g, g + dt) of the contiguous grid, each cell summed from its own pieces: the difference of two
+    running integrals left round-off where the signal was 0 (a feed of 1e-13 t/h, so 4.5e6 kWh/t)."""
+    bounds = np.append(grid, grid[-1] + dt)
+    inside = t[(t > bounds[0]) & (t < bounds[-1])]
+    edges = np.unique(np.concatenate([bounds, inside]))
+    start, length = edges[:-1], np.diff(edges)
+    held = np.clip(np.searchsorted(t, start, side="right") - 1, 0, len(t) - 1)
+    cell = np.clip(np.searchsorted(bounds, start, side="right") - 1, 0, len(grid) - 1)
+    pieces = values[held] * length[:, None]
+    out = np.empty((len(grid), values.shape[1]))
+    for c in range(values.shape[1]):
+        out[:, c] = np.bincount(cell, weights=pieces[:, c], minlength=len(grid))
+    return out / dt
 
 
 def _names(rows: pd.Series) -> str:

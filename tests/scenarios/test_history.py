@@ -171,6 +171,20 @@ def test_a_replay_that_starts_with_the_mill_stopped_runs(tmp_path):
     assert res.psd.iloc[-1].is_monotonic_decreasing and res.frame["p80_um"].iloc[-1] > 0
 
 
+def test_a_stop_averages_to_an_exact_zero_feed_on_the_sample_grid(tmp_path):
+    """Feed 0 for an hour of one-minute records: the sample-period means came from differences of
+    running integrals, 1.4e-13 t/h at 1.45 h, and the replay's time series showed 4.5e6 kWh/t there."""
+    t = np.arange(121) / 60
+    stop = (np.arange(121) >= 30) & (np.arange(121) < 90)
+    path = tmp_path / "stop.csv"
+    pd.DataFrame({"time_h": t, "ore_B_frac": 1.0, "feed_tph": np.where(stop, 0.0, 30.0)}).to_csv(path, index=False)
+    h = read_history(path, 0.05)
+    feed = h.frame["feed_tph"]
+    assert np.all(feed[(feed.index >= 0.5 - 1e-9) & (feed.index < 1.5 - 1e-9)] == 0.0)
+    assert feed[(feed.index < 0.5 - 1e-9) | (feed.index >= 1.5 - 1e-9)].to_numpy() == pytest.approx(30.0, rel=1e-15)
+    assert len(feed) == 41
+
+
 def test_gap_limit_is_a_parameter(tmp_path):
     path = write(tmp_path, MESSY + "2026-01-15T00:30:00,50,50,35\n")
     h = read_history(path, DT, max_gap_h=0.5)
