@@ -165,7 +165,9 @@ BAND_EDGE_INSIDE = 1e-6
 def _band_crossings(pts, band, on_curve) -> list:
     """Points of the curve P80 = target inside the load band that the scan stepped over: the load on the
     curve is continuous in speed, so between two scanned neighbours
-    - one below the band and the other above it, the point where the load is mid-band;
+    - on either side of an end of the band, the point where the load meets that end (just inside it): an
+      optimum on the band's edge lies there, and the scanned neighbour inside the band missed it;
+    - one below the band and the other above it, also the point where the load is mid-band;
     - both below it (or both above), a load that peaks into the band (or dips into it) between them: the
       extreme and the window's two ends, where the load meets the band (a window narrower than the scan's
       step: the scan alone called the target infeasible).
@@ -183,6 +185,9 @@ def _band_crossings(pts, band, on_curve) -> list:
         if math.isnan(f0) or math.isnan(f1):
             continue
         try:
+            for edge in (band[0] + BAND_EDGE_INSIDE, band[1] - BAND_EDGE_INSIDE):
+                if (l0 - edge) * (l1 - edge) < 0:
+                    out.append(scipy.optimize.brentq(lambda s: load_at(s) - edge, s0, s1, xtol=1e-9))
             if (l0 - band[0]) * (l1 - band[0]) < 0 and (l0 - band[1]) * (l1 - band[1]) < 0:
                 out.append(scipy.optimize.brentq(lambda s: load_at(s) - mid, s0, s1, xtol=1e-6))
             elif max(l0, l1) < band[0] or min(l0, l1) > band[1]:

@@ -74,15 +74,18 @@ def test_an_optimum_at_a_speed_bound_says_so(twins):
 
 
 def test_an_optimum_on_the_load_band_says_so(twins):
-    """Most throughput for ore C at 350 um: the feed would rise further with the speed, but the
-    load leaves its band (checked here one step beyond the answer)."""
+    """Most throughput for ore C at 350 um: the load on the target curve is above its band between
+    ~0.745 and ~0.835 of critical, where the feed peaks; the two edges hold the same feed to 1e-5.
+    At the answer (either edge) the feed would rise one step further into the band's excess, and
+    falls one step the other way (checked here)."""
     c = twins["C"]
     sp = optimal_setpoints(c, [1.0], 350.0, mode="both", objective="max_throughput",
                            feed_bounds_tph=default_feed_bounds(c))
     assert sp.feasible
     hi = c.mill.stable_band[1]
-    feed_beyond, _, load_beyond = _on_curve(c, 350.0, sp.speed_frac_critical + 0.005)
-    assert feed_beyond > sp.feed_tph and load_beyond > hi  # more throughput, outside the band
+    (f_lo, _, l_lo), (f_hi, _, l_hi) = (_on_curve(c, 350.0, sp.speed_frac_critical + d) for d in (-0.005, 0.005))
+    (f_out, l_out), (f_in, l_in) = sorted(((f_lo, l_lo), (f_hi, l_hi)), key=lambda p: -p[1])
+    assert l_out > hi >= l_in and f_out > sp.feed_tph > f_in  # more throughput only outside the band
     assert sp.load_frac == pytest.approx(hi, abs=2e-3)
     assert f"load band's upper end {hi:g}" in sp.active and "on a constraint" in sp.message
 
@@ -127,3 +130,22 @@ def test_a_feasible_window_between_two_scanned_speeds_is_found(twins):
     assert sp.feasible, sp.message
     assert band[0] <= sp.load_frac <= band[1] and speeds[2] < sp.speed_frac_critical < speeds[3]
     assert sp.p80_um == pytest.approx(210.0, rel=1e-3)
+
+
+def test_an_optimum_on_the_band_edge_between_a_scanned_point_inside_and_one_outside_is_found(twins):
+    """Ore B at 280 um: at the speed's lower bound 0.55 the load (1.18) is inside the band, at the next
+    scanned speed above it; the load meets the band's upper end in between, where the energy is lower
+    and the feed higher than at 0.55 (computed here). The answer was 0.55, "on the speed's lower bound",
+    for both objectives (exit 0); the edge is now found and named."""
+    lab = twins["B"]
+    hi = lab.mill.stable_band[1]
+    at_bound = _on_curve(lab, 280.0, 0.55)
+    assert at_bound[2] < hi  # the scanned point inside the band
+    for objective in ("min_energy", "max_throughput"):
+        sp = optimal_setpoints(lab, [1.0], 280.0, mode="both", objective=objective,
+                               feed_bounds_tph=default_feed_bounds(lab))
+        assert sp.feasible and sp.load_frac == pytest.approx(hi, abs=1e-4)
+        feed, energy, load = _on_curve(lab, 280.0, sp.speed_frac_critical)
+        assert load <= hi and energy < at_bound[1] and feed > at_bound[0]
+        assert _on_curve(lab, 280.0, sp.speed_frac_critical + 0.002)[2] > hi  # just beyond: outside the band
+        assert f"load band's upper end {hi:g}" in sp.active and "lower bound" not in sp.active
