@@ -18,7 +18,7 @@ from scenarios.errors import SceneError
 from scenarios.scene.history import read_history
 from scenarios.scene.keypaths import did_you_mean, format_path
 from scenarios.scene.ranges import feed_problem, nominal_feed_tph
-from scenarios.scene.schema import DEFAULT_N_MIXERS
+from scenarios.scene.schema import DEFAULT_N_MIXERS, Feed
 from twin import SizeGrid, TwinError, get_mill, hydrocyclone_from
 from twin.calibration import DEFAULT_CALIBRATION, load_calibration
 from twin.effects import problems as effect_problems
@@ -215,11 +215,24 @@ def _check_feed(data, ore_names: list[str], r: _Report, base_dir: Path = Path(".
     csv = feed.get("psd_csv")
     if isinstance(csv, str) and not (Path(csv) if Path(csv).is_absolute() else base_dir / csv).is_file():
         r.add(("feed", "psd_csv"), "file not found (a CSV with columns size_um, passing_pct)", csv)
-    p80 = _num(feed.get("p80_um", 3200.0))
+    p80 = _num(feed.get("p80_um", FEED_P80_DEFAULT_UM))
     top = _num(_get(data, "mill", "size_classes", "top_um") or 6700.0)
     if p80 is not None and top is not None and p80 >= top:
         r.add(("feed", "p80_um"), f"must be below the top size class mill.size_classes.top_um "
               f"= {top:g}", p80)
+
+
+#: the feed P80 of a scene that gives none (the schema's default)
+FEED_P80_DEFAULT_UM = Feed.model_fields["p80_um"].default
+
+
+def _feed_p80_um(feed: dict) -> float | None:
+    """The scene's feed P80 [um] when the scene gives it as ``p80_um`` or by its default (None with a
+    screen analysis, or a value the schema refuses in its own check)."""
+    if feed.get("psd") is not None or feed.get("psd_csv") is not None:
+        return None
+    p80 = _num(feed.get("p80_um", FEED_P80_DEFAULT_UM))
+    return p80 if p80 is not None and p80 > 0 else None
 
 
 def _check_schedule(data, ore_names: list[str], r: _Report) -> None:
@@ -275,7 +288,8 @@ def _check_history(data, ore_names: list[str], base_dir: Path, r: _Report) -> No
     try:
         gap = _num(feed.get("history_max_gap_h", 10 / 60))
         history = read_history(path, sample_period_h=dt, max_gap_h=gap if gap and gap > 0 else 10 / 60,
-                               feed_nominal_tph=nominal_feed_tph(_get(data, "mill", "preset"), _get(data, "mill")))
+                               feed_nominal_tph=nominal_feed_tph(_get(data, "mill", "preset"), _get(data, "mill")),
+                               feed_p80_um=_feed_p80_um(feed))
     except SceneError as exc:
         for line in str(exc).splitlines():
             r.add(("feed", "history"), line.strip())

@@ -22,8 +22,10 @@ Rules, applied in this order; each action is written to ``History.report``:
    refused, naming the data rows (1 = first row after the header).
 5. Cells that are not numbers (text), infinite values and negative values are refused, naming
    the rows; so are values outside their physical range, with the usual unit mistake named:
-   ``speed_frac_critical`` in (0, 1) (a fraction of critical, not percent), ``p80_um`` > 0, the
-   texture within the scene schema's ranges, and (when the scene's mill is known)
+   ``speed_frac_critical`` in (0, 1) (a fraction of critical, not percent), ``p80_um`` at least
+   :data:`scenarios.scene.ranges.P80_MIN_UM` (a P80 in mm lands below) and (when the scene's feed
+   P80 is known) finer than the feed, the texture within the scene schema's ranges, and (when the
+   scene's mill is known)
    ``feed_tph`` at most :data:`scenarios.scene.ranges.FEED_MAX_NOMINAL_MULTIPLE` times the
    mill's nominal feed rate (a feed in kg/h is 1000x). A ``feed_tph`` column with no value
    above 0 is refused: a mill never fed makes no product, so nothing of it can be replayed.
@@ -50,7 +52,7 @@ from pydantic import ValidationError
 
 from scenarios.errors import SceneError
 from scenarios.scene.keypaths import did_you_mean
-from scenarios.scene.ranges import feed_problem, speed_problem
+from scenarios.scene.ranges import feed_problem, product_p80_problem, speed_problem
 from scenarios.scene.schema import Texture
 from twin.ore import mineral_names
 
@@ -87,9 +89,11 @@ class History:
 
 
 def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float = DEFAULT_MAX_GAP_H,
-                 sum_tol_frac: float = 0.02, feed_nominal_tph: float | None = None) -> History:
+                 sum_tol_frac: float = 0.02, feed_nominal_tph: float | None = None,
+                 feed_p80_um: float | None = None) -> History:
     """Read, clean and resample a recorded history by the rules of this module's docstring
-    (``feed_nominal_tph``: the scene's mill's nominal feed rate, for the feed's range)."""
+    (``feed_nominal_tph``: the scene's mill's nominal feed rate, for the feed's range;
+    ``feed_p80_um``: the scene's feed P80, above which no recorded product P80 lies)."""
     path = Path(path)
     raw = _read_table(path)
     where = str(path)
@@ -114,7 +118,7 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
            "allowed: >= 0" for c in values.columns if (values[c] < 0).any()]
     if neg:
         raise SceneError(f"{where}: " + f"\n{where}: ".join(neg))
-    _check_ranges(values, df["_row"], where, feed_nominal_tph)
+    _check_ranges(values, df["_row"], where, feed_nominal_tph, feed_p80_um)
     _check_some_feed(values, where)
 
     comp = values[comp_cols]
@@ -308,11 +312,11 @@ def _numeric(df: pd.DataFrame, cols: list[str], where: str) -> pd.DataFrame:
     return pd.DataFrame(out, index=df.index)
 
 
-def _check_ranges(values: pd.DataFrame, rows: pd.Series, where: str, feed_nominal_tph) -> None:
+def _check_ranges(values: pd.DataFrame, rows: pd.Series, where: str, feed_nominal_tph, feed_p80_um) -> None:
     """Refuse recorded values outside their physical ranges, naming rows and the likely mistake."""
     checks = {"speed_frac_critical": speed_problem,
               "feed_tph": lambda v: feed_problem(v, feed_nominal_tph),
-              "p80_um": lambda v: None if v > 0 else f"P80 {v:g} um is not > 0"}
+              "p80_um": lambda v: product_p80_problem(v, feed_p80_um)}
     checks |= {key: functools.partial(_texture_problem, key) for key in TEXTURE_COLUMNS}
     errors = []
     for col, problem in checks.items():

@@ -1,6 +1,6 @@
 """Physical ranges shared by scene keys and history columns, with the hint for the usual unit
-mistake: mill speed as a fraction of critical (0.72, not 72 %) and feed rate in t/h (not kg/h),
-the latter judged against the mill's nominal feed rate."""
+mistake: mill speed as a fraction of critical (0.72, not 72 %), feed rate in t/h (not kg/h),
+the latter judged against the mill's nominal feed rate, and a product P80 in um (not mm)."""
 
 from __future__ import annotations
 
@@ -15,6 +15,11 @@ FEED_MAX_NOMINAL_MULTIPLE = 10.0
 #: Speeds in this range are named as "percent of critical" in the hint: ball mills run at
 #: 10-100 % of critical (0.65-0.80 typically), so 72 reads as 72 %, but 1.2 as a fraction.
 PERCENT_RANGE = (10.0, 100.0)
+
+
+#: A recorded product P80 [um] below this is refused: finer than any ball mill's (or stirred mill's,
+#: ~5-10 um) product, while a P80 in mm (0.2-0.5 for a ball-mill circuit) lands there.
+P80_MIN_UM = 1.0
 
 
 #: Scene [mill] keys that change the mill's power draw.
@@ -60,3 +65,18 @@ def feed_problem(value: float, nominal_tph: float | None) -> str | None:
     hint = " (kg/h? t/h expected)" if value / 1000.0 <= limit else ""
     return (f"feed {value:g} t/h is more than {FEED_MAX_NOMINAL_MULTIPLE:g} x the mill's nominal "
             f"{nominal_tph:g} t/h{hint}")
+
+
+def product_p80_problem(value: float, feed_p80_um: float | None) -> str | None:
+    """Why ``value`` [um] is not a plausible product P80 of a mill fed at ``feed_p80_um`` (None:
+    unknown), or None: above 0, at least :data:`P80_MIN_UM`, and finer than the feed (grinding only
+    makes it finer; a historian's fill value such as 9999 is coarser)."""
+    if not math.isfinite(value) or value <= 0:
+        return f"P80 {value:g} um is not > 0"
+    if value < P80_MIN_UM:
+        return (f"P80 {value:g} um is below {P80_MIN_UM:g} um, finer than any mill's product (mm? "
+                f"{value:g} mm is {value * 1000:g} um)")
+    if feed_p80_um is not None and value >= feed_p80_um:
+        return (f"P80 {value:g} um is not finer than the scene's feed P80 {feed_p80_um:g} um (a mill's "
+                "product is; a recorder's fill value for a missing sample? leave the cell empty)")
+    return None

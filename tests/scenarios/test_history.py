@@ -263,6 +263,22 @@ def test_a_bad_cell_is_refused_with_its_row_and_the_likely_mistake(tmp_path, old
         assert fragment in str(info.value)
 
 
+def test_a_product_p80_in_mm_or_coarser_than_the_feed_is_refused_naming_rows(tmp_path):
+    """Only P80 > 0 was checked: a P80 in mm (0.265) and a recorder's fill value (9999 um) replayed
+    with exit 0, the latter into a mean P80 difference of 400 um."""
+    text = GOOD_ROWS.replace(",0.72\n", ",0.72,265\n").replace("speed_frac_critical\n", "speed_frac_critical,p80_um\n")
+    assert read_history(write(tmp_path, text), DT, feed_p80_um=3200.0).frame["p80_um"].iloc[0] == 265.0
+    mm = write(tmp_path, text.replace(",265\n", ",0.265\n"))
+    with pytest.raises(SceneError, match=r"column p80_um: P80 0.265 um is below 1 um, finer than any mill's product "
+                                         r"\(mm\? 0.265 mm is 265 um\) in data rows 1, 2, 3"):
+        read_history(mm, DT)
+    fill = write(tmp_path, text.replace("0.0166667,60,40,30,0.72,265", "0.0166667,60,40,30,0.72,9999"))
+    read_history(fill, DT)  # no feed P80 known: no upper bound
+    with pytest.raises(SceneError, match=r"column p80_um: P80 9999 um is not finer than the scene's feed P80 3200 um "
+                                         r".* in data rows 2$"):
+        read_history(fill, DT, feed_p80_um=3200.0)
+
+
 def test_a_feed_in_kg_per_hour_is_refused_against_the_mills_nominal_feed(tmp_path):
     path = write(tmp_path, GOOD_ROWS.replace(",30,", ",30000,"))
     read_history(path, DT)  # no mill known: no bound
