@@ -7,8 +7,9 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import nnls
 
-from scenarios.scene import Scene, feed_table, load_history, ore_column
+from scenarios.scene import TEXTURE_COLUMNS, Scene, feed_table, load_history, ore_column
 from scenarios.run.models import component_ores
+from twin.ore.mineralogy import Mineralogy, Texture
 
 #: Weight of the "fractions sum to 1" row in the NNLS fit of a mineralogy to the ores (wt%).
 SUM_ROW_WEIGHT = 100.0
@@ -21,8 +22,9 @@ def mineralogy_to_blend(wt_pct: pd.DataFrame, ores: dict) -> tuple[np.ndarray, n
     row of weight ``SUM_ROW_WEIGHT`` asking the fractions to sum to 1; the fractions are then
     rescaled to sum exactly to 1. The residual is the Euclidean distance (wt%) between the row
     and the mix, reported per sample: a large residual means the recorded feed is not a mix of
-    the scene's ores and the run can only approximate it. Minerals absent from every ore and
-    the texture columns of the history do not enter the fit except through the residual.
+    the scene's ores and the run can only approximate it. Minerals absent from every ore enter only
+    through the residual; the texture columns do not enter the fit (:func:`texture_ratios` compares
+    them with the mix's).
     """
     minerals = [c[: -len("_wt_pct")] for c in wt_pct.columns if c.endswith("_wt_pct")]
     all_minerals = sorted(set(minerals) | {m for o in ores.values() for m in o.wt_pct})
@@ -51,21 +53,49 @@ def mineralogy_to_blend(wt_pct: pd.DataFrame, ores: dict) -> tuple[np.ndarray, n
 FIT_RESIDUAL_WARN_WT_PCT = 5.0
 
 
+#: Ratio of textural indices (twin.ore.Texture.textural_index, the texture's part in the breakage
+#: rates) between the simulated mix of ores and a recorded texture beyond which a run warns: the step
+#: between neighbouring reference ore types (A to B 1.51x, B to C 1.52x), so the recorded ore breaks
+#: as another type would. The shipped day's textures lie within 1.18x of its mixes.
+TEXTURE_RATIO_WARN = 1.5
+
+
 def fit_warnings(feed: pd.DataFrame, components: list[str]) -> list[str]:
-    """A warning when a mineralogy history's samples are not mixes of the ores (the feed table's
-    ``history_fit_residual_wt_pct`` above :data:`FIT_RESIDUAL_WARN_WT_PCT`): the simulated feed is
-    not the recorded one there."""
-    if "history_fit_residual_wt_pct" not in feed.columns:
-        return []
-    resid = feed["history_fit_residual_wt_pct"].to_numpy(float)
-    misfit = resid > FIT_RESIDUAL_WARN_WT_PCT
-    if not misfit.any():
-        return []
+    """Warnings when a mineralogy history's samples are not mixes of the ores (the feed table's
+    ``history_fit_residual_wt_pct`` above :data:`FIT_RESIDUAL_WARN_WT_PCT`), or their texture is not
+    the mix's (``history_textural_index_ratio``, mix over recorded, beyond :data:`TEXTURE_RATIO_WARN`
+    either way): the simulated feed is not the recorded one there."""
+    out = []
     t = feed["time_h"].to_numpy(float)
-    return [f"the recorded mineralogy is not a mix of the ores {', '.join(components)} on {misfit.mean():.0%} of the "
-            f"samples (from {t[misfit][0]:.4g} h; NNLS residual up to {resid.max():.3g} wt%, above "
-            f"{FIT_RESIDUAL_WARN_WT_PCT:g}): the simulated feed is not the recorded one there; add an ore that holds "
-            "the missing minerals"]
+    if "history_fit_residual_wt_pct" in feed.columns:
+        resid = feed["history_fit_residual_wt_pct"].to_numpy(float)
+        misfit = resid > FIT_RESIDUAL_WARN_WT_PCT
+        if misfit.any():
+            out.append(f"the recorded mineralogy is not a mix of the ores {', '.join(components)} on {misfit.mean():.0%} "
+                       f"of the samples (from {t[misfit][0]:.4g} h; NNLS residual up to {resid.max():.3g} wt%, above "
+                       f"{FIT_RESIDUAL_WARN_WT_PCT:g}): the simulated feed is not the recorded one there; add an ore "
+                       "that holds the missing minerals")
+    if "history_textural_index_ratio" in feed.columns:
+        ratio = feed["history_textural_index_ratio"].to_numpy(float)
+        off = np.abs(np.log(ratio)) > np.log(TEXTURE_RATIO_WARN)
+        if off.any():
+            worst = ratio[np.argmax(np.abs(np.log(ratio)))]
+            out.append(f"the recorded texture is not that of the mix of the ores {', '.join(components)} on {off.mean():.0%} "
+                       f"of the samples (from {t[off][0]:.4g} h; the mix's textural index {worst:.3g}x the recorded, beyond "
+                       f"{TEXTURE_RATIO_WARN:g}x either way): a run breaks the ores' textures, not the recorded one; add "
+                       "an ore with the recorded texture")
+    return out
+
+
+def texture_ratios(table: pd.DataFrame, fracs: np.ndarray, ores: dict) -> np.ndarray:
+    """Textural index of each sample's mix of the ores (Mineralogy.blend) over that of its recorded
+    texture (the table's texture columns)."""
+    comps = list(ores.values())
+    out = np.empty(len(table))
+    for i, (row, w) in enumerate(zip(table[list(TEXTURE_COLUMNS)].itertuples(index=False), fracs)):
+        mix = Mineralogy.blend(comps, list(w)).texture.textural_index
+        out[i] = mix / Texture(*row).textural_index
+    return out
 
 
 def feed_schedule(scene: Scene, components: list[str], times_h: np.ndarray, ores: dict | None = None
@@ -88,6 +118,11 @@ def feed_schedule(scene: Scene, components: list[str], times_h: np.ndarray, ores
         out["history_fit_residual_wt_pct"] = resid
         notes.append(f"mineralogy history mapped to ores {', '.join(components)} by NNLS: residual "
                      f"mean {resid.mean():.3g} wt%, max {resid.max():.3g} wt%")
+        if all(c in table.columns for c in TEXTURE_COLUMNS):
+            ratio = texture_ratios(table, fracs, ores)
+            out["history_textural_index_ratio"] = ratio
+            notes.append(f"the recorded texture enters through the ores' own: the mix's textural index is "
+                         f"{ratio.min():.3g}-{ratio.max():.3g}x the recorded")
         for c in table.columns:
             if c.startswith("recorded_"):
                 out[c] = table[c]

@@ -151,7 +151,7 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
     warnings_ = fit_warnings(feed, models.components) + extra.pop("warnings", [])
     health = extra.get("controller_health")
     for c in feed.columns:
-        if c.startswith("recorded_") or c == "history_fit_residual_wt_pct":
+        if c.startswith("recorded_") or c in ("history_fit_residual_wt_pct", "history_textural_index_ratio"):
             frame[c] = feed[c].to_numpy()
     kpis = compute_kpis(scene, frame, **extra)
     if not kpis["fed_t"] > 0 and not is_batch(scene):

@@ -379,8 +379,9 @@ def _check_holds(t: np.ndarray, missing: np.ndarray, rows: pd.Series, what: str,
 
 def _time_average(t: np.ndarray, values: np.ndarray, grid: np.ndarray, dt: float) -> np.ndarray:
     """Mean of the zero-order-hold signal (values held from t_i; values[0] before t_0) over each cell
-    [g, g + dt) of the contiguous grid, each cell summed from its own pieces: the difference of two
-    running integrals left round-off where the signal was 0 (a feed of 1e-13 t/h, so 4.5e6 kWh/t)."""
+    [g, g + dt) of the contiguous grid, each cell summed from its own pieces, and exact where one value
+    is held over the cell: the difference of two running integrals left round-off where the signal was
+    0 (a feed of 1e-13 t/h, so 4.5e6 kWh/t)."""
     bounds = np.append(grid, grid[-1] + dt)
     inside = t[(t > bounds[0]) & (t < bounds[-1])]
     edges = np.unique(np.concatenate([bounds, inside]))
@@ -391,7 +392,11 @@ def _time_average(t: np.ndarray, values: np.ndarray, grid: np.ndarray, dt: float
     out = np.empty((len(grid), values.shape[1]))
     for c in range(values.shape[1]):
         out[:, c] = np.bincount(cell, weights=pieces[:, c], minlength=len(grid))
-    return out / dt
+    out /= dt
+    # a value held over a whole cell is its mean exactly (an entropy of 1 stays in [0, 1])
+    first = np.searchsorted(cell, np.arange(len(grid)))
+    lo, hi = np.minimum.reduceat(values[held], first), np.maximum.reduceat(values[held], first)
+    return np.where(lo == hi, lo, out)
 
 
 def _names(rows: pd.Series) -> str:

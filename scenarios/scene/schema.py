@@ -312,7 +312,9 @@ class Feed(Section):
     (``timestamp`` or ``time_h``), mineral wt% (``<mineral>_wt_pct``) or ore fractions
     (``ore_<name>_frac``), optionally ``feed_tph``, ``speed_frac_critical``, ``p80_um`` and
     texture columns; rules in ``scenarios/scene/history.py``. A mineralogy is mapped onto the
-    scene's ores (the reference types A-D without ``[ores]``) by non-negative least squares."""
+    scene's ores (the reference types A-D without ``[ores]``) by non-negative least squares; the
+    recorded texture is compared with the mix's (a run warns when their textural indices differ
+    beyond ``scenarios.run.feed.TEXTURE_RATIO_WARN``): the ores' own textures are what break."""
     history_texture: Texture | None = Field(default=None, examples=[
         {"mean_grain_um": 120.0, "uniformity": 0.6, "association_entropy": 0.5}])
     """Texture of a mineralogy history without texture columns (required then; only with

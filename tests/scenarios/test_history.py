@@ -367,3 +367,44 @@ def test_a_recorded_mineralogy_the_ores_cannot_mix_is_a_warning():
     table = pd.DataFrame({"time_h": frame.index, "history_fit_residual_wt_pct": resid})
     (warning,) = fit_warnings(table, models.components)
     assert "not a mix of the ores A, B, C, D" in warning and "from 1 h" in warning
+
+
+def test_a_recorded_texture_the_ores_mix_does_not_have_is_a_warning(tmp_path):
+    """A mineralogy history's texture columns (and feed.history_texture) were range-checked and then
+    read by nothing: grain 20 um or 125 um replayed to the same digits, and nothing said so. The mix's
+    textural index is now compared with the recorded one's: the shipped day's within 1.18x (no
+    warning), a 20-um intergrown feed's 2.7x off (a warning naming the ratio)."""
+    from scenarios.run.feed import TEXTURE_RATIO_WARN, feed_schedule, fit_warnings
+    from scenarios.run.models import build_models
+    from scenarios.scene.loader import scene_from_dict
+    from twin.ore.mineralogy import Texture
+
+    scene = load_scene(ROOT / "scenarios" / "replay_day.toml")
+    models = build_models(scene)
+    times = scene.time_grid_h()[:21]  # one hour
+    feed, notes = feed_schedule(scene, models.components, times)
+    ratio = feed["history_textural_index_ratio"].to_numpy()
+    assert np.all(np.abs(np.log(ratio)) < np.log(1.2)) and fit_warnings(feed, models.components) == []
+    assert any("the recorded texture enters through the ores' own" in n for n in notes)
+    frame = pd.read_csv(ROOT / "scenarios" / "data" / "sample_history.csv", comment="#").iloc[:61]
+    frame = frame.assign(mean_grain_um=20.0, uniformity=0.1, association_entropy=1.0)
+    hist = tmp_path / "fine.csv"
+    frame.to_csv(hist, index=False)
+    data = scene.model_dump(exclude_none=True)
+    data["feed"]["history"] = str(hist)
+    data["scene"]["duration_h"] = 1.0
+    fine = scene_from_dict(data, scene.source_path)
+    feed2, _ = feed_schedule(fine, models.components, times)
+    # the same mineralogy, so the same mix: the ratio moves by the recorded textures' indices alone
+    recorded = feed_table(scene, times)
+    shipped_ti = [Texture(*row).textural_index
+                  for row in recorded[["mean_grain_um", "uniformity", "association_entropy"]].itertuples(index=False)]
+    fine_ti = Texture(20.0, 0.1, 1.0).textural_index
+    head = slice(0, 20)  # the last sample holds the cut history's last row, not the day's next minutes
+    assert feed2["history_textural_index_ratio"].to_numpy()[head] == pytest.approx(
+        (ratio * np.array(shipped_ti) / fine_ti)[head], rel=1e-12)
+    (warning,) = fit_warnings(feed2, models.components)
+    worst = feed2["history_textural_index_ratio"].min()
+    assert worst < 1 / TEXTURE_RATIO_WARN
+    assert f"the mix's textural index {worst:.3g}x the recorded, beyond 1.5x either way" in warning
+    assert "from 0 h" in warning
