@@ -242,28 +242,36 @@ def _time_column(raw: pd.DataFrame, where: str) -> tuple[np.ndarray, pd.Timestam
         raise SceneError(f"{where}: needs exactly one time column, `timestamp` (ISO 8601) or "
                          f"`time_h` (got columns {list(raw.columns)})")
     if has_h:
-        t = pd.to_numeric(raw["time_h"], errors="coerce").to_numpy(dtype=float)
-        start = None
-    else:
-        try:
-            ts = pd.to_datetime(raw["timestamp"], errors="coerce", format="ISO8601")
-        except ValueError as exc:  # e.g. rows with and without a UTC offset: pandas refuses to mix them
-            text = raw["timestamp"].astype(str)
-            has_offset = text.str.contains(r"(?:Z|[+-]\d\d:?\d\d)$", regex=True)
-            first = _names(raw["_row"][has_offset != has_offset.iloc[0]][:1]) if has_offset.nunique() > 1 else "?"
-            raise SceneError(f"{where}: timestamp: rows with and without a UTC offset cannot be put on one clock "
-                             f"(first data row that differs from the first: {first}); give every timestamp an offset "
-                             f"(e.g. +00:00) or none. pandas said: {exc}") from None
-        if ts.notna().any():
-            start = ts.min()
-            t = ((ts - start) / pd.Timedelta(hours=1)).to_numpy(dtype=float)
-        else:
-            start, t = None, np.full(len(raw), np.nan)
+        return _finite_times(pd.to_numeric(raw["time_h"], errors="coerce").to_numpy(dtype=float), raw, where), None
+    try:
+        ts = pd.to_datetime(raw["timestamp"], errors="coerce", format="ISO8601")
+    except ValueError as exc:  # e.g. rows with and without a UTC offset: pandas refuses to mix them
+        text = raw["timestamp"].astype(str)
+        has_offset = text.str.contains(r"(?:Z|[+-]\d\d:?\d\d)$", regex=True)
+        if has_offset.all():  # offsets that change (a daylight-saving change): one clock, UTC
+            ts = pd.to_datetime(raw["timestamp"], errors="coerce", format="ISO8601", utc=True)
+            return _hours_since_start(ts, raw, where)
+        first = _names(raw["_row"][has_offset != has_offset.iloc[0]][:1]) if has_offset.nunique() > 1 else "?"
+        raise SceneError(f"{where}: timestamp: rows with and without a UTC offset cannot be put on one clock "
+                         f"(first data row that differs from the first: {first}); give every timestamp an offset "
+                         f"(e.g. +00:00) or none. pandas said: {exc}") from None
+    return _hours_since_start(ts, raw, where)
+
+
+def _hours_since_start(ts: pd.Series, raw: pd.DataFrame, where: str) -> tuple[np.ndarray, pd.Timestamp | None]:
+    """Hours of the parsed timestamps since the earliest, and that start."""
+    if not ts.notna().any():
+        return _finite_times(np.full(len(raw), np.nan), raw, where), None
+    start = ts.min()
+    return _finite_times(((ts - start) / pd.Timedelta(hours=1)).to_numpy(dtype=float), raw, where), start
+
+
+def _finite_times(t: np.ndarray, raw: pd.DataFrame, where: str) -> np.ndarray:
     bad = ~np.isfinite(t)
     if bad.any():
         raise SceneError(f"{where}: unreadable or missing time in data rows "
                          f"{_names(raw['_row'][bad])}")
-    return t, start
+    return t
 
 
 def _classify_columns(raw: pd.DataFrame, where: str) -> tuple[list[str], str, list[str]]:

@@ -56,6 +56,21 @@ def test_messy_csv_is_cleaned_by_the_documented_rules(tmp_path):
     assert h.start == pd.Timestamp("2026-01-15T00:00:00")
 
 
+def test_timestamps_across_a_daylight_saving_change_are_one_clock(tmp_path):
+    """A CSV pandas wrote from a tz-aware index across 2026-03-29 (+01:00, then +02:00) was refused:
+    "rows with and without a UTC offset" though every row had one. One minute apart in UTC, each."""
+    text = ("timestamp,quartz_wt_pct,kaolinite_wt_pct\n2026-03-29T01:58:00+01:00,60,40\n"
+            "2026-03-29T01:59:00+01:00,60,40\n2026-03-29T03:00:00+02:00,50,50\n2026-03-29T03:01:00+02:00,50,50\n")
+    h = read_history(write(tmp_path, text), DT)
+    assert list(h.frame.index) == pytest.approx([0, 1 / 60, 2 / 60, 3 / 60])
+    assert h.frame["quartz_wt_pct"].to_list() == [60, 60, 50, 50]
+    assert h.start == pd.Timestamp("2026-03-29T00:58:00+00:00")
+    mixed = text.replace("2026-03-29T03:01:00+02:00", "2026-03-29T03:01:00")
+    with pytest.raises(SceneError, match=r"rows with and without a UTC offset cannot be put on one clock \(first data "
+                                         r"row that differs from the first: 4\)"):
+        read_history(write(tmp_path, mixed), DT)
+
+
 def test_parquet_reads_like_csv(tmp_path):
     csv = write(tmp_path, MESSY)
     frame = pd.read_csv(csv, comment="#")
