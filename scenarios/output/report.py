@@ -145,9 +145,8 @@ def render_report(run_dir) -> str:
 
 #: Fields of summary.json the report reads -> their JSON type (a hand-edited one raised a traceback).
 SUMMARY_FIELDS = {"replay": dict, "versions": dict, "calibration": dict, "effects": list, "plant_effects": list,
-                  "components": list,
-                  "notes": list, "warnings": list}
-_JSON_NAMES = {dict: "object", list: "array"}
+                  "components": list, "notes": list, "warnings": list, "description": str}
+_JSON_NAMES = {dict: "object", list: "array", str: "string"}
 
 
 def read_summary(path: Path) -> dict:
@@ -181,7 +180,7 @@ def _render(run_dir: Path, summary: dict, problems: list[str]) -> str:
     facts = [("mode", summary.get("mode")), ("controller", summary.get("controller")),
              ("target P80 [µm]", summary.get("target_p80_um")), ("seed", summary.get("seed")),
              *effects_rows(summary),
-             ("components", ", ".join(summary.get("components", []))),
+             ("components", ", ".join(map(str, summary.get("components", [])))),
              ("calibration", calibration_text(summary.get("calibration"))),
              ("scene file", summary.get("source"))]
     parts.append("<table>" + "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"

@@ -64,6 +64,19 @@ def test_report_refuses_what_is_not_a_complete_run(tmp_path):
         render_report(tmp_path)
 
 
+def test_a_hand_edited_summary_field_of_the_wrong_type_is_refused_naming_it(tmp_path):
+    """A summary.json whose description was a number raised AttributeError (exit 1, a traceback);
+    components that are numbers, TypeError. Now the field is named, and nothing is written."""
+    run = fake_run(tmp_path)
+    summary = json.loads((run / "summary.json").read_text())
+    (run / "summary.json").write_text(json.dumps({**summary, "description": 42}))
+    with pytest.raises(SceneError, match=r"'description' must be a JSON string, got 42"):
+        write_report(run)
+    assert not (run / "report.html").exists()
+    (run / "summary.json").write_text(json.dumps({**summary, "components": [1, 2]}))
+    assert "<th>components</th><td>1, 2</td>" in render_report(run)
+
+
 def test_report_never_replaces_a_users_report_html(tmp_path, capsys):
     """A folder of the user's with a summary.json and a report.html of their own (no manifest of
     grindtwin's): refused, exit 2, their report untouched; a folder grindtwin wrote is reported."""
