@@ -232,15 +232,16 @@ def add_replay_parser(subparsers):
 
 @_exit_codes("replay")
 def cmd_replay(args) -> int:
-    from scenarios.scene import load_scene
     from scenarios.run import replay_scene
+    from scenarios.run.runner import replay_input_scene
 
     _check_output_options(args)
     if not Path(args.history).is_file():
         raise SceneError(f"{args.history}: history file not found")
     if args.duration_h is not None and not args.duration_h > 0:
         raise SceneError(f"--duration-h must be > 0 (got {args.duration_h:g})")
-    result = replay_scene(_with_calibration(load_scene(args.scene), args.calibration), args.history, out_dir=args.out,
+    scene = replay_input_scene(args.scene, args.history, args.duration_h)
+    result = replay_scene(_with_calibration(scene, args.calibration), args.history, out_dir=args.out,
                           progress=not args.quiet, duration_h=args.duration_h, csv=args.csv,
                           plots=not args.no_plots, xlsx=args.xlsx)
     _print_kpis(result.summary)

@@ -56,7 +56,9 @@ from scenarios.run.models import build_models, component_ores, is_batch
 from scenarios.run.open_loop import run_open_loop
 from scenarios.run.preflight import model_size_problems, refuse, replay_speed_problems, settings_problems
 from scenarios.run.summary import make_summary
-from scenarios.scene import Scene, load_scene, read_history, scene_from_dict
+from scenarios.scene import TEXTURE_COLUMNS, Scene, load_scene, read_history, scene_from_dict
+from scenarios.scene.history import DEFAULT_MAX_GAP_H
+from scenarios.scene.loader import read_toml
 from twin import trajectory_notes
 
 
@@ -175,7 +177,8 @@ def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True
     """Drive a scene with a recorded history (CSV or Parquet; format in :mod:`scenarios.scene.history`).
 
     The scene's ``feed.history`` is set to ``history_csv`` (its ``feed.blend`` and schedule are
-    dropped) and the scene validated again, so the file is checked by the same rules.
+    dropped) and the scene validated again, so the file is checked by the same rules; a scene
+    given as a path is validated only so (:func:`replay_input_scene`: its own history unread).
     ``duration_h`` defaults to the history's span (the whole recording, on the scene's sample
     grid). Open loop (controller ``"none"``) the inputs are the recorded feed rate and speed
     where recorded; with a controller the controller chooses them. Either way the recorded
@@ -183,7 +186,8 @@ def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True
     beside the run's own in the frame, and the summary's ``replay`` block compares them
     (mean and mean absolute differences, run minus recorded).
     """
-    scene = _as_scene(scene_or_path)
+    scene = scene_or_path if isinstance(scene_or_path, Scene) else replay_input_scene(scene_or_path, history_csv,
+                                                                                        duration_h)
     refuse(scene, settings_problems(scene))
     history_path = Path(history_csv).resolve()
     with claim_output(out_dir, protect=(*_scene_files(scene), history_path)) as claim:
@@ -192,22 +196,60 @@ def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True
     return result
 
 
+def replay_input_scene(scene_path, history_csv, duration_h: float | None = None) -> Scene:
+    """The scene file ``scene_path`` with the history ``history_csv`` as its feed, validated once: the
+    scene's own ``feed.history`` (and its ``history_texture``, when the new history has texture
+    columns), ``blend`` and ``schedule`` are replaced unread, and it lasts ``duration_h``
+    (``--duration-h``, checked as such) or the history's span. Checking the scene as written first
+    refused a replay for its own history (missing, or one needing a texture the new one has)."""
+    data = read_toml(scene_path)
+    feed = data.get("feed")
+    history_path = Path(history_csv).resolve()
+    if not isinstance(feed, dict) or not isinstance(data.get("scene"), dict):
+        return scene_from_dict(data, scene_path)  # the tables' own messages
+    for key in ("blend", "schedule", "history"):
+        feed.pop(key, None)
+    dt = data["scene"].get("sample_period_h")
+    if isinstance(dt, (int, float)) and dt > 0:
+        gap = feed.get("history_max_gap_h")
+        gap = float(gap) if isinstance(gap, (int, float)) and not isinstance(gap, bool) and gap > 0 else DEFAULT_MAX_GAP_H
+        history = read_history(history_path, sample_period_h=float(dt), max_gap_h=gap)
+        if all(c in history.frame.columns for c in TEXTURE_COLUMNS):
+            feed.pop("history_texture", None)
+        data["scene"]["duration_h"] = _replay_duration_h(history, float(dt), duration_h)
+    feed["history"] = str(history_path)
+    return scene_from_dict(data, scene_path)
+
+
+def _replay_duration_h(history, dt: float, duration_h: float | None) -> float:
+    """The replay's length [h]: ``duration_h`` (a whole number of sample periods within the history's
+    span, else a SceneError naming --duration-h) or the whole span on the sample grid."""
+    span = history.span_h
+    if duration_h is None:
+        n = int(np.floor(span / dt + 1e-9))
+        if n < 1:
+            raise SceneError(f"{history.source}: the history spans {span:g} h, less than one sample "
+                             f"period ({dt:g} h) of the scene")
+        return n * dt
+    n = round(duration_h / dt)
+    if n < 1 or abs(n * dt - duration_h) > 1e-9 * max(1.0, duration_h):
+        raise SceneError(f"--duration-h {duration_h:g}: must be a whole number of the scene's sample periods "
+                         f"({dt:g} h)")
+    if span + dt < duration_h - 1e-9:
+        raise SceneError(f"--duration-h {duration_h:g}: the history {history.source} covers {span:g} h; allowed: "
+                         f"up to {span + dt:g} h")
+    return float(duration_h)
+
+
 def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float | None,
             xlsx: bool = False) -> RunResult:
     data = scene.model_dump(exclude_none=True)
     data["feed"].pop("blend", None)
     data["feed"].pop("schedule", None)
     data["feed"]["history"] = str(history_path)
-    if duration_h is None:
-        dt = scene.scene.sample_period_h
-        span = read_history(history_path, sample_period_h=dt,
-                            max_gap_h=scene.feed.history_max_gap_h).span_h
-        n = int(np.floor(span / dt + 1e-9))
-        if n < 1:
-            raise SceneError(f"{history_path}: the history spans {span:g} h, less than one sample "
-                             f"period ({dt:g} h) of the scene")
-        duration_h = n * dt
-    data["scene"]["duration_h"] = float(duration_h)
+    dt = scene.scene.sample_period_h
+    history = read_history(history_path, sample_period_h=dt, max_gap_h=scene.feed.history_max_gap_h)
+    data["scene"]["duration_h"] = _replay_duration_h(history, dt, duration_h)
     src = scene.source_path
     new = scene_from_dict(data, src if src is not None else Path.cwd() / "scene.toml")
     _check_workbook(new, xlsx)  # the replay's length is known only now

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -423,3 +424,31 @@ def test_a_recorded_texture_the_ores_mix_does_not_have_is_a_warning(tmp_path):
     assert worst < 1 / TEXTURE_RATIO_WARN
     assert f"the mix's textural index {worst:.3g}x the recorded, beyond 1.5x either way" in warning
     assert "from 0 h" in warning
+
+
+def test_replay_reads_the_given_history_not_the_scenes_own(tmp_path, capsys):
+    """`replay` validated the scene as written first: a scene copied away from its data/ folder was
+    refused for its own feed.history ("file not found"), and a --duration-h the history cannot
+    cover was blamed on scene.duration_h. The given history replaces the scene's unread, and
+    --duration-h is named as such."""
+    from tests.scenarios.test_cli import grindtwin
+
+    text = (ROOT / "scenarios" / "replay_day.toml").read_text().replace('kind = "nmpc"', 'kind = "none"')
+    assert 'history = "data/sample_history.csv"' in text and 'kind = "none"' in text
+    scene = tmp_path / "elsewhere" / "day.toml"
+    scene.parent.mkdir()
+    scene.write_text(text)
+    hist = tmp_path / "hour.csv"
+    pd.read_csv(ROOT / "scenarios" / "data" / "sample_history.csv", comment="#").iloc[:31].to_csv(hist, index=False)
+    out = tmp_path / "out"
+    assert grindtwin(["replay", scene, "--history", hist, "--duration-h", "0.75", "--out", out, "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"--duration-h 0.75: the history {hist} covers 0.5 h; allowed: up to 0.55 h" in err
+    assert "scene.duration_h" not in err and "sample_history.csv" not in err and not out.exists()
+    assert grindtwin(["replay", scene, "--history", hist, "--duration-h", "0.07", "--quiet"]) == 2
+    assert "--duration-h 0.07: must be a whole number of the scene's sample periods (0.05 h)" in capsys.readouterr().err
+    assert grindtwin(["replay", scene, "--history", hist, "--duration-h", "0.5", "--out", out, "--quiet",
+                      "--no-plots"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["replay"]["history"] == str(hist.resolve())
+    assert len(pd.read_parquet(out / "timeseries.parquet")) == 11  # 0.5 h of 3-minute samples, both ends
