@@ -613,7 +613,7 @@ def _steady_scene(args) -> int:
     refuse_overflow(models.plant, ss, args.allow_overflow,
                     "--feed-tph" if args.feed_tph is not None else f"{args.scene}: feed.feed_tph", blend)
     kpis = {"scene": scene.scene.name, **ss.summary()}
-    notes = undefined_to_none(kpis) + ss.notes
+    notes = undefined_to_none(kpis) + ss.notes + _scene_steady_notes(scene, models, args)
     cyclone = circuit_cyclone(models.plant.spec)  # its Plitt factors: a survey's are computed, not typed
     factors = {} if cyclone is None else plitt_factors(cyclone)
     if args.json:
@@ -629,6 +629,19 @@ def _steady_scene(args) -> int:
     for note in notes:
         print(f"  note: {note}")
     return 0
+
+
+def _scene_steady_notes(scene, models, args) -> list[str]:
+    """What `steady --scene` answers for that a user could read otherwise: a scene whose runs start at
+    the target's steady state, and a speed the breakage rates do not follow (no `speed` effect)."""
+    notes = []
+    if scene.feed.start == "target" and args.feed_tph is None:
+        notes.append(f"at feed.feed_tph = {scene.feed.feed_tph:g} t/h; the scene's runs start at the steady state "
+                     f"holding controller.target_p80_um (feed.start = \"target\"): grindtwin optimize finds its feed")
+    if "speed" not in models.plant.model.effect_names:
+        notes.append("the plant has no `speed` effect: its breakage rates are those of the nominal speed, and a "
+                     "speed moves only the power and the kWh/t")
+    return notes
 
 
 @_exit_codes("steady")
@@ -682,6 +695,9 @@ def cmd_steady(args) -> int:
 
         notes += [n for n in [centrifuging_note(kpis.get("speed_frac_critical") or 0.0)] if n]
         notes += calibration.fit_notes() + calibration.ore_notes(blend.ores)
+        if len(blend.ores) > 1:  # its P80 for A=B=C=D=0.25 was coarser than every pure ore's
+            notes.append("the surrogate answers a blend as one ore of the blend's mean mineralogy and texture; the "
+                         "twin (without --surrogate) grinds each ore as its own component")
     else:
         notes += ss.notes  # a twin's steady state carries its notes (texture, a sized circuit not run)
     if args.json:
