@@ -102,6 +102,13 @@ def case_count(vary: dict[str, list], mode: str = "cartesian") -> int:
     return (max(lengths) if mode == "paired" else math.prod(lengths)) if lengths else 0
 
 
+#: controller keys an open-loop run reads: its kind; the target, which the KPIs measure against and a
+#: ``feed.start = "target"`` starts at; the load band of the KPI ``load_outside_band_frac``
+OPEN_LOOP_CONTROLLER_KEYS = (("kind",), ("target_p80_um",), ("load_band_frac",))
+#: sensor keys only a controller reads (an open-loop run's analyser trace has the P80's noise and lags)
+OPEN_LOOP_IDLE = (("sensors", "power_noise_kw"), ("sensors", "load_noise_frac"))
+
+
 def expand_cases(scene_dict: dict[str, Any], vary: dict[str, list],
                  mode: Literal["cartesian", "paired"] = "cartesian", max_cases: int = MAX_CASES) -> list[Case]:
     """The sweep's cases: a deep copy of ``scene_dict`` per case with the varied keys set;
@@ -111,11 +118,13 @@ def expand_cases(scene_dict: dict[str, Any], vary: dict[str, list],
     if not vary:
         raise SceneError("sweep: nothing to vary; give at least one KEY and its values")
     paths = {key: _checked_path(scene_dict, key) for key in vary}
-    idle = [k for k, loc in paths.items() if loc[0] == "controller" and loc[1:] != ("kind",)]
+    idle = [k for k, loc in paths.items() if loc in OPEN_LOOP_IDLE or (loc[0] == "controller" and loc[1:2] not in
+                                                                        OPEN_LOOP_CONTROLLER_KEYS)]
     kind = (scene_dict.get("controller") or {}).get("kind", "none")
     if idle and kind == "none" and "controller.kind" not in vary:  # every case the same, said nowhere
         raise SceneError(f"sweep: {', '.join(idle)}: the scene has no controller (controller.kind = 'none'), so "
-                         "these keys change nothing; vary controller.kind too, or set it in the scene")
+                         "these keys change nothing; vary controller.kind too, or set it in the scene (an open-loop "
+                         "run reads controller.target_p80_um and controller.load_band_frac)")
     lists = {key: list(values) for key, values in vary.items()}
     for key, values in lists.items():
         if not values:

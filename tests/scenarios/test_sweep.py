@@ -60,6 +60,14 @@ def test_controller_keys_on_a_scene_without_controller_are_refused(write_scene):
     with pytest.raises(SceneError, match="controller.horizon_steps: the scene has no controller"):
         expand_cases(base, {"controller.horizon_steps": [5, 50]})
     assert len(expand_cases(base, {"controller.kind": ["none", "pi"], "controller.horizon_steps": [5, 50]})) == 4
+    # the power and load readings only a controller reads: refused too (two identical runs, no word)
+    with pytest.raises(SceneError, match="sensors.power_noise_kw: the scene has no controller"):
+        expand_cases(base, {"sensors.power_noise_kw": [0.0, 50.0]})
+    # what an open loop reads (the KPIs' target and band, a start at the target) was refused as idle
+    for key, values in (("controller.target_p80_um", [200.0, 260.0]), ("controller.load_band_frac", [[0.8, 1.2],
+                                                                                                      [0.9, 1.1]]),
+                        ("sensors.p80_noise_um", [0.0, 5.0])):
+        assert len(expand_cases(base, {key: values})) == 2
 
 
 def test_an_effect_option_nested_in_its_table_can_be_swept():
