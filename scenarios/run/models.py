@@ -150,9 +150,10 @@ def build_models(scene: Scene) -> Models:
             raise SceneError(f"{scene.source_path or scene.scene.name}: plant.effects: the plant must be "
                              "the same kind of mill as the scene (continuous with `transport`, or a "
                              f"batch grind without); got {list(effects)}")
-        # the scene's options apply to the plant's effects that have them
-        options = p.effect_options if p.effect_options is not None else {
-            k: v for k, v in scene.effect_options.items() if k in effects}
+        # the scene's options apply to the plant's effects that have them, each effect's table replaced by
+        # the plant's own where it gives one: a plant table of one effect dropped every other (the
+        # cyclone circuit of a scene whose plant only named its power model)
+        options = {k: v for k, v in scene.effect_options.items() if k in effects} | (p.effect_options or {})
         sizes = p.size_classes if p.size_classes is not None else scene.mill.size_classes
         mixers = p.n_mixers if p.n_mixers is not None else scene.mill.n_mixers
         if (list(effects), dict(options), sizes, mixers) != (

@@ -457,7 +457,8 @@ class Plant(Section):
     """The plant's mixers in series; default: ``mill.n_mixers``."""
     effect_options: dict[str, dict[str, Any]] | None = Field(default=None, examples=[
         {"classification": {"kind": "hydrocyclone"}}])
-    """Options of the plant's effects; default: the scene's options of the effects the plant has."""
+    """Options of the plant's effects, by effect: an effect's table here replaces the scene's table
+    of that effect (``{}``: the effect's defaults); the plant's other effects keep the scene's."""
 
 
 class Scene(Section):

@@ -107,3 +107,25 @@ def test_bad_cyclone_field_is_named_by_check(write_scene):
     text += '\n[effect_options.classification]\nkind = "hydrocyclone"\ncyclone = { count = 4, d50c_um = 150.0 }\n'
     messages = "\n".join(check_scene(write_scene(text)))
     assert "effect_options.classification.cyclone" in messages and "sharpness" in messages, messages
+
+
+def test_a_plants_effect_options_replace_only_the_effects_they_name(tmp_path):
+    """[plant] effect_options = { power = { model = "bond" } } on the Moly-Cop scene dropped the
+    scene's cyclone circuit from the plant (it ran a grate: P80 247.8 against 174.6 um, one note):
+    a table of the plant's replaces only the effects it names."""
+    from pathlib import Path
+
+    from twin import circuit_cyclone
+
+    text = (Path(__file__).parents[2] / "scenarios" / "molycop_ballsim.toml").read_text()
+    text += ('\n[plant]\neffects = ["breakage", "transport", "holdup", "power", "classification"]\n'
+             'effect_options = { power = { model = "hogg_fuerstenau" } }\n')
+    path = tmp_path / "moly_plant.toml"
+    path.write_text(text)
+    models = build_models(load_scene(path))
+    assert models.plant is not models.control
+    assert circuit_cyclone(models.plant.spec) == circuit_cyclone(models.control.spec) is not None
+    plant, control = (m.steady(feed_tph=504.0, speed_frac_critical=0.6) for m in (models.plant, models.control))
+    assert plant.outputs["circulating_load_frac"] == pytest.approx(control.outputs["circulating_load_frac"], rel=1e-6)
+    # its own power model: the given net power shaped with speed by Hogg & Fuerstenau's, not Bond's
+    assert plant.outputs["power_kw"] != pytest.approx(control.outputs["power_kw"], rel=1e-3)
