@@ -8,7 +8,7 @@ from ._lazy import lazy_face
 #: Public name -> the module that defines it, imported on first use (PEP 562).
 _API = {
     "BreakageParams": ".breakage", "OreBreakage": ".breakage", "austin_selection": ".breakage",
-    "ore_breakage": ".breakage", "SPEED_FACTOR_ZERO_FRAC_CRITICAL": ".mill",
+    "ore_breakage": ".breakage", "SPEED_FACTOR_ZERO_FRAC_CRITICAL": ".mill", "FEED_TPH_MAX": ".mill",
     "BALL_SIZE_MIN_MM": ".mill", "BALL_SIZE_MAX_MM": ".mill",
     "EFFECTS": ".effects", "Effect": ".effects", "known_effects": ".effects",
     "FastCalibrationWarning": ".errors", "ModelError": ".errors", "SolverError": ".errors", "TwinError": ".errors",
@@ -38,7 +38,7 @@ _API = {
 
 __all__ = [
     "BALL_SIZE_MAX_MM", "BALL_SIZE_MIN_MM",
-    "Blend", "BreakageParams", "CENTRIFUGING_FRAC_CRITICAL", "DEFAULT_EFFECTS", "EFFECTS", "Effect", "FastCalibrationWarning", "GatesGaudinSchuhmann",
+    "Blend", "BreakageParams", "CENTRIFUGING_FRAC_CRITICAL", "DEFAULT_EFFECTS", "EFFECTS", "FEED_TPH_MAX", "Effect", "FastCalibrationWarning", "GatesGaudinSchuhmann",
     "INPUT_NAMES", "MILLS", "MIXER_SHARES_SUM_TOL", "mixer_shares_sum_ok",
     "Hydrocyclone", "Mill", "Mineralogy", "Model", "ModelError", "ModelSpec", "OreBreakage", "POWER_MODELS", "RosinRammler",
     "SPEED_FACTOR_ZERO_FRAC_CRITICAL", "SizeGrid", "SizedMill", "SolverError", "SteadyState", "TabulatedPSD",

@@ -28,6 +28,9 @@ BALL_SIZE_MIN_MM = 10.0
 #: The largest make-up ball [mm]: primary ball mills take up to 100-125 mm (4-5 in; Rowland's top-size formula);
 #: 200 leaves room, more is not a ball mill's ball (um for mm).
 BALL_SIZE_MAX_MM = 200.0
+#: Feed rates a twin takes are below this [t/h]: twenty times the largest ball-mill circuits' (~5,000
+#: t/h); a rate in kg/h of such a circuit lands above it.
+FEED_TPH_MAX = 1e5
 #: The speed [fraction of critical] at which Austin's speed factor (eq. 8.4) is zero; below it the
 #: factor, and every breakage rate it multiplies, is negative: the slowest speed the twin describes.
 SPEED_FACTOR_ZERO_FRAC_CRITICAL = 0.1

@@ -20,7 +20,7 @@ from .breakage import ore_breakage as _ore_breakage
 from .calibration import check_model, load_calibration
 from .effects.classification import sized_circuit_notes
 from .errors import TwinInputError, bad_value, check_range
-from .mill import SPEED_FACTOR_ZERO_FRAC_CRITICAL, Mill, get_mill, power_kw
+from .mill import FEED_TPH_MAX, SPEED_FACTOR_ZERO_FRAC_CRITICAL, Mill, get_mill, power_kw
 from .model import Model, ModelSpec
 from .scaleup import scale_breakage
 from .ore import CLAY_MINERALS, CUSHIONING_MINERALS, Blend, Mineralogy, load_ore
@@ -172,8 +172,8 @@ class Twin:
         speed = self.mill.speed_nominal_frac_critical if speed is None else speed
         feed_tph = _one_number("feed_tph", feed_tph, "t/h")
         speed = _one_number("speed_frac_critical", speed, "fraction of critical")
-        if not 0.0 <= float(feed_tph) < 1e5:
-            raise bad_value("Twin", "feed_tph", feed_tph, "a float in [0, 1e5)")
+        if not 0.0 <= float(feed_tph) < FEED_TPH_MAX:
+            raise bad_value("Twin", "feed_tph", feed_tph, f"a float in [0, {FEED_TPH_MAX:g})")
         if not 0.0 < float(speed) < 1.0:
             percent = " (a fraction of critical speed, not percent)" if 10.0 <= float(speed) <= 100.0 else ""
             raise bad_value("Twin", "speed_frac_critical", speed, f"a float in (0, 1){percent}")

@@ -458,6 +458,14 @@ def _float_in(name, lo, hi, lo_open=False, hi_open=False):
     return parse
 
 
+def _feed_tph(text):
+    """argparse type of steady's --feed-tph: the rates a twin takes (twin.mill.FEED_TPH_MAX), imported
+    when parsed (`grindtwin --help` imports no numerics)."""
+    from twin.mill import FEED_TPH_MAX
+
+    return _float_in("--feed-tph", 0, FEED_TPH_MAX, hi_open=True)(text)
+
+
 #: What `steady` and `optimize` run without --ore, --blend or --mill.
 DEFAULT_ORE, DEFAULT_MILL = "B", "lab"
 
@@ -470,18 +478,23 @@ def _add_ore_options(p) -> None:
 
 def _blend_of(args):
     """The blend --ore or --blend names; both given was --ore silently dropped."""
-    from twin import Blend, load_ore
+    from twin import Blend, TwinInputError, load_ore
 
     if args.blend and args.ore is not None:
         raise SceneError(f"--ore {args.ore} and --blend {args.blend}: give one (a blend names its ores)")
-    return Blend.parse(args.blend) if args.blend else Blend.single(load_ore(args.ore or DEFAULT_ORE))
+    if not args.blend:
+        return Blend.single(load_ore(args.ore or DEFAULT_ORE))
+    try:
+        return Blend.parse(args.blend)
+    except TwinInputError as exc:  # "Blend fractions must sum to 1": of which option?
+        raise SceneError(f"--blend {args.blend}: {exc}") from None
 
 
 def add_steady_parser(subparsers):
     s = subparsers.add_parser("steady", help="steady-state KPIs of the mill for an ore or a blend")
     _add_ore_options(s)
     g = s.add_mutually_exclusive_group()
-    g.add_argument("--feed-tph", type=_float_in("--feed-tph", 0, 1e5), help="fresh feed rate [t/h]")
+    g.add_argument("--feed-tph", type=_feed_tph, help="fresh feed rate [t/h]")
     g.add_argument("--at-constant-load", action="store_true",
                    help="solve for the feed rate that holds the nominal hold-up")
     s.add_argument("--speed", type=_float_in("--speed", 0, 1, True, True), default=None,

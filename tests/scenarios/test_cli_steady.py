@@ -36,9 +36,11 @@ def test_steady_ore_from_toml(tmp_path, capsys):
 
 @pytest.mark.parametrize("argv, message", [
     (["steady", "--speed", "1.3"], "--speed must be in (0, 1). Got 1.3."),
-    (["steady", "--feed-tph", "-1"], "--feed-tph must be in [0, 100000]. Got -1."),
+    (["steady", "--feed-tph", "-1"], "--feed-tph must be in [0, 100000). Got -1."),
+    # the twin's own range (it passed the parser at 1e5, and the twin's refusal named no option)
+    (["steady", "--feed-tph", "100000"], "--feed-tph must be in [0, 100000). Got 100000."),
     (["steady", "--ore", "E"], "must be a reference type (A, B, C, D)"),
-    (["steady", "--blend", "B=0.6,D=0.3"], "must sum to 1"),
+    (["steady", "--blend", "B=0.6,D=0.3"], "--blend B=0.6,D=0.3: Blend fractions must sum to 1"),
     (["steady", "--ore", "A", "--blend", "B=0.6,D=0.4"], "--ore A and --blend B=0.6,D=0.4: give one"),
     (["optimize", "--ore", "A", "--blend", "B=0.6,D=0.4", "--target-p80-um", "210"],
      "--ore A and --blend B=0.6,D=0.4: give one"),
@@ -368,3 +370,4 @@ def test_the_surrogate_says_it_answers_a_blend_as_one_ore(capsys):
     assert any("answers a blend as one ore of the blend's mean mineralogy and texture" in n for n in notes)
     assert main(["steady", "--ore", "A", "--surrogate", "--json"]) == 0
     assert not any("answers a blend" in n for n in json.loads(capsys.readouterr().out)["notes"])
+
