@@ -34,8 +34,9 @@ read as undefined).
 
 The folder is claimed before any work (:func:`claim_output`), so a bad ``DIR`` costs nothing:
 - ``DIR`` missing or empty, or a previous grindtwin result (its manifest lists every file in
-  it, apart from a ``report.html`` grindtwin wrote and nobody changed since): accepted; a
-  previous result is replaced as a whole, only once the new one is complete;
+  it, each with the sha256 grindtwin wrote it with, apart from a ``report.html`` grindtwin wrote
+  and nobody changed since): accepted; a previous result is replaced as a whole, only once the
+  new one is complete; a file of it edited since is the user's, and refused;
 - anything else (a folder with files grindtwin did not write, a file, the current folder or one
   of its parents, the scene file's own folder) is refused;
 - ``DIR.lock`` is locked (:func:`lock_folder`, ``fcntl.flock``, exclusive): a second run to the
@@ -187,7 +188,19 @@ def strangers(folder: Path) -> list[str] | None:
         return names
     allowed = {str(f) for f in manifest["files"]} | {MANIFEST, *later_names(folder)}
     return [n for n in names if n not in allowed
-            or (n in RECORDED_LATER_FILES and not later_file_is_as_written(folder, n, manifest))]
+            or (n in RECORDED_LATER_FILES and not later_file_is_as_written(folder, n, manifest))
+            or not _as_written(folder, n, manifest)]
+
+
+def _as_written(folder: Path, name: str, manifest: dict) -> bool:
+    """False for a file the manifest lists with a sha256 it no longer has (edited since grindtwin wrote it:
+    the next run replaced a time series a user had annotated); True for the rest."""
+    recorded = manifest.get("sha256")
+    want = recorded.get(name) if isinstance(recorded, dict) else None
+    if want is None:
+        return True
+    path = folder / name
+    return path.is_file() and not path.is_symlink() and file_sha256(path) == want
 
 
 def _check_place(final: Path, protect: tuple[Path, ...]) -> None:
@@ -206,7 +219,8 @@ def _check_place(final: Path, protect: tuple[Path, ...]) -> None:
     others = strangers(final)
     if others:
         shown = ", ".join(others[:5]) + (f" and {len(others) - 5} more" if len(others) > 5 else "")
-        edited = [n for n in others if n in RECORDED_LATER_FILES]
+        listed = set(manifest_files(final) or [])
+        edited = [n for n in others if n in RECORDED_LATER_FILES or n in listed]
         why = (f"; {', '.join(edited)} is not the one grindtwin last wrote (edited since, or yours), so "
                "it is kept" if edited else "")
         raise _refuse(final, f"the folder exists and holds files grindtwin did not write ({shown}){why}")

@@ -80,6 +80,20 @@ def test_a_previous_run_with_a_file_added_by_the_user_is_refused(tmp_path):
     assert json.loads((out / "summary.json").read_text())["seed"] == 1
 
 
+def test_a_previous_runs_file_edited_since_is_the_users_and_refused(tmp_path):
+    """A time series annotated by hand in a result folder was replaced by the next run --out there
+    without a word (the manifest had its sha256; only report.html was checked against it)."""
+    out = tmp_path / "run"
+    write_run(tiny_result(1), out, csv=True, plots=False)
+    edited = (out / "timeseries.csv").read_text() + "# checked by J. against the plant log\n"
+    (out / "timeseries.csv").write_text(edited)
+    with pytest.raises(SceneError, match=r"holds files grindtwin did not write \(timeseries.csv\); timeseries.csv is "
+                                         r"not the one grindtwin last wrote \(edited since, or yours\), so it is kept"):
+        write_run(tiny_result(2), out, csv=True, plots=False)
+    assert (out / "timeseries.csv").read_text() == edited
+    assert json.loads((out / "summary.json").read_text())["seed"] == 1
+
+
 def test_a_file_of_that_name_is_refused(tmp_path):
     target = tmp_path / "results"
     target.write_text("not a folder")
