@@ -104,7 +104,18 @@ def _slow_speed_problems(scene: Scene, models) -> list[str]:
     effect: every breakage rate is zero there and negative below, and the run failed in the
     solver. ``feed.speed_frac_critical`` (held, or a closed loop's start) and an NMPC's
     ``controller.bounds.speed_min`` (the speeds it may plan)."""
-    effects = getattr(getattr(models.plant, "model", None), "effect_names", ())
+    return _slow_speeds(scene, getattr(getattr(models.plant, "model", None), "effect_names", ()))
+
+
+def scene_speed_problems(scene: Scene) -> list[str]:
+    """:func:`_slow_speed_problems` from the scene's own effect lists (the plant's, else the scene's), no
+    model built: a sweep checks every case so before any runs (a case at 0.05 of critical failed only
+    when reached)."""
+    plant = scene.plant
+    return _slow_speeds(scene, plant.effects if plant is not None and plant.effects is not None else scene.effects)
+
+
+def _slow_speeds(scene: Scene, effects) -> list[str]:
     if "speed" not in effects:
         return []
     speeds = {"feed.speed_frac_critical": scene.feed.speed_frac_critical}

@@ -33,6 +33,7 @@ from tqdm.auto import tqdm
 
 from scenarios.errors import RunError, SceneError
 from scenarios.scene.keypaths import did_you_mean, format_path, parse_path, type_at
+from scenarios.run.preflight import scene_speed_problems, settings_problems
 from scenarios.scene.loader import read_toml, validate_scene_dict
 from scenarios.scene.schema import Scene
 
@@ -157,6 +158,8 @@ def validate_cases(cases: list[Case], source_path: str | Path | None) -> list[Sc
     scenes, per_case = [], []
     for case in cases:
         scene, errors = validate_scene_dict(case.data, source_path)
+        if scene is not None:  # what a run refuses before it builds anything, for every case before any runs
+            errors = settings_problems(scene) + scene_speed_problems(scene)
         per_case.append((case, [str(e) for e in errors]))
         scenes.append(scene)
     shared = [e for e in per_case[0][1] if all(e in errors for _, errors in per_case)] if len(per_case) > 1 else []

@@ -267,3 +267,21 @@ def test_a_problem_of_the_base_scene_is_named_once_and_each_cases_own_with_its_c
     assert [line for line in lines if "speed_frac_critical:" in line] == [
         f"  case 2 (feed.speed_frac_critical=2.0): {MOLYCOP}: feed.speed_frac_critical: Input should be less "
         "than 1 (got 2.0)"]
+
+
+def test_a_case_a_run_would_refuse_is_refused_before_any_case_runs(write_scene):
+    """A case at 0.05 of critical passed the sweep's validation and failed when its turn came (the
+    run's own refusal, after the cases before it had run); now every case is checked as a run checks
+    its scene before building anything."""
+    from scenarios.run.sweep import validate_cases
+
+    from tests.scenarios.conftest import BASE_SCENE
+
+    assert 'kind = "nmpc"' in BASE_SCENE and '"holdup", "cushioning"' in BASE_SCENE
+    path = write_scene(BASE_SCENE.replace('kind = "nmpc"', 'kind = "none"')  # no bounds on the speed
+                       .replace('"holdup", "cushioning"', '"holdup", "speed", "cushioning"'))
+    cases = expand_cases(read_toml(path), {"feed.speed_frac_critical": [0.7, 0.05]})
+    with pytest.raises(SceneError, match=r"1 problem\n  case 1 \(feed.speed_frac_critical=0.05\): "
+                                         r"feed.speed_frac_critical: 0.05 is at or below 0.1 of critical"):
+        validate_cases(cases, path)
+    assert len(validate_cases(cases[:1], path)) == 1
