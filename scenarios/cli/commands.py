@@ -690,7 +690,8 @@ def cmd_steady(args) -> int:
             ss = twin.steady_at_constant_load(speed_frac_critical=args.speed)
         else:
             ss = twin.steady(feed_tph=args.feed_tph, speed_frac_critical=args.speed)
-        refuse_overflow(twin, ss, args.allow_overflow, "--feed-tph")
+        refuse_overflow(twin, ss, args.allow_overflow, "--feed-tph" if args.feed_tph is not None else
+                        "the mill's nominal feed (no --feed-tph given)")
         kpis = {k: v for k, v in ss.summary().items() if k in STEADY_KEYS} | {"source": "twin"}
     unc = None
     if args.uncertainty is not None:

@@ -371,3 +371,12 @@ def test_the_surrogate_says_it_answers_a_blend_as_one_ore(capsys):
     assert main(["steady", "--ore", "A", "--surrogate", "--json"]) == 0
     assert not any("answers a blend" in n for n in json.loads(capsys.readouterr().out)["notes"])
 
+
+
+def test_an_overflow_at_a_slow_speed_names_the_feed_the_user_did_not_give(capsys):
+    """`steady --speed 0.2` overflows the laboratory mill at its nominal feed; the error blamed
+    "--feed-tph 0.031 t/h", an option never typed."""
+    assert main(["steady", "--ore", "B", "--speed", "0.2"]) == 2
+    err = capsys.readouterr().err
+    assert "the mill's nominal feed (no --feed-tph given) 0.031 t/h: at 0.2 of critical speed" in err
+    assert "--feed-tph 0.031" not in err
