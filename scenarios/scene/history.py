@@ -57,6 +57,9 @@ from scenarios.scene.schema import Texture
 from twin.ore import mineral_names
 
 DEFAULT_MAX_GAP_H = 10 / 60
+#: Records whose intervals differ by less than this fraction of their median are regular: one-minute
+#: records with ``time_h`` written to 6 decimals (3.6 ms) were reported "irregular (1 to 1 min)"
+RECORD_INTERVAL_TOL_REL = 1e-3
 RECORDED_COLUMNS = ("feed_tph", "speed_frac_critical", "p80_um")
 TEXTURE_COLUMNS = ("mean_grain_um", "uniformity", "association_entropy")
 _MINERAL = re.compile(r"^(.+)_wt_pct$")
@@ -161,7 +164,7 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
     data = _time_average(t, filled.to_numpy(), grid, sample_period_h)
     frame = pd.DataFrame(data, columns=list(filled.columns), index=pd.Index(grid, name="time_h"))
     steps = np.diff(t)
-    if len(steps) and (steps.max() - steps.min()) > 1e-9:
+    if len(steps) and (steps.max() - steps.min()) > RECORD_INTERVAL_TOL_REL * np.median(steps):
         report.append(f"irregular records (intervals {steps.min() * 60:.3g} to {steps.max() * 60:.3g}"
                       f" min) resampled to {len(grid)} samples every {sample_period_h * 60:g} min")
     else:

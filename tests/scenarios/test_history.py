@@ -452,3 +452,15 @@ def test_replay_reads_the_given_history_not_the_scenes_own(tmp_path, capsys):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["replay"]["history"] == str(hist.resolve())
     assert len(pd.read_parquet(out / "timeseries.parquet")) == 11  # 0.5 h of 3-minute samples, both ends
+
+
+def test_one_minute_records_with_time_in_six_decimals_are_regular(tmp_path):
+    """time_h written to 6 decimals (0.016667, 0.033333, ...) was reported as "irregular records
+    (intervals 1 to 1 min)"; half a minute among them still is irregular."""
+    t = np.round(np.arange(31) / 60, 6)
+    path = tmp_path / "six.csv"
+    pd.DataFrame({"time_h": t, "ore_B_frac": 1.0}).to_csv(path, index=False)
+    assert not any("irregular" in line for line in read_history(path, DT).report)
+    t[10] -= 0.5 / 60
+    pd.DataFrame({"time_h": t, "ore_B_frac": 1.0}).to_csv(path, index=False)
+    assert any("irregular records (intervals 0.5 to 1.5" in line for line in read_history(path, DT).report)
