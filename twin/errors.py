@@ -27,6 +27,11 @@ class SolverError(TwinError, RuntimeError):
     """A numerical solver failed; the message carries the solver's own status."""
 
 
+class OverloadError(SolverError):
+    """No steady state: at this feed the mill fills beyond its shell (the input is out of the mill's
+    range; a lower feed may have one)."""
+
+
 class FastCalibrationWarning(UserWarning):
     """A calibration made with ``grindtwin calibrate --fast`` (a check of the machinery on a few
     particles) is in use: its numbers run, but are not to be predicted with."""

@@ -567,6 +567,17 @@ def refuse_overflow(twin, ss, allow: bool, what: str, blend=None) -> None:
                      f"beyond the mill. Allowed: {allowed}; --allow-overflow prints the extrapolation anyway.")
 
 
+def _steady_or_refuse(solve, what: str, feed_tph: float):
+    """``solve()``'s steady state; a feed at which the mill overloads (no steady state, the mill
+    filled past its shell) is bad input (exit 2, as an overflowing steady state is), not a failure."""
+    from twin import OverloadError
+
+    try:
+        return solve()
+    except OverloadError as exc:
+        raise SceneError(f"{what} {feed_tph:g} t/h: {exc}") from None
+
+
 def refuse_slow_speed(twin, speed, what: str) -> None:
     """Refuse (bad input, exit 2) a speed at or below twin.SPEED_FACTOR_ZERO_FRAC_CRITICAL for a
     twin whose breakage follows the speed (its ``speed`` effect), naming the option, before
@@ -622,9 +633,10 @@ def _steady_scene(args) -> int:
     blend = [scene.feed.blend.get(n, 0.0) for n in models.components] if scene.feed.blend else None
     refuse_slow_speed(models.plant, speed, "--speed" if args.speed is not None else
                       f"{args.scene}: feed.speed_frac_critical")
-    ss = models.plant.steady(feed_tph=feed, speed_frac_critical=speed, blend=blend)
-    refuse_overflow(models.plant, ss, args.allow_overflow,
-                    "--feed-tph" if args.feed_tph is not None else f"{args.scene}: feed.feed_tph", blend)
+    what = "--feed-tph" if args.feed_tph is not None else f"{args.scene}: feed.feed_tph"
+    ss = _steady_or_refuse(lambda: models.plant.steady(feed_tph=feed, speed_frac_critical=speed, blend=blend),
+                           what, feed)
+    refuse_overflow(models.plant, ss, args.allow_overflow, what, blend)
     kpis = {"scene": scene.scene.name, **ss.summary()}
     notes = undefined_to_none(kpis) + ss.notes + _scene_steady_notes(scene, models, args)
     cyclone = circuit_cyclone(models.plant.spec)  # its Plitt factors: a survey's are computed, not typed
@@ -686,12 +698,13 @@ def cmd_steady(args) -> int:
 
         twin = Twin(blend, mill=args.mill, calibration=calibration)
         refuse_slow_speed(twin, args.speed, "--speed")
+        what = "--feed-tph" if args.feed_tph is not None else "the mill's nominal feed (no --feed-tph given)"
         if args.at_constant_load:
             ss = twin.steady_at_constant_load(speed_frac_critical=args.speed)
         else:
-            ss = twin.steady(feed_tph=args.feed_tph, speed_frac_critical=args.speed)
-        refuse_overflow(twin, ss, args.allow_overflow, "--feed-tph" if args.feed_tph is not None else
-                        "the mill's nominal feed (no --feed-tph given)")
+            ss = _steady_or_refuse(lambda: twin.steady(feed_tph=args.feed_tph, speed_frac_critical=args.speed),
+                                   what, args.feed_tph if args.feed_tph is not None else twin.mill.feed_nominal_tph)
+        refuse_overflow(twin, ss, args.allow_overflow, what)
         kpis = {k: v for k, v in ss.summary().items() if k in STEADY_KEYS} | {"source": "twin"}
     unc = None
     if args.uncertainty is not None:

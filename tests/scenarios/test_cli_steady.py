@@ -380,3 +380,17 @@ def test_an_overflow_at_a_slow_speed_names_the_feed_the_user_did_not_give(capsys
     err = capsys.readouterr().err
     assert "the mill's nominal feed (no --feed-tph given) 0.031 t/h: at 0.2 of critical speed" in err
     assert "--feed-tph 0.031" not in err
+
+
+def test_a_feed_the_mill_overloads_at_is_bad_input(tmp_path, capsys):
+    """500 t/h into the sized industrial cyclone circuit: no steady state, the mill overloading
+    (103 t against a shell's 15.5 t) was exit 1, "steady failed"; README has a feed that would
+    overflow the mill as bad input (exit 2), as the overflowing steady state already was."""
+    text = BASE_SCENE.replace('"cushioning", "power"]', '"cushioning", "power", "classification"]')
+    text += '\n[effect_options.classification]\nkind = "hydrocyclone"\n'
+    path = tmp_path / "cyclones.toml"
+    path.write_text(text)
+    assert main(["steady", "--scene", str(path), "--feed-tph", "500"]) == 2
+    err = capsys.readouterr().err
+    assert "--feed-tph 500 t/h: Steady state not found" in err and "The mill overloads" in err
+    assert "steady failed" not in err

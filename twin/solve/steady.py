@@ -14,7 +14,7 @@ import numpy as np
 import scipy.sparse
 import scipy.sparse.linalg
 
-from ..errors import SolverError, TwinInputError
+from ..errors import OverloadError, SolverError, TwinInputError
 from ..mill import load_status
 from .numeric import Evaluator
 from .simulate import integrate_constant
@@ -238,9 +238,10 @@ def steady_state(model, u, d, x_guess=None) -> SteadyState:
                           "nearly empty for a very long time: give a feed nearer the mill's nominal.") from exc
     x, _, ok = _newton(model, x_long, u, d)
     if not ok:
-        raise SolverError("Steady state not found: Newton failed from the nominal guess and after "
-                          f"40 residence times of integration at feed {u[0]:.4g} t/h, speed {u[1]:.3f}."
-                          + _overload_text(model, x_long, u, d))
+        overload = _overload_text(model, x_long, u, d)
+        raise (OverloadError if overload else SolverError)(
+            "Steady state not found: Newton failed from the nominal guess and after 40 residence times of "
+            f"integration at feed {u[0]:.4g} t/h, speed {u[1]:.3f}." + overload)
     return _result(model, _check(model, x, u, d, "long integration + Newton"), u, d, "integration+newton")
 
 
