@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 from collections.abc import Callable, Sequence
 
@@ -24,7 +25,7 @@ from .mill import FEED_TPH_MAX, SPEED_FACTOR_ZERO_FRAC_CRITICAL, Mill, get_mill,
 from .model import Model, ModelSpec
 from .scaleup import scale_breakage
 from .ore import CLAY_MINERALS, CUSHIONING_MINERALS, Blend, Mineralogy, load_ore
-from .sizes import GatesGaudinSchuhmann, SizeGrid, discretise
+from .sizes import GatesGaudinSchuhmann, SizeGrid, discretise, pxx_um
 from .solve import simulate, steady_state, steady_state_at_load
 
 #: The effects of the laboratory mill's calibration: a continuous grate-discharge mill with load
@@ -185,6 +186,11 @@ class Twin:
 
     def _d(self, blend, hardness_scale):
         if isinstance(blend, Blend):
+            for ore in blend.ores:  # matched by name below: another ore of a component's name was the component
+                own = dict(zip(self.blend.names, self.blend.ores)).get(ore.name)
+                if own is not None and (dict(ore.wt_pct), ore.texture) != (dict(own.wt_pct), own.texture):
+                    raise TwinInputError(f"Blend ore {ore.name!r} is not this twin's component {ore.name!r} (another "
+                                         "mineralogy or texture of that name): build a Twin with it.")
             blend = dict(zip(blend.names, blend.fractions))
         if blend is None:
             fr = self.nominal_blend
@@ -293,7 +299,7 @@ def _feed_fractions(grid, feed_psd, feed_p80_um, feed_modulus) -> np.ndarray:
                                  f"({grid.top_um:g} um), which would be lumped into the top class (a finer feed "
                                  f"than given); allowed: at most {FEED_ABOVE_TOP_MAX_FRAC:.0%}. Raise the grid's "
                                  "top size (mill.size_classes.top_um in a scene) or give the feed's own analysis.")
-        return _feed_on_grid(grid, discretise(grid, dist), feed_p80_um if feed_psd is None else None)
+        return _feed_on_grid(grid, discretise(grid, dist), feed_p80_um if feed_psd is None else None, sizes_given=True)
     frac = np.asarray(feed_psd, float)
     if frac.shape != (grid.count,) or not np.all(np.isfinite(frac)) or np.any(frac < 0) or abs(frac.sum() - 1.0) > 1e-9:
         raise bad_value("Twin", "feed_psd", feed_psd,
@@ -301,22 +307,37 @@ def _feed_fractions(grid, feed_psd, feed_p80_um, feed_modulus) -> np.ndarray:
     return _feed_on_grid(grid, frac, None)
 
 
-def _feed_on_grid(grid, frac: np.ndarray, feed_p80_um: float | None) -> np.ndarray:
-    """``frac`` if the feed's P80 lies on the grid, else the user's error: with 80 % of the feed in
-    the sink class (below the finest sieve) its P80, and every finer product's, is an extrapolation
-    inside one class; a feed_p80_um of 3.2 (mm written for um) gave a product coarser than the feed."""
+#: A feed whose P80 is finer than this [um] is refused: the finest ball-mill feeds (regrind mills) have
+#: P80s of 50-150 um, and below ~20 um a stirred mill grinds, not balls (Wills & Finch 2016, ch. 7); a
+#: feed P80 in mm written for um (3.2) lands below.
+FEED_P80_MIN_UM = 20.0
+
+
+def _feed_on_grid(grid, frac: np.ndarray, feed_p80_um: float | None, sizes_given: bool = False) -> np.ndarray:
+    """``frac`` if the feed's P80 lies on the grid and, for a feed given by sizes (a P80, a distribution;
+    ``sizes_given``), is a ball mill's feed (at least :data:`FEED_P80_MIN_UM`), else the user's error: with
+    80 % of the feed in the sink class (below the finest sieve) its P80, and every finer product's, is an
+    extrapolation inside one class; a feed_p80_um of 3.2 (mm written for um) gave a product coarser than the
+    feed, and on a finer grid a product P80 of 3.19 um. Class fractions carry no unit to slip."""
+    given = f"feed_p80_um {feed_p80_um:g}" if feed_p80_um is not None else "the feed_psd"
     if frac[-1] >= 0.8:
-        given = f"feed_p80_um {feed_p80_um:g}" if feed_p80_um is not None else "the feed_psd"
         raise TwinInputError(f"{given} puts {frac[-1]:.1%} of the feed below the size grid's finest sieve "
                              f"({grid.upper_um[-1]:.4g} um): its P80 is not on the grid. Give the size in um, or a "
                              "grid reaching finer (more classes or a smaller top size; mill.size_classes in a scene).")
+    p80 = pxx_um(grid, frac, 80.0)
+    if sizes_given and p80 < FEED_P80_MIN_UM:
+        raise TwinInputError(f"{given} has a P80 of {p80:.3g} um, finer than any ball mill's feed (allowed: at least "
+                             f"{FEED_P80_MIN_UM:g} um): sizes in um, not mm ({p80:.3g} mm is {p80 * 1000:.4g} um)?")
     return frac
 
 
 def _as_blend(ores) -> Blend:
     if isinstance(ores, Blend):
         return ores
-    if isinstance(ores, (str, Mineralogy)) or not isinstance(ores, Sequence):
+    if isinstance(ores, dict) or not isinstance(ores, (str, Path, Mineralogy, Sequence)):
+        raise bad_value("Twin", "ores", ores, "an ore (a reference type 'A'-'D', an ore TOML file, a Mineralogy), a "
+                        "list of them or a Blend (a blend's fractions: Blend.parse('B=0.6,D=0.4'))")
+    if isinstance(ores, (str, Path, Mineralogy)):
         return Blend.single(ores)
     items = [load_ore(o) for o in ores]
     if not items:

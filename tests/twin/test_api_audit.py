@@ -212,3 +212,58 @@ def test_a_feed_whose_p80_lies_below_the_grid_is_refused():
         Twin("B", mill="lab", grid=GRID, feed_psd=sink_heavy)
     fine = Twin("B", mill="lab", grid=GRID, feed_p80_um=400.0).steady(feed_tph=0.03)
     assert fine.p80_um < 400.0
+
+
+def test_a_feed_p80_in_mm_on_a_fine_grid_is_refused():
+    """On the default grid (finest sieve 1.6 um) feed_p80_um = 3.2 put 47 % of the feed in the sink,
+    under the 80 % rule, and the twin answered a product P80 of 3.19 um at 13.4 kWh/t."""
+    from twin.twin import FEED_P80_MIN_UM
+
+    with pytest.raises(TwinInputError, match=r"feed_p80_um 3.2 has a P80 of 3.19 um, finer than any ball mill's feed "
+                                             rf"\(allowed: at least {FEED_P80_MIN_UM:g} um\)"):
+        Twin("B", feed_p80_um=3.2)
+    assert Twin("B", feed_p80_um=3200.0).steady(feed_tph=0.031).p80_um < 3200.0
+
+
+def test_a_blend_ore_of_a_components_name_but_another_mineralogy_is_refused():
+    """steady(blend=Blend) matched ores by name: a user's ore named B (100 % pyrite) was answered as the
+    twin's own B (P80 216.6 um, the twin built with it gives 165.2), without a word."""
+    from twin import Blend, Mineralogy, Texture, load_ore
+
+    tw = Twin(["B", "D"], mill="lab", grid=GRID)
+    other = Mineralogy({"pyrite": 100.0}, Texture(100.0), name="B")
+    with pytest.raises(TwinInputError, match=r"Blend ore 'B' is not this twin's component 'B' \(another mineralogy"):
+        tw.steady(feed_tph=0.031, blend=Blend((other, load_ore("D")), (0.6, 0.4)))
+    same = Blend((load_ore("B"), load_ore("D")), (0.6, 0.4))
+    assert tw.steady(feed_tph=0.031, blend=same).p80_um == tw.steady(feed_tph=0.031, blend=[0.6, 0.4]).p80_um
+
+
+def test_a_reference_ores_wt_pct_cannot_be_changed_in_place():
+    """`load_ore("B").wt_pct["pyrite"] += 15` changed B for the whole process, past the sum check
+    (26 wt% pyrite, hardness index 10.1 GPa against 8.0) and with it the DEM law's reference ore."""
+    import copy
+    import json
+    import pickle
+
+    from twin import load_ore
+
+    b = load_ore("B")
+    before = dict(b.wt_pct)
+    for edit in (lambda w: w.__setitem__("pyrite", 26.0), lambda w: w.update(pyrite=26.0), lambda w: w.pop("quartz")):
+        with pytest.raises(TwinInputError, match="A Mineralogy's wt_pct is read-only"):
+            edit(b.wt_pct)
+    assert load_ore("B").wt_pct == before
+    assert json.loads(json.dumps(b.wt_pct)) == before  # still a dict to JSON, pickle and copies
+    assert pickle.loads(pickle.dumps(b)) == b == copy.deepcopy(b)
+
+
+def test_an_ore_given_as_a_dict_and_a_misspelt_mineral_are_named():
+    """Twin({"B": 0.6, "D": 0.4}) raised a bare TypeError (a path expected); fraction("qartz") read 0."""
+    from twin import load_ore
+
+    for ores in ({"B": 0.6, "D": 0.4}, 5, None):
+        with pytest.raises(TwinInputError, match=r"The 'ores' parameter of Twin must be an ore .* or a Blend"):
+            Twin(ores)
+    with pytest.raises(TwinInputError, match=r"Unknown mineral 'qartz'. Did you mean 'quartz'"):
+        load_ore("B").fraction("qartz")
+    assert load_ore("B").fraction("magnetite") == 0.0 and load_ore("B").fraction("quartz") == pytest.approx(0.40)

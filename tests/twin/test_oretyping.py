@@ -113,3 +113,21 @@ def test_centred_log_ratio_option_also_recovers_types():
     assert adjusted_rand_score(df.generating_type, ot.labels_) >= 0.9
     with pytest.raises(TwinInputError, match="'n_components'"):
         OreTyper(n_components=1.5).fit(df)
+
+
+def test_tables_that_would_be_typed_wrongly_are_refused(reference):
+    """Fitted on a numpy array the types were named A for D (no mineral names: no hardness, every
+    reference ore projected as zeros); a table in mass fractions named A as B; a misspelt column
+    had no hardness; rows summing to 80 wt% (a column missing) were typed with confidence 1."""
+    df, ot = reference
+    cols = [c for c in df.columns if c.endswith("_wt_pct")]
+    with pytest.raises(TwinInputError, match=r"The 'X' parameter of OreTyper must be a sample table \(pandas"):
+        OreTyper(random_state=0).fit(df[cols].to_numpy())
+    fractions = df.assign(**{c: df[c] / 100.0 for c in cols})
+    with pytest.raises(TwinInputError, match=r"do not sum to 100 within .* \(row 0: 1"):
+        OreTyper(random_state=0).fit(fractions)
+    with pytest.raises(TwinInputError, match=r"column 'quarz_wt_pct' names no mineral of the table. Did you mean 'quartz'"):
+        OreTyper(random_state=0).fit(df.rename(columns={"quartz_wt_pct": "quarz_wt_pct"}))
+    with pytest.raises(TwinInputError, match="do not sum to 100"):
+        ot.assign(df.drop(columns=["quartz_wt_pct"]))
+    assert len(ot.assign(df)) == len(df)

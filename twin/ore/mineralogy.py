@@ -62,6 +62,21 @@ class Texture:
         return grain * (0.5 + 0.5 * self.association_entropy) / 0.75
 
 
+class ReadOnlyWtPct(dict):
+    """A Mineralogy's wt% by mineral: a dict (JSON, pickle, ``dict(...)`` copies) that refuses to be
+    changed in place. An edit of a reference ore's dict changed that ore for the whole process (the
+    cached reference types, and the DEM law's reference ore), past the sum-to-100 check."""
+
+    def _refuse(self, *args, **kwargs):
+        raise TwinInputError("A Mineralogy's wt_pct is read-only: make a new Mineralogy from an edited copy "
+                             "(dict(ore.wt_pct)).")
+
+    __setitem__ = __delitem__ = clear = pop = popitem = setdefault = update = __ior__ = _refuse
+
+    def __reduce__(self):
+        return ReadOnlyWtPct, (dict(self),)
+
+
 @dataclass(frozen=True)
 class Mineralogy:
     """Modal mineralogy in wt% by mineral name, validated on construction."""
@@ -95,10 +110,14 @@ class Mineralogy:
             raise TwinInputError(
                 f"The wt% of Mineralogy{f' {self.name!r}' if self.name else ''} must sum to 100 within "
                 f"{SUM_TOLERANCE_WT_PCT} wt%. Got {total:.3f}{fractions_hint(total)}.")
-        # renormalise the rounding residue so fractions sum to exactly 1
-        object.__setattr__(self, "wt_pct", {k: v * 100.0 / total for k, v in clean.items() if v > 0})
+        # renormalise the rounding residue so fractions sum to exactly 1; read-only, as the dataclass is
+        object.__setattr__(self, "wt_pct", ReadOnlyWtPct({k: v * 100.0 / total for k, v in clean.items() if v > 0}))
 
     def fraction(self, mineral: str) -> float:
+        """Mass fraction of ``mineral`` (0 if absent); a name not in the mineral table is refused (a
+        misspelt "qartz" read as 0)."""
+        if mineral not in self.wt_pct and mineral not in mineral_table():
+            raise TwinInputError(f"Unknown mineral {mineral!r}.{close_matches(mineral, list(mineral_table()))}")
         return self.wt_pct.get(mineral, 0.0) / 100.0
 
     def group_fraction(self, minerals) -> float:

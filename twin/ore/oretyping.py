@@ -62,9 +62,10 @@ from sklearn.metrics import silhouette_score
 from sklearn.mixture import GaussianMixture
 from sklearn.preprocessing import StandardScaler
 
-from ..errors import TwinInputError, bad_value
+from ..errors import TwinInputError, bad_value, close_matches
 from .minerals import CLAY_MINERALS, SULFIDE_MINERALS, mineral_table
 from .ores import reference_ores
+from .mineralogy import SUM_TOLERANCE_WT_PCT, fractions_hint
 from .samples import ID_COLUMN, WT_SUFFIX, from_mineralogies, mineral_columns, mineral_of
 
 _TRANSFORMS = ("standard", "clr")
@@ -140,26 +141,32 @@ class OreTyper(BaseEstimator):
 
     def _matrix(self, X, fitting: bool) -> tuple[np.ndarray, np.ndarray]:
         """wt% matrix in the fitted column order, and the wt% in minerals not seen in fit."""
-        if isinstance(X, pd.DataFrame):
-            cols = mineral_columns(X)
-            if not cols:
-                raise TwinInputError("OreTyper needs a sample table with '<mineral>_wt_pct' columns. "
-                                     f"Got columns {list(X.columns)}.")
-            if fitting:
-                self.feature_names_in_ = np.array(cols, dtype=object)
-            names = list(self.feature_names_in_)
-            M = np.column_stack([X[c].to_numpy(float) if c in X.columns else np.zeros(len(X)) for c in names])
-            unseen = X[[c for c in cols if c not in names]].to_numpy(float).sum(axis=1) \
-                if any(c not in names for c in cols) else np.zeros(len(X))
-        else:
-            M = np.asarray(X, dtype=float)
-            if M.ndim != 2:
-                raise bad_value("OreTyper", "X", f"array of shape {M.shape}", "a 2-D table (samples x minerals)")
-            if fitting:
-                self.feature_names_in_ = np.array([f"x{i}{WT_SUFFIX}" for i in range(M.shape[1])], dtype=object)
-            elif M.shape[1] != len(self.feature_names_in_):
-                raise bad_value("OreTyper", "X", f"{M.shape[1]} columns", f"{len(self.feature_names_in_)} columns")
-            unseen = np.zeros(len(M))
+        if not isinstance(X, pd.DataFrame):  # columns x0_wt_pct...: no hardness, types named at random
+            raise bad_value("OreTyper", "X", f"a {type(X).__name__}", "a sample table (pandas DataFrame) with "
+                            "'<mineral>_wt_pct' columns: its types are ordered by hardness and named after the "
+                            "reference ores, both read from the minerals")
+        cols = mineral_columns(X)
+        if not cols:
+            raise TwinInputError("OreTyper needs a sample table with '<mineral>_wt_pct' columns. "
+                                 f"Got columns {list(X.columns)}.")
+        table = mineral_table()
+        unknown = [c for c in cols if c[: -len(WT_SUFFIX)] not in table]
+        if unknown:  # a misspelt column had no hardness and moved the components' orientation
+            m = unknown[0][: -len(WT_SUFFIX)]
+            raise TwinInputError(f"OreTyper: column {unknown[0]!r} names no mineral of the table.{close_matches(m, table)}")
+        total = X[cols].to_numpy(float).sum(axis=1)
+        off = np.flatnonzero(np.abs(total - 100.0) > SUM_TOLERANCE_WT_PCT)
+        if off.size:  # fractions, or a column missing, were typed with confidence 1
+            raise TwinInputError(f"OreTyper: the wt% of {off.size} sample rows do not sum to 100 within "
+                                 f"{SUM_TOLERANCE_WT_PCT} wt% (row {int(off[0])}: {total[off[0]]:.4g}"
+                                 f"{fractions_hint(float(total[off[0]]))}); validate the table with "
+                                 "twin.ore.samples.validate_samples")
+        if fitting:
+            self.feature_names_in_ = np.array(cols, dtype=object)
+        names = list(self.feature_names_in_)
+        M = np.column_stack([X[c].to_numpy(float) if c in X.columns else np.zeros(len(X)) for c in names])
+        unseen = X[[c for c in cols if c not in names]].to_numpy(float).sum(axis=1) \
+            if any(c not in names for c in cols) else np.zeros(len(X))
         if not np.all(np.isfinite(M)) or np.any(M < 0):
             raise TwinInputError("OreTyper: wt% values must be finite and >= 0 "
                                  "(validate the table with twin.ore.samples.validate_samples).")
