@@ -260,9 +260,7 @@ def scene_problems(tags: TagMap, scene: Scene) -> list[str]:
     if p80.frozen_after_h is not None and p80.frozen_after_h <= period:
         out.append(f"measurements.p80_um.frozen_after_h: must be longer than the analyser's sample period "
                    f"{period:g} h, or every held reading counts as frozen (got {p80.frozen_after_h!r})")
-    for name, sp in tags.setpoints:
-        if sp.min is not None and sp.max is not None and not sp.min < sp.max:
-            out.append(f"setpoints.{name}: min must be below max (got min {sp.min!r}, max {sp.max!r})")
+    out += _setpoint_problems(tags, scene)
     out += _range_problems(tags, scene)
     seen: dict[str, str] = {}
     for role, node in (tags.read_roles() | {k: v for k, v in tags.write_roles().items()}).items():
@@ -362,6 +360,39 @@ def _range_problems(tags: TagMap, scene: Scene) -> list[str]:
         if m.plausible_min is not None and m.plausible_max is not None and not m.plausible_min < m.plausible_max:
             out.append(f"measurements.{name}: plausible_min must be below plausible_max (got min "
                        f"{m.plausible_min!r}, max {m.plausible_max!r})")
+    return out
+
+
+def _setpoint_problems(tags: TagMap, scene: Scene) -> list[str]:
+    """Set-point limits the writer would enforce against the controller: each within the quantity's
+    range (a speed in (0, 1), a feed >= 0), ``min`` below ``max`` once the scene's defaults fill the
+    rest, and containing the scene's controller bounds. A map whose feed max was 10 t/h under bounds
+    of 20-45 t/h had the writer put 10 t/h on the plant in one cycle while the controller planned 23.6
+    (its model and the plant apart), exit 0; speed limits in percent made it write 60.0."""
+    out = []
+    b = scene.controller.bounds
+    feed_lo, feed_hi = feed_bounds(scene)
+    planned = {"feed_tph": (feed_lo, feed_hi, "controller.bounds.feed_tph_min", "controller.bounds.feed_tph_max"),
+               "speed_frac_critical": (b.speed_min, b.speed_max, "controller.bounds.speed_min",
+                                       "controller.bounds.speed_max")}
+    for name, sp in tags.setpoints:
+        for key in ("min", "max"):
+            v = getattr(sp, key)
+            bad = v is not None and (not math.isfinite(v) or v < 0 or (name == "speed_frac_critical" and not 0 < v < 1))
+            if bad:
+                hint = " (a fraction of critical, not percent)" if name == "speed_frac_critical" and 1 <= v <= 100 else ""
+                allowed = "in (0, 1)" if name == "speed_frac_critical" else ">= 0 t/h"
+                out.append(f"setpoints.{name}.{key}: must be {allowed}{hint} (got {v!r})")
+        lo, hi, lo_key, hi_key = planned[name]
+        sp_min = lo if sp.min is None else sp.min
+        sp_max = hi if sp.max is None else sp.max
+        if not sp_min < sp_max:
+            out.append(f"setpoints.{name}: min must be below max once the scene's bounds fill the one not given "
+                       f"(min {sp_min!r}, max {sp_max!r})")
+        elif sp_min > lo or sp_max < hi:
+            out.append(f"setpoints.{name}: limits [{sp_min:g}, {sp_max:g}] must contain the controller's "
+                       f"[{lo:g}, {hi:g}] ({lo_key}, {hi_key}): the controller would plan moves the writer cannot "
+                       "make, its model and the plant apart; narrow the scene's bounds to the plant's limits")
     return out
 
 

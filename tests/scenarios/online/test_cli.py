@@ -15,7 +15,7 @@ from .conftest import SMALL_TAGS
     (["plant-server", "{scene}", "--opcua", "opc.tcp://127.0.0.1:4840", "--tags", "{tags}", "--cert", "c.pem"],
      "a secure endpoint needs --key, --trust, --users"),
     (["serve", "{scene}", "--opcua", "opc.tcp://127.0.0.1:4840", "--tags", "{bad_tags}", "--insecure"],
-     "setpoints.feed_tph: min must be below max (got min 40.0, max 30.0)"),
+     "setpoints.feed_tph: min must be below max once the scene's bounds fill the one not given (min 40.0, max 30.0)"),
     (["plant-server", "{scene}", "--opcua", "opc.tcp://127.0.0.1:4840", "--speedup", "0", "--insecure"],
      "--speedup must be in (0, 1e+06]"),
 ])

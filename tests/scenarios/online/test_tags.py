@@ -62,6 +62,30 @@ def test_the_map_is_checked_against_the_scene(tmp_path, small_scene):
     assert "status.node: node 'ns=2;s=APC.Heartbeat' is already the node of heartbeat.node" in msg
 
 
+def test_set_point_limits_the_controller_cannot_keep_to_are_refused(tmp_path, small_scene):
+    """A feed max of 10 t/h under controller bounds of 8-30 t/h (the issue: 20-45, the writer put 10 t/h
+    on the plant in one cycle while the controller planned 23.6, exit 0); speed limits in percent
+    (the writer wrote 60.0); a negative feed; a min above the scene's max once filled."""
+    feed = 'node = "ns=2;s=Mill.Feed.Setpoint_tph"'
+    speed = 'node = "ns=2;s=Mill.Speed.Setpoint_frac_critical"'
+    cases = [(SMALL_TAGS.replace(feed, feed + "\nmax = 10.0"),
+              "setpoints.feed_tph: limits [8, 10] must contain the controller's [8, 30] "
+              "(controller.bounds.feed_tph_min, controller.bounds.feed_tph_max)"),
+             (SMALL_TAGS.replace(speed, speed + "\nmin = 60.0\nmax = 85.0"),
+              "setpoints.speed_frac_critical.min: must be in (0, 1) (a fraction of critical, not percent) (got 60.0)"),
+             (SMALL_TAGS.replace(feed, feed + "\nmin = -5.0\nmax = 1e9"),
+              "setpoints.feed_tph.min: must be >= 0 t/h (got -5.0)"),
+             (SMALL_TAGS.replace(feed, feed + "\nmin = 60.0"),
+              "setpoints.feed_tph: min must be below max once the scene's bounds fill the one not given (min 60.0, "
+              "max 30.0)")]
+    for text, message in cases:
+        with pytest.raises(online.TagMapError) as e:
+            online.load_tags(_write(tmp_path, text), small_scene)
+        assert message in str(e.value), str(e.value)
+    wider = online.load_tags(_write(tmp_path, SMALL_TAGS.replace(feed, feed + "\nmin = 0.0\nmax = 60.0")), small_scene)
+    assert (wider.setpoints.feed_tph.min, wider.setpoints.feed_tph.max) == (0.0, 60.0)  # the DCS's wider limits
+
+
 def test_a_missing_file_says_tag_map(tmp_path, small_scene):
     with pytest.raises(SceneError) as e:
         online.load_tags(tmp_path / "none.toml", small_scene)
