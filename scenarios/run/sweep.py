@@ -119,6 +119,11 @@ def expand_cases(scene_dict: dict[str, Any], vary: dict[str, list],
     if not vary:
         raise SceneError("sweep: nothing to vary; give at least one KEY and its values")
     paths = {key: _checked_path(scene_dict, key) for key in vary}
+    for key, loc in paths.items():  # a table set after its own key overwrote it: rows labelled with values not run
+        inner = [k for k, other in paths.items() if k != key and other[:len(loc)] == loc]
+        if inner:
+            raise SceneError(f"sweep: {inner[0]} lies inside {key}, which is varied too: each case would run one of "
+                             "them and be labelled with both; vary the table or its keys, not both")
     idle = [k for k, loc in paths.items() if loc in OPEN_LOOP_IDLE or (loc[0] == "controller" and loc[1:2] not in
                                                                         OPEN_LOOP_CONTROLLER_KEYS)]
     kind = (scene_dict.get("controller") or {}).get("kind", "none")

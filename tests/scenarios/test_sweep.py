@@ -285,3 +285,14 @@ def test_a_case_a_run_would_refuse_is_refused_before_any_case_runs(write_scene):
                                          r"feed.speed_frac_critical: 0.05 is at or below 0.1 of critical"):
         validate_cases(cases, path)
     assert len(validate_cases(cases[:1], path)) == 1
+
+
+def test_a_key_inside_another_varied_key_is_refused(write_scene):
+    """--vary feed.schedule[0].at_h=0.1,0.6 with --vary feed.schedule[0]={...at_h = 0.3...}: both cases ran
+    at 0.3 (the table set last) and were labelled 0.1 and 0.6, exit 0."""
+    base = read_toml(write_scene())
+    table = dict(base["feed"]["schedule"][0])
+    with pytest.raises(SceneError, match=r"sweep: feed.schedule\[0\].at_h lies inside feed.schedule\[0\], which is "
+                                         r"varied too"):
+        expand_cases(base, {"feed.schedule[0].at_h": [0.1, 0.6], "feed.schedule[0]": [table]})
+    assert len(expand_cases(base, {"feed.schedule[0].at_h": [0.1, 0.6], "feed.feed_tph": [25.0]})) == 2
