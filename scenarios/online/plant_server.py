@@ -44,6 +44,7 @@ from scenarios.errors import SceneError
 from scenarios.online.clock import Clock, Stoppable, sleep_until
 from scenarios.online.security import ServerSecurity, make_server
 from scenarios.online.tags import TagMap
+from scenarios.output.write import MANIFEST, manifest_of, strangers
 from scenarios.run import build_models
 from scenarios.run.closed_loop import hold_schedule, plant_start, scene_sensors
 from scenarios.run.feed import component_blend, feed_schedule
@@ -67,7 +68,9 @@ FAULTS = ("none", "bad", "uncertain", "frozen", "stale")
 #: Nodes of the simulator itself, beside the tag map's.
 SIM_NODES = {"time_h": "Simulation.Time_h", "p80_true_um": "Simulation.P80True_um",
              "speedup": "Simulation.Speedup", "run": "Simulation.Run", "fault": "Instructor.P80Fault"}
-RECORD_FILES = ("plant.parquet", "plant.parquet.partial", "plant-kpis.json", "plant-kpis.json.partial")
+RECORD_FILES = ("plant.parquet", "plant-kpis.json")
+#: what a recording stopped mid-write leaves beside them
+RECORD_TEMPORARIES = ("plant.parquet.partial", "plant-kpis.json.partial", f"{MANIFEST}.partial")
 
 
 @dataclass
@@ -96,6 +99,7 @@ class PlantServer(Stoppable):
     def __init__(self, scene: Scene, tags: TagMap, settings: PlantServerSettings, models=None,
                  clock: Clock | None = None):
         self.scene, self.tags, self.s = scene, tags, settings
+        self._check_record_dir()  # before the models are built: a refusal costs nothing
         self.clock = clock or Clock(settings.speedup)
         self.dt_h = scene.scene.sample_period_h
         self._node_ids = self._plant_node_ids(tags)
@@ -130,7 +134,6 @@ class PlantServer(Stoppable):
         self._retimed = False  # the speed-up or run/freeze changed: the run loop re-times the sample
         self._built = False  # the integrators of every piece length (_build_integrators)
         self.applied_at_frac = math.nan  # when in the last sample its last setpoint write took effect (share)
-        self._check_record_dir()
 
     # ------------------------------------------------------------------ nodes
     @staticmethod
@@ -439,12 +442,17 @@ class PlantServer(Stoppable):
         self._outside = bool(notes)
 
     def _check_record_dir(self) -> None:
+        """A new folder, or one this command wrote (its manifest lists every file, each as written): a file
+        of the user's named like a record's, or a record edited since, was replaced (it was known by name)."""
         d = self.s.record_dir
         if d is None:
             return
         d = Path(d)
-        if d.exists() and (not d.is_dir() or any(p.name not in RECORD_FILES for p in d.iterdir())):
-            raise SceneError(f"--record {d}: must be a new folder or one this command wrote (it holds other files)")
+        if d.exists():
+            others = strangers(d, also=RECORD_TEMPORARIES) if d.is_dir() else [d.name]
+            if others:
+                raise SceneError(f"--record {d}: must be a new folder or one this command wrote, as it wrote it (it "
+                                 f"holds {', '.join(others[:5])}, which it did not write or which changed since)")
         d.mkdir(parents=True, exist_ok=True)
 
     def frame(self) -> pd.DataFrame:
@@ -471,6 +479,9 @@ class PlantServer(Stoppable):
         tmp = d / "plant-kpis.json.partial"
         tmp.write_text(json.dumps(self.kpis(), indent=2))
         tmp.replace(d / "plant-kpis.json")
+        tmp = d / f"{MANIFEST}.partial"
+        tmp.write_text(json.dumps(manifest_of(d, list(RECORD_FILES), "plant-record"), indent=2) + "\n")
+        tmp.replace(d / MANIFEST)
 
     # ------------------------------------------------------------------ run
     async def run(self, install_signal_handlers: bool = True) -> None:

@@ -174,10 +174,11 @@ def later_names(folder: Path) -> list[str]:
     return [*LATER_FILES, *temporaries_of(folder, (MANIFEST, *LATER_FILES))]
 
 
-def strangers(folder: Path) -> list[str] | None:
+def strangers(folder: Path, also: tuple[str, ...] = ()) -> list[str] | None:
     """Names in an existing ``folder`` that grindtwin did not write (``[]``: all ours, or
     empty); ``None`` if ``folder`` is not a directory. A :data:`RECORDED_LATER_FILES` file that is
-    not as grindtwin last wrote it (:func:`later_file_is_as_written`) is the user's."""
+    not as grindtwin last wrote it (:func:`later_file_is_as_written`), or a listed one edited since,
+    is the user's. ``also``: names of the writer's own temporaries, allowed too."""
     if not folder.is_dir():
         return None
     names = sorted(p.name for p in folder.iterdir())
@@ -186,7 +187,7 @@ def strangers(folder: Path) -> list[str] | None:
     manifest = read_manifest(folder)
     if manifest is None:
         return names
-    allowed = {str(f) for f in manifest["files"]} | {MANIFEST, *later_names(folder)}
+    allowed = {str(f) for f in manifest["files"]} | {MANIFEST, *later_names(folder), *also}
     return [n for n in names if n not in allowed
             or (n in RECORDED_LATER_FILES and not later_file_is_as_written(folder, n, manifest))
             or not _as_written(folder, n, manifest)]
@@ -315,11 +316,8 @@ class OutputClaim:
         raise_if_interrupted()
         write_files(self.partial)
         files = sorted(p.name for p in self.partial.iterdir() if p.name != INCOMPLETE_MARKER)
-        manifest = {"written_by": "grindtwin", "kind": kind, "files": files,
-                    "sha256": {name: file_sha256(self.partial / name) for name in files},
-                    "grindtwin_version": installed_version(),
-                    "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
-        (self.partial / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n", encoding="utf-8")
+        (self.partial / MANIFEST).write_text(json.dumps(manifest_of(self.partial, files, kind), indent=2) + "\n",
+                                             encoding="utf-8")
         raise_if_interrupted()
         (self.partial / INCOMPLETE_MARKER).unlink()
         self._replace_final()
@@ -337,6 +335,14 @@ class OutputClaim:
         kept = replace_folder(self.final, self.partial, listed)
         if kept is not None:
             self.notes.append(f"kept {kept}: the previous result there holds files grindtwin did not write")
+
+
+def manifest_of(folder: Path, files: list[str], kind: str) -> dict:
+    """The manifest of ``files`` grindtwin wrote in ``folder``: each with its sha256 (what tells a later
+    writer that the folder is grindtwin's, and which of its files were edited since)."""
+    return {"written_by": "grindtwin", "kind": kind, "files": files,
+            "sha256": {name: file_sha256(folder / name) for name in files},
+            "grindtwin_version": installed_version(), "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
 
 
 def claim_output(out_dir, protect=()):

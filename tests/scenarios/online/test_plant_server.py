@@ -10,6 +10,7 @@ import pytest
 
 import scenarios.online as online
 from mpc import SensorState, loop_kpis
+from scenarios.errors import SceneError
 from scenarios.run.closed_loop import scene_sensors
 
 
@@ -210,3 +211,30 @@ def test_an_ignored_setpoint_does_not_stay_on_its_node(small_scene, small_tags, 
 
     back = asyncio.run(go())
     assert back == pytest.approx(float(p.u[0])) and back > 0 and p.writes == []
+
+
+def test_a_record_folder_holding_the_users_files_is_refused_and_a_recording_is_replaced_only_as_written(
+        small_scene, small_tags, small_parts, tmp_path):
+    """--record DIR knew its files by name: a plant-kpis.json of the user's there was replaced, exit 0.
+    Now a recording writes a manifest; a file it did not write, or one changed since, is refused
+    before the models are built, and kept."""
+    def server(record):
+        return online.PlantServer(small_scene, small_tags, online.PlantServerSettings(
+            "opc.tcp://127.0.0.1:1", online.ServerSecurity(insecure=True), record_dir=record),
+            models=small_parts.models, clock=online.ManualClock(speedup=3600.0))
+
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "plant-kpis.json").write_text("my survey")
+    with pytest.raises(SceneError, match=r"--record .*mine: must be a new folder or one this command wrote, as it "
+                                         r"wrote it \(it holds plant-kpis.json"):
+        server(mine)
+    assert (mine / "plant-kpis.json").read_text() == "my survey"
+    rec = tmp_path / "rec"
+    p = server(rec)
+    ticks(p, p.clock, 3)
+    p.write_record()
+    server(rec)  # its own recording: accepted, to be replaced
+    (rec / "plant-kpis.json").write_text((rec / "plant-kpis.json").read_text() + " ")
+    with pytest.raises(SceneError, match="which it did not write or which changed since"):
+        server(rec)
