@@ -459,9 +459,9 @@ def _float_in(name, lo, hi, lo_open=False, hi_open=False):
 
 
 def _feed_tph(text):
-    """argparse type of steady's --feed-tph: the rates a twin takes (twin.mill.FEED_TPH_MAX), imported
+    """argparse type of steady's --feed-tph: the rates a twin takes (twin.FEED_TPH_MAX), imported
     when parsed (`grindtwin --help` imports no numerics)."""
-    from twin.mill import FEED_TPH_MAX
+    from twin import FEED_TPH_MAX
 
     return _float_in("--feed-tph", 0, FEED_TPH_MAX, hi_open=True)(text)
 

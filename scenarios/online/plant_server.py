@@ -44,7 +44,7 @@ from scenarios.errors import SceneError
 from scenarios.online.clock import Clock, Stoppable, sleep_until
 from scenarios.online.security import ServerSecurity, make_server
 from scenarios.online.tags import TagMap
-from scenarios.output.write import MANIFEST, manifest_of, strangers
+from scenarios.output import MANIFEST, manifest_of, strangers
 from scenarios.run import build_models
 from scenarios.run.closed_loop import hold_schedule, plant_start, scene_sensors
 from scenarios.run.feed import component_blend, feed_schedule

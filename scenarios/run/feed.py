@@ -9,7 +9,7 @@ from scipy.optimize import nnls
 
 from scenarios.scene import TEXTURE_COLUMNS, Scene, feed_table, load_history, ore_column
 from scenarios.run.models import component_ores
-from twin.ore.mineralogy import Mineralogy, Texture
+from twin import Mineralogy, Texture
 
 #: Weight of the "fractions sum to 1" row in the NNLS fit of a mineralogy to the ores (wt%).
 SUM_ROW_WEIGHT = 100.0
