@@ -54,12 +54,20 @@ MILL_OVERRIDES = ("diameter_m", "length_m", "ball_filling_frac", "ball_size_mm",
 
 def scene_mill(scene: Scene, calibration: Calibration | None = None):
     """The scene's mill: its preset with the fitted values of the calibration, the scene's
-    dimensions and mill keys, and the scene's feed rate as the nominal one."""
+    dimensions and mill keys, and the scene's feed rate as the nominal one. A mill of the scene's own
+    dimensions draws Bond's power (factor 1): the preset's fitted power factor is its own (the lab
+    mill's 0.755 applied to a 5.5 m mill). A given net power is the power at the scene's speed, where
+    the plant measured it (it was taken at the preset's 0.70 and scaled to the scene's 0.75 by the
+    power model: 4770 kW for a measured 4500)."""
     m = scene.mill
     cal = calibration or scene_calibration(scene)
     given = {k: getattr(m, k) for k in MILL_OVERRIDES if getattr(m, k) is not None}
     if scene.feed.feed_tph is not None:
         given["feed_nominal_tph"] = scene.feed.feed_tph
+    if m.diameter_m is not None or m.length_m is not None:
+        given["power_factor"] = 1.0
+    if m.net_power_kw is not None:
+        given["speed_nominal_frac_critical"] = scene.feed.speed_frac_critical
     return get_mill(m.preset, cal.record).with_(**given)
 
 

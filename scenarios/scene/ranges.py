@@ -22,6 +22,16 @@ PERCENT_RANGE = (10.0, 100.0)
 P80_MIN_UM = 1.0
 
 
+#: Specific energies [kWh/t] a ball mill's given net power may mean at the scene's feed: ball mills draw
+#: some 3-25 kWh/t (Bond's work index times the size reduction's term); a power in MW (1000x low) or W
+#: (1000x high) lands outside.
+SPECIFIC_ENERGY_RANGE_KWH_T = (0.5, 100.0)
+#: A given net power beside the scene's own mill dimensions may differ from Bond's power for them by
+#: at most this factor either way: Bond's equation predicts a mill's power within some 10-20 % (Morrell
+#: 2004), so a factor of 2 is a size or a power in other units (a diameter in feet: 2 % of Bond's).
+NET_POWER_BOND_FACTOR_MAX = 2.0
+
+
 #: Scene [mill] keys that change the mill's power draw.
 POWER_KEYS = ("diameter_m", "length_m", "ball_filling_frac", "net_power_kw")
 
@@ -79,4 +89,35 @@ def product_p80_problem(value: float, feed_p80_um: float | None) -> str | None:
     if feed_p80_um is not None and value >= feed_p80_um:
         return (f"P80 {value:g} um is not finer than the scene's feed P80 {feed_p80_um:g} um (a mill's "
                 "product is; a recorder's fill value for a missing sample? leave the cell empty)")
+    return None
+
+
+def net_power_problem(preset, mill_keys: dict | None, feed_tph: float | None) -> str | None:
+    """Why a scene's ``mill.net_power_kw`` is implausible, or None: the specific energy it means at the
+    scene's feed outside :data:`SPECIFIC_ENERGY_RANGE_KWH_T`, or, beside the scene's own dimensions,
+    more than :data:`NET_POWER_BOND_FACTOR_MAX` from Bond's power for them (at the preset's speed)."""
+    keys = mill_keys if isinstance(mill_keys, dict) else {}
+    net = keys.get("net_power_kw")
+    if not isinstance(net, (int, float)) or isinstance(net, bool) or not net > 0:
+        return None
+    if isinstance(feed_tph, (int, float)) and feed_tph > 0:
+        se = net / feed_tph
+        lo, hi = SPECIFIC_ENERGY_RANGE_KWH_T
+        if not lo <= se <= hi:
+            unit = "MW? kW expected" if se < lo else "W? kW expected"
+            return (f"{net:g} kW at the feed's {feed_tph:g} t/h is {se:.3g} kWh/t, outside the {lo:g}-{hi:g} kWh/t "
+                    f"ball mills draw ({unit})")
+    base = get_mill(preset) if isinstance(preset, str) and preset in MILLS else None
+    dims = {k: float(v) for k, v in keys.items() if k in ("diameter_m", "length_m", "ball_filling_frac")
+            and isinstance(v, (int, float)) and not isinstance(v, bool)}
+    if base is None or not {"diameter_m", "length_m"} & set(dims):
+        return None
+    try:
+        bond = float(power_kw(base.with_(**dims, power_factor=1.0), base.speed_nominal_frac_critical))
+    except TwinInputError:
+        return None
+    if not 1 / NET_POWER_BOND_FACTOR_MAX <= net / bond <= NET_POWER_BOND_FACTOR_MAX:
+        return (f"{net:g} kW is {net / bond:.3g} x Bond's {bond:.4g} kW for the mill's own dimensions "
+                f"({', '.join(f'{k} {v:g}' for k, v in dims.items())}); allowed: within a factor "
+                f"{NET_POWER_BOND_FACTOR_MAX:g} (a size in feet, or a power in other units?)")
     return None

@@ -25,6 +25,10 @@ from twin.ore import MEAN_GRAIN_RANGE_UM
 
 #: The twin's default number of mixers in series (twin.Twin's ``n_mixers``).
 DEFAULT_N_MIXERS = 3
+#: Largest mill inside diameter and length [m] a scene takes: the largest ball mills are ~8.5 m across
+#: and ~14 m long (28 x 45 ft); a size in feet (18 ft for 5.5 m, 28 ft for 8.5 m) lands above.
+MILL_DIAMETER_MAX_M = 10.0
+MILL_LENGTH_MAX_M = 20.0
 
 ORE_TYPES = ("A", "B", "C", "D")
 CONTROLLER_KINDS = ("none", "pi", "nmpc")
@@ -101,9 +105,10 @@ class Mill(Section):
     ``"industrial"`` the mill `grindtwin size-mill` sizes for 31 t/h of Type B at 210 um in closed
     circuit with hydrocyclones (twin/data/industrial_mill.json). Calibrated
     values of the preset (power factor, grate, discharge) come from the shipped calibration."""
-    diameter_m: float | None = Field(default=None, gt=0, lt=20, examples=[3.2])
-    """Inside diameter [m]; default: the preset's."""
-    length_m: float | None = Field(default=None, gt=0, lt=30, examples=[4.8])
+    diameter_m: float | None = Field(default=None, gt=0, le=MILL_DIAMETER_MAX_M, examples=[3.2])
+    """Inside diameter [m]; default: the preset's. A diameter in feet (18 for 5.5 m) lands above the
+    range and is refused."""
+    length_m: float | None = Field(default=None, gt=0, le=MILL_LENGTH_MAX_M, examples=[4.8])
     """Inside length [m]; default: the preset's."""
     ball_filling_frac: float | None = Field(default=None, gt=0, lt=0.5, examples=[0.35])
     """Ball-bed volume over mill volume; default: the preset's (0.35)."""
@@ -125,8 +130,8 @@ class Mill(Section):
     power_model: Literal["bond", "hogg_fuerstenau"] | None = Field(default=None, examples=["hogg_fuerstenau"])
     """Net-power model of the mill; default: the preset's (``"bond"``)."""
     net_power_kw: float | None = Field(default=None, gt=0, le=1e5)
-    """A given (measured or published) net power at the nominal speed [kW]; the power model then
-    only shapes how power moves with speed."""
+    """A given (measured or published) net power [kW] at the scene's speed (``feed.speed_frac_critical``,
+    where the plant measured it); the power model then only shapes how power moves with speed."""
     @model_validator(mode="after")
     def _mixers_agree(self):
         fracs = self.mixer_volume_fracs

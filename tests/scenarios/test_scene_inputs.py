@@ -2,6 +2,8 @@
 mixers of unequal volume, given net power; each checked with the key path, and carried into the
 twin as written."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -129,3 +131,67 @@ def test_a_plants_effect_options_replace_only_the_effects_they_name(tmp_path):
     assert plant.outputs["circulating_load_frac"] == pytest.approx(control.outputs["circulating_load_frac"], rel=1e-6)
     # its own power model: the given net power shaped with speed by Hogg & Fuerstenau's, not Bond's
     assert plant.outputs["power_kw"] != pytest.approx(control.outputs["power_kw"], rel=1e-3)
+
+
+MOLYCOP = Path(__file__).parents[2] / "scenarios" / "molycop_ballsim.toml"
+
+
+def _own_mill(tmp_path, old_new) -> Path:
+    text = MOLYCOP.read_text()
+    for old, new in old_new:
+        assert old in text, old
+        text = text.replace(old, new)
+    path = tmp_path / "own.toml"
+    path.write_text(text)
+    return path
+
+
+OWN_DIMS = "diameter_m = 5.49\nlength_m = 8.53\nball_filling_frac = 0.38\nball_size_mm = 63.0"
+
+
+def test_a_given_net_power_is_the_power_at_the_scenes_speed(tmp_path):
+    """A plant's measured 4500 kW at 0.75 of critical was taken as the power at the preset's 0.70 and
+    scaled by Bond's speed term: 4770 kW and 9.47 kWh/t reported, while the rates used 4500 kW."""
+    path = _own_mill(tmp_path, [("net_power_kw = 3885.0", OWN_DIMS + "\nnet_power_kw = 4500.0"),
+                                ("speed_frac_critical = 0.70", "speed_frac_critical = 0.75")])
+    scene = load_scene(path)
+    ss = build_models(scene).plant.steady(feed_tph=504.0, speed_frac_critical=0.75)
+    assert ss.summary()["power_kw"] == pytest.approx(4500.0, rel=1e-9)
+    assert ss.summary()["specific_energy_kwh_t"] == pytest.approx(4500.0 / 504.0, rel=1e-9)
+
+
+def test_a_mill_of_the_scenes_own_dimensions_draws_bonds_power_whatever_its_preset(tmp_path):
+    """preset = "lab" with a 5.49 m mill's dimensions drew 3286 kW: the lab mill's fitted power factor
+    (0.755) on Bond's 4352 kW for that mill (README: a mill of the user's own draws Bond's, factor 1)."""
+    from twin import bond_power_kw, get_mill
+    from twin.calibration import load_calibration
+
+    path = _own_mill(tmp_path, [("net_power_kw = 3885.0", OWN_DIMS), ('preset = "industrial"', 'preset = "lab"')])
+    models = build_models(load_scene(path))
+    ss = models.plant.steady(feed_tph=504.0, speed_frac_critical=0.70)
+    own = get_mill("lab").with_(diameter_m=5.49, length_m=8.53, ball_filling_frac=0.38, power_factor=1.0)
+    assert get_mill("lab", load_calibration("dem").record).power_factor < 0.8  # fitted: the scene's mill no longer takes it
+    assert ss.summary()["power_kw"] == pytest.approx(bond_power_kw(own, 0.70), rel=1e-9)
+
+
+@pytest.mark.parametrize("old_new, fragments", [
+    ([("net_power_kw = 3885.0", "diameter_m = 18.0\nlength_m = 28.0")],  # feet
+     ["mill.diameter_m: Input should be less than or equal to 10", "mill.length_m: Input should be less than or "
+      "equal to 20"]),
+    ([("net_power_kw = 3885.0", "net_power_kw = 3.885")],  # MW: the feed was blamed
+     ["mill.net_power_kw: 3.885 kW at the feed's 504 t/h is 0.00771 kWh/t, outside the 0.5-100 kWh/t ball mills "
+      "draw (MW? kW expected)"]),
+    ([("net_power_kw = 3885.0", OWN_DIMS + "\nnet_power_kw = 1000.0")],
+     ["mill.net_power_kw: 1000 kW is 0.24", "x Bond's", "for the mill's own dimensions"]),
+    ([("solids_bypass_frac = 0.349", "solids_bypass_frac = 0.349\nd50c_factor = 1.5\nfeed_solids_vol_pct = 20.0")],
+     ["cyclone.d50c_factor: a cyclone given directly", "uses no Plitt factor",
+      "cyclone.feed_solids_vol_pct: give the cyclone feed's solids as feed_solids_frac"]),
+])
+def test_a_users_mill_in_other_units_or_inputs_read_by_nothing_are_refused(tmp_path, old_new, fragments):
+    """A mill in feet ran at 199 MW and 395 kWh/t; a net power in MW was refused as a feed "in kg/h"; a given
+    power 4x below Bond's for the given dimensions ran; Plitt factors and a volume % beside a cyclone given
+    directly were read by nothing."""
+    messages = "\n".join(check_scene(_own_mill(tmp_path, old_new)))
+    for fragment in fragments:
+        assert fragment in messages, messages
+    assert "feed.feed_tph" not in messages
