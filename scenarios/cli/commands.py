@@ -1024,7 +1024,8 @@ def _add_online_options(p) -> None:
     p.add_argument("--speedup", type=_float_in("--speedup", 0, 1e6, lo_open=True), default=1.0,
                    help="plant hours pass this many times faster than real time (a virtual plant; default 1)")
     p.add_argument("--duration-h", type=_float_in("--duration-h", 0, 1e6, lo_open=True), default=None,
-                   help="stop after this many plant hours (default: run until SIGTERM)")
+                   help="stop after this many plant hours (serve: of its own running; plant-server: of the scene's "
+                   "time from 0, after any --hold-h; default: run until SIGTERM)")
     p.add_argument("--insecure", action="store_true", help="no security and anonymous users (commissioning only)")
     p.add_argument("--cert", help="this application's certificate (PEM)")
     p.add_argument("--key", help="its private key (PEM)")
