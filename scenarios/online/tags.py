@@ -380,7 +380,8 @@ def _setpoint_problems(tags: TagMap, scene: Scene) -> list[str]:
             v = getattr(sp, key)
             bad = v is not None and (not math.isfinite(v) or v < 0 or (name == "speed_frac_critical" and not 0 < v < 1))
             if bad:
-                hint = " (a fraction of critical, not percent)" if name == "speed_frac_critical" and 1 <= v <= 100 else ""
+                percent = name == "speed_frac_critical" and 1 <= v <= 100
+                hint = " (a fraction of critical, not percent)" if percent else ""
                 allowed = "in (0, 1)" if name == "speed_frac_critical" else ">= 0 t/h"
                 out.append(f"setpoints.{name}.{key}: must be {allowed}{hint} (got {v!r})")
         lo, hi, lo_key, hi_key = planned[name]

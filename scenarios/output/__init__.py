@@ -8,6 +8,7 @@ from scenarios.output.workbook import (psd_table, workbook_problem, write_size_c
 from scenarios.output.write import (INCOMPLETE_MARKER, MANIFEST, OutputClaim, claim_output, json_safe, manifest_of,
                                     strangers, write_files, write_run)
 
-__all__ = ["INCOMPLETE_MARKER", "MANIFEST", "OutputClaim", "PLOTS", "claim_output", "json_safe", "manifest_of", "psd_table",
+__all__ = ["INCOMPLETE_MARKER", "MANIFEST", "OutputClaim", "PLOTS", "claim_output", "json_safe", "manifest_of",
+           "psd_table",
            "render_report", "strangers", "workbook_problem", "write_files", "write_plots", "write_report", "write_run",
            "write_size_csvs", "write_sweep_plot", "write_sweep_workbook", "write_workbook"]

@@ -71,8 +71,8 @@ def fit_warnings(feed: pd.DataFrame, components: list[str]) -> list[str]:
         resid = feed["history_fit_residual_wt_pct"].to_numpy(float)
         misfit = resid > FIT_RESIDUAL_WARN_WT_PCT
         if misfit.any():
-            out.append(f"the recorded mineralogy is not a mix of the ores {', '.join(components)} on {misfit.mean():.0%} "
-                       f"of the samples (from {t[misfit][0]:.4g} h; NNLS residual up to {resid.max():.3g} wt%, above "
+            out.append(f"the recorded mineralogy is not a mix of the ores {', '.join(components)} on "
+                       f"{misfit.mean():.0%} of the samples (from {t[misfit][0]:.4g} h; NNLS residual up to {resid.max():.3g} wt%, above "
                        f"{FIT_RESIDUAL_WARN_WT_PCT:g}): the simulated feed is not the recorded one there; add an ore "
                        "that holds the missing minerals")
     if "history_textural_index_ratio" in feed.columns:
@@ -80,10 +80,10 @@ def fit_warnings(feed: pd.DataFrame, components: list[str]) -> list[str]:
         off = np.abs(np.log(ratio)) > np.log(TEXTURE_RATIO_WARN)
         if off.any():
             worst = ratio[np.argmax(np.abs(np.log(ratio)))]
-            out.append(f"the recorded texture is not that of the mix of the ores {', '.join(components)} on {off.mean():.0%} "
-                       f"of the samples (from {t[off][0]:.4g} h; the mix's textural index {worst:.3g}x the recorded, beyond "
-                       f"{TEXTURE_RATIO_WARN:g}x either way): a run breaks the ores' textures, not the recorded one; add "
-                       "an ore with the recorded texture")
+            out.append(f"the recorded texture is not that of the mix of the ores {', '.join(components)} on "
+                       f"{off.mean():.0%} of the samples (from {t[off][0]:.4g} h; the mix's textural index "
+                       f"{worst:.3g}x the recorded, beyond {TEXTURE_RATIO_WARN:g}x either way): a run breaks the "
+                       "ores' textures, not the recorded one; add an ore with the recorded texture")
     return out
 
 

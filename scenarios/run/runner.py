@@ -212,7 +212,8 @@ def replay_input_scene(scene_path, history_csv, duration_h: float | None = None)
     dt = data["scene"].get("sample_period_h")
     if isinstance(dt, (int, float)) and dt > 0:
         gap = feed.get("history_max_gap_h")
-        gap = float(gap) if isinstance(gap, (int, float)) and not isinstance(gap, bool) and gap > 0 else DEFAULT_MAX_GAP_H
+        number = isinstance(gap, (int, float)) and not isinstance(gap, bool)
+        gap = float(gap) if number and gap > 0 else DEFAULT_MAX_GAP_H
         history = read_history(history_path, sample_period_h=float(dt), max_gap_h=gap)
         if all(c in history.frame.columns for c in TEXTURE_COLUMNS):
             feed.pop("history_texture", None)

@@ -126,7 +126,8 @@ def test_tables_that_would_be_typed_wrongly_are_refused(reference):
     fractions = df.assign(**{c: df[c] / 100.0 for c in cols})
     with pytest.raises(TwinInputError, match=r"do not sum to 100 within .* \(row 0: 1"):
         OreTyper(random_state=0).fit(fractions)
-    with pytest.raises(TwinInputError, match=r"column 'quarz_wt_pct' names no mineral of the table. Did you mean 'quartz'"):
+    with pytest.raises(TwinInputError, match=r"column 'quarz_wt_pct' names no mineral of the table. Did you mean "
+                                             r"'quartz'"):
         OreTyper(random_state=0).fit(df.rename(columns={"quartz_wt_pct": "quarz_wt_pct"}))
     with pytest.raises(TwinInputError, match="do not sum to 100"):
         ot.assign(df.drop(columns=["quartz_wt_pct"]))

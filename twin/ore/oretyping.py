@@ -153,7 +153,8 @@ class OreTyper(BaseEstimator):
         unknown = [c for c in cols if c[: -len(WT_SUFFIX)] not in table]
         if unknown:  # a misspelt column had no hardness and moved the components' orientation
             m = unknown[0][: -len(WT_SUFFIX)]
-            raise TwinInputError(f"OreTyper: column {unknown[0]!r} names no mineral of the table.{close_matches(m, table)}")
+            raise TwinInputError(f"OreTyper: column {unknown[0]!r} names no mineral of the table."
+                                 f"{close_matches(m, table)}")
         total = X[cols].to_numpy(float).sum(axis=1)
         off = np.flatnonzero(np.abs(total - 100.0) > SUM_TOLERANCE_WT_PCT)
         if off.size:  # fractions, or a column missing, were typed with confidence 1
