@@ -10,6 +10,7 @@ from typing import Any
 
 from scenarios.errors import RunError, SceneError
 from scenarios.scene import Scene, ore_mineralogies
+from scenarios.scene.ranges import own_dimensions
 from twin import BreakageParams, Mineralogy, SizeGrid, TabulatedPSD, Twin, TwinError, get_mill, power_kw, reference_ores
 from twin.calibration import Calibration, load_calibration
 
@@ -64,11 +65,13 @@ def scene_mill(scene: Scene, calibration: Calibration | None = None):
     given = {k: getattr(m, k) for k in MILL_OVERRIDES if getattr(m, k) is not None}
     if scene.feed.feed_tph is not None:
         given["feed_nominal_tph"] = scene.feed.feed_tph
-    if m.diameter_m is not None or m.length_m is not None:
+    base = get_mill(m.preset, cal.record)
+    if own_dimensions(m, base):
         given["power_factor"] = 1.0
     if m.net_power_kw is not None:
         given["speed_nominal_frac_critical"] = scene.feed.speed_frac_critical
-    return get_mill(m.preset, cal.record).with_(**given)
+    return base.with_(**given)
+
 
 
 def scene_feed_psd(scene: Scene):

@@ -92,6 +92,13 @@ def product_p80_problem(value: float, feed_p80_um: float | None) -> str | None:
     return None
 
 
+def own_dimensions(mill_keys, preset_mill) -> bool:
+    """Whether a scene's [mill] (its keys, or a dict of them) gives a diameter or length other than its
+    preset's: a loaded scene carries the preset's own, filled in (scenarios.scene.loader)."""
+    get = mill_keys.get if isinstance(mill_keys, dict) else lambda k: getattr(mill_keys, k)
+    return any(get(k) is not None and get(k) != getattr(preset_mill, k) for k in ("diameter_m", "length_m"))
+
+
 def net_power_problem(preset, mill_keys: dict | None, feed_tph: float | None) -> str | None:
     """Why a scene's ``mill.net_power_kw`` is implausible, or None: the specific energy it means at the
     scene's feed outside :data:`SPECIFIC_ENERGY_RANGE_KWH_T`, or, beside the scene's own dimensions,
@@ -110,7 +117,7 @@ def net_power_problem(preset, mill_keys: dict | None, feed_tph: float | None) ->
     base = get_mill(preset) if isinstance(preset, str) and preset in MILLS else None
     dims = {k: float(v) for k, v in keys.items() if k in ("diameter_m", "length_m", "ball_filling_frac")
             and isinstance(v, (int, float)) and not isinstance(v, bool)}
-    if base is None or not {"diameter_m", "length_m"} & set(dims):
+    if base is None or not own_dimensions(dims, base):  # the preset's own: a stand-in with a case's power
         return None
     try:
         bond = float(power_kw(base.with_(**dims, power_factor=1.0), base.speed_nominal_frac_critical))

@@ -173,6 +173,12 @@ def test_a_mill_of_the_scenes_own_dimensions_draws_bonds_power_whatever_its_pres
     fitted = get_mill("lab", load_calibration("dem").record).power_factor
     assert fitted < 0.8  # the lab's fitted factor, which the scene's own mill no longer takes
     assert ss.summary()["power_kw"] == pytest.approx(bond_power_kw(own, 0.70), rel=1e-9)
+    # a loaded scene carries its preset's own dimensions: those keep the preset's fitted factor
+    from scenarios.run.models import scene_mill
+
+    batch = load_scene(MOLYCOP.parent / "batch_50B_50D.toml")
+    assert batch.mill.diameter_m == get_mill("lab").diameter_m and scene_mill(batch).power_factor == fitted
+    assert check_scene(MOLYCOP) == []  # the case's power on the preset's stand-in mill: not "own dimensions"
 
 
 @pytest.mark.parametrize("old_new, fragments", [
