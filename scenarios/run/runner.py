@@ -250,6 +250,8 @@ def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float 
     data["feed"]["history"] = str(history_path)
     dt = scene.scene.sample_period_h
     history = read_history(history_path, sample_period_h=dt, max_gap_h=scene.feed.history_max_gap_h)
+    if all(c in history.frame.columns for c in TEXTURE_COLUMNS):  # the given history's texture, as from a path
+        data["feed"].pop("history_texture", None)
     data["scene"]["duration_h"] = _replay_duration_h(history, dt, duration_h)
     src = scene.source_path
     new = scene_from_dict(data, src if src is not None else Path.cwd() / "scene.toml")

@@ -13,7 +13,7 @@ import pytest
 
 from scenarios.errors import SceneError
 from scenarios.scene import blend_at, feed_table, read_history
-from scenarios.scene.loader import load_scene
+from scenarios.scene.loader import load_scene, read_toml
 
 ROOT = Path(__file__).parents[2]
 DT = 1 / 60
@@ -452,6 +452,18 @@ def test_replay_reads_the_given_history_not_the_scenes_own(tmp_path, capsys):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["replay"]["history"] == str(hist.resolve())
     assert len(pd.read_parquet(out / "timeseries.parquet")) == 11  # 0.5 h of 3-minute samples, both ends
+    # a Scene object whose history needed a texture takes the given history's texture columns too
+    from scenarios.run import replay_scene
+    from scenarios.scene.loader import scene_from_dict
+
+    data = read_toml(scene)
+    bare = tmp_path / "bare.csv"
+    pd.read_csv(hist).drop(columns=["mean_grain_um", "uniformity", "association_entropy"]).to_csv(bare, index=False)
+    data["feed"] |= {"history": str(bare), "history_texture": {"mean_grain_um": 125.0, "uniformity": 0.6,
+                                                               "association_entropy": 0.55}}
+    data["scene"]["duration_h"] = 0.5
+    res = replay_scene(scene_from_dict(data, scene), hist, progress=False, duration_h=0.5)
+    assert "history_textural_index_ratio" in res.frame
 
 
 def test_one_minute_records_with_time_in_six_decimals_are_regular(tmp_path):
