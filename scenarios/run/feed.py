@@ -72,9 +72,9 @@ def fit_warnings(feed: pd.DataFrame, components: list[str]) -> list[str]:
         misfit = resid > FIT_RESIDUAL_WARN_WT_PCT
         if misfit.any():
             out.append(f"the recorded mineralogy is not a mix of the ores {', '.join(components)} on "
-                       f"{misfit.mean():.0%} of the samples (from {t[misfit][0]:.4g} h; NNLS residual up to {resid.max():.3g} wt%, above "
-                       f"{FIT_RESIDUAL_WARN_WT_PCT:g}): the simulated feed is not the recorded one there; add an ore "
-                       "that holds the missing minerals")
+                       f"{misfit.mean():.0%} of the samples (from {t[misfit][0]:.4g} h; NNLS residual up to "
+                       f"{resid.max():.3g} wt%, above {FIT_RESIDUAL_WARN_WT_PCT:g}): the simulated feed is not the "
+                       "recorded one there; add an ore that holds the missing minerals")
     if "history_textural_index_ratio" in feed.columns:
         ratio = feed["history_textural_index_ratio"].to_numpy(float)
         off = np.abs(np.log(ratio)) > np.log(TEXTURE_RATIO_WARN)

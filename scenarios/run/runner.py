@@ -204,22 +204,31 @@ def replay_input_scene(scene_path, history_csv, duration_h: float | None = None)
     refused a replay for its own history (missing, or one needing a texture the new one has)."""
     data = read_toml(scene_path)
     feed = data.get("feed")
-    history_path = Path(history_csv).resolve()
     if not isinstance(feed, dict) or not isinstance(data.get("scene"), dict):
         return scene_from_dict(data, scene_path)  # the tables' own messages
+    dt = data["scene"].get("sample_period_h")
+    gap = feed.get("history_max_gap_h")
+    number = isinstance(gap, (int, float)) and not isinstance(gap, bool)
+    _with_history(data, Path(history_csv).resolve(), dt if isinstance(dt, (int, float)) and dt > 0 else None,
+                  float(gap) if number and gap > 0 else DEFAULT_MAX_GAP_H, duration_h)
+    return scene_from_dict(data, scene_path)
+
+
+def _with_history(data: dict, history_path: Path, dt: float | None, max_gap_h: float,
+                  duration_h: float | None) -> None:
+    """A scene table (``data``, in place) fed by the history: its ``blend``, ``schedule`` and own
+    ``history`` dropped, its ``history_texture`` too when the history has texture columns, and its
+    duration :func:`_replay_duration_h` (unless its sample period ``dt`` is not known yet: the
+    scene's validation then names it)."""
+    feed = data["feed"]
     for key in ("blend", "schedule", "history"):
         feed.pop(key, None)
-    dt = data["scene"].get("sample_period_h")
-    if isinstance(dt, (int, float)) and dt > 0:
-        gap = feed.get("history_max_gap_h")
-        number = isinstance(gap, (int, float)) and not isinstance(gap, bool)
-        gap = float(gap) if number and gap > 0 else DEFAULT_MAX_GAP_H
-        history = read_history(history_path, sample_period_h=float(dt), max_gap_h=gap)
+    if dt is not None:
+        history = read_history(history_path, sample_period_h=float(dt), max_gap_h=max_gap_h)
         if all(c in history.frame.columns for c in TEXTURE_COLUMNS):
             feed.pop("history_texture", None)
         data["scene"]["duration_h"] = _replay_duration_h(history, float(dt), duration_h)
     feed["history"] = str(history_path)
-    return scene_from_dict(data, scene_path)
 
 
 def _replay_duration_h(history, dt: float, duration_h: float | None) -> float:
@@ -245,14 +254,7 @@ def _replay_duration_h(history, dt: float, duration_h: float | None) -> float:
 def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float | None,
             xlsx: bool = False) -> RunResult:
     data = scene.model_dump(exclude_none=True)
-    data["feed"].pop("blend", None)
-    data["feed"].pop("schedule", None)
-    data["feed"]["history"] = str(history_path)
-    dt = scene.scene.sample_period_h
-    history = read_history(history_path, sample_period_h=dt, max_gap_h=scene.feed.history_max_gap_h)
-    if all(c in history.frame.columns for c in TEXTURE_COLUMNS):  # the given history's texture, as from a path
-        data["feed"].pop("history_texture", None)
-    data["scene"]["duration_h"] = _replay_duration_h(history, dt, duration_h)
+    _with_history(data, history_path, scene.scene.sample_period_h, scene.feed.history_max_gap_h, duration_h)
     src = scene.source_path
     new = scene_from_dict(data, src if src is not None else Path.cwd() / "scene.toml")
     _check_workbook(new, xlsx)  # the replay's length is known only now

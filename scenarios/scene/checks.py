@@ -223,12 +223,13 @@ def _check_feed(data, ore_names: list[str], r: _Report, base_dir: Path = Path(".
     power = net_power_problem(_get(data, "mill", "preset"), _get(data, "mill"), _num(feed.get("feed_tph")))
     if power:  # the nominal feed follows the power: the feed's check below would blame the feed for it
         r.add(("mill", "net_power_kw"), power, _get(data, "mill", "net_power_kw"))
-    nominal = nominal_feed_tph(_get(data, "mill", "preset"), _get(data, "mill"))
-    for loc in (("feed", "feed_tph"), ("controller", "bounds", "feed_tph_max")) if not power else ():
-        v = _num(_get(data, *loc))
-        problem = feed_problem(v, nominal) if v is not None and v > 0 else None
-        if problem:
-            r.add(loc, problem, v)
+    else:
+        nominal = nominal_feed_tph(_get(data, "mill", "preset"), _get(data, "mill"))
+        for loc in (("feed", "feed_tph"), ("controller", "bounds", "feed_tph_max")):
+            v = _num(_get(data, *loc))
+            problem = feed_problem(v, nominal) if v is not None and v > 0 else None
+            if problem:
+                r.add(loc, problem, v)
     csv = feed.get("psd_csv")
     if isinstance(csv, str) and not (Path(csv) if Path(csv).is_absolute() else base_dir / csv).is_file():
         r.add(("feed", "psd_csv"), "file not found (a CSV with columns size_um, passing_pct)", csv)

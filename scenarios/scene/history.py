@@ -399,14 +399,14 @@ def _time_average(t: np.ndarray, values: np.ndarray, grid: np.ndarray, dt: float
     start, length = edges[:-1], np.diff(edges)
     held = np.clip(np.searchsorted(t, start, side="right") - 1, 0, len(t) - 1)
     cell = np.clip(np.searchsorted(bounds, start, side="right") - 1, 0, len(grid) - 1)
-    pieces = values[held] * length[:, None]
+    piece_values = values[held]
     out = np.empty((len(grid), values.shape[1]))
     for c in range(values.shape[1]):
-        out[:, c] = np.bincount(cell, weights=pieces[:, c], minlength=len(grid))
+        out[:, c] = np.bincount(cell, weights=piece_values[:, c] * length, minlength=len(grid))
     out /= dt
     # a value held over a whole cell is its mean exactly (an entropy of 1 stays in [0, 1])
     first = np.searchsorted(cell, np.arange(len(grid)))
-    lo, hi = np.minimum.reduceat(values[held], first), np.maximum.reduceat(values[held], first)
+    lo, hi = np.minimum.reduceat(piece_values, first), np.maximum.reduceat(piece_values, first)
     return np.where(lo == hi, lo, out)
 
 
