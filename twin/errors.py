@@ -45,7 +45,8 @@ def bad_value(owner: str, field: str, value: object, allowed: str) -> TwinInputE
 def close_matches(name: str, known: Iterable[str]) -> str:
     """' Did you mean ...?' suffix listing close matches of ``name`` among ``known``."""
     known = list(known)
-    hits = difflib.get_close_matches(name, known, n=3, cutoff=0.5)
+    # a case slip first: difflib finds no match of one letter, 'b' for 'B'
+    hits = [k for k in known if k.lower() == name.lower()] or difflib.get_close_matches(name, known, n=3, cutoff=0.5)
     if hits:
         return " Did you mean " + " or ".join(repr(h) for h in hits) + "?"
     return ""

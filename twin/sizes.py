@@ -271,7 +271,15 @@ class TabulatedPSD:
                             f"percentages passing (94.43, not 0.9443); all are <= {PASSING_PCT_AS_FRACTION_MAX:g} %, "
                             "fractions of 1 by their look: give them times 100")
         order = np.argsort(s)
-        return cls(tuple(s[order]), tuple(p[order] / 100.0))
+        s, p = s[order], p[order]
+        # checked here in percent: the fractions' own check spoke of "0.5, not 50" to a user who gave percent
+        if np.any(np.diff(s) <= 0):
+            raise bad_value("TabulatedPSD", "sizes_um", s.tolist(), "distinct sieve sizes [um]")
+        if np.any(np.diff(p) < 0) or p[0] <= 0:
+            raise bad_value("TabulatedPSD", "passing_pct", p.tolist(),
+                            "cumulative % passing, non-decreasing with sieve size and above 0 at the finest sieve "
+                            f"(sizes {s.tolist()} um; % retained on each sieve is not % passing)")
+        return cls(tuple(s), tuple(p / 100.0))
 
     @classmethod
     def from_csv(cls, path) -> "TabulatedPSD":

@@ -152,11 +152,12 @@ class Twin:
         return ss
 
     def simulate(self, duration_h: float, dt_h: float, feed_tph=None, speed_frac_critical=None,
-                 blend=None, x0=None, **kwargs):
+                 blend=None, x0=None, hardness_scale=1.0, **kwargs):
         """Open-loop run with inputs given as constants or callables of time [h] (read at every
         sample and just before it, linear in between: :func:`twin.solve.simulate`); returns a
-        :class:`twin.solve.simulate.Trajectory`. Every value read is checked as
-        :meth:`steady` checks its inputs; the error names the time."""
+        :class:`twin.solve.simulate.Trajectory`. ``hardness_scale`` (a constant or a callable of
+        time) scales the breakage rates' hardness as in :meth:`steady`. Every value read is checked
+        as :meth:`steady` checks its inputs; the error names the time."""
         def as_fn(v, default):
             v = default if v is None else v
             return v if callable(v) else (lambda t, v=v: v)
@@ -164,10 +165,11 @@ class Twin:
         feed_fn = as_fn(feed_tph, self.mill.feed_nominal_tph)
         speed_fn = as_fn(speed_frac_critical, self.mill.speed_nominal_frac_critical)
         blend_fn = as_fn(blend, self.nominal_blend)
+        hardness_fn = as_fn(hardness_scale, 1.0)
         x0 = self.model.initial_state(self.nominal_blend) if x0 is None else x0
         return simulate(self.model, x0, duration_h, dt_h,
                         u_fn=_at_time(lambda t: self._u(feed_fn(t), speed_fn(t))),
-                        d_fn=_at_time(lambda t: self._d(blend_fn(t), 1.0)), **kwargs)
+                        d_fn=_at_time(lambda t: self._d(blend_fn(t), hardness_fn(t))), **kwargs)
 
     def _u(self, feed_tph, speed):
         speed = self.mill.speed_nominal_frac_critical if speed is None else speed

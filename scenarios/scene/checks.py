@@ -19,7 +19,7 @@ from scenarios.scene.history import read_history
 from scenarios.scene.keypaths import did_you_mean, format_path
 from scenarios.scene.ranges import feed_problem, net_power_problem, nominal_feed_tph
 from scenarios.scene.schema import DEFAULT_N_MIXERS, Feed
-from twin import Hydrocyclone, SizeGrid, TwinError, get_mill, hydrocyclone_from
+from twin import SizeGrid, TwinError, get_mill, hydrocyclone_from
 from twin.calibration import DEFAULT_CALIBRATION, load_calibration
 from twin.effects import problems as effect_problems
 from twin.ore import mineral_names
@@ -102,10 +102,6 @@ def _check_effect_table(effects, options, prefix: tuple, r: _Report) -> None:
         _check_cyclone(options, prefix, r)
 
 
-#: The Plitt factors of a hydrocyclone (twin Hydrocyclone's ``*_factor`` fields), which a cyclone given directly ignores
-CYCLONE_PLITT_FACTORS = tuple(f for f in Hydrocyclone.__dataclass_fields__ if f.endswith("_factor"))
-
-
 def _check_cyclone(options: dict, prefix: tuple, r: _Report) -> None:
     """A hydrocyclone table's fields, by the twin's own Hydrocyclone validation."""
     cyc = options.get("classification", {}).get("cyclone")
@@ -115,12 +111,7 @@ def _check_cyclone(options: dict, prefix: tuple, r: _Report) -> None:
             hydrocyclone_from(cyc)
         except TwinError as exc:
             r.add(loc, str(exc))
-        # read by nothing beside these: a cyclone given directly has no Plitt factors, and a feed's mass
-        # fraction is used over its volume %
-        if "d50c_um" in cyc:
-            for key in [k for k in CYCLONE_PLITT_FACTORS if k in cyc]:
-                r.add(loc + (key,), "a cyclone given directly (d50c_um, sharpness, water_bypass_frac) uses no Plitt "
-                      "factor; remove it, or give the cyclone's geometry for Plitt's equations", cyc[key])
+        # read by nothing beside it: a feed's mass fraction is used over its volume %
         if "feed_solids_frac" in cyc and "feed_solids_vol_pct" in cyc:
             r.add(loc + ("feed_solids_vol_pct",), "give the cyclone feed's solids as feed_solids_frac (by mass) or "
                   "feed_solids_vol_pct (by volume), not both", cyc["feed_solids_vol_pct"])

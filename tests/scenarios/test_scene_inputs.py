@@ -191,7 +191,7 @@ def test_a_mill_of_the_scenes_own_dimensions_draws_bonds_power_whatever_its_pres
     ([("net_power_kw = 3885.0", OWN_DIMS + "\nnet_power_kw = 1000.0")],
      ["mill.net_power_kw: 1000 kW is 0.24", "x Bond's", "for the mill's own dimensions"]),
     ([("solids_bypass_frac = 0.349", "solids_bypass_frac = 0.349\nd50c_factor = 1.5\nfeed_solids_vol_pct = 20.0")],
-     ["cyclone.d50c_factor: a cyclone given directly", "uses no Plitt factor",
+     ["'d50c_factor' parameter of Hydrocyclone must be 1 for a cyclone given directly", "Got 1.5",
       "cyclone.feed_solids_vol_pct: give the cyclone feed's solids as feed_solids_frac"]),
 ])
 def test_a_users_mill_in_other_units_or_inputs_read_by_nothing_are_refused(tmp_path, old_new, fragments):

@@ -53,7 +53,7 @@ def test_screen_analysis_interpolates_and_extends_below_the_finest_sieve_on_its_
     assert frac.sum() == pytest.approx(1.0) and np.all(frac >= 0)
 
 
-@pytest.mark.parametrize("sizes, passing, field", [([100, 200], [50, 40], "passing_frac"),
+@pytest.mark.parametrize("sizes, passing, field", [([100, 200], [50, 40], "passing_pct"),
                                                    ([100, 200], [50, 140], "passing_pct"),
                                                    ([100, 200, 300], [10, 20], "passing_pct")])
 def test_bad_screen_analysis_names_the_field(sizes, passing, field):

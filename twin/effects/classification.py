@@ -120,6 +120,10 @@ class CycloneSurvey:
         return self.feed_solids_tph / (self.feed_solids_tph + self.feed_water_m3_h * WATER_DENSITY_T_M3)
 
 
+#: Plitt factors a cyclone given directly does not read (its pressure, from Plitt's equation, keeps ``pressure_factor``).
+DIRECT_UNREAD_FACTORS = ("d50c_factor", "sharpness_factor", "split_factor")
+
+
 @dataclass(frozen=True)
 class Hydrocyclone:
     """A cluster of ``count`` hydrocyclones: geometry [cm], the sump's dilution and the model of its
@@ -180,6 +184,11 @@ class Hydrocyclone:
             missing = sorted({"d50c_um", "sharpness", "water_bypass_frac"} - set(direct))
             raise bad_value(o, missing[0], None, "given with " + ", ".join(direct)
                             + " (a cyclone given directly needs d50c_um, sharpness and water_bypass_frac)")
+        for name in DIRECT_UNREAD_FACTORS if direct else ():  # read by nothing: a factor of 1.5 changed no number
+            if getattr(self, name) != 1.0:
+                raise bad_value(o, name, getattr(self, name), "1 for a cyclone given directly (d50c_um, sharpness, "
+                                "water_bypass_frac): only Plitt's equations read it; remove it, or give the "
+                                "cyclone's geometry and factors for Plitt's equations")
 
     @property
     def mode(self) -> str:

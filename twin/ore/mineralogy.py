@@ -50,10 +50,15 @@ class Texture:
     association_entropy: float = 0.5
 
     def __post_init__(self):
-        check_range("Texture", "mean_grain_um", self.mean_grain_um, *MEAN_GRAIN_RANGE_UM, lo_open=False, hi_open=False)
-        check_range("Texture", "uniformity", self.uniformity, 0.0, 1.0, hi_open=False)
-        check_range("Texture", "association_entropy", self.association_entropy, 0.0, 1.0,
-                    lo_open=False, hi_open=False)
+        # the checked floats are kept: a grain size read as text ("150") passed the check and failed later
+        checked = {
+            "mean_grain_um": check_range("Texture", "mean_grain_um", self.mean_grain_um, *MEAN_GRAIN_RANGE_UM,
+                                         lo_open=False, hi_open=False),
+            "uniformity": check_range("Texture", "uniformity", self.uniformity, 0.0, 1.0, hi_open=False),
+            "association_entropy": check_range("Texture", "association_entropy", self.association_entropy, 0.0, 1.0,
+                                               lo_open=False, hi_open=False)}
+        for name, value in checked.items():
+            object.__setattr__(self, name, value)
 
     @property
     def textural_index(self) -> float:

@@ -14,7 +14,7 @@ import numpy as np
 import scipy.sparse
 import scipy.sparse.linalg
 
-from ..errors import OverloadError, SolverError, TwinInputError
+from ..errors import OverloadError, SolverError, TwinInputError, check_range
 from ..mill import load_status
 from .numeric import Evaluator
 from .simulate import integrate_constant
@@ -267,8 +267,7 @@ def steady_state_at_load(model, u, d, load_frac: float = 1.0, x_guess=None) -> S
     from ``u[0]``. Newton starts from ``x_guess`` when given (e.g. a nearby solution), else from
     the steady state at feed ``u[0]``."""
     _require_transport(model)
-    if not 0.0 < load_frac <= MAX_LOAD_FRAC:
-        raise TwinInputError(f"The 'load_frac' must be a float in (0, {MAX_LOAD_FRAC:g}]. Got {load_frac}.")
+    load_frac = check_range("steady_state_at_load", "load_frac", load_frac, 0.0, MAX_LOAD_FRAC, hi_open=False)
     u, d = np.asarray(u, float), np.asarray(d, float)
     start = steady_state(model, u, d).x if x_guess is None else np.asarray(x_guess, float)
     x, uu, ok = _newton(model, start, u, d, load_target=load_frac)
