@@ -687,11 +687,17 @@ def cmd_steady(args) -> int:
 
         refuse_few_replicates(args.uncertainty, calibration, INTERVAL_LEVEL)
     if args.surrogate:
-        from twin.surrogate import surrogate_steady
+        from twin.surrogate import shipped_compiled, surrogate_steady
 
         if args.at_constant_load:
             raise SceneError("--surrogate answers at a given feed rate; it cannot be combined with --at-constant-load.")
-        kpis = surrogate_steady(blend, args.feed_tph, args.speed, mill=args.mill, calibration=calibration)
+        surrogate = shipped_compiled()
+        trained = surrogate.metadata.get("mill", "lab")
+        if args.mill != trained:  # surrogate_steady's own error named its parameter, not --mill
+            raise SceneError(f"--mill {args.mill}: the surrogate was trained on the {trained!r} mill only; "
+                             f"drop --surrogate for the twin of the {args.mill!r} mill.")
+        kpis = surrogate_steady(blend, args.feed_tph, args.speed, mill=args.mill, surrogate=surrogate,
+                                calibration=calibration)
         kpis = {k: v for k, v in kpis.items() if k in STEADY_KEYS or k == "source"}
     else:
         from twin import Twin

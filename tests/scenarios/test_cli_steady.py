@@ -372,6 +372,13 @@ def test_the_surrogate_says_it_answers_a_blend_as_one_ore(capsys):
     assert not any("answers a blend" in n for n in json.loads(capsys.readouterr().out)["notes"])
 
 
+def test_the_surrogate_on_a_mill_it_was_not_trained_on_names_the_option(capsys):
+    # the error named "the 'mill' of surrogate_steady", a parameter the user never saw
+    assert main(["steady", "--ore", "B", "--mill", "industrial", "--surrogate"]) == 2
+    err = capsys.readouterr().err
+    assert "--mill industrial: the surrogate was trained on the 'lab' mill only; drop --surrogate" in err
+    assert "surrogate_steady" not in err
+
 
 def test_an_overflow_at_a_slow_speed_names_the_feed_the_user_did_not_give(capsys):
     """`steady --speed 0.2` overflows the laboratory mill at its nominal feed; the error blamed
