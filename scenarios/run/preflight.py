@@ -107,14 +107,6 @@ def _slow_speed_problems(scene: Scene, models) -> list[str]:
     return _slow_speeds(scene, getattr(getattr(models.plant, "model", None), "effect_names", ()))
 
 
-def scene_speed_problems(scene: Scene) -> list[str]:
-    """:func:`_slow_speed_problems` from the scene's own effect lists (the plant's, else the scene's), no
-    model built: a sweep checks every case so before any runs (a case at 0.05 of critical failed only
-    when reached)."""
-    plant = scene.plant
-    return _slow_speeds(scene, plant.effects if plant is not None and plant.effects is not None else scene.effects)
-
-
 def _slow_speeds(scene: Scene, effects) -> list[str]:
     if "speed" not in effects:
         return []
@@ -228,11 +220,23 @@ def check_scene(path) -> list[str]:
         return problems
     for note in speed_notes(scene):
         warnings.warn(f"{path}: {note}", OutsideModelsWarning, stacklevel=2)
+    return built_problems(scene, f"{path}: ")
+
+
+def run_problems(scene: Scene) -> list[str]:
+    """Everything a run of ``scene`` refuses before it simulates: its settings, else what
+    :func:`built_problems` finds (a sweep checks each case so before any runs)."""
+    return settings_problems(scene) or built_problems(scene)
+
+
+def built_problems(scene: Scene, prefix: str = "") -> list[str]:
+    """What a run of ``scene`` (its settings accepted) refuses once its models are built: the twins'
+    own refusals, then :func:`model_size_problems` (each after ``prefix``), else :func:`start_problems`."""
     try:
         models = build_models(scene)
     except SceneError as exc:
         return [str(exc)]
-    return [f"{path}: {m}" for m in model_size_problems(scene, models)] or start_problems(scene, models)
+    return [prefix + m for m in model_size_problems(scene, models)] or start_problems(scene, models)
 
 
 def refuse(scene: Scene, problems: list[str]) -> None:

@@ -4,7 +4,8 @@
 ``"feed.schedule[0].blend"``) to a list of values. ``cartesian`` runs every combination,
 ``paired`` runs the i-th value of every key together (lists of equal length). Every path is
 checked against the scene schema (below ``effect_options``, against the effects' declared
-options) and every case is validated as a whole scene before any case runs. A case that fails while running is reported in the ``error`` column; the other
+options) and every case is checked as ``grindtwin check`` checks a scene (its models built, its start found)
+before any case runs. A case that fails while running is reported in the ``error`` column; the other
 cases are kept.
 
 Cases run in a local process pool (``workers``; 1 runs in this process) or, when
@@ -33,11 +34,13 @@ from tqdm.auto import tqdm
 
 from scenarios.errors import RunError, SceneError
 from scenarios.scene.keypaths import did_you_mean, format_path, parse_path, type_at
-from scenarios.run.preflight import scene_speed_problems, settings_problems
+from scenarios.run.preflight import run_problems
 from scenarios.scene.loader import read_toml, validate_scene_dict
 from scenarios.scene.schema import Scene
 
 RunCase = Callable[[Scene], dict]
+#: What a case's run would refuse, as messages (none: it may run).
+Preflight = Callable[[Scene], list]
 
 #: A sweep of more cases than this is refused unless ``max_cases`` (``--max-cases``) allows it:
 #: each case is a whole run (seconds to minutes), so a typo such as ``1:1000:0.001`` would
@@ -157,14 +160,17 @@ def expand_cases(scene_dict: dict[str, Any], vary: dict[str, list],
     return cases
 
 
-def validate_cases(cases: list[Case], source_path: str | Path | None) -> list[Scene]:
+def validate_cases(cases: list[Case], source_path: str | Path | None, problems: Preflight | None = None,
+                   progress: bool = False) -> list[Scene]:
     """Every case as a validated Scene; SceneError naming each invalid case and its problems (a
-    problem every case has, the base scene's, is named once)."""
+    problem every case has, the base scene's, is named once). ``problems(scene)``, when given, lists
+    what else a case's run would refuse (``scenarios.run.preflight.run_problems`` builds the models
+    and finds the start: about a second a case, so ``progress`` shows a bar)."""
     scenes, per_case = [], []
-    for case in cases:
+    for case in tqdm(cases, desc="check", unit="case", disable=not progress or problems is None):
         scene, errors = validate_scene_dict(case.data, source_path)
-        if scene is not None:  # what a run refuses before it builds anything, for every case before any runs
-            errors = settings_problems(scene) + scene_speed_problems(scene)
+        if scene is not None and problems is not None:
+            errors = problems(scene)
         per_case.append((case, [str(e) for e in errors]))
         scenes.append(scene)
     shared = [e for e in per_case[0][1] if all(e in errors for _, errors in per_case)] if len(per_case) > 1 else []
@@ -181,18 +187,21 @@ def validate_cases(cases: list[Case], source_path: str | Path | None) -> list[Sc
 def run_sweep(scene_path: str | Path, vary: dict[str, list], run_case: RunCase, *,
               mode: Literal["cartesian", "paired"] = "cartesian", workers: int | None = None,
               scheduler: Any = None, progress: bool = True, max_cases: int = MAX_CASES,
-              check: Callable[[list[Scene]], None] | None = None) -> pd.DataFrame:
+              check: Callable[[list[Scene]], None] | None = None,
+              problems: Preflight | None = run_problems) -> pd.DataFrame:
     """Run ``run_case(scene) -> dict of KPIs`` for every case; one row per case.
 
     Columns: ``case``, the varied key paths, the KPIs (union over cases), ``error`` (``None``
-    for a case that ran). ``run_case`` must be picklable (a module-level function). The
-    scheduler address is checked and the cluster reached before any case runs; so is ``check``
+    for a case that ran). ``run_case`` must be picklable (a module-level function). Before any
+    case runs: every case is checked by ``problems`` (default: what a run of it would refuse,
+    :func:`scenarios.run.preflight.run_problems`; None for a ``run_case`` that does not run the
+    scene), the scheduler address is checked and the cluster reached, and ``check`` is called
     (given the validated scenes of the cases; it raises to refuse them).
     """
     cases = expand_cases(read_toml(scene_path), vary, mode, max_cases)
     if isinstance(scheduler, str):
         check_scheduler_address(scheduler)
-    scenes = validate_cases(cases, scene_path)
+    scenes = validate_cases(cases, scene_path, problems, progress)
     if check is not None:
         check(scenes)
     if scheduler is not None:

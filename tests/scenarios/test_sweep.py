@@ -9,6 +9,7 @@ import pytest
 
 from scenarios.errors import RunError, SceneError
 from scenarios.scene.loader import read_toml
+from scenarios.run.preflight import run_problems
 from scenarios.run.sweep import expand_cases, parse_vary, run_sweep, validate_cases
 
 VARY = {"feed.feed_tph": [25.0, 30.0, 44.0], "controller.weights.p80": [1.0, 2.0]}
@@ -122,7 +123,7 @@ def test_sweep_command_refuses_a_misspelt_cyclone_field_with_exit_2_and_runs_not
 
 def test_an_invalid_case_is_refused_before_anything_runs(write_scene):
     with pytest.raises(SceneError) as info:
-        run_sweep(write_scene(), {"feed.speed_frac_critical": [0.7, 1.2]}, cheap_kpis,
+        run_sweep(write_scene(), {"feed.speed_frac_critical": [0.7, 1.2]}, cheap_kpis, problems=None,
                   workers=1, progress=False)
     assert "case 1 (feed.speed_frac_critical=1.2)" in str(info.value)
     assert "less than 1" in str(info.value)
@@ -139,7 +140,7 @@ def test_parse_vary_reads_lists_ranges_and_tables():
 
 
 def test_failing_case_is_reported_and_the_others_kept(write_scene):
-    table = run_sweep(write_scene(), VARY, cheap_kpis, workers=1, progress=False)
+    table = run_sweep(write_scene(), VARY, cheap_kpis, problems=None, workers=1, progress=False)
     assert list(table.columns) == ["case", "feed.feed_tph", "controller.weights.p80",
                                    "p80_um", "score", "error"]
     failed = table[table["error"].notna()]
@@ -151,11 +152,11 @@ def test_failing_case_is_reported_and_the_others_kept(write_scene):
 def test_local_pool_and_dask_cluster_give_identical_tables(write_scene):
     distributed = pytest.importorskip("distributed")
     path = write_scene()
-    serial = run_sweep(path, VARY, cheap_kpis, workers=1, progress=False)
-    pooled = run_sweep(path, VARY, cheap_kpis, workers=2, progress=False)
+    serial = run_sweep(path, VARY, cheap_kpis, problems=None, workers=1, progress=False)
+    pooled = run_sweep(path, VARY, cheap_kpis, problems=None, workers=2, progress=False)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
                                   dashboard_address=None) as cluster:
-        on_dask = run_sweep(path, VARY, cheap_kpis, scheduler=cluster, progress=False)
+        on_dask = run_sweep(path, VARY, cheap_kpis, problems=None, scheduler=cluster, progress=False)
     pd.testing.assert_frame_equal(pooled, serial)
     pd.testing.assert_frame_equal(on_dask, serial)
 
@@ -164,17 +165,17 @@ def test_local_pool_and_dask_cluster_give_identical_tables(write_scene):
 def test_dask_worker_processes_give_the_same_table(write_scene):
     distributed = pytest.importorskip("distributed")
     path = write_scene()
-    serial = run_sweep(path, VARY, cheap_kpis, workers=1, progress=False)
+    serial = run_sweep(path, VARY, cheap_kpis, problems=None, workers=1, progress=False)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster:
-        on_dask = run_sweep(path, VARY, cheap_kpis, scheduler=cluster.scheduler_address,
+        on_dask = run_sweep(path, VARY, cheap_kpis, problems=None, scheduler=cluster.scheduler_address,
                             progress=False)
     pd.testing.assert_frame_equal(on_dask, serial)
 
 
 def test_a_run_case_that_cannot_reach_worker_processes_is_refused_clearly(write_scene):
     with pytest.raises(RunError, match="module-level function, or workers=1"):
-        run_sweep(write_scene(), VARY, lambda scene: {}, workers=2, progress=False)
+        run_sweep(write_scene(), VARY, lambda scene: {}, problems=None, workers=2, progress=False)
 
 
 @pytest.mark.parametrize("text,fragment", [
@@ -195,20 +196,20 @@ def test_a_huge_sweep_is_refused_before_any_case_is_built_unless_allowed(write_s
     path = write_scene()
     huge = {"feed.feed_tph": list(range(600)), "controller.weights.p80": list(range(500))}
     with pytest.raises(SceneError, match=r"300,000 cases, more than the limit of 1,000; .*--max-cases 300000"):
-        run_sweep(path, huge, cheap_kpis, workers=1, progress=False)
+        run_sweep(path, huge, cheap_kpis, problems=None, workers=1, progress=False)
     assert MAX_CASES == 1000
-    table = run_sweep(path, {"feed.feed_tph": [25.0, 30.0, 35.0]}, cheap_kpis, workers=1, progress=False,
-                      max_cases=3)
+    table = run_sweep(path, {"feed.feed_tph": [25.0, 30.0, 35.0]}, cheap_kpis, problems=None, workers=1,
+                      progress=False, max_cases=3)
     assert len(table) == 3
     with pytest.raises(SceneError, match="3 cases, more than the limit of 2"):
-        run_sweep(path, {"feed.feed_tph": [25.0, 30.0, 35.0]}, cheap_kpis, workers=1, progress=False,
-                  max_cases=2)
+        run_sweep(path, {"feed.feed_tph": [25.0, 30.0, 35.0]}, cheap_kpis, problems=None, workers=1,
+                  progress=False, max_cases=2)
 
 
 @pytest.mark.parametrize("address", ["notanaddress", "tcp://", "http://host:8786", "host:port"])
 def test_a_scheduler_that_is_not_an_address_is_refused_before_any_case(write_scene, address):
     with pytest.raises(SceneError, match="not a Dask scheduler address; expected PROTOCOL://HOST:PORT"):
-        run_sweep(write_scene(), VARY, cheap_kpis, scheduler=address, progress=False)
+        run_sweep(write_scene(), VARY, cheap_kpis, problems=None, scheduler=address, progress=False)
 
 
 def test_sweep_command_exits_1_naming_the_failed_cases(write_scene, monkeypatch, capsys):
@@ -217,7 +218,10 @@ def test_sweep_command_exits_1_naming_the_failed_cases(write_scene, monkeypatch,
     from tests.scenarios.test_cli import grindtwin
 
     monkeypatch.setattr(commands, "sweep_case", cheap_kpis)
-    assert grindtwin(["sweep", write_scene(), "--vary", "feed.feed_tph=25,30,44", "--workers", "1",
+    from tests.scenarios.conftest import BASE_SCENE
+
+    runnable = BASE_SCENE.replace('kind = "nmpc"', 'kind = "none"')  # the base scene's NMPC: too large to build
+    assert grindtwin(["sweep", write_scene(runnable), "--vary", "feed.feed_tph=25,30,44", "--workers", "1",
                       "--quiet"]) == 1
     err = capsys.readouterr().err
     assert "grindtwin: sweep: 1 of 3 cases failed:" in err
@@ -283,8 +287,19 @@ def test_a_case_a_run_would_refuse_is_refused_before_any_case_runs(write_scene):
     cases = expand_cases(read_toml(path), {"feed.speed_frac_critical": [0.7, 0.05]})
     with pytest.raises(SceneError, match=r"1 problem\n  case 1 \(feed.speed_frac_critical=0.05\): "
                                          r"feed.speed_frac_critical: 0.05 is at or below 0.1 of critical"):
-        validate_cases(cases, path)
-    assert len(validate_cases(cases[:1], path)) == 1
+        validate_cases(cases, path, run_problems)
+    assert len(validate_cases(cases[:1], path, run_problems)) == 1
+
+
+def test_a_case_the_twin_refuses_is_refused_before_any_case_runs():
+    """An analyser dead time of 5 h (minutes typed as hours) passed the sweep's checks and failed when its
+    case was reached, after the cases before it had run: each case's models are now built up front."""
+    path = MOLYCOP.parent / "reference_transition.toml"
+    cases = expand_cases(read_toml(path), {"effect_options.sensor_delay.dead_time_h": [0.05, 5.0]})
+    with pytest.raises(SceneError, match=r"1 problem\n  case 1 \(effect_options.sensor_delay.dead_time_h=5.0\): .*"
+                                         r"the twin refused the scene: The 'dead_time_h' option of effect "
+                                         r"'sensor_delay' must be at most 10 of the mill's nominal residence times"):
+        validate_cases(cases, path, run_problems)
 
 
 def test_a_key_inside_another_varied_key_is_refused(write_scene):
