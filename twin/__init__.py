@@ -33,6 +33,7 @@ _API = {
     "file_sha256": ".atomic", "is_grindtwin_checkout": ".atomic", "new_folder_beside": ".atomic", "write_text_atomically": ".atomic",
     "LockError": ".atomic", "acquire_lock": ".atomic", "release_lock": ".atomic", "remove_by_name": ".atomic",
     "replace_folder": ".atomic", "temporaries_of": ".atomic", "write_atomically": ".atomic",
+    "write_beside": ".atomic",
     "check_size_mill_input": ".sizing",
     "trajectory_notes": ".validity",
 }
@@ -49,6 +50,6 @@ __all__ = [
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
     "file_sha256", "is_grindtwin_checkout", "new_folder_beside", "pxx_um", "reference_ores", "trajectory_notes", "write_text_atomically",
     "LockError", "acquire_lock", "release_lock", "remove_by_name", "replace_folder", "temporaries_of",
-    "write_atomically", "check_size_mill_input",
+    "write_atomically", "write_beside", "check_size_mill_input",
 ]
 __getattr__, __dir__ = lazy_face(__name__, _API)

@@ -41,16 +41,29 @@ def write_atomically(path, write: Callable[[Path], object]) -> Path:
     ``path`` (``.NAME.<random>.partial``, :func:`temporaries_of`) renamed over ``path`` when done;
     on any error it is removed and ``path`` is as it was."""
     path = Path(path)
+    tmp = write_beside(path, write)
+    try:
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
+def write_beside(path, write: Callable[[Path], object]) -> Path:
+    """The temporary file of :func:`write_atomically`, written by ``write(tmp)`` and left for the caller
+    to rename over ``path`` (removed on any error): files that must change together are each written
+    first, then renamed."""
+    path = Path(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".partial")
     os.close(fd)
     try:
         write(Path(tmp))
         os.chmod(tmp, _default_mode(0o666))  # mkstemp makes it private (0600)
-        os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
-    return path
+    return Path(tmp)
 
 
 def temporaries_of(folder, names) -> list[str]:

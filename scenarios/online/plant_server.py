@@ -44,12 +44,12 @@ from scenarios.errors import SceneError
 from scenarios.online.clock import Clock, Stoppable, sleep_until
 from scenarios.online.security import ServerSecurity, make_server
 from scenarios.online.tags import TagMap
-from scenarios.output import MANIFEST, manifest_of, strangers
+from scenarios.output import MANIFEST, replace_recorded_files, strangers
 from scenarios.run import build_models
 from scenarios.run.closed_loop import hold_schedule, plant_start, scene_sensors
 from scenarios.run.feed import component_blend, feed_schedule
 from scenarios.scene import Scene
-from twin import trajectory_notes
+from twin import temporaries_of, trajectory_notes
 
 log = logging.getLogger("grindtwin.online.plant")
 
@@ -69,8 +69,6 @@ FAULTS = ("none", "bad", "uncertain", "frozen", "stale")
 SIM_NODES = {"time_h": "Simulation.Time_h", "p80_true_um": "Simulation.P80True_um",
              "speedup": "Simulation.Speedup", "run": "Simulation.Run", "fault": "Instructor.P80Fault"}
 RECORD_FILES = ("plant.parquet", "plant-kpis.json")
-#: what a recording stopped mid-write leaves beside them
-RECORD_TEMPORARIES = ("plant.parquet.partial", "plant-kpis.json.partial", f"{MANIFEST}.partial")
 
 
 @dataclass
@@ -449,7 +447,7 @@ class PlantServer(Stoppable):
             return
         d = Path(d)
         if d.exists():
-            others = strangers(d, also=RECORD_TEMPORARIES) if d.is_dir() else [d.name]
+            others = strangers(d, also=tuple(temporaries_of(d, (*RECORD_FILES, MANIFEST)))) if d.is_dir() else [d.name]
             if others:
                 raise SceneError(f"--record {d}: must be a new folder or one this command wrote, as it wrote it (it "
                                  f"holds {', '.join(others[:5])}, which it did not write or which changed since)")
@@ -471,17 +469,12 @@ class PlantServer(Stoppable):
         return {key: v for key, v in k.items() if not key.startswith(("solve_time", "fallback"))}
 
     def write_record(self) -> None:
-        d = Path(self.s.record_dir)
-        tmp = d / "plant.parquet.partial"
-        self.frame().to_parquet(tmp, index=False)
-        tmp.replace(d / "plant.parquet")
-        # renamed into place too: the server may be stopped mid-write, and a reader may open it any time
-        tmp = d / "plant-kpis.json.partial"
-        tmp.write_text(json.dumps(self.kpis(), indent=2))
-        tmp.replace(d / "plant-kpis.json")
-        tmp = d / f"{MANIFEST}.partial"
-        tmp.write_text(json.dumps(manifest_of(d, list(RECORD_FILES), "plant-record"), indent=2) + "\n")
-        tmp.replace(d / MANIFEST)
+        """The record's files and manifest, each renamed into place (the server may be stopped mid-write, a
+        reader may open them any time), so that a stop at any point leaves a folder the next --record takes."""
+        frame, kpis = self.frame(), self.kpis()
+        replace_recorded_files(Path(self.s.record_dir), "plant-record", {
+            "plant.parquet": lambda path: frame.to_parquet(path, index=False),
+            "plant-kpis.json": lambda path: path.write_text(json.dumps(kpis, indent=2), encoding="utf-8")})
 
     # ------------------------------------------------------------------ run
     async def run(self, install_signal_handlers: bool = True) -> None:

@@ -6,9 +6,9 @@ from scenarios.output.report import render_report, write_report
 from scenarios.output.workbook import (psd_table, workbook_problem, write_size_csvs, write_sweep_workbook,
                                        write_workbook)
 from scenarios.output.write import (INCOMPLETE_MARKER, MANIFEST, OutputClaim, claim_output, json_safe, manifest_of,
-                                    strangers, write_files, write_run)
+                                    replace_recorded_files, strangers, write_files, write_run)
 
 __all__ = ["INCOMPLETE_MARKER", "MANIFEST", "OutputClaim", "PLOTS", "claim_output", "json_safe", "manifest_of",
            "psd_table",
-           "render_report", "strangers", "workbook_problem", "write_files", "write_plots", "write_report", "write_run",
+           "render_report", "replace_recorded_files", "strangers", "workbook_problem", "write_files", "write_plots", "write_report", "write_run",
            "write_size_csvs", "write_sweep_plot", "write_sweep_workbook", "write_workbook"]

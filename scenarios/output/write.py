@@ -69,7 +69,7 @@ import numpy as np
 
 from scenarios.errors import RunError, SceneError, raise_if_interrupted
 from twin import (LockError, acquire_lock, file_sha256, release_lock, remove_by_name, replace_folder, temporaries_of,
-                  write_text_atomically)
+                  write_beside, write_text_atomically)
 from scenarios.output.plots import PLOTS, SWEEP_PLOT, write_plots
 from scenarios.output.workbook import (PSD_FILES, RUN_WORKBOOK, STREAMS_FILE, SWEEP_WORKBOOK, write_csv,
                                       write_size_csvs, write_workbook)
@@ -201,7 +201,13 @@ def _as_written(folder: Path, name: str, manifest: dict) -> bool:
     if want is None:
         return True
     path = folder / name
-    return path.is_file() and not path.is_symlink() and file_sha256(path) == want
+    # a list while files are being replaced (:func:`replace_recorded_files`): the old or the new content
+    return path.is_file() and not path.is_symlink() and file_sha256(path) in _hashes(want)
+
+
+def _hashes(recorded) -> list[str]:
+    return [recorded] if isinstance(recorded, str) else [h for h in recorded if isinstance(h, str)] \
+        if isinstance(recorded, list) else []
 
 
 def _check_place(final: Path, protect: tuple[Path, ...]) -> None:
@@ -337,12 +343,39 @@ class OutputClaim:
             self.notes.append(f"kept {kept}: the previous result there holds files grindtwin did not write")
 
 
-def manifest_of(folder: Path, files: list[str], kind: str) -> dict:
+def manifest_of(folder: Path, files: list[str], kind: str, sha256: dict | None = None) -> dict:
     """The manifest of ``files`` grindtwin wrote in ``folder``: each with its sha256 (what tells a later
-    writer that the folder is grindtwin's, and which of its files were edited since)."""
-    return {"written_by": "grindtwin", "kind": kind, "files": files,
-            "sha256": {name: file_sha256(folder / name) for name in files},
+    writer that the folder is grindtwin's, and which of its files were edited since), read from the
+    files unless given."""
+    sha256 = {name: file_sha256(folder / name) for name in files} if sha256 is None else sha256
+    return {"written_by": "grindtwin", "kind": kind, "files": files, "sha256": sha256,
             "grindtwin_version": installed_version(), "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+
+
+def replace_recorded_files(folder: Path, kind: str, writers: dict) -> None:
+    """Write or rewrite the files ``{name: write(path)}`` in ``folder`` and its manifest (listing them
+    alone) so that a process stopped at any point leaves a folder :func:`strangers` takes as
+    grindtwin's: each file is written beside its place (twin.write_beside), the manifest then lists
+    each file's old and new sha256, the files are renamed into place, and the manifest lists the new
+    ones. (Written one after the other, a stop between the files and the manifest left files the old
+    manifest called edited since, and the folder was refused.)"""
+    old = (read_manifest(folder) or {}).get("sha256")
+    old = old if isinstance(old, dict) else {}
+    temps = {}
+    try:
+        for name, write in writers.items():
+            temps[name] = write_beside(folder / name, write)
+        new = {name: file_sha256(tmp) for name, tmp in temps.items()}
+        either = {name: list(dict.fromkeys([*_hashes(old.get(name)), sha])) for name, sha in new.items()}
+        write_text_atomically(folder / MANIFEST, json.dumps(manifest_of(folder, list(writers), kind, either),
+                                                            indent=2) + "\n")
+        for name, tmp in temps.items():
+            os.replace(tmp, folder / name)
+    except BaseException:
+        for tmp in temps.values():
+            tmp.unlink(missing_ok=True)
+        raise
+    write_text_atomically(folder / MANIFEST, json.dumps(manifest_of(folder, list(writers), kind, new), indent=2) + "\n")
 
 
 def claim_output(out_dir, protect=()):

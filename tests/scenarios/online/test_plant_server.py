@@ -238,3 +238,47 @@ def test_a_record_folder_holding_the_users_files_is_refused_and_a_recording_is_r
     (rec / "plant-kpis.json").write_text((rec / "plant-kpis.json").read_text() + " ")
     with pytest.raises(SceneError, match="which it did not write or which changed since"):
         server(rec)
+
+
+@pytest.mark.parametrize("stop_at", [0, 1, 2, 3])
+def test_a_recording_stopped_while_it_writes_is_taken_by_the_next_record(small_scene, small_tags, small_parts,
+                                                                          tmp_path, monkeypatch, stop_at):
+    """The record's files were replaced before its manifest: a server stopped between them left files the old
+    manifest called edited since, and the next --record of that folder was refused. A stop at each rename
+    (the manifest listing both contents, each file, the manifest of the new ones) now leaves a folder it takes."""
+    import os
+    from pathlib import Path
+
+    from scenarios.online.plant_server import RECORD_FILES
+    from scenarios.output import MANIFEST, strangers
+    from twin import temporaries_of
+
+    def server():
+        return online.PlantServer(small_scene, small_tags, online.PlantServerSettings(
+            "opc.tcp://127.0.0.1:1", online.ServerSecurity(insecure=True), record_dir=tmp_path / "rec"),
+            models=small_parts.models, clock=online.ManualClock(speedup=3600.0))
+
+    p = server()
+    ticks(p, p.clock, 2)
+    p.write_record()
+    ticks(p, p.clock, 2)
+    real_replace, calls = os.replace, []
+
+    def replace_until_killed(src, dst):
+        calls.append(dst)
+        if len(calls) > stop_at:
+            raise SystemExit("killed")
+        return real_replace(src, dst)
+
+    with monkeypatch.context() as m:  # a kill runs no clean-up: its temporaries stay
+        m.setattr(os, "replace", replace_until_killed)
+        m.setattr(Path, "unlink", lambda self, missing_ok=False: None)
+        with pytest.raises(SystemExit):
+            p.write_record()
+    rec = tmp_path / "rec"
+    left = tuple(temporaries_of(rec, (*RECORD_FILES, MANIFEST)))
+    assert strangers(rec, also=left) == []
+    server()  # taken: not "changed since"
+    p.write_record()
+    assert sorted(n for n in os.listdir(rec) if n not in left) == sorted([MANIFEST, *RECORD_FILES])
+    assert strangers(rec, also=left) == []
