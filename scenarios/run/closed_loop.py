@@ -262,9 +262,24 @@ def loop_start(scene: Scene, models, blend0) -> LoopStart:
     """:func:`plant_start` and (NMPC) the controller's model's steady state at its inputs."""
     ss = plant_start(scene, models, blend0)
     feed0, speed0 = float(ss.u[0]), scene.feed.speed_frac_critical
+    _refuse_start_outside_bounds(scene, feed0)
     css = (models.control.steady(feed_tph=feed0, speed_frac_critical=speed0, blend=blend0)
            if scene.controller.kind == "nmpc" else None)
     return LoopStart(feed0, ss, css)
+
+
+def _refuse_start_outside_bounds(scene: Scene, feed0: float) -> None:
+    """A closed loop's start feed outside ``controller.bounds``: its first move jumped into them, faster than
+    the feed's rate limit, with a note on one row only (the scene's own feed_tph is checked with the scene,
+    a start at the target's feed only here, where it is known)."""
+    b = scene.controller.bounds
+    if scene.controller.kind == "none" or b.feed_tph_min <= feed0 <= b.feed_tph_max:
+        return
+    raise SceneError(f"controller.bounds: the closed loop starts at {feed0:.4g} t/h, the feed rate that holds "
+                     f"controller.target_p80_um = {scene.controller.target_p80_um:g} um at the initial blend and "
+                     f"speed (feed.start = \"target\"), outside the feed bounds [{b.feed_tph_min:g}, "
+                     f"{b.feed_tph_max:g}] t/h: the first move would jump into them, past the feed's rate limit; "
+                     "widen the bounds to hold it, or start at feed.feed_tph with feed.start = \"scene\"")
 
 
 def nmpc_parts(scene: Scene, models, start: LoopStart, codegen: str = "auto"):

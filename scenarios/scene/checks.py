@@ -345,7 +345,9 @@ def _check_controller(data, r: _Report) -> None:
         r.add(("controller", "bounds", "speed_max"), f"must be above speed_min = {smin:g}", smax)
     if kind != "none":
         feed, speed = _num(_get(data, "feed", "feed_tph")), _num(_get(data, "feed", "speed_frac_critical"))
-        if feed is not None and fmin is not None and fmax is not None and fmin < fmax \
+        # a closed loop starts at feed_tph only with start = "scene"; the target's feed is checked once known
+        starts_at_feed = _get(data, "feed", "start") == "scene"
+        if starts_at_feed and feed is not None and fmin is not None and fmax is not None and fmin < fmax \
                 and not fmin <= feed <= fmax:
             r.add(("feed", "feed_tph"), f"initial feed outside controller.bounds "
                   f"[{fmin:g}, {fmax:g}]", feed)

@@ -2,6 +2,9 @@
 "target" it starts at (and holds) the feed rate whose steady state holds the controller's target,
 where the closed loops start; "target" without a target is refused with its key path."""
 
+import re
+from pathlib import Path
+
 import pytest
 
 from scenarios.errors import SceneError
@@ -44,7 +47,9 @@ def test_a_sweep_over_the_controller_starts_every_case_where_the_scene_says(writ
     from scenarios.cli.commands import sweep_case
     from scenarios.run import run_sweep
 
-    scene = OPEN.replace("feed_tph = 30.0", 'feed_tph = 30.0\nstart = "target"')
+    # bounds that hold the start (14.5 t/h): a start outside them is refused
+    scene = OPEN.replace("feed_tph = 30.0", 'feed_tph = 30.0\nstart = "target"').replace("feed_tph_min = 20.0",
+                                                                                        "feed_tph_min = 10.0")
     table = run_sweep(write_scene(scene), {"controller.kind": ["none", "pi"]}, sweep_case, workers=1,
                       progress=False).set_index("controller.kind")
     assert table["error"].isna().all()
@@ -80,3 +85,27 @@ def test_a_start_target_no_feed_holds_is_refused_as_a_scene_problem_naming_its_k
     msg = str(info.value)
     assert "controller.target_p80_um = 20 um cannot be the start" in msg and "feed.speed_frac_critical = 0.7" in msg
     assert 'feed.start = "scene"' in msg
+
+
+REFERENCE = (Path(__file__).resolve().parents[2] / "scenarios" / "reference_transition.toml").read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize("kind", ["nmpc", "pi"])
+def test_the_bounds_are_checked_against_the_feed_a_closed_loop_starts_at(write_scene, kind):
+    """The scene's feed_tph (30 t/h) was checked against the bounds, while a closed loop starts at the feed that
+    holds its target (23.6 t/h): bounds of [20, 28] were refused, and [25, 45] ran, its first move jumping
+    1.4 t/h in one sample (27.6 t/h per h against a limit of 20), with a note on one row only."""
+    from scenarios.run.preflight import check_scene
+
+    assert "feed_tph_max = 45.0" in REFERENCE and "feed_tph_min = 20.0" in REFERENCE
+    scene = REFERENCE.replace('kind = "nmpc"', f'kind = "{kind}"')
+    assert check_scene(write_scene(scene.replace("feed_tph_max = 45.0", "feed_tph_max = 28.0"))) == []
+    problems = check_scene(write_scene(scene.replace("feed_tph_min = 20.0", "feed_tph_min = 25.0")))
+    assert len(problems) == 1 and re.search(
+        r"controller.bounds: the closed loop starts at 23\.\d+ t/h, the feed rate that holds controller.target_p80_um "
+        r"= 210 um .* outside the feed bounds \[25, 45\] t/h", problems[0]), problems
+    # a start at the scene's own feed is checked with the scene, before any model is built
+    at_feed = scene.replace('start = "target"', 'start = "scene"')
+    assert check_scene(write_scene(at_feed)) == []
+    assert any("feed.feed_tph: initial feed outside controller.bounds [20, 28]" in p for p in
+               check_scene(write_scene(at_feed.replace("feed_tph_max = 45.0", "feed_tph_max = 28.0"))))
