@@ -238,8 +238,10 @@ class TabulatedPSD:
     interpolated linearly in log size. Above the coarsest sieve nothing is retained once 100 %
     passes (else the rest lies in the top class, as :func:`discretise` puts it). Below the finest
     sieve the distribution follows the Gates-Gaudin-Schuhmann line through the two finest sieves
-    (passing ~ x^m, Gupta & Yan 2016, ch. 3: the straight fine end of crushed and ground ores on
-    log-log axes), so the pan is not lumped at one size."""
+    whose passing differs (passing ~ x^m, Gupta & Yan 2016, ch. 3: the straight fine end of crushed
+    and ground ores on log-log axes), so the pan is not lumped at one size: through two sieves of
+    equal passing (nothing retained on the finest) the line was flat, and the pan's ~24 % lay at
+    size zero."""
 
     sizes_um: tuple
     passing_frac: tuple
@@ -254,14 +256,18 @@ class TabulatedPSD:
         if not np.all(np.isfinite(p)) or np.any(np.diff(p) < 0) or p[0] <= 0 or p[-1] > 1:
             raise bad_value("TabulatedPSD", "passing_frac", list(self.passing_frac),
                             "fractions passing (0.5, not 50) non-decreasing with size, within (0, 1]")
+        if p[-1] == p[0]:  # no slope for the fine end: all of it below the finest sieve, or none on any sieve
+            raise bad_value("TabulatedPSD", "passing_frac", list(self.passing_frac),
+                            "a passing that rises between some two sieves (all equal: the sieves measure nothing "
+                            "of the distribution; give finer sieves)")
 
     @classmethod
     def from_sieves(cls, sizes_um, passing_pct) -> "TabulatedPSD":
         """From sieve sizes [um] and cumulative % passing in any order (as a screen analysis is
         written, coarsest first); % as 94.43, not 0.9443."""
         s, p = np.asarray(sizes_um, float), np.asarray(passing_pct, float)
-        if s.ndim != 1:
-            raise bad_value("TabulatedPSD", "sizes_um", s.tolist(), "a flat sequence of sieve sizes [um]")
+        if s.ndim != 1 or not np.all(np.isfinite(s)) or np.any(s <= 0):  # a NaN size blamed the passing
+            raise bad_value("TabulatedPSD", "sizes_um", s.tolist(), "a flat sequence of positive sieve sizes [um]")
         if s.shape != p.shape:
             raise bad_value("TabulatedPSD", "passing_pct", p.tolist(), f"one value per sieve ({s.size} sieves)")
         if not np.all(np.isfinite(p)) or np.any(p < 0) or np.any(p > 100):
@@ -279,6 +285,9 @@ class TabulatedPSD:
             raise bad_value("TabulatedPSD", "passing_pct", p.tolist(),
                             "cumulative % passing, non-decreasing with sieve size and above 0 at the finest sieve "
                             f"(sizes {s.tolist()} um; % retained on each sieve is not % passing)")
+        if p[-1] == p[0]:
+            raise bad_value("TabulatedPSD", "passing_pct", p.tolist(), "a % passing that rises between some two "
+                            "sieves (all equal: the sieves measure nothing of the distribution; give finer sieves)")
         return cls(tuple(s), tuple(p / 100.0))
 
     @classmethod
@@ -295,9 +304,11 @@ class TabulatedPSD:
 
     @property
     def fine_modulus(self) -> float:
-        """GGS modulus of the fine end: the log-log slope through the two finest sieves."""
+        """GGS modulus of the fine end: the log-log slope through the two finest sieves whose passing
+        differs (the construction refuses a table with none)."""
         s, p = self.sizes_um, self.passing_frac
-        return math.log(p[1] / p[0]) / math.log(s[1] / s[0])
+        k = next(i for i in range(len(p) - 1) if p[i + 1] > p[i])
+        return math.log(p[k + 1] / p[k]) / math.log(s[k + 1] / s[k])
 
     def passing(self, x_um):
         s, p = np.log(self.sizes_um), np.asarray(self.passing_frac, float)

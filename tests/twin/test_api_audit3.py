@@ -1,6 +1,8 @@
 """Python-API slips a user met: a value of the wrong type kept until it failed far away, a keyword that
 raised where it should act, a factor read by nothing, messages in the other unit, a case slip with no hint."""
 
+import math
+
 import pytest
 
 from twin import Hydrocyclone, TabulatedPSD, Twin, TwinInputError, load_ore
@@ -61,3 +63,22 @@ def test_a_screen_analysis_out_of_order_is_refused_in_percent(sizes, passing):
 def test_a_reference_type_in_lower_case_gets_a_hint():
     with pytest.raises(TwinInputError, match="Got 'b'. Did you mean 'B'"):
         load_ore("b")
+
+
+def test_a_screen_analysis_with_nothing_on_its_finest_sieve_keeps_its_fine_end():
+    """Two finest sieves of equal passing made the fine end's GGS line flat: the pan (24 % of the feed) lay at
+    size zero, and 24 % of the feed was below 1.6 um (4.8 % with 21 % passing the finest sieve)."""
+    sizes = [4750, 3350, 2360, 1700, 1180, 850, 600, 425, 300, 212, 150, 106, 75]
+    passing = [100, 96, 88, 78, 68, 59, 51, 44, 38, 33, 28, 24, 21]
+    measured = TabulatedPSD.from_sieves(sizes, passing)
+    empty_finest = TabulatedPSD.from_sieves(sizes, passing[:-1] + [24])
+    # the line through the finest two sieves whose passing differs: 24 % at 106 um and 28 % at 150 um
+    assert empty_finest.fine_modulus == pytest.approx(math.log(28 / 24) / math.log(150 / 106))
+    assert float(empty_finest.passing(75.0)) == pytest.approx(0.24)
+    assert float(empty_finest.passing(1.64)) < float(measured.passing(1.64)) < 0.05
+    with pytest.raises(TwinInputError, match="'passing_pct' parameter of TabulatedPSD must be a % passing that "
+                                             "rises between some two sieves"):
+        TabulatedPSD.from_sieves([75, 106], [100, 100])
+    with pytest.raises(TwinInputError, match="'sizes_um' parameter of TabulatedPSD must be a flat sequence of "
+                                             r"positive sieve sizes \[um\]. Got \[75.0, nan\]"):
+        TabulatedPSD.from_sieves([75, float("nan")], [50, 100])
