@@ -953,14 +953,27 @@ def cmd_calibrate(args) -> int:
 
 
 # --------------------------------------------------------------------------- bench
-BENCH_LAYERS = ("dem", "twin", "mpc")
+#: What each layer's accuracy costs in time (the resolution knobs of README's headline tables): the scripts
+#: ``grindtwin bench LAYER`` runs. The other benchmarks compare with peers (Yade, LAMMPS, do-mpc: installed
+#: beside, never dependencies), take arguments (an A/B against a revision) or study one question; each runs by
+#: its name, ``grindtwin bench NAME [ARGS]``. (Every script with a __main__ block was run, and a layer stopped
+#: at the first that needed arguments or a peer.)
+BENCH_LAYERS = {
+    "dem": ("dem_accuracy", "dem_time_step", "dem_drum_accuracy"),
+    "twin": ("twin_accuracy", "twin_grid", "twin_surrogate"),
+    "mpc": ("mpc_nmpc_horizon", "mpc_linear_horizon"),
+}
 
 
 def add_bench_parser(subparsers):
     b = subparsers.add_parser("bench", help="accuracy-against-time benchmarks (run from a checkout)",
-                              description="Run benchmarks/<LAYER>_*.py from the repository checkout in the "
-                              "current directory; each writes its table to benchmarks/results/.")
-    b.add_argument("layer", nargs="?", choices=BENCH_LAYERS, help="one layer (default: all)")
+                              description="From the repository checkout in the current directory: LAYER runs that "
+                              "layer's accuracy-against-time benchmarks (all layers without one); NAME runs "
+                              "benchmarks/NAME.py with the ARGS after --. Each writes its table to benchmarks/results/.")
+    b.add_argument("target", nargs="?", metavar="LAYER|NAME",
+                   help=f"a layer ({', '.join(BENCH_LAYERS)}; default: all) or one benchmark's name (dem_ab, ...)")
+    b.add_argument("script_args", nargs="*", metavar="ARGS",
+                   help="arguments of the benchmark NAME, after -- (grindtwin bench dem_ab -- --base HEAD~1)")
     b.add_argument("--list", action="store_true", help="list the scripts only")
     b.set_defaults(func=cmd_bench)
     return b
@@ -977,13 +990,22 @@ def cmd_bench(args) -> int:
         # another project's benchmarks/ would have its scripts run, and results written into it
         raise SceneError("grindtwin bench runs from a checkout of the grindtwin repository (its pyproject.toml "
                          f"names the project grindtwin, beside benchmarks/): {Path.cwd()} is not one.")
-    layers = [args.layer] if args.layer else list(BENCH_LAYERS)
-    # a benchmark is a script with a __main__ block (helper modules and Yade-side scripts are not)
-    scripts = sorted(p for layer in layers for p in root.glob(f"{layer}_*.py")
-                     if '__name__ == "__main__"' in p.read_text(encoding="utf-8"))
-    for script in scripts:
+    if args.target is None or args.target in BENCH_LAYERS:
+        if args.script_args:
+            raise SceneError(f"bench {args.target or ''}: ARGS are for one benchmark by name, not a layer "
+                             f"(got {' '.join(args.script_args)})")
+        names = [n for layer in ([args.target] if args.target else BENCH_LAYERS) for n in BENCH_LAYERS[layer]]
+    else:
+        known = sorted(p.stem for p in root.glob("*.py") if '__name__ == "__main__"' in p.read_text(encoding="utf-8"))
+        if args.target not in known:
+            from twin.errors import close_matches
+
+            raise SceneError(f"bench {args.target}: not a layer ({', '.join(BENCH_LAYERS)}) or a benchmark of "
+                             f"{root}/.{close_matches(args.target, [*BENCH_LAYERS, *known])}")
+        names = [args.target]
+    for script in (root / f"{n}.py" for n in names):
         print(script)
-        if not args.list and subprocess.call([sys.executable, str(script)]) != 0:
+        if not args.list and subprocess.call([sys.executable, str(script), *args.script_args]) != 0:
             raise RunError(f"benchmark {script} failed")
     return 0
 

