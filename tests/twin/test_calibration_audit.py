@@ -120,6 +120,28 @@ def test_a_new_file_is_named_after_itself_and_never_takes_a_shipped_name(tmp_pat
         assert "is the name of a shipped calibration" in err and str(out) in err and not out.exists(), err
 
 
+def test_a_calibration_is_replaced_only_by_one_of_its_kind_and_options_it_would_not_use_are_refused(tmp_path,
+                                                                                                    capsys):
+    """`calibrate --map mineralogy --out mine.json` replaced a DEM calibration there with "wrote mine.json" alone
+    (the DEM step takes minutes to hours, and scenes naming the file ran on the other map); `--from dem --seed 9`
+    recorded a seed its reused DEM step never ran with."""
+    mine = tmp_path / "mine.json"
+    assert _calibrate(["--from", "dem", "--replicates", "0", "--out", str(mine)]) == 0
+    before = mine.read_bytes()
+    capsys.readouterr()
+    assert _calibrate(["--map", "mineralogy", "--out", str(mine)]) == 2
+    assert (f"--out {mine}: it holds a 'dem' calibration, which this command would replace with a 'mineralogy' one"
+            in capsys.readouterr().err)
+    assert mine.read_bytes() == before
+    assert _calibrate(["--from", "dem", "--replicates", "0", "--out", str(mine)]) == 0  # its own kind: said
+    assert f"note: --out {mine}: replacing the 'dem' calibration it holds (made by `grindtwin calibrate --from dem" \
+        in capsys.readouterr().err
+    for unused in (["--seed", "9"], ["--fast"], ["--workers", "2"]):
+        assert _calibrate(["--from", "dem", "--replicates", "0", "--out", str(tmp_path / "s.json"), *unused]) == 2
+        assert f"{unused[0]}: --from dem reuses that file's DEM step, so no DEM test runs" in capsys.readouterr().err
+    assert not (tmp_path / "s.json").exists()
+
+
 def test_a_shipped_file_keeps_its_own_name(capsys):
     shipped = load_calibration("table")
     before = shipped.path.read_bytes()
