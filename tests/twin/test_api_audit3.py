@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from twin import Hydrocyclone, TabulatedPSD, Twin, TwinInputError, load_ore
+from twin import CycloneSurvey, Hydrocyclone, TabulatedPSD, TwinInputError, load_ore
 from twin.ore.mineralogy import Texture
 
 
@@ -82,3 +82,15 @@ def test_a_screen_analysis_with_nothing_on_its_finest_sieve_keeps_its_fine_end()
     with pytest.raises(TwinInputError, match="'sizes_um' parameter of TabulatedPSD must be a flat sequence of "
                                              r"positive sieve sizes \[um\]. Got \[75.0, nan\]"):
         TabulatedPSD.from_sieves([75, float("nan")], [50, 100])
+
+
+@pytest.mark.parametrize("make", [
+    lambda d50c: CycloneSurvey(feed_solids_tph=100.0, feed_water_m3_h=60.0, solids_density_t_m3=2.7, d50c_um=d50c,
+                               sharpness=2.0, water_bypass_frac=0.3, pressure_kpa=60.0),
+    lambda d50c: Hydrocyclone(d50c_um=d50c, sharpness=2.0, water_bypass_frac=0.3)])
+def test_a_cut_size_in_mm_is_refused(make):
+    # a survey's d50c of 0.1833 (mm) passed `check`, its Plitt factor became 0.0008, and steady blamed the feed
+    with pytest.raises(TwinInputError, match=r"'d50c_um' parameter of \w+ must be at least 1 um, the finest cut a "
+                                             r"hydrocyclone makes \(mm\? um expected\). Got 0.1833"):
+        make(0.1833)
+    assert make(183.3).d50c_um == 183.3

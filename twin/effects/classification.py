@@ -73,6 +73,22 @@ def _exp(v):
 #: kPa per psi (a cyclone's pressure gauge often reads psi).
 KPA_PER_PSI = 6.894757293168361
 
+#: A cyclone's corrected cut size d50c [um] is at least this: hydrocyclones cut at ~5 um and coarser (the
+#: smallest, 10 mm bodies; Wills & Finch 2016, ch. 9), and no particle-size analysis resolves below ~1 um;
+#: a d50c in mm (0.18 for a 183-um cut) lands below, and its Plitt factor became 0.0008 without a word.
+D50C_MIN_UM = 1.0
+#: ... and below this [um] (10 cm: no classifier's cut; the bound the field had).
+D50C_MAX_UM = 1e5
+
+
+def check_d50c(owner: str, value) -> float:
+    """``value`` as a float if it is a cut size a hydrocyclone makes [um], else TwinInputError naming ``owner``."""
+    v = check_range(owner, "d50c_um", value, 0.0, D50C_MAX_UM)
+    if v < D50C_MIN_UM:
+        raise bad_value(owner, "d50c_um", value, f"at least {D50C_MIN_UM:g} um, the finest cut a hydrocyclone makes "
+                        "(mm? um expected)")
+    return v
+
 
 @dataclass(frozen=True)
 class CycloneSurvey:
@@ -94,9 +110,10 @@ class CycloneSurvey:
         o = "CycloneSurvey"
         refuse_bool_fields(o, self)
         for name, lo, hi in (("feed_solids_tph", 0.0, 1e6), ("feed_water_m3_h", 0.0, 1e6),
-                             ("solids_density_t_m3", WATER_DENSITY_T_M3, 25.0), ("d50c_um", 0.0, 1e5),
-                             ("sharpness", 0.0, 20.0), ("water_bypass_frac", 0.0, 1.0)):
+                             ("solids_density_t_m3", WATER_DENSITY_T_M3, 25.0), ("sharpness", 0.0, 20.0),
+                             ("water_bypass_frac", 0.0, 1.0)):
             check_range(o, name, getattr(self, name), lo, hi)
+        check_d50c(o, self.d50c_um)
         if (self.pressure_kpa is None) == (self.pressure_psi is None):
             raise bad_value(o, "pressure_kpa", self.pressure_kpa,
                             f"given, or 'pressure_psi' instead, not both (pressure_psi = {self.pressure_psi!r})")
@@ -175,10 +192,12 @@ class Hydrocyclone:
         check_range(o, "viscosity_cp", self.viscosity_cp, 0.0, 1e4)
         for name in ("d50c_factor", "pressure_factor", "sharpness_factor", "split_factor"):
             check_range(o, name, getattr(self, name), 0.0, 1e3)
-        for name, lo, hi in (("feed_solids_frac", 0.0, 1.0), ("d50c_um", 0.0, 1e5), ("sharpness", 0.0, 20.0),
+        for name, lo, hi in (("feed_solids_frac", 0.0, 1.0), ("sharpness", 0.0, 20.0),
                              ("water_bypass_frac", 0.0, 1.0), ("solids_bypass_frac", 0.0, 1.0)):
             if getattr(self, name) is not None:
                 check_range(o, name, getattr(self, name), lo, hi, lo_open=name.endswith("bypass_frac"))
+        if self.d50c_um is not None:
+            check_d50c(o, self.d50c_um)
         direct = [n for n in ("d50c_um", "sharpness", "water_bypass_frac") if getattr(self, n) is not None]
         if direct and len(direct) < 3:
             missing = sorted({"d50c_um", "sharpness", "water_bypass_frac"} - set(direct))
