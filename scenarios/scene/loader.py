@@ -39,18 +39,30 @@ def read_toml(path: str | Path, what: str = "scene file") -> dict[str, Any]:
         raise SceneError(f"{path}: {what} not found") from None
     except OSError as exc:
         raise SceneError(f"{path}: cannot read the {what}: {exc.strerror or exc}") from None
+    # ASCII in UTF-16 without a byte-order mark decodes as UTF-8 (its zero bytes are characters): TOML then
+    # failed at line 1 column 2
+    found = next((f"{name} text" for bom, name in TEXT_BOMS if raw.startswith(bom)), None) or _without_bom(raw[:64])
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
-        found = next((name for bom, name in TEXT_BOMS if raw.startswith(bom)),
-                     "UTF-16 or UTF-32" if b"\x00" in raw[:64] else None)
-        detail = f"it is {found} text" if found else f"byte {exc.start} is 0x{raw[exc.start]:02x}"
-        raise SceneError(f"{path}: not UTF-8 text ({detail}); a TOML {what} must be UTF-8: save "
-                         "it again as UTF-8") from None
+        found = found or f"byte {exc.start} is 0x{raw[exc.start]:02x}"
+    if found:
+        raise SceneError(f"{path}: not UTF-8 text ({'it is ' * found.endswith('text')}{found}); a TOML {what} must "
+                         "be UTF-8: save it again as UTF-8") from None
     try:
         return tomllib.loads(text.removeprefix("\ufeff"))
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: not valid TOML: {exc}") from None
+
+
+def _without_bom(head: bytes) -> str | None:
+    """What a file that is not UTF-8 and has no byte-order mark looks like from its first bytes: wide text
+    (ASCII in UTF-16 or UTF-32 has a zero byte in every other, or three of four, places), a binary file (a
+    zero byte elsewhere: an executable was called UTF-16 text), or None."""
+    if b"\x00" not in head:
+        return None
+    wide = len(head) >= 4 and any(all(b == 0 for b in head[k::2]) for k in (0, 1))
+    return "UTF-16 or UTF-32 text" if wide else "a binary file, not text"
 
 
 def validate_scene_dict(data: dict[str, Any], source_path: str | Path | None = None,

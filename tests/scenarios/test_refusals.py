@@ -95,7 +95,12 @@ def test_a_controller_model_too_large_to_build_is_refused_with_its_size_and_the_
 
 
 @pytest.mark.parametrize("content,what", [(b"# caf\xe9\n", "byte 5 is 0xe9"),
-                                          ("x = 1\n".encode("utf-16"), "UTF-16")])
+                                          ("x = 1\n".encode("utf-16"), "it is UTF-16 text"),
+                                          # no byte-order mark: valid UTF-8 (zero bytes), TOML failed at 1:2
+                                          ("x = 1\n".encode("utf-16-le"), "it is UTF-16 or UTF-32 text"),
+                                          # an executable was called UTF-16 text for its zero bytes
+                                          (b"\x7fELF\x02\x01\x01\x00\x00\x00\x00\x00\x00\x00\x00\x00\x03\x00>\x00"
+                                           b"\x01\x00\x00\x00\xb0g", "it is a binary file, not text")])
 def test_a_scene_file_that_is_not_utf8_is_refused_in_one_line(tmp_path, capsys, content, what):
     path = tmp_path / "scene.toml"
     path.write_bytes(content)

@@ -140,6 +140,8 @@ def test_a_calibration_is_replaced_only_by_one_of_its_kind_and_options_it_would_
         assert _calibrate(["--from", "dem", "--replicates", "0", "--out", str(tmp_path / "s.json"), *unused]) == 2
         assert f"{unused[0]}: --from dem reuses that file's DEM step, so no DEM test runs" in capsys.readouterr().err
     assert not (tmp_path / "s.json").exists()
+    assert _calibrate(["--from", str(tmp_path / "nosuch.json"), "--out", str(tmp_path / "s.json")]) == 2
+    assert f"--from {tmp_path / 'nosuch.json'}: The 'calibration' must be" in capsys.readouterr().err
 
 
 def test_a_shipped_file_keeps_its_own_name(capsys):

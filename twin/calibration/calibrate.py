@@ -144,7 +144,10 @@ def calibrate(args: argparse.Namespace) -> int:
                              "the DEM step.")
     _refuse_other_kind(out, "mineralogy" if args.map == "mineralogy" else "dem", args.fast)
     # only its DEM step is reused, which does not read the reference table: the table step refits
-    source = load_calibration(args.source, check_table=False) if args.source else None
+    try:
+        source = load_calibration(args.source, check_table=False) if args.source else None
+    except TwinInputError as exc:  # it named "the 'calibration'", not the option
+        raise TwinInputError(f"--from {args.source}: {exc}") from None
     if source is not None and (source.breakage_map != "dem" or "dem" not in source.record):
         raise TwinInputError(f"--from {args.source}: calibration {source.label()} has no DEM step (its breakage "
                              f"map is {source.breakage_map!r}); --from takes a DEM calibration, such as 'dem'.")
