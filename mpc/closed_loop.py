@@ -28,6 +28,7 @@ from mpc.estimator import MEASUREMENTS
 from mpc.kpis import loop_kpis
 from mpc.plants import as_plant
 from mpc.sensors import Sensors, SensorState
+from twin import TwinInputError, sample_count
 
 #: Measurements the estimator can be given (order of :meth:`mpc.estimator.Ekf.make_step`).
 ESTIMATOR_MEASUREMENTS = MEASUREMENTS
@@ -65,9 +66,10 @@ class LoopSettings:
     """Show a progress bar."""
 
     def __post_init__(self):
-        if not (np.isfinite(self.duration_h) and self.duration_h > 0 and np.isfinite(self.dt_h) and self.dt_h > 0):
-            raise MpcInputError(f"The 'duration_h' and 'dt_h' parameters of LoopSettings must be "
-                                f"finite and > 0. Got {self.duration_h!r}, {self.dt_h!r}.")
+        try:  # a whole number of samples, as Twin.simulate: 1.03 h at 0.05 h ran 1.05 h, 1 h at 2 h no sample
+            sample_count("LoopSettings", self.duration_h, self.dt_h)
+        except TwinInputError as exc:
+            raise MpcInputError(str(exc)) from None
         if not (np.isfinite(self.preview_lead_h) and self.preview_lead_h >= 0):
             raise MpcInputError(f"The 'preview_lead_h' parameter of LoopSettings must be a float >= 0. "
                                 f"Got {self.preview_lead_h!r}.")
@@ -93,6 +95,16 @@ class ClosedLoopResult:
     kpis: dict
 
 
+def _check_sample_periods(dt_h: float, **parts) -> None:
+    """Each part's sample period (``dt_h``, or its ``settings.dt_h``) is the loop's: an NMPC and EKF built for
+    0.05 h ran in a 0.1 h loop, their model predicting half the sample and the feed's rate limit halved."""
+    for name, part in parts.items():
+        own = getattr(part, "dt_h", None) or getattr(getattr(part, "settings", None), "dt_h", None)
+        if own is not None and abs(own - dt_h) > 1e-9 * dt_h:
+            raise MpcInputError(f"The {name}'s sample period is {own:g} h and the loop's (LoopSettings.dt_h) "
+                                f"{dt_h:g} h: build the {name} with the loop's sample period.")
+
+
 def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sensors: Sensors, x0, u0,
                     settings: LoopSettings, plant_hardness: float | Callable = 1.0) -> ClosedLoopResult:
     """Run the loop of ``settings`` from plant state ``x0`` with input ``u0`` before t = 0.
@@ -102,6 +114,7 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
     component order, shared with the controller's model); ``plant_hardness``: the plant's true
     hardness scale (a float or a callable of t_h), unknown to the controller.
     """
+    _check_sample_periods(settings.dt_h, controller=controller, estimator=estimator)
     plant = as_plant(plant_model)
     rng = np.random.default_rng(settings.seed)
     hard = plant_hardness if callable(plant_hardness) else (lambda t, h=float(plant_hardness): h)

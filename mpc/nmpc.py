@@ -232,8 +232,11 @@ class NmpcSettings:
                 bad(name, "a finite float >= 0")
         if not 0 < self.feed_tph_min < self.feed_tph_max:
             bad("feed_tph_min", f"in (0, feed_tph_max = {self.feed_tph_max})")
-        if not 0 < self.speed_min < self.speed_max < 1:
-            bad("speed_min", f"in (0, speed_max = {self.speed_max}) with speed_max < 1")
+        if not 0 < self.speed_max < 1:  # a speed in percent (85) blamed speed_min
+            percent = " (a fraction of critical speed, not percent)" if 1 < self.speed_max <= 100 else ""
+            bad("speed_max", f"in (0, 1){percent}")
+        if not 0 < self.speed_min < self.speed_max:
+            bad("speed_min", f"in (0, speed_max = {self.speed_max})")
         lb = tuple(self.load_band_frac)
         if len(lb) != 2 or not 0 <= lb[0] < lb[1]:
             bad("load_band_frac", "a pair (lo, hi) with 0 <= lo < hi")

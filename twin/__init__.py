@@ -27,7 +27,7 @@ _API = {
     "Blend": ".ore", "Mineralogy": ".ore", "Texture": ".ore", "load_ore": ".ore", "reference_ores": ".ore",
     "GatesGaudinSchuhmann": ".sizes", "RosinRammler": ".sizes", "SizeGrid": ".sizes", "discretise": ".sizes",
     "pxx_um": ".sizes",
-    "SteadyState": ".solve", "Trajectory": ".solve",
+    "SteadyState": ".solve", "Trajectory": ".solve", "sample_count": ".solve",
     "DEFAULT_EFFECTS": ".twin", "MIXER_SHARES_SUM_TOL": ".twin", "mixer_shares_sum_ok": ".twin",
     "Twin": ".twin",
     "file_sha256": ".atomic", "is_grindtwin_checkout": ".atomic", "new_folder_beside": ".atomic", "write_text_atomically": ".atomic",
@@ -50,6 +50,6 @@ __all__ = [
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
     "file_sha256", "is_grindtwin_checkout", "new_folder_beside", "pxx_um", "reference_ores", "trajectory_notes", "write_text_atomically",
     "LockError", "acquire_lock", "release_lock", "remove_by_name", "replace_folder", "temporaries_of",
-    "write_atomically", "write_beside", "check_size_mill_input",
+    "write_atomically", "write_beside", "check_size_mill_input", "sample_count",
 ]
 __getattr__, __dir__ = lazy_face(__name__, _API)

@@ -356,8 +356,8 @@ def _check_controller(data, r: _Report) -> None:
             r.add(("feed", "speed_frac_critical"), f"initial speed outside controller.bounds "
                   f"[{smin:g}, {smax:g}]", speed)
     hor, block = _num(ctl.get("horizon_steps", 30)), _num(ctl.get("move_block", 5))
-    if hor is not None and block is not None and block > hor:
-        r.add(("controller", "move_block"), f"must not exceed horizon_steps = {hor:g}", block)
+    if hor is not None and hor >= 1 and block is not None and block > hor:  # a horizon below 1 is its own error
+        r.add(("controller", "move_block"), f"must not exceed horizon_steps = {hor:g}", ctl.get("move_block", 5))
     band = ctl.get("load_band_frac")
     if isinstance(band, list) and len(band) == 2 and all(_num(b) is not None for b in band):
         if not 0 < band[0] < 1 < band[1]:

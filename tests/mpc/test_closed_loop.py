@@ -110,3 +110,24 @@ def test_a_closed_loop_reads_off_its_plant_the_p80_and_closed_loop_reads(plant_t
                     ss.x, ss.u, LoopSettings(0.1, 0.05, seed=1, estimator_warmup_h=0.1))
     assert read == {"p80_um", *CLOSED_LOOP_READS}
     assert preflight.CLOSED_LOOP_READS is CLOSED_LOOP_READS
+
+
+def test_a_loop_whose_samples_do_not_fit_or_whose_parts_sample_otherwise_is_refused(ctrl_twin):
+    """A controller and EKF built for 0.05 h ran in a 0.1 h loop (the feed's rate limit halved, the model
+    predicting half the sample); 1.03 h at 0.05 h ran 1.05 h; 1 h at 2 h ran no sample, its IAE 0."""
+    from mpc import MpcInputError
+
+    with pytest.raises(MpcInputError, match=r"'duration_h' parameter of LoopSettings must be a whole number of "
+                                            r"samples of dt_h 0.05 h \(e.g. 1.05 or 1.1 h\). Got 1.03"):
+        LoopSettings(1.03, 0.05)
+    with pytest.raises(MpcInputError, match=r"'dt_h' parameter of LoopSettings must be a sample period no longer "
+                                            r"than the run's duration_h \(1 h\). Got 2.0"):
+        LoopSettings(1.0, 2.0)
+    ss = ctrl_twin.steady(feed_tph=27.0, speed_frac_critical=0.70, blend=[1.0, 0.0])
+    ctrl = Controller(ctrl_twin.model, NmpcSettings(horizon_steps=4, dt_h=0.05, move_block=2))
+    est = Ekf(ctrl_twin.model, 0.05, ss.x)
+    for c, e, part in ((ctrl, None, "controller"), (FixedInputs(ss.u), est, "estimator")):
+        with pytest.raises(MpcInputError, match=f"The {part}'s sample period is 0.05 h and the loop's "
+                                                r"\(LoopSettings.dt_h\) 0.1 h"):
+            run_closed_loop(ctrl_twin.model, c, e, lambda t: np.array([1.0, 0.0]), Sensors(), ss.x, ss.u,
+                            LoopSettings(1.0, 0.1))

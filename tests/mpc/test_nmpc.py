@@ -33,6 +33,10 @@ def test_settings_errors_name_field_value_allowed():
         with pytest.raises(MpcInputError, match=f"'{name}'"):
             NmpcSettings(**kw)
     assert NmpcSettings(power_max_kw=float("inf")).power_max_kw == float("inf")  # no limit, as documented
+    # a speed in percent blamed speed_min and its default 0.6
+    with pytest.raises(MpcInputError, match=r"'speed_max' parameter of NmpcSettings must be in \(0, 1\) \(a fraction "
+                                            r"of critical speed, not percent\). Got 85"):
+        NmpcSettings(speed_max=85)
 
 
 def test_bounds_rate_limits_and_blocking_hold(setup):

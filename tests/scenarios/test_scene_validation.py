@@ -107,6 +107,16 @@ def test_every_error_of_a_file_is_reported_at_once(write_scene):
         assert any(f": {path}:" in m for m in messages), (path, messages)
 
 
+def test_a_horizon_below_one_is_one_error_not_also_the_move_blocks(write_scene):
+    messages = check_scene(write_scene(BASE_SCENE.replace('target_p80_um = 210.0', 'target_p80_um = 210.0\n'
+                                                                                   'horizon_steps = 0')))
+    assert any("controller.horizon_steps" in m for m in messages), messages
+    assert not any("move_block" in m for m in messages), messages
+    messages = check_scene(write_scene(BASE_SCENE.replace('target_p80_um = 210.0', 'target_p80_um = 210.0\n'
+                                                                                   'horizon_steps = 3')))
+    assert any("controller.move_block: must not exceed horizon_steps = 3 (got 5)" in m for m in messages), messages
+
+
 def test_base_scene_is_valid_and_defaults_are_filled_visibly(write_scene):
     scene = load_scene(write_scene())
     assert scene.source_path.name == "scene.toml"

@@ -2,10 +2,10 @@
 integration (IDAS/CVODES, fixed-step RK4, the exact batch solution)."""
 
 from .simulate import (ATOL_REL, RTOL, Trajectory, batch_exact, integrate_constant, outputs_frame, rk4_simulate,
-                       simulate, step, step_integrator)
+                       sample_count, simulate, step, step_integrator)
 from .steady import (RESIDUAL_REL_TOL, SteadyState, pxx_gradient, steady_sensitivities, steady_state,
                      steady_state_at_load)
 
 __all__ = ["ATOL_REL", "RESIDUAL_REL_TOL", "RTOL", "SteadyState", "Trajectory", "batch_exact", "integrate_constant",
-           "outputs_frame", "pxx_gradient", "rk4_simulate", "simulate", "steady_sensitivities", "steady_state",
+           "outputs_frame", "pxx_gradient", "rk4_simulate", "sample_count", "simulate", "steady_sensitivities", "steady_state",
            "steady_state_at_load", "step", "step_integrator"]

@@ -156,17 +156,24 @@ def check_run(duration_h, dt_h, rtol, atol_rel) -> int:
     """The number of samples of a run of ``duration_h`` [h] at ``dt_h`` [h]; TwinInputError naming
     the value when either is not a finite positive number, ``dt_h`` is longer than the run or does
     not divide it, or a tolerance is not in (0, 1)."""
-    o = "simulate"
-    duration = check_range(o, "duration_h", duration_h, 0.0, math.inf)
-    dt = check_range(o, "dt_h", dt_h, 0.0, math.inf)
+    n = sample_count("simulate", duration_h, dt_h)
+    check_range("simulate", "rtol", rtol, 0.0, 1.0)  # a negative one was CVODES's "CV_ILL_INPUT" from CasADi
+    check_range("simulate", "atol_rel", atol_rel, 0.0, 1.0)
+    return n
+
+
+def sample_count(owner: str, duration_h, dt_h) -> int:
+    """The number of samples of ``dt_h`` [h] in a run of ``duration_h`` [h]; TwinInputError naming ``owner``
+    and the value when either is not a finite positive number, ``dt_h`` is longer than the run or does not
+    divide it (a closed loop of 1.03 h at 0.05 h ran 1.05 h; one of 1 h at 2 h ran no sample, its IAE 0)."""
+    duration = check_range(owner, "duration_h", duration_h, 0.0, math.inf)
+    dt = check_range(owner, "dt_h", dt_h, 0.0, math.inf)
     if dt > duration * (1.0 + SAMPLE_GRID_RTOL):  # no sample: a reshape error deep inside
-        raise bad_value(o, "dt_h", dt_h, f"a sample period no longer than the run's duration_h ({duration:g} h)")
+        raise bad_value(owner, "dt_h", dt_h, f"a sample period no longer than the run's duration_h ({duration:g} h)")
     n = int(round(duration / dt))
     if abs(n * dt - duration) > SAMPLE_GRID_RTOL * duration:
-        raise bad_value(o, "duration_h", duration_h, f"a whole number of samples of dt_h {dt:g} h (e.g. {n * dt:g} or "
-                                                     f"{(n + 1) * dt:g} h)")
-    check_range(o, "rtol", rtol, 0.0, 1.0)  # a negative one was CVODES's "CV_ILL_INPUT" from CasADi
-    check_range(o, "atol_rel", atol_rel, 0.0, 1.0)
+        raise bad_value(owner, "duration_h", duration_h, f"a whole number of samples of dt_h {dt:g} h (e.g. "
+                                                         f"{n * dt:g} or {(n + 1) * dt:g} h)")
     return n
 
 
