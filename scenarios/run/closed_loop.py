@@ -18,7 +18,7 @@ from scenarios.run.feed import component_blend
 from scenarios.run.streams import Samples, run_size_data
 from scenarios.scene import Scene
 from scenarios.scene.ranges import nominal_feed_tph
-from twin import SolverError
+from twin import EFFECTS, SolverError
 
 #: Scalar outputs of the plant's model recorded beside the loop's columns when the model has
 #: them (the hydrocyclone's cut size and circulating load).
@@ -344,6 +344,7 @@ def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):
         ss = start.plant
         notes.append(f"the plant starts at steady state, feed {start.feed_tph:.4g} t/h, "
                      f"speed {scene.feed.speed_frac_critical:.3g}")
+        notes += dead_time_notes(scene)
         sensors = scene_sensors(scene)
         schedule = hold_schedule(times, blend, dt)
         controller, estimator = _controller_and_estimator(scene, models, start, sensors)
@@ -461,6 +462,25 @@ def _hardness_at_bound(frame: pd.DataFrame, estimator) -> int:
     h = frame["hardness_est"].to_numpy(float)
     lo, hi = ekf.hardness_bounds
     return int(np.sum(np.isclose(h, lo, rtol=1e-9, atol=0.0) | np.isclose(h, hi, rtol=1e-9, atol=0.0)))
+
+
+def dead_time_notes(scene: Scene) -> list[str]:
+    """An NMPC whose model's analyser dead time (``effect_options.sensor_delay.dead_time_h``, none without the
+    effect) is not the analyser's (``sensors.p80_dead_time_h``): a mismatch study, or a slip the run said
+    nothing of (docs/scenes.md asks for the two to be equal)."""
+    if scene.controller.kind != "nmpc":
+        return []
+    analyser = scene.sensors.p80_dead_time_h
+    if "sensor_delay" in scene.effects:
+        default = EFFECTS["sensor_delay"].options["dead_time_h"].default
+        model = float(scene.effect_options.get("sensor_delay", {}).get("dead_time_h", default))
+        where = "effect_options.sensor_delay.dead_time_h"
+    else:
+        model, where = 0.0, "no sensor_delay effect"
+    if abs(model - analyser) <= 1e-9 * max(analyser, 1.0):
+        return []
+    return [f"the controller's model assumes an analyser dead time of {model:g} h ({where}), the analyser's is "
+            f"{analyser:g} h (sensors.p80_dead_time_h)"]
 
 
 def health_notes(health: dict) -> list[str]:

@@ -108,6 +108,9 @@ def feed_schedule(scene: Scene, components: list[str], times_h: np.ndarray, ores
     history = load_history(scene)
     if history is not None:
         notes += [f"history {history.source.name}: {line}" for line in history.report]
+        if len(times_h) < len(history.frame):  # the report counts the whole history's samples
+            notes.append(f"history {history.source.name}: the run replays its first {len(times_h)} samples "
+                         f"({times_h[-1]:g} of {history.span_h:g} h)")
     if history is not None and history.kind == "mineralogy":
         ores = ores if ores is not None else component_ores(scene)
         comp_cols = [c for c in table.columns if c.endswith("_wt_pct")]

@@ -374,8 +374,10 @@ class Bounds(Section):
 class Controller(Section):
     """``[controller]``: kind, target, horizon and tuning, bounds, solver.
 
-    ``load_band_frac`` is the mill hold-up as a fraction of the nominal hold-up at the initial
-    operating point; ``preview_lead_h`` is how far ahead the feed is known (belt analyser);
+    ``load_band_frac`` is the mill hold-up as a fraction of its nominal hold-up (the ore its ball bed
+    holds at the mill's nominal powder filling, :meth:`twin.Mill.nominal_holdup_t`: the ``load_frac``
+    output), not of the hold-up at the start (23.6 t/h of the reference scene starts at 0.94);
+    ``preview_lead_h`` is how far ahead the feed is known (belt analyser);
     ``disturbance_model`` what the EKF's disturbance states absorb (``mpc.DISTURBANCE_MODELS``).
     """
 

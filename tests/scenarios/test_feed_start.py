@@ -109,3 +109,21 @@ def test_the_bounds_are_checked_against_the_feed_a_closed_loop_starts_at(write_s
     assert check_scene(write_scene(at_feed)) == []
     assert any("feed.feed_tph: initial feed outside controller.bounds [20, 28]" in p for p in
                check_scene(write_scene(at_feed.replace("feed_tph_max = 45.0", "feed_tph_max = 28.0"))))
+
+
+def test_an_nmpc_whose_model_knows_another_analyser_dead_time_says_so(write_scene):
+    """sensors.p80_dead_time_h = 0.5 beside sensor_delay's 0.1 ran (IAE 5.40 against 2.81) with no word."""
+    from scenarios.run.closed_loop import dead_time_notes
+
+    assert "p80_dead_time_h = 0.1" in REFERENCE and "dead_time_h = 0.1  #" in REFERENCE
+    assert dead_time_notes(load_scene(write_scene(REFERENCE))) == []
+    slower = REFERENCE.replace("p80_dead_time_h = 0.1", "p80_dead_time_h = 0.5")
+    assert dead_time_notes(load_scene(write_scene(slower))) == [
+        "the controller's model assumes an analyser dead time of 0.1 h (effect_options.sensor_delay.dead_time_h), "
+        "the analyser's is 0.5 h (sensors.p80_dead_time_h)"]
+    unknown = REFERENCE.replace(', "sensor_delay"]', "]").replace("[effect_options.sensor_delay]\ndead_time_h = 0.1",
+                                                                  "")
+    assert "sensor_delay" not in unknown.split("[scene]")[0]
+    assert dead_time_notes(load_scene(write_scene(unknown))) == [
+        "the controller's model assumes an analyser dead time of 0 h (no sensor_delay effect), the analyser's is "
+        "0.1 h (sensors.p80_dead_time_h)"]

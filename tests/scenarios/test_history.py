@@ -476,3 +476,18 @@ def test_one_minute_records_with_time_in_six_decimals_are_regular(tmp_path):
     t[10] -= 0.5 / 60
     pd.DataFrame({"time_h": t, "ore_B_frac": 1.0}).to_csv(path, index=False)
     assert any("irregular records (intervals 0.5 to 1.5" in line for line in read_history(path, DT).report)
+
+
+def test_a_shortened_replay_says_how_much_of_the_history_it_runs():
+    """A 2-hour replay of the one-day history said only "1440 records resampled to 480 samples every 3 min"."""
+    from scenarios.run.feed import feed_schedule
+    from scenarios.run.models import component_ores
+
+    scene = load_scene(Path(__file__).resolve().parents[2] / "scenarios" / "replay_day.toml")
+    ores = component_ores(scene)
+    times = np.arange(5) * scene.scene.sample_period_h
+    _, notes = feed_schedule(scene, list(ores), times, ores)
+    assert any(n.endswith("1440 records resampled to 480 samples every 3 min") for n in notes), notes
+    assert "history sample_history.csv: the run replays its first 5 samples (0.2 of 23.9833 h)" in notes
+    _, notes = feed_schedule(scene, list(ores), np.arange(480) * scene.scene.sample_period_h, ores)
+    assert not any("the run replays its first" in n for n in notes)
