@@ -8,6 +8,7 @@ in (0, 1). Got 1.3."
 from __future__ import annotations
 
 import difflib
+import numbers
 from collections.abc import Iterable
 
 
@@ -58,6 +59,8 @@ def check_range(owner: str, field: str, value: float, lo: float, hi: float,
     refused: it is an int in Python, so True passed as 1.0 (a flag typed for a number)."""
     if isinstance(value, bool):
         raise bad_value(owner, field, value, _interval(lo, hi, lo_open, hi_open) + ", not a bool")
+    if isinstance(value, (str, bytes)):  # "150" passed as 150.0 and was kept as text, failing far away
+        raise bad_value(owner, field, value, _interval(lo, hi, lo_open, hi_open) + ", a number, not text")
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -67,6 +70,14 @@ def check_range(owner: str, field: str, value: float, lo: float, hi: float,
     if not (ok_lo and ok_hi) or v != v:
         raise bad_value(owner, field, value, _interval(lo, hi, lo_open, hi_open))
     return v
+
+
+def check_int(owner: str, field: str, value, lo: int, hi: int) -> int:
+    """``int(value)`` if it is an integer (numpy's too; not a bool, not a float) in [lo, hi], else
+    :func:`bad_value`: np.int64(25) was refused as "not an integer"."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not lo <= value <= hi:
+        raise bad_value(owner, field, value, f"an integer in [{lo}, {hi}]")
+    return int(value)
 
 
 def _interval(lo: float, hi: float, lo_open: bool, hi_open: bool) -> str:

@@ -21,7 +21,7 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from .errors import TwinInputError, bad_value, check_range
+from .errors import TwinInputError, bad_value, check_int, check_range
 
 #: Width (in units of one class's log-size width) over which the smooth P80 blends the
 #: kinks of the exact piecewise-linear interpolation; the error this causes is stated in
@@ -42,10 +42,9 @@ class SizeGrid:
     scheme: str = "cell_average"
 
     def __post_init__(self):
-        check_range("SizeGrid", "top_um", self.top_um, 0.0, 1e7)
-        check_range("SizeGrid", "ratio", self.ratio, 1.0, 10.0, hi_open=False)
-        if not isinstance(self.count, int) or not 3 <= self.count <= 400:
-            raise bad_value("SizeGrid", "count", self.count, "an integer in [3, 400]")
+        object.__setattr__(self, "top_um", check_range("SizeGrid", "top_um", self.top_um, 0.0, 1e7))
+        object.__setattr__(self, "ratio", check_range("SizeGrid", "ratio", self.ratio, 1.0, 10.0, hi_open=False))
+        object.__setattr__(self, "count", check_int("SizeGrid", "count", self.count, 3, 400))
         if self.scheme not in SCHEMES:
             raise bad_value("SizeGrid", "scheme", self.scheme, "one of " + ", ".join(map(repr, SCHEMES)))
 
@@ -53,8 +52,7 @@ class SizeGrid:
     def spanning(cls, top_um: float, bottom_um: float, count: int, scheme: str = "cell_average") -> "SizeGrid":
         """``count`` classes whose upper sizes run from ``top_um`` to ``bottom_um`` (the sink's)."""
         check_range("SizeGrid.spanning", "bottom_um", bottom_um, 0.0, top_um)
-        if not isinstance(count, int) or isinstance(count, bool) or not 3 <= count <= 400:  # 1 divided by zero
-            raise bad_value("SizeGrid.spanning", "count", count, "an integer in [3, 400]")
+        count = check_int("SizeGrid.spanning", "count", count, 3, 400)  # 1 divided by zero
         return cls(top_um, (top_um / bottom_um) ** (1.0 / (count - 1)), count, scheme)
 
     @property
@@ -266,8 +264,8 @@ class TabulatedPSD:
         """From sieve sizes [um] and cumulative % passing in any order (as a screen analysis is
         written, coarsest first); % as 94.43, not 0.9443."""
         s, p = np.asarray(sizes_um, float), np.asarray(passing_pct, float)
-        if s.ndim != 1 or not np.all(np.isfinite(s)) or np.any(s <= 0):  # a NaN size blamed the passing
-            raise bad_value("TabulatedPSD", "sizes_um", s.tolist(), "a flat sequence of positive sieve sizes [um]")
+        if s.ndim != 1 or s.size < 2 or not np.all(np.isfinite(s)) or np.any(s <= 0):  # a NaN size blamed the passing
+            raise bad_value("TabulatedPSD", "sizes_um", s.tolist(), "a flat sequence of >= 2 positive sieve sizes [um]")
         if s.shape != p.shape:
             raise bad_value("TabulatedPSD", "passing_pct", p.tolist(), f"one value per sieve ({s.size} sieves)")
         if not np.all(np.isfinite(p)) or np.any(p < 0) or np.any(p > 100):
@@ -314,7 +312,7 @@ class TabulatedPSD:
         s, p = np.log(self.sizes_um), np.asarray(self.passing_frac, float)
         x = np.asarray(x_um, float)
         lx = np.log(np.maximum(x, 1e-300))
-        inside = np.interp(lx, s, p, right=1.0)
+        inside = np.interp(lx, s, p)  # p[-1] above the coarsest sieve: a jump to 1 there made the feed finer
         fine = p[0] * np.exp(self.fine_modulus * (lx - s[0]))
         return np.where(lx < s[0], fine, inside)
 

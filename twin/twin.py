@@ -20,12 +20,12 @@ from .breakage import BreakageParams
 from .breakage import ore_breakage as _ore_breakage
 from .calibration import check_model, load_calibration
 from .effects.classification import sized_circuit_notes
-from .errors import TwinInputError, bad_value, check_range
+from .errors import TwinInputError, bad_value, check_int, check_range
 from .mill import FEED_TPH_MAX, SPEED_FACTOR_ZERO_FRAC_CRITICAL, Mill, get_mill, power_kw
 from .model import Model, ModelSpec
 from .scaleup import scale_breakage
 from .ore import CLAY_MINERALS, CUSHIONING_MINERALS, Blend, Mineralogy, load_ore
-from .sizes import GatesGaudinSchuhmann, SizeGrid, discretise, pxx_um
+from .sizes import GatesGaudinSchuhmann, SizeGrid, TabulatedPSD, discretise, pxx_um
 from .solve import simulate, steady_state, steady_state_at_load
 
 #: The effects of the laboratory mill's calibration: a continuous grate-discharge mill with load
@@ -259,8 +259,7 @@ def mixer_shares_sum_ok(total: float) -> bool:
 def _mixer_fracs(n_mixers, fracs) -> tuple:
     """The mixers' shares of the hold-up: ``fracs`` normalised, or ``n_mixers`` equal shares."""
     if fracs is None:
-        if not isinstance(n_mixers, int) or isinstance(n_mixers, bool) or not 1 <= n_mixers <= 20:  # True was 1
-            raise bad_value("Twin", "n_mixers", n_mixers, "an integer in [1, 20]")
+        n_mixers = check_int("Twin", "n_mixers", n_mixers, 1, 20)  # True was 1
         return tuple([1.0 / n_mixers] * n_mixers)
     f = np.asarray(fracs, float)
     if f.ndim != 1 or not 1 <= f.size <= 20 or np.any(~np.isfinite(f)) or np.any(f <= 0):
@@ -294,6 +293,12 @@ def _feed_fractions(grid, feed_psd, feed_p80_um, feed_modulus) -> np.ndarray:
     if feed_psd is None or hasattr(feed_psd, "passing"):
         dist = GatesGaudinSchuhmann.from_p80(feed_p80_um, feed_modulus) if feed_psd is None else feed_psd
         above = 1.0 - float(dist.passing(grid.top_um))
+        retained = 1.0 - dist.passing_frac[-1] if isinstance(dist, TabulatedPSD) else 0.0
+        if retained > FEED_ABOVE_TOP_MAX_FRAC:  # of no known size: it was put just above the coarsest sieve
+            raise TwinInputError(f"the feed_psd's coarsest sieve ({dist.sizes_um[-1]:g} um) passes "
+                                 f"{dist.passing_frac[-1]:.1%}: the {retained:.1%} retained on it has no known size; "
+                                 "add the sieve that all of the feed passes (100 %); allowed: at most "
+                                 f"{FEED_ABOVE_TOP_MAX_FRAC:.0%} retained on the coarsest sieve.")
         if above > FEED_ABOVE_TOP_MAX_FRAC:  # discretise lumps it into the top class: another feed
             given = (f"feed_p80_um {feed_p80_um:g} with modulus {feed_modulus:g}" if feed_psd is None
                      else "the feed_psd")

@@ -3,19 +3,57 @@ raised where it should act, a factor read by nothing, messages in the other unit
 
 import math
 
+import numpy as np
 import pytest
 
-from twin import CycloneSurvey, Hydrocyclone, TabulatedPSD, TwinInputError, load_ore
+from twin import (BreakageParams, CycloneSurvey, GatesGaudinSchuhmann, Hydrocyclone, Mineralogy, RosinRammler, SizeGrid,
+                  TabulatedPSD, Twin, TwinInputError, discretise, load_ore, size_mill)
 from twin.ore.mineralogy import Texture
 
 
-def test_a_texture_read_as_text_is_kept_as_the_number_it_was_checked_as():
-    # "150" passed the range check and raised TypeError at the textural index, far from the input
-    texture = Texture("150", uniformity="0.6", association_entropy="0.5")
-    assert (texture.mean_grain_um, texture.uniformity, texture.association_entropy) == (150.0, 0.6, 0.5)
-    assert texture.textural_index == Texture(150.0).textural_index
-    with pytest.raises(TwinInputError, match="'mean_grain_um' parameter of Texture must be a float in"):
-        Texture("fine")
+@pytest.mark.parametrize("make, field", [
+    (lambda: Texture("150"), "'mean_grain_um' parameter of Texture"),
+    (lambda: RosinRammler("500", 1.0), "'x63_um' parameter of RosinRammler"),
+    (lambda: GatesGaudinSchuhmann("5000", 0.8), "'x_max_um' parameter of GatesGaudinSchuhmann"),
+    (lambda: SizeGrid(top_um="6700"), "'top_um' parameter of SizeGrid"),
+    (lambda: Hydrocyclone(diameter_cm="38"), "'diameter_cm' parameter of Hydrocyclone"),
+    (lambda: BreakageParams("1.0"), "'se_1mm_t_kwh' parameter of BreakageParams"),
+    (lambda: size_mill("B", "31", 210.0), "'feed_tph' parameter of size_mill")])
+def test_a_number_given_as_text_is_refused_where_it_is_given(make, field):
+    """A number as text passed the range checks (float("150")) and was kept as text: Texture("150") raised
+    TypeError at the textural index, SizeGrid(top_um="6700") at its sizes, size_mill("31") mid-sizing."""
+    with pytest.raises(TwinInputError, match=f"{field} must be a float in .*, a number, not text. Got '"):
+        make()
+
+
+def test_an_integer_of_numpys_is_an_integer():
+    # np.int64(25) was refused as "must be an integer ... Got np.int64(25)"
+    assert SizeGrid(count=np.int64(25)) == SizeGrid(count=25) and type(SizeGrid(count=np.int64(25)).count) is int
+    assert Hydrocyclone(count=np.int32(3)).count == 3
+    with pytest.raises(TwinInputError, match=r"'count' parameter of SizeGrid must be an integer in \[3, 400\]. Got 25.0"):
+        SizeGrid(count=25.0)
+
+
+def test_a_blend_of_mineralogies_needs_a_fraction_per_ore():
+    # zip dropped ore D: Mineralogy.blend((A, B, D), (0.5, 0.5)) was A and B half and half
+    a, b, d = (load_ore(k) for k in "ABD")
+    with pytest.raises(TwinInputError, match=r"'fractions' parameter of Mineralogy.blend must be one per ore "
+                                             r"\(3 ores\). Got \[0.5, 0.5\]"):
+        Mineralogy.blend((a, b, d), (0.5, 0.5))
+    assert Mineralogy.blend((a, b, d), (0.5, 0.5, 0.0)).wt_pct == Mineralogy.blend((a, b), (0.5, 0.5)).wt_pct
+
+
+def test_a_screen_analysis_with_material_on_its_coarsest_sieve_is_not_made_finer():
+    """passing jumped to 1 just above the coarsest sieve: 10 % retained on 1000 um was put at 1000-1189 um, a
+    finer feed than measured (the docstring said the rest lies in the top class), and the twin took it."""
+    measured = TabulatedPSD.from_sieves([1000, 500, 250, 125], [90, 60, 35, 20])
+    assert measured.passing([1189.0, 6700.0]).tolist() == [0.9, 0.9]
+    with pytest.raises(TwinInputError, match=r"the feed_psd's coarsest sieve \(1000 um\) passes 90.0%: the 10.0% "
+                                             "retained on it has no known size; add the sieve that all of the feed"):
+        Twin("B", feed_psd=measured)
+    near = TabulatedPSD.from_sieves([1000, 500, 250, 125], [99.5, 60, 35, 20])  # within a sieve analysis's error
+    fractions = discretise(SizeGrid(), near)
+    assert fractions[0] == pytest.approx(0.005) and fractions.sum() == pytest.approx(1.0)
 
 
 def test_a_load_given_as_a_flag_is_refused(twin_b):
@@ -79,7 +117,7 @@ def test_a_screen_analysis_with_nothing_on_its_finest_sieve_keeps_its_fine_end()
     with pytest.raises(TwinInputError, match="'passing_pct' parameter of TabulatedPSD must be a % passing that "
                                              "rises between some two sieves"):
         TabulatedPSD.from_sieves([75, 106], [100, 100])
-    with pytest.raises(TwinInputError, match="'sizes_um' parameter of TabulatedPSD must be a flat sequence of "
+    with pytest.raises(TwinInputError, match="'sizes_um' parameter of TabulatedPSD must be a flat sequence of >= 2 "
                                              r"positive sieve sizes \[um\]. Got \[75.0, nan\]"):
         TabulatedPSD.from_sieves([75, float("nan")], [50, 100])
 

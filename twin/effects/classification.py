@@ -33,7 +33,7 @@ import casadi as ca
 import numpy as np
 from scipy.constants import g as G_M_S2
 
-from ..errors import ModelError, bad_value, check_range, close_matches
+from ..errors import ModelError, bad_value, check_int, check_range, close_matches
 from ..mill import CYCLONE_CIRCUITS, DISCHARGE_REFERENCE_DENSITY_T_M3, refuse_bool_fields
 from .base import Effect, EffectContext, Option, smooth_max
 
@@ -185,8 +185,7 @@ class Hydrocyclone:
             if not getattr(self, name) < self.diameter_cm:
                 raise bad_value(o, name, getattr(self, name), f"below the cyclone's diameter_cm = {self.diameter_cm!r} "
                                 "(an opening of the cyclone's body; the same unit, cm)")
-        if not isinstance(self.count, int) or isinstance(self.count, bool) or not 1 <= self.count <= 200:
-            raise bad_value(o, "count", self.count, "an integer in [1, 200]")
+        object.__setattr__(self, "count", check_int(o, "count", self.count, 1, 200))
         check_range(o, "feed_solids_vol_pct", self.feed_solids_vol_pct, FEED_SOLIDS_VOL_PCT_MIN,
                     FEED_SOLIDS_VOL_PCT_MAX, lo_open=False)
         check_range(o, "viscosity_cp", self.viscosity_cp, 0.0, 1e4)

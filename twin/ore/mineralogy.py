@@ -43,7 +43,9 @@ def fractions_hint(total: float) -> str:
 class Texture:
     """Texture of an ore: mean grain size [um], grain-size uniformity in (0, 1]
     (1 = equigranular), mineral-association entropy normalised to [0, 1]
-    (0 = each mineral touches only itself, 1 = fully intergrown)."""
+    (0 = each mineral touches only itself, 1 = fully intergrown). The twin's breakage maps read the
+    grain size and the entropy (:attr:`textural_index`); the uniformity is recorded and read only by
+    the surrogate's regression (twin.surrogate), so it moves no twin number."""
 
     mean_grain_um: float
     uniformity: float = 0.6
@@ -176,7 +178,10 @@ class Mineralogy:
         """Mass-weighted mixture of ``ores`` at mass ``fractions`` (summing to 1): wt% linear, the mean
         grain size harmonic (grains per unit mass add), uniformity and association entropy linear (kept
         in their ranges against rounding). One ore is itself."""
-        fr = [float(f) for f in fractions]
+        fr = [check_range("Mineralogy.blend", "fractions", f, 0.0, 1.0, lo_open=False, hi_open=False)
+              for f in fractions]
+        if len(fr) != len(ores):  # zip dropped the ores without a fraction
+            raise bad_value("Mineralogy.blend", "fractions", list(fractions), f"one per ore ({len(ores)} ores)")
         if len(ores) == 1:
             return ores[0]
         wt: dict = {}
