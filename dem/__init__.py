@@ -14,7 +14,7 @@ Public API (``dem`` imports nothing from twin, mpc or scenarios):
   those of one), ``available_cores``;
 - :mod:`dem.drum`: ``drum_test`` -> ``DrumResult``, ``critical_speed_rad_s``;
 - :mod:`dem.system`: ``System`` (low level: state + kernels), ``PlaneWall``, ``DrumGeometry``;
-- :mod:`dem.errors`: ``DemError``, ``DemInputError``, ``DemInstabilityError``;
+- :mod:`dem.errors`: ``DemError``, ``DemInputError``, ``DemInstabilityError``, ``UnfracturedWarning``;
 - ``kernel_cache_dir``: where numba keeps the compiled kernels (not inside the package; a folder
   per version of dem's sources); a ``RuntimeWarning`` at import if that folder cannot be written
   (numba would compile every time). In grindtwin's own cache folder (not a ``NUMBA_CACHE_DIR``
@@ -121,7 +121,7 @@ try:
     from dem.bonds import BondParams, kn_from_modulus_Pa_m
     from dem.calibrate import BondCalibrator
     from dem.drum import DrumResult, critical_speed_rad_s, drum_test
-    from dem.errors import DemError, DemInputError, DemInstabilityError
+    from dem.errors import DemError, DemInputError, DemInstabilityError, UnfracturedWarning
     from dem.fragments import FragmentResult, find_fragments
     from dem.lab import (DEFAULT_TIME_STEP_FACTOR, CompressionResult, ImpactResult, compression_test,
                          drop_weight_test)
@@ -132,7 +132,7 @@ finally:
 
 __all__ = ["Agglomerate", "make_agglomerate", "BondParams", "kn_from_modulus_Pa_m",
            "BondCalibrator", "DrumResult", "critical_speed_rad_s", "drum_test", "DemError",
-           "DemInputError", "DemInstabilityError", "FragmentResult", "find_fragments",
+           "DemInputError", "DemInstabilityError", "UnfracturedWarning", "FragmentResult", "find_fragments",
            "CompressionResult", "ImpactResult", "compression_test", "drop_weight_test", "DEFAULT_TIME_STEP_FACTOR",
            "RAYLEIGH_SAFETY_FACTOR", "STEEL", "Material", "kernel_cache_dir", "kernel_source_hash",
            "prune_stale_kernel_caches", "STALE_KERNEL_DAYS", "available_cores", "run_in_processes"]

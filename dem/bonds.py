@@ -58,6 +58,9 @@ MIN_TABLE_ROWS = 2
 
 #: bond conventions of :class:`BondParams`
 CONVENTIONS = ("parallel", "yade_jcfpm")
+#: The widest parallel bond, as a multiple of its smaller sphere's radius: Potyondy & Cundall (2004) take
+#: lambda = 1; a wider bond (100) shrinks the bond's critical time step ~1/lambda and ran for ever.
+RADIUS_MULTIPLIER_MAX = 1.0
 
 #: Smallest bond tensile strength and cohesion (Pa), some ten times below the tensile strength of
 #: the weakest rock: ISRM (1981) grade R0 "extremely weak", UCS from 0.25 MPa, tensile strength
@@ -129,6 +132,10 @@ class BondParams:
                 raise DemInputError(
                     "BondParams with convention 'yade_jcfpm' needs moment_factor 0 and "
                     f"radius_multiplier 1 (JCFpm bonds). Got {self.moment_factor!r}, {self.radius_multiplier!r}.")
+        if float(self.radius_multiplier) > RADIUS_MULTIPLIER_MAX:
+            raise DemInputError(f"The 'radius_multiplier' parameter of BondParams must be a float in (0, "
+                                f"{RADIUS_MULTIPLIER_MAX:g}] (a bond no wider than its smaller sphere). "
+                                f"Got {self.radius_multiplier!r}.")
         for name in ("kn_Pa_m", "ks_Pa_m", "tensile_strength_Pa", "cohesion_Pa",
                      "radius_multiplier"):
             v = float(getattr(self, name))

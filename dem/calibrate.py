@@ -35,7 +35,8 @@ from dem.parallel import run_in_processes
 
 
 def _pos(owner, name, value, lo=0.0, hi=math.inf, integer=False):
-    ok = isinstance(value, (int, np.integer)) if integer else isinstance(value, (int, float, np.floating, np.integer))
+    ok = (isinstance(value, (int, np.integer)) if integer else isinstance(value, (int, float, np.floating, np.integer))
+          ) and not isinstance(value, (bool, np.bool_))  # True was 1 particle, seed 1
     if not ok or not (math.isfinite(float(value)) and lo < float(value) <= hi):
         kind = "an int" if integer else "a float"
         raise DemInputError(f"The '{name}' parameter of {owner} must be {kind} in ({lo}, {hi}]. Got {value!r}.")
@@ -212,6 +213,11 @@ class BondCalibrator:
         # the peak force is not a smooth function of strength (failure paths switch), so the
         # iteration may step past its best point: keep the best iteration
         _, params, results, peaks, stiff, mean_f, err_f, err_k, best_it = best
+        whole = [k for k, r in enumerate(results) if not r.fractured]
+        if whole:  # an end-of-travel force fitted as a strength
+            raise DemError(f"Calibration failed: particles {whole} of the best iteration ({best_it}) did not fracture "
+                           f"within the compression test's travel, so their peak force is no strength; the target "
+                           f"{target_peak_force_N:g} N may be beyond what these bonds and materials reach.")
         self.best_iteration_ = int(best_it)
         self.bond_params_ = params
         self.tensile_strength_Pa_ = params.tensile_strength_Pa

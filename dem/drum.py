@@ -38,7 +38,7 @@ import pandas as pd
 import scipy.constants
 
 from dem.errors import DemInputError
-from dem.materials import RAYLEIGH_SAFETY_FACTOR, Material
+from dem.materials import RAYLEIGH_SAFETY_FACTOR, Material, check_float
 from dem.system import HIST_DLOG10, HIST_LO_LOG10, HIST_NBINS, DrumGeometry, System
 
 #: standard gravity (scipy.constants.g, 9.80665 m/s^2: the one value of g in the project)
@@ -57,8 +57,14 @@ SOFT_STEEL_BALL = Material(youngs_modulus_Pa=1e9, poisson_ratio=0.3, density_kg_
                            friction_coef=0.3, restitution=0.7)
 
 
+#: The widest drum [m]: the largest ball mills are ~8.5 m across; a diameter in mm (500) lands above.
+MILL_DIAMETER_MAX_M = 20.0
+
+
 def critical_speed_rad_s(mill_diameter_m: float, ball_diameter_m: float) -> float:
     """Critical speed ``sqrt(2 g / (D - d))`` in rad/s."""
+    check_float("critical_speed_rad_s", "mill_diameter_m", mill_diameter_m, 0.0, MILL_DIAMETER_MAX_M, lo_open=True)
+    check_float("critical_speed_rad_s", "ball_diameter_m", ball_diameter_m, 0.0, math.inf, lo_open=True)
     if not (0 < ball_diameter_m < mill_diameter_m):
         raise DemInputError(
             f"The 'ball_diameter_m' parameter must be a float in (0, mill_diameter_m={mill_diameter_m}). "
@@ -155,14 +161,14 @@ def drum_system(speed_frac_critical: float = 0.7, ball_filling: float = 0.35, *,
     :class:`DrumSetup`. Exposed so studies of the run (e.g. the accuracy benchmark's
     snapshots) start from exactly the same set-up."""
     checks = [("speed_frac_critical", speed_frac_critical, 0.0, SPEED_MAX),
-              ("ball_filling", ball_filling, 0.0, 0.6), ("mill_diameter_m", mill_diameter_m, 0.0, 20.0),
-              ("mill_length_m", mill_length_m, 0.0, 50.0), ("ball_diameter_m", ball_diameter_m, 0.0, 0.2),
-              ("lifter_height_m", lifter_height_m, -1e-12, 0.25 * mill_diameter_m),
-              ("lifter_width_m", lifter_width_m, 0.0, 0.25 * mill_diameter_m)]
+              ("ball_filling", ball_filling, 0.0, 0.6), ("mill_diameter_m", mill_diameter_m, 0.0, MILL_DIAMETER_MAX_M),
+              ("mill_length_m", mill_length_m, 0.0, 50.0), ("ball_diameter_m", ball_diameter_m, 0.0, 0.2)]
     for name, val, lo, hi in checks:
-        v = float(val)
-        if not (math.isfinite(v) and lo < v <= hi):
-            raise DemInputError(f"The '{name}' parameter of {owner} must be a float in ({lo}, {hi}]. Got {val!r}.")
+        check_float(owner, name, val, lo, hi, lo_open=True)
+    critical_speed_rad_s(mill_diameter_m, ball_diameter_m)  # a mill no wider than its ball: named as such
+    for name, val in (("lifter_height_m", lifter_height_m), ("lifter_width_m", lifter_width_m)):
+        check_float(owner, name, val, -1e-12 if name == "lifter_height_m" else 0.0, 0.25 * mill_diameter_m,
+                    lo_open=True)
     if not (2.5 * ball_diameter_m <= section_length_m <= mill_length_m):
         raise DemInputError(
             f"The 'section_length_m' parameter of {owner} must be a float in "
@@ -204,9 +210,7 @@ def drum_test(speed_frac_critical: float = 0.7, ball_filling: float = 0.35, *,
             f"The 'max_steps' parameter of drum_test must be an int >= 1. Got {max_steps!r}.")
     for name, val, lo, hi in (("settle_revolutions", settle_revolutions, -1e-12, 100.0),
                               ("measure_revolutions", measure_revolutions, 0.0, 1000.0)):
-        if not (math.isfinite(float(val)) and lo < float(val) <= hi):
-            raise DemInputError(f"The '{name}' parameter of drum_test must be a float in "
-                                f"({lo}, {hi}]. Got {val!r}.")
+        check_float("drum_test", name, val, lo, hi, lo_open=True)
     t0 = time.perf_counter()
     st = drum_system(speed_frac_critical, ball_filling, owner="drum_test", **setup)
     sys_, omega, steps_rev, scale = st.system, st.omega_rad_s, st.steps_per_rev, st.length_scale

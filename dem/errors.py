@@ -11,3 +11,8 @@ class DemInputError(DemError, ValueError):
 
 class DemInstabilityError(DemError, RuntimeError):
     """The integration blew up (non-finite state); the message names the step and the cause."""
+
+
+class UnfracturedWarning(UserWarning):
+    """A compression test ended without the particle breaking: its peak force is the force at the end of
+    the platen's travel, not a strength (CompressionResult.fractured is False)."""

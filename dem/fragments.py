@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from dem.errors import DemInputError
+from dem.materials import check_float
 
 
 @dataclass(frozen=True)
@@ -170,6 +171,9 @@ def find_fragments(bond_pairs: np.ndarray, intact: np.ndarray, sphere_volume_m3:
         raise DemInputError(
             f"The 'bond_pairs' parameter of find_fragments must index the {n} spheres of sphere_volume_m3. "
             f"Got indices from {int(pairs.min())} to {int(pairs.max())}.")
+    if pairs.size and np.any(pairs[:, 0] == pairs[:, 1]):  # a sphere bonded to itself held a piece together
+        raise DemInputError("The 'bond_pairs' parameter of find_fragments must pair two spheres; rows "
+                            f"{np.nonzero(pairs[:, 0] == pairs[:, 1])[0][:5].tolist()} bond a sphere to itself.")
     intact = np.asarray(intact)
     if intact.size and intact.dtype != np.bool_:
         raise DemInputError(
@@ -185,9 +189,8 @@ def find_fragments(bond_pairs: np.ndarray, intact: np.ndarray, sphere_volume_m3:
     if not (isinstance(min_side_spheres, (int, np.integer)) and min_side_spheres >= 1):
         raise DemInputError(
             f"The 'min_side_spheres' parameter of find_fragments must be an int >= 1. Got {min_side_spheres!r}.")
-    if not (original_size_m > 0 and math.isfinite(original_size_m)):
-        raise DemInputError(
-            f"The 'original_size_m' parameter of find_fragments must be a finite float > 0. Got {original_size_m!r}.")
+    original_size_m = check_float("find_fragments", "original_size_m", original_size_m, 0.0, math.inf,
+                                  lo_open=True, hi_open=True)
     edges = pairs[intact]
     ids, child, other = _find_bridges(n, edges)
     cut = ids[(child >= min_side_spheres) & (other >= min_side_spheres)]

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -43,9 +44,9 @@ import pandas as pd
 
 from dem.agglomerate import Agglomerate
 from dem.bonds import BondParams, BondSet
-from dem.errors import DemInputError
+from dem.errors import DemInputError, UnfracturedWarning
 from dem.fragments import FragmentResult, find_fragments
-from dem.materials import RAYLEIGH_SAFETY_FACTOR, STEEL, Material
+from dem.materials import RAYLEIGH_SAFETY_FACTOR, STEEL, Material, check_float
 from dem.system import PlaneWall, System
 
 #: Default time step of the compression test, as a fraction of System's critical step (for
@@ -66,6 +67,10 @@ class CompressionResult:
     that per particle mass; stiffness_N_m : secant stiffness at half the peak force;
     force_mismatch_rel : mean |F_top - F_bottom| / peak over the pre-peak part where F_top >
     0.2 peak (quasi-static check); broken_at_peak / broken_final : {"tension", "shear"} counts;
+    fractured : the particle broke (the force fell below ``stop_force_fraction`` of the peak after it, or
+    its largest piece is below ``split_largest_fraction``); False (warned, :class:`dem.errors.
+    UnfracturedWarning`) when it did not within ``max_strain``: the peak and fracture energy are then the
+    end of travel's, not a strength (a particle that never broke reported 66 kN and 2624 J/kg);
     n_spheres, n_bonds, particle_mass_kg, diameter_m, dt_s, n_steps, wall_time_s;
     curve : DataFrame ``time_s, displacement_m, force_top_N, force_bottom_N, broken_bonds``;
     fragments : pieces at the end (:class:`dem.fragments.FragmentResult`).
@@ -79,6 +84,7 @@ class CompressionResult:
     force_mismatch_rel: float
     broken_at_peak: dict
     broken_final: dict
+    fractured: bool
     n_spheres: int
     n_bonds: int
     particle_mass_kg: float
@@ -98,7 +104,8 @@ class CompressionResult:
                 "broken_tension_at_peak": self.broken_at_peak["tension"],
                 "broken_shear_at_peak": self.broken_at_peak["shear"],
                 "broken_tension_final": self.broken_final["tension"],
-                "broken_shear_final": self.broken_final["shear"], "n_spheres": self.n_spheres,
+                "broken_shear_final": self.broken_final["shear"], "fractured": self.fractured,
+                "n_spheres": self.n_spheres,
                 "n_bonds": self.n_bonds, "particle_mass_kg": self.particle_mass_kg,
                 "n_fragments": self.fragments.n_fragments,
                 "largest_fragment_frac": self.fragments.largest_mass_fraction,
@@ -153,16 +160,15 @@ class ImpactResult:
 
 
 def _check(name: str, value: float, lo: float, hi: float, owner: str) -> float:
-    value = float(value)
-    if not (math.isfinite(value) and lo < value <= hi):
-        raise DemInputError(
-            f"The '{name}' parameter of {owner} must be a float in ({lo}, {hi}]. Got {value!r}.")
-    return value
+    return check_float(owner, name, value, lo, hi, lo_open=True)
 
 
-def _check_inputs(owner: str, agglomerate, bonds, chunk_steps) -> None:
-    """The test's particle, bonds and chunk length (the System checks materials, damping and
-    time step before any step)."""
+def _check_inputs(owner: str, agglomerate, bonds, chunk_steps, materials: dict) -> None:
+    """The test's particle, bonds, chunk length and materials (``{name: value}``: a dict for a Material
+    raised AttributeError; the System checks their values, damping and time step before any step)."""
+    for name, value in materials.items():
+        if not isinstance(value, Material):
+            raise DemInputError(f"The '{name}' parameter of {owner} must be a dem.Material. Got {value!r}.")
     if not isinstance(agglomerate, Agglomerate):
         raise DemInputError(
             f"The 'agglomerate' parameter of {owner} must be a dem.agglomerate.Agglomerate "
@@ -220,7 +226,7 @@ def compression_test(agglomerate: Agglomerate, bonds: BondParams, *, material: M
     ``damping_velocity="at_force"`` the test is Yade's JCFpm model (benchmarks/dem_yade.py).
     """
     owner = "compression_test"
-    _check_inputs(owner, agglomerate, bonds, chunk_steps)
+    _check_inputs(owner, agglomerate, bonds, chunk_steps, {"material": material, "platen_material": platen_material})
     v = _check("platen_speed_m_s", platen_speed_m_s, 0.0, 10.0, owner)
     _check("max_strain", max_strain, 0.0, 0.9, owner)
     _check("stop_force_fraction", stop_force_fraction, 0.0, 1.0, owner)
@@ -269,10 +275,16 @@ def compression_test(agglomerate: Agglomerate, bonds: BondParams, *, material: M
                           "force_top_N": f_top[::every], "force_bottom_N": f_bot[::every],
                           "broken_bonds": np.cumsum(rec["broken"])[::every]})
     frags = find_fragments(agg.bond_pairs, bset.intact, volumes, agg.diameter_m)
+    dropped = kp < nstep - 1 and f_top[-1] < stop_force_fraction * peak
+    fractured = bool(dropped or frags.largest_mass_fraction < split_largest_fraction)
+    if not fractured:
+        warnings.warn(f"{owner}: the particle did not fracture within max_strain = {max_strain:g} "
+                      f"({1e3 * max_strain * height:.3g} mm of platen travel): the peak force {peak:.4g} N and the "
+                      "fracture energy are the end of travel's, not a strength", UnfracturedWarning, stacklevel=2)
     return CompressionResult(peak_force_N=peak, displacement_at_peak_m=float(disp[kp]),
                              fracture_energy_J=e_frac, specific_fracture_energy_J_kg=e_frac / mass,
                              stiffness_N_m=stiff, force_mismatch_rel=mismatch,
-                             broken_at_peak=broken_at_peak, broken_final=_counts(bset),
+                             broken_at_peak=broken_at_peak, broken_final=_counts(bset), fractured=fractured,
                              n_spheres=agg.n_spheres, n_bonds=agg.n_bonds, particle_mass_kg=mass,
                              diameter_m=agg.diameter_m, dt_s=sys_.dt_s, n_steps=nstep,
                              wall_time_s=time.perf_counter() - t0, curve=curve, fragments=frags)
@@ -285,7 +297,7 @@ def drop_weight_test(agglomerate: Agglomerate, bonds: BondParams, specific_energ
                      max_time_factor: float = 3.0, chunk_steps: int = 250) -> ImpactResult:
     """Drop-weight impact at ``specific_energy_J_kg`` (J per kg of particle); see the module docstring."""
     owner = "drop_weight_test"
-    _check_inputs(owner, agglomerate, bonds, chunk_steps)
+    _check_inputs(owner, agglomerate, bonds, chunk_steps, {"material": material, "platen_material": platen_material})
     es = _check("specific_energy_J_kg", specific_energy_J_kg, 0.0, 1e6, owner)
     m_dw = _check("drop_mass_kg", drop_mass_kg, 0.0, 1e4, owner)
     _check("max_time_factor", max_time_factor, 0.0, 100.0, owner)

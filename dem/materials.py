@@ -55,15 +55,16 @@ MIN_RESTITUTION = 0.05
 MIN_DENSITY_KG_M3 = 100.0
 
 
-def _real(owner: str, name: str, value) -> float:
-    """``value`` as a float if it is a real number (not a string, None or a bool)."""
+def as_real(owner: str, name: str, value) -> float:
+    """``value`` as a float if it is a real number; DemInputError naming ``owner`` and ``name`` for a
+    bool, text, None, an array or anything else."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         raise DemInputError(f"The '{name}' parameter of {owner} must be a float. Got {value!r}.")
     return float(value)
 
 
 def _check_positive(owner: str, name: str, value: float, lo: float = 0.0, hint: str = "") -> float:
-    value = _real(owner, name, value)
+    value = as_real(owner, name, value)
     if not math.isfinite(value) or value <= lo:
         raise DemInputError(
             f"The '{name}' parameter of {owner} must be a finite float > {lo:g}{hint}. Got {value!r}."
@@ -71,9 +72,12 @@ def _check_positive(owner: str, name: str, value: float, lo: float = 0.0, hint: 
     return value
 
 
-def _check_range(owner: str, name: str, value: float, lo: float, hi: float,
-                 lo_open: bool = False, hi_open: bool = False) -> float:
-    value = _real(owner, name, value)
+def check_float(owner: str, name: str, value: float, lo: float, hi: float,
+                lo_open: bool = False, hi_open: bool = False) -> float:
+    """``float(value)`` if it is a real number (not a bool, text or an array) in the interval, else
+    DemInputError naming ``owner``, ``name``, the interval and the value ("0.2" raised numpy's
+    UFuncTypeError deep inside; "abc" a bare ValueError)."""
+    value = as_real(owner, name, value)
     ok = math.isfinite(value)
     ok = ok and (value > lo if lo_open else value >= lo)
     ok = ok and (value < hi if hi_open else value <= hi)
@@ -93,7 +97,7 @@ def check_density(owner: str, name: str, value: float) -> float:
 
 def check_restitution(owner: str, value: float) -> float:
     """A restitution in (0, 1] that the damping is solved for: at least :data:`MIN_RESTITUTION`."""
-    e = _check_range(owner, "restitution", value, 0.0, 1.0, lo_open=True)
+    e = check_float(owner, "restitution", value, 0.0, 1.0, lo_open=True)
     if e < MIN_RESTITUTION:
         raise DemInputError(
             f"The 'restitution' parameter of {owner} must be a float in [{MIN_RESTITUTION}, 1] (the damping "
@@ -125,9 +129,9 @@ class Material:
     def __post_init__(self) -> None:
         _check_positive("Material", "youngs_modulus_Pa", self.youngs_modulus_Pa, MIN_YOUNGS_MODULUS_PA,
                         " Pa (30e9 for 30 GPa)")
-        _check_range("Material", "poisson_ratio", self.poisson_ratio, 0.0, 0.5, hi_open=True)
+        check_float("Material", "poisson_ratio", self.poisson_ratio, 0.0, 0.5, hi_open=True)
         check_density("Material", "density_kg_m3", self.density_kg_m3)
-        _check_range("Material", "friction_coef", self.friction_coef, 0.0, 10.0)
+        check_float("Material", "friction_coef", self.friction_coef, 0.0, 10.0)
         check_restitution("Material", self.restitution)
 
     @property

@@ -156,8 +156,10 @@ class Twin:
         """Open-loop run with inputs given as constants or callables of time [h] (read at every
         sample and just before it, linear in between: :func:`twin.solve.simulate`); returns a
         :class:`twin.solve.simulate.Trajectory`. ``hardness_scale`` (a constant or a callable of
-        time) scales the breakage rates' hardness as in :meth:`steady`. Every value read is checked
-        as :meth:`steady` checks its inputs; the error names the time."""
+        time) scales the breakage rates' hardness as in :meth:`steady`. ``x0`` defaults to the mill
+        filled to its nominal hold-up with unground feed (:meth:`Model.initial_state`), not a steady
+        state: pass ``steady(...).x`` to start from one. Every value read is checked as :meth:`steady`
+        checks its inputs; the error names the time."""
         def as_fn(v, default):
             v = default if v is None else v
             return v if callable(v) else (lambda t, v=v: v)
