@@ -998,10 +998,10 @@ def cmd_bench(args) -> int:
     else:
         known = sorted(p.stem for p in root.glob("*.py") if '__name__ == "__main__"' in p.read_text(encoding="utf-8"))
         if args.target not in known:
-            from twin.errors import close_matches
+            from scenarios.scene.keypaths import did_you_mean
 
             raise SceneError(f"bench {args.target}: not a layer ({', '.join(BENCH_LAYERS)}) or a benchmark of "
-                             f"{root}/.{close_matches(args.target, [*BENCH_LAYERS, *known])}")
+                             f"{root}/{did_you_mean(args.target, [*BENCH_LAYERS, *known])}")
         names = [args.target]
     for script in (root / f"{n}.py" for n in names):
         print(script)

@@ -342,7 +342,7 @@ def test_bench_lists_the_checkouts_benchmarks_and_runs_no_other_projects(tmp_pat
     assert grindtwin(["bench", "--list", "dem_ab", "--", "--base", "HEAD"]) == 0  # one benchmark by name, its ARGS
     assert capsys.readouterr().out.split() == ["benchmarks/dem_ab.py"]
     assert grindtwin(["bench", "dem_abb"]) == 2
-    assert "bench dem_abb: not a layer (dem, twin, mpc) or a benchmark of benchmarks/. Did you mean 'dem_ab'" in \
+    assert "bench dem_abb: not a layer (dem, twin, mpc) or a benchmark of benchmarks/ (did you mean 'dem_ab'" in \
         capsys.readouterr().err
     other = tmp_path / "theirs"
     (other / "benchmarks").mkdir(parents=True)
