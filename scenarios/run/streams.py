@@ -6,8 +6,9 @@ Streams, each a mass per size class (flows in t/h, the mill content in t):
 
 - ``fresh_feed``: feed rate times the feed's size distribution (every ore is fed at the
   scene's feed size);
-- ``mill_discharge``: what leaves the last mixer (through a grate, if classified): with a
-  hydrocyclone, the cyclone feed;
+- ``mill_discharge``: what leaves the last mixer (through a grate, if classified);
+- ``cyclone_feed``: with a hydrocyclone, the mill discharge, and the fresh feed in a reverse circuit
+  (whose mill discharge was reported as the cyclone feed: 652.6 t/h against the mill's 402.6);
 - ``cyclone_underflow``: the cyclone's coarse stream, returned to the mill feed;
 - ``product``: the cyclone overflow, or the mill discharge without a cyclone;
 - ``mill_content``: the mill's hold-up, summed over mixers and ores.
@@ -27,13 +28,14 @@ import pandas as pd
 #: Stream -> (unit suffix of its column, what it is).
 STREAMS = {
     "fresh_feed": ("tph", "fresh feed"),
-    "mill_discharge": ("tph", "mill discharge (cyclone feed with a hydrocyclone)"),
+    "mill_discharge": ("tph", "mill discharge"),
+    "cyclone_feed": ("tph", "cyclone feed (the mill discharge, and the fresh feed in a reverse circuit)"),
     "cyclone_underflow": ("tph", "cyclone underflow (returned to the mill)"),
     "product": ("tph", "product (cyclone overflow, or mill discharge)"),
     "mill_content": ("t", "mill content"),
 }
 #: The model outputs (per size class) of a hydrocyclone circuit: cyclone feed and underflow.
-CYCLONE_OUTPUTS = {"mill_discharge": "cyclone_feed_tph", "cyclone_underflow": "cyclone_underflow_tph"}
+CYCLONE_OUTPUTS = {"cyclone_feed": "cyclone_feed_tph", "cyclone_underflow": "cyclone_underflow_tph"}
 #: Number of size distributions kept over a run (evenly spaced samples, first and last included).
 N_PSD_SNAPSHOTS = 6
 
@@ -65,6 +67,8 @@ def stream_masses(model, x, u, d, batch: bool) -> dict[str, np.ndarray]:
     if all(name in model.outputs for name in CYCLONE_OUTPUTS.values()):
         for stream, name in CYCLONE_OUTPUTS.items():
             out[stream] = np.asarray(model.outputs[name](x, u, d), float).ravel()
+        reverse = model.spec.effect_options.get("classification", {}).get("circuit") == "reverse"
+        out["mill_discharge"] = out["cyclone_feed"] - (out["fresh_feed"] if reverse else 0.0)
     return out | {"product": product, "mill_content": content}
 
 
@@ -82,7 +86,7 @@ def size_by_size(model, x, u, d, batch: bool) -> pd.DataFrame:
         table[f"{stream}_retained_pct"] = 100.0 * mass / total if total > 0 else np.nan
         table[f"{stream}_passing_pct"] = 100.0 * grid.cumulative_passing(mass) if total > 0 else np.nan
     if "cyclone_underflow" in masses:
-        feed = masses["mill_discharge"]
+        feed = masses["cyclone_feed"]
         table["partition_to_underflow_frac"] = np.divide(masses["cyclone_underflow"], feed,
                                                          out=np.full(feed.shape, np.nan), where=feed > 0)
     return table

@@ -57,7 +57,7 @@ def test_hydrocyclone_streams_balance_and_partition_meets_the_bypass(cyclone_run
     state the product carries what the fresh feed brings; the finest classes go to the
     underflow at Plitt's water bypass R_f, the coarsest all of them."""
     t = cyclone_run.streams["end"]
-    np.testing.assert_allclose(t["mill_discharge_tph"], t["cyclone_underflow_tph"] + t["product_tph"],
+    np.testing.assert_allclose(t["cyclone_feed_tph"], t["cyclone_underflow_tph"] + t["product_tph"],
                                rtol=1e-12, atol=1e-12)
     assert t["product_tph"].sum() == pytest.approx(t["fresh_feed_tph"].sum(), rel=1e-6)  # steady state
     assert t["fresh_feed_tph"].sum() == pytest.approx(25.0)

@@ -157,7 +157,7 @@ def test_cyclone_columns_balance_water_and_solids_in_their_units(cyclone_dir):
     _, ts = _read(cyclone_dir)
     last = ts.iloc[-1]
     st = pd.read_csv(cyclone_dir / "streams.csv", index_col=0)
-    feed, under, product = (st[f"{s}_tph"].sum() for s in ("mill_discharge", "cyclone_underflow", "product"))
+    feed, under, product = (st[f"{s}_tph"].sum() for s in ("cyclone_feed", "cyclone_underflow", "product"))
     water_over = last["overflow_water_m3_h"] * WATER_T_PER_M3
     water_feed = feed * (1 / last["cyclone_feed_solids_frac"] - 1)
     water_under = water_feed - water_over
