@@ -211,7 +211,8 @@ def _check_feed(data, ore_names: list[str], r: _Report, base_dir: Path = Path(".
     if feed.get("start") == "target" and _get(data, "controller", "target_p80_um") is None:
         r.add(("feed", "start"), "\"target\" needs controller.target_p80_um (the P80 whose steady "
               "state the run starts at)", "target")
-    power = net_power_problem(_get(data, "mill", "preset"), _get(data, "mill"), _num(feed.get("feed_tph")))
+    power = net_power_problem(_get(data, "mill", "preset"), _get(data, "mill"), _num(feed.get("feed_tph")),
+                              _num(feed.get("speed_frac_critical")))
     if power:  # the nominal feed follows the power: the feed's check below would blame the feed for it
         r.add(("mill", "net_power_kw"), power, _get(data, "mill", "net_power_kw"))
     else:

@@ -99,10 +99,11 @@ def own_dimensions(mill_keys, preset_mill) -> bool:
     return any(get(k) is not None and get(k) != getattr(preset_mill, k) for k in ("diameter_m", "length_m"))
 
 
-def net_power_problem(preset, mill_keys: dict | None, feed_tph: float | None) -> str | None:
+def net_power_problem(preset, mill_keys: dict | None, feed_tph: float | None, speed: float | None = None) -> str | None:
     """Why a scene's ``mill.net_power_kw`` is implausible, or None: the specific energy it means at the
     scene's feed outside :data:`SPECIFIC_ENERGY_RANGE_KWH_T`, or, beside the scene's own dimensions,
-    more than :data:`NET_POWER_BOND_FACTOR_MAX` from Bond's power for them (at the preset's speed)."""
+    more than :data:`NET_POWER_BOND_FACTOR_MAX` from Bond's power for them at the scene's ``speed`` (where the
+    power was measured; the preset's own when None: Bond's at 0.70 was quoted for a mill run at 0.74)."""
     keys = mill_keys if isinstance(mill_keys, dict) else {}
     net = keys.get("net_power_kw")
     if not isinstance(net, (int, float)) or isinstance(net, bool) or not net > 0:
@@ -120,11 +121,12 @@ def net_power_problem(preset, mill_keys: dict | None, feed_tph: float | None) ->
     if base is None or not own_dimensions(dims, base):  # the preset's own: a stand-in with a case's power
         return None
     try:
-        bond = float(power_kw(base.with_(**dims, power_factor=1.0), base.speed_nominal_frac_critical))
+        at = speed if isinstance(speed, (int, float)) and 0 < speed < 1 else base.speed_nominal_frac_critical
+        bond = float(power_kw(base.with_(**dims, power_factor=1.0), at))
     except TwinInputError:
         return None
     if not 1 / NET_POWER_BOND_FACTOR_MAX <= net / bond <= NET_POWER_BOND_FACTOR_MAX:
         return (f"{net:g} kW is {net / bond:.3g} x Bond's {bond:.4g} kW for the mill's own dimensions "
-                f"({', '.join(f'{k} {v:g}' for k, v in dims.items())}); allowed: within a factor "
+                f"({', '.join(f'{k} {v:g}' for k, v in dims.items())}) at {at:g} of critical; allowed: within a factor "
                 f"{NET_POWER_BOND_FACTOR_MAX:g} (a size in feet, or a power in other units?)")
     return None

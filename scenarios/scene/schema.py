@@ -147,6 +147,10 @@ class Mill(Section):
         return self
 
 
+#: The smallest critical size of the selection [um] a scene takes (``mu_um``, ``critical_size_um``).
+CRITICAL_SIZE_MIN_UM = 100.0
+
+
 class OreBreakage(Section):
     """``[ores.NAME.breakage]``: the ore's selection and breakage parameters given directly (they
     replace the calibration's mineralogy map for this ore; twin.BreakageParams).
@@ -167,14 +171,17 @@ class OreBreakage(Section):
     """Size exponent of the energy-specific selection (energy_specific)."""
     alpha2: float | None = Field(default=None, ge=0, le=20, json_schema_extra={"unit": "-"})
     """Exponent of the fall of the selection above the critical size (energy_specific)."""
-    critical_size_um: float | None = Field(default=None, gt=0, le=1e7)
-    """Critical size of the selection [um] (energy_specific)."""
+    critical_size_um: float | None = Field(default=None, ge=CRITICAL_SIZE_MIN_UM, le=1e7)
+    """Critical size of the selection [um] (energy_specific); at least 100 um (see ``mu_um``)."""
     a_per_min: float | None = Field(default=None, gt=0, le=1e6, examples=[0.7], json_schema_extra={"unit": "1/min"})
     """Austin's rate constant at 1 mm [1/min] (austin)."""
     alpha: float | None = Field(default=None, ge=0, le=5, examples=[1.0], json_schema_extra={"unit": "-"})
     """Austin's size exponent (austin)."""
-    mu_um: float | None = Field(default=None, gt=0, le=1e7, examples=[3000.0])
-    """Austin's mu, the size where the rate falls to half its power law [um] (austin)."""
+    mu_um: float | None = Field(default=None, ge=CRITICAL_SIZE_MIN_UM, le=1e7, examples=[3000.0])
+    """Austin's mu, the size where the rate falls to half its power law [um] (austin); at least 100 um:
+    ball mills' lie at millimetres (Austin et al. 1984, ch. 4: ~3 mm for 25 mm balls, scaling as the ball
+    size squared, ~0.5 mm for 10 mm balls), and a size in mm (5 for 5 mm) overloaded the mill while
+    the feed rate was blamed."""
     Lambda: float | None = Field(default=None, ge=0, le=20, examples=[3.0], json_schema_extra={"unit": "-"})
     """Austin's Lambda, the steepness of that fall (austin)."""
     beta0: float = Field(ge=0, le=1, json_schema_extra={"unit": "-"})

@@ -149,6 +149,27 @@ def _own_mill(tmp_path, old_new) -> Path:
 OWN_DIMS = "diameter_m = 5.49\nlength_m = 8.53\nball_filling_frac = 0.38\nball_size_mm = 63.0"
 
 
+def test_a_given_net_power_is_checked_against_bonds_at_the_scenes_speed(tmp_path):
+    """The factor-2 check quoted Bond's power at the preset's 0.70 for a mill run (and measured) at 0.80."""
+    from scenarios.run.models import scene_mill
+    from twin import power_kw
+
+    def bond_at(speed):
+        path = _own_mill(tmp_path, [("net_power_kw = 3885.0", OWN_DIMS),
+                                    ("speed_frac_critical = 0.70", f"speed_frac_critical = {speed}")])
+        mill = scene_mill(load_scene(path)).with_(power_factor=1.0)
+        return float(power_kw(mill, speed))
+
+    at_80 = bond_at(0.80)
+    assert at_80 > 1.1 * bond_at(0.70)  # the check can tell the speeds apart
+    net = 2.1 * at_80
+    path = _own_mill(tmp_path, [("net_power_kw = 3885.0", OWN_DIMS + f"\nnet_power_kw = {net:.1f}"),
+                                ("speed_frac_critical = 0.70", "speed_frac_critical = 0.8")])
+    messages = "\n".join(check_scene(path))
+    assert f"x Bond's {at_80:.4g} kW for the mill's own dimensions" in messages and "at 0.8 of critical" in messages, \
+        messages
+
+
 def test_a_given_net_power_is_the_power_at_the_scenes_speed(tmp_path):
     """A plant's measured 4500 kW at 0.75 of critical was taken as the power at the preset's 0.70 and
     scaled by Bond's speed term: 4770 kW and 9.47 kWh/t reported, while the rates used 4500 kW."""
@@ -185,6 +206,8 @@ def test_a_mill_of_the_scenes_own_dimensions_draws_bonds_power_whatever_its_pres
     ([("net_power_kw = 3885.0", "diameter_m = 18.0\nlength_m = 28.0")],  # feet
      ["mill.diameter_m: Input should be less than or equal to 10", "mill.length_m: Input should be less than or "
       "equal to 20"]),
+    ([("critical_size_um = 7093.0", "critical_size_um = 7.093")],  # mm: the mill overloaded, the feed was blamed
+     ["ores.molycop.breakage.critical_size_um: Input should be greater than or equal to 100 (got 7.093)"]),
     ([("net_power_kw = 3885.0", "net_power_kw = 3.885")],  # MW: the feed was blamed
      ["mill.net_power_kw: 3.885 kW at the feed's 504 t/h is 0.00771 kWh/t, outside the 0.5-100 kWh/t ball mills "
       "draw (MW? kW expected)"]),
