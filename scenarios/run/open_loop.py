@@ -24,15 +24,19 @@ PROGRESS_CHUNK_STEPS = 120
 SAMPLE_SNAP = 1e-12
 
 
-def start_state(scene: Scene, twin, u0, blend0, notes: list[str]):
+def start_state(scene: Scene, twin, u0, blend0, notes: list[str], warnings: list[str]):
     """The steady state of the initial inputs (so that a run shows the schedule, not a start-up
-    transient), else the nominal hold-up filled with feed; the note says which."""
+    transient), else the nominal hold-up filled with feed; the note says which, a warning the latter
+    (it was a note only: a circuit running away from its scene's own feed showed start_p80_um as if
+    at steady state)."""
     try:
         ss = twin.steady(feed_tph=float(u0[0]), speed_frac_critical=float(u0[1]), blend=list(blend0))
         notes.append(f"started at the steady state of the initial inputs (P80 {ss.p80_um:.4g} um)")
         return ss.x
     except (TwinError, RuntimeError) as exc:
-        notes.append(f"no steady state at the initial inputs ({exc}); started at nominal hold-up")
+        warnings.append(f"no steady state at the initial inputs (feed {float(u0[0]):g} t/h, speed "
+                        f"{float(u0[1]):g}): started from the mill filled to its nominal hold-up with feed, so "
+                        f"start_p80_um is that fill's, not a steady state's ({exc})")
         return twin.model.initial_state(list(blend0))
 
 
@@ -123,12 +127,13 @@ def run_open_loop(scene: Scene, models, feed: pd.DataFrame, progress: bool, repl
         f = np.full_like(f, start_feed_tph(scene, models, blend[0]))
         notes.append(f"feed.start = \"target\": the feed rate holding the target P80 "
                      f"{scene.controller.target_p80_um:g} um at the initial blend, {f[0]:.4g} t/h, held")
-    x0 = start_state(scene, twin, (f[0], s[0]), blend[0], notes)
+    warnings: list[str] = []
+    x0 = start_state(scene, twin, (f[0], s[0]), blend[0], notes, warnings)
     frame, states = simulate_chunks(scene, twin, x0, f, s, blend, progress, step_samples(scene, len(f)))
     frame["p80_analyser_um"] = analyser_trace(frame["time_h"].to_numpy(), frame["p80_um"].to_numpy(),
                                               scene.sensors, scene.scene.seed)
     sizes = run_size_data(twin.model, Samples.from_frame(twin.model, states, frame, models.components), batch=False)
-    return frame, sizes, {"notes": notes, "solve_times_s": None}
+    return frame, sizes, {"notes": notes, "warnings": warnings, "solve_times_s": None}
 
 
 def analyser_trace(time_h: np.ndarray, p80_um: np.ndarray, sensors, seed: int) -> np.ndarray:

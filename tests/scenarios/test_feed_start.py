@@ -127,3 +127,22 @@ def test_an_nmpc_whose_model_knows_another_analyser_dead_time_says_so(write_scen
     assert dead_time_notes(load_scene(write_scene(unknown))) == [
         "the controller's model assumes an analyser dead time of 0 h (no sensor_delay effect), the analyser's is "
         "0.1 h (sensors.p80_dead_time_h)"]
+
+
+def test_an_open_loop_without_a_steady_start_warns():
+    """A scene whose own feed had no steady state started from a mill filled with feed, said in a note only;
+    the screen showed its start_p80_um as a steady state's."""
+    from types import SimpleNamespace
+
+    from scenarios.run.open_loop import start_state
+    from twin import SolverError
+
+    def steady(**kwargs):
+        raise SolverError("Newton failed")
+
+    twin = SimpleNamespace(steady=steady, model=SimpleNamespace(initial_state=lambda blend: ["filled", *blend]))
+    notes, warnings = [], []
+    assert start_state(None, twin, (450.0, 0.74), [1.0], notes, warnings) == ["filled", 1.0]
+    assert notes == [] and warnings == [
+        "no steady state at the initial inputs (feed 450 t/h, speed 0.74): started from the mill filled to its "
+        "nominal hold-up with feed, so start_p80_um is that fill's, not a steady state's (Newton failed)"]
