@@ -211,6 +211,12 @@ def _check_feed(data, ore_names: list[str], r: _Report, base_dir: Path = Path(".
     if feed.get("start") == "target" and _get(data, "controller", "target_p80_um") is None:
         r.add(("feed", "start"), "\"target\" needs controller.target_p80_um (the P80 whose steady "
               "state the run starts at)", "target")
+    ores = data.get("ores") if isinstance(data.get("ores"), dict) else {}
+    if _get(data, "mill", "ball_size_mm") is not None and ores and all(
+            isinstance(o, dict) and "breakage" in o for o in ores.values()):  # changed no number
+        r.add(("mill", "ball_size_mm"), "read by nothing: every ore gives its own breakage parameters "
+              "(ores.NAME.breakage), taken as measured on this mill, and the ball size scales only the "
+              "calibration's mapped ones; remove it", _get(data, "mill", "ball_size_mm"))
     power = net_power_problem(_get(data, "mill", "preset"), _get(data, "mill"), _num(feed.get("feed_tph")),
                               _num(feed.get("speed_frac_critical")))
     if power:  # the nominal feed follows the power: the feed's check below would blame the feed for it

@@ -146,7 +146,7 @@ def _own_mill(tmp_path, old_new) -> Path:
     return path
 
 
-OWN_DIMS = "diameter_m = 5.49\nlength_m = 8.53\nball_filling_frac = 0.38\nball_size_mm = 63.0"
+OWN_DIMS = "diameter_m = 5.49\nlength_m = 8.53\nball_filling_frac = 0.38"
 
 
 def test_a_given_net_power_is_checked_against_bonds_at_the_scenes_speed(tmp_path):
@@ -206,6 +206,8 @@ def test_a_mill_of_the_scenes_own_dimensions_draws_bonds_power_whatever_its_pres
     ([("net_power_kw = 3885.0", "diameter_m = 18.0\nlength_m = 28.0")],  # feet
      ["mill.diameter_m: Input should be less than or equal to 10", "mill.length_m: Input should be less than or "
       "equal to 20"]),
+    ([("net_power_kw = 3885.0", "net_power_kw = 3885.0\nball_size_mm = 40.0")],  # the ore's own rates: unscaled
+     ["mill.ball_size_mm: read by nothing: every ore gives its own breakage parameters"]),
     ([("critical_size_um = 7093.0", "critical_size_um = 7.093")],  # mm: the mill overloaded, the feed was blamed
      ["ores.molycop.breakage.critical_size_um: Input should be greater than or equal to 100 (got 7.093)"]),
     ([("net_power_kw = 3885.0", "net_power_kw = 3.885")],  # MW: the feed was blamed
