@@ -458,6 +458,23 @@ def _float_in(name, lo, hi, lo_open=False, hi_open=False):
     return parse
 
 
+def _opcua_url(text):
+    """argparse type of --opcua: opc.tcp://HOST[:PORT] (a bad one was taken: serve sat disconnected for ever,
+    its reconnect task dead of asyncua's ValueError; plant-server failed with a traceback after its models)."""
+    import argparse
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(text)
+    try:
+        port = parts.port
+    except ValueError:
+        port = -1
+    if parts.scheme != "opc.tcp" or not parts.hostname or port == -1 or port == 0:
+        raise argparse.ArgumentTypeError(f"--opcua must be an endpoint URL opc.tcp://HOST[:PORT] with a port in "
+                                         f"[1, 65535] (e.g. opc.tcp://127.0.0.1:4840). Got {text!r}.")
+    return text
+
+
 def _feed_tph(text):
     """argparse type of steady's --feed-tph: the rates a twin takes (twin.FEED_TPH_MAX), imported
     when parsed (`grindtwin --help` imports no numerics)."""
@@ -1048,7 +1065,8 @@ def _online():
 
 def _add_online_options(p) -> None:
     p.add_argument("scene", help="scene file (TOML)")
-    p.add_argument("--opcua", required=True, metavar="URL", help="endpoint, e.g. opc.tcp://127.0.0.1:4840")
+    p.add_argument("--opcua", required=True, metavar="URL", type=_opcua_url,
+                   help="endpoint, e.g. opc.tcp://127.0.0.1:4840")
     p.add_argument("--speedup", type=_float_in("--speedup", 0, 1e6, lo_open=True), default=1.0,
                    help="plant hours pass this many times faster than real time (a virtual plant; default 1)")
     p.add_argument("--duration-h", type=_float_in("--duration-h", 0, 1e6, lo_open=True), default=None,

@@ -451,6 +451,8 @@ class PlantServer(Stoppable):
             if others:
                 raise SceneError(f"--record {d}: must be a new folder or one this command wrote, as it wrote it (it "
                                  f"holds {', '.join(others[:5])}, which it did not write or which changed since)")
+        if d.is_dir() and any(d.iterdir()):
+            log.warning("--record %s: the recording it holds is replaced by this one when it ends", d)
         d.mkdir(parents=True, exist_ok=True)
 
     def frame(self) -> pd.DataFrame:
@@ -483,8 +485,10 @@ class PlantServer(Stoppable):
         loop = asyncio.get_running_loop()
         self._wake = asyncio.Event()
         signals = self.stop_on_signals(loop, install_signal_handlers)
+        started = False
         try:
             await self.start()
+            started = True
             period = self.clock.wall_seconds(self.dt_h)
             next_t, next_wall = loop.time() + period, self.clock.now() + timedelta(seconds=period)
             while self.stop_reason is None:
@@ -508,8 +512,8 @@ class PlantServer(Stoppable):
         finally:
             try:
                 await self.stop_server()
-                if self.s.record_dir is not None:
-                    self.write_record()
+                if self.s.record_dir is not None and started:  # a start that failed (a port in use) replaced
+                    self.write_record()                        # the folder's last recording with one empty row
                 log.info("virtual plant stopped (%s) at plant time %.3f h", self.stop_reason or "ended", self.t_h)
             finally:  # only now: a second signal while stopping must not cut the stop short (it asks again)
                 for sig in signals:

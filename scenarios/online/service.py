@@ -127,6 +127,7 @@ class Service(Stoppable):
         self.belt: deque = deque()  # (plant time of the reading [h], blend fractions)
         self.u_written: np.ndarray | None = None
         self.t_written_h = math.nan
+        self.setpoints_refused: tuple[float, dict] | None = None  # (service time [h], {tag: status}) once refused
         self.est_start_h: float | None = None
         self.blend_prev: np.ndarray | None = None
         self.p80_held = math.nan
@@ -275,6 +276,7 @@ class Service(Stoppable):
         reason = "; ".join(n for n in (reason, write_note) if n)
         self._set_mode(mode, reason)
         await self._write(values, mode, reason, t_h, row)
+        reason = "; ".join(n for n in (reason, row.pop("write_refused", "")) if n)  # it overwrote the refusal
         row.update(mode=mode, reason=reason, write_done_s=time.perf_counter() - t0,
                    write_done_cpu_s=time.process_time() - cpu0)
         await self._soft_sensor(u_act, row)
@@ -388,6 +390,10 @@ class Service(Stoppable):
         if not auto:
             return "manual", f"mode {self.raw_mode!r} is not {self.tags.mode.auto_value!r}: the controller " \
                              "tracks the actual inputs, nothing written"
+        if self.setpoints_refused is not None:  # it stayed in auto, the plant told all was well
+            since, which = self.setpoints_refused
+            return "hold", (f"the server refused the setpoint writes {which} at {since:.3f} h: holding, nothing "
+                            "written; check the tag map's setpoint nodes and their access, then restart the service")
         if note:
             return "hold", note
         p80_bad = self._bad_for_h("p80_um", t_h)
@@ -418,8 +424,13 @@ class Service(Stoppable):
         if mode != "auto" or u_prop is None:
             return {}, ""
         out, notes = {}, []
+        # the rate limit is on the setpoint: from the one this service wrote while it stays in auto (from the
+        # actual reading, a lagging or mis-scaled actual let a write jump: 23.6 to 20 t/h against 1 t/h a
+        # sample), from the actual input when it takes over (bumpless)
+        continuing = self.mode == "auto" and self.u_written is not None
         for i, name in enumerate(INPUTS):
-            ref = u_act[i] if u_act is not None else (self.u_written[i] if self.u_written is not None else None)
+            ref = (self.u_written[i] if continuing else u_act[i] if u_act is not None
+                   else self.u_written[i] if self.u_written is not None else None)
             value, n = limit_move(float(u_prop[i]), ref, self.dt_h, self.limits[name])
             notes += n
             if value is None:
@@ -448,11 +459,18 @@ class Service(Stoppable):
         refused = {r: status_name(c) for r, c in results.items() if c != ua.StatusCodes.Good}
         if refused:
             log.error("the server refused writes: %s", refused)
-            row["reason"] = f"write refused: {refused}"
-        if values and not any(r.startswith("setpoints.") for r in refused):
-            self.u_written = np.array([values[n] for n in INPUTS])
-            self.t_written_h = t_h
-            row["written"] = True
+            row["write_refused"] = f"the server refused writes: {refused}"
+        accepted = [i for i, n in enumerate(INPUTS) if n in values and f"setpoints.{n}" not in refused]
+        if accepted:  # each setpoint on its own: a refused feed write discarded the speed's, which was applied
+            known = self.u_written if self.u_written is not None else self.last_u  # the refused one's stays
+            u = np.array(known, float) if known is not None else np.array([values.get(n, math.nan) for n in INPUTS])
+            u[accepted] = [values[INPUTS[i]] for i in accepted]
+            self.u_written, self.t_written_h = u, t_h
+        for i, n in enumerate(INPUTS):
+            row[f"{n}_written"] = i in accepted
+        row["written"] = bool(values) and len(accepted) == len(INPUTS)
+        if any(r.startswith("setpoints.") for r in refused):  # held from the next cycle on (see _decide)
+            self.setpoints_refused = (t_h, {r: c for r, c in refused.items() if r.startswith("setpoints.")})
         row["feed_sp_tph"], row["speed_sp_frac_critical"] = (values.get(n, math.nan) for n in INPUTS)
 
     async def _soft_sensor(self, u_act, row: dict) -> None:

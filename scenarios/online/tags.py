@@ -26,7 +26,7 @@ from scenarios.errors import SceneError
 from scenarios.online.quality import PlausibleRange
 from scenarios.run.closed_loop import feed_bounds
 from scenarios.scene import Scene, pydantic_message, read_toml
-from scenarios.scene.ranges import FEED_MAX_NOMINAL_MULTIPLE, nominal_feed_tph
+from scenarios.scene.ranges import FEED_MAX_NOMINAL_MULTIPLE, P80_MIN_UM, nominal_feed_tph
 
 #: A node id in OPC UA's string form (Part 6, 5.3.1.10): namespace, then identifier type and value.
 NODE_ID_PATTERN = r"^(ns=\d+|nsu=[^;]+);(i=\d+|s=.+|g=[0-9a-fA-F-]{36}|b=.+)$"
@@ -43,9 +43,10 @@ INPUTS_HOLD_AFTER_SAMPLES = 2
 
 # Physical limits of the measurements: a reading outside is Bad (an instrument or scaling fault,
 # never a state of the plant) and is not used; a tag map may narrow a range, never widen it.
-#: The P80 of the product is a size: above 0 (0 is what a dead analyser sends); and a mill only
-#: breaks, so it lies below the top of the coarsest feed class (:func:`p80_max_um`).
-P80_MIN_UM = 0.0
+# The P80 of the product is a size of at least scenarios.scene.ranges.P80_MIN_UM (no mill's product is
+# finer; 0 is what a dead analyser sends, and a P80 in mm, 0.21, lands below: it was taken as Good and drove
+# the feed to its bound), and a mill only breaks, so it lies below the top of the coarsest feed class
+# (:func:`p80_max_um`).
 #: The mill's motor draws power: below 0 is a sign or scaling fault (a stopped mill reads 0); above
 #: POWER_MAX_MODEL_MULTIPLE times the most the mill's power model draws (at critical speed, clay-free
 #: slurry: :func:`power_max_kw`) it is one too. The multiple allows the drive's losses in a gross
@@ -69,7 +70,8 @@ SPEED_RANGE_FRAC_CRITICAL = (0.0, 1.0)
 BLEND_FRAC_MIN = 0.0
 #: Why each measurement's physical range is what it is (in the tag map's messages).
 PHYSICAL_REASONS = {
-    "p80_um": "a size above 0 and below the top of the coarsest feed class: a mill only breaks",
+    "p80_um": f"a size of at least {P80_MIN_UM:g} um, as no mill's product is finer (mm? um expected), and "
+              "below the top of the coarsest feed class: a mill only breaks",
     "power_kw": f"a motor draws power; a stopped mill reads 0, and it draws at most {POWER_MAX_MODEL_MULTIPLE:g} x "
                 "what its power model gives at critical speed",
     "load_frac": "a hold-up; an empty mill reads 0, and above the mill filled to its shell it overflows",
@@ -315,7 +317,7 @@ def physical_range(name: str, scene: Scene) -> PlausibleRange:
     """The physically possible values of the measurement ``name`` of :class:`Measurements` on
     the scene's mill (the constants above, the reasons in PHYSICAL_REASONS)."""
     if name == "p80_um":
-        return PlausibleRange(P80_MIN_UM, p80_max_um(scene), True, True, "um")
+        return PlausibleRange(P80_MIN_UM, p80_max_um(scene), False, True, "um")
     if name == "power_kw":
         return PlausibleRange(POWER_MIN_KW, POWER_MAX_MODEL_MULTIPLE * power_max_kw(scene), unit="kW")
     if name == "load_frac":

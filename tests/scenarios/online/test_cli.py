@@ -18,6 +18,12 @@ from .conftest import SMALL_TAGS
      "setpoints.feed_tph: min must be below max once the scene's bounds fill the one not given (min 40.0, max 30.0)"),
     (["plant-server", "{scene}", "--opcua", "opc.tcp://127.0.0.1:4840", "--speedup", "0", "--insecure"],
      "--speedup must be in (0, 1e+06]"),
+    # serve sat disconnected for ever (its reconnect task dead of asyncua's ValueError); plant-server failed
+    # with a traceback after its models
+    (["serve", "{scene}", "--opcua", "garbage", "--tags", "{tags}", "--insecure"],
+     "--opcua must be an endpoint URL opc.tcp://HOST[:PORT] with a port in [1, 65535]"),
+    (["plant-server", "{scene}", "--opcua", "opc.tcp://127.0.0.1:99999", "--insecure"],
+     "--opcua must be an endpoint URL opc.tcp://HOST[:PORT] with a port in [1, 65535]"),
 ])
 def test_bad_input_exits_2_with_one_clear_line(small_files, tmp_path, capsys, argv, message):
     scene, tags = small_files

@@ -282,3 +282,32 @@ def test_a_recording_stopped_while_it_writes_is_taken_by_the_next_record(small_s
     p.write_record()
     assert sorted(n for n in os.listdir(rec) if n not in left) == sorted([MANIFEST, *RECORD_FILES])
     assert strangers(rec, also=left) == []
+
+
+def test_a_start_that_fails_keeps_the_folders_last_recording(small_scene, small_tags, small_parts, tmp_path):
+    """A plant server whose port was in use exited 1, and its clean-up wrote its one-row record over the
+    folder's earlier recording (plant-kpis.json became {})."""
+    import socket
+
+    from .conftest import free_port
+
+    rec = tmp_path / "rec"
+
+    def server(port):
+        return online.PlantServer(small_scene, small_tags, online.PlantServerSettings(
+            f"opc.tcp://127.0.0.1:{port}", online.ServerSecurity(insecure=True), record_dir=rec),
+            models=small_parts.models, clock=online.ManualClock(speedup=3600.0))
+
+    first = server(free_port())
+    ticks(first, first.clock, 3)
+    first.write_record()
+    before = {p.name: p.read_bytes() for p in rec.iterdir()}
+    held = socket.socket()
+    held.bind(("127.0.0.1", 0))
+    held.listen()
+    try:
+        with pytest.raises(OSError):
+            asyncio.run(server(held.getsockname()[1]).run(install_signal_handlers=False))
+    finally:
+        held.close()
+    assert {p.name: p.read_bytes() for p in rec.iterdir()} == before

@@ -181,6 +181,11 @@ def test_setpoints_stay_within_the_writers_limits(drill):
     assert w["feed_sp_tph"].between(lim.min, lim.max).all()
     steps = (w["feed_sp_tph"] - w["feed_actual_tph"]).abs()
     assert (steps <= lim.rate_max_per_h * drill["plant"].dt_h + 1e-9).all()
+    # in auto from one cycle to the next the limit holds on the setpoint itself (it was measured from the actual
+    # reading: a lagging or mis-scaled actual let a write jump)
+    consecutive = w.index.to_series().diff().eq(1) & w["mode"].eq("auto")
+    assert consecutive.sum() >= 3
+    assert (w["feed_sp_tph"].diff().abs()[consecutive] <= lim.rate_max_per_h * drill["plant"].dt_h + 1e-9).all()
 
 
 def test_the_soft_sensor_publishes_the_twins_prediction_of_the_ore_on_the_belt(drill, small_parts):
@@ -222,3 +227,33 @@ def test_a_busy_plant_holds_cycles_and_counts_as_lost_after_three_timeouts(small
     assert [r["mode"] for r in rows] == ["hold"] * (LOST_AFTER_TIMEOUTS - 1) + ["disconnected"]
     assert "did not answer within 1 s (1 of 3" in rows[0]["reason"]
     assert any("lost (TimeoutError" in r.getMessage() for r in caplog.records)
+
+
+def test_a_refused_setpoint_write_holds_says_why_and_records_each_setpoint(small_scene, small_tags, small_parts,
+                                                                          tmp_path):
+    """A feed setpoint the server refused (a tag map's node it may not write): the service stayed in auto, the
+    plant's status read 'auto', the audit's reason lost the refusal (overwritten), and the speed setpoint,
+    written and applied, was recorded as not written ("setpoints left at none written by this service")."""
+    from .conftest import LockStep, free_port
+
+    url = f"opc.tcp://127.0.0.1:{free_port()}"
+    wrong = small_tags.model_copy(deep=True)
+    wrong.setpoints.feed_tph.node = "ns=2;s=Simulation.P80True_um"  # the plant's own, read-only
+    ls = LockStep(small_scene, small_tags, small_parts, url, tmp_path / "audit")
+    ls.service = online.Service(small_parts, wrong, online.ServeSettings(
+        url, online.ClientSecurity(insecure=True), tmp_path / "audit2", warmup_h=0.2), clock=ls.clock)
+
+    async def run():
+        await ls.start()
+        await ls.step(8)
+        await ls.stop()
+    asyncio.run(run())
+    rows = pd.DataFrame(ls.rows)
+    first = rows.index[rows["feed_tph_written"].notna() & rows["speed_frac_critical_written"].eq(True)][0]
+    assert rows.loc[first, "mode"] == "auto" and not rows.loc[first, "feed_tph_written"]
+    assert "the server refused writes: {'setpoints.feed_tph': 'BadUserAccessDenied'}" in rows.loc[first, "reason"]
+    assert not rows.loc[first, "written"]
+    later = rows.loc[first + 1:]
+    assert len(later) and later["mode"].eq("hold").all() and not later["speed_frac_critical_written"].any()
+    assert later["reason"].str.contains("the server refused the setpoint writes").all()
+    assert ls.service.u_written[1] == pytest.approx(rows.loc[first, "speed_sp_frac_critical"])

@@ -66,13 +66,13 @@ def test_out_of_range_readings_are_bad_and_not_passed_on(small_scene, small_tags
     assert bad["mode"] == "auto" and "on the model: P80 unusable" in bad["reason"]
     messages = [r.getMessage() for r in caplog.records]
     top = small_scene.mill.size_classes.top_um
-    assert any(f"p80_um unusable: bad (p80_um = -5 is outside its plausible range (0, {top:g}) um)" in m
+    assert any(f"p80_um unusable: bad (p80_um = -5 is outside its plausible range [1, {top:g}) um)" in m
                for m in messages)
     assert any("speed_frac_critical = 3 is outside its plausible range (0, 1) of critical" in m for m in messages)
     # the same injection inside the range is used: the check is what kept -5 out
     assert good["p80_um_quality"] == "good" and good["p80_um"] == 205.0
     # the audit row says why, each cycle: the reason beside the quality (empty when good)
-    assert bad["p80_um_quality_reason"] == f"p80_um = -5 is outside its plausible range (0, {top:g}) um"
+    assert bad["p80_um_quality_reason"] == f"p80_um = -5 is outside its plausible range [1, {top:g}) um"
     assert good["p80_um_quality_reason"] == ""
     assert bad["p80_um_raw"] == -5.0 and good["p80_um_raw"] == 205.0  # what the tag read is kept, used or not
     assert seen[-1][0][0] == 205.0

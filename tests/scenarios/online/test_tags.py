@@ -127,7 +127,7 @@ def test_each_measurement_gets_its_physical_range_from_the_scene(tmp_path, small
     from scenarios.scene.ranges import nominal_feed_tph
 
     nominal = nominal_feed_tph(small_scene.mill.preset, small_scene.mill.model_dump())  # the mill's, not feed.feed_tph
-    assert str(got["p80_um"]) == f"(0, {top:g}) um"
+    assert str(got["p80_um"]) == f"[1, {top:g}) um"
     from twin import power_kw
 
     # the power meter: at most twice what the mill's power model draws at critical speed (a reading in W,
@@ -171,8 +171,24 @@ def test_a_map_may_narrow_a_plausible_range_but_not_widen_it(tmp_path, small_sce
         online.load_tags(_write(tmp_path, wide.replace("plausible_max = nan", "")), small_scene)
     msg = str(e.value)
     assert "3 problems in the tag map" in msg
-    assert ("measurements.p80_um.plausible_min: must lie in the physical range (0, 6700) um (a size above 0 and "
-            "below the top of the coarsest feed class: a mill only breaks); it may narrow it, not widen it "
-            "(got -5.0)") in msg
+    assert ("measurements.p80_um.plausible_min: must lie in the physical range [1, 6700) um (a size of at least 1 "
+            "um, as no mill's product is finer (mm? um expected), and below the top of the coarsest feed class: a "
+            "mill only breaks); it may narrow it, not widen it (got -5.0)") in msg
     assert "measurements.power_kw.plausible_min: must lie in the physical range [0, " in msg
     assert "measurements.speed_frac_critical: plausible_min must be below plausible_max (got min 0.8, max 0.7)" in msg
+
+
+def test_a_p80_in_mm_is_outside_the_physical_range_and_the_shipped_map_has_the_analysers_span(small_scene):
+    """A P80 reported in mm (0.21) was judged Good (the physical range began at 0) and drove the feed to its
+    bound; README showed the shipped map with the analyser's span, which the file did not have."""
+    from pathlib import Path
+
+    import scenarios.online as online
+    from scenarios.online.tags import physical_range
+
+    assert 0.21 not in physical_range("p80_um", small_scene) and 1.0 in physical_range("p80_um", small_scene)
+    shipped = Path(online.__file__).parent / "data" / "virtual_plant_tags.toml"
+    readme = (Path(__file__).resolve().parents[3] / "README.md").read_text(encoding="utf-8")
+    text = shipped.read_text(encoding="utf-8")
+    for line in ("plausible_min = 20.0", "plausible_max = 1000.0"):
+        assert line in text and line in readme
