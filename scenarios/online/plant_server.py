@@ -453,7 +453,6 @@ class PlantServer(Stoppable):
                                  f"holds {', '.join(others[:5])}, which it did not write or which changed since)")
         if d.is_dir() and any(d.iterdir()):
             log.warning("--record %s: the recording it holds is replaced by this one when it ends", d)
-        d.mkdir(parents=True, exist_ok=True)
 
     def frame(self) -> pd.DataFrame:
         return pd.DataFrame(self.rows)
@@ -474,6 +473,7 @@ class PlantServer(Stoppable):
         """The record's files and manifest, each renamed into place (the server may be stopped mid-write, a
         reader may open them any time), so that a stop at any point leaves a folder the next --record takes."""
         frame, kpis = self.frame(), self.kpis()
+        Path(self.s.record_dir).mkdir(parents=True, exist_ok=True)  # at the end: a stop while building left it empty
         replace_recorded_files(Path(self.s.record_dir), "plant-record", {
             "plant.parquet": lambda path: frame.to_parquet(path, index=False),
             "plant-kpis.json": lambda path: path.write_text(json.dumps(kpis, indent=2), encoding="utf-8")})

@@ -271,7 +271,10 @@ def main(argv=None) -> int:
                              hostnames=tuple(args.host) or ("localhost", "127.0.0.1"))
             print(f"{out / (args.name + '.pem')} (share it) and {out / (args.name + '-key.pem')} (keep it private)")
             return 0
-        first, second = getpass.getpass("password: "), getpass.getpass("again: ")
+        if sys.stdin.isatty():
+            first, second = getpass.getpass("password: "), getpass.getpass("again: ")
+        else:  # piped (echo pw | ...): getpass raised EOFError on the second read; one line, taken once
+            first = second = sys.stdin.readline().rstrip("\n")
         if first != second or not first:
             raise SceneError("the passwords differ or are empty")
         print(f'password_scrypt = "{hash_password(first)}"')

@@ -311,3 +311,15 @@ def test_a_start_that_fails_keeps_the_folders_last_recording(small_scene, small_
     finally:
         held.close()
     assert {p.name: p.read_bytes() for p in rec.iterdir()} == before
+
+
+def test_a_record_folder_is_made_when_the_record_is_written(small_scene, small_tags, small_parts, tmp_path):
+    # made when checked, before the models: a server stopped while it built them left an empty folder
+    rec = tmp_path / "runs" / "rec"
+    p = online.PlantServer(small_scene, small_tags, online.PlantServerSettings(
+        "opc.tcp://127.0.0.1:1", online.ServerSecurity(insecure=True), record_dir=rec),
+        models=small_parts.models, clock=online.ManualClock(speedup=3600.0))
+    assert not rec.exists() and not rec.parent.exists()
+    ticks(p, p.clock, 2)
+    p.write_record()
+    assert (rec / "plant.parquet").is_file()

@@ -89,6 +89,18 @@ def test_passwords_are_stored_as_scrypt_hashes():
     assert online.hash_password("x") != online.hash_password("x")  # salted
 
 
+def test_a_piped_password_is_hashed(monkeypatch, capsys):
+    # `echo pw | python -m scenarios.online.security hash-password` raised EOFError (getpass read twice)
+    import io
+
+    from scenarios.online.security import main
+
+    monkeypatch.setattr("sys.stdin", io.StringIO("correct horse\n"))
+    assert main(["hash-password"]) == 0
+    entry = capsys.readouterr().out.strip()
+    assert entry.startswith('password_scrypt = "scrypt$') and verify_password("correct horse", entry.split('"')[1])
+
+
 def test_no_private_key_is_shipped(pki):
     assert re.search(rb"-----BEGIN (RSA |EC |ENCRYPTED )?PRIVATE KEY-----", (pki / "client-key.pem").read_bytes())
     files = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True, check=True).stdout.split()
