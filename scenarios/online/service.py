@@ -123,7 +123,8 @@ class Service(Stoppable):
         self._rng = np.random.default_rng(self.scene.scene.seed)
         self.start = self.clock.now()
         self.k = 0
-        self.t_prev_h: float | None = None
+        self.t_model_h: float | None = None  # the service time the estimator has been advanced to [h]
+        self.skipped_cycles = 0
         self.belt: deque = deque()  # (plant time of the reading [h], blend fractions)
         self.u_written: np.ndarray | None = None
         self.t_written_h = math.nan
@@ -206,8 +207,16 @@ class Service(Stoppable):
         t0, cpu0 = time.perf_counter(), time.process_time()
         now = self.clock.now()
         t_h = self.clock.hours_between(self.start, now)
-        steps = 1 if self.t_prev_h is None else max(1, round((t_h - self.t_prev_h) / self.dt_h))
-        self.t_prev_h = t_h
+        # the estimator's clock follows the plant's in whole samples: a trigger under half a sample after the
+        # last cycle (a gateway refreshing source timestamps every scan) advanced it a whole sample each time,
+        # 15.8 model hours in 2; such a cycle is skipped (unread, unaudited), counted and logged once
+        steps = 1 if self.t_model_h is None else round((t_h - self.t_model_h) / self.dt_h)
+        self._condition("early cycles", steps < 1, t_h, f"cycles started under half a sample ({self.dt_h:g} h) "
+                        "after the last are skipped: the trigger fires faster than the samples")
+        if steps < 1:
+            self.skipped_cycles += 1
+            return {"service_time_h": t_h, "skipped": True, "started_by": started_by}
+        self.t_model_h = t_h if self.t_model_h is None else self.t_model_h + steps * self.dt_h
         row = {"wall_time_utc": now, "service_time_h": t_h, "cycle": self.k, "mode": "disconnected", "written": False,
                "reason": "", "started_by": started_by}
         if self.conn is not None:

@@ -218,7 +218,10 @@ def test_a_busy_plant_holds_cycles_and_counts_as_lost_after_three_timeouts(small
 
     async def go():
         service.conn = _SilentPlant()
-        rows = [await service.cycle() for _ in range(LOST_AFTER_TIMEOUTS)]
+        rows = []
+        for k in range(LOST_AFTER_TIMEOUTS):  # a sample apart: cycles under half a sample apart are skipped
+            service.clock.advance(service.dt_h if k else 0.0)
+            rows.append(await service.cycle())
         await service.shutdown("test end")
         return rows
 
@@ -257,3 +260,25 @@ def test_a_refused_setpoint_write_holds_says_why_and_records_each_setpoint(small
     assert len(later) and later["mode"].eq("hold").all() and not later["speed_frac_critical_written"].any()
     assert later["reason"].str.contains("the server refused the setpoint writes").all()
     assert ls.service.u_written[1] == pytest.approx(rows.loc[first, "speed_sp_frac_critical"])
+
+
+def test_cycles_started_faster_than_the_samples_do_not_advance_the_estimator(small_scene, small_tags, small_parts,
+                                                                            tmp_path):
+    """A trigger firing every scan (a gateway refreshing source timestamps) ran a cycle each time, and each
+    advanced the estimator a whole sample: 316 cycles in 2.06 plant hours, 15.8 h of model time."""
+    from .conftest import LockStep, free_port
+
+    ls = LockStep(small_scene, small_tags, small_parts, f"opc.tcp://127.0.0.1:{free_port()}", tmp_path / "audit")
+
+    async def run():
+        await ls.start()
+        await ls.step(3)
+        model_h, x = ls.service.t_model_h, np.array(ls.service.parts.estimator.x_est, copy=True)
+        early = [await ls.service.cycle("new p80_um") for _ in range(3)]  # no plant time has passed
+        unchanged = ls.service.t_model_h == model_h and np.array_equal(ls.service.parts.estimator.x_est, x)
+        after = await ls.step()
+        await ls.stop()
+        return early, unchanged, after, model_h
+    early, unchanged, after, model_h = asyncio.run(run())
+    assert all(r["skipped"] for r in early) and unchanged and ls.service.skipped_cycles == 3
+    assert "skipped" not in after and ls.service.t_model_h == pytest.approx(model_h + small_scene.scene.sample_period_h)
