@@ -334,7 +334,7 @@ def size_mill(ore="B", feed_tph: float = 31.0, target_p80_um: float = 210.0, spe
     from .calibration import load_calibration
     from .twin import _as_blend
 
-    # the checked floats are used: "31" passed the check and raised TypeError in the sizing's arithmetic
+    # the checked floats are used (text is refused by check_range; numpy scalars become floats)
     feed_tph, target_p80_um, speed_frac_critical, cyclone_pressure_kpa = (
         check_size_mill_input(name, value) for name, value in (
             ("feed_tph", feed_tph), ("target_p80_um", target_p80_um), ("speed_frac_critical", speed_frac_critical),

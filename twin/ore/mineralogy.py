@@ -52,7 +52,7 @@ class Texture:
     association_entropy: float = 0.5
 
     def __post_init__(self):
-        # the checked floats are kept: a grain size read as text ("150") passed the check and failed later
+        # the checked floats are kept (text is refused by check_range; numpy scalars become floats)
         checked = {
             "mean_grain_um": check_range("Texture", "mean_grain_um", self.mean_grain_um, *MEAN_GRAIN_RANGE_UM,
                                          lo_open=False, hi_open=False),
