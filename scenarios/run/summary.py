@@ -100,7 +100,9 @@ def make_summary(scene: Scene, models: Models, kpis: dict, notes: list[str], wal
         "controller": scene.controller.kind,
         "target_p80_um": scene.controller.target_p80_um,
         "load_band_frac": list(scene.controller.load_band_frac),
-        "preview_lead_h": scene.controller.preview_lead_h,
+        # only the NMPC reads the belt analyser's preview: a PI or open-loop run recorded the scene's lead,
+        # and its plots marked the transitions as seen that far ahead
+        "preview_lead_h": scene.controller.preview_lead_h if scene.controller.kind == "nmpc" else None,
         "mode": "batch" if is_batch(scene) else ("closed_loop" if closed else "open_loop"),
         "effects": list(scene.effects),
         "plant_effects": sorted(models.plant.model.effect_names,  # what the plant ran ([plant] may differ),

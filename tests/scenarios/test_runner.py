@@ -246,9 +246,12 @@ def test_closed_loop_through_the_real_loop(tmp_path, kind):
     """The runner wires the scene into mpc.closed_loop: the plant starts at the target, the
     loop's KPIs and solve times come back, mass is conserved."""
     path = _controlled(short_pyrite_scene(tmp_path, duration_h=0.25), kind)
+    path.write_text(path.read_text().replace("move_block = 1", "move_block = 1\npreview_lead_h = 0.1"))
     res = run_scene(path, progress=False)
     k = res.kpis
     assert res.summary["mode"] == "closed_loop"
+    # the preview is the NMPC's: a PI run recorded the scene's lead it never read (and plotted it)
+    assert res.summary["preview_lead_h"] == (0.1 if kind == "nmpc" else None)
     assert res.frame["p80_um"].iloc[0] == pytest.approx(250.0, abs=1.0)  # started at the target
     assert 0 <= k["p80_within_10um_frac"] <= 1 and k["p80_iae_um_h"] >= 0
     if kind == "nmpc":
