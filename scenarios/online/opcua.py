@@ -18,6 +18,16 @@ from scenarios.online.security import ClientSecurity, secure_client
 #: What a lost or refused connection raises (asyncua's status errors are UaError).
 CONNECTION_ERRORS = (ConnectionError, OSError, asyncio.TimeoutError, ua.UaError)
 
+
+class NodeError(ua.UaError):
+    """A node of the tag map the plant server does not have, or cannot take the service's values:
+    a connection attempt fails naming the role and node (and is retried: a server may load its
+    address space late)."""
+
+
+#: write roles whose values are numbers
+NUMERIC_ROLES = ("setpoints.", "soft_sensor.")
+
 #: asyncua's connection supervisor probes the server every interval with that time-out and drops
 #: the session on a miss; the service's own requests find a loss at the next cycle, so the probe
 #: waits this many request time-outs rather than taking a busy server for a dead one.
@@ -93,17 +103,28 @@ class PlantConnection:
             self._read_ids = [await resolve(client, n) for n in self.read_roles.values()]
             self._write_ids = {r: await resolve(client, n) for r, n in self.write_roles.items()}
             types = await client.uaclient.read_attributes(list(self._write_ids.values()), ua.AttributeIds.DataType)
-            self._variants = {}
-            for role, dv in zip(self._write_ids, types):
-                dtype = dv.Value.Value if dv.Value is not None else None
-                ident = dtype.Identifier if isinstance(dtype, ua.NodeId) else None
-                self._variants[role] = _VARIANTS.get(ident, ua.VariantType.Double)
+            self._variants = {role: self._variant(role, dv) for role, dv in zip(self._write_ids, types)}
             if self.trigger is not None:
                 await self._subscribe(client, self.trigger)
         except BaseException:
             await self._disconnect(client)
             raise
         self.client = client
+
+    def _variant(self, role: str, dv: ua.DataValue) -> ua.VariantType:
+        """The variant type to write ``role``'s node with, from its DataType attribute; NodeError if
+        the server has no such node, or if a number (a setpoint, a prediction) would go to a text or
+        boolean node (each write was refused, BadTypeMismatch, cycle after cycle)."""
+        node = self.write_roles[role]
+        code = dv.StatusCode.value if dv.StatusCode is not None else 0
+        if not ua.StatusCode(code).is_good():
+            raise NodeError(f"{role}: node {node!r}: the server has no such variable ({status_name(code)})")
+        dtype = dv.Value.Value if dv.Value is not None else None
+        vt = _VARIANTS.get(dtype.Identifier if isinstance(dtype, ua.NodeId) else None, ua.VariantType.Double)
+        if role.startswith(NUMERIC_ROLES) and vt in (ua.VariantType.String, ua.VariantType.Boolean):
+            raise NodeError(f"{role}: node {node!r} has data type {vt.name}; a number is written there: give a "
+                            "node of a numeric data type (Double, Float or an integer)")
+        return vt
 
     async def _subscribe(self, client: Client, trigger: Trigger) -> None:
         """Monitor the trigger's node; a notification at each change of its status, value or
@@ -118,8 +139,9 @@ class PlantConnection:
         p.ClientHandle, p.SamplingInterval, p.QueueSize, p.DiscardOldest = 1, 0.0, 1, True
         p.Filter = ua.DataChangeFilter(Trigger=ua.DataChangeTrigger.StatusValueTimestamp)
         result = (await sub.create_monitored_items([item]))[0]
-        if isinstance(result, ua.StatusCode):
-            result.check()  # a UaStatusCodeError naming the server's refusal
+        if isinstance(result, ua.StatusCode) and not result.is_good():  # it said only BadNodeIdUnknown
+            raise NodeError(f"cycle.on_new: the server refused to monitor {trigger.role}'s node "
+                            f"{self.read_roles[trigger.role]!r} ({status_name(result.value)})")
 
     async def read(self) -> dict[str, Reading]:
         """Every read role's value, status and timestamps, in one request."""
@@ -145,7 +167,7 @@ class PlantConnection:
             value, code = values[role]
             vt = self._variants[role]
             if vt in _INTEGERS:
-                value = int(value)
+                value = int(round(value))  # int() alone cut a setpoint of 23.9 t/h to 23
             variant = ua.Variant(None, ua.VariantType.Null) if value is None else ua.Variant(value, vt)
             dvs.append(ua.DataValue(variant, ua.StatusCode(code), source_time))
         res = await asyncio.wait_for(

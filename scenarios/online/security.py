@@ -34,7 +34,8 @@ from asyncua.crypto.security_policies import SecurityPolicyBasic256Sha256
 from asyncua.crypto.truststore import TrustStore
 from asyncua.crypto.validator import CertificateValidator, CertificateValidatorOptions
 from cryptography import x509
-from cryptography.hazmat.primitives.serialization import Encoding
+from cryptography.hazmat.primitives import serialization
+from cryptography.hazmat.primitives.serialization import Encoding, PublicFormat
 from cryptography.x509.oid import ExtendedKeyUsageOID
 
 from scenarios.errors import SceneError
@@ -76,10 +77,35 @@ def make_certificate(cert_path: Path, key_path: Path, name: str, app_uri: str, s
     cert_path.write_bytes(cert.public_bytes(Encoding.PEM))
 
 
+def _certificate(path: Path, option: str = "certificate") -> x509.Certificate:
+    """The X.509 certificate in a PEM or DER file; SceneError naming the option if it holds none."""
+    data = Path(path).read_bytes()
+    try:
+        return x509.load_pem_x509_certificate(data) if b"-----BEGIN" in data else x509.load_der_x509_certificate(data)
+    except ValueError as exc:
+        raise SceneError(f"{option} {path}: not an X.509 certificate (PEM or DER): {exc}") from None
+
+
+def check_key_pair(cert_path: Path, key_path: Path, cert_option: str, key_option: str) -> None:
+    """SceneError unless the private key (PEM or DER, unencrypted, as asyncua loads it) is the key of
+    the certificate: with another, every session's handshake fails and the other side only says it
+    could not verify a signature (the service retried for ever)."""
+    cert = _certificate(cert_path, cert_option)
+    data = Path(key_path).read_bytes()
+    try:
+        load = serialization.load_pem_private_key if b"-----BEGIN" in data else serialization.load_der_private_key
+        key = load(data, password=None)
+    except (ValueError, TypeError) as exc:
+        raise SceneError(f"{key_option} {key_path}: not an unencrypted private key (PEM or DER): {exc}") from None
+    if key.public_key().public_bytes(Encoding.DER, PublicFormat.SubjectPublicKeyInfo) != \
+            cert.public_key().public_bytes(Encoding.DER, PublicFormat.SubjectPublicKeyInfo):
+        raise SceneError(f"{key_option} {key_path} is not the private key of {cert_option} {cert_path}: "
+                         "give the key made with that certificate")
+
+
 def certificate_uri(path: Path) -> str:
     """The application URI in a certificate's subject alternative name."""
-    data = Path(path).read_bytes()
-    cert = x509.load_pem_x509_certificate(data) if b"-----BEGIN" in data else x509.load_der_x509_certificate(data)
+    cert = _certificate(path)
     try:
         uris = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value.get_values_for_type(
             x509.UniformResourceIdentifier)
@@ -172,6 +198,8 @@ class ServerSecurity:
                 raise SceneError(f"{k} {given[k]}: file not found")
         if not Path(self.trust_dir).is_dir():
             raise SceneError(f"--trust {self.trust_dir}: folder not found")
+        check_key_pair(self.certificate, self.private_key, "--cert", "--key")
+        load_users(self.users_file)  # a bad hash was refused only once the models were built
 
 
 async def make_server(sec: ServerSecurity) -> Server:
@@ -226,6 +254,8 @@ class ClientSecurity:
         for k in ("--cert", "--key", "--server-cert"):
             if not Path(given[k]).is_file():
                 raise SceneError(f"{k} {given[k]}: file not found")
+        check_key_pair(self.certificate, self.private_key, "--cert", "--key")
+        _certificate(self.server_certificate, "--server-cert")
 
 
 def read_password(password_file: Path | None) -> str | None:

@@ -1,0 +1,80 @@
+"""The service's session checks the tag map's nodes when it connects: a node the server lacks, a
+text or boolean node for a number and a trigger it cannot monitor each fail naming the role and the
+node (they were written or subscribed cycle after cycle, the server saying only BadTypeMismatch or
+BadNodeIdUnknown), and an integer setpoint node gets the setpoint rounded, not cut."""
+
+import asyncio
+
+import pytest
+from asyncua import ua
+
+import scenarios.online as online
+from scenarios.online.opcua import NodeError, Trigger
+from scenarios.online.security import make_server
+
+INSECURE = online.ClientSecurity(insecure=True)
+
+
+async def _with_nodes(url, body):
+    """A server with a Double, a String, a Boolean and an Int32 variable; ``body({name: node id})``."""
+    server = await make_server(online.ServerSecurity(insecure=True))
+    server.set_endpoint(url)
+    idx = await server.register_namespace("urn:test")
+    nodes = {}
+    for name, value, vt in (("x", 1.5, ua.VariantType.Double), ("text", "a", ua.VariantType.String),
+                            ("flag", False, ua.VariantType.Boolean), ("count", 0, ua.VariantType.Int32)):
+        var = await server.nodes.objects.add_variable(idx, name, value, varianttype=vt)
+        await var.set_writable()
+        nodes[name] = var.nodeid.to_string()
+    nodes["missing"] = f"ns={idx};s=no.such.node"
+    await server.start()
+    try:
+        return await body(nodes)
+    finally:
+        await server.stop()
+
+
+async def _open(url, read, write, trigger=None) -> str:
+    """'' if a session opens on these roles, else NodeError's message."""
+    conn = online.PlantConnection(url, INSECURE, read, write, timeout_s=2.0, trigger=trigger)
+    try:
+        await conn.open()
+    except NodeError as exc:
+        return str(exc)
+    await conn.close()
+    return ""
+
+
+def test_nodes_that_cannot_take_the_services_values_fail_the_connection_naming_role_and_node(url):
+    async def body(n):
+        on_new = Trigger("p80_um", lambda: None, 100.0)
+        return {
+            "double": await _open(url, {"p80_um": n["x"]}, {"setpoints.feed_tph": n["x"]}, on_new),
+            "text": await _open(url, {}, {"setpoints.feed_tph": n["text"]}),
+            "flag": await _open(url, {}, {"soft_sensor.p80_um": n["flag"]}),
+            "status text": await _open(url, {}, {"status": n["text"]}),  # the status is text
+            "missing": await _open(url, {}, {"setpoints.speed_frac_critical": n["missing"]}),
+            "trigger": await _open(url, {"p80_um": n["missing"]}, {}, on_new),
+        }
+
+    got = asyncio.run(_with_nodes(url, body))
+    assert got["double"] == "" and got["status text"] == ""
+    assert got["text"].startswith("setpoints.feed_tph: node ") and "has data type String" in got["text"]
+    assert got["flag"].startswith("soft_sensor.p80_um: node ") and "data type Boolean" in got["flag"]
+    assert "no.such.node" in got["missing"] and "BadNodeIdUnknown" in got["missing"]
+    assert got["missing"].startswith("setpoints.speed_frac_critical: node ")
+    assert got["trigger"].startswith("cycle.on_new: the server refused to monitor p80_um's node")
+    assert "BadNodeIdUnknown" in got["trigger"]
+
+
+def test_an_integer_setpoint_node_gets_the_setpoint_rounded(url):
+    async def body(n):
+        conn = online.PlantConnection(url, INSECURE, {"count": n["count"]}, {"setpoints.feed_tph": n["count"]})
+        await conn.open()
+        try:
+            await conn.write({"setpoints.feed_tph": (23.9, ua.StatusCodes.Good)}, online.Clock().now())
+            return (await conn.read())["count"].value
+        finally:
+            await conn.close()
+
+    assert asyncio.run(_with_nodes(url, body)) == 24  # int() wrote 23
