@@ -5,7 +5,6 @@ BadNodeIdUnknown), and an integer setpoint node gets the setpoint rounded, not c
 
 import asyncio
 
-import pytest
 from asyncua import ua
 
 import scenarios.online as online
