@@ -95,6 +95,10 @@ def scene_breakage(scene: Scene, ores: dict, mill) -> tuple[dict, float | None]:
     w = {name: fracs.get(name, 0.0) for name in ores}
     total = sum(w.values()) or 1.0
     density = 1.0 / sum(w[n] / total / densities[n] for n in ores) if any(w.values()) else None
+    # Austin's A becomes S^E at the hold-up the twin takes back to rates at its nominal point (Twin: at the
+    # density given it, else at its blend's of equal shares), so that the twin's rate there is A: at the
+    # feed blend's density one ore of two ran at 0.87 A
+    twin_density = density if given_density else 1.0 / sum(1.0 / len(ores) / densities[n] for n in ores)
     out = {}
     for name, ore in scene.ores.items():
         b = ore.breakage
@@ -107,7 +111,7 @@ def scene_breakage(scene: Scene, ores: dict, mill) -> tuple[dict, float | None]:
             out[name] = BreakageParams.austin_rate(
                 b.a_per_min, b.alpha, b.mu_um, b.Lambda, gamma=b.beta1, beta=b.beta2, phi=b.beta0,
                 power_kw=power_kw(mill, mill.speed_nominal_frac_critical),
-                holdup_t=mill.nominal_holdup_t(density or densities[name]), source=f"scene ores.{name}.breakage")
+                holdup_t=mill.nominal_holdup_t(twin_density), source=f"scene ores.{name}.breakage")
     return out, (density if given_density else None)
 
 

@@ -227,3 +227,39 @@ def test_a_users_mill_in_other_units_or_inputs_read_by_nothing_are_refused(tmp_p
     for fragment in fragments:
         assert fragment in messages, messages
     assert "feed.feed_tph" not in messages
+
+
+AUSTIN = """
+[ores.B.breakage]
+form = "austin"
+a_per_min = 2.5
+alpha = 0.9
+mu_um = 3000.0
+Lambda = 2.5
+beta0 = 0.5
+beta1 = 0.9
+beta2 = 4.0
+"""
+
+
+@pytest.mark.parametrize("blend", ["{ B = 1.0 }", "{ B = 0.5, D = 0.5 }"])
+def test_austins_rate_is_the_twins_rate_at_its_nominal_point_beside_another_ore(write_scene, blend):
+    """Austin's A (1/min, the sqrt(2) interval whose top is 1 mm) is converted to S^E at a hold-up and
+    back by the twin at its nominal hold-up: the two must be the same. With a pyritic ore D beside B (3.97
+    against 2.90 t/m3) the conversion took the feed blend's density and the twin its ores' of equal shares, and
+    B's rate was 0.87 A at the twin's nominal point."""
+    from twin import power_kw
+    from twin.breakage import AUSTIN_TOP_OVER_MEAN, selection_at
+
+    pyritic = ('mineralogy = { quartz = 20.0, pyrite = 60.0, chalcopyrite = 10.0, biotite = 10.0 }\n'
+               'texture = { mean_grain_um = 120.0, uniformity = 0.6, association_entropy = 0.5 }')
+    base = BASE_SCENE.replace("blend = { B = 1.0 }", f"blend = {blend}").replace('[ores.D]\ntype = "D"',
+                                                                                  f"[ores.D]\n{pyritic}")
+    scene = load_scene(write_scene(_with(AUSTIN, base)))
+    twin = build_models(scene).plant
+    spec = twin.spec
+    assert {o.name: round(o.density_t_m3, 2) for o in twin.blend.ores} == {"B": 2.9, "D": 3.97}  # the test can fail
+    p = spec.breakage[0].params
+    a_per_h = p.se_1mm_t_kwh * power_kw(twin.mill, twin.mill.speed_nominal_frac_critical) / spec.holdup_nominal_t
+    rate = selection_at(1000.0 / AUSTIN_TOP_OVER_MEAN, a_per_h, p.alpha, p.mu_um, p.Lambda)
+    assert rate == pytest.approx(60.0 * 2.5 / (1.0 + (1000.0 / 3000.0) ** 2.5), rel=1e-12)  # Austin's eq. 4.5, 1/h
