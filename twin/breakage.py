@@ -19,7 +19,10 @@ Discretisation on a grid (``SizeGrid.scheme``):
   intervals, including those that stay in the parent's own interval. The error is second order
   in the class width (Kumar & Ramkrishna 1996, Chem. Eng. Sci. 51, 1311-1332, on cell-integrated
   breakage terms; the observed order is tested). Fragments that stay in the parent interval are
-  folded into an effective rate, S_j (1 - b_jj), so b stays strictly lower-triangular.
+  folded into an effective rate, S_j (1 - b_jj), so b stays strictly lower-triangular. Austin's
+  rate form (``BreakageParams.interval_rate``) is a measured rate of leaving a sqrt(2) interval,
+  all fragments leaving it: the particle rate is raised so that the interval whose top is 1 mm is
+  left at that rate (:func:`interval_rate_factor`).
 - ``"austin"``: the classical discrete form (Austin et al. 1984, eq. 4.11; Moly-Cop Tools): S at
   the class's geometric mean and B_ij = B(x_i / x_{j+1}), sizes relative to the parent's lower
   bound, all fragments leaving the parent class. First order in the class width; it is the model
@@ -57,7 +60,10 @@ class BreakageParams:
     """Breakage parameters of one ore at the mill's nominal conditions.
 
     ``se_1mm_t_kwh``: energy-specific selection at 1 mm [t/kWh]; alpha, mu_um, Lambda: Austin
-    selection shape; gamma, beta, phi, delta: cumulative breakage function.
+    selection shape; gamma, beta, phi, delta: cumulative breakage function. ``interval_rate``: the
+    selection is Austin's measured rate of leaving a sqrt(2) sieve interval, every fragment leaving
+    it (Austin, Klimpel & Luckie 1984, ch. 3-4: the first-order disappearance of a one-interval
+    feed; :meth:`austin_rate`), not a particle's rate (module docstring, the cell-average scheme).
     """
 
     se_1mm_t_kwh: float
@@ -69,6 +75,7 @@ class BreakageParams:
     phi: float = 0.5
     delta: float = 0.0
     source: str = ""
+    interval_rate: bool = False
 
     def __post_init__(self):
         o = "BreakageParams"
@@ -102,14 +109,16 @@ class BreakageParams:
                     source: str = "") -> "BreakageParams":
         """Austin's form with its rate constant A [1/min] of the sqrt(2) interval whose top size is 1 mm,
         measured at a net power [kW] and hold-up [t]: S^E(1 mm) = 60 A H / P (Herbst & Fuerstenau 1980),
-        moved from Austin's top sizes to the twin's particle sizes (:data:`AUSTIN_TOP_OVER_MEAN`)."""
+        moved from Austin's top sizes to the twin's particle sizes (:data:`AUSTIN_TOP_OVER_MEAN`); the rate is
+        the interval's (``interval_rate``)."""
         o = "BreakageParams.austin_rate"
         check_range(o, "a_per_min", a_per_min, 0.0, 1e6)
         check_range(o, "power_kw", power_kw, 0.0, math.inf)
         check_range(o, "holdup_t", holdup_t, 0.0, math.inf)
         return cls(se_1mm_t_kwh=60.0 * a_per_min * holdup_t / power_kw * AUSTIN_TOP_OVER_MEAN ** alpha, alpha=alpha,
                    mu_um=mu_um / AUSTIN_TOP_OVER_MEAN, Lambda=Lambda,
-                   gamma=gamma, beta=beta, phi=phi, delta=delta, source=source or "Austin parameters (rate form)")
+                   gamma=gamma, beta=beta, phi=phi, delta=delta, source=source or "Austin parameters (rate form)",
+                   interval_rate=True)
 
 
 def austin_selection(grid: SizeGrid, a_per_h: float, alpha: float, mu_um: float, Lambda: float) -> np.ndarray:
@@ -200,21 +209,43 @@ def selection_at(size_um, a_per_h: float, alpha: float, mu_um: float, Lambda: fl
     return a_per_h * (x / SELECTION_REFERENCE_UM) ** alpha / (1.0 + (x / mu_um) ** Lambda)
 
 
+def _interval_average(lo_um: float, hi_um: float, a_per_h: float, params: BreakageParams, top_um: float):
+    """Gauss-Legendre nodes y in ln size over [lo, hi] [um], their weights (summing to 1), the particle
+    rates S(y) [1/h] times the weights, and breakage's phi at y (``top_um``: the grid's top, delta's)."""
+    t, w = np.polynomial.legendre.leggauss(GAUSS_NODES)
+    lo, hi = math.log(lo_um), math.log(hi_um)
+    y = np.exp(lo + (t + 1.0) / 2.0 * (hi - lo))
+    rate = w / 2.0 * selection_at(y, a_per_h, params.alpha, params.mu_um, params.Lambda)
+    phi_y = np.minimum(1.0, params.phi * (y / top_um) ** (-params.delta))
+    return y, w / 2.0, rate, phi_y
+
+
+def interval_rate_factor(params: BreakageParams, top_um: float) -> float:
+    """What the particle rate of ``params`` (``interval_rate``) is multiplied by on the cell-average
+    scheme: the particle rate at the geometric mean of Austin's sqrt(2) interval whose top is 1 mm
+    (his rate of leaving it) over the rate at which particles uniform in ln size over that interval
+    leave it, <S(y) B(x_lo / y)>, the fragments above x_lo staying. ``top_um``: the grid's top (delta)."""
+    hi = SELECTION_REFERENCE_UM
+    lo = hi / math.sqrt(2.0)
+    y, _, rate, phi_y = _interval_average(lo, hi, 1.0, params, top_um)
+    z = lo / y
+    leaving = rate @ (phi_y * z ** params.gamma + (1.0 - phi_y) * z ** params.beta)
+    return float(selection_at(hi / AUSTIN_TOP_OVER_MEAN, 1.0, params.alpha, params.mu_um, params.Lambda) / leaving)
+
+
 def cell_average_breakage(grid: SizeGrid, a_per_h: float, params: BreakageParams):
     """Effective selection [1/h] and strictly lower-triangular b of the cell-average scheme (module
     docstring): per parent class j, with mass uniform in ln y over [x_{j+1}, x_j],
     S_j = <S(y) B(x_{j+1}/y)> (the rate of leaving the class) and
-    b_ij = <S(y) (B(x_i/y) - B(x_{i+1}/y))> / S_j, the sink's lower size 0."""
+    b_ij = <S(y) (B(x_i/y) - B(x_{i+1}/y))> / S_j, the sink's lower size 0; an interval rate
+    (``params.interval_rate``) raised by :func:`interval_rate_factor`."""
     up, n = grid.upper_um, grid.count
-    t, w = np.polynomial.legendre.leggauss(GAUSS_NODES)
-    w = w / 2.0
+    if params.interval_rate:
+        a_per_h = a_per_h * interval_rate_factor(params, up[0])
     s = np.zeros(n)
     b = np.zeros((n, n))
     for j in range(n - 1):
-        lo, hi = math.log(up[j + 1]), math.log(up[j])
-        y = np.exp(lo + (t + 1.0) / 2.0 * (hi - lo))
-        rate = w * selection_at(y, a_per_h, params.alpha, params.mu_um, params.Lambda)
-        phi_y = np.minimum(1.0, params.phi * (y / up[0]) ** (-params.delta))
+        y, w, rate, phi_y = _interval_average(up[j + 1], up[j], a_per_h, params, up[0])
         z = up[j + 1:, None] / y[None, :]  # upper sizes of classes j+1..n-1 over the parent size
         passing = phi_y * z ** params.gamma + (1.0 - phi_y) * z ** params.beta
         share = passing - np.vstack([passing[1:], np.zeros((1, y.size))])

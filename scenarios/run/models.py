@@ -59,7 +59,9 @@ def scene_mill(scene: Scene, calibration: Calibration | None = None):
     dimensions draws Bond's power (factor 1): the preset's fitted power factor is its own (the lab
     mill's 0.755 applied to a 5.5 m mill). A given net power is the power at the scene's speed, where
     the plant measured it (it was taken at the preset's 0.70 and scaled to the scene's 0.75 by the
-    power model: 4770 kW for a measured 4500)."""
+    power model: 4770 kW for a measured 4500). Breakage parameters a scene gives are likewise its mill's
+    at the scene's speed (with the ``speed`` effect, a user's Austin rates were taken at the preset's
+    0.70 and ran 5.5 % faster at the scene's own 0.75)."""
     m = scene.mill
     cal = calibration or scene_calibration(scene)
     given = {k: getattr(m, k) for k in MILL_OVERRIDES if getattr(m, k) is not None}
@@ -68,7 +70,7 @@ def scene_mill(scene: Scene, calibration: Calibration | None = None):
     base = get_mill(m.preset, cal.record)
     if own_dimensions(m, base):
         given["power_factor"] = 1.0
-    if m.net_power_kw is not None:
+    if m.net_power_kw is not None or any(o.breakage is not None for o in scene.ores.values()):
         given["speed_nominal_frac_critical"] = scene.feed.speed_frac_critical
     return base.with_(**given)
 

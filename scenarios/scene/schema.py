@@ -157,9 +157,13 @@ class OreBreakage(Section):
 
     ``form = "energy_specific"`` (Moly-Cop Tools, Herbst & Fuerstenau): S^E = alpha0_t_kwh
     d^alpha1 / (1 + (d / critical_size_um)^alpha2), d in um. ``form = "austin"``: Austin's rate
-    S = a_per_min (d/1 mm)^alpha / (1 + (d/mu_um)^Lambda) [1/min], measured at the scene mill's
-    nominal power and hold-up, d the upper size of Austin's sqrt(2) interval (Austin, Klimpel &
-    Luckie 1984, eq. 4.5; the twin moves it to its particle sizes).
+    S = a_per_min (d/1 mm)^alpha / (1 + (d/mu_um)^Lambda) [1/min], the rate at which ore leaves
+    Austin's sqrt(2) interval whose upper size is d, all its fragments leaving it (Austin, Klimpel &
+    Luckie 1984, eq. 4.5: a one-interval feed's first-order disappearance; the twin moves it to its
+    particle sizes and, on the cell-average scheme, where fragments may stay in their parent's class,
+    raises it so that the interval whose top is 1 mm is left at that rate), measured at the scene
+    mill's nominal hold-up and its power at the scene's speed (``feed.speed_frac_critical``: given
+    parameters of either form are the mill's at that speed).
     Breakage B = beta0 (x/y)^beta1 + (1 - beta0)(x/y)^beta2 (Austin's
     phi, gamma, beta) for both."""
 

@@ -263,3 +263,20 @@ def test_austins_rate_is_the_twins_rate_at_its_nominal_point_beside_another_ore(
     a_per_h = p.se_1mm_t_kwh * power_kw(twin.mill, twin.mill.speed_nominal_frac_critical) / spec.holdup_nominal_t
     rate = selection_at(1000.0 / AUSTIN_TOP_OVER_MEAN, a_per_h, p.alpha, p.mu_um, p.Lambda)
     assert rate == pytest.approx(60.0 * 2.5 / (1.0 + (1000.0 / 3000.0) ** 2.5), rel=1e-12)  # Austin's eq. 4.5, 1/h
+
+
+def test_given_breakage_is_the_mills_at_the_scenes_speed(write_scene):
+    """With the ``speed`` effect, a scene's own breakage parameters were taken at the preset's nominal 0.70
+    of critical and ran f(0.75) / f(0.70) = 1.055 faster at the scene's 0.75 (Austin's eq. 8.4): at the
+    scene's speed the speed effect must change nothing."""
+    base = _with(AUSTIN, BASE_SCENE.replace("speed_frac_critical = 0.70", "speed_frac_critical = 0.75"))
+    p80 = {}
+    for effects in ('"breakage", "transport", "holdup", "cushioning", "power"',
+                    '"breakage", "transport", "holdup", "cushioning", "power", "speed"'):
+        text = base.replace('effects = ["breakage", "transport", "holdup", "cushioning", "power"]',
+                            f"effects = [{effects}]")
+        scene = load_scene(write_scene(text, name=f"s{len(p80)}.toml"))
+        twin = build_models(scene).plant
+        p80[len(p80)] = twin.steady(feed_tph=30.0, speed_frac_critical=0.75).p80_um
+        assert twin.mill.speed_nominal_frac_critical == 0.75
+    assert p80[1] == pytest.approx(p80[0], rel=1e-9)
