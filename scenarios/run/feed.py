@@ -98,6 +98,14 @@ def texture_ratios(table: pd.DataFrame, fracs: np.ndarray, ores: dict) -> np.nda
     return out
 
 
+def history_changes(scene: Scene) -> list[str]:
+    """What reading the scene's history changed in its records (``History.changes``: rows sorted or
+    dropped, values held, columns dropped), for the run's warnings: as notes inside summary.json, an
+    hour of records dropped as duplicates went unseen."""
+    history = load_history(scene)
+    return [] if history is None else [f"history {history.source.name}: {line}" for line in history.changes]
+
+
 def feed_schedule(scene: Scene, components: list[str], times_h: np.ndarray, ores: dict | None = None
                   ) -> tuple[pd.DataFrame, list[str]]:
     """The feed on the sample grid: columns ``ore_<c>_frac`` per component, the recorded
@@ -107,7 +115,7 @@ def feed_schedule(scene: Scene, components: list[str], times_h: np.ndarray, ores
     table = feed_table(scene, times_h).reset_index()
     history = load_history(scene)
     if history is not None:
-        notes += [f"history {history.source.name}: {line}" for line in history.report]
+        notes += [f"history {history.source.name}: {line}" for line in history.report if line not in history.changes]
         if len(times_h) < len(history.frame):  # the report counts the whole history's samples
             notes.append(f"history {history.source.name}: the run replays its first {len(times_h)} samples "
                          f"({times_h[-1]:g} of {history.span_h:g} h)")

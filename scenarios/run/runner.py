@@ -50,13 +50,13 @@ from scenarios.errors import SceneError
 from scenarios.output import claim_output, workbook_problem, write_files
 from scenarios.run.batch import run_batch
 from scenarios.run.closed_loop import run_closed
-from scenarios.run.feed import feed_schedule, fit_warnings
+from scenarios.run.feed import feed_schedule, fit_warnings, history_changes
 from scenarios.run.kpis import compute_kpis
 from scenarios.run.models import build_models, component_ores, is_batch
 from scenarios.run.open_loop import run_open_loop
 from scenarios.run.preflight import model_size_problems, refuse, replay_speed_problems, settings_problems
 from scenarios.run.summary import make_summary
-from scenarios.scene import TEXTURE_COLUMNS, Scene, load_scene, read_history, scene_from_dict
+from scenarios.scene import TEXTURE_COLUMNS, Scene, load_history, load_scene, read_history, scene_from_dict
 from scenarios.scene.history import DEFAULT_MAX_GAP_H
 from scenarios.scene.loader import read_toml
 from twin import trajectory_notes
@@ -150,7 +150,7 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
         frame, sizes, extra = run_closed(scene, models, feed, progress)
     psd = sizes["psd"]
     notes += extra.pop("notes", [])
-    warnings_ = fit_warnings(feed, models.components) + extra.pop("warnings", [])
+    warnings_ = history_changes(scene) + fit_warnings(feed, models.components) + extra.pop("warnings", [])
     health = extra.get("controller_health")
     for c in feed.columns:
         if c.startswith("recorded_") or c in ("history_fit_residual_wt_pct", "history_textural_index_ratio"):
@@ -267,5 +267,7 @@ def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float 
             diff = frame[col].to_numpy(float) - frame[rec].to_numpy(float)
             cmp[f"{col}_mean_diff"] = float(np.nanmean(diff))
             cmp[f"{col}_mean_abs_diff"] = float(np.nanmean(np.abs(diff)))
-    result.summary["replay"] = {"history": str(history_path), "run_minus_recorded": cmp}
+    start = load_history(new).start  # the plant's clock at time_h 0 (None for a time_h history)
+    result.summary["replay"] = {"history": str(history_path), "run_minus_recorded": cmp,
+                                "history_start": None if start is None else start.isoformat()}
     return result

@@ -1,6 +1,8 @@
 """Recorded feed histories (CSV or Parquet) turned into a regular time series.
 
-File format. One row per record, a header row; lines starting with ``#`` are comments.
+File format. One row per record, a header row; lines starting with ``#`` are comments (a ``#``
+inside a line is text: Excel's ``#VALUE!`` or ``#N/A`` is refused by rule 5, not read as a comment
+that ends the row).
 - time: ``timestamp`` (ISO 8601) or ``time_h`` (hours, any origin); time 0 is the first record;
 - composition, one family: mineral wt% columns ``<mineral>_wt_pct`` (e.g. ``quartz_wt_pct``)
   or ore fractions ``ore_<name>_frac`` (``<name>`` an ore of the scene);
@@ -13,8 +15,12 @@ Rules, applied in this order; each action is written to ``History.report``:
    moved, leave the others in order) and names the first. A row that repeats an earlier row's
    time is counted under rule 2, not here.
 2. Duplicated timestamps: the last row in file order is kept, the others dropped; the report
-   counts the repeated rows, names the first and the time it repeats, and the rows dropped.
-3. NaN: a missing value is replaced by the previous valid value of its column (a row with any
+   counts the repeated rows, names the first and the time it repeats, and the rows dropped. Local
+   timestamps without a UTC offset that step back about an hour in file order to a time recorded
+   already (the clock put back at the end of daylight-saving time: that hour recorded twice) are
+   refused: keeping the last copy would drop an hour of records.
+3. NaN: a missing value (a blank cell, or one of :data:`MISSING_TEXT`) is replaced by the previous
+   valid value of its column (a row with any
    missing composition value has its whole composition replaced). A recorded column that is
    empty throughout is dropped.
 4. Gaps: a value may be held for at most ``max_gap_h`` (default 10 min), whether the rows are
@@ -27,8 +33,10 @@ Rules, applied in this order; each action is written to ``History.report``:
    P80 is known) finer than the feed, the texture within the scene schema's ranges, and (when the
    scene's mill is known)
    ``feed_tph`` at most :data:`scenarios.scene.ranges.FEED_MAX_NOMINAL_MULTIPLE` times the
-   mill's nominal feed rate (a feed in kg/h is 1000x). A ``feed_tph`` column with no value
-   above 0 is refused: a mill never fed makes no product, so nothing of it can be replayed.
+   mill's nominal feed rate (a feed in kg/h is 1000x), and with its median over the rows above 0
+   at least :data:`scenarios.scene.ranges.FEED_MIN_NOMINAL_FRAC` of it (kg/s or kt/d land below).
+   A ``feed_tph`` column with no value above 0 is refused: a mill never fed makes no product, so
+   nothing of it can be replayed.
 6. Composition rows must sum to 100 wt% (or 1) within ``sum_tol_frac`` (relative, default 2 %);
    they are rescaled to sum exactly; rows further off are refused, naming them.
 7. Resampling to the scene's sample period: the value at grid time t_k = k*dt is the
@@ -40,6 +48,7 @@ from __future__ import annotations
 
 import bisect
 import functools
+import io
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -52,7 +61,7 @@ from pydantic import ValidationError
 
 from scenarios.errors import SceneError
 from scenarios.scene.keypaths import did_you_mean
-from scenarios.scene.ranges import feed_problem, product_p80_problem, speed_problem
+from scenarios.scene.ranges import feed_level_problem, feed_problem, product_p80_problem, speed_problem
 from scenarios.scene.schema import Texture
 from twin.ore import mineral_names
 
@@ -65,6 +74,12 @@ TEXTURE_COLUMNS = ("mean_grain_um", "uniformity", "association_entropy")
 _MINERAL = re.compile(r"^(.+)_wt_pct$")
 _ORE = re.compile(r"^ore_(.+)_frac$")
 _MAX_NAMED = 10
+#: Cell texts read as a missing value (rule 3); any other text is refused (rule 5).
+MISSING_TEXT = ("", "nan", "NaN", "NA", "N/A", "n/a", "null", "NULL", "None")
+#: A step back in file order of naive timestamps to a time recorded already, of an hour less one record
+#: interval within this [h], is a daylight-saving change (rule 2): clocks go back one hour (Lord Howe
+#: Island's half hour is not caught).
+DST_STEP_TOL_H = 0.1
 
 
 @dataclass
@@ -78,6 +93,9 @@ class History:
     start: pd.Timestamp | None = None
     span_h: float = 0.0
     composition_columns: list[str] = field(default_factory=list)
+    #: the report's lines that changed the records (rows sorted or dropped, values held, columns
+    #: dropped): a run shows them as warnings, the rest as notes
+    changes: list[str] = field(default_factory=list)
 
     @property
     def ores(self) -> list[str]:
@@ -106,7 +124,7 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
     raw = raw.assign(_t=time_h)
     comp_cols, kind, other_cols = _classify_columns(raw, where)
 
-    report += _order_report(raw)
+    changes = _order_report(raw)
     df = raw.iloc[np.argsort(raw["_t"].to_numpy(), kind="stable")].reset_index(drop=True)
     dup = df["_t"].duplicated(keep="last").to_numpy()
     df = df[~dup].reset_index(drop=True)
@@ -122,7 +140,7 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
     if neg:
         raise SceneError(f"{where}: " + f"\n{where}: ".join(neg))
     _check_ranges(values, df["_row"], where, feed_nominal_tph, feed_p80_um)
-    _check_some_feed(values, where)
+    _check_some_feed(values, where, feed_nominal_tph)
 
     comp = values[comp_cols]
     comp_missing = comp.isna().any(axis=1).to_numpy()
@@ -133,7 +151,7 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
     for col in other_cols:
         missing = values[col].isna().to_numpy()
         if missing.all():
-            report.append(f"column {col} is empty; dropped")
+            changes.append(f"column {col} is empty; dropped")
             continue
         _check_holds(t, missing, df["_row"], col, max_gap_h, errors)
         kept_other.append(col)
@@ -141,9 +159,10 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
         raise SceneError(f"{where}: " + f"\n{where}: ".join(errors))
     n_filled = int(comp_missing.sum() + sum(values[c].isna().sum() for c in kept_other))
     if n_filled:
-        report.append(f"{n_filled} missing values held from the previous row (max gap "
-                      f"{max_gap_h * 60:g} min)")
+        changes.append(f"{n_filled} missing values held from the previous row (max gap "
+                       f"{max_gap_h * 60:g} min)")
     filled = pd.concat([comp, values[kept_other]], axis=1).ffill()
+    report += changes
 
     target = 100.0 if kind == "mineralogy" else 1.0
     sums = filled[comp_cols].sum(axis=1).to_numpy()
@@ -171,7 +190,7 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
         report.append(f"{len(df)} records resampled to {len(grid)} samples every "
                       f"{sample_period_h * 60:g} min")
     return History(frame=frame, kind=kind, report=report, source=path, start=start,
-                   span_h=float(t[-1]), composition_columns=comp_cols)
+                   span_h=float(t[-1]), composition_columns=comp_cols, changes=changes)
 
 
 def _order_report(raw: pd.DataFrame) -> list[str]:
@@ -231,7 +250,15 @@ def _read_table(path: Path) -> pd.DataFrame:
     suffix = path.suffix.lower()
     try:
         if suffix == ".csv":
-            return pd.read_csv(path, comment="#", skipinitialspace=True)
+            # comments are whole lines: pandas' comment="#" also cut a row at "#VALUE!"; a trailing
+            # delimiter on every row (index_col=False) made pandas shift the columns by one
+            text = path.read_text(encoding="utf-8-sig")
+            lines = "".join(line for line in text.splitlines(keepends=True) if not line.lstrip().startswith("#"))
+            table = pd.read_csv(io.StringIO(lines), skipinitialspace=True, index_col=False, keep_default_na=False,
+                                na_values=list(MISSING_TEXT))
+            # a delimiter closing the header row too makes an unnamed empty column: nothing was recorded in it
+            return table.drop(columns=[c for c in table.columns
+                                       if str(c).startswith("Unnamed: ") and table[c].isna().all()])
         if suffix in (".parquet", ".pq"):
             return pd.read_parquet(path)
     except (ValueError, OSError, pd.errors.ParserError) as exc:
@@ -245,9 +272,13 @@ def _time_column(raw: pd.DataFrame, where: str) -> tuple[np.ndarray, pd.Timestam
         raise SceneError(f"{where}: needs exactly one time column, `timestamp` (ISO 8601) or "
                          f"`time_h` (got columns {list(raw.columns)})")
     if has_h:
-        return _finite_times(pd.to_numeric(raw["time_h"], errors="coerce").to_numpy(dtype=float), raw, where), None
+        return _finite_times(pd.to_numeric(raw["time_h"], errors="coerce").to_numpy(dtype=float), raw, where,
+                             "time_h"), None
+    stamps = raw["timestamp"]
+    if pd.api.types.is_numeric_dtype(stamps):  # epoch seconds: unreadable as ISO 8601, named as such
+        stamps = stamps.astype(str)
     try:
-        ts = pd.to_datetime(raw["timestamp"], errors="coerce", format="ISO8601")
+        ts = pd.to_datetime(stamps, errors="coerce", format="ISO8601")
     except ValueError as exc:  # e.g. rows with and without a UTC offset: pandas refuses to mix them
         text = raw["timestamp"].astype(str)
         has_offset = text.str.contains(r"(?:Z|[+-]\d\d:?\d\d)$", regex=True)
@@ -258,22 +289,51 @@ def _time_column(raw: pd.DataFrame, where: str) -> tuple[np.ndarray, pd.Timestam
         raise SceneError(f"{where}: timestamp: rows with and without a UTC offset cannot be put on one clock "
                          f"(first data row that differs from the first: {first}); give every timestamp an offset "
                          f"(e.g. +00:00) or none. pandas said: {exc}") from None
+    if ts.dt.tz is None:
+        _refuse_clock_put_back(ts, raw, where)
     return _hours_since_start(ts, raw, where)
+
+
+def _refuse_clock_put_back(ts: pd.Series, raw: pd.DataFrame, where: str) -> None:
+    """Rule 2's daylight-saving change: naive timestamps stepping back about an hour in file order to a
+    time recorded already (one row typed an hour late steps back to a time not yet recorded)."""
+    step_h = (ts.diff() / pd.Timedelta(hours=1)).to_numpy(dtype=float)
+    forward = step_h[step_h > 0]
+    interval = float(np.median(forward)) if forward.size else 0.0
+    # after the hour's last record (one interval before the clock goes back) comes its first again
+    hour_back = (step_h >= -1.0 - DST_STEP_TOL_H) & (step_h <= -(1.0 - interval) + DST_STEP_TOL_H)
+    back = np.flatnonzero(hour_back & ts.duplicated(keep="first").to_numpy())
+    if back.size:
+        i = int(back[0])
+        row, now, before = int(raw["_row"].iloc[i]), raw["timestamp"].iloc[i], raw["timestamp"].iloc[i - 1]
+        raise SceneError(f"{where}: timestamp: data row {row} ({now}) steps back about an hour from the row "
+                         f"before ({before}): local times without a UTC offset, the clock put back at the end of "
+                         "daylight-saving time, so that hour is recorded twice and one copy would be dropped as "
+                         "duplicates. Give the timestamps with their offset (e.g. 2026-10-25T02:30:00+02:00, then "
+                         "+01:00) or in UTC.")
 
 
 def _hours_since_start(ts: pd.Series, raw: pd.DataFrame, where: str) -> tuple[np.ndarray, pd.Timestamp | None]:
     """Hours of the parsed timestamps since the earliest, and that start."""
     if not ts.notna().any():
-        return _finite_times(np.full(len(raw), np.nan), raw, where), None
+        return _finite_times(np.full(len(raw), np.nan), raw, where, "timestamp"), None
     start = ts.min()
-    return _finite_times(((ts - start) / pd.Timedelta(hours=1)).to_numpy(dtype=float), raw, where), start
+    return _finite_times(((ts - start) / pd.Timedelta(hours=1)).to_numpy(dtype=float), raw, where,
+                         "timestamp"), start
 
 
-def _finite_times(t: np.ndarray, raw: pd.DataFrame, where: str) -> np.ndarray:
+#: What each time column takes, for the message naming an unreadable one.
+TIME_FORMATS = {"timestamp": "ISO 8601, e.g. 2026-03-01T06:00:00 or 2026-03-01 06:00:00+01:00 (not day-first "
+                             "dates, time-zone names or epoch seconds: convert those, or give hours in a time_h column)",
+                "time_h": "a number of hours, any origin"}
+
+
+def _finite_times(t: np.ndarray, raw: pd.DataFrame, where: str, column: str) -> np.ndarray:
     bad = ~np.isfinite(t)
     if bad.any():
-        raise SceneError(f"{where}: unreadable or missing time in data rows "
-                         f"{_names(raw['_row'][bad])}")
+        first = raw[column][bad].iloc[0]
+        raise SceneError(f"{where}: {column}: unreadable or missing time in data rows {_names(raw['_row'][bad])} "
+                         f"(e.g. '{first}'); allowed: {TIME_FORMATS[column]}")
     return t
 
 
@@ -342,8 +402,9 @@ def _check_ranges(values: pd.DataFrame, rows: pd.Series, where: str, feed_nomina
         raise SceneError(f"{where}: " + f"\n{where}: ".join(errors))
 
 
-def _check_some_feed(values: pd.DataFrame, where: str) -> None:
-    """Refuse a recorded feed rate that is 0 in every row that has one (rule 5)."""
+def _check_some_feed(values: pd.DataFrame, where: str, feed_nominal_tph: float | None) -> None:
+    """Refuse a recorded feed rate that is 0 in every row that has one, or whose level is no feed of
+    the mill (a feed in kg/s or kt/d; rule 5)."""
     if "feed_tph" not in values:
         return
     feed = values["feed_tph"].dropna().to_numpy()
@@ -351,6 +412,9 @@ def _check_some_feed(values: pd.DataFrame, where: str) -> None:
         raise SceneError(f"{where}: column feed_tph: 0 t/h in all {len(feed)} data rows that give it; allowed: "
                          "rates >= 0 t/h with at least one above 0 (a mill never fed makes no product to replay); "
                          "if the feed rate was not recorded, leave the column empty or remove it")
+    problem = feed_level_problem(float(np.median(feed[feed > 0])), feed_nominal_tph) if len(feed) else None
+    if problem:
+        raise SceneError(f"{where}: column feed_tph: {problem}")
 
 
 #: A texture inside every key's range (the reference ores' own scale), the other keys of one checked cell.

@@ -12,9 +12,16 @@ from twin import MILLS, TwinInputError, get_mill, power_kw
 #: magnitude above nominal is no operating point of that mill (its hold-up would be many
 #: times its volume), while a feed in kg/h typed as t/h is 1000x.
 FEED_MAX_NOMINAL_MULTIPLE = 10.0
+#: A recorded feed whose median over its rows above 0 is below this fraction of the mill's nominal
+#: feed is refused: plants run their mills near nominal (a start-up or a stop are some rows, not the
+#: median), while a feed in kg/s (1/3.6 of t/h) or kt/d (1/24) lands below.
+FEED_MIN_NOMINAL_FRAC = 0.3
 #: Speeds in this range are named as "percent of critical" in the hint: ball mills run at
-#: 10-100 % of critical (0.65-0.80 typically), so 72 reads as 72 %, but 1.2 as a fraction.
-PERCENT_RANGE = (10.0, 100.0)
+#: 40-100 % of critical (0.65-0.80 typically), so 72 reads as 72 %, but 1.2 as a fraction.
+PERCENT_RANGE = (40.0, 100.0)
+#: Speeds in this range are named as rpm in the hint: ball mills turn at 10-25 rpm (42.3 / sqrt(D)
+#: rpm is critical, D in m; Wills & Finch 2016, eq. 7.3), no mill at 5-40 % of critical.
+RPM_RANGE = (5.0, 40.0)
 
 
 #: A recorded product P80 [um] below this is refused: finer than any ball mill's (or stirred mill's,
@@ -62,6 +69,9 @@ def speed_problem(value: float) -> str | None:
     hint = ""
     if PERCENT_RANGE[0] <= value <= PERCENT_RANGE[1]:
         hint = f": fraction of critical expected, not percent ({value:g} % is {value / 100:g})"
+    elif RPM_RANGE[0] <= value < RPM_RANGE[1]:
+        hint = (f": fraction of critical expected, not rpm ({value:g} rpm is {value:g} / (42.3 / sqrt(D)) of "
+                "critical, D the mill's inside diameter in m)")
     return f"speed {value:g} is outside (0, 1){hint}"
 
 
@@ -75,6 +85,16 @@ def feed_problem(value: float, nominal_tph: float | None) -> str | None:
     hint = " (kg/h? t/h expected)" if value / 1000.0 <= limit else ""
     return (f"feed {value:g} t/h is more than {FEED_MAX_NOMINAL_MULTIPLE:g} x the mill's nominal "
             f"{nominal_tph:g} t/h{hint}")
+
+
+def feed_level_problem(median_tph: float, nominal_tph: float | None) -> str | None:
+    """Why a recorded feed whose median over its rows above 0 is ``median_tph`` is not the feed of a
+    mill with ``nominal_tph`` (:data:`FEED_MIN_NOMINAL_FRAC`), or None."""
+    if nominal_tph is None or not median_tph < FEED_MIN_NOMINAL_FRAC * nominal_tph:
+        return None
+    return (f"median {median_tph:.4g} t/h over the rows above 0 is below {FEED_MIN_NOMINAL_FRAC:.0%} of the mill's "
+            f"nominal {nominal_tph:.4g} t/h (kg/s? x 3.6 is t/h; kt/d? x 41.7 is t/h); if the plant ran so, give the "
+            "scene its own mill (feed.feed_tph is the mill's nominal feed)")
 
 
 def product_p80_problem(value: float, feed_p80_um: float | None) -> str | None:

@@ -269,6 +269,12 @@ time_h,quartz_wt_pct,kaolinite_wt_pct,feed_tph,speed_frac_critical
     (",0.72\n", ",72\n", ["column speed_frac_critical: speed 72 is outside (0, 1): fraction of critical "
                           "expected, not percent (72 % is 0.72) in data rows 1, 2, 3"]),
     ("0.0,60,40,30,0.72", "0.0,60,40,30,1.2", ["speed 1.2 is outside (0, 1) in data rows 1"]),
+    # rpm was named as percent ("14.5 % is 0.145")
+    (",0.72\n", ",14.5\n", ["speed 14.5 is outside (0, 1): fraction of critical expected, not rpm (14.5 rpm is"]),
+    # pandas read "#" as a comment anywhere: the row's cells from "#VALUE!" on were lost and held
+    ("0.0166667,60,40,30,0.72", "0.0166667,#VALUE!,40,30,0.72",
+     ["column quartz_wt_pct: not a number in data rows 2 (e.g. '#VALUE!')"]),
+    ("0.0166667,60,40,30,0.72", "0.0166667,60,40,#N/A,0.72", ["column feed_tph: not a number in data rows 2"]),
 ])
 def test_a_bad_cell_is_refused_with_its_row_and_the_likely_mistake(tmp_path, old, new, fragments):
     text = GOOD_ROWS.replace(old, new)
@@ -491,3 +497,66 @@ def test_a_shortened_replay_says_how_much_of_the_history_it_runs():
     assert "history sample_history.csv: the run replays its first 5 samples (0.2 of 23.9833 h)" in notes
     _, notes = feed_schedule(scene, list(ores), np.arange(480) * scene.scene.sample_period_h, ores)
     assert not any("the run replays its first" in n for n in notes)
+
+
+def test_a_trailing_delimiter_and_missing_value_words_read_as_the_plain_file(tmp_path):
+    """Exports that end every row with a delimiter made pandas take the time column as the index and
+    blame the time; blank, NA and null cells are missing values (held), comment lines are skipped."""
+    plain = read_history(write(tmp_path, GOOD_ROWS), DT).frame
+    trailing = "\n".join(line + "," for line in GOOD_ROWS.splitlines()) + "\n"
+    assert read_history(write(tmp_path, trailing, "t.csv"), DT).frame.equals(plain)
+    words = "# exported 2026-01-15\n" + GOOD_ROWS.replace("0.0166667,60,40,30", "0.0166667,60,40,NA").replace(
+        "0.0333333,60,40,30", "0.0333333,60,40,null")
+    h = read_history(write(tmp_path, words, "w.csv"), DT)
+    assert h.frame.equals(plain) and "2 missing values held from the previous row (max gap 10 min)" in h.changes
+
+
+def test_local_timestamps_repeating_the_hour_the_clock_goes_back_are_refused(tmp_path):
+    """Naive local times across the end of daylight-saving time record 02:00-02:59 twice: the first copy was
+    dropped as duplicates (an hour of records), said only in summary.json's notes."""
+    times = [f"2025-10-26T0{h}:{m:02d}:00" for h, m in [(1, 0), (1, 30), (2, 0), (2, 30), (2, 0), (2, 30), (3, 0)]]
+    text = "timestamp,quartz_wt_pct,kaolinite_wt_pct\n" + "".join(f"{t},60,40\n" for t in times)
+    with pytest.raises(SceneError, match=r"data row 5 \(2025-10-26T02:00:00\) steps back about an hour .* UTC"):
+        read_history(write(tmp_path, text), 0.5, max_gap_h=1.0)
+    offsets = ["+02:00"] * 4 + ["+01:00"] * 3  # the same hour with its offsets: one clock, nothing dropped
+    text = "timestamp,quartz_wt_pct,kaolinite_wt_pct\n" + "".join(f"{t}{o},60,40\n" for t, o in zip(times, offsets))
+    h = read_history(write(tmp_path, text, "utc.csv"), 0.5, max_gap_h=1.0)
+    assert h.span_h == pytest.approx(3.0) and h.changes == []
+
+
+@pytest.mark.parametrize("stamp, shown", [("15/01/2026 00:00", "'15/01/2026 00:00'"), ("1768435200", "'1768435200'")])
+def test_an_unreadable_time_shows_what_was_read_and_what_is_taken(tmp_path, stamp, shown):
+    text = f"timestamp,quartz_wt_pct,kaolinite_wt_pct\n{stamp},60,40\n"
+    with pytest.raises(SceneError, match=f"timestamp: unreadable or missing time in data rows 1 \\(e.g. {shown}\\); "
+                                         "allowed: ISO 8601"):
+        read_history(write(tmp_path, text), DT)
+
+
+@pytest.mark.parametrize("factor, unit", [(1 / 3.6, "kg/s"), (1 / 24, "kt/d")])
+def test_a_feed_recorded_in_another_unit_is_refused_against_the_mills_nominal(tmp_path, factor, unit):
+    """A feed in kg/s (8.3 for 30 t/h) ran at 20 kWh/t, exit 0, no warning: only feeds above 10x nominal
+    were refused. A stop (zeros) and a start-up do not move the median of the rows above 0."""
+    rows = GOOD_ROWS.replace(",30,", f",{30 * factor:.4g},")
+    with pytest.raises(SceneError, match=r"column feed_tph: median .* below 30% of the mill's nominal 30 t/h \(kg/s"):
+        read_history(write(tmp_path, rows), DT, feed_nominal_tph=30.0)
+    stop = GOOD_ROWS.replace("0.0,60,40,30", "0.0,60,40,0").replace("0.0166667,60,40,30", "0.0166667,60,40,5")
+    assert read_history(write(tmp_path, stop, "stop.csv"), DT, feed_nominal_tph=30.0).frame["feed_tph"].iloc[0] == 0
+
+
+def test_a_replay_warns_of_what_reading_its_history_changed_and_records_the_plant_clock(tmp_path):
+    """Rows dropped as duplicates and values held were notes inside summary.json only; the output had
+    no trace of the plant's clock (time_h counts from the first record)."""
+    from scenarios.run import replay_scene
+    from tests.scenarios.test_runner import short_pyrite_scene
+
+    scene = short_pyrite_scene(tmp_path, duration_h=0.25)
+    raw = pd.read_csv(ROOT / "scenarios" / "data" / "sample_history.csv", comment="#").iloc[:20]
+    raw.loc[5, "feed_tph"] = np.nan
+    raw = pd.concat([raw.iloc[:8], raw.iloc[7:8], raw.iloc[8:]])  # row 8 logged twice
+    hist = tmp_path / "plant.csv"
+    raw.to_csv(hist, index=False)
+    res = replay_scene(scene, hist, progress=False)
+    warned = "\n".join(res.summary["warnings"])
+    assert "history plant.csv: 1 row repeats the time of an earlier row" in warned
+    assert "history plant.csv: 1 missing values held from the previous row" in warned
+    assert res.summary["replay"]["history_start"] == pd.Timestamp(raw["timestamp"].iloc[0]).isoformat()
