@@ -36,6 +36,7 @@ _API = {
     "write_beside": ".atomic",
     "check_size_mill_input": ".sizing",
     "trajectory_notes": ".validity",
+    "nominal_pressure_note": ".validity",
 }
 
 __all__ = [
@@ -48,7 +49,7 @@ __all__ = [
     "TwinInputError", "austin_selection", "bond_power_kw", "centrifuging_note", "hydrocyclone_from", "power_kw", "size_mill", "write_preset", "check_preset_path",
     "CycloneSurvey", "calibrate_plitt", "circuit_cyclone", "plitt_factors", "plitt_factors_text", "load_design_cyclone",
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
-    "file_sha256", "is_grindtwin_checkout", "new_folder_beside", "pxx_um", "reference_ores", "trajectory_notes", "write_text_atomically",
+    "file_sha256", "is_grindtwin_checkout", "new_folder_beside", "pxx_um", "reference_ores", "nominal_pressure_note", "trajectory_notes", "write_text_atomically",
     "LockError", "acquire_lock", "release_lock", "remove_by_name", "replace_folder", "temporaries_of",
     "write_atomically", "write_beside", "check_size_mill_input", "sample_count",
 ]

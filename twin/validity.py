@@ -43,6 +43,35 @@ def roping_note(spec, outputs: dict) -> str:
             "underflow) keeps it below")
 
 
+#: Operating work indices [kWh/t] a ground ore may have: Bond's (1961) laboratory work indices of
+#: ores and rocks run from ~5 to ~30 (the extremes of his table: calcined clay 1.4, emery 58), and a
+#: circuit's operating index is at or above its ore's. Austin's rate in 1/h typed as 1/min (60x) gave
+#: 2.2 kWh/t (a Moly-Cop alpha0 for sizes in mm, 90x, beside a given net power: 5.2, not caught).
+WORK_INDEX_RANGE_KWH_T = (5.0, 60.0)
+
+
+def work_index_note(spec, outputs: dict, product_mass) -> str:
+    """A note when the state's operating work index W_io = E / (10 (P80^-1/2 - F80^-1/2)) (Bond's
+    law, sizes in um, E the net specific energy kWh/t; Rowland 1972) lies outside
+    :data:`WORK_INDEX_RANGE_KWH_T`: the breakage rates are then likely in other units than their
+    keys say, else ""."""
+    from .sizes import pxx_um
+
+    energy = outputs.get("specific_energy_kwh_t")
+    if energy is None or not np.isfinite(energy) or not np.sum(product_mass) > 0:
+        return ""
+    p80, f80 = pxx_um(spec.grid, product_mass), pxx_um(spec.grid, spec.feed_frac)
+    if not p80 < f80:
+        return ""
+    w_io = float(energy) / (10.0 * (p80 ** -0.5 - f80 ** -0.5))
+    lo, hi = WORK_INDEX_RANGE_KWH_T
+    if lo <= w_io <= hi:
+        return ""
+    return (f"the operating work index is {w_io:.3g} kWh/t ({float(energy):.3g} kWh/t from F80 {f80:.4g} to P80 "
+            f"{p80:.4g} um, Bond's law), outside the {lo:g}-{hi:g} of ores (Bond 1961): are the breakage rates in "
+            "the units their keys say (Austin's a_per_min per minute; Moly-Cop's alpha0_t_kwh for sizes in um)?")
+
+
 def pressure_note(outputs: dict) -> str:
     """A note when a hydrocyclone circuit's feed pressure (``outputs['cyclone_pressure_kpa']``, Plitt's
     equation or a survey's) lies outside the range cyclones run at, else "": a cyclone's sizes in m for cm put
@@ -57,6 +86,15 @@ def pressure_note(outputs: dict) -> str:
         return ""
     return (f"the cyclone feed pressure is {p_kpa:.4g} kPa, outside the {lo:g}-{hi:g} kPa (5-40 psi) grinding "
             "cyclones run at: are the cyclone's sizes in cm, and a survey's pressure in kPa, not psi?")
+
+
+def nominal_pressure_note(model) -> str:
+    """:func:`pressure_note` of the cyclones at the model's nominal feed (Plitt's pressure there, a
+    parameter of its classification), worded to follow an overload or overflow: cyclone sizes in
+    inches (1049 kPa at nominal) overloaded the mill and the feed was blamed alone. "" if in range."""
+    design = model.parameters.get("cyclone_pressure_kpa")
+    note = pressure_note({"cyclone_pressure_kpa": design[0]}) if design else ""
+    return f"At the nominal feed {note}" if note else ""
 
 
 #: The shortest nominal residence time [h] of a mill's charge taken as meant: 30 s, several times
@@ -93,7 +131,8 @@ def state_notes(spec, effect_names, speed_frac_critical: float, holdup_t: float,
     notes = [overflow_note(holdup_t, spec.mill.max_holdup_t(spec.solids_density_t_m3)),
              centrifuging_note(speed_frac_critical), water_note(outputs or {}), roping_note(spec, outputs or {}),
              pressure_note(outputs or {}),
-             sink_note(spec.grid, product_mass) if product_mass is not None else "", residence_note(spec)]
+             sink_note(spec.grid, product_mass) if product_mass is not None else "", residence_note(spec),
+             work_index_note(spec, outputs or {}, product_mass) if product_mass is not None else ""]
     k_clay = _clay_crowding(spec, effect_names)
     if k_clay is not None and clay_frac is not None:
         from .effects.rheology import jamming_note

@@ -578,10 +578,14 @@ def refuse_overflow(twin, ss, allow: bool, what: str, blend=None) -> None:
         allowed = f"feeds up to {full.summary()['feed_tph']:.4g} t/h (which fill it to its shell at this speed)"
     except Exception as exc:  # noqa: BLE001 - the limit is advice; the refusal stands without it
         allowed = f"a lower feed (the feed that fills it to its shell was not found: {exc})"
+    from twin import nominal_pressure_note
+
+    cyclones = nominal_pressure_note(twin.model)
     raise SceneError(f"{what} {out['feed_tph']:g} t/h: at {speed:.3g} of critical speed the mill's steady state "
                      f"would hold {out['holdup_t']:.4g} t of ore, more than it holds filled to its shell "
                      f"({capacity_t:.4g} t); it would overflow and these numbers would extrapolate the model "
-                     f"beyond the mill. Allowed: {allowed}; --allow-overflow prints the extrapolation anyway.")
+                     f"beyond the mill. Allowed: {allowed}; --allow-overflow prints the extrapolation anyway."
+                     + (f" {cyclones}" if cyclones else ""))
 
 
 def _steady_or_refuse(solve, what: str, feed_tph: float):

@@ -132,3 +132,34 @@ def test_a_cut_size_in_mm_is_refused(make):
                                              r"hydrocyclone makes \(mm\? um expected\). Got 0.1833"):
         make(0.1833)
     assert make(183.3).d50c_um == 183.3
+
+
+def test_a_viscosity_in_pa_s_is_refused():
+    # 0.001 (water in Pa s) passed `check`, cut Plitt's d50c to a thirtieth (d50c ~ mu^0.5), the mill overloaded
+    # and steady blamed the feed
+    with pytest.raises(TwinInputError, match=r"'viscosity_cp' parameter of Hydrocyclone must be at least 0.28 cP, "
+                                             r"water's near boiling .*Pa s\? 1 cP is 0.001 Pa s\). Got 0.001"):
+        Hydrocyclone(viscosity_cp=0.001)
+    assert Hydrocyclone(viscosity_cp=0.3).viscosity_cp == 0.3
+
+
+def test_an_overflow_or_overload_names_cyclones_whose_pressure_at_the_nominal_feed_is_no_grinding_cyclones():
+    """Cyclone sizes in inches read as cm put Plitt's pressure at 1049 kPa at the nominal feed (the 34-276 kPa
+    grinding cyclones run at); the mill overloaded and only the feed was named. The same cyclones in cm: no note.
+    Plitt's pressure goes as D^-0.37 Di^-0.94 h^-0.28 (Du^2 + Do^2)^-0.87: 2.54^3.33 times higher in inches."""
+    from twin import get_mill, nominal_pressure_note
+
+    inch = dict(diameter_cm=20.0, inlet_cm=5.1, vortex_finder_cm=7.0, apex_cm=3.9, free_vortex_height_cm=59.0)
+    mill = get_mill("industrial").with_(feed_nominal_tph=200.0, diameter_m=4.0, length_m=6.0, power_factor=1.0)
+    notes, pressure = {}, {}
+    for name, scale in (("inch", 1.0), ("cm", 2.54)):
+        cyclone = {"count": 6, "feed_solids_frac": 0.6, **{k: scale * v for k, v in inch.items()}}
+        tw = Twin("B", mill=mill, effects=["breakage", "transport", "holdup", "power", "classification"],
+                  effect_options={"classification": {"kind": "hydrocyclone", "cyclone": cyclone}})
+        notes[name] = nominal_pressure_note(tw.model)
+        pressure[name] = tw.model.parameters["cyclone_pressure_kpa"][0]
+    assert pressure["inch"] / pressure["cm"] == pytest.approx(2.54 ** 3.33, rel=1e-9)
+    assert notes["cm"] == "" and 34.0 < pressure["cm"] < 276.0
+    assert notes["inch"] == (f"At the nominal feed the cyclone feed pressure is {pressure['inch']:.4g} kPa, outside the "
+                             "34-276 kPa (5-40 psi) grinding cyclones run at: are the cyclone's sizes in cm, and a "
+                             "survey's pressure in kPa, not psi?")

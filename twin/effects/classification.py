@@ -79,6 +79,10 @@ KPA_PER_PSI = 6.894757293168361
 D50C_MIN_UM = 1.0
 #: ... and below this [um] (10 cm: no classifier's cut; the bound the field had).
 D50C_MAX_UM = 1e5
+#: Plitt's viscosity is the liquid's [cP], at least water's near boiling (0.28 cP at 100 C; CRC Handbook
+#: of Chemistry and Physics, viscosity of water): a viscosity in Pa s (0.001 for water) lands below, and
+#: cut the d50c to a thirtieth, the mill then overloading with the feed blamed.
+VISCOSITY_MIN_CP = 0.28
 
 
 def check_d50c(owner: str, value) -> float:
@@ -188,7 +192,9 @@ class Hydrocyclone:
         object.__setattr__(self, "count", check_int(o, "count", self.count, 1, 200))
         check_range(o, "feed_solids_vol_pct", self.feed_solids_vol_pct, FEED_SOLIDS_VOL_PCT_MIN,
                     FEED_SOLIDS_VOL_PCT_MAX, lo_open=False)
-        check_range(o, "viscosity_cp", self.viscosity_cp, 0.0, 1e4)
+        if check_range(o, "viscosity_cp", self.viscosity_cp, 0.0, 1e4) < VISCOSITY_MIN_CP:
+            raise bad_value(o, "viscosity_cp", self.viscosity_cp, f"at least {VISCOSITY_MIN_CP:g} cP, water's near "
+                            "boiling (the liquid's viscosity in cP; Pa s? 1 cP is 0.001 Pa s)")
         for name in ("d50c_factor", "pressure_factor", "sharpness_factor", "split_factor"):
             check_range(o, name, getattr(self, name), 0.0, 1e3)
         for name, lo, hi in (("feed_solids_frac", 0.0, 1.0), ("sharpness", 0.0, 20.0),

@@ -19,7 +19,7 @@ from ..mill import load_status
 from .numeric import Evaluator
 from .simulate import integrate_constant
 from ..sizes import pxx_um
-from ..validity import state_notes
+from ..validity import nominal_pressure_note, state_notes
 
 #: Newton stops when the largest mass-rate residual is below this share of nominal flow [-].
 RESIDUAL_REL_TOL = 1e-10
@@ -252,8 +252,10 @@ def _overload_text(model, x, u, d) -> str:
     shell = model.spec.mill.max_holdup_t(model.spec.solids_density_t_m3)
     if not held > shell:
         return ""
-    return (f" The mill overloads: by then it held {held:.3g} t of ore ({held / model.spec.holdup_nominal_t:.3g}x its "
+    text = (f" The mill overloads: by then it held {held:.3g} t of ore ({held / model.spec.holdup_nominal_t:.3g}x its "
             f"nominal hold-up), more than it holds filled to its shell ({shell:.3g} t). A lower feed may have one.")
+    note = nominal_pressure_note(model)
+    return text + (f" {note}" if note else "")
 
 
 #: Largest hold-up over nominal :func:`steady_state_at_load` solves for: above any ball mill filled to
