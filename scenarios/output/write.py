@@ -303,6 +303,9 @@ class OutputClaim:
             self._lock_fd = None
 
     def _fresh_partial(self) -> None:
+        if self.partial.exists() and not self.partial.is_dir():  # a user's file of that name
+            raise _refuse(self.final, f"{self.partial.name} is a file, not grindtwin's; it is where this run "
+                          "writes before it moves its results to --out")
         if self.partial.exists():  # left by a killed run: ours if marked, or as far as its manifest says
             marked = (self.partial / INCOMPLETE_MARKER).exists()
             names = ([*RUN_FILES, *temporaries_of(self.partial, RUN_FILES)] if marked

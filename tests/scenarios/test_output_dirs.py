@@ -217,6 +217,12 @@ def test_a_stale_partial_folder_is_removed_by_name_only(tmp_path):
     with pytest.raises(SceneError, match="run.partial is left from an earlier run"):
         write_run(tiny_result(), out, plots=False)
     assert (stale / "thesis.docx").read_text() == "not ours"
+    (stale / "thesis.docx").unlink()
+    stale.rmdir()
+    stale.write_text("a user's file")  # it was said to hold "files grindtwin did not write"
+    with pytest.raises(SceneError, match="run.partial is a file, not grindtwin's; it is where this run writes"):
+        write_run(tiny_result(), out, plots=False)
+    assert stale.read_text() == "a user's file"
 
 
 def test_sweep_out_follows_the_same_rules(tmp_path, capsys):

@@ -61,7 +61,8 @@ def test_austins_rate_is_the_rate_of_leaving_his_interval_on_the_cell_average_sc
     lower size stay in it, so the class is left at <S(y) B(x_lo / y)>: Austin's rates were honoured at
     0.69-0.73 of themselves. The interval whose top is 1 mm is left at his S exactly; the power-law
     intervals well below mu to 0.5 %; the discrete scheme leaves every interval at his S; the
-    Moly-Cop form (a particle's rate, fragments kept in their class as BallSim does) is not raised."""
+    Moly-Cop form is read as a particle's rate and not raised (so read, the cell-average scheme
+    reproduces BallSim's published base case and the discrete one misses it: twin_molycop.md)."""
     grid = SizeGrid(top_um=1000.0 * 2.0 ** 4, ratio=math.sqrt(2.0), count=24)
     p = BreakageParams.austin_rate(A_PER_MIN, ALPHA, MU_UM, LAMBDA, gamma, beta, phi, power_kw=1.0, holdup_t=1.0)
     got = ore_breakage(grid, p, 1.0, 1.0).selection_per_h
