@@ -1110,6 +1110,15 @@ def _online_logging(args) -> None:
     logging.getLogger("asyncua").setLevel(logging.ERROR)
     # its session's publish loop logs a traceback when the server goes; the service logs the loss
     logging.getLogger("asyncua.client.ua_session").setLevel(logging.CRITICAL)
+    # its trust store logs a traceback with each refused client certificate (the plant server's log
+    # filled with them): its message, which names the certificate, is kept
+    logging.getLogger("asyncuagds.validate").addFilter(_without_traceback)
+
+
+def _without_traceback(record) -> bool:
+    """A logging filter: the record's message without its traceback."""
+    record.exc_info, record.exc_text = None, None
+    return True
 
 
 def add_serve_parser(subparsers):

@@ -124,3 +124,27 @@ def test_no_private_key_is_shipped(pki):
     pem = re.compile(rb"-----BEGIN (RSA |EC |ENCRYPTED )?PRIVATE KEY-----")
     keys = [f for f in files if (ROOT / f).is_file() and pem.search((ROOT / f).read_bytes())]
     assert keys == []
+
+
+def test_a_refused_client_certificate_is_one_log_line_without_its_traceback(pki, url):
+    """The plant server logged a traceback for each client it refused (asyncua's trust store logs its
+    verification error with exc_info); the line that names the certificate is kept."""
+    import argparse
+    import io
+    import logging
+
+    from scenarios.cli.commands import _online_logging
+
+    _online_logging(argparse.Namespace(quiet=False))
+    out = io.StringIO()
+    handler = logging.StreamHandler(out)
+    handler.setFormatter(logging.Formatter("%(name)s %(levelname)s %(message)s"))
+    logging.getLogger("asyncuagds").addHandler(handler)
+    try:
+        refusal = asyncio.run(_with_server(server_security(pki), url,
+                                           lambda node: _refusal(url, client_security(pki, cert="rogue"), node)))
+    finally:
+        logging.getLogger("asyncuagds").removeHandler(handler)
+    assert refusal.startswith("BadCertificateUntrusted")
+    assert "Not trusted certificate used: [CN=rogue]" in out.getvalue()
+    assert "Traceback" not in out.getvalue()
