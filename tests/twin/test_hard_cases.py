@@ -202,3 +202,22 @@ def test_a_stiff_analyser_lag_does_not_stop_the_steady_state(dead_time_h):
         assert ss.method == "newton"
         np.testing.assert_allclose(ss.x[:n], ref.x[:n], rtol=1e-8, atol=1e-12 * ref.x[:n].max())
         assert ss.outputs["p80_measured_um"] == pytest.approx(ss.outputs["p80_um"], rel=1e-9)
+
+
+def test_a_steady_state_newton_cannot_find_says_where_the_mill_was_going(monkeypatch):
+    """When Newton failed after the long integration and the mill had not overloaded, the error said only that
+    Newton failed: now the hold-up it was at and its rate of change (here, a Newton made to fail at a state
+    that is steady: the nominal lab mill's own hold-up, changing by nothing)."""
+    from twin.errors import SolverError
+    from twin.solve import steady
+
+    twin = Twin("B", mill="lab")
+    ss = twin.steady(feed_tph=0.031, speed_frac_critical=0.70)
+    monkeypatch.setattr(steady, "_newton", lambda model, x, u, d: (x, None, False))
+    with pytest.raises(SolverError) as info:
+        twin.steady(feed_tph=0.031, speed_frac_critical=0.70)
+    text = str(info.value)
+    held = float(text.split("By then the mill held ")[1].split(" t ")[0])
+    assert held == pytest.approx(ss.outputs["holdup_t"], rel=5e-3)  # printed to 3 digits
+    rate = float(text.split("changing by ")[1].split(" t/h")[0])
+    assert abs(rate) < 1e-9 * 0.031

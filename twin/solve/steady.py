@@ -241,8 +241,20 @@ def steady_state(model, u, d, x_guess=None) -> SteadyState:
         overload = _overload_text(model, x_long, u, d)
         raise (OverloadError if overload else SolverError)(
             "Steady state not found: Newton failed from the nominal guess and after 40 residence times of "
-            f"integration at feed {u[0]:.4g} t/h, speed {u[1]:.3f}." + overload)
+            f"integration at feed {u[0]:.4g} t/h, speed {u[1]:.3f}." + (overload or _drift_text(model, x_long, u, d)))
     return _result(model, _check(model, x, u, d, "long integration + Newton"), u, d, "integration+newton")
+
+
+def _drift_text(model, x, u, d) -> str:
+    """Where the integration's end state ``x`` was going when Newton failed from it and the mill did not
+    overload: its hold-up and the hold-up's rate of change over the feed (Newton's words alone named
+    neither), and cyclones no grinding cyclone is at the nominal feed (:func:`nominal_pressure_note`)."""
+    held = float(model.outputs["holdup_t"](x, u, d))
+    rate = float(np.sum(np.asarray(model.f(x, u, d), float).ravel()[:model.n_mass]))
+    cyclones = nominal_pressure_note(model)
+    return (f" By then the mill held {held:.3g} t ({held / model.spec.holdup_nominal_t:.3g}x its nominal hold-up), "
+            f"changing by {rate:+.3g} t/h ({rate / u[0]:+.2g} of the feed)" + (f". {cyclones}" if cyclones else "")
+            + ".")
 
 
 def _overload_text(model, x, u, d) -> str:
