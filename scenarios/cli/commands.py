@@ -687,7 +687,9 @@ def _scene_steady_notes(scene, models, args) -> list[str]:
     if "speed" not in models.plant.model.effect_names:
         notes.append("the plant has no `speed` effect: its breakage rates are those of the nominal speed, and a "
                      "speed moves only the power and the kWh/t")
-    return notes
+    from scenarios.run.models import survey_load_note
+
+    return notes + [n for n in (survey_load_note(scene, models.plant.spec.feed_nominal_tph),) if n]
 
 
 @_exit_codes("steady")

@@ -146,6 +146,35 @@ def build_twin(scene: Scene, ores: dict, effects, effect_options, size_classes, 
     return twin
 
 
+#: A surveyed cyclone feed implying a circulating load (at the scene's feed) this far from the twin's
+#: nominal one, relatively, is noted: the nominal sets the mill's through-flow and so its load, the
+#: load the NMPC's band constrains (the load went from 1.25 to 0.60 for a nominal of 1 to 8, at the
+#: same P80), and nothing said the survey implied another.
+SURVEY_LOAD_NOTE_REL = 0.25
+
+
+def survey_load_note(scene: Scene, feed_nominal_tph: float) -> str:
+    """A note when the scene's cyclone survey implies a circulating load (its feed solids over the mill's
+    nominal feed, less 1: the underflow over the fresh feed in a direct or a reverse circuit) other
+    than ``effect_options.classification.circulating_load_nominal`` (its default if not given), else ""."""
+    from twin import EFFECTS
+
+    opts = scene.effect_options.get("classification") or {}
+    survey = (opts.get("cyclone") or {}).get("survey") if opts.get("kind") == "hydrocyclone" else None
+    if not isinstance(survey, dict) or not feed_nominal_tph > 0:
+        return ""
+    implied = float(survey["feed_solids_tph"]) / feed_nominal_tph - 1.0
+    key = "circulating_load_nominal"
+    nominal = float(opts.get(key, EFFECTS["classification"].options[key].default))
+    if not implied > 0 or abs(implied / nominal - 1.0) <= SURVEY_LOAD_NOTE_REL:
+        return ""
+    return (f"the cyclone survey's feed ({float(survey['feed_solids_tph']):.4g} t/h of solids) implies a circulating "
+            f"load of {implied:.3g} at the mill's nominal feed {feed_nominal_tph:.4g} t/h; the twin's nominal is "
+            f"{nominal:g} (effect_options.classification.{key}{'' if key in opts else ', its default'}), which sets "
+            "the mill's nominal through-flow and so its load (the load the controller's band constrains): give "
+            f"{key} = {implied:.3g} if the survey was taken at that feed")
+
+
 def build_models(scene: Scene) -> Models:
     """The controller's twin and, if ``[plant]`` differs, the plant's twin (built once)."""
     ores = component_ores(scene)
@@ -184,4 +213,5 @@ def build_models(scene: Scene) -> Models:
                              f"{len(fracs)})")
     # what the twins cannot show of the ores; their mismatch notes are the calibration_mismatch_ok ones above
     notes += list(dict.fromkeys(n for t in (control, plant) for n in t.notes if n not in t.mismatch_notes))
+    notes += [n for n in (survey_load_note(scene, control.spec.feed_nominal_tph),) if n]
     return Models(control=control, plant=plant, components=list(ores), notes=notes, calibration=cal)

@@ -348,3 +348,26 @@ def test_an_austin_rate_per_hour_typed_per_minute_is_noted_by_its_operating_work
         assert (WORK_INDEX_RANGE_KWH_T[0] <= w_io <= WORK_INDEX_RANGE_KWH_T[1]) == (rate == 2.5), w_io
     assert notes[2.5] == [] and len(notes[150.0]) == 1
     assert "outside the 5-60 of ores (Bond 1961): are the breakage rates in the units their keys say" in notes[150.0][0]
+
+
+def test_a_survey_implying_another_circulating_load_than_the_nominal_is_noted(tmp_path):
+    """The nominal circulating load sets the mill's through-flow and so its load (the NMPC's band); a survey
+    whose cyclone feed implied 0.73 beside the default 2.5 ran without a word. The Moly-Cop case's published
+    cyclone feed (1902.5 t/h at 504 t/h: 2.77) is within a quarter of 2.5: no note."""
+    from scenarios.run.models import SURVEY_LOAD_NOTE_REL, survey_load_note
+
+    survey = ('\n[effect_options.classification.cyclone.survey]\nfeed_solids_tph = {solids}\nfeed_water_m3_h = 1204.2\n'
+              'solids_density_t_m3 = 2.8\nd50c_um = 183.3\nsharpness = 1.34\nwater_bypass_frac = 0.375\n'
+              'pressure_kpa = 53.09\n')
+    text = MOLYCOP.read_text()
+    for key in ("d50c_um = 183.3", "sharpness = 1.34", "water_bypass_frac = 0.375", "solids_bypass_frac"):
+        text = "\n".join(line for line in text.splitlines() if not line.startswith(key.split(" =")[0] + " ")) + "\n"
+    notes = {}
+    for solids in (1902.5, 872.0):
+        path = tmp_path / f"s{solids:g}.toml"
+        path.write_text(text + survey.format(solids=solids))
+        scene = load_scene(path)
+        notes[solids] = survey_load_note(scene, 504.0)
+    assert abs((1902.5 / 504 - 1) / 2.5 - 1) < SURVEY_LOAD_NOTE_REL and notes[1902.5] == ""
+    assert notes[872.0].startswith("the cyclone survey's feed (872 t/h of solids) implies a circulating load of 0.73")
+    assert "the twin's nominal is 2.5 (effect_options.classification.circulating_load_nominal, its default)" in notes[872.0]
