@@ -304,15 +304,7 @@ size_classes = { top_um = 13200.0, ratio = 1.4142135623730951, count = 22 }
 [ores.ore1]
 type = "B"
 density_t_m3 = 2.75
-[ores.ore1.breakage]
-form = "austin"
-a_per_min = RATE
-alpha = 0.9
-mu_um = 3000.0
-Lambda = 2.5
-beta0 = 0.5
-beta1 = 0.9
-beta2 = 4.0
+BREAKAGE
 [feed]
 blend = { ore1 = 1.0 }
 feed_tph = 200.0
@@ -340,7 +332,8 @@ def test_an_austin_rate_per_hour_typed_per_minute_is_noted_by_its_operating_work
 
     notes = {}
     for rate in (2.5, 150.0):
-        twin = build_models(load_scene(write_scene(CIRCUIT.replace("RATE", f"{rate}"), name=f"a{rate:g}.toml"))).plant
+        breakage = AUSTIN.strip().replace("[ores.B.", "[ores.ore1.").replace("a_per_min = 2.5", f"a_per_min = {rate}")
+        twin = build_models(load_scene(write_scene(CIRCUIT.replace("BREAKAGE", breakage), name=f"a{rate:g}.toml"))).plant
         ss = twin.steady(feed_tph=200.0, speed_frac_critical=0.75)
         notes[rate] = [n for n in ss.notes if "operating work index" in n]
         f80 = pxx_um(twin.spec.grid, twin.spec.feed_frac)
