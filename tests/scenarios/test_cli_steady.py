@@ -76,6 +76,8 @@ def test_zero_feed_reports_specific_energy_as_undefined(capsys):
     assert out["p80_um"] is None  # no product, no P80
     assert out["notes"][0] == "specific_energy_kwh_t is undefined at zero feed"
     assert out["uncertainty"]["intervals"]["specific_energy_kwh_t"] is None
+    # the intervals were read as prediction intervals: B's measured 12.8 kWh/t lies outside its [13.10, 13.12]
+    assert any(n.startswith("the 90% intervals carry the DEM particles' scatter only") for n in out["notes"])
     assert main(["steady", "--ore", "B", "--feed-tph", "0", "--uncertainty", "20"]) == 0
     text = capsys.readouterr().out
     assert "specific_energy_kwh_t    undefined" in text and "e+0" not in text
