@@ -14,7 +14,7 @@ from scenarios.errors import RunError
 from scenarios.run.closed_loop import start_feed_tph, start_mode
 from scenarios.run.feed import component_blend, input_series
 from scenarios.run.streams import Samples, run_size_data
-from scenarios.scene import Scene
+from scenarios.scene import Scene, event_started
 from twin import TwinError
 
 #: Samples integrated per call (one progress-bar tick; the integrator restarts between calls).
@@ -49,8 +49,10 @@ def step_samples(scene: Scene, n_samples: int) -> np.ndarray:
     if scene.feed.history is not None:
         return np.ones(n_samples, bool)
     jumps = np.zeros(n_samples, bool)
+    times = scene.time_grid_h()[:n_samples]
     for ev in scene.feed.schedule:
-        k = int(np.ceil(ev.at_h / dt - 1e-9))
+        started = event_started(times, ev.at_h)  # the first sample at which blend_at has it
+        k = int(np.argmax(started)) if started.any() else n_samples
         if ev.kind == "step" and 0 < k < n_samples:
             jumps[k] = True
     return jumps

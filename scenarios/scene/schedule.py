@@ -59,6 +59,17 @@ def _cached_history(path: str, _mtime: int, dt: float, max_gap_h: float) -> Hist
     return read_history(Path(path), sample_period_h=dt, max_gap_h=max_gap_h)
 
 
+#: A schedule event at ``at_h`` has taken effect at times from ``at_h`` less this [h]: a grid time k dt
+#: is computed to a rounding (111 / 60 h is 1.8499999999999999), and a step at 1.85 h took effect a
+#: sample late, while the open loop marked its jump at 1.85 (the plant ramped over the sample between).
+EVENT_TIME_TOL_H = 1e-9
+
+
+def event_started(t_h: float, at_h: float) -> bool:
+    """Whether an event at ``at_h`` [h] has taken effect at ``t_h`` (:data:`EVENT_TIME_TOL_H`)."""
+    return t_h >= at_h - EVENT_TIME_TOL_H
+
+
 def blend_at(scene: Scene, t_h: float) -> dict[str, float]:
     """Blend (every ore of the scene -> fraction) at time ``t_h``."""
     history = load_history(scene)
@@ -70,13 +81,13 @@ def blend_at(scene: Scene, t_h: float) -> dict[str, float]:
         return {ore: float(row.get(ore_column(ore), 0.0)) for ore in scene.ores}
     blend = {ore: scene.feed.blend.get(ore, 0.0) for ore in scene.ores}
     for ev in scene.feed.schedule:
-        if t_h < ev.at_h:
+        if not event_started(t_h, ev.at_h):
             break
         target = {ore: ev.blend.get(ore, 0.0) for ore in scene.ores}
-        if ev.kind == "step" or t_h >= ev.at_h + ev.ramp_h:
+        if ev.kind == "step" or event_started(t_h, ev.at_h + ev.ramp_h):
             blend = target
         else:
-            w = (t_h - ev.at_h) / ev.ramp_h
+            w = max(0.0, (t_h - ev.at_h) / ev.ramp_h)
             blend = {ore: (1 - w) * blend[ore] + w * target[ore] for ore in scene.ores}
     return blend
 
