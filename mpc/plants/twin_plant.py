@@ -13,6 +13,8 @@ from twin.solve import step
 
 #: Outputs every plant's ``measure`` returns (the columns the KPIs use).
 PLANT_OUTPUTS = ("power_kw", "load_frac", "throughput_tph", "specific_energy_kwh_t", "holdup_t")
+#: Model outputs a closed loop's row has from elsewhere (mpc.closed_loop): not measured from the model.
+LOOP_OWN_COLUMNS = ("p80_um", "p80_measured_um")
 
 
 class TwinPlant:
@@ -25,7 +27,12 @@ class TwinPlant:
         self.model = model
         self.component_names = tuple(model.spec.component_names)
         self._psd_fn = model.product_psd_function()
-        self._outs = {k: model.outputs[k] for k in PLANT_OUTPUTS}
+        # every scalar output, as an open-loop run's frame has them (a closed loop lacked feed_inventory_t,
+        # so its mass balance could not be closed, and the slurry's and the contents' columns), but the
+        # model's smooth P80 and analyser lag: the loop's P80 is the product's (above), its reading the sensor's
+        self._outs = {k: model.outputs[k] for k in PLANT_OUTPUTS} | {
+            k: fn for k, fn in model.outputs.items()
+            if k not in PLANT_OUTPUTS + LOOP_OWN_COLUMNS and fn.size1_out(0) == 1}
 
     def disturbance(self, t_h: float, blend, hardness: float) -> np.ndarray:
         return self.model.d_vector(blend, hardness)
