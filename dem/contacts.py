@@ -174,9 +174,13 @@ def pair_contact(k, pi, pj, xi, touch, load, impact, pos, vel, om, rad, mass, lz
 
 
 @nb.njit(cache=True, inline="always")
-def wall_contact(i, k, delta, nx, ny, nz, cx, cy, cz, wvx, wvy, wvz, pos, vel, om, rad, mass,
+def wall_contact(i, k, delta, nx, ny, nz, cx, cy, cz, wvx, wvy, wvz, pos, vel, om, rad, m_eff,
                  force, torque, xi, touch, impact, e_star, g_star, mu, eta, dt, law=0.0):
     """Hertz–Mindlin contact of sphere i with wall element k at contact point c.
+
+    ``m_eff`` is the pair's reduced mass in the damping (Tsuji et al. 1992): the sphere's own for a
+    fixed or driven wall (infinite mass, as LIGGGHTS and LAMMPS take every wall), ``m M/(m + M)``
+    for a free wall of mass M (a drop weight), as for two spheres (:func:`pair_contact`).
 
     ``n`` points from the wall into the particle; ``(wvx, wvy, wvz)`` is the wall velocity at c;
     ``xi[i, k]``/``touch[i, k]`` are the tangential history and contact flag, ``impact[i, k]``
@@ -197,10 +201,10 @@ def wall_contact(i, k, delta, nx, ny, nz, cx, cy, cz, wvx, wvy, wvz, pos, vel, o
     vz = vel[i, 2] + om[i, 0] * ry - om[i, 1] * rx - wvz
     # the particle plays the role of j (n from wall to particle, v_rel = particle - wall)
     fx, fy, fz, fn, vn, xi[i, k, 0], xi[i, k, 1], xi[i, k, 2] = hertz_mindlin(
-        delta, nx, ny, nz, vx, vy, vz, rad[i], mass[i], e_star, g_star, mu, eta, xi[i, k, 0],
+        delta, nx, ny, nz, vx, vy, vz, rad[i], m_eff, e_star, g_star, mu, eta, xi[i, k, 0],
         xi[i, k, 1], xi[i, k, 2], dt, law)
     if new:
-        impact[i, k] = 0.5 * mass[i] * vn * vn
+        impact[i, k] = 0.5 * m_eff * vn * vn
     f = force
     t = torque
     f[i, 0] += fx
@@ -213,10 +217,11 @@ def wall_contact(i, k, delta, nx, ny, nz, cx, cy, cz, wvx, wvy, wvz, pos, vel, o
 
 
 @nb.njit(cache=True, inline="always")
-def plane_walls(i, pos, vel, om, rad, mass, force, torque, w_p, w_n, w_v, w_xi, w_touch,
+def plane_walls(i, pos, vel, om, rad, mass, force, torque, w_p, w_n, w_v, w_mass, w_xi, w_touch,
                 w_force, w_impact, e_star, g_star, mu, eta, dt, law=0.0):
     """Contacts of sphere i with the infinite planes (point ``w_p``, unit normal ``w_n`` into
-    the domain, velocity ``w_v``); the sphere's force on each wall goes into ``w_force[i]``."""
+    the domain, velocity ``w_v``, mass ``w_mass``: > 0 for a free wall, else fixed or driven);
+    the sphere's force on each wall goes into ``w_force[i]``."""
     for k in range(w_p.shape[0]):
         w_impact[i, k] = -1.0
         h = ((pos[i, 0] - w_p[k, 0]) * w_n[k, 0] + (pos[i, 1] - w_p[k, 1]) * w_n[k, 1]
@@ -228,8 +233,11 @@ def plane_walls(i, pos, vel, om, rad, mass, force, torque, w_p, w_n, w_v, w_xi, 
         cx = pos[i, 0] - h * w_n[k, 0]
         cy = pos[i, 1] - h * w_n[k, 1]
         cz = pos[i, 2] - h * w_n[k, 2]
+        m_eff = mass[i]
+        if w_mass[k] > 0.0:
+            m_eff = mass[i] * w_mass[k] / (mass[i] + w_mass[k])
         fx, fy, fz = wall_contact(i, k, delta, w_n[k, 0], w_n[k, 1], w_n[k, 2], cx, cy, cz,
-                                  w_v[k, 0], w_v[k, 1], w_v[k, 2], pos, vel, om, rad, mass,
+                                  w_v[k, 0], w_v[k, 1], w_v[k, 2], pos, vel, om, rad, m_eff,
                                   force, torque, w_xi, w_touch, w_impact, e_star, g_star, mu,
                                   eta, dt, law)
         w_force[i, k, 0] = -fx
@@ -263,7 +271,7 @@ def drum_walls(i, pos, vel, om, rad, mass, force, torque, lifter_angles, d_xi, d
         cx = -nx * drum_radius
         cy = -ny * drum_radius
         fx, fy, fz = wall_contact(i, 0, delta, nx, ny, 0.0, cx, cy, pos[i, 2], -drum_omega * cy,
-                                  drum_omega * cx, 0.0, pos, vel, om, rad, mass, force, torque, d_xi, d_touch,
+                                  drum_omega * cx, 0.0, pos, vel, om, rad, mass[i], force, torque, d_xi, d_touch,
                                   d_impact, e_star, g_star, mu, eta, dt, law)
         tq -= cx * fy - cy * fx
     else:
@@ -295,7 +303,7 @@ def drum_walls(i, pos, vel, om, rad, mass, force, torque, lifter_angles, d_xi, d
         cx = qx + nx * lifter_half_width
         cy = qy + ny * lifter_half_width
         fx, fy, fz = wall_contact(i, k + 1, delta, nx, ny, 0.0, cx, cy, pos[i, 2],
-                                  -drum_omega * cy, drum_omega * cx, 0.0, pos, vel, om, rad, mass, force, torque,
+                                  -drum_omega * cy, drum_omega * cx, 0.0, pos, vel, om, rad, mass[i], force, torque,
                                   d_xi, d_touch, d_impact, e_star, g_star, mu, eta, dt, law)
         tq -= cx * fy - cy * fx
     return tq

@@ -358,7 +358,7 @@ def sphere_loads(sp, bd, pr, wl, dr, d_torque, cp, dt, drum_angle, kick, advance
         add_rows(b_load, b_start, b_entry, i, f, t, not central)
         add_rows(p_load, p_start, p_entry, i, f, t)
         if nw > 0:
-            plane_walls(i, pos, vel, om, rad, mass, f, t, w_p, w_n, w_v, w_xi, w_touch, w_force,
+            plane_walls(i, pos, vel, om, rad, mass, f, t, w_p, w_n, w_v, wl.mass, w_xi, w_touch, w_force,
                         w_impact, ew, gw, muw, etaw, dt, law)
         if drum_r > 0.0:
             d_torque[i] = drum_walls(i, pos, vel, om, rad, mass, f, t, lifters, d_xi, d_touch,

@@ -143,6 +143,15 @@ def test_drop_weight_breaks_more_at_higher_energy(small_agg):
         drop_weight_test(small_agg, _bonds(small_agg), -1.0)
 
 
+def test_a_drop_weight_test_cut_short_counts_the_weights_energy_as_not_absorbed(small_agg):
+    """A test ended by max_time_factor with the weight still moving down counted its kinetic energy as absorbed
+    (absorbed = the input whenever the end speed was downward: 100 % at 200 J/kg with 68 % still in the weight).
+    Cut at a tenth of the travel, the weight has given the particle a part of the input only."""
+    r = drop_weight_test(small_agg, _bonds(small_agg), 50.0, time_step_factor=0.5, max_time_factor=0.1)
+    e_in = 0.5 * r.drop_mass_kg * r.impact_speed_m_s ** 2
+    assert 0.0 < r.absorbed_energy_J < 0.9 * e_in
+
+
 def _with_chip(agg):
     """The agglomerate with one extra sphere on its top sphere, 45 degrees off the axis and held
     by a single bond across a gap of 0.2 (R1 + R2): the top platen meets it first, shears its
