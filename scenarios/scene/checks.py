@@ -203,6 +203,9 @@ def _check_feed(data, ore_names: list[str], r: _Report, base_dir: Path = Path(".
         if _get(data, "controller", "kind") not in (None, "none"):
             r.add(("controller", "kind"), "a batch scene (effects without `transport`) has "
                   "nothing to control; use kind = \"none\"", _get(data, "controller", "kind"))
+        if isinstance(data.get("sensors"), dict) and data["sensors"]:  # a run gave no analyser column, no word
+            r.add(("sensors",), "read by nothing: a batch scene (effects without `transport`) has no analyser "
+                  "and no controller to read one; remove [sensors], or add `transport` for a continuous mill")
         for key in ("schedule", "history"):  # the charge was ground as feed.blend, whatever they said later
             if feed.get(key):
                 r.add(("feed", key), "a batch scene (effects without `transport`) grinds one charge of "

@@ -56,7 +56,13 @@ def test_bounds_rate_limits_and_blocking_hold(setup):
         assert np.all(np.abs(moves[:, 0]) <= s.feed_rate_max_tph_per_h * s.dt_h + 1e-6)
         assert np.all(np.abs(moves[:, 1]) <= s.speed_rate_max_per_h * s.dt_h + 1e-6)
         np.testing.assert_allclose(plan[1], plan[0], atol=1e-7)  # move blocking: block of 2
+        # the applied move within the limits exactly (IPOPT's moves exceeded them by 1e-8: its tolerance)
+        du_max = np.array([s.feed_rate_max_tph_per_h, s.speed_rate_max_per_h]) * s.dt_h
+        assert np.all(np.abs(r.u_applied - u_prev) <= du_max)
         u_prev = r.u_applied
+    over = ss.u + np.array([s.feed_rate_max_tph_per_h, s.speed_rate_max_per_h]) * s.dt_h * (1 + 1e-7)
+    assert np.array_equal(ctrl._within_rates(over, ss.u),
+                          ss.u + np.array([s.feed_rate_max_tph_per_h, s.speed_rate_max_per_h]) * s.dt_h)
     # the model is off target at this point (P80 ~198 um on B): the controller acts
     assert np.abs(u_prev - ss.u).max() > 1e-3
 

@@ -67,6 +67,11 @@ BROKEN = [
     ("batch scene with a schedule", edit('"transport", "holdup", ', "").replace('kind = "nmpc"', 'kind = "none"')
      .replace("feed_tph = 30.0", "batch_charge_kg = 12.0"),
      ["feed.schedule", "batch scene", "grinds one charge of feed.blend", "not used"]),
+    # a batch run gave no analyser column and said nothing of the [sensors] it was given
+    ("batch scene with sensors", edit('"transport", "holdup", ', "").replace('kind = "nmpc"', 'kind = "none"')
+     .replace("feed_tph = 30.0", "batch_charge_kg = 12.0").replace("[[feed.schedule]]", "[sensors]\n"
+     "p80_noise_um = 5.0\n\n[[feed.schedule]]"),
+     ["sensors: read by nothing: a batch scene (effects without `transport`) has no analyser"]),
     ("not TOML", BASE_SCENE + "\n[feed\n", ["not valid TOML"]),
     ("top-level key inside a table", BASE_SCENE + '\nseed = 3\neffects = ["breakage"]\n',
      ["controller.bounds.effects", "'effects' is a top-level key", "before the first [table]"]),
