@@ -18,7 +18,7 @@ from scenarios.errors import SceneError
 from scenarios.scene.history import read_history
 from scenarios.scene.keypaths import did_you_mean, format_path
 from scenarios.scene.ranges import feed_problem, net_power_problem, nominal_feed_tph
-from scenarios.scene.schema import DEFAULT_N_MIXERS, Feed
+from scenarios.scene.schema import DEFAULT_N_MIXERS, Feed, Sensors
 from twin import SizeGrid, TwinError, get_mill, hydrocyclone_from
 from twin.calibration import DEFAULT_CALIBRATION, load_calibration
 from twin.effects import problems as effect_problems
@@ -203,9 +203,14 @@ def _check_feed(data, ore_names: list[str], r: _Report, base_dir: Path = Path(".
         if _get(data, "controller", "kind") not in (None, "none"):
             r.add(("controller", "kind"), "a batch scene (effects without `transport`) has "
                   "nothing to control; use kind = \"none\"", _get(data, "controller", "kind"))
-        if isinstance(data.get("sensors"), dict) and data["sensors"]:  # a run gave no analyser column, no word
-            r.add(("sensors",), "read by nothing: a batch scene (effects without `transport`) has no analyser "
-                  "and no controller to read one; remove [sensors], or add `transport` for a continuous mill")
+        sensors = data.get("sensors") if isinstance(data.get("sensors"), dict) else {}
+        # a scene's own table round-trips with its defaults (the analyser's period the scene's, once loaded)
+        defaults = Sensors().model_dump() | {"p80_sample_period_h": _get(data, "scene", "sample_period_h")}
+        given = sorted(k for k, v in sensors.items() if v is not None and v != defaults.get(k))
+        if given:  # a run gave no analyser column and no word
+            r.add(("sensors",), f"read by nothing: a batch scene (effects without `transport`) has no analyser and "
+                  f"no controller to read one ({', '.join(given)} given); remove them, or add `transport` for a "
+                  "continuous mill")
         for key in ("schedule", "history"):  # the charge was ground as feed.blend, whatever they said later
             if feed.get(key):
                 r.add(("feed", key), "a batch scene (effects without `transport`) grinds one charge of "
