@@ -324,7 +324,8 @@ def _hours_since_start(ts: pd.Series, raw: pd.DataFrame, where: str) -> tuple[np
 
 #: What each time column takes, for the message naming an unreadable one.
 TIME_FORMATS = {"timestamp": "ISO 8601, e.g. 2026-03-01T06:00:00 or 2026-03-01 06:00:00+01:00 (not day-first "
-                             "dates, time-zone names or epoch seconds: convert those, or give hours in a time_h column)",
+                             "dates, time-zone names or epoch seconds: convert those, or give hours in a "
+                             "time_h column)",
                 "time_h": "a number of hours, any origin"}
 
 

@@ -333,7 +333,8 @@ def test_an_austin_rate_per_hour_typed_per_minute_is_noted_by_its_operating_work
     notes = {}
     for rate in (2.5, 150.0):
         breakage = AUSTIN.strip().replace("[ores.B.", "[ores.ore1.").replace("a_per_min = 2.5", f"a_per_min = {rate}")
-        twin = build_models(load_scene(write_scene(CIRCUIT.replace("BREAKAGE", breakage), name=f"a{rate:g}.toml"))).plant
+        path = write_scene(CIRCUIT.replace("BREAKAGE", breakage), name=f"a{rate:g}.toml")
+        twin = build_models(load_scene(path)).plant
         ss = twin.steady(feed_tph=200.0, speed_frac_critical=0.75)
         notes[rate] = [n for n in ss.notes if "operating work index" in n]
         f80 = pxx_um(twin.spec.grid, twin.spec.feed_frac)
@@ -363,4 +364,5 @@ def test_a_survey_implying_another_circulating_load_than_the_nominal_is_noted(tm
         notes[solids] = survey_load_note(scene, 504.0)
     assert abs((1902.5 / 504 - 1) / 2.5 - 1) < SURVEY_LOAD_NOTE_REL and notes[1902.5] == ""
     assert notes[872.0].startswith("the cyclone survey's feed (872 t/h of solids) implies a circulating load of 0.73")
-    assert "the twin's nominal is 2.5 (effect_options.classification.circulating_load_nominal, its default)" in notes[872.0]
+    assert ("the twin's nominal is 2.5 (effect_options.classification.circulating_load_nominal, its default)"
+            in notes[872.0])

@@ -9,6 +9,7 @@ import pytest
 
 from scenarios.scene.loader import load_scene
 from scenarios.scene.schedule import blend_at, feed_table, ore_mineralogies
+from tests.scenarios.conftest import BASE_SCENE
 
 ROOT = Path(__file__).parents[2]
 
@@ -45,28 +46,6 @@ def test_ores_become_twin_mineralogies():
     assert set(ref) == {"B", "D"} and ref["D"].name == "D"
 
 
-STEP_AT_GRID_ROUNDING = """\
-effects = ["breakage", "transport", "holdup", "speed", "cushioning", "rheology", "power", "classification"]
-[scene]
-name = "step"
-duration_h = 2.0
-sample_period_h = SAMPLE
-seed = 1
-[mill]
-preset = "industrial"
-[ores.B]
-type = "B"
-[ores.D]
-type = "D"
-[feed]
-blend = { B = 1.0 }
-feed_tph = 24.0
-speed_frac_critical = 0.70
-[[feed.schedule]]
-at_h = AT
-kind = "step"
-blend = { D = 1.0 }
-"""
 
 
 def test_a_step_on_a_grid_time_computed_below_it_takes_effect_there(write_scene):
@@ -79,7 +58,13 @@ def test_a_step_on_a_grid_time_computed_below_it_takes_effect_there(write_scene)
     assert 111 * dt < 1.85  # the test can fail
     runs = {}
     for at in (1.85, 1.80):
-        text = STEP_AT_GRID_ROUNDING.replace("SAMPLE", repr(dt)).replace("AT", repr(at))
+        text = BASE_SCENE
+        for old, new in (("duration_h = 8.0", "duration_h = 2.0"),
+                         ("sample_period_h = 0.25", f"sample_period_h = {dt!r}"),
+                         ('at_h = 2.0\nkind = "ramp"\nramp_h = 1.0\nblend = { B = 0.6, D = 0.4 }',
+                          f'at_h = {at!r}\nkind = "step"\nblend = {{ D = 1.0 }}'), ('kind = "nmpc"', 'kind = "none"')):
+            assert old in text
+            text = text.replace(old, new)
         scene = load_scene(write_scene(text, name=f"step{at}.toml"))
         assert blend_at(scene, scene.time_grid_h()[round(at / dt)])["D"] == 1.0
         runs[at] = run_scene(scene, progress=False).frame["p80_um"].to_numpy()

@@ -160,6 +160,7 @@ def test_an_overflow_or_overload_names_cyclones_whose_pressure_at_the_nominal_fe
         pressure[name] = tw.model.parameters["cyclone_pressure_kpa"][0]
     assert pressure["inch"] / pressure["cm"] == pytest.approx(2.54 ** 3.33, rel=1e-9)
     assert notes["cm"] == "" and 34.0 < pressure["cm"] < 276.0
-    assert notes["inch"] == (f"At the nominal feed the cyclone feed pressure is {pressure['inch']:.4g} kPa, outside the "
+    assert notes["inch"] == (f"At the nominal feed the cyclone feed pressure is {pressure['inch']:.4g} kPa, "
+                             "outside the "
                              "34-276 kPa (5-40 psi) grinding cyclones run at: are the cyclone's sizes in cm, and a "
                              "survey's pressure in kPa, not psi?")

@@ -88,11 +88,13 @@ def test_a_key_of_another_certificate_and_a_bad_users_file_are_refused_before_an
     sec = server_security(pki)
     sec.check()  # the fixture's own: the test can pass
     with pytest.raises(SceneError, match=r"--key .*rogue-key.pem is not the private key of --cert .*server.pem"):
-        online.ServerSecurity(False, pki / "server.pem", pki / "rogue-key.pem", pki / "trust", pki / "users.toml").check()
+        online.ServerSecurity(False, pki / "server.pem", pki / "rogue-key.pem", pki / "trust",
+                              pki / "users.toml").check()
     with pytest.raises(SceneError, match=r"--key .*client-key.pem is not the private key of --cert .*rogue.pem"):
         online.ClientSecurity(False, pki / "rogue.pem", pki / "client-key.pem", pki / "server.pem", "apc", "pw").check()
     with pytest.raises(SceneError, match=r"--server-cert .*users.toml: not an X.509 certificate"):
-        online.ClientSecurity(False, pki / "client.pem", pki / "client-key.pem", pki / "users.toml", "apc", "pw").check()
+        online.ClientSecurity(False, pki / "client.pem", pki / "client-key.pem", pki / "users.toml", "apc",
+                              "pw").check()
     (tmp_path / "users.toml").write_text('[users.apc]\npassword_scrypt = "hunter2"\n')
     with pytest.raises(SceneError, match=r"users.apc.password_scrypt: must be a hash"):
         online.ServerSecurity(False, pki / "server.pem", pki / "server-key.pem", pki / "trust",
