@@ -372,7 +372,9 @@ def _sweep_workbook_fits(scenes) -> None:
 
     from scenarios.output import workbook_problem
 
-    times = np.unique(np.round(np.concatenate([s.time_grid_h() for s in scenes]), 9))
+    from scenarios.output.workbook import TRACE_TIME_DECIMALS
+
+    times = np.unique(np.round(np.concatenate([s.time_grid_h() for s in scenes]), TRACE_TIME_DECIMALS))
     problem = workbook_problem(len(times))
     if problem:
         raise SceneError(f"sweep {problem}")
@@ -394,7 +396,9 @@ def _write_sweep(folder: Path, table, traces, scene_path, xlsx: bool) -> None:
     scene = load_scene(scene_path)
     if traces is not None:
         write_csv(traces, folder / "sweep_traces.csv", index=False)
-    write_sweep_plot(table, traces, folder, scene.controller.target_p80_um)
+    varied = table.attrs.get("varied") or []  # a target the cases vary is no one line (it drew the base scene's)
+    write_sweep_plot(table, traces, folder, None if "controller.target_p80_um" in varied
+                     else scene.controller.target_p80_um)
     if xlsx:
         write_sweep_workbook(table, traces, scene, folder / "sweep.xlsx")
 

@@ -293,9 +293,12 @@ SWEEP_KPIS = {"p80_iae_um_h": "P80 IAE [µm h]", "p80_within_10um_frac": "P80 wi
 
 
 def case_labels(table) -> list[str]:
-    """``case i: key=value, ...`` for every row of a sweep table."""
+    """``case i: key=value, ...`` for every row of a sweep table: a key by its last part, or by its whole
+    path where two varied keys end alike (feed.blend and feed.schedule[0].blend were both 'blend')."""
     varied = table.attrs.get("varied") or [c for c in table.columns if c not in ("case", "error")][:1]
-    return [f"{row['case']}: " + ", ".join(f"{k.split('.')[-1]}={row[k]}" for k in varied)
+    last = [k.split(".")[-1] for k in varied]
+    names = [k if last.count(short) > 1 else short for k, short in zip(varied, last)]
+    return [f"{row['case']}: " + ", ".join(f"{n}={row[k]}" for n, k in zip(names, varied))
             for _, row in table.iterrows()]
 
 

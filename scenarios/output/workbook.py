@@ -206,10 +206,17 @@ def write_workbook(result, path: Path) -> Path:
     return _write_sheets(Path(path), sheets)
 
 
+#: Decimals of an hour the traces' times are taken to (3.6 us): the sample grids' rounding is below them.
+TRACE_TIME_DECIMALS = 9
+
+
 def trace_table(traces: pd.DataFrame, column: str | None = None) -> pd.DataFrame:
     """Long traces (``case``, ``time_h``, ...) as one column per case, ``time [h]`` rows; by default
     of the product P80 (of the mill content's in a batch sweep)."""
     column = column or ("p80_um" if "p80_um" in traces else "content_p80_um")
+    # one row per time: cases of other sample periods reach a time by other roundings (5 x 0.03 h is
+    # 0.15000000000000002 h), and split it into two rows with gaps
+    traces = traces.assign(time_h=traces["time_h"].round(TRACE_TIME_DECIMALS))
     wide = traces.pivot(index="time_h", columns="case", values=column)
     wide.columns = [f"case {c}: {column}" for c in wide.columns]
     wide.index.name = "time [h]"

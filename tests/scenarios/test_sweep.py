@@ -311,3 +311,35 @@ def test_a_key_inside_another_varied_key_is_refused(write_scene):
                                          r"varied too"):
         expand_cases(base, {"feed.schedule[0].at_h": [0.1, 0.6], "feed.schedule[0]": [table]})
     assert len(expand_cases(base, {"feed.schedule[0].at_h": [0.1, 0.6], "feed.feed_tph": [25.0]})) == 2
+
+
+def test_the_sweep_files_tell_the_cases_apart():
+    """feed.blend and feed.schedule[0].blend both showed as 'blend=' in sweep.png's legend; cases of 0.05 h
+    and 0.03 h samples split the workbook's traces at 0.15 h into two rows (3 x 0.05 = 0.15000000000000002)."""
+    from scenarios.output.plots import case_labels
+    from scenarios.output.workbook import trace_table
+
+    table = pd.DataFrame({"case": [0], "feed.blend": ["B"], "feed.schedule[0].blend": ["D"], "scene.seed": [3]})
+    table.attrs["varied"] = ["feed.blend", "feed.schedule[0].blend", "scene.seed"]
+    assert case_labels(table) == ["0: feed.blend=B, feed.schedule[0].blend=D, seed=3"]
+    traces = pd.DataFrame({"case": [0, 0, 1, 1], "time_h": [0.0, 5 * 0.03, 0.0, 3 * 0.05],
+                           "p80_um": [1.0, 2.0, 3.0, 4.0]})
+    assert 5 * 0.03 != 3 * 0.05  # the test can fail
+    wide = trace_table(traces)
+    assert list(wide.index) == [0.0, 0.15] and wide.notna().all().all()
+
+
+def test_a_sweep_that_varies_the_target_draws_no_single_target(monkeypatch, tmp_path):
+    """sweep.png drew the base scene's 210 um as 'target' over cases that held 195 and 225 um."""
+    import scenarios.output as output
+    from scenarios.cli.commands import _write_sweep
+
+    drawn = {}
+    monkeypatch.setattr(output, "write_sweep_plot", lambda table, traces, folder, target: drawn.setdefault("t", target))
+    scene = Path(__file__).resolve().parents[2] / "scenarios" / "reference_transition.toml"
+    for varied, want in ((["controller.target_p80_um"], None), (["feed.feed_tph"], 210.0)):
+        drawn.clear()
+        table = pd.DataFrame({"case": [0, 1], varied[0]: [195.0, 225.0]})
+        table.attrs["varied"] = varied
+        _write_sweep(tmp_path, table, None, scene, xlsx=False)
+        assert drawn["t"] == want
