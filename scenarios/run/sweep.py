@@ -113,6 +113,24 @@ OPEN_LOOP_CONTROLLER_KEYS = (("kind",), ("target_p80_um",), ("load_band_frac",))
 OPEN_LOOP_IDLE = (("sensors", "power_noise_kw"), ("sensors", "load_noise_frac"))
 
 
+def _refuse_options_no_case_reads(scene_dict: dict[str, Any], vary: dict[str, list], paths: dict, kind) -> None:
+    """SceneError for a varied ``effect_options.EFFECT...`` of an effect only the controller's model has
+    (``[plant]`` lists its own effects without it) in a sweep no case of which runs the NMPC: every case
+    ran the same plant, rows labelled with values nothing read (an analyser dead time of the model, varied
+    over open and PI loops)."""
+    plant_effects = (scene_dict.get("plant") or {}).get("effects")
+    kinds = set(vary.get("controller.kind", [kind]))
+    if plant_effects is None or "nmpc" in kinds:
+        return
+    idle = [k for k, loc in paths.items() if loc[0] == "effect_options" and len(loc) > 1
+            and loc[1] not in plant_effects]
+    if idle:
+        raise SceneError(f"sweep: {', '.join(idle)}: options of an effect only the controller's model has ([plant] "
+                         f"effects {list(plant_effects)}), and no case runs the NMPC (controller.kind "
+                         f"{sorted(kinds)}), so these keys change nothing; vary them in [plant.effect_options] with "
+                         "the effect in [plant] effects, or vary controller.kind to 'nmpc' too")
+
+
 def expand_cases(scene_dict: dict[str, Any], vary: dict[str, list],
                  mode: Literal["cartesian", "paired"] = "cartesian", max_cases: int = MAX_CASES) -> list[Case]:
     """The sweep's cases: a deep copy of ``scene_dict`` per case with the varied keys set;
@@ -134,6 +152,7 @@ def expand_cases(scene_dict: dict[str, Any], vary: dict[str, list],
         raise SceneError(f"sweep: {', '.join(idle)}: the scene has no controller (controller.kind = 'none'), so "
                          "these keys change nothing; vary controller.kind too, or set it in the scene (an open-loop "
                          "run reads controller.target_p80_um and controller.load_band_frac)")
+    _refuse_options_no_case_reads(scene_dict, vary, paths, kind)
     lists = {key: list(values) for key, values in vary.items()}
     for key, values in lists.items():
         if not values:

@@ -343,3 +343,14 @@ def test_a_sweep_that_varies_the_target_draws_no_single_target(monkeypatch, tmp_
         table.attrs["varied"] = varied
         _write_sweep(tmp_path, table, None, scene, xlsx=False)
         assert drawn["t"] == want
+
+
+def test_an_option_of_the_controllers_model_varied_where_no_case_runs_the_nmpc_is_refused():
+    """The reference scene's analyser dead time is the NMPC model's (its [plant] lists effects without
+    sensor_delay): varied over open and PI loops, every pair of rows was the same run, labelled 0.05 and 0.15."""
+    scene = read_toml(Path(__file__).resolve().parents[2] / "scenarios" / "reference_transition.toml")
+    vary = {"effect_options.sensor_delay.dead_time_h": [0.05, 0.15]}
+    with pytest.raises(SceneError, match=r"effect_options.sensor_delay.dead_time_h: options of an effect only the "
+                                         r"controller's model has .* no case runs the NMPC"):
+        expand_cases(scene, vary | {"controller.kind": ["none", "pi"]})
+    assert len(expand_cases(scene, vary | {"controller.kind": ["pi", "nmpc"]})) == 4  # the NMPC reads it
