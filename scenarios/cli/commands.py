@@ -384,14 +384,11 @@ def _write_sweep(folder: Path, table, traces, scene_path, xlsx: bool) -> None:
     """sweep.csv, sweep.parquet, sweep_traces.csv and sweep.png (P80 of every case, KPIs per
     case) into the claimed folder; sweep.xlsx on request."""
     from scenarios.output import write_sweep_plot, write_sweep_workbook
-    from scenarios.output.workbook import write_csv
+    from scenarios.output.workbook import tables_as_json, write_csv
     from scenarios.scene import load_scene
 
-    write_csv(table, folder / "sweep.csv", index=False)  # NaN written as such, as in a run folder
-    flat = table.copy()
-    for c in flat.columns:  # blends etc. are dicts: parquet wants plain columns
-        if flat[c].map(lambda v: isinstance(v, (dict, list))).any():
-            flat[c] = flat[c].map(str)
+    flat = tables_as_json(table)  # a case's blend as JSON text: parquet wants plain columns
+    write_csv(flat, folder / "sweep.csv", index=False)  # NaN written as such, as in a run folder
     flat.to_parquet(folder / "sweep.parquet", index=False)
     scene = load_scene(scene_path)
     if traces is not None:

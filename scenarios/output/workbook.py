@@ -15,6 +15,7 @@ shows 15): a number that needs 17 to read back exactly is off by one unit in its
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -223,12 +224,19 @@ def trace_table(traces: pd.DataFrame, column: str | None = None) -> pd.DataFrame
     return wide
 
 
+def tables_as_json(table: pd.DataFrame) -> pd.DataFrame:
+    """``table`` with its cells that are tables (a case's blend, a list) as JSON text, for CSV, Parquet and a
+    sheet: Python's text of them ({'B': 0.8}) was neither JSON nor TOML."""
+    out = table.copy()
+    for c in out.columns:
+        if out[c].map(lambda v: isinstance(v, (dict, list))).any():
+            out[c] = out[c].map(lambda v: json.dumps(v) if isinstance(v, (dict, list)) else v)
+    return out
+
+
 def write_sweep_workbook(table: pd.DataFrame, traces: pd.DataFrame | None, scene, path: Path) -> Path:
     """The sweep's workbook (module docstring); ``scene``: the validated base scene or None."""
-    cases = table.copy()
-    for c in cases.columns:  # blends and other tables of a case: as text in a cell
-        if cases[c].map(lambda v: isinstance(v, (dict, list))).any():
-            cases[c] = cases[c].map(str)
+    cases = tables_as_json(table)
     sheets = {"cases": (cases, False)}
     if traces is not None and len(traces):
         sheets["P80 traces"] = (trace_table(traces), True)

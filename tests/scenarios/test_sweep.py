@@ -354,3 +354,16 @@ def test_an_option_of_the_controllers_model_varied_where_no_case_runs_the_nmpc_i
                                          r"controller's model has .* no case runs the NMPC"):
         expand_cases(scene, vary | {"controller.kind": ["none", "pi"]})
     assert len(expand_cases(scene, vary | {"controller.kind": ["pi", "nmpc"]})) == 4  # the NMPC reads it
+
+
+def test_a_cases_blend_is_written_as_json():
+    """sweep.csv, sweep.parquet and the workbook wrote a varied blend as Python's text ({'B': 0.8, 'D': 0.2}),
+    which neither JSON nor TOML reads back."""
+    import json
+
+    from scenarios.output.workbook import tables_as_json
+
+    table = pd.DataFrame({"case": [0, 1], "feed.blend": [{"B": 0.8, "D": 0.2}, {"B": 1.0}], "p80_um": [1.0, 2.0]})
+    flat = tables_as_json(table)
+    assert [json.loads(v) for v in flat["feed.blend"]] == list(table["feed.blend"])
+    assert flat["p80_um"].tolist() == [1.0, 2.0] and table["feed.blend"][0] == {"B": 0.8, "D": 0.2}  # a copy
