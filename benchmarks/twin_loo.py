@@ -34,7 +34,7 @@ from twin.calibration.dem_map import fit_law
 from twin.calibration.parametric import calibration_values
 from twin.calibration.table import BOUNDS as TABLE_BOUNDS, NAMES as TABLE_NAMES
 from twin.calibration import reference_table
-from twin.ore import CLAY_MINERALS, reference_ores
+from twin.ore import reference_ores
 
 ORES = ("A", "B", "C", "D")
 GOAL_PCT = 10.0
@@ -70,7 +70,7 @@ def regression_rows(held: str) -> list:
     """A two-number regression per KPI, no twin: ln KPI linear in the ore's clay fraction, fitted on the
     other three ores (what a plain correlation of the table with one mineralogical index predicts)."""
     ref, ores = reference_table(), reference_ores()
-    clay = {o: sum(ores[o].wt_pct.get(m, 0.0) for m in CLAY_MINERALS) for o in ORES}
+    clay = {o: ores[o].clay_frac for o in ORES}
     train = [o for o in ORES if o != held]
     rows = []
     for kpi in KPIS:
