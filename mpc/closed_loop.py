@@ -137,7 +137,7 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
         vals = plant.measure(x, u_prev, d_plant)
         p80 = vals.pop("p80_um")
         p80_new, p80_held, pw_m, ld_m = sens.make_step(t_sens0_h + t, p80, *(vals[k] for k in CLOSED_LOOP_READS))
-        if estimator is None:
+        if estimator is None:  # the controller is given the plant's state and hardness; no estimate is made
             x_est, d_est, h_est = x, None, hard(t)
         elif d_prev_known is None:
             x_est, d_est = estimator.x_est, np.r_[blend, estimator.hardness_est]
@@ -154,7 +154,7 @@ def run_closed_loop(plant_model, controller, estimator, schedule: Callable, sens
                "p80_measured_um": p80_held, "p80_target_um": settings.target_p80_um, **vals,
                "power_meas_kw": pw_m, "load_meas_frac": ld_m, "fed_t": fed_t, "produced_t": produced_t,
                **{f"blend_{nm}_frac": blend[i] for i, nm in enumerate(plant.component_names)},
-               "hardness_scale": hard(t), "hardness_est": h_est}
+               "hardness_scale": hard(t), "hardness_est": math.nan if estimator is None else h_est}
         row |= _estimate_columns(estimator, x_est, u, d_est) | _controller_columns(controller, res)
         rows.append(row)
         if k == settings.n_steps:

@@ -38,6 +38,8 @@ def test_offset_free_against_reference(ctrl_twin, plant_twin, save_reference):
                            lambda t: np.array([1.0, 0.0]), sensors, ss_p.x, ss_p.u,
                            LoopSettings(1.2, dt, seed=7), plant_hardness=1.2)
     assert res0.kpis["p80_iae_um_h"] > 1.5 * res.kpis["p80_iae_um_h"]
+    # no estimator, no estimate: the column was the plant's own hardness, a perfect estimate no one made
+    assert res0.frame["hardness_est"].isna().all() and (res0.frame["hardness_scale"] == 1.2).all()
     if save_reference:
         REF.parent.mkdir(exist_ok=True)
         f[COLS].to_csv(REF, index=False)
