@@ -84,6 +84,14 @@ def calibration_text(cal) -> str | None:
     return f"{cal.get('name')} ({cal.get('path') or 'in memory'}{sha}{FAST_LABEL if cal.get('fast') else ''})"
 
 
+def replay_rows(summary: dict) -> list[tuple[str, str | None]]:
+    """The recorded history a replay ran and the plant's clock at its time 0 (none: not a replay)."""
+    replay = summary.get("replay")
+    if not isinstance(replay, dict):
+        return []
+    return [("replayed history", replay.get("history")), ("history's clock at time 0", replay.get("history_start"))]
+
+
 def effects_rows(summary: dict) -> list[tuple[str, str]]:
     """The run's effects as the report and workbook name them: the scene's, and the plant's when a
     [plant] table runs others (it showed the scene's alone, as if the plant had run them)."""

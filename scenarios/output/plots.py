@@ -17,13 +17,31 @@ import numpy as np
 PLOTS = {
     "p80.png": "product P80 against time, with the target and its ±10 µm band",
     "inputs.png": "feed rate and mill speed against time",
-    "feed.png": "feed blend and ore hardness against time",
+    "feed.png": "feed blend against time (below it the plant's hardness scale, where it varies)",
     "estimates.png": "the estimator's P80 and hardness beside the plant's",
     "energy.png": "power and specific energy against time",
     "load.png": "mill load (hold-up / nominal) against time, with the stable band",
     "psd.png": "size distributions over the run, cumulative % passing, with Rosin-Rammler fits",
     "tromp.png": "hydrocyclone partition (Tromp) curve: fraction of each size to the underflow",
 }
+
+
+def plot_caption(name: str, summary: dict) -> str:
+    """The caption of plot ``name`` for the run of ``summary``: what that run's plot draws (a batch run
+    draws its mill content's P80 and its hold-up in kg, a run without a target no target band)."""
+    batch = summary.get("mode") == "batch"
+    if name == "p80.png":
+        what = "P80 of the mill content against time (a batch: no product stream)" if batch else (
+            "product P80 against time")
+        return what + (", with the target and its ±10 µm band" if summary.get("target_p80_um") is not None else "")
+    if name == "load.png":
+        if batch:
+            return "the batch mill's hold-up [kg] against time"
+        return "mill load (hold-up / nominal) against time" + (
+            ", with the stable band" if summary.get("load_band_frac") else "")
+    return PLOTS[name]
+
+
 #: Plot file of a sweep.
 SWEEP_PLOT = "sweep.png"
 #: Half width of the P80 band drawn around the target [um] (the KPI p80_within_10um_frac's).

@@ -17,8 +17,8 @@ import warnings
 from pathlib import Path
 
 from scenarios.errors import SceneError
-from scenarios.output.labels import KPI_LABELS, calibration_text, effects_rows, kpi_text
-from scenarios.output.plots import PLOTS
+from scenarios.output.labels import KPI_LABELS, calibration_text, effects_rows, kpi_text, replay_rows
+from scenarios.output.plots import PLOTS, plot_caption
 from scenarios.output.write import (INCOMPLETE_MARKER, JSON_INF, MANIFEST, file_sha256, installed_version,
                                     later_file_is_as_written, lock_folder, lock_path, manifest_files, read_manifest,
                                     record_later_file)
@@ -182,7 +182,7 @@ def _render(run_dir: Path, summary: dict, problems: list[str]) -> str:
              *effects_rows(summary),
              ("components", ", ".join(map(str, summary.get("components", [])))),
              ("calibration", calibration_text(summary.get("calibration"))),
-             ("scene file", summary.get("source"))]
+             ("scene file", summary.get("source")), *replay_rows(summary)]
     parts.append("<table>" + "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
                                      for k, v in facts if v is not None) + "</table>")
     run_warnings = [str(w) for w in summary.get("warnings") or []]
@@ -196,9 +196,11 @@ def _render(run_dir: Path, summary: dict, problems: list[str]) -> str:
         parts.append("<h2>Replay: run minus recorded</h2>")
         parts.append(kpi_table(summary["replay"].get("run_minus_recorded", {})))
     parts.append("<h2>Plots</h2>")
-    for fname, caption in PLOTS.items():
-        if (run_dir / fname).is_file():
-            parts.append(_img(run_dir / fname, caption))
+    plots = [fname for fname in PLOTS if (run_dir / fname).is_file()]
+    for fname in plots:
+        parts.append(_img(run_dir / fname, plot_caption(fname, summary)))
+    if not plots:
+        parts.append("<p>None in the run folder (a run written with --no-plots has none).</p>")
     notes = [str(n) for n in summary.get("notes") or [] if str(n) not in run_warnings]
     if notes:
         parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in notes) + "</ul>")

@@ -22,7 +22,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from scenarios.output.labels import KPI_LABELS, calibration_text, effects_rows, is_percent, percent_decimals
+from scenarios.output.labels import (KPI_LABELS, calibration_text, effects_rows, is_percent, percent_decimals,
+                                      replay_rows)
 from twin import write_atomically
 
 #: Size distributions a run writes as CSV: the stream (``attrs['what']``) -> file name.
@@ -140,9 +141,7 @@ def scene_rows(scene) -> pd.DataFrame:
 def summary_rows(summary: dict) -> pd.DataFrame:
     keys = ("scene", "description", "mode", "controller", "target_p80_um", "seed", "source", "wall_time_s")
     rows = [(k, summary.get(k)) for k in keys]
-    if summary.get("replay"):
-        rows.append(("replayed history", summary["replay"].get("history")))
-    rows += [*effects_rows(summary),
+    rows += [*replay_rows(summary), *effects_rows(summary),
              ("components", ", ".join(summary.get("components", []))),
              ("calibration", calibration_text(summary.get("calibration")))]
     # the warnings apart, as the report puts them (a run's notes hold its warnings too)

@@ -38,6 +38,7 @@ KPIs: :mod:`scenarios.run.kpis`.
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -251,6 +252,14 @@ def _replay_duration_h(history, dt: float, duration_h: float | None) -> float:
     return float(duration_h)
 
 
+def _written_duration_h(scene: Scene):
+    """The scene's ``duration_h`` as its file says (a replay's scene already lasts the history's span)."""
+    src = scene.source_path
+    if src is None or not Path(src).is_file():
+        return scene.scene.duration_h
+    return read_toml(src).get("scene", {}).get("duration_h")
+
+
 def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float | None,
             xlsx: bool = False) -> RunResult:
     data = scene.model_dump(exclude_none=True)
@@ -270,4 +279,9 @@ def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float 
     start = load_history(new).start  # the plant's clock at time_h 0 (None for a time_h history)
     result.summary["replay"] = {"history": str(history_path), "run_minus_recorded": cmp,
                                 "history_start": None if start is None else start.isoformat()}
+    replayed, scene_h = new.scene.duration_h, _written_duration_h(scene)
+    if duration_h is None and isinstance(scene_h, (int, float)) and not math.isclose(replayed, scene_h, rel_tol=1e-9):
+        result.summary["notes"].append(
+            f"replayed {replayed:g} h, the history's span on the {new.scene.sample_period_h:g} h sample grid, not the "
+            f"scene's duration_h {scene_h:g} h (--duration-h sets the replay's length)")
     return result

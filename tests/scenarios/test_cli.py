@@ -150,13 +150,17 @@ def test_sweep_bad_key_exits_2(tmp_path, capsys):
 
 
 def test_replay_command(tmp_path, capsys):
-    scene = short_pyrite_scene(tmp_path, duration_h=0.5)
+    scene = short_pyrite_scene(tmp_path, duration_h=1.0)
     out = tmp_path / "replay"
     assert grindtwin(["replay", scene, "--history", _history_csv(tmp_path), "--out", out,
                       "--quiet", "--no-plots"]) == 0
     ts = pd.read_parquet(out / "timeseries.parquet")
     assert (ts["feed_tph"] == ts["recorded_feed_tph"]).all()
-    assert "replay" in json.loads((out / "summary.json").read_text())
+    summary = json.loads((out / "summary.json").read_text())
+    assert "replay" in summary
+    # the history's half hour is replayed, not the scene's hour: said, not only seen in the last row
+    assert ts["time_h"].iloc[-1] == pytest.approx(0.5)
+    assert any("replayed 0.5 h, the history's span" in n and "duration_h 1 h" in n for n in summary["notes"])
     assert grindtwin(["replay", scene, "--history", tmp_path / "none.csv"]) == 2
     assert "history file not found" in capsys.readouterr().err
 

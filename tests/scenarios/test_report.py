@@ -13,11 +13,12 @@ import pytest
 
 from scenarios.errors import SceneError
 from scenarios.output.write import write_run
+from scenarios.output.plots import plot_caption
 from scenarios.output.report import render_report, write_report
 from scenarios.run.runner import RunResult
 
 
-def fake_run(tmp_path):
+def fake_run(tmp_path, plots=True, **summary_changes):
     """A run directory written from a small hand-made result (no simulation needed)."""
     t = np.linspace(0, 1, 11)
     frame = pd.DataFrame({"time_h": t, "feed_tph": 30.0, "speed_frac_critical": 0.7,
@@ -33,7 +34,8 @@ def fake_run(tmp_path):
                "plant_model": "Model: 2 effect(s), plant", "controller_model": "Model: 3 effect(s), <coarse>",
                "notes": ["started at steady state"],
                "versions": {"numpy": np.__version__, "git": "0123456789ab", "git_source": "checkout"}}
-    return write_run(RunResult(frame, summary, psd=psd), tmp_path / "run")
+    summary.update(summary_changes)
+    return write_run(RunResult(frame, summary, psd=psd), tmp_path / "run", plots=plots)
 
 
 def test_report_is_self_contained_with_kpi_table_and_images(tmp_path):
@@ -162,3 +164,22 @@ def test_warnings_open_the_report_before_the_numbers_they_qualify(tmp_path):
     assert text.index("<h2>Warnings</h2>") < text.index(escaped) < text.index("Key performance indicators")
     assert "started at steady state" in text[text.index("<h2>Notes</h2>"):]
     assert "<h2>Warnings</h2>" not in render_report(fake_run(tmp_path / "calm"))
+
+
+def test_captions_say_what_this_runs_plots_draw(tmp_path):
+    """Fixed captions promised a target band to runs without a target and a product P80 to a batch."""
+    text = render_report(fake_run(tmp_path))
+    assert "product P80 against time, with the target and its ±10 µm band" in text
+    assert "mill load (hold-up / nominal) against time, with the stable band" in text
+    assert plot_caption("p80.png", {"mode": "open_loop"}) == "product P80 against time"
+    assert plot_caption("p80.png", {"mode": "batch"}).startswith("P80 of the mill content")
+    assert plot_caption("load.png", {"mode": "batch", "load_band_frac": [0.8, 1.2]}) == (
+        "the batch mill's hold-up [kg] against time")
+    assert plot_caption("load.png", {"mode": "closed_loop"}) == "mill load (hold-up / nominal) against time"
+
+
+def test_a_report_without_plots_says_why_and_a_replay_names_its_history(tmp_path):
+    replay = {"history": "/plant/day.csv", "history_start": "2026-11-30T06:00:00", "run_minus_recorded": {}}
+    text = render_report(fake_run(tmp_path, plots=False, replay=replay))
+    assert "None in the run folder (a run written with --no-plots has none)" in text
+    assert "/plant/day.csv" in text and "2026-11-30T06:00:00" in text
