@@ -1,7 +1,8 @@
 """The PNG plots of a run and of a sweep (matplotlib, headless).
 
-Every time plot marks the feed's transitions (a line at a step, a shaded span over a ramp, a
-dotted line where a preview lead first sees it) and labels its bands in the legend. Size
+Every time plot of a run marks the feed's transitions (a line at a step, a shaded span over a
+ramp, a dotted line where a preview lead first sees it) and labels its bands in the legend; a
+sweep's cases may each have their own, so sweep.png marks none. Size
 distributions are cumulative % passing on a log size axis with a Rosin-Rammler fit
 (:func:`scenarios.run.streams.fit_rosin_rammler`); a hydrocyclone circuit adds its partition
 (Tromp) curve. Units in every axis label.
@@ -12,6 +13,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+
+from scenarios.output.labels import is_percent
 
 #: Plot files of a run: name -> what it shows (a plot whose data the run lacks is not drawn).
 PLOTS = {
@@ -306,7 +309,7 @@ def write_plots(result, folder: Path) -> list[Path]:
 
 
 #: KPIs compared in the sweep figure: key -> axis label.
-SWEEP_KPIS = {"p80_iae_um_h": "P80 IAE [µm h]", "p80_within_10um_frac": "P80 within ±10 µm [-]",
+SWEEP_KPIS = {"p80_iae_um_h": "P80 IAE [µm h]", "p80_within_10um_frac": "P80 within ±10 µm [% of samples]",
               "specific_energy_kwh_t": "specific energy [kWh/t]", "throughput_tph": "throughput [t/h]"}
 
 
@@ -343,7 +346,8 @@ def write_sweep_plot(table, traces, folder: Path, target_p80_um: float | None = 
     top.legend(fontsize=7, ncol=2)
     for j, key in enumerate(kpis):
         ax = fig.add_subplot(grid[1, j])
-        ax.bar(np.arange(len(table)), table[key].astype(float), color=colors)
+        scale = 100.0 if is_percent(key) else 1.0  # a share as the report and the workbook show it
+        ax.bar(np.arange(len(table)), scale * table[key].astype(float), color=colors)
         ax.set_xticks(np.arange(len(table)), [str(c) for c in table["case"]])
         ax.set(xlabel="case", title=SWEEP_KPIS[key])
         ax.title.set_fontsize(9)

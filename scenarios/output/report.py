@@ -122,6 +122,8 @@ def versions_section(versions: dict) -> str:
 
 def _run_summary(run_dir: Path) -> dict:
     """The summary of a complete run folder; SceneError for anything else."""
+    if run_dir.is_file():
+        raise SceneError(f"{run_dir}: a file, not a run directory (give the folder it is in: {run_dir.parent})")
     if not run_dir.is_dir():
         raise SceneError(f"{run_dir}: run directory not found")
     if (run_dir / INCOMPLETE_MARKER).exists():
