@@ -59,9 +59,9 @@ def test_report_is_self_contained_with_kpi_table_and_images(tmp_path):
 def test_report_refuses_what_is_not_a_complete_run(tmp_path):
     with pytest.raises(SceneError, match="not found"):
         render_report(tmp_path / "nowhere")
-    (tmp_path / "summary.json").write_text("{}")
+    (tmp_path / "a_file").write_text("{}")
     with pytest.raises(SceneError, match="a file, not a run directory"):  # it said 'not found' of a file there
-        render_report(tmp_path / "summary.json")
+        render_report(tmp_path / "a_file")
     with pytest.raises(SceneError, match="no summary.json"):
         render_report(tmp_path)
     (tmp_path / "_INCOMPLETE").write_text("")
