@@ -133,7 +133,8 @@ def speed_for_target(twin, blend, target_p80_um: float, feed_tph: float,
                      speed_bounds=(0.55, 0.90), hardness_scale: float = 1.0) -> float:
     """Speed [fraction of critical] with steady P80 = target at the given feed; of several such
     speeds the one of least specific energy; nan if none. Roots are bracketed on a scan of
-    ``SPEED_SCAN_POINTS`` speeds, then refined by Brent's method."""
+    ``SPEED_SCAN_POINTS`` speeds (and either side of a minimum below the target between them,
+    :func:`_dips_below`), then refined by Brent's method."""
     @functools.cache
     def state(s):
         return twin.steady(feed_tph=feed_tph, speed_frac_critical=s, blend=blend, hardness_scale=hardness_scale)
@@ -141,7 +142,8 @@ def speed_for_target(twin, blend, target_p80_um: float, feed_tph: float,
     def gap(s):
         return state(float(s)).p80_um - target_p80_um
 
-    grid = np.linspace(speed_bounds[0], speed_bounds[1], SPEED_SCAN_POINTS)
+    grid = list(np.linspace(speed_bounds[0], speed_bounds[1], SPEED_SCAN_POINTS))
+    grid = sorted(grid + _dips_below(gap, grid))
     roots = [_root_in(gap, (float(a), float(b)), xtol=1e-7) for a, b in zip(grid[:-1], grid[1:])]
     roots = [r for r in roots if math.isfinite(r)]
     if not roots:
@@ -149,8 +151,24 @@ def speed_for_target(twin, blend, target_p80_um: float, feed_tph: float,
     return min(roots, key=lambda s: state(s).outputs["specific_energy_kwh_t"])
 
 
+def _dips_below(gap, grid) -> list[float]:
+    """The minima of ``gap`` below zero between scan points where it is positive at the points: a
+    target just finer than the least P80 is met at two speeds closer than the scan's step, with no
+    sign change at the points to bracket them. Each interior scan point lower than both neighbours
+    is refined by a bounded Brent minimisation between them."""
+    values = [gap(s) for s in grid]
+    out = []
+    for i in range(1, len(grid) - 1):
+        if 0 < values[i] <= min(values[i - 1], values[i + 1]):
+            res = scipy.optimize.minimize_scalar(gap, bounds=(grid[i - 1], grid[i + 1]), method="bounded",
+                                                 options={"xatol": 1e-7})
+            if res.fun < 0:
+                out.append(float(res.x))
+    return out
+
+
 #: Speeds scanned along the curve P80 = target by ``"both"`` before its bounded search.
-SPEED_SCAN_POINTS = 9
+BOTH_SPEED_SCAN_POINTS = 9
 
 
 class _LeftFeedBounds(Exception):
@@ -284,7 +302,7 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
                 found.append(broken(side))
         return "; ".join(dict.fromkeys(found))
 
-    grid = np.linspace(speed_bounds[0], speed_bounds[1], SPEED_SCAN_POINTS)
+    grid = np.linspace(speed_bounds[0], speed_bounds[1], BOTH_SPEED_SCAN_POINTS)
     pts = [(s, *on_curve(float(s))) for s in grid]
     pts = sorted(pts + _band_crossings(pts, band, on_curve), key=lambda p: p[0])
     grid = np.array([p[0] for p in pts])

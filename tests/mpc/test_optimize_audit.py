@@ -118,10 +118,10 @@ def test_a_feasible_window_between_two_scanned_speeds_is_found(twins):
     the band between two of them. The crossing is found, inside the band, holding the target."""
     import numpy as np
 
-    from mpc.optimize import SPEED_SCAN_POINTS
+    from mpc.optimize import BOTH_SPEED_SCAN_POINTS
 
     lab = twins["B"]
-    speeds = np.linspace(0.55, 0.90, SPEED_SCAN_POINTS)
+    speeds = np.linspace(0.55, 0.90, BOTH_SPEED_SCAN_POINTS)
     s_mid = 0.5 * (speeds[2] + speeds[3])
     load_mid = _on_curve(lab, 210.0, s_mid)[2]
     band = (load_mid - 0.002, load_mid + 0.002)
@@ -149,3 +149,24 @@ def test_an_optimum_on_the_band_edge_between_a_scanned_point_inside_and_one_outs
         assert load <= hi and energy < at_bound[1] and feed > at_bound[0]
         assert _on_curve(lab, 280.0, sp.speed_frac_critical + 0.002)[2] > hi  # just beyond: outside the band
         assert f"load band's upper end {hi:g}" in sp.active and "lower bound" not in sp.active
+
+
+def test_a_target_met_at_two_speeds_between_scan_points_is_found(twins):
+    """P80 against speed is U-shaped: a target just finer than its least value is met at two speeds
+    closer than the scan's step, with the gap positive at every scanned speed, and --mode speed said
+    "target unreachable". (A second SPEED_SCAN_POINTS = 9, meant for "both", also replaced the 15 this
+    scan was written for.) The least P80 is found here, the target set 0.02 um under it."""
+    import numpy as np
+    import scipy.optimize
+
+    from mpc.optimize import SPEED_SCAN_POINTS, speed_for_target
+
+    lab = twins["B"]
+    feed = lab.mill.feed_nominal_tph
+    p80 = lambda s: lab.steady(feed_tph=feed, speed_frac_critical=s, blend=[1.0]).p80_um  # noqa: E731
+    least = scipy.optimize.minimize_scalar(p80, bounds=(0.55, 0.90), method="bounded", options={"xatol": 1e-6})
+    target = least.fun + 0.02
+    scan = np.linspace(0.55, 0.90, SPEED_SCAN_POINTS)
+    assert all(p80(s) > target for s in scan)  # no sign change at any scanned speed
+    s = speed_for_target(lab, [1.0], target, feed)
+    assert abs(s - least.x) < 0.025 and p80(s) == pytest.approx(target, abs=1e-4)
