@@ -29,6 +29,7 @@ import pandas as pd
 import scipy.optimize
 
 from mpc.errors import MpcInputError
+from twin import pxx_um
 
 MODES = ("both", "feed", "speed")
 OBJECTIVES = ("min_energy", "max_throughput")
@@ -247,6 +248,10 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
     if not (np.isfinite(target_p80_um) and target_p80_um > 0):
         raise MpcInputError(f"The 'target_p80_um' parameter of optimal_setpoints must be a "
                             f"float > 0. Got {target_p80_um!r}.")
+    feed_p80 = pxx_um(twin.spec.grid, twin.spec.feed_frac)
+    if not target_p80_um < feed_p80:  # the whole search ran, then said 'unreachable within the bounds'
+        raise MpcInputError(f"The 'target_p80_um' parameter of optimal_setpoints must be finer than the twin's "
+                            f"feed (P80 {feed_p80:.4g} um): no mill coarsens its feed. Got {target_p80_um:g}.")
     mill = twin.mill
     speed0 = mill.speed_nominal_frac_critical if speed_frac_critical is None else speed_frac_critical
     feed0 = mill.feed_nominal_tph if feed_tph is None else feed_tph

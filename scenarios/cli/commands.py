@@ -885,7 +885,9 @@ def add_size_mill_parser(subparsers):
                    "Plitt's equations uncalibrated)")
     z.add_argument("--write-preset", metavar="PATH",
                    help="also write the answer as a preset file here (a new file or a preset grindtwin wrote; "
-                   "the shipped `industrial` preset is twin/data/industrial_mill.json, written only when named)")
+                   "the shipped `industrial` preset is twin/data/industrial_mill.json, written only when named; "
+                   "commands and scenes read the shipped presets only: a scene runs another sized mill from its "
+                   "[mill] dimensions and [classification] cyclones)")
     z.add_argument("--json", action="store_true", help="print the answer as JSON")
     z.set_defaults(func=cmd_size_mill)
     return z

@@ -170,3 +170,13 @@ def test_a_target_met_at_two_speeds_between_scan_points_is_found(twins):
     assert all(p80(s) > target for s in scan)  # no sign change at any scanned speed
     s = speed_for_target(lab, [1.0], target, feed)
     assert abs(s - least.x) < 0.025 and p80(s) == pytest.approx(target, abs=1e-4)
+
+
+def test_a_target_no_finer_than_the_feed_is_refused_before_any_search(twins, monkeypatch):
+    """A target of 5000 um ran the whole search (4 s) and then said "unreachable within the bounds"."""
+    from mpc import MpcInputError, optimal_setpoints
+
+    lab = twins["B"]
+    monkeypatch.setattr(lab, "steady", None)  # any solve would fail on this: the refusal comes first
+    with pytest.raises(MpcInputError, match=r"finer than the twin's feed \(P80 3\d{3} um\).*Got 5000"):
+        optimal_setpoints(lab, [1.0], 5000.0)
