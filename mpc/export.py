@@ -17,7 +17,10 @@ rounding, and the step's status is the Python controller's: ok, a fallback, or t
 
 The caller's headers: ``GT_CONTROLLER_NEW(&status)`` (gt_controller.h) passes the lengths and
 GT_ABI_HASH of the headers the caller was compiled with to the library, which refuses another
-export's (``GT_ABI_SIZES_DIFFER``, ``GT_ABI_LAYOUT_DIFFERS``) rather than read past its buffers.
+export's (``GT_ABI_SIZES_DIFFER``, ``GT_ABI_LAYOUT_DIFFERS``) rather than read past its buffers, and
+refuses its own gt_controller_config.h once edited (``GT_ABI_CONFIG_EDITED``: the header's values
+against ``gt_exported.c``'s, :func:`exported_source`; a bound or a target edited there compiled
+and ran while the QP's data kept the exported ones).
 
 Memory: ``gt_controller_new`` makes two allocations (the controller with the EKF's work, and the
 RTI's block: QP data, solver work); estimate and step allocate nothing (counted by
@@ -25,8 +28,8 @@ RTI's block: QP data, solver work); estimate and step allocate nothing (counted 
 
 The folder: created if absent; an existing folder is used only if it holds a previous export
 and nothing else (its manifest names every file it wrote and every file its Makefile builds),
-with none of its sources changed since (their sha256 in the manifest: a tuned config header is
-the user's work), which is then replaced; anything else (the current folder or a parent of it
+with none of its sources changed since (their sha256 in the manifest: an edited file is the
+user's work), which is then replaced; anything else (the current folder or a parent of it
 too) is refused, nothing written. Files are written into a new hidden folder beside it
 (``.DIR.<random>.partial``, :func:`twin.atomic.new_folder_beside`) and renamed when complete;
 the previous export is moved aside first and removed by the names its manifest lists. One export
@@ -87,15 +90,16 @@ ESTIMATE_STATUS = {
 C_FILES = ("gt_qp.c", "gt_qp.h", "gt_cond.c", "gt_cond.h", "gt_rti.c", "gt_rti.h", "gt_controller.c", "gt_controller.h",
            "gt_replay.c", "gt_malloc_count.c")
 #: What the Makefile builds in the folder (a re-export may replace these too).
-BUILD_PRODUCTS = ("gt_rti_data.o", "gt_ekf_data.o", "gt_qp.o", "gt_cond.o", "gt_rti.o", "gt_controller.o", "gt_replay.o",
+BUILD_PRODUCTS = ("gt_rti_data.o", "gt_ekf_data.o", "gt_exported.o", "gt_qp.o", "gt_cond.o", "gt_rti.o", "gt_controller.o", "gt_replay.o",
                   "libgtcontroller.a", "gt_replay", "gt_malloc_count.so")
 MAKEFILE = """\
 # grindtwin's exported NMPC: `make` builds libgtcontroller.a, the replay harness gt_replay and
 # the allocation counter gt_malloc_count.so (LD_PRELOAD=./gt_malloc_count.so ./gt_replay < log).
 CC ?= cc
 CFLAGS ?= -O2
-OBJS = gt_rti_data.o gt_ekf_data.o gt_qp.o gt_cond.o gt_rti.o gt_controller.o
-# every object depends on every header: an edited gt_controller_config.h rebuilds everything
+OBJS = gt_rti_data.o gt_ekf_data.o gt_exported.o gt_qp.o gt_cond.o gt_rti.o gt_controller.o
+# every object depends on every header: an edited gt_controller_config.h rebuilds everything (and the
+# library then refuses it: GT_ABI_CONFIG_EDITED, the header's values not those exported)
 HEADERS = gt_controller.h gt_controller_config.h gt_cond.h gt_qp.h gt_rti.h gt_rti_data.h gt_ekf_data.h
 
 all: libgtcontroller.a gt_replay gt_malloc_count.so
@@ -121,8 +125,7 @@ clean:
 
 
 def _c_array(name: str, values) -> str:
-    vals = ", ".join("INFINITY" if v == math.inf else ("-INFINITY" if v == -math.inf else repr(float(v)))
-                     for v in np.asarray(values, float).ravel(order="F"))
+    vals = ", ".join(_c_value(v) for v in np.asarray(values, float).ravel(order="F"))
     return f"static const double {name}[{max(len(np.ravel(values)), 1)}] = {{{vals}}};"
 
 
@@ -169,53 +172,109 @@ def abi_hash(layout: dict) -> int:
     return int(hashlib.sha256(json.dumps(layout, sort_keys=True).encode()).hexdigest()[:8], 16)
 
 
+#: The scalar macros of gt_controller_config.h the library checks against gt_exported.c, in its order
+#: (GT_PREVIEW_LEAD_H after GT_DT_H when exported).
+CHECKED_MACROS = ("GT_NX", "GT_NU", "GT_ND", "GT_NB", "GT_N", "GT_NXL", "GT_NUL", "GT_NW", "GT_NP", "GT_NPASS", "GT_NZ",
+                  "GT_HAS_HARDNESS", "GT_HAS_P80_BIAS", "GT_PREVIEW", "GT_WARM_START", "GT_RTI_ITERATIONS",
+                  "GT_API_VERSION", "GT_NY", "GT_ABI_HASH", "GT_DT_H", "GT_PREVIEW_LEAD_H", "GT_TOL", "GT_HARDNESS0",
+                  "GT_TARGET_P80_UM", "GT_P80_GAIN", "GT_P80_REFERENCE_UM", "GT_PASSING_TARGET", "GT_BLEND_SUM_TOL",
+                  "GT_UNREACHABLE_TOL", "GT_GRID_RATIO")
+#: The arrays of gt_controller_config.h the library checks, after the scalars, in this order.
+CHECKED_ARRAYS = ("gt_x_scale", "gt_u_lo", "gt_u_hi", "gt_du_max", "gt_wpass", "gt_upper_um", "gt_z0", "gt_p0", "gt_u0")
+
+
+def _constants(controller, estimator, u0, preview_lead_h) -> tuple[dict, dict]:
+    """The exported header's scalar macros (name -> value, C text) and arrays (name -> values)."""
+    c, s, e = controller, controller.settings, estimator
+    layout = abi_layout(controller, estimator)
+    scalars = {"GT_NX": c.nx, "GT_NU": c.nu, "GT_ND": c.nd, "GT_NB": c.nd - 1, "GT_N": s.horizon_steps,
+               "GT_NXL": c._nxl, "GT_NUL": c._nul, "GT_NW": c._nw,
+               "GT_NP": c.nx + c.nd * s.horizon_steps + c.nu + c._wpass.size, "GT_NPASS": c._wpass.size,
+               "GT_NZ": e.z.size, "GT_HAS_HARDNESS": int(e.has_hardness), "GT_HAS_P80_BIAS": int(e.has_p80_bias),
+               "GT_PREVIEW": int(s.preview),
+               "GT_WARM_START": int(s.warm_start), "GT_RTI_ITERATIONS": min(s.rti_iterations, s.max_iter),
+               "GT_API_VERSION": API_VERSION, "GT_NY": layout["ny"], "GT_ABI_HASH": f"0x{abi_hash(layout):08x}UL",
+               "GT_DT_H": repr(float(s.dt_h)),
+               "GT_PREVIEW_LEAD_H": None if preview_lead_h is None else repr(float(preview_lead_h)),
+               "GT_TOL": repr(s.tol), "GT_HARDNESS0": repr(e.hardness_est),
+               "GT_TARGET_P80_UM": repr(float(s.target_p80_um)), "GT_P80_GAIN": repr(float(e.p80_gain)),
+               "GT_P80_REFERENCE_UM": repr(float(e.p80_reference_um or 0.0)), "GT_PASSING_TARGET": repr(PASSING_TARGET),
+               "GT_BLEND_SUM_TOL": repr(BLEND_SUM_TOL), "GT_UNREACHABLE_TOL": repr(float(s.unreachable_tol_frac)),
+               "GT_GRID_RATIO": repr(float(c.model.spec.grid.ratio))}
+    du_max = np.array([s.feed_rate_max_tph_per_h, s.speed_rate_max_per_h]) * s.dt_h
+    arrays = {"gt_x_scale": c.x_scale, "gt_u_lo": [s.feed_tph_min, s.speed_min], "gt_u_hi": [s.feed_tph_max, s.speed_max],
+              "gt_du_max": du_max, "gt_wpass": c._wpass, "gt_upper_um": c.model.spec.grid.upper_um,
+              "gt_z0": e.z, "gt_p0": e.P, "gt_u0": u0}
+    return scalars, arrays
+
+
+def _c_value(v) -> str:
+    v = float(v)
+    return "INFINITY" if v == math.inf else ("-INFINITY" if v == -math.inf else repr(v))
+
+
+def exported_source(controller, estimator, u0, preview_lead_h: float | None = None) -> str:
+    """gt_exported.c: the header's constants as the QP's and the EKF's data were generated with them, for
+    gt_controller_check_abi to compare the library's gt_controller_config.h with (GT_ABI_CONFIG_EDITED:
+    an edited header compiled, ran and was ignored by the QP, whose bounds, scales and target weights
+    are in gt_rti_data.c)."""
+    scalars, arrays = _constants(controller, estimator, u0, preview_lead_h)
+    values = [str(v).removesuffix("UL") for v in scalars.values() if v is not None]
+    values += [_c_value(v) for name in CHECKED_ARRAYS for v in np.asarray(arrays[name], float).ravel(order="F")]
+    return ("/* generated by grindtwin export-controller: gt_controller_config.h's constants as exported, in the\n"
+            " * order of its GT_CONFIG_SCALARS and then its arrays; the library refuses a header that differs\n"
+            " * (gt_controller_check_abi: GT_ABI_CONFIG_EDITED): change the scene and export again */\n"
+            "#include <math.h>\n\n"
+            f"const int gt_exported_constants_len = {len(values)};\n"
+            f"const double gt_exported_constants[{len(values)}] = {{{', '.join(values)}}};\n")
+
+
 def config_header(controller, estimator, u0, preview_lead_h: float | None = None) -> str:
     """gt_controller_config.h: dimensions, the ABI hash, the preview's lead, scales, bounds and
     the initial estimate."""
-    c, s, e = controller, controller.settings, estimator
-    du_max = np.array([s.feed_rate_max_tph_per_h, s.speed_rate_max_per_h]) * s.dt_h
+    sc, ar = _constants(controller, estimator, u0, preview_lead_h)
     layout = abi_layout(controller, estimator)
-    dims = {"GT_NX": c.nx, "GT_NU": c.nu, "GT_ND": c.nd, "GT_NB": c.nd - 1, "GT_N": s.horizon_steps,
-            "GT_NXL": c._nxl, "GT_NUL": c._nul, "GT_NW": c._nw,
-            "GT_NP": c.nx + c.nd * s.horizon_steps + c.nu + c._wpass.size, "GT_NPASS": c._wpass.size,
-            "GT_NZ": e.z.size, "GT_HAS_HARDNESS": int(e.has_hardness), "GT_HAS_P80_BIAS": int(e.has_p80_bias),
-            "GT_PREVIEW": int(s.preview),
-            "GT_WARM_START": int(s.warm_start), "GT_RTI_ITERATIONS": min(s.rti_iterations, s.max_iter)}
-    if preview_lead_h is None:
+    dims = list(CHECKED_MACROS[:CHECKED_MACROS.index("GT_RTI_ITERATIONS") + 1])
+    if sc["GT_PREVIEW_LEAD_H"] is None:
         lead = ["/* GT_PREVIEW_LEAD_H: not given to the export (mpc.export_controller's preview_lead_h) */"]
     else:
-        lead = [f"#define GT_PREVIEW_LEAD_H {float(preview_lead_h)!r}"]
+        lead = [f"#define GT_PREVIEW_LEAD_H {sc['GT_PREVIEW_LEAD_H']}"]
     abi = ["/* the layout the caller's buffers follow (gt_controller.h: GT_CONTROLLER_CHECK_ABI): y holds",
            f" * {', '.join(layout['measurements'])}; u {', '.join(layout['inputs'])}; blend and each preview stage",
            f" * the fractions of {', '.join(layout['components'])}, in this order; GT_ABI_HASH hashes it all",
            " * (mpc.export.abi_layout, in the manifest) */",
-           f"#define GT_API_VERSION {API_VERSION}", f"#define GT_NY {layout['ny']}",
-           "#define GT_PREVIEW_LEN (GT_NB * GT_N)", f"#define GT_ABI_HASH 0x{abi_hash(layout):08x}UL",
+           f"#define GT_API_VERSION {sc['GT_API_VERSION']}", f"#define GT_NY {sc['GT_NY']}",
+           "#define GT_PREVIEW_LEN (GT_NB * GT_N)", f"#define GT_ABI_HASH {sc['GT_ABI_HASH']}",
            "/* the sample period [h]; the preview's lead [h]: the feed blend is known this far ahead",
            " * (scene controller.preview_lead_h), stage k of the preview is the blend at t + min(k GT_DT_H,",
            " * GT_PREVIEW_LEAD_H) (gt_controller.h, gt_controller_step) */",
-           f"#define GT_DT_H {float(s.dt_h)!r}", *lead]
-    lines = ["/* generated by grindtwin export-controller: the controller's dimensions and constants */",
+           f"#define GT_DT_H {sc['GT_DT_H']}", *lead]
+    checked = [k for k in CHECKED_MACROS if sc[k] is not None]
+    lines = ["/* generated by grindtwin export-controller: the controller's dimensions and constants, exported with",
+             " * the QP's and the EKF's data (gt_rti_data.c, gt_ekf_data.c). Not tuning: an edit would not reach",
+             " * that data, and the library refuses an edited header (gt_controller.h: GT_ABI_CONFIG_EDITED); to",
+             " * change a value, change the scene and export again */",
              "#ifndef GT_CONTROLLER_CONFIG_H", "#define GT_CONTROLLER_CONFIG_H", "#include <math.h>", ""]
-    lines += [f"#define {k} {v}" for k, v in dims.items()] + abi
-    lines += [f"#define GT_TOL {s.tol!r}", f"#define GT_HARDNESS0 {e.hardness_est!r}",
+    lines += [f"#define {k} {sc[k]}" for k in dims] + abi
+    lines += [f"#define GT_TOL {sc['GT_TOL']}", f"#define GT_HARDNESS0 {sc['GT_HARDNESS0']}",
               "/* the P80 target [um]; the analyser reads ref + gain (P80_model - ref) + bias (mpc.estimator) */",
-              f"#define GT_TARGET_P80_UM {float(s.target_p80_um)!r}", f"#define GT_P80_GAIN {float(e.p80_gain)!r}",
-              f"#define GT_P80_REFERENCE_UM {float(e.p80_reference_um or 0.0)!r}",
+              f"#define GT_TARGET_P80_UM {sc['GT_TARGET_P80_UM']}", f"#define GT_P80_GAIN {sc['GT_P80_GAIN']}",
+              f"#define GT_P80_REFERENCE_UM {sc['GT_P80_REFERENCE_UM']}",
               "/* GT_STEP_TARGET_UNREACHABLE: the plan's passing fraction at the horizon end differs from",
               " * GT_PASSING_TARGET by more than GT_UNREACHABLE_TOL (mpc.Controller.make_step's rule) */",
-              f"#define GT_PASSING_TARGET {PASSING_TARGET!r}",
+              f"#define GT_PASSING_TARGET {sc['GT_PASSING_TARGET']}",
               "/* a previewed stage's blend fractions may sum this far from 1 (mpc.nmpc.BLEND_SUM_TOL) */",
-              f"#define GT_BLEND_SUM_TOL {BLEND_SUM_TOL!r}",
-              f"#define GT_UNREACHABLE_TOL {float(s.unreachable_tol_frac)!r}", "",
+              f"#define GT_BLEND_SUM_TOL {sc['GT_BLEND_SUM_TOL']}",
+              f"#define GT_UNREACHABLE_TOL {sc['GT_UNREACHABLE_TOL']}", "",
               "/* state scales, input bounds, largest move per sample, passing weights of the target */",
-              _c_array("gt_x_scale", c.x_scale),
-              _c_array("gt_u_lo", [s.feed_tph_min, s.speed_min]), _c_array("gt_u_hi", [s.feed_tph_max, s.speed_max]),
-              _c_array("gt_du_max", du_max), _c_array("gt_wpass", c._wpass),
+              *[_c_array(k, ar[k]) for k in ("gt_x_scale", "gt_u_lo", "gt_u_hi", "gt_du_max", "gt_wpass")],
               "/* the size grid's class upper sizes [um] and ratio, for the passing weights of a biased target */",
-              _c_array("gt_upper_um", c.model.spec.grid.upper_um), f"#define GT_GRID_RATIO {float(c.model.spec.grid.ratio)!r}",
+              _c_array("gt_upper_um", ar["gt_upper_um"]), f"#define GT_GRID_RATIO {sc['GT_GRID_RATIO']}",
               "/* the estimator's initial augmented state and covariance (column-major), the initial input */",
-              _c_array("gt_z0", e.z), _c_array("gt_p0", e.P), _c_array("gt_u0", u0), "", "#endif", ""]
+              *[_c_array(k, ar[k]) for k in ("gt_z0", "gt_p0", "gt_u0")],
+              "/* the scalars gt_exported.c lists first, in its order (then the arrays above, in the order of",
+              " * mpc.export.CHECKED_ARRAYS) */",
+              f"#define GT_CONFIG_SCALARS {{{', '.join(checked)}}}", "", "#endif", ""]
     return "\n".join(lines)
 
 
@@ -244,7 +303,7 @@ def _previous_export(out: Path) -> dict:
     if foreign:
         raise MpcInputError(f"--out {out}: holds files this export did not write ({', '.join(foreign[:5])}); "
                             f"move them away or choose another folder.")
-    # a source edited since (a tuned gt_controller_config.h) is the user's work: not replaced
+    # a source edited since is the user's work: not replaced
     edited = sorted(name for name, digest in hashes.items() if (out / name).is_file() and file_sha256(out / name) != digest)
     if edited:
         raise MpcInputError(f"--out {out}: {', '.join(edited[:5])} changed since the export wrote "
@@ -393,6 +452,7 @@ def _export(controller, estimator, u0, out: Path, source: str, preview_lead_h, n
         for name in C_FILES:
             shutil.copyfile(C_DIR / name, partial / name)
         (partial / "gt_controller_config.h").write_text(config_header(controller, estimator, u0, preview_lead_h))
+        (partial / "gt_exported.c").write_text(exported_source(controller, estimator, u0, preview_lead_h))
         (partial / "Makefile").write_text(MAKEFILE)
         files = sorted(p.name for p in partial.iterdir()) + [MANIFEST]
         s, layout = controller.settings, abi_layout(controller, estimator)

@@ -65,12 +65,35 @@ static int all_finite(const double *v, int n) {
 
 long gt_controller_bytes(void) { return (long)sizeof(gt_controller) + ekf_bytes() + gt_rti_bytes(); }
 
+/* generated (gt_exported.c): gt_controller_config.h's constants as exported */
+extern const int gt_exported_constants_len;
+extern const double gt_exported_constants[];
+
+#define GT_PART(a) {(a), (int)(sizeof(a) / sizeof((a)[0]))}
+
+/* 1 if the library's gt_controller_config.h holds the constants exported with the QP's and the EKF's
+ * data, in the order of GT_CONFIG_SCALARS and then mpc.export.CHECKED_ARRAYS; 0 if one was edited */
+static int config_as_exported(void) {
+    static const double scalars[] = GT_CONFIG_SCALARS;
+    static const struct {
+        const double *v;
+        int n;
+    } parts[] = {GT_PART(scalars), GT_PART(gt_x_scale), GT_PART(gt_u_lo), GT_PART(gt_u_hi), GT_PART(gt_du_max),
+                 GT_PART(gt_wpass), GT_PART(gt_upper_um), GT_PART(gt_z0), GT_PART(gt_p0), GT_PART(gt_u0)};
+    int p, i, k = 0;
+    for (p = 0; p < (int)(sizeof(parts) / sizeof(parts[0])); ++p)
+        for (i = 0; i < parts[p].n; ++i, ++k)
+            if (k >= gt_exported_constants_len || parts[p].v[i] != gt_exported_constants[k]) return 0;
+    return k == gt_exported_constants_len;
+}
+
 int gt_controller_check_abi(unsigned long abi_hash, int nx, int nu, int ny, int nb, int n, int nz,
                             int preview_len) {
     if (nx != GT_NX || nu != GT_NU || ny != GT_NY || nb != GT_NB || n != GT_N || nz != GT_NZ ||
         preview_len != GT_PREVIEW_LEN)
         return GT_ABI_SIZES_DIFFER;
-    return abi_hash == GT_ABI_HASH ? GT_ABI_OK : GT_ABI_LAYOUT_DIFFERS;
+    if (abi_hash != GT_ABI_HASH) return GT_ABI_LAYOUT_DIFFERS;
+    return config_as_exported() ? GT_ABI_OK : GT_ABI_CONFIG_EDITED;
 }
 
 unsigned long gt_controller_abi_hash(void) { return GT_ABI_HASH; }
@@ -84,9 +107,12 @@ gt_controller *gt_controller_new_checked(int *abi_status, unsigned long abi_hash
 
 gt_controller *gt_controller_new(void) {
     casadi_int a, r, i, w;
-    char *mem = (char *)calloc(1, (size_t)(gt_controller_bytes() - gt_rti_bytes()));
-    gt_controller *c = (gt_controller *)mem;
+    char *mem;
+    gt_controller *c;
     long off = (long)sizeof(gt_controller);
+    if (!config_as_exported()) return NULL; /* an edited gt_controller_config.h: GT_ABI_CONFIG_EDITED */
+    mem = (char *)calloc(1, (size_t)(gt_controller_bytes() - gt_rti_bytes()));
+    c = (gt_controller *)mem;
     if (!c) return NULL;
     c->rti = gt_rti_new();
     if (!c->rti) { free(mem); return NULL; }

@@ -11,8 +11,10 @@
  * What u holds after each status is in enum gt_step_status: apply it for GT_STEP_OK, SHIFTED_PLAN,
  * HOLD_INPUT, BAD_BIAS and TARGET_UNREACHABLE; GT_STEP_BAD_INPUT writes nothing into u (read both
  * statuses). gt_controller_new allocates everything (two blocks, see gt_controller_bytes);
- * estimate and step allocate nothing. Dimensions, the preview's lead and the tuning are in
- * gt_controller_config.h (included here).
+ * estimate and step allocate nothing. Dimensions, the preview's lead, the target, the bounds and
+ * the initial estimate are in gt_controller_config.h (included here), exported with the QP's and the
+ * EKF's data: not tuning. An edited header is refused (GT_ABI_CONFIG_EDITED); change the scene and
+ * export again.
  */
 #ifndef GT_CONTROLLER_H
 #define GT_CONTROLLER_H
@@ -71,10 +73,15 @@ enum gt_abi_status {
                                  estimate and step would read or write past the caller's buffers.
                                  Rebuild the caller against this export's gt_controller.h and
                                  gt_controller_config.h */
-    GT_ABI_LAYOUT_DIFFERS = 2 /* the lengths agree but GT_ABI_HASH differs: another export's layout
+    GT_ABI_LAYOUT_DIFFERS = 2, /* the lengths agree but GT_ABI_HASH differs: another export's layout
                                  (components in another order or of other names, another
                                  disturbance model or preview setting, another API version): the
                                  numbers would be read as other quantities. Rebuild as above */
+    GT_ABI_CONFIG_EDITED = 3  /* the library was built with a gt_controller_config.h whose constants
+                                 (a bound, rate limit, target, scale, the sample period or the
+                                 initial estimate) are not those exported (gt_exported.c): the QP's
+                                 data (gt_rti_data.c) holds the exported ones, so the edit would be
+                                 ignored or half applied. Change the scene and export again */
 };
 /* the caller's view of the layout, its headers' values (pass them with GT_CONTROLLER_CHECK_ABI),
  * against the library's: GT_ABI_OK, or the first mismatch (sizes before the hash); no side
@@ -92,7 +99,8 @@ gt_controller *gt_controller_new_checked(int *abi_status, unsigned long abi_hash
 #define GT_CONTROLLER_NEW(abi_status)                                                              \
     gt_controller_new_checked((abi_status), GT_ABI_HASH, GT_NX, GT_NU, GT_NY, GT_NB, GT_N, GT_NZ,   \
                               GT_PREVIEW_LEN)
-/* the controller without the check (the caller vouches for its headers): GT_CONTROLLER_NEW is safer */
+/* the controller without the check (the caller vouches for its headers): GT_CONTROLLER_NEW is safer;
+ * NULL when out of memory or for GT_ABI_CONFIG_EDITED */
 gt_controller *gt_controller_new(void);
 void gt_controller_free(gt_controller *c);
 /* back to the exported initial estimate (state, hardness, covariance), no plan */

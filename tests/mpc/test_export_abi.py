@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 
+from mpc.export import CHECKED_MACROS
 from scenarios.cli import main
 from tests.mpc.conftest import c_tools
 
@@ -93,6 +94,59 @@ def test_a_caller_compiled_with_another_exports_headers_is_refused(built, tmp_pa
     header = (out / "gt_controller.h").read_text()
     for named in ("GT_ABI_OK = 0", "GT_ABI_SIZES_DIFFER = 1", "GT_ABI_LAYOUT_DIFFERS = 2"):
         assert named in header
+
+
+def test_a_library_built_with_an_edited_config_header_is_refused(built, tmp_path):
+    """gt_controller.h called the config header 'the tuning'; an edited target, speed bound or feed rate
+    limit compiled, ran and returned OK while the QP's data (gt_rti_data.c) kept the exported values:
+    a 150 um target moved the feed as the 210 um one did. Now the library compares its header with
+    gt_exported.c: GT_ABI_CONFIG_EDITED (3) from the check and GT_CONTROLLER_NEW, NULL from
+    gt_controller_new, and the replay harness says so; the export's own build passes (0)."""
+    out, config = built
+    cc = c_tools()
+    for macro, value in (("GT_TARGET_P80_UM", "150.0"), ("gt_du_max", None)):
+        lib = tmp_path / macro
+        shutil.copytree(out, lib)
+        cfg = lib / "gt_controller_config.h"
+        if value is None:  # the feed's largest move per sample, 1.0 t/h as exported, made 0.2
+            text, n = re.subn(r"(gt_du_max\[2\] = \{)[^,]+,", r"\g<1>0.2,", cfg.read_text())
+        else:
+            text, n = re.subn(rf"#define {macro} \S+\n", f"#define {macro} {value}\n", cfg.read_text())
+        assert n == 1, macro
+        cfg.write_text(text)
+        build = subprocess.run(["make", "-C", str(lib), "CFLAGS=-O1", f"CC={cc}"], capture_output=True, text=True)
+        assert build.returncode == 0, build.stderr[-2000:]
+        exe = _compile(cc, CONFIG_DRIVER, lib, lib, [lib / "libgtcontroller.a"])
+        check, new_status, is_null = subprocess.run([str(exe)], capture_output=True, text=True,
+                                                    check=True).stdout.split()
+        assert (check, new_status, is_null) == ("3", "3", "1"), macro
+        assert subprocess.run([str(exe), "unchecked"], capture_output=True, text=True).stdout.strip() == "null"
+        replay = subprocess.run([str(lib / "gt_replay")], input="", capture_output=True, text=True)
+        assert replay.returncode != 0 and "abi status 3" in replay.stderr
+    assert "GT_ABI_CONFIG_EDITED = 3" in (out / "gt_controller.h").read_text()
+
+
+#: the check and GT_CONTROLLER_NEW; with an argument gt_controller_new, unchecked
+CONFIG_DRIVER = r"""
+#include <stdio.h>
+#include "gt_controller.h"
+
+int main(int argc, char **argv) {
+    int st = -1;
+    gt_controller *c;
+    (void)argv;
+    if (argc > 1) {
+        c = gt_controller_new();
+        puts(c ? "made" : "null");
+        gt_controller_free(c);
+        return 0;
+    }
+    c = GT_CONTROLLER_NEW(&st);
+    printf("%d %d %d\n", GT_CONTROLLER_CHECK_ABI(), st, c == NULL);
+    gt_controller_free(c);
+    return 0;
+}
+"""
 
 
 def test_the_abi_hash_covers_the_order_of_the_components():
@@ -205,12 +259,19 @@ def test_what_u_holds_after_a_refused_or_held_step_is_what_the_header_says(built
     text, n = re.subn(r"#define GT_RTI_ITERATIONS \d+\n", "#define GT_RTI_ITERATIONS 0\n", cfg.read_text())
     assert n == 1
     cfg.write_text(text)
-    obj = hold / "gt_controller.o"
-    run = subprocess.run([cc, "-O1", "-c", f"-I{out}", str(hold / "gt_controller.c"), "-o", str(obj)],
-                         capture_output=True, text=True)
-    assert run.returncode == 0, run.stderr[-2000:]
+    # the library refuses an edited header: this test's own gt_exported.c lists the edited value
+    exported = (out / "gt_exported.c").read_text()
+    listed = re.search(r"\{(.*)\}", exported).group(1).split(", ")
+    listed[CHECKED_MACROS.index("GT_RTI_ITERATIONS")] = "0"
+    (hold / "gt_exported.c").write_text(exported.replace(re.search(r"\{(.*)\}", exported).group(1), ", ".join(listed)))
+    objs = []
+    for name in ("gt_controller", "gt_exported"):
+        objs.append(hold / f"{name}.o")
+        run = subprocess.run([cc, "-O1", "-c", f"-I{hold}", f"-I{out}", str(hold / f"{name}.c"), "-o", str(objs[-1])],
+                             capture_output=True, text=True)
+        assert run.returncode == 0, run.stderr[-2000:]
     others = [out / f"{name}.o" for name in ("gt_rti_data", "gt_ekf_data", "gt_qp", "gt_cond", "gt_rti")]
-    exe = _compile(cc, U_DRIVER, hold, hold, [obj, *others])
+    exe = _compile(cc, U_DRIVER, hold, hold, [*objs, *others])
     first = subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.splitlines()[0].split()
     assert first[1] == "2" and [float(first[2]), float(first[3])] == [hi_f, hi_s] == [45.0, 0.85]
 
