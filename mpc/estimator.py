@@ -43,7 +43,7 @@ import numpy as np
 
 from mpc.codegen import compiled
 from mpc.discretize import rk4_sensitivity_map
-from mpc.errors import MpcInputError, is_real
+from mpc.errors import MpcInputError, MpcSolverError, is_real
 
 MEASUREMENTS = ("p80_um", "power_kw", "load_frac")
 #: Default random-walk intensity of the hardness scale [1/sqrt(h)]: a 1-sigma drift of
@@ -316,11 +316,16 @@ class Ekf:
                                 f"fractions (a trailing hardness is ignored), finite. Got {d_all.tolist()}.")
         ok = np.isfinite(y)
         args = (u, db, np.where(ok, y, 0.0), ok.astype(float))
+        z, P, e = self._run(self.z, self.P, [args])
+        if not (np.all(np.isfinite(z)) and np.all(np.isfinite(P))):  # it was kept, and every later step with it
+            raise MpcSolverError(f"Ekf.make_step: the update left a non-finite estimate or covariance (y_meas "
+                                 f"{y.tolist()}, u {u.tolist()}): the estimate is left as it was before this step; "
+                                 "reset() returns to the initial estimate")
         if self.change_detector is not None:
             self._kept.append((self.z.copy(), self.P.copy(), args))
             del self._kept[:-self.change_detector.buffer]
             self._cusum["n"] += 1  # samples, with or without an analyser value: the rewind's index
-        self.z, self.P, e = self._run(self.z, self.P, [args])
+        self.z, self.P = z, P
         if self.change_detector is not None and ok[0]:
             e = self._detect(e)
         self.innovation = np.where(ok, e, np.nan)

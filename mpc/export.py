@@ -137,6 +137,10 @@ def _check(controller, estimator) -> None:
                             f"Got solver {s.solver!r}, qpsol {s.qpsol!r}.")
     if estimator.model is not controller.model:
         raise MpcInputError("export-controller needs the estimator and the controller on one model.")
+    if getattr(estimator, "change_detector", None) is not None:  # it was left out without a word
+        raise MpcInputError("export-controller exports the EKF's step, not its change detector (the CUSUM's rewind "
+                            "and rerun): the exported estimator would not be this one. Export an Ekf without "
+                            "change_detector.")
     stride = controller._nxl + controller._nul
     for k, (ix, iu) in enumerate(zip(controller._ix, controller._iu)):
         if ix[0] != k * stride or iu[0] != k * stride + controller._nxl:

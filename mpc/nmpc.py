@@ -87,7 +87,7 @@ from mpc.codegen import MODES as CODEGEN_MODES
 from mpc.codegen import RTI_CFLAGS, c_library, compiled
 from mpc.condense import RTI_C_SOURCES, RtiLibrary, condensed_qp_function, stage_functions
 from mpc.discretize import rk4_map, rk4_sensitivity_map
-from mpc.errors import MpcInputError, MpcSolverError
+from mpc.errors import MpcInputError, MpcSolverError, is_real
 from mpc.qpsol import conic
 from mpc.results import ControllerStepResult
 from twin import centrifuging_note, pxx_um
@@ -307,6 +307,7 @@ class Controller:
         self.x_scale = np.asarray(x_scale, float).reshape(-1)
         if self.x_scale.size != self.nx or np.any(self.x_scale <= 0):
             raise MpcInputError(f"The 'x_scale' parameter must have {self.nx} entries > 0.")
+        self._wpass = self._target_weights(s.target_p80_um)  # refused before the build
         self._build()
         self.reset()
 
@@ -383,7 +384,6 @@ class Controller:
             raise MpcSolverError(f"The '{s.solver}' solver (qpsol {s.qpsol!r}) could not be "
                                  f"built for this NLP. CasADi said: {str(exc)[-300:]}") from exc
         self.build_time_s = time.perf_counter() - t0
-        self._wpass = np.asarray(m.spec.grid.passing_weights(s.target_p80_um), float)
 
     def _gap_value(self, x_next, Uk):
         """Next lifted state ``[F / scale; u_k; s_k]`` from the model's ``x_next``."""
@@ -629,12 +629,21 @@ class Controller:
         self.last_info: dict = {}
 
     def set_target(self, target_p80_um: float) -> None:
-        """Change the P80 target without rebuilding (the passing weights are a parameter)."""
-        if not (np.isfinite(target_p80_um) and target_p80_um > 0):
-            raise MpcInputError(f"The 'target_p80_um' parameter must be a float > 0. "
-                                f"Got {target_p80_um!r}.")
+        """Change the P80 target without rebuilding (the passing weights are a parameter); a refused
+        target changes nothing."""
+        self._wpass = self._target_weights(target_p80_um)
         self.settings.target_p80_um = float(target_p80_um)
-        self._wpass = np.asarray(self.model.spec.grid.passing_weights(target_p80_um), float)
+
+    def _target_weights(self, target_p80_um) -> np.ndarray:
+        """The passing weights of ``target_p80_um``, a size inside the grid: at or above its top every
+        weight is 1, below its sink every one 0, and the P80 term is then a constant the plan cannot
+        move (a 5 um target ran with no word but target_unreachable)."""
+        grid = self.model.spec.grid
+        lo, hi = float(grid.upper_um[-1] / grid.ratio), float(grid.upper_um[0])
+        if not (is_real(target_p80_um) and lo < target_p80_um < hi):
+            raise MpcInputError(f"The 'target_p80_um' parameter must be a size [um] inside the controller's size "
+                                f"grid, in ({lo:.4g}, {hi:.4g}). Got {target_p80_um!r}.")
+        return np.asarray(grid.passing_weights(float(target_p80_um)), float)
 
     def _d_traj(self, d_preview) -> np.ndarray:
         N, nd = self.settings.horizon_steps, self.nd

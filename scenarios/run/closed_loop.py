@@ -11,8 +11,8 @@ import pandas as pd
 import scipy.linalg
 
 from mpc import (EKF_RK4_SUBSTEPS, FEED_RANGE_NOMINAL, RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, MpcInputError,
-                 NmpcSettings, Sensors, TwinPlant, check_out_dir, export_controller, feed_for_target, pi_baseline,
-                 run_closed_loop, stable_rk4_substeps, state_jacobian)
+                 MpcSolverError, NmpcSettings, Sensors, TwinPlant, check_out_dir, export_controller, feed_for_target,
+                 pi_baseline, run_closed_loop, stable_rk4_substeps, state_jacobian)
 from scenarios.errors import RunError, SceneError
 from scenarios.run.feed import component_blend
 from scenarios.run.streams import Samples, run_size_data
@@ -409,7 +409,7 @@ class CountingEstimator:
         try:
             x, d = self.ekf.make_step(y_meas, u, d_known)
             ok = bool(np.all(np.isfinite(x)) and np.all(np.isfinite(d)) and np.all(np.isfinite(self.ekf.P)))
-        except np.linalg.LinAlgError:
+        except (np.linalg.LinAlgError, MpcSolverError):  # the latter: a non-finite update (Ekf.make_step)
             ok = False
         if ok:
             return x, d

@@ -49,6 +49,31 @@ def test_ekf_rejects_bad_input(ctrl_twin):
         Ekf(m, 0.05, m.initial_state([1.0, 0.0]), hardness0=10.0)
 
 
+def test_an_update_that_leaves_a_non_finite_covariance_is_refused_and_not_kept(ctrl_twin):
+    """A P80 of 1e9 um (a stuck analyser's count) drove the estimate to 1e6 and the next update's covariance to
+    NaN; the EKF kept it and every later step ran from it, without a word (the exported C resets, the
+    scene's loop too). Now the update is refused, the estimate left as it was, and reset() goes back."""
+    from mpc.errors import MpcSolverError
+
+    m = ctrl_twin.model
+    ss = ctrl_twin.steady(feed_tph=27.0, speed_frac_critical=0.70, blend=[1.0, 0.0])
+    ekf = Ekf(m, 0.05, ss.x, p80_noise_um=1.0)
+    refused = 0
+    for y in ([1e9, 1e9, 1e9], [210.0, np.nan, np.nan], [210.0, np.nan, np.nan]):
+        z, P = ekf.z.copy(), ekf.P.copy()
+        try:
+            ekf.make_step(y, ss.u, [1.0, 0.0])
+        except MpcSolverError as exc:
+            refused += 1
+            assert "non-finite estimate or covariance" in str(exc)
+            assert np.array_equal(ekf.z, z) and np.array_equal(ekf.P, P)  # nothing kept
+        assert np.all(np.isfinite(ekf.z)) and np.all(np.isfinite(ekf.P))
+    assert refused >= 1
+    ekf.reset()
+    ekf.make_step([210.0, np.nan, np.nan], ss.u, [1.0, 0.0])
+    assert np.all(np.isfinite(ekf.P))
+
+
 @pytest.mark.parametrize("gain", [1.0, 2.0])
 def test_ekf_reads_the_analyser_through_its_p80_gain(ctrl_twin, gain):
     """A plant whose P80 sits 6 um above the model's steady one, read by an EKF whose P80 gain

@@ -297,3 +297,17 @@ def test_a_failed_export_leaves_no_folder_it_made(tmp_path, monkeypatch, capsys)
     assert main(["export-controller", str(REFERENCE), "--out", str(tmp_path / "a" / "b" / "c")]) == 1
     assert "No space left" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())
+
+
+def test_an_estimator_with_a_change_detector_is_refused():
+    """mpc.export_controller wrote the plain EKF for an Ekf with a ChangeDetector, without a word: after a P80
+    step the C's hardness was the plain EKF's (1.2088), not the detector's (1.1991)."""
+    from types import SimpleNamespace
+
+    from mpc import ChangeDetector, MpcInputError
+    from mpc.export import _check
+
+    model = object()
+    controller = SimpleNamespace(settings=SimpleNamespace(solver="rti", qpsol="condensed"), model=model)
+    with pytest.raises(MpcInputError, match="not its change detector"):
+        _check(controller, SimpleNamespace(model=model, change_detector=ChangeDetector()))

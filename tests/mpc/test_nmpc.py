@@ -144,6 +144,20 @@ def test_unreachable_target_is_reported(setup):
         ctrl.set_target(210.0)
 
 
+def test_set_target_refuses_a_size_outside_the_grid_and_changes_nothing(setup):
+    """set_target(True) raised after setting the target to 1.0 (the weights the old target's); "210" raised
+    numpy's TypeError; 5 um and 1e7 um were taken (every passing weight 0 or 1: a P80 term the plan
+    cannot move)."""
+    ctrl, _ = setup
+    grid = ctrl.model.spec.grid
+    before = (ctrl.settings.target_p80_um, ctrl._wpass.copy())
+    for bad in (True, "210", 5.0, 1e7, float("nan"), float(grid.upper_um[0])):
+        with pytest.raises(MpcInputError, match="inside the controller's size grid"):
+            ctrl.set_target(bad)
+        assert ctrl.settings.target_p80_um == before[0] and np.array_equal(ctrl._wpass, before[1])
+    assert float(grid.upper_um[-1]) < 40.0  # test_unreachable_target_is_reported's target is in the grid
+
+
 def test_hpipm_solves_a_qp_whose_hessian_is_semidefinite_only_to_rounding(ctrl_twin):
     """The RTI's Gauss-Newton Hessian 2 Jr'Jr is positive semi-definite only to rounding. On this
     QP (the second step of test_codegen's HPIPM-equivalence test, with a calibration refitted to
