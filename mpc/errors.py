@@ -1,6 +1,18 @@
-"""Exception family of the ``mpc`` package, and the test of a numeric setting they share."""
+"""Exception family of the ``mpc`` package, and the tests of a numeric setting and of a blend they share."""
 
+import math
 from numbers import Real
+
+#: How far a blend may sum from 1 (a belt analyser's rounded fractions)
+BLEND_SUM_TOL = 1e-3
+
+
+def is_blend(fractions) -> bool:
+    """Finite fractions in [0, 1] summing to 1 within :data:`BLEND_SUM_TOL`: a plan or an estimate on [5, -4]
+    ran on nothing."""
+    values = [float(f) for f in fractions]
+    return (all(math.isfinite(f) and -1e-9 <= f <= 1 + 1e-9 for f in values)
+            and abs(sum(values) - 1.0) <= BLEND_SUM_TOL)
 
 
 def is_real(value) -> bool:

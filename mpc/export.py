@@ -57,7 +57,8 @@ from mpc.codegen import C_DIR
 from mpc.condense import stage_functions
 from mpc.errors import MpcInputError, OutsideModelsWarning
 from mpc.estimator import MEASUREMENTS
-from mpc.nmpc import BLEND_SUM_TOL, PASSING_TARGET, speed_max_note
+from mpc.errors import BLEND_SUM_TOL
+from mpc.nmpc import PASSING_TARGET, speed_max_note
 from twin import LockError, acquire_lock, file_sha256, new_folder_beside, release_lock, replace_folder
 
 MANIFEST = "grindtwin_export.json"
@@ -82,7 +83,8 @@ STEP_STATUS = {
 #: gt_controller_estimate's statuses (mpc/c/gt_controller.h's enum gt_estimate_status), in the manifest.
 ESTIMATE_STATUS = {
     0: "ok: estimated",
-    1: "bad_input: c, y, u_applied or blend is NULL, or u_applied or blend is not finite (the Python EKF raises); "
+    1: "bad_input: c, y, u_applied or blend is NULL, u_applied is not finite, a feed < 0 or a speed outside (0, 1), "
+       "or blend is not fractions in [0, 1] summing to 1 within GT_BLEND_SUM_TOL (the Python EKF raises); "
        "nothing estimated, the estimate left as it was",
     2: "reset: the update left a non-finite estimate or covariance; both back to the exported initial estimate "
        "(as the scene's closed loop resets its EKF), the plan kept",
@@ -267,7 +269,7 @@ def config_header(controller, estimator, u0, preview_lead_h: float | None = None
               "/* GT_STEP_TARGET_UNREACHABLE: the plan's passing fraction at the horizon end differs from",
               " * GT_PASSING_TARGET by more than GT_UNREACHABLE_TOL (mpc.Controller.make_step's rule) */",
               f"#define GT_PASSING_TARGET {sc['GT_PASSING_TARGET']}",
-              "/* a previewed stage's blend fractions may sum this far from 1 (mpc.nmpc.BLEND_SUM_TOL) */",
+              "/* a blend's fractions may sum this far from 1 (mpc.errors.BLEND_SUM_TOL) */",
               f"#define GT_BLEND_SUM_TOL {sc['GT_BLEND_SUM_TOL']}",
               f"#define GT_UNREACHABLE_TOL {sc['GT_UNREACHABLE_TOL']}", "",
               "/* state scales, input bounds, largest move per sample, passing weights of the target */",

@@ -87,7 +87,7 @@ from mpc.codegen import MODES as CODEGEN_MODES
 from mpc.codegen import RTI_CFLAGS, c_library, compiled
 from mpc.condense import RTI_C_SOURCES, RtiLibrary, condensed_qp_function, stage_functions
 from mpc.discretize import rk4_map, rk4_sensitivity_map
-from mpc.errors import MpcInputError, MpcSolverError, is_real
+from mpc.errors import BLEND_SUM_TOL, MpcInputError, MpcSolverError, is_blend, is_real
 from mpc.qpsol import conic
 from mpc.results import ControllerStepResult
 from twin import centrifuging_note, pxx_um
@@ -112,8 +112,6 @@ HPIPM_REG_PRIM = 1e-10
 HPIPM_MODES = ("robust", "balance", "speed")
 
 
-#: How far a previewed blend may sum from 1 (a belt analyser's rounded fractions)
-BLEND_SUM_TOL = 1e-3
 #: IPOPT's Hessians (NmpcSettings.hessian)
 HESSIANS = ("exact", "limited-memory")
 
@@ -663,8 +661,7 @@ class Controller:
         if not np.all(np.isfinite(d)):
             raise MpcInputError("The 'd_preview' parameter must be finite.")
         blend, hardness = d[:-1, :N], d[-1, :N]
-        if (np.any(blend < -1e-9) or np.any(blend > 1 + 1e-9) or np.any(np.abs(blend.sum(axis=0) - 1.0) > BLEND_SUM_TOL)
-                or not np.all(hardness > 0)):  # a plan on [5, -4] or a negative hardness is a plan on nothing
+        if not all(is_blend(col) for col in blend.T) or not np.all(hardness > 0):  # a negative hardness: on nothing
             raise MpcInputError(f"The 'd_preview' parameter must hold blend fractions in [0, 1] summing to 1 (within "
                                 f"{BLEND_SUM_TOL:g}) and a hardness > 0 on every stage. Got blend sums "
                                 f"{np.round(blend.sum(axis=0), 6).tolist()[:3]}..., hardness {hardness.min():g} at least.")

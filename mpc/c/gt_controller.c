@@ -141,12 +141,25 @@ void gt_controller_reset(gt_controller *c) {
     c->passing_end = NAN;
 }
 
+/* mpc.errors.is_blend: finite fractions in [0, 1] summing to 1 within GT_BLEND_SUM_TOL */
+static int blend_ok(const double *b) {
+    double sum = 0.0;
+    int i;
+    for (i = 0; i < GT_NB; ++i) {
+        if (!isfinite(b[i]) || b[i] < -1e-9 || b[i] > 1.0 + 1e-9) return 0;
+        sum += b[i];
+    }
+    return fabs(sum - 1.0) <= GT_BLEND_SUM_TOL;
+}
+
 int gt_controller_estimate(gt_controller *c, const double *y, const double *u_applied,
                            const double *blend) {
     double yy[3], mask[3], z[GT_NZ];
     int i, failed;
-    /* mpc.Ekf.make_step refuses these: a NaN input once made the clipped update an empty mill */
-    if (!c || !y || !u_applied || !blend || !all_finite(u_applied, GT_NU) || !all_finite(blend, GT_NB))
+    /* mpc.Ekf.make_step refuses these: a NaN input once made the clipped update an empty mill, a feed of
+     * -100 t/h emptied it, a blend of [5, -4] drove the hardness to its bound */
+    if (!c || !y || !u_applied || !blend || !all_finite(u_applied, GT_NU) || !blend_ok(blend) ||
+        !(u_applied[0] >= 0.0 && u_applied[1] > 0.0 && u_applied[1] < 1.0))
         return GT_ESTIMATE_BAD_INPUT;
     for (i = 0; i < 3; ++i) {
         int ok = isfinite(y[i]);
@@ -270,19 +283,12 @@ static int fallback(gt_controller *c, const double *u_prev, double *u) {
     return GT_STEP_HOLD_INPUT;
 }
 
-/* mpc.Controller._d_traj's check of the stages read (GT_PREVIEW 0: the first, held): finite
- * fractions in [0, 1] summing to 1 within GT_BLEND_SUM_TOL; a plan on [5, -4] was a plan on nothing */
+/* mpc.Controller._d_traj's check of the stages read (GT_PREVIEW 0: the first, held): each a blend
+ * (blend_ok); a plan on [5, -4] was a plan on nothing */
 static int preview_ok(const double *preview) {
-    int k, i;
-    for (k = 0; k < (GT_PREVIEW ? GT_N : 1); ++k) {
-        const double *b = preview + k * GT_NB;
-        double sum = 0.0;
-        for (i = 0; i < GT_NB; ++i) {
-            if (!isfinite(b[i]) || b[i] < -1e-9 || b[i] > 1.0 + 1e-9) return 0;
-            sum += b[i];
-        }
-        if (fabs(sum - 1.0) > GT_BLEND_SUM_TOL) return 0;
-    }
+    int k;
+    for (k = 0; k < (GT_PREVIEW ? GT_N : 1); ++k)
+        if (!blend_ok(preview + k * GT_NB)) return 0;
     return 1;
 }
 

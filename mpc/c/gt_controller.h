@@ -54,8 +54,10 @@ enum gt_step_status {
 /* status of gt_controller_estimate */
 enum gt_estimate_status {
     GT_ESTIMATE_OK = 0,
-    GT_ESTIMATE_BAD_INPUT = 1, /* c, y, u_applied or blend is NULL, or u_applied or blend holds a NaN
-                                  or an infinity (the Python EKF raises): nothing estimated, the
+    GT_ESTIMATE_BAD_INPUT = 1, /* c, y, u_applied or blend is NULL, u_applied holds a NaN or an
+                                  infinity, a feed < 0 or a speed outside (0, 1) of critical, or
+                                  blend is not fractions in [0, 1] summing to 1 within
+                                  GT_BLEND_SUM_TOL (the Python EKF raises): nothing estimated, the
                                   estimate left as it was */
     GT_ESTIMATE_RESET = 2      /* the update left a NaN or an infinity in the estimate or its
                                   covariance: both back to the exported initial estimate (the

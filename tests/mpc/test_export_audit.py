@@ -108,6 +108,7 @@ int main(void) {
     gt_controller *c = gt_controller_new();
     double y[3] = {210.0, NAN, NAN}, u[2] = {27.0, 0.7}, blend[GT_NB] = {1.0, 0.0};
     double bad_u[2] = {NAN, 0.7}, inf_blend[GT_NB] = {INFINITY, 0.0}, huge_u[2] = {1e300, 0.7};
+    double neg_u[2] = {-100.0, 0.7}, fast_u[2] = {27.0, 5.0}, no_blend[GT_NB] = {5.0, -4.0};
     double preview[GT_NB * GT_N], move[2] = {-1.0, -1.0};
     int i;
     for (i = 0; i < GT_N; ++i) { preview[i * GT_NB] = 1.0; preview[i * GT_NB + 1] = 0.0; }
@@ -115,6 +116,9 @@ int main(void) {
     show("nan_u", gt_controller_estimate(c, y, bad_u, blend), c);
     show("inf_blend", gt_controller_estimate(c, y, u, inf_blend), c);
     show("null_y", gt_controller_estimate(c, NULL, u, blend), c);
+    show("neg_feed", gt_controller_estimate(c, y, neg_u, blend), c);
+    show("speed_5", gt_controller_estimate(c, y, fast_u, blend), c);
+    show("no_blend", gt_controller_estimate(c, y, u, no_blend), c);
     show("ok", gt_controller_estimate(c, y, u, blend), c);
     show("huge_u", gt_controller_estimate(c, y, huge_u, blend), c);
     printf("null_c_estimate %d\n", gt_controller_estimate(NULL, y, u, blend));
@@ -149,9 +153,12 @@ def test_the_estimate_refuses_a_non_finite_input_and_resets_a_non_finite_estimat
                                                                    check=True).stdout.splitlines()}
     z = {k: np.array(v[1:], float) for k, v in rows.items() if len(v) > 2}
     np.testing.assert_array_equal(z["start"], est.z)  # the exported initial estimate is the EKF's
-    for name in ("nan_u", "inf_blend", "null_y"):
+    # a feed of -100 t/h, a speed of 5 x critical and a blend [5, -4] were estimated with OK: an empty mill,
+    # a hardness at its bound; now refused in C and in Python alike
+    for name in ("nan_u", "inf_blend", "null_y", "neg_feed", "speed_5", "no_blend"):
         assert rows[name][0] == "1" and np.array_equal(z[name], z["start"]), name  # GT_ESTIMATE_BAD_INPUT
-    for u, blend in (([np.nan, 0.7], [1.0, 0.0]), ([27.0, 0.7], [np.inf, 0.0])):
+    for u, blend in (([np.nan, 0.7], [1.0, 0.0]), ([27.0, 0.7], [np.inf, 0.0]), ([-100.0, 0.7], [1.0, 0.0]),
+                     ([27.0, 5.0], [1.0, 0.0]), ([27.0, 0.7], [5.0, -4.0])):
         with pytest.raises(MpcInputError):
             est.make_step([210.0, np.nan, np.nan], u, blend)
     # the Python EKF from the same state: the same update, then the reset the closed loop makes
