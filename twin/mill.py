@@ -255,8 +255,9 @@ def bond_power_kw(mill: Mill, speed_frac_critical):
     SME, 393-438; Bond 1961), times the mass of the ball bed J (pi/4) D^2 L rho_bulk [t], times the
     mill's ``power_factor``. The same as Gupta & Yan's (2016, eq. 9.28) 7.33 J phi_c (1 - 0.937 J)
     (...) rho_b L D^2.3 with rho_b the balls' own density (its 7.33 = 12.26 x 0.6 holds the bed's
-    40 % voids); read with the bulk density, as this was, it gave 0.6x Bond's power. Works on
-    floats and CasADi expressions."""
+    40 % voids); read with the bulk density, as this was, it gave 0.6x Bond's power. Rowland's
+    ball-size term Ss = 1.102 (B - 12.5 D) / 50.8 kW/t for mills over 3.3 m is left out (a step at
+    3.3 m; docs/sizing.md gives its size). Works on floats and CasADi expressions."""
     J = mill.ball_filling_frac
     phi = speed_frac_critical
     per_tonne = (ROWLAND_KW_PER_T * mill.diameter_m ** 0.3 * (3.2 - 3.0 * J) * phi

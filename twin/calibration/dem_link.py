@@ -195,13 +195,14 @@ def fit_t10(e_kwh_t, t10) -> dict:
 
 
 def drop_tests(ore: Mineralogy, bond_params, e50_j_kg: float, settings: dict, seed: int, tick=None,
-               workers: int = 1) -> dict:
+               workers: int = 1, time_step_factor: float = DROP_TIME_STEP_FACTOR) -> dict:
     """Drop-weight tests at ``drop_energy_multiples`` x E50 on ``drop_particles`` packings, on
     ``workers`` processes (the same answer for any number); each row keeps its packing index and
-    energy multiple (for the bootstrap and the pooled B)."""
+    energy multiple (for the bootstrap and the pooled B). ``time_step_factor``: the calibration's
+    (benchmarks/dem_drop_time_step.py runs others)."""
     from dem import drop_weight_test, make_agglomerate, run_in_processes
 
-    kw = {"drop_mass_kg": DROP_MASS_KG, "material": _material(ore), "time_step_factor": DROP_TIME_STEP_FACTOR,
+    kw = {"drop_mass_kg": DROP_MASS_KG, "material": _material(ore), "time_step_factor": time_step_factor,
           "max_time_factor": DROP_MAX_TIME_FACTOR}
     aggs = [make_agglomerate(PARTICLE_DIAMETER_M, SPHERES, random_state=seed + k)
             for k in range(settings["drop_particles"])]
