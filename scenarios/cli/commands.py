@@ -156,6 +156,18 @@ def _calibration_arg(value):
     return str(Path(value).resolve()) if Path(value).is_file() else value
 
 
+def _calibrated_twin(blend, mill, calibration):
+    """A command's twin: of the effects, size grid and mixers its calibration was fitted with (a file fitted
+    with others ran with the defaults and a note, exit 0, where a scene of it is refused). A mill other than
+    the calibration's keeps its mixers' shares its own (Calibration.mixers_mismatch)."""
+    from twin import SizeGrid, Twin
+    from twin.calibration import load_calibration
+
+    cal = load_calibration(calibration)
+    return Twin(blend, mill=mill, calibration=cal, effects=list(cal.effects), grid=SizeGrid(**cal.size_grid),
+                n_mixers=cal.n_mixers)
+
+
 def _with_calibration(scene, value):
     """The scene with ``--calibration`` (if given) in place of its own ``calibration``."""
     if value is not None:
@@ -724,9 +736,7 @@ def cmd_steady(args) -> int:
                                 calibration=calibration)
         kpis = {k: v for k, v in kpis.items() if k in STEADY_KEYS or k == "source"}
     else:
-        from twin import Twin
-
-        twin = Twin(blend, mill=args.mill, calibration=calibration)
+        twin = _calibrated_twin(blend, args.mill, calibration)
         refuse_slow_speed(twin, args.speed, "--speed")
         what = "--feed-tph" if args.feed_tph is not None else "the mill's nominal feed (no --feed-tph given)"
         if args.at_constant_load:
@@ -820,13 +830,12 @@ def cmd_optimize(args) -> int:
     import json
 
     from mpc import MpcInputError, default_feed_bounds, optimal_setpoints
-    from twin import Twin
 
     if args.objective is not None and args.mode != "both":
         raise SceneError(f"--objective {args.objective}: with --mode {args.mode} one input holds the target and "
                          "there is one answer; --objective chooses among --mode both's")
     blend = _blend_of(args)
-    twin = Twin(blend, mill=args.mill, calibration=_calibration_arg(args.calibration))
+    twin = _calibrated_twin(blend, args.mill, _calibration_arg(args.calibration))
     try:
         sp = optimal_setpoints(twin, list(blend.fractions), args.target_p80_um, mode=args.mode,
                                objective=args.objective or "min_energy", feed_bounds_tph=default_feed_bounds(twin))

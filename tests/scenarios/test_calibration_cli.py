@@ -154,3 +154,19 @@ def test_the_shipped_table_calibration_is_what_its_command_makes(tmp_path, capsy
     assert made["fit"]["at_bounds"] and all(f"{n} " in said for n in made["fit"]["at_bounds"]), said
     command = "grindtwin calibrate --map mineralogy --out twin/calibration/files/table.json"
     assert shipped["provenance"]["command"] == command
+
+
+def test_a_commands_twin_takes_its_calibrations_effects_grid_and_mixers():
+    """`steady --calibration FILE` built the default twin whatever the file was fitted with, and a file fitted
+    without cushioning ran with it (a note, exit 0) where a scene of it is refused. The command's twin is now
+    the calibration's: its effects, size grid and mixers; so no mismatch."""
+    from scenarios.cli.commands import _calibrated_twin
+    from twin.calibration import Calibration
+
+    record = json.loads(json.dumps(load_calibration("dem").record))
+    record["effects"] = [e for e in record["effects"] if e != "cushioning"]
+    record["size_grid"] = {**record["size_grid"], "count": 20}
+    record["n_mixers"] = 2
+    twin = _calibrated_twin("B", "lab", Calibration(record))
+    assert "cushioning" not in twin.model.effect_names and twin.grid.count == 20 and twin.spec.n_mixers == 2
+    assert twin.calibration_mismatch == []

@@ -19,7 +19,7 @@ import scipy.optimize
 from ..errors import SolverError, TwinInputError
 from .fitted import on_bound
 from .parametric import ParametricTwin, calibration_values
-from .reference import KPIS, reference_identity, reference_table
+from .reference import KPIS, given_reference, reference_identity, reference_table
 
 #: Tolerances (stated in every fit record). Step 1, scipy's trust-region least squares, stops on
 #: relative changes below LSQ_TOL (ftol, xtol, gtol). Step 2, the max-norm by SLSQP, stops when
@@ -95,7 +95,13 @@ class TableProblem:
         self.bounds = {n: bounds[n] for n in self.names}
         self.log = np.array([self.bounds[n][0] > 0 for n in self.names])
         ref = reference or reference_table()
+        unknown = [o for o in ores if o not in ref]
+        if unknown:
+            raise TwinInputError(f"The 'ores' parameter names {unknown}, not in the reference table "
+                                 f"(ores {sorted(ref)}).")
         self.ref = {o: ref[o] for o in ores}
+        # what the fit is to: the shipped table, or values given (recorded as such, never as the table)
+        self.fitted_to = reference_identity() if reference is None else given_reference(self.ref)
         self.twins = {o: ParametricTwin(o, calibration, self.names) for o in ores}
         self.base = calibration_values(calibration)
         self.failures: list[str] = []
@@ -170,7 +176,7 @@ def fit_problem(problem: TableProblem, start: dict | None = None, max_iter: int 
                          least_squares_first)
     at_bound = [n for n, z, a, b in zip(problem.names, sol.x, lo, hi) if on_bound(z, a, b)]  # in the packed space
     return {
-        "fitted_to": reference_identity(),
+        "fitted_to": problem.fitted_to,
         "ores": list(problem.ref), "parameters_fitted": list(problem.names), "values": problem.unpack(sol.x),
         "at_bounds": at_bound,
         "optimizer": {"success": bool(sol.success), "message": sol.message, "slsqp_iterations": sol.nit,

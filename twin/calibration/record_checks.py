@@ -192,6 +192,11 @@ def check_data(record: dict, where: str) -> None:
         raise _bad(where, "fit.fitted_to", fitted_to, "the data it was fitted to: a table of its 'path' and "
                    "'sha256' (twin.calibration.reference.reference_identity)")
     now = reference_identity()
+    if fitted_to.get("path", now["path"]) is None:  # twin.calibration.reference.given_reference
+        raise TwinInputError(
+            f"{where} was fitted to {fitted_to.get('what', 'values given to the fit')} (sha256 {recorded}): "
+            f"calibrations are fitted to the shipped table ({now['path']}); fitting your own laboratory data is "
+            "not supported yet (README, Limitations).")
     if recorded != now["sha256"]:
         from .model_code import refit_command
 
