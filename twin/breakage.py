@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ModelError, check_range
+from .errors import ModelError, TwinInputError, check_range
 from .mill import SPEED_FACTOR_ZERO_FRAC_CRITICAL
 from .sizes import SizeGrid
 
@@ -53,6 +53,10 @@ B_COLUMN_TOLERANCE = 1e-12
 #: Gauss-Legendre nodes per parent interval of the cell-average scheme: the integrands are
 #: smooth power laws in ln y, integrated to ~1e-12 relative by 12 nodes (tested against 48).
 GAUSS_NODES = 12
+
+
+#: BreakageParams' fields under the names of BreakageParams.energy_specific's arguments (Moly-Cop's).
+MOLYCOP_NAMES = {"mu_um": "critical_size_um", "Lambda": "alpha2", "gamma": "beta1", "beta": "beta2", "phi": "beta0"}
 
 
 @dataclass(frozen=True)
@@ -99,9 +103,16 @@ class BreakageParams:
         o = "BreakageParams.energy_specific"
         check_range(o, "alpha0_t_kwh", alpha0_t_kwh, 0.0, 1e6)
         check_range(o, "alpha1", alpha1, 0.0, 5.0)
-        return cls(se_1mm_t_kwh=alpha0_t_kwh * SELECTION_REFERENCE_UM ** alpha1, alpha=alpha1,
-                   mu_um=critical_size_um, Lambda=alpha2, gamma=beta1, beta=beta2, phi=beta0,
-                   source=source or "energy-specific (Moly-Cop) parameters")
+        try:
+            return cls(se_1mm_t_kwh=alpha0_t_kwh * SELECTION_REFERENCE_UM ** alpha1, alpha=alpha1,
+                       mu_um=critical_size_um, Lambda=alpha2, gamma=beta1, beta=beta2, phi=beta0,
+                       source=source or "energy-specific (Moly-Cop) parameters")
+        except TwinInputError as exc:  # named by Austin's fields, not the arguments given ('phi' for beta0 = 20)
+            text = str(exc)
+            for austin, given in MOLYCOP_NAMES.items():
+                text = text.replace(f"'{austin}' parameter of BreakageParams",
+                                    f"'{given}' parameter of {o} (Austin's {austin})")
+            raise TwinInputError(text) from None
 
     @classmethod
     def austin_rate(cls, a_per_min: float, alpha: float, mu_um: float, Lambda: float, gamma: float, beta: float,

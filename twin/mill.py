@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+from numbers import Real
 from dataclasses import dataclass, fields, replace
 from functools import cache
 from pathlib import Path
@@ -119,6 +120,7 @@ class Mill:
             raise bad_value(o, "stable_band", self.stable_band, "a pair (lo, hi) with 0 < lo < 1 < hi") from None
         if not 0 < lo < 1 < hi:
             raise bad_value(o, "stable_band", self.stable_band, "a pair (lo, hi) with 0 < lo < 1 < hi")
+        object.__setattr__(self, "stable_band", (lo, hi))  # a copy: the caller's list edited later skipped this check
         # 0.5 (mm) held every class back: a hold-up of 2e9 t in a 0.08 t mill and a P80 of 69 um
         check_range(o, "grate_d50_um", self.grate_d50_um, GRATE_D50_MIN_UM, 1e6, lo_open=False)
         check_range(o, "grate_sharpness", self.grate_sharpness, 0.0, 50.0)
@@ -158,6 +160,8 @@ class Mill:
     def critical_speed_rpm(self, ball_diameter_m: float = 0.0) -> float:
         """Critical speed [rpm]: the centrifugal force on a ball at the shell equals its weight,
         n_c = (60 / 2 pi) sqrt(2 g / (D - d)) (Wills & Finch 2016, eq. 7.3)."""
+        check_range("Mill.critical_speed_rpm", "ball_diameter_m", ball_diameter_m, 0.0, self.diameter_m,
+                    lo_open=False)  # 25 (mm for m) was a bare math domain error
         return 60.0 / (2 * math.pi) * math.sqrt(2 * G_M_S2 / (self.diameter_m - ball_diameter_m))
 
     def nominal_holdup_t(self, solids_density_t_m3: float) -> float:
@@ -259,7 +263,7 @@ def bond_power_kw(mill: Mill, speed_frac_critical):
     ball-size term Ss = 1.102 (B - 12.5 D) / 50.8 kW/t for mills over 3.3 m is left out (a step at
     3.3 m; docs/sizing.md gives its size). Works on floats and CasADi expressions."""
     J = mill.ball_filling_frac
-    phi = speed_frac_critical
+    phi = _speed("bond_power_kw", speed_frac_critical)
     per_tonne = (ROWLAND_KW_PER_T * mill.diameter_m ** 0.3 * (3.2 - 3.0 * J) * phi
                  * (1.0 - 0.1 / 2.0 ** (9.0 - 10.0 * phi)))
     return mill.power_factor * per_tonne * J * mill.volume_m3 * mill.ball_bulk_density_t_m3
@@ -280,6 +284,7 @@ def hogg_fuerstenau_power_kw(mill: Mill, speed_frac_critical, dynamic_angle_deg:
     critical speed. Works on floats and CasADi expressions (linear in the speed)."""
     import scipy.optimize
 
+    _speed("hogg_fuerstenau_power_kw", speed_frac_critical)
     J = mill.ball_filling_frac
     theta = scipy.optimize.brentq(lambda t: (2 * t - math.sin(2 * t)) / (2 * math.pi) - J, 1e-6, math.pi)
     radius = mill.diameter_m / 2.0
@@ -289,9 +294,18 @@ def hogg_fuerstenau_power_kw(mill: Mill, speed_frac_critical, dynamic_angle_deg:
     return mill.power_factor * mass_t * G_M_S2 * r_c * math.sin(math.radians(dynamic_angle_deg)) * omega
 
 
+def _speed(owner: str, speed_frac_critical):
+    """A speed given as a number checked as a fraction of critical in (0, 1) (70 typed for 0.70 drew
+    -5.9e208 kW in Bond's equation); a CasADi expression as it is (the model's own inputs are checked)."""
+    if isinstance(speed_frac_critical, Real):
+        check_range(owner, "speed_frac_critical", speed_frac_critical, 0.0, 1.0)
+    return speed_frac_critical
+
+
 def power_kw(mill: Mill, speed_frac_critical):
     """Net power [kW] of the mill at a speed: its ``power_model``; with ``net_power_kw`` given, that
     draw at the nominal speed, shaped with speed by the model (floats and CasADi expressions)."""
+    _speed("power_kw", speed_frac_critical)
     model = POWER_MODELS[mill.power_model]
     if mill.net_power_kw is None:
         return model(mill, speed_frac_critical)

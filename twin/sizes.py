@@ -95,18 +95,29 @@ class SizeGrid:
         return w
 
     def cumulative_passing(self, mass) -> np.ndarray:
-        """Fraction passing each upper size for a mass vector (any units)."""
+        """Fraction passing each upper size for a mass vector (any units): one finite mass >= 0 per class (a
+        vector of another length, a 2-D array or a negative class gave a P80 with no error, 1061 um for 988)."""
         m = np.asarray(mass, dtype=float)
+        if m.shape != (self.count,):
+            raise TwinInputError(f"The 'mass' of the size grid must hold one mass per class, shape ({self.count},). "
+                                 f"Got shape {m.shape}.")
+        if not np.all(np.isfinite(m)):
+            raise TwinInputError(f"The 'mass' of the size grid must be finite. Got {m.tolist()}.")
         total = m.sum()
-        if total <= 0.0:
-            raise TwinInputError("Cumulative passing needs a positive total mass. Got total 0.")
+        if total <= 0.0 or m.min() < -NEGATIVE_MASS_TOL * total:
+            raise TwinInputError(f"Cumulative passing needs masses >= 0 with a positive total. Got total {total:g}, "
+                                 f"least class {m.min():g}.")
         return np.cumsum(m[::-1])[::-1] / total
+
+
+#: A class mass below zero by this much of the total is refused; less is a solver's round-off.
+NEGATIVE_MASS_TOL = 1e-6
 
 
 def pxx_um(grid: SizeGrid, mass, percent: float = 80.0) -> float:
     """Size [um] below which ``percent`` % of the mass passes: linear interpolation of cumulative
     passing in log size between class upper sizes (monotone by construction)."""
-    frac = check_range("pxx_um", "percent", percent, 0.0, 100.0) / 100.0
+    frac = check_range("pxx_um", "percent", percent, 1.0, 100.0, lo_open=False) / 100.0  # 0.8 read as P0.8
     passing = grid.cumulative_passing(mass)
     up = grid.upper_um
     if passing[-1] >= frac:  # the sink alone holds it: extrapolate one ratio per class
@@ -258,6 +269,9 @@ class TabulatedPSD:
             raise bad_value("TabulatedPSD", "passing_frac", list(self.passing_frac),
                             "a passing that rises between some two sieves (all equal: the sieves measure nothing "
                             "of the distribution; give finer sieves)")
+        # copies as tuples: the caller's lists edited later went round these checks (passing 5.0 at 600 um)
+        object.__setattr__(self, "sizes_um", tuple(float(v) for v in s))
+        object.__setattr__(self, "passing_frac", tuple(float(v) for v in p))
 
     @classmethod
     def from_sieves(cls, sizes_um, passing_pct) -> "TabulatedPSD":

@@ -60,16 +60,32 @@ def work_index_note(spec, outputs: dict, product_mass) -> str:
     energy = outputs.get("specific_energy_kwh_t")
     if energy is None or not np.isfinite(energy) or not np.sum(product_mass) > 0:
         return ""
-    p80, f80 = pxx_um(spec.grid, product_mass), pxx_um(spec.grid, spec.feed_frac)
-    if not p80 < f80:
+    return _work_index_text(spec, float(energy), pxx_um(spec.grid, product_mass), outputs.get("load_frac"))
+
+
+#: Loads [hold-up over nominal] inside which an operating work index outside ores' points at the rates'
+#: units; outside it at the feed (a starved or flooded mill): the stable band's default, 0.8-1.2.
+LOAD_NORMAL = (0.8, 1.2)
+
+
+def _work_index_text(spec, energy: float, p80: float, load: float | None = None) -> str:
+    """:func:`work_index_note` of a specific energy [kWh/t] and product P80 [um] at a load [-]."""
+    from .sizes import pxx_um
+
+    f80 = pxx_um(spec.grid, spec.feed_frac)
+    if not (np.isfinite(energy) and np.isfinite(p80) and p80 < f80):
         return ""
     w_io = float(energy) / (10.0 * (p80 ** -0.5 - f80 ** -0.5))
     lo, hi = WORK_INDEX_RANGE_KWH_T
     if lo <= w_io <= hi:
         return ""
+    why = ("are the breakage rates in the units their keys say (Austin's a_per_min per minute; Moly-Cop's "
+           "alpha0_t_kwh for sizes in um)?")
+    if load is not None and np.isfinite(load) and not LOAD_NORMAL[0] <= load <= LOAD_NORMAL[1]:
+        # a starved or flooded mill is no ore's either: 0.003 t/h into the lab mill asked about the rates' units
+        why += f" Or is the feed far from what the mill takes (its load is {load:.3g} of its nominal)?"
     return (f"the operating work index is {w_io:.3g} kWh/t ({float(energy):.3g} kWh/t from F80 {f80:.4g} to P80 "
-            f"{p80:.4g} um, Bond's law), outside the {lo:g}-{hi:g} of ores (Bond 1961): are the breakage rates in "
-            "the units their keys say (Austin's a_per_min per minute; Moly-Cop's alpha0_t_kwh for sizes in um)?")
+            f"{p80:.4g} um, Bond's law), outside the {lo:g}-{hi:g} of ores (Bond 1961): {why}")
 
 
 def pressure_note(outputs: dict) -> str:
@@ -153,11 +169,11 @@ def sink_note(grid, product_mass) -> str:
     if not m.sum() > 0:
         return ""
     sink = float(m[-1] / m.sum())
-    return _sink_text(sink, grid.upper_um[-1]) if sink >= SINK_NOTE_FRAC else ""
+    return _sink_text(f"{sink:.0%}", grid.upper_um[-1]) if sink >= SINK_NOTE_FRAC else ""
 
 
-def _sink_text(sink: float, finest_um: float) -> str:
-    return (f"{sink:.0%} of the product lies below the finest size class ({finest_um:.3g} um): its P80 is "
+def _sink_text(share: str, finest_um: float) -> str:
+    return (f"{share} of the product lies below the finest size class ({finest_um:.3g} um): its P80 is "
             "extrapolated, not resolved (a finer mill.size_classes would resolve it; or check the feed's sizes "
             "for mm given as um and the breakage rates' units)")
 
@@ -191,13 +207,34 @@ def _clay_crowding(spec, effect_names) -> float | None:
     return k_clay if "rheology" in effect_names and isinstance(k_clay, Real) else None
 
 
+def _sample_notes(frame, spec) -> list[str]:
+    """The steady states' notes of a run's samples that read its outputs (a roping underflow, a cyclone
+    pressure outside the range, a water balance that takes water out, an operating work index outside
+    ores'), each with the span of samples it holds on and its text at the last of them: a run held a
+    roping cyclone for an hour and said nothing its steady state said."""
+    t = frame["time_h"].to_numpy(float)
+    rows = frame.to_dict("records")
+    checks = [lambda r: roping_note(spec, r), pressure_note, water_note]
+    if "specific_energy_kwh_t" in frame.columns and "p80_exact_um" in frame.columns:
+        checks.append(lambda r: _work_index_text(spec, float(r["specific_energy_kwh_t"]), float(r["p80_exact_um"]),
+                                                 r.get("load_frac")))
+    notes = []
+    for check in checks:
+        texts = [check(r) for r in rows]
+        hit = [i for i, text in enumerate(texts) if text]
+        if hit:
+            notes.append(f"from {t[hit[0]]:.4g} h to {t[hit[-1]]:.4g} h ({len(hit)} of {len(t)} samples) "
+                         f"{texts[hit[-1]]}")
+    return notes
+
+
 def trajectory_notes(frame, spec, effect_names, product_psd=None) -> list[str]:
     """The notes of a run's samples (a frame with ``time_h`` and any of ``holdup_t``,
     ``speed_frac_critical``, ``clay_frac``), each saying when: the share of samples past the
     mill's shell and the largest hold-up, the centrifuging speed and the jammed slurry of its most
-    extreme sample; and, given the product's size snapshots (``product_psd``: rows = times [h],
-    columns = class upper sizes [um], values = cumulative fraction passing), when its P80 lies in
-    the grid's sink (:func:`sink_note`)."""
+    extreme sample; when its P80 lies in the grid's sink (:func:`sink_note`; from the product's size
+    snapshots, ``product_psd``: rows = times [h], columns = class upper sizes [um], values = cumulative
+    fraction passing, else from ``p80_exact_um``); and the notes of its outputs (:func:`_sample_notes`)."""
     t = frame["time_h"].to_numpy(float)
     notes = [n for n in (residence_note(spec),) if n]
     if product_psd is not None and len(product_psd):
@@ -206,7 +243,14 @@ def trajectory_notes(frame, spec, effect_names, product_psd=None) -> list[str]:
         if deep.any():
             when = product_psd.index.to_numpy(float)[deep]
             notes.append(f"from {when[0]:.4g} h to {when[-1]:.4g} h ({deep.sum()} of {len(sink)} size snapshots) "
-                         + _sink_text(float(sink.max()), float(product_psd.columns[-1])))
+                         + _sink_text(f"{float(sink.max()):.0%}", float(product_psd.columns[-1])))
+    elif "p80_exact_um" in frame.columns:  # without snapshots: a P80 below the finest class bound lies in the sink
+        finest = float(spec.grid.upper_um[-1])
+        deep = frame["p80_exact_um"].to_numpy(float) < finest
+        if deep.any():
+            notes.append(f"from {t[deep][0]:.4g} h to {t[deep][-1]:.4g} h ({deep.sum()} of {len(t)} samples) "
+                         + _sink_text(f"{SINK_NOTE_FRAC:.0%} or more", finest))
+    notes += _sample_notes(frame, spec)
     if "holdup_t" in frame.columns:
         capacity_t = spec.mill.max_holdup_t(spec.solids_density_t_m3)
         held = frame["holdup_t"].to_numpy(float)

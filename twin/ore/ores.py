@@ -99,6 +99,10 @@ class Blend:
             raise TwinInputError("A Blend needs one fraction per ore and at least one ore.")
         # ores named as Twin takes them ('B', a TOML path) failed on .name; a text fraction on '<='
         object.__setattr__(self, "ores", tuple(load_ore(o) if isinstance(o, (str, Path)) else o for o in self.ores))
+        for o in self.ores:  # (1, 2) failed on .name with a bare AttributeError
+            if not isinstance(o, Mineralogy):
+                raise TwinInputError(f"The 'ores' of Blend must be ore names, ore files or Mineralogy objects. "
+                                     f"Got {o!r}.")
         fractions = []
         for ore, f in zip(self.ores, self.fractions):
             if isinstance(f, bool) or not isinstance(f, numbers.Real):

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+import threading
 from functools import lru_cache
 
 import casadi as ca
@@ -62,6 +63,11 @@ def _dae(model, rtol: float, extra: dict) -> tuple[str, dict]:
     return "cvodes", dict(x=model.x, ode=model.xdot, quad=quad, **extra)
 
 
+#: The cached integrators below are shared by every caller of a model: two threads in one at once
+#: crashed the process (IDAS's memory is the Function's) or failed with NaN; their calls take turns.
+INTEGRATOR_LOCK = threading.Lock()
+
+
 @lru_cache(maxsize=64)
 def step_integrator(model, dt_h: float, rtol: float = RTOL, atol_rel: float = ATOL_REL) -> ca.Function:
     """IDAS (BDF) over one sample period on the model's sparse DAE form:
@@ -83,7 +89,8 @@ def integrate_constant(model, x0, duration_h: float, u, d, rtol=RTOL, atol_rel=A
     """State after ``duration_h`` at constant inputs."""
     F = step_integrator(model, float(duration_h), rtol, atol_rel)
     try:
-        out = F(x0=x0, z0=_z0(F, model, x0), p=np.concatenate([u, d]))
+        with INTEGRATOR_LOCK:
+            out = F(x0=x0, z0=_z0(F, model, x0), p=np.concatenate([u, d]))
     except RuntimeError as exc:
         raise SolverError(f"The integrator failed integrating {duration_h} h: {exc}") from exc
     return model.checked_state(np.asarray(out["xf"]).ravel(), "integration")
@@ -222,7 +229,8 @@ def simulate(model, x0, duration_h: float, dt_h: float, u_fn, d_fn, rtol=RTOL, a
         slope = (before[b - 1] - values[a]) / ((b - a) * dt_h)
         G = stretch_integrator(model, float(dt_h), int(b - a), rtol, atol_rel)
         try:
-            out = G(x0=xs[a], z0=_z0(G, model, xs[a]), p=np.concatenate([values[a], slope]))
+            with INTEGRATOR_LOCK:
+                out = G(x0=xs[a], z0=_z0(G, model, xs[a]), p=np.concatenate([values[a], slope]))
         except RuntimeError as exc:
             raise SolverError(f"The integrator failed between t = {a * dt_h:.4g} h and {b * dt_h:.4g} h: "
                               f"{exc}") from exc
@@ -289,7 +297,8 @@ def step(model, x, u, d, dt_h: float, rtol: float = RTOL, atol_rel: float = ATOL
     closed loop must when its inputs jump). Returns (x_next, fed_t, produced_t)."""
     F = step_integrator(model, float(dt_h), rtol, atol_rel)
     try:
-        out = F(x0=x, z0=_z0(F, model, x), p=np.concatenate([np.asarray(u, float), np.asarray(d, float)]))
+        with INTEGRATOR_LOCK:
+            out = F(x0=x, z0=_z0(F, model, x), p=np.concatenate([np.asarray(u, float), np.asarray(d, float)]))
     except RuntimeError as exc:
         raise SolverError(f"The integrator failed over one {dt_h} h step: {exc}") from exc
     q = np.asarray(out["qf"]).ravel()

@@ -1,0 +1,87 @@
+"""A notebook user's slips with the twin's Python API: runs that said less than their steady states, two threads
+in one twin, masses and speeds of the wrong shape or unit, lists edited after the check, errors in another
+function's names."""
+
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import pytest
+
+from twin import BreakageParams, SizeGrid, TabulatedPSD, TwinInputError, pxx_um
+from twin.mill import LAB, bond_power_kw, hogg_fuerstenau_power_kw, power_kw
+from twin.ore.ores import Blend
+
+
+def test_a_run_states_its_steady_states_notes_over_its_samples(twin_b):
+    """A run held at a steady state whose P80 lies in the grid's sink and whose operating work index is no
+    ore's said nothing (Trajectory.notes []), its steady state both: the notes are read off the samples now."""
+    ss = twin_b.steady(hardness_scale=1e-4)
+    assert any("below the finest size class" in n for n in ss.notes)
+    run = twin_b.simulate(0.2, 0.05, hardness_scale=1e-4, x0=ss.x)
+    assert any(n.startswith("from 0 h to 0.2 h (5 of 5 samples)") and "below the finest size class" in n
+               for n in run.notes)
+    assert any("operating work index is 1.69 kWh/t" in n for n in run.notes)
+    assert twin_b.simulate(0.1, 0.05).notes == []  # the calibrated point: nothing to say
+    # a starved mill's work index is no ore's either: the note asked about the rates' units alone
+    (starved,) = [n for n in twin_b.steady(feed_tph=0.003).notes if "operating work index" in n]
+    assert "Or is the feed far from what the mill takes (its load is 0.267 of its nominal)?" in starved
+
+
+def test_two_threads_simulating_on_one_twin_agree_with_one(twin_b):
+    """The cached integrators were shared: two threads in one twin crashed the process (2 runs of 3) or
+    raised IDAS's NaN error. Their calls now take turns."""
+    serial = {f: twin_b.simulate(0.2, 0.05, feed_tph=f).frame["p80_exact_um"].iloc[-1] for f in (0.025, 0.04)}
+    with ThreadPoolExecutor(2) as ex:
+        out = list(ex.map(lambda f: (f, twin_b.simulate(0.2, 0.05, feed_tph=f).frame["p80_exact_um"].iloc[-1]),
+                          [0.025, 0.04] * 3))
+    assert all(v == serial[f] for f, v in out)
+
+
+def test_pxx_refuses_masses_that_are_not_one_per_class():
+    """10 masses for 25 classes gave 1061 um for 988, a 2-D array 18 um, a negative class 4030 um, a NaN an
+    IndexError, and percent 0.8 (a fraction) P0.8 = 3 um: each refused, naming what is wrong."""
+    grid = SizeGrid()
+    m = np.exp(-0.3 * np.arange(grid.count))
+    p80 = pxx_um(grid, m)
+    for bad, match in ((m[:10], r"shape \(25,\)"), (np.vstack([m, m]), r"shape \(25,\)"),
+                       (np.r_[-0.5, 1.5, np.zeros(23)], "masses >= 0"), (np.r_[np.nan, m[1:]], "finite")):
+        with pytest.raises(TwinInputError, match=match):
+            pxx_um(grid, bad)
+    with pytest.raises(TwinInputError, match="'percent' parameter of pxx_um"):
+        pxx_um(grid, m, 0.8)
+    assert pxx_um(grid, np.r_[m[:-1], -1e-12]) == pytest.approx(pxx_um(grid, np.r_[m[:-1], 0.0]), rel=1e-9)  # round-off
+    assert 900 < p80 < 6700
+
+
+@pytest.mark.parametrize("fn", [bond_power_kw, hogg_fuerstenau_power_kw, power_kw])
+def test_the_power_models_refuse_a_speed_that_is_no_fraction_of_critical(fn):
+    """70 typed for 0.70 drew -5.9e208 kW in Bond's equation; -0.5 and 1.5 negative power."""
+    assert fn(LAB, 0.7) > 0
+    for speed in (70, -0.5, 1.5, float("nan")):
+        with pytest.raises(TwinInputError, match="'speed_frac_critical' parameter"):
+            fn(LAB, speed)
+    with pytest.raises(TwinInputError, match="'ball_diameter_m' parameter of Mill.critical_speed_rpm"):
+        LAB.critical_speed_rpm(25)  # mm for m: a bare math domain error
+
+
+def test_a_list_given_to_a_frozen_object_is_copied_after_its_check():
+    """The caller's list was kept: editing it later put a band [5, 0.1] on the mill and a passing of 5.0 at
+    600 um in the table, past their checks."""
+    band = [0.8, 1.2]
+    mill = LAB.with_(stable_band=band)
+    band[:] = [5.0, 0.1]
+    assert mill.stable_band == (0.8, 1.2)
+    sizes, passing = [75, 150, 300, 600, 1200, 2400, 4800], [0.1, 0.2, 0.35, 0.5, 0.7, 0.9, 1.0]
+    psd = TabulatedPSD(sizes, passing)
+    passing[3] = 5.0
+    assert float(psd.passing(600)) == pytest.approx(0.5)
+
+
+def test_moly_cop_parameters_are_named_as_given_and_a_blend_of_numbers_is_refused():
+    """beta0 = 20 was refused as "'phi' parameter of BreakageParams"; Blend((1, 2), ...) raised AttributeError."""
+    with pytest.raises(TwinInputError, match=r"'beta0' parameter of BreakageParams.energy_specific \(Austin's phi\)"):
+        BreakageParams.energy_specific(0.0097, 1.0, 2.0, 3000.0, 20.0, 0.3, 4.0)
+    with pytest.raises(TwinInputError, match="'alpha2' parameter"):
+        BreakageParams.energy_specific(0.0097, 1.0, -2.0, 3000.0, 0.5, 0.3, 4.0)
+    with pytest.raises(TwinInputError, match="'ores' of Blend must be ore names"):
+        Blend((1, 2), (0.5, 0.5))
