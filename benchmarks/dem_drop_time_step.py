@@ -11,8 +11,8 @@ bias the packings' scatter does not cover. Per energy multiple: the mean broken 
 the pooled fit's t10 and gamma; per factor: Narayanan & Whiten's A, b and A x b, and the wall
 time of the tests (their cost; the step count scales as 1 / factor).
 
-Writes benchmarks/results/dem_drop_time_step.csv/.md and dem_drop_time_step_tests.csv (every
-test). Run: ``python benchmarks/dem_drop_time_step.py [--ore B] [--factors 0.5,0.25,0.125]
+Writes benchmarks/results/dem_drop_time_step{TAG}.csv/.md and dem_drop_time_step{TAG}_tests.csv
+(every test). Run: ``python benchmarks/dem_drop_time_step.py [--ore B] [--factors 0.5,0.25,0.125]
 [--particles N] [--boot 400]`` (defaults: ore B, the calibration's 4 packings; about 9 min on 2
 cores for the default factors, the finest 0.125 two thirds of it).
 """
@@ -50,6 +50,7 @@ def options(argv=None) -> argparse.Namespace:
                     help="packings per energy (default 0: the calibration's)")
     ap.add_argument("--boot", type=option_type(int, lambda v: 10 <= v <= 10000, "an integer in [10, 10000]"),
                     default=400, help="bootstrap resamples of the packings (default %(default)s)")
+    ap.add_argument("--tag", default="", help="suffix of the results files (e.g. _fine for another set of factors)")
     ap.add_argument("--workers", type=option_type(int, lambda v: v >= 1, "an integer >= 1"), default=os.cpu_count())
     return ap.parse_args(argv)
 
@@ -121,11 +122,12 @@ def main(argv=None):
         tests_out += [{"factor": f, **{k: v for k, v in t.items() if not isinstance(v, list)}} for t in tests]
         print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in row.items()}, flush=True)
     table = pd.DataFrame(rows)
-    pd.DataFrame(tests_out).to_csv(os.path.join(os.path.dirname(__file__), "results", "dem_drop_time_step_tests.csv"),
-                                   index=False)
-    write_table(table, "dem_drop_time_step", f"Drop-weight tests against their time step (ore {o.ore})",
+    pd.DataFrame(tests_out).to_csv(os.path.join(os.path.dirname(__file__), "results",
+                                                f"dem_drop_time_step{o.tag}_tests.csv"), index=False)
+    write_table(table, f"dem_drop_time_step{o.tag}", f"Drop-weight tests against their time step (ore {o.ore})",
                 f"Command: `python benchmarks/dem_drop_time_step.py --ore {o.ore} --factors "
-                f"{','.join(f'{f:g}' for f in o.factors)}{f' --particles {o.particles}' if o.particles else ''}`. "
+                f"{','.join(f'{f:g}' for f in o.factors)}{f' --particles {o.particles}' if o.particles else ''}"
+                f"{f' --tag {o.tag}' if o.tag else ''}`. "
                 f"The shipped calibration's bonds, E50 ({b['fracture_energy']['e50_j_kg']:.4g} J/kg) and drop settings "
                 f"(1 kg weight, energies {', '.join(f'{m:g}' for m in multiples)} x E50, the calibration's packing "
                 f"seeds), the time step a factor of System's critical step (the calibration's: "

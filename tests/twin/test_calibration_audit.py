@@ -236,3 +236,33 @@ def test_austins_b_on_a_bound_is_marked_where_the_tests_ask_for_more():
     assert law["gamma"][0] == pytest.approx(AUSTIN_B_BOUNDS["gamma"][0]) and law["at_bounds"][0] == ["gamma"]
     assert law["gamma"][1] == pytest.approx(0.8, rel=1e-6) and law["at_bounds"][1] == []
     assert law["bounds"] == {k: list(v) for k, v in AUSTIN_B_BOUNDS.items()}
+
+
+def test_a_file_changed_after_grindtwin_wrote_it_is_refused(tmp_path):
+    """An edit the field checks cannot see ran with exit 0: the effects list without cushioning (P80 159.6 um
+    for 203.6), a coefficient x3 in all three of its copies (72.6 um), the fit's reported error. A file now
+    records the digest of its content (content_sha256) and one that no longer matches is refused."""
+    from twin.calibration import load_calibration
+
+    mine = tmp_path / "mine.json"
+    assert _calibrate(["--from", "dem", "--replicates", "0", "--out", str(mine)]) == 0
+    record = json.loads(mine.read_text())
+    assert load_calibration(mine).record["content_sha256"] == record["content_sha256"]
+    def times_three(r):  # in all three of its copies, as check_fitted compares them
+        for d in (r["coefficients"], r["fit"]["values"], r["fitted"]["dem_capture_scale"]):
+            key = "value" if "value" in d else "dem_capture_scale"
+            d[key] *= 3
+
+    edits = {"effects": lambda r: r["effects"].remove("cushioning"), "coefficient x3": times_three,
+             "reported error": lambda r: r["fit"].__setitem__("max_abs_error_pct", 0.1)}
+    for name, edit in edits.items():
+        changed = json.loads(json.dumps(record))
+        edit(changed)
+        path = tmp_path / f"{name.replace(' ', '_')}.json"
+        path.write_text(json.dumps(changed))
+        with pytest.raises(TwinInputError, match="changed after grindtwin wrote it"):
+            load_calibration(path)
+    # and `calibrate --out` over the edited file refuses it (it was replaced, with a note on stderr)
+    edited = path.read_text()
+    assert _calibrate(["--from", "dem", "--replicates", "0", "--out", str(path)]) == 2
+    assert path.read_text() == edited

@@ -335,7 +335,28 @@ def check_record(record: dict, where: str, law: bool = True, data: bool = True) 
         check_data(record, where)
     if record["breakage_map"] == "dem" and law:
         check_law(record, where)
+    check_content(record, where)  # last: the checks above name what they catch
     return record
+
+
+def content_digest(record: dict) -> str:
+    """The SHA-256 of a record's content as JSON (keys sorted), its ``content_sha256`` left out."""
+    body = {k: v for k, v in record.items() if k != "content_sha256"}
+    text = json.dumps(json.loads(json.dumps(body)), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def check_content(record: dict, where: str) -> None:
+    """A record is what grindtwin wrote (its ``content_sha256``, :func:`write_calibration`): an edit the checks
+    above cannot see (a coefficient x3 in all its copies, the effects list, the grid, the reported fit) ran
+    with exit 0 and other numbers (P80 72.6 um for 203.6). A record without the field predates it."""
+    recorded = record.get("content_sha256")
+    if recorded is not None and recorded != content_digest(record):
+        from .model_code import refit_command
+
+        raise TwinInputError(f"{where} was changed after grindtwin wrote it (its content no longer matches its "
+                             f"content_sha256): a calibration's numbers are made by a command, not typed in. Make a "
+                             f"new one (`{refit_command(record)}`), or restore the file.")
 
 
 _LOADED: dict = {}
@@ -450,6 +471,10 @@ def check_writable(path: Path) -> Path:
             record = None
         if not _written_by_grindtwin(record):
             raise TwinInputError(f"Refusing to overwrite {path}: it is not a calibration file grindtwin wrote.")
+        if record.get("content_sha256") not in (None, content_digest(record)):  # replaced, with a note only
+            raise TwinInputError(f"Refusing to overwrite {path}: it was changed after grindtwin wrote it (its content "
+                                 "no longer matches its content_sha256): your edits would be lost. Move it away or "
+                                 "give another output file.")
     if not path.parent.is_dir():
         raise TwinInputError(f"The folder of the calibration output {path} does not exist.")
     return path
@@ -464,6 +489,7 @@ def write_json_atomically(path: Path, record: dict, indent: int = 2) -> None:
 def write_calibration(path: Path, record: dict) -> Calibration:
     """Check and write a calibration record (refusing what :func:`check_writable` refuses)."""
     record = {**record, "format": FILE_FORMAT, "format_version": FORMAT_VERSION}
+    record["content_sha256"] = content_digest(record)
     check_record(record, "the new calibration")
     path = check_writable(path)
     write_json_atomically(path, record, indent=1)
