@@ -85,3 +85,21 @@ def test_moly_cop_parameters_are_named_as_given_and_a_blend_of_numbers_is_refuse
         BreakageParams.energy_specific(0.0097, 1.0, -2.0, 3000.0, 0.5, 0.3, 4.0)
     with pytest.raises(TwinInputError, match="'ores' of Blend must be ore names"):
         Blend((1, 2), (0.5, 0.5))
+
+
+def test_an_ore_harder_than_every_reference_ore_is_noted_though_its_energy_group_is_inside(tmp_path):
+    """70 % pyrite (hardness index 12.8 GPa against the reference ores' 4.4-9.65) has an energy group Pi inside
+    the fitted range: the dem calibration noted nothing. The properties its strength index reads are
+    compared one by one now."""
+    from twin.calibration import load_calibration
+    from twin.ore import load_ore, reference_ores
+
+    path = tmp_path / "pyrite.toml"
+    path.write_text('mineralogy = { quartz = 20.0, pyrite = 70.0, kaolinite = 10.0 }\n'
+                    'texture = { mean_grain_um = 150.0, uniformity = 0.6, association_entropy = 0.5 }\n')
+    ore = load_ore(path)
+    cal = load_calibration("dem")
+    notes = cal.extrapolation_notes([ore])
+    assert [n for n in notes if "hardness index 12.8 GPa lies outside the 4.41-9.65 GPa" in n]
+    assert not [n for n in notes if "energy group Pi" in n]  # the one input compared before
+    assert cal.extrapolation_notes(list(reference_ores().values())) == []

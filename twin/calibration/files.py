@@ -115,7 +115,8 @@ class Calibration:
         """The ores of ``ores`` whose inputs to this calibration's breakage map lie outside those of
         the ores it was fitted on, so their breakage is the map's extrapolation: the dem map's energy
         group Pi (twin.calibration.dem_map s1: its law is the bonded model's, the strength index F(M)
-        is untested there), the mineralogy map's hardness and textural indices."""
+        is untested there) and the hardness index and Young's modulus F reads, the mineralogy map's
+        hardness and textural indices."""
         from ..ore import reference_ores
 
         refs = reference_ores()
@@ -124,9 +125,14 @@ class Calibration:
 
             law = self.record["law"]
             fitted = law["ln_energy_group"]
-            inputs = {"energy group Pi": (lambda o: energy_group(o, law["reference"]),
-                                          [math.exp(v) for v in fitted.values()], "")}
             names = list(fitted)
+            # Pi and the two properties its strength index F reads: a 70 % pyrite ore (hardness 12.8 GPa against
+            # 4.4-9.65) had a Pi inside the range, and no note
+            inputs = {"energy group Pi": (lambda o: energy_group(o, law["reference"]),
+                                          [math.exp(v) for v in fitted.values()], ""),
+                      "hardness index": (lambda o: o.hardness_index_gpa,
+                                         [refs[n].hardness_index_gpa for n in names], " GPa"),
+                      "Young's modulus": (lambda o: o.youngs_gpa, [refs[n].youngs_gpa for n in names], " GPa")}
         elif "fit" not in self.record:  # a record being fitted (grindtwin calibrate --map mineralogy): no range yet
             return []
         else:
