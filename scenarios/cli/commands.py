@@ -637,9 +637,14 @@ def refuse_few_replicates(n: int, calibration, level: float) -> None:
            f"them beyond each end: one on each side takes 2 / (1 - {level:g}) = {need}; fewer give the spread of a "
            "few draws, not the interval)")
     if kept < need:
+        if calibration.breakage_map != "dem":  # --map mineralogy refuses --replicates: the advice could not be taken
+            how = ("the mineralogy map has no bootstrap (its numbers are fitted to the table alone, no DEM scatter "
+                   "to carry); use a DEM calibration (the default 'dem') for intervals")
+        else:
+            how = (f"make a calibration with more (grindtwin calibrate --replicates N, N >= {need}) and give it with "
+                   "--calibration")
         raise SceneError(f"--uncertainty{f' {n}' if n else ''}: calibration {calibration.label()} keeps {kept} "
-                         f"converged bootstrap replicate{'s' * (kept != 1)}; {why}. Make a calibration with more "
-                         f"(grindtwin calibrate --replicates N, N >= {need}) and give it with --calibration.")
+                         f"converged bootstrap replicate{'s' * (kept != 1)}; {why}. {how[0].upper() + how[1:]}.")
     if 0 < n < need:
         raise SceneError(f"--uncertainty {n}: {why}; give --uncertainty {need} or more, or 0 for all {kept}.")
 

@@ -103,8 +103,9 @@ class Mill(Section):
     preset: Literal["lab", "industrial"]
     """The mill: ``"lab"`` is MISSION.md's laboratory mill (0.5 m x 0.3 m, 31 kg/h nominal),
     ``"industrial"`` the mill `grindtwin size-mill` sizes for 31 t/h of Type B at 210 um in closed
-    circuit with hydrocyclones (twin/data/industrial_mill.json). Calibrated
-    values of the preset (power factor, grate, discharge) come from the shipped calibration."""
+    circuit with hydrocyclones (twin/data/industrial_mill.json). Calibrated values of the preset
+    (power factor, grate, discharge) come from the scene's calibration (its ``calibration``, the
+    shipped ``dem`` by default)."""
     diameter_m: float | None = Field(default=None, gt=0, le=MILL_DIAMETER_MAX_M, examples=[3.2])
     """Inside diameter [m]; default: the preset's. A diameter in feet (18 for 5.5 m) lands above the
     range and is refused."""

@@ -170,3 +170,10 @@ def test_a_commands_twin_takes_its_calibrations_effects_grid_and_mixers():
     twin = _calibrated_twin("B", "lab", Calibration(record))
     assert "cushioning" not in twin.model.effect_names and twin.grid.count == 20 and twin.spec.n_mixers == 2
     assert twin.calibration_mismatch == []
+
+
+def test_uncertainty_on_the_mineralogy_map_says_what_can_give_intervals(capsys):
+    """The refusal advised `grindtwin calibrate --replicates N`, which `--map mineralogy` refuses."""
+    assert main(["steady", "--ore", "B", "--feed-tph", "0.031", "--calibration", "table", "--uncertainty"]) == 2
+    err = capsys.readouterr().err
+    assert "mineralogy map has no bootstrap" in err and "--replicates" not in err
