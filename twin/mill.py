@@ -295,10 +295,10 @@ def hogg_fuerstenau_power_kw(mill: Mill, speed_frac_critical, dynamic_angle_deg:
 
 
 def _speed(owner: str, speed_frac_critical):
-    """A speed given as a number checked as a fraction of critical in (0, 1) (70 typed for 0.70 drew
+    """A speed given as a number checked as a fraction of critical in (0, 1] (70 typed for 0.70 drew
     -5.9e208 kW in Bond's equation); a CasADi expression as it is (the model's own inputs are checked)."""
     if isinstance(speed_frac_critical, Real):
-        check_range(owner, "speed_frac_critical", speed_frac_critical, 0.0, 1.0)
+        check_range(owner, "speed_frac_critical", speed_frac_critical, 0.0, 1.0, hi_open=False)
     return speed_frac_critical
 
 

@@ -18,6 +18,7 @@ from scenarios.scene.loader import check_scene
 from tests.scenarios.conftest import BASE_SCENE
 from tests.scenarios.test_runner import short_pyrite_scene
 from twin.calibration import load_calibration
+from twin.calibration.files import content_digest
 
 
 def test_check_refuses_a_scene_whose_effects_differ_from_its_calibration(write_scene):
@@ -108,6 +109,7 @@ def test_a_fast_calibration_warns_in_one_line_on_the_command_line(tmp_path):
     is, as its other warnings read: one line, no Python source line."""
     rec = json.loads(json.dumps(load_calibration("dem").record))
     rec["dem"]["settings"]["fast"] = True
+    rec["content_sha256"] = content_digest(rec)  # as `grindtwin calibrate --fast` writes it
     path = tmp_path / "quick.json"
     path.write_text(json.dumps(rec))
     command = "import sys; from scenarios.cli import main; sys.exit(main(sys.argv[1:]))"

@@ -10,7 +10,7 @@ import pytest
 import twin.mill
 from twin import Twin, TwinInputError
 from twin.calibration import model_code
-from twin.calibration.files import CALIBRATION_DIR, load_calibration
+from twin.calibration.files import CALIBRATION_DIR, content_digest, load_calibration
 from twin.calibration.model_code import source_digest
 from twin.calibration.record_checks import dem_step_sha256
 
@@ -54,6 +54,7 @@ def test_changed_power_term_is_refused(fresh_checks, monkeypatch, dem_copy):
 def test_matching_digest_skips_the_recomputation(monkeypatch, dem_copy):
     record = json.loads(dem_copy.read_text())
     record["model_code"] = {"sha256": "fedcba9876543210"}
+    record["content_sha256"] = content_digest(record)  # a file another grindtwin wrote
     dem_copy.write_text(json.dumps(record))
     monkeypatch.setattr(model_code, "_CHECKED", set())
     monkeypatch.setattr(model_code, "model_digest", lambda: "fedcba9876543210")
@@ -64,6 +65,7 @@ def test_matching_digest_skips_the_recomputation(monkeypatch, dem_copy):
 def test_a_recorded_prediction_not_the_models_is_refused(fresh_checks, dem_copy):
     record = json.loads(dem_copy.read_text())
     record["fit"]["predicted"]["C"]["p80_um"] *= 1 + 10 * model_code.PREDICTION_RTOL
+    record["content_sha256"] = content_digest(record)  # written so: its model's predictions are not today's
     dem_copy.write_text(json.dumps(record))
     with pytest.raises(TwinInputError, match=r"ore C's p80_um = 2\d\d\.\d+ .*\(-0\.001 %"):
         Twin("C", calibration=str(dem_copy))
