@@ -133,7 +133,8 @@ def main(argv=None):
                 f"seeds), the time step a factor of System's critical step (the calibration's: "
                 f"{DROP_TIME_STEP_FACTOR:g}). Intervals: the central {CI[1] - CI[0]:g} % of {o.boot} bootstrap "
                 "resamples of the packings (breakage function and t10 refitted). wall_s: the tests' wall time on "
-                f"{o.workers} worker processes (their cost; the steps scale as 1 / factor). Load average (1/5/15 min) at the start {load0}, at the end {load_average()}.")
+                f"{o.workers} worker processes (their cost; the steps scale as 1 / factor). Load average (1/5/15 min) "
+                f"at the start {load0}, at the end {load_average()}.")
 
 
 if __name__ == "__main__":

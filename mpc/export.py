@@ -92,8 +92,8 @@ ESTIMATE_STATUS = {
 C_FILES = ("gt_qp.c", "gt_qp.h", "gt_cond.c", "gt_cond.h", "gt_rti.c", "gt_rti.h", "gt_controller.c", "gt_controller.h",
            "gt_replay.c", "gt_malloc_count.c")
 #: What the Makefile builds in the folder (a re-export may replace these too).
-BUILD_PRODUCTS = ("gt_rti_data.o", "gt_ekf_data.o", "gt_exported.o", "gt_qp.o", "gt_cond.o", "gt_rti.o", "gt_controller.o", "gt_replay.o",
-                  "libgtcontroller.a", "gt_replay", "gt_malloc_count.so")
+BUILD_PRODUCTS = ("gt_rti_data.o", "gt_ekf_data.o", "gt_exported.o", "gt_qp.o", "gt_cond.o", "gt_rti.o",
+                  "gt_controller.o", "gt_replay.o", "libgtcontroller.a", "gt_replay", "gt_malloc_count.so")
 MAKEFILE = """\
 # grindtwin's exported NMPC: `make` builds libgtcontroller.a, the replay harness gt_replay and
 # the allocation counter gt_malloc_count.so (LD_PRELOAD=./gt_malloc_count.so ./gt_replay < log).
@@ -208,8 +208,9 @@ def _constants(controller, estimator, u0, preview_lead_h) -> tuple[dict, dict]:
                "GT_BLEND_SUM_TOL": repr(BLEND_SUM_TOL), "GT_UNREACHABLE_TOL": repr(float(s.unreachable_tol_frac)),
                "GT_GRID_RATIO": repr(float(c.model.spec.grid.ratio))}
     du_max = np.array([s.feed_rate_max_tph_per_h, s.speed_rate_max_per_h]) * s.dt_h
-    arrays = {"gt_x_scale": c.x_scale, "gt_u_lo": [s.feed_tph_min, s.speed_min], "gt_u_hi": [s.feed_tph_max, s.speed_max],
-              "gt_du_max": du_max, "gt_wpass": c._wpass, "gt_upper_um": c.model.spec.grid.upper_um,
+    arrays = {"gt_x_scale": c.x_scale, "gt_u_lo": [s.feed_tph_min, s.speed_min],
+              "gt_u_hi": [s.feed_tph_max, s.speed_max], "gt_du_max": du_max, "gt_wpass": c._wpass,
+              "gt_upper_um": c.model.spec.grid.upper_um,
               "gt_z0": e.z, "gt_p0": e.P, "gt_u0": u0}
     return scalars, arrays
 
