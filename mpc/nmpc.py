@@ -638,6 +638,8 @@ class Controller:
         move (a 5 um target ran with no word but target_unreachable)."""
         grid = self.model.spec.grid
         lo, hi = float(grid.upper_um[-1] / grid.ratio), float(grid.upper_um[0])
+        if isinstance(target_p80_um, np.ndarray) and target_p80_um.ndim == 0:  # np.array(150.0) was taken
+            target_p80_um = target_p80_um.item()
         if not (is_real(target_p80_um) and lo < target_p80_um < hi):
             raise MpcInputError(f"The 'target_p80_um' parameter must be a size [um] inside the controller's size "
                                 f"grid, in ({lo:.4g}, {hi:.4g}). Got {target_p80_um!r}.")
@@ -783,7 +785,8 @@ class Controller:
         psd_fn = self.model.product_psd_function()
         x_end, u_end, d_end = states[-1], plan[-1], D[:, -1]
         pas, load, se, pw = (float(v) for v in self._out_fn(x_end, u_end, d_end, wpass))
-        psd = np.asarray(psd_fn(x_end, u_end, d_end), float).ravel()
+        # a plan's states are unbounded (the NLP's lbw is -inf): a class may end slightly below zero
+        psd = np.maximum(np.asarray(psd_fn(x_end, u_end, d_end), float).ravel(), 0.0)
         p80_end = pxx_um(self.model.spec.grid, psd) + p80_bias_um if psd.sum() > 0 else math.nan
         pas1 = float(self._out_fn(states[1], plan[0], D[:, 0], wpass)[0])
         return {"passing_end": pas, "passing_next": pas1, "p80_end_um": p80_end,

@@ -63,16 +63,12 @@ def work_index_note(spec, outputs: dict, product_mass) -> str:
     return _work_index_text(spec, float(energy), pxx_um(spec.grid, product_mass), outputs.get("load_frac"))
 
 
-#: Loads [hold-up over nominal] inside which an operating work index outside ores' points at the rates'
-#: units; outside it at the feed (a starved or flooded mill): the stable band's default, 0.8-1.2.
-LOAD_NORMAL = (0.8, 1.2)
-
-
-def _work_index_text(spec, energy: float, p80: float, load: float | None = None) -> str:
-    """:func:`work_index_note` of a specific energy [kWh/t] and product P80 [um] at a load [-]."""
+def _work_index_text(spec, energy: float, p80: float, load: float | None = None, f80: float | None = None) -> str:
+    """:func:`work_index_note` of a specific energy [kWh/t] and product P80 [um] at a load [-] (outside the
+    mill's stable band the note asks about the feed too); ``f80``: the feed's P80 if known."""
     from .sizes import pxx_um
 
-    f80 = pxx_um(spec.grid, spec.feed_frac)
+    f80 = pxx_um(spec.grid, spec.feed_frac) if f80 is None else f80
     if not (np.isfinite(energy) and np.isfinite(p80) and p80 < f80):
         return ""
     w_io = float(energy) / (10.0 * (p80 ** -0.5 - f80 ** -0.5))
@@ -81,7 +77,8 @@ def _work_index_text(spec, energy: float, p80: float, load: float | None = None)
         return ""
     why = ("are the breakage rates in the units their keys say (Austin's a_per_min per minute; Moly-Cop's "
            "alpha0_t_kwh for sizes in um)?")
-    if load is not None and np.isfinite(load) and not LOAD_NORMAL[0] <= load <= LOAD_NORMAL[1]:
+    band = spec.mill.stable_band
+    if load is not None and np.isfinite(load) and not band[0] <= load <= band[1]:
         # a starved or flooded mill is no ore's either: 0.003 t/h into the lab mill asked about the rates' units
         why += f" Or is the feed far from what the mill takes (its load is {load:.3g} of its nominal)?"
     return (f"the operating work index is {w_io:.3g} kWh/t ({float(energy):.3g} kWh/t from F80 {f80:.4g} to P80 "
@@ -98,7 +95,7 @@ def pressure_note(outputs: dict) -> str:
 
     lo, hi = CYCLONE_PRESSURE_RANGE_KPA
     p_kpa = float(outputs["cyclone_pressure_kpa"])
-    if lo <= p_kpa <= hi:
+    if lo <= p_kpa <= hi or not np.isfinite(p_kpa):  # NaN: no flow to the cyclones (a stopped mill's sample)
         return ""
     return (f"the cyclone feed pressure is {p_kpa:.4g} kPa, outside the {lo:g}-{hi:g} kPa (5-40 psi) grinding "
             "cyclones run at: are the cyclone's sizes in cm, and a survey's pressure in kPa, not psi?")
@@ -216,8 +213,11 @@ def _sample_notes(frame, spec) -> list[str]:
     rows = frame.to_dict("records")
     checks = [lambda r: roping_note(spec, r), pressure_note, water_note]
     if "specific_energy_kwh_t" in frame.columns and "p80_exact_um" in frame.columns:
+        from .sizes import pxx_um
+
+        f80 = pxx_um(spec.grid, spec.feed_frac)  # once, not per sample
         checks.append(lambda r: _work_index_text(spec, float(r["specific_energy_kwh_t"]), float(r["p80_exact_um"]),
-                                                 r.get("load_frac")))
+                                                 r.get("load_frac"), f80))
     notes = []
     for check in checks:
         texts = [check(r) for r in rows]

@@ -156,6 +156,8 @@ def test_set_target_refuses_a_size_outside_the_grid_and_changes_nothing(setup):
             ctrl.set_target(bad)
         assert ctrl.settings.target_p80_um == before[0] and np.array_equal(ctrl._wpass, before[1])
     assert float(grid.upper_um[-1]) < 40.0  # test_unreachable_target_is_reported's target is in the grid
+    ctrl.set_target(np.array(before[0]))  # a 0-d array, as numpy hands a number back, is a number
+    assert ctrl.settings.target_p80_um == before[0] and np.array_equal(ctrl._wpass, before[1])
 
 
 def test_hpipm_solves_a_qp_whose_hessian_is_semidefinite_only_to_rounding(ctrl_twin):

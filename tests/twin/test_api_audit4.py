@@ -50,6 +50,8 @@ def test_pxx_refuses_masses_that_are_not_one_per_class():
     with pytest.raises(TwinInputError, match="'percent' parameter of pxx_um"):
         pxx_um(grid, m, 0.8)
     assert pxx_um(grid, np.r_[m[:-1], -1e-12]) == pytest.approx(pxx_um(grid, np.r_[m[:-1], 0.0]), rel=1e-9)  # round-off
+    plan_end = np.r_[m[:-1], -2e-4 * m.sum()]  # a controller's plan ends so (its states are unbounded): taken
+    assert np.isfinite(pxx_um(grid, plan_end))
     assert 900 < p80 < 6700
 
 

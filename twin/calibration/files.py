@@ -372,6 +372,8 @@ def check_content(record: dict, where: str) -> None:
 
 
 _LOADED: dict = {}
+#: (path, sha256) of the files whose content digest was checked.
+_CONTENT_CHECKED: set = set()
 #: (path, sha256) of the files whose DEM laws were checked against their DEM step.
 _LAWS_CHECKED: set = set()
 
@@ -398,7 +400,9 @@ def read_calibration(path: Path, check_table: bool = True) -> Calibration:
             warnings.warn(f"calibration {_LOADED[key].label()}", FastCalibrationWarning, stacklevel=2)
     if check_table:  # (without: --from reuses the DEM step alone, which its own digest dem.sha256 guards)
         check_data(_LOADED[key].record, str(path))
-        check_content(_LOADED[key].record, str(path))
+        if key not in _CONTENT_CHECKED:  # once per file and content: 15 ms of JSON on every twin built
+            check_content(_LOADED[key].record, str(path))
+            _CONTENT_CHECKED.add(key)
     return _LOADED[key]
 
 
