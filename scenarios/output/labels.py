@@ -5,8 +5,9 @@ from twin.calibration import FAST_LABEL
 
 #: KPI key -> (label, format).
 KPI_LABELS = {
-    "p80_iae_um_h": ("P80 integral absolute error [µm h]", "{:.4g}"),
-    "p80_within_10um_frac": ("share of samples with P80 within ±10 µm of target [%]", "{:.1%}"),
+    # the plant's P80, not the analyser's reading (scenarios.run.kpis): what the product was, not what was seen
+    "p80_iae_um_h": ("P80 integral absolute error, the plant's P80 [µm h]", "{:.4g}"),
+    "p80_within_10um_frac": ("share of samples with the plant's P80 within ±10 µm of target [%]", "{:.1%}"),
     "specific_energy_kwh_t": ("specific energy [kWh/t]", "{:.4g}"),
     "throughput_t": ("product discharged over the run (a batch: its charge) [t]", "{:.4g}"),
     "throughput_tph": ("throughput, mean product rate [t/h]", "{:.4g}"),
@@ -20,7 +21,7 @@ KPI_LABELS = {
     "start_feed_tph": ("feed rate of the start state [t/h]", "{:.4g}"),
     "start_p80_um": ("P80 at the start [µm]", "{:.4g}"),
     "p80_final_um": ("final P80 [µm]", "{:.4g}"),
-    "p80_mean_um": ("mean P80 [µm]", "{:.4g}"),
+    "p80_mean_um": ("mean P80 (a batch: of the mill content) [µm]", "{:.4g}"),
     "energy_kwh": ("energy drawn [kWh]", "{:.4g}"),
     "fed_t": ("fresh feed [t]", "{:.4g}"),
     "duration_h": ("duration [h]", "{:.4g}"),
