@@ -31,7 +31,7 @@ import pandas as pd
 from dem_common import write_table
 from twin.calibration import DEM_FITTED, KPIS, Calibration, fit_to_table, load_calibration, predict_table
 from twin.calibration.dem_map import fit_law
-from twin.calibration.table import BOUNDS as TABLE_BOUNDS, NAMES as TABLE_NAMES, START as TABLE_START_VALUES
+from twin.calibration.table import BOUNDS as TABLE_BOUNDS, NAMES as TABLE_NAMES, START as TABLE_START
 from twin.calibration import reference_table
 from twin.ore import reference_ores
 
@@ -40,7 +40,6 @@ GOAL_PCT = 10.0
 #: Each fold starts where its calibration command starts (`grindtwin calibrate`: DEM_FITTED's starts; `--map
 #: mineralogy`: the table map's START), not at the shipped optimum, which the held-out ore helped fit.
 DEM_START = {n: v["start"] for n, v in DEM_FITTED.items()}
-TABLE_START = dict(TABLE_START_VALUES)
 
 
 def dem_fold(cal: Calibration, held: str) -> tuple[Calibration, dict]:

@@ -304,8 +304,8 @@ def _speed(owner: str, speed_frac_critical):
 
 def power_kw(mill: Mill, speed_frac_critical):
     """Net power [kW] of the mill at a speed: its ``power_model``; with ``net_power_kw`` given, that
-    draw at the nominal speed, shaped with speed by the model (floats and CasADi expressions)."""
-    _speed("power_kw", speed_frac_critical)
+    draw at the nominal speed, shaped with speed by the model (floats and CasADi expressions; each model
+    checks a speed given as a number)."""
     model = POWER_MODELS[mill.power_model]
     if mill.net_power_kw is None:
         return model(mill, speed_frac_critical)

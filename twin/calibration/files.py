@@ -310,13 +310,13 @@ def shipped_names() -> list[str]:
     return sorted(p.stem for p in CALIBRATION_DIR.glob("*.json"))
 
 
-def check_record(record: dict, where: str, law: bool = True, data: bool = True, content: bool = True) -> dict:
+def check_record(record: dict, where: str, law: bool = True, data: bool = True) -> dict:
     """The record if it is a calibration of this format whose fields have their types and whose
     numbers are those it was fitted to (:func:`check_fields`, :func:`check_fitted`, with ``data``
     :func:`check_data`: the reference table it was fitted to is the table now, and with ``law``
     :func:`check_law`), else TwinInputError naming the file, the field, its value and what is
-    allowed: a hand-edited or truncated file is refused, not run (``content``: its content digest,
-    :func:`check_content`). (A file's laws are checked
+    allowed: a hand-edited or truncated file is refused, not run (a file's content digest too, when it
+    is read: :func:`check_content`). (A file's laws are checked
     when its breakage map first runs, :meth:`Calibration.breakage`: the refit needs numpy, which
     the surrogate's answer does not load.)"""
     if not isinstance(record, dict) or record.get("format") != FILE_FORMAT:
@@ -342,8 +342,6 @@ def check_record(record: dict, where: str, law: bool = True, data: bool = True, 
         check_data(record, where)
     if record["breakage_map"] == "dem" and law:
         check_law(record, where)
-    if content:  # last: the checks above name what they catch
-        check_content(record, where)
     return record
 
 
@@ -355,8 +353,8 @@ def content_digest(record: dict) -> str:
 
 
 def check_content(record: dict, where: str) -> None:
-    """A record is what grindtwin wrote (its ``content_sha256``, :func:`write_calibration`): an edit the checks
-    above cannot see (a coefficient x3 in all its copies, the effects list, the grid, the reported fit) ran
+    """A record is what grindtwin wrote (its ``content_sha256``, :func:`write_calibration`): an edit the field
+    checks (:func:`check_record`) cannot see (a coefficient x3 in all its copies, the effects list, the grid, the reported fit) ran
     with exit 0 and other numbers (P80 72.6 um for 203.6). A record without the field predates it."""
     recorded = record.get("content_sha256")
     if recorded is not None and recorded != content_digest(record):
@@ -365,7 +363,6 @@ def check_content(record: dict, where: str) -> None:
         check_data(record, where)  # an edit these name says what it changed (deferred on a read: run now)
         if record["breakage_map"] == "dem":
             check_law(record, where)
-
         raise TwinInputError(f"{where} was changed after grindtwin wrote it (its content no longer matches its "
                              f"content_sha256): a calibration's numbers are made by a command, not typed in. Make a "
                              f"new one (`{refit_command(record)}`), or restore the file.")
@@ -395,7 +392,7 @@ def read_calibration(path: Path, check_table: bool = True) -> Calibration:
             record = json.loads(data.decode("utf-8"))
         except (UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise TwinInputError(f"Calibration file {path} is not valid JSON: {exc}.") from None
-        _LOADED[key] = Calibration(check_record(record, str(path), law=False, data=False, content=False), path, sha)
+        _LOADED[key] = Calibration(check_record(record, str(path), law=False, data=False), path, sha)
         if _LOADED[key].fast:  # once per file and process
             warnings.warn(f"calibration {_LOADED[key].label()}", FastCalibrationWarning, stacklevel=2)
     if check_table:  # (without: --from reuses the DEM step alone, which its own digest dem.sha256 guards)
@@ -417,7 +414,7 @@ def load_calibration(spec=None, check_table: bool = True) -> Calibration:
         return spec
     if isinstance(spec, dict):  # a user's record, known by the hash of its content (twin.calibration.model_code)
         # a record in memory is the caller's own study (a file's is checked for edits when read)
-        return Calibration(check_record(spec, "the calibration record", data=check_table, content=False), None,
+        return Calibration(check_record(spec, "the calibration record", data=check_table), None,
                            hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest())
     if isinstance(spec, (str, Path)):
         text = str(spec)
