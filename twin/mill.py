@@ -219,6 +219,39 @@ INDUSTRIAL_BASE = Mill("industrial", diameter_m=3.2, length_m=4.8, feed_nominal_
 INDUSTRIAL_PRESET_PATH = Path(__file__).resolve().parent / "data" / "industrial_mill.json"
 
 
+#: The keys of a mill preset file (`grindtwin size-mill --write-preset` writes them; twin.sizing).
+PRESET_KEYS = ("mill", "cyclone", "sizing", "command")
+
+
+def read_preset(path) -> Mill:
+    """The mill of a preset file `grindtwin size-mill --write-preset PATH` wrote: the industrial base
+    mill (INDUSTRIAL_BASE, whose calibrated values it takes) at the sized dimensions, with the sized
+    hydrocyclones and circuit; TwinInputError naming the file and what is wrong."""
+    path = Path(path)
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise TwinInputError(f"No mill preset file {path} (`grindtwin size-mill ... --write-preset {path}` "
+                             "writes one).") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise TwinInputError(f"The mill preset file {path} cannot be read as JSON: {exc}") from None
+    missing = [k for k in PRESET_KEYS if k not in record] if isinstance(record, dict) else list(PRESET_KEYS)
+    if missing or not all(isinstance(record[k], dict) for k in ("mill", "cyclone", "sizing")):
+        raise TwinInputError(f"{path} is not a mill preset grindtwin wrote: it needs the tables "
+                             f"{', '.join(PRESET_KEYS)} (`grindtwin size-mill --write-preset` writes them)"
+                             + (f"; missing {', '.join(missing)}." if missing else "."))
+    try:
+        return INDUSTRIAL_BASE.with_(**record["mill"], cyclone=tuple(sorted(record["cyclone"].items())),
+                                     cyclone_circuit=record["sizing"].get("circuit", "direct"))
+    except TwinInputError as exc:
+        raise TwinInputError(f"The mill preset file {path}: {exc}") from None
+
+
+def is_preset_file(spec) -> bool:
+    """Whether a mill ``spec`` names a preset file (a Path, or a string ending in .json) and not a preset."""
+    return isinstance(spec, Path) or (isinstance(spec, str) and spec.lower().endswith(".json"))
+
+
 @cache
 def industrial_preset() -> Mill:
     """The sized industrial mill (INDUSTRIAL_PRESET_PATH); TwinError naming the command if absent."""
@@ -227,24 +260,26 @@ def industrial_preset() -> Mill:
     if not INDUSTRIAL_PRESET_PATH.is_file():
         raise TwinError(f"No industrial mill preset {INDUSTRIAL_PRESET_PATH}: run "
                         "`grindtwin size-mill --ore B --feed-tph 31 --target-p80-um 210 --write-preset twin/data/industrial_mill.json`.")
-    record = json.loads(INDUSTRIAL_PRESET_PATH.read_text(encoding="utf-8"))
-    return INDUSTRIAL_BASE.with_(**record["mill"], cyclone=tuple(sorted(record["cyclone"].items())),
-                                 cyclone_circuit=record.get("sizing", {}).get("circuit", "direct"))
+    return read_preset(INDUSTRIAL_PRESET_PATH)
 
 
 MILLS = {"lab": LAB, "industrial": INDUSTRIAL_BASE}
 
 
 def get_mill(spec, calibration: dict | None = None) -> Mill:
-    """A preset name ('lab', 'industrial') or a Mill. A preset takes the fitted mill values
-    (``calibration['mills'][name]``, e.g. the lab mill's power factor and grate cut size)."""
+    """A preset name ('lab', 'industrial'), a preset file (:func:`read_preset`, an industrial mill) or a
+    Mill. A preset takes the fitted mill values (``calibration['mills'][name]``, e.g. the lab mill's
+    power factor and grate cut size)."""
     if isinstance(spec, Mill):
         return spec
-    if spec in MILLS:
-        fitted = (calibration or {}).get("mills", {}).get(spec, {})
-        preset = industrial_preset() if spec == "industrial" else MILLS[spec]
+    if spec in MILLS or is_preset_file(spec):
+        name = "industrial" if is_preset_file(spec) else spec
+        fitted = (calibration or {}).get("mills", {}).get(name, {})
+        preset = (read_preset(spec) if is_preset_file(spec) else industrial_preset() if spec == "industrial"
+                  else MILLS[spec])
         return preset.with_(**fitted)
-    raise TwinInputError(f"The 'mill' must be one of {', '.join(MILLS)}. Got {spec!r}.{close_matches(str(spec), MILLS)}")
+    raise TwinInputError(f"The 'mill' must be one of {', '.join(MILLS)}, a preset file (.json) `grindtwin size-mill "
+                         f"--write-preset` wrote, or a twin.Mill. Got {spec!r}.{close_matches(str(spec), MILLS)}")
 
 
 #: Bond's ball-mill power constant in Rowland's metric form [kW per tonne of balls, D in m]: Bond's

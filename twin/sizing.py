@@ -432,10 +432,6 @@ def _counts(counts: list[int]) -> str:
     return ", ".join(runs)
 
 
-#: The keys of a preset file grindtwin wrote (:meth:`SizedMill.record`).
-PRESET_KEYS = ("mill", "cyclone", "sizing", "command")
-
-
 #: The packages of the grindtwin distribution (pyproject.toml), folders beside this one.
 DISTRIBUTION_PACKAGES = ("twin", "dem", "mpc", "scenarios")
 
@@ -445,7 +441,7 @@ def check_preset_path(path) -> Path:
     file grindtwin wrote; never inside grindtwin's own packages, but for the shipped ``industrial``
     preset in a checkout of the repository; TwinInputError otherwise (called before any sizing work)."""
     from .errors import TwinInputError
-    from .mill import INDUSTRIAL_PRESET_PATH
+    from .mill import INDUSTRIAL_PRESET_PATH, PRESET_KEYS
 
     if not str(path).strip():  # Path("") is the current folder
         raise TwinInputError(f"The preset output path is empty ({str(path)!r}); give a file path.")

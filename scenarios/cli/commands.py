@@ -500,6 +500,27 @@ def _feed_tph(text):
 DEFAULT_ORE, DEFAULT_MILL = "B", "lab"
 
 
+#: --mill's help: what it takes.
+MILL_HELP = "lab, industrial, or a preset file (.json) `size-mill --write-preset` wrote"
+
+
+def _mill(text: str) -> str:
+    """argparse type of --mill: a preset's name or a preset file `size-mill --write-preset` wrote (read here:
+    a missing or foreign file is refused before any work)."""
+    import argparse
+
+    from twin import MILLS, TwinInputError, is_preset_file, read_preset
+
+    if not (text in MILLS or is_preset_file(text)):
+        raise argparse.ArgumentTypeError(f"must be {MILL_HELP}. Got {text!r}.")
+    if is_preset_file(text):
+        try:
+            read_preset(text)
+        except TwinInputError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
 def _add_ore_options(p) -> None:
     p.add_argument("--ore", default=None, help=f"reference type A-D or a TOML file with [mineralogy] and [texture] "
                    f"(default {DEFAULT_ORE})")
@@ -529,7 +550,7 @@ def add_steady_parser(subparsers):
                    help="solve for the feed rate that holds the nominal hold-up")
     s.add_argument("--speed", type=_float_in("--speed", 0, 1, True, True), default=None,
                    help="mill speed as a fraction of critical (0.70, not 70)")
-    s.add_argument("--mill", default=None, choices=["lab", "industrial"], help=f"default {DEFAULT_MILL}")
+    s.add_argument("--mill", default=None, type=_mill, help=f"{MILL_HELP} (default {DEFAULT_MILL})")
     s.add_argument("--json", action="store_true", help="print the KPIs as JSON (unit-suffixed keys)")
     s.add_argument("--surrogate", action="store_true",
                    help="answer from the PLS surrogate (lab mill; refuses inputs outside its training domain)")
@@ -820,7 +841,7 @@ def add_optimize_parser(subparsers):
                               "for least energy, both for most throughput).")
     _add_ore_options(o)
     o.add_argument("--target-p80-um", required=True, type=_float_in("--target-p80-um", 1.0, 1e4))
-    o.add_argument("--mill", default=DEFAULT_MILL, choices=["lab", "industrial"])
+    o.add_argument("--mill", default=DEFAULT_MILL, type=_mill, help=f"{MILL_HELP} (default {DEFAULT_MILL})")
     o.add_argument("--mode", default="both", choices=["both", "feed", "speed"], help="which answer to pick")
     o.add_argument("--objective", default=None, choices=["min_energy", "max_throughput"],
                    help="with --mode both (default min_energy): one input alone has one answer")
@@ -899,9 +920,9 @@ def add_size_mill_parser(subparsers):
                    "Plitt's equations uncalibrated)")
     z.add_argument("--write-preset", metavar="PATH",
                    help="also write the answer as a preset file here (a new file or a preset grindtwin wrote; "
-                   "the shipped `industrial` preset is twin/data/industrial_mill.json, written only when named; "
-                   "commands and scenes read the shipped presets only: a scene runs another sized mill from its "
-                   "[mill] dimensions and [classification] cyclones)")
+                   "the shipped `industrial` preset is twin/data/industrial_mill.json, written only when named); "
+                   "`steady` and `optimize` run it as --mill PATH, a scene as [mill] preset = \"PATH\" (with its "
+                   "cyclones when classification.kind = \"hydrocyclone\" gives no cyclone table)")
     z.add_argument("--json", action="store_true", help="print the answer as JSON")
     z.set_defaults(func=cmd_size_mill)
     return z

@@ -323,7 +323,7 @@ def physical_range(name: str, scene: Scene) -> PlausibleRange:
     if name == "load_frac":
         return PlausibleRange(LOAD_MIN_FRAC, load_max_frac(scene), unit="of the nominal hold-up")
     if name == "feed_tph":  # the mill's nominal feed, as scenes and recorded histories are judged
-        nominal = nominal_feed_tph(scene.mill.preset, scene.mill.model_dump())
+        nominal = nominal_feed_tph(scene.mill_spec(), scene.mill.model_dump())
         return PlausibleRange(FEED_MIN_TPH, math.inf if nominal is None else FEED_MAX_NOMINAL_MULTIPLE * nominal,
                               unit="t/h")
     if name == "speed_frac_critical":

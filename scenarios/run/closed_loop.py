@@ -188,7 +188,7 @@ def start_feed_bounds_tph(scene: Scene) -> tuple:
     mpc.optimize's range around the nominal feed of the scene's mill (its preset's, scaled by its
     power: scenarios.scene.ranges), not the twin's, which a scene sets to its own feed_tph. A fixed
     5-60 t/h held no steady state of a laboratory mill."""
-    nominal = nominal_feed_tph(scene.mill.preset, scene.mill.model_dump()) or float(scene.feed.feed_tph)
+    nominal = nominal_feed_tph(scene.mill_spec(), scene.mill.model_dump()) or float(scene.feed.feed_tph)
     return tuple(f * nominal for f in FEED_RANGE_NOMINAL)
 
 

@@ -67,7 +67,7 @@ def scene_mill(scene: Scene, calibration: Calibration | None = None):
     given = {k: getattr(m, k) for k in MILL_OVERRIDES if getattr(m, k) is not None}
     if scene.feed.feed_tph is not None:
         given["feed_nominal_tph"] = scene.feed.feed_tph
-    base = get_mill(m.preset, cal.record)
+    base = get_mill(scene.mill_spec(), cal.record)
     if own_dimensions(m, base):
         given["power_factor"] = 1.0
     if m.net_power_kw is not None or any(o.breakage is not None for o in scene.ores.values()):

@@ -17,9 +17,9 @@ from typing import Any
 from scenarios.errors import SceneError
 from scenarios.scene.history import read_history
 from scenarios.scene.keypaths import did_you_mean, format_path
-from scenarios.scene.ranges import feed_problem, net_power_problem, nominal_feed_tph
+from scenarios.scene.ranges import feed_problem, net_power_problem, nominal_feed_tph, preset_mill
 from scenarios.scene.schema import DEFAULT_N_MIXERS, Feed, Sensors
-from twin import SizeGrid, TwinError, get_mill, hydrocyclone_from
+from twin import SizeGrid, TwinError, get_mill, hydrocyclone_from, is_preset_file, read_preset
 from twin.calibration import DEFAULT_CALIBRATION, load_calibration
 from twin.effects import problems as effect_problems
 from twin.ore import mineral_names
@@ -61,6 +61,7 @@ def cross_check(data: dict[str, Any], base_dir: Path) -> list[str]:
     r = _Report()
     if not isinstance(data, dict):
         return ["(top level): a scene must be a TOML table"]
+    data = _with_preset_file(data, base_dir, r)
     _check_time(data, r)
     _check_effects(data, r)
     ore_names = _check_ores(data, r)
@@ -72,6 +73,21 @@ def cross_check(data: dict[str, Any], base_dir: Path) -> list[str]:
     _check_plant(data, r)
     _check_calibration(data, base_dir, r)
     return r.messages
+
+
+def _with_preset_file(data: dict, base_dir: Path, r: _Report) -> dict:
+    """``data`` with a preset file in ``mill.preset`` resolved against the scene's folder for the checks that
+    read the mill (None, and said here, when the file is no preset grindtwin wrote)."""
+    preset = _get(data, "mill", "preset")
+    if not (isinstance(preset, str) and is_preset_file(preset)):
+        return data
+    path = Path(preset) if Path(preset).is_absolute() else base_dir / preset
+    try:
+        read_preset(path)
+    except TwinError as exc:
+        r.add(("mill", "preset"), str(exc), preset)
+        path = None
+    return {**data, "mill": {**data["mill"], "preset": path}}
 
 
 def _check_time(data, r: _Report) -> None:
@@ -469,6 +485,7 @@ def _check_calibration(data, base_dir: Path, r: _Report) -> None:
     effects = data.get("effects")
     plant = data.get("plant") if isinstance(data.get("plant"), dict) else None
     mill = data.get("mill") if isinstance(data.get("mill"), dict) else {}
+    preset = preset_mill(mill.get("preset"))
     mixers_loc = ("mill", "mixer_volume_fracs") if "mixer_volume_fracs" in mill else ("mill", "n_mixers")
     models = [(("effects",), effects, _get(data, "mill", "size_classes"), mixers_loc, _mixers_of(mill, None))]
     if plant is not None and plant.get("model", "twin") == "twin":
@@ -481,11 +498,11 @@ def _check_calibration(data, base_dir: Path, r: _Report) -> None:
         if isinstance(eff, list) and grid is not None:
             for problem in cal.mismatch(eff, grid):
                 r.add(loc, f"{problem}: {advice}")
-        for problem in cal.mixers_mismatch(mill.get("preset"), fracs):
+        for problem in cal.mixers_mismatch(preset, fracs):
             r.add(loc_mixers, f"{problem}: {advice}")
-    if mill.get("preset") == cal.mill and isinstance(mill.get("power_model"), str):
+    if preset is not None and preset.name == cal.mill and isinstance(mill.get("power_model"), str):
         try:  # the fitted power factor belongs to the power model it was fitted with
-            own = get_mill(cal.mill, cal.record).with_(power_model=mill["power_model"])
+            own = get_mill(mill["preset"], cal.record).with_(power_model=mill["power_model"])
         except TwinError:
             return  # an unknown model is the schema's to report
         for problem in cal.mill_values_mismatch(own):

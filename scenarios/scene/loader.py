@@ -140,14 +140,15 @@ def pydantic_message(label: str, err: dict, model: type = Scene) -> str:
             ann = None
         if get_origin(ann) is Literal:
             hint = did_you_mean(err["input"], get_args(ann))
-    return f"{label}: {path}: {err['msg']}{hint} (got {err['input']!r})"
+    msg = err["msg"].removeprefix("Value error, ")  # pydantic's prefix to a validator's own message
+    return f"{label}: {path}: {msg}{hint} (got {err['input']!r})"
 
 
 def _fill_defaults(scene: Scene) -> None:
     mill = scene.mill
     if mill.n_mixers is None and mill.mixer_volume_fracs is not None:
         mill.n_mixers = len(mill.mixer_volume_fracs)
-    for key, value in mill_preset(mill.preset).items():
+    for key, value in mill_preset(scene.mill_spec()).items():
         if getattr(mill, key) is None:
             setattr(mill, key, value)
     if scene.sensors.p80_sample_period_h is None:

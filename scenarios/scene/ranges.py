@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 
-from twin import MILLS, TwinInputError, get_mill, power_kw
+from twin import MILLS, TwinInputError, get_mill, is_preset_file, power_kw
 
 #: A feed rate above this multiple of the mill's nominal feed rate is refused: an order of
 #: magnitude above nominal is no operating point of that mill (its hold-up would be many
@@ -43,13 +43,24 @@ NET_POWER_BOND_FACTOR_MAX = 2.0
 POWER_KEYS = ("diameter_m", "length_m", "ball_filling_frac", "net_power_kw")
 
 
+def preset_mill(preset):
+    """The twin.Mill of a scene's ``preset`` (a preset's name, or its preset file resolved against the
+    scene's folder), None when it is neither or the file cannot be read (the scene's checks say why)."""
+    if not (isinstance(preset, str) and preset in MILLS or is_preset_file(preset)):
+        return None
+    try:
+        return get_mill(preset)
+    except TwinInputError:
+        return None
+
+
 def nominal_feed_tph(preset, mill_keys: dict | None = None) -> float | None:
     """The nominal feed rate [t/h] of a scene's mill (None for an unknown preset): the preset's,
     scaled by the power the scene's mill draws at nominal speed over the preset's (throughput ~
     power at a given specific energy, Bond's law). ``mill_keys``: the scene's [mill] table; its
     dimensions, ball filling and net power (:data:`POWER_KEYS`) enter. A value the mill refuses
     (the schema names it in the same check) leaves the preset's nominal feed."""
-    base = get_mill(preset) if isinstance(preset, str) and preset in MILLS else None
+    base = preset_mill(preset)
     if base is None:
         return None
     given = {k: float(v) for k, v in (mill_keys if isinstance(mill_keys, dict) else {}).items()
@@ -135,7 +146,7 @@ def net_power_problem(preset, mill_keys: dict | None, feed_tph: float | None, sp
             unit = "MW? kW expected" if se < lo else "W? kW expected"
             return (f"{net:g} kW at the feed's {feed_tph:g} t/h is {se:.3g} kWh/t, outside the {lo:g}-{hi:g} kWh/t "
                     f"ball mills draw ({unit})")
-    base = get_mill(preset) if isinstance(preset, str) and preset in MILLS else None
+    base = preset_mill(preset)
     dims = {k: float(v) for k, v in keys.items() if k in ("diameter_m", "length_m", "ball_filling_frac")
             and isinstance(v, (int, float)) and not isinstance(v, bool)}
     if base is None or not own_dimensions(dims, base):  # the preset's own: a stand-in with a case's power

@@ -17,11 +17,14 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator, model_validator
 
 from mpc import DISTURBANCE_MODELS, QP_SOLVERS, SOLVERS
-from twin import BALL_SIZE_MAX_MM, BALL_SIZE_MIN_MM, MIXER_SHARES_SUM_TOL, get_mill, mixer_shares_sum_ok
+from twin import (BALL_SIZE_MAX_MM, BALL_SIZE_MIN_MM, MILLS, MIXER_SHARES_SUM_TOL, get_mill, is_preset_file,
+                  mixer_shares_sum_ok)
 from twin.ore import MEAN_GRAIN_RANGE_UM
+
+from scenarios.scene.keypaths import did_you_mean
 
 #: The twin's default number of mixers in series (twin.Twin's ``n_mixers``).
 DEFAULT_N_MIXERS = 3
@@ -33,10 +36,10 @@ MILL_LENGTH_MAX_M = 20.0
 ORE_TYPES = ("A", "B", "C", "D")
 CONTROLLER_KINDS = ("none", "pi", "nmpc")
 
-def mill_preset(name: str) -> dict[str, float | int]:
-    """Dimensions of a mill preset of ``twin.MILLS`` (the sized ``industrial`` preset as its file
-    gives it, :func:`twin.get_mill`) and the twin's default number of mixers."""
-    mill = get_mill(name)
+def mill_preset(spec) -> dict[str, float | int]:
+    """Dimensions of a mill preset of ``twin.MILLS`` or of a preset file (the sized ``industrial``
+    preset as its file gives it, :func:`twin.get_mill`) and the twin's default number of mixers."""
+    mill = get_mill(spec)
     return {"diameter_m": mill.diameter_m, "length_m": mill.length_m,
             "ball_filling_frac": mill.ball_filling_frac, "n_mixers": DEFAULT_N_MIXERS}
 
@@ -100,12 +103,23 @@ class SizeClasses(Section):
 class Mill(Section):
     """``[mill]``: a preset plus optional overrides; after loading every field is set."""
 
-    preset: Literal["lab", "industrial"]
+    preset: str = Field(examples=["industrial", "my_mill.json"])
     """The mill: ``"lab"`` is MISSION.md's laboratory mill (0.5 m x 0.3 m, 31 kg/h nominal),
     ``"industrial"`` the mill `grindtwin size-mill` sizes for 31 t/h of Type B at 210 um in closed
-    circuit with hydrocyclones (twin/data/industrial_mill.json). Calibrated values of the preset
+    circuit with hydrocyclones (twin/data/industrial_mill.json); or a preset file (ending in .json,
+    relative to the scene file) that `grindtwin size-mill --write-preset PATH` wrote: the mill it
+    sized, with its hydrocyclones (run when ``classification`` is a hydrocyclone without a
+    ``cyclone`` table), on the industrial preset's calibrated values. Calibrated values of the preset
     (power factor, grate, discharge) come from the scene's calibration (its ``calibration``, the
     shipped ``dem`` by default)."""
+
+    @field_validator("preset")
+    @classmethod
+    def _preset(cls, value: str) -> str:
+        if value in MILLS or is_preset_file(value):
+            return value
+        raise ValueError(f"must be one of {', '.join(repr(m) for m in MILLS)} or a preset file ending in .json "
+                         f"(`grindtwin size-mill --write-preset PATH` writes one){did_you_mean(value, MILLS)}")
     diameter_m: float | None = Field(default=None, gt=0, le=MILL_DIAMETER_MAX_M, examples=[3.2])
     """Inside diameter [m]; default: the preset's. A diameter in feet (18 for 5.5 m) lands above the
     range and is refused."""
@@ -545,6 +559,12 @@ class Scene(Section):
         if self.feed.history is None:
             return None
         return self.resolve_path(self.feed.history)
+
+    def mill_spec(self) -> str | Path:
+        """The scene's mill as twin.get_mill takes it: a preset's name, or its preset file resolved
+        against the scene file's folder."""
+        preset = self.mill.preset
+        return self.resolve_path(preset) if is_preset_file(preset) else preset
 
     def resolve_path(self, path: str) -> Path:
         """A path of the scene resolved against the scene file's folder."""

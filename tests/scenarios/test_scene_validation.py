@@ -30,7 +30,7 @@ BROKEN = [
     ("unknown key, close match", edit("duration_h = 8.0", "duraton_h = 8.0"),
      ["scene.duraton_h", "unknown key", "did you mean 'duration_h'"]),
     ("misspelt word", edit('preset = "industrial"', 'preset = "industral"'),
-     ["mill.preset", "'lab' or 'industrial'", "did you mean 'industrial'", "'industral'"]),
+     ["mill.preset", "'lab', 'industrial' or a preset file", "did you mean 'industrial'", "'industral'"]),
     ("unknown effect", edit('"cushioning"', '"cushoning"'),
      ["effects[3]", "Unknown effect", "Did you mean 'cushioning'", "'cushoning'"]),
     ("unknown ore", edit("blend = { B = 0.6, D = 0.4 }", "blend = { B = 0.6, E = 0.4 }"),

@@ -1,0 +1,118 @@
+"""A mill preset file `grindtwin size-mill --write-preset PATH` writes is a mill a scene (``mill.preset``), the
+CLI (``--mill``) and the Python API (``get_mill``, ``Twin(mill=...)``) run: it was written and read by nothing."""
+
+import json
+import re
+
+import pytest
+
+from scenarios.cli import main
+from scenarios.errors import SceneError
+from scenarios.scene import check_scene, load_scene
+from twin import SizeGrid, Twin, TwinInputError, get_mill, power_kw
+from twin.calibration import load_calibration
+from twin.mill import INDUSTRIAL_PRESET_PATH
+
+from .conftest import BASE_SCENE
+
+#: The scene's classification: the mill's own hydrocyclones (no cyclone table: the preset's).
+CYCLONES = '\n[effect_options.classification]\nkind = "hydrocyclone"\n'
+EFFECTS = 'effects = ["breakage", "transport", "holdup", "cushioning", "power", "classification"]\n'
+
+
+def _scene(tmp_path, preset: str, name: str = "scene.toml"):
+    text = BASE_SCENE.replace('preset = "industrial"', f'preset = "{preset}"')
+    text = EFFECTS + text.split("\n", 1)[1] + CYCLONES
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _steady(path, capsys, *extra) -> dict:
+    assert main(["steady", "--scene", str(path), "--json", *extra]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def _preset(tmp_path, name="sized/my_mill.json", **mill):
+    """The shipped preset's record with ``mill`` changes, written as a user's preset file."""
+    record = json.loads(INDUSTRIAL_PRESET_PATH.read_text(encoding="utf-8"))
+    record["mill"].update(mill)
+    path = tmp_path / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(record), encoding="utf-8")
+    return path
+
+
+def test_a_written_preset_runs_in_a_scene_as_the_mill_it_sized(tmp_path, capsys):
+    """size-mill's own preset file, named by a scene relative to the scene's folder, is the same mill with
+    the same cyclones as the shipped preset the same command wrote: the same circuit, number for number."""
+    preset = tmp_path / "sized" / "my_mill.json"
+    preset.parent.mkdir()
+    command = json.loads(INDUSTRIAL_PRESET_PATH.read_text())["command"].split()
+    argv = command[1:command.index("--write-preset")] + ["--write-preset", str(preset)]
+    assert main(argv) == 0
+    capsys.readouterr()
+    shipped, own = (_steady(_scene(tmp_path, p, f"{n}.toml"), capsys) for n, p in
+                    (("a", "industrial"), ("b", "sized/my_mill.json")))
+    for key in ("p80_um", "circulating_load_frac", "power_kw", "cyclone_pressure_kpa"):
+        assert own[key] == pytest.approx(shipped[key], rel=1e-6), key
+    assert load_scene(tmp_path / "b.toml").mill.diameter_m == pytest.approx(get_mill("industrial").diameter_m)
+
+
+def test_a_preset_files_own_dimensions_draw_their_own_power(tmp_path, capsys):
+    """A larger sized mill in its file: its power is Bond's for its dimensions (D^2.3 L at the same ball filling
+    and speed, Rowland's form), in the scene, the CLI's --mill and the API alike."""
+    base = get_mill("industrial")
+    d, length = 1.2 * base.diameter_m, 1.2 * base.length_m
+    path = _preset(tmp_path, diameter_m=d, length_m=length, feed_nominal_tph=45.0)
+    ratio = (d / base.diameter_m) ** 2.3 * (length / base.length_m)
+    at = 0.7
+    assert float(power_kw(get_mill(path), at)) == pytest.approx(ratio * float(power_kw(base, at)), rel=1e-12)
+    scene = _steady(_scene(tmp_path, "sized/my_mill.json"), capsys, "--feed-tph", "30")
+    shipped = _steady(_scene(tmp_path, "industrial", "shipped.toml"), capsys, "--feed-tph", "30")
+    assert scene["power_kw"] == pytest.approx(ratio * shipped["power_kw"], rel=1e-9)
+    cal = load_calibration()
+    api = Twin("B", mill=get_mill(path, cal.record), calibration=cal, effects=list(cal.effects),
+               grid=SizeGrid(**cal.size_grid), n_mixers=cal.n_mixers).steady(feed_tph=30.0).summary()
+    for mill in (str(path), "industrial"):
+        assert main(["steady", "--mill", mill, "--ore", "B", "--feed-tph", "30", "--json"]) == 0
+        cli = json.loads(capsys.readouterr().out)
+        assert cli["mill"] == mill
+        assert (cli["power_kw"] == pytest.approx(api["power_kw"], rel=1e-9)) == (mill == str(path))
+
+
+@pytest.mark.parametrize("record, message", [
+    (None, "No mill preset file"),
+    ({"mill": {}}, "not a mill preset grindtwin wrote.*missing cyclone, sizing, command"),
+    ("diameter", "diameter_m"),
+    ("[1, 2]", "not a mill preset grindtwin wrote"),
+    ("{", "cannot be read as JSON"),
+])
+def test_a_preset_file_that_is_no_preset_is_refused_before_any_work(tmp_path, capsys, record, message):
+    """A missing file, another JSON file, a preset edited to a negative diameter, a broken file: refused by the scene's
+    check (naming mill.preset), the CLI (exit 2, the option named) and get_mill, before anything is solved."""
+    path = tmp_path / "mill.json"
+    if record == "diameter":
+        path = _preset(tmp_path, "mill.json", diameter_m=-2.1)
+    elif isinstance(record, dict):
+        path.write_text(json.dumps(record))
+    elif isinstance(record, str):
+        path.write_text(record)
+    problems = check_scene(_scene(tmp_path, "mill.json"))
+    assert len(problems) == 1 and "mill.preset:" in problems[0]
+    assert re.search(message, problems[0])
+    with pytest.raises(SceneError, match="mill.preset"):
+        load_scene(tmp_path / "scene.toml")
+    with pytest.raises(SystemExit) as exc:
+        main(["steady", "--mill", str(path), "--ore", "B"])
+    assert exc.value.code == 2
+    assert "argument --mill:" in capsys.readouterr().err
+    with pytest.raises(TwinInputError, match=message):
+        get_mill(path)
+
+
+def test_a_misspelt_preset_is_named_with_what_is_allowed(tmp_path):
+    problems = check_scene(_scene(tmp_path, "industral"))
+    assert problems == [f"{tmp_path / 'scene.toml'}: mill.preset: must be one of 'lab', 'industrial' or a preset "
+                        "file ending in .json (`grindtwin size-mill --write-preset PATH` writes one) (did you mean "
+                        "'industrial'?) (got 'industral')"]
