@@ -8,7 +8,7 @@ from ._lazy import lazy_face
 #: Public name -> the module that defines it, imported on first use (PEP 562).
 _API = {
     "BreakageParams": ".breakage", "OreBreakage": ".breakage", "austin_selection": ".breakage",
-    "ore_breakage": ".breakage", "SPEED_FACTOR_ZERO_FRAC_CRITICAL": ".mill", "FEED_TPH_MAX": ".mill",
+    "ore_breakage": ".breakage", "CRITICAL_SIZE_MIN_UM": ".breakage", "SPEED_FACTOR_ZERO_FRAC_CRITICAL": ".mill", "FEED_TPH_MAX": ".mill",
     "BALL_SIZE_MIN_MM": ".mill", "BALL_SIZE_MAX_MM": ".mill",
     "EFFECTS": ".effects", "Effect": ".effects", "known_effects": ".effects",
     "FastCalibrationWarning": ".errors", "ModelError": ".errors", "OverloadError": ".errors", "SolverError": ".errors",
@@ -46,7 +46,7 @@ __all__ = [
     "Hydrocyclone", "Mill", "Mineralogy", "Model", "ModelError", "ModelSpec", "OreBreakage", "POWER_MODELS", "RosinRammler",
     "SPEED_FACTOR_ZERO_FRAC_CRITICAL", "SizeGrid", "SizedMill", "OverloadError", "SolverError", "SteadyState", "TabulatedPSD",
     "Texture", "Trajectory", "Twin", "TwinError",
-    "TwinInputError", "austin_selection", "bond_power_kw", "centrifuging_note", "hydrocyclone_from", "power_kw", "read_preset", "is_preset_file", "size_mill", "write_preset", "check_preset_path",
+    "TwinInputError", "CRITICAL_SIZE_MIN_UM", "austin_selection", "bond_power_kw", "centrifuging_note", "hydrocyclone_from", "power_kw", "read_preset", "is_preset_file", "size_mill", "write_preset", "check_preset_path",
     "CycloneSurvey", "calibrate_plitt", "circuit_cyclone", "plitt_factors", "plitt_factors_text", "load_design_cyclone",
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
     "file_sha256", "is_grindtwin_checkout", "new_folder_beside", "pxx_um", "reference_ores", "nominal_pressure_note", "trajectory_notes", "write_text_atomically",

@@ -48,6 +48,11 @@ SELECTION_REFERENCE_UM = 1000.0
 #: below that top size: A (x 2^(1/4))^alpha / (1 + (x 2^(1/4) / mu)^Lambda) is A 2^(alpha/4) x^alpha /
 #: (1 + (x / (mu 2^(-1/4)))^Lambda).
 AUSTIN_TOP_OVER_MEAN = 2.0 ** 0.25
+#: The smallest critical size of the selection [um] (Austin's mu, Moly-Cop's d_crit) a user may give: ball
+#: mills' lie at millimetres (Austin et al. 1984, ch. 4: ~3 mm for 25-mm balls, scaling as the ball size
+#: squared, ~0.5 mm for 10-mm balls), while a size in mm (3 for 3 mm) ground nothing: P80 the feed's F80 at
+#: 1,900 times the nominal hold-up.
+CRITICAL_SIZE_MIN_UM = 100.0
 #: Column sums of b must equal 1 to this tolerance (mass conservation, checked on build).
 B_COLUMN_TOLERANCE = 1e-12
 #: Gauss-Legendre nodes per parent interval of the cell-average scheme: the integrands are
@@ -85,7 +90,8 @@ class BreakageParams:
         o = "BreakageParams"
         check_range(o, "se_1mm_t_kwh", self.se_1mm_t_kwh, 0.0, 1e6)
         check_range(o, "alpha", self.alpha, 0.0, 5.0)
-        check_range(o, "mu_um", self.mu_um, 0.0, 1e7)
+        # a given mu at least CRITICAL_SIZE_MIN_UM, moved from Austin's top sizes to particle sizes (austin_rate)
+        check_range(o, "mu_um", self.mu_um, CRITICAL_SIZE_MIN_UM / AUSTIN_TOP_OVER_MEAN, 1e7, lo_open=False)
         check_range(o, "Lambda", self.Lambda, 0.0, 20.0)
         check_range(o, "gamma", self.gamma, 0.0, 5.0)
         check_range(o, "beta", self.beta, 0.0, 20.0)
@@ -103,6 +109,7 @@ class BreakageParams:
         o = "BreakageParams.energy_specific"
         check_range(o, "alpha0_t_kwh", alpha0_t_kwh, 0.0, 1e6)
         check_range(o, "alpha1", alpha1, 0.0, 5.0)
+        check_range(o, "critical_size_um", critical_size_um, CRITICAL_SIZE_MIN_UM, 1e7, lo_open=False)
         try:
             return cls(se_1mm_t_kwh=alpha0_t_kwh * SELECTION_REFERENCE_UM ** alpha1, alpha=alpha1,
                        mu_um=critical_size_um, Lambda=alpha2, gamma=beta1, beta=beta2, phi=beta0,
@@ -124,6 +131,7 @@ class BreakageParams:
         the interval's (``interval_rate``)."""
         o = "BreakageParams.austin_rate"
         check_range(o, "a_per_min", a_per_min, 0.0, 1e6)
+        check_range(o, "mu_um", mu_um, CRITICAL_SIZE_MIN_UM, 1e7, lo_open=False)
         check_range(o, "power_kw", power_kw, 0.0, math.inf)
         check_range(o, "holdup_t", holdup_t, 0.0, math.inf)
         return cls(se_1mm_t_kwh=60.0 * a_per_min * holdup_t / power_kw * AUSTIN_TOP_OVER_MEAN ** alpha, alpha=alpha,

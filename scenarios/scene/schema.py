@@ -20,8 +20,8 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator, model_validator
 
 from mpc import DISTURBANCE_MODELS, QP_SOLVERS, SOLVERS
-from twin import (BALL_SIZE_MAX_MM, BALL_SIZE_MIN_MM, MILLS, MIXER_SHARES_SUM_TOL, get_mill, is_preset_file,
-                  mixer_shares_sum_ok)
+from twin import (BALL_SIZE_MAX_MM, BALL_SIZE_MIN_MM, CRITICAL_SIZE_MIN_UM, MILLS, MIXER_SHARES_SUM_TOL, get_mill,
+                  is_preset_file, mixer_shares_sum_ok)
 from twin.ore import MEAN_GRAIN_RANGE_UM
 
 from scenarios.scene.keypaths import did_you_mean
@@ -97,7 +97,9 @@ class SizeClasses(Section):
     scheme: Literal["cell_average", "austin"] = "cell_average"
     """Discretisation of breakage on the grid (twin.breakage): ``"cell_average"``, second order in
     the class width; ``"austin"``, the classical first-order discrete form in which a tool's
-    parameters are defined on its own sieve series."""
+    parameters are defined on its own sieve series. Parameters of ``form = "austin"`` are rates of
+    leaving sqrt(2) intervals (Austin's convention, where they are measured) whatever this grid's
+    ratio: on another ratio the twin moves them to particle sizes and evaluates them at its own classes."""
 
 
 class Mill(Section):
@@ -162,8 +164,6 @@ class Mill(Section):
         return self
 
 
-#: The smallest critical size of the selection [um] a scene takes (``mu_um``, ``critical_size_um``).
-CRITICAL_SIZE_MIN_UM = 100.0
 
 
 class OreBreakage(Section):
@@ -186,22 +186,22 @@ class OreBreakage(Section):
     """Which selection form the keys below give."""
     alpha0_t_kwh: float | None = Field(default=None, gt=0, le=1e6)
     """Energy-specific selection coefficient [t/kWh] with sizes in um (energy_specific)."""
-    alpha1: float | None = Field(default=None, ge=0, le=5, json_schema_extra={"unit": "-"})
+    alpha1: float | None = Field(default=None, gt=0, le=5, json_schema_extra={"unit": "-"})
     """Size exponent of the energy-specific selection (energy_specific)."""
-    alpha2: float | None = Field(default=None, ge=0, le=20, json_schema_extra={"unit": "-"})
+    alpha2: float | None = Field(default=None, gt=0, le=20, json_schema_extra={"unit": "-"})
     """Exponent of the fall of the selection above the critical size (energy_specific)."""
     critical_size_um: float | None = Field(default=None, ge=CRITICAL_SIZE_MIN_UM, le=1e7)
     """Critical size of the selection [um] (energy_specific); at least 100 um (see ``mu_um``)."""
     a_per_min: float | None = Field(default=None, gt=0, le=1e6, examples=[0.7], json_schema_extra={"unit": "1/min"})
     """Austin's rate constant at 1 mm [1/min] (austin)."""
-    alpha: float | None = Field(default=None, ge=0, le=5, examples=[1.0], json_schema_extra={"unit": "-"})
+    alpha: float | None = Field(default=None, gt=0, le=5, examples=[1.0], json_schema_extra={"unit": "-"})
     """Austin's size exponent (austin)."""
     mu_um: float | None = Field(default=None, ge=CRITICAL_SIZE_MIN_UM, le=1e7, examples=[3000.0])
     """Austin's mu, the size where the rate falls to half its power law [um] (austin); at least 100 um:
     ball mills' lie at millimetres (Austin et al. 1984, ch. 4: ~3 mm for 25 mm balls, scaling as the ball
     size squared, ~0.5 mm for 10 mm balls), and a size in mm (5 for 5 mm) overloaded the mill while
     the feed rate was blamed."""
-    Lambda: float | None = Field(default=None, ge=0, le=20, examples=[3.0], json_schema_extra={"unit": "-"})
+    Lambda: float | None = Field(default=None, gt=0, le=20, examples=[3.0], json_schema_extra={"unit": "-"})
     """Austin's Lambda, the steepness of that fall (austin)."""
     beta0: float = Field(ge=0, le=1, json_schema_extra={"unit": "-"})
     """Share of the fine-fragment term of B (Austin's phi)."""

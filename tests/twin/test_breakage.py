@@ -3,9 +3,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from twin.breakage import (austin_selection, austin_speed_factor, breakage_matrix, check_breakage_matrix,
+from twin.breakage import (BreakageParams, austin_selection, austin_speed_factor, breakage_matrix, check_breakage_matrix,
                            cumulative_breakage, selection_maximum_um)
-from twin.errors import ModelError
+from twin.errors import ModelError, TwinInputError
 from twin.solve.simulate import batch_exact
 from twin.sizes import SizeGrid
 
@@ -50,3 +50,18 @@ def test_batch_exact_conserves_mass_and_stays_non_negative(log_a, alpha, gamma, 
     m = batch_exact(s, b, m0, t)
     assert m.sum() == pytest.approx(1.0, abs=1e-10)
     assert m.min() > -1e-12
+
+
+@pytest.mark.parametrize("make, field", [
+    (lambda: BreakageParams.energy_specific(0.009686, 0.6, 2.5, 7.093, 0.2, 0.25, 3.0), "critical_size_um"),
+    (lambda: BreakageParams.austin_rate(0.7, 1.0, 3.0, 3.0, 1.0, 4.0, 0.5, power_kw=1.0, holdup_t=0.01), "mu_um"),
+])
+def test_a_critical_size_in_mm_is_refused_by_the_api_as_by_a_scene(make, field):
+    """Moly-Cop's d_crit 7.093 mm, or Austin's mu 3 mm, given in mm where um are expected: the API took them (a
+    scene refused them) and ground nothing, P80 the feed's F80 at 1,900 times the nominal hold-up."""
+    from scenarios.scene.schema import OreBreakage
+    from twin import CRITICAL_SIZE_MIN_UM
+
+    with pytest.raises(TwinInputError, match=f"'{field}' parameter of BreakageParams.* must be a float in \\[100, "):
+        make()
+    assert OreBreakage.model_fields[field].metadata[0].ge == CRITICAL_SIZE_MIN_UM  # one bound, scene and API

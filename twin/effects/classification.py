@@ -197,10 +197,13 @@ class Hydrocyclone:
                             "boiling (the liquid's viscosity in cP; Pa s? 1 cP is 0.001 Pa s)")
         for name in ("d50c_factor", "pressure_factor", "sharpness_factor", "split_factor"):
             check_range(o, name, getattr(self, name), 0.0, 1e3)
-        for name, lo, hi in (("feed_solids_frac", 0.0, 1.0), ("sharpness", 0.0, 20.0),
-                             ("water_bypass_frac", 0.0, 1.0), ("solids_bypass_frac", 0.0, 1.0)):
+        # sharpness 0 makes the partition flat (E = R_f + (1 - R_f) / 2 at every size: nothing classified) and was
+        # taken while a solids bypass of 0 (no short circuit: a screen, Whiten's curve with R_f = 0) was refused;
+        # the water bypass stays above 0: an underflow without water is no slurry
+        for name, lo, hi, lo_open in (("feed_solids_frac", 0.0, 1.0, True), ("sharpness", 0.0, 20.0, True),
+                                      ("water_bypass_frac", 0.0, 1.0, True), ("solids_bypass_frac", 0.0, 1.0, False)):
             if getattr(self, name) is not None:
-                check_range(o, name, getattr(self, name), lo, hi, lo_open=name.endswith("bypass_frac"))
+                check_range(o, name, getattr(self, name), lo, hi, lo_open=lo_open)
         if self.d50c_um is not None:
             check_d50c(o, self.d50c_um)
         direct = [n for n in ("d50c_um", "sharpness", "water_bypass_frac") if getattr(self, n) is not None]

@@ -1,0 +1,79 @@
+"""A closed ball-mill circuit with a user's textbook parameters against an independent solution: Austin's
+rates and breakage function on his discrete form (Austin, Klimpel & Luckie 1984, ch. 4), perfect mixers in
+series, and a cyclone given by its cut, sharpness and bypass (Plitt's efficiency curve with R_f), solved here
+by linear algebra: each mixer's steady balance x/tau = in/tau - (I - b) S x, the circuit's D = M (f + E D)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from twin import BreakageParams, SizeGrid, Twin, TwinInputError, power_kw, pxx_um
+
+#: Austin's parameters of a typical ore (Austin et al. 1984, ch. 4: a ~ 0.7/min at 1 mm with 25-mm balls,
+#: alpha ~ 1, mu ~ 3 mm, Lambda ~ 3; phi 0.5, gamma 1, beta 4).
+A_PER_MIN, ALPHA, MU_UM, LAMBDA, PHI, GAMMA, BETA = 0.7, 1.0, 3000.0, 3.0, 0.5, 1.0, 4.0
+GRID = SizeGrid(6700.0, math.sqrt(2), 20, "austin")
+EFFECTS = ["breakage", "transport", "classification"]
+
+
+def _circuit(cyclone: dict) -> Twin:
+    opts = {"classification": {"kind": "hydrocyclone", "cyclone": cyclone, "circulating_load_nominal": 2.5}}
+    probe = Twin("B", mill="lab", effects=EFFECTS, effect_options=opts, grid=GRID)
+    mill = probe.mill
+    power = power_kw(mill, mill.speed_nominal_frac_critical)
+    holdup = mill.nominal_holdup_t(probe.spec.solids_density_t_m3)
+    bp = BreakageParams.austin_rate(A_PER_MIN, ALPHA, MU_UM, LAMBDA, GAMMA, BETA, PHI, power_kw=power,
+                                    holdup_t=holdup)
+    return Twin("B", mill=mill, effects=EFFECTS, effect_options=opts, grid=GRID, ore_breakage={"B": bp})
+
+
+def _independent(tw: Twin, cyclone: dict, feed_tph: float):
+    """Product and underflow [t/h per class] of the circuit, by linear algebra."""
+    up, mid, n = GRID.upper_um, GRID.mid_um, GRID.count
+    s = 60.0 * A_PER_MIN * (up / 1000.0) ** ALPHA / (1.0 + (up / MU_UM) ** LAMBDA)  # 1/h, at the class's top
+    s[-1] = 0.0  # the sink
+    cum = np.zeros((n + 1, n))
+    for j in range(n - 1):
+        r = up[j + 1:] / up[j + 1]
+        cum[j + 1:n, j] = PHI * r ** GAMMA + (1 - PHI) * r ** BETA
+    b = cum[:n] - cum[1:]
+    b[np.triu_indices(n)] = 0.0
+    tau = float(tw.model.parameters["residence_time_nominal_h"][0])
+    m = np.eye(n)
+    for share in tw.spec.mixer_fracs:
+        tk = share * tau
+        m = np.linalg.solve(np.eye(n) / tk + (np.eye(n) - b) @ np.diag(s), np.eye(n) / tk) @ m
+    rs = cyclone.get("solids_bypass_frac", cyclone["water_bypass_frac"])
+    e = rs + (1 - rs) * (1 - np.exp(-math.log(2) * (mid / cyclone["d50c_um"]) ** cyclone["sharpness"]))
+    d = np.linalg.solve(np.eye(n) - m @ np.diag(e), m @ (tw.spec.feed_frac * feed_tph))
+    return (1 - e) * d, e * d
+
+
+@pytest.mark.parametrize("solids_bypass", [None, 0.0])
+def test_the_circuit_matches_its_independent_solution(solids_bypass):
+    """Default (solids follow the water, R_s = R_f) and a classifier without short circuit (R_s = 0, a
+    Whiten curve with R_f = 0 or a screen, refused before): P80, circulating load and every class."""
+    cyclone = {"d50c_um": 150.0, "sharpness": 2.5, "water_bypass_frac": 0.3, "diameter_cm": 38.0, "count": 2,
+               "feed_solids_vol_pct": 30.0}
+    if solids_bypass is not None:
+        cyclone["solids_bypass_frac"] = solids_bypass
+    tw = _circuit(cyclone)
+    feed = tw.mill.feed_nominal_tph
+    ss = tw.steady(feed_tph=feed)
+    product, underflow = _independent(tw, cyclone, feed)
+    assert product.sum() == pytest.approx(feed, rel=1e-9)  # solids in = solids out
+    assert ss.p80_um == pytest.approx(pxx_um(GRID, product), rel=1e-6)
+    assert ss.outputs["circulating_load_frac"] == pytest.approx(underflow.sum() / feed, rel=1e-6)
+    np.testing.assert_allclose(ss.psd / ss.psd.sum(), product / product.sum(), atol=1e-9)
+
+
+@pytest.mark.parametrize("field", ["sharpness", "feed_solids_frac"])
+def test_a_flat_partition_is_refused(field):
+    """Sharpness 0 makes the partition flat (nothing classified: P80 773 um with the cut still 'given' at 150 um)
+    and was taken; a cyclone feed without solids likewise."""
+    cyclone = {"d50c_um": 150.0, "sharpness": 2.5, "water_bypass_frac": 0.3, field: 0.0}
+    with pytest.raises(TwinInputError, match=f"'{field}' parameter of Hydrocyclone must be a float in \\(0, "):
+        _circuit(cyclone)
