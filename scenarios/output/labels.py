@@ -29,8 +29,8 @@ KPI_LABELS = {
     "feed_tph_mean_abs_diff": ("feed rate, mean |run - recorded| [t/h]", "{:.4g}"),
     "speed_frac_critical_mean_diff": ("speed, mean of run - recorded [fraction of critical]", "{:.4g}"),
     "speed_frac_critical_mean_abs_diff": ("speed, mean |run - recorded| [fraction of critical]", "{:.4g}"),
-    "p80_um_mean_diff": ("P80, mean of run - recorded [µm]", "{:.4g}"),
-    "p80_um_mean_abs_diff": ("P80, mean |run - recorded| [µm]", "{:.4g}"),
+    "p80_um_mean_diff": ("P80 as the analyser reads it (no noise), mean of run - recorded [µm]", "{:.4g}"),
+    "p80_um_mean_abs_diff": ("P80 as the analyser reads it (no noise), mean |run - recorded| [µm]", "{:.4g}"),
 }
 
 #: Most decimals a share is shown with before it is written as "< 0.0001 %" or "> 99.9999 %".

@@ -54,7 +54,7 @@ from scenarios.run.closed_loop import run_closed
 from scenarios.run.feed import feed_schedule, fit_warnings, history_changes
 from scenarios.run.kpis import compute_kpis
 from scenarios.run.models import build_models, component_ores, is_batch
-from scenarios.run.open_loop import run_open_loop
+from scenarios.run.open_loop import analyser_trace, run_open_loop
 from scenarios.run.preflight import model_size_problems, refuse, replay_speed_problems, settings_problems
 from scenarios.run.summary import make_summary
 from scenarios.scene import TEXTURE_COLUMNS, Scene, load_history, load_scene, read_history, scene_from_dict
@@ -185,7 +185,8 @@ def replay_scene(scene_or_path, history_csv, out_dir=None, progress: bool = True
     where recorded; with a controller the controller chooses them. Either way the recorded
     columns (``recorded_feed_tph``, ``recorded_speed_frac_critical``, ``recorded_p80_um``) sit
     beside the run's own in the frame, and the summary's ``replay`` block compares them
-    (mean and mean absolute differences, run minus recorded).
+    (mean and mean absolute differences, run minus recorded; the P80 as the scene's analyser reads the
+    run's without its noise, :data:`P80_AS_RECORDED`, as the recorded P80 is an analyser's).
     """
     scene = scene_or_path if isinstance(scene_or_path, Scene) else replay_input_scene(scene_or_path, history_csv,
                                                                                         duration_h)
@@ -260,6 +261,11 @@ def _written_duration_h(scene: Scene):
     return read_toml(src).get("scene", {}).get("duration_h")
 
 
+#: A replay's column of the run's P80 as the scene's analyser reads it without its noise (dead time, sample
+#: period): what a recorded P80, an analyser's reading, is compared with.
+P80_AS_RECORDED = "p80_as_recorded_um"
+
+
 def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float | None,
             xlsx: bool = False) -> RunResult:
     data = scene.model_dump(exclude_none=True)
@@ -269,11 +275,15 @@ def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float 
     _check_workbook(new, xlsx)  # the replay's length is known only now
     result = _run(new, progress, replay=True)
     frame = result.frame
+    if "recorded_p80_um" in frame:
+        frame[P80_AS_RECORDED] = analyser_trace(frame["time_h"].to_numpy(), frame["p80_um"].to_numpy(),
+                                                new.sensors.model_copy(update={"p80_noise_um": 0.0}), 0)
     cmp = {}
-    for col in ("feed_tph", "speed_frac_critical", "p80_um"):
+    for col, run in (("feed_tph", "feed_tph"), ("speed_frac_critical", "speed_frac_critical"),
+                     ("p80_um", P80_AS_RECORDED)):
         rec = f"recorded_{col}"
         if rec in frame:
-            diff = frame[col].to_numpy(float) - frame[rec].to_numpy(float)
+            diff = frame[run].to_numpy(float) - frame[rec].to_numpy(float)
             cmp[f"{col}_mean_diff"] = float(np.nanmean(diff))
             cmp[f"{col}_mean_abs_diff"] = float(np.nanmean(np.abs(diff)))
     start = load_history(new).start  # the plant's clock at time_h 0 (None for a time_h history)

@@ -18,14 +18,19 @@ Rules, applied in this order; each action is written to ``History.report``:
    counts the repeated rows, names the first and the time it repeats, and the rows dropped. Local
    timestamps without a UTC offset that step back about an hour in file order to a time recorded
    already (the clock put back at the end of daylight-saving time: that hour recorded twice) are
-   refused: keeping the last copy would drop an hour of records.
+   refused: keeping the last copy would drop an hour of records. So are repeated times over at least
+   :data:`CONFLICTING_REPEATS_SPAN_H` whose rows disagree with the earlier ones, or, in naive local times,
+   any (the same hour sorted by local time).
 3. NaN: a missing value (a blank cell, or one of :data:`MISSING_TEXT`) is replaced by the previous
    valid value of its column (a row with any
    missing composition value has its whole composition replaced). A recorded column that is
    empty throughout is dropped.
 4. Gaps: a value may be held for at most ``max_gap_h`` (default 10 min), whether the rows are
    missing or present with NaN. A longer stretch, or missing values in the first row, is
-   refused, naming the data rows (1 = first row after the header).
+   refused, naming the data rows (1 = first row after the header). Rows missing (a step over
+   :data:`MISSING_RECORDS_INTERVALS` record intervals) are said, as held values are; in naive local
+   times a step of an hour and an interval over a whole clock hour (the clock put forward for
+   daylight-saving time) is refused.
 5. Cells that are not numbers (text), infinite values and negative values are refused, naming
    the rows; so are values outside their physical range, with the usual unit mistake named:
    ``speed_frac_critical`` in (0, 1) (a fraction of critical, not percent), ``p80_um`` at least
@@ -39,9 +44,12 @@ Rules, applied in this order; each action is written to ``History.report``:
    nothing of it can be replayed.
 6. Composition rows must sum to 100 wt% (or 1) within ``sum_tol_frac`` (relative, default 2 %);
    they are rescaled to sum exactly; rows further off are refused, naming them.
-7. Resampling to the scene's sample period: the value at grid time t_k = k*dt is the
+7. Resampling to the scene's sample period: an input's value at grid time t_k = k*dt (the
+   composition, texture, feed rate and speed, held by the run over [t_k, t_k + dt)) is the
    time-weighted mean over [t_k, t_k + dt) of the held (previous-value) signal; finer records
-   are averaged, coarser ones repeated. Grid: 0 .. the last record, the last value held.
+   are averaged, coarser ones repeated. A measured output's (``p80_um``, an analyser's reading,
+   :data:`HELD_COLUMNS`) is the reading shown at t_k, the last record at or before it: a mean over
+   the sample ahead set it half a sample early. Grid: 0 .. the last record, the last value held.
 """
 
 from __future__ import annotations
@@ -70,6 +78,8 @@ DEFAULT_MAX_GAP_H = 10 / 60
 #: records with ``time_h`` written to 6 decimals (3.6 ms) were reported "irregular (1 to 1 min)"
 RECORD_INTERVAL_TOL_REL = 1e-3
 RECORDED_COLUMNS = ("feed_tph", "speed_frac_critical", "p80_um")
+#: Recorded columns that are measurements read at a time, not inputs held over a sample (rule 7).
+HELD_COLUMNS = ("p80_um",)
 TEXTURE_COLUMNS = ("mean_grain_um", "uniformity", "association_entropy")
 _MINERAL = re.compile(r"^(.+)_wt_pct$")
 _ORE = re.compile(r"^ore_(.+)_frac$")
@@ -80,6 +90,13 @@ MISSING_TEXT = ("", "nan", "NaN", "NA", "N/A", "n/a", "null", "NULL", "None")
 #: interval within this [h], is a daylight-saving change (rule 2): clocks go back one hour (Lord Howe
 #: Island's half hour is not caught).
 DST_STEP_TOL_H = 0.1
+#: Repeated times whose rows disagree, over at least this span [h], are refused (rule 2): keeping the last
+#: copy drops that long a stretch of other records (an hour recorded twice over the end of daylight-saving
+#: time, sorted by local time; two exports of the same times), where a few repeats are a record logged twice.
+CONFLICTING_REPEATS_SPAN_H = 0.5
+#: A step between records longer than this multiple of their median interval is records missing (rule 4):
+#: said, with the span the values were held over.
+MISSING_RECORDS_INTERVALS = 1.5
 
 
 @dataclass
@@ -126,6 +143,7 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
 
     changes = _order_report(raw)
     df = raw.iloc[np.argsort(raw["_t"].to_numpy(), kind="stable")].reset_index(drop=True)
+    _refuse_conflicting_repeats(df, where, naive=start is not None and start.tzinfo is None)
     dup = df["_t"].duplicated(keep="last").to_numpy()
     df = df[~dup].reset_index(drop=True)
     if len(df) < 1:
@@ -134,6 +152,7 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
     t = df["_t"].to_numpy() - df["_t"].iloc[0]
     if start is not None:
         start = start + pd.Timedelta(hours=float(df["_t"].iloc[0]))
+    changes += _missing_records(t, df["_row"], where, start if start is not None and start.tzinfo is None else None)
     values = _numeric(df, comp_cols + other_cols, where)
     neg = [f"column {c}: negative values in data rows {_names(df['_row'][values[c].to_numpy() < 0])}; "
            "allowed: >= 0" for c in values.columns if (values[c] < 0).any()]
@@ -182,6 +201,9 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
     grid = np.arange(int(np.floor(t[-1] / sample_period_h + 1e-9)) + 1) * sample_period_h
     data = _time_average(t, filled.to_numpy(), grid, sample_period_h)
     frame = pd.DataFrame(data, columns=list(filled.columns), index=pd.Index(grid, name="time_h"))
+    shown = np.clip(np.searchsorted(t, grid + 1e-9 * sample_period_h, side="right") - 1, 0, len(t) - 1)
+    for col in (c for c in HELD_COLUMNS if c in frame):  # the reading at t_k, not the mean of the sample ahead
+        frame[col] = filled[col].to_numpy()[shown]
     steps = np.diff(t)
     if len(steps) and (steps.max() - steps.min()) > RECORD_INTERVAL_TOL_REL * np.median(steps):
         report.append(f"irregular records (intervals {steps.min() * 60:.3g} to {steps.max() * 60:.3g}"
@@ -218,6 +240,58 @@ def _order_report(raw: pd.DataFrame) -> list[str]:
                    f"as data row {original}): dropped data rows {_names(rows[dropped])}, keeping the last row of "
                    "each time")
     return out
+
+
+def _refuse_conflicting_repeats(df: pd.DataFrame, where: str, naive: bool) -> None:
+    """Rule 2: rows (sorted by time) that repeat earlier rows' times over at least
+    :data:`CONFLICTING_REPEATS_SPAN_H` are refused when they disagree with them, or, in naive local times,
+    at all (an hour recorded twice, the clock put back, in a file sorted by local time: keeping the last copy
+    of each time drops an hour and places every later record an hour early)."""
+    repeated = df["_t"].duplicated(keep=False).to_numpy()
+    if not repeated.any():
+        return
+    cells = df.loc[repeated].drop(columns=["_row", "_t"]).astype(str)
+    differ = cells.groupby(df.loc[repeated, "_t"].to_numpy()).nunique().gt(1).any(axis=1)
+    times = (differ.index if naive else differ.index[differ.to_numpy()]).to_numpy(dtype=float)
+    if times.size < 2 or times.max() - times.min() < CONFLICTING_REPEATS_SPAN_H:
+        return
+    rows = df.loc[repeated & df["_t"].isin(times).to_numpy(), "_row"]
+    why = ("Local times without a UTC offset over the end of daylight-saving time (the clock put back, that hour "
+           "recorded twice and sorted together), or two exports of the same times? Give the timestamps with their "
+           "offset (e.g. 2026-10-25T02:30:00+02:00, then +01:00) or in UTC, or remove one copy" if naive else
+           "Two records of the same times (overlapping exports?): remove one copy")
+    raise SceneError(f"{where}: data rows {_names(rows)} repeat {times.size} times over "
+                     f"{(times.max() - times.min()) * 60:.0f} min{'' if naive else ' with other values'}; keeping the "
+                     f"last copy of each would drop that stretch of records. {why}.")
+
+
+def _missing_records(t: np.ndarray, rows: pd.Series, where: str, naive_start: pd.Timestamp | None) -> list[str]:
+    """Rule 4's missing rows, said: steps between records longer than :data:`MISSING_RECORDS_INTERVALS`
+    median intervals, over which the values before were held (NaN cells held were said; rows missing were
+    not). In naive local times (``naive_start``), a step of an hour and an interval that skips a whole clock
+    hour is the clock put forward for daylight-saving time: refused, as rule 2 refuses it put back."""
+    steps = np.diff(t)
+    if not steps.size:
+        return []
+    interval = float(np.median(steps))
+    long = np.flatnonzero(steps > MISSING_RECORDS_INTERVALS * interval)
+    if not long.size:
+        return []
+    if naive_start is not None:
+        for i in long[np.abs(steps[long] - (1.0 + interval)) <= DST_STEP_TOL_H]:
+            before, after = (naive_start + pd.Timedelta(hours=float(t[k])) for k in (i, i + 1))
+            if before.ceil("h") + pd.Timedelta(hours=1) <= after:  # a whole clock hour never recorded
+                raise SceneError(f"{where}: timestamp: data row {int(rows.iloc[i + 1])} ({after}) follows {before} "
+                                 f"an hour and a record interval later, skipping the clock hour from "
+                                 f"{before.ceil('h')}: local times without a UTC offset, the clock put forward for "
+                                 "daylight-saving time, so an hour that never happened would be held as recorded "
+                                 "and every later record placed an hour late. Give the timestamps with their offset "
+                                 "(e.g. 2026-03-29T01:59:00+01:00, then 03:00:00+02:00) or in UTC.")
+    worst = long[np.argmax(steps[long])]
+    return [f"records missing {'once' if long.size == 1 else f'{long.size} times'} (steps over "
+            f"{MISSING_RECORDS_INTERVALS:g} record intervals of {interval * 60:.3g} min; the longest "
+            f"{steps[worst] * 60:.3g} min after data row {int(rows.iloc[worst])}): the values before each held "
+            "over it"]
 
 
 def _out_of_order(t: np.ndarray) -> np.ndarray:

@@ -560,3 +560,73 @@ def test_a_replay_warns_of_what_reading_its_history_changed_and_records_the_plan
     assert "history plant.csv: 1 row repeats the time of an earlier row" in warned
     assert "history plant.csv: 1 missing values held from the previous row" in warned
     assert res.summary["replay"]["history_start"] == pd.Timestamp(raw["timestamp"].iloc[0]).isoformat()
+
+
+def test_a_recorded_p80_is_the_reading_shown_at_each_sample_and_inputs_the_mean_of_the_sample(tmp_path):
+    """Rule 7: 20-second records on a 3-minute grid. The feed, held by the run over the sample ahead, is that
+    sample's mean; the P80, an analyser's reading, is the last reading at or before the sample time (the mean of
+    the sample ahead set it 80 s early: 200 + 60 t plus 1.3 um here)."""
+    t = np.arange(0, 0.5 + 1e-9, 20 / 3600)
+    path = tmp_path / "fine.csv"
+    pd.DataFrame({"time_h": t, "ore_B_frac": 1.0, "feed_tph": 30.0 + 36.0 * t, "p80_um": 200.0 + 60.0 * t}).to_csv(
+        path, index=False)
+    dt = 0.05
+    frame = read_history(path, dt).frame
+    grid = frame.index.to_numpy()
+    np.testing.assert_allclose(frame["p80_um"], 200.0 + 60.0 * grid, rtol=1e-12)
+    inside = grid < grid[-1]  # the last sample holds the last record
+    mean_ahead = 30.0 + 36.0 * (grid[inside] + (dt - 20 / 3600) / 2)  # the mean of the 9 records in [t_k, t_k + dt)
+    np.testing.assert_allclose(frame["feed_tph"].to_numpy()[inside], mean_ahead, rtol=1e-12)
+
+
+def _hourly_day(times, feed) -> pd.DataFrame:
+    return pd.DataFrame({"timestamp": times, "ore_B_frac": 1.0, "feed_tph": feed})
+
+
+def test_records_missing_are_said_as_missing_values_are(tmp_path):
+    """50 minutes of rows deleted were held without a word while the same gap as blank cells was a warning."""
+    t = pd.date_range("2026-01-15T00:00", periods=180, freq="min")
+    keep = np.r_[0:60, 110:180]
+    path = tmp_path / "gap.csv"
+    _hourly_day(t[keep].strftime("%Y-%m-%dT%H:%M:%S"), 30.0).to_csv(path, index=False)
+    h = read_history(path, DT, max_gap_h=1.5)
+    assert any("records missing once" in c and "the longest 51 min after data row 60" in c for c in h.changes)
+    whole = tmp_path / "whole.csv"
+    _hourly_day(t.strftime("%Y-%m-%dT%H:%M:%S"), 30.0).to_csv(whole, index=False)
+    assert not any("missing" in c for c in read_history(whole, DT).changes)
+
+
+@pytest.mark.parametrize("change", ["spring", "autumn"])
+def test_a_daylight_saving_change_in_local_times_is_refused_in_any_order(tmp_path, change):
+    """Naive local times over the spring change skip 02:00-03:00: that hour was held as recorded, 28 t of feed
+    invented in 3 h, every later record an hour late. Over the autumn change, sorted by local time (a historian's
+    export), 02:00-02:59 comes twice and the first copy was dropped as duplicates (40 t of 120 lost). Both are
+    refused; the same records with their UTC offsets are read, every record kept."""
+    day = "2026-03-29T00:00" if change == "spring" else "2026-10-25T00:00"
+    real = pd.date_range(day, periods=240, freq="min", tz="Europe/Berlin")  # 4 h as they happened
+    feed = np.where(np.arange(240) < 150, 40.0, 20.0)
+    local = pd.Series(real.tz_localize(None))
+    order = np.argsort(local.to_numpy(), kind="stable")
+    naive = tmp_path / "naive.csv"
+    _hourly_day(local.dt.strftime("%Y-%m-%dT%H:%M:%S").to_numpy()[order], feed[order]).to_csv(naive, index=False)
+    with pytest.raises(SceneError, match="daylight-saving time"):
+        read_history(naive, DT)
+    offset = tmp_path / "offset.csv"
+    _hourly_day([ts.isoformat() for ts in real], feed).to_csv(offset, index=False)
+    h = read_history(offset, DT)
+    assert h.span_h == pytest.approx(239 / 60)
+    fed = h.frame["feed_tph"].to_numpy()[:-1].sum() * DT
+    assert fed == pytest.approx(feed[:-1].sum() / 60)
+
+
+def test_an_export_that_repeats_an_hour_with_the_same_values_keeps_one_copy(tmp_path):
+    """Two exports overlapping by an hour repeat the same records (times with their offset: no clock change):
+    one copy kept, said."""
+    t = pd.date_range("2026-01-15T00:00", periods=180, freq="min").strftime("%Y-%m-%dT%H:%M:%S+00:00")
+    feed = 30.0 + np.arange(180) / 60
+    both = pd.concat([_hourly_day(t[:120], feed[:120]), _hourly_day(t[60:], feed[60:])])
+    path = tmp_path / "overlap.csv"
+    both.to_csv(path, index=False)
+    h = read_history(path, DT)
+    assert any("60 rows repeat the time of an earlier row" in c for c in h.changes)
+    np.testing.assert_allclose(h.frame["feed_tph"].to_numpy(), feed)

@@ -234,8 +234,9 @@ def test_a_replays_workbook_holds_its_run_minus_recorded_as_summary_json(tmp_pat
                       "--quiet", "--no-plots"]) == 0
     summary, ts = _read(out)
     diffs = summary["replay"]["run_minus_recorded"]
-    for col in ("feed_tph", "speed_frac_critical", "p80_um"):
-        d = ts[col] - ts[f"recorded_{col}"]
+    for col, run in (("feed_tph", "feed_tph"), ("speed_frac_critical", "speed_frac_critical"),
+                     ("p80_um", "p80_as_recorded_um")):  # the P80 as the analyser reads it, as recorded
+        d = ts[run] - ts[f"recorded_{col}"]
         assert diffs[f"{col}_mean_diff"] == pytest.approx(d.mean(), rel=1e-12, abs=1e-12)
         assert diffs[f"{col}_mean_abs_diff"] == pytest.approx(d.abs().mean(), rel=1e-12, abs=1e-12)
     book = openpyxl.load_workbook(out / "run.xlsx", read_only=True)
