@@ -22,6 +22,7 @@ KPI_LABELS = {
     "start_p80_um": ("P80 at the start [µm]", "{:.4g}"),
     "p80_final_um": ("final P80 [µm]", "{:.4g}"),
     "p80_mean_um": ("mean P80 (a batch: of the mill content) [µm]", "{:.4g}"),
+    "p80_kpis_exclude_h": ("time without product, left out of the P80 KPIs [h]", "{:.4g}"),
     "energy_kwh": ("energy drawn [kWh]", "{:.4g}"),
     "fed_t": ("fresh feed [t]", "{:.4g}"),
     "duration_h": ("duration [h]", "{:.4g}"),

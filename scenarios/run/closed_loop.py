@@ -17,7 +17,7 @@ from scenarios.errors import RunError, SceneError
 from scenarios.run.feed import component_blend
 from scenarios.run.streams import Samples, run_size_data
 from scenarios.scene import Scene
-from scenarios.scene.ranges import nominal_feed_tph
+from scenarios.scene.ranges import scene_nominal_feed_tph
 from twin import EFFECTS, SolverError
 
 #: Scalar outputs of the plant's model recorded beside the loop's columns when the model has
@@ -188,7 +188,7 @@ def start_feed_bounds_tph(scene: Scene) -> tuple:
     mpc.optimize's range around the nominal feed of the scene's mill (its preset's, scaled by its
     power: scenarios.scene.ranges), not the twin's, which a scene sets to its own feed_tph. A fixed
     5-60 t/h held no steady state of a laboratory mill."""
-    nominal = nominal_feed_tph(scene.mill_spec(), scene.mill.model_dump()) or float(scene.feed.feed_tph)
+    nominal = float(scene_nominal_feed_tph(scene))
     return tuple(f * nominal for f in FEED_RANGE_NOMINAL)
 
 

@@ -21,7 +21,11 @@
 - ``start_feed_tph``, ``start_p80_um``: the feed rate of the state the run started from and the
   P80 at t = 0.
 - P80 KPIs read the frame's ``p80_um``: the exact interpolation of the product's size
-  distribution in every mode (open loop: the model's smooth output is ``p80_smooth_um``).
+  distribution in every mode (open loop: the model's smooth output is ``p80_smooth_um``). A continuous
+  mill's IAE, within-band share and mean leave out the samples in which it makes no product (its
+  ``throughput_tph`` below :data:`NO_PRODUCT_FRAC` of its nominal feed: a feed stop, where the P80 is the
+  charge grinding down, 36 um in a replay's half-hour stop), an interval of the IAE when either end is;
+  ``p80_kpis_exclude_h`` says how long that was (0 without stops).
 - Also ``p80_final_um``, ``p80_mean_um``, ``energy_kwh``, ``fed_t``, ``duration_h``.
 Integrals of outputs are trapezoidal over the samples; a feed rate without the plant's ``fed_t``
 is integrated as held (:mod:`mpc.kpis`).
@@ -39,6 +43,12 @@ from mpc import (cumulative, fresh_feed_t, held_cumulative, integral, outside_ba
                  specific_energy_kwh_t, within_band_frac)
 from scenarios.run.models import is_batch
 from scenarios.scene import Scene
+from scenarios.scene.ranges import scene_nominal_feed_tph
+
+#: A sample whose product rate is below this fraction of the mill's nominal feed makes no product: a feed
+#: stop (a mill discharges at its nominal rate over its residence time, ~0.1 h; after a stop's few residence
+#: times only the draining charge's trickle leaves).
+NO_PRODUCT_FRAC = 0.05
 
 KPI_KEYS = ("p80_iae_um_h", "p80_within_10um_frac", "specific_energy_kwh_t", "throughput_t", "throughput_tph",
             "load_outside_band_frac", "solve_time_median_s", "solve_time_p95_s",
@@ -58,9 +68,11 @@ def compute_kpis(scene: Scene, frame: pd.DataFrame, solve_times_s=None, batch_ch
     p80 = frame["p80_um" if "p80_um" in frame else "content_p80_um"].to_numpy(float)  # batch: the content
     target = scene.controller.target_p80_um
     k: dict[str, Any] = {}
+    stopped = _no_product(scene, frame)
     if target is not None and not is_batch(scene):
-        k["p80_iae_um_h"] = p80_iae_um_h(t, p80, target)
-        k["p80_within_10um_frac"] = within_band_frac(p80, target)
+        k["p80_iae_um_h"] = (sum(p80_iae_um_h(t[run], p80[run], target) for run in _runs(~stopped))
+                             if (~stopped).any() else math.nan)
+        k["p80_within_10um_frac"] = within_band_frac(p80[~stopped], target) if (~stopped).any() else math.nan
     else:
         k["p80_iae_um_h"] = math.nan
         k["p80_within_10um_frac"] = math.nan
@@ -95,11 +107,26 @@ def compute_kpis(scene: Scene, frame: pd.DataFrame, solve_times_s=None, batch_ch
         k["start_feed_tph"] = float(frame["feed_tph"].iloc[0]) if "feed_tph" in frame else math.nan
     k["start_p80_um"] = float(p80[0])  # what the case started from (sweep tables compare cases)
     k["p80_final_um"] = float(p80[-1])
-    k["p80_mean_um"] = float(np.nanmean(p80))
+    k["p80_mean_um"] = float(np.nanmean(p80[~stopped])) if (~stopped).any() else math.nan
+    k["p80_kpis_exclude_h"] = float(np.diff(t)[stopped[1:] | stopped[:-1]].sum())
     k["energy_kwh"] = float(energy)
     k["fed_t"] = fed
     k["duration_h"] = float(t[-1])
     return k
+
+
+def _no_product(scene: Scene, frame: pd.DataFrame) -> np.ndarray:
+    """Mask of the samples in which a continuous mill makes no product (:data:`NO_PRODUCT_FRAC`)."""
+    nominal = scene_nominal_feed_tph(scene)
+    if is_batch(scene) or "throughput_tph" not in frame or not nominal:
+        return np.zeros(len(frame), bool)
+    return frame["throughput_tph"].to_numpy(float) < NO_PRODUCT_FRAC * nominal
+
+
+def _runs(mask: np.ndarray) -> list[np.ndarray]:
+    """Index arrays of the runs of consecutive True in ``mask``."""
+    edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0]))
+    return [np.arange(a, b) for a, b in zip(edges[::2], edges[1::2])]
 
 
 def mass_balance_error(frame: pd.DataFrame) -> float:

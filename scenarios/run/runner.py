@@ -52,7 +52,7 @@ from scenarios.output import claim_output, workbook_problem, write_files
 from scenarios.run.batch import run_batch
 from scenarios.run.closed_loop import run_closed
 from scenarios.run.feed import feed_schedule, fit_warnings, history_changes
-from scenarios.run.kpis import compute_kpis
+from scenarios.run.kpis import NO_PRODUCT_FRAC, compute_kpis
 from scenarios.run.models import build_models, component_ores, is_batch
 from scenarios.run.open_loop import analyser_trace, run_open_loop
 from scenarios.run.preflight import model_size_problems, refuse, replay_speed_problems, settings_problems
@@ -159,6 +159,10 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
     kpis = compute_kpis(scene, frame, **extra)
     if not kpis["fed_t"] > 0 and not is_batch(scene):
         warnings_.append("specific energy is undefined: nothing was fed")
+    if kpis["p80_kpis_exclude_h"] > 0:
+        warnings_.append(f"the P80 KPIs (IAE, share within the band, mean) leave out {kpis['p80_kpis_exclude_h']:.3g} h "
+                         f"in which the mill made no product (below {NO_PRODUCT_FRAC:.0%} of its nominal feed: a feed "
+                         "stop, where the P80 is the charge grinding down)")
     warnings_ += trajectory_notes(frame, models.plant.spec, models.plant.model.effect_names,
                                   product_psd=None if is_batch(scene) else psd)
     summary = make_summary(scene, models, kpis, notes + warnings_, time.perf_counter() - t_start)

@@ -73,6 +73,11 @@ def nominal_feed_tph(preset, mill_keys: dict | None = None) -> float | None:
     return float(base.feed_nominal_tph) * float(power_kw(mill, speed)) / float(power_kw(base, speed))
 
 
+def scene_nominal_feed_tph(scene) -> float | None:
+    """The nominal feed rate [t/h] of a loaded scene's mill (:func:`nominal_feed_tph`), else its feed rate."""
+    return nominal_feed_tph(scene.mill_spec(), scene.mill.model_dump()) or scene.feed.feed_tph
+
+
 def speed_problem(value: float) -> str | None:
     """Why ``value`` is not a speed as a fraction of critical in (0, 1), or None."""
     if math.isfinite(value) and 0.0 < value < 1.0:

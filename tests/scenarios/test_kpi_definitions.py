@@ -32,3 +32,24 @@ def test_scene_and_loop_kpis_give_one_specific_energy_the_hand_value(write_scene
     scene_k = compute_kpis(scene, frame.copy())["specific_energy_kwh_t"]
     loop_k = loop_kpis(frame.copy())["specific_energy_kwh_t"]
     assert scene_k == loop_k == 2000.0 / 300.0
+
+
+def test_p80_kpis_leave_out_the_samples_without_product(write_scene):
+    """A feed stop (throughput 0.5 t/h of a 30 t/h mill at 2-4 h): the P80 of the charge grinding down (40 um)
+    entered the IAE, the within-band share and the mean; now they are those of the producing samples, by hand,
+    and the time left out is a KPI. Without a stop the numbers are the plain ones."""
+    scene = load_scene(write_scene())
+    assert scene.controller.target_p80_um == 210.0 and scene.feed.feed_tph == 30.0
+    frame = _loop_frame([30.0] * 7)
+    frame["p80_um"] = [210.0, 220.0, 40.0, 40.0, 40.0, 230.0, 210.0]
+    frame["throughput_tph"] = [30.0, 30.0, 0.5, 0.5, 0.5, 30.0, 30.0]
+    k = compute_kpis(scene, frame.copy())
+    assert k["p80_iae_um_h"] == pytest.approx(0.5 * (0 + 10) + 0.5 * (20 + 0))  # 0-1 h and 5-6 h
+    assert k["p80_within_10um_frac"] == pytest.approx(3 / 4)
+    assert k["p80_mean_um"] == pytest.approx((210 + 220 + 230 + 210) / 4)
+    assert k["p80_kpis_exclude_h"] == pytest.approx(4.0)  # the intervals 1-2 to 4-5 h touch the stop
+    frame["throughput_tph"] = 30.0
+    plain = compute_kpis(scene, frame.copy())
+    assert plain["p80_kpis_exclude_h"] == 0.0
+    assert plain["p80_mean_um"] == pytest.approx(np.mean(frame["p80_um"]))
+    assert plain["p80_iae_um_h"] == pytest.approx(np.trapezoid(np.abs(frame["p80_um"] - 210.0), frame["time_h"]))
