@@ -30,8 +30,9 @@ def _circuit(cyclone: dict) -> Twin:
     return Twin("B", mill=mill, effects=EFFECTS, effect_options=opts, grid=GRID, ore_breakage={"B": bp})
 
 
-def _independent(tw: Twin, cyclone: dict, feed_tph: float):
-    """Product and underflow [t/h per class] of the circuit, by linear algebra."""
+def _independent(tw: Twin, cyclone: dict, feed_tph: float, partition=None):
+    """Product and underflow [t/h per class] of the circuit, by linear algebra (``partition``: the cyclone's
+    to the underflow per class; default Plitt's curve with the solids bypass)."""
     up, mid, n = GRID.upper_um, GRID.mid_um, GRID.count
     s = 60.0 * A_PER_MIN * (up / 1000.0) ** ALPHA / (1.0 + (up / MU_UM) ** LAMBDA)  # 1/h, at the class's top
     s[-1] = 0.0  # the sink
@@ -48,6 +49,7 @@ def _independent(tw: Twin, cyclone: dict, feed_tph: float):
         m = np.linalg.solve(np.eye(n) / tk + (np.eye(n) - b) @ np.diag(s), np.eye(n) / tk) @ m
     rs = cyclone.get("solids_bypass_frac", cyclone["water_bypass_frac"])
     e = rs + (1 - rs) * (1 - np.exp(-math.log(2) * (mid / cyclone["d50c_um"]) ** cyclone["sharpness"]))
+    e = e if partition is None else partition
     d = np.linalg.solve(np.eye(n) - m @ np.diag(e), m @ (tw.spec.feed_frac * feed_tph))
     return (1 - e) * d, e * d
 
@@ -77,3 +79,23 @@ def test_a_flat_partition_is_refused(field):
     cyclone = {"d50c_um": 150.0, "sharpness": 2.5, "water_bypass_frac": 0.3, field: 0.0}
     with pytest.raises(TwinInputError, match=f"'{field}' parameter of Hydrocyclone must be a float in \\(0, "):
         _circuit(cyclone)
+
+
+def test_whitens_efficiency_curve_as_jksimmet_writes_it():
+    """A classifier given with Whiten's alpha (JKSimMet's parameter: E_oa = C (e^alpha - 1) / (e^(alpha x) +
+    e^alpha - 2) to the overflow, C = 1 - R_f; Napier-Munn et al. 1996, ch. 10): the circuit against its
+    independent solution with that curve, and alpha = 3.5 read as Plitt's m (what a JKSimMet user's number
+    became before) moves the product measurably."""
+    whiten = {"d50c_um": 150.0, "sharpness": 3.5, "water_bypass_frac": 0.3, "count": 2, "curve": "whiten"}
+    tw = _circuit(whiten)
+    feed = tw.mill.feed_nominal_tph
+    ss = tw.steady(feed_tph=feed)
+    x, alpha, rf = GRID.mid_um / 150.0, 3.5, 0.3
+    to_overflow = (1 - rf) * (math.exp(alpha) - 1) / (np.exp(alpha * x) + math.exp(alpha) - 2)
+    product, underflow = _independent(tw, whiten, feed, partition=1.0 - to_overflow)
+    assert ss.p80_um == pytest.approx(pxx_um(GRID, product), rel=1e-6)
+    assert ss.outputs["circulating_load_frac"] == pytest.approx(underflow.sum() / feed, rel=1e-6)
+    as_m = _circuit({**whiten, "curve": "plitt"}).steady(feed_tph=feed)
+    assert as_m.p80_um < 0.97 * ss.p80_um  # a sharper curve: 4 um finer
+    with pytest.raises(TwinInputError, match="'curve'.*a cyclone given directly"):
+        _circuit({"count": 2, "curve": "whiten"})  # Plitt's equations predict his own curve's m

@@ -44,6 +44,22 @@ from .base import Effect, EffectContext, Option, smooth_max
 PLITT_D50C, PLITT_PRESSURE, PLITT_SPLIT, PLITT_SHARPNESS = 39.7, 1.88, 1.9, 1.94
 #: Plitt's partition: corrected efficiency 1 - exp(-ln 2 (d/d50c)^m) (0.693 = ln 2: E_c(d50c) = 1/2).
 LN2 = math.log(2.0)
+#: The corrected efficiency curves a cyclone's ``curve`` takes (:func:`corrected_partition`).
+PARTITION_CURVES = ("plitt", "whiten")
+
+
+def corrected_partition(size_over_d50c, sharpness, curve: str = "plitt"):
+    """The corrected partition to the underflow at sizes d/d50c (0.5 at 1): ``"plitt"``, 1 - exp(-ln 2
+    (d/d50c)^m) (Plitt 1976, CIM Bull. 69, 114-123; the Rosin-Rammler form, m the sharpness); ``"whiten"``,
+    (e^(alpha x) - 1) / (e^(alpha x) + e^alpha - 2), x = d/d50c (Whiten's efficiency curve without the
+    fish-hook; Napier-Munn et al. 1996, *Mineral Comminution Circuits*, JKMRC, ch. 10), written with
+    e^(-alpha x) so that coarse sizes do not overflow. Floats, arrays or CasADi expressions."""
+    if curve == "whiten":
+        fall = _exp(-sharpness * size_over_d50c)
+        return (1.0 - fall) / (1.0 + (_exp(sharpness) - 2.0) * fall)
+    return 1.0 - _exp(-LN2 * size_over_d50c ** sharpness)
+
+
 WATER_DENSITY_T_M3 = 1.0
 #: Densest cyclone feed [solids % by volume] a Hydrocyclone takes: past ~70 % a slurry no longer
 #: flows (a packed bed of particles holds ~60-65 % solids by volume).
@@ -158,7 +174,10 @@ class Hydrocyclone:
     Direct: ``d50c_um``, ``sharpness`` and ``water_bypass_frac`` given (a surveyed cyclone), solids
     bypass as above; pressure still from Plitt's equation for the geometry.
     The sump dilutes the mill discharge to ``feed_solids_frac`` (solids mass fraction of the
-    cyclone feed, 0.61 not 61) or, when that is None, to ``feed_solids_vol_pct`` % by volume."""
+    cyclone feed, 0.61 not 61) or, when that is None, to ``feed_solids_vol_pct`` % by volume.
+    ``curve``: the corrected efficiency curve (:func:`corrected_partition`), ``"plitt"`` (``sharpness``
+    Plitt's m; his equations predict it) or, for a cyclone given directly, ``"whiten"`` (``sharpness``
+    Whiten's alpha, as JKSimMet reports it)."""
 
     diameter_cm: float = 38.0
     inlet_cm: float = 11.0
@@ -177,6 +196,7 @@ class Hydrocyclone:
     sharpness: float | None = None
     water_bypass_frac: float | None = None
     solids_bypass_frac: float | None = None
+    curve: str = "plitt"
     #: A table's keys beside the fields: a table built into the named dataclass (hydrocyclone_from).
     tables: ClassVar[dict] = {"survey": CycloneSurvey}
 
@@ -206,6 +226,11 @@ class Hydrocyclone:
                 check_range(o, name, getattr(self, name), lo, hi, lo_open=lo_open)
         if self.d50c_um is not None:
             check_d50c(o, self.d50c_um)
+        if self.curve not in PARTITION_CURVES:
+            raise bad_value(o, "curve", self.curve, "one of " + ", ".join(map(repr, PARTITION_CURVES)))
+        if self.curve != "plitt" and self.d50c_um is None:  # Plitt's equations predict his own curve's m
+            raise bad_value(o, "curve", self.curve, "'plitt' for a cyclone by Plitt's equations or a survey; another "
+                            "curve is for a cyclone given directly (d50c_um, sharpness, water_bypass_frac)")
         direct = [n for n in ("d50c_um", "sharpness", "water_bypass_frac") if getattr(self, n) is not None]
         if direct and len(direct) < 3:
             missing = sorted({"d50c_um", "sharpness", "water_bypass_frac"} - set(direct))
@@ -438,7 +463,7 @@ class Classification(Effect):
             d50 = state["d50c_um"] * cut
             rf = state["water_bypass_frac"]
             rs = cyc.solids_bypass(rf)
-            e = rs + (1.0 - rs) * (1.0 - ca.exp(-LN2 * (xs / d50) ** state["sharpness_m"]))
+            e = rs + (1.0 - rs) * corrected_partition(xs / d50, state["sharpness_m"], cyc.curve)
             under = [e * dc for dc in stream]
             over = [dc - uc for dc, uc in zip(stream, under)]
             fresh_water = 0.0 if fresh is None or s_f is None else sum(ca.sum1(fc) for fc in fresh) * (1.0 - s_f) / s_f
@@ -456,7 +481,8 @@ class Classification(Effect):
 
         ctx.provide("product_split", split)
         factors = plitt_factors_text(plitt_factors(cyc), calibrated_only=True)
-        ctx.note(f"hydrocyclone ({cyc.mode}): d50c {float(at_nominal['d50c_um']):.0f} um, m "
+        ctx.note(f"hydrocyclone ({cyc.mode}): d50c {float(at_nominal['d50c_um']):.0f} um, "
+                 f"{'Whiten alpha' if cyc.curve == 'whiten' else 'm'} "
                  f"{float(at_nominal['sharpness_m']):.2f}, water bypass {float(at_nominal['water_bypass_frac']):.2f} "
                  "at nominal" + (f" (Plitt factors {factors})" if factors else "")
                  + ("; reverse circuit: fresh feed to the cyclones" if reverse else "")
