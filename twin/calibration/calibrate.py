@@ -7,6 +7,9 @@
   twin.calibration.fitting) and the bootstrap (twin.calibration.uncertainty).
 - ``--from FILE``: FILE's DEM step reused (no DEM runs): laws, table step and bootstrap again
   (what to rerun when the twin's model changes but the DEM does not).
+- ``--table FILE``: the table step (and bootstrap) fitted to a user's laboratory table in place of
+  the shipped one (twin.calibration.reference.read_table), from DEM_FITTED's starts, on ``--from``'s
+  DEM step (default: the shipped ``dem``); the table's values and ores are recorded in the file.
 - ``--map mineralogy``: the ``table`` calibration (twin.calibration.table).
 
 It writes to ``--out`` or to a new file in the current directory, prints the path, and refuses
@@ -40,9 +43,10 @@ BOOTSTRAP_SEED = 12
 
 
 def dem_record(dem: dict, name: str = "dem", start: dict | None = None, replicates: int = DEFAULT_REPLICATES,
-               seed: int = BOOTSTRAP_SEED, progress: bool = True) -> tuple[dict, dict]:
+               seed: int = BOOTSTRAP_SEED, progress: bool = True, table: tuple | None = None) -> tuple[dict, dict]:
     """A DEM calibration's record from a DEM step's record: the laws, the table step and the
-    bootstrap. Returns (record, wall times of the steps [s])."""
+    bootstrap. ``table``: (ores, values, file) of a laboratory table in place of the shipped one
+    (:func:`twin.calibration.reference.read_table`). Returns (record, wall times of the steps [s])."""
     from ..sizes import SizeGrid
     from .uncertainty import bootstrap
 
@@ -57,10 +61,11 @@ def dem_record(dem: dict, name: str = "dem", start: dict | None = None, replicat
     record["coefficients"] = {n: start[n] for n in DEM_NAMES if not n.startswith("lab_")}
     record["mills"] = {"lab": {n[len("lab_"):]: start[n] for n in DEM_NAMES if n.startswith("lab_")}}
     record["dem"] = {**dem, "sha256": dem_step_sha256(dem)}
-    fitted, fit = fit_to_table(Calibration(record), DEM_NAMES, DEM_BOUNDS)
+    ores, values, source = table or (("A", "B", "C", "D"), None, None)
+    fitted, fit = fit_to_table(Calibration(record), DEM_NAMES, DEM_BOUNDS, ores, reference=values, source=source)
     times["table_step_s"] = fit["optimizer"]["seconds"]
-    predicted = predict_table(fitted)
-    errors = table_errors(predicted)
+    predicted = predict_table(fitted, ores)
+    errors = table_errors(predicted, values)
     fit.update({"predicted": predicted, "error_pct": errors,
                 "max_abs_error_pct": max(abs(e) for row in errors.values() for e in row.values())})
     record = dict(fitted.record)
@@ -77,8 +82,8 @@ def dem_record(dem: dict, name: str = "dem", start: dict | None = None, replicat
         "per_ore_own_selection": per_ore_selection(dem, sizes),
     }
     t1 = time.perf_counter()
-    record["bootstrap"] = bootstrap(Calibration(record), DEM_NAMES, DEM_BOUNDS, replicates, seed, progress) \
-        if replicates else {"n": 0, "replicates": []}
+    record["bootstrap"] = bootstrap(Calibration(record), DEM_NAMES, DEM_BOUNDS, replicates, seed, progress,
+                                    table) if replicates else {"n": 0, "replicates": []}
     times["bootstrap_s"] = time.perf_counter() - t1
     times["laws_table_bootstrap_s"] = time.perf_counter() - t0
     return record, times
@@ -90,6 +95,11 @@ def add_arguments(ap: argparse.ArgumentParser) -> argparse.ArgumentParser:
                     help="dem: the DEM chain (default); mineralogy: the 'table' calibration")
     ap.add_argument("--from", dest="source", metavar="FILE_OR_NAME",
                     help="reuse the DEM step of this DEM calibration (a name such as 'dem' or a file): no DEM runs")
+    ap.add_argument("--table", type=Path, metavar="FILE",
+                    help="fit the mill's numbers to your own laboratory table (CSV as the shipped table: ore, p80_um, "
+                    "specific_energy_kwh_t, throughput_kg_h; ore a type A-D or an ore TOML file; the shipped table's "
+                    "test: the 0.5 m x 0.3 m mill at 70 %% of critical, feed P80 3.2 mm, constant load) in place of "
+                    "the shipped table; the DEM step is --from's (default: the shipped dem)")
     ap.add_argument("--out", type=Path, help="output file (default: a new calibration-<dem|table>-<time>.json here)")
     ap.add_argument("--name", help="the calibration's name (default: the output file's name without .json; a "
                     "shipped name such as dem only for the shipped file)")
@@ -113,6 +123,7 @@ def command_of(args: argparse.Namespace) -> str:
     """The command line that makes what ``args`` asks for (for the file's provenance)."""
     words = ["grindtwin calibrate"]
     for opt, value in (("--map", args.map if args.map != "dem" else None), ("--from", args.source),
+                       ("--table", args.table),
                        ("--out", args.out), ("--name", args.name), ("--seed", args.seed or None),
                        ("--replicates", args.replicates)):
         if value is not None:
@@ -129,7 +140,8 @@ def calibrate(args: argparse.Namespace) -> int:
         raise TwinInputError(f"--replicates must be >= 0. Got {args.replicates}.")
     if args.map == "mineralogy":  # no DEM, no bootstrap: these options would be recorded, not used
         given = [o for o, v in (("--from", args.source), ("--fast", args.fast), ("--seed", args.seed or None),
-                                ("--replicates", args.replicates), ("--workers", args.workers)) if v]
+                                ("--replicates", args.replicates), ("--workers", args.workers),
+                                ("--table", args.table)) if v]
         if given:
             raise TwinInputError(f"{', '.join(given)}: option{'s' * (len(given) > 1)} of the DEM chain; --map "
                                  "mineralogy runs no DEM and no bootstrap (allowed with it: --out, --name, --quiet).")
@@ -142,6 +154,9 @@ def calibrate(args: argparse.Namespace) -> int:
         raise TwinInputError(f"{', '.join(unused)}: --from {args.source} reuses that file's DEM step, so no DEM test "
                              f"runs; drop {', '.join(unused)} (--replicates sets the bootstrap), or --from to rerun "
                              "the DEM step.")
+    table = _read_table(args.table) if args.table is not None else None
+    if table is not None and args.source is None:  # the DEM step is the laws' (ores A-D), not the table's
+        args.source = "dem"
     _refuse_other_kind(out, "mineralogy" if args.map == "mineralogy" else "dem", args.fast)
     # only its DEM step is reused, which does not read the reference table: the table step refits
     try:
@@ -160,7 +175,7 @@ def calibrate(args: argparse.Namespace) -> int:
         record = calibrate_mineralogy_map(name, command=command_of(args))
         times = {"table_step_s": record["fit"]["optimizer"]["seconds"]}
     else:
-        record, times = _dem_calibration(args, name, source)
+        record, times = _dem_calibration(args, name, source, table)
     times["total_s"] = time.perf_counter() - t0
     record["provenance"] = provenance(command_of(args), seed=args.seed, fast=args.fast, times_s=times)
     cal = write_calibration(out, record)
@@ -203,16 +218,31 @@ def _name_of(name: str | None, out: Path) -> str:
     return name
 
 
-def _dem_calibration(args, name: str, source: Calibration | None) -> tuple[dict, dict]:
-    """The DEM step (or ``source``'s), then :func:`dem_record`."""
+def _read_table(path: Path) -> tuple:
+    """(ores, values, file) of ``--table``, refused before any work when it holds no more values than the
+    table step fits numbers (an exact fit of as many numbers as values tells nothing)."""
+    from .reference import KPIS, read_table
+
+    values, ores = read_table(path)
+    if len(values) * len(KPIS) <= len(DEM_NAMES):
+        need = len(DEM_NAMES) // len(KPIS) + 1
+        raise TwinInputError(f"--table {path}: {len(values)} ores give {len(values) * len(KPIS)} values; the table "
+                             f"step fits {len(DEM_NAMES)} numbers ({', '.join(DEM_NAMES)}): at least {need} ores")
+    return list(ores.values()), values, path
+
+
+def _dem_calibration(args, name: str, source: Calibration | None, table: tuple | None = None) -> tuple[dict, dict]:
+    """The DEM step (or ``source``'s), then :func:`dem_record` (on ``table``, a user's, or the shipped one)."""
     if source is not None:
         dem = source.record["dem"]
         start = {k: v for k, v in source.coefficients.items() if k in DEM_FITTED}
         start |= {f"lab_{k}": v for k, v in source.record["mills"]["lab"].items() if f"lab_{k}" in DEM_FITTED}
+        if table is not None:  # from DEM_FITTED's own starts: not from an optimum of other data
+            start = None
     else:
         dem, start = run_dem(fast=args.fast, seed=args.seed, progress=not args.quiet, workers=args.workers), None
     n_rep = args.replicates if args.replicates is not None else (FAST_REPLICATES if args.fast else DEFAULT_REPLICATES)
-    record, times = dem_record(dem, name, start=start, replicates=n_rep, progress=not args.quiet)
+    record, times = dem_record(dem, name, start=start, replicates=n_rep, progress=not args.quiet, table=table)
     times["dem_step_s"] = 0.0 if source is not None else dem["dem_seconds"]
     if source is not None:
         note = dem_step_note(dem)

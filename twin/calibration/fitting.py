@@ -85,9 +85,12 @@ def fit_log_ratios(fun, jac, z0, lo, hi, max_iter: int = 200, least_squares_firs
 
 class TableProblem:
     """The log-ratio residuals of a calibration's ``names`` on the reference ``ores`` and their
-    exact Jacobian (parameters packed in log space when their lower bound is positive)."""
+    exact Jacobian (parameters packed in log space when their lower bound is positive). ``reference``:
+    values in place of the shipped table (their ``ores`` reference types or Mineralogy, named as the
+    values' keys; ``source`` the file they came from), recorded as given."""
 
-    def __init__(self, calibration, names, bounds: dict, ores=("A", "B", "C", "D"), reference: dict | None = None):
+    def __init__(self, calibration, names, bounds: dict, ores=("A", "B", "C", "D"), reference: dict | None = None,
+                 source=None):
         missing = [n for n in names if n not in bounds]
         if missing:
             raise TwinInputError(f"No bounds for the fitted parameter(s) {missing}.")
@@ -95,14 +98,16 @@ class TableProblem:
         self.bounds = {n: bounds[n] for n in self.names}
         self.log = np.array([self.bounds[n][0] > 0 for n in self.names])
         ref = reference or reference_table()
-        unknown = [o for o in ores if o not in ref]
+        keys = [ore_key(o) for o in ores]
+        unknown = [k for k in keys if k not in ref]
         if unknown:
             raise TwinInputError(f"The 'ores' parameter names {unknown}, not in the reference table "
                                  f"(ores {sorted(ref)}).")
-        self.ref = {o: ref[o] for o in ores}
+        self.ref = {k: ref[k] for k in keys}
         # what the fit is to: the shipped table, or values given (recorded as such, never as the table)
-        self.fitted_to = reference_identity() if reference is None else given_reference(self.ref)
-        self.twins = {o: ParametricTwin(o, calibration, self.names) for o in ores}
+        own = {k: o for k, o in zip(keys, ores) if not isinstance(o, str)}
+        self.fitted_to = reference_identity() if reference is None else given_reference(self.ref, source, own)
+        self.twins = {k: ParametricTwin(o, calibration, self.names) for k, o in zip(keys, ores)}
         self.base = calibration_values(calibration)
         self.failures: list[str] = []
         self._cache = (None, None, None)
@@ -152,13 +157,18 @@ class TableProblem:
         return r, J
 
 
+def ore_key(ore) -> str:
+    """An ore's key in a table: a reference type as given, a Mineralogy by its name."""
+    return ore if isinstance(ore, str) else ore.name
+
+
 def fit_to_table(calibration, names, bounds: dict, ores=("A", "B", "C", "D"), start: dict | None = None,
-                 max_iter: int = 200, reference: dict | None = None):
+                 max_iter: int = 200, reference: dict | None = None, source=None):
     """Fit ``names`` of ``calibration`` to the table on ``ores``; returns (fitted Calibration in
     memory, fit record). The start is ``start`` (else the calibration's own values) clipped
-    into the bounds."""
+    into the bounds. ``reference``, ``source``: values in place of the shipped table (:class:`TableProblem`)."""
     t0 = time.perf_counter()
-    problem = TableProblem(calibration, names, bounds, ores, reference)
+    problem = TableProblem(calibration, names, bounds, ores, reference, source)
     record = fit_problem(problem, start, max_iter)
     record["optimizer"]["seconds"] = time.perf_counter() - t0  # with the parametric twins' build
     return with_fitted_values(calibration, record["values"]), record
@@ -207,7 +217,7 @@ def predict_table(calibration, ores=("A", "B", "C", "D")) -> dict:
         ss = Twin(ore, mill=calibration.mill, effects=calibration.effects, grid=calibration.grid(),
                   n_mixers=calibration.n_mixers, calibration=calibration) \
             .steady_at_constant_load(speed_frac_critical=TABLE_SPEED_FRAC_CRITICAL, load_frac=TABLE_LOAD_FRAC)
-        out[ore] = {"p80_um": ss.p80_um, "specific_energy_kwh_t": ss.outputs["specific_energy_kwh_t"],
+        out[ore_key(ore)] = {"p80_um": ss.p80_um, "specific_energy_kwh_t": ss.outputs["specific_energy_kwh_t"],
                     "throughput_kg_h": ss.feed_tph * 1000.0}
     return out
 

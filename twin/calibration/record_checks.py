@@ -183,8 +183,9 @@ def check_data(record: dict, where: str) -> None:
     SHA-256, twin.calibration.reference.reference_identity) is the shipped table as it is now: a
     table edited after the fit leaves the fitted numbers answering other data, so the file is
     refused (as a fitted number edited by hand is, :func:`check_fitted`), naming both hashes and
-    the command that refits it."""
-    from .reference import reference_identity
+    the command that refits it. A user's table (twin.calibration.reference.given_reference) travels
+    in the record: its values must still hash to the recorded SHA-256."""
+    from .reference import given_values_sha256, reference_identity
 
     fitted_to = record["fit"]["fitted_to"]
     recorded = fitted_to.get("sha256") if isinstance(fitted_to, dict) else None
@@ -192,11 +193,13 @@ def check_data(record: dict, where: str) -> None:
         raise _bad(where, "fit.fitted_to", fitted_to, "the data it was fitted to: a table of its 'path' and "
                    "'sha256' (twin.calibration.reference.reference_identity)")
     now = reference_identity()
-    if fitted_to.get("path", now["path"]) is None:  # twin.calibration.reference.given_reference
-        raise TwinInputError(
-            f"{where} was fitted to {fitted_to.get('what', 'values given to the fit')} (sha256 {recorded}): "
-            f"calibrations are fitted to the shipped table ({now['path']}); fitting your own laboratory data is "
-            "not supported yet (README, Limitations).")
+    if "values" in fitted_to:  # a table given to the fit (given_reference): its values travel with the file
+        if given_values_sha256(fitted_to) != recorded:
+            raise TwinInputError(
+                f"{where} records the table values it was fitted to (fit.fitted_to.values) with sha256 {recorded}, "
+                f"but they now hash to {given_values_sha256(fitted_to)}: edited after the fit, so its fitted numbers "
+                "answer other data. Refit it (`grindtwin calibrate --table FILE`).")
+        return
     if recorded != now["sha256"]:
         from .model_code import refit_command
 

@@ -69,9 +69,11 @@ def replicate_calibration(calibration: Calibration, replicate: dict, k: int) -> 
                                    name=f"{calibration.name}#bootstrap{k}")
 
 
-def bootstrap(calibration: Calibration, names, bounds: dict, n: int, seed: int, progress: bool = True) -> dict:
+def bootstrap(calibration: Calibration, names, bounds: dict, n: int, seed: int, progress: bool = True,
+              table: tuple | None = None) -> dict:
     """Replicates of a fitted DEM calibration, each with its laws and its own table step (from
-    the nominal values); with the standard errors they give of each reference ore's E50."""
+    the nominal values); with the standard errors they give of each reference ore's E50. ``table``:
+    (ores, values, file) of a user's table in place of the shipped one (:class:`TableProblem`)."""
     from tqdm.auto import tqdm
 
     from .fitting import TableProblem, fit_problem
@@ -79,7 +81,7 @@ def bootstrap(calibration: Calibration, names, bounds: dict, n: int, seed: int, 
     t0 = time.perf_counter()
     record = calibration.record
     laws = replicate_laws(record["dem"], record["law"], n, seed)
-    problem = TableProblem(calibration, names, bounds)
+    problem = TableProblem(calibration, names, bounds, *(table or ()))
     reps = []
     for k, law in enumerate(tqdm(laws, desc="bootstrap", unit="replicate", disable=not progress)):
         problem.set_breakage(replicate_calibration(calibration, law, k))
