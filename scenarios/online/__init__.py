@@ -5,7 +5,7 @@ virtual plant (``grindtwin plant-server``, :class:`PlantServer`). Needs the ``on
 
 from pathlib import Path
 
-from scenarios.online.audit import AuditLog, read_audit
+from scenarios.online.audit import AuditLog, check_audit_dir, read_audit
 from scenarios.online.clock import Clock, ManualClock
 from scenarios.online.lock_step import run_lock_step
 from scenarios.online.opcua import CONNECTION_ERRORS, PlantConnection
@@ -25,5 +25,5 @@ VIRTUAL_PLANT_TAGS = Path(__file__).parent / "data" / "virtual_plant_tags.toml"
 __all__ = ["AuditLog", "CONNECTION_ERRORS", "ClientSecurity", "Clock", "ControlParts", "FAULTS", "Limit",
            "ManualClock", "PASSWORD_ENV", "PlantConnection", "PlantServer", "PlantServerSettings", "Reading",
            "ServeSettings", "ServerSecurity", "Service", "SoftPrediction", "SoftSensor", "TagMap", "TagMapError",
-           "TagQuality", "VIRTUAL_PLANT_TAGS", "Verdict", "build_parts", "hash_password", "limit_move", "load_tags",
+           "TagQuality", "VIRTUAL_PLANT_TAGS", "Verdict", "build_parts", "check_audit_dir", "hash_password", "limit_move", "load_tags",
            "make_certificate", "read_audit", "read_password", "run_in_process", "run_lock_step", "severity"]

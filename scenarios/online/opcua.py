@@ -124,6 +124,11 @@ class PlantConnection:
         if role.startswith(NUMERIC_ROLES) and vt in (ua.VariantType.String, ua.VariantType.Boolean):
             raise NodeError(f"{role}: node {node!r} has data type {vt.name}; a number is written there: give a "
                             "node of a numeric data type (Double, Float or an integer)")
+        if role.startswith("setpoints.") and vt in _INTEGERS:  # 0.705 of critical was written as 1, audited 0.705
+            raise NodeError(f"{role}: node {node!r} has data type {vt.name}; a setpoint written there is rounded to "
+                            "a whole number after its limits and rate limits (a speed of 0.705 of critical lands "
+                            "as 1), and the audit would record another value than the plant's: give a node of data "
+                            "type Double or Float")
         return vt
 
     async def _subscribe(self, client: Client, trigger: Trigger) -> None:
@@ -166,8 +171,8 @@ class PlantConnection:
         for role in roles:
             value, code = values[role]
             vt = self._variants[role]
-            if vt in _INTEGERS:
-                value = int(round(value))  # int() alone cut a setpoint of 23.9 t/h to 23
+            if vt in _INTEGERS:  # a prediction only (_variant refuses integer setpoint nodes)
+                value = int(round(value))  # int() alone cut 23.9 to 23
             variant = ua.Variant(None, ua.VariantType.Null) if value is None else ua.Variant(value, vt)
             dvs.append(ua.DataValue(variant, ua.StatusCode(code), source_time))
         res = await asyncio.wait_for(

@@ -158,10 +158,10 @@ def test_what_readme_says_of_the_table_calibration_holds():
     assert max(rates) / min(rates) > 1.2, rates
 
 
-def test_a_fit_to_values_given_in_place_of_the_table_records_them_and_is_refused_as_a_file(tmp_path):
+def test_a_fit_to_values_given_in_place_of_the_table_records_them_and_their_edit_is_refused(tmp_path):
     """fit_to_table(..., reference={...}) recorded its data as the shipped table's (path and sha256): a
     file fitted to a user's three numbers for ore B read as fitted to MISSION.md's table. Now it records
-    the values it was given, and a file of it is refused (own data is not a supported calibration yet);
+    the values it was given, which travel in the file (`calibrate --table`) and are refused when edited;
     an ore the table lacks is named, where a row E of a user's table was silently left out."""
     from twin.calibration.fitting import TableProblem
 
@@ -170,7 +170,9 @@ def test_a_fit_to_values_given_in_place_of_the_table_records_them_and_is_refused
     problem = TableProblem(cal, DEM_NAMES, {n: v["bounds"] for n, v in DEM_FITTED.items()}, ores=("B",), reference=mine)
     assert problem.fitted_to["path"] is None and problem.fitted_to["values"] == mine
     record = _copy("dem")
-    record["fit"]["fitted_to"] = problem.fitted_to
-    assert "fitting your own laboratory data is not supported" in _refused(tmp_path, record)
+    record["fit"]["fitted_to"] = json.loads(json.dumps(problem.fitted_to))
+    record.pop("content_sha256")  # the edit above is this test's, not the check below's
+    record["fit"]["fitted_to"]["values"]["B"]["p80_um"] = 210.0
+    assert "edited after the fit" in _refused(tmp_path, record)
     with pytest.raises(TwinInputError, match=r"names \['E'\], not in the reference table"):
         TableProblem(cal, DEM_NAMES, {n: v["bounds"] for n, v in DEM_FITTED.items()}, ores=("B", "E"))

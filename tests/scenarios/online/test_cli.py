@@ -37,3 +37,18 @@ def test_bad_input_exits_2_with_one_clear_line(small_files, tmp_path, capsys, ar
         code = exc.code
     assert code == 2
     assert message in capsys.readouterr().err
+
+
+def test_serve_refuses_a_users_audit_folder_before_it_builds_its_models(small_files, tmp_path, capsys, monkeypatch):
+    """--audit naming a folder with a user's file was refused only after the estimator and NMPC were built (7 s
+    on the small scene); now before, the file left as it was."""
+    import scenarios.online as online
+
+    scene, tags = small_files
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    (folder / "notes.txt").write_text("my notes")
+    monkeypatch.setattr(online, "build_parts", lambda *a, **k: pytest.fail("models built before the refusal"))
+    assert main(["serve", str(scene), "--opcua", "opc.tcp://127.0.0.1:4840", "--tags", str(tags), "--insecure",
+                 "--audit", str(folder)]) == 2
+    assert "notes.txt" in capsys.readouterr().err and (folder / "notes.txt").read_text() == "my notes"

@@ -1,7 +1,7 @@
 """The service's session checks the tag map's nodes when it connects: a node the server lacks, a
 text or boolean node for a number and a trigger it cannot monitor each fail naming the role and the
 node (they were written or subscribed cycle after cycle, the server saying only BadTypeMismatch or
-BadNodeIdUnknown), and an integer setpoint node gets the setpoint rounded, not cut."""
+BadNodeIdUnknown), an integer setpoint node fails it too, and a prediction to an integer node is rounded."""
 
 import asyncio
 
@@ -66,14 +66,20 @@ def test_nodes_that_cannot_take_the_services_values_fail_the_connection_naming_r
     assert "BadNodeIdUnknown" in got["trigger"]
 
 
-def test_an_integer_setpoint_node_gets_the_setpoint_rounded(url):
+def test_an_integer_node_takes_a_prediction_rounded_and_no_setpoint(url):
+    """A speed of 0.705 of critical written to an Int32 setpoint node landed as 1 (critical speed) while the audit
+    recorded 0.705: an integer setpoint node fails the connection; a prediction is rounded there, not cut."""
     async def body(n):
-        conn = online.PlantConnection(url, INSECURE, {"count": n["count"]}, {"setpoints.feed_tph": n["count"]})
+        refused = await _open(url, {}, {"setpoints.speed_frac_critical": n["count"]})
+        conn = online.PlantConnection(url, INSECURE, {"count": n["count"]}, {"soft_sensor.p80_um": n["count"]})
         await conn.open()
         try:
-            await conn.write({"setpoints.feed_tph": (23.9, ua.StatusCodes.Good)}, online.Clock().now())
-            return (await conn.read())["count"].value
+            await conn.write({"soft_sensor.p80_um": (211.6, ua.StatusCodes.Good)}, online.Clock().now())
+            return refused, (await conn.read())["count"].value
         finally:
             await conn.close()
 
-    assert asyncio.run(_with_nodes(url, body)) == 24  # int() wrote 23
+    refused, written = asyncio.run(_with_nodes(url, body))
+    assert refused.startswith("setpoints.speed_frac_critical: node ") and "data type Int32" in refused
+    assert "give a node of data type Double or Float" in refused
+    assert written == 212  # int() wrote 211
