@@ -90,8 +90,7 @@ class BreakageParams:
         o = "BreakageParams"
         check_range(o, "se_1mm_t_kwh", self.se_1mm_t_kwh, 0.0, 1e6)
         check_range(o, "alpha", self.alpha, 0.0, 5.0)
-        # a given mu at least CRITICAL_SIZE_MIN_UM, moved from Austin's top sizes to particle sizes (austin_rate)
-        check_range(o, "mu_um", self.mu_um, CRITICAL_SIZE_MIN_UM / AUSTIN_TOP_OVER_MEAN, 1e7, lo_open=False)
+        check_range(o, "mu_um", self.mu_um, 0.0, 1e7)  # a mapped mu scaled to 10-mm balls lies below a given one's
         check_range(o, "Lambda", self.Lambda, 0.0, 20.0)
         check_range(o, "gamma", self.gamma, 0.0, 5.0)
         check_range(o, "beta", self.beta, 0.0, 20.0)

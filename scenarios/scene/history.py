@@ -29,7 +29,8 @@ Rules, applied in this order; each action is written to ``History.report``:
    missing or present with NaN. A longer stretch, or missing values in the first row, is
    refused, naming the data rows (1 = first row after the header). Rows missing (a step over
    :data:`MISSING_RECORDS_INTERVALS` record intervals) are said, as held values are; in naive local
-   times a step of an hour and an interval over a whole clock hour (the clock put forward for
+   times a step of an hour and an interval over a whole clock hour at a clock change's hour and
+   month (:data:`DST_CHANGE_HOURS`, :data:`DST_CHANGE_MONTHS`; the clock put forward for
    daylight-saving time) is refused.
 5. Cells that are not numbers (text), infinite values and negative values are refused, naming
    the rows; so are values outside their physical range, with the usual unit mistake named:
@@ -90,6 +91,11 @@ MISSING_TEXT = ("", "nan", "NaN", "NA", "N/A", "n/a", "null", "NULL", "None")
 #: interval within this [h], is a daylight-saving change (rule 2): clocks go back one hour (Lord Howe
 #: Island's half hour is not caught).
 DST_STEP_TOL_H = 0.1
+#: Local hours at which clocks are put forward (00:00 in Chile, Brazil, Lebanon; 02:00 in Europe, North
+#: America, Australia; 03:00 in some zones' rules) and the months they are (March-April in the north,
+#: September-November in the south): a skipped clock hour elsewhere is an outage, said, not refused.
+DST_CHANGE_HOURS = (0, 1, 2, 3)
+DST_CHANGE_MONTHS = (3, 4, 9, 10, 11)
 #: Repeated times whose rows disagree, over at least this span [h], are refused (rule 2): keeping the last
 #: copy drops that long a stretch of other records (an hour recorded twice over the end of daylight-saving
 #: time, sorted by local time; two exports of the same times), where a few repeats are a record logged twice.
@@ -201,7 +207,9 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
     grid = np.arange(int(np.floor(t[-1] / sample_period_h + 1e-9)) + 1) * sample_period_h
     data = _time_average(t, filled.to_numpy(), grid, sample_period_h)
     frame = pd.DataFrame(data, columns=list(filled.columns), index=pd.Index(grid, name="time_h"))
-    shown = np.clip(np.searchsorted(t, grid + 1e-9 * sample_period_h, side="right") - 1, 0, len(t) - 1)
+    # a record within the times' rounding of a sample time is that sample's (time_h to 6 decimals: 3.6 ms)
+    tol = RECORD_INTERVAL_TOL_REL * min(sample_period_h, float(np.median(np.diff(t))) if len(t) > 1 else sample_period_h)
+    shown = np.clip(np.searchsorted(t, grid + tol, side="right") - 1, 0, len(t) - 1)
     for col in (c for c in HELD_COLUMNS if c in frame):  # the reading at t_k, not the mean of the sample ahead
         frame[col] = filled[col].to_numpy()[shown]
     steps = np.diff(t)
@@ -280,7 +288,9 @@ def _missing_records(t: np.ndarray, rows: pd.Series, where: str, naive_start: pd
     if naive_start is not None:
         for i in long[np.abs(steps[long] - (1.0 + interval)) <= DST_STEP_TOL_H]:
             before, after = (naive_start + pd.Timedelta(hours=float(t[k])) for k in (i, i + 1))
-            if before.ceil("h") + pd.Timedelta(hours=1) <= after:  # a whole clock hour never recorded
+            hour = before.ceil("h")
+            if (hour + pd.Timedelta(hours=1) <= after and hour.hour in DST_CHANGE_HOURS
+                    and hour.month in DST_CHANGE_MONTHS):  # a whole clock hour never recorded, where clocks change
                 raise SceneError(f"{where}: timestamp: data row {int(rows.iloc[i + 1])} ({after}) follows {before} "
                                  f"an hour and a record interval later, skipping the clock hour from "
                                  f"{before.ceil('h')}: local times without a UTC offset, the clock put forward for "

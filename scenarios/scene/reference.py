@@ -136,7 +136,8 @@ def _dynamic_allowed() -> dict[tuple, str]:
             ("effect_options",): "listed effects and their options (see Effects)",
             ("plant", "effect_options"): "the plant's effects and their options (see Effects)",
             ("ores", "*", "mineralogy"): "minerals: " + ", ".join(mineral_names()) + "; wt% >= 0",
-            ("feed", "blend"): ores, ("feed", "schedule", 0, "blend"): ores}
+            ("feed", "blend"): ores, ("feed", "schedule", 0, "blend"): ores,
+            ("mill", "preset"): "`\"lab\"`, `\"industrial\"`, or a path ending in .json"}
 
 
 #: The scene whose values are the examples first (the most complete), and that is shown in full.

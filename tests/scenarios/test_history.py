@@ -574,6 +574,9 @@ def test_a_recorded_p80_is_the_reading_shown_at_each_sample_and_inputs_the_mean_
     frame = read_history(path, dt).frame
     grid = frame.index.to_numpy()
     np.testing.assert_allclose(frame["p80_um"], 200.0 + 60.0 * grid, rtol=1e-12)
+    rounded = tmp_path / "rounded.csv"  # times to 6 decimals of an hour (3.6 ms): still each sample's own reading
+    pd.read_csv(path).to_csv(rounded, index=False, float_format="%.6f")
+    np.testing.assert_allclose(read_history(rounded, dt).frame["p80_um"], 200.0 + 60.0 * grid, rtol=1e-6)
     inside = grid < grid[-1]  # the last sample holds the last record
     mean_ahead = 30.0 + 36.0 * (grid[inside] + (dt - 20 / 3600) / 2)  # the mean of the 9 records in [t_k, t_k + dt)
     np.testing.assert_allclose(frame["feed_tph"].to_numpy()[inside], mean_ahead, rtol=1e-12)
@@ -591,6 +594,10 @@ def test_records_missing_are_said_as_missing_values_are(tmp_path):
     _hourly_day(t[keep].strftime("%Y-%m-%dT%H:%M:%S"), 30.0).to_csv(path, index=False)
     h = read_history(path, DT, max_gap_h=1.5)
     assert any("records missing once" in c and "the longest 51 min after data row 60" in c for c in h.changes)
+    outage = tmp_path / "outage.csv"  # an hour and a minute without records at 09:59 in June: no clock change
+    june = pd.date_range("2026-06-15T08:00", periods=240, freq="min")
+    _hourly_day(june[np.r_[0:120, 180:240]].strftime("%Y-%m-%dT%H:%M:%S"), 30.0).to_csv(outage, index=False)
+    assert any("the longest 61 min" in c for c in read_history(outage, DT, max_gap_h=1.5).changes)
     whole = tmp_path / "whole.csv"
     _hourly_day(t.strftime("%Y-%m-%dT%H:%M:%S"), 30.0).to_csv(whole, index=False)
     assert not any("missing" in c for c in read_history(whole, DT).changes)

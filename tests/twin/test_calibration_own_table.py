@@ -129,3 +129,32 @@ def test_table_values_edited_in_the_file_are_refused_where_it_is_read(tmp_path, 
     with pytest.raises(TwinInputError, match="edited after the fit"):
         load_calibration(str(out))
     assert math.isfinite(ref["B"]["p80_um"])
+
+
+def test_a_table_fitted_file_is_rechecked_and_refitted_with_its_own_table(tmp_path, capsys):
+    """A file fitted to a table with an ore file of the user's, read by a twin whose model code changed: its
+    predictions are recomputed on the ores it records (the ore's name was taken for a type: refused); the
+    refit it names and `--from` it keep its table (the shipped table was fitted instead, unsaid); --fast
+    and --seed with --table are refused as with --from (recorded, not used)."""
+    from twin.calibration.model_code import refit_command
+
+    b = reference_ores()["B"]
+    (tmp_path / "my_b.toml").write_text(OWN_B.format(
+        minerals="\n".join(f"{m} = {w!r}" for m, w in b.wt_pct.items()), grain=b.texture.mean_grain_um,
+        uniformity=b.texture.uniformity, entropy=b.texture.association_entropy))
+    ref = reference_table()
+    table = _table(tmp_path / "lab.csv", {"A": ref["A"], "my_b.toml": ref["B"], "C": ref["C"]})
+    out = _calibrate(tmp_path, table, "abc", capsys)
+    record = json.loads(out.read_text())
+    record["model_code"]["sha256"] = "0" * 16  # as made by other twin sources: check_model recomputes
+    record["content_sha256"] = content_digest(record)
+    write_json_atomically(out, record)
+    cal = load_calibration(str(out))
+    ss = Twin(str(tmp_path / "my_b.toml"), calibration=cal)
+    assert math.isfinite(ss.steady().p80_um)
+    command = refit_command(cal.record, str(out))
+    assert f"--table {table.resolve()}" in command
+    assert main(["--from", str(out), "--replicates", "0", "--out", str(tmp_path / "re.json")]) == 2
+    assert "was fitted to your table" in capsys.readouterr().err
+    assert main(["--table", str(table), "--fast", "--out", str(tmp_path / "fast.json")]) == 2
+    assert "--fast: --from dem reuses that file's DEM step" in capsys.readouterr().err

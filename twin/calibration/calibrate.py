@@ -149,14 +149,14 @@ def calibrate(args: argparse.Namespace) -> int:
         raise TwinInputError(f"--seed must be >= 0 (numpy's seeds). Got {args.seed}.")
     if args.workers is not None and args.workers < 1:
         raise TwinInputError(f"--workers must be >= 1 (processes of the DEM step). Got {args.workers}.")
+    table = _read_table(args.table) if args.table is not None else None
+    if table is not None and args.source is None:  # the DEM step is the laws' (ores A-D), not the table's
+        args.source = "dem"
     unused = [o for o, v in (("--workers", args.workers), ("--seed", args.seed or None), ("--fast", args.fast)) if v]
     if unused and args.source:  # recorded, not used: the provenance said seed 9 of a DEM step run with seed 0
         raise TwinInputError(f"{', '.join(unused)}: --from {args.source} reuses that file's DEM step, so no DEM test "
                              f"runs; drop {', '.join(unused)} (--replicates sets the bootstrap), or --from to rerun "
                              "the DEM step.")
-    table = _read_table(args.table) if args.table is not None else None
-    if table is not None and args.source is None:  # the DEM step is the laws' (ores A-D), not the table's
-        args.source = "dem"
     _refuse_other_kind(out, "mineralogy" if args.map == "mineralogy" else "dem", args.fast)
     # only its DEM step is reused, which does not read the reference table: the table step refits
     try:
@@ -168,6 +168,11 @@ def calibrate(args: argparse.Namespace) -> int:
                              f"map is {source.breakage_map!r}); --from takes a DEM calibration, such as 'dem'.")
     if source is not None:  # its DEM step is what is reused: it must give the file's own laws
         _check_source(source, args.source)
+    given = (source.record.get("fit") or {}).get("fitted_to", {}) if source is not None else {}
+    if table is None and "values" in given:  # refitted to the shipped table, the user's data dropped unsaid
+        raise TwinInputError(f"--from {args.source}: {source.label()} was fitted to your table "
+                             f"{given.get('path') or '(given in Python)'}; give it again with --table to refit to "
+                             "it (without --table the shipped reference table is fitted)")
     t0 = time.perf_counter()
     if args.map == "mineralogy":
         from .table import calibrate_mineralogy_map

@@ -101,11 +101,15 @@ def model_identity() -> dict:
 def refit_command(record: dict, shown_path: str | None = None) -> str:
     """The command that makes ``record`` again: for a DEM calibration read from a file (its path as
     a run records it, twin.calibration.Calibration.identity), with its DEM step reused
-    (``--from``, into the same file); else the command it was made with."""
+    (``--from``, into the same file) and the user's table it was fitted to (``--table``); else the
+    command it was made with."""
     command = str((record.get("provenance") or {}).get("command") or "")
     if record.get("breakage_map") == "dem" and shown_path is not None:
         source = record["name"] if shown_path.startswith("twin/calibration/files/") else shown_path
-        return f"grindtwin calibrate --from {source} --out {shown_path}"
+        table = ((record.get("fit") or {}).get("fitted_to") or {}).get("path")
+        given = "values" in ((record.get("fit") or {}).get("fitted_to") or {})
+        return (f"grindtwin calibrate --from {source}" + (f" --table {table or 'YOUR_TABLE.csv'}" if given else "")
+                + f" --out {shown_path}")
     if command.startswith("grindtwin calibrate"):
         return command
     return "grindtwin calibrate" + (" --map mineralogy" if record.get("breakage_map") == "mineralogy" else "")
@@ -137,8 +141,10 @@ def check_model(calibration, predict) -> None:
 
 
 def _compare_predictions(calibration, recorded, predict) -> None:
+    from .reference import fitted_ores
+
     want = calibration.record["fit"]["predicted"]
-    got = predict(calibration, tuple(want))
+    got = predict(calibration, fitted_ores(calibration.record["fit"]))
     worst = max(((ore, kpi) for ore in want for kpi in want[ore]),
                 key=lambda ok: abs(got[ok[0]][ok[1]] / want[ok[0]][ok[1]] - 1.0))
     ore, kpi = worst

@@ -95,6 +95,16 @@ def given_reference(rows: dict, path=None, ores: dict | None = None) -> dict:
     return out
 
 
+def fitted_ores(fit: dict) -> tuple:
+    """The ores of a fit record's table step (``fit.predicted``'s keys) as predict_table takes them: a
+    reference type by its name, a user's ore rebuilt from its recorded mineralogy and texture."""
+    from ..ore import Mineralogy, Texture
+
+    own = (fit.get("fitted_to") or {}).get("ores") or {}
+    return tuple(Mineralogy(own[n]["wt_pct"], Texture(**own[n]["texture"]), name=n) if n in own else n
+                 for n in fit["predicted"])
+
+
 def given_values_sha256(fitted_to: dict) -> str:
     """The SHA-256 of the values a fit to given data records (:func:`given_reference`)."""
     return hashlib.sha256(json.dumps(fitted_to.get("values"), sort_keys=True).encode()).hexdigest()
