@@ -52,16 +52,20 @@ from scenarios.online.audit import AuditLog
 from scenarios.online.clock import Clock, Stoppable, sleep_until
 from scenarios.online.opcua import CONNECTION_ERRORS, PlantConnection, Trigger, status_name
 from scenarios.online.parts import ControlParts
-from scenarios.online.quality import GOOD, Reading, TagQuality, raw_number, severity
+from scenarios.online.quality import BAD, GOOD, Reading, TagQuality, Verdict, raw_number, severity
 from scenarios.online.security import ClientSecurity
 from scenarios.online.tags import TagMap, blend_range, plausible_range
 from scenarios.online.writer import Limit, limit_move
 from scenarios.run.closed_loop import ESTIMATOR_WARMUP_H
-from twin import TwinError
+from twin import TwinError, power_kw
 
 log = logging.getLogger("grindtwin.online.service")
 
 INPUTS = ("feed_tph", "speed_frac_critical")
+#: A turning mill draws its ball charge's power (Bond's power is the balls'): a power reading below this fraction
+#: of the control model's at the actual speed is Bad (a reading in MW, 0.163 for 163 kW, was Good: the physical
+#: range starts at a stopped mill's 0); a charge worn to a tenth of its balls is no operating mill either.
+POWER_TURNING_MIN_FRAC = 0.1
 #: Failures of the estimator's or controller's numerics: held and reported, never hidden
 #: (CasADi raises RuntimeError on a failed function evaluation).
 NUMERIC_ERRORS = (MpcError, TwinError, np.linalg.LinAlgError, RuntimeError)
@@ -265,7 +269,8 @@ class Service(Stoppable):
     async def _connected_cycle(self, now, t_h: float, steps: int, row: dict, t0: float, cpu0: float) -> None:
         readings = await self.conn.read()
         row["read_s"], row["read_cpu_s"] = time.perf_counter() - t0, time.process_time() - cpu0
-        v = {role: self.quality[role].assess(r, now, self.clock) for role, r in readings.items() if role != "mode"}
+        v = self._power_while_turning(
+            {role: self.quality[role].assess(r, now, self.clock) for role, r in readings.items() if role != "mode"})
         for role, verdict in v.items():
             row[f"{role}_quality"] = verdict.quality
             row[f"{role}_quality_reason"] = verdict.reason  # the audit says why, each cycle (empty when good)
@@ -342,6 +347,19 @@ class Service(Stoppable):
             if t <= t_h + 0.5 * self.dt_h:
                 best = b
         return best
+
+    def _power_while_turning(self, v: dict) -> dict:
+        """``v`` with a usable power reading made Bad when the mill turns (a usable speed above 0) and the power
+        lies below :data:`POWER_TURNING_MIN_FRAC` of the control model's power at that speed."""
+        power, speed = v.get("power_kw"), v.get("speed_frac_critical")
+        if power is None or speed is None or not (power.ok and speed.ok and speed.value > 0):
+            return v
+        expected = float(power_kw(self.parts.models.control.mill, min(speed.value, 1.0)))
+        if power.value >= POWER_TURNING_MIN_FRAC * expected:
+            return v
+        return {**v, "power_kw": Verdict(math.nan, BAD, f"power_kw = {power.value:g} kW while the mill turns at "
+                                         f"{speed.value:.3g} of critical: below {POWER_TURNING_MIN_FRAC:.0%} of its "
+                                         f"power model's {expected:.4g} kW (MW? kW expected)", power.new)}
 
     def _inputs(self, v: dict, t_h: float):
         """The actual inputs (the last written setpoints stand in for unusable ones for

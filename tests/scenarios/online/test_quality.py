@@ -130,3 +130,28 @@ def test_closed_ends_include_their_limit_and_an_open_top_reads_as_such():
     assert str(power) == "[0, inf) kW"
     span = PlausibleRange(20.0, 45.0)
     assert 20.0 in span and 45.0 in span and 45.001 not in span and str(span) == "[20, 45]"
+
+
+def test_a_power_reading_in_mw_is_bad_while_the_mill_turns():
+    """0.163 for 163 kW (MW read as kW) lay inside the physical range, which starts at a stopped mill's 0, and was
+    Good: while the actual speed says the mill turns, a power under a tenth of the model's at that speed is Bad,
+    naming the reading, the speed and the model's power; a stopped mill's 0 and a usable kW reading stay Good."""
+    from types import SimpleNamespace
+
+    from scenarios.online.quality import Verdict
+    from scenarios.online.service import POWER_TURNING_MIN_FRAC, Service
+    from twin import get_mill, power_kw
+
+    mill = get_mill("industrial")
+    svc = Service.__new__(Service)
+    svc.parts = SimpleNamespace(models=SimpleNamespace(control=SimpleNamespace(mill=mill)))
+    model_kw = float(power_kw(mill, 0.7))
+
+    def judged(power, speed):
+        return svc._power_while_turning({"power_kw": Verdict(power, "good"), "speed_frac_critical": Verdict(speed,
+                                                                                                          "good")})
+    bad = judged(model_kw / 1000.0, 0.7)["power_kw"]
+    assert not bad.ok and bad.quality == "bad" and "MW? kW expected" in bad.reason and f"{model_kw:.4g} kW" in bad.reason
+    assert judged(1.01 * POWER_TURNING_MIN_FRAC * model_kw, 0.7)["power_kw"].ok
+    assert not judged(0.99 * POWER_TURNING_MIN_FRAC * model_kw, 0.7)["power_kw"].ok
+    assert judged(0.0, 0.0)["power_kw"].ok and judged(model_kw, 0.7)["power_kw"].ok
