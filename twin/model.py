@@ -47,6 +47,8 @@ class ModelSpec:
     p80_initial_um: float = 200.0
     effects: list = field(default_factory=list)
     effect_options: dict = field(default_factory=dict)
+    #: Each component's share of the nominal blend the twin is built with (empty: equal shares).
+    nominal_blend: tuple = ()
     #: Symbols (an SX column) appended to d, and their values: a parametric model whose
     #: calibration parameters stay symbolic for exact sensitivities (twin.calibration.parametric).
     parameter_symbols: object = None

@@ -120,7 +120,7 @@ class Twin:
             soft_frac=[o.group_fraction(CUSHIONING_MINERALS) for o in self.blend.ores],
             clay_frac=[o.group_fraction(CLAY_MINERALS) for o in self.blend.ores],
             coefficients=self.coefficients, n_mixers=len(mixer_fracs), mixer_fracs=mixer_fracs, effects=list(effects),
-            effect_options=dict(effect_options or {}))
+            effect_options=dict(effect_options or {}), nominal_blend=tuple(self.blend.fractions))
         self.notes += sized_circuit_notes(self.spec)  # a mill sized in one circuit, run in another
         self.model = Model(self.spec)
 

@@ -99,3 +99,33 @@ def test_whitens_efficiency_curve_as_jksimmet_writes_it():
     assert as_m.p80_um < 0.97 * ss.p80_um  # a sharper curve: 4 um finer
     with pytest.raises(TwinInputError, match="'curve'.*a cyclone given directly"):
         _circuit({"count": 2, "curve": "whiten"})  # Plitt's equations predict his own curve's m
+
+
+@pytest.mark.parametrize("cyclone, moved", [
+    ({"count": 1, "d50c_um": 300.0, "sharpness": 2.0, "water_bypass_frac": 0.35}, False),  # given directly
+    ({"d50c_factor": 1.1}, False),  # the preset's cyclones calibrated on their plant
+    ({}, True),  # the preset's cyclones by Plitt's equations as published
+])
+def test_the_slurrys_clay_moves_a_cyclones_cut_from_the_slurry_it_was_given_on(cyclone, moved):
+    """The rheology effect scaled every cyclone's cut by the slurry's clay against a clay-free slurry: a d50c of
+    300 um given directly ran at 359 um on ore B, 560 on a clay blend. Given directly it is fixed; calibrated on a
+    plant (its factors) it is the plant's slurry's, so on its nominal ore the cut is the one without rheology;
+    Plitt's published equations (clay-free) take the factor."""
+    from twin import DEFAULT_EFFECTS, get_mill
+
+    if "d50c_um" not in cyclone:
+        cyclone = {**{k: v for k, v in get_mill("industrial").cyclone if v is not None}, **cyclone}
+    opts = {"classification": {"kind": "hydrocyclone", "cyclone": cyclone}}
+    cuts = []
+    for effects in (list(DEFAULT_EFFECTS), [e for e in DEFAULT_EFFECTS if e != "rheology"]):
+        tw = Twin("B", mill="industrial", effects=effects + ["classification"] * ("classification" not in effects),
+                  effect_options=opts)
+        ss = tw.steady(feed_tph=31.0)
+        cuts.append(float(ss.outputs["cyclone_d50c_um"]))
+    assert "rheology" in DEFAULT_EFFECTS
+    if moved:
+        assert cuts[0] > 1.05 * cuts[1]
+    else:
+        assert cuts[0] == pytest.approx(cuts[1], rel=1e-6)
+    if "d50c_um" in cyclone:
+        assert cuts[0] == pytest.approx(300.0, rel=1e-12)

@@ -9,8 +9,12 @@ hydrocyclone whose underflow returns to the mill feed (the industrial configurat
   is held back finer (dense minerals are retained in grinding circuits and ground longer: gold in
   Banisi, Laplante & Marois 1991, CIM Bull. 84 (955), 72-78); the ore's density is the nominal blend's, as in
   Plitt's equation below.
-- Both cut sizes are multiplied by the assembly's ``cut_size_factor`` (1 unless ``rheology``
-  is listed).
+- The cut sizes are multiplied by the assembly's ``cut_size_factor`` (1 unless ``rheology`` is
+  listed: the slurry's clay against a clay-free slurry): the grate's and an uncalibrated Plitt
+  cyclone's, whose equations are a clay-free slurry's; a cyclone calibrated on a plant (Plitt
+  factors, a survey) by that factor over its value at the nominal feed's clay
+  (``cut_size_factor_nominal``), its own slurry's; a cyclone given directly not at all (fixed
+  whatever the feed: its d50c of 300 um ran at 359 um on ore B's slurry, 560 on a clay blend).
 - Hydrocyclone: Plitt (1976, CIM Bull. 69, 114-123) with the corrections of Flintoff, Plitt &
   Turak (1987, CIM Bull. 80, 39-50): corrected cut size d50c, pressure, volumetric flow split and
   sharpness m from the cyclone geometry and its feed, each evaluated at the actual cyclone feed
@@ -367,7 +371,7 @@ class Classification(Effect):
                "cyclone_pressure_kpa", "cyclone_sharpness", "cyclone_water_bypass_frac", "cyclone_feed_solids_frac",
                "overflow_solids_frac", "underflow_solids_frac", "overflow_water_m3_h", "sump_water_m3_h",
                "mill_water_m3_h")
-    uses = ("cut_size_factor",)
+    uses = ("cut_size_factor", "cut_size_factor_nominal")
     source = ("Austin et al. (1984) ch. 9 (grate), Stokes settling (its density term); Plitt (1976), "
               "Flintoff et al. (1987) (hydrocyclone)")
     summary = ("grate discharge factor, cut ~ (rho_s - 1)^-1/2, or hydrocyclone closed circuit with recycle "
@@ -450,7 +454,7 @@ class Classification(Effect):
         ctx.provide("flow_multiplier", cl if reverse else 1.0 + cl)  # the mill's through-flow over the feed
         ctx.provide("feed_to_classifier", reverse)
         xs = ca.DM(spec.grid.mid_um)
-        cut = ctx.get("cut_size_factor", 1.0)
+        cut = _cyclone_cut_factor(ctx, cyc)
         s_d = spec.mill.discharge_solids_frac
         feed_floor = 1e-6 * spec.feed_nominal_tph
 
@@ -487,6 +491,17 @@ class Classification(Effect):
                  "at nominal" + (f" (Plitt factors {factors})" if factors else "")
                  + ("; reverse circuit: fresh feed to the cyclones" if reverse else "")
                  + "; underflow to mixer 0; water balance")
+
+
+def _cyclone_cut_factor(ctx: EffectContext, cyc: Hydrocyclone):
+    """The slurry's factor on a cyclone's cut (module docstring): none for one given directly; against the
+    nominal feed's slurry for one calibrated on a plant (a Plitt factor not 1); against a clay-free slurry for
+    Plitt's equations as published."""
+    if cyc.mode == "direct":
+        return 1.0
+    factor = ctx.get("cut_size_factor", 1.0)
+    calibrated = plitt_factors_text(plitt_factors(cyc), calibrated_only=True)
+    return factor / ctx.get("cut_size_factor_nominal", 1.0) if calibrated else factor
 
 
 def circuit_cyclone(spec) -> Hydrocyclone | None:

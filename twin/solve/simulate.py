@@ -254,6 +254,11 @@ def _trajectory_outputs(model, n: int):
     return names, fn.map(n)
 
 
+#: Outputs per tonne of fresh feed, undefined without feed (the model's floor on the feed gave ~1e7 kWh/t, and a
+#: circulating load of 5.7e6 through a feed stop).
+PER_FEED_OUTPUTS = ("specific_energy_kwh_t", "circulating_load_frac")
+
+
 def outputs_frame(model, xs, us, ds, time_h, exact_p80=True) -> pd.DataFrame:
     """Scalar outputs along a trajectory as a DataFrame (one row per sample)."""
     cols = {"time_h": time_h, "feed_tph": us[:, 0], "speed_frac_critical": us[:, 1]}
@@ -263,8 +268,8 @@ def outputs_frame(model, xs, us, ds, time_h, exact_p80=True) -> pd.DataFrame:
     names, fn = _trajectory_outputs(model, len(time_h))
     scalars, psd = (np.asarray(v) for v in fn(xs.T, us.T, ds.T))
     cols |= {name: scalars[i] for i, name in enumerate(names)}
-    if "specific_energy_kwh_t" in cols:  # undefined without feed (the model's floor gives ~1e7)
-        cols["specific_energy_kwh_t"] = np.where(us[:, 0] > 0, cols["specific_energy_kwh_t"], np.nan)
+    for name in (n for n in PER_FEED_OUTPUTS if n in cols):
+        cols[name] = np.where(us[:, 0] > 0, cols[name], np.nan)
     if exact_p80:  # of the product, or of the mill content in a batch model
         cols["p80_exact_um" if model.psd_what == "product" else "content_p80_exact_um"] = [pxx_um(model.spec.grid, psd[:, j]) if psd[:, j].sum() > 0 else math.nan
                                 for j in range(psd.shape[1])]

@@ -17,7 +17,7 @@ import scipy.sparse.linalg
 from ..errors import OverloadError, SolverError, TwinInputError, check_range
 from ..mill import load_status
 from .numeric import Evaluator
-from .simulate import integrate_constant
+from .simulate import PER_FEED_OUTPUTS, integrate_constant
 from ..sizes import pxx_um
 from ..validity import nominal_pressure_note, state_notes
 
@@ -184,8 +184,8 @@ def _product_psd(model) -> ca.Function:
 
 def _result(model, x, u, d, method) -> SteadyState:
     outs = _scalar_outputs(model, x, u, d)
-    if "specific_energy_kwh_t" in outs and not u[0] > 0.0:  # undefined without feed, as in
-        outs["specific_energy_kwh_t"] = math.nan             # twin.solve.simulate.outputs_frame
+    for name in (n for n in PER_FEED_OUTPUTS if n in outs and not u[0] > 0.0):  # undefined without feed
+        outs[name] = math.nan
     psd = np.asarray(_product_psd(model)(x, u, d)).ravel()
     p80 = pxx_um(model.spec.grid, psd) if psd.sum() > 0 else math.nan
     # sizes of nothing are undefined: the model's smooth P80 gives ~1.6 um for no product, which an
