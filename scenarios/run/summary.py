@@ -108,6 +108,8 @@ def make_summary(scene: Scene, models: Models, kpis: dict, notes: list[str], wal
         "plant_effects": sorted(models.plant.model.effect_names,  # what the plant ran ([plant] may differ),
                                 key=lambda e: (list(scene.effects) + [e]).index(e)),  # in the scene's order
         "calibration": models.calibration.identity() if models.calibration is not None else None,
+        "mill_preset_file": preset_file_identity(scene),
+        "scene_as_run": scene.model_dump(mode="json", exclude_none=True),  # every key as loaded, defaults filled
         "components": models.components,
         "schedule": [ev.model_dump() for ev in scene.feed.schedule],
         "kpis": kpis,
@@ -117,6 +119,15 @@ def make_summary(scene: Scene, models: Models, kpis: dict, notes: list[str], wal
         "wall_time_s": wall_s,
         "versions": versions(),
     }
+
+
+def preset_file_identity(scene: Scene) -> dict | None:
+    """The mill preset file a scene names (its resolved path and SHA-256), or None for a preset's name: a run
+    folder said only ``my_mill.json``, which a later `size-mill --write-preset` rewrites."""
+    spec = scene.mill_spec()
+    if not isinstance(spec, Path):
+        return None
+    return {"path": str(spec.resolve()), "sha256": hashlib.sha256(spec.read_bytes()).hexdigest()}
 
 
 #: What the PI baseline knows of the mill (it has no model of its own).

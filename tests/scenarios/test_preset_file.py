@@ -116,3 +116,22 @@ def test_a_misspelt_preset_is_named_with_what_is_allowed(tmp_path):
     assert problems == [f"{tmp_path / 'scene.toml'}: mill.preset: must be one of 'lab', 'industrial' or a preset "
                         "file ending in .json (`grindtwin size-mill --write-preset PATH` writes one) (did you mean "
                         "'industrial'?) (got 'industral')"]
+
+
+def test_a_run_records_its_preset_file_and_the_scene_as_run(tmp_path, capsys):
+    """A run folder said only `preset = "my_mill.json"` (relative, no digest; a later size-mill --write-preset
+    rewrites it) and, without --xlsx, held no copy of the scene: summary.json now records the preset file's
+    path and SHA-256 and the scene as it was run, defaults filled in."""
+    import hashlib
+
+    path = _preset(tmp_path, diameter_m=2.4, length_m=3.6)
+    scene = _scene(tmp_path, "sized/my_mill.json")
+    scene.write_text(scene.read_text().replace("duration_h = 8.0", "duration_h = 0.5")
+                     .replace('kind = "nmpc"', 'kind = "none"').replace("at_h = 2.0", "at_h = 0.1")
+                     .replace("ramp_h = 1.0", "ramp_h = 0.2"))
+    assert main(["run", str(scene), "--out", str(tmp_path / "run"), "--quiet", "--no-plots"]) == 0
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["mill_preset_file"] == {"path": str(path.resolve()),
+                                           "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
+    assert summary["scene_as_run"]["mill"]["diameter_m"] == 2.4
+    assert summary["scene_as_run"]["effect_options"]["classification"]["kind"] == "hydrocyclone"
