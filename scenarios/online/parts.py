@@ -13,7 +13,7 @@ from mpc import ClosedLoopResult, FixedInputs, LoopSettings, run_closed_loop
 from scenarios.run import build_models
 from scenarios.run.closed_loop import (ESTIMATOR_WARMUP_H, check_rk4_substeps, hold_schedule, make_controller,
                                        make_estimator, plant_start, scene_sensors, schedule_blends)
-from scenarios.run.feed import component_blend, feed_schedule
+from scenarios.run.feed import component_blend, feed_schedule, initial_blend
 from scenarios.run.models import component_ores
 from scenarios.online.soft_sensor import SoftSensor
 from scenarios.scene import Scene
@@ -36,12 +36,6 @@ class ControlParts:
         """Forget every run's state (the controller's warm start, the estimate)."""
         self.controller.reset()
         self.estimator.reset()
-
-
-def initial_blend(scene: Scene, components: list[str]) -> np.ndarray:
-    """The scene's blend at t = 0 as component fractions."""
-    feed, _ = feed_schedule(scene, components, np.array([0.0]))
-    return component_blend(feed, components)[0]
 
 
 def build_parts(scene: Scene, soft_sensor: bool = False, surrogate: bool = False) -> ControlParts:

@@ -162,3 +162,9 @@ def input_series(scene: Scene, feed: pd.DataFrame, replay: bool) -> tuple[np.nda
         if "recorded_speed_frac_critical" in feed:
             s = feed["recorded_speed_frac_critical"].to_numpy(float)
     return f, s
+
+
+def initial_blend(scene: Scene, components: list[str]) -> np.ndarray:
+    """The scene's blend at t = 0 as component fractions."""
+    feed, _ = feed_schedule(scene, components, np.array([0.0]))
+    return component_blend(feed, components)[0]

@@ -123,6 +123,8 @@ def build_twin(scene: Scene, ores: dict, effects, effect_options, size_classes, 
     the twin refuses it, or if its effects, grid or mixers differ from the calibration's (the
     twin's ``calibration_mismatch``, twin.calibration.Calibration.mismatch: mixers on the
     calibration's own mill only) and the scene does not say ``calibration_mismatch_ok = true``."""
+    from scenarios.run.feed import initial_blend  # feed reads this module
+
     cal = calibration or scene_calibration(scene)
     src = scene.source_path or scene.scene.name
     grid = SizeGrid(size_classes.top_um, size_classes.ratio, size_classes.count, size_classes.scheme)
@@ -137,7 +139,7 @@ def build_twin(scene: Scene, ores: dict, effects, effect_options, size_classes, 
                     n_mixers=int(n_mixers or scene.mill.n_mixers), feed_p80_um=scene.feed.p80_um,
                     feed_modulus=scene.feed.ggs_modulus, feed_psd=scene_feed_psd(scene),
                     ore_breakage=breakage, solids_density_t_m3=density, mixer_volume_fracs=fracs,
-                    calibration=cal)
+                    calibration=cal, reference_blend=initial_blend(scene, list(ores)))
     except TwinError as exc:
         raise SceneError(f"{src}: the twin refused the scene: {exc}") from None
     if twin.calibration_mismatch and not scene.calibration_mismatch_ok:

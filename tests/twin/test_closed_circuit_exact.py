@@ -129,3 +129,35 @@ def test_the_slurrys_clay_moves_a_cyclones_cut_from_the_slurry_it_was_given_on(c
         assert cuts[0] == pytest.approx(cuts[1], rel=1e-6)
     if "d50c_um" in cyclone:
         assert cuts[0] == pytest.approx(300.0, rel=1e-12)
+
+
+def test_a_calibrated_cyclones_reference_slurry_is_the_feed_it_was_measured_on(tmp_path):
+    """The reference of a calibrated cyclone's cut was the twin's nominal blend, equal shares for a list of ores:
+    a scene feeding 100 % B that also listed ore D (for a later change) normalised its cut to a half-D slurry it
+    never ran on, and overloaded where the same scene without D ran. The reference is the scene's initial feed
+    (Twin's ``reference_blend``), so listing an ore at 0 % changes nothing."""
+    from scenarios.run import build_models
+    from scenarios.scene import load_scene
+    from twin import DEFAULT_EFFECTS, get_mill
+
+    cyclone = {**{k: v for k, v in get_mill("industrial").cyclone if v is not None}, "d50c_factor": 1.1}
+    opts = {"classification": {"kind": "hydrocyclone", "cyclone": cyclone}}
+    dry = [e for e in DEFAULT_EFFECTS if e != "rheology"]
+    cut = {}
+    for name, effects in (("rheology", list(DEFAULT_EFFECTS)), ("none", dry)):  # on the reference feed: the same
+        tw = Twin(["B", "D"], mill="industrial", effects=effects, effect_options=opts, reference_blend=[1.0, 0.0])
+        cut[name] = float(tw.steady(feed_tph=25.0, blend=[1.0, 0.0]).outputs["cyclone_d50c_um"])
+    assert cut["rheology"] == pytest.approx(cut["none"], rel=1e-6)
+    with pytest.raises(TwinInputError, match="'reference_blend'.*summing to 1"):
+        Twin(["B", "D"], mill="industrial", effect_options=opts, reference_blend=[0.5, 0.6])
+    text = ('effects = ["breakage", "transport", "holdup", "speed", "cushioning", "rheology", "power", '
+            '"classification"]\ncalibration_mismatch_ok = true\n[scene]\nname = "cyc"\nduration_h = 1.0\n'
+            'sample_period_h = 0.05\n[mill]\npreset = "industrial"\n[ores.B]\ntype = "B"\n{more}[feed]\n'
+            'blend = {{ B = 1.0 }}\nfeed_tph = 25.0\nspeed_frac_critical = 0.70\n'
+            '[effect_options.classification]\nkind = "hydrocyclone"\n[effect_options.classification.cyclone]\n'
+            'd50c_factor = 1.1\n')
+    for effects in ('"rheology", ', ""):  # a scene listing D at 0 %: its initial feed is the reference
+        (tmp_path / "bd.toml").write_text(text.format(more='[ores.D]\ntype = "D"\n').replace('"rheology", ', effects))
+        plant = build_models(load_scene(tmp_path / "bd.toml")).plant
+        cut[effects] = float(plant.steady(feed_tph=25.0, blend=[1.0, 0.0]).outputs["cyclone_d50c_um"])
+    assert cut['"rheology", '] == pytest.approx(cut[""], rel=1e-6)

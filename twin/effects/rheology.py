@@ -113,8 +113,8 @@ class Rheology(Effect):
         clay_free = float(thomas_relative_viscosity(phi_v))
         thickening = mu_r / clay_free  # against a clay-free slurry
         ctx.provide("cut_size_factor", thickening ** STOKES_CUT_EXPONENT)
-        shares = spec.nominal_blend or (1.0 / len(spec.clay_frac),) * len(spec.clay_frac)
-        w_nominal = sum(f * c for f, c in zip(shares, spec.clay_frac))  # the nominal feed's clay
+        shares = spec.reference_blend or (1.0 / len(spec.clay_frac),) * len(spec.clay_frac)
+        w_nominal = sum(f * c for f, c in zip(shares, spec.clay_frac))  # the reference feed's clay
         ctx.provide("cut_size_factor_nominal",
                     (thomas_relative_viscosity(phi_v * (1.0 + k_clay * w_nominal)) / clay_free) ** STOKES_CUT_EXPONENT)
         ctx.contribute("power_factor", slurry_power_factor(thickening, k_power))
