@@ -20,7 +20,7 @@ run the same way: ``python -c "from scenarios.cli import main; ..."`` with the t
 ``sys.path`` (a ``.pth`` file in a throwaway venv that also sees this venv's libraries), so the
 two differ only in their code. Every round runs every command once, in a fixed interleaved
 order (now, before, now, before, ...); the table gives medians over ``--rounds`` rounds and the
-ratio of the medians. The machine is 2 cores shared with other jobs: times are upper bounds.
+median of the rounds' ratios. The machine is 2 cores shared with other jobs: times are upper bounds.
 
 Writes ``benchmarks/results/cli_startup{TAG}.csv`` (every timing) and ``.md``.
 
@@ -131,14 +131,16 @@ def summary(df: pd.DataFrame, args) -> str:
              + (f" --commands {','.join(args.commands)}" if args.commands != STARTUP else "")
              + (f" --tag {args.tag}" if args.tag else "") + "`; "
              f"{platform.python_version()}, {os.cpu_count()} cores shared with other jobs (upper bounds). "
-             "Medians (90th percentile) over the rounds, every command once a round, interleaved.", "",
+             "Medians (90th percentile) over the rounds, every command once a round, interleaved; now / before: "
+             "the median of the rounds' ratios.", "",
              "| command | now [s] | before [s] | now / before |", "|---|---|---|---|"]
     for name in [*args.commands, *FLOORS]:
         side = "now" if name in COMMANDS else "floor"
         now, qn = med.loc[name, side], q.loc[name, side]
         before, qb = med.loc[name].get("before", np.nan), q.loc[name].get("before", np.nan)
         b = f"{before:.3f} ({qb:.3f})" if np.isfinite(before) else "-"
-        ratio = f"{now / before:.2f}" if np.isfinite(before) else "-"
+        pairs = df[df.command == name].pivot_table(index="round", columns="side", values="wall_s")
+        ratio = f"{(pairs['now'] / pairs['before']).median():.2f}" if np.isfinite(before) else "-"
         lines.append(f"| `{name}` | {now:.3f} ({qn:.3f}) | {b} | {ratio} |")
     return "\n".join(lines) + "\n"
 
