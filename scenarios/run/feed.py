@@ -7,12 +7,20 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import nnls
 
-from scenarios.scene import TEXTURE_COLUMNS, Scene, feed_table, load_history, ore_column
-from scenarios.run.models import component_ores
-from twin import Mineralogy, Texture
+from scenarios.scene import TEXTURE_COLUMNS, Scene, feed_table, load_history, ore_column, ore_mineralogies
+from twin import Mineralogy, Texture, reference_ores
 
 #: Weight of the "fractions sum to 1" row in the NNLS fit of a mineralogy to the ores (wt%).
 SUM_ROW_WEIGHT = 100.0
+
+
+def component_ores(scene: Scene) -> dict:
+    """Component name -> twin Mineralogy: the scene's ores, or the reference types A-D for a
+    mineralogy history in a scene without ores."""
+    if scene.ores:
+        return ore_mineralogies(scene)
+    return {name: Mineralogy(dict(o.wt_pct), o.texture, name=name)
+            for name, o in sorted(reference_ores().items())}
 
 
 def mineralogy_to_blend(wt_pct: pd.DataFrame, ores: dict) -> tuple[np.ndarray, np.ndarray]:

@@ -9,9 +9,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from scenarios.errors import RunError, SceneError
-from scenarios.scene import Scene, ore_mineralogies
+from scenarios.scene import Scene
 from scenarios.scene.ranges import own_dimensions
-from twin import BreakageParams, Mineralogy, SizeGrid, TabulatedPSD, Twin, TwinError, get_mill, power_kw, reference_ores
+from scenarios.run.feed import component_ores, initial_blend
+from twin import BreakageParams, SizeGrid, TabulatedPSD, Twin, TwinError, get_mill, power_kw
 from twin.calibration import Calibration, load_calibration
 
 
@@ -29,15 +30,6 @@ class Models:
 def is_batch(scene: Scene) -> bool:
     """A batch grind: the scene has no ``transport`` effect."""
     return "transport" not in scene.effects
-
-
-def component_ores(scene: Scene) -> dict:
-    """Component name -> twin Mineralogy: the scene's ores, or the reference types A-D for a
-    mineralogy history in a scene without ores."""
-    if scene.ores:
-        return ore_mineralogies(scene)
-    return {name: Mineralogy(dict(o.wt_pct), o.texture, name=name)
-            for name, o in sorted(reference_ores().items())}
 
 
 def scene_calibration(scene: Scene) -> Calibration:
@@ -123,8 +115,6 @@ def build_twin(scene: Scene, ores: dict, effects, effect_options, size_classes, 
     the twin refuses it, or if its effects, grid or mixers differ from the calibration's (the
     twin's ``calibration_mismatch``, twin.calibration.Calibration.mismatch: mixers on the
     calibration's own mill only) and the scene does not say ``calibration_mismatch_ok = true``."""
-    from scenarios.run.feed import initial_blend  # feed reads this module
-
     cal = calibration or scene_calibration(scene)
     src = scene.source_path or scene.scene.name
     grid = SizeGrid(size_classes.top_um, size_classes.ratio, size_classes.count, size_classes.scheme)

@@ -45,7 +45,6 @@ def step_samples(scene: Scene, n_samples: int) -> np.ndarray:
     effect (its first sample at or after ``at_h``); between the others a schedule is linear
     (ramps are ramps). A recorded history is held sample to sample (its rule,
     :mod:`scenarios.scene.schedule`), so every one of its samples may jump."""
-    dt = scene.scene.sample_period_h
     if scene.feed.history is not None:
         return np.ones(n_samples, bool)
     jumps = np.zeros(n_samples, bool)
