@@ -150,7 +150,8 @@ def main(argv=None):
     df.to_csv(RESULTS / "twin_accuracy.csv", index=False)
     with open(RESULTS / "twin_accuracy.md", "w") as fh:
         fh.write(f"# Twin: accuracy against time\n\nMedian of {REPEAT} runs, 2-core shared machine, "
-                 f"{time.strftime('%Y-%m-%d')}. Size-class reference: 120 classes, P80 {ref:.2f} um.\n\n")
+                 f"{time.strftime('%Y-%m-%d')}. Size-class reference: 120 classes, P80 {ref:.2f} um. Made by "
+                 f"`PYTHONPATH=. python benchmarks/twin_accuracy.py{' --quick' if args.quick else ''}`.\n\n")
         for table, part in df.groupby("table", sort=False):
             fh.write(f"## {table}\n\n" + part.dropna(axis=1, how="all").drop(columns="table")
                      .to_markdown(index=False, floatfmt=".4g") + "\n\n")
