@@ -250,8 +250,7 @@ pressure_psi = 7.7
 def test_size_mill_sizes_cyclones_of_a_surveyed_shape_and_model(tmp_path, capsys, monkeypatch):
     """--cyclone FILE: the cluster is geometrically similar to the file's cyclone and carries the
     Plitt factors of its survey; the sized circuit, run again from its record, meets the target
-    at the design pressure (it would not with the factors lost). 170 um: with the cut the survey's slurry's (not
-    the rheology's 1.2x more, as before the reference feed) 180 um has no design at 53 kPa."""
+    at the design pressure (it would not with the factors lost)."""
     import tomllib
 
     import twin
@@ -265,7 +264,7 @@ def test_size_mill_sizes_cyclones_of_a_surveyed_shape_and_model(tmp_path, capsys
     expected = calibrate_plitt(Hydrocyclone(**table), CycloneSurvey(**survey))
     real, sized = twin.size_mill, []
     monkeypatch.setattr(twin, "size_mill", lambda *a, **k: sized.append(real(*a, **k)) or sized[-1])
-    assert grindtwin(["size-mill", "--feed-tph", "31", "--target-p80-um", "170", "--cyclone", str(path),
+    assert grindtwin(["size-mill", "--feed-tph", "31", "--target-p80-um", "180", "--cyclone", str(path),
                       "--json"]) == 0
     record = json.loads(capsys.readouterr().out)
     assert record["command"].endswith(f"--cyclone {path}")
@@ -278,7 +277,7 @@ def test_size_mill_sizes_cyclones_of_a_surveyed_shape_and_model(tmp_path, capsys
     ratio = cyc["diameter_cm"] / table["diameter_cm"]
     assert cyc["apex_cm"] == pytest.approx(table["apex_cm"] * ratio, rel=1e-12)
     ss = circuit_twin("B", sized[0].mill, cyc).steady(feed_tph=31.0)
-    assert ss.p80_um == pytest.approx(170.0, rel=0.01)
+    assert ss.p80_um == pytest.approx(180.0, rel=0.01)
     assert ss.outputs["cyclone_pressure_kpa"] == pytest.approx(DESIGN_CYCLONE_PRESSURE_KPA, rel=0.01)
 
 
