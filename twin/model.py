@@ -47,9 +47,6 @@ class ModelSpec:
     p80_initial_um: float = 200.0
     effects: list = field(default_factory=list)
     effect_options: dict = field(default_factory=dict)
-    #: Each component's share of the feed a classifier calibrated on its plant was measured on (twin.Twin's
-    #: ``reference_blend``; empty: equal shares): the slurry its cut is stated for (twin.effects.rheology).
-    reference_blend: tuple = ()
     #: Symbols (an SX column) appended to d, and their values: a parametric model whose
     #: calibration parameters stay symbolic for exact sensitivities (twin.calibration.parametric).
     parameter_symbols: object = None

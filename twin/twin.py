@@ -52,10 +52,7 @@ class Twin:
     ore's published energy-specific parameters), which replace the map for those ores;
     ``solids_density_t_m3`` replaces the blend's mineral density; ``mixer_volume_fracs`` gives the
     mixers' shares of the hold-up (e.g. Whiten's one large and two small, (0.7, 0.15, 0.15)) in
-    place of ``n_mixers`` equal ones. ``reference_blend``: the feed (component fractions) a classifier
-    calibrated on its plant (Plitt factors, a survey) was measured on, whose slurry its cut is stated for
-    with the ``rheology`` effect (default the nominal blend; a scene passes its initial feed). The map's
-    parameters describe the calibration's mill
+    place of ``n_mixers`` equal ones. The map's parameters describe the calibration's mill
     (``calibrated_mill``, the laboratory mill): on another mill they are scaled to it by
     :func:`twin.scaleup.scale_breakage` (Austin's diameter and ball-size rules); parameters given
     in ``ore_breakage`` are taken as this mill's own.
@@ -74,8 +71,7 @@ class Twin:
                  feed_p80_um: float = FEED_P80_UM, feed_modulus: float = FEED_GGS_MODULUS, feed_psd=None,
                  breakage_map: Callable | None = None, calibration=None,
                  ore_breakage: dict | None = None, solids_density_t_m3: float | None = None,
-                 mixer_volume_fracs: Sequence[float] | None = None, calibrated_mill: str | Mill = "lab",
-                 reference_blend: Sequence[float] | None = None):
+                 mixer_volume_fracs: Sequence[float] | None = None, calibrated_mill: str | Mill = "lab"):
         if isinstance(effects, str):  # list("breakage") is its letters
             raise bad_value("Twin", "effects", effects, "a list of effect names, e.g. ['breakage', 'transport']")
         self.blend = _as_blend(ores)
@@ -124,8 +120,7 @@ class Twin:
             soft_frac=[o.group_fraction(CUSHIONING_MINERALS) for o in self.blend.ores],
             clay_frac=[o.group_fraction(CLAY_MINERALS) for o in self.blend.ores],
             coefficients=self.coefficients, n_mixers=len(mixer_fracs), mixer_fracs=mixer_fracs, effects=list(effects),
-            effect_options=dict(effect_options or {}),
-            reference_blend=_reference_blend(reference_blend, self.blend))
+            effect_options=dict(effect_options or {}))
         self.notes += sized_circuit_notes(self.spec)  # a mill sized in one circuit, run in another
         self.model = Model(self.spec)
 
@@ -343,20 +338,6 @@ def _feed_on_grid(grid, frac: np.ndarray, feed_p80_um: float | None, sizes_given
         raise TwinInputError(f"{given} has a P80 of {p80:.3g} um, finer than any ball mill's feed (allowed: at least "
                              f"{FEED_P80_MIN_UM:g} um): sizes in um, not mm ({p80:.3g} mm is {p80 * 1000:.4g} um)?")
     return frac
-
-
-def _reference_blend(given, blend: Blend) -> tuple:
-    """``given`` (Twin's ``reference_blend``) checked as fractions of the twin's components, else the blend's."""
-    if given is None:
-        return tuple(blend.fractions)
-    try:
-        fracs = tuple(float(f) for f in given)
-    except (TypeError, ValueError):
-        raise bad_value("Twin", "reference_blend", given, f"{len(blend.names)} fractions of {list(blend.names)}") from None
-    if len(fracs) != len(blend.names) or not all(f >= 0 for f in fracs) or abs(sum(fracs) - 1.0) > 1e-6:
-        raise bad_value("Twin", "reference_blend", given, f"{len(blend.names)} fractions >= 0 of {list(blend.names)} "
-                        "summing to 1")
-    return fracs
 
 
 def _as_blend(ores) -> Blend:

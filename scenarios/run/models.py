@@ -11,7 +11,7 @@ from typing import Any
 from scenarios.errors import RunError, SceneError
 from scenarios.scene import Scene
 from scenarios.scene.ranges import own_dimensions
-from scenarios.run.feed import component_ores, initial_blend
+from scenarios.run.feed import component_ores
 from twin import BreakageParams, SizeGrid, TabulatedPSD, Twin, TwinError, get_mill, power_kw
 from twin.calibration import Calibration, load_calibration
 
@@ -129,7 +129,7 @@ def build_twin(scene: Scene, ores: dict, effects, effect_options, size_classes, 
                     n_mixers=int(n_mixers or scene.mill.n_mixers), feed_p80_um=scene.feed.p80_um,
                     feed_modulus=scene.feed.ggs_modulus, feed_psd=scene_feed_psd(scene),
                     ore_breakage=breakage, solids_density_t_m3=density, mixer_volume_fracs=fracs,
-                    calibration=cal, reference_blend=initial_blend(scene, list(ores)))
+                    calibration=cal)
     except TwinError as exc:
         raise SceneError(f"{src}: the twin refused the scene: {exc}") from None
     if twin.calibration_mismatch and not scene.calibration_mismatch_ok:

@@ -101,63 +101,42 @@ def test_whitens_efficiency_curve_as_jksimmet_writes_it():
         _circuit({"count": 2, "curve": "whiten"})  # Plitt's equations predict his own curve's m
 
 
-@pytest.mark.parametrize("cyclone, moved", [
-    ({"count": 1, "d50c_um": 300.0, "sharpness": 2.0, "water_bypass_frac": 0.35}, False),  # given directly
-    ({"d50c_factor": 1.1}, False),  # the preset's cyclones calibrated on their plant
-    ({}, True),  # the preset's cyclones by Plitt's equations as published
-])
-def test_the_slurrys_clay_moves_a_cyclones_cut_from_the_slurry_it_was_given_on(cyclone, moved):
+def test_the_slurrys_clay_moves_a_cyclones_cut_from_the_slurry_it_was_calibrated_on(tmp_path):
     """The rheology effect scaled every cyclone's cut by the slurry's clay against a clay-free slurry: a d50c of
-    300 um given directly ran at 359 um on ore B, 560 on a clay blend. Given directly it is fixed; calibrated on a
-    plant (its factors) it is the plant's slurry's, so on its nominal ore the cut is the one without rheology;
-    Plitt's published equations (clay-free) take the factor."""
-    from twin import DEFAULT_EFFECTS, get_mill
-
-    if "d50c_um" not in cyclone:
-        cyclone = {**{k: v for k, v in get_mill("industrial").cyclone if v is not None}, **cyclone}
-    opts = {"classification": {"kind": "hydrocyclone", "cyclone": cyclone}}
-    cuts = []
-    for effects in (list(DEFAULT_EFFECTS), [e for e in DEFAULT_EFFECTS if e != "rheology"]):
-        tw = Twin("B", mill="industrial", effects=effects + ["classification"] * ("classification" not in effects),
-                  effect_options=opts)
-        ss = tw.steady(feed_tph=31.0)
-        cuts.append(float(ss.outputs["cyclone_d50c_um"]))
-    assert "rheology" in DEFAULT_EFFECTS
-    if moved:
-        assert cuts[0] > 1.05 * cuts[1]
-    else:
-        assert cuts[0] == pytest.approx(cuts[1], rel=1e-6)
-    if "d50c_um" in cyclone:
-        assert cuts[0] == pytest.approx(300.0, rel=1e-12)
-
-
-def test_a_calibrated_cyclones_reference_slurry_is_the_feed_it_was_measured_on(tmp_path):
-    """The reference of a calibrated cyclone's cut was the twin's nominal blend, equal shares for a list of ores:
-    a scene feeding 100 % B that also listed ore D (for a later change) normalised its cut to a half-D slurry it
-    never ran on, and overloaded where the same scene without D ran. The reference is the scene's initial feed
-    (Twin's ``reference_blend``), so listing an ore at 0 % changes nothing."""
+    300 um given directly ran at 359 um on ore B, 560 on a clay blend. Given directly it is fixed; by Plitt's
+    equations the cut moves from the slurry its calibration was measured on (``surveyed_clay_frac``, 0 by default
+    as Plitt's published equations): on a slurry of that clay the cut is the one without rheology. A property of
+    the cyclone, not of a run: scenes starting on B or on D give the same plant the same cut (a reference taken
+    from the run's initial feed gave 124 or 201 um for the same plant fed D)."""
     from scenarios.run import build_models
     from scenarios.scene import load_scene
     from twin import DEFAULT_EFFECTS, get_mill
+    from twin.ore import reference_ores
 
-    cyclone = {**{k: v for k, v in get_mill("industrial").cyclone if v is not None}, "d50c_factor": 1.1}
-    opts = {"classification": {"kind": "hydrocyclone", "cyclone": cyclone}}
     dry = [e for e in DEFAULT_EFFECTS if e != "rheology"]
-    cut = {}
-    for name, effects in (("rheology", list(DEFAULT_EFFECTS)), ("none", dry)):  # on the reference feed: the same
-        tw = Twin(["B", "D"], mill="industrial", effects=effects, effect_options=opts, reference_blend=[1.0, 0.0])
-        cut[name] = float(tw.steady(feed_tph=25.0, blend=[1.0, 0.0]).outputs["cyclone_d50c_um"])
-    assert cut["rheology"] == pytest.approx(cut["none"], rel=1e-6)
-    with pytest.raises(TwinInputError, match="'reference_blend'.*summing to 1"):
-        Twin(["B", "D"], mill="industrial", effect_options=opts, reference_blend=[0.5, 0.6])
+    assert "rheology" in DEFAULT_EFFECTS
+    given = {"count": 1, "d50c_um": 300.0, "sharpness": 2.0, "water_bypass_frac": 0.35}
+    b_clay = reference_ores()["B"].group_fraction(("kaolinite", "illite"))
+    preset = {k: v for k, v in get_mill("industrial").cyclone if v is not None}
+    cases = {"given": (given, False), "published": (preset, True),
+             "calibrated on B": ({**preset, "d50c_factor": 1.1, "surveyed_clay_frac": b_clay}, False)}
+    for name, (cyclone, moved) in cases.items():
+        opts = {"classification": {"kind": "hydrocyclone", "cyclone": cyclone}}
+        wet, no = (float(Twin("B", mill="industrial", effects=e, effect_options=opts).steady(feed_tph=31.0)
+                         .outputs["cyclone_d50c_um"]) for e in (list(DEFAULT_EFFECTS), dry))
+        assert (wet > 1.05 * no) if moved else wet == pytest.approx(no, rel=1e-6), name
+    assert wet == pytest.approx(no, rel=1e-6)
+    with pytest.raises(TwinInputError, match="'surveyed_clay_frac'.*0 for a cyclone given directly"):
+        _circuit({**given, "surveyed_clay_frac": 0.1})
     text = ('effects = ["breakage", "transport", "holdup", "speed", "cushioning", "rheology", "power", '
             '"classification"]\ncalibration_mismatch_ok = true\n[scene]\nname = "cyc"\nduration_h = 1.0\n'
-            'sample_period_h = 0.05\n[mill]\npreset = "industrial"\n[ores.B]\ntype = "B"\n{more}[feed]\n'
-            'blend = {{ B = 1.0 }}\nfeed_tph = 25.0\nspeed_frac_critical = 0.70\n'
+            'sample_period_h = 0.05\n[mill]\npreset = "industrial"\n[ores.B]\ntype = "B"\n[ores.D]\ntype = "D"\n'
+            '[feed]\nblend = {blend}\nfeed_tph = 25.0\nspeed_frac_critical = 0.70\n'
             '[effect_options.classification]\nkind = "hydrocyclone"\n[effect_options.classification.cyclone]\n'
-            'd50c_factor = 1.1\n')
-    for effects in ('"rheology", ', ""):  # a scene listing D at 0 %: its initial feed is the reference
-        (tmp_path / "bd.toml").write_text(text.format(more='[ores.D]\ntype = "D"\n').replace('"rheology", ', effects))
-        plant = build_models(load_scene(tmp_path / "bd.toml")).plant
-        cut[effects] = float(plant.steady(feed_tph=25.0, blend=[1.0, 0.0]).outputs["cyclone_d50c_um"])
-    assert cut['"rheology", '] == pytest.approx(cut[""], rel=1e-6)
+            'd50c_factor = 1.1\nsurveyed_clay_frac = 0.1\n')
+    cuts = []
+    for blend in ("{ B = 1.0 }", "{ D = 1.0 }"):
+        (tmp_path / "s.toml").write_text(text.format(blend=blend))
+        plant = build_models(load_scene(tmp_path / "s.toml")).plant
+        cuts.append(float(plant.steady(feed_tph=25.0, blend=[0.5, 0.5]).outputs["cyclone_d50c_um"]))
+    assert cuts[1] == pytest.approx(cuts[0], rel=1e-9)

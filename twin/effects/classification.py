@@ -10,11 +10,11 @@ hydrocyclone whose underflow returns to the mill feed (the industrial configurat
   Banisi, Laplante & Marois 1991, CIM Bull. 84 (955), 72-78); the ore's density is the nominal blend's, as in
   Plitt's equation below.
 - The cut sizes are multiplied by the assembly's ``cut_size_factor`` (1 unless ``rheology`` is
-  listed: the slurry's clay against a clay-free slurry): the grate's and an uncalibrated Plitt
-  cyclone's, whose equations are a clay-free slurry's; a cyclone calibrated on a plant (Plitt
-  factors, a survey) by that factor over its value at the nominal feed's clay
-  (``cut_size_factor_nominal``), its own slurry's; a cyclone given directly not at all (fixed
-  whatever the feed: its d50c of 300 um ran at 359 um on ore B's slurry, 560 on a clay blend).
+  listed: the slurry's clay against a clay-free slurry): the grate's, and a Plitt cyclone's over the
+  factor of the slurry its calibration was measured on (``surveyed_clay_frac``, the clay fraction of
+  that slurry's solids; 0, a clay-free slurry, as Plitt's equations are, by default); a cyclone given
+  directly not at all (fixed whatever the feed: its d50c of 300 um ran at 359 um on ore B's slurry, 560
+  on a clay blend).
 - Hydrocyclone: Plitt (1976, CIM Bull. 69, 114-123) with the corrections of Flintoff, Plitt &
   Turak (1987, CIM Bull. 80, 39-50): corrected cut size d50c, pressure, volumetric flow split and
   sharpness m from the cyclone geometry and its feed, each evaluated at the actual cyclone feed
@@ -181,7 +181,9 @@ class Hydrocyclone:
     cyclone feed, 0.61 not 61) or, when that is None, to ``feed_solids_vol_pct`` % by volume.
     ``curve``: the corrected efficiency curve (:func:`corrected_partition`), ``"plitt"`` (``sharpness``
     Plitt's m; his equations predict it) or, for a cyclone given directly, ``"whiten"`` (``sharpness``
-    Whiten's alpha, as JKSimMet reports it)."""
+    Whiten's alpha, as JKSimMet reports it). ``surveyed_clay_frac``: the clay (kaolinite + illite) mass
+    fraction of the solids its Plitt factors or survey were measured on, the slurry whose cut they state
+    with the ``rheology`` effect (0: a clay-free slurry, as Plitt's published equations)."""
 
     diameter_cm: float = 38.0
     inlet_cm: float = 11.0
@@ -201,6 +203,7 @@ class Hydrocyclone:
     water_bypass_frac: float | None = None
     solids_bypass_frac: float | None = None
     curve: str = "plitt"
+    surveyed_clay_frac: float = 0.0
     #: A table's keys beside the fields: a table built into the named dataclass (hydrocyclone_from).
     tables: ClassVar[dict] = {"survey": CycloneSurvey}
 
@@ -230,12 +233,16 @@ class Hydrocyclone:
                 check_range(o, name, getattr(self, name), lo, hi, lo_open=lo_open)
         if self.d50c_um is not None:
             check_d50c(o, self.d50c_um)
+        check_range(o, "surveyed_clay_frac", self.surveyed_clay_frac, 0.0, 1.0, lo_open=False)
         if self.curve not in PARTITION_CURVES:
             raise bad_value(o, "curve", self.curve, "one of " + ", ".join(map(repr, PARTITION_CURVES)))
         if self.curve != "plitt" and self.d50c_um is None:  # Plitt's equations predict his own curve's m
             raise bad_value(o, "curve", self.curve, "'plitt' for a cyclone by Plitt's equations or a survey; another "
                             "curve is for a cyclone given directly (d50c_um, sharpness, water_bypass_frac)")
         direct = [n for n in ("d50c_um", "sharpness", "water_bypass_frac") if getattr(self, n) is not None]
+        if direct and self.surveyed_clay_frac != 0.0:  # read by nothing: a cut given directly is fixed
+            raise bad_value(o, "surveyed_clay_frac", self.surveyed_clay_frac, "0 for a cyclone given directly (its "
+                            "d50c is fixed whatever the slurry); it is the slurry of Plitt factors or a survey")
         if direct and len(direct) < 3:
             missing = sorted({"d50c_um", "sharpness", "water_bypass_frac"} - set(direct))
             raise bad_value(o, missing[0], None, "given with " + ", ".join(direct)
@@ -371,7 +378,7 @@ class Classification(Effect):
                "cyclone_pressure_kpa", "cyclone_sharpness", "cyclone_water_bypass_frac", "cyclone_feed_solids_frac",
                "overflow_solids_frac", "underflow_solids_frac", "overflow_water_m3_h", "sump_water_m3_h",
                "mill_water_m3_h")
-    uses = ("cut_size_factor", "cut_size_factor_nominal")
+    uses = ("cut_size_factor", "cut_size_factor_at")
     source = ("Austin et al. (1984) ch. 9 (grate), Stokes settling (its density term); Plitt (1976), "
               "Flintoff et al. (1987) (hydrocyclone)")
     summary = ("grate discharge factor, cut ~ (rho_s - 1)^-1/2, or hydrocyclone closed circuit with recycle "
@@ -495,13 +502,13 @@ class Classification(Effect):
 
 def _cyclone_cut_factor(ctx: EffectContext, cyc: Hydrocyclone):
     """The slurry's factor on a cyclone's cut (module docstring): none for one given directly; against the
-    nominal feed's slurry for one calibrated on a plant (a Plitt factor not 1); against a clay-free slurry for
-    Plitt's equations as published."""
+    slurry its calibration was measured on (``surveyed_clay_frac``) for Plitt's equations. A property of the
+    cyclone, not of a run: a reference taken from a run's initial feed made a sweep over the feed blend
+    cancel the clay's effect at each case's start (the same plant fed D gave 124 or 201 um)."""
     if cyc.mode == "direct":
         return 1.0
-    factor = ctx.get("cut_size_factor", 1.0)
-    calibrated = plitt_factors_text(plitt_factors(cyc), calibrated_only=True)
-    return factor / ctx.get("cut_size_factor_nominal", 1.0) if calibrated else factor
+    at = ctx.get("cut_size_factor_at", None)
+    return ctx.get("cut_size_factor", 1.0) / (at(cyc.surveyed_clay_frac) if at is not None else 1.0)
 
 
 def circuit_cyclone(spec) -> Hydrocyclone | None:

@@ -95,7 +95,7 @@ def slurry_power_factor(thickening, coeff):
 class Rheology(Effect):
     name = "rheology"
     requires = ("classification",)
-    provides = ("cut_size_factor", "cut_size_factor_nominal")
+    provides = ("cut_size_factor", "cut_size_factor_at")
     contributes = ("power_factor",)
     outputs = ("clay_frac", "slurry_relative_viscosity")
     source = ("Thomas (1965) viscosity; Stokes settling cut size; Morrell (2016) slurry and power; coefficients from "
@@ -113,10 +113,9 @@ class Rheology(Effect):
         clay_free = float(thomas_relative_viscosity(phi_v))
         thickening = mu_r / clay_free  # against a clay-free slurry
         ctx.provide("cut_size_factor", thickening ** STOKES_CUT_EXPONENT)
-        shares = spec.reference_blend or (1.0 / len(spec.clay_frac),) * len(spec.clay_frac)
-        w_nominal = sum(f * c for f, c in zip(shares, spec.clay_frac))  # the reference feed's clay
-        ctx.provide("cut_size_factor_nominal",
-                    (thomas_relative_viscosity(phi_v * (1.0 + k_clay * w_nominal)) / clay_free) ** STOKES_CUT_EXPONENT)
+        # the factor of a slurry of solids with clay fraction w (a classifier calibrated on such a slurry)
+        ctx.provide("cut_size_factor_at", lambda w: (thomas_relative_viscosity(phi_v * (1.0 + k_clay * w))
+                                                     / clay_free) ** STOKES_CUT_EXPONENT)
         ctx.contribute("power_factor", slurry_power_factor(thickening, k_power))
         ctx.output("clay_frac", w_clay)
         ctx.output("slurry_relative_viscosity", mu_r)
