@@ -160,3 +160,18 @@ def test_a_run_reports_the_mills_discharge_and_the_cyclone_feed_apart(kind):
     fresh = t["fresh_feed_tph"] if kind == "reverse" else 0.0
     assert (t["cyclone_feed_tph"] - t["mill_discharge_tph"] - fresh).abs().max() < 1e-9 * FEED
     assert t["cyclone_feed_tph"].to_numpy() == pytest.approx((t["cyclone_underflow_tph"] + t["product_tph"]).to_numpy())
+
+
+def test_a_cyclone_table_that_leaves_out_the_sized_keys_says_they_are_defaults():
+    """A sweep over one cyclone key (`--vary effect_options.classification.cyclone.apex_cm=7,9`) ran the default
+    2 x 38-cm cyclone at 30 % solids, not the sized mill's, and the mill overloaded without a word: the note names
+    every sized key the table leaves out, with the default that ran and the sized value; a full table says nothing."""
+    from twin import get_mill
+
+    partial = Twin("B", mill="industrial", effect_options={"classification": {
+        "kind": "hydrocyclone", "cyclone": {"apex_cm": 9.0}}}).notes
+    note = [n for n in partial if "replaces mill 'industrial''s sized cyclones whole" in n]
+    assert len(note) == 1 and "diameter_cm 38.0 for 40.94" in note[0] and "count 2 for 1" in note[0]
+    full = {k: v for k, v in get_mill("industrial").cyclone if v is not None}
+    assert not any("replaces" in n for n in Twin("B", mill="industrial", effect_options={"classification": {
+        "kind": "hydrocyclone", "cyclone": {**full, "apex_cm": 9.0}}}).notes)

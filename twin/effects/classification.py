@@ -529,6 +529,12 @@ def solids_volume_pct(solids_mass_frac, solids_density_t_m3: float):
     return 100.0 * (c / rho) / (c / rho + (1.0 - c) / WATER_DENSITY_T_M3)
 
 
+#: The keys of a sized cyclone cluster (its geometry, count and sump dilution): a scene's cyclone table without
+#: them runs Hydrocyclone's defaults in their place (:func:`sized_circuit_notes`).
+SIZED_CYCLONE_KEYS = ("diameter_cm", "inlet_cm", "vortex_finder_cm", "apex_cm", "free_vortex_height_cm", "count",
+                      "feed_solids_vol_pct")
+
+
 def sized_circuit_notes(spec) -> list[str]:
     """What a model spec runs of a mill sized in closed circuit with hydrocyclones (``Mill.cyclone``)
     that is not the sized circuit: its grate discharge, or its own cyclones in the other circuit
@@ -542,7 +548,16 @@ def sized_circuit_notes(spec) -> list[str]:
                 "calibration's effects); a scene with effect_options.classification.kind = \"hydrocyclone\" "
                 "runs the sized circuit"]
     circuit = options.get("circuit", Classification.options["circuit"].default)
-    if options.get("cyclone") is None and circuit != mill.cyclone_circuit:
+    given = options.get("cyclone")
+    if isinstance(given, dict) and "d50c_um" not in given:  # Plitt's: a table sweeping one key ran 2 x 38 cm, unsaid
+        sized = dict(mill.cyclone)
+        defaulted = [k for k in SIZED_CYCLONE_KEYS if k not in given and k not in given.get("survey", {})
+                     and sized.get(k) is not None]
+        if defaulted:
+            return [f"the scene's cyclone table replaces mill {mill.name!r}'s sized cyclones whole: the keys it leaves "
+                    "out take Hydrocyclone's defaults, not the sized ones (" + ", ".join(
+                        f"{k} {getattr(Hydrocyclone, k)!r} for {sized[k]:.4g}" for k in defaulted) + ")"]
+    if given is None and circuit != mill.cyclone_circuit:
         return [f"mill {mill.name!r} and its cyclones were sized in a {mill.cyclone_circuit} circuit; this runs them "
                 f"in a {circuit} one (effect_options.classification.circuit = \"{mill.cyclone_circuit}\" runs the "
                 "sized circuit)"]
