@@ -236,6 +236,8 @@ def tables_as_json(table: pd.DataFrame) -> pd.DataFrame:
 def write_sweep_workbook(table: pd.DataFrame, traces: pd.DataFrame | None, scene, path: Path) -> Path:
     """The sweep's workbook (module docstring); ``scene``: the validated base scene or None."""
     cases = tables_as_json(table)
+    if "error" in cases:  # a text column: a case without error is an empty cell, not Excel's #N/A error value
+        cases["error"] = cases["error"].astype(object).where(cases["error"].notna(), "")
     sheets = {"cases": (cases, False)}
     if traces is not None and len(traces):
         sheets["P80 traces"] = (trace_table(traces), True)

@@ -174,6 +174,8 @@ def test_sweep_writes_comparison_figure_traces_and_workbook(tmp_path, capsys):
     book = openpyxl.load_workbook(out / "sweep.xlsx", read_only=True)
     cases = _sheet(book, "cases")
     np.testing.assert_allclose(cases["specific_energy_kwh_t"], table["specific_energy_kwh_t"], rtol=XLSX_RTOL)
+    errors = [r[list(next(book["cases"].values)).index("error")] for r in list(book["cases"].values)[1:]]
+    assert errors == [None, None]  # no error: an empty cell, not Excel's #N/A error value (a text column)
     wide = _sheet(book, "P80 traces")
     np.testing.assert_allclose(wide["case 1: p80_um"], traces.loc[traces["case"] == 1, "p80_um"], rtol=XLSX_RTOL)
     assert table["throughput_tph"].round(0).tolist() == [25.0, 35.0]  # steady open loop: product = feed
