@@ -272,12 +272,11 @@ def get_mill(spec, calibration: dict | None = None) -> Mill:
     power factor and grate cut size)."""
     if isinstance(spec, Mill):
         return spec
-    if spec in MILLS or is_preset_file(spec):
-        name = "industrial" if is_preset_file(spec) else spec
-        fitted = (calibration or {}).get("mills", {}).get(name, {})
-        preset = (read_preset(spec) if is_preset_file(spec) else industrial_preset() if spec == "industrial"
-                  else MILLS[spec])
-        return preset.with_(**fitted)
+    file = is_preset_file(spec)
+    if file or spec in MILLS:
+        name = "industrial" if file else spec  # a preset file is a sized industrial mill
+        preset = read_preset(spec) if file else industrial_preset() if spec == "industrial" else MILLS[spec]
+        return preset.with_(**(calibration or {}).get("mills", {}).get(name, {}))
     raise TwinInputError(f"The 'mill' must be one of {', '.join(MILLS)}, a preset file (.json) `grindtwin size-mill "
                          f"--write-preset` wrote, or a twin.Mill. Got {spec!r}.{close_matches(str(spec), MILLS)}")
 

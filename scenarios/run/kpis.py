@@ -69,10 +69,10 @@ def compute_kpis(scene: Scene, frame: pd.DataFrame, solve_times_s=None, batch_ch
     target = scene.controller.target_p80_um
     k: dict[str, Any] = {}
     stopped = _no_product(scene, frame)
-    if target is not None and not is_batch(scene):
-        k["p80_iae_um_h"] = (sum(p80_iae_um_h(t[run], p80[run], target) for run in _runs(~stopped))
-                             if (~stopped).any() else math.nan)
-        k["p80_within_10um_frac"] = within_band_frac(p80[~stopped], target) if (~stopped).any() else math.nan
+    producing = ~stopped
+    if target is not None and not is_batch(scene) and producing.any():
+        k["p80_iae_um_h"] = sum(p80_iae_um_h(t[run], p80[run], target) for run in _runs(producing))
+        k["p80_within_10um_frac"] = within_band_frac(p80[producing], target)
     else:
         k["p80_iae_um_h"] = math.nan
         k["p80_within_10um_frac"] = math.nan
@@ -107,7 +107,7 @@ def compute_kpis(scene: Scene, frame: pd.DataFrame, solve_times_s=None, batch_ch
         k["start_feed_tph"] = float(frame["feed_tph"].iloc[0]) if "feed_tph" in frame else math.nan
     k["start_p80_um"] = float(p80[0])  # what the case started from (sweep tables compare cases)
     k["p80_final_um"] = float(p80[-1])
-    k["p80_mean_um"] = float(np.nanmean(p80[~stopped])) if (~stopped).any() else math.nan
+    k["p80_mean_um"] = float(np.nanmean(p80[producing])) if producing.any() else math.nan
     k["p80_kpis_exclude_h"] = float(np.diff(t)[stopped[1:] | stopped[:-1]].sum())
     k["energy_kwh"] = float(energy)
     k["fed_t"] = fed

@@ -149,7 +149,8 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
 
     changes = _order_report(raw)
     df = raw.iloc[np.argsort(raw["_t"].to_numpy(), kind="stable")].reset_index(drop=True)
-    _refuse_conflicting_repeats(df, where, naive=start is not None and start.tzinfo is None)
+    naive = start is not None and start.tzinfo is None  # local times without a UTC offset
+    _refuse_conflicting_repeats(df, where, naive)
     dup = df["_t"].duplicated(keep="last").to_numpy()
     df = df[~dup].reset_index(drop=True)
     if len(df) < 1:
@@ -158,7 +159,7 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
     t = df["_t"].to_numpy() - df["_t"].iloc[0]
     if start is not None:
         start = start + pd.Timedelta(hours=float(df["_t"].iloc[0]))
-    changes += _missing_records(t, df["_row"], where, start if start is not None and start.tzinfo is None else None)
+    changes += _missing_records(t, df["_row"], where, start if naive else None)
     values = _numeric(df, comp_cols + other_cols, where)
     neg = [f"column {c}: negative values in data rows {_names(df['_row'][values[c].to_numpy() < 0])}; "
            "allowed: >= 0" for c in values.columns if (values[c] < 0).any()]
@@ -293,7 +294,7 @@ def _missing_records(t: np.ndarray, rows: pd.Series, where: str, naive_start: pd
                     and hour.month in DST_CHANGE_MONTHS):  # a whole clock hour never recorded, where clocks change
                 raise SceneError(f"{where}: timestamp: data row {int(rows.iloc[i + 1])} ({after}) follows {before} "
                                  f"an hour and a record interval later, skipping the clock hour from "
-                                 f"{before.ceil('h')}: local times without a UTC offset, the clock put forward for "
+                                 f"{hour}: local times without a UTC offset, the clock put forward for "
                                  "daylight-saving time, so an hour that never happened would be held as recorded "
                                  "and every later record placed an hour late. Give the timestamps with their offset "
                                  "(e.g. 2026-03-29T01:59:00+01:00, then 03:00:00+02:00) or in UTC.")

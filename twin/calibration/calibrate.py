@@ -240,10 +240,10 @@ def _dem_calibration(args, name: str, source: Calibration | None, table: tuple |
     """The DEM step (or ``source``'s), then :func:`dem_record` (on ``table``, a user's, or the shipped one)."""
     if source is not None:
         dem = source.record["dem"]
-        start = {k: v for k, v in source.coefficients.items() if k in DEM_FITTED}
-        start |= {f"lab_{k}": v for k, v in source.record["mills"]["lab"].items() if f"lab_{k}" in DEM_FITTED}
-        if table is not None:  # from DEM_FITTED's own starts: not from an optimum of other data
-            start = None
+        start = None  # a user's table: from DEM_FITTED's own starts, not from an optimum of other data
+        if table is None:
+            start = {k: v for k, v in source.coefficients.items() if k in DEM_FITTED}
+            start |= {f"lab_{k}": v for k, v in source.record["mills"]["lab"].items() if f"lab_{k}" in DEM_FITTED}
     else:
         dem, start = run_dem(fast=args.fast, seed=args.seed, progress=not args.quiet, workers=args.workers), None
     n_rep = args.replicates if args.replicates is not None else (FAST_REPLICATES if args.fast else DEFAULT_REPLICATES)
