@@ -22,10 +22,11 @@
   P80 at t = 0.
 - P80 KPIs read the frame's ``p80_um``: the exact interpolation of the product's size
   distribution in every mode (open loop: the model's smooth output is ``p80_smooth_um``). A continuous
-  mill's IAE, within-band share and mean leave out the samples in which it makes no product (its
-  ``throughput_tph`` below :data:`NO_PRODUCT_FRAC` of its nominal feed: a feed stop, where the P80 is the
-  charge grinding down, 36 um in a replay's half-hour stop), an interval of the IAE when either end is;
-  ``p80_kpis_exclude_h`` says how long that was (0 without stops).
+  mill's IAE, within-band share and mean leave out the samples of a feed stop (:func:`feed_stopped`: its
+  ``throughput_tph``, or the feed it was given over the interval before, below :data:`NO_PRODUCT_FRAC` of its
+  nominal feed; the P80 is then the charge grinding down, 36 um in a replay's half-hour stop, and draining, 240 to
+  72 um), an interval of the IAE when either end is; ``p80_kpis_exclude_h`` says how long that was (0 without
+  stops).
 - Also ``p80_final_um``, ``p80_mean_um``, ``energy_kwh``, ``fed_t``, ``duration_h``.
 Integrals of outputs are trapezoidal over the samples; a feed rate without the plant's ``fed_t``
 is integrated as held (:mod:`mpc.kpis`).
@@ -45,9 +46,9 @@ from scenarios.run.models import is_batch
 from scenarios.scene import Scene
 from scenarios.scene.ranges import scene_nominal_feed_tph
 
-#: A sample whose product rate is below this fraction of the mill's nominal feed makes no product: a feed
-#: stop (a mill discharges at its nominal rate over its residence time, ~0.1 h; after a stop's few residence
-#: times only the draining charge's trickle leaves).
+#: A sample whose product rate, or the fresh feed over the interval before it, is below this fraction of the
+#: mill's nominal feed is one of a feed stop (a mill discharges at its nominal rate over its residence time,
+#: ~0.1 h; after a stop's few residence times only the draining charge's trickle leaves).
 NO_PRODUCT_FRAC = 0.05
 
 KPI_KEYS = ("p80_iae_um_h", "p80_within_10um_frac", "specific_energy_kwh_t", "throughput_t", "throughput_tph",
@@ -68,7 +69,7 @@ def compute_kpis(scene: Scene, frame: pd.DataFrame, solve_times_s=None, batch_ch
     p80 = frame["p80_um" if "p80_um" in frame else "content_p80_um"].to_numpy(float)  # batch: the content
     target = scene.controller.target_p80_um
     k: dict[str, Any] = {}
-    stopped = _no_product(scene, frame)
+    stopped = feed_stopped(scene, frame)
     producing = ~stopped
     if target is not None and not is_batch(scene) and producing.any():
         k["p80_iae_um_h"] = sum(p80_iae_um_h(t[run], p80[run], target) for run in _runs(producing))
@@ -115,12 +116,20 @@ def compute_kpis(scene: Scene, frame: pd.DataFrame, solve_times_s=None, batch_ch
     return k
 
 
-def _no_product(scene: Scene, frame: pd.DataFrame) -> np.ndarray:
-    """Mask of the samples in which a continuous mill makes no product (:data:`NO_PRODUCT_FRAC`)."""
+def feed_stopped(scene: Scene, frame: pd.DataFrame) -> np.ndarray:
+    """Mask of a continuous mill's samples in a feed stop: its product rate, or the fresh feed it was given over
+    the interval before the sample (a frame's ``feed_tph`` is held from its sample on), below
+    :data:`NO_PRODUCT_FRAC` of its nominal feed. The fed mill's draining (its product falling from 26 to 2 t/h,
+    its P80 from 240 to 72 um) is the stop's, not the control's."""
     nominal = scene_nominal_feed_tph(scene)
     if is_batch(scene) or "throughput_tph" not in frame or not nominal:
         return np.zeros(len(frame), bool)
-    return frame["throughput_tph"].to_numpy(float) < NO_PRODUCT_FRAC * nominal
+    limit = NO_PRODUCT_FRAC * nominal
+    stopped = frame["throughput_tph"].to_numpy(float) < limit
+    if "feed_tph" in frame:
+        feed = frame["feed_tph"].to_numpy(float)
+        stopped |= np.r_[feed[:1], feed[:-1]] < limit
+    return stopped
 
 
 def _runs(mask: np.ndarray) -> list[np.ndarray]:

@@ -52,7 +52,7 @@ from scenarios.output import claim_output, workbook_problem, write_files
 from scenarios.run.batch import run_batch
 from scenarios.run.closed_loop import run_closed
 from scenarios.run.feed import feed_schedule, fit_warnings, history_changes
-from scenarios.run.kpis import NO_PRODUCT_FRAC, compute_kpis
+from scenarios.run.kpis import NO_PRODUCT_FRAC, compute_kpis, feed_stopped
 from scenarios.run.models import build_models, component_ores, is_batch
 from scenarios.run.open_loop import analyser_trace, run_open_loop
 from scenarios.run.preflight import model_size_problems, refuse, replay_speed_problems, settings_problems
@@ -163,8 +163,8 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
         named = [w for k, w in (("p80_iae_um_h", "IAE"), ("p80_within_10um_frac", "share within the band"),
                                 ("p80_mean_um", "mean")) if math.isfinite(kpis[k])]
         warnings_.append(f"the P80 KPIs ({', '.join(named)}) leave out {kpis['p80_kpis_exclude_h']:.3g} h "
-                         f"in which the mill made no product (below {NO_PRODUCT_FRAC:.0%} of its nominal feed: a feed "
-                         "stop, where the P80 is the charge grinding down)")
+                         f"of a feed stop (product or feed below {NO_PRODUCT_FRAC:.0%} of the nominal feed: the P80 is then "
+                         "the charge draining and grinding down)")
     warnings_ += trajectory_notes(frame, models.plant.spec, models.plant.model.effect_names,
                                   product_psd=None if is_batch(scene) else psd)
     summary = make_summary(scene, models, kpis, notes + warnings_, time.perf_counter() - t_start)
@@ -272,6 +272,12 @@ def _written_duration_h(scene: Scene):
 P80_AS_RECORDED = "p80_as_recorded_um"
 
 
+def _as_read(scene: Scene, frame, values) -> np.ndarray:
+    """``values`` (one per sample of ``frame``) as the scene's P80 analyser reads them without its noise."""
+    return analyser_trace(frame["time_h"].to_numpy(), np.asarray(values, float),
+                          scene.sensors.model_copy(update={"p80_noise_um": 0.0}), 0)
+
+
 def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float | None,
             xlsx: bool = False) -> RunResult:
     data = scene.model_dump(exclude_none=True)
@@ -282,14 +288,15 @@ def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float 
     result = _run(new, progress, replay=True)
     frame = result.frame
     if "recorded_p80_um" in frame:
-        frame[P80_AS_RECORDED] = analyser_trace(frame["time_h"].to_numpy(), frame["p80_um"].to_numpy(),
-                                                new.sensors.model_copy(update={"p80_noise_um": 0.0}), 0)
+        frame[P80_AS_RECORDED] = _as_read(new, frame, frame["p80_um"])
     cmp = {}
     for col, run in (("feed_tph", "feed_tph"), ("speed_frac_critical", "speed_frac_critical"),
                      ("p80_um", P80_AS_RECORDED)):
         rec = f"recorded_{col}"
         if rec in frame:
             diff = frame[run].to_numpy(float) - frame[rec].to_numpy(float)
+            if col == "p80_um":  # readings of a feed stop's draining charge, left out as of the KPIs
+                diff[_as_read(new, frame, feed_stopped(new, frame)) > 0] = np.nan
             cmp[f"{col}_mean_diff"] = float(np.nanmean(diff))
             cmp[f"{col}_mean_abs_diff"] = float(np.nanmean(np.abs(diff)))
     start = load_history(new).start  # the plant's clock at time_h 0 (None for a time_h history)

@@ -53,3 +53,18 @@ def test_p80_kpis_leave_out_the_samples_without_product(write_scene):
     assert plain["p80_kpis_exclude_h"] == 0.0
     assert plain["p80_mean_um"] == pytest.approx(np.mean(frame["p80_um"]))
     assert plain["p80_iae_um_h"] == pytest.approx(np.trapezoid(np.abs(frame["p80_um"] - 210.0), frame["time_h"]))
+
+
+def test_p80_kpis_leave_out_a_feed_stops_draining(write_scene):
+    """The feed stops after 2 h while the charge drains (product 26, then 12 t/h of a 30 t/h mill, above the
+    no-product share): its P80 falling to 120 um entered the IAE as the control's; a sample whose feed over the
+    interval before it was stopped is the stop's. The sample at the stop's start (fed until then) still counts."""
+    scene = load_scene(write_scene())
+    frame = _loop_frame([30.0, 30.0, 0.0, 0.0, 30.0, 30.0])
+    frame["p80_um"] = [210.0, 220.0, 180.0, 120.0, 200.0, 210.0]
+    frame["throughput_tph"] = [30.0, 30.0, 26.0, 12.0, 28.0, 30.0]
+    k = compute_kpis(scene, frame.copy())
+    # samples 3 and 4 were fed nothing over the interval before: 0-1 and 1-2 h remain of the IAE
+    assert k["p80_kpis_exclude_h"] == pytest.approx(3.0)
+    assert k["p80_iae_um_h"] == pytest.approx(0.5 * (0 + 10) + 0.5 * (10 + 30))
+    assert k["p80_mean_um"] == pytest.approx((210 + 220 + 180 + 210) / 4)
