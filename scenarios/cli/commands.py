@@ -67,9 +67,10 @@ def _signals_unwind(received: list):
             signal.signal(sig, old)
 
 
-def _interrupted(command: str, signum: int) -> int:
-    sys.stderr.write(f"grindtwin: {command} interrupted by {signal.Signals(signum).name}; no results "
-                     "were written (a partial folder, if any, was removed)\n")
+def _interrupted(command: str, signum: int, kept: str | None = None) -> int:
+    """The exit message of a signal; ``kept``: what was written nonetheless (an interrupted sweep's cases)."""
+    written = kept or "no results were written (a partial folder, if any, was removed)"
+    sys.stderr.write(f"grindtwin: {command} interrupted by {signal.Signals(signum).name}; {written}\n")
     return 128 + signum  # the shell's convention: 130 for SIGINT, 143 for SIGTERM
 
 
@@ -107,10 +108,11 @@ def _exit_codes(command: str):
                 with _signals_unwind(received):
                     return fn(args)
             except BaseException as exc:  # noqa: BLE001 - sorted below, anything else re-raised
+                kept = getattr(exc, "kept", None)
                 if received or isinstance(exc, KeyboardInterrupt):
-                    return _interrupted(command, received[0] if received else signal.SIGINT)
+                    return _interrupted(command, received[0] if received else signal.SIGINT, kept)
                 if isinstance(exc, Interrupted):
-                    return _interrupted(command, exc.signum)
+                    return _interrupted(command, exc.signum, kept)
                 if isinstance(exc, BrokenPipeError) and _stdout_closed():
                     return 128 + signal.SIGPIPE
                 bad, failed = _families()
@@ -342,9 +344,13 @@ def cmd_sweep(args) -> int:
         n = len(next(iter(vary.values()))) if args.mode == "paired" else 1
         vary["calibration"] = [_calibration_arg(args.calibration)] * n
     with claim_output(args.out, protect=(Path(args.scene),)) as claim:
-        table = run_sweep(args.scene, vary, sweep_case, mode=args.mode, workers=args.workers,
-                          scheduler=args.scheduler, progress=not args.quiet,
-                          max_cases=args.max_cases or MAX_CASES, check=_sweep_workbook_fits if args.xlsx else None)
+        try:
+            table = run_sweep(args.scene, vary, sweep_case, mode=args.mode, workers=args.workers,
+                              scheduler=args.scheduler, progress=not args.quiet, max_cases=args.max_cases or MAX_CASES,
+                              check=_sweep_workbook_fits if args.xlsx else None)
+        except (KeyboardInterrupt, Interrupted) as exc:
+            _keep_finished_cases(claim, exc, args)
+            raise
         traces = _pop_traces(table)
         if claim is not None:
             claim.commit(lambda folder: _write_sweep(folder, table, traces, args.scene, args.xlsx), kind="sweep")
@@ -375,6 +381,23 @@ def cmd_sweep(args) -> int:
 
 #: Failed cases listed on stderr by ``grindtwin sweep`` (the rest are in the table's error column).
 SWEEP_FAILURES_SHOWN = 10
+
+
+def _keep_finished_cases(claim, exc: BaseException, args) -> None:
+    """An interrupted sweep's finished cases (``exc.partial_table``, :func:`scenarios.run.run_sweep`) written to
+    --out as a whole sweep folder, the others' error "not run"; ``exc.kept`` then says so to the exit message.
+    Nothing is written when no case finished or no --out was given."""
+    from scenarios.run.sweep import NOT_RUN
+
+    table = getattr(exc, "partial_table", None)
+    if claim is None or table is None or not (table["error"] != NOT_RUN).any():
+        return
+    traces = _pop_traces(table)
+    folder = claim.commit(lambda f: _write_sweep(f, table, traces, args.scene, args.xlsx), kind="sweep",
+                          after_signal=True)
+    done = int((table["error"] != NOT_RUN).sum())
+    exc.kept = (f"the {done} of {len(table)} cases that finished were written to {folder} (the others' error: "
+                f"{NOT_RUN!r})")
 
 
 def _sweep_workbook_fits(scenes) -> None:

@@ -318,16 +318,18 @@ class OutputClaim:
                                                       "were written; do not use these files\n")
 
     # ------------------------------------------------------------------ commit
-    def commit(self, write_files: Callable[[Path], None], kind: str = "run") -> Path:
+    def commit(self, write_files: Callable[[Path], None], kind: str = "run", after_signal: bool = False) -> Path:
         """Write the files (``write_files(partial_folder)``), the manifest, and put the folder
         in place of ``DIR`` (a previous grindtwin result there is replaced as a whole), unless a
-        signal came during the run (:func:`scenarios.errors.raise_if_interrupted`)."""
-        raise_if_interrupted()
+        signal came during the run (:func:`scenarios.errors.raise_if_interrupted`) and ``after_signal``
+        does not say the files are whole nonetheless (an interrupted sweep's finished cases)."""
+        check = (lambda: None) if after_signal else raise_if_interrupted
+        check()
         write_files(self.partial)
         files = sorted(p.name for p in self.partial.iterdir() if p.name != INCOMPLETE_MARKER)
         (self.partial / MANIFEST).write_text(json.dumps(manifest_of(self.partial, files, kind), indent=2) + "\n",
                                              encoding="utf-8")
-        raise_if_interrupted()
+        check()
         (self.partial / INCOMPLETE_MARKER).unlink()
         self._replace_final()
         return self.final

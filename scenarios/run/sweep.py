@@ -6,7 +6,8 @@
 checked against the scene schema (below ``effect_options``, against the effects' declared
 options) and every case is checked as ``grindtwin check`` checks a scene (its models built, its start found)
 before any case runs. A case that fails while running is reported in the ``error`` column; the other
-cases are kept.
+cases are kept. A sweep stopped by a signal (Ctrl-C, SIGTERM) re-raises it with the table of the cases
+that finished as the exception's ``partial_table`` (the others' ``error``: :data:`NOT_RUN`).
 
 Cases run in a local process pool (``workers``; 1 runs in this process) or, when
 ``scheduler`` is given (an address such as ``"tcp://host:8786"``, a ``distributed.Client``
@@ -32,7 +33,7 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
-from scenarios.errors import RunError, SceneError
+from scenarios.errors import Interrupted, RunError, SceneError, raise_if_interrupted
 from scenarios.scene.keypaths import did_you_mean, format_path, parse_path, type_at
 from scenarios.run.preflight import run_problems
 from scenarios.scene.loader import read_toml, validate_scene_dict
@@ -48,6 +49,8 @@ Preflight = Callable[[Scene], list]
 MAX_CASES = 1000
 #: Most values one ``start:stop:step`` range may give (above any useful ``max_cases``).
 MAX_RANGE_VALUES = 1_000_000
+#: The ``error`` of a case a signal stopped the sweep before (or while) it ran.
+NOT_RUN = "not run: the sweep was interrupted"
 
 
 @dataclass
@@ -223,13 +226,21 @@ def run_sweep(scene_path: str | Path, vary: dict[str, list], run_case: RunCase, 
     scenes = validate_cases(cases, scene_path, problems, progress)
     if check is not None:
         check(scenes)
-    if scheduler is not None:
-        outcomes = _run_dask(run_case, scenes, scheduler, progress)
-    else:
-        outcomes = _run_local(run_case, scenes, workers, progress)
-    rows = []
-    for case, (kpis, error) in zip(cases, outcomes):
-        rows.append({"case": case.index, **case.values, **(kpis or {}), "error": error})
+    outcomes: list = [(None, NOT_RUN)] * len(scenes)  # filled in as cases finish
+    try:
+        if scheduler is not None:
+            _run_dask(run_case, scenes, scheduler, progress, outcomes)
+        else:
+            _run_local(run_case, scenes, workers, progress, outcomes)
+    except (KeyboardInterrupt, Interrupted) as exc:  # the finished cases go with the signal, not lost
+        exc.partial_table = _table(cases, outcomes, scene_path, mode, vary)
+        raise
+    return _table(cases, outcomes, scene_path, mode, vary)
+
+
+def _table(cases: list[Case], outcomes: list, scene_path, mode: str, vary: dict) -> pd.DataFrame:
+    rows = [{"case": case.index, **case.values, **(kpis or {}), "error": error}
+            for case, (kpis, error) in zip(cases, outcomes)]
     table = pd.DataFrame(rows)
     table.attrs.update(scene=str(scene_path), mode=mode, varied=list(vary))
     return table
@@ -246,20 +257,22 @@ def run_one(run_case: RunCase, scene: Scene) -> tuple[dict | None, str | None]:
     return kpis, None
 
 
-def _run_local(run_case: RunCase, scenes: list[Scene], workers: int | None, progress: bool):
+def _run_local(run_case: RunCase, scenes: list[Scene], workers: int | None, progress: bool,
+               outcomes: list) -> None:
     from dem import available_cores
 
     workers = min(workers or available_cores(), len(scenes))
     if workers > 1:
         _check_picklable(run_case)
     bar = tqdm(total=len(scenes), desc="sweep", unit="case", disable=not progress)
-    outcomes: list = [None] * len(scenes)
     with bar:
         if workers <= 1:
             for i, scene in enumerate(scenes):
-                outcomes[i] = run_one(run_case, scene)
+                outcome = run_one(run_case, scene)
+                raise_if_interrupted()  # a signal inside a solver call came out as the case's error
+                outcomes[i] = outcome
                 bar.update()
-            return outcomes
+            return
         pool = ProcessPoolExecutor(max_workers=workers, initializer=_worker_ignores_signals)
         try:
             futures = {pool.submit(run_one, run_case, s): i for i, s in enumerate(scenes)}
@@ -270,7 +283,6 @@ def _run_local(run_case: RunCase, scenes: list[Scene], workers: int | None, prog
             _stop_workers(pool)
             raise
         pool.shutdown()
-    return outcomes
 
 
 def _worker_ignores_signals() -> None:
@@ -312,7 +324,7 @@ def check_scheduler_address(address: str) -> None:
                          "PROTOCOL://HOST:PORT (e.g. tcp://10.0.0.5:8786) or HOST:PORT")
 
 
-def _run_dask(run_case: RunCase, scenes: list[Scene], scheduler: Any, progress: bool):
+def _run_dask(run_case: RunCase, scenes: list[Scene], scheduler: Any, progress: bool, outcomes: list) -> None:
     try:
         from distributed import Client
         from distributed import as_completed as dask_completed
@@ -328,12 +340,10 @@ def _run_dask(run_case: RunCase, scenes: list[Scene], scheduler: Any, progress: 
     try:
         futures = [client.submit(run_one, run_case, s, pure=False) for s in scenes]
         index = {f.key: i for i, f in enumerate(futures)}
-        outcomes: list = [None] * len(scenes)
         with tqdm(total=len(scenes), desc="sweep", unit="case", disable=not progress) as bar:
             for fut in dask_completed(futures):
                 outcomes[index[fut.key]] = _outcome(fut)
                 bar.update()
-        return outcomes
     finally:
         if own:
             client.close()

@@ -3,6 +3,7 @@ exit code of the signal, no traceback, and nothing left that looks like a result
 
 from __future__ import annotations
 
+import re
 import signal
 import subprocess
 import sys
@@ -80,3 +81,60 @@ def test_ctrl_c_in_a_sweep_stops_its_workers_without_tracebacks(tmp_path):
     assert "Traceback" not in err and "KeyboardInterrupt" not in err
     assert time.monotonic() - t0 < 60  # the workers were stopped, not waited for
     assert sorted(p.name for p in tmp_path.iterdir()) == ["short.toml"]
+
+
+def test_an_interrupted_sweep_keeps_the_cases_that_finished(tmp_path):
+    """A sweep stopped after its short case finished, its long ones running: the finished case was lost with
+    the rest (hours of cases, for a Ctrl-C); now the folder is written whole with it, the others' error says
+    they did not run, and the exit code and message are the signal's."""
+    import pandas as pd
+
+    from scenarios.run.sweep import NOT_RUN
+
+    scene = short_pyrite_scene(tmp_path, duration_h=RUN_LONG_H)
+    out = tmp_path / "sweep"
+    minute = 1 / 60  # the scene's sample period; the first case samples every 20 h, 100 samples in all
+    run = Running(["sweep", scene, "--vary", f"scene.sample_period_h=20,{minute!r},{minute!r}", "--workers", 2,
+                   "--out", out])
+    deadline = time.monotonic() + 180
+    while not re.search(r"sweep:[^\r\n]*1/3", run.err):  # the short case has finished
+        assert run.proc.poll() is None and time.monotonic() < deadline, run.err
+        time.sleep(0.05)
+    code, err = run.finish(signal.SIGINT)
+    assert code == 130, err
+    assert "Traceback" not in err and "the 1 of 3 cases that finished were written" in err
+    table = pd.read_csv(out / "sweep.csv")
+    assert table["error"].isna().tolist() == [True, False, False]
+    assert (table["error"][1:] == NOT_RUN).all()
+    assert table["duration_h"][0] == RUN_LONG_H and table["duration_h"][1:].isna().all()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["short.toml", "sweep"]  # no .partial or .lock
+
+
+def test_a_signal_inside_a_serial_cases_solver_is_not_that_cases_failure(tmp_path, monkeypatch, capsys):
+    """One worker: the first case runs, a SIGINT lands inside the second's solver call (CasADi lets it out as
+    another exception, recorded by the handler): the case was recorded as failed with that error and the sweep
+    went on to the next; now it stops there, the first case written, the others not run."""
+    import pandas as pd
+
+    from scenarios.cli import commands, main
+    from scenarios.errors import RECEIVED_SIGNALS
+    from scenarios.run.sweep import NOT_RUN
+
+    calls, real = [], commands.sweep_case
+
+    def case(scene):
+        calls.append(scene)
+        if len(calls) == 2:
+            RECEIVED_SIGNALS.append(signal.SIGINT)  # what the CLI's handler does before the solver's error
+            raise RuntimeError("casadi: Error in Function::call for 'F' [IdasInterface]: interrupted")
+        return real(scene)
+
+    monkeypatch.setattr(commands, "sweep_case", case)
+    scene = short_pyrite_scene(tmp_path, duration_h=0.5)
+    out = tmp_path / "sweep"
+    code = main(["sweep", str(scene), "--vary", "feed.feed_tph=24,30,36", "--workers", "1", "--out", str(out),
+                 "--quiet"])
+    assert code == 130 and len(calls) == 2
+    assert "the 1 of 3 cases that finished were written" in capsys.readouterr().err
+    table = pd.read_csv(out / "sweep.csv")
+    assert table["error"].isna().tolist() == [True, False, False] and (table["error"][1:] == NOT_RUN).all()
