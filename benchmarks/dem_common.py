@@ -12,6 +12,7 @@ import re
 import subprocess
 import sys
 import tempfile
+import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
@@ -87,7 +88,19 @@ def md_table(df, floatfmt: str = ".4g") -> str:
     return "\n".join(lines) + "\n"
 
 
+def command_note() -> str:
+    """How this results file was made: the command as run (from the repository's root), the date and the CPU."""
+    script = os.path.relpath(os.path.abspath(sys.argv[0]), os.path.join(os.path.dirname(__file__), ".."))
+    args = " ".join([script, *sys.argv[1:]])
+    return (f"Command: `PYTHONPATH=. python {args}`, run {time.strftime('%Y-%m-%d')} on {cpu_model()} "
+            f"(load average {load_average()} at the end).")
+
+
 def write_table(df, name: str, title: str, notes: str = "") -> None:
+    """``name``.csv and .md in benchmarks/results; the notes start with :func:`command_note` unless they name
+    their command."""
+    if "Command:" not in notes:
+        notes = command_note() + "\n\n" + notes
     os.makedirs(OUT, exist_ok=True)
     df.to_csv(os.path.join(OUT, name + ".csv"), index=False)
     with open(os.path.join(OUT, name + ".md"), "w") as fh:

@@ -29,7 +29,7 @@ from mpc.nmpc import Controller, NmpcSettings
 from mpc.optimize import feed_for_target
 from twin.sizes import SizeGrid
 from twin.twin import DEFAULT_EFFECTS, Twin
-from dem_common import TAG
+from dem_common import TAG, command_note
 
 OUT = Path(__file__).parent / "results"
 TARGET_UM = 210.0
@@ -127,7 +127,7 @@ def run_seeds(args) -> pd.DataFrame:
     summary = table.groupby("controller")[["p80_iae_um_h", "iae_over_pi", "solve_time_median_s"]].agg(
         ["median", "min", "max"])
     summary.columns = [f"{a}_{b}" for a, b in summary.columns]
-    md = [f"# Reference case over seeds {args.seeds}: P80 IAE and its ratio to PI", "",
+    md = [f"# Reference case over seeds {args.seeds}: P80 IAE and its ratio to PI", "", command_note(), "",
           f"{model_line(args)}; one run per seed (sensor noise differs), median / min / max.", "",
           summary.reset_index().to_markdown(index=False, floatfmt=".3g")]
     (OUT / f"mpc_reference_case_seeds{args.tag}.md").write_text("\n".join(md) + "\n")
@@ -189,7 +189,7 @@ def run_case(args, plant_hardness=1.0, write: bool = True) -> pd.DataFrame:
             "solve_time_median_s", "solve_time_p95_s", "iterations_median", "fallback_steps"]
     md = [f"# Reference case: Type B -> 60 % B / 40 % D at {T_SWITCH_H} h (ramp {RAMP_H} h), "
           f"target {TARGET_UM} um, lead {LEAD_H} h",
-          "",
+          "", command_note(), "",
           f"duration {args.duration_h} h, sample {dt} h, seed {args.seed}; solver {args.solver}; "
           f"weights p80 {args.weight_p80}, du_feed {args.weight_du_feed}, du_speed "
           f"{args.weight_du_speed}, energy {args.weight_energy}; EKF hardness noise "

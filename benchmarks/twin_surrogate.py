@@ -33,6 +33,7 @@ from twin.surrogate import TARGETS, Surrogate, held_out_split, load, load_traini
 from twin.errors import TwinInputError
 from twin.ore.samples import to_mineralogy
 from twin.twin import Twin
+from dem_common import command_note
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
 
@@ -152,6 +153,7 @@ def main() -> None:
     md = "| " + " | ".join(cols) + " |\n|" + "---|" * len(cols) + "\n"
     for _, r in res[cols].iterrows():
         md += "| " + " | ".join(f"{v:.4g}" if isinstance(v, float) else str(v) for v in r) + " |\n"
+    head = head.replace("\n\n", f"\n\n{command_note()}\n\n", 1)  # after the title
     (RESULTS / "twin_surrogate.md").write_text(head + md, encoding="utf-8")
     print(head + md)
 
