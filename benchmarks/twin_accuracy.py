@@ -70,12 +70,12 @@ def size_classes(counts):
 def tolerances(rtols):
     tw = Twin(["B", "D"], mill="industrial")
     x0 = tw.steady(feed_tph=30.0, blend=[1.0, 0.0]).x
-    ref = tw.simulate(x0=x0, rtol=1e-11, atol_rel=1e-13, **transition(tw)).frame["p80_um"].to_numpy()
+    ref = tw.simulate(x0=x0, rtol=1e-11, atol_rel=1e-13, **transition(tw)).frame["p80_smooth_um"].to_numpy()
     rows = []
     for rtol in rtols:
         tw.simulate(x0=x0, rtol=rtol, atol_rel=rtol * 1e-2, **transition(tw))  # build integrators
         t, run = median_time(lambda: tw.simulate(x0=x0, rtol=rtol, atol_rel=rtol * 1e-2, **transition(tw)))
-        p80 = run.frame["p80_um"].to_numpy()
+        p80 = run.frame["p80_smooth_um"].to_numpy()
         rows.append({"table": "tolerance", "setting": f"rtol {rtol:.0e}", "p80_um": p80[-1],
                      "error_pct": 100 * float(np.max(np.abs(p80 / ref - 1))), "time_s": t,
                      "mass_balance_rel": run.mass_balance_error()})
@@ -89,7 +89,7 @@ def mixers(ns):
         x0 = tw.steady(feed_tph=30.0, blend=[1.0, 0.0]).x
         tw.simulate(x0=x0, **transition(tw))
         t, run = median_time(lambda: tw.simulate(x0=x0, **transition(tw)))
-        rows.append({"table": "mixers", "setting": f"{n} mixer(s)", "p80_um": run.frame["p80_um"].iloc[-1],
+        rows.append({"table": "mixers", "setting": f"{n} mixer(s)", "p80_um": run.frame["p80_smooth_um"].iloc[-1],
                      "states": tw.model.n_x, "time_s": t})
     return rows
 

@@ -72,10 +72,10 @@ def transition_rows(repeat: int) -> list[dict]:
 
     t = interleaved({"step": lambda: run(step), "ramp": lambda: run(ramp), "staircase": lambda: run(staircase)},
                     repeat)
-    fine = run(ramp, DT_H / 16).frame["p80_um"].to_numpy()[::16]
+    fine = run(ramp, DT_H / 16).frame["p80_smooth_um"].to_numpy()[::16]
     rows = []
     for name, blend in (("step", step), ("ramp", ramp), ("staircase", staircase)):
-        p80 = run(blend).frame["p80_um"].to_numpy()
+        p80 = run(blend).frame["p80_smooth_um"].to_numpy()
         err = float(np.max(np.abs(p80 / fine - 1))) * 100 if name != "step" else math.nan
         rows.append({"table": "transition", "setting": f"blend as a {name}", "time_s": t[name],
                      "ratio_to_step": t[name] / t["step"], "p80_max_error_pct_vs_ramp_dt_16": err})

@@ -212,11 +212,11 @@ def _sample_notes(frame, spec) -> list[str]:
     t = frame["time_h"].to_numpy(float)
     rows = frame.to_dict("records")
     checks = [lambda r: roping_note(spec, r), pressure_note, water_note]
-    if "specific_energy_kwh_t" in frame.columns and "p80_exact_um" in frame.columns:
+    if "specific_energy_kwh_t" in frame.columns and "p80_smooth_um" in frame.columns:  # p80_um then exact
         from .sizes import pxx_um
 
         f80 = pxx_um(spec.grid, spec.feed_frac)  # once, not per sample
-        checks.append(lambda r: _work_index_text(spec, float(r["specific_energy_kwh_t"]), float(r["p80_exact_um"]),
+        checks.append(lambda r: _work_index_text(spec, float(r["specific_energy_kwh_t"]), float(r["p80_um"]),
                                                  r.get("load_frac"), f80))
     notes = []
     for check in checks:
@@ -234,7 +234,7 @@ def trajectory_notes(frame, spec, effect_names, product_psd=None) -> list[str]:
     mill's shell and the largest hold-up, the centrifuging speed and the jammed slurry of its most
     extreme sample; when its P80 lies in the grid's sink (:func:`sink_note`; from the product's size
     snapshots, ``product_psd``: rows = times [h], columns = class upper sizes [um], values = cumulative
-    fraction passing, else from ``p80_exact_um``); and the notes of its outputs (:func:`_sample_notes`)."""
+    fraction passing, else from the exact ``p80_um``); and the notes of its outputs (:func:`_sample_notes`)."""
     t = frame["time_h"].to_numpy(float)
     notes = [n for n in (residence_note(spec),) if n]
     if product_psd is not None and len(product_psd):
@@ -244,9 +244,9 @@ def trajectory_notes(frame, spec, effect_names, product_psd=None) -> list[str]:
             when = product_psd.index.to_numpy(float)[deep]
             notes.append(f"from {when[0]:.4g} h to {when[-1]:.4g} h ({deep.sum()} of {len(sink)} size snapshots) "
                          + _sink_text(f"{float(sink.max()):.0%}", float(product_psd.columns[-1])))
-    elif "p80_exact_um" in frame.columns:  # without snapshots: a P80 below the finest class bound lies in the sink
+    elif "p80_smooth_um" in frame.columns:  # without snapshots: a P80 below the finest class bound lies in the sink
         finest = float(spec.grid.upper_um[-1])
-        deep = frame["p80_exact_um"].to_numpy(float) < finest
+        deep = frame["p80_um"].to_numpy(float) < finest
         if deep.any():
             notes.append(f"from {t[deep][0]:.4g} h to {t[deep][-1]:.4g} h ({deep.sum()} of {len(t)} samples) "
                          + _sink_text(f"{SINK_NOTE_FRAC:.0%} or more", finest))

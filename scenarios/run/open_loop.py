@@ -103,14 +103,6 @@ def simulate_chunks(scene: Scene, twin, x0, feed_tph, speed, blend, progress: bo
             x = tr.states[-1]
             bar.update(b - a)
     frame = pd.concat(frames, ignore_index=True)
-    # P80 is the exact interpolation of the product's (a batch: the mill content's) size
-    # distribution, as in a closed loop and `steady`; the model's smooth P80 output (the one the
-    # controllers differentiate) is kept beside it
-    for name in ("p80_um", "content_p80_um"):
-        exact = name.replace("_um", "_exact_um")
-        if exact in frame:
-            frame[name.replace("_um", "_smooth_um")] = frame[name]
-            frame[name] = frame.pop(exact)
     frame["time_h"] = np.arange(len(frame)) * dt  # exact grid, no drift
     return frame, np.vstack(states)
 

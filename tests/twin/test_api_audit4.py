@@ -30,9 +30,9 @@ def test_a_run_states_its_steady_states_notes_over_its_samples(twin_b):
 def test_two_threads_simulating_on_one_twin_agree_with_one(twin_b):
     """The cached integrators were shared: two threads in one twin crashed the process (2 runs of 3) or
     raised IDAS's NaN error. Their calls now take turns."""
-    serial = {f: twin_b.simulate(0.2, 0.05, feed_tph=f).frame["p80_exact_um"].iloc[-1] for f in (0.025, 0.04)}
+    serial = {f: twin_b.simulate(0.2, 0.05, feed_tph=f).frame["p80_um"].iloc[-1] for f in (0.025, 0.04)}
     with ThreadPoolExecutor(2) as ex:
-        out = list(ex.map(lambda f: (f, twin_b.simulate(0.2, 0.05, feed_tph=f).frame["p80_exact_um"].iloc[-1]),
+        out = list(ex.map(lambda f: (f, twin_b.simulate(0.2, 0.05, feed_tph=f).frame["p80_um"].iloc[-1]),
                           [0.025, 0.04] * 3))
     assert all(v == serial[f] for f, v in out)
 

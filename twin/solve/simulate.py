@@ -260,7 +260,8 @@ PER_FEED_OUTPUTS = ("specific_energy_kwh_t", "circulating_load_frac")
 
 
 def outputs_frame(model, xs, us, ds, time_h, exact_p80=True) -> pd.DataFrame:
-    """Scalar outputs along a trajectory as a DataFrame (one row per sample)."""
+    """Scalar outputs along a trajectory as a DataFrame (one row per sample); ``p80_um`` (a batch's
+    ``content_p80_um``) exact, the model's smooth P80 ``p80_smooth_um``; without ``exact_p80`` the smooth one only."""
     cols = {"time_h": time_h, "feed_tph": us[:, 0], "speed_frac_critical": us[:, 1]}
     for i, name in enumerate(model.spec.component_names):
         cols[f"blend_{name}_frac"] = ds[:, i]
@@ -270,9 +271,14 @@ def outputs_frame(model, xs, us, ds, time_h, exact_p80=True) -> pd.DataFrame:
     cols |= {name: scalars[i] for i, name in enumerate(names)}
     for name in (n for n in PER_FEED_OUTPUTS if n in cols):
         cols[name] = np.where(us[:, 0] > 0, cols[name], np.nan)
-    if exact_p80:  # of the product, or of the mill content in a batch model
-        cols["p80_exact_um" if model.psd_what == "product" else "content_p80_exact_um"] = [pxx_um(model.spec.grid, psd[:, j]) if psd[:, j].sum() > 0 else math.nan
-                                for j in range(psd.shape[1])]
+    # one meaning per name, as SteadyState.p80_um: the P80 (of the product, or of a batch's content) is the exact
+    # interpolation of its size distribution; the model's smooth output, the one controllers differentiate, is
+    # ``*_smooth_um`` beside it (alone with ``exact_p80=False``)
+    p80 = "p80_um" if model.psd_what == "product" else "content_p80_um"
+    cols[p80.replace("_um", "_smooth_um")] = cols.pop(p80)
+    if exact_p80:
+        cols[p80] = [pxx_um(model.spec.grid, psd[:, j]) if psd[:, j].sum() > 0 else math.nan
+                     for j in range(psd.shape[1])]
     return pd.DataFrame(cols)
 
 

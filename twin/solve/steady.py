@@ -32,7 +32,7 @@ class SteadyState:
     x: np.ndarray
     u: np.ndarray
     d: np.ndarray
-    outputs: dict
+    outputs: dict  # ``p80_um`` the exact P80, as the field; the model's smooth one ``p80_smooth_um``
     p80_um: float  # exact interpolation of the product size distribution
     load_status: str
     psd: np.ndarray  # product flow per class [t/h]
@@ -45,7 +45,7 @@ class SteadyState:
 
     def summary(self) -> dict:
         out = {"feed_tph": self.feed_tph, "speed_frac_critical": float(self.u[1]), "p80_um": self.p80_um}
-        out |= {k: v for k, v in self.outputs.items() if k not in ("p80_um",)}
+        out |= {k: v for k, v in self.outputs.items() if k not in ("p80_um", "p80_smooth_um")}
         out["load_status"] = self.load_status
         return out
 
@@ -191,7 +191,10 @@ def _result(model, x, u, d, method) -> SteadyState:
     # sizes of nothing are undefined: the model's smooth P80 gives ~1.6 um for no product, which an
     # analyser's lag (p80_measured_um) then reports; the content of an empty mill likewise (its
     # slurry's viscosity read 14.2 for a slurry that is not there)
-    undefined = [k for k in ("p80_um", "p80_measured_um") if not psd.sum() > 0]
+    if "p80_um" in outs:  # one meaning per name, as a trajectory's (outputs_frame): the model's smooth P80 beside
+        outs["p80_smooth_um"] = outs.pop("p80_um")
+        outs["p80_um"] = p80
+    undefined = [k for k in ("p80_smooth_um", "p80_measured_um") if not psd.sum() > 0]
     undefined += list(CONTENT_OUTPUTS) if not outs.get("holdup_t", 1.0) > 0.0 else []
     outs.update({k: math.nan for k in undefined if k in outs})
     status = load_status(outs["load_frac"], model.spec.mill.stable_band) if "load_frac" in outs else "n/a"
