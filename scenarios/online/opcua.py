@@ -59,13 +59,17 @@ async def resolve(client: Client, node_id: str) -> ua.NodeId:
 
 
 class _OnNew:
-    """asyncua's subscription handler: each data change notification calls ``on_new()``."""
+    """asyncua's subscription handler: each data change notification calls ``on_new(fresh)``;
+    ``fresh`` is False for the first, the node's current value that a new monitored item reports
+    at once (OPC UA Part 4, monitored items), not a new sample."""
 
-    def __init__(self, on_new: Callable[[], None]):
+    def __init__(self, on_new: Callable[[bool], None]):
         self.on_new = on_new
+        self.reported = False
 
     def datachange_notification(self, node, val, data) -> None:
-        self.on_new()
+        fresh, self.reported = self.reported, True
+        self.on_new(fresh)
 
     def status_change_notification(self, status) -> None:
         """The subscription's status changed (lost or timed out): the service finds a lost
@@ -74,11 +78,12 @@ class _OnNew:
 
 @dataclass
 class Trigger:
-    """Call ``on_new()`` at every new value of the read role ``role`` (a subscription: the
-    server sends the value when it is written, within ``publishing_ms``)."""
+    """Call ``on_new(fresh)`` at every new value of the read role ``role`` (a subscription: the
+    server sends the value when it is written, within ``publishing_ms``; ``fresh`` is False for
+    the value the node held when the subscription was made)."""
 
     role: str
-    on_new: Callable[[], None]
+    on_new: Callable[[bool], None]
     publishing_ms: float
 
 

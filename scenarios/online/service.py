@@ -82,6 +82,7 @@ STATUS_MAX_CHARS = 240
 #: cycle, as in the in-process loop, not by up to a sample.
 TRIGGER_PUBLISHING_FRAC = 0.01
 TRIGGER_MIN_PUBLISHING_MS = 10.0
+TIMER = "timer"  #: what the audit's ``started_by`` says of a cycle the service's own timer started
 
 
 @dataclass
@@ -144,6 +145,9 @@ class Service(Stoppable):
         self.heartbeat = 0
         self.stop_reason: str | None = None
         self.new_data = False  # the trigger's node has a new value since the last cycle started
+        self.fresh_sample = False  # ... and it is a new sample, not the value it held when subscribed
+        self.reanchor = False  # reconnected: the model clock takes the phase of the trigger's next fresh sample
+        self.skipped_reconnected = 0  # cycles skipped meanwhile
 
     # ------------------------------------------------------------------ connection
     def _new_connection(self) -> PlantConnection:
@@ -154,9 +158,10 @@ class Service(Stoppable):
         return PlantConnection(self.s.url, self.s.security, self.tags.read_roles(), self.tags.write_roles(),
                                self.tags.connection.request_timeout_s, trigger)
 
-    def _on_new(self) -> None:
-        """The trigger's node has a new value: wake the run loop for a cycle."""
+    def _on_new(self, fresh: bool) -> None:
+        """The trigger's node has a new value (``fresh``: a new sample): wake the run loop for a cycle."""
         self.new_data = True
+        self.fresh_sample = self.fresh_sample or fresh
         if self._wake is not None:
             self._wake.set()
 
@@ -165,6 +170,8 @@ class Service(Stoppable):
         conn = self._new_connection()
         await conn.open()
         self.conn = conn
+        # a restarted plant server samples at a phase of its own (the trigger's samples only: the timer's are ours)
+        self.reanchor = self.t_model_h is not None and self.tags.cycle.on_new is not None
         log.info("connected to %s (%s)", self.s.url, "insecure" if self.s.security.insecure else
                  "Basic256Sha256 SignAndEncrypt, user " + str(self.s.security.username))
 
@@ -211,16 +218,10 @@ class Service(Stoppable):
         t0, cpu0 = time.perf_counter(), time.process_time()
         now = self.clock.now()
         t_h = self.clock.hours_between(self.start, now)
-        # the estimator's clock follows the plant's in whole samples: a trigger under half a sample after the
-        # last cycle (a gateway refreshing source timestamps every scan) advanced it a whole sample each time,
-        # 15.8 model hours in 2; such a cycle is skipped (unread, unaudited), counted and logged once
-        steps = 1 if self.t_model_h is None else round((t_h - self.t_model_h) / self.dt_h)
-        self._condition("early cycles", steps < 1, t_h, f"cycles started under half a sample ({self.dt_h:g} h) "
-                        "after the last are skipped: the trigger fires faster than the samples")
+        fresh, self.fresh_sample = self.fresh_sample, False
+        steps = self._model_steps(t_h, started_by, fresh)
         if steps < 1:
-            self.skipped_cycles += 1
             return {"service_time_h": t_h, "skipped": True, "started_by": started_by}
-        self.t_model_h = t_h if self.t_model_h is None else self.t_model_h + steps * self.dt_h
         row = {"wall_time_utc": now, "service_time_h": t_h, "cycle": self.k, "mode": "disconnected", "written": False,
                "reason": "", "started_by": started_by}
         if self.conn is not None:
@@ -241,6 +242,37 @@ class Service(Stoppable):
         self.audit.record(row)
         self.k += 1
         return row
+
+    def _model_steps(self, t_h: float, started_by: str, fresh: bool) -> int:
+        """The whole samples the estimator advances this cycle (0: the cycle is skipped), and the model clock
+        (``t_model_h``) moved on by them. It follows the plant's in whole samples: a trigger under half a sample
+        after the last cycle (a gateway refreshing source timestamps every scan) advanced it a whole sample each
+        time, 15.8 model hours in 2; such a cycle is skipped (unread, unaudited), counted and logged once. The
+        timer's cycles are never skipped: after the trigger's timeout (1.5 samples) they come half a sample off
+        the model clock, and rounding skipped every other one. After a reconnection the clock takes the phase of
+        the trigger's first fresh sample at least half a sample on (a restarted server's samples come at a phase
+        of their own: those a little under half a sample off were skipped and the next run two samples on)."""
+        if self.t_model_h is None:
+            self.t_model_h = t_h
+            return 1
+        ahead = (t_h - self.t_model_h) / self.dt_h
+        steps = max(round(ahead), 1 if started_by == TIMER else 0)
+        if steps < 1:
+            self.skipped_cycles += 1
+            if self.reanchor:  # the reconnection's, said once when the clock re-anchors
+                self.skipped_reconnected += 1
+                return 0
+        else:
+            self.t_model_h += steps * self.dt_h
+            if self.reanchor and fresh:
+                self.t_model_h, self.reanchor = t_h, False
+                log.info("%.3f h: the plant's samples after the reconnection come %+.2f of a sample off the model "
+                         "clock's phase: it takes theirs (%d cycle(s) skipped meanwhile)", t_h, ahead - steps,
+                         self.skipped_reconnected)
+                self.skipped_reconnected = 0
+        self._condition("early cycles", steps < 1, t_h, f"cycles started under half a sample ({self.dt_h:g} h) "
+                        "after the last are skipped: the trigger fires faster than the samples")
+        return steps
 
     def _predict_blind(self, steps: int, row: dict) -> None:
         """The estimator predicts with the inputs the plant keeps (unless it ran this cycle)."""
@@ -547,7 +579,7 @@ class Service(Stoppable):
                 started, triggered = loop.time(), self.new_data
                 self._wake.clear()
                 self.new_data = False
-                row = await self.cycle(f"new {self.tags.cycle.on_new}" if triggered else "timer")
+                row = await self.cycle(f"new {self.tags.cycle.on_new}" if triggered else TIMER)
                 if self.s.duration_h is not None and row["service_time_h"] >= self.s.duration_h:
                     self.request_stop(f"duration {self.s.duration_h:g} h reached")
                 next_t = self._next_cycle(loop, next_t, started, triggered, period, row["service_time_h"])
@@ -564,8 +596,8 @@ class Service(Stoppable):
         whole samples); after a cycle the trigger started, ``timeout_samples`` periods after it."""
         cyc = self.tags.cycle
         if cyc.on_new is not None:
-            self._condition("cycle trigger", not triggered and self.conn is not None, t_h, f"no new {cyc.on_new} within {cyc.timeout_samples:g} "
-                            "samples: the timer starts the cycles")
+            self._condition("cycle trigger", not triggered and self.conn is not None, t_h,
+                            f"no new {cyc.on_new} within {cyc.timeout_samples:g} samples: the timer starts the cycles")
             if triggered:
                 return started + cyc.timeout_samples * period
         next_t += period

@@ -46,7 +46,7 @@ async def _open(url, read, write, trigger=None) -> str:
 
 def test_nodes_that_cannot_take_the_services_values_fail_the_connection_naming_role_and_node(url):
     async def body(n):
-        on_new = Trigger("p80_um", lambda: None, 100.0)
+        on_new = Trigger("p80_um", lambda fresh: None, 100.0)
         return {
             "double": await _open(url, {"p80_um": n["x"]}, {"setpoints.feed_tph": n["x"]}, on_new),
             "text": await _open(url, {}, {"setpoints.feed_tph": n["text"]}),

@@ -282,3 +282,94 @@ def test_cycles_started_faster_than_the_samples_do_not_advance_the_estimator(sma
     early, unchanged, after, model_h = asyncio.run(run())
     assert all(r["skipped"] for r in early) and unchanged and ls.service.skipped_cycles == 3
     assert "skipped" not in after and ls.service.t_model_h == pytest.approx(model_h + small_scene.scene.sample_period_h)
+
+
+
+async def _until(predicate, what, timeout_s=5.0):
+    """Wait (wall clock) for something the event loop delivers: a subscription's report, a reconnection."""
+    for _ in range(round(timeout_s / 0.01)):
+        if predicate():
+            return
+        await asyncio.sleep(0.01)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def test_after_a_reconnection_the_cycles_follow_the_restarted_servers_samples(small_scene, small_tags, small_parts,
+                                                                             tmp_path, caplog):
+    """The plant's server restarts and samples half a sample off its old phase; the analyser's reports reach the
+    service 1 % of a sample late, give or take 2 %. The model clock, in whole samples on the old phase, skipped
+    reports a little under half a sample after it, the next ran two samples on; while the plant was away, the
+    timer's cycles (half a sample off the model clock after the trigger's 1.5-sample timeout) were skipped every
+    other one. The run loop's cycles are started here as it starts them, on a manual clock (times in samples)."""
+    from scenarios.online.service import TIMER
+
+    from .conftest import LockStep, free_port
+
+    tags = small_tags.model_copy(deep=True)
+    tags.cycle.on_new = "p80_um"
+    ls = LockStep(small_scene, tags, small_parts, f"opc.tcp://127.0.0.1:{free_port()}", tmp_path / "audit")
+    ls.plant.watchdog_h = 10.0  # the outage must not shed the service: this is about timing
+    s, dt = ls.service, small_scene.scene.sample_period_h
+    latency, jitter = 0.01, 0.02  # of a sample: the report's way to the service, and its spread
+    shift = 0.52  # the restarted server's samples on the old ones': its reports straddle half a sample after them
+    now = [0.0]
+
+    def to(t):
+        ls.clock.advance((t - now[0]) * dt)
+        now[0] = t
+
+    async def tick(t):
+        to(t)
+        await ls.plant.tick()
+
+    async def cycle(started_by):
+        row = await s.cycle(started_by)
+        return row | {"t": s.clock.hours_between(s.start, s.clock.now()) / dt, "model_t": s.t_model_h / dt}
+
+    async def sample(t, k):
+        """The plant's sample at ``t`` and the cycle its analyser's report starts (as Service.run)."""
+        await tick(t)
+        await _until(lambda: s.new_data, "the analyser's report")
+        to(t + latency + jitter * (-1) ** k)
+        s.new_data = False
+        return await cycle("new p80_um")
+
+    async def run():
+        await ls.plant.start()
+        for k in (1, 2, 3):  # past the analyser's dead time: a report every sample from now on
+            await tick(k)
+        await s.connect()
+        await _until(lambda: s.new_data, "the subscription's first report")
+        to(3 + latency + jitter)
+        s.new_data = False
+        before = [await cycle("new p80_um")] + [await sample(k, k) for k in range(4, 9)]  # the last one late
+        await ls.plant.drop()
+        outage = []
+        for k in range(4):  # the timer: 1.5 samples after the last cycle started, then every sample
+            await tick(9 + k)
+            to(before[-1]["t"] + 1.5 + k + latency + jitter * (-1) ** k)
+            outage.append(await cycle(TIMER))
+        await ls.plant.restore()
+        await _until(lambda: s.conn is not None and s.new_data, "the reconnection and its first report")
+        s.new_data = False
+        outage.append(await cycle("new p80_um"))  # the value the node held: not a new sample
+        after = [await sample(13 + shift + k, k) for k in range(6)]  # the restarted server's phase
+        await ls.stop()
+        return before, outage, after
+
+    with caplog.at_level(logging.INFO, logger="grindtwin.online"):
+        before, outage, after = asyncio.run(run())
+    assert not any(r.get("skipped") for r in before[1:])
+    assert [r.get("mode") for r in outage[:4]] == ["disconnected"] * 4, [(r["t"], r["model_t"]) for r in outage]
+    # the first fresh report may come under half a sample after the model clock (skipped); every later one
+    # starts a cycle that runs, in auto, on the model clock's sample (within the reports' spread), not a sample late
+    assert [r.get("skipped", False) for r in after[1:]] == [False] * 5, [(r["t"], r["model_t"]) for r in after]
+    assert all(r["mode"] == "auto" and r["written"] for r in after[1:])
+    assert [r["t"] - r["model_t"] for r in after[1:]] == pytest.approx([0.0] * 5, abs=2 * jitter + 1e-9)
+    # said once, with the phase the clock moved by (to the nearest sample: the first fresh report's cycle),
+    # and no more "the trigger fires faster than the samples" after the reconnection
+    messages = [r.getMessage() for r in caplog.records]
+    said = [m for m in messages if "after the reconnection" in m]
+    assert len(said) == 1 and f"come {shift - round(shift):+.2f} of a sample off" in said[0], said
+    reconnected = max(i for i, m in enumerate(messages) if m.startswith("connected to"))
+    assert not [m for m in messages[reconnected:] if "the trigger fires faster" in m]
