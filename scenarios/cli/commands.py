@@ -1216,7 +1216,8 @@ def cmd_serve(args) -> int:
                                      online.read_password(args.password_file and Path(args.password_file))
                                      if args.user else None)
     security.check()
-    online.check_audit_dir(Path(args.audit))  # before the models are built: a user's folder is refused at once
+    online.check_audit_dir(Path(args.audit))  # before the models are built: a user's folder is refused at once,
+    # and made at the first audit write: a start that fails leaves none behind
     settings = online.ServeSettings(args.opcua, security, Path(args.audit), speedup=args.speedup,
                                     warmup_h=args.warmup_h, duration_h=args.duration_h)
     parts = online.build_parts(scene, soft_sensor=tags.soft_sensor is not None,

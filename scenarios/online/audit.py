@@ -5,7 +5,8 @@ Rows are kept in memory and written every ``flush_every`` cycles and at shutdown
 complete file ``audit-<start>-<part>.parquet`` (written under a ``.partial`` name, then renamed),
 so a crash loses at most the unflushed rows and never leaves a torn file; a restart adds files
 beside the old ones. :func:`read_audit` reads them back in order. The folder may hold only such
-files: the service never writes into a folder it did not make for this purpose.
+files: the service never writes into a folder it did not make for this purpose. It is checked at
+once and made at the first write, so a start that fails leaves no empty folder behind.
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ PARTIAL = re.compile(r"^audit-\d{8}T\d{6}\d*Z-\d{5}\.parquet\.partial$")
 
 
 def check_audit_dir(path: Path) -> Path:
-    """The folder, made if missing; SceneError if it is a file or holds anything but audit files."""
+    """The folder (not made here: :meth:`AuditLog.flush` makes it); SceneError if it is a file or
+    holds anything but audit files."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise SceneError(f"--audit {path}: is a file; give a folder for the audit log")
@@ -34,7 +36,6 @@ def check_audit_dir(path: Path) -> Path:
             names = ", ".join(foreign[:3]) + (" ..." if len(foreign) > 3 else "")
             raise SceneError(f"--audit {path}: the folder holds files that are not audit parts ({names}); "
                              "give a new or an audit folder")
-    path.mkdir(parents=True, exist_ok=True)
     return path
 
 
@@ -59,6 +60,7 @@ class AuditLog:
         """Write the pending rows as one part; returns its path (None if nothing was pending)."""
         if not self._rows:
             return None
+        self.folder.mkdir(parents=True, exist_ok=True)
         path = self.folder / f"{self._stem}-{self._part:05d}.parquet"
         tmp = path.with_name(path.name + ".partial")
         pd.DataFrame(self._rows).to_parquet(tmp, index=False)

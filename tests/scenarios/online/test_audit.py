@@ -24,3 +24,11 @@ def test_a_folder_with_other_files_is_refused(tmp_path):
     with pytest.raises(SceneError, match="notes.txt"):
         AuditLog(tmp_path)
     assert (tmp_path / "notes.txt").read_text() == "mine"
+
+
+def test_the_folder_is_made_at_the_first_write(tmp_path):
+    a = AuditLog(tmp_path / "new" / "audit", flush_every=2)
+    a.record({"cycle": 0})
+    assert not (tmp_path / "new").exists()  # nothing written yet: a start that fails now leaves nothing behind
+    a.record({"cycle": 1})
+    assert read_audit(tmp_path / "new" / "audit")["cycle"].tolist() == [0, 1]

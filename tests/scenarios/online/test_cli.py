@@ -3,6 +3,7 @@
 import pytest
 
 from scenarios.cli import main
+from scenarios.errors import SceneError
 
 from .conftest import SMALL_TAGS
 
@@ -52,3 +53,20 @@ def test_serve_refuses_a_users_audit_folder_before_it_builds_its_models(small_fi
     assert main(["serve", str(scene), "--opcua", "opc.tcp://127.0.0.1:4840", "--tags", str(tags), "--insecure",
                  "--audit", str(folder)]) == 2
     assert "notes.txt" in capsys.readouterr().err and (folder / "notes.txt").read_text() == "my notes"
+
+
+def test_a_serve_that_fails_building_its_models_leaves_no_audit_folder(small_files, tmp_path, capsys, monkeypatch):
+    """The audit folder was made when --audit was checked, before the models were built: a start that failed there
+    left an empty folder behind. It is made at the first audit write."""
+    import scenarios.online as online
+
+    def fail(*a, **k):
+        raise SceneError("the models could not be built")
+
+    scene, tags = small_files
+    folder = tmp_path / "new" / "audit"
+    monkeypatch.setattr(online, "build_parts", fail)
+    assert main(["serve", str(scene), "--opcua", "opc.tcp://127.0.0.1:4840", "--tags", str(tags), "--insecure",
+                 "--audit", str(folder)]) == 2
+    assert "the models could not be built" in capsys.readouterr().err
+    assert not (tmp_path / "new").exists()
