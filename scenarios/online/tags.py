@@ -94,7 +94,8 @@ class Measurement(_Section):
 
     node: NodeId
     max_age_h: float | None = Field(default=None, gt=0)
-    """A source timestamp older than this is stale (default: STALE_AFTER_SAMPLES sample periods)."""
+    """A source timestamp older than this is stale (default: STALE_AFTER_SAMPLES sample periods; at
+    most :func:`max_age_limit_h`)."""
     frozen_after_h: float | None = Field(default=None, gt=0)
     """A value unchanged for longer than this is frozen (default: no check)."""
     freeze_tolerance: float = Field(default=0.0, ge=0)
@@ -264,6 +265,7 @@ def scene_problems(tags: TagMap, scene: Scene) -> list[str]:
                    f"{period:g} h, or every held reading counts as frozen (got {p80.frozen_after_h!r})")
     out += _setpoint_problems(tags, scene)
     out += _range_problems(tags, scene)
+    out += _max_age_problems(tags, scene)
     seen: dict[str, str] = {}
     for role, node in (tags.read_roles() | {k: v for k, v in tags.write_roles().items()}).items():
         if node in seen:
@@ -365,6 +367,41 @@ def _range_problems(tags: TagMap, scene: Scene) -> list[str]:
     return out
 
 
+def source_period_h(name: str, scene: Scene) -> float:
+    """How often the source of reading ``name`` reports: the P80 analyser every ``p80_sample_period_h``
+    (at least a sample), the others (and the belt analyser, ``belt_analyser``) every sample."""
+    dt = scene.scene.sample_period_h
+    return max(dt, scene.sensors.p80_sample_period_h or dt) if name == "p80_um" else dt
+
+
+def max_age_limit_h(name: str, scene: Scene) -> float:
+    """The longest ``max_age_h`` of reading ``name``: the NMPC's horizon, or STALE_AFTER_SAMPLES of its source's
+    periods (the default) if longer. A reading older than the horizon was taken before all that the controller
+    plans from it; and a dead source is found, and the fallbacks (``[fallback]``) start counting, only when its
+    readings turn stale: without a bound a dead analyser or weightometer passed for a live one."""
+    horizon_h = scene.controller.horizon_steps * scene.scene.sample_period_h
+    return max(horizon_h, STALE_AFTER_SAMPLES * source_period_h(name, scene))
+
+
+def _max_age_problems(tags: TagMap, scene: Scene) -> list[str]:
+    """A ``max_age_h`` above :func:`max_age_limit_h`."""
+    rules = [(f"measurements.{name}", name, m) for name, m in tags.measurements if m is not None]
+    if tags.belt_analyser is not None:
+        rules.append(("belt_analyser", "belt_analyser", tags.belt_analyser))
+    out = []
+    n, dt = scene.controller.horizon_steps, scene.scene.sample_period_h
+    for key, name, rule in rules:
+        limit = max_age_limit_h(name, scene)
+        if rule.max_age_h is not None and rule.max_age_h > limit:
+            why = (f"the NMPC's horizon ({n} samples of {dt:g} h)" if limit == n * dt else
+                   f"{STALE_AFTER_SAMPLES} of its source's {source_period_h(name, scene):g} h periods, longer than "
+                   f"the NMPC's horizon {n * dt:g} h")
+            out.append(f"{key}.max_age_h: must be at most {limit:g} h, {why}: an older reading was taken before all "
+                       "that the controller plans from it, and a dead source is found (and the fallbacks start) only "
+                       f"when its readings turn stale (got {rule.max_age_h!r})")
+    return out
+
+
 def _setpoint_problems(tags: TagMap, scene: Scene) -> list[str]:
     """Set-point limits the writer would enforce against the controller: each within the quantity's
     range (a speed in (0, 1), a feed >= 0), ``min`` below ``max`` once the scene's defaults fill the
@@ -414,15 +451,14 @@ def complete(tags: TagMap, scene: Scene) -> TagMap:
     """The tag map with the scene's defaults filled in (a new object)."""
     t = tags.model_copy(deep=True)
     dt = scene.scene.sample_period_h
-    analyser = max(dt, scene.sensors.p80_sample_period_h or dt)
     for name, m in t.measurements:
         if m is not None and m.max_age_h is None:
-            m.max_age_h = STALE_AFTER_SAMPLES * (analyser if name == "p80_um" else dt)
+            m.max_age_h = STALE_AFTER_SAMPLES * source_period_h(name, scene)
     if t.belt_analyser is not None:
         if t.belt_analyser.lead_h is None:
             t.belt_analyser.lead_h = scene.controller.preview_lead_h
         if t.belt_analyser.max_age_h is None:
-            t.belt_analyser.max_age_h = STALE_AFTER_SAMPLES * dt
+            t.belt_analyser.max_age_h = STALE_AFTER_SAMPLES * source_period_h("belt_analyser", scene)
     b = scene.controller.bounds
     feed_lo, feed_hi = feed_bounds(scene)
     _fill(t.setpoints.feed_tph, feed_lo, feed_hi, b.feed_rate_max_tph_per_h)

@@ -192,3 +192,38 @@ def test_a_p80_in_mm_is_outside_the_physical_range_and_the_shipped_map_has_the_a
     text = shipped.read_text(encoding="utf-8")
     for line in ("plausible_min = 20.0", "plausible_max = 1000.0"):
         assert line in text and line in readme
+
+
+def test_a_max_age_longer_than_the_horizon_is_refused_naming_field_value_and_limit(tmp_path, small_scene):
+    """max_age_h had no upper bound: 1e6 h (or inf) passed, and a dead analyser or weightometer, its last value held
+    with its old timestamp, was taken for a live one for ever (stale never came, so no fallback started). The small
+    scene's NMPC plans 5 samples of 0.05 h: 0.25 h, above its default of 3 samples (0.15 h)."""
+    horizon_h = 5 * 0.05
+    assert small_scene.controller.horizon_steps * small_scene.scene.sample_period_h == pytest.approx(horizon_h)
+    at = SMALL_TAGS.replace("max_age_h = 0.15", f"max_age_h = {horizon_h!r}")
+    assert online.load_tags(_write(tmp_path, at), small_scene).measurements.p80_um.max_age_h == horizon_h
+    bad = SMALL_TAGS.replace("max_age_h = 0.15", "max_age_h = 1e6").replace(
+        '[measurements.feed_tph]\n', '[measurements.feed_tph]\nmax_age_h = 0.2501\n').replace(
+        'D = "ns=2;s=Belt.D_frac" }\n', 'D = "ns=2;s=Belt.D_frac" }\nmax_age_h = inf\n')
+    with pytest.raises(online.TagMapError) as e:
+        online.load_tags(_write(tmp_path, bad), small_scene)
+    msg = str(e.value)
+    assert "3 problems in the tag map" in msg
+    limit = "must be at most 0.25 h, the NMPC's horizon (5 samples of 0.05 h)"
+    assert f"measurements.p80_um.max_age_h: {limit}" in msg and "(got 1000000.0)" in msg
+    assert f"measurements.feed_tph.max_age_h: {limit}" in msg and "(got 0.2501)" in msg
+    assert f"belt_analyser.max_age_h: {limit}" in msg and "(got inf)" in msg
+
+
+def test_an_analyser_slower_than_the_horizon_keeps_its_default_max_age(tmp_path):
+    """An analyser reporting every 0.1 h on a 0.25 h horizon: its default, three reports (0.3 h), is the limit."""
+    from .conftest import SMALL_SCENE
+
+    (tmp_path / "scene.toml").write_text(SMALL_SCENE.replace("p80_sample_period_h = 0.05", "p80_sample_period_h = 0.1"))
+    scene = load_scene(tmp_path / "scene.toml")
+    free = SMALL_TAGS.replace("max_age_h = 0.15\n", "")
+    assert online.load_tags(_write(tmp_path, free), scene).measurements.p80_um.max_age_h == pytest.approx(0.3)
+    with pytest.raises(online.TagMapError) as e:
+        online.load_tags(_write(tmp_path, free.replace("frozen_after_h", "max_age_h = 0.31\nfrozen_after_h")), scene)
+    assert "measurements.p80_um.max_age_h: must be at most 0.3 h, 3 of its source's 0.1 h periods, longer than the " \
+           "NMPC's horizon 0.25 h" in str(e.value) and "(got 0.31)" in str(e.value)
