@@ -37,6 +37,7 @@ _API = {
     "check_size_mill_input": ".sizing",
     "trajectory_notes": ".validity",
     "nominal_pressure_note": ".validity",
+    "nominal_pressure_kpa": ".validity",
 }
 
 __all__ = [
@@ -51,6 +52,6 @@ __all__ = [
     "discretise", "get_mill", "hogg_fuerstenau_power_kw", "known_effects", "load_ore", "load_status", "ore_breakage",
     "file_sha256", "is_grindtwin_checkout", "new_folder_beside", "pxx_um", "reference_ores", "nominal_pressure_note", "trajectory_notes", "write_text_atomically",
     "LockError", "acquire_lock", "release_lock", "remove_by_name", "replace_folder", "temporaries_of",
-    "write_atomically", "write_beside", "check_size_mill_input", "sample_count",
+    "write_atomically", "write_beside", "check_size_mill_input", "sample_count", "nominal_pressure_kpa",
 ]
 __getattr__, __dir__ = lazy_face(__name__, _API)

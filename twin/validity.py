@@ -10,6 +10,7 @@ run warns with them)."""
 
 from __future__ import annotations
 
+import math
 from numbers import Real
 
 import numpy as np
@@ -69,11 +70,9 @@ def _work_index_text(spec, energy: float, p80: float, load: float | None = None,
     from .sizes import pxx_um
 
     f80 = pxx_um(spec.grid, spec.feed_frac) if f80 is None else f80
-    if not (np.isfinite(energy) and np.isfinite(p80) and p80 < f80):
-        return ""
-    w_io = float(energy) / (10.0 * (p80 ** -0.5 - f80 ** -0.5))
+    w_io = _work_index(energy, p80, f80)
     lo, hi = WORK_INDEX_RANGE_KWH_T
-    if lo <= w_io <= hi:
+    if not np.isfinite(w_io) or lo <= w_io <= hi:
         return ""
     why = ("are the breakage rates in the units their keys say (Austin's a_per_min per minute; Moly-Cop's "
            "alpha0_t_kwh for sizes in um)?")
@@ -85,10 +84,19 @@ def _work_index_text(spec, energy: float, p80: float, load: float | None = None,
             f"{p80:.4g} um, Bond's law), outside the {lo:g}-{hi:g} of ores (Bond 1961): {why}")
 
 
-def pressure_note(outputs: dict) -> str:
+def _work_index(energy: float, p80: float, f80: float) -> float:
+    """Bond's operating work index [kWh/t] of a specific energy [kWh/t] from F80 to P80 [um]; NaN when undefined."""
+    if not (np.isfinite(energy) and np.isfinite(p80) and p80 < f80):
+        return float("nan")
+    return float(energy) / (10.0 * (p80 ** -0.5 - f80 ** -0.5))
+
+
+def pressure_note(outputs: dict, nominal_kpa: float | None = None) -> str:
     """A note when a hydrocyclone circuit's feed pressure (``outputs['cyclone_pressure_kpa']``, Plitt's
     equation or a survey's) lies outside the range cyclones run at, else "": a cyclone's sizes in m for cm put
-    it at 1e8 kPa, a survey's psi read as kPa 6.9 times low."""
+    it at 1e8 kPa, a survey's psi read as kPa 6.9 times low. ``nominal_kpa``: the cyclones' pressure at the
+    model's nominal feed (:func:`nominal_pressure_kpa`); when it lies within the range, units do not explain
+    the state's pressure, its flow does (a feed stop drops it to a fraction of a kPa), and the note says so."""
     if "cyclone_pressure_kpa" not in outputs:
         return ""
     from .effects.classification import CYCLONE_PRESSURE_RANGE_KPA
@@ -97,16 +105,28 @@ def pressure_note(outputs: dict) -> str:
     p_kpa = float(outputs["cyclone_pressure_kpa"])
     if lo <= p_kpa <= hi or not np.isfinite(p_kpa):  # NaN: no flow to the cyclones (a stopped mill's sample)
         return ""
-    return (f"the cyclone feed pressure is {p_kpa:.4g} kPa, outside the {lo:g}-{hi:g} kPa (5-40 psi) grinding "
-            "cyclones run at: are the cyclone's sizes in cm, and a survey's pressure in kPa, not psi?")
+    text = (f"the cyclone feed pressure is {p_kpa:.4g} kPa, outside the {lo:g}-{hi:g} kPa (5-40 psi) grinding "
+            "cyclones run at")
+    if nominal_kpa is not None and lo <= nominal_kpa <= hi:  # in range at the nominal feed: not the units
+        why = "below the nominal (a feed stop or a lower feed)" if p_kpa < lo else "above the nominal (a surge)"
+        return (f"{text}, where they run at {nominal_kpa:.4g} kPa at the nominal feed: the flow to them is {why}, "
+                "not a units mistake, and Plitt's equations extrapolate there")
+    return f"{text}: are the cyclone's sizes in cm, and a survey's pressure in kPa, not psi?"
+
+
+def nominal_pressure_kpa(model) -> float | None:
+    """Plitt's pressure [kPa] of a hydrocyclone circuit's cyclones at the model's nominal feed (a
+    parameter of its classification), or None without cyclones."""
+    design = model.parameters.get("cyclone_pressure_kpa")
+    return float(design[0]) if design else None
 
 
 def nominal_pressure_note(model) -> str:
     """:func:`pressure_note` of the cyclones at the model's nominal feed (Plitt's pressure there, a
     parameter of its classification), worded to follow an overload or overflow: cyclone sizes in
     inches (1049 kPa at nominal) overloaded the mill and the feed was blamed alone. "" if in range."""
-    design = model.parameters.get("cyclone_pressure_kpa")
-    note = pressure_note({"cyclone_pressure_kpa": design[0]}) if design else ""
+    design = nominal_pressure_kpa(model)
+    note = pressure_note({"cyclone_pressure_kpa": design}) if design is not None else ""
     return f"At the nominal feed {note}" if note else ""
 
 
@@ -136,14 +156,16 @@ def overflow_note(holdup_t: float, capacity_t: float) -> str | None:
 
 
 def state_notes(spec, effect_names, speed_frac_critical: float, holdup_t: float,
-                clay_frac: float | None = None, outputs: dict | None = None, product_mass=None) -> list[str]:
+                clay_frac: float | None = None, outputs: dict | None = None, product_mass=None,
+                nominal_pressure_kpa: float | None = None) -> list[str]:
     """The notes of a state of a model built from ``spec`` (:class:`twin.model.ModelSpec`) with
     ``effect_names``, at a speed [fraction of critical], hold-up [t] and hold-up clay fraction
     (and the state's other ``outputs``, for the circuit's water balance, and its product's mass
-    per size class, for a P80 the grid does not resolve)."""
+    per size class, for a P80 the grid does not resolve; and the cyclones' pressure at the nominal feed,
+    :func:`nominal_pressure_kpa`, which tells a pressure's units from its flow)."""
     notes = [overflow_note(holdup_t, spec.mill.max_holdup_t(spec.solids_density_t_m3)),
              centrifuging_note(speed_frac_critical), water_note(outputs or {}), roping_note(spec, outputs or {}),
-             pressure_note(outputs or {}),
+             pressure_note(outputs or {}, nominal_pressure_kpa),
              sink_note(spec.grid, product_mass) if product_mass is not None else "", residence_note(spec),
              work_index_note(spec, outputs or {}, product_mass) if product_mass is not None else ""]
     k_clay = _clay_crowding(spec, effect_names)
@@ -204,37 +226,58 @@ def _clay_crowding(spec, effect_names) -> float | None:
     return k_clay if "rheology" in effect_names and isinstance(k_clay, Real) else None
 
 
-def _sample_notes(frame, spec) -> list[str]:
+def _outside_ratio(value: float, band: tuple) -> float:
+    """How far ``value`` lies outside ``band`` = (lo, hi), as a ratio (lo / value or value / hi; 1 inside): the
+    farthest of a stretch's samples on either side is its worst."""
+    lo, hi = band
+    return max(lo / value if value > 0 else math.inf, value / hi, 1.0)
+
+
+def _sample_notes(frame, spec, nominal_pressure_kpa: float | None = None) -> list[str]:
     """The steady states' notes of a run's samples that read its outputs (a roping underflow, a cyclone
     pressure outside the range, a water balance that takes water out, an operating work index outside
-    ores'), each with the span of samples it holds on and its text at the last of them: a run held a
-    roping cyclone for an hour and said nothing its steady state said."""
+    ores'), each with the span of samples it holds on and its text at the worst of them, and when: a run held
+    a roping cyclone for an hour and said nothing its steady state said; a feed stop's 0.02 kPa was quoted as
+    the 33 kPa of the stretch's last sample."""
+    from .effects.classification import CYCLONE_PRESSURE_RANGE_KPA, solids_volume_pct
+
     t = frame["time_h"].to_numpy(float)
     rows = frame.to_dict("records")
-    checks = [lambda r: roping_note(spec, r), pressure_note, water_note]
-    if "specific_energy_kwh_t" in frame.columns and "p80_smooth_um" in frame.columns:  # p80_um then exact
+    # each check: its note of a sample, and how bad a noted sample is (larger is worse)
+    checks = [(lambda r: roping_note(spec, r),
+               lambda r: float(solids_volume_pct(float(r["underflow_solids_frac"]), spec.solids_density_t_m3))),
+              (lambda r: pressure_note(r, nominal_pressure_kpa),
+               lambda r: _outside_ratio(float(r["cyclone_pressure_kpa"]), CYCLONE_PRESSURE_RANGE_KPA)),
+              (water_note, lambda r: -min(water_shortfalls(r).values()))]
+    if {"specific_energy_kwh_t", "p80_um", "p80_smooth_um"} <= set(frame.columns):  # p80_um then exact
         from .sizes import pxx_um
 
         f80 = pxx_um(spec.grid, spec.feed_frac)  # once, not per sample
-        checks.append(lambda r: _work_index_text(spec, float(r["specific_energy_kwh_t"]), float(r["p80_um"]),
-                                                 r.get("load_frac"), f80))
+        checks.append((lambda r: _work_index_text(spec, float(r["specific_energy_kwh_t"]), float(r["p80_um"]),
+                                                  r.get("load_frac"), f80),
+                       lambda r: _outside_ratio(_work_index(float(r["specific_energy_kwh_t"]),
+                                                            float(r["p80_um"]), f80), WORK_INDEX_RANGE_KWH_T)))
     notes = []
-    for check in checks:
+    for check, badness in checks:
         texts = [check(r) for r in rows]
         hit = [i for i, text in enumerate(texts) if text]
         if hit:
-            notes.append(f"from {t[hit[0]]:.4g} h to {t[hit[-1]]:.4g} h ({len(hit)} of {len(t)} samples) "
-                         f"{texts[hit[-1]]}")
+            worst = max(hit, key=lambda i: badness(rows[i]))
+            notes.append(f"from {t[hit[0]]:.4g} h to {t[hit[-1]]:.4g} h ({len(hit)} of {len(t)} samples; at worst, at "
+                         f"{t[worst]:.4g} h) {texts[worst]}")
     return notes
 
 
-def trajectory_notes(frame, spec, effect_names, product_psd=None) -> list[str]:
+def trajectory_notes(frame, spec, effect_names, product_psd=None,
+                     nominal_pressure_kpa: float | None = None) -> list[str]:
     """The notes of a run's samples (a frame with ``time_h`` and any of ``holdup_t``,
     ``speed_frac_critical``, ``clay_frac``), each saying when: the share of samples past the
     mill's shell and the largest hold-up, the centrifuging speed and the jammed slurry of its most
     extreme sample; when its P80 lies in the grid's sink (:func:`sink_note`; from the product's size
     snapshots, ``product_psd``: rows = times [h], columns = class upper sizes [um], values = cumulative
-    fraction passing, else from the exact ``p80_um``); and the notes of its outputs (:func:`_sample_notes`)."""
+    fraction passing, else from the exact ``p80_um``); and the notes of its outputs (:func:`_sample_notes`; a
+    hydrocyclone circuit's ``nominal_pressure_kpa``, :func:`nominal_pressure_kpa`, tells a pressure's units
+    from its flow)."""
     t = frame["time_h"].to_numpy(float)
     notes = [n for n in (residence_note(spec),) if n]
     if product_psd is not None and len(product_psd):
@@ -244,13 +287,13 @@ def trajectory_notes(frame, spec, effect_names, product_psd=None) -> list[str]:
             when = product_psd.index.to_numpy(float)[deep]
             notes.append(f"from {when[0]:.4g} h to {when[-1]:.4g} h ({deep.sum()} of {len(sink)} size snapshots) "
                          + _sink_text(f"{float(sink.max()):.0%}", float(product_psd.columns[-1])))
-    elif "p80_smooth_um" in frame.columns:  # without snapshots: a P80 below the finest class bound lies in the sink
+    elif {"p80_um", "p80_smooth_um"} <= set(frame.columns):  # without snapshots: a P80 below the finest class bound lies in the sink
         finest = float(spec.grid.upper_um[-1])
         deep = frame["p80_um"].to_numpy(float) < finest
         if deep.any():
             notes.append(f"from {t[deep][0]:.4g} h to {t[deep][-1]:.4g} h ({deep.sum()} of {len(t)} samples) "
                          + _sink_text(f"{SINK_NOTE_FRAC:.0%} or more", finest))
-    notes += _sample_notes(frame, spec)
+    notes += _sample_notes(frame, spec, nominal_pressure_kpa)
     if "holdup_t" in frame.columns:
         capacity_t = spec.mill.max_holdup_t(spec.solids_density_t_m3)
         held = frame["holdup_t"].to_numpy(float)

@@ -49,7 +49,7 @@ from scenarios.run import build_models
 from scenarios.run.closed_loop import hold_schedule, plant_start, scene_sensors
 from scenarios.run.feed import component_blend, feed_schedule
 from scenarios.scene import Scene
-from twin import temporaries_of, trajectory_notes
+from twin import nominal_pressure_kpa, temporaries_of, trajectory_notes
 
 log = logging.getLogger("grindtwin.online.plant")
 
@@ -432,7 +432,8 @@ class PlantServer(Stoppable):
         """Log when the plant leaves (and re-enters) what its models describe, as a run warns
         (:func:`twin.trajectory_notes`: hold-up past the shell, a centrifuging speed)."""
         spec = self.plant.model.spec
-        notes = trajectory_notes(pd.DataFrame([row]), spec, self.plant.model.effect_names)
+        notes = trajectory_notes(pd.DataFrame([row]), spec, self.plant.model.effect_names,
+                                 nominal_pressure_kpa=nominal_pressure_kpa(self.plant.model))
         if notes and not self._outside:
             log.warning("%.3f h: the plant left what its models describe: %s", self.t_h, "; ".join(notes))
         elif self._outside and not notes:

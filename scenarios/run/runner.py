@@ -60,7 +60,7 @@ from scenarios.run.summary import make_summary
 from scenarios.scene import TEXTURE_COLUMNS, Scene, load_history, load_scene, read_history, scene_from_dict
 from scenarios.scene.history import DEFAULT_MAX_GAP_H
 from scenarios.scene.loader import read_toml
-from twin import trajectory_notes
+from twin import nominal_pressure_kpa, trajectory_notes
 
 
 @dataclass
@@ -166,7 +166,8 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
                          f"of a feed stop (product or feed below {NO_PRODUCT_FRAC:.0%} of the nominal feed: the P80 is then "
                          "the charge draining and grinding down)")
     warnings_ += trajectory_notes(frame, models.plant.spec, models.plant.model.effect_names,
-                                  product_psd=None if is_batch(scene) else psd)
+                                  product_psd=None if is_batch(scene) else psd,
+                                  nominal_pressure_kpa=nominal_pressure_kpa(models.plant.model))
     summary = make_summary(scene, models, kpis, notes + warnings_, time.perf_counter() - t_start)
     summary["controller_health"] = health
     summary["warnings"] = warnings_

@@ -175,3 +175,32 @@ def test_a_cyclone_table_that_leaves_out_the_sized_keys_says_they_are_defaults()
     full = {k: v for k, v in get_mill("industrial").cyclone if v is not None}
     assert not any("replaces" in n for n in Twin("B", mill="industrial", effect_options={"classification": {
         "kind": "hydrocyclone", "cyclone": {**full, "apex_cm": 9.0}}}).notes)
+
+
+def test_a_runs_cyclone_notes_quote_the_worst_sample_and_blame_units_only_when_they_explain_it():
+    """A feed stop's note quoted the stretch's last sample (31 kPa) where the pressure fell to 0.085 kPa, and asked
+    whether it was psi: the notes now quote the stretch's worst sample and when; a pressure outside the range
+    whose cyclones run within it at the nominal feed is the flow's (no units question), one whose cyclones are
+    outside it at the nominal feed too (a survey's 7.7 psi read as kPa) is asked about its units."""
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from twin import trajectory_notes
+
+    rho = 2.7
+    spec = SimpleNamespace(holdup_nominal_t=50.0, feed_nominal_tph=30.0, solids_density_t_m3=rho, coefficients={})
+    frame = pd.DataFrame({"time_h": [0.0, 0.5, 1.0, 1.5, 2.0],
+                          "cyclone_pressure_kpa": [60.0, 20.0, 0.085, 31.0, 31.0],
+                          "underflow_solids_frac": [0.5, 0.86, 0.80, 0.78, 0.77]})
+    notes = trajectory_notes(frame, spec, (), nominal_pressure_kpa=60.0)
+    (pressure,) = [n for n in notes if "cyclone feed pressure" in n]
+    assert pressure.startswith("from 0.5 h to 2 h (4 of 5 samples; at worst, at 1 h) the cyclone feed pressure is "
+                               "0.085 kPa")
+    assert "feed stop" in pressure and "psi?" not in pressure and "31 kPa" not in pressure
+    (rope,) = [n for n in notes if "rope" in n]
+    worst_vol_pct = 100 * (0.86 / rho) / (0.86 / rho + 0.14)  # water 1 t/m3; 0.5 by mass is 27 % by volume
+    assert "at worst, at 0.5 h" in rope and f"underflow is {worst_vol_pct:.3g} % solids by volume" in rope
+    for units in (None, 60.0 / 6.894757):  # unknown, or out of range at the nominal feed too (psi read as kPa)
+        (asked,) = [n for n in trajectory_notes(frame, spec, (), nominal_pressure_kpa=units) if "pressure" in n]
+        assert "0.085 kPa" in asked and "not psi?" in asked

@@ -20,7 +20,7 @@ import scipy.linalg
 from ..errors import SolverError, bad_value, check_range
 from ..model import NEGATIVE_ROUNDOFF_REL
 from ..sizes import pxx_um
-from ..validity import trajectory_notes
+from ..validity import nominal_pressure_kpa, trajectory_notes
 
 #: Default integrator tolerances (relative; absolute as a share of nominal hold-up).
 RTOL = 1e-8
@@ -241,7 +241,8 @@ def simulate(model, x0, duration_h: float, dt_h: float, u_fn, d_fn, rtol=RTOL, a
     frame = outputs_frame(model, xs, us, ds, times, exact_p80)
     frame["fed_t"] = q[:, 0]
     frame["produced_t"] = q[:, 1]
-    return Trajectory(frame, xs, q[:, 0], q[:, 1], trajectory_notes(frame, model.spec, model.effect_names))
+    notes = trajectory_notes(frame, model.spec, model.effect_names, nominal_pressure_kpa=nominal_pressure_kpa(model))
+    return Trajectory(frame, xs, q[:, 0], q[:, 1], notes)
 
 
 @lru_cache(maxsize=64)

@@ -19,7 +19,7 @@ from ..mill import load_status
 from .numeric import Evaluator
 from .simulate import PER_FEED_OUTPUTS, integrate_constant
 from ..sizes import pxx_um
-from ..validity import nominal_pressure_note, state_notes
+from ..validity import nominal_pressure_kpa, nominal_pressure_note, state_notes
 
 #: Newton stops when the largest mass-rate residual is below this share of nominal flow [-].
 RESIDUAL_REL_TOL = 1e-10
@@ -199,7 +199,7 @@ def _result(model, x, u, d, method) -> SteadyState:
     outs.update({k: math.nan for k in undefined if k in outs})
     status = load_status(outs["load_frac"], model.spec.mill.stable_band) if "load_frac" in outs else "n/a"
     notes = state_notes(model.spec, model.effect_names, float(u[1]), outs.get("holdup_t", 0.0), outs.get("clay_frac"),
-                        outs, psd)
+                        outs, psd, nominal_pressure_kpa(model))
     return SteadyState(x, u, d, outs, p80, status, psd, method, notes)
 
 
