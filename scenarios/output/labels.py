@@ -1,5 +1,5 @@
 """What each KPI means, with its unit, and how it is printed: the report's table and the
-workbook's KPI sheet read the same labels (and the same calibration text)."""
+workbook's KPI sheet read the same labels (and the same calibration and preset file texts)."""
 
 from twin.calibration import FAST_LABEL
 
@@ -84,6 +84,15 @@ def calibration_text(cal) -> str | None:
         return None
     sha = f", sha256 {cal['sha256'][:12]}" if cal.get("sha256") else ""
     return f"{cal.get('name')} ({cal.get('path') or 'in memory'}{sha}{FAST_LABEL if cal.get('fast') else ''})"
+
+
+def preset_file_text(preset) -> str | None:
+    """File and hash of the mill preset file a run's scene named (summary.json's ``mill_preset_file``), as
+    :func:`calibration_text` gives the calibration's; None for a preset's name."""
+    if not preset:
+        return None
+    sha = f" (sha256 {preset['sha256'][:12]})" if preset.get("sha256") else ""
+    return f"{preset.get('path')}{sha}"
 
 
 def replay_rows(summary: dict) -> list[tuple[str, str | None]]:

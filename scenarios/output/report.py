@@ -17,7 +17,8 @@ import warnings
 from pathlib import Path
 
 from scenarios.errors import SceneError
-from scenarios.output.labels import KPI_LABELS, calibration_text, effects_rows, kpi_text, replay_rows
+from scenarios.output.labels import (KPI_LABELS, calibration_text, effects_rows, kpi_text, preset_file_text,
+                                     replay_rows)
 from scenarios.output.plots import PLOTS, plot_caption
 from scenarios.output.write import (INCOMPLETE_MARKER, JSON_INF, MANIFEST, file_sha256, installed_version,
                                     later_file_is_as_written, lock_folder, lock_path, manifest_files, read_manifest,
@@ -146,8 +147,8 @@ def render_report(run_dir) -> str:
 
 
 #: Fields of summary.json the report reads -> their JSON type (a hand-edited one raised a traceback).
-SUMMARY_FIELDS = {"replay": dict, "versions": dict, "calibration": dict, "effects": list, "plant_effects": list,
-                  "components": list, "notes": list, "warnings": list, "description": str}
+SUMMARY_FIELDS = {"replay": dict, "versions": dict, "calibration": dict, "mill_preset_file": dict, "effects": list,
+                  "plant_effects": list, "components": list, "notes": list, "warnings": list, "description": str}
 _JSON_NAMES = {dict: "object", list: "array", str: "string"}
 
 
@@ -184,6 +185,7 @@ def _render(run_dir: Path, summary: dict, problems: list[str]) -> str:
              *effects_rows(summary),
              ("components", ", ".join(map(str, summary.get("components", [])))),
              ("calibration", calibration_text(summary.get("calibration"))),
+             ("mill preset file", preset_file_text(summary.get("mill_preset_file"))),
              ("scene file", summary.get("source")), *replay_rows(summary)]
     parts.append("<table>" + "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
                                      for k, v in facts if v is not None) + "</table>")

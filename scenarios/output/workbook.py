@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from scenarios.output.labels import (KPI_LABELS, calibration_text, effects_rows, is_percent, percent_decimals,
-                                      replay_rows)
+                                      preset_file_text, replay_rows)
 from twin import write_atomically
 
 #: Size distributions a run writes as CSV: the stream (``attrs['what']``) -> file name.
@@ -143,7 +143,8 @@ def summary_rows(summary: dict) -> pd.DataFrame:
     rows = [(k, summary.get(k)) for k in keys]
     rows += [*replay_rows(summary), *effects_rows(summary),
              ("components", ", ".join(summary.get("components", []))),
-             ("calibration", calibration_text(summary.get("calibration")))]
+             ("calibration", calibration_text(summary.get("calibration"))),
+             ("mill preset file", preset_file_text(summary.get("mill_preset_file")))]
     # the warnings apart, as the report puts them (a run's notes hold its warnings too)
     warnings = [str(w) for w in summary.get("warnings") or []]
     rows += [(f"warning {i + 1}", w) for i, w in enumerate(warnings)]

@@ -56,7 +56,7 @@ from scenarios.run.kpis import NO_PRODUCT_FRAC, compute_kpis, feed_stopped
 from scenarios.run.models import build_models, component_ores, is_batch
 from scenarios.run.open_loop import analyser_trace, run_open_loop
 from scenarios.run.preflight import model_size_problems, refuse, replay_speed_problems, settings_problems
-from scenarios.run.summary import make_summary
+from scenarios.run.summary import make_summary, preset_file_changes
 from scenarios.scene import TEXTURE_COLUMNS, Scene, load_history, load_scene, read_history, scene_from_dict
 from scenarios.scene.history import DEFAULT_MAX_GAP_H
 from scenarios.scene.loader import read_toml
@@ -168,6 +168,7 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
     warnings_ += trajectory_notes(frame, models.plant.spec, models.plant.model.effect_names,
                                   product_psd=None if is_batch(scene) else psd,
                                   nominal_pressure_kpa=nominal_pressure_kpa(models.plant.model))
+    warnings_ += preset_file_changes(scene)
     summary = make_summary(scene, models, kpis, notes + warnings_, time.perf_counter() - t_start)
     summary["controller_health"] = health
     summary["warnings"] = warnings_

@@ -13,6 +13,7 @@ from urllib.request import url2pathname
 
 from scenarios.run.models import Models, is_batch
 from scenarios.scene import Scene
+from twin import file_sha256
 
 
 #: The packages whose files decide whether an installed grindtwin is a given commit.
@@ -122,12 +123,26 @@ def make_summary(scene: Scene, models: Models, kpis: dict, notes: list[str], wal
 
 
 def preset_file_identity(scene: Scene) -> dict | None:
-    """The mill preset file a scene names (its resolved path and SHA-256), or None for a preset's name: a run
-    folder said only ``my_mill.json``, which a later `size-mill --write-preset` rewrites."""
-    spec = scene.mill_spec()
-    if not isinstance(spec, Path):
-        return None
-    return {"path": str(spec.resolve()), "sha256": hashlib.sha256(spec.read_bytes()).hexdigest()}
+    """The mill preset file a scene names (its resolved path and SHA-256 as the scene was loaded,
+    :meth:`scenarios.scene.Scene.preset_file_identity`), or None for a preset's name: a run folder said only
+    ``my_mill.json``, which a later `size-mill --write-preset` rewrites."""
+    return scene.preset_file_identity()
+
+
+def preset_file_changes(scene: Scene) -> list[str]:
+    """A warning when the mill preset file the scene names is not, at the end of its run, the file it was
+    when the scene was loaded (rewritten or removed meanwhile: the run's mill may be either); else none."""
+    identity = scene.preset_file_identity()
+    if identity is None:
+        return []
+    path = Path(identity["path"])
+    now = file_sha256(path) if path.is_file() else None
+    if now == identity["sha256"]:
+        return []
+    what = f"its SHA-256 is now {now[:12]}" if now else "it is gone"
+    return [f"the mill preset file {path} changed during the run (SHA-256 {identity['sha256'][:12]} when the scene "
+            f"was loaded, which summary.json records; {what}): the mill the run built may be either file's; run "
+            "again with the file left as it is"]
 
 
 #: What the PI baseline knows of the mill (it has no model of its own).

@@ -23,6 +23,7 @@ from scenarios.scene.checks import cross_check
 from scenarios.errors import SceneError
 from scenarios.scene.keypaths import allowed_keys, did_you_mean, format_path, type_at
 from scenarios.scene.schema import Scene, mill_preset
+from twin import file_sha256
 
 
 #: Byte-order marks of text encodings that are not UTF-8, to name the encoding in the error.
@@ -83,6 +84,9 @@ def validate_scene_dict(data: dict[str, Any], source_path: str | Path | None = N
         return None, errors
     assert scene is not None
     scene._source_path = source
+    preset = scene.mill_spec()
+    if isinstance(preset, Path):  # hashed as loaded, before any work (a run warns when it changed by its end)
+        scene._preset_file_sha256 = file_sha256(preset)
     _fill_defaults(scene)
     return scene, []
 

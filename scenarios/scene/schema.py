@@ -20,8 +20,8 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator, model_validator
 
 from mpc import DISTURBANCE_MODELS, QP_SOLVERS, SOLVERS
-from twin import (BALL_SIZE_MAX_MM, BALL_SIZE_MIN_MM, CRITICAL_SIZE_MIN_UM, MILLS, MIXER_SHARES_SUM_TOL, get_mill,
-                  is_preset_file, mixer_shares_sum_ok)
+from twin import (BALL_SIZE_MAX_MM, BALL_SIZE_MIN_MM, CRITICAL_SIZE_MIN_UM, MILLS, MIXER_SHARES_SUM_TOL, file_sha256,
+                  get_mill, is_preset_file, mixer_shares_sum_ok)
 from twin.ore import MEAN_GRAIN_RANGE_UM
 
 from scenarios.scene.keypaths import did_you_mean
@@ -541,6 +541,8 @@ class Scene(Section):
     refuses, naming both): the scene says it means it."""
 
     _source_path: Path | None = PrivateAttr(default=None)
+    #: The SHA-256 of the mill preset file as the scene was loaded (:meth:`preset_file_identity`).
+    _preset_file_sha256: str | None = PrivateAttr(default=None)
 
     @property
     def source_path(self) -> Path | None:
@@ -565,6 +567,14 @@ class Scene(Section):
         against the scene file's folder."""
         preset = self.mill.preset
         return self.resolve_path(preset) if is_preset_file(preset) else preset
+
+    def preset_file_identity(self) -> dict | None:
+        """The mill preset file the scene names, its resolved path and SHA-256 as the scene was loaded (before any
+        work: a file rewritten during a run is not recorded with its new hash), or None for a preset's name."""
+        spec = self.mill_spec()
+        if not isinstance(spec, Path):
+            return None
+        return {"path": str(spec.resolve()), "sha256": self._preset_file_sha256 or file_sha256(spec)}
 
     def resolve_path(self, path: str) -> Path:
         """A path of the scene resolved against the scene file's folder."""

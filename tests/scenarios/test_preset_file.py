@@ -135,3 +135,34 @@ def test_a_run_records_its_preset_file_and_the_scene_as_run(tmp_path, capsys):
                                            "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
     assert summary["scene_as_run"]["mill"]["diameter_m"] == 2.4
     assert summary["scene_as_run"]["effect_options"]["classification"]["kind"] == "hydrocyclone"
+
+
+def test_a_runs_preset_file_is_hashed_as_loaded_shown_in_its_report_and_workbook_and_a_change_is_warned(tmp_path):
+    """summary.json alone named the preset file, hashed after the run: a file rewritten during the run was recorded
+    with the new file's hash. It is now hashed as the scene is loaded, a file changed by the run's end is warned of,
+    and the report and the workbook's summary show the file and its hash as they show the calibration's."""
+    import hashlib
+
+    import pandas as pd
+
+    from scenarios.output.report import write_report
+    from scenarios.run import run_scene
+
+    path = _preset(tmp_path)
+    scene_path = _scene(tmp_path, "sized/my_mill.json")
+    scene_path.write_text(scene_path.read_text().replace("duration_h = 8.0", "duration_h = 0.5")
+                          .replace('kind = "nmpc"', 'kind = "none"').replace("at_h = 2.0", "at_h = 0.1")
+                          .replace("ramp_h = 1.0", "ramp_h = 0.2"))
+    loaded = hashlib.sha256(path.read_bytes()).hexdigest()
+    scene = load_scene(scene_path)
+    path.write_text(path.read_text() + "\n")  # the same mill, another file: rewritten after the scene was loaded
+    out = tmp_path / "run"
+    res = run_scene(scene, out, progress=False, plots=False, xlsx=True)
+    assert res.summary["mill_preset_file"] == {"path": str(path.resolve()), "sha256": loaded}
+    (changed,) = [w for w in res.summary["warnings"] if "mill preset file" in w]
+    assert str(path.resolve()) in changed and "changed during the run" in changed
+    assert hashlib.sha256(path.read_bytes()).hexdigest()[:12] in changed
+    shown = f"{path.resolve()} (sha256 {loaded[:12]})"
+    assert f"<th>mill preset file</th><td>{shown}</td>" in write_report(out).read_text(encoding="utf-8")
+    book = pd.read_excel(out / "run.xlsx", sheet_name="summary")
+    assert book.loc[book["item"] == "mill preset file", "value"].tolist() == [shown]
