@@ -5,7 +5,8 @@ Run workbook (``run.xlsx``): summary, KPIs (with their meaning and unit), a repl
 recorded (summary.json's ``replay``, as the report shows it), the time series, the size-by-size
 table of every stream at the start and the end of the run (as a simulator prints a circuit), the
 product and mill-content size distributions over time, the models, the scene.
-Sweep workbook (``sweep.xlsx``): the cases with their KPIs, the P80 of every case against time,
+Sweep workbook (``sweep.xlsx``): the cases with their KPIs (headed by their meaning and unit, shares as
+percentages, as the KPI sheet gives them), the P80 of every case against time,
 the scene the cases vary. Units are in every column name or header.
 
 A workbook's numbers have 16 significant digits (openpyxl writes every number as ``%.16g``; Excel
@@ -105,11 +106,33 @@ def kpi_rows(kpis: dict) -> pd.DataFrame:
         rows.append({"kpi": k, "meaning [unit]": KPI_LABELS.get(k, (k, ""))[0], "value": None if undefined else v,
                      "note": UNDEFINED_NOTE if undefined else None})
     table = pd.DataFrame(rows, columns=["kpi", "meaning [unit]", "value", "note"])
-    # a fraction labelled [%] is shown as a percentage (the cell keeps the fraction), with the decimals
-    # the report gives it (a share just short of 1 never reads 100.0 %)
-    table.attrs["percent_cells"] = [(i, 2, percent_format(v)) for i, (k, v) in enumerate(kpis.items())
-                                    if is_percent(k)]
+    table.attrs["percent_cells"] = percent_cells((i, 2, k, v) for i, (k, v) in enumerate(kpis.items()))
     return table
+
+
+def percent_cells(cells) -> list[tuple[int, int, str]]:
+    """(row, column, Excel number format) of the cells, given as (row, column, KPI key, value), whose KPI is
+    a fraction labelled [%]: shown as a percentage (the cell keeps the fraction), with the decimals the
+    report gives it (a share just short of 1 never reads 100.0 %)."""
+    return [(i, j, percent_format(v)) for i, j, k, v in cells if is_percent(k)]
+
+
+def kpi_header(key: str) -> str:
+    """A KPI's column header in a table of cases: its meaning with its unit (the KPI sheet's), then its key
+    (sweep.csv's column); a column that is no KPI keeps its key."""
+    return f"{KPI_LABELS[key][0]} ({key})" if key in KPI_LABELS else key
+
+
+def cases_sheet(table: pd.DataFrame) -> pd.DataFrame:
+    """A sweep's table of cases as its workbook shows it, as readable as the KPI sheet: the KPIs headed by
+    :func:`kpi_header`, shares as percentages (:func:`percent_cells`), cells that are tables as JSON text
+    (:func:`tables_as_json`), and an error column whose case ran empty (a text column: no #N/A error value)."""
+    cases = tables_as_json(table)
+    if "error" in cases:
+        cases["error"] = cases["error"].astype(object).where(cases["error"].notna(), "")
+    cases.attrs["percent_cells"] = percent_cells((i, j, k, v) for j, k in enumerate(cases.columns)
+                                                 for i, v in enumerate(cases[k]))
+    return cases.rename(columns=kpi_header)
 
 
 def percent_format(value) -> str:
@@ -236,10 +259,7 @@ def tables_as_json(table: pd.DataFrame) -> pd.DataFrame:
 
 def write_sweep_workbook(table: pd.DataFrame, traces: pd.DataFrame | None, scene, path: Path) -> Path:
     """The sweep's workbook (module docstring); ``scene``: the validated base scene or None."""
-    cases = tables_as_json(table)
-    if "error" in cases:  # a text column: a case without error is an empty cell, not Excel's #N/A error value
-        cases["error"] = cases["error"].astype(object).where(cases["error"].notna(), "")
-    sheets = {"cases": (cases, False)}
+    sheets = {"cases": (cases_sheet(table), False)}
     if traces is not None and len(traces):
         sheets["P80 traces"] = (trace_table(traces), True)
     varied = pd.DataFrame({"varied key": table.attrs.get("varied", [])})

@@ -173,12 +173,38 @@ def test_sweep_writes_comparison_figure_traces_and_workbook(tmp_path, capsys):
     assert traces.groupby("case")["feed_tph"].first().tolist() == [25.0, 35.0]
     book = openpyxl.load_workbook(out / "sweep.xlsx", read_only=True)
     cases = _sheet(book, "cases")
-    np.testing.assert_allclose(cases["specific_energy_kwh_t"], table["specific_energy_kwh_t"], rtol=XLSX_RTOL)
+    np.testing.assert_allclose(cases["specific energy [kWh/t] (specific_energy_kwh_t)"], table["specific_energy_kwh_t"],
+                               rtol=XLSX_RTOL)
     errors = [r[list(next(book["cases"].values)).index("error")] for r in list(book["cases"].values)[1:]]
     assert errors == [None, None]  # no error: an empty cell, not Excel's #N/A error value (a text column)
     wide = _sheet(book, "P80 traces")
     np.testing.assert_allclose(wide["case 1: p80_um"], traces.loc[traces["case"] == 1, "p80_um"], rtol=XLSX_RTOL)
     assert table["throughput_tph"].round(0).tolist() == [25.0, 35.0]  # steady open loop: product = feed
+
+
+def test_sweep_cases_sheet_labels_its_kpis_and_shows_shares_as_percentages_as_the_kpi_sheet_does(tmp_path):
+    """The sweep workbook's cases sheet headed its KPIs by their keys alone and showed a share of 0.9997 as
+    0.9997: its KPI columns now carry the KPI sheet's meaning and unit (the key after it, as sweep.csv names the
+    column) and a share labelled [%] has the KPI sheet's percentage format for its value; the other columns keep
+    their names, an undefined KPI is #N/A and a case that ran has an empty error cell."""
+    from scenarios.output.labels import KPI_LABELS
+    from scenarios.output.workbook import kpi_rows, write_sweep_workbook
+
+    share = "p80_within_10um_frac"
+    table = pd.DataFrame({"case": [0, 1], "feed.feed_tph": [25.0, 35.0], share: [0.9997, 0.5],
+                          "specific_energy_kwh_t": [10.5, math.nan], "error": [None, "the solver failed"]})
+    path = write_sweep_workbook(table, None, None, tmp_path / "sweep.xlsx")
+    rows = list(openpyxl.load_workbook(path)["cases"].iter_rows())
+    header = [c.value for c in rows[0]]
+    assert header == ["case", "feed.feed_tph", f"{KPI_LABELS[share][0]} ({share})",
+                      "specific energy [kWh/t] (specific_energy_kwh_t)", "error"]
+    assert header[2].endswith("[%] (p80_within_10um_frac)")
+    for i, value in enumerate(table[share]):  # the KPI sheet's format of the same share
+        (on_kpi_sheet,) = [f for _, _, f in kpi_rows({share: value}).attrs["percent_cells"]]
+        assert rows[i + 1][2].value == value and rows[i + 1][2].number_format == on_kpi_sheet
+    assert [r[2].number_format for r in rows[1:]] == ["0.00%", "0.0%"]  # 99.97 %, not 100.0 %
+    assert [r[3].number_format for r in rows[1:]] == ["General", "General"] and rows[2][3].value == "#N/A"
+    assert [r[4].value for r in rows[1:]] == [None, "the solver failed"]
 
 
 def test_outputs_without_out_are_refused_and_a_run_says_nothing_was_written(tmp_path, capsys):
