@@ -128,3 +128,17 @@ def test_the_regeneration_pages_commands_are_those_the_shipped_files_record():
     from twin.surrogate import GENERATE_COMMAND
 
     assert any(c.startswith(GENERATE_COMMAND) for c in commands)
+
+
+def test_readme_says_how_a_workbook_writes_an_undefined_number():
+    """README said every undefined number of a workbook is Excel's #N/A, where the KPI sheet (a text sheet,
+    scenarios.output.workbook.TEXT_SHEETS) leaves its value cell empty beside a note saying why, and a sweep
+    case that ran has an empty error cell: the sentence that names #N/A now says which sheets hold it."""
+    from scenarios.output.workbook import TEXT_SHEETS, UNDEFINED_NOTE, XLSX_NA
+
+    text = " ".join((REPO / "README.md").read_text(encoding="utf-8").split())
+    assert "KPIs" in TEXT_SHEETS and UNDEFINED_NOTE.startswith("n/a")
+    (sentence,) = [s for s in text.split(". ") if f"`{XLSX_NA}`" in s]
+    assert "tables of numbers" in sentence and "in a workbook it is Excel's" not in sentence
+    assert "KPI sheet" in sentence and "empty value cell whose note says why" in sentence
+    assert "empty `error` cell" in sentence
