@@ -204,3 +204,23 @@ def test_a_runs_cyclone_notes_quote_the_worst_sample_and_blame_units_only_when_t
     for units in (None, 60.0 / 6.894757):  # unknown, or out of range at the nominal feed too (psi read as kPa)
         (asked,) = [n for n in trajectory_notes(frame, spec, (), nominal_pressure_kpa=units) if "pressure" in n]
         assert "0.085 kPa" in asked and "not psi?" in asked
+
+
+@pytest.mark.parametrize("kind", ["reverse", "direct"])
+def test_every_streams_cumulative_passing_of_the_top_size_is_exactly_100_percent(kind):
+    """streams.csv gave 100.00000000000003 % or 99.99999999999999 % passing the top size (and the next, with
+    nothing above it): all of a stream passes them, so they are 100 exactly, never above, in the size-by-size
+    table and the size snapshots alike; below them the passing is the retained masses' sum, as before."""
+    from scenarios.run.streams import _passing, size_by_size
+
+    tw = circuit(kind)
+    ss = tw.steady(feed_tph=FEED)
+    t = size_by_size(tw.model, ss.x, ss.u, ss.d, batch=False)
+    streams = [c.removesuffix("_passing_pct") for c in t.columns if c.endswith("_passing_pct")]
+    assert len(streams) >= 5
+    for s in streams:
+        passing = t[f"{s}_passing_pct"].to_numpy()
+        assert passing[0] == 100.0 and passing.max() == 100.0, s
+        retained = t[f"{s}_retained_pct"].to_numpy()
+        assert passing[1:] == pytest.approx(retained[::-1].cumsum()[::-1][1:], rel=1e-12), s
+    assert _passing(tw.spec.grid, ss.psd)[0] == 1.0
