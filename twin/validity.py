@@ -287,7 +287,7 @@ def trajectory_notes(frame, spec, effect_names, product_psd=None,
             when = product_psd.index.to_numpy(float)[deep]
             notes.append(f"from {when[0]:.4g} h to {when[-1]:.4g} h ({deep.sum()} of {len(sink)} size snapshots) "
                          + _sink_text(f"{float(sink.max()):.0%}", float(product_psd.columns[-1])))
-    elif {"p80_um", "p80_smooth_um"} <= set(frame.columns):  # without snapshots: a P80 below the finest class bound lies in the sink
+    elif {"p80_um", "p80_smooth_um"} <= set(frame.columns):  # no snapshots: a P80 below the finest class, in the sink
         finest = float(spec.grid.upper_um[-1])
         deep = frame["p80_um"].to_numpy(float) < finest
         if deep.any():

@@ -163,8 +163,8 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
         named = [w for k, w in (("p80_iae_um_h", "IAE"), ("p80_within_10um_frac", "share within the band"),
                                 ("p80_mean_um", "mean")) if math.isfinite(kpis[k])]
         warnings_.append(f"the P80 KPIs ({', '.join(named)}) leave out {kpis['p80_kpis_exclude_h']:.3g} h "
-                         f"of a feed stop (product or feed below {NO_PRODUCT_FRAC:.0%} of the nominal feed: the P80 is then "
-                         "the charge draining and grinding down)")
+                         f"of a feed stop (product or feed below {NO_PRODUCT_FRAC:.0%} of the nominal feed: the P80 is "
+                         "then the charge draining and grinding down)")
     warnings_ += trajectory_notes(frame, models.plant.spec, models.plant.model.effect_names,
                                   product_psd=None if is_batch(scene) else psd,
                                   nominal_pressure_kpa=nominal_pressure_kpa(models.plant.model))

@@ -201,7 +201,8 @@ def test_a_stiff_analyser_lag_does_not_stop_the_steady_state(dead_time_h):
         ss = lagged.steady(feed_tph=feed, speed_frac_critical=0.7, blend=[1.0, 0.0])
         assert ss.method == "newton"
         np.testing.assert_allclose(ss.x[:n], ref.x[:n], rtol=1e-8, atol=1e-12 * ref.x[:n].max())
-        assert ss.outputs["p80_measured_um"] == pytest.approx(ss.outputs["p80_smooth_um"], rel=1e-9)  # the smooth P80, lagged
+        # the analyser's lag of the model's smooth P80
+        assert ss.outputs["p80_measured_um"] == pytest.approx(ss.outputs["p80_smooth_um"], rel=1e-9)
 
 
 def test_a_steady_state_newton_cannot_find_says_where_the_mill_was_going(monkeypatch):
