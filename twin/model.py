@@ -38,19 +38,30 @@ class ModelSpec:
     feed_frac: np.ndarray  # feed size distribution, mass fraction per class
     feed_nominal_tph: float
     holdup_nominal_t: float
-    solids_density_t_m3: float
+    solids_density_t_m3: float  # the nominal blend's: the nominal hold-up's, and the reported parameters'
     soft_frac: list  # clay + mica + chlorite mass fraction per component (twin.ore.minerals)
     clay_frac: list  # clay (kaolinite + illite) mass fraction per component
     coefficients: dict
     n_mixers: int = 3
     mixer_fracs: tuple = ()  # each mixer's share of the hold-up (empty: n_mixers equal shares)
     p80_initial_um: float = 200.0
+    #: Each component's solids density [t/m3] (empty: all ``solids_density_t_m3``): a mill fills by volume and
+    #: its classifiers settle by density, so the content's own density is read where the nominal blend's was.
+    component_density_t_m3: tuple = ()
     effects: list = field(default_factory=list)
     effect_options: dict = field(default_factory=dict)
     #: Symbols (an SX column) appended to d, and their values: a parametric model whose
     #: calibration parameters stay symbolic for exact sensitivities (twin.calibration.parametric).
     parameter_symbols: object = None
     parameter_values: tuple = ()
+
+    def volume_weights(self) -> list[float] | None:
+        """rho_nom / rho_c per component (a component's tonnes as tonnes of the nominal blend's volume), None
+        when every component has the nominal density (``component_density_t_m3`` empty or all equal to it)."""
+        rho = self.component_density_t_m3
+        if not rho or all(r == self.solids_density_t_m3 for r in rho):
+            return None
+        return [self.solids_density_t_m3 / r for r in rho]
 
 
 class Model:
@@ -195,9 +206,12 @@ class Model:
         return np.array([feed_tph, speed], dtype=float)
 
     def initial_state(self, blend_fracs=None, load_frac: float = 1.0) -> np.ndarray:
-        """Mill filled to ``load_frac`` of nominal hold-up with feed of the given blend."""
+        """Mill filled to ``load_frac`` of nominal hold-up (by volume) with feed of the given blend."""
         C, N, n = self.shape
         w = self.d_vector(blend_fracs)[:C]
+        weights = self.spec.volume_weights()
+        if weights is not None:  # tonnes of the blend that fill the nominal hold-up's volume
+            w = w / float(np.dot(w, weights))
         m = np.zeros(self.shape)
         for c in range(C):
             m[c, :, :] = (load_frac * self.spec.holdup_nominal_t * np.asarray(self.spec.mixer_fracs)[:, None]

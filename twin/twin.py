@@ -41,8 +41,9 @@ class Twin:
     """A mill twin for a set of ore components.
 
     ``ores``: a reference type ('B'), a Blend, or a sequence of ores (types, TOML paths,
-    Mineralogy); the nominal blend (for the nominal hold-up's density and defaults) is the
-    Blend's fractions, else equal shares. ``calibration``: a shipped name (``"dem"``, the
+    Mineralogy); the nominal blend (defaults, and the density the nominal hold-up's volume is stated at) is the
+    Blend's fractions, else equal shares. The mill fills by volume and classifies at its content's own density,
+    each ore at its own (so a feed of one ore grinds alike whatever other ores the twin lists). ``calibration``: a shipped name (``"dem"``, the
     default, or ``"table"``), a calibration file's path or a :class:`twin.calibration.Calibration`;
     it maps each ore's mineralogy to its breakage parameters and gives the coefficients the
     effects read and the fitted mill values. ``breakage_map(ore, coefficients)`` replaces its
@@ -50,7 +51,7 @@ class Twin:
     ``feed_psd`` overrides the feed size distribution (object with ``passing`` or class fractions).
     ``ore_breakage`` maps component names to :class:`twin.BreakageParams` given directly (e.g. an
     ore's published energy-specific parameters), which replace the map for those ores;
-    ``solids_density_t_m3`` replaces the blend's mineral density; ``mixer_volume_fracs`` gives the
+    ``solids_density_t_m3`` replaces the ores' mineral densities (every ore at it); ``mixer_volume_fracs`` gives the
     mixers' shares of the hold-up (e.g. Whiten's one large and two small, (0.7, 0.15, 0.15)) in
     place of ``n_mixers`` equal ones. The map's parameters describe the calibration's mill
     (``calibrated_mill``, the laboratory mill): on another mill they are scaled to it by
@@ -116,7 +117,8 @@ class Twin:
         self.spec = ModelSpec(
             grid=self.grid, mill=self.mill, component_names=self.blend.names, breakage=breakage,
             feed_frac=feed, feed_nominal_tph=self.mill.feed_nominal_tph, holdup_nominal_t=holdup_nom,
-            solids_density_t_m3=density,
+            solids_density_t_m3=density, component_density_t_m3=(
+                tuple(o.density_t_m3 for o in self.blend.ores) if solids_density_t_m3 is None else ()),
             soft_frac=[o.group_fraction(CUSHIONING_MINERALS) for o in self.blend.ores],
             clay_frac=[o.group_fraction(CLAY_MINERALS) for o in self.blend.ores],
             coefficients=self.coefficients, n_mixers=len(mixer_fracs), mixer_fracs=mixer_fracs, effects=list(effects),

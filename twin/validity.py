@@ -147,6 +147,17 @@ def residence_note(spec) -> str:
             "feed_nominal_tph in kg/h?")
 
 
+def shell_capacity_t(spec, holdup_t, load_frac=None):
+    """What the mill holds filled to its shell [t] of a content whose hold-up is ``holdup_t`` at ``load_frac`` (its
+    volume over the nominal hold-up's, the ``holdup`` effect's output; arrays alike): the shell's volume at the
+    content's own density. Without a load, or for an empty mill, at the nominal blend's density."""
+    shell = spec.mill.max_holdup_t(spec.solids_density_t_m3)
+    if load_frac is None or spec.volume_weights() is None:
+        return shell
+    packed = np.asarray(load_frac, float) * spec.holdup_nominal_t
+    return np.where(packed > 0, shell * np.asarray(holdup_t, float) / np.where(packed > 0, packed, 1.0), shell)
+
+
 def overflow_note(holdup_t: float, capacity_t: float) -> str | None:
     """A note when a hold-up [t] exceeds the mill's shell capacity [t], else None."""
     if not holdup_t > capacity_t:
@@ -163,7 +174,7 @@ def state_notes(spec, effect_names, speed_frac_critical: float, holdup_t: float,
     (and the state's other ``outputs``, for the circuit's water balance, and its product's mass
     per size class, for a P80 the grid does not resolve; and the cyclones' pressure at the nominal feed,
     :func:`nominal_pressure_kpa`, which tells a pressure's units from its flow)."""
-    notes = [overflow_note(holdup_t, spec.mill.max_holdup_t(spec.solids_density_t_m3)),
+    notes = [overflow_note(holdup_t, float(shell_capacity_t(spec, holdup_t, (outputs or {}).get("load_frac")))),
              centrifuging_note(speed_frac_critical), water_note(outputs or {}), roping_note(spec, outputs or {}),
              pressure_note(outputs or {}, nominal_pressure_kpa),
              sink_note(spec.grid, product_mass) if product_mass is not None else "", residence_note(spec),
@@ -295,10 +306,12 @@ def trajectory_notes(frame, spec, effect_names, product_psd=None,
                          + _sink_text(f"{SINK_NOTE_FRAC:.0%} or more", finest))
     notes += _sample_notes(frame, spec, nominal_pressure_kpa)
     if "holdup_t" in frame.columns:
-        capacity_t = spec.mill.max_holdup_t(spec.solids_density_t_m3)
         held = frame["holdup_t"].to_numpy(float)
-        over = held > capacity_t
+        capacity = np.broadcast_to(shell_capacity_t(spec, held, frame["load_frac"] if "load_frac" in frame else None),
+                                   held.shape)
+        over = held > capacity
         if over.any():
+            capacity_t = float(capacity[np.argmax(held)])
             notes.append(f"the plant's hold-up exceeds what its mill holds filled to its shell ({capacity_t:.4g} t) "
                          f"on {over.mean():.0%} of the samples, from {t[over][0]:.4g} h to {t[over][-1]:.4g} h (at "
                          f"most {held.max():.4g} t): the mill would overflow, and the numbers of those samples "

@@ -255,6 +255,28 @@ class EffectContext:
         return sum(self.aggregate(f"holdup_{kk}_t", sum(ca.sum1(self.mass[c][kk]) for c in range(self.n_components)))
                    for kk in ks)
 
+    def packed_holdup(self, k: int | None = None):
+        """The hold-up's volume as tonnes at the nominal density [t] (Σ m_c ρ_nom / ρ_c, of one mixer or the
+        mill): what fills the mill, whose nominal hold-up is a volume at the nominal blend's density. The hold-up
+        itself when the components share that density."""
+        weights = self.spec.volume_weights()
+        if weights is None:
+            return self.holdup(k)
+        ks = range(self.n_mixers) if k is None else [k]
+        return sum(self.aggregate(f"packed_holdup_{kk}_t", sum(weights[c] * ca.sum1(self.mass[c][kk])
+                                                                for c in range(self.n_components)))
+                   for kk in ks)
+
+    def content_density_ratio(self, k: int | None = None):
+        """The content's solids density over the nominal one (of one mixer or the mill; 1.0, a float, when the
+        components share it): H / packed H, in an empty mill that of the feed blend."""
+        weights = self.spec.volume_weights()
+        if weights is None:
+            return 1.0
+        eps = 1e-6 * self.spec.holdup_nominal_t
+        feed = 1.0 / sum(weights[c] * self.blend(c) for c in range(self.n_components))
+        return (self.holdup(k) + eps * feed) / (self.packed_holdup(k) + eps)
+
     def holdup_fraction(self, name: str, frac_per_component):
         """Mass fraction of a mineral group in the whole hold-up (``frac_per_component`` its
         fraction in each ore), from the states; in an empty mill, that of the feed blend."""

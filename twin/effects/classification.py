@@ -261,6 +261,8 @@ class Hydrocyclone:
         """Solids % by volume of the cyclone feed."""
         if self.feed_solids_frac is None:
             return self.feed_solids_vol_pct
+        if isinstance(solids_density_t_m3, (ca.SX, ca.MX)):  # a stream's own density; checked at the nominal one
+            return solids_volume_pct(self.feed_solids_frac, solids_density_t_m3)
         return _check_feed_vol_pct("Hydrocyclone", "feed_solids_frac", self.feed_solids_frac,
                                    f"a solids mass fraction that makes, at the solids' {solids_density_t_m3:g} t/m3,",
                                    solids_volume_pct(self.feed_solids_frac, solids_density_t_m3))
@@ -271,24 +273,27 @@ class Hydrocyclone:
         total slurry flow [m3/h] shared by ``count`` cyclones. Floats or CasADi expressions."""
         if not isinstance(slurry_flow_m3_h, (ca.SX, ca.MX)):  # q**0.45 of a negative flow is complex, of 0 inf
             check_range("Hydrocyclone.plitt", "slurry_flow_m3_h", slurry_flow_m3_h, 0.0, math.inf)
-        check_range("Hydrocyclone.plitt", "solids_density_t_m3", solids_density_t_m3, WATER_DENSITY_T_M3, 25.0)
+        symbolic = isinstance(solids_density_t_m3, (ca.SX, ca.MX))  # a stream's own density (checked at nominal)
+        if not symbolic:
+            check_range("Hydrocyclone.plitt", "solids_density_t_m3", solids_density_t_m3, WATER_DENSITY_T_M3, 25.0)
+        exp = ca.exp if symbolic else math.exp
         q = slurry_flow_m3_h * 1000.0 / 60.0 / self.count  # L/min per cyclone
         dc, di, do, du, h = (self.diameter_cm, self.inlet_cm, self.vortex_finder_cm,
                              self.apex_cm, self.free_vortex_height_cm)
         phi = self.feed_volume_pct(solids_density_t_m3)
-        p_kpa = self.pressure_factor * PLITT_PRESSURE * q ** 1.78 * math.exp(0.0055 * phi) / (
+        p_kpa = self.pressure_factor * PLITT_PRESSURE * q ** 1.78 * exp(0.0055 * phi) / (
             dc ** 0.37 * di ** 0.94 * h ** 0.28 * (du ** 2 + do ** 2) ** 0.87)
         if self.mode == "direct":
             rf = self.water_bypass_frac
             return {"d50c_um": self.d50c_um + 0 * q, "sharpness_m": self.sharpness + 0 * q, "pressure_kpa": p_kpa,
                     "volume_split": rf / (1.0 - rf) + 0 * q, "water_bypass_frac": rf + 0 * q}
         d50c = (self.d50c_factor * PLITT_D50C * dc ** 0.46 * di ** 0.6 * do ** 1.21 * self.viscosity_cp ** 0.5
-                * math.exp(0.063 * phi)
+                * exp(0.063 * phi)
                 / (du ** 0.71 * h ** 0.38 * q ** 0.45 * (solids_density_t_m3 - WATER_DENSITY_T_M3) ** 0.5))
         rho_slurry = WATER_DENSITY_T_M3 + phi / 100.0 * (solids_density_t_m3 - WATER_DENSITY_T_M3)
         head_m = p_kpa / (G_M_S2 * rho_slurry)
         split = (self.split_factor * PLITT_SPLIT * (du / do) ** 3.31 * h ** 0.54 * (du ** 2 + do ** 2) ** 0.36
-                 * math.exp(0.0054 * phi) / (head_m ** 0.24 * dc ** 1.11))
+                 * exp(0.0054 * phi) / (head_m ** 0.24 * dc ** 1.11))
         m = self.sharpness_factor * PLITT_SHARPNESS * _exp(-1.58 * split / (1 + split)) * (dc ** 2 * h / q) ** 0.15
         return {"d50c_um": d50c, "sharpness_m": m, "pressure_kpa": p_kpa,
                 "volume_split": split, "water_bypass_frac": split / (1.0 + split)}
@@ -361,6 +366,27 @@ def grate_factor(size_um: np.ndarray, d50_um: float, sharpness: float) -> np.nda
 
 #: Stokes' law: the cut size of a settling classifier scales as (rho_s - rho_w)^-1/2 (as Plitt's d50c).
 STOKES_DENSITY_EXPONENT = -0.5
+
+
+def _density_cut_factor(spec, density_ratio):
+    """A grate's cut at the discharge's own density (``density_ratio`` x the nominal blend's) over its cut at the
+    nominal blend's (Stokes, :data:`STOKES_DENSITY_EXPONENT`): 1.0 when the ratio is the float 1.0 (the
+    components share one density)."""
+    if isinstance(density_ratio, float) and density_ratio == 1.0:
+        return 1.0
+    rho = spec.solids_density_t_m3
+    return grate_density_factor(rho * density_ratio) / grate_density_factor(rho)
+
+
+def _stream_density_ratio(ctx, stream):
+    """A stream's solids density over the nominal one (``stream``: its flow per component [t/h] per class)."""
+    weights = ctx.spec.volume_weights()
+    if weights is None:
+        return 1.0
+    floor = 1e-6 * ctx.spec.feed_nominal_tph
+    feed = 1.0 / sum(w * ctx.blend(c) for c, w in enumerate(weights))
+    solids = sum(ca.sum1(sc) for sc in stream)
+    return (solids + floor * feed) / (sum(w * ca.sum1(sc) for w, sc in zip(weights, stream)) + floor)
 
 
 def grate_density_factor(solids_density_t_m3: float) -> float:
@@ -437,7 +463,9 @@ class Classification(Effect):
         k = ctx.param("grate_sharpness", spec.mill.grate_sharpness, "-", "mill")
         density = ctx.param("grate_density_factor", grate_density_factor(spec.solids_density_t_m3), "-",
                             "Stokes: ((rho_s - 1) / (rho_quartz - 1))^-1/2")
-        cut = ctx.get("cut_size_factor", 1.0) * density
+        # the discharge's own density (the last mixer's content), where the components' densities differ
+        cut = ctx.get("cut_size_factor", 1.0) * density * _density_cut_factor(
+            spec, ctx.content_density_ratio(ctx.n_mixers - 1))
         if isinstance(cut, float):
             c = grate_factor(x, d50 * cut, k)
         else:  # a cut size that moves with the states (rheology)
@@ -470,7 +498,8 @@ class Classification(Effect):
             fresh feed ``fresh`` in a reverse circuit)."""
             stream = discharge if fresh is None else [dc + fc for dc, fc in zip(discharge, fresh)]
             solids = sum(ca.sum1(dc) for dc in stream)
-            state = cyc.plitt(slurry_m3_h(cyc, smooth_max(solids, 1e-3 * solids_nom, 1e-3 * solids_nom), rho), rho)
+            rho_s = rho * _stream_density_ratio(ctx, stream)  # the stream's own density (Plitt's d50c reads it)
+            state = cyc.plitt(slurry_m3_h(cyc, smooth_max(solids, 1e-3 * solids_nom, 1e-3 * solids_nom), rho_s), rho_s)
             d50 = state["d50c_um"] * cut
             rf = state["water_bypass_frac"]
             rs = cyc.solids_bypass(rf)
@@ -479,7 +508,7 @@ class Classification(Effect):
             over = [dc - uc for dc, uc in zip(stream, under)]
             fresh_water = 0.0 if fresh is None or s_f is None else sum(ca.sum1(fc) for fc in fresh) * (1.0 - s_f) / s_f
             _water_balance(ctx, cyc, solids, sum(ca.sum1(dc) for dc in discharge), fresh_water,
-                           sum(ca.sum1(u) for u in under), rf, rho, s_d, feed_floor)
+                           sum(ca.sum1(u) for u in under), rf, rho_s, s_d, feed_floor)
             ctx.output("cyclone_d50c_um", d50)
             ctx.output("cyclone_feed_tph", sum(stream))  # per size class, as the underflow below
             ctx.output("cyclone_underflow_tph", sum(under))

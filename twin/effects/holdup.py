@@ -11,7 +11,8 @@
   below it (U < 0.5, Austin et al. 1984, fig. 8.3, ball-on-ball impacts waste energy) the
   rates stop rising; the powder filling is U_nom x load (U_nom the mill's ``powder_filling_nominal``).
   The smooth maximum keeps the model differentiable near an empty mill.
-- Load status from load = H / H_nom: under, stable, over by the mill's stable band."""
+- Load status from load = H / H_nom by volume (H_nom a volume at the nominal blend's density; the content's
+  masses weighed by their own densities): under, stable, over by the mill's stable band."""
 
 from __future__ import annotations
 
@@ -44,12 +45,13 @@ class Holdup(Effect):
         fracs = spec.mixer_fracs
 
         def rate(k):
-            # mixer k holds its share f_k of the nominal hold-up at nominal flow
-            load_k = smooth_max(ctx.holdup(k) / (fracs[k] * h_nom), 0.0, 1e-3)
+            # mixer k holds its share f_k of the nominal hold-up (a volume) at nominal flow
+            load_k = smooth_max(ctx.packed_holdup(k) / (fracs[k] * h_nom), 0.0, 1e-3)
             return q_nom / (fracs[k] * h_nom) * load_k ** (n - 1.0)
 
         ctx.provide("discharge_rate_law", rate)
-        load = ctx.holdup() / h_nom
-        ctx.contribute("selection_rate_factor", 1.0 / smooth_max(load, h_sat, 0.05))
+        load = ctx.packed_holdup() / h_nom  # by volume: a denser ore fills the mill at more tonnes
+        # S = S^E P / max(H, H_sat): the filling by volume, its mass at the content's density (rho / rho_nom)
+        ctx.contribute("selection_rate_factor", 1.0 / (ctx.content_density_ratio() * smooth_max(load, h_sat, 0.05)))
         ctx.output("load_frac", load)
         ctx.note(f"discharge law on every mixer; selection factor 1/max(load, {h_sat:.3g})")

@@ -19,7 +19,7 @@ from ..mill import load_status
 from .numeric import Evaluator
 from .simulate import PER_FEED_OUTPUTS, integrate_constant
 from ..sizes import pxx_um
-from ..validity import nominal_pressure_kpa, nominal_pressure_note, state_notes
+from ..validity import nominal_pressure_kpa, nominal_pressure_note, shell_capacity_t, state_notes
 
 #: Newton stops when the largest mass-rate residual is below this share of nominal flow [-].
 RESIDUAL_REL_TOL = 1e-10
@@ -67,6 +67,12 @@ def _scalar_outputs(model, x, u, d) -> dict:
     return dict(zip(names, np.asarray(fn(x, u, d), float).ravel().tolist()))
 
 
+def _filling(model) -> str:
+    """The output a load target reads: ``load_frac`` (by volume) when the components' densities differ, else
+    ``holdup_t`` [t] (the same load, H / H_nom)."""
+    return "load_frac" if model.spec.volume_weights() is not None and "load_frac" in model.outputs else "holdup_t"
+
+
 @lru_cache(maxsize=64)
 def _jacobians(model) -> ca.Function:
     """On the sparse DAE form w = [x; z]: (w, u, d) -> (residual, d res/dw, d res/dfeed, dH/dw)
@@ -74,7 +80,8 @@ def _jacobians(model) -> ca.Function:
     dense (the aggregates z carry the coupling)."""
     w = ca.vertcat(model.x, model.z)
     res = ca.vertcat(model.dae["ode"], model.dae["alg"])
-    h = model.output_exprs_dae["holdup_t"]
+    name = _filling(model)
+    h = model.output_exprs_dae[name] * (model.spec.holdup_nominal_t if name == "load_frac" else 1)
     return ca.Function("steady_jacobians", [w, model.u, model.d],
                        [res, ca.jacobian(res, w), ca.jacobian(res, model.u[0]), ca.jacobian(h, w)])
 
@@ -114,15 +121,16 @@ def _newton(model, x, u, d, load_target=None, max_iter: int = 60):
     a target is given), on the sparse DAE form. Steps are cut so masses stay non-negative.
     Returns (x, u, ok)."""
     jac = _jacobian_evaluator(model)
-    holdup = Evaluator(model.outputs["holdup_t"]) if load_target is not None else None
+    holdup = Evaluator(model.outputs[_filling(model)]) if load_target is not None else None
     h_nom = model.spec.holdup_nominal_t
+    per_h_nom = 1.0 if _filling(model) == "load_frac" else h_nom
     nm, nx = model.n_mass, model.n_x
     w = np.concatenate([x, model.z_of(x)])
     u = u.copy()
     for _ in range(max_iter):
         r, J, ju, jh = jac(w, u, d)
         scale = _row_scale(model, J)
-        load_res = float(holdup(w[:nx], u, d)[0][0]) / h_nom - load_target if holdup is not None else 0.0
+        load_res = float(holdup(w[:nx], u, d)[0][0]) / per_h_nom - load_target if holdup is not None else 0.0
         if max(np.abs(r * scale).max(), abs(load_res)) < RESIDUAL_REL_TOL:
             return w[:nx], u, True
         try:
@@ -264,7 +272,8 @@ def _overload_text(model, x, u, d) -> str:
     """What the state ``x`` at the end of the integration says when it holds more ore than the mill
     filled to its shell (:meth:`twin.Mill.max_holdup_t`): the mill overloads ("" if it does not)."""
     held = float(model.outputs["holdup_t"](x, u, d))
-    shell = model.spec.mill.max_holdup_t(model.spec.solids_density_t_m3)
+    load = float(model.outputs["load_frac"](x, u, d)) if "load_frac" in model.outputs else None
+    shell = float(shell_capacity_t(model.spec, held, load))
     if not held > shell:
         return ""
     text = (f" The mill overloads: by then it held {held:.3g} t of ore ({held / model.spec.holdup_nominal_t:.3g}x its "
