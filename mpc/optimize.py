@@ -227,12 +227,29 @@ def _band_crossings(pts, band, on_curve) -> list:
 SPEED_EDGE = 5e-4
 
 
+def _number(name: str, value) -> float:
+    """``value`` as one finite float, or an error naming the parameter of optimal_setpoints."""
+    if isinstance(value, (str, bytes, bool)) or np.ndim(value) != 0 or not np.isfinite(value):
+        raise MpcInputError(f"The '{name}' parameter of optimal_setpoints must be one finite number. Got {value!r}.")
+    return float(value)
+
+
+def _bounds(name: str, value, lo: float, hi: float, unit: str) -> tuple[float, float]:
+    """``value`` as (low, high) with lo <= low < high < hi, or an error naming the parameter of optimal_setpoints."""
+    pair = tuple(value) if isinstance(value, (tuple, list, np.ndarray)) else ()
+    if len(pair) != 2 or not all(isinstance(v, (int, float, np.floating)) and not isinstance(v, bool) for v in pair) \
+            or not lo <= pair[0] < pair[1] < hi:
+        raise MpcInputError(f"The '{name}' parameter of optimal_setpoints must be (low, high) [{unit}] with "
+                            f"{lo:g} <= low < high < {hi:g}. Got {value!r}.")
+    return float(pair[0]), float(pair[1])
+
+
 def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
                       objective: str = "min_energy", feed_bounds_tph=None,
                       speed_bounds=(0.55, 0.90), feed_tph: float | None = None,
                       speed_frac_critical: float | None = None, hardness_scale: float = 1.0,
                       load_band=None) -> Setpoints:
-    """Set points for ``blend`` (fractions in the twin's component order) that hold
+    """Set points for ``blend`` (a dict by ore, a Blend, or fractions in the twin's component order) that hold
     ``target_p80_um``; ``mode`` in ``("both", "feed", "speed")`` picks the answer, the table
     always lists every option: feed only (speed held at ``speed_frac_critical``, default
     nominal), speed only (feed held at ``feed_tph``, default nominal), both for least specific
@@ -245,9 +262,16 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
     if objective not in OBJECTIVES:
         raise MpcInputError(f"The 'objective' parameter of optimal_setpoints must be one of "
                             f"{OBJECTIVES}. Got {objective!r}.")
-    if not (np.isfinite(target_p80_um) and target_p80_um > 0):
-        raise MpcInputError(f"The 'target_p80_um' parameter of optimal_setpoints must be a "
-                            f"float > 0. Got {target_p80_um!r}.")
+    target_p80_um = _number("target_p80_um", target_p80_um)
+    finest = float(twin.spec.grid.upper_um[-1])
+    if not target_p80_um > finest:  # 0.21 (mm for um) searched for 10 s, then answered 'infeasible'
+        raise MpcInputError(f"The 'target_p80_um' parameter of optimal_setpoints must be coarser than the twin's "
+                            f"finest size class ({finest:.3g} um; a P80 below it lies in the grid's sink): sizes in "
+                            f"um, not mm? Got {target_p80_um!r}.")
+    speed_bounds = _bounds("speed_bounds", speed_bounds, 0.0, 1.0, "fractions of critical speed")
+    if feed_bounds_tph is not None:
+        feed_bounds_tph = _bounds("feed_bounds_tph", feed_bounds_tph, 0.0, math.inf, "t/h")
+    blend = list(twin.blend_fractions(blend))  # a dict by ore, a Blend or fractions, as the twin takes them
     feed_p80 = pxx_um(twin.spec.grid, twin.spec.feed_frac)
     if not target_p80_um < feed_p80:  # the whole search ran, then said 'unreachable within the bounds'
         raise MpcInputError(f"The 'target_p80_um' parameter of optimal_setpoints must be finer than the twin's "
@@ -257,7 +281,6 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
     feed0 = mill.feed_nominal_tph if feed_tph is None else feed_tph
     feed_bounds_tph = tuple(default_feed_bounds(twin) if feed_bounds_tph is None else feed_bounds_tph)
     band = tuple(load_band or mill.stable_band)
-    blend = list(blend)
     rows = []
 
     def add(option, obj, feed, speed, why="target unreachable within the bounds"):

@@ -191,6 +191,14 @@ class Twin:
         return np.array([feed_tph, speed], float)
 
     def _d(self, blend, hardness_scale):
+        fr = self.blend_fractions(blend)
+        # divides every breakage rate: 0, negative, NaN or inf made a solver error or a P80 of nothing
+        hardness = _one_number("hardness_scale", hardness_scale, "multiple of the ore's hardness")
+        return self.model.d_vector(fr, check_range("Twin", "hardness_scale", hardness, 0.0, math.inf))
+
+    def blend_fractions(self, blend=None) -> np.ndarray:
+        """``blend`` (a Blend, a dict {ore: fraction}, fractions in the twin's order, or None: the nominal blend)
+        as fractions in the twin's component order, checked (non-negative, summing to 1, ores of this twin)."""
         if isinstance(blend, Blend):
             for ore in blend.ores:  # matched by name below: another ore of a component's name was the component
                 own = dict(zip(self.blend.names, self.blend.ores)).get(ore.name)
@@ -214,9 +222,7 @@ class Twin:
             raise bad_value("Twin", "blend", blend, f"{len(self.blend.names)} fractions, of {self.blend.names}")
         if not np.all(np.isfinite(fr)) or abs(fr.sum() - 1.0) > 1e-6 or np.any(fr < 0):
             raise bad_value("Twin", "blend", [float(v) for v in fr], "non-negative fractions summing to 1")
-        # divides every breakage rate: 0, negative, NaN or inf made a solver error or a P80 of nothing
-        hardness = _one_number("hardness_scale", hardness_scale, "multiple of the ore's hardness")
-        return self.model.d_vector(fr, check_range("Twin", "hardness_scale", hardness, 0.0, math.inf))
+        return fr
 
 
 def _one_number(name: str, value, unit: str) -> float:
