@@ -138,7 +138,11 @@ class Twin:
 
     def steady(self, feed_tph: float | None = None, speed_frac_critical: float | None = None,
                blend=None, hardness_scale: float = 1.0):
-        """Steady state at the given feed rate [t/h] and speed (defaults: the mill's nominal)."""
+        """Steady state (:class:`twin.solve.steady.SteadyState`: ``p80_um``, ``outputs`` by name with units,
+        ``load_status``, ``notes``) at the feed rate [t/h] and speed [fraction of critical] given (defaults: the
+        mill's nominal), of ``blend`` (as :meth:`blend_fractions` takes it; default: the nominal blend, the
+        twin's Blend or its ores at equal shares) at ``hardness_scale`` times its ores' hardness (divides
+        every breakage rate)."""
         feed = self.mill.feed_nominal_tph if feed_tph is None else feed_tph
         return self._noted(steady_state(self.model, self._u(feed, speed_frac_critical), self._d(blend, hardness_scale)))
 

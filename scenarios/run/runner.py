@@ -251,13 +251,16 @@ def _replay_duration_h(history, dt: float, duration_h: float | None) -> float:
             raise SceneError(f"{history.source}: the history spans {span:g} h, less than one sample "
                              f"period ({dt:g} h) of the scene")
         return n * dt
+    if not duration_h > 0:  # a whole number of periods, -1 of them, was the reason given
+        raise SceneError(f"duration_h (--duration-h) {duration_h:g}: must be > 0 h, a whole number of the scene's "
+                         f"sample periods ({dt:g} h)")
     n = round(duration_h / dt)
     if n < 1 or abs(n * dt - duration_h) > 1e-9 * max(1.0, duration_h):
-        raise SceneError(f"--duration-h {duration_h:g}: must be a whole number of the scene's sample periods "
-                         f"({dt:g} h)")
+        raise SceneError(f"duration_h (--duration-h) {duration_h:g}: must be a whole number of the scene's sample "
+                         f"periods ({dt:g} h)")
     if span + dt < duration_h - 1e-9:
-        raise SceneError(f"--duration-h {duration_h:g}: the history {history.source} covers {span:g} h; allowed: "
-                         f"up to {span + dt:g} h")
+        raise SceneError(f"duration_h (--duration-h) {duration_h:g}: the history {history.source} covers {span:g} h; "
+                         f"allowed: up to {span + dt:g} h")
     return float(duration_h)
 
 

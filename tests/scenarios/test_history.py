@@ -449,10 +449,12 @@ def test_replay_reads_the_given_history_not_the_scenes_own(tmp_path, capsys):
     out = tmp_path / "out"
     assert grindtwin(["replay", scene, "--history", hist, "--duration-h", "0.75", "--out", out, "--quiet"]) == 2
     err = capsys.readouterr().err
-    assert f"--duration-h 0.75: the history {hist} covers 0.5 h; allowed: up to 0.55 h" in err
+    assert f"duration_h (--duration-h) 0.75: the history {hist} covers 0.5 h; allowed: up to 0.55 h" in err
     assert "scene.duration_h" not in err and "sample_history.csv" not in err and not out.exists()
     assert grindtwin(["replay", scene, "--history", hist, "--duration-h", "0.07", "--quiet"]) == 2
-    assert "--duration-h 0.07: must be a whole number of the scene's sample periods (0.05 h)" in capsys.readouterr().err
+    assert "(--duration-h) 0.07: must be a whole number of the scene's sample periods (0.05 h)" in capsys.readouterr().err
+    assert grindtwin(["replay", scene, "--history", hist, "--duration-h", "-1", "--quiet"]) == 2
+    assert "(--duration-h) -1: must be > 0 h" in capsys.readouterr().err  # not "a whole number of periods"
     assert grindtwin(["replay", scene, "--history", hist, "--duration-h", "0.5", "--out", out, "--quiet",
                       "--no-plots"]) == 0
     summary = json.loads((out / "summary.json").read_text())
