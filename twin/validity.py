@@ -202,8 +202,8 @@ def sink_note(grid, product_mass) -> str:
     return _sink_text(f"{sink:.0%}", grid.upper_um[-1]) if sink >= SINK_NOTE_FRAC else ""
 
 
-def _sink_text(share: str, finest_um: float) -> str:
-    return (f"{share} of the product lies below the finest size class ({finest_um:.3g} um): its P80 is "
+def _sink_text(share: str, finest_um: float, what: str = "product") -> str:
+    return (f"{share} of the {what} lies below the finest size class ({finest_um:.3g} um): its P80 is "
             "extrapolated, not resolved (a finer mill.size_classes would resolve it; or check the feed's sizes "
             "for mm given as um and the breakage rates' units)")
 
@@ -298,12 +298,14 @@ def trajectory_notes(frame, spec, effect_names, product_psd=None,
             when = product_psd.index.to_numpy(float)[deep]
             notes.append(f"from {when[0]:.4g} h to {when[-1]:.4g} h ({deep.sum()} of {len(sink)} size snapshots) "
                          + _sink_text(f"{float(sink.max()):.0%}", float(product_psd.columns[-1])))
-    elif {"p80_um", "p80_smooth_um"} <= set(frame.columns):  # no snapshots: a P80 below the finest class, in the sink
-        finest = float(spec.grid.upper_um[-1])
-        deep = frame["p80_um"].to_numpy(float) < finest
-        if deep.any():
-            notes.append(f"from {t[deep][0]:.4g} h to {t[deep][-1]:.4g} h ({deep.sum()} of {len(t)} samples) "
-                         + _sink_text(f"{SINK_NOTE_FRAC:.0%} or more", finest))
+    else:  # no snapshots: an exact P80 (a batch's of its content) below the finest class lies in the sink
+        for p80, what in (("p80_um", "product"), ("content_p80_um", "mill content")):
+            if {p80, p80.replace("_um", "_smooth_um")} <= set(frame.columns):
+                finest = float(spec.grid.upper_um[-1])
+                deep = frame[p80].to_numpy(float) < finest
+                if deep.any():
+                    notes.append(f"from {t[deep][0]:.4g} h to {t[deep][-1]:.4g} h ({deep.sum()} of {len(t)} samples) "
+                                 + _sink_text(f"{SINK_NOTE_FRAC:.0%} or more", finest, what))
     notes += _sample_notes(frame, spec, nominal_pressure_kpa)
     if "holdup_t" in frame.columns:
         held = frame["holdup_t"].to_numpy(float)
