@@ -275,11 +275,12 @@ def _cundall_damped(f, v, alpha):
     """Cundall's local non-viscous damping ``f - alpha |f| sign(v)`` (Cundall 1987; Potyondy &
     Cundall 2004, eq. 2); ``f`` unchanged when ``v = 0``."""
     s = f * v
-    if s > 0.0:
-        return f - alpha * f
-    if s < 0.0:
-        return f + alpha * f
-    return f
+    # both damped values made, then chosen: selects, no branch on the sign of f v, which varies
+    # from sphere to sphere and component to component and is mispredicted
+    lower = f - alpha * f
+    higher = f + alpha * f
+    out = lower if s > 0.0 else f
+    return higher if s < 0.0 else out
 
 
 @nb.njit(cache=True, inline="always")
@@ -310,12 +311,10 @@ def _contact_overlap0(k, pi, pj, pb, b_state, b_props, pos, rad, lz):
 
 
 @nb.njit(cache=True, inline="always")
-def _damp(i, force, torque, vel, om, mass, inertia, alpha, hdt):
-    """Cundall local damping of sphere i; ``hdt`` 0 (mid-step velocity) or dt/2 (Yade's
-    NewtonIntegrator::cundallDamp2nd: the velocity at the time of the force,
-    v(t) ~ v(t - dt/2) + dt/2 F/m)."""
-    im = 1.0 / mass[i]
-    ii = 1.0 / inertia[i]
+def _damp(i, force, torque, vel, om, im, ii, alpha, hdt):
+    """Cundall local damping of sphere i of inverse mass ``im`` and inverse moment of inertia
+    ``ii``; ``hdt`` 0 (mid-step velocity) or dt/2 (Yade's NewtonIntegrator::cundallDamp2nd: the
+    velocity at the time of the force, v(t) ~ v(t - dt/2) + dt/2 F/m)."""
     for d in range(3):
         fd = force[i, d]
         force[i, d] = _cundall_damped(fd, vel[i, d] + hdt * fd * im, alpha)
@@ -365,12 +364,15 @@ def sphere_loads(sp, bd, pr, wl, dr, d_torque, cp, dt, drum_angle, kick, advance
                                      d_impact, drum_r, cp[CP_DRUM_OMEGA], drum_angle,
                                      cp[CP_LIFTER_H], cp[CP_LIFTER_HW], ew, gw, muw, etaw, dt,
                                      law)
+        # the divisions once a sphere (damping, closing kick and opening kick used three each)
+        im = 1.0 / mass[i]
+        ii = 1.0 / inertia[i]
         if alpha > 0.0:
-            _damp(i, f, t, vel, om, mass, inertia, alpha, hdt)
+            _damp(i, f, t, vel, om, im, ii, alpha, hdt)
         if kick:
-            _half_kick(i, vel, om, mass, inertia, f, t, 0.5 * dt)
+            _half_kick(i, vel, om, im, ii, f, t, 0.5 * dt)
             if advance:
-                code = _advance(i, pos, vel, om, mass, inertia, f, t, 0.5 * dt, dt, lz, pos_ref, lim2)
+                code = _advance(i, pos, vel, om, im, ii, f, t, 0.5 * dt, dt, lz, pos_ref, lim2)
                 moved += code == 1
                 bad += code == 2
     return moved, bad
@@ -472,21 +474,20 @@ def compute_forces(sp, bd, pr, wl, dr, cp, dt, drum_angle, hist_pp, hist_pw, kic
 
 
 @nb.njit(cache=True, inline="always")
-def _half_kick(i, vel, om, mass, inertia, force, torque, half):
-    """Half-step velocity update of sphere i from its current force and torque."""
-    im = 1.0 / mass[i]
-    ii = 1.0 / inertia[i]
+def _half_kick(i, vel, om, im, ii, force, torque, half):
+    """Half-step velocity update of sphere i (inverse mass ``im``, inverse moment of inertia ``ii``)
+    from its current force and torque."""
     for d in range(3):
         vel[i, d] += half * force[i, d] * im
         om[i, d] += half * torque[i, d] * ii
 
 
 @nb.njit(cache=True, inline="always")
-def _advance(i, pos, vel, om, mass, inertia, force, torque, half, dt, lz, pos_ref, lim2):
+def _advance(i, pos, vel, om, im, ii, force, torque, half, dt, lz, pos_ref, lim2):
     """Opening half kick and full position step of sphere i (wrapped into the periodic slice),
     then its check against the list's reference position: 0, 1 if it moved beyond half the skin,
     2 if its position is not finite."""
-    _half_kick(i, vel, om, mass, inertia, force, torque, half)
+    _half_kick(i, vel, om, im, ii, force, torque, half)
     for d in range(3):
         pos[i, d] += dt * vel[i, d]
     if lz > 0.0:
@@ -511,7 +512,8 @@ def _kick_drift(sp, half, dt, lz, pos_ref, lim2):
     moved = 0
     bad = 0
     for i in nb.prange(pos.shape[0]):
-        code = _advance(i, pos, vel, om, mass, inertia, force, torque, half, dt, lz, pos_ref, lim2)
+        code = _advance(i, pos, vel, om, 1.0 / mass[i], 1.0 / inertia[i], force, torque, half, dt, lz, pos_ref,
+                        lim2)
         moved += code == 1
         bad += code == 2
     return moved, bad
