@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import functools
 import math
+from numbers import Real
 from dataclasses import dataclass
 
 import numpy as np
@@ -237,7 +238,7 @@ def _number(name: str, value) -> float:
 def _bounds(name: str, value, lo: float, hi: float, unit: str) -> tuple[float, float]:
     """``value`` as (low, high) with lo <= low < high < hi, or an error naming the parameter of optimal_setpoints."""
     pair = tuple(value) if isinstance(value, (tuple, list, np.ndarray)) else ()
-    if len(pair) != 2 or not all(isinstance(v, (int, float, np.floating)) and not isinstance(v, bool) for v in pair) \
+    if len(pair) != 2 or not all(isinstance(v, Real) and not isinstance(v, bool) for v in pair) \
             or not lo <= pair[0] < pair[1] < hi:
         raise MpcInputError(f"The '{name}' parameter of optimal_setpoints must be (low, high) [{unit}] with "
                             f"{lo:g} <= low < high < {hi:g}. Got {value!r}.")

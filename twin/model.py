@@ -205,12 +205,15 @@ class Model:
         speed = self.spec.mill.speed_nominal_frac_critical if speed_frac_critical is None else speed_frac_critical
         return np.array([feed_tph, speed], dtype=float)
 
-    def initial_state(self, blend_fracs=None, load_frac: float = 1.0) -> np.ndarray:
-        """Mill filled to ``load_frac`` of nominal hold-up (by volume) with feed of the given blend."""
+    def initial_state(self, blend_fracs=None, load_frac: float = 1.0, holdup_t: float | None = None) -> np.ndarray:
+        """Mill filled to ``load_frac`` of nominal hold-up (by volume), or holding ``holdup_t`` [t] (a batch's
+        charge), with feed of the given blend."""
         C, N, n = self.shape
         w = self.d_vector(blend_fracs)[:C]
         weights = self.spec.volume_weights()
-        if weights is not None:  # tonnes of the blend that fill the nominal hold-up's volume
+        if holdup_t is not None:
+            load_frac = holdup_t / self.spec.holdup_nominal_t
+        elif weights is not None:  # tonnes of the blend that fill the nominal hold-up's volume
             w = w / float(np.dot(w, weights))
         m = np.zeros(self.shape)
         for c in range(C):

@@ -25,16 +25,22 @@ from .mill import CENTRIFUGING_FRAC_CRITICAL, centrifuging_note
 ROPING_UNDERFLOW_SOLIDS_VOL_PCT = (50.0, 60.0)
 
 
+def underflow_volume_pct(spec, outputs: dict) -> float:
+    """The cyclone underflow's solids % by volume, at its own solids density where the ores' differ."""
+    from .effects.classification import solids_volume_pct
+
+    rho = float(outputs.get("underflow_solids_density_t_m3", spec.solids_density_t_m3))
+    return float(solids_volume_pct(float(outputs["underflow_solids_frac"]), rho))
+
+
 def roping_note(spec, outputs: dict) -> str:
     """A note when a hydrocyclone circuit's underflow (``outputs['underflow_solids_frac']``, by mass)
     is as dense as cyclones rope at (:data:`ROPING_UNDERFLOW_SOLIDS_VOL_PCT`), else ""."""
     if "underflow_solids_frac" not in outputs:
         return ""
-    from .effects.classification import solids_volume_pct
-
     lo, hi = ROPING_UNDERFLOW_SOLIDS_VOL_PCT
     mass = float(outputs["underflow_solids_frac"])
-    vol_pct = solids_volume_pct(mass, spec.solids_density_t_m3)
+    vol_pct = underflow_volume_pct(spec, outputs)
     if not vol_pct >= lo:
         return ""
     return (f"the cyclone underflow is {vol_pct:.3g} % solids by volume ({100 * mass:.3g} % by "
@@ -147,6 +153,15 @@ def residence_note(spec) -> str:
             "feed_nominal_tph in kg/h?")
 
 
+def blend_density_t_m3(spec, fractions) -> float:
+    """The solids density [t/m3] of a blend of the spec's components (mass ``fractions`` in their order): the
+    harmonic mean of their densities (the nominal blend's when they share one)."""
+    weights = spec.volume_weights()
+    if weights is None:
+        return spec.solids_density_t_m3
+    return spec.solids_density_t_m3 / float(np.dot(np.asarray(fractions, float), weights))
+
+
 def shell_capacity_t(spec, holdup_t, load_frac=None):
     """What the mill holds filled to its shell [t] of a content whose hold-up is ``holdup_t`` at ``load_frac`` (its
     volume over the nominal hold-up's, the ``holdup`` effect's output; arrays alike): the shell's volume at the
@@ -250,13 +265,13 @@ def _sample_notes(frame, spec, nominal_pressure_kpa: float | None = None) -> lis
     ores'), each with the span of samples it holds on and its text at the worst of them, and when: a run held
     a roping cyclone for an hour and said nothing its steady state said; a feed stop's 0.02 kPa was quoted as
     the 33 kPa of the stretch's last sample."""
-    from .effects.classification import CYCLONE_PRESSURE_RANGE_KPA, solids_volume_pct
+    from .effects.classification import CYCLONE_PRESSURE_RANGE_KPA
 
     t = frame["time_h"].to_numpy(float)
     rows = frame.to_dict("records")
     # each check: its note of a sample, and how bad a noted sample is (larger is worse)
     checks = [(lambda r: roping_note(spec, r),
-               lambda r: float(solids_volume_pct(float(r["underflow_solids_frac"]), spec.solids_density_t_m3))),
+               lambda r: underflow_volume_pct(spec, r)),
               (lambda r: pressure_note(r, nominal_pressure_kpa),
                lambda r: _outside_ratio(float(r["cyclone_pressure_kpa"]), CYCLONE_PRESSURE_RANGE_KPA)),
               (water_note, lambda r: -min(water_shortfalls(r).values()))]

@@ -121,6 +121,8 @@ def _exit_codes(command: str):
                 if isinstance(exc, failed):
                     return _fail("run", command, exc)
                 raise
+            finally:  # a later command, or the Python API in the same process, starts without this one's signals
+                received.clear()
         return inner
     return wrap
 
@@ -392,10 +394,14 @@ def _keep_finished_cases(claim, exc: BaseException, args) -> None:
     table = getattr(exc, "partial_table", None)
     if claim is None or table is None or not (table["error"] != NOT_RUN).any():
         return
+    done = int((table["error"] != NOT_RUN).sum())
+    if claim.final.exists():  # an earlier whole result there is not replaced by a part of this one
+        exc.kept = (f"the {done} of {len(table)} cases that finished were not written: {claim.final} holds an earlier "
+                    "result, kept (give a new --out to keep a sweep's finished cases)")
+        return
     traces = _pop_traces(table)
     folder = claim.commit(lambda f: _write_sweep(f, table, traces, args.scene, args.xlsx), kind="sweep",
                           after_signal=True)
-    done = int((table["error"] != NOT_RUN).sum())
     exc.kept = (f"the {done} of {len(table)} cases that finished were written to {folder} (the others' error: "
                 f"{NOT_RUN!r})")
 
@@ -625,13 +631,16 @@ def refuse_overflow(twin, ss, allow: bool, what: str, blend=None) -> None:
     are the model's extrapolation, not a prediction. The error names the feed rate that fills the
     mill to its shell at this speed (solved at that load). ``allow`` (``--allow-overflow``) keeps
     the answer, with the steady state's own note (:mod:`twin.validity`)."""
-    capacity_t = twin.mill.max_holdup_t(twin.spec.solids_density_t_m3)
+    from twin import shell_capacity_t
+
     out = ss.summary()
+    capacity_t = float(shell_capacity_t(twin.spec, out["holdup_t"], out.get("load_frac")))  # at the content's density
     if allow or not out["holdup_t"] > capacity_t:
         return
     speed = out["speed_frac_critical"]
+    shell_load = twin.mill.max_holdup_t(twin.spec.solids_density_t_m3) / twin.spec.holdup_nominal_t  # by volume
     try:
-        full = twin.steady_at_constant_load(speed, blend, load_frac=capacity_t / twin.spec.holdup_nominal_t)
+        full = twin.steady_at_constant_load(speed, blend, load_frac=shell_load)
         allowed = f"feeds up to {full.summary()['feed_tph']:.4g} t/h (which fill it to its shell at this speed)"
     except Exception as exc:  # noqa: BLE001 - the limit is advice; the refusal stands without it
         allowed = f"a lower feed (the feed that fills it to its shell was not found: {exc})"

@@ -379,8 +379,12 @@ def max_age_limit_h(name: str, scene: Scene) -> float:
     periods (the default) if longer. A reading older than the horizon was taken before all that the controller
     plans from it; and a dead source is found, and the fallbacks (``[fallback]``) start counting, only when its
     readings turn stale: without a bound a dead analyser or weightometer passed for a live one."""
-    horizon_h = scene.controller.horizon_steps * scene.scene.sample_period_h
-    return max(horizon_h, STALE_AFTER_SAMPLES * source_period_h(name, scene))
+    return max(_horizon_h(scene), STALE_AFTER_SAMPLES * source_period_h(name, scene))
+
+
+def _horizon_h(scene: Scene) -> float:
+    """The NMPC's horizon [h]; 0 for another controller (it plans nothing ahead)."""
+    return scene.controller.horizon_steps * scene.scene.sample_period_h if scene.controller.kind == "nmpc" else 0.0
 
 
 def _max_age_problems(tags: TagMap, scene: Scene) -> list[str]:
@@ -389,13 +393,14 @@ def _max_age_problems(tags: TagMap, scene: Scene) -> list[str]:
     if tags.belt_analyser is not None:
         rules.append(("belt_analyser", "belt_analyser", tags.belt_analyser))
     out = []
-    n, dt = scene.controller.horizon_steps, scene.scene.sample_period_h
+    n, dt, horizon_h = scene.controller.horizon_steps, scene.scene.sample_period_h, _horizon_h(scene)
     for key, name, rule in rules:
         limit = max_age_limit_h(name, scene)
         if rule.max_age_h is not None and rule.max_age_h > limit:
-            why = (f"the NMPC's horizon ({n} samples of {dt:g} h)" if limit == n * dt else
-                   f"{STALE_AFTER_SAMPLES} of its source's {source_period_h(name, scene):g} h periods, longer than "
-                   f"the NMPC's horizon {n * dt:g} h")
+            periods = f"{STALE_AFTER_SAMPLES} of its source's {source_period_h(name, scene):g} h periods"
+            why = (f"the NMPC's horizon ({n} samples of {dt:g} h)" if horizon_h > 0 and limit == horizon_h else
+                   f"{periods}, longer than the NMPC's horizon {horizon_h:g} h" if horizon_h > 0 else
+                   f"{periods} ({scene.controller.kind}: no horizon)")
             out.append(f"{key}.max_age_h: must be at most {limit:g} h, {why}: an older reading was taken before all "
                        "that the controller plans from it, and a dead source is found (and the fallbacks start) only "
                        f"when its readings turn stale (got {rule.max_age_h!r})")

@@ -18,7 +18,7 @@ def run_batch(scene: Scene, models, feed: pd.DataFrame, progress: bool):
     twin = models.plant
     blend = component_blend(feed, models.components)
     charge_t = float(scene.feed.batch_charge_kg) / 1000.0
-    x0 = twin.model.initial_state(list(blend[0]), load_frac=charge_t / twin.model.spec.holdup_nominal_t)
+    x0 = twin.model.initial_state(list(blend[0]), holdup_t=charge_t)
     n = len(blend)
     f = np.zeros(n)
     s = np.full(n, float(scene.feed.speed_frac_critical))

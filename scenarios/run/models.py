@@ -89,10 +89,9 @@ def scene_breakage(scene: Scene, ores: dict, mill) -> tuple[dict, float | None]:
     w = {name: fracs.get(name, 0.0) for name in ores}
     total = sum(w.values()) or 1.0
     density = 1.0 / sum(w[n] / total / densities[n] for n in ores) if any(w.values()) else None
-    # Austin's A becomes S^E at the hold-up the twin takes back to rates at its nominal point (Twin: at the
-    # density given it, else at its blend's of equal shares), so that the twin's rate there is A: at the
-    # feed blend's density one ore of two ran at 0.87 A
-    twin_density = density if given_density else 1.0 / sum(1.0 / len(ores) / densities[n] for n in ores)
+    # Austin's A becomes S^E at the hold-up the ore fills the mill with at its nominal point (the twin holds each
+    # ore at its own density, or every ore at the density given it), so that the twin's rate there is A: at the
+    # feed blend's density one ore of two ran at 0.87 A, at the listed ores' 1.12 A
     out = {}
     for name, ore in scene.ores.items():
         b = ore.breakage
@@ -105,7 +104,8 @@ def scene_breakage(scene: Scene, ores: dict, mill) -> tuple[dict, float | None]:
             out[name] = BreakageParams.austin_rate(
                 b.a_per_min, b.alpha, b.mu_um, b.Lambda, gamma=b.beta1, beta=b.beta2, phi=b.beta0,
                 power_kw=power_kw(mill, mill.speed_nominal_frac_critical),
-                holdup_t=mill.nominal_holdup_t(twin_density), source=f"scene ores.{name}.breakage")
+                holdup_t=mill.nominal_holdup_t(density if given_density else densities[name]),
+                source=f"scene ores.{name}.breakage")
     return out, (density if given_density else None)
 
 

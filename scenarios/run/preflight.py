@@ -27,7 +27,7 @@ from scenarios.run.closed_loop import check_rk4_substeps, loop_start, nmpc_setti
 from scenarios.run.feed import component_blend, feed_schedule
 from scenarios.run.models import build_models, component_ores, is_batch
 from scenarios.scene import Scene, check_scene as check_scene_file, load_scene
-from twin import SPEED_FACTOR_ZERO_FRAC_CRITICAL, TwinError, centrifuging_note
+from twin import SPEED_FACTOR_ZERO_FRAC_CRITICAL, TwinError, blend_density_t_m3, centrifuging_note
 
 #: NmpcSettings field -> the scene key it comes from (scenarios.run.closed_loop.nmpc_settings).
 NMPC_KEYS = {
@@ -160,7 +160,9 @@ def _batch_charge_problems(scene: Scene, models) -> list[str]:
     plant = models.plant
     if not is_batch(scene) or getattr(plant, "mill", None) is None:
         return []
-    capacity_t = plant.mill.max_holdup_t(plant.spec.solids_density_t_m3)
+    feed, _ = feed_schedule(scene, models.components, scene.time_grid_h()[:1], component_ores(scene))
+    shares = component_blend(feed, models.components)[0]  # the charge's blend
+    capacity_t = plant.mill.max_holdup_t(blend_density_t_m3(plant.spec, shares))  # at the charge's own density
     charge_t = scene.feed.batch_charge_kg / 1000.0
     if charge_t <= capacity_t:
         return []

@@ -452,7 +452,8 @@ def test_replay_reads_the_given_history_not_the_scenes_own(tmp_path, capsys):
     assert f"duration_h (--duration-h) 0.75: the history {hist} covers 0.5 h; allowed: up to 0.55 h" in err
     assert "scene.duration_h" not in err and "sample_history.csv" not in err and not out.exists()
     assert grindtwin(["replay", scene, "--history", hist, "--duration-h", "0.07", "--quiet"]) == 2
-    assert "(--duration-h) 0.07: must be a whole number of the scene's sample periods (0.05 h)" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "(--duration-h) 0.07: must be a whole number of the scene's sample periods (0.05 h)" in err
     from scenarios import replay_scene  # the Python API: the reason was "a whole number of periods"
     with pytest.raises(SceneError, match=r"duration_h \(--duration-h\) -1: must be > 0 h"):
         replay_scene(scene, hist, progress=False, duration_h=-1.0)

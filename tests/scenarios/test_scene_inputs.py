@@ -253,7 +253,8 @@ def test_austins_rate_is_the_twins_rate_at_its_nominal_point_beside_another_ore(
     """Austin's A (1/min, the sqrt(2) interval whose top is 1 mm) is converted to S^E at a hold-up and
     back by the twin at its nominal hold-up: the two must be the same. With a pyritic ore D beside B (3.97
     against 2.90 t/m3) the conversion took the feed blend's density and the twin its ores' of equal shares, and
-    B's rate was 0.87 A at the twin's nominal point."""
+    B's rate was 0.87 A at the twin's nominal point; with the twin holding each ore at its own density, a
+    conversion at the equal shares' gave 1.12 A."""
     from twin import power_kw
     from twin.breakage import AUSTIN_TOP_OVER_MEAN, selection_at
 
@@ -266,7 +267,9 @@ def test_austins_rate_is_the_twins_rate_at_its_nominal_point_beside_another_ore(
     spec = twin.spec
     assert {o.name: round(o.density_t_m3, 2) for o in twin.blend.ores} == {"B": 2.9, "D": 3.97}  # the test can fail
     p = spec.breakage[0].params
-    a_per_h = p.se_1mm_t_kwh * power_kw(twin.mill, twin.mill.speed_nominal_frac_critical) / spec.holdup_nominal_t
+    # B alone fills the mill's nominal volume with the tonnes of its own density (the twin holds each ore so)
+    held_t = twin.mill.nominal_holdup_t(twin.blend.ores[0].density_t_m3)
+    a_per_h = p.se_1mm_t_kwh * power_kw(twin.mill, twin.mill.speed_nominal_frac_critical) / held_t
     rate = selection_at(1000.0 / AUSTIN_TOP_OVER_MEAN, a_per_h, p.alpha, p.mu_um, p.Lambda)
     assert rate == pytest.approx(60.0 * 2.5 / (1.0 + (1000.0 / 3000.0) ** 2.5), rel=1e-12)  # Austin's eq. 4.5, 1/h
 

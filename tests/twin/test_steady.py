@@ -31,7 +31,8 @@ def test_more_feed_coarsens_product_and_loads_the_mill(twin_b):
 
 def test_smooth_p80_output_is_close_to_exact(twin_b):
     ss = twin_b.steady()
-    assert ss.outputs["p80_um"] == pytest.approx(ss.p80_um, rel=0.013)
+    assert ss.outputs["p80_smooth_um"] == pytest.approx(ss.p80_um, rel=0.013)
+    assert ss.outputs["p80_um"] == ss.p80_um and ss.outputs["p80_smooth_um"] != ss.p80_um  # one name, one meaning
 
 
 def test_steady_state_of_batch_mill_is_refused(batch_b):

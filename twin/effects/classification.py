@@ -403,7 +403,7 @@ class Classification(Effect):
     outputs = ("cyclone_d50c_um", "circulating_load_frac", "cyclone_feed_tph", "cyclone_underflow_tph",
                "cyclone_pressure_kpa", "cyclone_sharpness", "cyclone_water_bypass_frac", "cyclone_feed_solids_frac",
                "overflow_solids_frac", "underflow_solids_frac", "overflow_water_m3_h", "sump_water_m3_h",
-               "mill_water_m3_h")
+               "mill_water_m3_h", "underflow_solids_density_t_m3")
     uses = ("cut_size_factor", "cut_size_factor_at")
     source = ("Austin et al. (1984) ch. 9 (grate), Stokes settling (its density term); Plitt (1976), "
               "Flintoff et al. (1987) (hydrocyclone)")
@@ -509,6 +509,8 @@ class Classification(Effect):
             fresh_water = 0.0 if fresh is None or s_f is None else sum(ca.sum1(fc) for fc in fresh) * (1.0 - s_f) / s_f
             _water_balance(ctx, cyc, solids, sum(ca.sum1(dc) for dc in discharge), fresh_water,
                            sum(ca.sum1(u) for u in under), rf, rho_s, s_d, feed_floor)
+            if spec.volume_weights() is not None:  # the underflow's own density (its roping is by volume)
+                ctx.output("underflow_solids_density_t_m3", rho * _stream_density_ratio(ctx, under))
             ctx.output("cyclone_d50c_um", d50)
             ctx.output("cyclone_feed_tph", sum(stream))  # per size class, as the underflow below
             ctx.output("cyclone_underflow_tph", sum(under))
