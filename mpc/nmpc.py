@@ -95,8 +95,9 @@ from twin import centrifuging_note, pxx_um
 SOLVERS = ("ipopt", "sqpmethod", "fatrop", "rti")
 QP_SOLVERS = ("hpipm", "qrqp", "osqp", "condensed")
 #: OSQP's iteration cap: ADMM converges linearly, and to its 1e-8 tolerances on the stiff
-#: industrial mill's QP it needs more than OSQP's default 4,000 iterations.
-OSQP_MAX_ITER = 50_000
+#: industrial mill's QP it needs more than OSQP's default 4,000 iterations (and a B/D twin held at its ores' own
+#: densities more than a quarter of this cap on its third Gauss-Newton QP).
+OSQP_MAX_ITER = 200_000
 PASSING_TARGET = 0.80
 #: HPIPM's stand-in for an infinite bound. Its default (1e8) keeps the interior point from
 #: meeting its tolerance in 200 iterations (measured); the decision variables here are scaled

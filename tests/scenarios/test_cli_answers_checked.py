@@ -70,7 +70,12 @@ def test_steady_kpis_agree_with_the_api_and_with_each_other(option, ore, mill, f
     assert out["throughput_tph"] == pytest.approx(feed, rel=1e-9)
     assert ss.psd.sum() == pytest.approx(feed, rel=1e-9)
     nominal = _austin_nominal_holdup_t(twin.mill, twin.spec.solids_density_t_m3)
-    assert out["load_frac"] == pytest.approx(out["holdup_t"] / nominal, rel=1e-9)
+    # the load is a volume: the content's (each ore's tonnes at its own density) over the nominal hold-up's
+    c, n_mix, n_cls = twin.model.shape
+    masses = ss.x[:twin.model.n_mass].reshape(c, n_mix, n_cls).sum(axis=(1, 2))
+    assert masses.sum() == pytest.approx(out["holdup_t"], rel=1e-12)
+    volume_m3 = sum(m / ore.density_t_m3 for m, ore in zip(masses, twin.blend.ores))
+    assert out["load_frac"] == pytest.approx(volume_m3 / (nominal / twin.spec.solids_density_t_m3), rel=1e-9)
     assert out["p80_um"] == pytest.approx(_p80_by_log_interpolation(twin.spec.grid.upper_um, ss.psd), rel=1e-9)
     lo, hi = twin.mill.stable_band
     assert out["load_status"] == ("under" if out["load_frac"] < lo else "over" if out["load_frac"] > hi

@@ -238,6 +238,11 @@ class _HoldupCtx:
     def holdup(self, k=None):
         return self._h
 
+    packed_holdup = holdup  # one ore, at the nominal density
+
+    def content_density_ratio(self, k=None):
+        return 1.0
+
     def contribute(self, name, factor):
         self.factors.append(float(factor))
 
