@@ -272,6 +272,11 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
     speed_bounds = _bounds("speed_bounds", speed_bounds, 0.0, 1.0, "fractions of critical speed")
     if feed_bounds_tph is not None:
         feed_bounds_tph = _bounds("feed_bounds_tph", feed_bounds_tph, 0.0, math.inf, "t/h")
+    if load_band is not None:  # a band in percent answered 'infeasible': at most the mill filled to its shell
+        shell = twin.mill.max_holdup_t(twin.spec.solids_density_t_m3) / twin.spec.holdup_nominal_t
+        load_band = _bounds("load_band", load_band, 0.0, shell, "hold-up / nominal, e.g. (0.8, 1.2)")
+    feed_tph = None if feed_tph is None else _number("feed_tph", feed_tph)
+    speed_frac_critical = None if speed_frac_critical is None else _number("speed_frac_critical", speed_frac_critical)
     blend = list(twin.blend_fractions(blend))  # a dict by ore, a Blend or fractions, as the twin takes them
     feed_p80 = pxx_um(twin.spec.grid, twin.spec.feed_frac)
     if not target_p80_um < feed_p80:  # the whole search ran, then said 'unreachable within the bounds'

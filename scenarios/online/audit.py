@@ -71,6 +71,9 @@ class AuditLog:
 
 def read_audit(folder: Path) -> pd.DataFrame:
     """Every audit part of a folder, in the order written."""
+    if not Path(folder).is_dir():  # iterdir's bare error named no reason
+        raise FileNotFoundError(f"{folder}: no audit folder there (serve --audit makes it at its first write: a "
+                                "service that wrote no cycle leaves none)")
     parts = sorted(p for p in Path(folder).iterdir() if PART.match(p.name))
     if not parts:
         return pd.DataFrame()

@@ -185,14 +185,16 @@ def test_a_target_no_finer_than_the_feed_is_refused_before_any_search(twins, mon
 def test_the_optimiser_takes_a_blend_as_the_twin_does_and_refuses_bad_numbers_by_name(twins):
     """README says the Python API takes a blend as a dict by ore: optimal_setpoints failed on one ('could not
     convert string to float'), a target as text gave a numpy TypeError, a target in mm (0.21) searched for 10 s
-    and answered 'infeasible', and speed bounds in percent were blamed on the Twin's speed."""
+    and answered 'infeasible', speed bounds in percent were blamed on the Twin's speed, and a load band in percent
+    answered 'infeasible'."""
     twin = Twin(["B", "D"])
     as_dict = optimal_setpoints(twin, {"B": 0.6, "D": 0.4}, 210.0, mode="feed")
     as_list = optimal_setpoints(twin, [0.6, 0.4], 210.0, mode="feed")
     assert as_dict.feed_tph == as_list.feed_tph and as_dict.feasible
     for kwargs, field in (({"target_p80_um": "210"}, "target_p80_um"), ({"target_p80_um": 0.21}, "target_p80_um"),
                           ({"speed_bounds": (55, 90)}, "speed_bounds"), ({"feed_bounds_tph": (0.04, 0.01)},
-                                                                         "feed_bounds_tph")):
+                                                                         "feed_bounds_tph"),
+                          ({"load_band": (80, 120)}, "load_band"), ({"feed_tph": "0.03"}, "feed_tph")):
         args = {"target_p80_um": 210.0} | kwargs
         with pytest.raises(ValueError, match=f"'{field}' parameter of optimal_setpoints"):
             optimal_setpoints(twin, [0.6, 0.4], args.pop("target_p80_um"), **args)

@@ -32,3 +32,10 @@ def test_the_folder_is_made_at_the_first_write(tmp_path):
     assert not (tmp_path / "new").exists()  # nothing written yet: a start that fails now leaves nothing behind
     a.record({"cycle": 1})
     assert read_audit(tmp_path / "new" / "audit")["cycle"].tolist() == [0, 1]
+
+
+def test_reading_an_audit_folder_never_made_says_why(tmp_path):
+    """serve makes its audit folder at its first write: a service that wrote no cycle leaves none, and reading it
+    raised iterdir's bare FileNotFoundError."""
+    with pytest.raises(FileNotFoundError, match="no audit folder there .serve --audit makes it at its first write"):
+        read_audit(tmp_path / "never")
