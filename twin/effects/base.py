@@ -270,12 +270,16 @@ class EffectContext:
     def content_density_ratio(self, k: int | None = None):
         """The content's solids density over the nominal one (of one mixer or the mill; 1.0, a float, when the
         components share it): H / packed H, in an empty mill that of the feed blend."""
-        weights = self.spec.volume_weights()
-        if weights is None:
+        if self.spec.volume_weights() is None:
             return 1.0
-        eps = 1e-6 * self.spec.holdup_nominal_t
+        return self.density_ratio(self.holdup(k), self.packed_holdup(k), 1e-6 * self.spec.holdup_nominal_t)
+
+    def density_ratio(self, mass, packed, floor: float):
+        """Solids density over the nominal one of ``mass`` [t or t/h] whose volume is ``packed`` (as tonnes at the
+        nominal density, :meth:`packed_holdup`); near nothing (``floor``, same units) that of the feed blend."""
+        weights = self.spec.volume_weights()
         feed = 1.0 / sum(weights[c] * self.blend(c) for c in range(self.n_components))
-        return (self.holdup(k) + eps * feed) / (self.packed_holdup(k) + eps)
+        return (mass + floor * feed) / (packed + floor)
 
     def holdup_fraction(self, name: str, frac_per_component):
         """Mass fraction of a mineral group in the whole hold-up (``frac_per_component`` its

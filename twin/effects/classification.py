@@ -383,10 +383,8 @@ def _stream_density_ratio(ctx, stream):
     weights = ctx.spec.volume_weights()
     if weights is None:
         return 1.0
-    floor = 1e-6 * ctx.spec.feed_nominal_tph
-    feed = 1.0 / sum(w * ctx.blend(c) for c, w in enumerate(weights))
-    solids = sum(ca.sum1(sc) for sc in stream)
-    return (solids + floor * feed) / (sum(w * ca.sum1(sc) for w, sc in zip(weights, stream)) + floor)
+    packed = sum(w * ca.sum1(sc) for w, sc in zip(weights, stream))
+    return ctx.density_ratio(sum(ca.sum1(sc) for sc in stream), packed, 1e-6 * ctx.spec.feed_nominal_tph)
 
 
 def grate_density_factor(solids_density_t_m3: float) -> float:
