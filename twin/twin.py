@@ -20,7 +20,8 @@ from .breakage import BreakageParams
 from .breakage import ore_breakage as _ore_breakage
 from .calibration import check_model, load_calibration
 from .effects.classification import sized_circuit_notes
-from .errors import TwinInputError, bad_value, check_int, check_range
+from .effects.registry import problems as effect_problems
+from .errors import ModelError, TwinInputError, bad_value, check_int, check_range
 from .mill import FEED_TPH_MAX, SPEED_FACTOR_ZERO_FRAC_CRITICAL, Mill, get_mill, power_kw
 from .model import Model, ModelSpec
 from .scaleup import scale_breakage
@@ -77,6 +78,9 @@ class Twin:
                  mixer_volume_fracs: Sequence[float] | None = None, calibrated_mill: str | Mill = "lab"):
         if isinstance(effects, str):  # list("breakage") is its letters
             raise bad_value("Twin", "effects", effects, "a list of effect names, e.g. ['breakage', 'transport']")
+        _check_effects(effects, effect_options)
+        if not isinstance(mill, Mill):
+            get_mill(mill)  # a misspelt name said before the calibration loads (a second on a fresh interpreter)
         self.blend = _as_blend(ores)
         self.calibration = load_calibration(calibration)
         from .calibration import predict_table  # scipy's optimiser with it: only when a twin is built
@@ -352,6 +356,14 @@ def _feed_on_grid(grid, frac: np.ndarray, feed_p80_um: float | None, sizes_given
         raise TwinInputError(f"{given} has a P80 of {p80:.3g} um, finer than any ball mill's feed (allowed: at least "
                              f"{FEED_P80_MIN_UM:g} um): sizes in um, not mm ({p80:.3g} mm is {p80 * 1000:.4g} um)?")
     return frac
+
+
+def _check_effects(effects, effect_options) -> None:
+    """Effect names and options checked as the model will check them, but before the calibration
+    loads: a ModelError (the class of every effect problem) that names the parameter."""
+    found = effect_problems(effects, effect_options)
+    if found:
+        raise ModelError(f"The '{found[0].loc[0]}' parameter of Twin: {found[0].message}")
 
 
 def _as_blend(ores) -> Blend:

@@ -124,3 +124,18 @@ def test_a_nominal_feed_in_kg_per_hour_given_as_t_per_hour_is_noted():
     assert any("is feed_nominal_tph in kg/h?" in n and f"for {tau_s:.3g} s" in n for n in notes), notes
     assert any("kg/h?" in n for n in slip.simulate(0.1, 0.05, feed_tph=31.0).notes)
     assert not any("kg/h?" in n for n in Twin("B", mill="lab").steady().notes)
+
+
+def test_a_misspelt_effect_or_mill_is_named_before_the_calibration_is_read(tmp_path):
+    """The twin's names are checked before its calibration loads (a second on a fresh interpreter):
+    with a calibration file that does not exist, the misspelling is still what is reported."""
+    missing = tmp_path / "no_such_calibration.json"
+    with pytest.raises(ModelError, match=r"The 'effects' parameter of Twin: Unknown effect 'transprt'\. "
+                                         r"Did you mean 'transport'\?"):
+        Twin(effects=["breakage", "transprt"], calibration=str(missing))
+    with pytest.raises(ModelError, match=r"The 'effect_options' parameter of Twin: Unknown option 'x' of effect"):
+        Twin(effect_options={"power": {"x": 1}}, calibration=str(missing))
+    with pytest.raises(TwinInputError, match=r"The 'mill' must be one of .*Got 'labb'\. Did you mean 'lab'\?"):
+        Twin(mill="labb", calibration=str(missing))
+    with pytest.raises(TwinInputError, match="no_such_calibration"):  # the names right: the file is what is wrong
+        Twin(calibration=str(missing))
