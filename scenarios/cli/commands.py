@@ -601,24 +601,26 @@ STEADY_KEYS = ("source", "feed_tph", "speed_frac_critical", "p80_um", "specific_
                "throughput_tph", "holdup_t", "load_frac", "load_status")
 
 
-def undefined_to_none(kpis: dict, unc: dict | None = None) -> list[str]:
+def undefined_to_none(kpis: dict, unc: dict | None = None, noted: list[str] = ()) -> list[str]:
     """A steady state's undefined numbers set to None in place (printed "undefined", JSON null),
-    with a note for each: the specific energy at zero feed (the model's division floor gives
-    ~1e7 kWh/t) and any value that is not finite (P80 without a product); the same in the
-    uncertainty intervals ``unc``. Returns the notes."""
+    with a note for each not already named in ``noted`` (the steady state's own notes): the
+    specific energy at zero feed (the model's division floor gives ~1e7 kWh/t) and any value that
+    is not finite (P80 without a product); the same in the uncertainty intervals ``unc``. Returns
+    the notes."""
     notes = []
+    named = " ".join(noted)
     if kpis.get("feed_tph") == 0 and "specific_energy_kwh_t" in kpis:
         kpis["specific_energy_kwh_t"] = None
-        notes.append("specific_energy_kwh_t is undefined at zero feed")
+        notes += [] if "specific_energy_kwh_t" in named else ["specific_energy_kwh_t is undefined at zero feed"]
         if unc and "specific_energy_kwh_t" in unc["intervals"]:
             unc["intervals"]["specific_energy_kwh_t"] = None
     if kpis.get("holdup_t") == 0 and "content_p80_um" in kpis:  # an empty mill has no content
         kpis["content_p80_um"] = None
-        notes.append("content_p80_um is undefined in an empty mill")
+        notes += [] if "content_p80_um" in named else ["content_p80_um is undefined in an empty mill"]
     for key, val in kpis.items():
         if isinstance(val, float) and not math.isfinite(val):
             kpis[key] = None
-            notes.append(f"{key} is undefined at this state (not a finite number)")
+            notes += [] if key in named else [f"{key} is undefined at this state (not a finite number)"]
     for key, iv in (unc["intervals"] if unc else {}).items():
         if iv is not None and not all(math.isfinite(v) for v in iv):
             unc["intervals"][key] = None
@@ -730,7 +732,7 @@ def _steady_scene(args) -> int:
                            what, feed)
     refuse_overflow(models.plant, ss, args.allow_overflow, what, blend)
     kpis = {"scene": scene.scene.name, **ss.summary()}
-    notes = undefined_to_none(kpis) + ss.notes + _scene_steady_notes(scene, models, args)
+    notes = undefined_to_none(kpis, noted=ss.notes) + ss.notes + _scene_steady_notes(scene, models, args)
     cyclone = circuit_cyclone(models.plant.spec)  # its Plitt factors: a survey's are computed, not typed
     factors = {} if cyclone is None else plitt_factors(cyclone)
     if args.json:
@@ -810,7 +812,7 @@ def cmd_steady(args) -> int:
 
         unc = steady_intervals(blend, calibration, args.mill, args.feed_tph, args.speed,
                                at_load=args.at_constant_load, n=args.uncertainty or None)
-    notes = undefined_to_none(kpis, unc)
+    notes = undefined_to_none(kpis, unc, noted=[] if args.surrogate else ss.notes)
     if unc:  # B's measured 12.8 kWh/t lay outside its interval [13.10, 13.12]
         notes.append(f"the {unc['level']:.0%} intervals carry the DEM particles' scatter only, not the table's "
                      "measurement error, the loosely held fitted numbers or the model's form: no prediction "

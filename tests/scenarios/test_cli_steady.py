@@ -74,7 +74,10 @@ def test_zero_feed_reports_specific_energy_as_undefined(capsys):
     out = strict_json(capsys.readouterr().out)  # strict JSON: no NaN
     assert out["specific_energy_kwh_t"] is None and out["power_kw"] > 0
     assert out["p80_um"] is None  # no product, no P80
-    assert out["notes"][0] == "specific_energy_kwh_t is undefined at zero feed"
+    assert any(n.startswith("p80_um, specific_energy_kwh_t, ")
+               and n.endswith(" undefined (NaN): no feed: the steady mill is empty and makes no product")
+               for n in out["notes"])
+    assert not any("is undefined at" in n for n in out["notes"])  # said once, by the steady state
     assert out["uncertainty"]["intervals"]["specific_energy_kwh_t"] is None
     # the intervals were read as prediction intervals: B's measured 12.8 kWh/t lies outside its [13.10, 13.12]
     assert any(n.startswith("the 90% intervals carry the DEM particles' scatter only") for n in out["notes"])
@@ -92,7 +95,9 @@ def test_scene_steady_at_zero_feed_says_undefined(capsys):
     assert main(["steady", "--scene", scene, "--feed-tph", "0", "--json"]) == 0
     out = strict_json(capsys.readouterr().out)
     assert out["specific_energy_kwh_t"] is None and out["p80_um"] is None
-    assert "specific_energy_kwh_t is undefined at zero feed" in out["notes"]
+    assert sum("specific_energy_kwh_t" in n for n in out["notes"]) == 1
+    assert any(n.endswith("undefined (NaN): no feed: the steady mill is empty and makes no product")
+               for n in out["notes"])
 
 
 def test_a_hold_up_beyond_the_mills_volume_is_said(capsys):

@@ -1,6 +1,7 @@
 """Unit slips and wrong types that fell inside the twin's ranges and gave a wrong number without a
 word: each is refused before any work, naming the field, the value and what is allowed."""
 
+import numpy as np
 import pytest
 
 from twin import ModelError, SizeGrid, Twin, TwinInputError
@@ -139,3 +140,18 @@ def test_a_misspelt_effect_or_mill_is_named_before_the_calibration_is_read(tmp_p
         Twin(mill="labb", calibration=str(missing))
     with pytest.raises(TwinInputError, match="no_such_calibration"):  # the names right: the file is what is wrong
         Twin(calibration=str(missing))
+
+
+def test_a_steady_state_without_feed_says_which_outputs_are_undefined():
+    """Twin.steady(feed_tph=0): the P80 and the per-tonne outputs are NaN, and a note says which
+    and why (the CLI said "undefined"; the Python API gave NaN and no word); a fed state has no
+    such note."""
+    t = Twin()
+    ss = t.steady(feed_tph=0.0)
+    assert np.isnan(ss.p80_um) and np.isnan(ss.outputs["specific_energy_kwh_t"])
+    note = [n for n in ss.notes if "undefined (NaN)" in n]
+    assert len(note) == 1 and note[0].startswith("p80_um, specific_energy_kwh_t, ")
+    assert note[0].endswith("no feed: the steady mill is empty and makes no product")
+    nan = {k for k, v in ss.outputs.items() if isinstance(v, float) and np.isnan(v)}
+    assert nan == set(note[0].split(" undefined")[0].split(", "))  # every NaN named, nothing else
+    assert not any("undefined" in n for n in t.steady().notes)

@@ -208,7 +208,20 @@ def _result(model, x, u, d, method) -> SteadyState:
     status = load_status(outs["load_frac"], model.spec.mill.stable_band) if "load_frac" in outs else "n/a"
     notes = state_notes(model.spec, model.effect_names, float(u[1]), outs.get("holdup_t", 0.0), outs.get("clay_frac"),
                         outs, psd, nominal_pressure_kpa(model))
+    notes.append(_undefined_note(float(u[0]), outs))
+    notes = [n for n in notes if n]
     return SteadyState(x, u, d, outs, p80, status, psd, method, notes)
+
+
+def _undefined_note(feed_tph: float, outs: dict) -> str:
+    """Which outputs a state leaves undefined (NaN) and why: without feed the steady mill is empty
+    and makes no product (a Python user got NaN and no word)."""
+    nan = sorted((k for k, v in outs.items() if isinstance(v, float) and math.isnan(v)),
+                 key=lambda k: ("p80_um", "specific_energy_kwh_t", k).index(k))  # the headline ones first
+    if not nan:
+        return ""
+    why = "no feed: the steady mill is empty and makes no product" if not feed_tph > 0.0 else "not finite at this state"
+    return f"{', '.join(nan)} undefined (NaN): {why}"
 
 
 def _require_transport(model):
