@@ -1089,13 +1089,18 @@ def cmd_bench(args) -> int:
         # another project's benchmarks/ would have its scripts run, and results written into it
         raise SceneError("grindtwin bench runs from a checkout of the grindtwin repository (its pyproject.toml "
                          f"names the project grindtwin, beside benchmarks/): {Path.cwd()} is not one.")
+    known = sorted(p.stem for p in root.glob("*.py") if '__name__ == "__main__"' in p.read_text(encoding="utf-8"))
     if args.target is None or args.target in BENCH_LAYERS:
         if args.script_args:
             raise SceneError(f"bench {args.target or ''}: ARGS are for one benchmark by name, not a layer "
                              f"(got {' '.join(args.script_args)})")
         names = [n for layer in ([args.target] if args.target else BENCH_LAYERS) for n in BENCH_LAYERS[layer]]
+        if args.list and args.target is None:  # the layers' scripts, then every other one (it listed 8 of 30)
+            layered = set(names)
+            print("\n".join([str(root / f"{n}.py") for n in names] + ["by name (grindtwin bench NAME -- ARGS):"]
+                            + [f"  {root / f'{n}.py'}" for n in known if n not in layered]))
+            return 0
     else:
-        known = sorted(p.stem for p in root.glob("*.py") if '__name__ == "__main__"' in p.read_text(encoding="utf-8"))
         if args.target not in known:
             from scenarios.scene.keypaths import did_you_mean
 

@@ -116,9 +116,14 @@ def json_safe(obj):
     return obj
 
 
+#: how an error names the output folder: the CLI's option and the Python functions' parameter
+#: (run_scene said --out to a Python caller)
+OUT_NAME = "(--out; out_dir in Python)"
+
+
 def _refuse(final: Path, why: str) -> SceneError:
-    return SceneError(f"--out {final}: {why}; nothing was run. Choose a new folder (e.g. --out "
-                      f"runs/NAME), or move the folder away yourself.")
+    return SceneError(f"The output folder {final} {OUT_NAME}: {why}; nothing was run. Choose a new folder "
+                      "(e.g. runs/NAME), or move the folder away yourself.")
 
 
 def installed_version() -> str | None:
@@ -305,7 +310,7 @@ class OutputClaim:
     def _fresh_partial(self) -> None:
         if self.partial.exists() and not self.partial.is_dir():  # a user's file of that name
             raise _refuse(self.final, f"{self.partial.name} is a file, not grindtwin's; it is where this run "
-                          "writes before it moves its results to --out")
+                          "writes before it moves its results to the output folder")
         if self.partial.exists():  # left by a killed run: ours if marked, or as far as its manifest says
             marked = (self.partial / INCOMPLETE_MARKER).exists()
             names = ([*RUN_FILES, *temporaries_of(self.partial, RUN_FILES)] if marked
@@ -339,8 +344,8 @@ class OutputClaim:
         if self.final.exists():
             if strangers(self.final):  # a file was added while this run was computing
                 self._keep_partial = True
-                raise RunError(f"--out {self.final}: files grindtwin did not write appeared in the "
-                               f"folder during the run; it was left alone and the results are in "
+                raise RunError(f"The output folder {self.final} {OUT_NAME}: files grindtwin did not write "
+                               f"appeared in the folder during the run; it was left alone and the results are in "
                                f"{self.partial}")
             listed = (manifest_files(self.final) or []) + [MANIFEST, *later_names(self.final)]
         kept = replace_folder(self.final, self.partial, listed)

