@@ -44,8 +44,8 @@ class Twin:
     ``ores``: a reference type ('B'), a Blend, or a sequence of ores (types, TOML paths,
     Mineralogy); the nominal blend (defaults, and the density the nominal hold-up's volume is stated at) is the
     Blend's fractions, else equal shares. The mill fills by volume, each ore at its own density, and its grate and
-    cyclones cut at the density of what reaches them (so a feed of one ore grinds alike whatever other ores the
-    twin lists); one cut for all ores: a dense ore's own finer cut is not modelled.
+    cyclones cut each ore at its own density (so a feed of one ore grinds alike whatever other ores the twin
+    lists, and a dense ore in a blend is held back finer).
     ``calibration``: a shipped name (``"dem"``, the
     default, or ``"table"``), a calibration file's path or a :class:`twin.calibration.Calibration`;
     it maps each ore's mineralogy to its breakage parameters and gives the coefficients the

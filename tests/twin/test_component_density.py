@@ -7,6 +7,7 @@ import pytest
 
 from twin import Mineralogy, Twin
 from twin.ore import Texture
+from twin.twin import DEFAULT_EFFECTS
 
 #: A dense ore (60 wt% pyrite, 3.69 t/m3) beside B (2.90 t/m3).
 PYRITE_RICH = Mineralogy({"pyrite": 60.0, "quartz": 40.0}, Texture(mean_grain_um=125.0), name="PY")
@@ -49,3 +50,56 @@ def test_a_load_is_the_contents_volume_over_the_nominal_hold_ups():
     x0 = twin.model.initial_state([0.2, 0.8])
     m0 = x0[:twin.model.n_mass].reshape(c, n_mix, n_cls).sum(axis=(1, 2))
     assert float(np.sum(m0 / rho)) == pytest.approx(volume_m3, rel=1e-12)
+
+
+def _two_ores_in_the_mill(twin):
+    """A state holding the same mass of each ore in every mixer and size class (the industrial default
+    start, split equally), and the twin's u and d at nominal feed, blend 50/50."""
+    c, n_mix, n_cls = twin.model.shape
+    x = twin.model.initial_state([0.5, 0.5])
+    m = twin.model.mass_array(x)
+    x[:twin.model.n_mass] = np.broadcast_to(m.mean(axis=0), m.shape).ravel()
+    return x, twin.model.u_vector(twin.mill.feed_nominal_tph), twin.model.d_vector([0.5, 0.5])
+
+
+def test_each_ore_is_cut_by_the_cyclones_at_its_own_density():
+    """Two ores of the same breakage but different density in one cyclone feed: each has its own partition curve,
+    its d50 the stream's d50c x ((rho_k - 1) / (rho_stream - 1))^-1/2 (Stokes; Laplante & Finch 1984): the
+    product per size class is the sum of the ores' own overflows, computed here from the model's outputs and
+    the densities. With one cut for both (as before) the product at 120 um was 1.3x this."""
+    from twin.effects.classification import corrected_partition
+
+    twin = Twin(["B", PYRITE_RICH], mill="industrial", effect_options={"classification": {"kind": "hydrocyclone"}})
+    x, u, d = _two_ores_in_the_mill(twin)
+    model, grid = twin.model, twin.spec.grid
+    rho = [o.density_t_m3 for o in twin.blend.ores]
+    rho_stream = 2.0 / (1.0 / rho[0] + 1.0 / rho[1])  # equal masses of each
+    d50 = model.evaluate("cyclone_d50c_um", x, u, d)
+    m = model.evaluate("cyclone_sharpness", x, u, d)
+    rs = model.evaluate("cyclone_water_bypass_frac", x, u, d)  # the solids bypass of this cyclone: the water's
+    each = model.evaluate("cyclone_feed_tph", x, u, d) / 2.0
+    expected = sum((1.0 - rs) * (1.0 - corrected_partition(grid.mid_um / (d50 * ((r - 1.0) / (rho_stream - 1.0))
+                                                                             ** -0.5), m)) * each for r in rho)
+    product = model.evaluate("product_tph", x, u, d)
+    assert product == pytest.approx(expected, rel=1e-6)
+    assert not product == pytest.approx(2.0 * (1.0 - rs) * (1.0 - corrected_partition(grid.mid_um / d50, m)) * each,
+                                        rel=0.05)
+
+
+def test_each_ore_is_held_by_the_grate_at_its_own_density():
+    """The lab mill's grate: each ore's discharge factor is the grate's at its own density (d50 stated for
+    quartz, x ((rho_k - 1) / (1.65))^-1/2): from equal contents of the two ores, the product of each size class
+    over the last mixer's content and the two factors' sum is one discharge rate for every class (with one factor
+    for both, as before, it varied by class)."""
+    from twin.effects.classification import grate_factor
+
+    no_slurry = [e for e in DEFAULT_EFFECTS if e != "rheology"]  # the slurry's own factor on the cut left out
+    twin = Twin(["B", PYRITE_RICH], mill="lab", effects=no_slurry)
+    x, u, d = _two_ores_in_the_mill(twin)
+    mill, grid = twin.mill, twin.spec.grid
+    factors = [grate_factor(grid.mid_um, mill.grate_d50_um * ((o.density_t_m3 - 1.0) / (2.65 - 1.0)) ** -0.5,
+                            mill.grate_sharpness)[1:-1] for o in twin.blend.ores]  # the sink always leaves
+    content = twin.model.mass_array(x)[0, -1, 1:-1]  # each ore's, in the last mixer (the top class holds none)
+    rate_h = twin.model.evaluate("product_tph", x, u, d)[1:-1] / (content * (factors[0] + factors[1]))
+    assert rate_h == pytest.approx(np.full(rate_h.size, rate_h[0]), rel=1e-9)
+    assert np.all(factors[1] <= factors[0]) and (factors[1] / factors[0]).min() < 0.2  # the dense ore is held back

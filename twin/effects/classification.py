@@ -7,8 +7,13 @@ hydrocyclone whose underflow returns to the mill feed (the industrial configurat
   moves, and Stokes' settling velocity g d^2 (rho_s - rho_w) / (18 mu) makes the cut size
   scale as (rho_s - rho_w)^-1/2, the density term Plitt's cyclone d50c has too. So a denser ore
   is held back finer (dense minerals are retained in grinding circuits and ground longer: gold in
-  Banisi, Laplante & Marois 1991, CIM Bull. 84 (955), 72-78); the ore's density is the nominal blend's, as in
-  Plitt's equation below.
+  Banisi, Laplante & Marois 1991, CIM Bull. 84 (955), 72-78).
+- Each ore is classified at its own density, grate and cyclone alike: a particle settles by its own
+  density, so where the twin's ores differ an ore of density rho_k is cut at d50 ((rho_k - rho_w) /
+  (rho - rho_w))^-1/2, rho the density the cut is stated for (the grate's: quartz; Plitt's d50c: the
+  stream's, whose volume fraction sets the hindered settling). Minerals of different density in one
+  cyclone feed have their own partition curves (Laplante & Finch 1984, Int. J. Miner. Process. 13,
+  1-11; a blend's measured curve is their mass-weighted sum).
 - The cut sizes are multiplied by the assembly's ``cut_size_factor`` (1 unless ``rheology`` is
   listed: the slurry's clay against a clay-free slurry): the grate's, and a Plitt cyclone's over the
   factor of the slurry its calibration was measured on (``surveyed_clay_frac``, the clay fraction of
@@ -368,14 +373,19 @@ def grate_factor(size_um: np.ndarray, d50_um: float, sharpness: float) -> np.nda
 STOKES_DENSITY_EXPONENT = -0.5
 
 
-def _density_cut_factor(spec, density_ratio):
-    """A grate's cut at the discharge's own density (``density_ratio`` x the nominal blend's) over its cut at the
-    nominal blend's (Stokes, :data:`STOKES_DENSITY_EXPONENT`): 1.0 when the ratio is the float 1.0 (the
-    components share one density)."""
-    if isinstance(density_ratio, float) and density_ratio == 1.0:
-        return 1.0
-    rho = spec.solids_density_t_m3
-    return grate_density_factor(rho * density_ratio) / grate_density_factor(rho)
+def stokes_cut_ratio(solids_density_t_m3, reference_density_t_m3):
+    """The cut size of particles of one density over that of particles of another in the same settling
+    classifier (Stokes): ((rho_s - rho_w) / (rho_ref - rho_w))^-1/2. Floats or CasADi expressions."""
+    return ((solids_density_t_m3 - WATER_DENSITY_T_M3)
+            / (reference_density_t_m3 - WATER_DENSITY_T_M3)) ** STOKES_DENSITY_EXPONENT
+
+
+def component_cut_ratios(spec, stream_density_t_m3) -> list | None:
+    """Each component's cut over the cut stated at ``stream_density_t_m3`` (:func:`stokes_cut_ratio`);
+    None when the components share the nominal density (one cut for all)."""
+    if spec.volume_weights() is None:
+        return None
+    return [stokes_cut_ratio(r, stream_density_t_m3) for r in spec.component_density_t_m3]
 
 
 def _stream_density_ratio(ctx, stream):
@@ -390,8 +400,7 @@ def _stream_density_ratio(ctx, stream):
 def grate_density_factor(solids_density_t_m3: float) -> float:
     """The grate's cut size at an ore density over its cut for a quartz slurry (module docstring):
     ((rho_s - rho_w) / (rho_quartz - rho_w))^-1/2."""
-    return ((solids_density_t_m3 - WATER_DENSITY_T_M3)
-            / (DISCHARGE_REFERENCE_DENSITY_T_M3 - WATER_DENSITY_T_M3)) ** STOKES_DENSITY_EXPONENT
+    return stokes_cut_ratio(solids_density_t_m3, DISCHARGE_REFERENCE_DENSITY_T_M3)
 
 
 class Classification(Effect):
@@ -461,18 +470,23 @@ class Classification(Effect):
         k = ctx.param("grate_sharpness", spec.mill.grate_sharpness, "-", "mill")
         density = ctx.param("grate_density_factor", grate_density_factor(spec.solids_density_t_m3), "-",
                             "Stokes: ((rho_s - 1) / (rho_quartz - 1))^-1/2")
-        # the discharge's own density (the last mixer's content), where the components' densities differ
-        cut = ctx.get("cut_size_factor", 1.0) * density * _density_cut_factor(
-            spec, ctx.content_density_ratio(ctx.n_mixers - 1))
+        slurry = ctx.get("cut_size_factor", 1.0)
+        ratios = component_cut_ratios(spec, spec.solids_density_t_m3)  # each ore at its own density
+        factors = [self._grate_factor(x, d50, k, slurry * density * r) for r in ratios or [1.0]]
+        ctx.provide("discharge_class_factor", factors if ratios else factors[0])
+        ctx.note(f"grate factor on the last mixer's discharge, d50 {d50:g} um (quartz slurry) x {density:.3f} "
+                 "for the ore's density" + (" (each ore at its own)" if ratios else ""))
+
+    @staticmethod
+    def _grate_factor(x, d50, k, cut):
+        """The grate's discharge factor per size class at cut size d50 x ``cut`` (the sink always leaves)."""
         if isinstance(cut, float):
             c = grate_factor(x, d50 * cut, k)
         else:  # a cut size that moves with the states (rheology)
             ratio = (x / d50) ** k  # SX when d50 or k is a symbol (a parametric model)
             c = 1.0 / (1.0 + (ratio if isinstance(ratio, ca.SX) else ca.DM(ratio)) * cut ** -k)
         c[-1] = 1.0
-        ctx.provide("discharge_class_factor", c)
-        ctx.note(f"grate factor on the last mixer's discharge, d50 {d50:g} um (quartz slurry) x {density:.3f} "
-                 "for the ore's density")
+        return c
 
     def _hydrocyclone(self, ctx: EffectContext, reverse: bool) -> None:
         spec = ctx.spec
@@ -501,8 +515,15 @@ class Classification(Effect):
             d50 = state["d50c_um"] * cut
             rf = state["water_bypass_frac"]
             rs = cyc.solids_bypass(rf)
-            e = rs + (1.0 - rs) * corrected_partition(xs / d50, state["sharpness_m"], cyc.curve)
-            under = [e * dc for dc in stream]
+            def partition(d50_um):  # to the underflow, per size class
+                return rs + (1.0 - rs) * corrected_partition(xs / d50_um, state["sharpness_m"], cyc.curve)
+
+            ratios = component_cut_ratios(spec, rho_s)  # each ore at its own density
+            if ratios is None:
+                e = partition(d50)
+                under = [e * dc for dc in stream]
+            else:
+                under = [partition(d50 * r) * dc for r, dc in zip(ratios, stream)]
             over = [dc - uc for dc, uc in zip(stream, under)]
             fresh_water = 0.0 if fresh is None or s_f is None else sum(ca.sum1(fc) for fc in fresh) * (1.0 - s_f) / s_f
             _water_balance(ctx, cyc, solids, sum(ca.sum1(dc) for dc in discharge), fresh_water,

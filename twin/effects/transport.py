@@ -51,7 +51,8 @@ class Transport(Effect):
             for k in range(n_mix):
                 out = rate(k) * ctx.mass[c][k]
                 if k == n_mix - 1 and class_factor is not None:
-                    out = out * (class_factor if isinstance(class_factor, ca.SX) else ca.DM(class_factor))
+                    cf = class_factor[c] if isinstance(class_factor, list) else class_factor  # per ore, or one
+                    out = out * (cf if isinstance(cf, ca.SX) else ca.DM(cf))
                 ctx.add_rhs(ctx.mass[c][k], inflow - out)
                 inflow = out
             discharge.append(inflow)
