@@ -1,7 +1,6 @@
 """Ore typing: PCA + clustering recover the generating types; far samples are flagged."""
 
 import numpy as np
-import pandas as pd
 import pytest
 from sklearn.metrics import adjusted_rand_score
 
