@@ -388,7 +388,9 @@ def _horizon_h(scene: Scene) -> float:
 
 
 def _max_age_problems(tags: TagMap, scene: Scene) -> list[str]:
-    """A ``max_age_h`` above :func:`max_age_limit_h`."""
+    """A ``max_age_h`` above :func:`max_age_limit_h`, or not above its source's period (a held reading is up to
+    one period old when the next arrives: a shorter max age turned live readings stale between reports, and the
+    fallbacks started on a live source)."""
     rules = [(f"measurements.{name}", name, m) for name, m in tags.measurements if m is not None]
     if tags.belt_analyser is not None:
         rules.append(("belt_analyser", "belt_analyser", tags.belt_analyser))
@@ -404,6 +406,11 @@ def _max_age_problems(tags: TagMap, scene: Scene) -> list[str]:
             out.append(f"{key}.max_age_h: must be at most {limit:g} h, {why}: an older reading was taken before all "
                        "that the controller plans from it, and a dead source is found (and the fallbacks start) only "
                        f"when its readings turn stale (got {rule.max_age_h!r})")
+        elif rule.max_age_h is not None and rule.max_age_h <= (period := source_period_h(name, scene)):
+            out.append(f"{key}.max_age_h: must be more than its source's period, {period:g} h (it reports that often, "
+                       "so a held reading is up to that old when the next arrives: a shorter max age marks live "
+                       f"readings stale and starts the fallbacks; the default is {STALE_AFTER_SAMPLES} periods) "
+                       f"(got {rule.max_age_h!r})")
     return out
 
 

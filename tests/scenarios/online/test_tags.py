@@ -227,3 +227,20 @@ def test_an_analyser_slower_than_the_horizon_keeps_its_default_max_age(tmp_path)
         online.load_tags(_write(tmp_path, free.replace("frozen_after_h", "max_age_h = 0.31\nfrozen_after_h")), scene)
     assert "measurements.p80_um.max_age_h: must be at most 0.3 h, 3 of its source's 0.1 h periods, longer than the " \
            "NMPC's horizon 0.25 h" in str(e.value) and "(got 0.31)" in str(e.value)
+
+
+def test_a_max_age_not_above_its_sources_period_is_refused(tmp_path, small_scene):
+    """max_age_h had no lower bound: at 0.01 h on a 0.05-h sample a held reading turned stale between reports, so
+    a live analyser and weightometer counted as dead and the fallbacks started. One period is refused too (a held
+    value is up to a period old when the next one arrives); just above it passes."""
+    bad = SMALL_TAGS.replace("max_age_h = 0.15", "max_age_h = 0.01").replace(
+        '[measurements.feed_tph]\n', '[measurements.feed_tph]\nmax_age_h = 0.05\n')
+    with pytest.raises(online.TagMapError) as e:
+        online.load_tags(_write(tmp_path, bad), small_scene)
+    msg = str(e.value)
+    assert "2 problems in the tag map" in msg
+    assert "measurements.p80_um.max_age_h: must be more than its source's period, 0.05 h" in msg and "(got 0.01)" in msg
+    assert "measurements.feed_tph.max_age_h: must be more than its source's period, 0.05 h" in msg \
+           and "(got 0.05)" in msg
+    ok = SMALL_TAGS.replace("max_age_h = 0.15", "max_age_h = 0.051")
+    assert online.load_tags(_write(tmp_path, ok), small_scene).measurements.p80_um.max_age_h == 0.051
