@@ -44,12 +44,7 @@ from mpc import (cumulative, fresh_feed_t, held_cumulative, integral, outside_ba
                  specific_energy_kwh_t, within_band_frac)
 from scenarios.run.models import is_batch
 from scenarios.scene import Scene
-from scenarios.scene.ranges import scene_nominal_feed_tph
-
-#: A sample whose product rate, or the fresh feed over the interval before it, is below this fraction of the
-#: mill's nominal feed is one of a feed stop (a mill discharges at its nominal rate over its residence time,
-#: ~0.1 h; after a stop's few residence times only the draining charge's trickle leaves).
-NO_PRODUCT_FRAC = 0.05
+from scenarios.scene.ranges import NO_PRODUCT_FRAC, scene_nominal_feed_tph
 
 KPI_KEYS = ("p80_iae_um_h", "p80_within_10um_frac", "specific_energy_kwh_t", "throughput_t", "throughput_tph",
             "load_outside_band_frac", "solve_time_median_s", "solve_time_p95_s",

@@ -52,13 +52,14 @@ from scenarios.output import claim_output, workbook_problem, write_files
 from scenarios.run.batch import run_batch
 from scenarios.run.closed_loop import run_closed
 from scenarios.run.feed import feed_schedule, fit_warnings, history_changes
-from scenarios.run.kpis import NO_PRODUCT_FRAC, compute_kpis, feed_stopped
+from scenarios.run.kpis import compute_kpis, feed_stopped
 from scenarios.run.models import build_models, component_ores, is_batch
 from scenarios.run.open_loop import analyser_trace, run_open_loop
 from scenarios.run.preflight import model_size_problems, refuse, replay_speed_problems, settings_problems
 from scenarios.run.summary import make_summary, preset_file_changes
 from scenarios.scene import TEXTURE_COLUMNS, Scene, load_history, load_scene, read_history, scene_from_dict
 from scenarios.scene.history import DEFAULT_MAX_GAP_H
+from scenarios.scene.ranges import NO_PRODUCT_FRAC
 from scenarios.scene.loader import read_toml
 from twin import nominal_pressure_kpa, trajectory_notes
 

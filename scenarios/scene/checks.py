@@ -17,7 +17,8 @@ from typing import Any
 from scenarios.errors import SceneError
 from scenarios.scene.history import read_history
 from scenarios.scene.keypaths import did_you_mean, format_path
-from scenarios.scene.ranges import feed_problem, net_power_problem, nominal_feed_tph, preset_mill
+from scenarios.scene.ranges import (controller_feed_min_problem, feed_problem, net_power_problem, nominal_feed_tph,
+                                     preset_mill)
 from scenarios.scene.schema import DEFAULT_N_MIXERS, Feed, Sensors
 from twin import SizeGrid, TwinError, get_mill, hydrocyclone_from, is_preset_file, read_preset
 from twin.calibration import DEFAULT_CALIBRATION, load_calibration
@@ -252,6 +253,10 @@ def _check_feed(data, ore_names: list[str], r: _Report, base_dir: Path = Path(".
             problem = feed_problem(v, nominal) if v is not None and v > 0 else None
             if problem:
                 r.add(loc, problem, v)
+        low = _num(_get(data, "controller", "bounds", "feed_tph_min"))
+        problem = controller_feed_min_problem(low, nominal) if low is not None and low > 0 else None
+        if problem and _get(data, "controller", "kind") in ("pi", "nmpc"):
+            r.add(("controller", "bounds", "feed_tph_min"), problem, low)
     csv = feed.get("psd_csv")
     if isinstance(csv, str) and not (Path(csv) if Path(csv).is_absolute() else base_dir / csv).is_file():
         r.add(("feed", "psd_csv"), "file not found (a CSV with columns size_um, passing_pct)", csv)

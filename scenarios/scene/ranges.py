@@ -16,6 +16,11 @@ FEED_MAX_NOMINAL_MULTIPLE = 10.0
 #: feed is refused: plants run their mills near nominal (a start-up or a stop are some rows, not the
 #: median), while a feed in kg/s (1/3.6 of t/h) or kt/d (1/24) lands below.
 FEED_MIN_NOMINAL_FRAC = 0.3
+#: A sample whose product rate, or the fresh feed over the interval before it, is below this fraction of the
+#: mill's nominal feed is one of a feed stop (a mill discharges at its nominal rate over its residence time,
+#: ~0.1 h; after a stop's few residence times only the draining charge's trickle leaves); a controller's
+#: lowest feed must stay above it, so that the run's KPIs never take its own moves for a stop.
+NO_PRODUCT_FRAC = 0.05
 #: Speeds in this range are named as "percent of critical" in the hint: ball mills run at
 #: 40-100 % of critical (0.65-0.80 typically), so 72 reads as 72 %, but 1.2 as a fraction.
 PERCENT_RANGE = (40.0, 100.0)
@@ -101,6 +106,17 @@ def feed_problem(value: float, nominal_tph: float | None) -> str | None:
     hint = " (kg/h? t/h expected)" if value / 1000.0 <= limit else ""
     return (f"feed {value:g} t/h is more than {FEED_MAX_NOMINAL_MULTIPLE:g} x the mill's nominal "
             f"{nominal_tph:g} t/h{hint}")
+
+
+def controller_feed_min_problem(value: float, nominal_tph: float | None) -> str | None:
+    """Why ``value`` [t/h] cannot be a controller's lowest feed on a mill with ``nominal_tph``, or None: below
+    :data:`NO_PRODUCT_FRAC` of the nominal, the KPIs would read the controller's own feed cut as a feed stop
+    and leave its samples out of the P80 IAE."""
+    if nominal_tph is None or not value < NO_PRODUCT_FRAC * nominal_tph:
+        return None
+    return (f"must be at least {NO_PRODUCT_FRAC * nominal_tph:.4g} t/h, {NO_PRODUCT_FRAC:.0%} of the mill's nominal "
+            f"{nominal_tph:.4g} t/h: a lower feed is a feed stop, whose samples the P80 KPIs leave out, so the "
+            "controller's own cut would not count against it")
 
 
 def feed_level_problem(median_tph: float, nominal_tph: float | None) -> str | None:

@@ -383,7 +383,8 @@ class Bounds(Section):
     """``[controller.bounds]``: input bounds and rate limits (``None`` = no rate limit)."""
 
     feed_tph_min: float | None = Field(default=None, gt=0)
-    """Lowest feed rate [t/h], above 0; required for ``pi`` and ``nmpc``."""
+    """Lowest feed rate [t/h], at least 5 % of the mill's nominal feed (below it the KPIs read a feed stop);
+    required for ``pi`` and ``nmpc``."""
     feed_tph_max: float | None = Field(default=None, gt=0)
     """Highest feed rate [t/h], above ``feed_tph_min``; required for ``pi`` and ``nmpc``."""
     speed_min: float = Field(default=0.60, gt=0, lt=1, json_schema_extra={"unit": "fraction of critical"})
