@@ -274,12 +274,16 @@ def _run_local(run_case: RunCase, scenes: list[Scene], workers: int | None, prog
                 bar.update()
             return
         pool = ProcessPoolExecutor(max_workers=workers, initializer=_worker_ignores_signals)
+        futures: dict = {}
         try:
             futures = {pool.submit(run_one, run_case, s): i for i, s in enumerate(scenes)}
             for fut in as_completed(futures):
                 outcomes[futures[fut]] = _outcome(fut)
                 bar.update()
         except BaseException:  # Ctrl-C, SIGTERM: stop the workers now, not after their cases
+            for fut, i in futures.items():  # cases that finished but were not collected yet are kept too
+                if fut.done() and not fut.cancelled():
+                    outcomes[i] = _outcome(fut)
             _stop_workers(pool)
             raise
         pool.shutdown()

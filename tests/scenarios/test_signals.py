@@ -141,3 +141,34 @@ def test_a_signal_inside_a_serial_cases_solver_is_not_that_cases_failure(tmp_pat
     assert "the 1 of 3 cases that finished were written" in capsys.readouterr().err
     table = pd.read_csv(out / "sweep.csv")
     assert table["error"].isna().tolist() == [True, False, False] and (table["error"][1:] == NOT_RUN).all()
+
+
+def _quick_case(x):
+    return {"x": x}
+
+
+def test_a_pools_finished_but_uncollected_cases_are_kept_on_a_signal(monkeypatch):
+    """With worker processes, a signal while the sweep collected one finished case labelled the others that had
+    finished meanwhile, not yet collected, "not run" (their results lost): now every finished case is kept.
+    The signal comes at the first collection, a second after it, when all four quick cases are done."""
+    from scenarios.run import sweep
+
+    class SignalAtFirstUpdate:
+        def __init__(self, *args, **kwargs):
+            pass
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def update(self, n=1):
+            time.sleep(1.0)  # the other workers' cases finish meanwhile
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(sweep, "tqdm", SignalAtFirstUpdate)
+    outcomes = [(None, sweep.NOT_RUN)] * 4
+    with pytest.raises(KeyboardInterrupt):
+        sweep._run_local(_quick_case, [0, 1, 2, 3], 2, False, outcomes)
+    assert sorted(o[0]["x"] for o in outcomes) == [0, 1, 2, 3] and all(o[1] is None for o in outcomes)
