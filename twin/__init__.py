@@ -39,6 +39,7 @@ _API = {
     "nominal_pressure_note": ".validity",
     "nominal_pressure_kpa": ".validity",
     "blend_density_t_m3": ".validity", "shell_capacity_t": ".validity",
+    "SPECIFIC_ENERGY_RANGE_KWH_T": ".validity",
 }
 
 __all__ = [
@@ -54,6 +55,6 @@ __all__ = [
     "file_sha256", "is_grindtwin_checkout", "new_folder_beside", "pxx_um", "reference_ores", "nominal_pressure_note", "trajectory_notes", "write_text_atomically",
     "LockError", "acquire_lock", "release_lock", "remove_by_name", "replace_folder", "temporaries_of",
     "write_atomically", "write_beside", "check_size_mill_input", "sample_count", "nominal_pressure_kpa",
-    "blend_density_t_m3", "shell_capacity_t",
+    "blend_density_t_m3", "shell_capacity_t", "SPECIFIC_ENERGY_RANGE_KWH_T",
 ]
 __getattr__, __dir__ = lazy_face(__name__, _API)

@@ -28,6 +28,7 @@ from .scaleup import scale_breakage
 from .ore import CLAY_MINERALS, CUSHIONING_MINERALS, Blend, Mineralogy, load_ore
 from .sizes import GatesGaudinSchuhmann, SizeGrid, TabulatedPSD, discretise, pxx_um
 from .solve import simulate, steady_state, steady_state_at_load
+from .validity import nominal_feed_note
 
 #: The effects of the laboratory mill's calibration: a continuous grate-discharge mill with load
 #: dynamics, speed-dependent rates, cushioning by clay and mica, clay slurry rheology, and power.
@@ -130,6 +131,7 @@ class Twin:
             coefficients=self.coefficients, n_mixers=len(mixer_fracs), mixer_fracs=mixer_fracs, effects=list(effects),
             effect_options=dict(effect_options or {}))
         self.notes += sized_circuit_notes(self.spec)  # a mill sized in one circuit, run in another
+        self.notes += [n for n in [nominal_feed_note(self.mill)] if n]  # another mill's nominal feed
         self.model = Model(self.spec)
 
     def scaled_breakage(self, params: BreakageParams, density_t_m3: float | None = None) -> BreakageParams:

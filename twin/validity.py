@@ -57,6 +57,29 @@ def roping_note(spec, outputs: dict) -> str:
 WORK_INDEX_RANGE_KWH_T = (5.0, 60.0)
 
 
+#: Specific energies [kWh/t] a ball mill draws: some 3-25 kWh/t (Bond's work index times the size reduction's
+#: term), so a power or feed outside this range is one in other units, or a feed rate of another mill.
+SPECIFIC_ENERGY_RANGE_KWH_T = (0.5, 100.0)
+
+
+def nominal_feed_note(mill) -> str:
+    """A note when a mill's nominal feed [t/h] is not one its net power at nominal speed grinds
+    (:data:`SPECIFIC_ENERGY_RANGE_KWH_T`), else "": a Mill made from another (``Mill.with_`` of new dimensions)
+    keeps that mill's nominal feed, which a twin's default feed then is (a 3 m mill fed the lab mill's
+    0.031 t/h ground to 1.6 um, the notes blaming the breakage rates' units)."""
+    from .mill import power_kw
+
+    power = float(power_kw(mill, mill.speed_nominal_frac_critical))
+    energy = power / mill.feed_nominal_tph
+    lo, hi = SPECIFIC_ENERGY_RANGE_KWH_T
+    if lo <= energy <= hi:
+        return ""
+    return (f"mill {mill.name!r}: its nominal feed {mill.feed_nominal_tph:.4g} t/h at its {power:.4g} kW (nominal "
+            f"speed) is {energy:.3g} kWh/t, outside the {lo:g}-{hi:g} kWh/t ball mills draw; a Mill made from another "
+            "(with_ of new dimensions) keeps that mill's feed_nominal_tph, the twin's default feed: give this mill's "
+            "own (with_(feed_nominal_tph=...))")
+
+
 def work_index_note(spec, outputs: dict, product_mass) -> str:
     """A note when the state's operating work index W_io = E / (10 (P80^-1/2 - F80^-1/2)) (Bond's
     law, sizes in um, E the net specific energy kWh/t; Rowland 1972) lies outside

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 
-from twin import MILLS, TwinInputError, get_mill, is_preset_file, power_kw
+from twin import MILLS, SPECIFIC_ENERGY_RANGE_KWH_T, TwinInputError, get_mill, is_preset_file, power_kw
 
 #: A feed rate above this multiple of the mill's nominal feed rate is refused: an order of
 #: magnitude above nominal is no operating point of that mill (its hold-up would be many
@@ -34,10 +34,6 @@ RPM_RANGE = (5.0, 40.0)
 P80_MIN_UM = 1.0
 
 
-#: Specific energies [kWh/t] a ball mill's given net power may mean at the scene's feed: ball mills draw
-#: some 3-25 kWh/t (Bond's work index times the size reduction's term); a power in MW (1000x low) or W
-#: (1000x high) lands outside.
-SPECIFIC_ENERGY_RANGE_KWH_T = (0.5, 100.0)
 #: A given net power beside the scene's own mill dimensions may differ from Bond's power for them by
 #: at most this factor either way: Bond's equation predicts a mill's power within some 10-20 % (Morrell
 #: 2004), so a factor of 2 is a size or a power in other units (a diameter in feet: 2 % of Bond's).
@@ -153,7 +149,8 @@ def own_dimensions(mill_keys, preset_mill) -> bool:
 
 def net_power_problem(preset, mill_keys: dict | None, feed_tph: float | None, speed: float | None = None) -> str | None:
     """Why a scene's ``mill.net_power_kw`` is implausible, or None: the specific energy it means at the
-    scene's feed outside :data:`SPECIFIC_ENERGY_RANGE_KWH_T`, or, beside the scene's own dimensions,
+    scene's feed outside :data:`twin.SPECIFIC_ENERGY_RANGE_KWH_T` (a power in MW or W lands outside), or,
+    beside the scene's own dimensions,
     more than :data:`NET_POWER_BOND_FACTOR_MAX` from Bond's power for them at the scene's ``speed`` (where the
     power was measured; the preset's own when None: Bond's at 0.70 was quoted for a mill run at 0.74)."""
     keys = mill_keys if isinstance(mill_keys, dict) else {}

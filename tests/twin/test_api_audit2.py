@@ -155,3 +155,20 @@ def test_a_steady_state_without_feed_says_which_outputs_are_undefined():
     nan = {k for k, v in ss.outputs.items() if isinstance(v, float) and np.isnan(v)}
     assert nan == set(note[0].split(" undefined")[0].split(", "))  # every NaN named, nothing else
     assert not any("undefined" in n for n in t.steady().notes)
+
+
+def test_a_mill_keeping_another_mills_nominal_feed_is_noted():
+    """LAB.with_(diameter_m=3, length_m=4.5) kept the lab mill's 0.031 t/h as its nominal feed, the twin's default:
+    its steady state ground to 1.6 um with notes that blamed the breakage rates' units. A note now names the nominal
+    feed, the power and the specific energy they mean; the shipped mills have none, nor the big mill given its own."""
+    from twin import SPECIFIC_ENERGY_RANGE_KWH_T, power_kw
+
+    big = LAB.with_(diameter_m=3.0, length_m=4.5)
+    power = power_kw(big, big.speed_nominal_frac_critical)
+    assert power / big.feed_nominal_tph > SPECIFIC_ENERGY_RANGE_KWH_T[1]
+    notes = [n for n in Twin("B", mill=big).steady().notes if "nominal feed" in n]
+    assert len(notes) == 1 and notes[0].startswith("mill 'lab': its nominal feed 0.031 t/h at its ")
+    assert f"is {power / big.feed_nominal_tph:.3g} kWh/t, outside the 0.5-100 kWh/t ball mills draw" in notes[0]
+    own = big.with_(feed_nominal_tph=power / 12.0)  # 12 kWh/t
+    for mill in ("lab", "industrial", own):
+        assert not [n for n in Twin("B", mill=mill).notes if "nominal feed" in n], mill
