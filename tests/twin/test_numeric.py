@@ -68,3 +68,29 @@ def test_newton_on_sparse_blocks_finds_the_dense_steady_state(lab, monkeypatch):
     assert np.allclose(sparse.x, ss.x, rtol=1e-9, atol=1e-15) and sparse.p80_um == pytest.approx(ss.p80_um, rel=1e-9)
     assert sparse_load.feed_tph == pytest.approx(dense_load.feed_tph, rel=1e-9)
     assert sparse_load.outputs["load_frac"] == pytest.approx(1.1, rel=1e-9)
+
+
+def test_the_newton_solves_run_on_one_blas_thread_and_give_it_back(monkeypatch):
+    """A steady state's dense solves are small: on a 2-core machine beside another busy process OpenBLAS's second
+    thread made them ~2x slower (benchmarks/results/twin_blas_threads.md). Every solve of a steady state runs with
+    the BLAS libraries at NEWTON_BLAS_THREADS threads; after it they have their own count again."""
+    from threadpoolctl import threadpool_info
+
+    import twin.solve.steady as steady
+    from twin import Twin
+    from twin.solve.numeric import NEWTON_BLAS_THREADS
+
+    def blas_threads():
+        return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+
+    own = blas_threads()
+    seen, solve = [], steady._solve
+
+    def watched(A, b):
+        seen.append(blas_threads())
+        return solve(A, b)
+
+    monkeypatch.setattr(steady, "_solve", watched)
+    Twin("B").steady()
+    assert seen and all(threads == [NEWTON_BLAS_THREADS] * len(own) for threads in seen)
+    assert blas_threads() == own

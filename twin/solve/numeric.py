@@ -18,6 +18,25 @@ import numpy as np
 import scipy.sparse
 
 
+#: BLAS threads for a Newton step's dense solve (threadpoolctl; None: the libraries' own count): its matrices, at
+#: most the dense limit's 600 unknowns, are too small for a second thread to pay, and beside another busy process
+#: a two-thread solve waited for the busy core (benchmarks/results/twin_blas_threads.md).
+NEWTON_BLAS_THREADS = 1
+
+
+@lru_cache(maxsize=1)
+def _blas_controller():
+    from threadpoolctl import ThreadpoolController  # scans the loaded libraries: once
+
+    return ThreadpoolController()
+
+
+def newton_blas_threads():
+    """A context in which the BLAS libraries run :data:`NEWTON_BLAS_THREADS` threads (their own count again
+    after it)."""
+    return _blas_controller().limit(limits=NEWTON_BLAS_THREADS, user_api="blas")
+
+
 class Evaluator:
     """Numeric evaluation of ``fn`` (dense vector arguments). A call returns the results whose
     index is in ``matrices`` as 2-D arrays, or with ``sparse`` as scipy CSC matrices (CasADi's

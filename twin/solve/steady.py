@@ -16,7 +16,7 @@ import scipy.sparse.linalg
 
 from ..errors import OverloadError, SolverError, TwinInputError, check_range
 from ..mill import load_status
-from .numeric import Evaluator
+from .numeric import Evaluator, newton_blas_threads
 from .simulate import PER_FEED_OUTPUTS, integrate_constant
 from ..sizes import pxx_um
 from ..validity import nominal_pressure_kpa, nominal_pressure_note, shell_capacity_t, state_notes
@@ -118,8 +118,14 @@ def _solve(A, b):
 
 def _newton(model, x, u, d, load_target=None, max_iter: int = 60):
     """Damped Newton on f(x) = 0 (and holdup(x) = load_target x H_nom, solving for the feed when
-    a target is given), on the sparse DAE form. Steps are cut so masses stay non-negative.
+    a target is given), on the sparse DAE form. Steps are cut so masses stay non-negative. Its
+    dense solves on :data:`twin.solve.numeric.NEWTON_BLAS_THREADS` BLAS threads.
     Returns (x, u, ok)."""
+    with newton_blas_threads():
+        return _newton_steps(model, x, u, d, load_target, max_iter)
+
+
+def _newton_steps(model, x, u, d, load_target, max_iter: int):
     jac = _jacobian_evaluator(model)
     holdup = Evaluator(model.outputs[_filling(model)]) if load_target is not None else None
     h_nom = model.spec.holdup_nominal_t
