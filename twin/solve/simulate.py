@@ -35,7 +35,7 @@ DAE_MIN_RTOL = 1e-10
 #: IDAS computes consistent initial derivatives (without it a restart from rest fails the first
 #: error test) and leaves the aggregates, exact functions of x, out of its error test; its
 #: Newton systems are solved by a sparse LU (CSparse) on the DAE form's sparse Jacobian, not
-#: densely (3x faster on a 300-state model: benchmarks/results/twin_open_loop.md).
+#: densely (faster on the replay's 300-state plant: benchmarks/results/twin_open_loop.md).
 IDAS_OPTIONS = {"calc_ic": True, "suppress_algebraic": True, "linear_solver": "csparse"}
 
 #: An open-loop input's value just before a sample is read this many sample periods before it.
