@@ -805,7 +805,8 @@ def cmd_steady(args) -> int:
             ss = _steady_or_refuse(lambda: twin.steady(feed_tph=args.feed_tph, speed_frac_critical=args.speed),
                                    what, args.feed_tph if args.feed_tph is not None else twin.mill.feed_nominal_tph)
         refuse_overflow(twin, ss, args.allow_overflow, what)
-        kpis = {k: v for k, v in ss.summary().items() if k in STEADY_KEYS} | {"source": "twin"}
+        kpis = {k: v for k, v in ss.summary().items()
+                if k in STEADY_KEYS or k.startswith("ore_") and k.endswith("_p80_um")} | {"source": "twin"}
     unc = None
     if args.uncertainty is not None:
         from twin.calibration import min_replicates, steady_intervals

@@ -103,3 +103,27 @@ def test_each_ore_is_held_by_the_grate_at_its_own_density():
     rate_h = twin.model.evaluate("product_tph", x, u, d)[1:-1] / (content * (factors[0] + factors[1]))
     assert rate_h == pytest.approx(np.full(rate_h.size, rate_h[0]), rel=1e-9)
     assert np.all(factors[1] <= factors[0]) and (factors[1] / factors[0]).min() < 0.2  # the dense ore is held back
+
+
+def test_each_ores_product_is_reported_and_a_dense_ore_is_ground_finer():
+    """SteadyState.ore_p80_um: each ore's product P80. The ores' products add up to the product, class by class;
+    two ores of the same breakage in the cyclone circuit grind alike when the twin holds them at one density, and
+    the denser one finer when each is held and cut at its own (the overgrinding of a dense mineral in a closed
+    circuit: Laplante & Finch 1984). The summary lists them where more than one ore makes a product."""
+    options = {"classification": {"kind": "hydrocyclone"}}
+    same = Twin(["B"], mill="industrial", effect_options=options)
+    breakage = same.scaled_breakage(same.calibration.breakage(same.blend.ores[0]))
+    ores = {"B": breakage, "PY": breakage}
+    own = Twin(["B", PYRITE_RICH], mill="industrial", effect_options=options, ore_breakage=ores)
+    one = Twin(["B", PYRITE_RICH], mill="industrial", effect_options=options, ore_breakage=ores,
+               solids_density_t_m3=own.spec.solids_density_t_m3)
+    by_own, by_one = (t.steady(feed_tph=23.0, blend={"B": 0.5, "PY": 0.5}) for t in (own, one))
+    flows = np.asarray(own.model.outputs["ore_product_tph"](by_own.x, by_own.u, by_own.d), float)
+    assert flows.sum(axis=1) == pytest.approx(by_own.psd, rel=1e-12, abs=1e-15)
+    assert by_one.ore_p80_um["PY"] == pytest.approx(by_one.ore_p80_um["B"], rel=1e-9)
+    assert by_own.ore_p80_um["PY"] < 0.95 * by_own.ore_p80_um["B"]
+    assert by_own.ore_p80_um["PY"] < by_own.p80_um < by_own.ore_p80_um["B"]
+    assert {k: v for k, v in by_own.summary().items() if k.startswith("ore_")} == {
+        "ore_B_p80_um": by_own.ore_p80_um["B"], "ore_PY_p80_um": by_own.ore_p80_um["PY"]}
+    alone = own.steady(feed_tph=23.0, blend={"B": 1.0, "PY": 0.0})
+    assert np.isnan(alone.ore_p80_um["PY"]) and not any(k.startswith("ore_") for k in alone.summary())

@@ -28,7 +28,7 @@ class Transport(Effect):
     name = "transport"
     uses = ("discharge_rate_law", "discharge_class_factor", "product_split", "flow_multiplier", "feed_arrival_tph",
             "feed_to_classifier")
-    outputs = ("product_tph", "throughput_tph", "discharge_tph", "p80_um", "psd_frac")
+    outputs = ("product_tph", "throughput_tph", "discharge_tph", "p80_um", "psd_frac", "ore_product_tph")
     source = "Austin, Klimpel & Luckie (1984), ch. 9 (mixers in series)"
     summary = "feed in, discharge out, N mixers in series; product P80"
 
@@ -65,6 +65,7 @@ class Transport(Effect):
             product = discharge
         product_tph = sum(product)
         ctx.output("product_tph", product_tph)  # per size class
+        ctx.output("ore_product_tph", ca.horzcat(*product))  # per size class (rows) and ore (columns)
         ctx.output("throughput_tph", ca.sum1(product_tph))
         ctx.output("discharge_tph", ca.sum1(sum(discharge)))
         ctx.output("p80_um", smooth_pxx(spec.grid, product_tph))

@@ -38,16 +38,26 @@ class SteadyState:
     psd: np.ndarray  # product flow per class [t/h]
     method: str
     notes: list = field(default_factory=list)  # where the models do not describe it (twin.validity)
+    ore_p80_um: dict = field(default_factory=dict)  # each ore's own product P80 (exact), by ore name
 
     @property
     def feed_tph(self) -> float:
         return float(self.u[0])
 
     def summary(self) -> dict:
+        """The inputs, the P80 (and where more than one ore makes a product each one's, :data:`ORE_P80_KEY`), the
+        scalar outputs and the load status."""
         out = {"feed_tph": self.feed_tph, "speed_frac_critical": float(self.u[1]), "p80_um": self.p80_um}
+        ores = {name: v for name, v in self.ore_p80_um.items() if math.isfinite(v)}
+        if len(ores) > 1:
+            out |= {ORE_P80_KEY.format(name): v for name, v in ores.items()}
         out |= {k: v for k, v in self.outputs.items() if k not in ("p80_um", "p80_smooth_um")}
         out["load_status"] = self.load_status
         return out
+
+
+#: The summary's key of one ore's product P80 (a unit-suffixed label, as every key; no output's name starts so).
+ORE_P80_KEY = "ore_{}_p80_um"
 
 
 @lru_cache(maxsize=64)
@@ -216,7 +226,17 @@ def _result(model, x, u, d, method) -> SteadyState:
                         outs, psd, nominal_pressure_kpa(model))
     notes.append(_undefined_note(float(u[0]), outs))
     notes = [n for n in notes if n]
-    return SteadyState(x, u, d, outs, p80, status, psd, method, notes)
+    return SteadyState(x, u, d, outs, p80, status, psd, method, notes, _ore_p80_um(model, x, u, d))
+
+
+def _ore_p80_um(model, x, u, d) -> dict:
+    """Each ore's product P80 [um] (NaN for an ore with no product): the ores leave a classifier at their own
+    cuts, so a dense ore's product is finer than the blend's."""
+    if "ore_product_tph" not in model.outputs:
+        return {}
+    flows = np.asarray(model.outputs["ore_product_tph"](x, u, d), float)
+    return {name: pxx_um(model.spec.grid, flows[:, c]) if flows[:, c].sum() > 0 else math.nan
+            for c, name in enumerate(model.spec.component_names)}
 
 
 def _undefined_note(feed_tph: float, outs: dict) -> str:
