@@ -12,6 +12,7 @@ import contextlib
 import functools
 import math
 import os
+import re
 import signal
 import sys
 import threading
@@ -608,7 +609,7 @@ def undefined_to_none(kpis: dict, unc: dict | None = None, noted: list[str] = ()
     is not finite (P80 without a product); the same in the uncertainty intervals ``unc``. Returns
     the notes."""
     notes = []
-    named = " ".join(noted)
+    named = set(re.findall(r"\w+", " ".join(noted)))  # the names the notes hold, as words
     if kpis.get("feed_tph") == 0 and "specific_energy_kwh_t" in kpis:
         kpis["specific_energy_kwh_t"] = None
         notes += [] if "specific_energy_kwh_t" in named else ["specific_energy_kwh_t is undefined at zero feed"]
@@ -805,8 +806,8 @@ def cmd_steady(args) -> int:
             ss = _steady_or_refuse(lambda: twin.steady(feed_tph=args.feed_tph, speed_frac_critical=args.speed),
                                    what, args.feed_tph if args.feed_tph is not None else twin.mill.feed_nominal_tph)
         refuse_overflow(twin, ss, args.allow_overflow, what)
-        kpis = {k: v for k, v in ss.summary().items()
-                if k in STEADY_KEYS or k.startswith("ore_") and k.endswith("_p80_um")} | {"source": "twin"}
+        ores = ss.ore_summary()  # each ore's P80, beside the blend's
+        kpis = {k: v for k, v in ss.summary().items() if k in STEADY_KEYS or k in ores} | {"source": "twin"}
     unc = None
     if args.uncertainty is not None:
         from twin.calibration import min_replicates, steady_intervals
@@ -1096,7 +1097,7 @@ def cmd_bench(args) -> int:
             raise SceneError(f"bench {args.target or ''}: ARGS are for one benchmark by name, not a layer "
                              f"(got {' '.join(args.script_args)})")
         names = [n for layer in ([args.target] if args.target else BENCH_LAYERS) for n in BENCH_LAYERS[layer]]
-        if args.list and args.target is None:  # the layers' scripts, then every other one (it listed 8 of 30)
+        if args.list and args.target is None:  # the layers' scripts, then every other one (it listed 8 only)
             layered = set(names)
             print("\n".join([str(root / f"{n}.py") for n in names] + ["by name (grindtwin bench NAME -- ARGS):"]
                             + [f"  {root / f'{n}.py'}" for n in known if n not in layered]))

@@ -45,15 +45,17 @@ class SteadyState:
         return float(self.u[0])
 
     def summary(self) -> dict:
-        """The inputs, the P80 (and where more than one ore makes a product each one's, :data:`ORE_P80_KEY`), the
-        scalar outputs and the load status."""
+        """The inputs, the P80 (and :meth:`ore_summary`), the scalar outputs and the load status."""
         out = {"feed_tph": self.feed_tph, "speed_frac_critical": float(self.u[1]), "p80_um": self.p80_um}
-        ores = {name: v for name, v in self.ore_p80_um.items() if math.isfinite(v)}
-        if len(ores) > 1:
-            out |= {ORE_P80_KEY.format(name): v for name, v in ores.items()}
+        out |= self.ore_summary()
         out |= {k: v for k, v in self.outputs.items() if k not in ("p80_um", "p80_smooth_um")}
         out["load_status"] = self.load_status
         return out
+
+    def ore_summary(self) -> dict:
+        """Each ore's product P80 under :data:`ORE_P80_KEY`, where more than one ore makes a product (else {})."""
+        ores = {name: v for name, v in self.ore_p80_um.items() if math.isfinite(v)}
+        return {ORE_P80_KEY.format(name): v for name, v in ores.items()} if len(ores) > 1 else {}
 
 
 #: The summary's key of one ore's product P80 (a unit-suffixed label, as every key; no output's name starts so).
@@ -201,16 +203,12 @@ def _check(model, x, u, d, how: str):
     return x
 
 
-@lru_cache(maxsize=64)
-def _product_psd(model) -> ca.Function:
-    return model.product_psd_function()
-
-
 def _result(model, x, u, d, method) -> SteadyState:
     outs = _scalar_outputs(model, x, u, d)
     for name in (n for n in PER_FEED_OUTPUTS if n in outs and not u[0] > 0.0):  # undefined without feed
         outs[name] = math.nan
-    psd = np.asarray(_product_psd(model)(x, u, d)).ravel()
+    flows = np.asarray(model.outputs["ore_product_tph"](x, u, d), float)  # per size class and ore
+    psd = flows.sum(axis=1)  # the product per size class, added as the model adds it (ore by ore)
     p80 = pxx_um(model.spec.grid, psd) if psd.sum() > 0 else math.nan
     # sizes of nothing are undefined: the model's smooth P80 gives ~1.6 um for no product, which an
     # analyser's lag (p80_measured_um) then reports; the content of an empty mill likewise (its
@@ -226,17 +224,14 @@ def _result(model, x, u, d, method) -> SteadyState:
                         outs, psd, nominal_pressure_kpa(model))
     notes.append(_undefined_note(float(u[0]), outs))
     notes = [n for n in notes if n]
-    return SteadyState(x, u, d, outs, p80, status, psd, method, notes, _ore_p80_um(model, x, u, d))
+    return SteadyState(x, u, d, outs, p80, status, psd, method, notes, _ore_p80_um(model.spec, flows))
 
 
-def _ore_p80_um(model, x, u, d) -> dict:
-    """Each ore's product P80 [um] (NaN for an ore with no product): the ores leave a classifier at their own
-    cuts, so a dense ore's product is finer than the blend's."""
-    if "ore_product_tph" not in model.outputs:
-        return {}
-    flows = np.asarray(model.outputs["ore_product_tph"](x, u, d), float)
-    return {name: pxx_um(model.spec.grid, flows[:, c]) if flows[:, c].sum() > 0 else math.nan
-            for c, name in enumerate(model.spec.component_names)}
+def _ore_p80_um(spec, flows) -> dict:
+    """Each ore's product P80 [um] (NaN for an ore with no product; ``flows`` per size class and ore): the ores
+    leave a classifier at their own cuts, so a dense ore's product is finer than the blend's."""
+    return {name: pxx_um(spec.grid, flows[:, c]) if flows[:, c].sum() > 0 else math.nan
+            for c, name in enumerate(spec.component_names)}
 
 
 def _undefined_note(feed_tph: float, outs: dict) -> str:
