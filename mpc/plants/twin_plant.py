@@ -8,7 +8,7 @@ import numpy as np
 
 from mpc.errors import MpcInputError
 from twin import pxx_um
-from twin.solve import step
+from twin.solve import ORE_P80_KEY, has_ore_products, ore_p80_um, step
 
 
 #: Outputs every plant's ``measure`` returns (the columns the KPIs use).
@@ -19,7 +19,8 @@ LOOP_OWN_COLUMNS = ("p80_um", "p80_measured_um")
 
 class TwinPlant:
     """The plant protocol (:mod:`mpc.plants`) on a twin's :class:`twin.model.Model`: P80 from the
-    product size distribution (:func:`twin.sizes.pxx_um`, nan for an empty product), the
+    product size distribution (:func:`twin.sizes.pxx_um`, nan for an empty product; a mill of several ores
+    each ore's too, as in an open-loop run's frame), the
     outputs :data:`PLANT_OUTPUTS` of the model (the specific energy nan at zero feed, as in
     :func:`twin.solve.simulate.outputs_frame`), and :func:`twin.solve.simulate.step`."""
 
@@ -27,6 +28,8 @@ class TwinPlant:
         self.model = model
         self.component_names = tuple(model.spec.component_names)
         self._psd_fn = model.product_psd_function()
+        # a mill of several ores: each ore's product, whose sum is the product (one evaluation for both)
+        self._ore_fn = model.outputs["ore_product_tph"] if has_ore_products(model) else None
         # every scalar output, as an open-loop run's frame has them (a closed loop lacked feed_inventory_t,
         # so its mass balance could not be closed, and the slurry's and the contents' columns), but the
         # model's smooth P80 and analyser lag: the loop's P80 is the product's (above), its reading the sensor's
@@ -38,8 +41,14 @@ class TwinPlant:
         return self.model.d_vector(blend, hardness)
 
     def measure(self, x, u, d) -> dict:
-        psd = np.asarray(self._psd_fn(x, u, d), float).ravel()
-        vals = {"p80_um": pxx_um(self.model.spec.grid, psd) if psd.sum() > 0 else math.nan}
+        grid = self.model.spec.grid
+        if self._ore_fn is None:
+            psd, ores = np.asarray(self._psd_fn(x, u, d), float).ravel(), {}
+        else:
+            flows = np.asarray(self._ore_fn(x, u, d), float)
+            psd = flows.sum(axis=1)  # the product per size class, added as the model adds it (ore by ore)
+            ores = {ORE_P80_KEY.format(k): v for k, v in ore_p80_um(grid, self.component_names, flows).items()}
+        vals = {"p80_um": pxx_um(grid, psd) if psd.sum() > 0 else math.nan} | ores
         vals.update({key: float(fn(x, u, d)) for key, fn in self._outs.items()})
         if not float(np.asarray(u, float).ravel()[0]) > 0.0:  # energy per tonne fed: undefined without
             vals["specific_energy_kwh_t"] = math.nan       # feed (the model's division floor gives ~1e7)

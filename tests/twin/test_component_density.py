@@ -127,3 +127,32 @@ def test_each_ores_product_is_reported_and_a_dense_ore_is_ground_finer():
         "ore_B_p80_um": by_own.ore_p80_um["B"], "ore_PY_p80_um": by_own.ore_p80_um["PY"]}
     alone = own.steady(feed_tph=23.0, blend={"B": 1.0, "PY": 0.0})
     assert np.isnan(alone.ore_p80_um["PY"]) and not any(k.startswith("ore_") for k in alone.summary())
+
+
+def test_each_ores_product_p80_is_in_a_runs_frame_and_a_closed_loops_rows():
+    """A run's frame and the closed loop's plant readings carry each ore's product P80 beside the product's: at a
+    steady state they are SteadyState.ore_p80_um; through a blend step the product's P80 lies between its ores' at
+    every sample (the product's passing at any size is its ores' passing weighted by their flows, and P80
+    interpolates passing linearly in log size); a twin of one ore has no such column."""
+    from mpc.plants.twin_plant import TwinPlant
+
+    twin = Twin(["B", PYRITE_RICH], mill="industrial", effect_options={"classification": {"kind": "hydrocyclone"}})
+    ss = twin.steady(feed_tph=23.0, blend={"B": 0.5, "PY": 0.5})
+    keys = {"B": "ore_B_p80_um", "PY": "ore_PY_p80_um"}
+    run = twin.simulate(0.5, 0.05, feed_tph=23.0, x0=ss.x,
+                        blend=lambda t: {"B": 0.5, "PY": 0.5} if t < 0.1 else {"B": 0.2, "PY": 0.8})
+    frame = run.frame
+    for ore, key in keys.items():
+        assert frame[key].iloc[0] == pytest.approx(ss.ore_p80_um[ore], rel=1e-9)
+    ores = frame[list(keys.values())].to_numpy()
+    assert np.all(ores.min(axis=1) * (1 - 1e-12) <= frame["p80_um"]) and np.all(frame["p80_um"] <= ores.max(axis=1)
+                                                                              * (1 + 1e-12))
+    assert frame["ore_PY_p80_um"].iloc[-1] != pytest.approx(frame["ore_PY_p80_um"].iloc[0], rel=1e-3)  # it moved
+    reading = TwinPlant(twin.model).measure(ss.x, ss.u, ss.d)
+    assert reading["p80_um"] == pytest.approx(ss.p80_um, rel=1e-12)
+    assert {ore: reading[key] for ore, key in keys.items()} == pytest.approx(ss.ore_p80_um, rel=1e-12)
+    single = Twin(["B"], mill="industrial", effect_options={"classification": {"kind": "hydrocyclone"}})
+    one = single.simulate(0.1, 0.05, feed_tph=23.0).frame
+    assert not [c for c in one.columns if c.startswith("ore_")]
+    alone = single.steady(feed_tph=23.0)
+    assert not [k for k in TwinPlant(single.model).measure(alone.x, alone.u, alone.d) if k.startswith("ore_")]

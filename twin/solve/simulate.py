@@ -247,12 +247,32 @@ def simulate(model, x0, duration_h: float, dt_h: float, u_fn, d_fn, rtol=RTOL, a
 
 @lru_cache(maxsize=64)
 def _trajectory_outputs(model, n: int):
-    """One Function evaluating every scalar output and the product PSD at n samples at once."""
+    """One Function evaluating every scalar output, the product PSD and (:func:`has_ore_products`) each ore's
+    product per size class at n samples at once."""
     names = [name for name, fn in model.outputs.items() if fn.size1_out(0) == 1]
-    fn = ca.Function("trajectory_outputs", [model.x, model.u, model.d],
-                     [ca.vertcat(*[model.outputs[k](model.x, model.u, model.d) for k in names]),
-                      model.psd_function()(model.x, model.u, model.d)])
-    return names, fn.map(n)
+    args = (model.x, model.u, model.d)
+    outs = [ca.vertcat(*[model.outputs[k](*args) for k in names]), model.psd_function()(*args)]
+    outs += [model.outputs["ore_product_tph"](*args)] if has_ore_products(model) else []
+    return names, ca.Function("trajectory_outputs", list(args), outs).map(n)
+
+
+#: The key of one ore's product P80 in a steady state's summary and a run's frame (a unit-suffixed label, as
+#: every key; no output's name starts so).
+ORE_P80_KEY = "ore_{}_p80_um"
+
+
+def has_ore_products(model) -> bool:
+    """Whether a model makes more than one ore's product (a continuous mill of several ores), each
+    of which then has its own P80 (:func:`ore_p80_um`)."""
+    return len(model.spec.component_names) > 1 and "ore_product_tph" in model.outputs
+
+
+def ore_p80_um(grid, names, flows) -> dict:
+    """Each ore's product P80 [um] by ore name, NaN for an ore with no product (``flows`` [t/h] per size class
+    and ore, the model's ``ore_product_tph``): the ores leave a classifier at their own cuts, so a dense ore's
+    product is finer than the blend's."""
+    flows = np.asarray(flows, float)
+    return {name: pxx_um(grid, flows[:, c]) if flows[:, c].sum() > 0 else math.nan for c, name in enumerate(names)}
 
 
 #: Outputs per tonne of fresh feed, undefined without feed (the model's floor on the feed gave ~1e7 kWh/t, and a
@@ -262,13 +282,14 @@ PER_FEED_OUTPUTS = ("specific_energy_kwh_t", "circulating_load_frac")
 
 def outputs_frame(model, xs, us, ds, time_h, exact_p80=True) -> pd.DataFrame:
     """Scalar outputs along a trajectory as a DataFrame (one row per sample); ``p80_um`` (a batch's
-    ``content_p80_um``) exact, the model's smooth P80 ``p80_smooth_um``; without ``exact_p80`` the smooth one only."""
+    ``content_p80_um``) exact, the model's smooth P80 ``p80_smooth_um``; without ``exact_p80`` the smooth one only.
+    A mill of several ores has each ore's exact product P80 too (:data:`ORE_P80_KEY`, NaN where an ore makes none)."""
     cols = {"time_h": time_h, "feed_tph": us[:, 0], "speed_frac_critical": us[:, 1]}
     for i, name in enumerate(model.spec.component_names):
         cols[f"blend_{name}_frac"] = ds[:, i]
     cols["hardness_scale"] = ds[:, -1]
     names, fn = _trajectory_outputs(model, len(time_h))
-    scalars, psd = (np.asarray(v) for v in fn(xs.T, us.T, ds.T))
+    scalars, psd, *ores = (np.asarray(v) for v in fn(xs.T, us.T, ds.T))
     cols |= {name: scalars[i] for i, name in enumerate(names)}
     for name in (n for n in PER_FEED_OUTPUTS if n in cols):
         cols[name] = np.where(us[:, 0] > 0, cols[name], np.nan)
@@ -280,6 +301,11 @@ def outputs_frame(model, xs, us, ds, time_h, exact_p80=True) -> pd.DataFrame:
     if exact_p80:
         cols[p80] = [pxx_um(model.spec.grid, psd[:, j]) if psd[:, j].sum() > 0 else math.nan
                      for j in range(psd.shape[1])]
+    if exact_p80 and ores:  # each ore's own P80, its columns present whatever the samples' blends
+        comps = model.spec.component_names
+        flows = ores[0].reshape(psd.shape[0], len(time_h), len(comps))  # map() puts the samples' matrices side by side
+        per_sample = [ore_p80_um(model.spec.grid, comps, flows[:, j]) for j in range(len(time_h))]
+        cols |= {ORE_P80_KEY.format(name): [s[name] for s in per_sample] for name in comps}
     return pd.DataFrame(cols)
 
 

@@ -17,7 +17,7 @@ import scipy.sparse.linalg
 from ..errors import OverloadError, SolverError, TwinInputError, check_range
 from ..mill import load_status
 from .numeric import Evaluator, newton_blas_threads
-from .simulate import PER_FEED_OUTPUTS, integrate_constant
+from .simulate import ORE_P80_KEY, PER_FEED_OUTPUTS, integrate_constant, ore_p80_um
 from ..sizes import pxx_um
 from ..validity import nominal_pressure_kpa, nominal_pressure_note, shell_capacity_t, state_notes
 
@@ -56,10 +56,6 @@ class SteadyState:
         """Each ore's product P80 under :data:`ORE_P80_KEY`, where more than one ore makes a product (else {})."""
         ores = {name: v for name, v in self.ore_p80_um.items() if math.isfinite(v)}
         return {ORE_P80_KEY.format(name): v for name, v in ores.items()} if len(ores) > 1 else {}
-
-
-#: The summary's key of one ore's product P80 (a unit-suffixed label, as every key; no output's name starts so).
-ORE_P80_KEY = "ore_{}_p80_um"
 
 
 @lru_cache(maxsize=64)
@@ -224,14 +220,8 @@ def _result(model, x, u, d, method) -> SteadyState:
                         outs, psd, nominal_pressure_kpa(model))
     notes.append(_undefined_note(float(u[0]), outs))
     notes = [n for n in notes if n]
-    return SteadyState(x, u, d, outs, p80, status, psd, method, notes, _ore_p80_um(model.spec, flows))
-
-
-def _ore_p80_um(spec, flows) -> dict:
-    """Each ore's product P80 [um] (NaN for an ore with no product; ``flows`` per size class and ore): the ores
-    leave a classifier at their own cuts, so a dense ore's product is finer than the blend's."""
-    return {name: pxx_um(spec.grid, flows[:, c]) if flows[:, c].sum() > 0 else math.nan
-            for c, name in enumerate(spec.component_names)}
+    return SteadyState(x, u, d, outs, p80, status, psd, method, notes,
+                       ore_p80_um(model.spec.grid, model.spec.component_names, flows))
 
 
 def _undefined_note(feed_tph: float, outs: dict) -> str:
