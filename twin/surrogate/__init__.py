@@ -17,7 +17,7 @@ _API = {
     "CONDITION_COLUMNS": ".inputs", "as_mineralogy": ".inputs", "blend_mineralogy": ".inputs",
     "feature_frame": ".inputs", "input_columns": ".inputs", "mineral_names": ".inputs",
     "DEFAULT_PARAMS": ".model", "Q_FLOOR": ".model", "Q_LIMIT_FACTOR": ".model", "RANGE_MARGIN": ".model",
-    "SCORE_MARGIN": ".model", "TARGETS": ".model", "TRACE_WT_PCT": ".model", "Surrogate": ".model",
+    "SCORE_MARGIN": ".compiled", "TARGETS": ".model", "TRACE_WT_PCT": ".model", "Surrogate": ".model",
     "cross_validate": ".model", "held_out_split": ".model", "split_xy": ".model",
     "surrogate_steady": ".predict",
     "main": ".train", "train_and_save": ".train",

@@ -17,7 +17,7 @@ from sklearn.preprocessing import FunctionTransformer, PolynomialFeatures, Stand
 
 from ..errors import TwinError, TwinInputError, bad_value
 from ..ore.mineralogy import TEXTURE_COLUMNS, WT_SUFFIX
-from .compiled import (Q_FLOOR, Q_LIMIT_FACTOR, SCORE_MARGIN, TARGETS, CompiledSurrogate, as_rows, checked_predict,
+from .compiled import (Q_FLOOR, Q_LIMIT_FACTOR, TARGETS, CompiledSurrogate, as_rows, checked_predict,
                        domain_problems, plain, score_and_q)
 from .inputs import CONDITION_COLUMNS, input_columns, mineral_names
 
