@@ -77,6 +77,12 @@ class Twin:
                  breakage_map: Callable | None = None, calibration=None,
                  ore_breakage: dict | None = None, solids_density_t_m3: float | None = None,
                  mixer_volume_fracs: Sequence[float] | None = None, calibrated_mill: str | Mill = "lab"):
+        # what the twin is made of, as given: a pickled twin is these, rebuilt (__reduce__)
+        self._arguments = dict(ores=ores, mill=mill, effects=effects, effect_options=effect_options, grid=grid,
+                               n_mixers=n_mixers, feed_p80_um=feed_p80_um, feed_modulus=feed_modulus,
+                               feed_psd=feed_psd, breakage_map=breakage_map, calibration=calibration,
+                               ore_breakage=ore_breakage, solids_density_t_m3=solids_density_t_m3,
+                               mixer_volume_fracs=mixer_volume_fracs, calibrated_mill=calibrated_mill)
         if isinstance(effects, str):  # list("breakage") is its letters
             raise bad_value("Twin", "effects", effects, "a list of effect names, e.g. ['breakage', 'transport']")
         _check_effects(effects, effect_options)
@@ -133,6 +139,12 @@ class Twin:
         self.notes += sized_circuit_notes(self.spec)  # a mill sized in one circuit, run in another
         self.notes += [n for n in [nominal_feed_note(self.mill)] if n]  # another mill's nominal feed
         self.model = Model(self.spec)
+
+    def __reduce__(self):
+        """A twin pickles as the arguments it was made with and is rebuilt from them where it is loaded (a
+        worker process of a pool): its model's CasADi expressions do not pickle. A ``breakage_map`` must then be
+        a module-level function (a lambda does not pickle)."""
+        return _rebuilt, (type(self), self._arguments)
 
     def scaled_breakage(self, params: BreakageParams, density_t_m3: float | None = None) -> BreakageParams:
         """``params`` of the calibrated mill scaled to this twin's mill
@@ -235,6 +247,11 @@ class Twin:
         if not np.all(np.isfinite(fr)) or abs(fr.sum() - 1.0) > 1e-6 or np.any(fr < 0):
             raise bad_value("Twin", "blend", [float(v) for v in fr], "non-negative fractions summing to 1")
         return fr
+
+
+def _rebuilt(cls, arguments: dict):
+    """A pickled twin (:meth:`Twin.__reduce__`) made again from its arguments."""
+    return cls(**arguments)
 
 
 def _one_number(name: str, value, unit: str) -> float:

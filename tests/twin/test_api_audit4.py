@@ -1,13 +1,15 @@
 """A notebook user's slips with the twin's Python API: runs that said less than their steady states, two threads
 in one twin, masses and speeds of the wrong shape or unit, lists edited after the check, errors in another
-function's names."""
+function's names, a twin sent to a worker process."""
 
-from concurrent.futures import ThreadPoolExecutor
+import multiprocessing
+import pickle
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 
 import numpy as np
 import pytest
 
-from twin import BreakageParams, SizeGrid, TabulatedPSD, TwinInputError, pxx_um
+from twin import BreakageParams, SizeGrid, TabulatedPSD, Twin, TwinInputError, pxx_um
 from twin.mill import LAB, bond_power_kw, hogg_fuerstenau_power_kw, power_kw
 from twin.ore.ores import Blend
 
@@ -105,3 +107,20 @@ def test_an_ore_harder_than_every_reference_ore_is_noted_though_its_energy_group
     assert [n for n in notes if "hardness index 12.8 GPa lies outside the 4.41-9.65 GPa" in n]
     assert not [n for n in notes if "energy group Pi" in n]  # the one input compared before
     assert cal.extrapolation_notes(list(reference_ores().values())) == []
+
+
+def test_a_twin_pickles_and_a_worker_process_gets_its_steady_state_to_the_bit():
+    """A Twin in a process pool (a sweep in Python) raised CasADi's "Cannot pickle SX objects": it pickles as the
+    arguments it was made with and is rebuilt from them, so a worker's steady state is the parent's to the bit,
+    with ore breakage given directly, effect options, a grid and mixers of its own kept."""
+    given = BreakageParams.energy_specific(0.009686, 0.659, 2.5, 7093.0, 0.4, 0.65, 4.0)
+    twin = Twin(["B", "D"], mill="industrial", effect_options={"classification": {"kind": "hydrocyclone"}},
+                ore_breakage={"D": given}, grid=SizeGrid(count=24), mixer_volume_fracs=(0.7, 0.15, 0.15))
+    here = twin.steady(feed_tph=23.0, blend={"B": 0.3, "D": 0.7})
+    again = pickle.loads(pickle.dumps(twin))
+    assert again.spec.grid.count == 24 and again.spec.mixer_fracs == twin.spec.mixer_fracs
+    assert again.steady(feed_tph=23.0, blend={"B": 0.3, "D": 0.7}).p80_um == here.p80_um
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        there = pool.submit(twin.steady, feed_tph=23.0, blend={"B": 0.3, "D": 0.7}).result()
+    assert there.p80_um == here.p80_um and np.array_equal(there.x, here.x)
+    assert there.ore_p80_um == here.ore_p80_um and there.notes == here.notes
