@@ -90,6 +90,8 @@ class Twin:
             get_mill(mill)  # a misspelt name said before the calibration loads (a second on a fresh interpreter)
         self.blend = _as_blend(ores)
         self.calibration = load_calibration(calibration)
+        # pickled as read, not as named: a worker does not read an ore's or a calibration's file again
+        self._arguments.update(ores=self.blend, calibration=self.calibration)
         from .calibration import predict_table  # scipy's optimiser with it: only when a twin is built
 
         check_model(self.calibration, predict_table)  # its fit's equations are these (once per file, process)
@@ -141,9 +143,10 @@ class Twin:
         self.model = Model(self.spec)
 
     def __reduce__(self):
-        """A twin pickles as the arguments it was made with and is rebuilt from them where it is loaded (a
-        worker process of a pool): its model's CasADi expressions do not pickle. A ``breakage_map`` must then be
-        a module-level function (a lambda does not pickle)."""
+        """A twin pickles as the arguments it was made with (its ores and calibration as read, not the files
+        they were read from) and is rebuilt from them where it is loaded (a worker process of a pool): its
+        model's CasADi expressions do not pickle. A ``breakage_map`` must then be a module-level function (a
+        lambda does not pickle)."""
         return _rebuilt, (type(self), self._arguments)
 
     def scaled_breakage(self, params: BreakageParams, density_t_m3: float | None = None) -> BreakageParams:

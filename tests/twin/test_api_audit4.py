@@ -109,15 +109,23 @@ def test_an_ore_harder_than_every_reference_ore_is_noted_though_its_energy_group
     assert cal.extrapolation_notes(list(reference_ores().values())) == []
 
 
-def test_a_twin_pickles_and_a_worker_process_gets_its_steady_state_to_the_bit():
+def test_a_twin_pickles_and_a_worker_process_gets_its_steady_state_to_the_bit(tmp_path):
     """A Twin in a process pool (a sweep in Python) raised CasADi's "Cannot pickle SX objects": it pickles as the
     arguments it was made with and is rebuilt from them, so a worker's steady state is the parent's to the bit,
-    with ore breakage given directly, effect options, a grid and mixers of its own kept."""
+    with ore breakage given directly, effect options, a grid and mixers of its own kept; its calibration as read
+    (the file it was read from is gone when the pickle is loaded)."""
+    from twin.calibration.files import DEM_CALIBRATION_PATH
+
     given = BreakageParams.energy_specific(0.009686, 0.659, 2.5, 7093.0, 0.4, 0.65, 4.0)
+    own = tmp_path / "own.json"
+    own.write_bytes(DEM_CALIBRATION_PATH.read_bytes())
     twin = Twin(["B", "D"], mill="industrial", effect_options={"classification": {"kind": "hydrocyclone"}},
-                ore_breakage={"D": given}, grid=SizeGrid(count=24), mixer_volume_fracs=(0.7, 0.15, 0.15))
+                ore_breakage={"D": given}, grid=SizeGrid(count=24), mixer_volume_fracs=(0.7, 0.15, 0.15),
+                calibration=own)
     here = twin.steady(feed_tph=23.0, blend={"B": 0.3, "D": 0.7})
-    again = pickle.loads(pickle.dumps(twin))
+    pickled = pickle.dumps(twin)
+    own.unlink()
+    again = pickle.loads(pickled)
     assert again.spec.grid.count == 24 and again.spec.mixer_fracs == twin.spec.mixer_fracs
     assert again.steady(feed_tph=23.0, blend={"B": 0.3, "D": 0.7}).p80_um == here.p80_um
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
