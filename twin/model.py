@@ -63,6 +63,15 @@ class ModelSpec:
             return None
         return [self.solids_density_t_m3 / r for r in rho]
 
+    def blend_volume_ratio(self, fractions):
+        """The volume of a tonne of a blend (mass ``fractions`` of the components, numbers or CasADi symbols) over
+        a tonne's at the nominal density, Σ f_c ρ_nom / ρ_c: the blend's density is the nominal one over it (the
+        harmonic mean of its components'); 1.0 when they share the nominal density."""
+        weights = self.volume_weights()
+        if weights is None:
+            return 1.0
+        return sum(w * f for w, f in zip(weights, fractions))
+
 
 class Model:
     """A built mill model: symbols, the ODE right-hand side and named outputs as CasADi
@@ -210,11 +219,10 @@ class Model:
         charge), with feed of the given blend."""
         C, N, n = self.shape
         w = self.d_vector(blend_fracs)[:C]
-        weights = self.spec.volume_weights()
         if holdup_t is not None:
             load_frac = holdup_t / self.spec.holdup_nominal_t
-        elif weights is not None:  # tonnes of the blend that fill the nominal hold-up's volume
-            w = w / float(np.dot(w, weights))
+        else:  # tonnes of the blend that fill the nominal hold-up's volume
+            w = w / self.spec.blend_volume_ratio(w)
         m = np.zeros(self.shape)
         for c in range(C):
             m[c, :, :] = (load_frac * self.spec.holdup_nominal_t * np.asarray(self.spec.mixer_fracs)[:, None]

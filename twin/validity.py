@@ -179,10 +179,7 @@ def residence_note(spec) -> str:
 def blend_density_t_m3(spec, fractions) -> float:
     """The solids density [t/m3] of a blend of the spec's components (mass ``fractions`` in their order): the
     harmonic mean of their densities (the nominal blend's when they share one)."""
-    weights = spec.volume_weights()
-    if weights is None:
-        return spec.solids_density_t_m3
-    return spec.solids_density_t_m3 / float(np.dot(np.asarray(fractions, float), weights))
+    return spec.solids_density_t_m3 / float(spec.blend_volume_ratio(np.asarray(fractions, float)))
 
 
 def shell_capacity_t(spec, holdup_t, load_frac=None):

@@ -277,8 +277,7 @@ class EffectContext:
     def density_ratio(self, mass, packed, floor: float):
         """Solids density over the nominal one of ``mass`` [t or t/h] whose volume is ``packed`` (as tonnes at the
         nominal density, :meth:`packed_holdup`); near nothing (``floor``, same units) that of the feed blend."""
-        weights = self.spec.volume_weights()
-        feed = 1.0 / sum(weights[c] * self.blend(c) for c in range(self.n_components))
+        feed = 1.0 / self.spec.blend_volume_ratio([self.blend(c) for c in range(self.n_components)])
         return (mass + floor * feed) / (packed + floor)
 
     def holdup_fraction(self, name: str, frac_per_component):
