@@ -281,12 +281,18 @@ def _run_local(run_case: RunCase, scenes: list[Scene], workers: int | None, prog
                 outcomes[futures[fut]] = _outcome(fut)
                 bar.update()
         except BaseException:  # Ctrl-C, SIGTERM: stop the workers now, not after their cases
-            for fut, i in futures.items():  # cases that finished but were not collected yet are kept too
-                if fut.done() and not fut.cancelled():
-                    outcomes[i] = _outcome(fut)
+            _keep_finished(futures.items(), outcomes)
             _stop_workers(pool)
             raise
         pool.shutdown()
+
+
+def _keep_finished(futures, outcomes: list) -> None:
+    """On a signal: the outcome of every case that finished but was not collected yet (``futures``: pairs of a
+    future, of a process pool or a Dask cluster, and its case's index), so no finished case is lost."""
+    for fut, i in futures:
+        if fut.done() and not fut.cancelled():
+            outcomes[i] = _outcome(fut)
 
 
 def _worker_ignores_signals() -> None:
@@ -341,6 +347,7 @@ def _run_dask(run_case: RunCase, scenes: list[Scene], scheduler: Any, progress: 
     except (OSError, TimeoutError, ValueError) as exc:
         raise RunError(f"cannot reach the Dask scheduler {scheduler!r} within {SCHEDULER_TIMEOUT_S} s: "
                        f"{type(exc).__name__}: {exc}") from None
+    futures: list = []
     try:
         futures = [client.submit(run_one, run_case, s, pure=False) for s in scenes]
         index = {f.key: i for i, f in enumerate(futures)}
@@ -348,6 +355,9 @@ def _run_dask(run_case: RunCase, scenes: list[Scene], scheduler: Any, progress: 
             for fut in dask_completed(futures):
                 outcomes[index[fut.key]] = _outcome(fut)
                 bar.update()
+    except BaseException:  # as the local pool's: cases finished but not yet collected are kept
+        _keep_finished(zip(futures, range(len(scenes))), outcomes)
+        raise
     finally:
         if own:
             client.close()

@@ -147,10 +147,14 @@ def _quick_case(x):
     return {"x": x}
 
 
-def test_a_pools_finished_but_uncollected_cases_are_kept_on_a_signal(monkeypatch):
+@pytest.mark.parametrize("on", ["process pool", "dask cluster"])
+def test_a_pools_finished_but_uncollected_cases_are_kept_on_a_signal(monkeypatch, on):
     """With worker processes, a signal while the sweep collected one finished case labelled the others that had
-    finished meanwhile, not yet collected, "not run" (their results lost): now every finished case is kept.
-    The signal comes at the first collection, a second after it, when all four quick cases are done."""
+    finished meanwhile, not yet collected, "not run" (their results lost): now every finished case is kept, on a
+    Dask cluster too. The signal comes at the first collection, a second after it, when all four quick cases are
+    done."""
+    import distributed
+
     from scenarios.run import sweep
 
     class SignalAtFirstUpdate:
@@ -170,5 +174,10 @@ def test_a_pools_finished_but_uncollected_cases_are_kept_on_a_signal(monkeypatch
     monkeypatch.setattr(sweep, "tqdm", SignalAtFirstUpdate)
     outcomes = [(None, sweep.NOT_RUN)] * 4
     with pytest.raises(KeyboardInterrupt):
-        sweep._run_local(_quick_case, [0, 1, 2, 3], 2, False, outcomes)
+        if on == "process pool":
+            sweep._run_local(_quick_case, [0, 1, 2, 3], 2, False, outcomes)
+        else:
+            with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                          dashboard_address=None) as cluster:
+                sweep._run_dask(_quick_case, [0, 1, 2, 3], cluster, False, outcomes)
     assert sorted(o[0]["x"] for o in outcomes) == [0, 1, 2, 3] and all(o[1] is None for o in outcomes)
