@@ -111,10 +111,24 @@ class PlantConnection:
             self._variants = {role: self._variant(role, dv) for role, dv in zip(self._write_ids, types)}
             if self.trigger is not None:
                 await self._subscribe(client, self.trigger)
+            await self._check_read_nodes(client)  # after the trigger's own, more specific, check
         except BaseException:
             await self._disconnect(client)
             raise
         self.client = client
+
+    async def _check_read_nodes(self, client: Client) -> None:
+        """NodeError naming every read role whose node the server does not have (a node id mistyped in the tag
+        map): its reads came back BadNodeIdUnknown cycle after cycle, logged once as an unusable reading, so
+        an optional measurement was never used and a missing mode node kept the service in manual."""
+        if not self._read_ids:
+            return
+        found = await client.uaclient.read_attributes(self._read_ids, ua.AttributeIds.DataType)
+        missing = [f"{role}: node {node!r}: the server has no such variable ({status_name(dv.StatusCode.value)})"
+                   for (role, node), dv in zip(self.read_roles.items(), found)
+                   if dv.StatusCode is not None and not dv.StatusCode.is_good()]
+        if missing:
+            raise NodeError("; ".join(missing))
 
     def _variant(self, role: str, dv: ua.DataValue) -> ua.VariantType:
         """The variant type to write ``role``'s node with, from its DataType attribute; NodeError if

@@ -1,6 +1,6 @@
 """The service's session checks the tag map's nodes when it connects: a node the server lacks, a
 text or boolean node for a number and a trigger it cannot monitor each fail naming the role and the
-node (they were written or subscribed cycle after cycle, the server saying only BadTypeMismatch or
+node (they were read, written or subscribed cycle after cycle, the server saying only BadTypeMismatch or
 BadNodeIdUnknown), an integer setpoint node fails it too, and a prediction to an integer node is rounded."""
 
 import asyncio
@@ -83,3 +83,17 @@ def test_an_integer_node_takes_a_prediction_rounded_and_no_setpoint(url):
     assert refused.startswith("setpoints.speed_frac_critical: node ") and "data type Int32" in refused
     assert "give a node of data type Double or Float" in refused
     assert written == 212  # int() wrote 211
+
+
+def test_a_read_node_the_server_lacks_fails_the_connection_naming_role_and_node(url):
+    """A mistyped measurement or mode node read BadNodeIdUnknown every cycle, logged once as an unusable reading:
+    an optional power reading was never used and a missing mode node kept the service in manual, while a missing
+    write node failed the connection. Every missing read node is named; nodes that exist open as before."""
+    async def body(n):
+        return (await _open(url, {"power_kw": n["missing"], "p80_um": n["x"], "mode": n["missing"] + ".mode"}, {}),
+                await _open(url, {"p80_um": n["x"], "mode": n["text"]}, {"setpoints.feed_tph": n["x"]}))
+
+    refused, opened = asyncio.run(_with_nodes(url, body))
+    assert opened == ""
+    assert refused.startswith("power_kw: node ") and "no.such.node" in refused and "BadNodeIdUnknown" in refused
+    assert "; mode: node " in refused and "no.such.node.mode" in refused and "p80_um" not in refused
