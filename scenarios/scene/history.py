@@ -1,6 +1,8 @@
 """Recorded feed histories (CSV or Parquet) turned into a regular time series.
 
-File format. One row per record, a header row; lines starting with ``#`` are comments (a ``#``
+File format. Comma-separated with decimal points, UTF-8 (with or without a byte-order mark), or Parquet; a
+header split by semicolons (Excel's CSV where the comma is the decimal separator) or tabs is refused.
+One row per record, a header row; lines starting with ``#`` are comments (a ``#``
 inside a line is text: Excel's ``#VALUE!`` or ``#N/A`` is refused by rule 5, not read as a comment
 that ends the row).
 - time: ``timestamp`` (ISO 8601) or ``time_h`` (hours, any origin); time 0 is the first record;
@@ -339,6 +341,7 @@ def _read_table(path: Path) -> pd.DataFrame:
             # delimiter on every row (index_col=False) made pandas shift the columns by one
             text = path.read_text(encoding="utf-8-sig")
             lines = "".join(line for line in text.splitlines(keepends=True) if not line.lstrip().startswith("#"))
+            _refuse_other_delimiter(path, lines.partition("\n")[0])
             table = pd.read_csv(io.StringIO(lines), skipinitialspace=True, index_col=False, keep_default_na=False,
                                 na_values=list(MISSING_TEXT))
             # a delimiter closing the header row too makes an unnamed empty column: nothing was recorded in it
@@ -346,9 +349,27 @@ def _read_table(path: Path) -> pd.DataFrame:
                                        if str(c).startswith("Unnamed: ") and table[c].isna().all()])
         if suffix in (".parquet", ".pq"):
             return pd.read_parquet(path)
+    except SceneError:
+        raise
     except (ValueError, OSError, pd.errors.ParserError) as exc:
         raise SceneError(f"{path}: cannot read the history: {exc}") from None
     raise SceneError(f"{path}: history must be .csv or .parquet (got {suffix or 'no suffix'!r})")
+
+
+#: Delimiters of CSV files that are not comma-separated, named in the refusal: Excel writes ";" (and decimal commas)
+#: where the comma is the decimal separator, and "Text (tab-delimited)" files use tabs.
+OTHER_DELIMITERS = {";": "semicolon", "\t": "tab"}
+
+
+def _refuse_other_delimiter(path: Path, header: str) -> None:
+    """A header row split by another delimiter than the comma: pandas read it as one column, warned that data
+    would be lost where decimal commas split the rows, and the time column was reported missing."""
+    found = [name for sep, name in OTHER_DELIMITERS.items() if sep in header]
+    if "," in header or not found:
+        return
+    raise SceneError(f"{path}: the header row is {found[0]}-separated ({header.strip()[:60]!r}...); allowed: a "
+                     "comma-separated file with decimal points (Excel: 'CSV UTF-8 (comma delimited)' with '.' as the "
+                     "decimal separator), or Parquet")
 
 
 def _time_column(raw: pd.DataFrame, where: str) -> tuple[np.ndarray, pd.Timestamp | None]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+import warnings
 import sys
 from pathlib import Path
 
@@ -641,3 +642,18 @@ def test_an_export_that_repeats_an_hour_with_the_same_values_keeps_one_copy(tmp_
     h = read_history(path, DT)
     assert any("60 rows repeat the time of an earlier row" in c for c in h.changes)
     np.testing.assert_allclose(h.frame["feed_tph"].to_numpy(), feed)
+
+
+@pytest.mark.parametrize("sep,name", [(";", "semicolon"), ("\t", "tab")])
+def test_a_history_split_by_semicolons_or_tabs_is_refused_naming_the_delimiter(tmp_path, sep, name):
+    """Excel's CSV where the comma is the decimal separator (byte-order mark, ";", decimal commas, CRLF) was read as
+    one column: pandas warned that data would be lost and the time column was reported missing."""
+    rows = [line.split(",") for line in GOOD_ROWS.splitlines()]
+    text = "\r\n".join(sep.join(cell.replace(".", ",") for cell in row) for row in rows) + "\r\n"
+    path = tmp_path / "excel.csv"
+    path.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # refused before pandas reads it
+        with pytest.raises(SceneError, match=rf"the header row is {name}-separated \('time_h.*quartz_wt_pct.*"
+                                             r"allowed: a comma-separated file with decimal points"):
+            read_history(path, DT)
