@@ -480,7 +480,8 @@ def _numeric(df: pd.DataFrame, cols: list[str], where: str) -> pd.DataFrame:
         if text.any():
             first = raw[text].iloc[0]
             errors.append(f"column {col}: not a number in data rows {_names(df['_row'][text])} "
-                          f"(e.g. {first!r})")
+                          f"(e.g. {first!r}); allowed: a number, or for a missing value (held from the row before, "
+                          "up to the history's max gap) an empty cell or one of " + ", ".join(MISSING_TEXT[1:]))
         inf = np.isinf(num.to_numpy())
         if inf.any():
             errors.append(f"column {col}: infinite value in data rows {_names(df['_row'][inf])}")
