@@ -6,13 +6,14 @@ typed as the server's nodes are typed; optionally a subscription that reports ea
 from __future__ import annotations
 
 import asyncio
+import math
 from dataclasses import dataclass
 from collections.abc import Callable
 from datetime import datetime, timezone
 
 from asyncua import Client, ua
 
-from scenarios.online.quality import Reading
+from scenarios.online.quality import PlausibleRange, Reading, raw_number
 from scenarios.online.security import ClientSecurity, secure_client
 
 #: What a lost or refused connection raises (asyncua's status errors are UaError).
@@ -92,10 +93,13 @@ class PlantConnection:
     optional :class:`Trigger`."""
 
     def __init__(self, url: str, security: ClientSecurity, read_roles: dict[str, str],
-                 write_roles: dict[str, str], timeout_s: float = 2.0, trigger: Trigger | None = None):
+                 write_roles: dict[str, str], timeout_s: float = 2.0, trigger: Trigger | None = None,
+                 write_ranges: dict[str, PlausibleRange] | None = None):
         self.url, self.security, self.timeout_s = url, security, timeout_s
         self.read_roles, self.write_roles = dict(read_roles), dict(write_roles)
         self.trigger = trigger
+        #: write role -> the values the service writes there, in its units: a node holding another is refused
+        self.write_ranges = dict(write_ranges or {})
         self.client: Client | None = None
 
     async def open(self) -> None:
@@ -109,6 +113,7 @@ class PlantConnection:
             self._write_ids = {r: await resolve(client, n) for r, n in self.write_roles.items()}
             types = await client.uaclient.read_attributes(list(self._write_ids.values()), ua.AttributeIds.DataType)
             self._variants = {role: self._variant(role, dv) for role, dv in zip(self._write_ids, types)}
+            await self._check_held_values(client)
             if self.trigger is not None:
                 await self._subscribe(client, self.trigger)
             await self._check_read_nodes(client)  # after the trigger's own, more specific, check
@@ -129,6 +134,27 @@ class PlantConnection:
                    if dv.StatusCode is not None and not dv.StatusCode.is_good()]
         if missing:
             raise NodeError("; ".join(missing))
+
+    async def _check_held_values(self, client: Client) -> None:
+        """NodeError naming every write role (of ``write_ranges``) whose node holds a number outside the range of
+        what the service writes there: a node in other units (a speed in percent of critical, a feed in kg/h) took
+        the service's 0.72 of critical as 0.72 % and its 30 t/h as 30 kg/h, and the plant followed. A node without
+        a usable number (Bad, empty) is not judged."""
+        roles = [r for r in self.write_ranges if r in self._write_ids]
+        if not roles:
+            return
+        held = await client.uaclient.read_attributes([self._write_ids[r] for r in roles], ua.AttributeIds.Value)
+        wrong = []
+        for role, dv in zip(roles, held):
+            good = dv.StatusCode is None or dv.StatusCode.is_good()
+            value = raw_number(dv.Value.Value if dv.Value is not None else None)
+            if good and math.isfinite(value) and value not in self.write_ranges[role]:
+                wrong.append(f"{role}: node {self.write_roles[role]!r} holds {value:g}, outside "
+                             f"{self.write_ranges[role]} that the service writes there: a node in other units "
+                             "(percent? kg/h?) would take its values in its own; give the node of the quantity in the "
+                             "tag map's units")
+        if wrong:
+            raise NodeError("; ".join(wrong))
 
     def _variant(self, role: str, dv: ua.DataValue) -> ua.VariantType:
         """The variant type to write ``role``'s node with, from its DataType attribute; NodeError if

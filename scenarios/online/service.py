@@ -54,7 +54,7 @@ from scenarios.online.opcua import CONNECTION_ERRORS, PlantConnection, Trigger, 
 from scenarios.online.parts import ControlParts
 from scenarios.online.quality import BAD, GOOD, Reading, TagQuality, Verdict, raw_number, severity
 from scenarios.online.security import ClientSecurity
-from scenarios.online.tags import TagMap, blend_range, plausible_range
+from scenarios.online.tags import TagMap, blend_range, plausible_range, setpoint_range
 from scenarios.online.writer import Limit, limit_move
 from scenarios.run.closed_loop import ESTIMATOR_WARMUP_H
 from twin import TwinError, power_kw
@@ -156,7 +156,8 @@ class Service(Stoppable):
             ms = max(TRIGGER_MIN_PUBLISHING_MS, 1e3 * TRIGGER_PUBLISHING_FRAC * self.clock.wall_seconds(self.dt_h))
             trigger = Trigger(self.tags.cycle.on_new, self._on_new, ms)
         return PlantConnection(self.s.url, self.s.security, self.tags.read_roles(), self.tags.write_roles(),
-                               self.tags.connection.request_timeout_s, trigger)
+                               self.tags.connection.request_timeout_s, trigger,
+                               {f"setpoints.{n}": setpoint_range(n, self.scene) for n, _ in self.tags.setpoints})
 
     def _on_new(self, fresh: bool) -> None:
         """The trigger's node has a new value (``fresh``: a new sample): wake the run loop for a cycle."""

@@ -333,6 +333,13 @@ def physical_range(name: str, scene: Scene) -> PlausibleRange:
     raise KeyError(f"no physical range for measurement {name!r}; known: {', '.join(PHYSICAL_REASONS)}")
 
 
+def setpoint_range(name: str, scene: Scene) -> PlausibleRange:
+    """What the service may find in the node of setpoint ``name`` of :class:`Setpoints` on connecting, in the
+    service's units: the quantity's physical range (:func:`physical_range`) with 0 included, a stopped belt's or
+    mill's setpoint."""
+    return replace(physical_range(name, scene), low_open=False)
+
+
 def plausible_range(name: str, m: Measurement, scene: Scene) -> PlausibleRange:
     """The range a reading of measurement ``name`` must lie in: the physical one, narrowed by the
     map's ``plausible_min`` / ``plausible_max`` (included ends)."""

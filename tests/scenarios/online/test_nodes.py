@@ -1,7 +1,8 @@
 """The service's session checks the tag map's nodes when it connects: a node the server lacks, a
 text or boolean node for a number and a trigger it cannot monitor each fail naming the role and the
 node (they were read, written or subscribed cycle after cycle, the server saying only BadTypeMismatch or
-BadNodeIdUnknown), an integer setpoint node fails it too, and a prediction to an integer node is rounded."""
+BadNodeIdUnknown), an integer setpoint node or one holding a value in other units fails it too, and a prediction to
+an integer node is rounded."""
 
 import asyncio
 
@@ -97,3 +98,37 @@ def test_a_read_node_the_server_lacks_fails_the_connection_naming_role_and_node(
     assert opened == ""
     assert refused.startswith("power_kw: node ") and "no.such.node" in refused and "BadNodeIdUnknown" in refused
     assert "; mode: node " in refused and "no.such.node.mode" in refused and "p80_um" not in refused
+
+
+def test_a_setpoint_node_holding_a_value_in_other_units_fails_the_connection(small_scene, small_tags, small_parts,
+                                                                             url, tmp_path):
+    """A speed setpoint node in percent of critical (holding 72) took the service's 0.72 as 0.72 %, and a feed node
+    in kg/h its 30 t/h as 30 kg/h: nothing compared the node with what the service writes there. The service's
+    connection now refuses a node holding a number outside the setpoint's range in the service's units; a stopped
+    mill's 0 and the plant's own setpoints connect."""
+    from .conftest import LockStep
+
+    async def connect_with(values: dict) -> str:
+        ls = LockStep(small_scene, small_tags, small_parts, url, tmp_path / "audit")
+        await ls.plant.start()
+        try:
+            for name, value in values.items():
+                await ls.plant.server.write_attribute_value(
+                    ua.NodeId.from_string(getattr(small_tags.setpoints, name).node),
+                    ua.DataValue(ua.Variant(value, ua.VariantType.Double)))
+            try:
+                await ls.service.connect()
+            except NodeError as exc:
+                return str(exc)
+            await ls.service.shutdown("test end")
+            return ""
+        finally:
+            await ls.plant.stop_server()
+
+    assert asyncio.run(connect_with({})) == ""  # the virtual plant's own setpoints
+    assert asyncio.run(connect_with({"speed_frac_critical": 0.0, "feed_tph": 0.0})) == ""  # a stopped mill
+    refused = asyncio.run(connect_with({"speed_frac_critical": 72.0, "feed_tph": 30000.0}))
+    speed, feed = (f"setpoints.{n}: node {getattr(small_tags.setpoints, n).node!r} holds " for n in
+                   ("speed_frac_critical", "feed_tph"))
+    assert speed + "72, outside [0, 1) of critical that the service writes there" in refused, refused
+    assert feed + "30000, outside [0, " in refused and "(percent? kg/h?)" in refused
