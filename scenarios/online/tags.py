@@ -15,6 +15,7 @@ resolved on connection). Example: ``scenarios/online/data/virtual_plant_tags.tom
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import replace
 from pathlib import Path
@@ -79,6 +80,9 @@ PHYSICAL_REASONS = {
                 "(its preset's, scaled by its power) is no operating point of it",
     "speed_frac_critical": "0 is a stopped mill; at 1 the charge centrifuges",
 }
+
+
+log = logging.getLogger("grindtwin.online.tags")
 
 
 class TagMapError(SceneError):
@@ -243,7 +247,21 @@ def load_tags(path: str | Path, scene: Scene) -> TagMap:
     problems = [f"{path}: {m}" for m in scene_problems(tags, scene)]
     if problems:
         raise TagMapError(_summary(path, problems))
+    for note in scene_notes(tags, scene):
+        log.warning("%s: %s", path, note)
     return complete(tags, scene)
+
+
+def scene_notes(tags: TagMap, scene: Scene) -> list[str]:
+    """What in a valid tag map makes the served loop differ from the scene's own runs: a belt analyser's lead
+    other than the scene's preview (30, minutes given as hours, had the service take the belt's first reading as
+    the mill's feed for 30 h, unsaid)."""
+    ba, lead = tags.belt_analyser, scene.controller.preview_lead_h
+    if ba is None or ba.lead_h is None or math.isclose(ba.lead_h, lead, rel_tol=1e-9, abs_tol=1e-12):
+        return []
+    return [f"belt_analyser.lead_h {ba.lead_h:g} h differs from the scene's controller.preview_lead_h {lead:g} h: the "
+            f"service takes the belt reading of {ba.lead_h:g} h before as the mill's feed now (the first reading "
+            f"until one is that old), where the scene's own runs preview the feed {lead:g} h ahead"]
 
 
 def _summary(path: Path, errors: list[str]) -> str:

@@ -244,3 +244,24 @@ def test_a_max_age_not_above_its_sources_period_is_refused(tmp_path, small_scene
            and "(got 0.05)" in msg
     ok = SMALL_TAGS.replace("max_age_h = 0.15", "max_age_h = 0.051")
     assert online.load_tags(_write(tmp_path, ok), small_scene).measurements.p80_um.max_age_h == 0.051
+
+
+def test_a_belt_lead_other_than_the_scenes_preview_is_said(tmp_path, small_scene, caplog):
+    """A belt analyser's lead of 30 (minutes given as hours) was taken unsaid: the service took the belt's first
+    reading as the mill's feed for 30 h. A lead other than the scene's preview is logged as the map is loaded; the
+    scene's own lead (or none given) is not."""
+    import logging
+
+    def with_lead(lead: str):
+        return _write(tmp_path, SMALL_TAGS.replace("[belt_analyser]\n", f"[belt_analyser]\nlead_h = {lead}\n"))
+
+    with caplog.at_level(logging.WARNING, logger="grindtwin.online"):
+        online.load_tags(_write(tmp_path, SMALL_TAGS), small_scene)
+        online.load_tags(with_lead("0.25"), small_scene)
+        assert caplog.records == []
+        tags = online.load_tags(with_lead("30"), small_scene)
+    assert tags.belt_analyser.lead_h == 30.0  # said, not refused: a belt may be that far from the mill
+    assert [r.getMessage().split(": ", 1)[1] for r in caplog.records] == [
+        "belt_analyser.lead_h 30 h differs from the scene's controller.preview_lead_h 0.25 h: the service takes the "
+        "belt reading of 30 h before as the mill's feed now (the first reading until one is that old), where the "
+        "scene's own runs preview the feed 0.25 h ahead"]
