@@ -9,7 +9,7 @@ that ends the row).
 - composition, one family: mineral wt% columns ``<mineral>_wt_pct`` (e.g. ``quartz_wt_pct``)
   or ore fractions ``ore_<name>_frac`` (``<name>`` an ore of the scene);
 - optional: ``feed_tph``, ``speed_frac_critical``, ``p80_um`` (what the plant did) and the
-  texture ``mean_grain_um``, ``uniformity``, ``association_entropy``.
+  texture ``mean_grain_um``, ``uniformity``, ``association_entropy`` (all three or none).
 Any other column is refused.
 
 Rules, applied in this order; each action is written to ``History.report``:
@@ -461,6 +461,11 @@ def _classify_columns(raw: pd.DataFrame, where: str) -> tuple[list[str], str, li
         m = _MINERAL.match(c).group(1)
         if m not in minerals:
             problems.append(f"column {c!r}: unknown mineral{did_you_mean(m, minerals)}")
+    texture = [c for c in TEXTURE_COLUMNS if c in other]
+    if texture and len(texture) < len(TEXTURE_COLUMNS):  # feed.history_texture would replace the recorded ones
+        problems.append(f"texture column{'s' if len(texture) > 1 else ''} {', '.join(texture)} without "
+                        f"{', '.join(c for c in TEXTURE_COLUMNS if c not in texture)}; allowed: all three texture "
+                        "columns, or none (and the scene's feed.history_texture)")
     if bool(mineral_cols) == bool(ore_cols):
         problems.append("needs one composition family: <mineral>_wt_pct columns or "
                         "ore_<name>_frac columns (not both, not neither)")

@@ -341,8 +341,8 @@ class Feed(Section):
     history: str | None = None
     """A recorded history, CSV or Parquet (path relative to the scene file): a time column
     (``timestamp`` or ``time_h``), mineral wt% (``<mineral>_wt_pct``) or ore fractions
-    (``ore_<name>_frac``), optionally ``feed_tph``, ``speed_frac_critical``, ``p80_um`` and
-    texture columns; rules in ``scenarios/scene/history.py``. A mineralogy is mapped onto the
+    (``ore_<name>_frac``), optionally ``feed_tph``, ``speed_frac_critical``, ``p80_um`` and the
+    three texture columns; rules in ``scenarios/scene/history.py``. A mineralogy is mapped onto the
     scene's ores (the reference types A-D without ``[ores]``) by non-negative least squares; the
     recorded texture is compared with the mix's (a run warns when their textural indices differ
     beyond ``scenarios.run.feed.TEXTURE_RATIO_WARN``): the ores' own textures are what break."""

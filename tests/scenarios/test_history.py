@@ -661,3 +661,24 @@ def test_a_history_split_by_semicolons_or_tabs_is_refused_naming_the_delimiter(t
         with pytest.raises(SceneError, match=rf"the header row is {name}-separated \('time_h.*quartz_wt_pct.*"
                                              r"allowed: a comma-separated file with decimal points"):
             read_history(path, DT)
+
+
+def test_a_history_with_some_texture_columns_is_refused_naming_the_missing_ones(tmp_path):
+    """A history recording mean_grain_um alone needed feed.history_texture, whose constant then replaced the
+    recorded column in the feed table, unsaid: the texture warning compared the ores' mix with the scene's texture,
+    not with the recording."""
+    from scenarios.scene.loader import scene_from_dict
+
+    text = GOOD_ROWS.replace("speed_frac_critical\n", "speed_frac_critical,mean_grain_um\n").replace(
+        ",0.72\n", ",0.72,400\n")
+    path = write(tmp_path, text)
+    message = (r"texture column mean_grain_um without uniformity, association_entropy; allowed: all three texture "
+               r"columns, or none \(and the scene's feed.history_texture\)")
+    with pytest.raises(SceneError, match=message):
+        read_history(path, DT)
+    data = read_toml(ROOT / "scenarios" / "replay_day.toml")
+    data["scene"] |= {"duration_h": 0.05, "sample_period_h": 0.05}
+    data["feed"] |= {"history": str(path), "history_texture": {"mean_grain_um": 125.0, "uniformity": 0.6,
+                                                               "association_entropy": 0.55}}
+    with pytest.raises(SceneError, match="feed.history: .*" + message):
+        scene_from_dict(data, ROOT / "scenarios" / "replay_day.toml")
