@@ -9,7 +9,7 @@ from ._lazy import lazy_face
 _API = {
     "BreakageParams": ".breakage", "OreBreakage": ".breakage", "austin_selection": ".breakage",
     "ore_breakage": ".breakage", "CRITICAL_SIZE_MIN_UM": ".breakage", "SPEED_FACTOR_ZERO_FRAC_CRITICAL": ".mill", "FEED_TPH_MAX": ".mill",
-    "BALL_SIZE_MIN_MM": ".mill", "BALL_SIZE_MAX_MM": ".mill",
+    "BALL_SIZE_MIN_MM": ".mill", "BALL_SIZE_MAX_MM": ".mill", "exponent_order_problem": ".breakage",
     "EFFECTS": ".effects", "Effect": ".effects", "known_effects": ".effects",
     "FastCalibrationWarning": ".errors", "ModelError": ".errors", "OverloadError": ".errors", "SolverError": ".errors",
     "TwinError": ".errors",
@@ -55,6 +55,6 @@ __all__ = [
     "file_sha256", "is_grindtwin_checkout", "new_folder_beside", "pxx_um", "reference_ores", "nominal_pressure_note", "trajectory_notes", "write_text_atomically",
     "LockError", "acquire_lock", "release_lock", "remove_by_name", "replace_folder", "temporaries_of",
     "write_atomically", "write_beside", "check_size_mill_input", "sample_count", "nominal_pressure_kpa",
-    "blend_density_t_m3", "shell_capacity_t", "SPECIFIC_ENERGY_RANGE_KWH_T",
+    "blend_density_t_m3", "shell_capacity_t", "SPECIFIC_ENERGY_RANGE_KWH_T", "exponent_order_problem",
 ]
 __getattr__, __dir__ = lazy_face(__name__, _API)

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from numbers import Real
 
 import numpy as np
 
@@ -62,6 +63,20 @@ GAUSS_NODES = 12
 
 #: BreakageParams' fields under the names of BreakageParams.energy_specific's arguments (Moly-Cop's).
 MOLYCOP_NAMES = {"mu_um": "critical_size_um", "Lambda": "alpha2", "gamma": "beta1", "beta": "beta2", "phi": "beta0"}
+
+
+def exponent_order_problem(gamma: float, beta: float, phi: float, names=("phi", "gamma", "beta")) -> str | None:
+    """Why B = phi y^gamma + (1 - phi) y^beta has its exponents out of Austin's order, or None: gamma, the
+    fine-fragment term's, is the smaller (Austin, Klimpel & Luckie 1984, ch. 3: gamma ~0.5-1.5, beta ~2.5-5),
+    so gamma above beta is the two typed in each other's place. ``names``: phi, gamma, beta as the caller's keys."""
+    numbers = all(isinstance(v, Real) and not isinstance(v, bool) for v in (gamma, beta, phi))
+    if not (numbers and gamma > beta):  # a value not a number is check_range's to refuse
+        return None
+    n_phi, n_gamma, n_beta = names
+    return (f"{n_gamma} = {gamma:g} is above {n_beta} = {beta:g} (allowed: {n_gamma} <= {n_beta}): {n_gamma} is the "
+            "exponent of B's fine-fragment term, "
+            f"the smaller (Austin, Klimpel & Luckie 1984, ch. 3: ~0.5-1.5 against ~2.5-5); swapped? The same B in "
+            f"that order is {n_phi} = {1.0 - phi:.6g}, {n_gamma} = {beta:g}, {n_beta} = {gamma:g}")
 
 
 @dataclass(frozen=True)
@@ -96,6 +111,9 @@ class BreakageParams:
         check_range(o, "beta", self.beta, 0.0, 20.0)
         check_range(o, "phi", self.phi, 0.0, 1.0, lo_open=False, hi_open=False)
         check_range(o, "delta", self.delta, -1.0, 5.0, lo_open=False)
+        order = exponent_order_problem(self.gamma, self.beta, self.phi)
+        if order:
+            raise TwinInputError(f"{o}: {order}" + (" (for delta = 0)" if self.delta else ""))
 
     @classmethod
     def energy_specific(cls, alpha0_t_kwh: float, alpha1: float, alpha2: float, critical_size_um: float,
@@ -109,6 +127,9 @@ class BreakageParams:
         check_range(o, "alpha0_t_kwh", alpha0_t_kwh, 0.0, 1e6)
         check_range(o, "alpha1", alpha1, 0.0, 5.0)
         check_range(o, "critical_size_um", critical_size_um, CRITICAL_SIZE_MIN_UM, 1e7, lo_open=False)
+        order = exponent_order_problem(beta1, beta2, beta0, names=("beta0", "beta1", "beta2"))
+        if order:
+            raise TwinInputError(f"{o}: {order}")
         try:
             return cls(se_1mm_t_kwh=alpha0_t_kwh * SELECTION_REFERENCE_UM ** alpha1, alpha=alpha1,
                        mu_um=critical_size_um, Lambda=alpha2, gamma=beta1, beta=beta2, phi=beta0,

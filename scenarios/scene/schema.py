@@ -20,8 +20,8 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator, model_validator
 
 from mpc import DISTURBANCE_MODELS, QP_SOLVERS, SOLVERS
-from twin import (BALL_SIZE_MAX_MM, BALL_SIZE_MIN_MM, CRITICAL_SIZE_MIN_UM, MILLS, MIXER_SHARES_SUM_TOL, file_sha256,
-                  get_mill, is_preset_file, mixer_shares_sum_ok)
+from twin import (BALL_SIZE_MAX_MM, BALL_SIZE_MIN_MM, CRITICAL_SIZE_MIN_UM, MILLS, MIXER_SHARES_SUM_TOL,
+                  exponent_order_problem, file_sha256, get_mill, is_preset_file, mixer_shares_sum_ok)
 from twin.ore import MEAN_GRAIN_RANGE_UM
 
 from scenarios.scene.keypaths import did_you_mean
@@ -206,7 +206,7 @@ class OreBreakage(Section):
     beta0: float = Field(ge=0, le=1, json_schema_extra={"unit": "-"})
     """Share of the fine-fragment term of B (Austin's phi)."""
     beta1: float = Field(gt=0, le=5, json_schema_extra={"unit": "-"})
-    """Exponent of the fine-fragment term of B (Austin's gamma)."""
+    """Exponent of the fine-fragment term of B (Austin's gamma), at most ``beta2``."""
     beta2: float = Field(gt=0, le=20, json_schema_extra={"unit": "-"})
     """Exponent of the coarse-fragment term of B (Austin's beta)."""
 
@@ -220,6 +220,9 @@ class OreBreakage(Section):
             raise ValueError(f"form = {self.form!r} needs {', '.join(missing)}")
         if extra:
             raise ValueError(f"{', '.join(extra)} belong to the other form, not form = {self.form!r}")
+        order = exponent_order_problem(self.beta1, self.beta2, self.beta0, names=("beta0", "beta1", "beta2"))
+        if order:
+            raise ValueError(order)
         return self
 
 

@@ -33,6 +33,9 @@ def _with(extra: str, base: str = BASE_SCENE) -> str:
     (BREAKAGE.replace("alpha2 = 2.5\n", ""), ["ores.B.breakage", "needs alpha2"]),
     (BREAKAGE.replace("beta0 = 0.4", "beta0 = 1.4"), ["ores.B.breakage.beta0", "1.4"]),
     (BREAKAGE + "a_per_min = 0.5\n", ["ores.B.breakage", "a_per_min", "other form"]),
+    # beta1 and beta2 typed in each other's place (a sheet printing a value apart from its label): ran silently
+    (BREAKAGE.replace("beta1 = 0.65", "beta1 = 4.0").replace("beta2 = 4.0", "beta2 = 0.65"),
+     ["ores.B.breakage", "beta1 = 4 is above beta2 = 0.65", "beta0 = 0.6, beta1 = 0.65, beta2 = 4"]),
 ])
 def test_bad_breakage_table_names_key_and_rule(write_scene, extra, fragments):
     messages = "\n".join(check_scene(write_scene(_with(extra))))

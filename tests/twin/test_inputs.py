@@ -43,6 +43,20 @@ def test_bad_breakage_parameters_name_the_field(kwargs, field):
         BreakageParams.energy_specific(**kwargs)
 
 
+def test_breakage_exponents_swapped_are_refused_with_the_same_b_in_austins_order():
+    # gamma (Moly-Cop's beta1) is the fine-fragment term's exponent, below beta: swapped, the run moved P80 by 24 %
+    with pytest.raises(TwinInputError, match=r"beta1 = 4 is above beta2 = 0.65.*beta0 = 0.6, beta1 = 0.65, beta2 = 4"):
+        BreakageParams.energy_specific(0.009686, 0.659, 2.5, 7093.0, 0.4, 4.0, 0.65)
+    with pytest.raises(TwinInputError, match=r"gamma = 4 is above beta = 0.65"):
+        BreakageParams.austin_rate(1.25, 0.659, 7093.0, 2.5, 4.0, 0.65, 0.4, power_kw=3885.0, holdup_t=47.6)
+    same = BreakageParams.energy_specific(0.009686, 0.659, 2.5, 7093.0, 0.6, 0.65, 4.0)
+    grid = SizeGrid(top_um=25400.0, count=20)
+    from twin.breakage import cumulative_breakage
+    y = grid.upper_um[1:] / grid.upper_um[1]  # the suggested order is the swapped B itself
+    assert cumulative_breakage(grid, same.gamma, same.beta, same.phi)[1:, 0] == pytest.approx(
+        0.4 * y ** 4.0 + 0.6 * y ** 0.65)
+
+
 def test_screen_analysis_interpolates_and_extends_below_the_finest_sieve_on_its_ggs_line():
     psd = TabulatedPSD.from_sieves([1000, 500, 250, 125], [100, 70, 49, 34.3])
     assert psd.passing(500.0) == pytest.approx(0.70)
