@@ -18,7 +18,7 @@ from scenarios.errors import SceneError
 from scenarios.scene.history import read_history
 from scenarios.scene.keypaths import did_you_mean, format_path
 from scenarios.scene.ranges import (controller_feed_min_problem, feed_problem, net_power_problem, nominal_feed_tph,
-                                     preset_mill)
+                                     power_limit_problem, preset_mill)
 from scenarios.scene.schema import DEFAULT_N_MIXERS, Feed, Sensors
 from twin import SizeGrid, TwinError, get_mill, hydrocyclone_from, is_preset_file, read_preset
 from twin.calibration import DEFAULT_CALIBRATION, load_calibration
@@ -399,6 +399,11 @@ def _check_controller(data, r: _Report) -> None:
         if not 0 < band[0] < 1 < band[1]:
             r.add(("controller", "load_band_frac"), "must be [low, high] with 0 < low < 1 < high "
                   "(hold-up over nominal hold-up)", band)
+    limit = _num(ctl.get("power_max_kw"))
+    problem = power_limit_problem(_get(data, "mill", "preset"), _get(data, "mill"), limit, smin, smax) \
+        if kind == "nmpc" and limit is not None and limit > 0 and smin is not None and smax is not None else None
+    if problem:
+        r.add(("controller", "power_max_kw"), problem, limit)
     dur, lead = _num(_get(data, "scene", "duration_h")), _num(ctl.get("preview_lead_h"))
     if dur is not None and lead is not None and lead > dur:
         r.add(("controller", "preview_lead_h"), f"longer than the scene ({dur:g} h)", lead)

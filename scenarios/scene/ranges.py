@@ -64,14 +64,42 @@ def nominal_feed_tph(preset, mill_keys: dict | None = None) -> float | None:
     base = preset_mill(preset)
     if base is None:
         return None
+    mill = power_mill(base, mill_keys)
+    speed = base.speed_nominal_frac_critical
+    return float(base.feed_nominal_tph) * float(power_kw(mill, speed)) / float(power_kw(base, speed))
+
+
+def power_mill(base, mill_keys: dict | None):
+    """The preset's twin.Mill ``base`` with a scene's [mill] keys that change its power (:data:`POWER_KEYS`); a value
+    the mill refuses (the schema names it in the same check) leaves the preset's."""
     given = {k: float(v) for k, v in (mill_keys if isinstance(mill_keys, dict) else {}).items()
              if k in POWER_KEYS and isinstance(v, (int, float)) and not isinstance(v, bool)}
     try:
-        mill = base.with_(**given)
+        return base.with_(**given)
     except TwinInputError:
-        mill = base
-    speed = base.speed_nominal_frac_critical
-    return float(base.feed_nominal_tph) * float(power_kw(mill, speed)) / float(power_kw(base, speed))
+        return base
+
+
+def power_limit_problem(preset, mill_keys: dict | None, limit_kw: float, speed_min: float,
+                        speed_max: float) -> str | None:
+    """Why a controller's ``power_max_kw`` is no limit of the scene's mill run between ``speed_min`` and
+    ``speed_max``, or None. Its ball charge draws the power whatever the feed (Bond 1961), so a limit below
+    1/:data:`NET_POWER_BOND_FACTOR_MAX` of its net power at the lowest speed can never be met (a limit in MW held the
+    NMPC at its lowest speed and feed, P80 off target), and one above that factor times its power at the highest
+    speed never binds (a limit in W ran as none)."""
+    base = preset_mill(preset)
+    if base is None or not (0 < speed_min < speed_max < 1):
+        return None
+    mill = power_mill(base, mill_keys)
+    low, high = float(power_kw(mill, speed_min)), float(power_kw(mill, speed_max))
+    f = NET_POWER_BOND_FACTOR_MAX
+    if low / f <= limit_kw <= f * high:
+        return None
+    side, unit = ((f"below 1/{f:g} of the {low:.4g} kW the mill draws at speed_min {speed_min:g}: no speed within the "
+                   "bounds meets it", "MW") if limit_kw < low / f else
+                  (f"above {f:g} x the {high:.4g} kW the mill draws at speed_max {speed_max:g}: it never binds", "W"))
+    return (f"{limit_kw:g} kW is {side} (the ball charge draws the power whatever the feed, Bond 1961; allowed "
+            f"{low / f:.4g}-{f * high:.4g} kW; {unit}? kW expected)")
 
 
 def scene_nominal_feed_tph(scene) -> float | None:

@@ -446,8 +446,9 @@ class Controller(Section):
                                         max_length=2, json_schema_extra={"unit": "hold-up / nominal"})
     """Stable band of the mill load [low, high], 0 < low < 1 < high: a soft constraint of the NMPC
     and the band of the ``load_outside_band_frac`` KPI."""
-    power_max_kw: float | None = Field(default=None, gt=0, examples=[420.0])
-    """Soft upper limit of mill power [kW] for the NMPC; none: no limit."""
+    power_max_kw: float | None = Field(default=None, gt=0, examples=[180.0])
+    """Soft upper limit of mill power [kW] for the NMPC; none: no limit. Within a factor 2 of the mill's
+    power at ``bounds.speed_min`` and ``speed_max`` (below, no speed meets it; above, it never binds)."""
     disturbance_model: Literal[DISTURBANCE_MODELS] = "hardness"
     """What the NMPC's estimator reads the plant/model mismatch as: ``"hardness"`` (everything,
     including a coarse model's structural P80 error, is read as ore hardness), ``"p80_bias"``

@@ -216,3 +216,20 @@ def test_a_controllers_lowest_feed_below_a_feed_stop_is_refused(write_scene):
     assert not [m for m in check_scene(write_scene(above, name="above.toml")) if "feed_tph_min" in m]
     open_loop = low.replace('kind = "nmpc"', 'kind = "none"')
     assert not [m for m in check_scene(write_scene(open_loop, name="open.toml")) if "feed_tph_min" in m]
+
+
+def test_an_nmpc_power_limit_the_mill_cannot_meet_or_never_reaches_is_refused(write_scene):
+    """The ball charge draws the mill's power whatever the feed (Bond 1961): a limit in MW (0.2 for 200 kW) held
+    the NMPC at its lowest speed and feed with P80 off target, one in W (200000) ran as none, both silently.
+    Refused beyond a factor 2 of the mill's power at the speed bounds, naming the unit; limits near the draw pass."""
+    mill = get_mill("industrial")
+    low, high = float(power_kw(mill, 0.60)), float(power_kw(mill, 0.85))  # the schema's default speed bounds
+
+    def limit(kw):
+        text = edit('target_p80_um = 210.0', f'target_p80_um = 210.0\npower_max_kw = {kw!r}')
+        return [m for m in check_scene(write_scene(text, name="limit.toml")) if "power_max_kw" in m]
+
+    mw, watts = limit(low / 1000.0), limit(high * 1000.0)
+    assert len(mw) == 1 and "MW? kW expected" in mw[0] and "speed_min 0.6" in mw[0], mw
+    assert len(watts) == 1 and "W? kW expected" in watts[0] and "never binds" in watts[0], watts
+    assert not limit(0.9 * low) and not limit(1.2 * high)  # a limit that binds at some speed within the bounds
