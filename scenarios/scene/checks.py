@@ -400,7 +400,8 @@ def _check_controller(data, r: _Report) -> None:
             r.add(("controller", "load_band_frac"), "must be [low, high] with 0 < low < 1 < high "
                   "(hold-up over nominal hold-up)", band)
     limit = _num(ctl.get("power_max_kw"))
-    problem = power_limit_problem(_get(data, "mill", "preset"), _get(data, "mill"), limit, smin, smax) \
+    models = [_get(data, *at, "power", "model") for at in (("effect_options",), ("plant", "effect_options"))]
+    problem = power_limit_problem(_get(data, "mill", "preset"), _get(data, "mill"), limit, smin, smax, models) \
         if kind == "nmpc" and limit is not None and limit > 0 and smin is not None and smax is not None else None
     if problem:
         r.add(("controller", "power_max_kw"), problem, limit)

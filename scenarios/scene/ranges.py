@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import math
 
-from twin import MILLS, SPECIFIC_ENERGY_RANGE_KWH_T, TwinInputError, get_mill, is_preset_file, power_kw
+from twin import (MILLS, POWER_MODELS, SPECIFIC_ENERGY_RANGE_KWH_T, TwinInputError, get_mill, is_preset_file,
+                  power_kw)
 
 #: A feed rate above this multiple of the mill's nominal feed rate is refused: an order of
 #: magnitude above nominal is no operating point of that mill (its hold-up would be many
@@ -80,18 +81,23 @@ def power_mill(base, mill_keys: dict | None):
         return base
 
 
-def power_limit_problem(preset, mill_keys: dict | None, limit_kw: float, speed_min: float,
-                        speed_max: float) -> str | None:
+def power_limit_problem(preset, mill_keys: dict | None, limit_kw: float, speed_min: float, speed_max: float,
+                        power_models=()) -> str | None:
     """Why a controller's ``power_max_kw`` is no limit of the scene's mill run between ``speed_min`` and
     ``speed_max``, or None. Its ball charge draws the power whatever the feed (Bond 1961), so a limit below
     1/:data:`NET_POWER_BOND_FACTOR_MAX` of its net power at the lowest speed can never be met (a limit in MW held the
     NMPC at its lowest speed and feed, P80 off target), and one above that factor times its power at the highest
-    speed never binds (a limit in W ran as none)."""
+    speed never binds (a limit in W ran as none). ``power_models``: models the scene names besides the mill's own
+    (``mill.power_model``, a power effect's ``model``); the least and the most of them bound the limit."""
     base = preset_mill(preset)
     if base is None or not (0 < speed_min < speed_max < 1):
         return None
     mill = power_mill(base, mill_keys)
-    low, high = float(power_kw(mill, speed_min)), float(power_kw(mill, speed_max))
+    keys = mill_keys if isinstance(mill_keys, dict) else {}
+    named = {m for m in (keys.get("power_model"), *power_models) if isinstance(m, str) and m in POWER_MODELS}
+    mills = [mill] + [mill.with_(power_model=m) for m in named - {mill.power_model}]
+    low = min(float(power_kw(m, speed_min)) for m in mills)
+    high = max(float(power_kw(m, speed_max)) for m in mills)
     f = NET_POWER_BOND_FACTOR_MAX
     if low / f <= limit_kw <= f * high:
         return None

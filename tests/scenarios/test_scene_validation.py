@@ -225,11 +225,15 @@ def test_an_nmpc_power_limit_the_mill_cannot_meet_or_never_reaches_is_refused(wr
     mill = get_mill("industrial")
     low, high = float(power_kw(mill, 0.60)), float(power_kw(mill, 0.85))  # the schema's default speed bounds
 
-    def limit(kw):
-        text = edit('target_p80_um = 210.0', f'target_p80_um = 210.0\npower_max_kw = {kw!r}')
+    def limit(kw, extra=""):
+        text = edit('target_p80_um = 210.0', f'target_p80_um = 210.0\npower_max_kw = {kw!r}') + extra
         return [m for m in check_scene(write_scene(text, name="limit.toml")) if "power_max_kw" in m]
 
     mw, watts = limit(low / 1000.0), limit(high * 1000.0)
     assert len(mw) == 1 and "MW? kW expected" in mw[0] and "speed_min 0.6" in mw[0], mw
     assert len(watts) == 1 and "W? kW expected" in watts[0] and "never binds" in watts[0], watts
     assert not limit(0.9 * low) and not limit(1.2 * high)  # a limit that binds at some speed within the bounds
+    # a power model the scene names draws less: the limit is judged by the least of them
+    hf = float(power_kw(mill.with_(power_model="hogg_fuerstenau"), 0.60))
+    assert hf < low and limit(0.45 * low)
+    assert not limit(0.45 * low, '\n[effect_options.power]\nmodel = "hogg_fuerstenau"\n') and 0.45 * low > hf / 2
