@@ -3,7 +3,7 @@ inside): a hold-up beyond the mill filled to its shell (:meth:`twin.Mill.max_hol
 would overflow), a speed where the charge centrifuges (:func:`twin.mill.centrifuging_note`) and,
 with the rheology effect, a slurry past jamming (:func:`twin.effects.rheology.jamming_note`),
 and in a hydrocyclone circuit a roping underflow (:func:`roping_note`) or a feed pressure outside
-what cyclones run at (:func:`pressure_note`).
+what cyclones run at (:func:`pressure_note`); a batch charge off the mill's stable load (:func:`batch_charge_note`).
 Every steady state carries them (:attr:`twin.solve.SteadyState.notes`), every trajectory states
 them over its samples (:func:`trajectory_notes`, :attr:`twin.solve.Trajectory.notes`; a scene's
 run warns with them)."""
@@ -314,6 +314,28 @@ def _sample_notes(frame, spec, nominal_pressure_kpa: float | None = None) -> lis
     return notes
 
 
+def batch_charge_note(spec, charge_t: float, fractions=None) -> str:
+    """A note when a batch charge [t] (of a blend of mass ``fractions``, the nominal one if None) lies outside the
+    mill's stable load band, else "": a model without ``transport`` grinds at the rates of the mill's nominal
+    hold-up, while S = S^E P / H (Herbst & Fuerstenau 1980), saturating below a powder filling of 0.5 (Austin et
+    al. 1984, fig. 8.3; the ``holdup`` effect of a continuous mill), gives another charge other rates. A charge in
+    lb read as kg (2.2x) ground as fast as the nominal one, without a word."""
+    from .effects.holdup import RATE_SATURATION_POWDER_FILLING
+
+    rho = spec.solids_density_t_m3 if fractions is None else blend_density_t_m3(spec, fractions)
+    nominal_t = spec.mill.nominal_holdup_t(rho)
+    load = charge_t / nominal_t
+    lo, hi = spec.mill.stable_band
+    if not charge_t > 0 or lo <= load <= hi:
+        return ""
+    factor = 1.0 / max(load, RATE_SATURATION_POWDER_FILLING / spec.mill.powder_filling_nominal)
+    return (f"the batch charge {1000 * charge_t:.4g} kg is {load:.3g} of the mill's nominal hold-up "
+            f"({1000 * nominal_t:.4g} kg of this ore), outside its stable band {lo:g}-{hi:g}: a batch grinds at the "
+            f"nominal hold-up's rates, while S = S^E P / H (Herbst & Fuerstenau 1980; saturating below a powder filling "
+            f"of {RATE_SATURATION_POWDER_FILLING:g}, Austin et al. 1984 fig. 8.3) makes this charge's {factor:.3g} x "
+            f"them, so its product is too {'coarse' if factor > 1 else 'fine'} (a charge in t or lb for kg?)")
+
+
 def trajectory_notes(frame, spec, effect_names, product_psd=None,
                      nominal_pressure_kpa: float | None = None) -> list[str]:
     """The notes of a run's samples (a frame with ``time_h`` and any of ``holdup_t``,
@@ -342,6 +364,11 @@ def trajectory_notes(frame, spec, effect_names, product_psd=None,
                     notes.append(f"from {t[deep][0]:.4g} h to {t[deep][-1]:.4g} h ({deep.sum()} of {len(t)} samples) "
                                  + _sink_text(f"{SINK_NOTE_FRAC:.0%} or more", finest, what))
     notes += _sample_notes(frame, spec, nominal_pressure_kpa)
+    if "transport" not in effect_names and "holdup_t" in frame.columns and len(frame):  # a batch: its charge
+        blend = [f"blend_{c}_frac" for c in spec.component_names]
+        shares = frame[blend].iloc[0].to_numpy(float) if set(blend) <= set(frame.columns) else None
+        note = batch_charge_note(spec, float(frame["holdup_t"].iloc[0]), shares)
+        notes += [note] if note else []
     if "holdup_t" in frame.columns:
         held = frame["holdup_t"].to_numpy(float)
         capacity = np.broadcast_to(shell_capacity_t(spec, held, frame["load_frac"] if "load_frac" in frame else None),

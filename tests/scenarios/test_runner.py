@@ -638,3 +638,20 @@ def test_a_batch_grind_into_the_sink_says_its_p80_is_extrapolated(tmp_path):
     assert finest < 1.64
     (note,) = [w for w in res.summary["warnings"] if "below the finest size class" in w]
     assert "of the mill content lies below the finest size class (1.64 um)" in note and note.startswith("from ")
+
+
+@pytest.mark.parametrize("charge_kg, factor, too", [(26.46, 0.541, "fine"), (0.012, 2.0, "coarse")])
+def test_a_batch_charge_off_the_mills_stable_load_says_its_rates_are_the_nominal_hold_ups(tmp_path, charge_kg,
+                                                                                       factor, too):
+    """A batch grinds at the rates of the mill's nominal hold-up; S = S^E P / H (Herbst & Fuerstenau 1980) gives
+    another charge other rates. 12 kg typed in lb (26.46) or in t (0.012) ground to the shipped charge's P80
+    without a word; the run now warns with the charge's load and rate factor. The shipped 12 kg does not."""
+    text = (LIBRARY / "batch_50B_50D.toml").read_text()
+    path = tmp_path / "charge.toml"
+    path.write_text(text.replace("batch_charge_kg = 12.0", f"batch_charge_kg = {charge_kg!r}"))
+    res = run_scene(load_scene(path), progress=False)
+    (note,) = [w for w in res.summary["warnings"] if "batch charge" in w]
+    assert f"{charge_kg:.4g} kg" in note and "stable band 0.8-1.2" in note and f"too {too}" in note
+    assert f"{factor:.3g} x them" in note
+    shipped = run_scene(LIBRARY / "batch_50B_50D.toml", progress=False)
+    assert not [w for w in shipped.summary["warnings"] if "batch charge" in w]
