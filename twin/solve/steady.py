@@ -124,16 +124,28 @@ def _solve(A, b):
     return scipy.sparse.linalg.splu(A).solve(np.asarray(b, float))
 
 
-def _newton(model, x, u, d, load_target=None, max_iter: int = 60):
+def _newton(model, x, u, d, load_target=None, max_iter: int = 60, masses_held: bool = False):
     """Damped Newton on f(x) = 0 (and holdup(x) = load_target x H_nom, solving for the feed when
-    a target is given), on the sparse DAE form. Steps are cut so masses stay non-negative. Its
-    dense solves on :data:`twin.solve.numeric.NEWTON_BLAS_THREADS` BLAS threads.
+    a target is given), on the sparse DAE form. Steps are cut so masses stay non-negative; with
+    ``masses_held`` the masses are held where they are (an empty mill's zeros) and the other states
+    solved for. Its dense solves on :data:`twin.solve.numeric.NEWTON_BLAS_THREADS` BLAS threads.
     Returns (x, u, ok)."""
     with newton_blas_threads():
-        return _newton_steps(model, x, u, d, load_target, max_iter)
+        return _newton_steps(model, x, u, d, load_target, max_iter, masses_held)
 
 
-def _newton_steps(model, x, u, d, load_target, max_iter: int):
+def _held_rows(A, n: int):
+    """The Newton matrix ``A`` with its first ``n`` rows those of the identity (those unknowns' steps 0)."""
+    if isinstance(A, np.ndarray):
+        A = A.copy()
+        A[:n] = 0.0
+        A[np.arange(n), np.arange(n)] = 1.0
+        return A
+    keep = scipy.sparse.diags(np.r_[np.zeros(n), np.ones(A.shape[0] - n)])
+    return (keep @ A + scipy.sparse.diags(np.r_[np.ones(n), np.zeros(A.shape[0] - n)])).tocsc()
+
+
+def _newton_steps(model, x, u, d, load_target, max_iter: int, masses_held: bool = False):
     jac = _jacobian_evaluator(model)
     holdup = Evaluator(model.outputs[_filling(model)]) if load_target is not None else None
     h_nom = model.spec.holdup_nominal_t
@@ -148,7 +160,10 @@ def _newton_steps(model, x, u, d, load_target, max_iter: int):
         if max(np.abs(r * scale).max(), abs(load_res)) < RESIDUAL_REL_TOL:
             return w[:nx], u, True
         try:
-            if load_target is None:
+            if masses_held:  # round-off masses (1e-41 t) stepping below zero cut every step to 1e-3 of itself
+                step = _solve(_held_rows(_newton_matrix(J), nm), -np.r_[np.zeros(nm), r[nm:]])
+                dfeed = 0.0
+            elif load_target is None:
                 step = _solve(_newton_matrix(J), -r)
                 dfeed = 0.0
             else:
@@ -249,11 +264,11 @@ def steady_state(model, u, d, x_guess=None) -> SteadyState:
         x = np.zeros(model.n_x)
         x[model.n_mass:] = model.initial_state(d[:model.n_components])[model.n_mass:]
         if model.n_x > model.n_mass:  # a feed inventory drains, lags follow: their initial guess was not steady
-            x, _, ok = _newton(model, x, u, d)
+            x, _, ok = _newton(model, x, u, d, masses_held=True)
             if not ok:
                 raise SolverError(f"Steady state not found at zero feed (speed {u[1]:.3f}): Newton failed on the "
                                   "states beside the masses (feed inventory, lags).")
-            x[:model.n_mass] = 0.0  # Newton's round-off (~1e-37 t) would make a product of nothing a P80
+            x[:model.n_mass] = 0.0  # the solve's round-off (~1e-29 t) would make a product of nothing a P80
         return _result(model, _check(model, x, u, d, "empty (no feed)"), u, d, "empty (no feed)")
     guess = model.initial_state(d[:model.n_components]) if x_guess is None else np.asarray(x_guess, float)
     x, _, ok = _newton(model, guess, u, d)
