@@ -1,7 +1,8 @@
 """Recorded feed histories (CSV or Parquet) turned into a regular time series.
 
-File format. Comma-separated with decimal points, UTF-8 (with or without a byte-order mark), or Parquet; a
-header split by semicolons (Excel's CSV where the comma is the decimal separator) or tabs is refused.
+File format. Comma-separated with decimal points, UTF-8 (with or without a byte-order mark), or Parquet (its
+time column may be its index); a header split by semicolons (Excel's CSV where the comma is the decimal
+separator) or tabs is refused.
 One row per record, a header row; lines starting with ``#`` are comments (a ``#``
 inside a line is text: Excel's ``#VALUE!`` or ``#N/A`` is refused by rule 5, not read as a comment
 that ends the row).
@@ -246,10 +247,14 @@ def _order_report(raw: pd.DataFrame) -> list[str]:
         original = int(rows[np.flatnonzero(t == t[i])[0]])
         dropped = raw["_t"].duplicated(keep="last").to_numpy()
         n = int(repeats.sum())
+        cells = raw.drop(columns=["_row", "_t", time_col]).astype(str)
+        unlike = dropped & (cells != cells.groupby(t).transform("last")).any(axis=1).to_numpy()
+        differ = (f"; the values of dropped data row{'s' if unlike.sum() > 1 else ''} {_names(rows[unlike])} differ "
+                  "from those kept") if unlike.any() else ""
         out.append(f"{n} row{'s' if n > 1 else ''} repeat{'' if n > 1 else 's'} the time of an earlier row "
                    f"(duplicated timestamps; first: data row {int(rows[i])}, {time_col} {raw[time_col].iloc[i]} "
                    f"as data row {original}): dropped data rows {_names(rows[dropped])}, keeping the last row of "
-                   "each time")
+                   f"each time{differ}")
     return out
 
 
@@ -348,7 +353,10 @@ def _read_table(path: Path) -> pd.DataFrame:
             return table.drop(columns=[c for c in table.columns
                                        if str(c).startswith("Unnamed: ") and table[c].isna().all()])
         if suffix in (".parquet", ".pq"):
-            return pd.read_parquet(path)
+            table = pd.read_parquet(path)
+            if table.index.name in ("timestamp", "time_h") and table.index.name not in table.columns:
+                table = table.reset_index()  # a frame indexed by time (df.set_index('timestamp')) keeps it there
+            return table
     except SceneError:
         raise
     except (ValueError, OSError, pd.errors.ParserError) as exc:
@@ -559,7 +567,8 @@ def _check_holds(t: np.ndarray, missing: np.ndarray, rows: pd.Series, what: str,
         a = valid[i]
         b = valid[i + 1] if i + 1 < len(valid) else len(t) - 1
         errors.append(f"{what}: no valid value for {held[i] * 60:.4g} min between data rows "
-                      f"{int(rows.iloc[a])} and {int(rows.iloc[b])} (limit {max_gap_h * 60:g} min)")
+                      f"{int(rows.iloc[a])} and {int(rows.iloc[b])} (limit {max_gap_h * 60:g} min: the scene's "
+                      "feed.history_max_gap_h)")
     if len(too_long) > _MAX_NAMED:
         errors.append(f"{what}: and {len(too_long) - _MAX_NAMED} more gaps longer than "
                       f"{max_gap_h * 60:g} min")

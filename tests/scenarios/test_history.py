@@ -51,7 +51,10 @@ def test_messy_csv_is_cleaned_by_the_documented_rules(tmp_path):
     assert np.allclose(h.frame[["quartz_wt_pct", "kaolinite_wt_pct"]].sum(axis=1), 100)
     text = "\n".join(h.report)
     assert "out of time order (first: data row 4); sorted" in text
-    assert "dropped data rows 3, keeping the last" in text
+    assert "dropped data rows 3, keeping the last row of each time; the values of dropped data row 3 differ" in text
+    same = read_history(write(tmp_path, MESSY.replace("00:03:00,50,50,31", "00:03:00,40,60,32"), "same.csv"), DT)
+    dup = [r for r in same.report if "keeping the last row of each time" in r]
+    assert len(dup) == 1 and "differ" not in dup[0]  # a record logged twice alike: nothing more to say
     assert "missing values held from the previous row" in text
     assert "rows rescaled so that the composition sums to 100" in text
     assert "irregular records" in text
@@ -79,11 +82,15 @@ def test_parquet_reads_like_csv(tmp_path):
     frame.to_parquet(tmp_path / "history.parquet")
     a, b = read_history(csv, DT), read_history(tmp_path / "history.parquet", DT)
     pd.testing.assert_frame_equal(a.frame, b.frame)
+    # a frame indexed by its time column, as pandas users keep one, was refused: "needs exactly one time column"
+    frame.set_index("timestamp").to_parquet(tmp_path / "indexed.parquet")
+    pd.testing.assert_frame_equal(read_history(tmp_path / "indexed.parquet", DT).frame, a.frame)
 
 
 @pytest.mark.parametrize("text,fragments", [
     (MESSY + "2026-01-15T00:30:00,50,50,35\n",
-     ["composition: no valid value for 24 min between data rows 8 and 9", "limit 10 min"]),
+     ["composition: no valid value for 24 min between data rows 8 and 9", "limit 10 min: the scene's "
+                                                                            "feed.history_max_gap_h"]),
     (MESSY.replace("2026-01-15T00:05:00,49.5,49.5", "2026-01-15T00:05:00,40,40"),
      ["does not sum to 100 within 2%", "data rows 7", "80"]),
     (MESSY.replace("2026-01-15T00:00:00,60,40,30", "2026-01-15T00:00:00,,40,30"),
