@@ -138,10 +138,7 @@ def feed_schedule(scene: Scene, components: list[str], times_h: np.ndarray, ores
         notes.append(f"mineralogy history mapped to ores {', '.join(components)} by NNLS: residual "
                      f"mean {resid.mean():.3g} wt%, max {resid.max():.3g} wt%")
         if all(c in table.columns for c in TEXTURE_COLUMNS):
-            ratio = texture_ratios(table, fracs, ores)
-            out["history_textural_index_ratio"] = ratio
-            notes.append(f"the recorded texture enters through the ores' own: the mix's textural index is "
-                         f"{ratio.min():.3g}-{ratio.max():.3g}x the recorded")
+            _texture_ratio(table, fracs, ores, out, notes)
         for c in table.columns:
             if c.startswith("recorded_"):
                 out[c] = table[c]
@@ -149,7 +146,19 @@ def feed_schedule(scene: Scene, components: list[str], times_h: np.ndarray, ores
     for c in components:
         if ore_column(c) not in table.columns:
             table[ore_column(c)] = 0.0
+    if history is not None and all(c in table.columns for c in TEXTURE_COLUMNS):  # ore fractions with a texture
+        _texture_ratio(table, table[[ore_column(c) for c in components]].to_numpy(float),
+                       ores if ores is not None else component_ores(scene), table, notes)
     return table, notes
+
+
+def _texture_ratio(table: pd.DataFrame, fracs: np.ndarray, ores: dict, out: pd.DataFrame, notes: list) -> None:
+    """The mix's textural index over the recorded one's at every sample (``out``'s
+    ``history_textural_index_ratio``, which :func:`fit_warnings` judges) and its note."""
+    ratio = texture_ratios(table, fracs, ores)
+    out["history_textural_index_ratio"] = ratio
+    notes.append(f"the recorded texture enters through the ores' own: the mix's textural index is "
+                 f"{ratio.min():.3g}-{ratio.max():.3g}x the recorded")
 
 
 def component_blend(feed: pd.DataFrame, components: list[str]) -> np.ndarray:

@@ -689,3 +689,39 @@ def test_a_history_with_some_texture_columns_is_refused_naming_the_missing_ones(
                                                                "association_entropy": 0.55}}
     with pytest.raises(SceneError, match="feed.history: .*" + message):
         scene_from_dict(data, ROOT / "scenarios" / "replay_day.toml")
+
+
+def test_an_ore_fraction_historys_recorded_texture_is_compared_with_the_ores_mix(tmp_path):
+    """Texture columns beside ore fractions were read and then ignored, unsaid (a mineralogy history's are compared
+    with its ores' mix since the last round): an ore-fraction history recording B's own texture gives a ratio of 1
+    and no warning; one recording a 20-um intergrown feed, the same ratio as that texture's index over B's, and
+    the warning."""
+    from scenarios.run.feed import feed_schedule, fit_warnings
+    from scenarios.scene.loader import scene_from_dict
+    from twin import load_ore
+
+    scene = load_scene(ROOT / "scenarios" / "reference_transition.toml")
+    b = load_ore("B").texture
+    t = np.arange(31) / 60
+    feeds = {}
+    for name, texture in (("own", (b.mean_grain_um, b.uniformity, b.association_entropy)), ("fine", (20.0, 0.1, 1.0))):
+        hist = tmp_path / f"{name}.csv"
+        pd.DataFrame({"time_h": t, **{f"ore_{o}_frac": float(o == "B") for o in ("B", "D")},
+                      **dict(zip(("mean_grain_um", "uniformity", "association_entropy"), texture))}).to_csv(
+            hist, index=False)
+        data = scene.model_dump(exclude_none=True)
+        data["feed"] = {k: v for k, v in data["feed"].items() if k not in ("schedule", "blend")} | {"history": str(hist)}
+        data["scene"]["duration_h"] = 0.5
+        s = scene_from_dict(data, scene.source_path)
+        feeds[name] = feed_schedule(s, ["B", "D"], s.time_grid_h())
+    own, notes = feeds["own"]
+    assert own["history_textural_index_ratio"].to_numpy() == pytest.approx(1.0, rel=1e-12)
+    assert any("the recorded texture enters through the ores' own" in n for n in notes)
+    assert fit_warnings(own, ["B", "D"]) == []
+    fine, _ = feeds["fine"]
+    from twin.ore.mineralogy import Texture
+
+    assert fine["history_textural_index_ratio"].to_numpy() == pytest.approx(
+        b.textural_index / Texture(20.0, 0.1, 1.0).textural_index, rel=1e-12)
+    (warning,) = fit_warnings(fine, ["B", "D"])
+    assert "the recorded texture is not that of the mix of the ores" in warning
