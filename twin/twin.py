@@ -90,8 +90,6 @@ class Twin:
             get_mill(mill)  # a misspelt name said before the calibration loads (a second on a fresh interpreter)
         self.blend = _as_blend(ores)
         self.calibration = load_calibration(calibration)
-        # pickled as read, not as named: a worker does not read an ore's or a calibration's file again
-        self._arguments.update(ores=self.blend, calibration=self.calibration)
         from .calibration import predict_table  # scipy's optimiser with it: only when a twin is built
 
         check_model(self.calibration, predict_table)  # its fit's equations are these (once per file, process)
@@ -107,6 +105,9 @@ class Twin:
         holdup_nom = self.mill.nominal_holdup_t(density)
         power_nom = power_kw(self.mill, self.mill.speed_nominal_frac_critical)
         self.calibrated_mill = get_mill(calibrated_mill, self.calibration.record)
+        # pickled as read, not as named: a worker does not read an ore's, a calibration's or a preset's file again
+        self._arguments.update(ores=self.blend, calibration=self.calibration, mill=self.mill,
+                               calibrated_mill=self.calibrated_mill)
         params = [given.get(o.name) or self.scaled_breakage(
             breakage_map(o, self.coefficients) if breakage_map else self.calibration.breakage(o), density)
             for o in self.blend.ores]
@@ -143,8 +144,8 @@ class Twin:
         self.model = Model(self.spec)
 
     def __reduce__(self):
-        """A twin pickles as the arguments it was made with (its ores and calibration as read, not the files
-        they were read from) and is rebuilt from them where it is loaded (a worker process of a pool): its
+        """A twin pickles as the arguments it was made with (its ores, calibration and mills as read, not the
+        files they were read from) and is rebuilt from them where it is loaded (a worker process of a pool): its
         model's CasADi expressions do not pickle. A ``breakage_map`` must then be a module-level function (a
         lambda does not pickle)."""
         return _rebuilt, (type(self), self._arguments)

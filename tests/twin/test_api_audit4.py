@@ -112,19 +112,22 @@ def test_an_ore_harder_than_every_reference_ore_is_noted_though_its_energy_group
 def test_a_twin_pickles_and_a_worker_process_gets_its_steady_state_to_the_bit(tmp_path):
     """A Twin in a process pool (a sweep in Python) raised CasADi's "Cannot pickle SX objects": it pickles as the
     arguments it was made with and is rebuilt from them, so a worker's steady state is the parent's to the bit,
-    with ore breakage given directly, effect options, a grid and mixers of its own kept; its calibration as read
-    (the file it was read from is gone when the pickle is loaded)."""
+    with ore breakage given directly, effect options, a grid and mixers of its own kept; its calibration and
+    its sized mill as read (the files they were read from are gone when the pickle is loaded)."""
     from twin.calibration.files import DEM_CALIBRATION_PATH
+    from twin.mill import INDUSTRIAL_PRESET_PATH
 
     given = BreakageParams.energy_specific(0.009686, 0.659, 2.5, 7093.0, 0.4, 0.65, 4.0)
-    own = tmp_path / "own.json"
+    own, preset = tmp_path / "own.json", tmp_path / "preset.json"
     own.write_bytes(DEM_CALIBRATION_PATH.read_bytes())
-    twin = Twin(["B", "D"], mill="industrial", effect_options={"classification": {"kind": "hydrocyclone"}},
+    preset.write_bytes(INDUSTRIAL_PRESET_PATH.read_bytes())
+    twin = Twin(["B", "D"], mill=str(preset), effect_options={"classification": {"kind": "hydrocyclone"}},
                 ore_breakage={"D": given}, grid=SizeGrid(count=24), mixer_volume_fracs=(0.7, 0.15, 0.15),
                 calibration=own)
     here = twin.steady(feed_tph=23.0, blend={"B": 0.3, "D": 0.7})
     pickled = pickle.dumps(twin)
     own.unlink()
+    preset.unlink()
     again = pickle.loads(pickled)
     assert again.spec.grid.count == 24 and again.spec.mixer_fracs == twin.spec.mixer_fracs
     assert again.steady(feed_tph=23.0, blend={"B": 0.3, "D": 0.7}).p80_um == here.p80_um
