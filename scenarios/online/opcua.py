@@ -94,8 +94,11 @@ class PlantConnection:
 
     def __init__(self, url: str, security: ClientSecurity, read_roles: dict[str, str],
                  write_roles: dict[str, str], timeout_s: float = 2.0, trigger: Trigger | None = None,
-                 write_ranges: dict[str, PlausibleRange] | None = None):
+                 write_ranges: dict[str, PlausibleRange] | None = None, distinct: bool = True):
         self.url, self.security, self.timeout_s = url, security, timeout_s
+        #: every role needs a node of its own (the tag map's rule), checked again on the resolved node ids (False:
+        #: a node read back where it is written, as tests do)
+        self.distinct = distinct
         self.read_roles, self.write_roles = dict(read_roles), dict(write_roles)
         self.trigger = trigger
         #: write role -> the values the service writes there, in its units: a node holding another is refused
@@ -111,6 +114,8 @@ class PlantConnection:
         try:
             self._read_ids = [await resolve(client, n) for n in self.read_roles.values()]
             self._write_ids = {r: await resolve(client, n) for r, n in self.write_roles.items()}
+            if self.distinct:
+                self._check_distinct()
             types = await client.uaclient.read_attributes(list(self._write_ids.values()), ua.AttributeIds.DataType)
             self._variants = {role: self._variant(role, dv) for role, dv in zip(self._write_ids, types)}
             await self._check_held_values(client)
@@ -121,6 +126,22 @@ class PlantConnection:
             await self._disconnect(client)
             raise
         self.client = client
+
+    def _check_distinct(self) -> None:
+        """NodeError naming two roles whose node ids, written differently, are one node once resolved (``nsu=URI;s=X``
+        and ``ns=2;s=X``; ``ns=02;...``): the tag map's check compares the strings, and a feed setpoint and a speed
+        setpoint written to one node, or a power read as the P80, would go unsaid."""
+        roles = [*zip(self.read_roles.items(), self._read_ids),
+                 *zip(self.write_roles.items(), self._write_ids.values())]
+        seen: dict[ua.NodeId, tuple[str, str]] = {}
+        same = []
+        for (role, node), nid in roles:
+            if nid in seen:
+                same.append(f"{role}: node {node!r} is the node {seen[nid][1]!r} of {seen[nid][0]} "
+                            f"({nid.to_string()} on this server); each role needs a node of its own")
+            seen.setdefault(nid, (role, node))
+        if same:
+            raise NodeError("; ".join(same))
 
     async def _check_read_nodes(self, client: Client) -> None:
         """NodeError naming every read role whose node the server does not have (a node id mistyped in the tag

@@ -16,12 +16,12 @@ INSECURE = online.ClientSecurity(insecure=True)
 
 
 async def _with_nodes(url, body):
-    """A server with a Double, a String, a Boolean and an Int32 variable; ``body({name: node id})``."""
+    """A server with two Doubles, a String, a Boolean and an Int32 variable; ``body({name: node id})``."""
     server = await make_server(online.ServerSecurity(insecure=True))
     server.set_endpoint(url)
     idx = await server.register_namespace("urn:test")
     nodes = {}
-    for name, value, vt in (("x", 1.5, ua.VariantType.Double), ("text", "a", ua.VariantType.String),
+    for name, value, vt in (("x", 1.5, ua.VariantType.Double), ("y", 0.5, ua.VariantType.Double), ("text", "a", ua.VariantType.String),
                             ("flag", False, ua.VariantType.Boolean), ("count", 0, ua.VariantType.Int32)):
         var = await server.nodes.objects.add_variable(idx, name, value, varianttype=vt)
         await var.set_writable()
@@ -49,7 +49,7 @@ def test_nodes_that_cannot_take_the_services_values_fail_the_connection_naming_r
     async def body(n):
         on_new = Trigger("p80_um", lambda fresh: None, 100.0)
         return {
-            "double": await _open(url, {"p80_um": n["x"]}, {"setpoints.feed_tph": n["x"]}, on_new),
+            "double": await _open(url, {"p80_um": n["x"]}, {"setpoints.feed_tph": n["y"]}, on_new),
             "text": await _open(url, {}, {"setpoints.feed_tph": n["text"]}),
             "flag": await _open(url, {}, {"soft_sensor.p80_um": n["flag"]}),
             "status text": await _open(url, {}, {"status": n["text"]}),  # the status is text
@@ -72,7 +72,8 @@ def test_an_integer_node_takes_a_prediction_rounded_and_no_setpoint(url):
     recorded 0.705: an integer setpoint node fails the connection; a prediction is rounded there, not cut."""
     async def body(n):
         refused = await _open(url, {}, {"setpoints.speed_frac_critical": n["count"]})
-        conn = online.PlantConnection(url, INSECURE, {"count": n["count"]}, {"soft_sensor.p80_um": n["count"]})
+        conn = online.PlantConnection(url, INSECURE, {"count": n["count"]}, {"soft_sensor.p80_um": n["count"]},
+                                      distinct=False)  # read back where it is written
         await conn.open()
         try:
             await conn.write({"soft_sensor.p80_um": (211.6, ua.StatusCodes.Good)}, online.Clock().now())
@@ -92,7 +93,7 @@ def test_a_read_node_the_server_lacks_fails_the_connection_naming_role_and_node(
     write node failed the connection. Every missing read node is named; nodes that exist open as before."""
     async def body(n):
         return (await _open(url, {"power_kw": n["missing"], "p80_um": n["x"], "mode": n["missing"] + ".mode"}, {}),
-                await _open(url, {"p80_um": n["x"], "mode": n["text"]}, {"setpoints.feed_tph": n["x"]}))
+                await _open(url, {"p80_um": n["x"], "mode": n["text"]}, {"setpoints.feed_tph": n["y"]}))
 
     refused, opened = asyncio.run(_with_nodes(url, body))
     assert opened == ""
@@ -132,3 +133,21 @@ def test_a_setpoint_node_holding_a_value_in_other_units_fails_the_connection(sma
                    ("speed_frac_critical", "feed_tph"))
     assert speed + "72, outside [0, 1) of critical that the service writes there" in refused, refused
     assert feed + "30000, outside [0, " in refused and "(percent? kg/h?)" in refused
+
+
+def test_one_node_written_two_ways_in_two_roles_fails_the_service_connection(url):
+    """The tag map refuses one node id in two roles by its string; ``nsu=urn:test;i=1`` and ``ns=2;i=1`` (or
+    ``ns=02``) are one node on the server and passed, so the P80 read and a feed setpoint could share a node. The
+    service's connection compares the resolved ids; the same roles on nodes of their own open."""
+    async def body(n):
+        ns, ident = n["x"].split(";", 1)
+        by_uri, padded = f"nsu=urn:test;{ident}", ns.replace("ns=", "ns=0") + ";" + ident
+        return (await _open(url, {"p80_um": n["x"]}, {"setpoints.feed_tph": by_uri}),
+                await _open(url, {"p80_um": padded, "power_kw": n["count"]}, {"heartbeat": n["x"]}),
+                await _open(url, {"p80_um": n["x"]}, {"heartbeat": n["count"]}))
+
+    by_uri, padded, own = asyncio.run(_with_nodes(url, body))
+    assert by_uri.startswith("setpoints.feed_tph: node 'nsu=urn:test;") and "of p80_um" in by_uri, by_uri
+    assert "each role needs a node of its own" in by_uri
+    assert padded.startswith("heartbeat: node ") and "of p80_um" in padded and "power_kw" not in padded, padded
+    assert own == ""

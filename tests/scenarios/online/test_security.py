@@ -34,7 +34,7 @@ async def _with_server(sec, url, body):
 
 
 async def _session(url, csec, node):
-    conn = online.PlantConnection(url, csec, {"x": node}, {"x": node}, timeout_s=2.0)
+    conn = online.PlantConnection(url, csec, {"x": node}, {"x": node}, timeout_s=2.0, distinct=False)
     await conn.open()
     try:
         got = (await conn.read())["x"].value
