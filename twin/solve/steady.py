@@ -21,6 +21,10 @@ from .simulate import ORE_P80_KEY, PER_FEED_OUTPUTS, integrate_constant, ore_p80
 from ..sizes import pxx_um
 from ..validity import nominal_pressure_kpa, nominal_pressure_note, shell_capacity_t, state_notes
 
+#: A mass at most this share of nominal hold-up is round-off to Newton's step cut [-] (float64 carries ~16
+#: digits of the hold-up; a margin of 1e4): it is set to zero where its step goes below, instead of bounding
+#: the step at 95 % of the way to zero, which a 1e-41 t mass with a round-off step of -1e-15 t cut to 1e-3.
+NEWTON_MASS_FLOOR_REL = 1e-12
 #: Newton stops when the largest mass-rate residual is below this share of nominal flow [-].
 RESIDUAL_REL_TOL = 1e-10
 
@@ -151,6 +155,7 @@ def _newton_steps(model, x, u, d, load_target, max_iter: int, masses_held: bool 
     h_nom = model.spec.holdup_nominal_t
     per_h_nom = 1.0 if _filling(model) == "load_frac" else h_nom
     nm, nx = model.n_mass, model.n_x
+    floor = NEWTON_MASS_FLOOR_REL * h_nom
     w = np.concatenate([x, model.z_of(x)])
     u = u.copy()
     for _ in range(max_iter):
@@ -174,15 +179,14 @@ def _newton_steps(model, x, u, d, load_target, max_iter: int, masses_held: bool 
         if not np.all(np.isfinite(step)):
             return w[:nx], u, False  # singular Jacobian: reported by the caller as non-convergence
         alpha = 1.0
-        neg = step[:nm] < 0
+        small = w[:nm] <= floor  # round-off masses: set to zero where they step below it, not bounding the step
+        neg = (step[:nm] < 0) & ~small
         if np.any(neg):  # keep masses >= 0: go at most 95 % of the way to zero
-            room = w[:nm][neg] / -step[:nm][neg]
-            room = room[room > 0]  # masses already at zero may not fall further; others bound the step
-            if room.size:
-                alpha = max(min(1.0, 0.95 * room.min()), 1e-3)
+            alpha = max(min(1.0, 0.95 * (w[:nm][neg] / -step[:nm][neg]).min()), 1e-3)
         if load_target is not None and u[0] + alpha * dfeed <= 0:
             alpha = min(alpha, 0.5 * u[0] / -dfeed)
         w = w + alpha * step
+        w[:nm][small] = np.maximum(w[:nm][small], 0.0)
         u[0] = u[0] + alpha * dfeed
     return w[:nx], u, False
 
