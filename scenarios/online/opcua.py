@@ -103,6 +103,8 @@ class PlantConnection:
         self.trigger = trigger
         #: write role -> the values the service writes there, in its units: a node holding another is refused
         self.write_ranges = dict(write_ranges or {})
+        #: write role -> the number its node held when the session opened (Good and finite only)
+        self.held_values: dict[str, float] = {}
         self.client: Client | None = None
 
     async def open(self) -> None:
@@ -169,6 +171,8 @@ class PlantConnection:
         for role, dv in zip(roles, held):
             good = dv.StatusCode is None or dv.StatusCode.is_good()
             value = raw_number(dv.Value.Value if dv.Value is not None else None)
+            if good and math.isfinite(value):
+                self.held_values[role] = value
             if good and math.isfinite(value) and value not in self.write_ranges[role]:
                 wrong.append(f"{role}: node {self.write_roles[role]!r} holds {value:g}, outside "
                              f"{self.write_ranges[role]} that the service writes there: a node in other units "

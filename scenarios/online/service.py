@@ -50,7 +50,7 @@ from asyncua import ua
 from mpc import MpcError
 from scenarios.online.audit import AuditLog
 from scenarios.online.clock import Clock, Stoppable, sleep_until
-from scenarios.online.opcua import CONNECTION_ERRORS, PlantConnection, Trigger, status_name
+from scenarios.online.opcua import CONNECTION_ERRORS, NodeError, PlantConnection, Trigger, status_name
 from scenarios.online.parts import ControlParts
 from scenarios.online.quality import BAD, GOOD, Reading, TagQuality, Verdict, raw_number, severity
 from scenarios.online.security import ClientSecurity
@@ -66,6 +66,11 @@ INPUTS = ("feed_tph", "speed_frac_critical")
 #: of the control model's at the actual speed is Bad (a reading in MW, 0.163 for 163 kW, was Good: the physical
 #: range starts at a stopped mill's 0); a charge worn to a tenth of its balls is no operating mill either.
 POWER_TURNING_MIN_FRAC = 0.1
+#: A weigh feeder's own loop holds the feed at its setpoint: an actual feed reading beyond this factor of the
+#: setpoint the service wrote, while it is in auto, is Bad (and the setpoint stands in for it, then the service
+#: holds: ``fallback.inputs_hold_after_h``). A feed in kg/s reads 3.6 times low, in t/min 60 times, in kg/h
+#: 1000 times high: each was Good, inside the physical range that starts at a stopped feeder's 0.
+FEED_FOLLOW_FACTOR = 2.0
 #: Failures of the estimator's or controller's numerics: held and reported, never hidden
 #: (CasADi raises RuntimeError on a failed function evaluation).
 NUMERIC_ERRORS = (MpcError, TwinError, np.linalg.LinAlgError, RuntimeError)
@@ -170,6 +175,11 @@ class Service(Stoppable):
         """Open the session now (raises a connection error if the plant refuses or is away)."""
         conn = self._new_connection()
         await conn.open()
+        try:
+            self._check_feed_units(conn.held_values.get("setpoints.feed_tph"), (await conn.read()).get("feed_tph"))
+        except BaseException:
+            await conn.close()
+            raise
         self.conn = conn
         # a restarted plant server samples at a phase of its own (the trigger's samples only: the timer's are ours)
         self.reanchor = self.t_model_h is not None and self.tags.cycle.on_new is not None
@@ -302,8 +312,8 @@ class Service(Stoppable):
     async def _connected_cycle(self, now, t_h: float, steps: int, row: dict, t0: float, cpu0: float) -> None:
         readings = await self.conn.read()
         row["read_s"], row["read_cpu_s"] = time.perf_counter() - t0, time.process_time() - cpu0
-        v = self._power_while_turning(
-            {role: self.quality[role].assess(r, now, self.clock) for role, r in readings.items() if role != "mode"})
+        v = self._feed_following(self._power_while_turning(
+            {role: self.quality[role].assess(r, now, self.clock) for role, r in readings.items() if role != "mode"}))
         for role, verdict in v.items():
             row[f"{role}_quality"] = verdict.quality
             row[f"{role}_quality_reason"] = verdict.reason  # the audit says why, each cycle (empty when good)
@@ -380,6 +390,34 @@ class Service(Stoppable):
             if t <= t_h + 0.5 * self.dt_h:
                 best = b
         return best
+
+    def _check_feed_units(self, setpoint: float | None, reading: Reading | None) -> None:
+        """NodeError if the feed reading and the feed setpoint node's value, both above 0 (a running feeder), differ
+        by more than :data:`FEED_FOLLOW_FACTOR` when the session opens: one of them in other units (a reading in
+        kg/s took 30 t/h for 8.3, and the first move in auto, from the actual feed, wrote 8.3 t/h)."""
+        if setpoint is None or reading is None or severity(reading.status) != GOOD:
+            return
+        value = raw_number(reading.value)
+        if not (value > 0 and setpoint > 0) or 1.0 / FEED_FOLLOW_FACTOR <= value / setpoint <= FEED_FOLLOW_FACTOR:
+            return
+        raise NodeError(f"measurements.feed_tph: node {self.tags.measurements.feed_tph.node!r} reads {value:g} while "
+                        f"the feed setpoint node {self.tags.setpoints.feed_tph.node!r} holds {setpoint:g} t/h: "
+                        f"{value / setpoint:.3g} times it, beyond a feeder's following (a factor "
+                        f"{FEED_FOLLOW_FACTOR:g}): one of them is in other units (kg/s? kg/h?); give both nodes in t/h")
+
+    def _feed_following(self, v: dict) -> dict:
+        """``v`` with a usable feed reading above 0 made Bad when the service is in auto and the reading lies
+        beyond :data:`FEED_FOLLOW_FACTOR` of the feed setpoint it wrote (a stopped feeder's 0 is a reading)."""
+        feed = v.get("feed_tph")
+        if feed is None or not feed.ok or not feed.value > 0 or self.mode != "auto" or self.u_written is None:
+            return v
+        written = float(self.u_written[0])
+        if written <= 0 or 1.0 / FEED_FOLLOW_FACTOR <= feed.value / written <= FEED_FOLLOW_FACTOR:
+            return v
+        return {**v, "feed_tph": Verdict(math.nan, BAD, f"feed_tph = {feed.value:g} t/h while the service's feed "
+                                         f"setpoint is {written:.4g} t/h: {feed.value / written:.3g} times it, beyond "
+                                         f"a feeder's following (a factor {FEED_FOLLOW_FACTOR:g}; kg/s? kg/h? t/h "
+                                         "expected)", feed.new)}
 
     def _power_while_turning(self, v: dict) -> dict:
         """``v`` with a usable power reading made Bad when the mill turns (a usable speed above 0) and the power

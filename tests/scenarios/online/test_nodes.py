@@ -151,3 +151,38 @@ def test_one_node_written_two_ways_in_two_roles_fails_the_service_connection(url
     assert "each role needs a node of its own" in by_uri
     assert padded.startswith("heartbeat: node ") and "of p80_um" in padded and "power_kw" not in padded, padded
     assert own == ""
+
+
+def test_a_feed_reading_in_other_units_than_its_setpoint_fails_the_connection(small_scene, small_tags, small_parts,
+                                                                              url, tmp_path):
+    """A feed measurement in kg/s (8.3 for 30 t/h) lay within its physical range and was Good: the service's first
+    move in auto, from the actual feed, wrote 8.3 t/h. On connecting, a running feeder's reading and its setpoint
+    node's value beyond a feeder's following are refused, naming both nodes; the plant's own values, a stopped
+    feeder's 0 and a reading near its setpoint connect."""
+    from .conftest import LockStep
+
+    async def connect_with(reading_over_setpoint: float | None) -> str:
+        ls = LockStep(small_scene, small_tags, small_parts, url, tmp_path / "audit")
+        await ls.plant.start()
+        try:
+            server = ls.plant.server
+            setpoint = server.read_attribute_value(ua.NodeId.from_string(small_tags.setpoints.feed_tph.node)).Value.Value
+            if reading_over_setpoint is not None:
+                await server.write_attribute_value(ua.NodeId.from_string(small_tags.measurements.feed_tph.node),
+                                                   ua.DataValue(ua.Variant(reading_over_setpoint * setpoint,
+                                                                           ua.VariantType.Double)))
+            try:
+                await ls.service.connect()
+            except NodeError as exc:
+                return str(exc)
+            await ls.service.shutdown("test end")
+            return ""
+        finally:
+            await ls.plant.stop_server()
+
+    assert asyncio.run(connect_with(None)) == "" and asyncio.run(connect_with(0.0)) == ""
+    assert asyncio.run(connect_with(0.9)) == ""
+    refused = asyncio.run(connect_with(1.0 / 3.6))
+    assert refused.startswith(f"measurements.feed_tph: node {small_tags.measurements.feed_tph.node!r} reads "), refused
+    assert f"feed setpoint node {small_tags.setpoints.feed_tph.node!r} holds " in refused
+    assert "0.278 times it" in refused and "(kg/s? kg/h?)" in refused

@@ -155,3 +155,30 @@ def test_a_power_reading_in_mw_is_bad_while_the_mill_turns():
     assert judged(1.01 * POWER_TURNING_MIN_FRAC * model_kw, 0.7)["power_kw"].ok
     assert not judged(0.99 * POWER_TURNING_MIN_FRAC * model_kw, 0.7)["power_kw"].ok
     assert judged(0.0, 0.0)["power_kw"].ok and judged(model_kw, 0.7)["power_kw"].ok
+
+
+def test_a_feed_reading_in_other_units_is_bad_while_the_service_writes_the_feed():
+    """8.33 for 30 t/h (a feed in kg/s) lay inside the physical range, which starts at a stopped feeder's 0, and was
+    Good: the estimator ran on a third of the feed. While the service is in auto, a feed reading beyond a factor of
+    the setpoint it wrote is Bad, naming both; a reading near it, a stopped feeder's 0 and readings in manual (the
+    operator's setpoint, not the service's) stay Good."""
+    import numpy as np
+
+    from scenarios.online.quality import Verdict
+    from scenarios.online.service import FEED_FOLLOW_FACTOR, Service
+
+    svc = Service.__new__(Service)
+    svc.mode, svc.u_written = "auto", np.array([30.0, 0.7])
+
+    def judged(feed):
+        return svc._feed_following({"feed_tph": Verdict(feed, "good"), "speed_frac_critical": Verdict(0.7, "good")})
+
+    for slip in (30.0 / 3.6, 30.0 / 60.0, 30.0e3):  # kg/s, t/min, kg/h
+        bad = judged(slip)["feed_tph"]
+        assert not bad.ok and bad.quality == "bad" and "kg/s? kg/h?" in bad.reason and "setpoint is 30 t/h" in bad.reason
+    assert judged(1.01 * 30.0 / FEED_FOLLOW_FACTOR)["feed_tph"].ok and judged(0.99 * 30.0 * FEED_FOLLOW_FACTOR)[
+        "feed_tph"].ok
+    assert not judged(0.99 * 30.0 / FEED_FOLLOW_FACTOR)["feed_tph"].ok
+    assert judged(0.0)["feed_tph"].ok and judged(29.0)["feed_tph"].ok
+    svc.mode = "manual"
+    assert judged(30.0 / 3.6)["feed_tph"].ok

@@ -247,7 +247,13 @@ def test_a_refused_setpoint_write_holds_says_why_and_records_each_setpoint(small
         url, online.ClientSecurity(insecure=True), tmp_path / "audit2", warmup_h=0.2), clock=ls.clock)
 
     async def run():
-        await ls.start()
+        await ls.plant.start()
+        # as a read-only display of the feed would hold it (its 210 um beside the 10 t/h feed reading is refused
+        # on connecting: a node in other units); the plant's next sample writes its P80 there again
+        server, node = ls.plant.server, ua.NodeId.from_string
+        feed = server.read_attribute_value(node(small_tags.measurements.feed_tph.node)).Value.Value
+        await server.write_attribute_value(node(wrong.setpoints.feed_tph.node), ua.DataValue(ua.Variant(feed)))
+        await ls.service.connect()
         await ls.step(8)
         await ls.stop()
     asyncio.run(run())
