@@ -124,7 +124,9 @@ def test_each_ores_product_is_reported_and_a_dense_ore_is_ground_finer():
     assert by_own.ore_p80_um["PY"] < 0.95 * by_own.ore_p80_um["B"]
     assert by_own.ore_p80_um["PY"] < by_own.p80_um < by_own.ore_p80_um["B"]
     assert {k: v for k, v in by_own.summary().items() if k.startswith("ore_")} == {
-        "ore_B_p80_um": by_own.ore_p80_um["B"], "ore_PY_p80_um": by_own.ore_p80_um["PY"]}
+        "ore_B_p80_um": by_own.ore_p80_um["B"], "ore_PY_p80_um": by_own.ore_p80_um["PY"],
+        "ore_B_circulating_load_frac": by_own.ore_circulating_load_frac["B"],
+        "ore_PY_circulating_load_frac": by_own.ore_circulating_load_frac["PY"]}
     alone = own.steady(feed_tph=23.0, blend={"B": 1.0, "PY": 0.0})
     assert np.isnan(alone.ore_p80_um["PY"]) and not any(k.startswith("ore_") for k in alone.summary())
 
@@ -156,3 +158,34 @@ def test_each_ores_product_p80_is_in_a_runs_frame_and_a_closed_loops_rows():
     assert not [c for c in one.columns if c.startswith("ore_")]
     alone = single.steady(feed_tph=23.0)
     assert not [k for k in TwinPlant(single.model).measure(alone.x, alone.u, alone.d) if k.startswith("ore_")]
+
+
+def test_each_ores_circulating_load_adds_up_and_a_dense_ore_circulates_more():
+    """SteadyState.ore_circulating_load_frac and a run's ``ore_<name>_circulating_load_frac``: each ore's cyclone
+    underflow over its fresh feed. Weighted by the ores' shares of the feed they add up to the circuit's circulating
+    load (the underflow is the ores' underflows); the denser ore, cut finer (Plitt 1976: d50c ~ (rho_s - 1)^-0.5),
+    circulates more (the build-up of a dense mineral in a closed circuit: Laplante & Finch 1984), and as much as B
+    when the twin holds both at one density. An ore not fed has none (NaN); a run's first row is the steady state."""
+    options = {"classification": {"kind": "hydrocyclone"}}
+    same = Twin(["B"], mill="industrial", effect_options=options)
+    breakage = same.scaled_breakage(same.calibration.breakage(same.blend.ores[0]))
+    ores = {"B": breakage, "PY": breakage}
+    own = Twin(["B", PYRITE_RICH], mill="industrial", effect_options=options, ore_breakage=ores)
+    one = Twin(["B", PYRITE_RICH], mill="industrial", effect_options=options, ore_breakage=ores,
+               solids_density_t_m3=own.spec.solids_density_t_m3)
+    shares = {"B": 0.3, "PY": 0.7}
+    by_own, by_one = (t.steady(feed_tph=23.0, blend=shares) for t in (own, one))
+    for ss in (by_own, by_one):
+        loads = ss.ore_circulating_load_frac
+        total = sum(shares[o] * loads[o] for o in shares)
+        assert total == pytest.approx(ss.outputs["circulating_load_frac"], rel=1e-9)
+    assert by_one.ore_circulating_load_frac["PY"] == pytest.approx(by_one.ore_circulating_load_frac["B"], rel=1e-9)
+    assert by_own.ore_circulating_load_frac["PY"] > 1.03 * by_own.ore_circulating_load_frac["B"]
+    alone = own.steady(feed_tph=23.0, blend={"B": 1.0, "PY": 0.0})
+    assert np.isnan(alone.ore_circulating_load_frac["PY"])
+    assert alone.ore_circulating_load_frac["B"] == pytest.approx(alone.outputs["circulating_load_frac"], rel=1e-9)
+    frame = own.simulate(0.1, 0.05, feed_tph=23.0, x0=by_own.x, blend=shares).frame
+    for ore in shares:
+        assert frame[f"ore_{ore}_circulating_load_frac"].iloc[0] == pytest.approx(
+            by_own.ore_circulating_load_frac[ore], rel=1e-9)
+    assert not [k for k in Twin(["B", PYRITE_RICH]).steady().summary() if "circulating" in k]  # no cyclones

@@ -410,7 +410,7 @@ class Classification(Effect):
     outputs = ("cyclone_d50c_um", "circulating_load_frac", "cyclone_feed_tph", "cyclone_underflow_tph",
                "cyclone_pressure_kpa", "cyclone_sharpness", "cyclone_water_bypass_frac", "cyclone_feed_solids_frac",
                "overflow_solids_frac", "underflow_solids_frac", "overflow_water_m3_h", "sump_water_m3_h",
-               "mill_water_m3_h", "underflow_solids_density_t_m3")
+               "mill_water_m3_h", "underflow_solids_density_t_m3", "ore_underflow_tph")
     uses = ("cut_size_factor", "cut_size_factor_at")
     source = ("Austin et al. (1984) ch. 9 (grate), Stokes settling (its density term); Plitt (1976), "
               "Flintoff et al. (1987) (hydrocyclone)")
@@ -538,6 +538,8 @@ class Classification(Effect):
             ctx.output("cyclone_water_bypass_frac", rf)
             ctx.output("circulating_load_frac", sum(ca.sum1(u) for u in under) / smooth_max(
                 ctx.feed_tph, feed_floor, feed_floor))
+            if len(under) > 1:  # each ore's underflow [t/h], a column: a dense ore, cut finer, circulates more
+                ctx.output("ore_underflow_tph", ca.vertcat(*[ca.sum1(u) for u in under]))
             return over, under
 
         ctx.provide("product_split", split)

@@ -252,8 +252,14 @@ def _trajectory_outputs(model, n: int):
     names = [name for name, fn in model.outputs.items() if fn.size1_out(0) == 1]
     args = (model.x, model.u, model.d)
     outs = [ca.vertcat(*[model.outputs[k](*args) for k in names]), model.psd_function()(*args)]
-    outs += [model.outputs["ore_product_tph"](*args)] if has_ore_products(model) else []
+    outs += [model.outputs[k](*args) for k in _ore_outputs(model)]
     return names, ca.Function("trajectory_outputs", list(args), outs).map(n)
+
+
+def _ore_outputs(model) -> list[str]:
+    """The model's outputs per ore that a run's frame reads (each ore's product and, in a closed circuit, its
+    underflow), where more than one ore makes a product."""
+    return [k for k in ("ore_product_tph", "ore_underflow_tph") if k in model.outputs] if has_ore_products(model) else []
 
 
 #: The key of one ore's product P80 in a steady state's summary and a run's frame (a unit-suffixed label, as
@@ -265,6 +271,21 @@ def has_ore_products(model) -> bool:
     """Whether a model makes more than one ore's product (a continuous mill of several ores), each
     of which then has its own P80 (:func:`ore_p80_um`)."""
     return len(model.spec.component_names) > 1 and "ore_product_tph" in model.outputs
+
+
+#: The key of one ore's circulating load (its cyclone underflow over its fresh feed) in a steady state's summary
+#: and a run's frame.
+ORE_CIRCULATING_LOAD_KEY = "ore_{}_circulating_load_frac"
+
+
+def ore_circulating_load(names, underflow_tph, feed_tph: float, fractions) -> dict:
+    """Each ore's circulating load [-] by ore name: its underflow [t/h] (the model's ``ore_underflow_tph``) over
+    its fresh feed, the feed [t/h] times its blend fraction (as ``circulating_load_frac`` is the underflow over the
+    feed); NaN for an ore not fed. The ores leave the cyclones at their own cuts (a dense ore's finer: Plitt 1976),
+    so a dense ore circulates more than the blend."""
+    under = np.asarray(underflow_tph, float).ravel()
+    fresh = [feed_tph * float(f) for f in fractions]
+    return {name: under[c] / fresh[c] if fresh[c] > 0 else math.nan for c, name in enumerate(names)}
 
 
 def ore_p80_um(grid, names, flows) -> dict:
@@ -283,7 +304,8 @@ PER_FEED_OUTPUTS = ("specific_energy_kwh_t", "circulating_load_frac")
 def outputs_frame(model, xs, us, ds, time_h, exact_p80=True) -> pd.DataFrame:
     """Scalar outputs along a trajectory as a DataFrame (one row per sample); ``p80_um`` (a batch's
     ``content_p80_um``) exact, the model's smooth P80 ``p80_smooth_um``; without ``exact_p80`` the smooth one only.
-    A mill of several ores has each ore's exact product P80 too (:data:`ORE_P80_KEY`, NaN where an ore makes none)."""
+    A mill of several ores has each ore's exact product P80 too (:data:`ORE_P80_KEY`, NaN where an ore makes none)
+    and in a closed circuit each ore's circulating load (:data:`ORE_CIRCULATING_LOAD_KEY`, NaN where it is not fed)."""
     cols = {"time_h": time_h, "feed_tph": us[:, 0], "speed_frac_critical": us[:, 1]}
     for i, name in enumerate(model.spec.component_names):
         cols[f"blend_{name}_frac"] = ds[:, i]
@@ -301,11 +323,17 @@ def outputs_frame(model, xs, us, ds, time_h, exact_p80=True) -> pd.DataFrame:
     if exact_p80:
         cols[p80] = [pxx_um(model.spec.grid, psd[:, j]) if psd[:, j].sum() > 0 else math.nan
                      for j in range(psd.shape[1])]
-    if exact_p80 and ores:  # each ore's own P80, its columns present whatever the samples' blends
-        comps = model.spec.component_names
-        flows = ores[0].reshape(psd.shape[0], len(time_h), len(comps))  # map() puts the samples' matrices side by side
+    ores = dict(zip(_ore_outputs(model), ores))
+    comps = model.spec.component_names
+    if exact_p80 and "ore_product_tph" in ores:  # each ore's own P80, its columns present whatever the samples' blends
+        # map() puts the samples' matrices side by side
+        flows = ores["ore_product_tph"].reshape(psd.shape[0], len(time_h), len(comps))
         per_sample = [ore_p80_um(model.spec.grid, comps, flows[:, j]) for j in range(len(time_h))]
         cols |= {ORE_P80_KEY.format(name): [s[name] for s in per_sample] for name in comps}
+    if "ore_underflow_tph" in ores:
+        per_sample = [ore_circulating_load(comps, ores["ore_underflow_tph"][:, j], us[j, 0], ds[j, :len(comps)])
+                      for j in range(len(time_h))]
+        cols |= {ORE_CIRCULATING_LOAD_KEY.format(name): [s[name] for s in per_sample] for name in comps}
     return pd.DataFrame(cols)
 
 

@@ -17,7 +17,8 @@ import scipy.sparse.linalg
 from ..errors import OverloadError, SolverError, TwinInputError, check_range
 from ..mill import load_status
 from .numeric import Evaluator, newton_blas_threads
-from .simulate import ORE_P80_KEY, PER_FEED_OUTPUTS, integrate_constant, ore_p80_um
+from .simulate import (ORE_CIRCULATING_LOAD_KEY, ORE_P80_KEY, PER_FEED_OUTPUTS, integrate_constant,
+                       ore_circulating_load, ore_p80_um)
 from ..sizes import pxx_um
 from ..validity import nominal_pressure_kpa, nominal_pressure_note, shell_capacity_t, state_notes
 
@@ -43,6 +44,7 @@ class SteadyState:
     method: str
     notes: list = field(default_factory=list)  # where the models do not describe it (twin.validity)
     ore_p80_um: dict = field(default_factory=dict)  # each ore's own product P80 (exact), by ore name
+    ore_circulating_load_frac: dict = field(default_factory=dict)  # each ore's, in a closed circuit, by ore name
 
     @property
     def feed_tph(self) -> float:
@@ -57,9 +59,14 @@ class SteadyState:
         return out
 
     def ore_summary(self) -> dict:
-        """Each ore's product P80 under :data:`ORE_P80_KEY`, where more than one ore makes a product (else {})."""
+        """Each ore's product P80 under :data:`ORE_P80_KEY` and circulating load under
+        :data:`ORE_CIRCULATING_LOAD_KEY`, where more than one ore makes a product (else {})."""
         ores = {name: v for name, v in self.ore_p80_um.items() if math.isfinite(v)}
-        return {ORE_P80_KEY.format(name): v for name, v in ores.items()} if len(ores) > 1 else {}
+        if len(ores) < 2:
+            return {}
+        return ({ORE_P80_KEY.format(name): v for name, v in ores.items()}
+                | {ORE_CIRCULATING_LOAD_KEY.format(name): self.ore_circulating_load_frac[name] for name in ores
+                   if name in self.ore_circulating_load_frac})
 
 
 @lru_cache(maxsize=64)
@@ -239,8 +246,10 @@ def _result(model, x, u, d, method) -> SteadyState:
                         outs, psd, nominal_pressure_kpa(model))
     notes.append(_undefined_note(float(u[0]), outs))
     notes = [n for n in notes if n]
-    return SteadyState(x, u, d, outs, p80, status, psd, method, notes,
-                       ore_p80_um(model.spec.grid, model.spec.component_names, flows))
+    names = model.spec.component_names
+    loads = {} if "ore_underflow_tph" not in model.outputs or len(names) < 2 else ore_circulating_load(
+        names, model.outputs["ore_underflow_tph"](x, u, d), float(u[0]), d[:len(names)])
+    return SteadyState(x, u, d, outs, p80, status, psd, method, notes, ore_p80_um(model.spec.grid, names, flows), loads)
 
 
 def _undefined_note(feed_tph: float, outs: dict) -> str:
