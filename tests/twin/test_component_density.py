@@ -105,18 +105,24 @@ def test_each_ore_is_held_by_the_grate_at_its_own_density():
     assert np.all(factors[1] <= factors[0]) and (factors[1] / factors[0]).min() < 0.2  # the dense ore is held back
 
 
-def test_each_ores_product_is_reported_and_a_dense_ore_is_ground_finer():
-    """SteadyState.ore_p80_um: each ore's product P80. The ores' products add up to the product, class by class;
-    two ores of the same breakage in the cyclone circuit grind alike when the twin holds them at one density, and
-    the denser one finer when each is held and cut at its own (the overgrinding of a dense mineral in a closed
-    circuit: Laplante & Finch 1984). The summary lists them where more than one ore makes a product."""
+def _same_breakage_in_cyclones() -> tuple[Twin, Twin]:
+    """Twins of B and the pyrite-rich ore with B's breakage both, in the industrial cyclone circuit: each ore held
+    and cut at its own density, and both at the first's blend density."""
     options = {"classification": {"kind": "hydrocyclone"}}
     same = Twin(["B"], mill="industrial", effect_options=options)
     breakage = same.scaled_breakage(same.calibration.breakage(same.blend.ores[0]))
     ores = {"B": breakage, "PY": breakage}
     own = Twin(["B", PYRITE_RICH], mill="industrial", effect_options=options, ore_breakage=ores)
-    one = Twin(["B", PYRITE_RICH], mill="industrial", effect_options=options, ore_breakage=ores,
-               solids_density_t_m3=own.spec.solids_density_t_m3)
+    return own, Twin(["B", PYRITE_RICH], mill="industrial", effect_options=options, ore_breakage=ores,
+                     solids_density_t_m3=own.spec.solids_density_t_m3)
+
+
+def test_each_ores_product_is_reported_and_a_dense_ore_is_ground_finer():
+    """SteadyState.ore_p80_um: each ore's product P80. The ores' products add up to the product, class by class;
+    two ores of the same breakage in the cyclone circuit grind alike when the twin holds them at one density, and
+    the denser one finer when each is held and cut at its own (the overgrinding of a dense mineral in a closed
+    circuit: Laplante & Finch 1984). The summary lists them where more than one ore makes a product."""
+    own, one = _same_breakage_in_cyclones()
     by_own, by_one = (t.steady(feed_tph=23.0, blend={"B": 0.5, "PY": 0.5}) for t in (own, one))
     flows = np.asarray(own.model.outputs["ore_product_tph"](by_own.x, by_own.u, by_own.d), float)
     assert flows.sum(axis=1) == pytest.approx(by_own.psd, rel=1e-12, abs=1e-15)
@@ -166,13 +172,7 @@ def test_each_ores_circulating_load_adds_up_and_a_dense_ore_circulates_more():
     load (the underflow is the ores' underflows); the denser ore, cut finer (Plitt 1976: d50c ~ (rho_s - 1)^-0.5),
     circulates more (the build-up of a dense mineral in a closed circuit: Laplante & Finch 1984), and as much as B
     when the twin holds both at one density. An ore not fed has none (NaN); a run's first row is the steady state."""
-    options = {"classification": {"kind": "hydrocyclone"}}
-    same = Twin(["B"], mill="industrial", effect_options=options)
-    breakage = same.scaled_breakage(same.calibration.breakage(same.blend.ores[0]))
-    ores = {"B": breakage, "PY": breakage}
-    own = Twin(["B", PYRITE_RICH], mill="industrial", effect_options=options, ore_breakage=ores)
-    one = Twin(["B", PYRITE_RICH], mill="industrial", effect_options=options, ore_breakage=ores,
-               solids_density_t_m3=own.spec.solids_density_t_m3)
+    own, one = _same_breakage_in_cyclones()
     shares = {"B": 0.3, "PY": 0.7}
     by_own, by_one = (t.steady(feed_tph=23.0, blend=shares) for t in (own, one))
     for ss in (by_own, by_one):

@@ -101,30 +101,38 @@ def test_a_read_node_the_server_lacks_fails_the_connection_naming_role_and_node(
     assert "; mode: node " in refused and "no.such.node.mode" in refused and "p80_um" not in refused
 
 
+async def _serve_after_writing(scene, tags, parts, url, tmp_path, values) -> str:
+    """'' if the service connects to the virtual plant after the plant's nodes were given ``values(feed setpoint
+    held)`` (node id -> number), else NodeError's message."""
+    from .conftest import LockStep
+
+    ls = LockStep(scene, tags, parts, url, tmp_path / "audit")
+    await ls.plant.start()
+    try:
+        server = ls.plant.server
+        setpoint = server.read_attribute_value(ua.NodeId.from_string(tags.setpoints.feed_tph.node)).Value.Value
+        for node, value in values(setpoint).items():
+            await server.write_attribute_value(ua.NodeId.from_string(node),
+                                               ua.DataValue(ua.Variant(value, ua.VariantType.Double)))
+        try:
+            await ls.service.connect()
+        except NodeError as exc:
+            return str(exc)
+        await ls.service.shutdown("test end")
+        return ""
+    finally:
+        await ls.plant.stop_server()
+
+
 def test_a_setpoint_node_holding_a_value_in_other_units_fails_the_connection(small_scene, small_tags, small_parts,
                                                                              url, tmp_path):
     """A speed setpoint node in percent of critical (holding 72) took the service's 0.72 as 0.72 %, and a feed node
     in kg/h its 30 t/h as 30 kg/h: nothing compared the node with what the service writes there. The service's
     connection now refuses a node holding a number outside the setpoint's range in the service's units; a stopped
     mill's 0 and the plant's own setpoints connect."""
-    from .conftest import LockStep
-
     async def connect_with(values: dict) -> str:
-        ls = LockStep(small_scene, small_tags, small_parts, url, tmp_path / "audit")
-        await ls.plant.start()
-        try:
-            for name, value in values.items():
-                await ls.plant.server.write_attribute_value(
-                    ua.NodeId.from_string(getattr(small_tags.setpoints, name).node),
-                    ua.DataValue(ua.Variant(value, ua.VariantType.Double)))
-            try:
-                await ls.service.connect()
-            except NodeError as exc:
-                return str(exc)
-            await ls.service.shutdown("test end")
-            return ""
-        finally:
-            await ls.plant.stop_server()
+        nodes = {getattr(small_tags.setpoints, name).node: value for name, value in values.items()}
+        return await _serve_after_writing(small_scene, small_tags, small_parts, url, tmp_path, lambda setpoint: nodes)
 
     assert asyncio.run(connect_with({})) == ""  # the virtual plant's own setpoints
     assert asyncio.run(connect_with({"speed_frac_critical": 0.0, "feed_tph": 0.0})) == ""  # a stopped mill
@@ -159,26 +167,10 @@ def test_a_feed_reading_in_other_units_than_its_setpoint_fails_the_connection(sm
     move in auto, from the actual feed, wrote 8.3 t/h. On connecting, a running feeder's reading and its setpoint
     node's value beyond a feeder's following are refused, naming both nodes; the plant's own values, a stopped
     feeder's 0 and a reading near its setpoint connect."""
-    from .conftest import LockStep
-
     async def connect_with(reading_over_setpoint: float | None) -> str:
-        ls = LockStep(small_scene, small_tags, small_parts, url, tmp_path / "audit")
-        await ls.plant.start()
-        try:
-            server = ls.plant.server
-            setpoint = server.read_attribute_value(ua.NodeId.from_string(small_tags.setpoints.feed_tph.node)).Value.Value
-            if reading_over_setpoint is not None:
-                await server.write_attribute_value(ua.NodeId.from_string(small_tags.measurements.feed_tph.node),
-                                                   ua.DataValue(ua.Variant(reading_over_setpoint * setpoint,
-                                                                           ua.VariantType.Double)))
-            try:
-                await ls.service.connect()
-            except NodeError as exc:
-                return str(exc)
-            await ls.service.shutdown("test end")
-            return ""
-        finally:
-            await ls.plant.stop_server()
+        node = small_tags.measurements.feed_tph.node
+        return await _serve_after_writing(small_scene, small_tags, small_parts, url, tmp_path, lambda setpoint: (
+            {} if reading_over_setpoint is None else {node: reading_over_setpoint * setpoint}))
 
     assert asyncio.run(connect_with(None)) == "" and asyncio.run(connect_with(0.0)) == ""
     assert asyncio.run(connect_with(0.9)) == ""
