@@ -171,7 +171,8 @@ def test_each_ores_circulating_load_adds_up_and_a_dense_ore_circulates_more():
     underflow over its fresh feed. Weighted by the ores' shares of the feed they add up to the circuit's circulating
     load (the underflow is the ores' underflows); the denser ore, cut finer (Plitt 1976: d50c ~ (rho_s - 1)^-0.5),
     circulates more (the build-up of a dense mineral in a closed circuit: Laplante & Finch 1984), and as much as B
-    when the twin holds both at one density. An ore not fed has none (NaN); a run's first row is the steady state."""
+    when the twin holds both at one density. An ore not fed has none (NaN); a run's first row and a closed loop's
+    plant reading at the steady state are the steady state's."""
     own, one = _same_breakage_in_cyclones()
     shares = {"B": 0.3, "PY": 0.7}
     by_own, by_one = (t.steady(feed_tph=23.0, blend=shares) for t in (own, one))
@@ -189,3 +190,8 @@ def test_each_ores_circulating_load_adds_up_and_a_dense_ore_circulates_more():
         assert frame[f"ore_{ore}_circulating_load_frac"].iloc[0] == pytest.approx(
             by_own.ore_circulating_load_frac[ore], rel=1e-9)
     assert not [k for k in Twin(["B", PYRITE_RICH]).steady().summary() if "circulating" in k]  # no cyclones
+    from mpc.plants.twin_plant import TwinPlant
+
+    reading = TwinPlant(own.model).measure(by_own.x, by_own.u, by_own.d)  # a closed loop's row
+    assert {ore: reading[f"ore_{ore}_circulating_load_frac"] for ore in shares} == pytest.approx(
+        by_own.ore_circulating_load_frac, rel=1e-12)
