@@ -27,7 +27,7 @@ _API = {
     "Blend": ".ore", "Mineralogy": ".ore", "Texture": ".ore", "load_ore": ".ore", "reference_ores": ".ore",
     "GatesGaudinSchuhmann": ".sizes", "RosinRammler": ".sizes", "SizeGrid": ".sizes", "discretise": ".sizes",
     "pxx_um": ".sizes",
-    "SteadyState": ".solve", "Trajectory": ".solve", "sample_count": ".solve",
+    "SteadyState": ".solve", "Trajectory": ".solve", "sample_count": ".solve", "mass_balance_error": ".solve",
     "DEFAULT_EFFECTS": ".twin", "MIXER_SHARES_SUM_TOL": ".twin", "mixer_shares_sum_ok": ".twin",
     "Twin": ".twin",
     "file_sha256": ".atomic", "is_grindtwin_checkout": ".atomic", "new_folder_beside": ".atomic", "write_text_atomically": ".atomic",
@@ -55,6 +55,7 @@ __all__ = [
     "file_sha256", "is_grindtwin_checkout", "new_folder_beside", "pxx_um", "reference_ores", "nominal_pressure_note", "trajectory_notes", "write_text_atomically",
     "LockError", "acquire_lock", "release_lock", "remove_by_name", "replace_folder", "temporaries_of",
     "write_atomically", "write_beside", "check_size_mill_input", "sample_count", "nominal_pressure_kpa",
+    "mass_balance_error",
     "blend_density_t_m3", "shell_capacity_t", "SPECIFIC_ENERGY_RANGE_KWH_T", "exponent_order_problem",
 ]
 __getattr__, __dir__ = lazy_face(__name__, _API)

@@ -45,6 +45,7 @@ from mpc import (cumulative, fresh_feed_t, held_cumulative, integral, outside_ba
 from scenarios.run.models import is_batch
 from scenarios.scene import Scene
 from scenarios.scene.ranges import NO_PRODUCT_FRAC, scene_nominal_feed_tph
+from twin import mass_balance_error
 
 KPI_KEYS = ("p80_iae_um_h", "p80_within_10um_frac", "specific_energy_kwh_t", "throughput_t", "throughput_tph",
             "load_outside_band_frac", "solve_time_median_s", "solve_time_p95_s",
@@ -131,16 +132,3 @@ def _runs(mask: np.ndarray) -> list[np.ndarray]:
     """Index arrays of the runs of consecutive True in ``mask``."""
     edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0]))
     return [np.arange(a, b) for a, b in zip(edges[::2], edges[1::2])]
-
-
-def mass_balance_error(frame: pd.DataFrame) -> float:
-    """max |fed - produced - (H - H0)| / (fed + H0) over a frame, H the ore held in the mill and, with the
-    ``feed_inventory`` effect, ahead of it (``feed_inventory_t``: a PI loop's feed change moved it by 0.8 t, read
-    as a 1.2 % imbalance); NaN without those columns."""
-    if not {"fed_t", "produced_t", "holdup_t"} <= set(frame.columns):
-        return math.nan
-    h = frame["holdup_t"].to_numpy(float)
-    if "feed_inventory_t" in frame.columns:
-        h = h + frame["feed_inventory_t"].to_numpy(float)
-    err = frame["fed_t"].to_numpy(float) - frame["produced_t"].to_numpy(float) - (h - h[0])
-    return float(np.abs(err).max() / (frame["fed_t"].iloc[-1] + h[0] + 1e-300))

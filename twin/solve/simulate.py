@@ -108,10 +108,22 @@ class Trajectory:
     notes: list = field(default_factory=list)  # where the models do not describe it (twin.validity)
 
     def mass_balance_error(self) -> float:
-        """max |fed - produced - (H - H0)| over the run, relative to fed + H0."""
-        h = self.frame["holdup_t"].to_numpy()
-        err = self.fed_t - self.produced_t - (h - h[0])
-        return float(np.abs(err).max() / (self.fed_t[-1] + h[0] + 1e-300))
+        """:func:`mass_balance_error` of the run's frame (the ore held ahead of the mill counted too)."""
+        return mass_balance_error(self.frame)
+
+
+def mass_balance_error(frame: pd.DataFrame) -> float:
+    """max |fed - produced - (H - H0)| / (fed + H0) over a frame, H the ore held in the mill and, with the
+    ``feed_inventory`` effect, ahead of it (``feed_inventory_t``: the quadrature ``fed_t`` counts the ore entering
+    the inventory, so without it a feed step's inventory change read as an imbalance); NaN without those columns.
+    One function for a run's frame and a scene's KPI (scenarios.run.kpis)."""
+    if not {"fed_t", "produced_t", "holdup_t"} <= set(frame.columns):
+        return math.nan
+    h = frame["holdup_t"].to_numpy(float)
+    if "feed_inventory_t" in frame.columns:
+        h = h + frame["feed_inventory_t"].to_numpy(float)
+    err = frame["fed_t"].to_numpy(float) - frame["produced_t"].to_numpy(float) - (h - h[0])
+    return float(np.abs(err).max() / (frame["fed_t"].iloc[-1] + h[0] + 1e-300))
 
 
 @lru_cache(maxsize=64)
