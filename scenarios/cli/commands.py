@@ -715,7 +715,8 @@ def _steady_scene(args) -> int:
 
     given = [name for name, v in (("--surrogate", args.surrogate), ("--at-constant-load", args.at_constant_load),
                                   ("--blend", args.blend), ("--ore", args.ore), ("--mill", args.mill),
-                                  ("--uncertainty", args.uncertainty)) if v not in (None, False)]
+                                  ("--uncertainty", args.uncertainty)) if v is not None and v is not False]
+    # (not `v not in (None, False)`: a bare --uncertainty is 0, equal to False, and was ignored without a word)
     if given:  # --ore and --mill were ignored without a word
         raise SceneError(f"--scene runs the scene's own twin (its ores and mill): {', '.join(given)} "
                          "do not apply.")

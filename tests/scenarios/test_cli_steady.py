@@ -47,6 +47,8 @@ def test_steady_ore_from_toml(tmp_path, capsys):
     (["steady", "--scene", "scenarios/molycop_ballsim.toml", "--ore", "A"], "--ore do not apply"),
     (["steady", "--scene", "scenarios/molycop_ballsim.toml", "--mill", "lab", "--blend", "B=1"],
      "--blend, --mill do not apply"),
+    # a bare --uncertainty (all replicates) is 0: it printed the scene's steady state without the intervals asked for
+    (["steady", "--scene", "scenarios/molycop_ballsim.toml", "--uncertainty"], "--uncertainty do not apply"),
 ])
 def test_bad_arguments_give_one_line_and_exit_2(argv, message, capsys):
     with pytest.raises(SystemExit) as exc:
