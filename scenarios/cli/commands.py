@@ -860,7 +860,7 @@ def _print_intervals(unc: dict, at_load: bool) -> None:
     left = ([f"{unc['failed']} failed steady states"] if unc["failed"] else []) + (
         [f"{unc['unconverged']} replicate{'s' * (unc['unconverged'] != 1)} whose table step did not converge"] if unc.get("unconverged") else [])
     print(f"  {unc['level']:.0%} intervals over {unc['n']} bootstrap replicates of the DEM's particle scatter"
-          + (f" ({' and '.join(left)} left out)" if left else "") + ":")
+          + (f" ({' and '.join(left)} left out)" if left else "") + ": the replicates' median [interval]")
     for key, iv in unc["intervals"].items():
         if iv is None:
             print(f"    {key:22s} undefined")

@@ -74,9 +74,11 @@ def test_steady_calibration_by_name_and_by_path(capsys):
 
 
 def test_steady_uncertainty_prints_intervals(capsys):
+    """Each interval beside the replicates' median, said as such: it differs from the point estimate above it (the
+    median read as the steady state's own number)."""
     assert main(["steady", "--ore", "B", "--at-constant-load", "--uncertainty", "20"]) == 0
     out = capsys.readouterr().out
-    assert "90% intervals over 20 bootstrap replicates" in out
+    assert "90% intervals over 20 bootstrap replicates" in out and ": the replicates' median [interval]" in out
     for key in ("p80_um", "specific_energy_kwh_t", "throughput_tph"):
         line = next(ln for ln in out.splitlines() if ln.strip().startswith(key) and "[" in ln)
         lo, hi = (float(v) for v in line.split("[")[1].rstrip("]").split(","))
