@@ -71,6 +71,7 @@ POWER_TURNING_MIN_FRAC = 0.1
 #: holds: ``fallback.inputs_hold_after_h``). A feed in kg/s reads 3.6 times low, in t/min 60 times, in kg/h
 #: 1000 times high: each was Good, inside the physical range that starts at a stopped feeder's 0.
 FEED_FOLLOW_FACTOR = 2.0
+
 #: Failures of the estimator's or controller's numerics: held and reported, never hidden
 #: (CasADi raises RuntimeError on a failed function evaluation).
 NUMERIC_ERRORS = (MpcError, TwinError, np.linalg.LinAlgError, RuntimeError)
@@ -102,6 +103,15 @@ class ServeSettings:
     """Estimate this long before moving anything (None: the in-process loop's ESTIMATOR_WARMUP_H)."""
     duration_h: float | None = None
     audit_flush_every: int = 20
+
+
+
+def _feed_follows(reading: float, setpoint: float) -> bool:
+    """True unless a running feeder's reading and its setpoint (both above 0) lie beyond
+    :data:`FEED_FOLLOW_FACTOR` of each other (a stopped feeder's 0, or a setpoint of 0, is not judged)."""
+    if not (reading > 0 and setpoint > 0):
+        return True
+    return 1.0 / FEED_FOLLOW_FACTOR <= reading / setpoint <= FEED_FOLLOW_FACTOR
 
 
 class Service(Stoppable):
@@ -398,7 +408,7 @@ class Service(Stoppable):
         if setpoint is None or reading is None or severity(reading.status) != GOOD:
             return
         value = raw_number(reading.value)
-        if not (value > 0 and setpoint > 0) or 1.0 / FEED_FOLLOW_FACTOR <= value / setpoint <= FEED_FOLLOW_FACTOR:
+        if _feed_follows(value, setpoint):
             return
         raise NodeError(f"measurements.feed_tph: node {self.tags.measurements.feed_tph.node!r} reads {value:g} while "
                         f"the feed setpoint node {self.tags.setpoints.feed_tph.node!r} holds {setpoint:g} t/h: "
@@ -409,10 +419,10 @@ class Service(Stoppable):
         """``v`` with a usable feed reading above 0 made Bad when the service is in auto and the reading lies
         beyond :data:`FEED_FOLLOW_FACTOR` of the feed setpoint it wrote (a stopped feeder's 0 is a reading)."""
         feed = v.get("feed_tph")
-        if feed is None or not feed.ok or not feed.value > 0 or self.mode != "auto" or self.u_written is None:
+        if feed is None or not feed.ok or self.mode != "auto" or self.u_written is None:
             return v
         written = float(self.u_written[0])
-        if written <= 0 or 1.0 / FEED_FOLLOW_FACTOR <= feed.value / written <= FEED_FOLLOW_FACTOR:
+        if _feed_follows(feed.value, written):
             return v
         return {**v, "feed_tph": Verdict(math.nan, BAD, f"feed_tph = {feed.value:g} t/h while the service's feed "
                                          f"setpoint is {written:.4g} t/h: {feed.value / written:.3g} times it, beyond "
