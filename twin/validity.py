@@ -126,8 +126,8 @@ def pressure_note(outputs: dict, nominal_kpa: float | None = None) -> str:
     it at 1e8 kPa, a survey's psi read as kPa 6.9 times low. ``nominal_kpa``: the cyclones' pressure at the
     model's nominal feed (:func:`nominal_pressure_kpa`); when it lies within the range, units do not explain
     the state's pressure, its flow does (a feed stop drops it to a fraction of a kPa), and the note says so."""
-    if "cyclone_pressure_kpa" not in outputs:
-        return ""
+    if "cyclone_pressure_kpa" not in outputs or not outputs.get("throughput_tph", 1.0) > 0.0:
+        return ""  # without a product nothing flows to the cyclones: the pressure of the model's floored flow is no state
     from .effects.classification import CYCLONE_PRESSURE_RANGE_KPA
 
     lo, hi = CYCLONE_PRESSURE_RANGE_KPA

@@ -147,6 +147,18 @@ def test_a_cyclone_in_metres_notes_its_pressure():
     assert "7.7 kPa" in pressure_note({"cyclone_pressure_kpa": 7.7})
 
 
+def test_an_empty_circuit_has_no_cyclone_pressure_to_note():
+    """At zero feed the steady circuit is empty and the cyclones get nothing: the model's floored flow gave them
+    1e-9 kPa, and a laboratory mill with cyclones (whose pressure at the nominal feed is outside the range) was asked
+    whether its cyclone's sizes were in cm. The note reads a state with a product; a fed state keeps it."""
+    from twin import Twin
+
+    tw = Twin("B", mill="lab", effect_options={"classification": {"kind": "hydrocyclone"}})
+    fed, empty = tw.steady(), tw.steady(feed_tph=0.0)
+    assert any(n.startswith("the cyclone feed pressure is") for n in fed.notes)
+    assert empty.outputs["throughput_tph"] == 0.0 and not any("cyclone feed pressure" in n for n in empty.notes)
+
+
 @pytest.mark.parametrize("kind", ["reverse", "direct"])
 def test_a_run_reports_the_mills_discharge_and_the_cyclone_feed_apart(kind):
     """A reverse circuit's streams.csv gave the cyclone feed (discharge + fresh feed) as the mill discharge:
