@@ -27,7 +27,8 @@ from scenarios.errors import SceneError
 from scenarios.online.quality import PlausibleRange
 from scenarios.run.closed_loop import feed_bounds
 from scenarios.scene import Scene, pydantic_message, read_toml
-from scenarios.scene.ranges import FEED_MAX_NOMINAL_MULTIPLE, P80_MIN_UM, nominal_feed_tph
+from scenarios.scene.physical import POWER_MAX_MODEL_MULTIPLE, physical_limits
+from scenarios.scene.ranges import FEED_MAX_NOMINAL_MULTIPLE, P80_MIN_UM
 
 #: A node id in OPC UA's string form (Part 6, 5.3.1.10): namespace, then identifier type and value.
 NODE_ID_PATTERN = r"^(ns=\d+|nsu=[^;]+);(i=\d+|s=.+|g=[0-9a-fA-F-]{36}|b=.+)$"
@@ -42,30 +43,6 @@ STALE_AFTER_SAMPLES = 3
 #: longer and the setpoints are held.
 INPUTS_HOLD_AFTER_SAMPLES = 2
 
-# Physical limits of the measurements: a reading outside is Bad (an instrument or scaling fault,
-# never a state of the plant) and is not used; a tag map may narrow a range, never widen it.
-# The P80 of the product is a size of at least scenarios.scene.ranges.P80_MIN_UM (no mill's product is
-# finer; 0 is what a dead analyser sends, and a P80 in mm, 0.21, lands below: it was taken as Good and drove
-# the feed to its bound), and a mill only breaks, so it lies below the top of the coarsest feed class
-# (:func:`p80_max_um`).
-#: The mill's motor draws power: below 0 is a sign or scaling fault (a stopped mill reads 0); above
-#: POWER_MAX_MODEL_MULTIPLE times the most the mill's power model draws (at critical speed, clay-free
-#: slurry: :func:`power_max_kw`) it is one too. The multiple allows the drive's losses in a gross
-#: reading (gross over net 1.11 in the Moly-Cop BallSim base case: 4316 over 3885 kW) and the power
-#: model's own error, and still catches a reading in W, or a digit too many.
-POWER_MIN_KW = 0.0
-POWER_MAX_MODEL_MULTIPLE = 2.0
-#: The load is a hold-up (over nominal): an empty mill reads 0, never less; its upper limit is the
-#: mill filled to its shell around its balls (:meth:`twin.Mill.max_holdup_t` over the nominal hold-up,
-#: :func:`load_max_frac`): a mill holding more overflows.
-LOAD_MIN_FRAC = 0.0
-#: The actual feed is a weightometer's rate: a stopped belt reads 0, never less; above
-#: FEED_MAX_NOMINAL_MULTIPLE times the mill's nominal feed it is no operating point of the mill
-#: (the limit of recorded feeds, :mod:`scenarios.scene.ranges`).
-FEED_MIN_TPH = 0.0
-#: Mill speed as a fraction of critical, both ends excluded: 0 is a stopped mill, and at 1 the
-#: charge centrifuges and grinds nothing (scenes and recorded histories are held to it too).
-SPEED_RANGE_FRAC_CRITICAL = (0.0, 1.0)
 #: A belt analyser's ore fraction is >= 0, and at most 1 + ``sum_tolerance``: a larger one cannot
 #: sum to 1 with the other ores' within the tolerance.
 BLEND_FRAC_MIN = 0.0
@@ -300,55 +277,12 @@ def scene_problems(tags: TagMap, scene: Scene) -> list[str]:
     return out
 
 
-def p80_max_um(scene: Scene) -> float:
-    """The top of the coarsest feed class (``mill.size_classes.top_um``, the plant's if coarser):
-    no product particle of the mill, so no P80, is coarser."""
-    tops = [scene.mill.size_classes.top_um]
-    if scene.plant is not None and scene.plant.size_classes is not None:
-        tops.append(scene.plant.size_classes.top_um)
-    return float(max(tops))
-
-
-def load_max_frac(scene: Scene) -> float:
-    """The hold-up of the scene's mill filled to its shell over its nominal hold-up (both scale
-    with the ore's density, which cancels)."""
-    from scenarios.run.models import scene_mill
-
-    mill = scene_mill(scene)
-    return mill.max_holdup_t(1.0) / mill.nominal_holdup_t(1.0)
-
-
-def power_max_kw(scene: Scene) -> float:
-    """The most net power the scene's mill draws by its power models (the mill's and any the scene's
-    or its plant's power effect names): at critical speed, where both models are largest (Bond's
-    grows with speed below it, Hogg & Fuerstenau's is linear in it), in a clay-free slurry (the
-    rheology's factor is at most 1: clay only thickens it)."""
-    from scenarios.run.models import scene_mill
-    from twin import power_kw
-
-    mill = scene_mill(scene)
-    tables = [scene.effect_options, getattr(scene.plant, "effect_options", None)]
-    models = {mill.power_model} | {t["power"]["model"] for t in tables
-                                   if isinstance((t or {}).get("power"), dict) and t["power"].get("model")}
-    return max(float(power_kw(mill.with_(power_model=m), 1.0)) for m in models)
-
-
 def physical_range(name: str, scene: Scene) -> PlausibleRange:
     """The physically possible values of the measurement ``name`` of :class:`Measurements` on
-    the scene's mill (the constants above, the reasons in PHYSICAL_REASONS)."""
-    if name == "p80_um":
-        return PlausibleRange(P80_MIN_UM, p80_max_um(scene), False, True, "um")
-    if name == "power_kw":
-        return PlausibleRange(POWER_MIN_KW, POWER_MAX_MODEL_MULTIPLE * power_max_kw(scene), unit="kW")
-    if name == "load_frac":
-        return PlausibleRange(LOAD_MIN_FRAC, load_max_frac(scene), unit="of the nominal hold-up")
-    if name == "feed_tph":  # the mill's nominal feed, as scenes and recorded histories are judged
-        nominal = nominal_feed_tph(scene.mill_spec(), scene.mill.model_dump())
-        return PlausibleRange(FEED_MIN_TPH, math.inf if nominal is None else FEED_MAX_NOMINAL_MULTIPLE * nominal,
-                              unit="t/h")
-    if name == "speed_frac_critical":
-        return PlausibleRange(*SPEED_RANGE_FRAC_CRITICAL, True, True, "of critical")
-    raise KeyError(f"no physical range for measurement {name!r}; known: {', '.join(PHYSICAL_REASONS)}")
+    the scene's mill (:func:`scenarios.scene.physical.physical_limits`, the reasons in PHYSICAL_REASONS)."""
+    if name not in PHYSICAL_REASONS:
+        raise KeyError(f"no physical range for measurement {name!r}; known: {', '.join(PHYSICAL_REASONS)}")
+    return PlausibleRange(*physical_limits(name, scene))
 
 
 def setpoint_range(name: str, scene: Scene) -> PlausibleRange:

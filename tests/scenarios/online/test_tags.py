@@ -116,8 +116,8 @@ def test_a_cycle_trigger_must_be_a_measurement_the_map_reads(tmp_path, small_sce
 
 
 def test_each_measurement_gets_its_physical_range_from_the_scene(tmp_path, small_scene):
-    from scenarios.online.tags import (FEED_MAX_NOMINAL_MULTIPLE, POWER_MAX_MODEL_MULTIPLE, blend_range,
-                                       physical_range, plausible_range)
+    from scenarios.online.tags import FEED_MAX_NOMINAL_MULTIPLE, blend_range, physical_range, plausible_range
+    from scenarios.scene.physical import POWER_MAX_MODEL_MULTIPLE
     from scenarios.run.models import scene_mill
 
     tags = online.load_tags(_write(tmp_path, SMALL_TAGS), small_scene)
@@ -135,7 +135,7 @@ def test_each_measurement_gets_its_physical_range_from_the_scene(tmp_path, small
     most = POWER_MAX_MODEL_MULTIPLE * float(power_kw(scene_mill(small_scene), 1.0))
     assert str(got["power_kw"]) == f"[0, {most:g}] kW" and 1000.0 * 300.0 not in got["power_kw"]
     assert float(power_kw(scene_mill(small_scene), 0.7)) in got["power_kw"]  # its draw at the usual speed is
-    from scenarios.online.tags import load_max_frac
+    from scenarios.scene.physical import load_max_frac
 
     mill = scene_mill(small_scene)  # the load meter reads hold-up over nominal: at most the mill filled to its shell
     full = mill.max_holdup_t(2.7) / mill.nominal_holdup_t(2.7)
