@@ -79,7 +79,8 @@ static int config_as_exported(void) {
         const double *v;
         int n;
     } parts[] = {GT_PART(scalars), GT_PART(gt_x_scale), GT_PART(gt_u_lo), GT_PART(gt_u_hi), GT_PART(gt_du_max),
-                 GT_PART(gt_wpass), GT_PART(gt_upper_um), GT_PART(gt_z0), GT_PART(gt_p0), GT_PART(gt_u0)};
+                 GT_PART(gt_wpass), GT_PART(gt_upper_um), GT_PART(gt_z0), GT_PART(gt_p0), GT_PART(gt_u0),
+                 GT_PART(gt_y_lo), GT_PART(gt_y_hi)};
     int p, i, k = 0;
     for (p = 0; p < (int)(sizeof(parts) / sizeof(parts[0])); ++p)
         for (i = 0; i < parts[p].n; ++i, ++k)
@@ -155,14 +156,15 @@ static int blend_ok(const double *b) {
 int gt_controller_estimate(gt_controller *c, const double *y, const double *u_applied,
                            const double *blend) {
     double yy[3], mask[3], z[GT_NZ];
-    int i, failed;
+    int i, failed, implausible = 0;
     /* mpc.Ekf.make_step refuses these: a NaN input once made the clipped update an empty mill, a feed of
      * -100 t/h emptied it, a blend of [5, -4] drove the hardness to its bound */
     if (!c || !y || !u_applied || !blend || !all_finite(u_applied, GT_NU) || !blend_ok(blend) ||
         !(u_applied[0] >= 0.0 && u_applied[1] > 0.0 && u_applied[1] < 1.0))
         return GT_ESTIMATE_BAD_INPUT;
-    for (i = 0; i < 3; ++i) {
-        int ok = isfinite(y[i]);
+    for (i = 0; i < 3; ++i) { /* outside its physical range: a fault of units or instrument, as absent */
+        int ok = isfinite(y[i]) && y[i] >= gt_y_lo[i] && y[i] <= gt_y_hi[i];
+        implausible |= isfinite(y[i]) && !ok;
         yy[i] = ok ? y[i] : 0.0;
         mask[i] = ok ? 1.0 : 0.0;
     }
@@ -184,7 +186,7 @@ int gt_controller_estimate(gt_controller *c, const double *y, const double *u_ap
         reset_estimate(c); /* as the scene's closed loop resets its EKF (CountingEstimator) */
         return GT_ESTIMATE_RESET;
     }
-    return GT_ESTIMATE_OK;
+    return implausible ? GT_ESTIMATE_IMPLAUSIBLE : GT_ESTIMATE_OK;
 }
 
 /* mpc.Controller._initial_guess: the previous solution shifted by one sample, its first lifted
@@ -295,7 +297,7 @@ static int preview_ok(const double *preview) {
 int gt_controller_step(gt_controller *c, const double *preview, const double *u_given, double *u) {
     double x0s[GT_NX], h, *p, bias, u_applied[GT_NU];
     const double *wpass = gt_wpass;
-    int k, i, it, n_it = GT_RTI_ITERATIONS, ok = n_it > 0;
+    int k, i, it, n_it = GT_RTI_ITERATIONS, ok = n_it > 0, projected = 0;
     if (!c) return GT_STEP_BAD_INPUT;
     h = GT_HAS_HARDNESS ? c->z[GT_NX] : GT_HARDNESS0;
     p = c->p;
@@ -307,6 +309,7 @@ int gt_controller_step(gt_controller *c, const double *preview, const double *u_
     for (i = 0; i < GT_NU; ++i) { /* mpc.Controller.make_step: refused, or projected onto the bounds */
         if (!isfinite(u_given[i])) return GT_STEP_BAD_INPUT;
         u_applied[i] = clip(u_given[i], gt_u_lo[i], gt_u_hi[i]);
+        projected |= u_applied[i] != u_given[i];
     }
     if (!preview_ok(preview)) return GT_STEP_BAD_INPUT;
     if (!isfinite(bias) || bias >= GT_TARGET_P80_UM) { /* mpc.Controller.make_step refuses it */
@@ -361,6 +364,7 @@ int gt_controller_step(gt_controller *c, const double *preview, const double *u_
     u[1] = c->plan[1];
     /* mpc.Controller.make_step: the plan's end misses the target (the plan is applied all the same) */
     c->passing_end = plan_passing_end(c, wpass);
+    if (projected) return GT_STEP_INPUT_PROJECTED; /* mpc.Controller.make_step: input_outside_bounds */
     return fabs(c->passing_end - GT_PASSING_TARGET) > GT_UNREACHABLE_TOL ? GT_STEP_TARGET_UNREACHABLE : GT_STEP_OK;
 }
 

@@ -9,9 +9,11 @@
  *   es = gt_controller_estimate(c, y, u_applied, blend); the EKF over the last period
  *   st = gt_controller_step(c, preview, u_applied, u);   the moves to apply now
  * What u holds after each status is in enum gt_step_status: apply it for GT_STEP_OK, SHIFTED_PLAN,
- * HOLD_INPUT, BAD_BIAS and TARGET_UNREACHABLE; GT_STEP_BAD_INPUT writes nothing into u (read both
- * statuses). gt_controller_new allocates everything (two blocks, see gt_controller_bytes);
- * estimate and step allocate nothing. Dimensions, the preview's lead, the target, the bounds and
+ * HOLD_INPUT, BAD_BIAS, TARGET_UNREACHABLE and INPUT_PROJECTED; GT_STEP_BAD_INPUT writes nothing into
+ * u (read both statuses). Units: y = [p80_um (um), power_kw (kW), load_frac (hold-up over nominal)],
+ * u = [feed_tph (t/h), speed_frac_critical (fraction of critical, 0.72 not 72)]. gt_controller_new
+ * allocates everything (two blocks, see gt_controller_bytes); estimate and step allocate nothing.
+ * Dimensions, the preview's lead, the target, the bounds, the measurements' physical ranges and
  * the initial estimate are in gt_controller_config.h (included here), exported with the QP's and the
  * EKF's data: not tuning. An edited header is refused (GT_ABI_CONFIG_EDITED); change the scene and
  * export again.
@@ -42,7 +44,7 @@ enum gt_step_status {
                                  passes its output buffer), the plan and the estimate unchanged.
                                  Not a move to apply: the inputs may be the fault, so no hold value
                                  is trusted; keep the actuators where they are and fix the input */
-    GT_STEP_TARGET_UNREACHABLE = 5 /* the QP solved and u is the plan's first move, to be applied as
+    GT_STEP_TARGET_UNREACHABLE = 5, /* the QP solved and u is the plan's first move, to be applied as
                                  for GT_STEP_OK, but the plan misses the P80 target at the horizon
                                  end: its passing fraction there (gt_controller_passing_end) differs
                                  from GT_PASSING_TARGET (0.80 passing the target) by more than
@@ -50,6 +52,12 @@ enum gt_step_status {
                                  Python controller's status "target_unreachable" by the same rule:
                                  the bounds or rate limits keep the target out of reach within the
                                  horizon */
+    GT_STEP_INPUT_PROJECTED = 6 /* the QP solved and u is the plan's first move, to be applied as for
+                                 GT_STEP_OK, but u_applied was outside the bounds gt_u_lo/gt_u_hi and
+                                 the plan starts from its projection onto them (the Python controller's
+                                 status "input_outside_bounds"): after a manual period, or an input in
+                                 other units (a feed in kg/s, a speed in % of critical). Said before
+                                 GT_STEP_TARGET_UNREACHABLE (gt_controller_passing_end tells that) */
 };
 /* status of gt_controller_estimate */
 enum gt_estimate_status {
@@ -59,9 +67,14 @@ enum gt_estimate_status {
                                   blend is not fractions in [0, 1] summing to 1 within
                                   GT_BLEND_SUM_TOL (the Python EKF raises): nothing estimated, the
                                   estimate left as it was */
-    GT_ESTIMATE_RESET = 2      /* the update left a NaN or an infinity in the estimate or its
+    GT_ESTIMATE_RESET = 2,     /* the update left a NaN or an infinity in the estimate or its
                                   covariance: both back to the exported initial estimate (the
                                   scene's closed loop resets its EKF the same way); the plan is kept */
+    GT_ESTIMATE_IMPLAUSIBLE = 3 /* a measurement y[i] lay outside its physical range gt_y_lo[i] to
+                                  gt_y_hi[i] (gt_controller_config.h: a P80 in mm, a power in W, a load
+                                  in %, a dead analyser's 0): not used, as absent, as grindtwin serve
+                                  takes a Bad reading; the others were (GT_ESTIMATE_RESET if the update
+                                  then left a NaN) */
 };
 /* u_applied outside the bounds gt_u_lo/gt_u_hi is planned from its projection onto them, as in
  * mpc.Controller.make_step (status input_outside_bounds there): the first move jumps into them */
@@ -108,8 +121,9 @@ void gt_controller_free(gt_controller *c);
 /* back to the exported initial estimate (state, hardness, covariance), no plan */
 void gt_controller_reset(gt_controller *c);
 /* EKF predict + update: y = [p80_um, power_kw, load_frac] measured now (a NaN or an infinity =
- * absent at this sample), u_applied = [feed_tph, speed_frac_critical] and blend (GT_NB fractions)
- * over the period that just ended; returns a gt_estimate_status */
+ * absent at this sample; outside gt_y_lo/gt_y_hi: not used, GT_ESTIMATE_IMPLAUSIBLE), u_applied =
+ * [feed_tph, speed_frac_critical] and blend (GT_NB fractions) over the period that just ended;
+ * returns a gt_estimate_status */
 int gt_controller_estimate(gt_controller *c, const double *y, const double *u_applied,
                            const double *blend);
 /* the NMPC step: preview = blend fractions of the GT_N stages ahead (GT_PREVIEW_LEN = GT_NB x GT_N

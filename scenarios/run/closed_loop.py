@@ -10,9 +10,9 @@ import numpy as np
 import pandas as pd
 import scipy.linalg
 
-from mpc import (EKF_RK4_SUBSTEPS, FEED_RANGE_NOMINAL, RK4_RATE_SAFETY, Controller, Ekf, LoopSettings, MpcInputError,
-                 MpcSolverError, NmpcSettings, Sensors, TwinPlant, check_out_dir, export_controller, feed_for_target,
-                 pi_baseline, run_closed_loop, stable_rk4_substeps, state_jacobian)
+from mpc import (EKF_RK4_SUBSTEPS, FEED_RANGE_NOMINAL, MEASUREMENTS, RK4_RATE_SAFETY, Controller, Ekf, LoopSettings,
+                 MpcInputError, MpcSolverError, NmpcSettings, Sensors, TwinPlant, check_out_dir, export_controller,
+                 feed_for_target, pi_baseline, run_closed_loop, stable_rk4_substeps, state_jacobian)
 from scenarios.errors import RunError, SceneError
 from scenarios.run.feed import component_blend
 from scenarios.run.streams import Samples, run_size_data
@@ -289,6 +289,19 @@ def nmpc_parts(scene: Scene, models, start: LoopStart, codegen: str = "auto"):
     return make_estimator(scene, models.control, start.control, codegen), make_controller(scene, models.control, codegen)
 
 
+def measurement_range(scene: Scene) -> np.ndarray:
+    """``(low, high)`` of the EKF's measurements (mpc.estimator.MEASUREMENTS) on the scene's mill, ends
+    included: their physical limits (:func:`scenarios.scene.physical.physical_limits`), an open end the
+    nearest float inside."""
+    from scenarios.scene.physical import physical_limits
+
+    out = np.empty((2, len(MEASUREMENTS)))
+    for i, name in enumerate(MEASUREMENTS):
+        lo, hi, lo_open, hi_open, _ = physical_limits(name, scene)
+        out[:, i] = np.nextafter(lo, math.inf) if lo_open else lo, np.nextafter(hi, -math.inf) if hi_open else hi
+    return out
+
+
 def export_scene_controller(scene: Scene, out_dir, source: str = "") -> list[str]:
     """The scene's NMPC and EKF as C source in ``out_dir`` (:func:`mpc.export_controller`), at the
     closed loop's initial state; returns the files written."""
@@ -315,7 +328,8 @@ def export_scene_controller(scene: Scene, out_dir, source: str = "") -> list[str
     estimator, controller = nmpc_parts(scene, models, start, codegen="off")
     try:
         return export_controller(controller, estimator, [start.feed_tph, scene.feed.speed_frac_critical],
-                                 out_dir, source=source, preview_lead_h=c.preview_lead_h)
+                                 out_dir, source=source, preview_lead_h=c.preview_lead_h,
+                                 measurement_range=measurement_range(scene))
     except MpcInputError as exc:
         raise SceneError(str(exc)) from None
 

@@ -236,7 +236,7 @@ def test_what_u_holds_after_a_refused_or_held_step_is_what_the_header_says(built
     assert "nothing written into u: both elements keep the caller's values" in _status_text(header, "BAD_INPUT")
     for name in ("HOLD_INPUT", "BAD_BIAS"):
         assert "u = u_applied projected onto the bounds" in _status_text(header, name), name
-    for name in ("OK", "SHIFTED_PLAN", "TARGET_UNREACHABLE"):
+    for name in ("OK", "SHIFTED_PLAN", "TARGET_UNREACHABLE", "INPUT_PROJECTED"):
         assert " u " in f" {_status_text(header, name)} ", name
     from mpc.export import STEP_STATUS
     assert "nothing written into u" in STEP_STATUS[4] and "projected onto the input bounds" in STEP_STATUS[2]
@@ -245,7 +245,7 @@ def test_what_u_holds_after_a_refused_or_held_step_is_what_the_header_says(built
     rows = [ln.split() for ln in subprocess.run([str(exe)], capture_output=True, text=True,
                                                 check=True).stdout.splitlines()]
     lo_f, lo_s, hi_f, hi_s = map(float, rows[-1][1:])
-    assert rows[0][1] in ("0", "5") and float(rows[0][2]) <= hi_f  # solved, from the projection
+    assert rows[0][1] == "6" and float(rows[0][2]) <= hi_f  # solved, from the projection: GT_STEP_INPUT_PROJECTED
     assert [r for r in rows if r[0] == "bad"] == [["bad", "4", "1", "1", "1"]] * 3
 
     # the hold: gt_controller.c built against a config with no real-time iteration (a QP never

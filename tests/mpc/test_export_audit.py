@@ -318,3 +318,69 @@ def test_an_estimator_with_a_change_detector_is_refused():
     controller = SimpleNamespace(settings=SimpleNamespace(solver="rti", qpsol="condensed"), model=model)
     with pytest.raises(MpcInputError, match="not its change detector"):
         _check(controller, SimpleNamespace(model=model, change_detector=ChangeDetector()))
+
+
+def _moves(out: Path, lines) -> tuple[list[list[str]], str]:
+    """gt_replay's U rows (status, feed, speed) and its stderr for ``lines``."""
+    run = _replay(out, lines)
+    assert run.returncode == 0, run.stderr
+    return [ln.split()[1:4] for ln in run.stdout.splitlines() if ln.startswith("U ")], run.stderr
+
+
+def test_a_measurement_outside_its_physical_range_is_not_used_and_said(built):
+    """The exported estimate took any finite measurement: a P80 in mm (0.21), a dead analyser's -5, a load
+    in % (35) were estimated with status ok, and the P80 in mm drove the feed up at its rate limit each
+    sample, as it once did in grindtwin serve, which judges its tags by their physical ranges. Now the
+    export carries those ranges (gt_y_lo, gt_y_hi: the scene's, as serve's) and the estimate takes a value
+    outside as absent, with GT_ESTIMATE_IMPLAUSIBLE (3): the next step's moves are those of no measurement."""
+    from scenarios.scene import load_scene
+    from scenarios.scene.physical import physical_limits
+
+    out, scene = built[0], load_scene(REFERENCE)
+    top, power_max = physical_limits("p80_um", scene)[1], physical_limits("power_kw", scene)[1]
+    step = _c_line([23.64, 0.7], np.tile([[1.0], [0.0]], 10))  # near the start: no rate limit in the first move
+
+    def after(y):
+        return _moves(out, ["E " + " ".join(repr(float(v)) for v in [*y, 23.64, 0.7, 1.0, 0.0]), step])
+
+    absent, err = after([np.nan, np.nan, np.nan])
+    assert absent[0][0] in ("0", "5") and "status" not in err
+    measured, err = after([210.0, np.nan, np.nan])
+    assert measured != absent and "status" not in err  # a plausible P80 moves the plan: the test can fail
+    power_w = 1000.0 * power_max / 2  # the most the mill draws, in W
+    for y in ([0.21, np.nan, np.nan], [-5.0, np.nan, np.nan], [top, np.nan, np.nan], [np.nan, power_w, np.nan],
+              [np.nan, np.nan, 35.0], [np.nan, -1.0, -0.1]):
+        moves, err = after(y)
+        assert moves == absent and "E line 1: gt_controller_estimate status 3" in err, (y, moves, err)
+    ranges = json.loads((out / "grindtwin_export.json").read_text())["measurement_range"]
+    assert ranges == {"p80_um": [1.0, float(np.nextafter(top, 0.0))], "power_kw": [0.0, power_max],  # top excluded
+                      "load_frac": [0.0, physical_limits("load_frac", scene)[1]]}
+
+
+def test_a_step_from_outside_the_input_bounds_says_so(built):
+    """A step whose applied input lay outside the bounds (a feed in kg/s: 6.6 for 23.6 t/h) was planned from
+    its projection and returned ok (or target_unreachable): the caller could not tell, while the Python
+    controller's status says input_outside_bounds. Now GT_STEP_INPUT_PROJECTED (6); inside the bounds
+    nothing changes."""
+    out, est, ctrl, _ = built
+    preview = np.tile([[1.0], [0.0]], 10)
+    est.reset()
+    d = np.vstack([preview, np.full((1, 10), est.hardness_est)])
+    for u, c_status in (([23.6 / 3.6, 0.7], ("6",)), ([23.6, 70.0], ("6",)), ([23.6, 0.7], ("0", "5"))):
+        ctrl.reset()
+        moves, _ = _moves(out, [_c_line(u, preview)])
+        assert moves[0][0] in c_status, (u, moves)
+        outside = str(ctrl.make_step(est.x_est, d, u).status).startswith("input_outside_bounds")
+        assert outside == (c_status == ("6",)), u
+
+
+def test_export_refuses_a_measurement_range_it_cannot_check(built, tmp_path):
+    """``measurement_range`` is (low, high) of the 3 measurements, low <= high, no NaN: anything else is
+    refused naming the parameter, nothing written."""
+    from mpc import export_controller
+
+    _, est, ctrl, _ = built
+    for bad in ([[1.0, 0.0, 0.0]], [[1.0, 0.0, 0.0], [0.5, 10.0, 5.0]], [[np.nan] * 3, [1.0] * 3], "wide"):
+        with pytest.raises(MpcInputError, match="'measurement_range' parameter of export_controller"):
+            export_controller(ctrl, est, [23.6, 0.7], tmp_path / "ctl", measurement_range=bad)
+    assert not (tmp_path / "ctl").exists()

@@ -104,9 +104,9 @@ def test_exported_controller_replays_the_reference_hour_like_python(tmp_path, mo
     assert status == [0] * len(py) == _c_statuses(python.statuses)
     assert odd[0][1] == "4"  # GT_STEP_BAD_INPUT
     lo, hi = [20.0, 0.6], [45.0, 0.85]  # the reference scene's controller bounds
-    # solved, planned from the projection onto the bounds (45 t/h, 0.85 of critical); that plan
-    # misses the target at the horizon end: 5, GT_STEP_TARGET_UNREACHABLE
-    assert odd[1][1] == "5" and all(a <= float(v) <= b for a, v, b in zip(lo, odd[1][2:4], hi))
+    # solved, planned from the projection onto the bounds (45 t/h, 0.85 of critical): 6,
+    # GT_STEP_INPUT_PROJECTED (said before that plan's miss of the target at the horizon end)
+    assert odd[1][1] == "6" and all(a <= float(v) <= b for a, v, b in zip(lo, odd[1][2:4], hi))
     assert len(odd[1]) == 8 and odd[1][7] == "0"  # the QP status, 0: solved
     unknown = subprocess.run([str(out / "gt_replay")], input="X 1 2\n", capture_output=True, text=True)
     assert unknown.returncode == 1 and "unknown line" in unknown.stderr  # it was skipped silently
