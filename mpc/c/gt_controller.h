@@ -23,6 +23,10 @@
 
 #include "gt_controller_config.h"
 
+#ifdef __cplusplus
+extern "C" { /* a C++ caller links the C library (its names unmangled) */
+#endif
+
 typedef struct gt_controller gt_controller;
 
 /* status of gt_controller_step */
@@ -121,9 +125,10 @@ void gt_controller_free(gt_controller *c);
 /* back to the exported initial estimate (state, hardness, covariance), no plan */
 void gt_controller_reset(gt_controller *c);
 /* EKF predict + update: y = [p80_um, power_kw, load_frac] measured now (a NaN or an infinity =
- * absent at this sample; outside gt_y_lo/gt_y_hi: not used, GT_ESTIMATE_IMPLAUSIBLE), u_applied =
- * [feed_tph, speed_frac_critical] and blend (GT_NB fractions) over the period that just ended;
- * returns a gt_estimate_status */
+ * absent at this sample: pass NaN, not the last value held, when an analyser slower than GT_DT_H
+ * reported nothing new, as the scene's closed loop and grindtwin serve do; outside gt_y_lo/gt_y_hi:
+ * not used, GT_ESTIMATE_IMPLAUSIBLE), u_applied = [feed_tph, speed_frac_critical] and blend (GT_NB
+ * fractions) over the period that just ended; returns a gt_estimate_status */
 int gt_controller_estimate(gt_controller *c, const double *y, const double *u_applied,
                            const double *blend);
 /* the NMPC step: preview = blend fractions of the GT_N stages ahead (GT_PREVIEW_LEN = GT_NB x GT_N
@@ -151,5 +156,9 @@ double gt_controller_passing_end(const gt_controller *c);
 /* bytes allocated by gt_controller_new (two blocks: the controller with the EKF's work, and the
  * RTI's: QP data and solver work) */
 long gt_controller_bytes(void);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -384,3 +384,40 @@ def test_export_refuses_a_measurement_range_it_cannot_check(built, tmp_path):
         with pytest.raises(MpcInputError, match="'measurement_range' parameter of export_controller"):
             export_controller(ctrl, est, [23.6, 0.7], tmp_path / "ctl", measurement_range=bad)
     assert not (tmp_path / "ctl").exists()
+
+
+CXX_DRIVER = r"""
+#include <cmath>
+#include <cstdio>
+#include "gt_controller.h"
+int main() {
+    int abi = -1;
+    gt_controller *c = GT_CONTROLLER_NEW(&abi);
+    double y[3] = {210.0, NAN, NAN}, u_applied[2] = {23.64, 0.7}, blend[GT_NB] = {1.0}, u[2];
+    double preview[GT_PREVIEW_LEN] = {0};
+    for (int k = 0; k < GT_N; ++k) preview[k * GT_NB] = 1.0;
+    int es = gt_controller_estimate(c, y, u_applied, blend);
+    int st = gt_controller_step(c, preview, u_applied, u);
+    std::printf("%d %d %d %.17g %.17g\n", abi, es, st, u[0], u[1]);
+    gt_controller_free(c);
+    return 0;
+}
+"""
+
+
+def test_a_cxx_caller_links_the_library(built, tmp_path):
+    """gt_controller.h declared its functions without extern "C": a C++ caller (a DCS's C++ block)
+    compiled against it looked for mangled names and did not link. Now it does, and its step is the C
+    harness's."""
+    cxx = shutil.which("g++") or shutil.which("c++")
+    if cxx is None:
+        pytest.skip("no C++ compiler on this machine")
+    out = built[0]
+    (tmp_path / "driver.cpp").write_text(CXX_DRIVER)
+    build = subprocess.run([cxx, "-O1", f"-I{out}", str(tmp_path / "driver.cpp"), str(out / "libgtcontroller.a"),
+                            "-o", str(tmp_path / "driver")], capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr[-2000:]
+    abi, es, st, *u = subprocess.run([str(tmp_path / "driver")], capture_output=True, text=True,
+                                     check=True).stdout.split()
+    moves, _ = _moves(out, ["E 210 nan nan 23.64 0.7 1 0", "C 23.64 0.7 " + " ".join(["1 0"] * 10)])
+    assert (abi, es) == ("0", "0") and [st, *u] == moves[0]
