@@ -160,7 +160,7 @@ int gt_controller_estimate(gt_controller *c, const double *y, const double *u_ap
     /* mpc.Ekf.make_step refuses these: a NaN input once made the clipped update an empty mill, a feed of
      * -100 t/h emptied it, a blend of [5, -4] drove the hardness to its bound */
     if (!c || !y || !u_applied || !blend || !all_finite(u_applied, GT_NU) || !blend_ok(blend) ||
-        !(u_applied[0] >= 0.0 && u_applied[1] > 0.0 && u_applied[1] < 1.0))
+        !(u_applied[0] >= 0.0 && u_applied[0] <= GT_FEED_MAX_TPH && u_applied[1] > 0.0 && u_applied[1] < 1.0))
         return GT_ESTIMATE_BAD_INPUT;
     for (i = 0; i < 3; ++i) { /* outside its physical range: a fault of units or instrument, as absent */
         int ok = isfinite(y[i]) && y[i] >= gt_y_lo[i] && y[i] <= gt_y_hi[i];

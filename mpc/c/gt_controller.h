@@ -69,7 +69,9 @@ enum gt_estimate_status {
     GT_ESTIMATE_BAD_INPUT = 1, /* c, y, u_applied or blend is NULL, u_applied holds a NaN or an
                                   infinity, a feed < 0 or a speed outside (0, 1) of critical, or
                                   blend is not fractions in [0, 1] summing to 1 within
-                                  GT_BLEND_SUM_TOL (the Python EKF raises): nothing estimated, the
+                                  GT_BLEND_SUM_TOL (the Python EKF raises), or a feed above
+                                  GT_FEED_MAX_TPH (its physical limit, grindtwin serve's: a feed in
+                                  kg/h or t/d, which left a negative mill): nothing estimated, the
                                   estimate left as it was */
     GT_ESTIMATE_RESET = 2,     /* the update left a NaN or an infinity in the estimate or its
                                   covariance: both back to the exported initial estimate (the

@@ -307,6 +307,7 @@ def export_scene_controller(scene: Scene, out_dir, source: str = "") -> list[str
     closed loop's initial state; returns the files written."""
     from scenarios.run.feed import feed_schedule
     from scenarios.run.models import build_models, component_ores
+    from scenarios.scene.physical import physical_limits
 
     c = scene.controller
     if c.kind != "nmpc":
@@ -329,7 +330,8 @@ def export_scene_controller(scene: Scene, out_dir, source: str = "") -> list[str
     try:
         return export_controller(controller, estimator, [start.feed_tph, scene.feed.speed_frac_critical],
                                  out_dir, source=source, preview_lead_h=c.preview_lead_h,
-                                 measurement_range=measurement_range(scene))
+                                 measurement_range=measurement_range(scene),
+                                 feed_max_tph=physical_limits("feed_tph", scene)[1])
     except MpcInputError as exc:
         raise SceneError(str(exc)) from None
 

@@ -134,24 +134,57 @@ int main(void) {
 """
 
 
+def _driver_rows(cc: str, folder: Path, include: Path, objects) -> tuple[dict, dict]:
+    """DRIVER built in ``folder`` against ``include``'s headers and ``objects``: its rows by tag, and the
+    estimates they show."""
+    folder.mkdir(exist_ok=True)
+    (folder / "driver.c").write_text(DRIVER)
+    exe = folder / "driver"
+    build = subprocess.run([cc, "-O1", f"-I{include}", str(folder / "driver.c"), *map(str, objects), "-lm", "-o",
+                            str(exe)], capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr[-2000:]
+    rows = {ln.split()[0]: ln.split()[1:] for ln in subprocess.run([str(exe)], capture_output=True, text=True,
+                                                                   check=True).stdout.splitlines()}
+    return rows, {k: np.array(v[1:], float) for k, v in rows.items() if len(v) > 2}
+
+
+def _library_with(cc: str, folder: Path, out: Path, macro: str, value: str) -> list[Path]:
+    """The objects of the export in ``out`` with the scalar ``macro`` of gt_controller_config.h set to
+    ``value`` in the header and in gt_exported.c alike (the library refuses a header that differs)."""
+    folder.mkdir(exist_ok=True)
+    for name in ("gt_controller.h", "gt_controller_config.h", "gt_controller.c"):
+        shutil.copyfile(out / name, folder / name)
+    cfg = folder / "gt_controller_config.h"
+    text, n = re.subn(rf"#define {macro} \S+\n", f"#define {macro} {value}\n", cfg.read_text())
+    assert n == 1, macro
+    cfg.write_text(text)
+    exported = (out / "gt_exported.c").read_text()
+    listed = re.search(r"\{(.*)\}", exported).group(1).split(", ")
+    scalars = re.search(r"#define GT_CONFIG_SCALARS \{(.*)\}", text).group(1).split(", ")
+    listed[scalars.index(macro)] = value
+    (folder / "gt_exported.c").write_text(exported.replace(re.search(r"\{(.*)\}", exported).group(1),
+                                                           ", ".join(listed)))
+    objs = []
+    for name in ("gt_controller", "gt_exported"):
+        objs.append(folder / f"{name}.o")
+        run = subprocess.run([cc, "-O1", "-c", f"-I{folder}", f"-I{out}", str(folder / f"{name}.c"), "-o",
+                              str(objs[-1])], capture_output=True, text=True)
+        assert run.returncode == 0, run.stderr[-2000:]
+    return [*objs, *(out / f"{name}.o" for name in ("gt_rti_data", "gt_ekf_data", "gt_qp", "gt_cond", "gt_rti"))]
+
+
 def test_the_estimate_refuses_a_non_finite_input_and_resets_a_non_finite_estimate(built, tmp_path):
     """gt_controller_estimate returned nothing and took a NaN feed rate: the update's clipping
     turned the NaN masses into an empty mill, and the next step answered with moves and status
     ok. Now it returns a status: a NaN or infinite input or blend (the Python EKF raises) or a NULL
-    argument is GT_ESTIMATE_BAD_INPUT with the estimate untouched; an update that leaves a
-    non-finite covariance (a feed of 1e300) is GT_ESTIMATE_RESET, back to the exported initial
+    argument is GT_ESTIMATE_BAD_INPUT with the estimate untouched, as is a feed of 1e300 (above the feed's
+    physical limit); an update that leaves a non-finite covariance (that feed, on a library built without the
+    limit) is GT_ESTIMATE_RESET, back to the exported initial
     estimate, where the scene's closed loop resets its EKF. The step and the accessors answer NULL
     with a status (or NULL, NaN, -1), not a crash."""
     out, est, _, _ = built
     cc = c_tools()
-    (tmp_path / "driver.c").write_text(DRIVER)
-    exe = tmp_path / "driver"
-    build = subprocess.run([cc, "-O1", f"-I{out}", str(tmp_path / "driver.c"), str(out / "libgtcontroller.a"),
-                            "-lm", "-o", str(exe)], capture_output=True, text=True)
-    assert build.returncode == 0, build.stderr[-2000:]
-    rows = {ln.split()[0]: ln.split()[1:] for ln in subprocess.run([str(exe)], capture_output=True, text=True,
-                                                                   check=True).stdout.splitlines()}
-    z = {k: np.array(v[1:], float) for k, v in rows.items() if len(v) > 2}
+    rows, z = _driver_rows(cc, tmp_path, out, [out / "libgtcontroller.a"])
     np.testing.assert_array_equal(z["start"], est.z)  # the exported initial estimate is the EKF's
     # a feed of -100 t/h, a speed of 5 x critical and a blend [5, -4] were estimated with OK: an empty mill,
     # a hardness at its bound; now refused in C and in Python alike
@@ -171,7 +204,11 @@ def test_the_estimate_refuses_a_non_finite_input_and_resets_a_non_finite_estimat
         est.z, est.P, [27.0, 0.7], [1.0, 0.0], [210.0, 0, 0], [1.0, 0, 0])[1], float)
     counted.make_step([210.0, np.nan, np.nan], [1e300, 0.7], [1.0, 0.0])
     assert counted.resets == [1]  # Python resets here too
-    assert rows["huge_u"][0] == "2" and np.array_equal(z["huge_u"], z["start"])  # GT_ESTIMATE_RESET
+    # a feed of 1e300 is above the physical limit (GT_ESTIMATE_BAD_INPUT); the reset on a library without one
+    assert rows["huge_u"][0] == "1" and np.array_equal(z["huge_u"], z["ok"])
+    wide, wide_z = _driver_rows(cc, tmp_path / "wide", out, _library_with(cc, tmp_path / "wide", out,
+                                                                           "GT_FEED_MAX_TPH", "INFINITY"))
+    assert wide["huge_u"][0] == "2" and np.array_equal(wide_z["huge_u"], z["start"])  # GT_ESTIMATE_RESET
     est.reset()
     assert rows["null_c_estimate"] == ["1"] and rows["null_c_step"] == ["4"] and rows["null_u"] == ["4"]
     assert rows["null_preview"] == ["4", "-1"]  # u left as it was
@@ -374,15 +411,19 @@ def test_a_step_from_outside_the_input_bounds_says_so(built):
         assert outside == (c_status == ("6",)), u
 
 
-def test_export_refuses_a_measurement_range_it_cannot_check(built, tmp_path):
-    """``measurement_range`` is (low, high) of the 3 measurements, low <= high, no NaN: anything else is
-    refused naming the parameter, nothing written."""
+def test_export_refuses_limits_it_cannot_check(built, tmp_path):
+    """``measurement_range`` is (low, high) of the 3 measurements, low <= high, no NaN, and ``feed_max_tph`` a
+    number > 0: anything else is refused naming the parameter, nothing written."""
     from mpc import export_controller
 
     _, est, ctrl, _ = built
     for bad in ([[1.0, 0.0, 0.0]], [[1.0, 0.0, 0.0], [0.5, 10.0, 5.0]], [[np.nan] * 3, [1.0] * 3], "wide"):
         with pytest.raises(MpcInputError, match="'measurement_range' parameter of export_controller"):
-            export_controller(ctrl, est, [23.6, 0.7], tmp_path / "ctl", measurement_range=bad)
+            export_controller(ctrl, est, [23.6, 0.7], tmp_path / "ctl", measurement_range=bad, feed_max_tph=310.0)
+    for bad in (0.0, -1.0, float("nan"), "310"):
+        with pytest.raises(MpcInputError, match="'feed_max_tph' parameter of export_controller"):
+            export_controller(ctrl, est, [23.6, 0.7], tmp_path / "ctl", measurement_range=[[0.0] * 3, [1.0] * 3],
+                              feed_max_tph=bad)
     assert not (tmp_path / "ctl").exists()
 
 
@@ -421,3 +462,20 @@ def test_a_cxx_caller_links_the_library(built, tmp_path):
                                      check=True).stdout.split()
     moves, _ = _moves(out, ["E 210 nan nan 23.64 0.7 1 0", "C 23.64 0.7 " + " ".join(["1 0"] * 10)])
     assert (abi, es) == ("0", "0") and [st, *u] == moves[0]
+
+
+def test_the_estimate_refuses_a_feed_beyond_its_physical_limit(built):
+    """The exported estimate took any feed >= 0: a feed in t/d (567 for 23.6 t/h) or kg/h was estimated with
+    status ok. Now a feed above the scene's physical limit (10 x the mill's nominal, GT_FEED_MAX_TPH, the
+    range grindtwin serve reads the weightometer in) is GT_ESTIMATE_BAD_INPUT; one at the limit is used."""
+    from scenarios.scene import load_scene
+    from scenarios.scene.physical import physical_limits
+
+    out = built[0]
+    limit = physical_limits("feed_tph", load_scene(REFERENCE))[1]
+    lines = [f"E 210 nan nan {feed!r} 0.7 1 0" for feed in (45.0, limit, 23.64 * 24, 23640.0)]
+    run = _replay(out, lines)
+    assert "E line 3: gt_controller_estimate status 1" in run.stderr
+    assert "E line 4: gt_controller_estimate status 1" in run.stderr and "E line 2" not in run.stderr
+    assert run.returncode == 0 and run.stdout.splitlines()[-1] == "R 2", run.stdout
+    assert json.loads((out / "grindtwin_export.json").read_text())["feed_max_tph"] == limit
