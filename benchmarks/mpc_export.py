@@ -34,10 +34,11 @@ from scenarios.run import closed_loop, run_scene
 from scenarios.scene import load_scene
 from dem_common import TAG
 
-#: gt_controller_step's statuses of a solved step (mpc/c/gt_controller.h): GT_STEP_OK and
-#: GT_STEP_TARGET_UNREACHABLE (the plan misses the target at the horizon end, applied all the same)
+#: gt_controller_step's statuses of a solved step (mpc/c/gt_controller.h): GT_STEP_OK,
+#: GT_STEP_TARGET_UNREACHABLE (the plan misses the target at the horizon end, applied all the same) and
+#: GT_STEP_INPUT_PROJECTED (planned from the applied input projected onto the bounds)
 C_TARGET_UNREACHABLE = 5
-C_SOLVED = (0, C_TARGET_UNREACHABLE)
+C_SOLVED = (0, C_TARGET_UNREACHABLE, 6)
 
 OUT = Path(__file__).parent / "results"
 SCENE = Path(__file__).parents[1] / "scenarios" / "reference_transition.toml"
