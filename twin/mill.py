@@ -76,7 +76,9 @@ class Mill:
     default when it runs a hydrocyclone circuit), empty when none; ``cyclone_circuit`` the circuit
     it was sized in (twin.sizing.CIRCUITS: fresh feed to the mill, ``"direct"``, or to the
     cyclones' sump, ``"reverse"``), which a twin running another says
-    (twin.effects.classification.sized_circuit_notes)."""
+    (twin.effects.classification.sized_circuit_notes). ``sized_calibration`` names the calibration a sized
+    mill was sized under ('' for a mill not sized), which a twin under another says (its breakage, so the
+    sizing's P80 and throughput, are another's)."""
 
     name: str
     diameter_m: float
@@ -99,6 +101,7 @@ class Mill:
     net_power_kw: float | None = None
     cyclone: tuple = ()
     cyclone_circuit: str = "direct"
+    sized_calibration: str = ""
 
     def __post_init__(self):
         o = f"Mill {self.name!r}"
@@ -242,7 +245,8 @@ def read_preset(path) -> Mill:
                              + (f"; missing {', '.join(missing)}." if missing else "."))
     try:
         return INDUSTRIAL_BASE.with_(**record["mill"], cyclone=tuple(sorted(record["cyclone"].items())),
-                                     cyclone_circuit=record["sizing"].get("circuit", "direct"))
+                                     cyclone_circuit=record["sizing"].get("circuit", "direct"),
+                                     sized_calibration=str((record.get("calibration") or {}).get("name", "")))
     except TwinInputError as exc:
         raise TwinInputError(f"The mill preset file {path}: {exc}") from None
 

@@ -130,7 +130,7 @@ def _at(ore, base: Mill, diameter_m: float, cyclone: dict, feed_tph: float, spee
     aspect = base.length_m / base.diameter_m
     mill = base.with_(diameter_m=diameter_m, length_m=aspect * diameter_m, feed_nominal_tph=feed_tph,
                       speed_nominal_frac_critical=speed, cyclone=tuple(sorted(cyclone.items())),
-                      cyclone_circuit=circuit)
+                      cyclone_circuit=circuit, sized_calibration=calibration.name)
     with warnings.catch_warnings():  # Newton on an overloading trial mill: the SolverError is the answer
         warnings.simplefilter("ignore", scipy.sparse.linalg.MatrixRankWarning)
         return mill, circuit_twin(ore, mill, cyclone, circuit, calibration=calibration).steady(

@@ -141,6 +141,10 @@ class Twin:
             effect_options=dict(effect_options or {}))
         self.notes += sized_circuit_notes(self.spec)  # a mill sized in one circuit, run in another
         self.notes += [n for n in [nominal_feed_note(self.mill)] if n]  # another mill's nominal feed
+        if self.mill.sized_calibration and self.mill.sized_calibration != self.calibration.name:
+            self.notes.append(f"mill {self.mill.name!r} was sized under calibration {self.mill.sized_calibration!r}; "
+                              f"this twin runs calibration {self.calibration.name!r}, whose breakage is another: the "
+                              "P80 and throughput it was sized for do not hold under it")
         self.model = Model(self.spec)
 
     def __reduce__(self):

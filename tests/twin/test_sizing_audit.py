@@ -128,3 +128,18 @@ def test_an_empty_preset_path_is_refused_before_sizing(capsys, monkeypatch):
     monkeypatch.setattr(twin, "size_mill", lambda *a, **k: pytest.fail("sized although the output is refused"))
     assert main(["size-mill", "--feed-tph", "31", "--target-p80-um", "210", "--write-preset", ""]) == 2
     assert "The preset output path is empty ('')" in capsys.readouterr().err
+
+
+def test_a_sized_mill_run_under_another_calibration_says_so():
+    """The industrial preset was sized under the dem calibration (B to 210 um at 31 t/h); under the table
+    calibration B at 25 t/h grinds to ~330 um against ~222, and nothing said that the mill's sizing does not hold.
+    A twin under another calibration than its mill was sized with says which; under the same, nothing; the
+    laboratory mill (not sized) never."""
+    from twin import Twin
+
+    def sized_notes(calibration, mill="industrial"):
+        return [n for n in Twin("B", mill=mill, calibration=calibration).notes if "was sized under" in n]
+
+    assert sized_notes("dem") == [] and sized_notes("table", mill="lab") == []
+    (note,) = sized_notes("table")
+    assert note.startswith("mill 'industrial' was sized under calibration 'dem'; this twin runs calibration 'table'")
