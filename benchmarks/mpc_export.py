@@ -49,6 +49,7 @@ class Mirror:
 
     def __init__(self, inner, proc, kind, rows):
         self._inner, self._proc, self._kind, self._rows = inner, proc, kind, rows
+        self.estimates = 0
 
     def __getattr__(self, name):
         return getattr(self._inner, name)
@@ -59,7 +60,9 @@ class Mirror:
         py_s, py_cpu = time.perf_counter() - t0, time.thread_time() - c0
         if self._kind == "E":
             y, u, d = args
-            vals = [*y, *u, *np.asarray(d)[: self._inner.nd - 1]]
+            # the loop estimates once a sample from the warm-up on: the estimate's time, samples counted
+            t_h, self.estimates = self.estimates * self._inner.dt_h, self.estimates + 1
+            vals = [t_h, *y, *u, *np.asarray(d)[: self._inner.nd - 1]]
             self._proc.stdin.write("E " + " ".join(repr(float(v)) for v in vals) + "\n")
             self._proc.stdin.flush()
             return out
@@ -126,6 +129,7 @@ def main(argv=None) -> pd.DataFrame:
         "python_step_cpu_median_s": fr.python_step_cpu_s.median(),
         "python_over_c_cpu_median": (fr.python_step_cpu_s / fr.c_step_cpu_s).median(),
         "c_qp_iterations_max": int(fr.c_qp_iterations.max()),
+        "c_estimates_not_ok": int(info["R"]),
         "c_allocations_in_steps": int(info["M"]), "c_bytes_allocated_by_new": int(info["B"]),
         "export_s": export_s, "make_O2_s": make_s, "load_1min_median": fr.load_1min.median()}])
     print(table.T, flush=True)
@@ -136,7 +140,9 @@ def main(argv=None) -> pd.DataFrame:
           "Python closed loop (plant twin, sensors, EKF, NMPC with qpsol \"condensed\", compiled) with every "
           "estimator and controller call mirrored to the export's gt_replay (gcc -O2) through a pipe as it "
           "happens (Python, C, Python, C, ...). `c_failed_steps`: C steps that solved no QP (a fallback or a "
-          "refused input); `*_target_unreachable_steps`: steps whose plan misses the target at the horizon "
+          "refused input); `c_estimates_not_ok`: C estimates whose status was not GT_ESTIMATE_OK (a refused "
+          "time, input or an implausible measurement); "
+          "`*_target_unreachable_steps`: steps whose plan misses the target at the horizon "
           "end, C and Python by the same rule (solved, applied). `c_step`: wall time of gt_controller_step "
           "measured inside C (`_cpu`: the process's CPU time over it); `python_step`: make_step (`_cpu`: the "
           "thread's CPU time). "

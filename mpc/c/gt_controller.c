@@ -22,7 +22,9 @@ struct gt_controller {
     double z[GT_NZ], P[GT_NZ * GT_NZ], P_next[GT_NZ * GT_NZ], innovation[3];
     double w[GT_NW], w_prev[GT_NW], w_next[GT_NW], p[GT_NP], wpass[GT_NPASS];
     double plan[GT_N * 2], plan_prev[GT_N * 2], passing_end;
-    int have_w_prev, have_plan, plan_age, qp_iter, qp_status;
+    double t_prev; /* the caller's time [h] of the last estimate (have_t: one was made since new/reset) */
+    int have_w_prev, have_plan, plan_age, qp_iter, qp_status, have_t;
+    int estimated; /* an estimate was made since the last step (or new/reset): the step may plan */
     /* the work of the generated ekf_step and gt_plan_passing (called one at a time) */
     const casadi_real **ekf_arg;
     casadi_real **ekf_res;
@@ -137,6 +139,8 @@ void gt_controller_reset(gt_controller *c) {
     if (!c) return;
     reset_estimate(c);
     c->have_w_prev = c->have_plan = c->plan_age = 0;
+    c->have_t = c->estimated = 0;
+    c->t_prev = NAN;
     c->qp_iter = 0;
     c->qp_status = 0;
     c->passing_end = NAN;
@@ -153,40 +157,61 @@ static int blend_ok(const double *b) {
     return fabs(sum - 1.0) <= GT_BLEND_SUM_TOL;
 }
 
-int gt_controller_estimate(gt_controller *c, const double *y, const double *u_applied,
+/* the sample periods from the last estimate to t_h: k (1 to GT_MAX_PREDICT_PERIODS) when t_h - t_prev is
+ * within GT_DT_TOL x GT_DT_H of k GT_DT_H, 1 for the first estimate since new/reset (any finite t_h); 0
+ * otherwise (GT_ESTIMATE_BAD_TIME: not finite, not later, or not near a whole number of periods) */
+static int periods_elapsed(const gt_controller *c, double t_h) {
+    double elapsed = t_h - c->t_prev, k = floor(elapsed / GT_DT_H + 0.5);
+    if (!isfinite(t_h)) return 0;
+    if (!c->have_t) return 1;
+    if (!(k >= 1.0 && k <= GT_MAX_PREDICT_PERIODS && fabs(elapsed - k * GT_DT_H) <= GT_DT_TOL * GT_DT_H)) return 0;
+    return (int)k;
+}
+
+int gt_controller_estimate(gt_controller *c, double t_h, const double *y, const double *u_applied,
                            const double *blend) {
+    static const double absent[3] = {0.0, 0.0, 0.0}; /* the values and mask of a sample without measurements */
     double yy[3], mask[3], z[GT_NZ];
-    int i, failed, implausible = 0;
+    int i, j, k, failed, reset = 0, implausible = 0;
     /* mpc.Ekf.make_step refuses these: a NaN input once made the clipped update an empty mill, a feed of
      * -100 t/h emptied it, a blend of [5, -4] drove the hardness to its bound */
     if (!c || !y || !u_applied || !blend || !all_finite(u_applied, GT_NU) || !blend_ok(blend) ||
         !(u_applied[0] >= 0.0 && u_applied[0] <= GT_FEED_MAX_TPH && u_applied[1] > 0.0 && u_applied[1] < 1.0))
         return GT_ESTIMATE_BAD_INPUT;
+    k = periods_elapsed(c, t_h);
+    if (!k) return GT_ESTIMATE_BAD_TIME;
     for (i = 0; i < 3; ++i) { /* outside its physical range: a fault of units or instrument, as absent */
         int ok = isfinite(y[i]) && y[i] >= gt_y_lo[i] && y[i] <= gt_y_hi[i];
         implausible |= isfinite(y[i]) && !ok;
         yy[i] = ok ? y[i] : 0.0;
         mask[i] = ok ? 1.0 : 0.0;
     }
-    memcpy(z, c->z, sizeof(z));
-    c->ekf_arg[0] = z;
-    c->ekf_arg[1] = c->P;
-    c->ekf_arg[2] = u_applied;
-    c->ekf_arg[3] = blend;
-    c->ekf_arg[4] = yy;
-    c->ekf_arg[5] = mask;
-    c->ekf_res[0] = c->z;
-    c->ekf_res[1] = c->P_next;
-    c->ekf_res[2] = c->innovation;
-    failed = ekf_step(c->ekf_arg, c->ekf_res, c->ekf_iw, c->ekf_w, 0);
-    memcpy(c->P, c->P_next, sizeof(c->P));
+    c->t_prev = t_h;
+    c->have_t = 1;
+    c->estimated = 1;
+    /* k periods as the Python loop's k samples: k - 1 without measurements (NaN, absent), then this one's;
+     * the input and blend held over all of them, a reset at one continued from the initial estimate */
+    for (j = 1; j <= k; ++j) {
+        memcpy(z, c->z, sizeof(z));
+        c->ekf_arg[0] = z;
+        c->ekf_arg[1] = c->P;
+        c->ekf_arg[2] = u_applied;
+        c->ekf_arg[3] = blend;
+        c->ekf_arg[4] = j == k ? yy : absent;
+        c->ekf_arg[5] = j == k ? mask : absent;
+        c->ekf_res[0] = c->z;
+        c->ekf_res[1] = c->P_next;
+        c->ekf_res[2] = c->innovation;
+        failed = ekf_step(c->ekf_arg, c->ekf_res, c->ekf_iw, c->ekf_w, 0);
+        memcpy(c->P, c->P_next, sizeof(c->P));
+        if (failed || !all_finite(c->z, GT_NZ) || !all_finite(c->P, GT_NZ * GT_NZ)) {
+            reset_estimate(c); /* as the scene's closed loop resets its EKF (CountingEstimator) */
+            reset = 1;
+        }
+    }
     for (i = 0; i < 3; ++i)
         if (!mask[i]) c->innovation[i] = NAN;
-    if (failed || !all_finite(c->z, GT_NZ) || !all_finite(c->P, GT_NZ * GT_NZ)) {
-        reset_estimate(c); /* as the scene's closed loop resets its EKF (CountingEstimator) */
-        return GT_ESTIMATE_RESET;
-    }
-    return implausible ? GT_ESTIMATE_IMPLAUSIBLE : GT_ESTIMATE_OK;
+    return reset ? GT_ESTIMATE_RESET : implausible ? GT_ESTIMATE_IMPLAUSIBLE : GT_ESTIMATE_OK;
 }
 
 /* mpc.Controller._initial_guess: the previous solution shifted by one sample, its first lifted
@@ -312,6 +337,8 @@ int gt_controller_step(gt_controller *c, const double *preview, const double *u_
         projected |= u_applied[i] != u_given[i];
     }
     if (!preview_ok(preview)) return GT_STEP_BAD_INPUT;
+    if (!c->estimated) return GT_STEP_NO_ESTIMATE; /* it would plan again from the estimate it planned from */
+    c->estimated = 0;
     if (!isfinite(bias) || bias >= GT_TARGET_P80_UM) { /* mpc.Controller.make_step refuses it */
         u[0] = u_applied[0];
         u[1] = u_applied[1];

@@ -5,12 +5,17 @@
  * (another export has other buffer lengths: a mismatch would read and write past the caller's
  * buffers), then make the controller; GT_CONTROLLER_NEW does both:
  *   int abi; gt_controller *c = GT_CONTROLLER_NEW(&abi);  NULL with abi != GT_ABI_OK: refuse to run
- * One sample of a DCS task:
- *   es = gt_controller_estimate(c, y, u_applied, blend); the EKF over the last period
- *   st = gt_controller_step(c, preview, u_applied, u);   the moves to apply now
+ * One sample of a DCS task, every GT_DT_H hours, in this order:
+ *   es = gt_controller_estimate(c, t_h, y, u_applied, blend); the EKF over the periods since the last
+ *   st = gt_controller_step(c, preview, u_applied, u);        the moves to apply now
+ * t_h is the sample's time [h] on the caller's clock (any origin): the estimate predicts the whole
+ * periods elapsed since the last estimate (a missed cycle: two) and refuses any other time
+ * (GT_ESTIMATE_BAD_TIME: a task at another period, a second estimate in one sample); a step needs
+ * an estimate since the last step (GT_STEP_NO_ESTIMATE).
  * What u holds after each status is in enum gt_step_status: apply it for GT_STEP_OK, SHIFTED_PLAN,
- * HOLD_INPUT, BAD_BIAS, TARGET_UNREACHABLE and INPUT_PROJECTED; GT_STEP_BAD_INPUT writes nothing into
- * u (read both statuses). Units: y = [p80_um (um), power_kw (kW), load_frac (hold-up over nominal)],
+ * HOLD_INPUT, BAD_BIAS, TARGET_UNREACHABLE and INPUT_PROJECTED; GT_STEP_BAD_INPUT and
+ * GT_STEP_NO_ESTIMATE write nothing into u (read every status). Units: y = [p80_um (um), power_kw
+ * (kW), load_frac (hold-up over nominal)],
  * u = [feed_tph (t/h), speed_frac_critical (fraction of critical, 0.72 not 72)]. gt_controller_new
  * allocates everything (two blocks, see gt_controller_bytes); estimate and step allocate nothing.
  * Dimensions, the preview's lead, the target, the bounds, the measurements' physical ranges and
@@ -56,12 +61,19 @@ enum gt_step_status {
                                  Python controller's status "target_unreachable" by the same rule:
                                  the bounds or rate limits keep the target out of reach within the
                                  horizon */
-    GT_STEP_INPUT_PROJECTED = 6 /* the QP solved and u is the plan's first move, to be applied as for
+    GT_STEP_INPUT_PROJECTED = 6, /* the QP solved and u is the plan's first move, to be applied as for
                                  GT_STEP_OK, but u_applied was outside the bounds gt_u_lo/gt_u_hi and
                                  the plan starts from its projection onto them (the Python controller's
                                  status "input_outside_bounds"): after a manual period, or an input in
                                  other units (a feed in kg/s, a speed in % of critical). Said before
                                  GT_STEP_TARGET_UNREACHABLE (gt_controller_passing_end tells that) */
+    GT_STEP_NO_ESTIMATE = 7   /* no estimate was made (GT_ESTIMATE_OK, IMPLAUSIBLE or RESET) since the
+                                 last step that used one, or since gt_controller_new/reset: the step
+                                 would plan again from the estimate it planned from (two steps in one
+                                 sample, an estimate refused or never called). Inputs checked first
+                                 (GT_STEP_BAD_INPUT before this); nothing solved and nothing written
+                                 into u, the plan and the estimate unchanged, as for
+                                 GT_STEP_BAD_INPUT: estimate this sample, then step */
 };
 /* status of gt_controller_estimate */
 enum gt_estimate_status {
@@ -75,12 +87,22 @@ enum gt_estimate_status {
                                   estimate left as it was */
     GT_ESTIMATE_RESET = 2,     /* the update left a NaN or an infinity in the estimate or its
                                   covariance: both back to the exported initial estimate (the
-                                  scene's closed loop resets its EKF the same way); the plan is kept */
-    GT_ESTIMATE_IMPLAUSIBLE = 3 /* a measurement y[i] lay outside its physical range gt_y_lo[i] to
+                                  scene's closed loop resets its EKF the same way; after missed
+                                  cycles, at the period it happened, the later ones estimated from
+                                  there as that loop's samples); the plan is kept */
+    GT_ESTIMATE_IMPLAUSIBLE = 3, /* a measurement y[i] lay outside its physical range gt_y_lo[i] to
                                   gt_y_hi[i] (gt_controller_config.h: a P80 in mm, a power in W, a load
                                   in %, a dead analyser's 0): not used, as absent, as grindtwin serve
                                   takes a Bad reading; the others were (GT_ESTIMATE_RESET if the update
                                   then left a NaN) */
+    GT_ESTIMATE_BAD_TIME = 4   /* t_h is not finite, or (after the first estimate since
+                                  gt_controller_new/reset, which takes any finite t_h) t_h - the last
+                                  estimate's t_h is not within GT_DT_TOL x GT_DT_H of k GT_DT_H for a
+                                  whole k from 1 to GT_MAX_PREDICT_PERIODS: a second estimate in one
+                                  sample, a task at another period than the export's, a clock set
+                                  back, or a gap longer than the horizon (gt_controller_reset, then
+                                  estimate anew). Inputs checked first (GT_ESTIMATE_BAD_INPUT before
+                                  this); nothing estimated, the estimate and the last t_h unchanged */
 };
 /* u_applied outside the bounds gt_u_lo/gt_u_hi is planned from its projection onto them, as in
  * mpc.Controller.make_step (status input_outside_bounds there): the first move jumps into them */
@@ -99,8 +121,9 @@ enum gt_abi_status {
                                  disturbance model or preview setting, another API version): the
                                  numbers would be read as other quantities. Rebuild as above */
     GT_ABI_CONFIG_EDITED = 3  /* the library was built with a gt_controller_config.h whose constants
-                                 (a bound, rate limit, target, scale, the sample period or the
-                                 initial estimate) are not those exported (gt_exported.c): the QP's
+                                 (a bound, rate limit, target, scale, the sample period and its
+                                 tolerance, the initial estimate) are not those exported
+                                 (gt_exported.c): the QP's
                                  data (gt_rti_data.c) holds the exported ones, so the edit would be
                                  ignored or half applied. Change the scene and export again */
 };
@@ -124,17 +147,22 @@ gt_controller *gt_controller_new_checked(int *abi_status, unsigned long abi_hash
  * NULL when out of memory or for GT_ABI_CONFIG_EDITED */
 gt_controller *gt_controller_new(void);
 void gt_controller_free(gt_controller *c);
-/* back to the exported initial estimate (state, hardness, covariance), no plan */
+/* back to the exported initial estimate (state, hardness, covariance), no plan; the next estimate takes
+ * any finite t_h, and a step needs one first */
 void gt_controller_reset(gt_controller *c);
-/* EKF predict + update: y = [p80_um, power_kw, load_frac] measured now (a NaN or an infinity =
- * absent at this sample: pass NaN, not the last value held, when an analyser slower than GT_DT_H
- * reported nothing new, as the scene's closed loop and grindtwin serve do; outside gt_y_lo/gt_y_hi:
- * not used, GT_ESTIMATE_IMPLAUSIBLE), u_applied = [feed_tph, speed_frac_critical] and blend (GT_NB
- * fractions) over the period that just ended; returns a gt_estimate_status */
-int gt_controller_estimate(gt_controller *c, const double *y, const double *u_applied,
+/* EKF predict + update at the caller's time t_h [h] (any origin): one predict per GT_DT_H elapsed
+ * since the last estimate (k periods: the k - 1 samples missed each as one with every measurement
+ * absent, as the Python loop estimates them), then the update with y = [p80_um, power_kw, load_frac]
+ * measured now (a NaN or an infinity = absent at this sample: pass NaN, not the last value held, when
+ * an analyser slower than GT_DT_H reported nothing new, as the scene's closed loop and grindtwin serve
+ * do; outside gt_y_lo/gt_y_hi: not used, GT_ESTIMATE_IMPLAUSIBLE); u_applied = [feed_tph,
+ * speed_frac_critical] and blend (GT_NB fractions) applied over those periods; returns a
+ * gt_estimate_status (GT_ESTIMATE_BAD_TIME: a t_h it refuses) */
+int gt_controller_estimate(gt_controller *c, double t_h, const double *y, const double *u_applied,
                            const double *blend);
-/* the NMPC step: preview = blend fractions of the GT_N stages ahead (GT_PREVIEW_LEN = GT_NB x GT_N
- * doubles, stage by stage; with GT_PREVIEW 0 only the first stage is read and held over the
+/* the NMPC step, once per estimate (else GT_STEP_NO_ESTIMATE): preview = blend fractions of the GT_N
+ * stages ahead (GT_PREVIEW_LEN = GT_NB x GT_N doubles, stage by stage; with GT_PREVIEW 0 only the
+ * first stage is read and held over the
  * horizon, as the Python controller without preview), u_applied = the input applied over the last
  * period; u (2) = the input to apply now (what it holds after each status: enum gt_step_status);
  * returns a gt_step_status. Stage k (0 to GT_N - 1) is the blend expected to enter the mill at

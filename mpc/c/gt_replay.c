@@ -1,10 +1,10 @@
 /* Replays a recorded sequence of estimator and controller calls through the exported controller
  * (a test and timing harness; a DCS calls gt_controller.h itself). Input lines on stdin:
- *   E y0 y1 y2 u0 u1 b_1 .. b_NB         gt_controller_estimate (nan for an absent y)
+ *   E t_h y0 y1 y2 u0 u1 b_1 .. b_NB     gt_controller_estimate at time t_h [h] (nan for an absent y)
  *   C u0 u1 b_1 .. b_(NB*N)              gt_controller_step with u_applied = (u0, u1)
  * Output on stdout, one line per C: "U status u_feed u_speed qp_iterations step_s step_cpu_s
- * qp_status" (status: gt_controller.h's gt_step_status; %.17g; u is nan when the step refused its
- * input), and at the end
+ * qp_status" (status: gt_controller.h's gt_step_status; %.17g; u is nan when the step wrote nothing
+ * into it: GT_STEP_BAD_INPUT, GT_STEP_NO_ESTIMATE), and at the end
  * "M allocations_during_calls" (counted when gt_malloc_count.so is preloaded, else -1),
  * "B bytes_allocated_by_new" and "R estimates_not_ok" (E lines whose gt_controller_estimate status
  * was not GT_ESTIMATE_OK, each also named on stderr with its line and status). A line with fewer or
@@ -41,7 +41,7 @@ static int read_doubles(char *s, double *v, int n) {
 
 int main(void) {
     static char line[1 << 16];
-    static double v[3 + 2 + GT_NB * GT_N];
+    static double v[1 + 3 + 2 + GT_NB * GT_N]; /* an E line's t_h, y, u and blend, or a C line's u and preview */
     long allocs = 0, n_line = 0, not_ok = 0;
     int counted = gt_malloc_calls != NULL;
     int abi;
@@ -55,12 +55,12 @@ int main(void) {
         ++n_line;
         if (line[0] == 'E') {
             int est;
-            if (!read_doubles(line + 1, v, 5 + GT_NB)) {
-                fprintf(stderr, "bad E line %ld (E and %d numbers)\n", n_line, 5 + GT_NB);
+            if (!read_doubles(line + 1, v, 6 + GT_NB)) {
+                fprintf(stderr, "bad E line %ld (E and %d numbers)\n", n_line, 6 + GT_NB);
                 return 1;
             }
             before = counted ? gt_malloc_calls() : 0;
-            est = gt_controller_estimate(c, v, v + 3, v + 5);
+            est = gt_controller_estimate(c, v[0], v + 1, v + 4, v + 6);
             allocs += counted ? gt_malloc_calls() - before : 0;
             if (est != GT_ESTIMATE_OK) {
                 ++not_ok;

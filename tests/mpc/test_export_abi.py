@@ -95,6 +95,30 @@ def test_a_caller_compiled_with_another_exports_headers_is_refused(built, tmp_pa
         assert named in header
 
 
+def test_a_caller_of_the_previous_api_is_refused(built, tmp_path):
+    """API 4 gave gt_controller_estimate the sample's time t_h before y: a caller built with the headers of
+    an export of API 3 would pass y where t_h is. Its GT_ABI_HASH, the same layout at API 3, is refused
+    (GT_ABI_LAYOUT_DIFFERS, 2), as is API 2's."""
+    from mpc.export import API_VERSION, abi_hash
+
+    out, config = built
+    cc = c_tools()
+    layout = json.loads((out / "grindtwin_export.json").read_text())["abi"]["layout"]
+    assert f"0x{abi_hash(layout):08x}UL" == config["GT_ABI_HASH"] and layout["api_version"] == API_VERSION
+    for version in (2, 3):  # the versions before t_h
+        hdr = tmp_path / f"api{version}"
+        hdr.mkdir()
+        for h in HEADERS:
+            shutil.copyfile(out / h, hdr / h)
+        cfg = hdr / "gt_controller_config.h"
+        old = abi_hash({**layout, "api_version": version})
+        cfg.write_text(cfg.read_text().replace(config["GT_ABI_HASH"], f"0x{old:08x}UL"))
+        exe = _compile(cc, ABI_DRIVER, hdr, hdr, [out / "libgtcontroller.a"])
+        check, new_status, is_null, _ = subprocess.run([str(exe)], capture_output=True, text=True,
+                                                       check=True).stdout.split()
+        assert (check, new_status, is_null) == ("2", "2", "1"), version
+
+
 def test_a_library_built_with_an_edited_config_header_is_refused(built, tmp_path):
     """gt_controller.h called the config header 'the tuning'; an edited target, speed bound or feed rate
     limit compiled, ran and returned OK while the QP's data (gt_rti_data.c) kept the exported values:
@@ -123,6 +147,21 @@ def test_a_library_built_with_an_edited_config_header_is_refused(built, tmp_path
         replay = subprocess.run([str(lib / "gt_replay")], input="", capture_output=True, text=True)
         assert replay.returncode != 0 and "abi status 3" in replay.stderr
     assert "GT_ABI_CONFIG_EDITED = 3" in (out / "gt_controller.h").read_text()
+
+
+def test_every_constant_of_the_config_header_is_checked(built):
+    """The library refuses an edited gt_controller_config.h by comparing GT_CONFIG_SCALARS and the arrays
+    with gt_exported.c: a constant left out of them (as GT_DT_TOL, the estimate's time tolerance, might have
+    been) could be edited and obeyed by the C while the exported data and the manifest said otherwise. Every
+    number the header defines is in the check, but the derived GT_PREVIEW_LEN and the header's guard."""
+    from mpc.export import CHECKED_ARRAYS
+
+    out, _ = built
+    text = (out / "gt_controller_config.h").read_text()
+    scalars = set(re.search(r"#define GT_CONFIG_SCALARS \{(.*)\}", text).group(1).split(", "))
+    defined = set(re.findall(r"#define (GT_\w+) ", text)) - {"GT_CONFIG_SCALARS", "GT_PREVIEW_LEN"}
+    assert {"GT_DT_TOL", "GT_MAX_PREDICT_PERIODS", "GT_DT_H"} <= defined == scalars
+    assert set(re.findall(r"static const double (gt_\w+)\[", text)) == set(CHECKED_ARRAYS)
 
 
 #: the check and GT_CONTROLLER_NEW; with an argument gt_controller_new, unchecked
@@ -189,11 +228,12 @@ int main(void) {
     int st, i, abi;
     gt_controller *c = GT_CONTROLLER_NEW(&abi);
     double good[GT_PREVIEW_LEN], bad[GT_PREVIEW_LEN], u_ok[2] = {27.0, 0.7}, u_nan[2] = {NAN, 0.7};
-    double u_out[2] = {1000.0, 5.0}, u[2], plan[GT_N * 2], z[GT_NZ];
+    double u_out[2] = {1000.0, 5.0}, u[2], plan[GT_N * 2], z[GT_NZ], y[3] = {NAN, NAN, NAN};
     for (i = 0; i < GT_N; ++i) {
         good[i * GT_NB] = 1.0; good[i * GT_NB + 1] = 0.0;
         bad[i * GT_NB] = 5.0; bad[i * GT_NB + 1] = -4.0;
     }
+    gt_controller_estimate(c, 0.0, y, u_ok, good); /* a step needs an estimate first */
     st = gt_controller_step(c, good, u_out, u);
     printf("first %d %.17g %.17g\n", st, u[0], u[1]);
     memcpy(plan, gt_controller_plan(c), sizeof plan);

@@ -81,7 +81,8 @@ def test_a_preview_that_is_not_a_blend_is_refused_as_python_refuses_it(built):
         except MpcInputError:
             python_refuses[name] = True
     assert sum(python_refuses.values()) == 4  # both answers are taken: the comparison can fail
-    run = _replay(out, [_c_line([27.0, 0.70], blend) for blend in cases.values()])
+    run = _replay(out, [line for i, blend in enumerate(cases.values())  # an estimate before each step
+                        for line in (f"E {i * cfg['GT_DT_H']!r} nan nan nan 27 0.7 1 0", _c_line([27.0, 0.70], blend))])
     assert run.returncode == 0, run.stderr
     rows = [ln.split() for ln in run.stdout.splitlines() if ln.startswith("U ")]
     for (name, refused), row in zip(python_refuses.items(), rows):
@@ -113,15 +114,15 @@ int main(void) {
     int i;
     for (i = 0; i < GT_N; ++i) { preview[i * GT_NB] = 1.0; preview[i * GT_NB + 1] = 0.0; }
     show("start", 0, c);
-    show("nan_u", gt_controller_estimate(c, y, bad_u, blend), c);
-    show("inf_blend", gt_controller_estimate(c, y, u, inf_blend), c);
-    show("null_y", gt_controller_estimate(c, NULL, u, blend), c);
-    show("neg_feed", gt_controller_estimate(c, y, neg_u, blend), c);
-    show("speed_5", gt_controller_estimate(c, y, fast_u, blend), c);
-    show("no_blend", gt_controller_estimate(c, y, u, no_blend), c);
-    show("ok", gt_controller_estimate(c, y, u, blend), c);
-    show("huge_u", gt_controller_estimate(c, y, huge_u, blend), c);
-    printf("null_c_estimate %d\n", gt_controller_estimate(NULL, y, u, blend));
+    show("nan_u", gt_controller_estimate(c, 0.0, y, bad_u, blend), c);
+    show("inf_blend", gt_controller_estimate(c, 0.0, y, u, inf_blend), c);
+    show("null_y", gt_controller_estimate(c, 0.0, NULL, u, blend), c);
+    show("neg_feed", gt_controller_estimate(c, 0.0, y, neg_u, blend), c);
+    show("speed_5", gt_controller_estimate(c, 0.0, y, fast_u, blend), c);
+    show("no_blend", gt_controller_estimate(c, 0.0, y, u, no_blend), c);
+    show("ok", gt_controller_estimate(c, 0.0, y, u, blend), c);
+    show("huge_u", gt_controller_estimate(c, GT_DT_H, y, huge_u, blend), c);
+    printf("null_c_estimate %d\n", gt_controller_estimate(NULL, 0.0, y, u, blend));
     printf("null_c_step %d\n", gt_controller_step(NULL, preview, u, move));
     printf("null_preview %d %g\n", gt_controller_step(c, NULL, u, move), move[0]);
     printf("null_u %d\n", gt_controller_step(c, preview, u, NULL));
@@ -220,9 +221,9 @@ def test_replay_refuses_a_line_of_another_length(built):
     of another export) was replayed in part without a word. A line longer or shorter than its kind
     is now an error naming the line and the count; the exact length runs."""
     out, _, _, cfg = built
-    n_c, n_e = 2 + int(cfg["GT_NB"] * cfg["GT_N"]), 5 + int(cfg["GT_NB"])
+    n_c, n_e = 2 + int(cfg["GT_NB"] * cfg["GT_N"]), 6 + int(cfg["GT_NB"])
     c_ok = "C 27 0.7 " + " ".join(["1 0"] * int(cfg["GT_N"]))
-    e_ok = "E 210 nan nan 27 0.7 1 0"
+    e_ok = "E 0 210 nan nan 27 0.7 1 0"
     assert len(c_ok.split()) == 1 + n_c and len(e_ok.split()) == 1 + n_e
     assert _replay(out, [e_ok, c_ok]).returncode == 0
     for lines, words in (([c_ok + " 1 0"], f"bad C line 1 (C and {n_c} numbers)"),
@@ -378,7 +379,7 @@ def test_a_measurement_outside_its_physical_range_is_not_used_and_said(built):
     step = _c_line([23.64, 0.7], np.tile([[1.0], [0.0]], 10))  # near the start: no rate limit in the first move
 
     def after(y):
-        return _moves(out, ["E " + " ".join(repr(float(v)) for v in [*y, 23.64, 0.7, 1.0, 0.0]), step])
+        return _moves(out, ["E " + " ".join(repr(float(v)) for v in [0.0, *y, 23.64, 0.7, 1.0, 0.0]), step])
 
     absent, err = after([np.nan, np.nan, np.nan])
     assert absent[0][0] in ("0", "5") and "status" not in err
@@ -405,7 +406,7 @@ def test_a_step_from_outside_the_input_bounds_says_so(built):
     d = np.vstack([preview, np.full((1, 10), est.hardness_est)])
     for u, c_status in (([23.6 / 3.6, 0.7], ("6",)), ([23.6, 70.0], ("6",)), ([23.6, 0.7], ("0", "5"))):
         ctrl.reset()
-        moves, _ = _moves(out, [_c_line(u, preview)])
+        moves, _ = _moves(out, ["E 0 nan nan nan 23.6 0.7 1 0", _c_line(u, preview)])
         assert moves[0][0] in c_status, (u, moves)
         outside = str(ctrl.make_step(est.x_est, d, u).status).startswith("input_outside_bounds")
         assert outside == (c_status == ("6",)), u
@@ -437,7 +438,7 @@ int main() {
     double y[3] = {210.0, NAN, NAN}, u_applied[2] = {23.64, 0.7}, blend[GT_NB] = {1.0}, u[2];
     double preview[GT_PREVIEW_LEN] = {0};
     for (int k = 0; k < GT_N; ++k) preview[k * GT_NB] = 1.0;
-    int es = gt_controller_estimate(c, y, u_applied, blend);
+    int es = gt_controller_estimate(c, 0.0, y, u_applied, blend);
     int st = gt_controller_step(c, preview, u_applied, u);
     std::printf("%d %d %d %.17g %.17g\n", abi, es, st, u[0], u[1]);
     gt_controller_free(c);
@@ -460,7 +461,7 @@ def test_a_cxx_caller_links_the_library(built, tmp_path):
     assert build.returncode == 0, build.stderr[-2000:]
     abi, es, st, *u = subprocess.run([str(tmp_path / "driver")], capture_output=True, text=True,
                                      check=True).stdout.split()
-    moves, _ = _moves(out, ["E 210 nan nan 23.64 0.7 1 0", "C 23.64 0.7 " + " ".join(["1 0"] * 10)])
+    moves, _ = _moves(out, ["E 0 210 nan nan 23.64 0.7 1 0", "C 23.64 0.7 " + " ".join(["1 0"] * 10)])
     assert (abi, es) == ("0", "0") and [st, *u] == moves[0]
 
 
@@ -471,11 +472,150 @@ def test_the_estimate_refuses_a_feed_beyond_its_physical_limit(built):
     from scenarios.scene import load_scene
     from scenarios.scene.physical import physical_limits
 
-    out = built[0]
+    out, cfg = built[0], built[3]
     limit = physical_limits("feed_tph", load_scene(REFERENCE))[1]
-    lines = [f"E 210 nan nan {feed!r} 0.7 1 0" for feed in (45.0, limit, 23.64 * 24, 23640.0)]
+    lines = [f"E {i * cfg['GT_DT_H']!r} 210 nan nan {feed!r} 0.7 1 0"
+             for i, feed in enumerate((45.0, limit, 23.64 * 24, 23640.0))]
     run = _replay(out, lines)
     assert "E line 3: gt_controller_estimate status 1" in run.stderr
     assert "E line 4: gt_controller_estimate status 1" in run.stderr and "E line 2" not in run.stderr
     assert run.returncode == 0 and run.stdout.splitlines()[-1] == "R 2", run.stdout
     assert json.loads((out / "grindtwin_export.json").read_text())["feed_max_tph"] == limit
+
+
+#: Calls read from stdin, each answered on a line: "E t_h y0 y1 y2 u0 u1 b_1 .. b_NB" -> "E status z..." (the
+#: estimate after it); "C u0 u1" -> "C status u0 u1" (a step on the last blend held over the horizon, u preset
+#: to 123.25, -7.5: what the step left there); "R" -> gt_controller_reset.
+CALL_DRIVER = r"""
+#include <stdio.h>
+#include "gt_controller.h"
+
+int main(void) {
+    char kind[2];
+    int abi, i;
+    double t, y[3], u[2], b[GT_NB] = {0}, preview[GT_PREVIEW_LEN], move[2];
+    gt_controller *c = GT_CONTROLLER_NEW(&abi);
+    if (!c) return 1;
+    b[0] = 1.0; /* the blend of a step before any estimate: the first component alone */
+    while (scanf(" %1s", kind) == 1) {
+        if (kind[0] == 'R') {
+            gt_controller_reset(c);
+            continue;
+        }
+        if (kind[0] == 'E') {
+            if (scanf("%lf %lf %lf %lf %lf %lf", &t, y, y + 1, y + 2, u, u + 1) != 6) return 1;
+            for (i = 0; i < GT_NB; ++i)
+                if (scanf("%lf", b + i) != 1) return 1;
+            printf("E %d", gt_controller_estimate(c, t, y, u, b));
+            for (i = 0; i < GT_NZ; ++i) printf(" %.17g", gt_controller_estimate_state(c)[i]);
+        } else {
+            if (scanf("%lf %lf", u, u + 1) != 2) return 1;
+            for (i = 0; i < GT_PREVIEW_LEN; ++i) preview[i] = b[i % GT_NB];
+            move[0] = 123.25;
+            move[1] = -7.5;
+            i = gt_controller_step(c, preview, u, move); /* before move is read */
+            printf("C %d %.17g %.17g", i, move[0], move[1]);
+        }
+        printf("\n");
+    }
+    gt_controller_free(c);
+    return 0;
+}
+"""
+
+
+@pytest.fixture(scope="module")
+def calls(built, tmp_path_factory):
+    """CALL_DRIVER built against the export: a function of the call lines -> the answers' rows (split)."""
+    out = built[0]
+    folder = tmp_path_factory.mktemp("calls")
+    (folder / "driver.c").write_text(CALL_DRIVER)
+    exe = folder / "driver"
+    build = subprocess.run([c_tools(), "-O1", "-Wall", f"-I{out}", str(folder / "driver.c"),
+                            str(out / "libgtcontroller.a"), "-lm", "-o", str(exe)], capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr[-2000:]
+
+    def run(lines):
+        answer = subprocess.run([str(exe)], input="\n".join(lines) + "\n", capture_output=True, text=True, check=True)
+        return [ln.split() for ln in answer.stdout.splitlines()]
+    return run
+
+
+def _e(t_h: float, y, u=(23.64, 0.7), blend=(1.0, 0.0)) -> str:
+    return "E " + " ".join(repr(float(v)) for v in [t_h, *y, *u, *blend])
+
+
+def _y_near(est) -> list[float]:
+    """Plausible measurements of all three: the EKF's predicted outputs from its initial estimate, moved off
+    them (the innovation of y = 0 is -prediction), so the update moves the estimate."""
+    _, _, e = est.step_function(est.z, est.P, [23.64, 0.7], [1.0, 0.0], [0.0] * 3, [1.0] * 3)
+    return list(-np.asarray(e, float).ravel() * [1.05, 1.03, 1.04])
+
+
+def test_an_estimate_at_a_time_off_the_sample_grid_is_refused(built, calls):
+    """The exported estimate took no time: it predicted one sample period per call, so a DCS task at 1 min
+    for a 3-min export, or a second estimate in one sample, got a wrong estimate with status OK. Now
+    gt_controller_estimate takes the caller's t_h: at t, t + dt, then t + dt/3 the third is
+    GT_ESTIMATE_BAD_TIME (4) with the estimate unchanged, as is a time not later, not finite, off the grid by
+    more than GT_DT_TOL, or more periods than GT_MAX_PREDICT_PERIODS on; within GT_DT_TOL of the grid (a
+    task's jitter) it is estimated. The first estimate after new or reset takes any finite time."""
+    out, est, _, cfg = built
+    dt, tol, k_max = cfg["GT_DT_H"], cfg["GT_DT_TOL"], int(cfg["GT_MAX_PREDICT_PERIODS"])
+    assert 0 < tol < 0.5 and k_max == cfg["GT_N"]
+    y, t0 = _y_near(est), 1000.0  # hours on the caller's clock: any origin
+    start = [_e(t0, y), _e(t0 + dt, y)]
+    for t_bad in (t0 + dt + dt / 3, t0 + dt, t0, t0 + dt * (1.5 + tol), t0 + dt * (2 + 1.1 * tol),
+                  t0 + dt * (2 + k_max), float("nan"), float("inf")):
+        rows = calls([*start, _e(t_bad, y)])
+        assert [r[1] for r in rows] == ["0", "0", "4"], (t_bad, rows)
+        assert rows[2][2:] == rows[1][2:], t_bad  # the estimate unchanged, bit for bit
+        # and the last time too: the next sample on the grid is estimated as one period
+        assert calls([*start, _e(t_bad, y), _e(t0 + 2 * dt, y)])[3] == calls([*start, _e(t0 + 2 * dt, y)])[2]
+    for t_ok in (t0 + dt * (2 - 0.9 * tol), t0 + dt * (2 + 0.9 * tol), t0 + dt * (1 + k_max)):
+        assert calls([*start, _e(t_ok, y)])[2][1] == "0", t_ok
+    assert calls([_e(float("nan"), y)])[0][1] == "4"
+    # after a reset any finite time is the first again; a refused input is said before a refused time
+    assert [r[1] for r in calls([*start, "R", _e(-5.0, y), _e(-5.0, [np.nan] * 3, u=(np.nan, 0.7))])] == \
+        ["0", "0", "0", "1"]
+
+
+def test_a_missed_cycle_predicts_the_periods_elapsed_as_python_would(built, calls):
+    """A DCS task that missed a cycle (estimates at t and t + 2 dt) got one period's prediction for two. Now
+    the estimate predicts each period elapsed: the same estimate, bit for bit, as an estimate at t + dt with
+    every measurement absent (NaN) and then t + 2 dt, and the Python EKF's over those three samples
+    (make_step with NaN for the sample missed) to round-off; a step of one period differs (the test can
+    fail). The same for two missed cycles."""
+    _, est, _, cfg = built
+    dt, y, absent = cfg["GT_DT_H"], _y_near(est), [np.nan] * 3
+    u, blend = [23.64, 0.7], [1.0, 0.0]
+    for missed in (1, 2):
+        gap = calls([_e(0.0, y), _e((missed + 1) * dt, y)])
+        filled = calls([_e(0.0, y), *(_e(j * dt, absent) for j in range(1, missed + 1)), _e((missed + 1) * dt, y)])
+        one = calls([_e(0.0, y), _e(dt, y)])
+        assert gap[-1][1] == "0" and gap[-1][2:] == filled[-1][2:], missed
+        z_gap = np.array(gap[-1][2:], float)
+        assert not np.allclose(z_gap, np.array(one[-1][2:], float), rtol=1e-6)
+        est.reset()
+        for y_k in [y, *[absent] * missed, y]:
+            est.make_step(y_k, u, blend)
+        np.testing.assert_allclose(z_gap, est.z, rtol=1e-12, atol=1e-12 * np.abs(est.z).max())
+    est.reset()
+
+
+def test_a_second_step_without_an_estimate_is_refused(calls):
+    """gt_controller_step twice without an estimate between them planned twice from the same estimate, status
+    OK; a step before any estimate planned from the exported initial one. Now both are GT_STEP_NO_ESTIMATE (7)
+    with nothing written into u; an estimate (or a refused input's retry) lets the step plan again, a refused
+    estimate does not."""
+    e = _e(0.0, [np.nan] * 3)
+    rows = calls(["C 23.64 0.7", e, "C 23.64 0.7", "C 23.64 0.7", "C nan 0.7", _e(0.05, [np.nan] * 3),
+                  "C nan 0.7", "C 23.64 0.7", _e(0.06, [np.nan] * 3), "C 23.64 0.7", "R", "C 23.64 0.7"])
+    steps = [r[1:] for r in rows if r[0] == "C"]
+    untouched = ["123.25", "-7.5"]
+    assert steps[0] == ["7", *untouched] and steps[1][0] in ("0", "5") and steps[1][1:] != untouched
+    assert steps[2] == ["7", *untouched]
+    assert steps[3] == ["4", *untouched]  # a refused input is said before the missing estimate
+    assert steps[4] == ["4", *untouched] and steps[5][0] in ("0", "5")  # the estimate kept for the retry
+    assert [r[1] for r in rows if r[0] == "E"] == ["0", "0", "4"]  # 0.06 h: off the grid, refused
+    assert steps[6] == ["7", *untouched]  # a refused estimate is none
+    assert steps[7] == ["7", *untouched]  # after a reset

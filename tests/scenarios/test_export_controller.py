@@ -32,6 +32,7 @@ class Recording:
     def __init__(self, inner, log, kind, n_steps=None):
         self._inner, self._log, self._kind, self._n = inner, log, kind, n_steps
         self.moves, self.statuses, self.passing_end = [], [], []
+        self.estimates = 0
 
     def __getattr__(self, name):
         return getattr(self._inner, name)
@@ -40,7 +41,10 @@ class Recording:
         out = self._inner.make_step(*args, **kwargs)
         if self._kind == "E":
             y, u, d = args
-            self._log.append("E " + " ".join(repr(float(v)) for v in [*y, *u, *np.asarray(d)[: self._inner.nd - 1]]))
+            # the loop estimates once a sample from the warm-up on: the estimate's time, samples counted
+            t_h, self.estimates = self.estimates * self._inner.dt_h, self.estimates + 1
+            vals = [t_h, *y, *u, *np.asarray(d)[: self._inner.nd - 1]]
+            self._log.append("E " + " ".join(repr(float(v)) for v in vals))
         else:
             if len(self.moves) == self._n:
                 raise FirstHourDone()
