@@ -157,7 +157,9 @@ void gt_controller_reset(gt_controller *c);
  * an analyser slower than GT_DT_H reported nothing new, as the scene's closed loop and grindtwin serve
  * do; outside gt_y_lo/gt_y_hi: not used, GT_ESTIMATE_IMPLAUSIBLE); u_applied = [feed_tph,
  * speed_frac_critical] and blend (GT_NB fractions) applied over those periods; returns a
- * gt_estimate_status (GT_ESTIMATE_BAD_TIME: a t_h it refuses) */
+ * gt_estimate_status (GT_ESTIMATE_BAD_TIME: a t_h it refuses). After a gap of k periods the next step
+ * still starts its iteration from the last plan shifted by one sample, and GT_STEP_SHIFTED_PLAN moves it
+ * on by one (the Python controller, which misses no sample, has no rule for a gap to follow) */
 int gt_controller_estimate(gt_controller *c, double t_h, const double *y, const double *u_applied,
                            const double *blend);
 /* the NMPC step, once per estimate (else GT_STEP_NO_ESTIMATE): preview = blend fractions of the GT_N
