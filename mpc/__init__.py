@@ -16,7 +16,8 @@ from mpc.kpis import (P80_BAND_UM, cumulative, fresh_feed_t, held_cumulative, he
 from mpc.linear import (Fopdt, LinearMPC, OperatingPoint, StepMoments, discretize, fit_fopdt, fopdt_from_model,
                         gain_table, linearize, steady_target, step_moments, step_test)
 from mpc.nmpc import QP_SOLVERS, SOLVERS, Controller, NmpcSettings, speed_max_note
-from mpc.optimize import (FEED_RANGE_NOMINAL, Setpoints, default_feed_bounds, feed_for_target, optimal_setpoints,
+from mpc.optimize import (FEED_RANGE_NOMINAL, Setpoints, default_feed_bounds, feed_for_target,
+                          feed_holding_every_blend, optimal_setpoints,
                           speed_for_target)
 from mpc.pi import DiscretePI, pi_from_model, simc_pi
 from mpc.plants import LeRouxCircuit, LeRouxParameters, LeRouxPlant, MatchedTwin, TwinPlant, matched_twin
@@ -32,7 +33,7 @@ __all__ = [
     "MEASUREMENTS", "MatchedTwin", "MpcError", "MpcInputError", "MpcSolverError", "NmpcSettings", "OperatingPoint",
     "P80_BAND_UM", "PiFeedback", "QP_SOLVERS", "SOLVERS", "RK4_RATE_SAFETY", "SensorState", "Sensors", "Setpoints", "StepMoments", "TwinPlant",
     "FEED_RANGE_NOMINAL",
-    "check_out_dir", "compiled", "cumulative", "cvodes_map", "default_feed_bounds", "discretize", "export_controller", "export_lock", "feed_for_target", "fit_fopdt", "fopdt_from_model", "gain_table",
+    "check_out_dir", "compiled", "cumulative", "cvodes_map", "default_feed_bounds", "discretize", "export_controller", "export_lock", "feed_for_target", "feed_holding_every_blend", "fit_fopdt", "fopdt_from_model", "gain_table",
     "fresh_feed_t", "held_cumulative", "held_integral", "run_closed_loop", "specific_energy_kwh_t",
     "integral", "linearize", "loop_kpis", "matched_twin", "min_rk4_substeps", "optimal_setpoints",
     "outside_band_frac", "p80_iae_um_h", "pi_baseline", "pi_from_model", "rk4_map", "rk4_sensitivity_map", "simc_pi", "speed_for_target",

@@ -124,6 +124,16 @@ def feed_for_target(twin, blend, target_p80_um: float, speed_frac_critical: floa
     return _root_in(gap, (lo, hi), xtol=xtol)
 
 
+def feed_holding_every_blend(twin, blends, target_p80_um: float, speed_frac_critical: float,
+                             feed_bounds_tph=None) -> float:
+    """The one feed rate [t/h] at which every blend of ``blends`` grinds at or finer than the target at steady
+    state, at the given speed: the least of their :func:`feed_for_target` (a grate mill's product coarsens as
+    the feed rises); what an operator without a controller holds to keep a schedule's every ore in
+    specification, grinding the others finer than they need. nan if a blend has no feed that holds it."""
+    feeds = [feed_for_target(twin, b, target_p80_um, speed_frac_critical, feed_bounds_tph) for b in blends]
+    return min(feeds) if feeds and all(math.isfinite(f) for f in feeds) else math.nan
+
+
 #: Points of the speed scan that brackets the roots of P80(speed) = target: P80 is not monotonic
 #: in speed (breakage rates peak near 0.75-0.8 of critical, Austin et al. 1984 sec. 10.2, and the
 #: twin's speed factor follows), so a target can be met at two speeds, or at none inside the
