@@ -124,14 +124,27 @@ def feed_for_target(twin, blend, target_p80_um: float, speed_frac_critical: floa
     return _root_in(gap, (lo, hi), xtol=xtol)
 
 
+#: How far above the target [fraction] a blend's steady P80 at :func:`feed_holding_every_blend`'s feed may lie:
+#: the blend that set the feed sits at its root (found to ROOT_XTOL_REL of the feed range).
+HOLDING_P80_TOL_REL = 1e-6
+
+
 def feed_holding_every_blend(twin, blends, target_p80_um: float, speed_frac_critical: float,
                              feed_bounds_tph=None) -> float:
     """The one feed rate [t/h] at which every blend of ``blends`` grinds at or finer than the target at steady
-    state, at the given speed: the least of their :func:`feed_for_target` (a grate mill's product coarsens as
-    the feed rises); what an operator without a controller holds to keep a schedule's every ore in
-    specification, grinding the others finer than they need. nan if a blend has no feed that holds it."""
+    state, at the given speed: the least of their :func:`feed_for_target`, checked: a grate mill's product
+    coarsens as the feed rises, but a cyclone circuit's can get finer (README, Limitations), and then a blend
+    whose target feed is higher lies coarser at the least. What an operator without a controller holds to keep
+    a schedule's every ore in specification, grinding the others finer than they need. nan if a blend has no
+    feed that holds it, or is coarser than the target at the least one."""
     feeds = [feed_for_target(twin, b, target_p80_um, speed_frac_critical, feed_bounds_tph) for b in blends]
-    return min(feeds) if feeds and all(math.isfinite(f) for f in feeds) else math.nan
+    if not feeds or not all(math.isfinite(f) for f in feeds):
+        return math.nan
+    safe = min(feeds)
+    limit = target_p80_um * (1.0 + HOLDING_P80_TOL_REL)
+    held = all(twin.steady(feed_tph=safe, speed_frac_critical=speed_frac_critical, blend=b).p80_um <= limit
+               for b in blends)
+    return safe if held else math.nan
 
 
 #: Points of the speed scan that brackets the roots of P80(speed) = target: P80 is not monotonic

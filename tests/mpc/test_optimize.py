@@ -1,9 +1,12 @@
 """Set points that hold a P80 target: the speed-only option finds a target that P80's
 non-monotonic speed curve reaches inside the bounds although both ends are coarser."""
 
+import math
+from types import SimpleNamespace
+
 import pytest
 
-from mpc.optimize import speed_for_target
+from mpc.optimize import feed_holding_every_blend, speed_for_target
 from twin import Twin
 
 
@@ -27,3 +30,26 @@ def test_speed_for_an_unreachable_target_is_nan(lab):
     import math
 
     assert math.isnan(speed_for_target(lab, [1.0], 50.0, 0.031))
+
+
+class _LinearP80:
+    """A stand-in twin whose steady P80 [um] is linear in the feed [t/h], per blend (its first fraction keys
+    the line): coarser with more feed as a grate mill, or finer as a cyclone circuit near its design can be."""
+
+    def __init__(self, lines):
+        self.lines = lines
+
+    def steady(self, feed_tph, speed_frac_critical, blend, hardness_scale=1.0):
+        a, b = self.lines[float(blend[0])]
+        return SimpleNamespace(p80_um=a + b * feed_tph)
+
+
+def test_the_feed_holding_every_blend_is_checked_not_assumed():
+    """The least of the blends' target feeds keeps every blend at or finer than the target only where P80
+    rises with the feed. Blends whose P80 both rise: the least (22 t/h), at which the other is finer. A blend
+    whose P80 falls with the feed (target feed 24 t/h) is 220 um at 22: the least was returned as holding it
+    (a wrong number, unsaid); now nan."""
+    rising = _LinearP80({1.0: (100.0, 5.0), 0.0: (90.0, 5.0)})  # targets 22 and 24 t/h
+    assert feed_holding_every_blend(rising, [[1.0], [0.0]], 210.0, 0.7, (5.0, 60.0)) == pytest.approx(22.0)
+    falling = _LinearP80({1.0: (100.0, 5.0), 0.0: (330.0, -5.0)})  # targets 22 and 24 t/h, the second falls
+    assert math.isnan(feed_holding_every_blend(falling, [[1.0], [0.0]], 210.0, 0.7, (5.0, 60.0)))
