@@ -242,6 +242,12 @@ def _check_feed(data, ore_names: list[str], r: _Report, base_dir: Path = Path(".
         r.add(("mill", "ball_size_mm"), "read by nothing: every ore gives its own breakage parameters "
               "(ores.NAME.breakage), taken as measured on this mill, and the ball size scales only the "
               "calibration's mapped ones; remove it", _get(data, "mill", "ball_size_mm"))
+    kinds = {_get(data, *at, "classification", "kind") for at in (("effect_options",), ("plant", "effect_options"))}
+    if _get(data, "mill", "discharge_solids_frac") is not None and "hydrocyclone" not in kinds:  # changed no number
+        r.add(("mill", "discharge_solids_frac"), "read by nothing: the discharge's solids enter a hydrocyclone "
+              "circuit's water balance only (effect_options.classification.kind = \"hydrocyclone\"); a grate mill's "
+              "slurry rheology is that of a 70 wt% pulp (twin.effects.rheology); remove it",
+              _get(data, "mill", "discharge_solids_frac"))
     power = net_power_problem(_get(data, "mill", "preset"), _get(data, "mill"), _num(feed.get("feed_tph")),
                               _num(feed.get("speed_frac_critical")))
     if power:  # the nominal feed follows the power: the feed's check below would blame the feed for it

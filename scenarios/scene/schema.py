@@ -142,8 +142,8 @@ class Mill(Section):
                                        json_schema_extra={"unit": "mm"})
     """Make-up ball size [mm] (Austin's scale-up factors on S); default: the preset's (25)."""
     discharge_solids_frac: float | None = Field(default=None, gt=0, lt=1)
-    """Solids mass fraction of the mill discharge (0.72, not 72), held by the mill's feed water;
-    default 0.70."""
+    """Solids mass fraction of the mill discharge (0.72, not 72), held by the mill's feed water in a
+    hydrocyclone circuit's water balance (read by nothing else: refused beside a grate); default 0.70."""
     power_model: Literal["bond", "hogg_fuerstenau"] | None = Field(default=None, examples=["hogg_fuerstenau"])
     """Net-power model of the mill; default: the preset's (``"bond"``)."""
     net_power_kw: float | None = Field(default=None, gt=0, le=1e5)
