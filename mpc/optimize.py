@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Iterable
 from numbers import Real
 from dataclasses import dataclass
 
@@ -136,9 +137,20 @@ def feed_holding_every_blend(twin, blends, target_p80_um: float, speed_frac_crit
     coarsens as the feed rises, but a cyclone circuit's can get finer (README, Limitations), and then a blend
     whose target feed is higher lies coarser at the least. What an operator without a controller holds to keep
     a schedule's every ore in specification, grinding the others finer than they need. nan if a blend has no
-    feed that holds it, or is coarser than the target at the least one."""
+    feed that holds it, or is coarser than the target at the least one. The target, speed and bounds are
+    checked as :func:`optimal_setpoints` checks them."""
+    fn = "feed_holding_every_blend"
+    # a list: an iterator was read up by the feeds, and the check below then passed on no blend
+    blends = list(blends) if isinstance(blends, Iterable) and not isinstance(blends, (str, bytes, dict)) else []
+    if not blends:
+        raise MpcInputError(f"The 'blends' parameter of {fn} must be a list of one or more blends (each a dict by "
+                            "ore, a Blend or fractions in the twin's component order).")
+    target_p80_um = _target(twin, target_p80_um, fn)
+    speed_frac_critical = _number("speed_frac_critical", speed_frac_critical, fn)
+    if feed_bounds_tph is not None:
+        feed_bounds_tph = _bounds("feed_bounds_tph", feed_bounds_tph, 0.0, math.inf, "t/h", fn)
     feeds = [feed_for_target(twin, b, target_p80_um, speed_frac_critical, feed_bounds_tph) for b in blends]
-    if not feeds or not all(math.isfinite(f) for f in feeds):
+    if not all(math.isfinite(f) for f in feeds):
         return math.nan
     safe = min(feeds)
     limit = target_p80_um * (1.0 + HOLDING_P80_TOL_REL)
@@ -251,21 +263,37 @@ def _band_crossings(pts, band, on_curve) -> list:
 SPEED_EDGE = 5e-4
 
 
-def _number(name: str, value) -> float:
-    """``value`` as one finite float, or an error naming the parameter of optimal_setpoints."""
+def _number(name: str, value, fn: str = "optimal_setpoints") -> float:
+    """``value`` as one finite float, or an error naming the parameter of ``fn``."""
     if isinstance(value, (str, bytes, bool)) or np.ndim(value) != 0 or not np.isfinite(value):
-        raise MpcInputError(f"The '{name}' parameter of optimal_setpoints must be one finite number. Got {value!r}.")
+        raise MpcInputError(f"The '{name}' parameter of {fn} must be one finite number. Got {value!r}.")
     return float(value)
 
 
-def _bounds(name: str, value, lo: float, hi: float, unit: str) -> tuple[float, float]:
-    """``value`` as (low, high) with lo <= low < high < hi, or an error naming the parameter of optimal_setpoints."""
+def _bounds(name: str, value, lo: float, hi: float, unit: str, fn: str = "optimal_setpoints") -> tuple[float, float]:
+    """``value`` as (low, high) with lo <= low < high < hi, or an error naming the parameter of ``fn``."""
     pair = tuple(value) if isinstance(value, (tuple, list, np.ndarray)) else ()
     if len(pair) != 2 or not all(isinstance(v, Real) and not isinstance(v, bool) for v in pair) \
             or not lo <= pair[0] < pair[1] < hi:
-        raise MpcInputError(f"The '{name}' parameter of optimal_setpoints must be (low, high) [{unit}] with "
+        raise MpcInputError(f"The '{name}' parameter of {fn} must be (low, high) [{unit}] with "
                             f"{lo:g} <= low < high < {hi:g}. Got {value!r}.")
     return float(pair[0]), float(pair[1])
+
+
+def _target(twin, value, fn: str) -> float:
+    """``value`` as a P80 target [um] the twin can grind to (coarser than its finest size class, finer than its
+    feed), or an error naming the parameter of ``fn``."""
+    target = _number("target_p80_um", value, fn)
+    finest = float(twin.spec.grid.upper_um[-1])
+    if not target > finest:  # 0.21 (mm for um) searched for 10 s, then answered 'infeasible'
+        raise MpcInputError(f"The 'target_p80_um' parameter of {fn} must be coarser than the twin's finest size "
+                            f"class ({finest:.3g} um; a P80 below it lies in the grid's sink): sizes in um, not mm? "
+                            f"Got {target!r}.")
+    feed_p80 = pxx_um(twin.spec.grid, twin.spec.feed_frac)
+    if not target < feed_p80:  # the whole search ran, then said 'unreachable within the bounds'
+        raise MpcInputError(f"The 'target_p80_um' parameter of {fn} must be finer than the twin's feed (P80 "
+                            f"{feed_p80:.4g} um): no mill coarsens its feed. Got {target:g}.")
+    return target
 
 
 def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
@@ -286,12 +314,7 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
     if objective not in OBJECTIVES:
         raise MpcInputError(f"The 'objective' parameter of optimal_setpoints must be one of "
                             f"{OBJECTIVES}. Got {objective!r}.")
-    target_p80_um = _number("target_p80_um", target_p80_um)
-    finest = float(twin.spec.grid.upper_um[-1])
-    if not target_p80_um > finest:  # 0.21 (mm for um) searched for 10 s, then answered 'infeasible'
-        raise MpcInputError(f"The 'target_p80_um' parameter of optimal_setpoints must be coarser than the twin's "
-                            f"finest size class ({finest:.3g} um; a P80 below it lies in the grid's sink): sizes in "
-                            f"um, not mm? Got {target_p80_um!r}.")
+    target_p80_um = _target(twin, target_p80_um, "optimal_setpoints")
     speed_bounds = _bounds("speed_bounds", speed_bounds, 0.0, 1.0, "fractions of critical speed")
     if feed_bounds_tph is not None:
         feed_bounds_tph = _bounds("feed_bounds_tph", feed_bounds_tph, 0.0, math.inf, "t/h")
@@ -301,10 +324,6 @@ def optimal_setpoints(twin, blend, target_p80_um: float, mode: str = "both",
     feed_tph = None if feed_tph is None else _number("feed_tph", feed_tph)
     speed_frac_critical = None if speed_frac_critical is None else _number("speed_frac_critical", speed_frac_critical)
     blend = list(twin.blend_fractions(blend))  # a dict by ore, a Blend or fractions, as the twin takes them
-    feed_p80 = pxx_um(twin.spec.grid, twin.spec.feed_frac)
-    if not target_p80_um < feed_p80:  # the whole search ran, then said 'unreachable within the bounds'
-        raise MpcInputError(f"The 'target_p80_um' parameter of optimal_setpoints must be finer than the twin's "
-                            f"feed (P80 {feed_p80:.4g} um): no mill coarsens its feed. Got {target_p80_um:g}.")
     mill = twin.mill
     speed0 = mill.speed_nominal_frac_critical if speed_frac_critical is None else speed_frac_critical
     feed0 = mill.feed_nominal_tph if feed_tph is None else feed_tph

@@ -36,20 +36,36 @@ class _LinearP80:
     """A stand-in twin whose steady P80 [um] is linear in the feed [t/h], per blend (its first fraction keys
     the line): coarser with more feed as a grate mill, or finer as a cyclone circuit near its design can be."""
 
-    def __init__(self, lines):
-        self.lines = lines
+    def __init__(self, lines, spec):
+        self.lines, self.spec = lines, spec  # a real twin's grid and feed: the target is checked on them
 
     def steady(self, feed_tph, speed_frac_critical, blend, hardness_scale=1.0):
         a, b = self.lines[float(blend[0])]
         return SimpleNamespace(p80_um=a + b * feed_tph)
 
 
-def test_the_feed_holding_every_blend_is_checked_not_assumed():
+def test_the_feed_holding_every_blend_is_checked_not_assumed(lab):
     """The least of the blends' target feeds keeps every blend at or finer than the target only where P80
     rises with the feed. Blends whose P80 both rise: the least (22 t/h), at which the other is finer. A blend
     whose P80 falls with the feed (target feed 24 t/h) is 220 um at 22: the least was returned as holding it
     (a wrong number, unsaid); now nan."""
-    rising = _LinearP80({1.0: (100.0, 5.0), 0.0: (90.0, 5.0)})  # targets 22 and 24 t/h
+    rising = _LinearP80({1.0: (100.0, 5.0), 0.0: (90.0, 5.0)}, lab.spec)  # targets 22 and 24 t/h
     assert feed_holding_every_blend(rising, [[1.0], [0.0]], 210.0, 0.7, (5.0, 60.0)) == pytest.approx(22.0)
-    falling = _LinearP80({1.0: (100.0, 5.0), 0.0: (330.0, -5.0)})  # targets 22 and 24 t/h, the second falls
+    falling = _LinearP80({1.0: (100.0, 5.0), 0.0: (330.0, -5.0)}, lab.spec)  # targets 22 and 24 t/h, the second falls
     assert math.isnan(feed_holding_every_blend(falling, [[1.0], [0.0]], 210.0, 0.7, (5.0, 60.0)))
+    # blends as an iterator: the feeds read it up, and the check then passed on none (22 t/h returned)
+    assert math.isnan(feed_holding_every_blend(falling, iter([[1.0], [0.0]]), 210.0, 0.7, (5.0, 60.0)))
+
+
+def test_the_feed_holding_every_blend_refuses_bad_input_by_name(lab):
+    """No blend answered nan, as if a blend had no feed; a target in mm (0.21) answered nan, a NaN target and
+    reversed feed bounds raised scipy's errors ('function value ... is NaN', 'xtol too small'). Each is now an
+    error naming the parameter, as optimal_setpoints names it."""
+    for args, field in ((([], 210.0, 0.7, None), "blends"), (({"B": 1.0}, 210.0, 0.7, None), "blends"),
+                        (([[1.0]], 0.21, 0.7, None), "target_p80_um"),
+                        (([[1.0]], math.nan, 0.7, None), "target_p80_um"),
+                        (([[1.0]], 5000.0, 0.7, None), "target_p80_um"),
+                        (([[1.0]], 210.0, "0.7", None), "speed_frac_critical"),
+                        (([[1.0]], 210.0, 0.7, (0.04, 0.01)), "feed_bounds_tph")):
+        with pytest.raises(ValueError, match=f"'{field}' parameter of feed_holding_every_blend"):
+            feed_holding_every_blend(lab, *args)
