@@ -11,7 +11,11 @@
  * t_h is the sample's time [h] on the caller's clock (any origin): the estimate predicts the whole
  * periods elapsed since the last estimate (a missed cycle: two) and refuses any other time
  * (GT_ESTIMATE_BAD_TIME: a task at another period, a second estimate in one sample); a step needs
- * an estimate since the last step (GT_STEP_NO_ESTIMATE).
+ * an estimate since the last step (GT_STEP_NO_ESTIMATE). The clock must run without being set (UTC
+ * or a monotonic clock, not local time): set forward past the horizon, every estimate is refused
+ * until gt_controller_reset; set back, refused until it passes the last t_h, the time between then
+ * predicted as one period. A double resolves t_h to |t_h| x 2.2e-16 h, far under GT_DT_TOL x GT_DT_H
+ * for hours since any calendar date (3e-11 h at 2e5 h).
  * What u holds after each status is in enum gt_step_status: apply it for GT_STEP_OK, SHIFTED_PLAN,
  * HOLD_INPUT, BAD_BIAS, TARGET_UNREACHABLE and INPUT_PROJECTED; GT_STEP_BAD_INPUT and
  * GT_STEP_NO_ESTIMATE write nothing into u (read every status). Units: y = [p80_um (um), power_kw

@@ -619,3 +619,17 @@ def test_a_second_step_without_an_estimate_is_refused(calls):
     assert [r[1] for r in rows if r[0] == "E"] == ["0", "0", "4"]  # 0.06 h: off the grid, refused
     assert steps[6] == ["7", *untouched]  # a refused estimate is none
     assert steps[7] == ["7", *untouched]  # after a reset
+
+
+def test_an_estimate_on_an_epoch_clock_or_one_set_back(built, calls):
+    """gt_controller.h: any origin, a clock never set. Hours since 1970 (4.9e5 h) give the estimates of a clock
+    from 0 bit for bit, the tolerance's edges where they are; a clock set back an hour refuses the estimates
+    until it passes the last t_h, then predicts the time between as one period (the header says so)."""
+    _, est, _, cfg = built
+    dt, tol, y = cfg["GT_DT_H"], cfg["GT_DT_TOL"], _y_near(est)
+    for t0 in (4.9e5, -4.9e5):
+        assert calls([_e(t0 + j * dt, y) for j in range(3)]) == calls([_e(j * dt, y) for j in range(3)])
+        assert [calls([_e(t0, y), _e(t0 + dt * (1 + f * tol), y)])[1][1] for f in (-1.1, -0.9, 0.9, 1.1)] == \
+            ["4", "0", "0", "4"], t0
+    back = [5.0, 5.0 + dt, *(5.0 + j * dt - 1.0 for j in range(2, 2 + round(1.0 / dt) + 1))]
+    assert [r[1] for r in calls([_e(t, y) for t in back])] == ["0"] * 2 + ["4"] * round(1.0 / dt) + ["0"]
