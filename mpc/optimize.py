@@ -136,9 +136,11 @@ def feed_holding_every_blend(twin, blends, target_p80_um: float, speed_frac_crit
     state, at the given speed: the least of their :func:`feed_for_target`, checked: a grate mill's product
     coarsens as the feed rises, but a cyclone circuit's can get finer (README, Limitations), and then a blend
     whose target feed is higher lies coarser at the least. What an operator without a controller holds to keep
-    a schedule's every ore in specification, grinding the others finer than they need. nan if a blend has no
-    feed that holds it, or is coarser than the target at the least one. The target, speed and bounds are
-    checked as :func:`optimal_setpoints` checks them."""
+    a schedule's every ore in specification, grinding the others finer than they need. nan if a blend is coarser
+    than the target at the least one, or :func:`feed_for_target` finds no feed for it: its P80 is coarser than
+    the target at both ends of the bounds, or finer at both, as a cyclone circuit's that peaks coarser between
+    them can be (feeds short of the peak then hold it, unsaid). The target, speed and bounds are checked as
+    :func:`optimal_setpoints` checks them."""
     fn = "feed_holding_every_blend"
     # a list: an iterator was read up by the feeds, and the check below then passed on no blend
     blends = list(blends) if isinstance(blends, Iterable) and not isinstance(blends, (str, bytes, dict)) else []
