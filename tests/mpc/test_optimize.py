@@ -6,7 +6,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from mpc.optimize import feed_holding_every_blend, speed_for_target
+from mpc.optimize import feed_for_target, feed_holding_every_blend, speed_for_target
 from twin import Twin
 
 
@@ -69,3 +69,16 @@ def test_the_feed_holding_every_blend_refuses_bad_input_by_name(lab):
                         (([[1.0]], 210.0, 0.7, (0.04, 0.01)), "feed_bounds_tph")):
         with pytest.raises(ValueError, match=f"'{field}' parameter of feed_holding_every_blend"):
             feed_holding_every_blend(lab, *args)
+
+
+def test_the_check_catches_a_cyclone_circuit_that_gets_finer_with_more_feed():
+    """README, Limitations: the industrial mill in a hydrocyclone circuit gets finer as its feed rises past its
+    design (31 t/h). At 1.065-1.19 times it both blends' P80 fall with the feed (load in the band): B's target
+    feed is the least, and there the blend with 5 % D is coarser than the target; the stand-in above, on a
+    real twin."""
+    tw = Twin(["B", "D"], mill="industrial", effect_options={"classification": {"kind": "hydrocyclone"}})
+    bounds = tuple(f * tw.mill.feed_nominal_tph for f in (1.065, 1.19))
+    blends, target = [[1.0, 0.0], [0.95, 0.05]], 208.0
+    least = min(feed_for_target(tw, b, target, 0.7, bounds) for b in blends)
+    assert tw.steady(feed_tph=least, speed_frac_critical=0.7, blend=blends[1]).p80_um > target + 1.0
+    assert math.isnan(feed_holding_every_blend(tw, blends, target, 0.7, bounds))
