@@ -99,18 +99,30 @@ def _root_in(g, bounds, xtol) -> float:
 OVERLOAD_HALVINGS = 6
 
 
+#: Points of the feed scan that :func:`feed_for_target` brackets roots on when P80 does not cross the target
+#: between the ends of its bounds: a hydrocyclone circuit's P80 rises with the feed, peaks near the circuit's
+#: design and falls past it (README, Limitations), so a target coarser than both ends is met twice between
+#: them; a step of 0.13 of the nominal feed over FEED_RANGE_NOMINAL, refined around the peak.
+FEED_SCAN_POINTS = 15
+
+
 def feed_for_target(twin, blend, target_p80_um: float, speed_frac_critical: float,
                     feed_bounds_tph=None, hardness_scale: float = 1.0) -> float:
     """Feed rate [t/h] with steady P80 = target at the given speed; nan if outside the bounds
     (default :func:`default_feed_bounds`). Where the mill overloads at the upper bound (no steady
     state, twin.SolverError), the bracket ends at the highest feed, halving towards the lower
-    bound, that it holds."""
+    bound, that it holds. Brent's root between the bracket's ends; where P80 does not cross the target
+    between them, the roots of a scan of ``FEED_SCAN_POINTS`` feeds (:func:`_scanned_roots`: a cyclone
+    circuit's P80 peaks between finer ends), of several the one of least specific energy."""
     from twin import SolverError
 
-    @functools.cache  # the bracket's end is solved once, for the overload test and the root
-    def gap(f):
+    @functools.cache  # each feed solved once: the bracket's end for the overload test and the root, the scan
+    def state(f):
         return twin.steady(feed_tph=f, speed_frac_critical=speed_frac_critical, blend=blend,
-                           hardness_scale=hardness_scale).p80_um - target_p80_um
+                           hardness_scale=hardness_scale)
+
+    def gap(f):
+        return state(float(f)).p80_um - target_p80_um
 
     lo, hi = default_feed_bounds(twin) if feed_bounds_tph is None else feed_bounds_tph
     xtol = ROOT_XTOL_REL * (hi - lo)
@@ -122,7 +134,11 @@ def feed_for_target(twin, blend, target_p80_um: float, speed_frac_critical: floa
             hi = 0.5 * (lo + hi)
     else:
         return math.nan
-    return _root_in(gap, (lo, hi), xtol=xtol)
+    root = _root_in(gap, (lo, hi), xtol=xtol)
+    if math.isfinite(root):
+        return root
+    roots = _scanned_roots(gap, list(np.linspace(lo, hi, FEED_SCAN_POINTS)), xtol)
+    return min(roots, key=lambda f: state(f).outputs["specific_energy_kwh_t"]) if roots else math.nan
 
 
 #: How far above the target [fraction] a blend's steady P80 at :func:`feed_holding_every_blend`'s feed may lie:
@@ -137,9 +153,8 @@ def feed_holding_every_blend(twin, blends, target_p80_um: float, speed_frac_crit
     coarsens as the feed rises, but a cyclone circuit's can get finer (README, Limitations), and then a blend
     whose target feed is higher lies coarser at the least. What an operator without a controller holds to keep
     a schedule's every ore in specification, grinding the others finer than they need. nan if a blend is coarser
-    than the target at the least one, or :func:`feed_for_target` finds no feed for it: its P80 is coarser than
-    the target at both ends of the bounds, or finer at both, as a cyclone circuit's that peaks coarser between
-    them can be (feeds short of the peak then hold it, unsaid). The target, speed and bounds are checked as
+    than the target at the least one, or :func:`feed_for_target` finds no feed for it (its P80 coarser than the
+    target over the whole bounds, or finer). The target, speed and bounds are checked as
     :func:`optimal_setpoints` checks them."""
     fn = "feed_holding_every_blend"
     # a list: an iterator was read up by the feeds, and the check below then passed on no blend
@@ -181,18 +196,24 @@ def speed_for_target(twin, blend, target_p80_um: float, feed_tph: float,
     def gap(s):
         return state(float(s)).p80_um - target_p80_um
 
-    grid = list(np.linspace(speed_bounds[0], speed_bounds[1], SPEED_SCAN_POINTS))
-    grid = sorted(grid + _dips_below(gap, grid))
-    roots = [_root_in(gap, (float(a), float(b)), xtol=1e-7) for a, b in zip(grid[:-1], grid[1:])]
-    roots = [r for r in roots if math.isfinite(r)]
+    roots = _scanned_roots(gap, list(np.linspace(speed_bounds[0], speed_bounds[1], SPEED_SCAN_POINTS)), 1e-7)
     if not roots:
         return math.nan
     return min(roots, key=lambda s: state(s).outputs["specific_energy_kwh_t"])
 
 
+def _scanned_roots(gap, grid, xtol) -> list[float]:
+    """The roots of ``gap`` bracketed on the scan ``grid`` and on either side of an extreme that crosses zero
+    between scan points of one sign (:func:`_dips_below`: a minimum below zero, or of -gap, a maximum above it),
+    each refined by Brent's method."""
+    grid = sorted(grid + _dips_below(gap, grid) + _dips_below(lambda x: -gap(x), grid))
+    roots = [_root_in(gap, (float(a), float(b)), xtol=xtol) for a, b in zip(grid[:-1], grid[1:])]
+    return [r for r in roots if math.isfinite(r)]
+
+
 def _dips_below(gap, grid) -> list[float]:
     """The minima of ``gap`` below zero between scan points where it is positive at the points: a
-    target just finer than the least P80 is met at two speeds closer than the scan's step, with no
+    target just finer than the least P80 is met at two speeds (or feeds) closer than the scan's step, with no
     sign change at the points to bracket them. Each interior scan point lower than both neighbours
     is refined by a bounded Brent minimisation between them."""
     values = [gap(s) for s in grid]

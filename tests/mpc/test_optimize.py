@@ -4,6 +4,7 @@ non-monotonic speed curve reaches inside the bounds although both ends are coars
 import math
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from mpc.optimize import feed_for_target, feed_holding_every_blend, speed_for_target
@@ -82,3 +83,21 @@ def test_the_check_catches_a_cyclone_circuit_that_gets_finer_with_more_feed():
     least = min(feed_for_target(tw, b, target, 0.7, bounds) for b in blends)
     assert tw.steady(feed_tph=least, speed_frac_critical=0.7, blend=blends[1]).p80_um > target + 1.0
     assert math.isnan(feed_holding_every_blend(tw, blends, target, 0.7, bounds))
+
+
+def test_a_target_met_on_both_sides_of_a_cyclone_circuits_peak_is_found():
+    """The industrial mill in its hydrocyclone circuit: P80 rises with the feed to a peak near its design (31 t/h,
+    210 um) and falls past it, so 210 um is met twice while both ends of the search (0.2-2x nominal) are finer:
+    feed_for_target answered nan (a closed loop's start: 'no feed rate holds it'). Now both roots are bracketed
+    by a scan and the one of least specific energy (the larger feed) returned; a target coarser than the peak
+    is still nan."""
+    tw = Twin("B", mill="industrial", effect_options={"classification": {"kind": "hydrocyclone"}})
+    ends = [tw.steady(feed_tph=f, speed_frac_critical=0.7).p80_um for f in (6.2, 34.0)]
+    assert max(ends) < 210.0  # no sign change between the ends: the test can fail
+    feed = feed_for_target(tw, [1.0], 210.0, 0.7)
+    ss = tw.steady(feed_tph=feed, speed_frac_critical=0.7)
+    assert ss.p80_um == pytest.approx(210.0, abs=1e-3) and feed > tw.mill.feed_nominal_tph
+    short = 0.9 * tw.mill.feed_nominal_tph  # the other root lies before the peak: more energy per tonne there
+    assert tw.steady(feed_tph=short, speed_frac_critical=0.7).p80_um < 210.0 < max(
+        tw.steady(feed_tph=f, speed_frac_critical=0.7).p80_um for f in np.linspace(short, feed, 9))
+    assert math.isnan(feed_for_target(tw, [1.0], 215.0, 0.7))
