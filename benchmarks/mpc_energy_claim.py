@@ -129,7 +129,8 @@ def main(argv=None) -> pd.DataFrame:
     OUT.mkdir(exist_ok=True)
     table.to_csv(OUT / "mpc_energy_claim.csv", index=False)
     md = ["# Does control save energy? MISSION.md's 5-10 % claim on the twin", "",
-          "nmpc: the scene as shipped; nmpc_no_preview: the same without the preview; none: no control at the feed that holds the target for the first ore; "
+          "nmpc: the scene as shipped; nmpc_no_preview: the same without the preview; none: no control at the "
+          "feed that holds the target for the first ore; "
           "fixed_safe: no control at the least feed that holds the target at steady state for every blend of the "
           f"run (feed_held_tph). coarser_than_spec_frac: share of samples coarser than the target + {SPEC_UM:g} um. "
           "Transition windows: first_ore 0-3 h (Type B), last_blend 4.5-8 h (60 % B / 40 % D). run_s: wall time "
