@@ -248,6 +248,12 @@ def _check_feed(data, ore_names: list[str], r: _Report, base_dir: Path = Path(".
               "circuit's water balance only (effect_options.classification.kind = \"hydrocyclone\"); a grate mill's "
               "slurry rheology is that of a 70 wt% pulp (twin.effects.rheology); remove it",
               _get(data, "mill", "discharge_solids_frac"))
+    lists = [v for v in (_get(data, "effects"), _get(data, "plant", "effects")) if isinstance(v, list)]
+    if _get(data, "mill", "power_model") is not None and lists and not any("power" in v for v in lists):
+        r.add(("mill", "power_model"), "read by nothing: the net-power model gives the `power` effect's power and "
+              "specific energy only (the breakage rates follow the mill's size, ball and speed, twin.scaleup: the "
+              "reference scene's P80 is the same under both models), and no effects list of the scene has `power`; "
+              "add it, or remove power_model", _get(data, "mill", "power_model"))
     power = net_power_problem(_get(data, "mill", "preset"), _get(data, "mill"), _num(feed.get("feed_tph")),
                               _num(feed.get("speed_frac_critical")))
     if power:  # the nominal feed follows the power: the feed's check below would blame the feed for it

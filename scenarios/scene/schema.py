@@ -145,7 +145,8 @@ class Mill(Section):
     """Solids mass fraction of the mill discharge (0.72, not 72), held by the mill's feed water in a
     hydrocyclone circuit's water balance (read by nothing else: refused beside a grate); default 0.70."""
     power_model: Literal["bond", "hogg_fuerstenau"] | None = Field(default=None, examples=["hogg_fuerstenau"])
-    """Net-power model of the mill; default: the preset's (``"bond"``)."""
+    """Net-power model of the mill, read by the ``power`` effect only (refused without it); default: the
+    preset's (``"bond"``)."""
     net_power_kw: float | None = Field(default=None, gt=0, le=1e5)
     """A given (measured or published) net power [kW] at the scene's speed (``feed.speed_frac_critical``,
     where the plant measured it); the power model then only shapes how power moves with speed."""

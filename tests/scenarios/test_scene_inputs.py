@@ -369,6 +369,27 @@ def test_the_discharge_solids_are_read_by_a_cyclone_circuit_and_refused_beside_a
     assert len(messages) == 1 and "mill.discharge_solids_frac: read by nothing" in messages[0], messages
 
 
+def test_a_power_model_without_the_power_effect_is_refused(write_scene):
+    """mill.power_model gives the power effect's power only: the scale-up keeps the rates per hour whatever the
+    model, so on the reference scene Hogg & Fuerstenau's draws less than Bond's at the same P80. A scene listing
+    no `power` ran with it and changed no number, exit 0; now refused, naming it."""
+    text = (Path(__file__).parents[2] / "scenarios" / "reference_transition.toml").read_text().replace(
+        'preset = "industrial"', 'preset = "industrial"\npower_model = "hogg_fuerstenau"', 1)
+    runs = {}
+    for model in ("bond", "hogg_fuerstenau"):
+        twin = build_models(load_scene(write_scene(text.replace('"hogg_fuerstenau"', f'"{model}"'),
+                                                   name=f"{model}.toml"))).plant
+        ss = twin.steady(feed_tph=23.6, speed_frac_critical=0.70)
+        runs[model] = (ss.p80_um, ss.outputs["power_kw"])
+    assert runs["bond"][0] == pytest.approx(runs["hogg_fuerstenau"][0], rel=1e-12)
+    assert runs["hogg_fuerstenau"][1] < 0.9 * runs["bond"][1], runs
+    unpowered = text.replace('"power", ', "")
+    assert unpowered.count('"power"') == 0 and unpowered != text
+    messages = check_scene(write_scene(unpowered, name="unpowered.toml"))
+    assert len(messages) == 1 and "mill.power_model: read by nothing" in messages[0], messages
+    assert check_scene(write_scene(unpowered.replace('\npower_model = "hogg_fuerstenau"', ""), name="plain.toml")) == []
+
+
 def test_a_survey_implying_another_circulating_load_than_the_nominal_is_noted(tmp_path):
     """The nominal circulating load sets the mill's through-flow and so its load (the NMPC's band); a survey
     whose cyclone feed implied 0.73 beside the default 2.5 ran without a word. The Moly-Cop case's published
