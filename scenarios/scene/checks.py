@@ -254,6 +254,12 @@ def _check_feed(data, ore_names: list[str], r: _Report, base_dir: Path = Path(".
               "specific energy only (the breakage rates follow the mill's size, ball and speed, twin.scaleup: the "
               "reference scene's P80 is the same under both models), and no effects list of the scene has `power`; "
               "add it, or remove power_model", _get(data, "mill", "power_model"))
+    # the scene's power option wins over the mill's model for the controller's twin and for a plant without its own
+    # (a plant's own option beside the mill's model is a mismatch study: the controller's twin reads the mill's)
+    option, own = _get(data, "effect_options", "power", "model"), _get(data, "mill", "power_model")
+    if isinstance(option, str) and isinstance(own, str) and option != own:
+        r.add(("mill", "power_model"), f"{own!r} but effect_options.power.model is {option!r}, which the power "
+              "effect uses instead: give the model once", own)
     power = net_power_problem(_get(data, "mill", "preset"), _get(data, "mill"), _num(feed.get("feed_tph")),
                               _num(feed.get("speed_frac_critical")))
     if power:  # the nominal feed follows the power: the feed's check below would blame the feed for it

@@ -390,6 +390,21 @@ def test_a_power_model_without_the_power_effect_is_refused(write_scene):
     assert check_scene(write_scene(unpowered.replace('\npower_model = "hogg_fuerstenau"', ""), name="plain.toml")) == []
 
 
+def test_a_power_model_given_twice_otherwise_is_refused(write_scene):
+    """mill.power_model = "bond" beside effect_options.power.model = "hogg_fuerstenau": the effect's option was
+    used (128 kW, not Bond's 163) and the mill's read by nothing, exit 0. Refused, naming both; a plant's own
+    option beside the mill's model stays allowed (the controller's twin reads the mill's: a mismatch study)."""
+    text = (Path(__file__).parents[2] / "scenarios" / "reference_transition.toml").read_text().replace(
+        'preset = "industrial"', 'preset = "industrial"\npower_model = "bond"', 1)
+    both = text + '\n[effect_options.power]\nmodel = "hogg_fuerstenau"\n'
+    messages = check_scene(write_scene(both, name="both.toml"))
+    assert len(messages) == 1 and "mill.power_model: 'bond' but effect_options.power.model is 'hogg_fuerstenau'" \
+        in messages[0], messages
+    assert check_scene(write_scene(both.replace("hogg_fuerstenau", "bond"), name="same.toml")) == []
+    assert check_scene(write_scene(text + '\n[plant.effect_options.power]\nmodel = "hogg_fuerstenau"\n',
+                                   name="plant.toml")) == []
+
+
 def test_a_survey_implying_another_circulating_load_than_the_nominal_is_noted(tmp_path):
     """The nominal circulating load sets the mill's through-flow and so its load (the NMPC's band); a survey
     whose cyclone feed implied 0.73 beside the default 2.5 ran without a word. The Moly-Cop case's published
