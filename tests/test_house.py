@@ -145,6 +145,8 @@ CHECKOUT_ONLY = {
     "scenarios/data/README.md": "says where the folder's data come from",
     "scenarios/data/molycop_ballsim_published.toml": "the published results the Moly-Cop test and benchmark "
                                                      "compare with",
+    "scenarios/data/molycop_ballsim_425_published.toml": "the published results the second Moly-Cop case's test "
+                                                         "and benchmark compare with",
 }
 
 
