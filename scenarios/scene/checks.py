@@ -57,8 +57,13 @@ class _Report:
         self.messages.append(f"{format_path(loc)}: {problem}{got}")
 
 
-def cross_check(data: dict[str, Any], base_dir: Path) -> list[str]:
-    """Every cross-field problem of a raw scene table (``base_dir`` resolves relative paths)."""
+def cross_check(data: dict[str, Any], base_dir: Path, as_written: bool = False) -> list[str]:
+    """Every cross-field problem of a raw scene table (``base_dir`` resolves relative paths).
+
+    ``as_written``: the table is a scene file as its author wrote it (:func:`scenarios.scene.load_scene`,
+    ``grindtwin check``), so the keys its own controller kind reads nothing of are refused too
+    (:func:`_check_idle_as_written`); a table a program derived from a file (a sweep's case varying
+    ``controller.kind``, a guide's variant of an NMPC scene, a replay's scene) keeps the file's other keys."""
     r = _Report()
     if not isinstance(data, dict):
         return ["(top level): a scene must be a TOML table"]
@@ -73,6 +78,8 @@ def cross_check(data: dict[str, Any], base_dir: Path) -> list[str]:
     _check_sensors(data, r)
     _check_plant(data, r)
     _check_calibration(data, base_dir, r)
+    if as_written:
+        _check_idle_as_written(data, r)
     return r.messages
 
 
@@ -405,7 +412,8 @@ def _check_controller(data, r: _Report) -> None:
                 and not fmin <= feed <= fmax:
             r.add(("feed", "feed_tph"), f"initial feed outside controller.bounds "
                   f"[{fmin:g}, {fmax:g}]", feed)
-        if speed is not None and smin is not None and smax is not None and smin < smax \
+        # the speed bounds are the NMPC's: PI holds the scene's speed (and reads no speed bound)
+        if kind == "nmpc" and speed is not None and smin is not None and smax is not None and smin < smax \
                 and not smin <= speed <= smax:
             r.add(("feed", "speed_frac_critical"), f"initial speed outside controller.bounds "
                   f"[{smin:g}, {smax:g}]", speed)
@@ -536,3 +544,29 @@ def _check_calibration(data, base_dir: Path, r: _Report) -> None:
             return  # an unknown model is the schema's to report
         for problem in cal.mill_values_mismatch(own):
             r.add(("mill", "power_model"), f"{problem}: {advice}")
+
+
+#: why a batch grind reads nothing of its [controller] but its kind
+_BATCH_CONTROLLER = ("a batch grind (effects without `transport`) has no controller and no KPI of a P80 target or "
+                     "a load band (its P80 is the charge's as it grinds); remove it")
+
+
+def _check_idle_as_written(data, r: _Report) -> None:
+    """Keys of a scene file that no number of its own run reads (the file as written: see :func:`cross_check`):
+    a batch grind's ``[controller]`` keys, an open loop's power and load noise (no controller reads those
+    readings)."""
+    ctl = data.get("controller") if isinstance(data.get("controller"), dict) else {}
+    effects = data.get("effects")
+    batch = isinstance(effects, list) and "transport" not in effects
+    kind = ctl.get("kind", "none")
+    for key, value in ctl.items() if batch else ():  # a batch scene's kind other than "none": _check_feed
+        if key != "kind":
+            r.add(("controller", key), f"read by nothing: {_BATCH_CONTROLLER}", value)
+    sensors = data.get("sensors") if isinstance(data.get("sensors"), dict) else {}
+    if kind == "none" and not batch:  # a batch scene's [sensors] is refused whole (_check_feed)
+        for key in ("power_noise_kw", "load_noise_frac"):
+            if key in sensors:
+                r.add(("sensors", key), "read by nothing: an open loop (controller.kind = \"none\") records the "
+                      "analyser's P80 (p80_analyser_um) only; the power and load readings are a controller's "
+                      "(its estimator's and the loop's power_meas_kw, load_meas_frac); remove it, or set kind = "
+                      "\"pi\" or \"nmpc\"", sensors[key])

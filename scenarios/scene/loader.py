@@ -66,9 +66,10 @@ def _without_bom(head: bytes) -> str | None:
     return "UTF-16 or UTF-32 text" if wide else "a binary file, not text"
 
 
-def validate_scene_dict(data: dict[str, Any], source_path: str | Path | None = None,
+def validate_scene_dict(data: dict[str, Any], source_path: str | Path | None = None, as_written: bool = False,
                         ) -> tuple[Scene | None, list[str]]:
-    """Validate a raw scene table; return ``(scene, [])`` or ``(None, messages)``."""
+    """Validate a raw scene table; return ``(scene, [])`` or ``(None, messages)``. ``as_written``: the table is
+    the file's own, not one a program derived from it (:func:`scenarios.scene.checks.cross_check`)."""
     source = Path(source_path) if source_path is not None else None
     label = str(source) if source is not None else "<scene>"
     errors: list[str] = []
@@ -78,7 +79,7 @@ def validate_scene_dict(data: dict[str, Any], source_path: str | Path | None = N
     except ValidationError as exc:
         errors += [pydantic_message(label, e) for e in exc.errors()]
     base_dir = source.parent if source is not None else Path.cwd()
-    errors += [f"{label}: {m}" for m in cross_check(data, base_dir)]
+    errors += [f"{label}: {m}" for m in cross_check(data, base_dir, as_written)]
     errors = list(dict.fromkeys(errors))  # keep order, drop repeats
     if errors:
         return None, errors
@@ -91,9 +92,10 @@ def validate_scene_dict(data: dict[str, Any], source_path: str | Path | None = N
     return scene, []
 
 
-def scene_from_dict(data: dict[str, Any], source_path: str | Path | None = None) -> Scene:
+def scene_from_dict(data: dict[str, Any], source_path: str | Path | None = None, as_written: bool = False,
+                    ) -> Scene:
     """Validated ``Scene`` from a raw table; SceneError listing every problem otherwise."""
-    scene, errors = validate_scene_dict(data, source_path)
+    scene, errors = validate_scene_dict(data, source_path, as_written)
     if errors:
         raise SceneError(_summary(source_path, errors))
     return scene
@@ -101,7 +103,7 @@ def scene_from_dict(data: dict[str, Any], source_path: str | Path | None = None)
 
 def load_scene(path: str | Path) -> Scene:
     """Read, validate and complete a scene file; SceneError listing every problem."""
-    return scene_from_dict(read_toml(path), path)
+    return scene_from_dict(read_toml(path), path, as_written=True)
 
 
 def check_scene(path: str | Path) -> list[str]:
@@ -110,7 +112,7 @@ def check_scene(path: str | Path) -> list[str]:
         data = read_toml(path)
     except SceneError as exc:
         return [str(exc)]
-    return validate_scene_dict(data, path)[1]
+    return validate_scene_dict(data, path, as_written=True)[1]
 
 
 def _summary(source_path, errors: list[str]) -> str:

@@ -410,6 +410,9 @@ class Controller(Section):
     output), not of the hold-up at the start (23.6 t/h of the reference scene starts at 0.94);
     ``preview_lead_h`` is how far ahead the feed is known (belt analyser);
     ``disturbance_model`` what the EKF's disturbance states absorb (``mpc.DISTURBANCE_MODELS``).
+    Open loop (``"none"``) reads ``target_p80_um`` and ``load_band_frac`` (the KPIs); ``"pi"`` these and
+    ``bounds.feed_tph_min``, ``feed_tph_max`` and ``feed_rate_max_tph_per_h``; a batch grind only ``kind``
+    (a batch scene file giving any other is refused: read by nothing).
     """
 
     kind: Literal["none", "pi", "nmpc"] = "none"
@@ -473,9 +476,11 @@ class Sensors(Section):
     """Analyser sampling period [h], at least ``scene.sample_period_h``; the reading is held in
     between; default: the scene's sample period."""
     power_noise_kw: float = Field(default=0.0, ge=0)
-    """Standard deviation of the mill power reading's noise [kW]."""
+    """Standard deviation of the mill power reading's noise [kW]; read by a controller's loop only (a scene
+    file with ``controller.kind = "none"`` giving it is refused: read by nothing)."""
     load_noise_frac: float = Field(default=0.0, ge=0, lt=1, json_schema_extra={"unit": "hold-up / nominal"})
-    """Standard deviation of the load reading's noise [hold-up / nominal]."""
+    """Standard deviation of the load reading's noise [hold-up / nominal]; read by a controller's loop only
+    (refused beside ``controller.kind = "none"``, as the power's)."""
 
 
 class Plant(Section):

@@ -1,0 +1,69 @@
+"""Keys a scene file gives that no number of its own run reads are refused, naming key, value and why: a batch
+grind's controller keys, an open loop's power and load noise. A program's variant of a file (a sweep over
+controller.kind) keeps the file's keys."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from scenarios import run_scene
+from scenarios.errors import SceneError
+from scenarios.run.sweep import expand_cases, validate_cases
+from scenarios.scene.loader import check_scene, read_toml, scene_from_dict
+from tests.scenarios.conftest import BASE_SCENE
+
+SCENES = Path(__file__).parents[2] / "scenarios"
+OPEN_LOOP = BASE_SCENE.replace('kind = "nmpc"', 'kind = "none"', 1).replace(
+    "\n[controller.bounds]\nfeed_tph_min = 20.0\nfeed_tph_max = 45.0\n", "")
+NOISY = "\n[sensors]\np80_noise_um = 3.0\npower_noise_kw = 5.0\nload_noise_frac = 0.01\n"
+
+
+def test_an_open_loop_files_power_and_load_noise_are_refused(write_scene):
+    """An open loop records the analyser's P80 only: 50 kW of power noise for none changed no number of the run
+    (frame and KPIs to the last digit), and the file passed `grindtwin check`. Refused; a controller reads them."""
+    data = read_toml(write_scene(OPEN_LOOP + NOISY))
+    data["scene"]["duration_h"], data["feed"]["schedule"] = 2.0, []
+    runs = []
+    for noise in (0.0, 50.0):  # a program's variant of the file keeps the keys: the evidence runs
+        case = copy.deepcopy(data)
+        case["sensors"]["power_noise_kw"] = noise
+        runs.append(run_scene(scene_from_dict(case, "s.toml"), progress=False, plots=False))
+    numeric = runs[0].frame.select_dtypes("number").columns
+    assert np.array_equal(runs[0].frame[numeric].to_numpy(), runs[1].frame[numeric].to_numpy(), equal_nan=True)
+    assert runs[0].kpis == pytest.approx(runs[1].kpis, nan_ok=True)
+    messages = check_scene(write_scene(OPEN_LOOP + NOISY, name="open.toml"))
+    assert [m.split(": ")[1] for m in messages] == ["sensors.power_noise_kw", "sensors.load_noise_frac"], messages
+    assert "read by nothing: an open loop" in messages[0] and messages[0].endswith("(got 5.0)")
+    assert check_scene(write_scene(BASE_SCENE + NOISY, name="nmpc.toml")) == []
+
+
+def test_a_batch_files_controller_keys_are_refused(write_scene):
+    """A batch grind has no controller and no P80 target KPI: a target or a load band changed no number and
+    passed."""
+    text = (SCENES / "batch_50B_50D.toml").read_text() + "target_p80_um = 150.0\nload_band_frac = [0.9, 1.1]\n"
+    messages = check_scene(write_scene(text))
+    assert [m.split(": ")[1] for m in messages] == ["controller.target_p80_um", "controller.load_band_frac"]
+    assert "read by nothing: a batch grind" in messages[0] and messages[0].endswith("(got 150.0)")
+
+
+def test_a_pi_scene_is_not_refused_for_the_nmpcs_speed_bounds(write_scene):
+    """PI holds the scene's speed and reads no speed bound: a PI scene at 0.88 of critical was refused as outside
+    the NMPC's default speed bounds [0.6, 0.85], which it never reads (an NMPC still is)."""
+    fast = BASE_SCENE.replace("speed_frac_critical = 0.70", "speed_frac_critical = 0.88")
+    assert check_scene(write_scene(fast.replace('kind = "nmpc"', 'kind = "pi"', 1), name="pi.toml")) == []
+    messages = check_scene(write_scene(fast, name="nmpc.toml"))
+    assert len(messages) == 1 and "feed.speed_frac_critical: initial speed outside controller.bounds" in messages[0]
+
+
+def test_a_sweep_over_the_controller_kind_keeps_the_files_keys():
+    """README's sweep of the reference scene over none, pi and nmpc: each case is the file's table with another kind
+    (the file's power and load noise are read by the closed loops), validated as a program's variant."""
+    path = SCENES / "reference_transition.toml"
+    cases = expand_cases(read_toml(path), {"controller.kind": ["none", "pi", "nmpc"]})
+    assert len(validate_cases(cases, path)) == 3
+    with pytest.raises(SceneError, match="sensors.power_noise_kw: read by nothing"):  # as a file of its own
+        scene_from_dict(cases[0].data, path, as_written=True)
