@@ -546,22 +546,42 @@ def _check_calibration(data, base_dir: Path, r: _Report) -> None:
             r.add(("mill", "power_model"), f"{problem}: {advice}")
 
 
-#: why a batch grind reads nothing of its [controller] but its kind
-_BATCH_CONTROLLER = ("a batch grind (effects without `transport`) has no controller and no KPI of a P80 target or "
-                     "a load band (its P80 is the charge's as it grinds); remove it")
+#: controller keys (paths below ``[controller]``) that a kind reads; an NMPC reads them all. Open loop: the target
+#: of the P80 KPIs and of ``feed.start = "target"``, the band of the load KPI (scenarios.run.kpis); PI: those and
+#: its feed bounds and rate limit (mpc.closed_loop.pi_baseline); a batch grind: its kind only.
+CONTROLLER_KEYS_READ = {
+    "batch": {("kind",)},
+    "none": {("kind",), ("target_p80_um",), ("load_band_frac",)},
+    "pi": {("kind",), ("target_p80_um",), ("load_band_frac",), ("bounds", "feed_tph_min"),
+           ("bounds", "feed_tph_max"), ("bounds", "feed_rate_max_tph_per_h")},
+}
+#: why a kind reads nothing of its other keys, and what to do
+_IDLE_WHY = {
+    "batch": "a batch grind (effects without `transport`) has no controller and no KPI of a P80 target or a "
+             "load band (its P80 is the charge's as it grinds); remove it",
+    "none": "controller.kind = \"none\" is an open loop: the scene's feed rate and speed are held and only the "
+            "target (the P80 KPIs, feed.start = \"target\") and load_band_frac (the load KPI) are read; remove it, or "
+            "set kind = \"pi\" or \"nmpc\"",
+    "pi": "controller.kind = \"pi\" moves the feed rate alone from the analyser's P80 (speed held), reading the "
+          "target, load_band_frac and bounds feed_tph_min, feed_tph_max and feed_rate_max_tph_per_h only; this is "
+          "the NMPC's; remove it, or set kind = \"nmpc\"",
+}
 
 
 def _check_idle_as_written(data, r: _Report) -> None:
     """Keys of a scene file that no number of its own run reads (the file as written: see :func:`cross_check`):
-    a batch grind's ``[controller]`` keys, an open loop's power and load noise (no controller reads those
-    readings)."""
+    the ``[controller]`` keys its kind does not read (:data:`CONTROLLER_KEYS_READ`), an open loop's power and load
+    noise (no controller reads those readings)."""
     ctl = data.get("controller") if isinstance(data.get("controller"), dict) else {}
     effects = data.get("effects")
     batch = isinstance(effects, list) and "transport" not in effects
     kind = ctl.get("kind", "none")
-    for key, value in ctl.items() if batch else ():  # a batch scene's kind other than "none": _check_feed
-        if key != "kind":
-            r.add(("controller", key), f"read by nothing: {_BATCH_CONTROLLER}", value)
+    reads = "batch" if batch else kind  # a batch scene's kind other than "none": _check_feed
+    for key, value in ctl.items() if reads in CONTROLLER_KEYS_READ else ():
+        for sub, v in (value.items() if key in ("weights", "bounds") and isinstance(value, dict) else [(None, value)]):
+            loc = (key,) if sub is None else (key, sub)
+            if loc not in CONTROLLER_KEYS_READ[reads]:
+                r.add(("controller",) + loc, f"read by nothing: {_IDLE_WHY[reads]}", v)
     sensors = data.get("sensors") if isinstance(data.get("sensors"), dict) else {}
     if kind == "none" and not batch:  # a batch scene's [sensors] is refused whole (_check_feed)
         for key in ("power_noise_kw", "load_noise_frac"):

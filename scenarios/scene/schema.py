@@ -411,8 +411,8 @@ class Controller(Section):
     ``preview_lead_h`` is how far ahead the feed is known (belt analyser);
     ``disturbance_model`` what the EKF's disturbance states absorb (``mpc.DISTURBANCE_MODELS``).
     Open loop (``"none"``) reads ``target_p80_um`` and ``load_band_frac`` (the KPIs); ``"pi"`` these and
-    ``bounds.feed_tph_min``, ``feed_tph_max`` and ``feed_rate_max_tph_per_h``; a batch grind only ``kind``
-    (a batch scene file giving any other is refused: read by nothing).
+    ``bounds.feed_tph_min``, ``feed_tph_max`` and ``feed_rate_max_tph_per_h``; a batch grind only ``kind``;
+    a scene file giving a key its kind does not read is refused (read by nothing).
     """
 
     kind: Literal["none", "pi", "nmpc"] = "none"

@@ -44,6 +44,15 @@ feed_tph_min = 20.0
 feed_tph_max = 45.0
 """
 
+#: BASE_SCENE's controller bounds: an open loop reads none (a scene file giving them is refused)
+BASE_BOUNDS = "\n[controller.bounds]\nfeed_tph_min = 20.0\nfeed_tph_max = 45.0\n"
+assert BASE_BOUNDS in BASE_SCENE
+
+
+def open_loop(text: str = BASE_SCENE) -> str:
+    """BASE_SCENE (or a text with its controller) as an open loop: kind "none", without the feed bounds."""
+    return text.replace('kind = "nmpc"', 'kind = "none"', 1).replace(BASE_BOUNDS, "\n", 1)
+
 
 @pytest.fixture
 def write_scene(tmp_path):

@@ -307,13 +307,13 @@ def test_check_notes_a_speed_where_the_charge_centrifuges_and_still_says_ok(writ
     at 0.96, speeds where the twin's models do not describe the charge. steady notes such a speed
     and a run warns of it, both going on: check notes it (key, value, limit) and says OK."""
     from scenarios.cli import main
-    from tests.scenarios.conftest import BASE_SCENE
+    from tests.scenarios.conftest import open_loop
     from twin import CENTRIFUGING_FRAC_CRITICAL
 
     reference = Path(__file__).resolve().parents[2] / "scenarios" / "reference_transition.toml"
     assert reference.read_text().count("speed_max = 0.85\n") == 1
     fast = write_scene(reference.read_text().replace("speed_max = 0.85\n", "speed_max = 0.99\n"), "fast.toml")
-    held = write_scene(BASE_SCENE.replace('kind = "nmpc"', 'kind = "none"')
+    held = write_scene(open_loop()
                        .replace("speed_frac_critical = 0.70", "speed_frac_critical = 0.96"), "held.toml")
     slow = write_scene(reference.read_text(), "slow.toml")
     assert main(["check", str(fast), str(held), str(slow)]) == 0

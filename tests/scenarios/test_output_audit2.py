@@ -147,10 +147,10 @@ def test_a_workbook_scratch_file_left_by_a_killed_run_does_not_refuse_the_next_r
 def test_the_size_distributions_name_the_streams_sizes_exactly(write_scene, tmp_path):
     """product_psd.csv's sizes were rounded to 4 decimals (4737.6154 where streams.csv holds
     4737.615433...): a join of the two on size found nothing."""
-    from tests.scenarios.conftest import BASE_SCENE
+    from tests.scenarios.conftest import open_loop
 
-    text = BASE_SCENE
-    for old, new in (("duration_h = 8.0", "duration_h = 0.5"), ('kind = "nmpc"', 'kind = "none"'),
+    text = open_loop()
+    for old, new in (("duration_h = 8.0", "duration_h = 0.5"),
                      ("at_h = 2.0", "at_h = 0.2"), ("ramp_h = 1.0", "ramp_h = 0.2")):
         text = text.replace(old, new)
     out = tmp_path / "run"

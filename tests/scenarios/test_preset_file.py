@@ -13,7 +13,7 @@ from twin import SizeGrid, Twin, TwinInputError, get_mill, power_kw
 from twin.calibration import load_calibration
 from twin.mill import INDUSTRIAL_PRESET_PATH
 
-from .conftest import BASE_SCENE
+from .conftest import BASE_BOUNDS, BASE_SCENE
 
 #: The scene's classification: the mill's own hydrocyclones (no cyclone table: the preset's).
 CYCLONES = '\n[effect_options.classification]\nkind = "hydrocyclone"\n'
@@ -127,7 +127,7 @@ def test_a_run_records_its_preset_file_and_the_scene_as_run(tmp_path, capsys):
     path = _preset(tmp_path, diameter_m=2.4, length_m=3.6)
     scene = _scene(tmp_path, "sized/my_mill.json")
     scene.write_text(scene.read_text().replace("duration_h = 8.0", "duration_h = 0.5")
-                     .replace('kind = "nmpc"', 'kind = "none"').replace("at_h = 2.0", "at_h = 0.1")
+                     .replace('kind = "nmpc"', 'kind = "none"').replace(BASE_BOUNDS, "\n").replace("at_h = 2.0", "at_h = 0.1")
                      .replace("ramp_h = 1.0", "ramp_h = 0.2"))
     assert main(["run", str(scene), "--out", str(tmp_path / "run"), "--quiet", "--no-plots"]) == 0
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
@@ -151,7 +151,7 @@ def test_a_runs_preset_file_is_hashed_as_loaded_shown_in_its_report_and_workbook
     path = _preset(tmp_path)
     scene_path = _scene(tmp_path, "sized/my_mill.json")
     scene_path.write_text(scene_path.read_text().replace("duration_h = 8.0", "duration_h = 0.5")
-                          .replace('kind = "nmpc"', 'kind = "none"').replace("at_h = 2.0", "at_h = 0.1")
+                          .replace('kind = "nmpc"', 'kind = "none"').replace(BASE_BOUNDS, "\n").replace("at_h = 2.0", "at_h = 0.1")
                           .replace("ramp_h = 1.0", "ramp_h = 0.2"))
     loaded = hashlib.sha256(path.read_bytes()).hexdigest()
     scene = load_scene(scene_path)

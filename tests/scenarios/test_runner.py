@@ -266,7 +266,8 @@ def test_run_interrupted_mid_simulation_writes_nothing(tmp_path, monkeypatch):
 
 
 def _controlled(path, kind):
-    text = path.read_text().replace('kind = "none"', f'kind = "{kind}"\nhorizon_steps = 5\nmove_block = 1')
+    nmpc = "\nhorizon_steps = 5\nmove_block = 1" if kind == "nmpc" else ""  # a PI file giving them is refused
+    text = path.read_text().replace('kind = "none"', f'kind = "{kind}"{nmpc}')
     text += "\n[controller.bounds]\nfeed_tph_min = 20.0\nfeed_tph_max = 40.0\n"
     path.write_text(text)
     return path
