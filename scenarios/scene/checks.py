@@ -235,6 +235,9 @@ def _check_feed(data, ore_names: list[str], r: _Report, base_dir: Path = Path(".
             r.add(("sensors",), f"read by nothing: a batch scene (effects without `transport`) has no analyser and "
                   f"no controller to read one ({', '.join(given)} given); remove them, or add `transport` for a "
                   "continuous mill")
+        if feed.get("start") is not None:  # changed no number: the charge is the start
+            r.add(("feed", "start"), "read by nothing: a batch grind (effects without `transport`) starts with its "
+                  "charge (feed.batch_charge_kg of feed.blend), not at a steady state; remove it", feed["start"])
         for key in ("schedule", "history"):  # the charge was ground as feed.blend, whatever they said later
             if feed.get(key):
                 r.add(("feed", key), "a batch scene (effects without `transport`) grinds one charge of "

@@ -87,6 +87,13 @@ def test_a_batch_files_controller_keys_are_refused(write_scene):
     assert "read by nothing: a batch grind" in messages[0] and messages[0].endswith("(got 150.0)")
 
 
+def test_a_batch_files_start_is_refused(write_scene):
+    """A batch grind starts with its charge: feed.start = "scene" changed no number and passed."""
+    text = (SCENES / "batch_50B_50D.toml").read_text().replace("p80_um = 3200.0", 'p80_um = 3200.0\nstart = "scene"')
+    messages = check_scene(write_scene(text))
+    assert len(messages) == 1 and "feed.start: read by nothing: a batch grind" in messages[0], messages
+
+
 def test_a_pi_scene_is_not_refused_for_the_nmpcs_speed_bounds(write_scene):
     """PI holds the scene's speed and reads no speed bound: a PI scene at 0.88 of critical was refused as outside
     the NMPC's default speed bounds [0.6, 0.85], which it never reads (an NMPC still is)."""
