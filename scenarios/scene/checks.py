@@ -573,8 +573,9 @@ _IDLE_WHY = {
 
 def _check_idle_as_written(data, r: _Report) -> None:
     """Keys of a scene file that no number of its own run reads (the file as written: see :func:`cross_check`):
-    the ``[controller]`` keys its kind does not read (:data:`CONTROLLER_KEYS_READ`), an open loop's power and load
-    noise (no controller reads those readings)."""
+    the ``[controller]`` keys its kind does not read (:data:`CONTROLLER_KEYS_READ`), the controller's model's keys
+    that ``[plant]`` overrides where no NMPC runs that model (:func:`_check_idle_control_model`), an open loop's
+    power and load noise (no controller reads those readings)."""
     ctl = data.get("controller") if isinstance(data.get("controller"), dict) else {}
     effects = data.get("effects")
     batch = isinstance(effects, list) and "transport" not in effects
@@ -585,6 +586,11 @@ def _check_idle_as_written(data, r: _Report) -> None:
             loc = (key,) if sub is None else (key, sub)
             if loc not in CONTROLLER_KEYS_READ[reads]:
                 r.add(("controller",) + loc, f"read by nothing: {_IDLE_WHY[reads]}", v)
+    plant = data.get("plant") if isinstance(data.get("plant"), dict) else None
+    if kind != "nmpc" and plant is not None and plant.get("model", "twin") == "twin":
+        what = {"none": "an open loop (controller.kind = \"none\")", "pi": "controller.kind = \"pi\" (tuned on "
+                "the plant's twin)"}.get(kind, "a batch grind") if not batch else "a batch grind"
+        _check_idle_control_model(data, plant, what, r)
     sensors = data.get("sensors") if isinstance(data.get("sensors"), dict) else {}
     if kind == "none" and not batch:  # a batch scene's [sensors] is refused whole (_check_feed)
         for key in ("power_noise_kw", "load_noise_frac"):
@@ -593,3 +599,24 @@ def _check_idle_as_written(data, r: _Report) -> None:
                       "analyser's P80 (p80_analyser_um) only; the power and load readings are a controller's "
                       "(its estimator's and the loop's power_meas_kw, load_meas_frac); remove it, or set kind = "
                       "\"pi\" or \"nmpc\"", sensors[key])
+
+
+def _check_idle_control_model(data, plant: dict, what: str, r: _Report) -> None:
+    """Keys of the controller's model that ``[plant]`` gives the plant its own of, in a scene whose controller
+    (``what``: an open loop, PI or a batch grind) runs no model: only the plant is integrated (PI is tuned on
+    the plant's twin), so the mill's grid and mixers and the options of an effect the plant lacks or replaces
+    change no number (scenarios.run.models.build_models)."""
+    tail = "" if what == "a batch grind" else ", or set controller.kind = \"nmpc\", whose model it is"
+    why = (f"read by nothing: {what} runs no model of its own, only [plant]'s twin, which takes its own "
+           f"{{own}}; remove it{tail}")
+    mill = data.get("mill") if isinstance(data.get("mill"), dict) else {}
+    for key in ("size_classes", "n_mixers"):
+        if key in mill and plant.get(key) is not None:
+            r.add(("mill", key), why.format(own=f"plant.{key}"), mill[key])
+    options = data.get("effect_options") if isinstance(data.get("effect_options"), dict) else {}
+    effects, own = plant.get("effects"), plant.get("effect_options")
+    for name, table in options.items():
+        if isinstance(effects, list) and name not in effects:
+            r.add(("effect_options", name), why.format(own=f"effects (plant.effects, without {name!r})"), table)
+        elif isinstance(own, dict) and name in own:
+            r.add(("effect_options", name), why.format(own=f"options (plant.effect_options.{name})"), table)

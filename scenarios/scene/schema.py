@@ -488,6 +488,9 @@ class Plant(Section):
 
     ``model = "twin"`` uses the twin with the effects and size classes given here (missing
     ones are taken from the scene); ``"leroux2013"`` is the literature milling-circuit model.
+    Only an NMPC runs the controller's model: beside an open loop, PI or a batch grind, a scene file's
+    ``mill.size_classes``, ``mill.n_mixers`` and ``effect_options`` that the plant replaces or lacks are
+    refused (read by nothing).
     """
 
     model: Literal["twin", "leroux2013"] = "twin"

@@ -102,8 +102,13 @@ def test_the_bounds_are_checked_against_the_feed_a_closed_loop_starts_at(write_s
 
     assert "feed_tph_max = 45.0" in REFERENCE and "feed_tph_min = 20.0" in REFERENCE
     scene = REFERENCE.replace('kind = "nmpc"', f'kind = "{kind}"')
-    if kind == "pi":  # the NMPC's keys, which a PI file is refused for (read by nothing)
+    if kind == "pi":  # the NMPC's keys and model, which a PI file is refused for (read by nothing)
         scene = "\n".join(line for line in scene.splitlines() if not line.startswith(NMPC_ONLY)) + "\n"
+        for model in ("n_mixers = 3\n", "size_classes = { top_um = 6700.0, ratio = 2.5, count = 7 }\n",
+                      "[effect_options.sensor_delay]\n"):
+            assert model in scene
+            scene = scene.replace(model, "", 1)
+        scene = scene.replace("\ndead_time_h = 0.1", "\n", 1)
     assert check_scene(write_scene(scene.replace("feed_tph_max = 45.0", "feed_tph_max = 28.0"))) == []
     problems = check_scene(write_scene(scene.replace("feed_tph_min = 20.0", "feed_tph_min = 25.0")))
     assert len(problems) == 1 and re.search(

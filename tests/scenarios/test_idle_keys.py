@@ -78,6 +78,30 @@ def test_a_pi_files_nmpc_keys_are_refused_and_its_own_are_read(write_scene):
     assert check_scene(write_scene(pi + "feed_rate_max_tph_per_h = 20.0\n", name="own.toml")) == []
 
 
+def test_the_controller_models_keys_a_plant_replaces_are_refused_where_no_nmpc_runs_it(write_scene):
+    """Open loop and PI integrate (PI: are tuned on) the plant's twin only: the reference scene as an open loop
+    ran the same to the last digit with the controller's model on 7 or 9 classes, 3 or 4 mixers, an analyser lag of
+    0.1 or 0.2 h; each refused, naming the plant's own. An NMPC runs that model: the file is the reference."""
+    data = read_toml(SCENES / "reference_transition.toml")
+    data["controller"] = {"kind": "none", "target_p80_um": 210.0}
+    data["scene"]["duration_h"], data["feed"]["schedule"], data["sensors"] = 0.5, [], {}
+    runs = []
+    for count, mixers, lag in ((7, 3, 0.1), (9, 4, 0.2)):
+        case = copy.deepcopy(data)
+        case["mill"]["size_classes"]["count"], case["mill"]["n_mixers"] = count, mixers
+        case["effect_options"]["sensor_delay"]["dead_time_h"] = lag
+        runs.append(run_scene(scene_from_dict(case, SCENES / "s.toml"), progress=False, plots=False))
+    numeric = runs[0].frame.select_dtypes("number").columns
+    assert np.array_equal(runs[0].frame[numeric].to_numpy(), runs[1].frame[numeric].to_numpy(), equal_nan=True)
+    messages = check_scene(write_scene(
+        (SCENES / "reference_transition.toml").read_text().split("[controller]")[0]
+        + '[controller]\nkind = "none"\ntarget_p80_um = 210.0\n'))
+    assert [m.split(": ")[1] for m in messages] == ["mill.size_classes", "mill.n_mixers", "effect_options.sensor_delay"]
+    assert 'read by nothing: an open loop (controller.kind = "none") runs no model of its own' in messages[0]
+    assert "takes its own plant.size_classes" in messages[0]
+    assert "plant.effects, without 'sensor_delay'" in messages[2]
+
+
 def test_a_batch_files_controller_keys_are_refused(write_scene):
     """A batch grind has no controller and no P80 target KPI: a target or a load band changed no number and
     passed."""

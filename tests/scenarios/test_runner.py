@@ -361,8 +361,8 @@ speed_frac_critical = 0.70
 
 def test_a_different_plant_is_built_and_simulated(tmp_path):
     path = short_pyrite_scene(tmp_path, duration_h=0.25)
-    path.write_text(path.read_text() + "\n[plant]\nmodel = \"twin\"\n"
-                    "size_classes = { ratio = 2.0, count = 11 }\n")
+    text = path.read_text().replace("size_classes = { ratio = 2.0, count = 13 }", "")  # read by nothing open loop
+    path.write_text(text + "\n[plant]\nmodel = \"twin\"\nsize_classes = { ratio = 2.0, count = 11 }\n")
     res = run_scene(path, progress=False)
     assert res.summary["plant_model"] is not None and "11 size classes" in res.summary["plant_model"]
     assert res.summary["controller_model"] is None  # open loop: the scene's own model is not run
