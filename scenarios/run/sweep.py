@@ -23,6 +23,7 @@ import math
 import pickle
 import re
 import signal
+import threading
 import tomllib
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, fields, is_dataclass
@@ -31,7 +32,9 @@ from typing import Any, Callable, Literal
 
 import numpy as np
 import pandas as pd
+from tqdm import auto as tqdm_auto
 from tqdm.auto import tqdm
+from tqdm.std import tqdm as std_tqdm
 
 from scenarios.errors import Interrupted, RunError, SceneError, raise_if_interrupted
 from scenarios.scene.keypaths import did_you_mean, format_path, parse_path, type_at
@@ -297,9 +300,15 @@ def _keep_finished(futures, outcomes: list) -> None:
 
 def _worker_ignores_signals() -> None:
     """Workers leave SIGINT and SIGTERM to the parent (a Ctrl-C reaches the whole process
-    group): the parent stops them, so no worker prints a traceback of its own."""
+    group): the parent stops them, so no worker prints a traceback of its own. A worker's progress
+    bars (a disabled one takes the lock too) lock a lock of its own: tqdm's default, forked from the
+    parent, is shared with it across processes, and a worker terminated while holding it left the
+    parent's bar waiting for it for ever (a sweep stopped by Ctrl-C hung in tqdm's close)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    own = threading.RLock()
+    for cls in {tqdm_auto.tqdm, std_tqdm}:  # the classes, not the module's name a test may replace
+        cls.set_lock(own)
 
 
 def _stop_workers(pool: ProcessPoolExecutor) -> None:

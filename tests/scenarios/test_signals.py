@@ -181,3 +181,34 @@ def test_a_pools_finished_but_uncollected_cases_are_kept_on_a_signal(monkeypatch
                                           dashboard_address=None) as cluster:
                 sweep._run_dask(_quick_case, [0, 1, 2, 3], cluster, False, outcomes)
     assert sorted(o[0]["x"] for o in outcomes) == [0, 1, 2, 3] and all(o[1] is None for o in outcomes)
+
+
+def _hold_the_progress_bars_lock(seconds: float) -> None:
+    """A worker inside a progress bar's lock (a disabled bar takes it too) when it is stopped."""
+    from tqdm.auto import tqdm
+
+    with tqdm.get_lock():
+        time.sleep(seconds)
+
+
+def test_a_worker_stopped_inside_a_progress_bar_lock_leaves_the_parents_free():
+    """A sweep stopped by Ctrl-C hung for good in its bar's close (seen once in a full test run: the parent's main
+    thread and tqdm's monitor both waiting on tqdm's lock): the lock is a multiprocessing one that forked workers
+    share, and the sweep terminates its workers, one of them inside it. Workers now lock their own."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from tqdm.auto import tqdm
+
+    from scenarios.run.sweep import _stop_workers, _worker_ignores_signals
+
+    with tqdm(total=1, disable=True):  # the parent's lock exists before the fork, as in a sweep
+        pass
+    shared = tqdm.get_lock().locks[0]  # tqdm's default: the multiprocessing lock first
+    pool = ProcessPoolExecutor(max_workers=1, initializer=_worker_ignores_signals)
+    pool.submit(_hold_the_progress_bars_lock, 60.0)
+    time.sleep(3.0)  # the worker is inside the lock
+    _stop_workers(pool)
+    free = shared.acquire(timeout=5)
+    if free:
+        shared.release()
+    assert free
