@@ -26,6 +26,7 @@ import signal
 import threading
 import tomllib
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from contextlib import contextmanager
 from dataclasses import dataclass, fields, is_dataclass
 from pathlib import Path
 from typing import Any, Callable, Literal
@@ -279,7 +280,8 @@ def _run_local(run_case: RunCase, scenes: list[Scene], workers: int | None, prog
         pool = ProcessPoolExecutor(max_workers=workers, initializer=_worker_ignores_signals)
         futures: dict = {}
         try:
-            futures = {pool.submit(run_one, run_case, s): i for i, s in enumerate(scenes)}
+            with _signals_held():  # the pool forks its workers at the first submit
+                futures = {pool.submit(run_one, run_case, s): i for i, s in enumerate(scenes)}
             for fut in as_completed(futures):
                 outcomes[futures[fut]] = _outcome(fut)
                 bar.update()
@@ -298,6 +300,26 @@ def _keep_finished(futures, outcomes: list) -> None:
             outcomes[i] = _outcome(fut)
 
 
+#: The signals a sweep's workers leave to the parent (:func:`_worker_ignores_signals`).
+PARENT_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+
+
+@contextmanager
+def _signals_held():
+    """SIGINT and SIGTERM held back in this thread while it forks the pool's workers: a Ctrl-C landing between a
+    worker's fork and its initializer raised KeyboardInterrupt in the worker, whose traceback reached the user's
+    terminal ('Exception ignored in ... logging ... _releaseLock'). The workers start with them held and unhold
+    them once they ignore them; the parent gets a held signal when this ends."""
+    if not hasattr(signal, "pthread_sigmask"):  # no per-thread signal mask (Windows)
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, PARENT_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
 def _worker_ignores_signals() -> None:
     """Workers leave SIGINT and SIGTERM to the parent (a Ctrl-C reaches the whole process
     group): the parent stops them, so no worker prints a traceback of its own. A worker's progress
@@ -306,6 +328,8 @@ def _worker_ignores_signals() -> None:
     parent's bar waiting for it for ever (a sweep stopped by Ctrl-C hung in tqdm's close)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if hasattr(signal, "pthread_sigmask"):  # forked with them held (_signals_held): a Ctrl-C held is now dropped
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, PARENT_SIGNALS)
     own = threading.RLock()
     for cls in {tqdm_auto.tqdm, std_tqdm}:  # the classes, not the module's name a test may replace
         cls.set_lock(own)

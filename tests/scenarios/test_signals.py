@@ -212,3 +212,26 @@ def test_a_worker_stopped_inside_a_progress_bar_lock_leaves_the_parents_free():
     if free:
         shared.release()
     assert free
+
+
+def test_a_sweeps_workers_are_forked_with_the_signals_held(monkeypatch):
+    """A Ctrl-C landing between a worker's fork and its initializer raised KeyboardInterrupt in the worker, whose
+    traceback reached the terminal (seen in a fresh-clone CI: test_ctrl_c_in_a_sweep... found 'Exception ignored
+    in ... logging ... _releaseLock' in stderr). The pool now forks its workers (at its first submit) with SIGINT
+    and SIGTERM held, and each worker unholds them once it ignores them."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from scenarios.run import sweep
+
+    held_at_submit = []
+    submit = ProcessPoolExecutor.submit
+
+    def recording(self, *args, **kwargs):
+        held_at_submit.append(sweep.PARENT_SIGNALS <= signal.pthread_sigmask(signal.SIG_BLOCK, []))
+        return submit(self, *args, **kwargs)
+
+    monkeypatch.setattr(ProcessPoolExecutor, "submit", recording)
+    outcomes = [(None, sweep.NOT_RUN)] * 2
+    sweep._run_local(_quick_case, [0, 1], 2, False, outcomes)
+    assert held_at_submit == [True, True] and not sweep.PARENT_SIGNALS & signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    assert sorted(o[0]["x"] for o in outcomes) == [0, 1]
