@@ -40,14 +40,20 @@ def published() -> dict:
     return tomllib.loads(PUBLISHED.read_text(encoding="utf-8"))
 
 
-def run(raw: dict) -> dict:
-    """Steady state of the scene ``raw`` (a TOML table): KPIs and overflow % passing at the sieves."""
-    scene = scene_from_dict(raw, SCENE)
+def steady_of(raw: dict, scene_path: Path) -> dict:
+    """Steady state ``ss`` of the scene ``raw`` (a TOML table read from ``scene_path``) at its feed and speed, its
+    plant's ``twin`` and the ``seconds`` to build and solve it."""
+    scene = scene_from_dict(raw, scene_path)
     t0 = time.perf_counter()
     twin = build_models(scene).plant
     ss = twin.steady(feed_tph=scene.feed.feed_tph, speed_frac_critical=scene.feed.speed_frac_critical)
-    seconds = time.perf_counter() - t0
-    return {"ss": ss, "seconds": seconds, "passing_pct": passing_at(twin.grid, ss.psd, published()["sieves_um"])}
+    return {"ss": ss, "twin": twin, "seconds": time.perf_counter() - t0}
+
+
+def run(raw: dict) -> dict:
+    """:func:`steady_of` the scene ``raw`` and its overflow % passing at the published sieves."""
+    res = steady_of(raw, SCENE)
+    return {**res, "passing_pct": passing_at(res["twin"].grid, res["ss"].psd, published()["sieves_um"])}
 
 
 def passing_at(grid, psd, sieves) -> np.ndarray:

@@ -19,16 +19,15 @@ from __future__ import annotations
 import argparse
 import copy
 import math
-import time
 import tomllib
 from pathlib import Path
 
 import pandas as pd
 from scipy.optimize import brentq
 
-from scenarios.run.models import build_models
-from scenarios.scene import read_toml, scene_from_dict
+from scenarios.scene import read_toml
 from twin.effects.classification import KPA_PER_PSI
+from twin_molycop import steady_of  # this folder is on the path of a script run from it
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenarios" / "molycop_ballsim_425.toml"
@@ -90,12 +89,8 @@ def classifier_check(pub: dict) -> pd.DataFrame:
 
 
 def run(raw: dict) -> dict:
-    """Steady state of the scene ``raw`` (a TOML table) and the seconds to build and solve it."""
-    scene = scene_from_dict(raw, SCENE)
-    t0 = time.perf_counter()
-    twin = build_models(scene).plant
-    ss = twin.steady(feed_tph=scene.feed.feed_tph, speed_frac_critical=scene.feed.speed_frac_critical)
-    return {"ss": ss, "seconds": time.perf_counter() - t0}
+    """The steady state of the scene ``raw`` (a TOML table; twin_molycop.steady_of)."""
+    return steady_of(raw, SCENE)
 
 
 def comparison(ss, pub: dict) -> pd.DataFrame:
