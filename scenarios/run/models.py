@@ -98,7 +98,9 @@ def scene_breakage(scene: Scene, ores: dict, mill) -> tuple[dict, float | None]:
         if b is None or name not in ores:
             continue
         if b.form == "energy_specific":
-            out[name] = BreakageParams.energy_specific(b.alpha0_t_kwh, b.alpha1, b.alpha2, b.critical_size_um,
+            # S^E per net kWh, the twin's basis (S = S^E P / H): a coefficient stated per kWh of a share of it
+            share = 1.0 if b.selection_power_frac is None else b.selection_power_frac
+            out[name] = BreakageParams.energy_specific(b.alpha0_t_kwh * share, b.alpha1, b.alpha2, b.critical_size_um,
                                                        b.beta0, b.beta1, b.beta2, source=f"scene ores.{name}.breakage")
         else:
             out[name] = BreakageParams.austin_rate(

@@ -193,6 +193,11 @@ class OreBreakage(Section):
     """Exponent of the fall of the selection above the critical size (energy_specific)."""
     critical_size_um: float | None = Field(default=None, ge=CRITICAL_SIZE_MIN_UM, le=1e7)
     """Critical size of the selection [um] (energy_specific); at least 100 um (see ``mu_um``)."""
+    selection_power_frac: float | None = Field(default=None, gt=0, le=1, json_schema_extra={"unit": "-"})
+    """The share of the mill's net power that ``alpha0_t_kwh`` is stated per kWh of (energy_specific; unset: 1,
+    the net power, Herbst & Fuerstenau 1980). Moly-Cop Tools states it per kWh the balls draw: its specific
+    energy per pass is the balls' kW over the mill feed, not the net kW (the interstitial slurry's share left
+    out), so its share is its Mill Outputs' balls kW over net kW."""
     a_per_min: float | None = Field(default=None, gt=0, le=1e6, examples=[0.7], json_schema_extra={"unit": "1/min"})
     """Austin's rate constant at 1 mm [1/min] (austin)."""
     alpha: float | None = Field(default=None, gt=0, le=5, examples=[1.0], json_schema_extra={"unit": "-"})
@@ -219,6 +224,8 @@ class OreBreakage(Section):
         extra = [k for f, keys in need.items() if f != self.form for k in keys if getattr(self, k) is not None]
         if missing:
             raise ValueError(f"form = {self.form!r} needs {', '.join(missing)}")
+        if self.form != "energy_specific" and self.selection_power_frac is not None:
+            extra.append("selection_power_frac")
         if extra:
             raise ValueError(f"{', '.join(extra)} belong to the other form, not form = {self.form!r}")
         order = exponent_order_problem(self.beta1, self.beta2, self.beta0, names=("beta0", "beta1", "beta2"))

@@ -33,6 +33,10 @@ def _with(extra: str, base: str = BASE_SCENE) -> str:
     (BREAKAGE.replace("alpha2 = 2.5\n", ""), ["ores.B.breakage", "needs alpha2"]),
     (BREAKAGE.replace("beta0 = 0.4", "beta0 = 1.4"), ["ores.B.breakage.beta0", "1.4"]),
     (BREAKAGE + "a_per_min = 0.5\n", ["ores.B.breakage", "a_per_min", "other form"]),
+    (BREAKAGE + "selection_power_frac = 86.2\n", ["ores.B.breakage.selection_power_frac", "86.2"]),
+    (BREAKAGE.replace('form = "energy_specific"', 'form = "austin"').replace("alpha0_t_kwh = 0.01\nalpha1 = 0.66\n"
+     "alpha2 = 2.5\ncritical_size_um = 7000.0", "a_per_min = 0.5\nalpha = 1.0\nmu_um = 3000.0\nLambda = 3.0")
+     + "selection_power_frac = 0.86\n", ["ores.B.breakage", "selection_power_frac", "other form"]),
     # beta1 and beta2 typed in each other's place (a sheet printing a value apart from its label): ran silently
     (BREAKAGE.replace("beta1 = 0.65", "beta1 = 4.0").replace("beta2 = 4.0", "beta2 = 0.65"),
      ["ores.B.breakage", "beta1 = 4 is above beta2 = 0.65", "beta0 = 0.6, beta1 = 0.65, beta2 = 4"]),
@@ -89,6 +93,12 @@ def test_scene_inputs_reach_the_twin_as_written(write_scene, tmp_path):
     out = twin.steady(feed_tph=30.0).outputs  # the given draw: cushioning slows the rates only, and
     assert out["power_kw"] == pytest.approx(500.0, rel=1e-9)  # the scene lists no slurry rheology
     assert out["soft_frac"] > 0.0
+
+
+def test_a_selection_stated_per_kwh_of_a_share_of_the_net_power_runs_at_that_share(write_scene):
+    """Moly-Cop Tools states S^E per kWh the balls draw; the twin's S = S^E P / H reads the net power."""
+    scene = load_scene(write_scene(_with(BREAKAGE + "selection_power_frac = 0.5\n")))
+    assert build_models(scene).plant.spec.breakage[0].params.se_1mm_t_kwh == pytest.approx(0.5 * 0.01 * 1000 ** 0.66)
 
 
 @pytest.mark.parametrize("plant_mixers, shares", [(None, (0.7, 0.15, 0.15)), (3, (0.7, 0.15, 0.15)), (2, (0.5, 0.5))])
