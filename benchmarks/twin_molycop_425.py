@@ -7,9 +7,14 @@ Writes benchmarks/results/twin_molycop_425.md and .csv:
    sharpness, so the scene's d50c and m are Moly-Cop's correlations at the published cyclone feed. The
    same correlations are checked against every classifier output either case prints (this case's
    pressure; the 504 t/h case's d50c, sharpness and pressure);
-2. every published number beside the twin's;
-3. sensitivity to what the case leaves open or the twin chooses (mixers, grid, discretisation, the
-   derived cut), and the cut at which the twin's circulating load would be the published one.
+2. Moly-Cop's mill as the same repository evaluates it (run_test.ipynb, cell "J&T"): its specific energy per
+   pass against the balls' and the net power over the published mill feed, its mixers against the scene's;
+   and the mill discharge: its fines and the cyclone feed's corrected recovery to the underflow (Rsc,
+   sum f_i E_c(d_i)) that the published circulating load and solids bypass imply;
+3. every published number beside the twin's;
+4. sensitivity to what the scene takes from Moly-Cop or the twin chooses (mixers, the power S^E is stated on,
+   the twin's own cell-average reading of the parameters, the derived cut), and the cut at which the twin's
+   circulating load would be the published one.
 
 Run: python benchmarks/twin_molycop_425.py
 """
@@ -22,11 +27,12 @@ import math
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 from scipy.optimize import brentq
 
 from scenarios.scene import read_toml
-from twin.effects.classification import KPA_PER_PSI
+from twin.effects.classification import KPA_PER_PSI, corrected_partition
 from twin_molycop import steady_of  # this folder is on the path of a script run from it
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -88,6 +94,32 @@ def classifier_check(pub: dict) -> pd.DataFrame:
     return df
 
 
+def mill_check(res: dict, pub: dict, raw: dict) -> pd.DataFrame:
+    """Moly-Cop's mill (published [mill_model]) beside the scene's, and the twin's mill discharge beside what the
+    published results imply of it."""
+    mm, rho = pub["mill_model"], pub["ore_density_t_m3"]
+    mill_feed = pub["feed_tph"] * (1.0 + pub["circulating_load_frac"])
+    cyc = _cyclone(raw)
+    ss, twin = res["ss"], res["twin"]
+    discharge = np.asarray(twin.model.mass_array(ss.x))[0, -1]  # the last mixer's content: the discharge's PSD
+    discharge = discharge / discharge.sum()
+    rsc = float(discharge @ corrected_partition(twin.grid.mid_um / cyc["d50c_um"], cyc["sharpness"]))
+    bpf = pub["solids_bypass_frac"]
+    rsc_pub = (pub["circulating_load_frac"] / (1.0 + pub["circulating_load_frac"]) - bpf) / (1.0 - bpf)
+    rows = [("specific energy per pass kWh/t: balls' kW / mill feed", mm["specific_energy_per_pass_kwh_t"],
+             pub["balls_power_kw"] / mill_feed, "Moly-Cop's t (J&T); the published balls' kW"),
+            ("specific energy per pass kWh/t: net kW / mill feed", mm["specific_energy_per_pass_kwh_t"],
+             pub["net_power_kw"] / mill_feed, "Moly-Cop's t (J&T); the published net kW"),
+            ("mixers", mm["mixers"], raw["mill"]["n_mixers"], "Moly-Cop's N (J&T); the scene's"),
+            ("mill discharge % -38 um", pub["mill_discharge_fines_pct"], 100.0 * discharge[-1],
+             "published '% Fines MD'; the twin's"),
+            ("mill discharge Rsc at the scene's d50c and m", rsc_pub, rsc,
+             "implied by the published load and Bpf; the twin's")]
+    df = pd.DataFrame(rows, columns=["quantity", "reference", "scene_or_twin", "what"])
+    df["difference_pct"] = 100.0 * (df["scene_or_twin"] / df["reference"] - 1.0)
+    return df
+
+
 def run(raw: dict) -> dict:
     """The steady state of the scene ``raw`` (a TOML table; twin_molycop.steady_of)."""
     return steady_of(raw, SCENE)
@@ -113,6 +145,11 @@ def _cyclone(raw: dict) -> dict:
     return raw["effect_options"]["classification"]["cyclone"]
 
 
+def _breakage(raw: dict) -> dict:
+    (ore,) = raw["ores"].values()
+    return ore["breakage"]
+
+
 def variants(base: dict) -> dict:
     """Scene tables for the sensitivity rows."""
     def edit(fn):
@@ -120,15 +157,22 @@ def variants(base: dict) -> dict:
         fn(raw)
         return raw
 
-    out = {"shipped scene (3 equal mixers, 20 classes, cell average)": base}
-    for n in (1, 6):
+    def net(r):  # S^E per net kWh (the twin's default basis) instead of Moly-Cop's per balls' kWh
+        _breakage(r).pop("selection_power_frac")
+
+    def cell_average(r):  # the twin's own reading of the parameters (its default scheme)
+        r["mill"]["size_classes"]["scheme"] = "cell_average"
+
+    out = {"shipped scene (Moly-Cop's discrete form, 4 mixers, S^E per balls' kWh)": base}
+    for n in (1, 3, 6):
         out[f"{n} equal mixers"] = edit(lambda r, n=n: r["mill"].update(n_mixers=n))
     out["Whiten's mixers 0.7 / 0.15 / 0.15"] = edit(lambda r: (r["mill"].pop("n_mixers"), r["mill"].update(
         mixer_volume_fracs=[0.7, 0.15, 0.15])))
-    out["77 classes (4 per sieve interval)"] = edit(lambda r: r["mill"]["size_classes"].update(
-        ratio=r["mill"]["size_classes"]["ratio"] ** 0.25, count=77))
-    out["Austin's discrete form on the sieves (first order)"] = edit(
-        lambda r: r["mill"]["size_classes"].update(scheme="austin"))
+    out["S^E per net kWh"] = edit(net)
+    out["S^E per net kWh, 3 mixers"] = edit(lambda r: (net(r), r["mill"].update(n_mixers=3)))
+    out["the twin's cell-average reading"] = edit(cell_average)
+    out["the twin's cell-average reading, S^E per net kWh, 3 mixers (the scene before)"] = edit(
+        lambda r: (cell_average(r), net(r), r["mill"].update(n_mixers=3)))
     d50c = _cyclone(base)["d50c_um"]
     for k in (0.95, 1.05):
         out[f"d50c x {k:g}"] = edit(lambda r, k=k: _cyclone(r).update(d50c_um=d50c * k))
@@ -158,6 +202,7 @@ def main(argv=None) -> None:
     cut, at_cut = cut_for_published_load(base, pub["circulating_load_frac"])
     results[f"d50c {cut:.1f} um: the cut at which the load is the published (diagnosis)"] = at_cut
     table = comparison(next(iter(results.values()))["ss"], pub)
+    mill = mill_check(next(iter(results.values())), pub, base)
     sens = pd.DataFrame([{"variant": name, "p80_um": r["ss"].p80_um,
                           "p80_error_pct": 100 * (r["ss"].p80_um / pub["overflow_p80_um"] - 1),
                           "circulating_load": r["ss"].outputs["circulating_load_frac"],
@@ -165,8 +210,8 @@ def main(argv=None) -> None:
                                                  / pub["circulating_load_frac"] - 1),
                           "steady_s": r["seconds"]} for name, r in results.items()])
     RESULTS.mkdir(exist_ok=True)
-    pd.concat([check.assign(table="classifier"), table.assign(table="comparison"), sens.assign(table="sensitivity")]
-              ).to_csv(RESULTS / "twin_molycop_425.csv", index=False)
+    pd.concat([check.assign(table="classifier"), mill.assign(table="mill"), table.assign(table="comparison"),
+               sens.assign(table="sensitivity")]).to_csv(RESULTS / "twin_molycop_425.csv", index=False)
     lines = ["# Twin on a second Moly-Cop Tools BallSim_Direct base case (v2.0, 425 t/h)", "",
              "`python benchmarks/twin_molycop_425.py`: scenarios/molycop_ballsim_425.toml (published inputs) "
              "against scenarios/data/molycop_ballsim_425_published.toml (published results). The copy prints "
@@ -176,6 +221,7 @@ def main(argv=None) -> None:
              "cases print. The net specific energy is met by an input (the published net power). "
              "Time: build + steady state (2-core shared machine).", "",
              "## Moly-Cop's classifier correlations", "", check.to_markdown(index=False, floatfmt=".4g"), "",
+             "## Moly-Cop's mill and the mill discharge", "", mill.to_markdown(index=False, floatfmt=".4g"), "",
              "## Published against twin", "", table.to_markdown(index=False, floatfmt=".4g"), "",
              "## Sensitivity", "", sens.to_markdown(index=False, floatfmt=".4g"), ""]
     (RESULTS / "twin_molycop_425.md").write_text("\n".join(lines), encoding="utf-8")
