@@ -41,7 +41,8 @@ class RunFolderWarning(UserWarning):
 def folder_problems(run_dir: Path, summary: dict) -> list[str]:
     """What makes the folder differ from what its run wrote, each as one sentence: files its
     manifest lists that are missing, files whose sha256 differs from the manifest's (edited by
-    hand, or copied over), a manifest without checksums (an earlier grindtwin's), and a run
+    hand, or copied over), plots its manifest does not list (copied in: the report leaves them
+    out, :func:`_plots`), a manifest without checksums (an earlier grindtwin's), and a run
     written by another grindtwin version than the one reporting it."""
     problems = []
     manifest = read_manifest(run_dir)
@@ -63,6 +64,10 @@ def folder_problems(run_dir: Path, summary: dict) -> list[str]:
         else:
             problems.append(f"{MANIFEST} records no checksums (an earlier grindtwin wrote it): its files cannot "
                             "be checked against what the run wrote")
+        unlisted = [f for f in PLOTS if (run_dir / f).is_file() and f not in listed]
+        if unlisted:
+            problems.append(f"plots the run did not write are in its folder (copied in?): {', '.join(unlisted)}; "
+                            "the report leaves them out")
     versions = summary.get("versions")
     ran = (versions.get("grindtwin") if isinstance(versions, dict) else None) or (manifest or {}).get(
         "grindtwin_version")
@@ -200,7 +205,7 @@ def _render(run_dir: Path, summary: dict, problems: list[str]) -> str:
         parts.append("<h2>Replay: run minus recorded</h2>")
         parts.append(kpi_table(summary["replay"].get("run_minus_recorded", {})))
     parts.append("<h2>Plots</h2>")
-    plots = [fname for fname in PLOTS if (run_dir / fname).is_file()]
+    plots = _plots(run_dir)
     for fname in plots:
         parts.append(_img(run_dir / fname, plot_caption(fname, summary)))
     if not plots:
@@ -213,6 +218,14 @@ def _render(run_dir: Path, summary: dict, problems: list[str]) -> str:
         parts.append(versions_section(summary["versions"]))
     parts.append("</body></html>")
     return "\n".join(parts)
+
+
+def _plots(run_dir: Path) -> list[str]:
+    """The plots of :data:`PLOTS` in the folder that its run wrote: those its manifest lists (a p80.png copied
+    from another run into a folder written with --no-plots was shown as this run's); every one there when the
+    folder has no manifest (:func:`folder_problems` says nothing can be checked)."""
+    listed = manifest_files(run_dir)
+    return [f for f in PLOTS if (run_dir / f).is_file() and (listed is None or f in listed)]
 
 
 def write_report(run_dir) -> Path:

@@ -317,3 +317,16 @@ def test_an_undefined_number_is_written_nan_in_every_csv_and_na_in_the_workbook_
     assert np.isnan(pd.read_excel(run / "run.xlsx", sheet_name="time series")["p80_um"].iloc[3])
     kpis = list(book["KPIs"].values)[1]
     assert kpis[2] is None and kpis[3] == UNDEFINED_NOTE  # the KPI sheet keeps its empty cell and its note
+
+
+def test_a_plot_copied_into_a_run_folder_is_not_shown_as_the_runs(tmp_path):
+    """A run written with --no-plots, then a p80.png of another run copied into its folder: the report embedded
+    that plot under this run's caption, with exit 0 and no warning. Now it is left out and named."""
+    run = fake_run(tmp_path, plots=False)
+    other = fake_run(tmp_path / "other", scene="another scene")
+    (run / "p80.png").write_bytes((other / "p80.png").read_bytes())
+    text = render_report(run)
+    assert "data:image/png" not in text
+    assert "plots the run did not write are in its folder (copied in?): p80.png" in _warnings_box(text)
+    with pytest.warns(RunFolderWarning, match="p80.png"):
+        write_report(run)
