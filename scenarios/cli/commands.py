@@ -427,16 +427,20 @@ def _write_sweep(folder: Path, table, traces, scene_path, xlsx: bool) -> None:
     case) into the claimed folder; sweep.xlsx on request."""
     from scenarios.output import write_sweep_plot, write_sweep_workbook
     from scenarios.output.workbook import tables_as_json, write_csv
-    from scenarios.scene import load_scene
+    from scenarios.scene import validate_scene_dict
 
     flat = tables_as_json(table)  # a case's blend as JSON text: parquet wants plain columns
     write_csv(flat, folder / "sweep.csv", index=False)  # NaN written as such, as in a run folder
     flat.to_parquet(folder / "sweep.parquet", index=False)
-    scene = load_scene(scene_path)
+    # the base scene as the cases were made from it, as they are checked (not as written: its own controller
+    # kind may read nothing of keys the cases read), not the file read again now: edited during the sweep, it
+    # drew its new target beside the cases and was the workbook's scene; refused, it lost every case's result
+    base = table.attrs.get("scene_table")
+    scene = validate_scene_dict(base, scene_path)[0] if base is not None else None
     if traces is not None:
         write_csv(traces, folder / "sweep_traces.csv", index=False)
     varied = table.attrs.get("varied") or []  # a target the cases vary is no one line (it drew the base scene's)
-    write_sweep_plot(table, traces, folder, None if "controller.target_p80_um" in varied
+    write_sweep_plot(table, traces, folder, None if "controller.target_p80_um" in varied or scene is None
                      else scene.controller.target_p80_um)
     if xlsx:
         write_sweep_workbook(table, traces, scene, folder / "sweep.xlsx")

@@ -224,7 +224,8 @@ def run_sweep(scene_path: str | Path, vary: dict[str, list], run_case: RunCase, 
     scene), the scheduler address is checked and the cluster reached, and ``check`` is called
     (given the validated scenes of the cases; it raises to refuse them).
     """
-    cases = expand_cases(read_toml(scene_path), vary, mode, max_cases)
+    scene_dict = read_toml(scene_path)  # read once: the table records what its cases were made from
+    cases = expand_cases(scene_dict, vary, mode, max_cases)
     if isinstance(scheduler, str):
         check_scheduler_address(scheduler)
     scenes = validate_cases(cases, scene_path, problems, progress)
@@ -237,16 +238,19 @@ def run_sweep(scene_path: str | Path, vary: dict[str, list], run_case: RunCase, 
         else:
             _run_local(run_case, scenes, workers, progress, outcomes)
     except (KeyboardInterrupt, Interrupted) as exc:  # the finished cases go with the signal, not lost
-        exc.partial_table = _table(cases, outcomes, scene_path, mode, vary)
+        exc.partial_table = _table(cases, outcomes, scene_path, mode, vary, scene_dict)
         raise
-    return _table(cases, outcomes, scene_path, mode, vary)
+    return _table(cases, outcomes, scene_path, mode, vary, scene_dict)
 
 
-def _table(cases: list[Case], outcomes: list, scene_path, mode: str, vary: dict) -> pd.DataFrame:
+def _table(cases: list[Case], outcomes: list, scene_path, mode: str, vary: dict, scene_dict: dict) -> pd.DataFrame:
+    """One row per case; ``attrs``: the scene file, the mode, the varied keys and ``scene_table``, the file's table
+    as the cases were made from it (what a sweep's outputs describe the base scene by: the file read again at the
+    end was the one edited meanwhile)."""
     rows = [{"case": case.index, **case.values, **(kpis or {}), "error": error}
             for case, (kpis, error) in zip(cases, outcomes)]
     table = pd.DataFrame(rows)
-    table.attrs.update(scene=str(scene_path), mode=mode, varied=list(vary))
+    table.attrs.update(scene=str(scene_path), mode=mode, varied=list(vary), scene_table=scene_dict)
     return table
 
 

@@ -340,7 +340,7 @@ def test_a_sweep_that_varies_the_target_draws_no_single_target(monkeypatch, tmp_
     for varied, want in ((["controller.target_p80_um"], None), (["feed.feed_tph"], 210.0)):
         drawn.clear()
         table = pd.DataFrame({"case": [0, 1], varied[0]: [195.0, 225.0]})
-        table.attrs["varied"] = varied
+        table.attrs.update(varied=varied, scene_table=read_toml(scene))
         _write_sweep(tmp_path, table, None, scene, xlsx=False)
         assert drawn["t"] == want
 
@@ -367,3 +367,34 @@ def test_a_cases_blend_is_written_as_json():
     flat = tables_as_json(table)
     assert [json.loads(v) for v in flat["feed.blend"]] == list(table["feed.blend"])
     assert flat["p80_um"].tolist() == [1.0, 2.0] and table["feed.blend"][0] == {"B": 0.8, "D": 0.2}  # a copy
+
+
+@pytest.mark.parametrize("edited", [False, True])
+def test_a_sweep_describes_the_scene_its_cases_were_made_from_not_the_file_read_again(
+        write_scene, monkeypatch, tmp_path, edited):
+    """The sweep read its scene file again once every case had run: a file edited meanwhile drew its new target
+    (250 um) beside cases scored against 210 um and was the workbook's scene; a file refused as written (an open
+    loop giving the feed bounds its PI case reads) exited 2 after every case had run, and nothing was written."""
+    import scenarios.output as output
+    from scenarios.cli import commands
+    from tests.scenarios.conftest import BASE_SCENE
+    from tests.scenarios.test_cli import grindtwin
+
+    # its bounds are read by the PI case only (which starts at the 14.5 t/h that holds 210 um)
+    scene = write_scene(BASE_SCENE.replace('kind = "nmpc"', 'kind = "none"').replace("feed_tph_min = 20.0",
+                                                                                    "feed_tph_min = 10.0"))
+
+    def run_case(case):
+        if edited:  # the user edits the file while the sweep runs
+            scene.write_text(BASE_SCENE.replace("target_p80_um = 210.0", "target_p80_um = 250.0"))
+        return cheap_kpis(case)
+
+    drawn = {}
+    monkeypatch.setattr(commands, "sweep_case", run_case)
+    monkeypatch.setattr(output, "write_sweep_plot", lambda table, traces, folder, target: drawn.setdefault("t", target))
+    out = tmp_path / "sweep"
+    assert grindtwin(["sweep", scene, "--vary", "controller.kind=none,pi", "--workers", "1", "--quiet",
+                      "--out", out, "--xlsx"]) == 0
+    assert drawn["t"] == 210.0
+    rows = pd.read_excel(out / "sweep.xlsx", sheet_name="scene").set_index("key")["value"]
+    assert (rows["controller.kind"], rows["controller.target_p80_um"]) == ("none", 210)
