@@ -291,6 +291,9 @@ def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float 
     src = scene.source_path
     new = scene_from_dict(data, src if src is not None else Path.cwd() / "scene.toml")
     _check_workbook(new, xlsx)  # the replay's length is known only now
+    # the plant's clock at time_h 0 (None for a time_h history), from the history the run reads at its start: read
+    # after the run, a file replaced meanwhile (the next day's export) gave its own clock
+    start = load_history(new).start
     result = _run(new, progress, replay=True)
     frame = result.frame
     if "recorded_p80_um" in frame:
@@ -305,7 +308,6 @@ def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float 
                 diff[_as_read(new, frame, feed_stopped(new, frame)) > 0] = np.nan
             cmp[f"{col}_mean_diff"] = float(np.nanmean(diff))
             cmp[f"{col}_mean_abs_diff"] = float(np.nanmean(np.abs(diff)))
-    start = load_history(new).start  # the plant's clock at time_h 0 (None for a time_h history)
     result.summary["replay"] = {"history": str(history_path), "run_minus_recorded": cmp,
                                 "history_start": None if start is None else start.isoformat()}
     replayed, scene_h = new.scene.duration_h, _written_duration_h(scene)

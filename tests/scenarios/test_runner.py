@@ -656,3 +656,20 @@ def test_a_batch_charge_off_the_mills_stable_load_says_its_rates_are_the_nominal
     assert f"{factor:.3g} x them" in note
     shipped = run_scene(LIBRARY / "batch_50B_50D.toml", progress=False)
     assert not [w for w in shipped.summary["warnings"] if "batch charge" in w]
+
+
+def test_a_replay_gives_the_clock_of_the_history_it_ran_not_of_the_file_after_it(tmp_path, monkeypatch):
+    """The history's clock at time 0 (summary.json, the report) was read from the file once the run had ended: a
+    history replaced during the replay (the next day's export to the same file) gave the new file's date."""
+    hist = _history_csv(tmp_path)
+    run = runner._run
+
+    def run_then_replace(*args, **kwargs):
+        result = run(*args, **kwargs)
+        hist.write_text(hist.read_text().replace("2026-01-15T", "2026-03-02T"))
+        return result
+
+    monkeypatch.setattr(runner, "_run", run_then_replace)
+    res = replay_scene(short_pyrite_scene(tmp_path, duration_h=0.5), hist, progress=False)
+    assert "2026-03-02" in hist.read_text()  # the test can fail
+    assert res.summary["replay"]["history_start"] == "2026-01-15T00:00:00"
