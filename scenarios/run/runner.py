@@ -291,9 +291,11 @@ def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float 
     src = scene.source_path
     new = scene_from_dict(data, src if src is not None else Path.cwd() / "scene.toml")
     _check_workbook(new, xlsx)  # the replay's length is known only now
-    # the plant's clock at time_h 0 (None for a time_h history), from the history the run reads at its start: read
-    # after the run, a file replaced meanwhile (the next day's export) gave its own clock
+    # read before the run, not after it: the plant's clock at time_h 0 (None for a time_h history) from the history
+    # the run reads (a file replaced meanwhile gave its own clock), the scene file's duration_h (a file being edited
+    # when the run ended lost the run, exit 2, or named the edited duration)
     start = load_history(new).start
+    scene_h = _written_duration_h(scene) if duration_h is None else None
     result = _run(new, progress, replay=True)
     frame = result.frame
     if "recorded_p80_um" in frame:
@@ -310,8 +312,8 @@ def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float 
             cmp[f"{col}_mean_abs_diff"] = float(np.nanmean(np.abs(diff)))
     result.summary["replay"] = {"history": str(history_path), "run_minus_recorded": cmp,
                                 "history_start": None if start is None else start.isoformat()}
-    replayed, scene_h = new.scene.duration_h, _written_duration_h(scene)
-    if duration_h is None and isinstance(scene_h, (int, float)) and not math.isclose(replayed, scene_h, rel_tol=1e-9):
+    replayed = new.scene.duration_h
+    if isinstance(scene_h, (int, float)) and not math.isclose(replayed, scene_h, rel_tol=1e-9):
         result.summary["notes"].append(
             f"replayed {replayed:g} h, the history's span on the {new.scene.sample_period_h:g} h sample grid, not the "
             f"scene's duration_h {scene_h:g} h (--duration-h sets the replay's length)")

@@ -673,3 +673,23 @@ def test_a_replay_gives_the_clock_of_the_history_it_ran_not_of_the_file_after_it
     res = replay_scene(short_pyrite_scene(tmp_path, duration_h=0.5), hist, progress=False)
     assert "2026-03-02" in hist.read_text()  # the test can fail
     assert res.summary["replay"]["history_start"] == "2026-01-15T00:00:00"
+
+
+@pytest.mark.parametrize("duration_h", [None, 0.5])
+def test_a_scene_file_edited_while_a_replay_runs_does_not_lose_the_run(tmp_path, monkeypatch, duration_h):
+    """A replay read its scene file again once the run had ended (for the note on its duration_h, with or without
+    --duration-h): a file being edited then, not TOML for a moment, made the finished replay exit 2 with nothing
+    written."""
+    scene = short_pyrite_scene(tmp_path, duration_h=0.5)
+    run = runner._run
+
+    def run_then_edit(*args, **kwargs):
+        result = run(*args, **kwargs)
+        scene.write_text("[scene\n")
+        return result
+
+    monkeypatch.setattr(runner, "_run", run_then_edit)
+    res = replay_scene(scene, _history_csv(tmp_path), out_dir=tmp_path / "out", progress=False, duration_h=duration_h,
+                       plots=False)
+    assert scene.read_text() == "[scene\n"  # the test can fail
+    assert res.out_dir is not None and (tmp_path / "out" / "summary.json").is_file()
