@@ -137,6 +137,7 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
     times = scene.time_grid_h()
     ores = component_ores(scene)
     feed, notes = feed_schedule(scene, models.components, times, ores)
+    read_changes = history_changes(scene)  # of the history read now (read after the run, one replaced meanwhile)
     if replay:
         refuse(scene, replay_speed_problems(scene, models, feed))
     notes = models.notes + notes
@@ -152,7 +153,7 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
         frame, sizes, extra = run_closed(scene, models, feed, progress)
     psd = sizes["psd"]
     notes += extra.pop("notes", [])
-    warnings_ = history_changes(scene) + fit_warnings(feed, models.components) + extra.pop("warnings", [])
+    warnings_ = read_changes + fit_warnings(feed, models.components) + extra.pop("warnings", [])
     health = extra.get("controller_health")
     for c in feed.columns:
         if c.startswith("recorded_") or c in ("history_fit_residual_wt_pct", "history_textural_index_ratio"):

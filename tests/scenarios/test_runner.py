@@ -693,3 +693,21 @@ def test_a_scene_file_edited_while_a_replay_runs_does_not_lose_the_run(tmp_path,
                        plots=False)
     assert scene.read_text() == "[scene\n"  # the test can fail
     assert res.out_dir is not None and (tmp_path / "out" / "summary.json").is_file()
+
+
+def test_a_history_replaced_while_a_replay_runs_does_not_lose_the_run(tmp_path, monkeypatch):
+    """A run read its history again once the plant had run (for the warnings on what reading it changed): a
+    history replaced meanwhile by a file it refuses made the finished replay exit 2 with nothing written."""
+    hist = _history_csv(tmp_path)
+    simulate = runner.run_open_loop
+
+    def simulate_then_replace(*args, **kwargs):
+        out = simulate(*args, **kwargs)
+        hist.write_text("timestamp,feed_tph\nnot a time,30\n")
+        return out
+
+    monkeypatch.setattr(runner, "run_open_loop", simulate_then_replace)
+    res = replay_scene(short_pyrite_scene(tmp_path, duration_h=0.5), hist, out_dir=tmp_path / "out", progress=False,
+                       plots=False)
+    assert hist.read_text().startswith("timestamp,feed_tph\nnot")  # the test can fail
+    assert (tmp_path / "out" / "summary.json").is_file() and res.kpis["fed_t"] > 0
