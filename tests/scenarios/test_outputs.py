@@ -12,7 +12,8 @@ import pandas as pd
 import pytest
 
 from scenarios.output import psd_table, write_run
-from scenarios.output.plots import _plt, mark_transitions, plot_load, plot_p80
+from mpc import kpis
+from scenarios.output.plots import P80_BAND_UM, _plt, mark_transitions, plot_load, plot_p80
 from scenarios.run import run_scene
 from scenarios.run.streams import fit_rosin_rammler
 from tests.scenarios.test_cli import grindtwin
@@ -118,6 +119,8 @@ def test_time_plots_mark_transitions_and_label_their_bands(open_run):
     labels = _labels(plot_p80(plt, result))
     assert "feed ramp to 60 % B / 40 % D" in labels and "seen by the preview (0.25 h ahead)" in labels
     assert "target ± 10 µm" in labels and "target 250 µm" in labels
+    # the band drawn is the KPI's (the plots do not import mpc, which loads CasADi, for one number)
+    assert P80_BAND_UM == kpis.P80_BAND_UM
     assert "stable band 0.8-1.2" in _labels(plot_load(plt, result))
     fig, ax = plt.subplots()
     mark_transitions(ax, dict(summary, schedule=[{"at_h": 1.0, "kind": "step", "blend": {"B": 1.0}}]))
