@@ -55,7 +55,8 @@ class Twin:
     ``feed_psd`` overrides the feed size distribution (object with ``passing`` or class fractions).
     ``ore_breakage`` maps component names to :class:`twin.BreakageParams` given directly (e.g. an
     ore's published energy-specific parameters), which replace the map for those ores;
-    ``solids_density_t_m3`` replaces the ores' mineral densities (every ore at it); ``mixer_volume_fracs`` gives the
+    ``solids_density_t_m3`` replaces the ores' mineral densities: a number, every ore at it; a dict by component
+    name, those ores' (each ore still held and cut at its own density); ``mixer_volume_fracs`` gives the
     mixers' shares of the hold-up (e.g. Whiten's one large and two small, (0.7, 0.15, 0.15)) in
     place of ``n_mixers`` equal ones. The map's parameters describe the calibration's mill
     (``calibrated_mill``, the laboratory mill): on another mill they are scaled to it by
@@ -75,7 +76,7 @@ class Twin:
                  effect_options: dict | None = None, grid: SizeGrid | None = None, n_mixers: int = 3,
                  feed_p80_um: float = FEED_P80_UM, feed_modulus: float = FEED_GGS_MODULUS, feed_psd=None,
                  breakage_map: Callable | None = None, calibration=None,
-                 ore_breakage: dict | None = None, solids_density_t_m3: float | None = None,
+                 ore_breakage: dict | None = None, solids_density_t_m3: float | dict | None = None,
                  mixer_volume_fracs: Sequence[float] | None = None, calibrated_mill: str | Mill = "lab"):
         # what the twin is made of, as given: a pickled twin is these, rebuilt (__reduce__)
         self._arguments = dict(ores=ores, mill=mill, effects=effects, effect_options=effect_options, grid=grid,
@@ -98,10 +99,12 @@ class Twin:
         self.grid = grid or SizeGrid()
         mixer_fracs = _mixer_fracs(n_mixers, mixer_volume_fracs)
         given = _given_breakage(ore_breakage, self.blend.names)
-        if solids_density_t_m3 is None:
-            density = self.blend.density_t_m3
+        if solids_density_t_m3 is None or isinstance(solids_density_t_m3, dict):  # each ore at its own
+            own = _given_densities(solids_density_t_m3, self.blend)
+            density = 1.0 / sum(f / r for f, r in zip(self.blend.fractions, own))  # the nominal blend's
         else:
             density = check_range("Twin", "solids_density_t_m3", solids_density_t_m3, 1.0, 25.0)
+            own = ()
         holdup_nom = self.mill.nominal_holdup_t(density)
         power_nom = power_kw(self.mill, self.mill.speed_nominal_frac_critical)
         self.calibrated_mill = get_mill(calibrated_mill, self.calibration.record)
@@ -133,8 +136,7 @@ class Twin:
         self.spec = ModelSpec(
             grid=self.grid, mill=self.mill, component_names=self.blend.names, breakage=breakage,
             feed_frac=feed, feed_nominal_tph=self.mill.feed_nominal_tph, holdup_nominal_t=holdup_nom,
-            solids_density_t_m3=density, component_density_t_m3=(
-                tuple(o.density_t_m3 for o in self.blend.ores) if solids_density_t_m3 is None else ()),
+            solids_density_t_m3=density, component_density_t_m3=tuple(own),
             soft_frac=[o.group_fraction(CUSHIONING_MINERALS) for o in self.blend.ores],
             clay_frac=[o.group_fraction(CLAY_MINERALS) for o in self.blend.ores],
             coefficients=self.coefficients, n_mixers=len(mixer_fracs), mixer_fracs=mixer_fracs, effects=list(effects),
@@ -327,6 +329,16 @@ def _given_breakage(given, names) -> dict:
     if bad:
         raise bad_value("Twin", "ore_breakage", {k: given[k] for k in bad}, "twin.BreakageParams per ore")
     return given
+
+
+def _given_densities(given, blend) -> list[float]:
+    """Each component's solids density [t/m3]: its minerals', or the one ``given`` by its name."""
+    given = dict(given or {})
+    unknown = sorted(set(given) - set(blend.names))
+    if unknown:
+        raise bad_value("Twin", "solids_density_t_m3", unknown, f"names of this twin's components {blend.names}")
+    return [check_range("Twin", f"solids_density_t_m3[{o.name}]", given[o.name], 1.0, 25.0) if o.name in given
+            else o.density_t_m3 for o in blend.ores]
 
 
 #: The share of a feed distribution allowed above the size grid's top (lumped into the top

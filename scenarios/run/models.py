@@ -79,19 +79,15 @@ def scene_feed_psd(scene: Scene):
     return None
 
 
-def scene_breakage(scene: Scene, ores: dict, mill) -> tuple[dict, float | None]:
-    """Breakage parameters the scene gives per ore, and the blend's solids density [t/m3] where
-    an ore's density is given (None: the minerals' densities)."""
-    fracs = dict(scene.feed.blend or {name: 1.0 / len(ores) for name in ores})
-    densities = {name: (scene.ores[name].density_t_m3 if name in scene.ores and scene.ores[name].density_t_m3
-                        else ore.density_t_m3) for name, ore in ores.items()}
-    given_density = any(name in scene.ores and scene.ores[name].density_t_m3 for name in ores)
-    w = {name: fracs.get(name, 0.0) for name in ores}
-    total = sum(w.values()) or 1.0
-    density = 1.0 / sum(w[n] / total / densities[n] for n in ores) if any(w.values()) else None
+def scene_breakage(scene: Scene, ores: dict, mill) -> tuple[dict, dict]:
+    """Breakage parameters the scene gives per ore, and the solids densities [t/m3] it gives per ore (each ore
+    is held and cut at its own: one density for all, the initial blend's, held a later feed of another ore at
+    the first one's)."""
+    densities = {name: scene.ores[name].density_t_m3 for name in ores
+                 if name in scene.ores and scene.ores[name].density_t_m3}
     # Austin's A becomes S^E at the hold-up the ore fills the mill with at its nominal point (the twin holds each
-    # ore at its own density, or every ore at the density given it), so that the twin's rate there is A: at the
-    # feed blend's density one ore of two ran at 0.87 A, at the listed ores' 1.12 A
+    # ore at its own density), so that the twin's rate there is A: at the feed blend's density one ore of two ran
+    # at 0.87 A, at the listed ores' 1.12 A
     out = {}
     for name, ore in scene.ores.items():
         b = ore.breakage
@@ -106,9 +102,9 @@ def scene_breakage(scene: Scene, ores: dict, mill) -> tuple[dict, float | None]:
             out[name] = BreakageParams.austin_rate(
                 b.a_per_min, b.alpha, b.mu_um, b.Lambda, gamma=b.beta1, beta=b.beta2, phi=b.beta0,
                 power_kw=power_kw(mill, mill.speed_nominal_frac_critical),
-                holdup_t=mill.nominal_holdup_t(density if given_density else densities[name]),
+                holdup_t=mill.nominal_holdup_t(densities.get(name, ores[name].density_t_m3)),
                 source=f"scene ores.{name}.breakage")
-    return out, (density if given_density else None)
+    return out, densities
 
 
 def build_twin(scene: Scene, ores: dict, effects, effect_options, size_classes, n_mixers=None,
@@ -122,7 +118,7 @@ def build_twin(scene: Scene, ores: dict, effects, effect_options, size_classes, 
     grid = SizeGrid(size_classes.top_um, size_classes.ratio, size_classes.count, size_classes.scheme)
     try:
         mill = scene_mill(scene, cal)
-        breakage, density = scene_breakage(scene, ores, mill)
+        breakage, densities = scene_breakage(scene, ores, mill)
         fracs = scene.mill.mixer_volume_fracs  # the mill's shares, for any twin with its number of mixers
         if fracs is not None and n_mixers is not None and int(n_mixers) != len(fracs):
             fracs = None
@@ -130,7 +126,7 @@ def build_twin(scene: Scene, ores: dict, effects, effect_options, size_classes, 
                     effect_options=dict(effect_options or {}), grid=grid,
                     n_mixers=int(n_mixers or scene.mill.n_mixers), feed_p80_um=scene.feed.p80_um,
                     feed_modulus=scene.feed.ggs_modulus, feed_psd=scene_feed_psd(scene),
-                    ore_breakage=breakage, solids_density_t_m3=density, mixer_volume_fracs=fracs,
+                    ore_breakage=breakage, solids_density_t_m3=densities or None, mixer_volume_fracs=fracs,
                     calibration=cal)
     except TwinError as exc:
         raise SceneError(f"{src}: the twin refused the scene: {exc}") from None

@@ -287,6 +287,36 @@ def test_austins_rate_is_the_twins_rate_at_its_nominal_point_beside_another_ore(
     assert rate == pytest.approx(60.0 * 2.5 / (1.0 + (1000.0 / 3000.0) ** 2.5), rel=1e-12)  # Austin's eq. 4.5, 1/h
 
 
+@pytest.mark.parametrize("effects", ['"breakage", "transport", "holdup", "cushioning", "power"',
+                                     '"breakage", "transport", "holdup", "power", "classification"'],
+                         ids=["grate", "cyclones"])
+def test_an_ores_given_density_is_its_own_whatever_the_scenes_initial_blend(write_scene, effects):
+    """``density_t_m3`` replaces one ore's mineral density: each ore is still held and cut at its own. A given
+    density made the scene's twin hold every ore at the initial blend's mean density, so a feed of D ground
+    otherwise after a start on B (a 2 h run from B to a D of 3.2 t/m3 ended 6.5 % below D's steady hold-up),
+    and stating B's own mineral density beside D (a no-op) moved a 60/40 blend's P80 by 0.3 %."""
+    from twin.ore import reference_ores
+
+    opts = '\n[effect_options.classification]\nkind = "hydrocyclone"\n' if "classification" in effects else ""
+    base = BASE_SCENE.replace('"breakage", "transport", "holdup", "cushioning", "power"', effects) + opts
+    dense_d = base.replace('[ores.D]\ntype = "D"', '[ores.D]\ntype = "D"\ndensity_t_m3 = 3.2')
+    keys = ("p80_um", "holdup_t", "load_frac", "power_kw") + (("circulating_load_frac",) if opts else ())
+
+    def steady(text, name, blend):
+        twin = build_models(load_scene(write_scene(text, name=name))).plant
+        return twin.steady(feed_tph=30.0, blend=blend).outputs
+
+    on_b, on_d = (steady(dense_d.replace("blend = { B = 1.0 }", f"blend = {start}", 1), f"{i}.toml", {"D": 1.0})
+                  for i, start in enumerate(("{ B = 1.0 }", "{ D = 1.0 }")))
+    own_b = base.replace('[ores.B]\ntype = "B"', f'[ores.B]\ntype = "B"\ndensity_t_m3 = '
+                                                 f'{reference_ores()["B"].density_t_m3!r}')
+    blend = {"B": 0.6, "D": 0.4}
+    stated, unstated = steady(own_b, "own.toml", blend), steady(base, "base.toml", blend)
+    for key in keys:
+        assert on_b[key] == pytest.approx(on_d[key], rel=1e-9), key
+        assert stated[key] == pytest.approx(unstated[key], rel=1e-9), key
+
+
 def test_given_breakage_is_the_mills_at_the_scenes_speed(write_scene):
     """With the ``speed`` effect, a scene's own breakage parameters were taken at the preset's nominal 0.70
     of critical and ran f(0.75) / f(0.70) = 1.055 faster at the scene's 0.75 (Austin's eq. 8.4): at the

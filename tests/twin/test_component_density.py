@@ -195,3 +195,18 @@ def test_each_ores_circulating_load_adds_up_and_a_dense_ore_circulates_more():
     reading = TwinPlant(own.model).measure(by_own.x, by_own.u, by_own.d)  # a closed loop's row
     assert {ore: reading[f"ore_{ore}_circulating_load_frac"] for ore in shares} == pytest.approx(
         by_own.ore_circulating_load_frac, rel=1e-12)
+
+
+def test_a_density_given_by_ore_replaces_that_ores_only():
+    """``solids_density_t_m3`` as a dict by ore: those ores' densities, each ore still at its own (its own mineral
+    density given changes nothing; a number holds every ore at it); a name the twin does not list is refused."""
+    from twin import TwinError
+
+    blend = {"B": 0.6, "PY": 0.4}
+    alone = Twin(["B", PYRITE_RICH]).steady(feed_tph=0.031, blend=blend)
+    given = Twin(["B", PYRITE_RICH], solids_density_t_m3={"B": Twin("B").blend.ores[0].density_t_m3})
+    assert given.steady(feed_tph=0.031, blend=blend).p80_um == pytest.approx(alone.p80_um, rel=1e-12)
+    one = Twin(["B", PYRITE_RICH], solids_density_t_m3=given.spec.solids_density_t_m3)
+    assert not one.steady(feed_tph=0.031, blend=blend).p80_um == pytest.approx(alone.p80_um, rel=1e-4)
+    with pytest.raises(TwinError, match="names of this twin's components"):
+        Twin(["B", PYRITE_RICH], solids_density_t_m3={"C": 2.7})
