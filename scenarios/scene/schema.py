@@ -263,7 +263,8 @@ class Ore(Section):
     """Selection and breakage parameters given directly (``[ores.NAME.breakage]``), in place of
     the calibration's mineralogy map for this ore."""
     density_t_m3: float | None = Field(default=None, gt=1, le=25, json_schema_extra={"unit": "t/m3"})
-    """Solids density [t/m3] in place of the minerals' density."""
+    """Solids density [t/m3] of this ore in place of its minerals' (the mill holds and classifies each ore at its
+    own density; the other ores keep theirs)."""
 
 
 class ScheduleEvent(Section):
