@@ -136,7 +136,8 @@ class Mill(Section):
     """The size grid of the controller's model and, unless ``[plant]`` says otherwise, of the plant."""
     mixer_volume_fracs: list[float] | None = Field(default=None, min_length=1, max_length=20, examples=[[0.7, 0.15, 0.15]],
                                                    json_schema_extra={"unit": "fraction of hold-up"})
-    """The mixers' shares of the hold-up, e.g. Whiten's one large and two small [0.7, 0.15, 0.15];
+    """The mixers' shares of the hold-up in the order the slurry flows, e.g. Whiten's one large and two
+    small [0.7, 0.15, 0.15]; the order matters where a grate classifies, at the last mixer's discharge;
     sets ``n_mixers`` (which must agree if given); default: equal shares."""
     ball_size_mm: float | None = Field(default=None, ge=BALL_SIZE_MIN_MM, le=BALL_SIZE_MAX_MM, examples=[25.0],
                                        json_schema_extra={"unit": "mm"})
