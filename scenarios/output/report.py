@@ -152,8 +152,9 @@ def render_report(run_dir) -> str:
 
 
 #: Fields of summary.json the report reads -> their JSON type (a hand-edited one raised a traceback).
-SUMMARY_FIELDS = {"replay": dict, "versions": dict, "calibration": dict, "mill_preset_file": dict, "effects": list,
-                  "plant_effects": list, "components": list, "notes": list, "warnings": list, "description": str}
+SUMMARY_FIELDS = {"replay": dict, "versions": dict, "calibration": dict, "mill_preset_file": dict,
+                  "history_file": dict, "effects": list, "plant_effects": list, "components": list, "notes": list,
+                  "warnings": list, "description": str}
 _JSON_NAMES = {dict: "object", list: "array", str: "string"}
 
 
@@ -191,7 +192,8 @@ def _render(run_dir: Path, summary: dict, problems: list[str]) -> str:
              ("components", ", ".join(map(str, summary.get("components", [])))),
              ("calibration", calibration_text(summary.get("calibration"))),
              ("mill preset file", preset_file_text(summary.get("mill_preset_file"))),
-             ("scene file", summary.get("source")), *replay_rows(summary)]
+             ("scene file", summary.get("source")), *replay_rows(summary),
+             ("history file", preset_file_text(summary.get("history_file")))]
     parts.append("<table>" + "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
                                      for k, v in facts if v is not None) + "</table>")
     run_warnings = [str(w) for w in summary.get("warnings") or []]

@@ -8,7 +8,8 @@ import pandas as pd
 from scipy.optimize import nnls
 
 from scenarios.scene import TEXTURE_COLUMNS, Scene, feed_table, load_history, ore_column, ore_mineralogies
-from twin import Mineralogy, Texture, reference_ores
+from scenarios.scene.history import History
+from twin import Mineralogy, Texture, file_sha256, reference_ores
 
 #: Weight of the "fractions sum to 1" row in the NNLS fit of a mineralogy to the ores (wt%).
 SUM_ROW_WEIGHT = 100.0
@@ -106,12 +107,24 @@ def texture_ratios(table: pd.DataFrame, fracs: np.ndarray, ores: dict) -> np.nda
     return out
 
 
-def history_changes(scene: Scene) -> list[str]:
-    """What reading the scene's history changed in its records (``History.changes``: rows sorted or
+def history_changes(history: History | None) -> list[str]:
+    """What reading the history changed in its records (``History.changes``: rows sorted or
     dropped, values held, columns dropped), for the run's warnings: as notes inside summary.json, an
     hour of records dropped as duplicates went unseen."""
-    history = load_history(scene)
     return [] if history is None else [f"history {history.source.name}: {line}" for line in history.changes]
+
+
+def history_file_changes(history: History | None) -> list[str]:
+    """A warning when the history file is not, at the end of a run, the bytes the run was fed (rewritten
+    or removed meanwhile: summary.json records the SHA-256 of what was read); else none."""
+    if history is None or history.sha256 is None:
+        return []
+    now = file_sha256(history.source) if history.source.is_file() else None
+    if now == history.sha256:
+        return []
+    what = f"its SHA-256 is now {now[:12]}" if now else "it is gone"
+    return [f"the history file {history.source} changed during the run (the run was fed the file with SHA-256 "
+            f"{history.sha256[:12]}, which summary.json records; {what}): run again with the file left as it is"]
 
 
 def feed_schedule(scene: Scene, components: list[str], times_h: np.ndarray, ores: dict | None = None

@@ -51,7 +51,7 @@ from scenarios.errors import SceneError
 from scenarios.output import claim_output, workbook_problem, write_files
 from scenarios.run.batch import run_batch
 from scenarios.run.closed_loop import run_closed
-from scenarios.run.feed import feed_schedule, fit_warnings, history_changes
+from scenarios.run.feed import feed_schedule, fit_warnings, history_changes, history_file_changes
 from scenarios.run.kpis import compute_kpis, feed_stopped
 from scenarios.run.models import build_models, component_ores, is_batch
 from scenarios.run.open_loop import analyser_trace, run_open_loop
@@ -136,8 +136,9 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
     refuse(scene, model_size_problems(scene, models))
     times = scene.time_grid_h()
     ores = component_ores(scene)
+    history = load_history(scene)  # what the run is fed (feed_schedule's, cached): its changes and hash are said
     feed, notes = feed_schedule(scene, models.components, times, ores)
-    read_changes = history_changes(scene)  # of the history read now (read after the run, one replaced meanwhile)
+    read_changes = history_changes(history)  # of the bytes read now, not of a file replaced during the run
     if replay:
         refuse(scene, replay_speed_problems(scene, models, feed))
     notes = models.notes + notes
@@ -170,10 +171,12 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
     warnings_ += trajectory_notes(frame, models.plant.spec, models.plant.model.effect_names,
                                   product_psd=None if is_batch(scene) else psd,
                                   nominal_pressure_kpa=nominal_pressure_kpa(models.plant.model))
-    warnings_ += preset_file_changes(scene)
+    warnings_ += preset_file_changes(scene) + history_file_changes(history)
     summary = make_summary(scene, models, kpis, notes + warnings_, time.perf_counter() - t_start)
     summary["controller_health"] = health
     summary["warnings"] = warnings_
+    if history is not None:  # the bytes the run was fed: a path alone names whatever the file holds later
+        summary["history_file"] = {"path": str(history.source.resolve()), "sha256": history.sha256}
     if psd is not None:
         summary["final_psd"] = {"what": psd.attrs.get("what", "product"), "time_h": float(psd.index[-1]),
                                 "size_um": [float(x) for x in psd.columns],
@@ -292,10 +295,10 @@ def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float 
     src = scene.source_path
     new = scene_from_dict(data, src if src is not None else Path.cwd() / "scene.toml")
     _check_workbook(new, xlsx)  # the replay's length is known only now
-    # read before the run, not after it: the plant's clock at time_h 0 (None for a time_h history) from the history
-    # the run reads (a file replaced meanwhile gave its own clock), the scene file's duration_h (a file being edited
-    # when the run ended lost the run, exit 2, or named the edited duration)
-    start = load_history(new).start
+    # read before the run, not after it: the history the run reads (_run's, cached: its clock and hash, not those of
+    # a file rewritten meanwhile) and the scene file's duration_h (a file being edited when the run ended lost the
+    # run, exit 2, or named the edited duration)
+    history = load_history(new)
     scene_h = _written_duration_h(scene) if duration_h is None else None
     result = _run(new, progress, replay=True)
     frame = result.frame
@@ -311,6 +314,7 @@ def _replay(scene: Scene, history_path: Path, progress: bool, duration_h: float 
                 diff[_as_read(new, frame, feed_stopped(new, frame)) > 0] = np.nan
             cmp[f"{col}_mean_diff"] = float(np.nanmean(diff))
             cmp[f"{col}_mean_abs_diff"] = float(np.nanmean(np.abs(diff)))
+    start = history.start  # the plant's clock at time_h 0 (None for a time_h history)
     result.summary["replay"] = {"history": str(history_path), "run_minus_recorded": cmp,
                                 "history_start": None if start is None else start.isoformat()}
     replayed = new.scene.duration_h

@@ -60,6 +60,7 @@ from __future__ import annotations
 
 import bisect
 import functools
+import hashlib
 import io
 import re
 from dataclasses import dataclass, field
@@ -122,6 +123,8 @@ class History:
     #: the report's lines that changed the records (rows sorted or dropped, values held, columns
     #: dropped): a run shows them as warnings, the rest as notes
     changes: list[str] = field(default_factory=list)
+    #: SHA-256 of the file's bytes as read: what a run was fed, whatever the file holds later
+    sha256: str | None = None
 
     @property
     def ores(self) -> list[str]:
@@ -142,7 +145,7 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
     (``feed_nominal_tph``: the scene's mill's nominal feed rate, for the feed's range;
     ``feed_p80_um``: the scene's feed P80, above which no recorded product P80 lies)."""
     path = Path(path)
-    raw = _read_table(path)
+    raw, sha256 = _read_table(path)
     where = str(path)
     report: list[str] = []
     raw = raw.assign(_row=np.arange(1, len(raw) + 1))
@@ -224,7 +227,7 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
         report.append(f"{len(df)} records resampled to {len(grid)} samples every "
                       f"{sample_period_h * 60:g} min")
     return History(frame=frame, kind=kind, report=report, source=path, start=start,
-                   span_h=float(t[-1]), composition_columns=comp_cols, changes=changes)
+                   span_h=float(t[-1]), composition_columns=comp_cols, changes=changes, sha256=sha256)
 
 
 def _order_report(raw: pd.DataFrame) -> list[str]:
@@ -336,31 +339,38 @@ def _out_of_order(t: np.ndarray) -> np.ndarray:
     return ~keep
 
 
-def _read_table(path: Path) -> pd.DataFrame:
+def _read_table(path: Path) -> tuple[pd.DataFrame, str]:
+    """The file's table and the SHA-256 of the bytes it was parsed from (read once: a file rewritten meanwhile
+    is not recorded with the other version's hash)."""
     if not path.is_file():
         raise SceneError(f"{path}: history file not found")
     suffix = path.suffix.lower()
     try:
-        if suffix == ".csv":
-            # comments are whole lines: pandas' comment="#" also cut a row at "#VALUE!"; a trailing
-            # delimiter on every row (index_col=False) made pandas shift the columns by one
-            text = path.read_text(encoding="utf-8-sig")
-            lines = "".join(line for line in text.splitlines(keepends=True) if not line.lstrip().startswith("#"))
-            _refuse_other_delimiter(path, lines.partition("\n")[0])
-            table = pd.read_csv(io.StringIO(lines), skipinitialspace=True, index_col=False, keep_default_na=False,
-                                na_values=list(MISSING_TEXT))
-            # a delimiter closing the header row too makes an unnamed empty column: nothing was recorded in it
-            return table.drop(columns=[c for c in table.columns
-                                       if str(c).startswith("Unnamed: ") and table[c].isna().all()])
-        if suffix in (".parquet", ".pq"):
-            table = pd.read_parquet(path)
-            if table.index.name in ("timestamp", "time_h") and table.index.name not in table.columns:
-                table = table.reset_index()  # a frame indexed by time (df.set_index('timestamp')) keeps it there
-            return table
+        data = path.read_bytes()
+        return _parse_table(path, suffix, data), hashlib.sha256(data).hexdigest()
     except SceneError:
         raise
     except (ValueError, OSError, pd.errors.ParserError) as exc:
         raise SceneError(f"{path}: cannot read the history: {exc}") from None
+
+
+def _parse_table(path: Path, suffix: str, data: bytes) -> pd.DataFrame:
+    if suffix == ".csv":
+        # comments are whole lines: pandas' comment="#" also cut a row at "#VALUE!"; a trailing
+        # delimiter on every row (index_col=False) made pandas shift the columns by one
+        text = data.decode("utf-8-sig")
+        lines = "".join(line for line in text.splitlines(keepends=True) if not line.lstrip().startswith("#"))
+        _refuse_other_delimiter(path, lines.partition("\n")[0])
+        table = pd.read_csv(io.StringIO(lines), skipinitialspace=True, index_col=False, keep_default_na=False,
+                            na_values=list(MISSING_TEXT))
+        # a delimiter closing the header row too makes an unnamed empty column: nothing was recorded in it
+        return table.drop(columns=[c for c in table.columns
+                                   if str(c).startswith("Unnamed: ") and table[c].isna().all()])
+    if suffix in (".parquet", ".pq"):
+        table = pd.read_parquet(io.BytesIO(data))
+        if table.index.name in ("timestamp", "time_h") and table.index.name not in table.columns:
+            table = table.reset_index()  # a frame indexed by time (df.set_index('timestamp')) keeps it there
+        return table
     raise SceneError(f"{path}: history must be .csv or .parquet (got {suffix or 'no suffix'!r})")
 
 

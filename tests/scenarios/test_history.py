@@ -725,3 +725,58 @@ def test_an_ore_fraction_historys_recorded_texture_is_compared_with_the_ores_mix
         b.textural_index / Texture(20.0, 0.1, 1.0).textural_index, rel=1e-12)
     (warning,) = fit_warnings(fine, ["B", "D"])
     assert "the recorded texture is not that of the mix of the ores" in warning
+
+
+def test_a_history_rewritten_during_a_replay_is_warned_and_the_run_records_what_it_was_fed(tmp_path, monkeypatch):
+    """summary.json named the history by its path alone, and the plant's clock at time 0 was read again after
+    the run: a file rewritten meanwhile (an export of another day to the same name) gave the other day's clock to
+    this run, with no warning. The run now records the SHA-256 of the bytes it was fed, its clock is theirs, and a
+    file changed by the run's end is warned of."""
+    import hashlib
+    import os
+
+    import scenarios.run.runner as runner
+    from scenarios.run import replay_scene
+    from tests.scenarios.test_runner import short_pyrite_scene
+
+    scene = short_pyrite_scene(tmp_path, duration_h=0.25)
+    raw = pd.read_csv(ROOT / "scenarios" / "data" / "sample_history.csv", comment="#").iloc[:20]
+    hist = tmp_path / "plant.csv"
+    raw.to_csv(hist, index=False)
+    fed = hashlib.sha256(hist.read_bytes()).hexdigest()
+    other = raw.assign(timestamp=(pd.to_datetime(raw["timestamp"]) + pd.Timedelta(days=17)).astype(str))
+
+    def rewritten(run):
+        def during(*args, **kwargs):
+            other.to_csv(hist, index=False)
+            os.utime(hist, (hist.stat().st_atime + 10, hist.stat().st_mtime + 10))
+            return run(*args, **kwargs)
+        return during
+
+    monkeypatch.setattr(runner, "run_open_loop", rewritten(runner.run_open_loop))
+    monkeypatch.setattr(runner, "run_closed", rewritten(runner.run_closed))
+    res = replay_scene(scene, hist, progress=False)
+    assert res.summary["replay"]["history_start"] == pd.Timestamp(raw["timestamp"].iloc[0]).isoformat()
+    assert res.summary["history_file"] == {"path": str(hist.resolve()), "sha256": fed}
+    (changed,) = [w for w in res.summary["warnings"] if "changed during the run" in w]
+    assert str(hist) in changed and fed[:12] in changed
+    assert hashlib.sha256(hist.read_bytes()).hexdigest()[:12] in changed
+
+
+def test_a_runs_history_file_and_its_hash_are_shown_in_its_report_and_workbook(tmp_path):
+    """The report and the workbook's summary named the replayed history by its path alone."""
+    import hashlib
+
+    from scenarios.output.report import write_report
+    from scenarios.run import replay_scene
+    from tests.scenarios.test_runner import short_pyrite_scene
+
+    scene = short_pyrite_scene(tmp_path, duration_h=0.25)
+    hist = tmp_path / "plant.csv"
+    pd.read_csv(ROOT / "scenarios" / "data" / "sample_history.csv", comment="#").iloc[:20].to_csv(hist, index=False)
+    out = tmp_path / "run"
+    replay_scene(scene, hist, out_dir=out, progress=False, plots=False, xlsx=True)
+    shown = f"{hist.resolve()} (sha256 {hashlib.sha256(hist.read_bytes()).hexdigest()[:12]})"
+    assert f"<th>history file</th><td>{shown}</td>" in write_report(out).read_text(encoding="utf-8")
+    book = pd.read_excel(out / "run.xlsx", sheet_name="summary")
+    assert book.loc[book["item"] == "history file", "value"].tolist() == [shown]
