@@ -359,10 +359,14 @@ def _parse_table(path: Path, suffix: str, data: bytes) -> pd.DataFrame:
         # comments are whole lines: pandas' comment="#" also cut a row at "#VALUE!"; a trailing
         # delimiter on every row (index_col=False) made pandas shift the columns by one
         text = data.decode("utf-8-sig")
-        lines = "".join(line for line in text.splitlines(keepends=True) if not line.lstrip().startswith("#"))
-        _refuse_other_delimiter(path, lines.partition("\n")[0])
-        table = pd.read_csv(io.StringIO(lines), skipinitialspace=True, index_col=False, keep_default_na=False,
-                            na_values=list(MISSING_TEXT))
+        # comment lines left blank (pandas skips them), so that pandas' line numbers are the file's
+        lines = "".join("\n" if line.lstrip().startswith("#") else line for line in text.splitlines(keepends=True))
+        _refuse_other_delimiter(path, lines.lstrip().partition("\n")[0])
+        try:
+            table = pd.read_csv(io.StringIO(lines), skipinitialspace=True, index_col=False, keep_default_na=False,
+                                na_values=list(MISSING_TEXT))
+        except pd.errors.ParserError as exc:
+            raise SceneError(_row_length_problem(path, str(exc), lines)) from None
         # a delimiter closing the header row too makes an unnamed empty column: nothing was recorded in it
         return table.drop(columns=[c for c in table.columns
                                    if str(c).startswith("Unnamed: ") and table[c].isna().all()])
@@ -372,6 +376,19 @@ def _parse_table(path: Path, suffix: str, data: bytes) -> pd.DataFrame:
             table = table.reset_index()  # a frame indexed by time (df.set_index('timestamp')) keeps it there
         return table
     raise SceneError(f"{path}: history must be .csv or .parquet (got {suffix or 'no suffix'!r})")
+
+
+def _row_length_problem(path: Path, said: str, text: str) -> str:
+    """pandas' refusal of a row with more cells than the header (``said``; its line counted in ``text``, the file
+    with its comment lines blank) as the row, what likely split it and what is allowed."""
+    found = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", said)
+    if found is None:
+        return f"{path}: cannot read the history: {said}"
+    header, line, cells = map(int, found.groups())
+    row = text.splitlines()[line - 1] if line <= len(text.splitlines()) else ""
+    return (f"{path}: line {line} has {cells} cells, the header {header} ({row[:200]!r}): a decimal comma (30,4) or "
+            "a comma inside a text splits a cell; allowed: numbers with a decimal point (30.4), texts with commas "
+            "in double quotes")
 
 
 #: Delimiters of CSV files that are not comma-separated, named in the refusal: Excel writes ";" (and decimal commas)

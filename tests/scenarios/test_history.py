@@ -780,3 +780,14 @@ def test_a_runs_history_file_and_its_hash_are_shown_in_its_report_and_workbook(t
     assert f"<th>history file</th><td>{shown}</td>" in write_report(out).read_text(encoding="utf-8")
     book = pd.read_excel(out / "run.xlsx", sheet_name="summary")
     assert book.loc[book["item"] == "history file", "value"].tolist() == [shown]
+
+
+def test_a_row_split_by_a_decimal_comma_is_refused_naming_its_line_in_the_file(tmp_path):
+    """A decimal comma in one cell of a comma-separated file gives its row a cell more than the header; pandas'
+    refusal named the line counted without the file's comment lines ("line 8" here, a good row), and not why."""
+    text = MESSY.replace("2026-01-15T00:05:00,49.5,49.5,34", "2026-01-15T00:05:00,49,5,49.5,34")
+    with pytest.raises(SceneError) as err:
+        read_history(write(tmp_path, text), DT)
+    said = str(err.value)
+    assert "line 9 has 5 cells, the header 4 ('2026-01-15T00:05:00,49,5,49.5,34')" in said
+    assert "decimal comma" in said and "decimal point (30.4)" in said
