@@ -305,15 +305,29 @@ class TabulatedPSD:
 
     @classmethod
     def from_csv(cls, path) -> "TabulatedPSD":
-        """From a CSV file with columns ``size_um`` and ``passing_pct`` (one sieve a row)."""
+        """From a CSV file with columns ``size_um`` and ``passing_pct`` (one sieve a row; UTF-8, comma-separated,
+        decimal points)."""
         import pandas as pd
 
-        frame = pd.read_csv(path)
+        try:
+            frame = pd.read_csv(path, encoding="utf-8-sig", keep_default_na=False, na_values=[""])
+        except ValueError as exc:  # a row with a cell more than the header (a decimal comma), not UTF-8, empty
+            raise TwinInputError(f"The size-distribution file {path} cannot be read as a comma-separated UTF-8 file "
+                                 f"with decimal points: {exc}") from None
         missing = {"size_um", "passing_pct"} - set(frame.columns)
         if missing:
             raise TwinInputError(f"The size-distribution file {path} must have columns size_um and passing_pct. "
                                  f"Missing {sorted(missing)}; found {list(frame.columns)}.")
-        return cls.from_sieves(frame["size_um"].to_numpy(float), frame["passing_pct"].to_numpy(float))
+        values = []
+        for col in ("size_um", "passing_pct"):
+            num = pd.to_numeric(frame[col], errors="coerce")
+            text = (frame[col].notna() & num.isna()).to_numpy()  # a text cell ("Bad", "#N/A") raised a traceback
+            if text.any():
+                rows = (np.flatnonzero(text) + 1).tolist()
+                raise TwinInputError(f"The size-distribution file {path}: column {col} is not a number in data rows "
+                                     f"{rows} (e.g. {frame[col][text].iloc[0]!r}); allowed: a number in every row")
+            values.append(num.to_numpy(float))
+        return cls.from_sieves(*values)
 
     @property
     def fine_modulus(self) -> float:

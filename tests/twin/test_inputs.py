@@ -84,6 +84,20 @@ def test_screen_analysis_csv(tmp_path):
         TabulatedPSD.from_csv(tmp_path / "bad.csv")
 
 
+@pytest.mark.parametrize("row, said", [
+    ("500,Bad", "column passing_pct is not a number in data rows [2] (e.g. 'Bad')"),
+    ("#N/A,60", "column size_um is not a number in data rows [2] (e.g. '#N/A')"),
+    ("500,60,5", "cannot be read as a comma-separated UTF-8 file with decimal points")])
+def test_a_screen_analysis_csv_with_a_text_cell_or_a_split_row_is_refused_naming_it(tmp_path, row, said):
+    """A text cell (a historian's "Bad", Excel's "#N/A") or a decimal comma splitting a row raised a ValueError
+    whose traceback `grindtwin check` and `run` printed, exit 1, naming no row."""
+    path = tmp_path / "feed.csv"
+    path.write_text(f"size_um,passing_pct\n1000,100\n{row}\n250,35\n")
+    with pytest.raises(TwinInputError) as err:
+        TabulatedPSD.from_csv(path)
+    assert str(path) in str(err.value) and said in str(err.value)
+
+
 def test_unequal_mixers_hold_their_shares_of_the_holdup():
     fr = (0.7, 0.15, 0.15)
     tw = Twin("B", mill="lab", effects=LEAN, mixer_volume_fracs=fr)
