@@ -23,6 +23,7 @@ import pandas as pd
 
 from scenarios.errors import SceneError
 from scenarios.scene.history import RECORDED_COLUMNS, TEXTURE_COLUMNS, History, read_history
+from scenarios.scene.ranges import nominal_feed_tph
 from scenarios.scene.schema import Scene
 from twin import Mineralogy, Texture, reference_ores
 
@@ -46,17 +47,23 @@ def ore_mineralogies(scene: Scene) -> dict:
 
 
 def load_history(scene: Scene) -> History | None:
-    """The scene's recorded history on its sample grid (cached per file), or ``None``."""
+    """The scene's recorded history on its sample grid (cached per file), or ``None``; read with the ranges the
+    scene's check reads it with (its mill's nominal feed, its feed P80): a file rewritten after the check (a feed in
+    kg/h) was read without them, and run."""
     path = scene.history_path()
     if path is None:
         return None
+    feed_p80_um = None if scene.feed.psd is not None or scene.feed.psd_csv is not None else scene.feed.p80_um
     return _cached_history(str(path), path.stat().st_mtime_ns, scene.scene.sample_period_h,
-                           scene.feed.history_max_gap_h)
+                           scene.feed.history_max_gap_h, nominal_feed_tph(scene.mill_spec(), scene.mill.model_dump()),
+                           feed_p80_um)
 
 
 @lru_cache(maxsize=8)
-def _cached_history(path: str, _mtime: int, dt: float, max_gap_h: float) -> History:
-    return read_history(Path(path), sample_period_h=dt, max_gap_h=max_gap_h)
+def _cached_history(path: str, _mtime: int, dt: float, max_gap_h: float, feed_nominal_tph: float | None,
+                    feed_p80_um: float | None) -> History:
+    return read_history(Path(path), sample_period_h=dt, max_gap_h=max_gap_h, feed_nominal_tph=feed_nominal_tph,
+                        feed_p80_um=feed_p80_um)
 
 
 #: A schedule event at ``at_h`` has taken effect at times from ``at_h`` less this [h]: a grid time k dt

@@ -791,3 +791,28 @@ def test_a_row_split_by_a_decimal_comma_is_refused_naming_its_line_in_the_file(t
     said = str(err.value)
     assert "line 9 has 5 cells, the header 4 ('2026-01-15T00:05:00,49,5,49.5,34')" in said
     assert "decimal comma" in said and "decimal point (30.4)" in said
+
+
+def test_a_history_rewritten_after_the_scenes_check_is_read_by_the_run_with_the_same_ranges(tmp_path, monkeypatch):
+    """The scene's check reads its history against the mill's nominal feed (a feed in kg/h refused); the run read it
+    again, cached by its modification time, without: a file rewritten in between (an export of the same name, here in
+    kg/h) was run at 30000 t/h, with exit 0."""
+    import os
+
+    import scenarios.run.runner as runner
+    from scenarios.run import replay_scene
+    from tests.scenarios.test_runner import _history_csv, short_pyrite_scene
+
+    scene = short_pyrite_scene(tmp_path, duration_h=0.25)
+    hist = _history_csv(tmp_path)
+    in_kg_h = pd.read_csv(hist).assign(feed_tph=lambda f: f["feed_tph"] * 1000)
+    build = runner.build_models
+
+    def rewritten(*args, **kwargs):  # after the check, before the run reads the file
+        in_kg_h.to_csv(hist, index=False)
+        os.utime(hist, (hist.stat().st_atime + 10, hist.stat().st_mtime + 10))
+        return build(*args, **kwargs)
+
+    monkeypatch.setattr(runner, "build_models", rewritten)
+    with pytest.raises(SceneError, match=r"column feed_tph: feed 30000 t/h is more than 10 x the mill's nominal"):
+        replay_scene(scene, hist, progress=False)
