@@ -18,8 +18,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from twin import reference_ores
+from twin import reference_ores, write_atomically
 
+#: The file's first line: a file that does not start with it is not this script's, and is not overwritten.
+FIRST_LINE = "# SYNTHETIC data, not measured: one day of feed mineralogy at one-minute resolution."
 MINUTES = 24 * 60
 START = pd.Timestamp("2026-01-15T00:00:00")
 #: (hour, blend) knots of the ore-type fractions; linear between knots.
@@ -70,15 +72,26 @@ def main(argv: list[str] | None = None) -> Path:
     parser.add_argument("--seed", type=int, default=20261122)
     parser.add_argument("--out", type=Path, default=Path(__file__).with_name("sample_history.csv"))
     args = parser.parse_args(argv)
+    if args.out.exists() and not _written_here(args.out):  # a plant's own history was replaced by this made-up day
+        parser.error(f"refusing to overwrite {args.out}: it is not a sample history this script wrote (its first "
+                     f"line is not {FIRST_LINE!r}); give a new --out path")
     day = synthetic_day(args.seed)
-    header = (f"# SYNTHETIC data, not measured: one day of feed mineralogy at one-minute resolution.\n"
+    header = (f"{FIRST_LINE}\n"
               f"# Produced by: python scenarios/data/make_sample_history.py --seed {args.seed}\n"
               f"# Ore types from twin/ore/data/ores.toml; feed_tph, speed_frac_critical and p80_um "
               f"are made up.\n")
-    with args.out.open("w", encoding="utf-8", newline="") as fh:
-        fh.write(header)
-        day.to_csv(fh, index=False)
+    text = header + day.to_csv(index=False, lineterminator="\n")
+    write_atomically(args.out, lambda tmp: tmp.write_bytes(text.encode("utf-8")))  # a stop leaves the file as it was
     return args.out
+
+
+def _written_here(path: Path) -> bool:
+    """Whether ``path`` is a file that starts as this script's output does."""
+    try:
+        with path.open(encoding="utf-8", errors="replace") as fh:
+            return fh.readline().rstrip("\r\n") == FIRST_LINE
+    except OSError:  # a folder, unreadable
+        return False
 
 
 if __name__ == "__main__":

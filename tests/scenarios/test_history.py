@@ -816,3 +816,20 @@ def test_a_history_rewritten_after_the_scenes_check_is_read_by_the_run_with_the_
     monkeypatch.setattr(runner, "build_models", rewritten)
     with pytest.raises(SceneError, match=r"column feed_tph: feed 30000 t/h is more than 10 x the mill's nominal"):
         replay_scene(scene, hist, progress=False)
+
+
+def test_the_sample_history_script_does_not_overwrite_a_file_it_did_not_write(tmp_path):
+    """`make_sample_history.py --out plant.csv` replaced a plant's own history by the made-up day, exit 0; it now
+    refuses any file that does not start as its output does, and rewrites its own."""
+    script = [sys.executable, str(ROOT / "scenarios" / "data" / "make_sample_history.py"), "--out"]
+    env = {"PYTHONPATH": str(ROOT), "PATH": ""}
+    plant = tmp_path / "plant.csv"
+    plant.write_text("timestamp,quartz_wt_pct\n2026-01-15T00:00:00,100\n", encoding="utf-8")
+    kept = plant.read_bytes()
+    done = subprocess.run([*script, str(plant)], cwd=ROOT, capture_output=True, text=True, env=env)
+    assert done.returncode == 2 and f"refusing to overwrite {plant}" in done.stderr
+    assert plant.read_bytes() == kept
+    ours = tmp_path / "sample.csv"
+    for _ in range(2):  # written, then rewritten
+        subprocess.run([*script, str(ours)], check=True, cwd=ROOT, capture_output=True, env=env)
+    assert ours.read_bytes() == (ROOT / "scenarios" / "data" / "sample_history.csv").read_bytes()
