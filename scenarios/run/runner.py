@@ -57,7 +57,7 @@ from scenarios.run.models import build_models, component_ores, is_batch
 from scenarios.run.open_loop import analyser_trace, run_open_loop
 from scenarios.run.preflight import model_size_problems, refuse, replay_speed_problems, settings_problems
 from scenarios.run.summary import make_summary, preset_file_changes
-from scenarios.scene import TEXTURE_COLUMNS, Scene, load_history, load_scene, read_history, scene_from_dict
+from scenarios.scene import TEXTURE_COLUMNS, Scene, load_history, load_scene, read_history_once, scene_from_dict
 from scenarios.scene.history import DEFAULT_MAX_GAP_H
 from scenarios.scene.ranges import NO_PRODUCT_FRAC
 from scenarios.scene.loader import read_toml
@@ -239,7 +239,7 @@ def _with_history(data: dict, history_path: Path, dt: float | None, max_gap_h: f
     for key in ("blend", "schedule", "history"):
         feed.pop(key, None)
     if dt is not None:
-        history = read_history(history_path, sample_period_h=float(dt), max_gap_h=max_gap_h)
+        history = read_history_once(history_path, float(dt), max_gap_h=max_gap_h)
         if all(c in history.frame.columns for c in TEXTURE_COLUMNS):
             feed.pop("history_texture", None)
         data["scene"]["duration_h"] = _replay_duration_h(history, float(dt), duration_h)

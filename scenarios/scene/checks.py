@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from scenarios.errors import SceneError
-from scenarios.scene.history import read_history
+from scenarios.scene.history import read_history_once
 from scenarios.scene.keypaths import did_you_mean, format_path
 from scenarios.scene.ranges import (controller_feed_min_problem, feed_problem, net_power_problem, nominal_feed_tph,
                                      power_limit_problem, preset_mill)
@@ -360,9 +360,9 @@ def _check_history(data, ore_names: list[str], base_dir: Path, r: _Report) -> No
         return
     try:
         gap = _num(feed.get("history_max_gap_h", 10 / 60))
-        history = read_history(path, sample_period_h=dt, max_gap_h=gap if gap and gap > 0 else 10 / 60,
-                               feed_nominal_tph=nominal_feed_tph(_get(data, "mill", "preset"), _get(data, "mill")),
-                               feed_p80_um=_feed_p80_um(feed))
+        history = read_history_once(path, dt, max_gap_h=gap if gap and gap > 0 else 10 / 60,
+                                    feed_nominal_tph=nominal_feed_tph(_get(data, "mill", "preset"), _get(data, "mill")),
+                                    feed_p80_um=_feed_p80_um(feed))
     except SceneError as exc:
         for line in str(exc).splitlines():
             r.add(("feed", "history"), line.strip())

@@ -138,6 +138,24 @@ class History:
             if self.kind == "mineralogy" else []
 
 
+def read_history_once(path: str | Path, sample_period_h: float, *, max_gap_h: float = DEFAULT_MAX_GAP_H,
+                      feed_nominal_tph: float | None = None, feed_p80_um: float | None = None) -> History:
+    """:func:`read_history`, read again only when the file has changed (its modification time or size) or is
+    read with other settings: a replay read its history five times (the scene's check twice, the replay's
+    span twice, the run), each a full parse. The History returned is shared: not to be changed."""
+    path = Path(path)
+    stat = path.stat()
+    return _read_cached(str(path), stat.st_mtime_ns, stat.st_size, float(sample_period_h), float(max_gap_h),
+                        feed_nominal_tph, feed_p80_um)
+
+
+@functools.lru_cache(maxsize=8)
+def _read_cached(path: str, _mtime_ns: int, _size: int, dt: float, max_gap_h: float, feed_nominal_tph: float | None,
+                 feed_p80_um: float | None) -> History:
+    return read_history(Path(path), sample_period_h=dt, max_gap_h=max_gap_h, feed_nominal_tph=feed_nominal_tph,
+                        feed_p80_um=feed_p80_um)
+
+
 def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float = DEFAULT_MAX_GAP_H,
                  sum_tol_frac: float = 0.02, feed_nominal_tph: float | None = None,
                  feed_p80_um: float | None = None) -> History:
@@ -542,10 +560,14 @@ def _check_ranges(values: pd.DataFrame, rows: pd.Series, where: str, feed_nomina
         if col not in values:
             continue
         v = values[col].to_numpy()
-        msgs = [(i, problem(float(x))) for i, x in enumerate(v) if not np.isnan(x)]
-        bad = [(i, m) for i, m in msgs if m is not None]
-        if bad:
-            errors.append(f"column {col}: {bad[0][1]} in data rows {_names(rows.iloc[[i for i, _ in bad]])}")
+        # each distinct value once (a historian holds a reading over many rows): a call per cell was most of
+        # the time reading a day of one-second records took
+        distinct, which = np.unique(v, return_inverse=True)
+        which = which.ravel()
+        msgs = [None if np.isnan(x) else problem(float(x)) for x in distinct]
+        bad = np.flatnonzero(np.array([m is not None for m in msgs], bool)[which])
+        if len(bad):
+            errors.append(f"column {col}: {msgs[which[bad[0]]]} in data rows {_names(rows.iloc[bad])}")
     if errors:
         raise SceneError(f"{where}: " + f"\n{where}: ".join(errors))
 

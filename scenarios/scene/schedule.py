@@ -15,14 +15,11 @@ the history's grid); after the last record the last value holds.
 
 from __future__ import annotations
 
-from functools import lru_cache
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
 
 from scenarios.errors import SceneError
-from scenarios.scene.history import RECORDED_COLUMNS, TEXTURE_COLUMNS, History, read_history
+from scenarios.scene.history import RECORDED_COLUMNS, TEXTURE_COLUMNS, History, read_history_once
 from scenarios.scene.ranges import nominal_feed_tph
 from scenarios.scene.schema import Scene
 from twin import Mineralogy, Texture, reference_ores
@@ -54,16 +51,9 @@ def load_history(scene: Scene) -> History | None:
     if path is None:
         return None
     feed_p80_um = None if scene.feed.psd is not None or scene.feed.psd_csv is not None else scene.feed.p80_um
-    return _cached_history(str(path), path.stat().st_mtime_ns, scene.scene.sample_period_h,
-                           scene.feed.history_max_gap_h, nominal_feed_tph(scene.mill_spec(), scene.mill.model_dump()),
-                           feed_p80_um)
-
-
-@lru_cache(maxsize=8)
-def _cached_history(path: str, _mtime: int, dt: float, max_gap_h: float, feed_nominal_tph: float | None,
-                    feed_p80_um: float | None) -> History:
-    return read_history(Path(path), sample_period_h=dt, max_gap_h=max_gap_h, feed_nominal_tph=feed_nominal_tph,
-                        feed_p80_um=feed_p80_um)
+    return read_history_once(path, scene.scene.sample_period_h, max_gap_h=scene.feed.history_max_gap_h,
+                             feed_nominal_tph=nominal_feed_tph(scene.mill_spec(), scene.mill.model_dump()),
+                             feed_p80_um=feed_p80_um)
 
 
 #: A schedule event at ``at_h`` has taken effect at times from ``at_h`` less this [h]: a grid time k dt

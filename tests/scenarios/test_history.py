@@ -833,3 +833,31 @@ def test_the_sample_history_script_does_not_overwrite_a_file_it_did_not_write(tm
     for _ in range(2):  # written, then rewritten
         subprocess.run([*script, str(ours)], check=True, cwd=ROOT, capture_output=True, env=env)
     assert ours.read_bytes() == (ROOT / "scenarios" / "data" / "sample_history.csv").read_bytes()
+
+
+def test_a_replay_parses_its_history_once_with_the_checks_ranges_and_once_without(tmp_path, monkeypatch):
+    """A replay read the whole file five times (the scene's check twice, the replay's span twice, the run): a
+    day of one-second records took most of a short replay's time. Each read is now shared while the file stays
+    as it was; a file changed between two reads is read again (its modification time or size)."""
+    import scenarios.scene.history as history_module
+    from scenarios.scene import read_history_once
+    from tests.scenarios.test_cli import grindtwin
+
+    reads = []
+    real = history_module.read_history
+    monkeypatch.setattr(history_module, "read_history", lambda *a, **k: reads.append(a[0]) or real(*a, **k))
+    history_module._read_cached.cache_clear()
+    scene = tmp_path / "day.toml"
+    scene.write_text((ROOT / "scenarios" / "replay_day.toml").read_text().replace('kind = "nmpc"', 'kind = "none"'))
+    hist = tmp_path / "hour.csv"
+    pd.read_csv(ROOT / "scenarios" / "data" / "sample_history.csv", comment="#").iloc[:31].to_csv(hist, index=False)
+    assert grindtwin(["replay", scene, "--history", hist, "--duration-h", "0.5", "--out", tmp_path / "out",
+                      "--quiet", "--no-plots"]) == 0
+    assert len(reads) == 2 and {Path(p).resolve() for p in reads} == {hist.resolve()}
+    old = read_history_once(hist, 0.05).frame
+    data = pd.read_csv(hist)
+    data["feed_tph"] += 1.0  # a new export to the same file: read again, not the old one's
+    data.to_csv(hist, index=False)
+    reads.clear()
+    new = read_history_once(hist, 0.05).frame
+    assert len(reads) == 1 and np.allclose(new["feed_tph"], old["feed_tph"] + 1.0, rtol=0, atol=1e-12)
