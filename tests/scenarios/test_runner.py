@@ -658,18 +658,21 @@ def test_a_batch_charge_off_the_mills_stable_load_says_its_rates_are_the_nominal
     assert not [w for w in shipped.summary["warnings"] if "batch charge" in w]
 
 
+def _then(fn, after):
+    """``fn``, then ``after()``: a file changed once a run's work is done, before its results are written."""
+    def wrapped(*args, **kwargs):
+        out = fn(*args, **kwargs)
+        after()
+        return out
+    return wrapped
+
+
 def test_a_replay_gives_the_clock_of_the_history_it_ran_not_of_the_file_after_it(tmp_path, monkeypatch):
     """The history's clock at time 0 (summary.json, the report) was read from the file once the run had ended: a
     history replaced during the replay (the next day's export to the same file) gave the new file's date."""
     hist = _history_csv(tmp_path)
-    run = runner._run
-
-    def run_then_replace(*args, **kwargs):
-        result = run(*args, **kwargs)
-        hist.write_text(hist.read_text().replace("2026-01-15T", "2026-03-02T"))
-        return result
-
-    monkeypatch.setattr(runner, "_run", run_then_replace)
+    monkeypatch.setattr(runner, "_run", _then(runner._run, lambda: hist.write_text(
+        hist.read_text().replace("2026-01-15T", "2026-03-02T"))))
     res = replay_scene(short_pyrite_scene(tmp_path, duration_h=0.5), hist, progress=False)
     assert "2026-03-02" in hist.read_text()  # the test can fail
     assert res.summary["replay"]["history_start"] == "2026-01-15T00:00:00"
@@ -681,14 +684,7 @@ def test_a_scene_file_edited_while_a_replay_runs_does_not_lose_the_run(tmp_path,
     --duration-h): a file being edited then, not TOML for a moment, made the finished replay exit 2 with nothing
     written."""
     scene = short_pyrite_scene(tmp_path, duration_h=0.5)
-    run = runner._run
-
-    def run_then_edit(*args, **kwargs):
-        result = run(*args, **kwargs)
-        scene.write_text("[scene\n")
-        return result
-
-    monkeypatch.setattr(runner, "_run", run_then_edit)
+    monkeypatch.setattr(runner, "_run", _then(runner._run, lambda: scene.write_text("[scene\n")))
     res = replay_scene(scene, _history_csv(tmp_path), out_dir=tmp_path / "out", progress=False, duration_h=duration_h,
                        plots=False)
     assert scene.read_text() == "[scene\n"  # the test can fail
@@ -699,14 +695,8 @@ def test_a_history_replaced_while_a_replay_runs_does_not_lose_the_run(tmp_path, 
     """A run read its history again once the plant had run (for the warnings on what reading it changed): a
     history replaced meanwhile by a file it refuses made the finished replay exit 2 with nothing written."""
     hist = _history_csv(tmp_path)
-    simulate = runner.run_open_loop
-
-    def simulate_then_replace(*args, **kwargs):
-        out = simulate(*args, **kwargs)
-        hist.write_text("timestamp,feed_tph\nnot a time,30\n")
-        return out
-
-    monkeypatch.setattr(runner, "run_open_loop", simulate_then_replace)
+    monkeypatch.setattr(runner, "run_open_loop", _then(runner.run_open_loop, lambda: hist.write_text(
+        "timestamp,feed_tph\nnot a time,30\n")))
     res = replay_scene(short_pyrite_scene(tmp_path, duration_h=0.5), hist, out_dir=tmp_path / "out", progress=False,
                        plots=False)
     assert hist.read_text().startswith("timestamp,feed_tph\nnot")  # the test can fail
