@@ -266,3 +266,12 @@ def test_a_file_changed_after_grindtwin_wrote_it_is_refused(tmp_path):
     edited = path.read_text()
     assert _calibrate(["--from", "dem", "--replicates", "0", "--out", str(path)]) == 2
     assert path.read_text() == edited
+
+
+@pytest.mark.parametrize("where", ["mine.json", "../../ore/data/other.json"])
+def test_a_new_file_inside_the_installed_package_is_refused_before_any_work(where, capsys):
+    # it was written (exit 0): lost with the next install, and in the shipped folder a new shipped name
+    out = load_calibration("table").path.parent / where
+    assert _calibrate(["--map", "mineralogy", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "inside the installed twin package" in err and str(out) in err and not out.exists(), err
