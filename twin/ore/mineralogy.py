@@ -30,6 +30,8 @@ TEXTURE_REFERENCE_GRAIN_UM = 200.0
 #: (pegmatites, ~1 cm); beyond, the value is a unit slip, and the textural index ~ d^-1/2 it enters would be
 #: off by a factor of ~30: a grain given in mm (Table 1's 30-250 um are 0.03-0.25 mm) lies below 1.
 MEAN_GRAIN_RANGE_UM = (1.0, 1e4)
+#: A blend's mass fractions must sum to 1 within this tolerance (Blend, Mineralogy.blend).
+BLEND_SUM_TOLERANCE = 1e-6
 
 
 def fractions_hint(total: float) -> str:
@@ -182,6 +184,9 @@ class Mineralogy:
               for f in fractions]
         if len(fr) != len(ores):  # zip dropped the ores without a fraction
             raise bad_value("Mineralogy.blend", "fractions", list(fractions), f"one per ore ({len(ores)} ores)")
+        if abs(sum(fr) - 1.0) > BLEND_SUM_TOLERANCE:  # (0.6, 0.397): the wt% were rescaled, the grain size not
+            raise bad_value("Mineralogy.blend", "fractions", list(fractions),
+                            f"mass fractions summing to 1 within {BLEND_SUM_TOLERANCE:g} (sum {sum(fr):.6g})")
         if len(ores) == 1:
             return ores[0]
         wt: dict = {}

@@ -10,10 +10,7 @@ from importlib import resources
 from pathlib import Path
 
 from ..errors import TwinInputError, close_matches
-from .mineralogy import TEXTURE_COLUMNS, Mineralogy, Texture
-
-#: A blend's fractions must sum to 1 within this tolerance.
-BLEND_SUM_TOLERANCE = 1e-6
+from .mineralogy import BLEND_SUM_TOLERANCE, TEXTURE_COLUMNS, Mineralogy, Texture
 
 
 @cache
