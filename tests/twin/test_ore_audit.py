@@ -3,7 +3,7 @@
 import pytest
 
 from twin import Mineralogy, TwinInputError
-from twin.ore import load_ore
+from twin.ore import from_mineralogies, load_ore
 
 
 def test_a_blend_of_mineralogies_needs_fractions_summing_to_one():
@@ -14,3 +14,10 @@ def test_a_blend_of_mineralogies_needs_fractions_summing_to_one():
         Mineralogy.blend((a, d), (0.6, 0.397))
     assert Mineralogy.blend((a, d), (0.6, 0.4)).wt_pct == a.mix(d, 0.6).wt_pct
 
+
+def test_a_sample_table_from_mineralogies_keeps_every_ore():
+    # ids=["a"] for three ores gave a table of one row, exit 0
+    ores = [load_ore(k) for k in "ABC"]
+    with pytest.raises(TwinInputError, match=r"one id per ore \(3 ores\). Got 1 ids"):
+        from_mineralogies(ores, ids=["a"])
+    assert list(from_mineralogies(ores, ids=["a", "b", "c"]).sample_id) == ["a", "b", "c"]

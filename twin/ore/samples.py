@@ -213,6 +213,8 @@ def from_mineralogies(ores, ids=None) -> pd.DataFrame:
     """Sample table from :class:`Mineralogy` objects (one row each; ids default to their names)."""
     ores = list(ores)
     ids = list(ids) if ids is not None else [o.name for o in ores]
+    if len(ids) != len(ores):  # zip dropped the ores without an id
+        raise TwinInputError(f"from_mineralogies needs one id per ore ({len(ores)} ores). Got {len(ids)} ids: {ids}.")
     minerals = [m for m in mineral_table() if any(m in o.wt_pct for o in ores)]
     rows = []
     for sid, ore in zip(ids, ores):
