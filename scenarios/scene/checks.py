@@ -24,9 +24,10 @@ from twin import SizeGrid, TwinError, get_mill, hydrocyclone_from, is_preset_fil
 from twin.calibration import DEFAULT_CALIBRATION, load_calibration
 from twin.effects import problems as effect_problems
 from twin.ore import mineral_names
+from twin.ore.mineralogy import SUM_TOLERANCE_WT_PCT, fractions_hint
 
 BLEND_SUM_TOL = 1e-3
-MINERAL_SUM_TOL_PCT = 0.5
+MINERAL_SUM_TOL_PCT = SUM_TOLERANCE_WT_PCT  # the twin's Mineralogy's own
 
 TEXTURE_KEYS = ("mean_grain_um", "uniformity", "association_entropy")
 
@@ -177,8 +178,8 @@ def _check_mineralogy(mineralogy: dict, loc: tuple, minerals: list[str], r: _Rep
         if v is not None and v < 0:
             r.add(loc + (mineral,), "wt% must be >= 0", wt)
         total += v or 0.0
-    if mineralogy and abs(total - 100.0) > MINERAL_SUM_TOL_PCT:
-        r.add(loc, f"wt% must sum to 100 within {MINERAL_SUM_TOL_PCT:g}", round(total, 6))
+    if abs(total - 100.0) > MINERAL_SUM_TOL_PCT:  # an empty table too: it failed later, naming no file or key
+        r.add(loc, f"wt% must sum to 100 within {MINERAL_SUM_TOL_PCT:g}{fractions_hint(total)}", round(total, 6))
 
 
 def _check_blend(blend: Any, loc: tuple, ore_names: list[str], r: _Report) -> None:

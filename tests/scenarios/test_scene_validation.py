@@ -58,6 +58,14 @@ BROKEN = [
                              "[ores.D.texture]\nmean_grain_um = 50.0\nuniformity = 0.4\n"
                              "association_entropy = 0.8"),
      ["ores.D.mineralogy.pyrit", "unknown mineral", "did you mean 'pyrite'"]),
+    # an empty mineralogy failed later without the file or the key; fractions got no hint of their unit
+    ("empty mineralogy", edit('[ores.D]\ntype = "D"', "[ores.D]\nmineralogy = {}\n"
+                              "texture = { mean_grain_um = 50.0, uniformity = 0.4, association_entropy = 0.8 }"),
+     ["ores.D.mineralogy", "wt% must sum to 100 within 0.5", "got 0.0"]),
+    ("mineralogy in mass fractions", edit('[ores.D]\ntype = "D"', "[ores.D]\nmineralogy = { quartz = 0.6, "
+                                          "calcite = 0.4 }\ntexture = { mean_grain_um = 50.0, uniformity = 0.4, "
+                                          "association_entropy = 0.8 }"),
+     ["ores.D.mineralogy", "mass fractions summing to 1? give wt%: x 100", "got 1.0"]),
     ("type and mineralogy both", edit('[ores.D]\ntype = "D"', '[ores.D]\ntype = "D"\n'
                                       "mineralogy = { quartz = 100.0 }"),
      ["ores.D", "either `type` or an explicit mineralogy"]),
