@@ -158,3 +158,15 @@ def test_a_table_fitted_file_is_rechecked_and_refitted_with_its_own_table(tmp_pa
     assert "was fitted to your table" in capsys.readouterr().err
     assert main(["--table", str(table), "--fast", "--out", str(tmp_path / "fast.json")]) == 2
     assert "--fast: --from dem reuses that file's DEM step" in capsys.readouterr().err
+
+
+def test_a_row_with_more_cells_than_the_header_is_refused_naming_them(tmp_path, capsys):
+    # a fourth number or a note after the throughput stopped the command with a traceback (exit 1)
+    path = tmp_path / "long.csv"
+    path.write_text("ore,p80_um,specific_energy_kwh_t,throughput_kg_h\nA,185,14.2,28.5,repeat\nB,210,12.8,31.0\n"
+                    "C,265,9.5,36.2\n")
+    out = tmp_path / "never.json"
+    assert main(["--table", str(path), "--replicates", "0", "--quiet", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"--table {path}: data row 1: 5 cells; one per column" in err and "['repeat']" in err, err
+    assert not out.exists()

@@ -51,8 +51,11 @@ def read_table(path) -> tuple[dict, dict]:
                              f"{REFERENCE_TABLE_PATH.name}); got {', '.join(columns) or 'none'}")
     rows, ores = {}, {}
     for i, raw in enumerate(reader, start=1):
-        row = {(k or "").strip(): (v or "").strip() for k, v in raw.items()}
         where = f"--table {path}: data row {i}"
+        if None in raw:  # csv's key of the cells beyond the header's (a traceback on .strip)
+            raise TwinInputError(f"{where}: {len(columns) + len(raw[None])} cells; one per column "
+                                 f"({', '.join(columns)}): extra {raw[None]!r}")
+        row = {k.strip(): (v or "").strip() for k, v in raw.items()}
         spec = row["ore"]
         local = path.parent / spec
         try:
