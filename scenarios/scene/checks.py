@@ -23,11 +23,16 @@ from scenarios.scene.schema import DEFAULT_N_MIXERS, Feed, Sensors
 from twin import SizeGrid, TwinError, get_mill, hydrocyclone_from, is_preset_file, read_preset
 from twin.calibration import DEFAULT_CALIBRATION, load_calibration
 from twin.effects import problems as effect_problems
-from twin.ore import mineral_names
+from twin.ore import mineral_names, mineral_table, reference_ores
 from twin.ore.mineralogy import SUM_TOLERANCE_WT_PCT, fractions_hint
 
 BLEND_SUM_TOL = 1e-3
 MINERAL_SUM_TOL_PCT = SUM_TOLERANCE_WT_PCT  # the twin's Mineralogy's own
+#: How far an ore's given solids density may lie outside the range of its minerals' densities (minerals.csv),
+#: relatively: a mixture's solids density (the mass-weighted harmonic mean) lies inside that range, and a mineral's
+#: own density spreads by about this much with its composition (Deer, Howie & Zussman 2013: biotite 2.7-3.3 t/m3
+#: about the table's 3.05). Further out it is a bulk density (broken ore with its voids, 1.5-2.0 t/m3) or a slip.
+ORE_DENSITY_TOL_FRAC = 0.10
 
 TEXTURE_KEYS = ("mean_grain_um", "uniformity", "association_entropy")
 
@@ -165,7 +170,27 @@ def _check_ores(data, r: _Report) -> list[str]:
         mineralogy = ore.get("mineralogy")
         if isinstance(mineralogy, dict):
             _check_mineralogy(mineralogy, ("ores", name, "mineralogy"), minerals, r)
+        elif ore.get("type") in reference_ores():
+            mineralogy = reference_ores()[ore["type"]].wt_pct
+        if isinstance(mineralogy, dict):
+            _check_density(ore.get("density_t_m3"), mineralogy, ("ores", name, "density_t_m3"), r)
     return list(ores)
+
+
+def _check_density(density: Any, mineralogy: dict, loc: tuple, r: _Report) -> None:
+    """A given solids density within its minerals' range (:data:`ORE_DENSITY_TOL_FRAC`): a bulk density of 1.6
+    for an ore of 2.8 t/m3 minerals held 1.75 times the volume of solids and ground it to a quarter of the P80."""
+    rho = _num(density)
+    table = mineral_table()
+    own = {m: table[m].density_t_m3 for m, v in mineralogy.items() if m in table and (_num(v) or 0.0) > 0}
+    if rho is None or not own:
+        return
+    lo, hi = min(own.values()), max(own.values())
+    if not lo * (1 - ORE_DENSITY_TOL_FRAC) <= rho <= hi * (1 + ORE_DENSITY_TOL_FRAC):
+        light, dense = min(own, key=own.get), max(own, key=own.get)
+        r.add(loc, f"the solids density of this ore's minerals lies between {lo:g} ({light}) and {hi:g} t/m3 "
+              f"({dense}), within {ORE_DENSITY_TOL_FRAC:.0%}; give the density of its solids (pycnometer), not a "
+              "bulk density of broken ore with its voids", density)
 
 
 def _check_mineralogy(mineralogy: dict, loc: tuple, minerals: list[str], r: _Report) -> None:

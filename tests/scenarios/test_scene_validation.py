@@ -66,6 +66,9 @@ BROKEN = [
                                           "calcite = 0.4 }\ntexture = { mean_grain_um = 50.0, uniformity = 0.4, "
                                           "association_entropy = 0.8 }"),
      ["ores.D.mineralogy", "mass fractions summing to 1? give wt%: x 100", "got 1.0"]),
+    # a bulk density (broken ore with its voids) held 1.75 x the solids' volume: P80 a quarter of the ore's, exit 0
+    ("bulk density of a type", edit('[ores.D]\ntype = "D"', '[ores.D]\ntype = "D"\ndensity_t_m3 = 1.6'),
+     ["ores.D.density_t_m3", "lies between 2.56 (k_feldspar) and 5.01 t/m3 (pyrite), within 10%", "got 1.6"]),
     ("type and mineralogy both", edit('[ores.D]\ntype = "D"', '[ores.D]\ntype = "D"\n'
                                       "mineralogy = { quartz = 100.0 }"),
      ["ores.D", "either `type` or an explicit mineralogy"]),
