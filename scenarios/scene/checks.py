@@ -23,8 +23,7 @@ from scenarios.scene.schema import DEFAULT_N_MIXERS, Feed, Sensors
 from twin import SizeGrid, TwinError, get_mill, hydrocyclone_from, is_preset_file, read_preset
 from twin.calibration import DEFAULT_CALIBRATION, load_calibration
 from twin.effects import problems as effect_problems
-from twin.ore import mineral_names, mineral_table, reference_ores
-from twin.ore.mineralogy import SUM_TOLERANCE_WT_PCT, fractions_hint
+from twin.ore import SUM_TOLERANCE_WT_PCT, fractions_hint, mineral_names, mineral_table, reference_ores
 
 BLEND_SUM_TOL = 1e-3
 MINERAL_SUM_TOL_PCT = SUM_TOLERANCE_WT_PCT  # the twin's Mineralogy's own
