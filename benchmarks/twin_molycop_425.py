@@ -97,7 +97,7 @@ def classifier_check(pub: dict) -> pd.DataFrame:
 def mill_check(res: dict, pub: dict, raw: dict) -> pd.DataFrame:
     """Moly-Cop's mill (published [mill_model]) beside the scene's, and the twin's mill discharge beside what the
     published results imply of it."""
-    mm, rho = pub["mill_model"], pub["ore_density_t_m3"]
+    mm = pub["mill_model"]
     mill_feed = pub["feed_tph"] * (1.0 + pub["circulating_load_frac"])
     cyc = _cyclone(raw)
     ss, twin = res["ss"], res["twin"]
