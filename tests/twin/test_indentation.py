@@ -86,6 +86,12 @@ def test_read_and_analyse_csv(tmp_path):
     bad.write_text(text + "qz-1,12.0,oops\n")
     with pytest.raises(TwinInputError, match=r"row \d+ \(curve_id='qz-1'\): column 'load_mn'.*'oops'"):
         read_curves(bad)
+    # a curve's id again after another curve: grouped by id, the two were analysed as one curve of two cycles
+    twice = tmp_path / "twice.csv"
+    c = a.assign(curve_id="fs-1")
+    twice.write_text(pd.concat([a, b, c])[["curve_id", "depth_nm", "load_mn"]].to_csv(index=False))
+    with pytest.raises(TwinInputError, match=rf"curve_id 'fs-1' starts again at row {len(a) + len(b) + 1}, after"):
+        read_curves(twice)
 
 
 def test_bad_inputs_named():

@@ -38,6 +38,6 @@ __all__ = [
     "generate_library", "load_ore", "load_reference_samples", "mineral_names", "mineral_table", "oliver_pharr",
     "read_curves", "read_samples", "read_single_particle", "reduced_modulus_gpa", "reference_ores",
     "sample_fracture_energies", "source_table", "synthesize_curve", "to_mineralogies", "to_mineralogy",
-    "validate_samples", "youngs_from_reduced_gpa",
+    "validate_samples", "validate_single_particle", "youngs_from_reduced_gpa",
 ]
 __getattr__, __dir__ = lazy_face(__name__, _API)

@@ -284,6 +284,13 @@ def read_curves(path: str | Path) -> dict[str, pd.DataFrame]:
         raise TwinInputError(f"{path}: bad cells in the indentation curves:\n  " + "\n  ".join(problems))
     if "curve_id" not in frame.columns:
         frame["curve_id"] = path.stem
+    ids = frame["curve_id"].astype(str)
+    starts = ids.ne(ids.shift())  # where a run of one id begins: a curve is one run of rows
+    again = ids[starts][ids[starts].duplicated()]
+    if len(again):  # grouped, two runs of an id were one curve: load, unload, load, unload, analysed as one
+        row = int(again.index[0]) + 1
+        raise TwinInputError(f"{path}: curve_id {again.iloc[0]!r} starts again at row {row}, after other curves; "
+                             "a curve's rows must be consecutive (give each curve its own id).")
     return {str(cid): g[["load_mn", "depth_nm"]].reset_index(drop=True)
             for cid, g in frame.groupby("curve_id", sort=False)}
 
