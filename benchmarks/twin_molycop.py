@@ -121,6 +121,19 @@ def _plitt(raw: dict, survey: dict | None) -> None:
         cyc["survey"] = survey
 
 
+def write_report(name: str, title: str, intro: str, sections: dict) -> None:
+    """benchmarks/results/NAME.csv (every table, its key in column ``table``) and NAME.md (the title, the intro,
+    then each table under its heading); ``sections``: key -> (heading, table). The Markdown is printed too."""
+    RESULTS.mkdir(exist_ok=True)
+    pd.concat([df.assign(table=key) for key, (_, df) in sections.items()]).to_csv(RESULTS / f"{name}.csv",
+                                                                                 index=False)
+    lines = [f"# {title}", "", intro, ""]
+    for heading, df in sections.values():
+        lines += [f"## {heading}", "", df.to_markdown(index=False, floatfmt=".4g"), ""]
+    (RESULTS / f"{name}.md").write_text("\n".join(lines), encoding="utf-8")
+    print("\n".join(lines))
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.parse_args(argv)
@@ -144,22 +157,16 @@ def main(argv=None) -> None:
                      "d50c_um": o["cyclone_d50c_um"], "cyclone_pressure_kpa": o["cyclone_pressure_kpa"],
                      "steady_s": res["seconds"]})
     sens = pd.DataFrame(sens)
-    RESULTS.mkdir(exist_ok=True)
-    pd.concat([table.assign(table="comparison"), sieves.assign(table="sieves"), sens.assign(table="sensitivity")]
-              ).to_csv(RESULTS / "twin_molycop.csv", index=False)
-    lines = ["# Twin on the Moly-Cop Tools BallSim_Direct base case", "",
-             "`python benchmarks/twin_molycop.py`: scenarios/molycop_ballsim.toml (published inputs) against "
-             "scenarios/data/molycop_ballsim_published.toml (published results). Goals (issue 13): overflow "
-             "P80, circulating load and net specific energy within 5 %, overflow % passing within 2 points on "
-             "every sieve. The net specific energy is met by an input (the published net power); the shipped "
-             "scene's classifier is given by its published d50c, sharpness and bypasses (the sensitivity's last "
-             "two rows run Plitt's equations instead: calibrated on the published cyclone feed and performance, "
-             "or uncalibrated). Time: build + steady state (2-core shared machine).", "",
-             "## Published against twin", "", table.to_markdown(index=False, floatfmt=".4g"), "",
-             "## Overflow % passing", "", sieves.to_markdown(index=False, floatfmt=".4g"), "",
-             "## Sensitivity", "", sens.to_markdown(index=False, floatfmt=".4g"), ""]
-    (RESULTS / "twin_molycop.md").write_text("\n".join(lines), encoding="utf-8")
-    print("\n".join(lines))
+    write_report("twin_molycop", "Twin on the Moly-Cop Tools BallSim_Direct base case",
+                 "`python benchmarks/twin_molycop.py`: scenarios/molycop_ballsim.toml (published inputs) against "
+                 "scenarios/data/molycop_ballsim_published.toml (published results). Goals (issue 13): overflow "
+                 "P80, circulating load and net specific energy within 5 %, overflow % passing within 2 points on "
+                 "every sieve. The net specific energy is met by an input (the published net power); the shipped "
+                 "scene's classifier is given by its published d50c, sharpness and bypasses (the sensitivity's last "
+                 "two rows run Plitt's equations instead: calibrated on the published cyclone feed and performance, "
+                 "or uncalibrated). Time: build + steady state (2-core shared machine).",
+                 {"comparison": ("Published against twin", table), "sieves": ("Overflow % passing", sieves),
+                  "sensitivity": ("Sensitivity", sens)})
 
 
 if __name__ == "__main__":

@@ -33,7 +33,7 @@ from scipy.optimize import brentq
 
 from scenarios.scene import read_toml
 from twin.effects.classification import KPA_PER_PSI, corrected_partition
-from twin_molycop import steady_of  # this folder is on the path of a script run from it
+from twin_molycop import steady_of, write_report  # this folder is on the path of a script run from it
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenarios" / "molycop_ballsim_425.toml"
@@ -209,23 +209,17 @@ def main(argv=None) -> None:
                           "cl_error_pct": 100 * (r["ss"].outputs["circulating_load_frac"]
                                                  / pub["circulating_load_frac"] - 1),
                           "steady_s": r["seconds"]} for name, r in results.items()])
-    RESULTS.mkdir(exist_ok=True)
-    pd.concat([check.assign(table="classifier"), mill.assign(table="mill"), table.assign(table="comparison"),
-               sens.assign(table="sensitivity")]).to_csv(RESULTS / "twin_molycop_425.csv", index=False)
-    lines = ["# Twin on a second Moly-Cop Tools BallSim_Direct base case (v2.0, 425 t/h)", "",
-             "`python benchmarks/twin_molycop_425.py`: scenarios/molycop_ballsim_425.toml (published inputs) "
-             "against scenarios/data/molycop_ballsim_425_published.toml (published results). The copy prints "
-             "the overflow P80 and the circulating load, not the overflow screen analysis, and Moly-Cop's "
-             "classifier constants, not the cut or the sharpness: the scene's d50c and m are Moly-Cop's own "
-             "correlations at the published cyclone feed, checked first against every classifier output the two "
-             "cases print. The net specific energy is met by an input (the published net power). "
-             "Time: build + steady state (2-core shared machine).", "",
-             "## Moly-Cop's classifier correlations", "", check.to_markdown(index=False, floatfmt=".4g"), "",
-             "## Moly-Cop's mill and the mill discharge", "", mill.to_markdown(index=False, floatfmt=".4g"), "",
-             "## Published against twin", "", table.to_markdown(index=False, floatfmt=".4g"), "",
-             "## Sensitivity", "", sens.to_markdown(index=False, floatfmt=".4g"), ""]
-    (RESULTS / "twin_molycop_425.md").write_text("\n".join(lines), encoding="utf-8")
-    print("\n".join(lines))
+    write_report("twin_molycop_425", "Twin on a second Moly-Cop Tools BallSim_Direct base case (v2.0, 425 t/h)",
+                 "`python benchmarks/twin_molycop_425.py`: scenarios/molycop_ballsim_425.toml (published inputs) "
+                 "against scenarios/data/molycop_ballsim_425_published.toml (published results). The copy prints "
+                 "the overflow P80 and the circulating load, not the overflow screen analysis, and Moly-Cop's "
+                 "classifier constants, not the cut or the sharpness: the scene's d50c and m are Moly-Cop's own "
+                 "correlations at the published cyclone feed, checked first against every classifier output the two "
+                 "cases print. The net specific energy is met by an input (the published net power). "
+                 "Time: build + steady state (2-core shared machine).",
+                 {"classifier": ("Moly-Cop's classifier correlations", check),
+                  "mill": ("Moly-Cop's mill and the mill discharge", mill),
+                  "comparison": ("Published against twin", table), "sensitivity": ("Sensitivity", sens)})
 
 
 if __name__ == "__main__":
