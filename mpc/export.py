@@ -17,7 +17,8 @@ rounding, and the step's status is the Python controller's: ok, a fallback, or t
 
 The caller's headers: ``GT_CONTROLLER_NEW(&status)`` (gt_controller.h) passes the lengths and
 GT_ABI_HASH of the headers the caller was compiled with to the library, which refuses another
-export's (``GT_ABI_SIZES_DIFFER``, ``GT_ABI_LAYOUT_DIFFERS``) rather than read past its buffers, and
+export's (``GT_ABI_SIZES_DIFFER``, ``GT_ABI_LAYOUT_DIFFERS``: another layout, or another sample period
+or preview lead, which time the caller's calls and fill its preview) rather than read past its buffers, and
 refuses its own gt_controller_config.h once edited (``GT_ABI_CONFIG_EDITED``: the header's values
 against ``gt_exported.c``'s, :func:`exported_source`; a bound or a target edited there compiled
 and ran while the QP's data kept the exported ones).
@@ -181,16 +182,20 @@ def plan_passing_function(controller) -> ca.Function:
                        ["x", "u", "d", "wpass"], ["passing"])
 
 
-def abi_layout(controller, estimator) -> dict:
+def abi_layout(controller, estimator, preview_lead_h: float | None) -> dict:
     """What a caller's buffers and their meaning depend on (the lengths, the order of the blend's
     components, the measurements, the inputs, the estimate's states, the preview setting, the API's
-    version): GT_ABI_HASH is a hash of it (:func:`abi_hash`), and the manifest lists it."""
+    version, the sample period that times its calls and spaces the preview's stages, the lead to
+    which it fills the preview): GT_ABI_HASH is a hash of it (:func:`abi_hash`), and the manifest
+    lists it. A caller built for a 6-min export ran a 3-min library with every status OK (each
+    estimate two periods, each move a 3-min one) before the period and the lead were in it."""
     c, s = controller, controller.settings
     return {"api_version": API_VERSION, "nx": c.nx, "nu": c.nu, "ny": len(MEASUREMENTS), "nb": c.nd - 1,
             "n": s.horizon_steps, "nz": int(estimator.z.size), "preview_len": (c.nd - 1) * s.horizon_steps,
             "preview": bool(s.preview), "components": [str(n) for n in c.model.spec.component_names],
             "model_shape": [int(v) for v in c.model.shape], "measurements": list(MEASUREMENTS),
-            "inputs": ["feed_tph", "speed_frac_critical"], "disturbance_model": estimator.disturbance_model}
+            "inputs": ["feed_tph", "speed_frac_critical"], "disturbance_model": estimator.disturbance_model,
+            "dt_h": float(s.dt_h), "preview_lead_h": None if preview_lead_h is None else float(preview_lead_h)}
 
 
 def abi_hash(layout: dict) -> int:
@@ -208,7 +213,7 @@ def _constants(controller, estimator, u0, preview_lead_h, measurement_range, fee
     values). The scalars' order is GT_CONFIG_SCALARS's and gt_exported.c's, the dimensions up to
     GT_RTI_ITERATIONS first."""
     c, s, e = controller, controller.settings, estimator
-    layout = abi_layout(controller, estimator)
+    layout = abi_layout(controller, estimator, preview_lead_h)
     scalars = {"GT_NX": c.nx, "GT_NU": c.nu, "GT_ND": c.nd, "GT_NB": c.nd - 1, "GT_N": s.horizon_steps,
                "GT_NXL": c._nxl, "GT_NUL": c._nul, "GT_NW": c._nw,
                "GT_NP": c.nx + c.nd * s.horizon_steps + c.nu + c._wpass.size, "GT_NPASS": c._wpass.size,
@@ -258,7 +263,7 @@ def config_header(controller, estimator, u0, preview_lead_h: float | None, measu
     """gt_controller_config.h: dimensions, the ABI hash, the preview's lead, scales, bounds, the
     measurements' physical ranges and the initial estimate."""
     sc, ar = _constants(controller, estimator, u0, preview_lead_h, measurement_range, feed_max_tph)
-    layout = abi_layout(controller, estimator)
+    layout = abi_layout(controller, estimator, preview_lead_h)
     names = list(sc)
     dims = names[:names.index("GT_RTI_ITERATIONS") + 1]
     if sc["GT_PREVIEW_LEAD_H"] is None:
@@ -267,8 +272,9 @@ def config_header(controller, estimator, u0, preview_lead_h: float | None, measu
         lead = [f"#define GT_PREVIEW_LEAD_H {sc['GT_PREVIEW_LEAD_H']}"]
     abi = ["/* the layout the caller's buffers follow (gt_controller.h: GT_CONTROLLER_CHECK_ABI): y holds",
            f" * {', '.join(layout['measurements'])}; u {', '.join(layout['inputs'])}; blend and each preview stage",
-           f" * the fractions of {', '.join(layout['components'])}, in this order; GT_ABI_HASH hashes it all",
-           " * (mpc.export.abi_layout, in the manifest) */",
+           f" * the fractions of {', '.join(layout['components'])}, in this order; GT_ABI_HASH hashes it all with",
+           " * GT_DT_H and GT_PREVIEW_LEAD_H (when to call, what each preview stage holds; mpc.export.abi_layout,",
+           " * in the manifest) */",
            f"#define GT_API_VERSION {sc['GT_API_VERSION']}", f"#define GT_NY {sc['GT_NY']}",
            "#define GT_PREVIEW_LEN (GT_NB * GT_N)", f"#define GT_ABI_HASH {sc['GT_ABI_HASH']}",
            "/* the sample period [h]; the preview's lead [h]: the feed blend is known this far ahead",
@@ -519,7 +525,7 @@ def _export(controller, estimator, u0, out: Path, source: str, preview_lead_h, m
         (partial / "gt_exported.c").write_text(exported_source(*constants))
         (partial / "Makefile").write_text(MAKEFILE)
         files = sorted(p.name for p in partial.iterdir()) + [MANIFEST]
-        s, layout = controller.settings, abi_layout(controller, estimator)
+        s, layout = controller.settings, abi_layout(controller, estimator, preview_lead_h)
         manifest = {"source": source, "casadi": ca.__version__, "files": files,
                     "build_products": list(BUILD_PRODUCTS),
                     "horizon_steps": s.horizon_steps, "dt_h": s.dt_h, "dt_tol_frac": SAMPLE_TIME_TOL,

@@ -123,7 +123,11 @@ enum gt_abi_status {
     GT_ABI_LAYOUT_DIFFERS = 2, /* the lengths agree but GT_ABI_HASH differs: another export's layout
                                  (components in another order or of other names, another
                                  disturbance model or preview setting, another API version): the
-                                 numbers would be read as other quantities. Rebuild as above */
+                                 numbers would be read as other quantities; or another GT_DT_H or
+                                 GT_PREVIEW_LEAD_H: the caller would call at another period (a
+                                 6-min task on a 3-min library: each estimate two periods, each
+                                 move a 3-min one, every status OK) or fill the preview to
+                                 another lead. Rebuild as above */
     GT_ABI_CONFIG_EDITED = 3  /* the library was built with a gt_controller_config.h whose constants
                                  (a bound, rate limit, target, scale, the sample period and its
                                  tolerance, the initial estimate) are not those exported

@@ -95,6 +95,36 @@ def test_a_caller_compiled_with_another_exports_headers_is_refused(built, tmp_pa
         assert named in header
 
 
+@pytest.mark.parametrize("changes", [
+    {"\nsample_period_h = 0.05": "\nsample_period_h = 0.1", "p80_sample_period_h = 0.05": "p80_sample_period_h = 0.1",
+     "rk4_substeps = 3": "rk4_substeps = 6"},
+    {"preview_lead_h = 0.5": "preview_lead_h = 0.25"}], ids=["sample_period", "preview_lead"])
+def test_a_caller_built_for_another_period_or_lead_is_refused(built, tmp_path, changes):
+    """A caller compiled with the headers of an export at a 6-min sample period (its task every GT_DT_H =
+    0.1 h) passed the check against the library of the 3-min export of the same scene (GT_ABI_OK): each
+    estimate was taken as two periods and returned OK, each step OK with a 3-min move. A caller filling its
+    preview to another GT_PREVIEW_LEAD_H passed the same way. Now GT_ABI_HASH covers both: the library
+    refuses such a caller (GT_ABI_LAYOUT_DIFFERS, 2), NULL."""
+    out, config = built
+    cc = c_tools()
+    text = REFERENCE.read_text()
+    for old, new in changes.items():
+        assert text.count(old) == 1, old
+        text = text.replace(old, new)
+    scene = tmp_path / "variant.toml"
+    scene.write_text(text)
+    other = tmp_path / "other"
+    assert main(["export-controller", str(scene), "--out", str(other)]) == 0
+    other_cfg = dict(re.findall(r"#define (GT_\w+) (\S+)\n", (other / "gt_controller_config.h").read_text()))
+    sizes = ("GT_NX", "GT_NU", "GT_NY", "GT_NB", "GT_N", "GT_NZ")
+    assert [other_cfg[k] for k in sizes] == [config[k] for k in sizes]  # the lengths pass: only the hash can tell
+    assert any(other_cfg[k] != config[k] for k in ("GT_DT_H", "GT_PREVIEW_LEAD_H"))
+    exe = _compile(cc, ABI_DRIVER, other, other, [out / "libgtcontroller.a"])
+    check, new_status, is_null, _ = subprocess.run([str(exe)], capture_output=True, text=True,
+                                                   check=True).stdout.split()
+    assert (check, new_status, is_null) == ("2", "2", "1")
+
+
 def test_a_caller_of_the_previous_api_is_refused(built, tmp_path):
     """API 4 gave gt_controller_estimate the sample's time t_h before y: a caller built with the headers of
     an export of API 3 would pass y where t_h is. Its GT_ABI_HASH, the same layout at API 3, is refused
