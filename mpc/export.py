@@ -8,8 +8,9 @@ What is written (``export_controller``): CasADi's generated C of the estimator's
 hand-written C of mpc/c (the Goldfarb-Idnani QP solver, the condensing loop, the RTI step, the controller API, a
 replay harness and an allocation counter); ``gt_controller_config.h`` (dimensions, scales, bounds,
 passing weights, the initial estimate); a Makefile; and ``grindtwin_export.json`` listing every
-file written with its sha256, the step's and the estimate's statuses (:data:`STEP_STATUS`,
-:data:`ESTIMATE_STATUS`), the preview's lead (``preview_lead_h``), the layout the caller's buffers
+file written with its sha256, what it was built from (``built_from``: the scene file's path and sha256, the
+calibration, the controller model's effects and grid, the versions), the step's and the estimate's statuses
+(:data:`STEP_STATUS`, :data:`ESTIMATE_STATUS`), the preview's lead (``preview_lead_h``), the layout the caller's buffers
 follow and its hash (``abi``: :func:`abi_layout`, GT_ABI_HASH) and any notes. The Python controller with
 ``qpsol = "condensed"`` runs the same generated code and the same solver, so the moves agree to
 rounding, and the step's status is the Python controller's: ok, a fallback, or target_unreachable
@@ -462,7 +463,8 @@ def export_lock(out):
 
 
 def export_controller(controller, estimator, u0, out_dir, source: str = "",
-                      preview_lead_h: float | None = None, *, measurement_range, feed_max_tph: float) -> list[str]:
+                      preview_lead_h: float | None = None, *, measurement_range, feed_max_tph: float,
+                      built_from: dict | None = None) -> list[str]:
     """Write the controller and its estimator as C into ``out_dir`` (module docstring); returns
     the names of the files written. ``u0``: the input applied before the first step.
     ``preview_lead_h``: how far ahead [h] the loop knows the feed blend (the scene's
@@ -477,7 +479,9 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "",
     refuses the input (a feed in kg/h or t/d emptied the estimated mill).
     A speed bound beyond what the twin's models describe (:func:`mpc.nmpc.speed_max_note`) is
     exported with a note: warned (:class:`mpc.errors.OutsideModelsWarning`) and in the manifest's
-    ``notes``. The export holds :func:`export_lock` on ``out_dir`` throughout."""
+    ``notes``. ``built_from``: what the controller was built from (JSON-able; a scene's:
+    :func:`scenarios.run.closed_loop.export_provenance`), in the manifest as is.
+    The export holds :func:`export_lock` on ``out_dir`` throughout."""
     _check(controller, estimator)
     if preview_lead_h is not None and not (isinstance(preview_lead_h, (int, float)) and math.isfinite(preview_lead_h)
                                            and preview_lead_h >= 0):
@@ -491,7 +495,7 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "",
     out = Path(out_dir)
     with export_lock(out):
         files = _export(controller, estimator, u0, out, source, preview_lead_h, measurement_range, feed_max_tph,
-                        notes)
+                        notes, built_from)
     for note in notes:
         warnings.warn(note, OutsideModelsWarning, stacklevel=2)
     return files
@@ -512,7 +516,7 @@ def _measurement_range(value) -> np.ndarray:
 
 
 def _export(controller, estimator, u0, out: Path, source: str, preview_lead_h, measurement_range, feed_max_tph,
-            notes) -> list[str]:
+            notes, built_from) -> list[str]:
     check_out_dir(out)  # again, under the lock
     partial = new_folder_beside(out)
     try:
@@ -526,7 +530,7 @@ def _export(controller, estimator, u0, out: Path, source: str, preview_lead_h, m
         (partial / "Makefile").write_text(MAKEFILE)
         files = sorted(p.name for p in partial.iterdir()) + [MANIFEST]
         s, layout = controller.settings, abi_layout(controller, estimator, preview_lead_h)
-        manifest = {"source": source, "casadi": ca.__version__, "files": files,
+        manifest = {"source": source, "built_from": built_from, "casadi": ca.__version__, "files": files,
                     "build_products": list(BUILD_PRODUCTS),
                     "horizon_steps": s.horizon_steps, "dt_h": s.dt_h, "dt_tol_frac": SAMPLE_TIME_TOL,
                     "n_x": controller.nx,

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -18,7 +19,7 @@ from scenarios.run.feed import component_blend
 from scenarios.run.streams import Samples, run_size_data
 from scenarios.scene import Scene
 from scenarios.scene.ranges import scene_nominal_feed_tph
-from twin import EFFECTS, SolverError
+from twin import EFFECTS, SolverError, file_sha256
 
 #: Scalar outputs of the plant's model recorded beside the loop's columns when the model has
 #: them (the hydrocyclone's cut size and circulating load).
@@ -331,9 +332,30 @@ def export_scene_controller(scene: Scene, out_dir, source: str = "") -> list[str
         return export_controller(controller, estimator, [start.feed_tph, scene.feed.speed_frac_critical],
                                  out_dir, source=source, preview_lead_h=c.preview_lead_h,
                                  measurement_range=measurement_range(scene),
-                                 feed_max_tph=physical_limits("feed_tph", scene)[1])
+                                 feed_max_tph=physical_limits("feed_tph", scene)[1],
+                                 built_from=export_provenance(scene, models))
     except MpcInputError as exc:
         raise SceneError(str(exc)) from None
+
+
+def export_provenance(scene: Scene, models) -> dict:
+    """What an export was built from, as a run's summary.json records it (the manifest's ``built_from``): the
+    scene file (resolved path, sha256) and the scene as loaded, the calibration, the mill preset file, the
+    controller model's effects and size grid, the versions. The manifest said only the scene's path as typed
+    (``scenarios/x.toml``): an export could not be told from one of an edited scene or another calibration."""
+    from scenarios.run.summary import preset_file_identity, versions
+
+    path = scene.source_path
+    grid = models.control.model.spec.grid
+    known = path is not None and Path(path).is_file()
+    return {"scene": {"path": str(Path(path).resolve()), "sha256": file_sha256(path)} if known else None,
+            "scene_as_loaded": scene.model_dump(mode="json", exclude_none=True),
+            "calibration": models.calibration.identity() if models.calibration is not None else None,
+            "mill_preset_file": preset_file_identity(scene),
+            "controller_effects": list(models.control.model.effect_names),
+            "controller_size_classes": {"top_um": float(grid.upper_um[0]), "ratio": float(grid.ratio),
+                                        "count": int(len(grid.upper_um))},
+            "versions": versions()}
 
 
 def run_closed(scene: Scene, models, feed: pd.DataFrame, progress: bool):

@@ -249,6 +249,28 @@ def test_the_status_tables_of_the_header_and_the_manifest_agree(built):
         assert manifest[key] == {str(k): v for k, v in table.items()}
 
 
+def test_the_manifest_says_what_the_export_was_built_from(built):
+    """The manifest's only trace of its origin was ``source``, the scene's path as typed (relative to
+    wherever the export ran): an export of an edited scene, another calibration or another controller
+    model could not be told from this one. Now ``built_from`` records the scene file (resolved, sha256)
+    and the scene as loaded, the calibration (name, file, sha256), the controller model's effects and size
+    grid, and the versions, as a run's summary.json does."""
+    from scenarios.scene import load_scene
+    from twin import file_sha256
+
+    out, _, ctrl, _ = built
+    made = json.loads((out / "grindtwin_export.json").read_text())["built_from"]
+    assert made["scene"] == {"path": str(REFERENCE.resolve()), "sha256": file_sha256(REFERENCE)}
+    scene = load_scene(REFERENCE)
+    assert made["scene_as_loaded"]["controller"]["target_p80_um"] == scene.controller.target_p80_um
+    cal = made["calibration"]
+    cal_path = Path(cal["path"]) if Path(cal["path"]).is_absolute() else REFERENCE.parents[1] / cal["path"]
+    assert cal["sha256"] == file_sha256(cal_path)
+    assert sorted(made["controller_effects"]) == sorted(ctrl.model.effect_names) == sorted(scene.effects)
+    assert made["controller_size_classes"] == {"top_um": 6700.0, "ratio": 2.5, "count": 7}  # the scene's [mill]
+    assert made["versions"]["grindtwin"] and made["versions"]["casadi"]
+
+
 def test_an_edited_config_header_is_rebuilt_and_make_clean_leaves_a_users_objects(built, tmp_path):
     """The Makefile's objects did not depend on the headers: a user who edited gt_controller_config.h
     and ran make got the old objects, silently. Now every object depends on every header (and the
