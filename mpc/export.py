@@ -121,6 +121,12 @@ MAKEFILE = """\
 # the allocation counter gt_malloc_count.so (LD_PRELOAD=./gt_malloc_count.so ./gt_replay < log).
 CC ?= cc
 CFLAGS ?= -O2
+# -ffast-math, -Ofast and -ffinite-math-only drop the NaN checks every refusal rests on (gt_qp.h refuses
+# them too): refused here before anything is built, so no object of theirs is left for a later `make`
+ifneq ($(filter -Ofast -ffast-math -ffinite-math-only,$(CFLAGS)),)
+$(error CFLAGS $(CFLAGS): the controller checks for NaN and infinity; build without -ffast-math, -Ofast or \
+-ffinite-math-only)
+endif
 OBJS = gt_rti_data.o gt_ekf_data.o gt_exported.o gt_qp.o gt_cond.o gt_rti.o gt_controller.o
 # every object depends on every header: an edited gt_controller_config.h rebuilds everything (and the
 # library then refuses it: GT_ABI_CONFIG_EDITED, the header's values not those exported)

@@ -10,6 +10,14 @@
 #ifndef GT_QP_H
 #define GT_QP_H
 
+/* Every refusal of the controller (a NaN or infinite input, measurement or QP data: gt_qp.c,
+ * gt_controller.c, which include this) rests on isfinite and isnan, which -ffast-math, -Ofast and
+ * -ffinite-math-only let the compiler drop: built -Ofast, a NaN feed was estimated and stepped on
+ * with status OK and both inputs at their upper bounds. Such a build is refused here. */
+#if defined(__FAST_MATH__) || (defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__)
+#error "grindtwin's controller checks for NaN and infinity: build it without -ffast-math, -Ofast or -ffinite-math-only"
+#endif
+
 #define GT_QP_INF 1e20
 
 enum gt_qp_status {

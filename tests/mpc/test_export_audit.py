@@ -293,6 +293,28 @@ def test_an_edited_config_header_is_rebuilt_and_make_clean_leaves_a_users_object
     assert (out / "dcs_task.o").read_text() == "a user's object"
 
 
+def test_a_build_that_drops_the_nan_checks_is_refused(built, tmp_path):
+    """Built with CFLAGS=-Ofast (or -ffast-math, -ffinite-math-only: the compiler may take no value for NaN),
+    the library estimated with a NaN feed (status implausible, not bad_input) and stepped on a NaN applied
+    feed with status OK and both inputs at their upper bounds (45 t/h, 0.85). Now the Makefile refuses those
+    flags before it builds anything (no object of theirs left for a later `make`), and gt_qp.h refuses them
+    in any other build of gt_controller.c or gt_qp.c (#error)."""
+    out = built[0]
+    cc = c_tools()
+    src = tmp_path / "src"
+    src.mkdir()
+    for name in json.loads((out / "grindtwin_export.json").read_text())["files"]:
+        shutil.copyfile(out / name, src / name)
+    for flags in ("-Ofast", "-O2 -ffast-math", "-O1 -ffinite-math-only"):
+        run = subprocess.run(["make", "-C", str(src), f"CFLAGS={flags}", f"CC={cc}"], capture_output=True, text=True)
+        assert run.returncode != 0 and "NaN" in run.stderr, flags
+        assert not list(src.glob("*.o")), flags
+        for name in ("gt_controller.c", "gt_qp.c"):
+            run = subprocess.run([cc, *flags.split(), f"-I{src}", "-c", str(src / name), "-o", str(tmp_path / "x.o")],
+                                 capture_output=True, text=True)
+            assert run.returncode != 0 and "NaN" in run.stderr, (flags, name)
+
+
 def test_a_re_export_keeps_a_users_edits_and_folders(tmp_path, capsys):
     """A re-export replaced the previous one whole: a tuned gt_controller_config.h was lost, and a
     folder of the user's under a name the export lists (gt_replay) was deleted with its files. Both
