@@ -28,10 +28,10 @@ Memory: ``gt_controller_new`` makes two allocations (the controller with the EKF
 RTI's block: QP data, solver work); estimate and step allocate nothing (counted by
 ``gt_malloc_count.so`` under ``LD_PRELOAD``).
 
-The folder: created if absent; an existing folder is used only if it holds a previous export
-and nothing else (its manifest names every file it wrote and every file its Makefile builds),
+The folder: created if absent; an existing folder is used only if it is empty or holds a previous
+export and nothing else (its manifest names every file it wrote and every file its Makefile builds),
 with none of its sources changed since (their sha256 in the manifest: an edited file is the
-user's work), which is then replaced; anything else (the current folder or a parent of it
+user's work), which is then replaced (its permissions kept); anything else (the current folder or a parent of it
 too) is refused, nothing written. Files are written into a new hidden folder beside it
 (``.DIR.<random>.partial``, :func:`twin.atomic.new_folder_beside`) and renamed when complete;
 the previous export is moved aside first and removed by the names its manifest lists. One export
@@ -48,6 +48,7 @@ import json
 import math
 import os
 import shutil
+import stat
 import threading
 import warnings
 from pathlib import Path
@@ -380,13 +381,16 @@ def check_out_dir(out) -> None:
 
 
 def _replace(out: Path, partial: Path) -> None:
-    """Put ``partial`` in place of ``out`` (:func:`twin.atomic.replace_folder`): a previous export there
-    is moved aside first and removed only by the names its manifest lists; one holding anything else
-    is left, hidden beside DIR, rather than deleted."""
+    """Put ``partial`` in place of ``out`` (:func:`twin.atomic.replace_folder`) with ``out``'s permissions:
+    an empty folder or a previous export there is moved aside first and removed only by the names its
+    manifest lists; one holding anything else is left, hidden beside DIR, rather than deleted."""
     names = []
     if out.exists():
-        data = _previous_export(out)  # again, just before: nothing of the user's arrived meanwhile
-        names = set(data.get("files", [])) | set(data.get("build_products", []))
+        # an empty folder (the README's "DIR new, empty or a previous export") was refused here as "not empty"
+        if any(out.iterdir()):
+            data = _previous_export(out)  # again, just before: nothing of the user's arrived meanwhile
+            names = set(data.get("files", [])) | set(data.get("build_products", []))
+        os.chmod(partial, stat.S_IMODE(out.stat().st_mode))  # the folder's permissions stay the user's
     replace_folder(out, partial, names)
 
 

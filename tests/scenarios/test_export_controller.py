@@ -6,6 +6,7 @@ nothing written)."""
 import json
 import os
 import shutil
+import stat
 import subprocess
 from pathlib import Path
 
@@ -185,6 +186,19 @@ def test_export_refuses_a_foreign_folder_and_writes_nothing(tmp_path, capsys):
     assert "not empty" in capsys.readouterr().err
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
     assert not (tmp_path / "theirs.partial").exists()
+
+
+def test_export_into_an_empty_folder_keeps_its_permissions(tmp_path, capsys):
+    """An existing empty folder, which the README and --help allow ("DIR new, empty or a previous export"),
+    was refused as "not empty and holds no grindtwin_export.json" (exit 2). Now it is filled, its permissions
+    (0750 here) kept, and nothing is left beside it."""
+    out = tmp_path / "ctl"
+    out.mkdir()
+    out.chmod(0o750)
+    assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 0, capsys.readouterr().err
+    assert (out / "grindtwin_export.json").is_file() and (out / "gt_controller.h").is_file()
+    assert stat.S_IMODE(out.stat().st_mode) == 0o750
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ctl"]
 
 
 def test_export_refuses_a_link_a_file_in_the_path_and_a_foreign_manifest(tmp_path, capsys):
