@@ -1,5 +1,6 @@
 """Plant time on the wall clock: ``speedup`` plant seconds pass per wall-clock second (1 on a
-real plant; more on a virtual plant run faster than real time)."""
+real plant; more on a virtual plant run faster than real time). Time stamps are the wall clock's
+(UTC, which NTP or an operator may step); elapsed time is the monotonic clock's, which no one sets."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import asyncio
 import logging
 import math
 import signal
+import time
 from datetime import datetime, timedelta, timezone
 
 
@@ -20,6 +22,14 @@ class Clock:
 
     def now(self) -> datetime:
         return datetime.now(timezone.utc)
+
+    def monotonic(self) -> float:
+        """Seconds on a clock that is never set (a wall-clock step does not move it); any origin."""
+        return time.monotonic()
+
+    def hours_since(self, monotonic_s: float) -> float:
+        """Plant hours since :meth:`monotonic` read ``monotonic_s``."""
+        return (self.monotonic() - monotonic_s) * self.speedup / 3600.0
 
     def hours_between(self, start: datetime, end: datetime) -> float:
         """Plant hours from ``start`` to ``end`` (both aware datetimes)."""
@@ -36,11 +46,20 @@ class ManualClock(Clock):
     def __init__(self, speedup: float = 1.0, start: datetime | None = None):
         super().__init__(speedup)
         self._now = start or datetime.now(timezone.utc)
+        self._monotonic = 0.0
 
     def now(self) -> datetime:
         return self._now
 
+    def monotonic(self) -> float:
+        return self._monotonic
+
     def advance(self, plant_h: float) -> None:
+        self._now += timedelta(seconds=self.wall_seconds(plant_h))
+        self._monotonic += self.wall_seconds(plant_h)
+
+    def step_wall(self, plant_h: float) -> None:
+        """Set the wall clock on (or back, ``plant_h`` < 0) alone, as NTP or an operator does: no time passes."""
         self._now += timedelta(seconds=self.wall_seconds(plant_h))
 
 

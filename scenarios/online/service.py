@@ -14,7 +14,9 @@ value of that measurement (the timer stands in when none comes):
 5. write the setpoints (limited again at the writer, :mod:`scenarios.online.writer`), the
    heartbeat and the status in one request; then the soft sensor's predictions.
 Each cycle is a row of the audit log (:mod:`scenarios.online.audit`) with its mode and reason;
-times in the log and the audit (``service_time_h``) are plant hours since the service started.
+times in the log and the audit (``service_time_h``) are plant hours since the service started, on
+the monotonic clock: a step of the wall clock (NTP, an operator) is logged and moves neither them
+nor the estimator (readings' ages are judged on the wall clock, their source timestamps' own).
 
 Modes (each change logged):
 - ``warmup``: for ``warmup_h`` after the estimator starts it estimates and writes only the
@@ -142,6 +144,8 @@ class Service(Stoppable):
         self._wake: asyncio.Event | None = None
         self._rng = np.random.default_rng(self.scene.scene.seed)
         self.start = self.clock.now()
+        self.start_monotonic = self.clock.monotonic()
+        self.wall_offset_h = 0.0  # how far the wall clock has been stepped since the start [plant h]
         self.k = 0
         self.t_model_h: float | None = None  # the service time the estimator has been advanced to [h]
         self.skipped_cycles = 0
@@ -238,7 +242,8 @@ class Service(Stoppable):
         numerical failures are handled here, logged and audited."""
         t0, cpu0 = time.perf_counter(), time.process_time()
         now = self.clock.now()
-        t_h = self.clock.hours_between(self.start, now)
+        t_h = self.clock.hours_since(self.start_monotonic)  # the wall clock stepped back 1 h skipped every
+        self._wall_step(now, t_h)  # triggered cycle for an hour and forward 0.5 h ran the EKF 10 samples blind
         fresh, self.fresh_sample = self.fresh_sample, False
         steps = self._model_steps(t_h, started_by, fresh)
         if steps < 1:
@@ -263,6 +268,15 @@ class Service(Stoppable):
         self.audit.record(row)
         self.k += 1
         return row
+
+    def _wall_step(self, now, t_h: float) -> None:
+        """Log a step of the wall clock of more than half a sample since the last cycle."""
+        offset = self.clock.hours_between(self.start, now) - t_h
+        if abs(offset - self.wall_offset_h) > 0.5 * self.dt_h:
+            log.warning("%.3f h: the wall clock stepped %+.4g plant h (NTP? an operator?); the service's time runs on "
+                        "the monotonic clock, readings' source timestamps are judged on the wall clock",
+                        t_h, offset - self.wall_offset_h)
+            self.wall_offset_h = offset
 
     def _model_steps(self, t_h: float, started_by: str, fresh: bool) -> int:
         """The whole samples the estimator advances this cycle (0: the cycle is skipped), and the model clock
@@ -672,8 +686,8 @@ class Service(Stoppable):
         if self.conn is not None:
             await self.conn.close()
             self.conn = None
-        self.audit.record({"wall_time_utc": self.clock.now(), "service_time_h": self.clock.hours_between(
-            self.start, self.clock.now()), "cycle": self.k, "mode": "stopped", "written": False,
+        self.audit.record({"wall_time_utc": self.clock.now(), "service_time_h": self.clock.hours_since(
+            self.start_monotonic), "cycle": self.k, "mode": "stopped", "written": False,
             "reason": f"stopped ({reason}): {left}"})
         self.audit.flush()
         log.info("stopped (%s): %s", reason, left)

@@ -1,0 +1,36 @@
+"""The served controller's time: a step of the wall clock (NTP, an operator) moves neither the service's time
+nor its estimator; after a gap of samples the controller's previous plan is moved on by the samples missed."""
+
+import asyncio
+
+import pytest
+
+from .conftest import LockStep
+
+
+def test_a_wall_clock_step_moves_neither_the_service_time_nor_the_estimator(small_scene, small_tags, small_parts,
+                                                                            url, tmp_path, caplog):
+    """Stepped back 1 h, every cycle was skipped for an hour (nothing written, no heartbeat: the plant's watchdog
+    shed the service), said as 'the trigger fires faster than the samples'; stepped on 0.5 h, the estimator
+    predicted 10 samples blind in one cycle of one sample."""
+    dt = small_scene.scene.sample_period_h
+    ls = LockStep(small_scene, small_tags, small_parts, url, tmp_path / "audit")
+
+    async def run():
+        await ls.start()
+        await ls.step(12)
+        rows = []
+        for step_h in (-1.0, 0.5):
+            ls.clock.step_wall(step_h)
+            model_h = ls.service.t_model_h
+            rows += [await ls.step() for _ in range(3)]
+            assert ls.service.t_model_h == pytest.approx(model_h + 3 * dt)
+        await ls.stop()
+        return rows
+
+    rows = asyncio.run(run())
+    assert not any(r.get("skipped") for r in rows)
+    assert all(r["mode"] == "auto" and r["written"] for r in rows)
+    assert [r["service_time_h"] for r in rows] == pytest.approx([(13 + k) * dt for k in range(6)])
+    steps = [m for m in caplog.messages if "the wall clock stepped" in m]
+    assert len(steps) == 2 and "-1 plant h" in steps[0] and "+0.5 plant h" in steps[1]
