@@ -322,7 +322,7 @@ class Service(Stoppable):
         self._predict_blind(steps, row)
         reason = f"no connection: setpoints left at {self._last_written_text()}"
         self._set_mode("disconnected", reason)
-        row.update(mode="disconnected", written=False, reason=reason)
+        row.update(mode="disconnected", reason=self._write_fate(row, reason))
 
     def _no_answer(self, steps: int, row: dict) -> None:
         """A request timed out: this cycle holds (a write in flight may or may not have landed)."""
@@ -331,7 +331,18 @@ class Service(Stoppable):
                   f"({self.timeouts} of {LOST_AFTER_TIMEOUTS} before the connection counts as lost)")
         log.warning("%s", reason)
         self._set_mode("hold", reason)
-        row.update(mode="hold", written=False, reason=reason)
+        row.update(mode="hold", reason=self._write_fate(row, reason))
+
+    @staticmethod
+    def _write_fate(row: dict, reason: str) -> str:
+        """``reason`` after what became of this cycle's setpoint write before the request failed: a loss after the
+        write (the soft sensor's) made the row read unwritten, while the plant had the move and the log named it."""
+        if any(row.get(f"{n}_written") for n in INPUTS):
+            return f"{row['mode']}: setpoints written ({row['reason'] or 'no note'}), then {reason}"
+        if any(math.isfinite(row.get(k, math.nan)) for k in ("feed_sp_tph", "speed_sp_frac_critical")):
+            return (f"{reason}; a setpoint write (feed {row['feed_sp_tph']:.4g} t/h, speed "
+                    f"{row['speed_sp_frac_critical']:.4g}) was in flight: the plant may have it")
+        return reason
 
     async def _connected_cycle(self, now, t_h: float, steps: int, row: dict, t0: float, cpu0: float) -> None:
         readings = await self.conn.read()
@@ -575,6 +586,7 @@ class Service(Stoppable):
         items["heartbeat"] = (self.heartbeat, ua.StatusCodes.Good)
         if self.tags.status is not None:
             items["status"] = ((f"{mode}: {reason}" if reason else mode)[:STATUS_MAX_CHARS], ua.StatusCodes.Good)
+        row["feed_sp_tph"], row["speed_sp_frac_critical"] = (values.get(n, math.nan) for n in INPUTS)
         t1, c1 = time.perf_counter(), time.process_time()
         results = await self.conn.write(items, self.clock.now())
         row["write_s"], row["write_cpu_s"] = time.perf_counter() - t1, time.process_time() - c1
@@ -593,7 +605,6 @@ class Service(Stoppable):
         row["written"] = bool(values) and len(accepted) == len(INPUTS)
         if any(r.startswith("setpoints.") for r in refused):  # held from the next cycle on (see _decide)
             self.setpoints_refused = (t_h, {r: c for r, c in refused.items() if r.startswith("setpoints.")})
-        row["feed_sp_tph"], row["speed_sp_frac_critical"] = (values.get(n, math.nan) for n in INPUTS)
 
     async def _soft_sensor(self, u_act, row: dict) -> None:
         """Publish the soft sensor's predictions for the ore on the belt at the actual inputs."""

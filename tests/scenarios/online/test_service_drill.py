@@ -379,3 +379,39 @@ def test_after_a_reconnection_the_cycles_follow_the_restarted_servers_samples(sm
     assert len(said) == 1 and f"come {shift - round(shift):+.2f} of a sample off" in said[0], said
     reconnected = max(i for i, m in enumerate(messages) if m.startswith("connected to"))
     assert not [m for m in messages[reconnected:] if "the trigger fires faster" in m]
+
+
+@pytest.mark.parametrize("fails", ["after", "during"])
+def test_a_connection_lost_around_the_setpoint_write_is_audited_as_it_happened(small_scene, small_tags, small_parts,
+                                                                                tmp_path, fails):
+    """Lost after the setpoint write (at the soft sensor's), the row read written False and disconnected while the
+    plant had the move (feed_tph_written True, and the log's 'setpoints left at' named it); lost during it, the row
+    did not say which move may have landed."""
+    from .conftest import LockStep, free_port
+
+    ls = LockStep(small_scene, small_tags, small_parts, f"opc.tcp://127.0.0.1:{free_port()}", tmp_path / "audit")
+
+    async def run():
+        await ls.start()
+        await ls.step(10)
+        conn, write = ls.service.conn, ls.service.conn.write
+
+        async def cut(items, t):
+            if any(k.startswith("soft_sensor." if fails == "after" else "setpoints.") for k in items):
+                raise ConnectionError("connection reset by peer")
+            return await write(items, t)
+        conn.write = cut
+        row = await ls.step()
+        await ls.stop()
+        return row
+    row = asyncio.run(run())
+    assert row["mode"] == "disconnected"
+    if fails == "after":
+        assert row["written"] and row["feed_tph_written"] and row["speed_frac_critical_written"]
+        assert ls.service.u_written[0] == row["feed_sp_tph"]
+        assert row["reason"].startswith("auto: setpoints written (")
+        assert f"then no connection: setpoints left at feed {row['feed_sp_tph']:.4g} t/h" in row["reason"]
+    else:
+        assert not row["written"] and "feed_tph_written" not in row
+        assert f"a setpoint write (feed {row['feed_sp_tph']:.4g} t/h" in row["reason"]
+        assert "was in flight: the plant may have it" in row["reason"]
