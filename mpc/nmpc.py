@@ -69,7 +69,8 @@ Solvers (``NmpcSettings.solver``), built once and reused:
 
 Failure handling: if the solver does not converge the controller applies the previous plan
 shifted by one sample (``fallback_used="shifted_plan"``) while the old plan lasts, then holds the
-previous input (``"hold_input"``). If the solve succeeds but the predicted passing fraction at the
+previous input (``"hold_input"``). A caller that missed samples since the last step (a served
+controller after an outage) passes ``samples``: the warm start and the plan move on by that many. If the solve succeeds but the predicted passing fraction at the
 end of the horizon misses 0.80 by more than ``unreachable_tol_frac`` the status says
 ``"target_unreachable"`` (the best plan is still applied).
 """
@@ -670,30 +671,31 @@ class Controller:
                                 f"{np.round(blend.sum(axis=0), 6).tolist()[:3]}..., hardness {hardness.min():g} at least.")
         return d[:, :N]
 
-    def _initial_guess(self, x0s, u_prev):
-        """Primal (and, for IPOPT, dual) start: the previous solution shifted by one sample, its
-        first lifted state replaced by the new measurement; cold: everything at (x0, u_prev)."""
-        N, ns = self.settings.horizon_steps, self._n_slack
+    def _initial_guess(self, x0s, u_prev, samples: int = 1):
+        """Primal (and, for IPOPT, dual) start: the previous solution shifted by ``samples`` samples
+        (its last stage held), its first lifted state replaced by the new measurement; cold: everything
+        at (x0, u_prev)."""
+        N, ns, m = self.settings.horizon_steps, self._n_slack, samples
         first = np.r_[x0s, u_prev, np.zeros(ns)]
         if self.settings.warm_start and self._w_prev is not None:
             old = self._w_prev
             w0 = np.empty(self._nw)
             for k in range(N + 1):
-                w0[self._ix[k]] = old[self._ix[min(k + 1, N)]]
+                w0[self._ix[k]] = old[self._ix[min(k + m, N)]]
             for k in range(N):
-                w0[self._iu[k]] = old[self._iu[min(k + 1, N - 1)]]
+                w0[self._iu[k]] = old[self._iu[min(k + m, N - 1)]]
             w0[self._ix[0]] = first
             lam_g = lam_x = None
             if self._lam_g_prev is not None:
                 lg, lx = self._lam_g_prev, self._lam_x_prev
                 lam_g, lam_x = lg.copy(), lx.copy()
                 for k in range(N - 1):
-                    lam_g[self._ig_gap[k]] = lg[self._ig_gap[k + 1]]
-                for k in range(1, N - 1):  # stages 1..N-2 take the next one's (same size)
-                    lam_g[self._ig_path[k]] = lg[self._ig_path[k + 1]]
+                    lam_g[self._ig_gap[k]] = lg[self._ig_gap[min(k + m, N - 1)]]
+                for k in range(1, N - 1):  # stages 1..N-2 take a later one's (same size)
+                    lam_g[self._ig_path[k]] = lg[self._ig_path[min(k + m, N - 1)]]
                 for k in range(N):
-                    lam_x[self._ix[k]] = lx[self._ix[k + 1]]
-                    lam_x[self._iu[k]] = lx[self._iu[min(k + 1, N - 1)]]
+                    lam_x[self._ix[k]] = lx[self._ix[min(k + m, N)]]
+                    lam_x[self._iu[k]] = lx[self._iu[min(k + m, N - 1)]]
             return w0, lam_g, lam_x
         w0 = np.empty(self._nw)
         for k in range(N + 1):
@@ -706,11 +708,15 @@ class Controller:
     #: make_step takes the estimator's P80 bias (the closed loop passes it)
     accepts_p80_bias = True
 
-    def make_step(self, x_est, d_preview, u_prev, y_meas=None, p80_bias_um: float = 0.0) -> ControllerStepResult:
+    def make_step(self, x_est, d_preview, u_prev, y_meas=None, p80_bias_um: float = 0.0,
+                  samples: int = 1) -> ControllerStepResult:
         """One sample: from the state estimate, the disturbance preview (shape ``(n_d, N)``, or
         ``(n_d,)`` held) and the last applied input to the input to apply now.
         ``p80_bias_um``: the estimated plant-minus-model P80 bias; the model's P80 is held at
         ``target - p80_bias_um`` so that the plant's is at the target (offset-free).
+        ``samples``: samples since the last step (more than 1 after missed cycles): the warm start and
+        the fallback's plan move on by that many (by one, an outage longer than the horizon had a failed
+        step apply a move of the expired plan, where the rule is to hold the input).
         ``y_meas`` is accepted for a common closed-loop verb and not used."""
         s = self.settings
         nx, nu = self.nx, self.nu
@@ -720,6 +726,9 @@ class Controller:
         u_prev = np.asarray(u_prev, float).reshape(-1)
         if u_prev.size != nu or not np.all(np.isfinite(u_prev)):
             raise MpcInputError(f"The 'u_prev' parameter must be {nu} finite values. Got {u_prev!r}.")
+        if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 1:
+            raise MpcInputError(f"The 'samples' parameter must be an int >= 1 (samples since the last step). "
+                                f"Got {samples!r}.")
         D = self._d_traj(d_preview)
         x0s = x / self.x_scale
         lo, hi = np.array([s.feed_tph_min, s.speed_min]), np.array([s.feed_tph_max, s.speed_max])
@@ -728,7 +737,7 @@ class Controller:
             note = (f"input_outside_bounds: applied {u_prev.tolist()} outside [{lo.tolist()}, {hi.tolist()}]; "
                     "planned from its projection (the first move jumps into the bounds); ")
             u_prev = np.clip(u_prev, lo, hi)  # would be infeasible on every sample
-        w0, lam_g0, lam_x0 = self._initial_guess(x0s, u_prev)
+        w0, lam_g0, lam_x0 = self._initial_guess(x0s, u_prev, int(samples))
         if not math.isfinite(p80_bias_um) or p80_bias_um >= s.target_p80_um:
             raise MpcInputError(f"The 'p80_bias_um' parameter must be finite and below the target "
                                 f"{s.target_p80_um} um. Got {p80_bias_um!r}.")
@@ -756,7 +765,7 @@ class Controller:
         if outside:
             status = note + status
         if not ok:
-            return self._fallback(status, iters, dt_solve, u_prev)
+            return self._fallback(status, iters, dt_solve, u_prev, int(samples))
         self._w_prev = wopt
         self._lam_g_prev = np.asarray(sol["lam_g"], float).ravel()
         self._lam_x_prev = np.asarray(sol["lam_x"], float).ravel()
@@ -793,13 +802,13 @@ class Controller:
         return {"passing_end": pas, "passing_next": pas1, "p80_end_um": p80_end,
                 "load_end_frac": load, "specific_energy_end_kwh_t": se, "power_end_kw": pw}
 
-    def _fallback(self, status, iters, dt_solve, u_prev) -> ControllerStepResult:
+    def _fallback(self, status, iters, dt_solve, u_prev, samples: int = 1) -> ControllerStepResult:
         s = self.settings
         self._w_prev = None  # cold start after a failure (the old iterate may be the cause)
         self._lam_g_prev = None
         self._lam_x_prev = None
-        if self._plan_prev is not None and self._plan_age + 1 < s.horizon_steps:
-            self._plan_age += 1
+        if self._plan_prev is not None and self._plan_age + samples < s.horizon_steps:
+            self._plan_age += samples
             plan = np.vstack([self._plan_prev[self._plan_age:],
                               np.repeat(self._plan_prev[-1:], self._plan_age, axis=0)])
             # the shifted plan was feasible for the old u_prev; keep the rate limit for this one

@@ -149,6 +149,7 @@ class Service(Stoppable):
         self.k = 0
         self.t_model_h: float | None = None  # the service time the estimator has been advanced to [h]
         self.skipped_cycles = 0
+        self.samples_unsolved = 0  # samples since the controller's last step (it plans nothing while disconnected)
         self.belt: deque = deque()  # (plant time of the reading [h], blend fractions)
         self.u_written: np.ndarray | None = None
         self.t_written_h = math.nan
@@ -248,6 +249,7 @@ class Service(Stoppable):
         steps = self._model_steps(t_h, started_by, fresh)
         if steps < 1:
             return {"service_time_h": t_h, "skipped": True, "started_by": started_by}
+        self.samples_unsolved += steps
         row = {"wall_time_utc": now, "service_time_h": t_h, "cycle": self.k, "mode": "disconnected", "written": False,
                "reason": "", "started_by": started_by}
         if self.conn is not None:
@@ -542,9 +544,13 @@ class Service(Stoppable):
         D = np.vstack([np.array(preview, float).T, np.full(self.n_stages, float(d_est[-1]))])
         t1, c1 = time.perf_counter(), time.process_time()
         try:
+            # its warm start and fallback plan move on by the samples since its last step (an outage, an overrun):
+            # by one, a failed step after an outage longer than the horizon applied a move of the expired plan
             res = self.parts.controller.make_step(x_est, D, u_prev, y_meas=self.p80_held,
                                                   p80_bias_um=self.parts.estimator.controller_p80_bias_um(
-                                                      self.parts.controller.settings.target_p80_um))
+                                                      self.parts.controller.settings.target_p80_um),
+                                                  samples=max(self.samples_unsolved, 1))
+            self.samples_unsolved = 0
         except NUMERIC_ERRORS as exc:
             log.exception("the controller failed")
             return None, None, f"the controller failed: {type(exc).__name__}: {exc}"

@@ -98,6 +98,33 @@ def test_forced_solver_failure_shifted_plan_then_hold(setup):
     assert r.success and r.fallback_used is None
 
 
+def test_a_step_after_missed_samples_moves_the_plan_on_by_them(setup):
+    """A served controller that missed samples (an outage) passes them: its failed step applied the plan shifted by
+    one, a move of a plan older than the horizon where the rule is to hold the input."""
+    ctrl, ss = setup
+    d = ctrl.model.d_vector([0.6, 0.4])
+    solver = ctrl._solver
+
+    def broken(**kwargs):
+        raise RuntimeError("forced failure")
+
+    for samples, fallback in ((2, "shifted_plan"), (N, "hold_input")):
+        ctrl.reset()
+        good = ctrl.make_step(ss.x, d, ss.u)
+        assert good.success
+        ctrl._solver = broken
+        try:
+            r = ctrl.make_step(ss.x, d, good.u_applied, samples=samples)
+        finally:
+            ctrl._solver = solver
+        assert r.fallback_used == fallback
+        expected = good.plan[samples] if fallback == "shifted_plan" else good.u_applied
+        np.testing.assert_allclose(r.u_applied, expected, atol=1e-9)
+        np.testing.assert_allclose(r.plan[0], expected, atol=1e-9)
+    with pytest.raises(MpcInputError, match=r"'samples' parameter must be an int >= 1.*Got 0"):
+        ctrl.make_step(ss.x, d, ss.u, samples=0)
+
+
 @pytest.mark.parametrize("solver", ["ipopt", "rti"])
 def test_max_iter_zero_fails_to_hold_input(ctrl_twin, solver):
     ss = ctrl_twin.steady(feed_tph=27.0, speed_frac_critical=0.70, blend=[1.0, 0.0])

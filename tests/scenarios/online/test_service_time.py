@@ -34,3 +34,43 @@ def test_a_wall_clock_step_moves_neither_the_service_time_nor_the_estimator(smal
     assert [r["service_time_h"] for r in rows] == pytest.approx([(13 + k) * dt for k in range(6)])
     steps = [m for m in caplog.messages if "the wall clock stepped" in m]
     assert len(steps) == 2 and "-1 plant h" in steps[0] and "+0.5 plant h" in steps[1]
+
+
+def test_after_an_outage_longer_than_the_horizon_a_failed_step_holds_the_input(small_scene, small_tags, small_parts,
+                                                                                url, tmp_path):
+    """The controller plans nothing while the service is disconnected: told of one sample since its last step, its
+    failed steps after an outage of 6 samples (horizon 5) applied the expired plan (audited shifted_plan; its moves
+    here those of holding, a plan that moves on is in tests/mpc/test_nmpc.py)."""
+    ls = LockStep(small_scene, small_tags, small_parts, url, tmp_path / "audit")
+    ls.plant.watchdog_h = float("inf")  # a DCS without a watchdog: the plant stays in auto through the outage
+    ctrl = small_parts.controller
+    solver = ctrl._solver
+
+    def broken(**kwargs):
+        raise RuntimeError("forced failure")
+
+    async def run():
+        await ls.start()
+        await ls.step(12)
+        await ls.plant.drop()
+        outage = [await ls.step() for _ in range(ctrl.settings.horizon_steps + 1)]
+        await ls.plant.restore()
+        for _ in range(100):  # the reconnection's back-off runs on wall time
+            await asyncio.sleep(0.05)
+            if ls.service.conn is not None:
+                break
+        ctrl._solver = broken
+        try:
+            rows = [await ls.step() for _ in range(2)]
+        finally:
+            ctrl._solver = solver
+        await ls.stop()
+        return outage, rows
+
+    outage, rows = asyncio.run(run())
+    assert all(r["mode"] == "disconnected" for r in outage)
+    for row in rows:
+        moved = {k: (row[f"{k}_proposed{u}"], row[f"{k}_actual{u}"]) for k, u in (("feed", "_tph"),
+                                                                                   ("speed", "_frac_critical"))}
+        assert row["mode"] == "auto" and row["fallback"] == "hold_input", (row["fallback"], moved)
+        assert all(proposed == actual for proposed, actual in moved.values()), moved
