@@ -626,7 +626,14 @@ class Service(Stoppable):
                  for k, (val, code) in pairs.items() if getattr(tags, k) is not None and code is not None}
         self._condition("soft sensor", p.status != ua.StatusCodes.Good, row["service_time_h"],
                         f"soft sensor {status_name(p.status)}: {p.reason}")
-        await self.conn.write(items, self.clock.now())
+        results = await self.conn.write(items, self.clock.now())
+        refused = {r: status_name(c) for r, c in results.items() if c != ua.StatusCodes.Good}
+        # a refused node kept its last prediction on the operator's screen, and nothing said so
+        self._condition("soft sensor write", bool(refused), row["service_time_h"],
+                        f"the server refused the soft sensor's writes: {refused}; those nodes keep older values")
+        if refused:
+            row["reason"] = "; ".join(n for n in (row["reason"], f"the server refused the soft sensor's writes: "
+                                                                 f"{refused}") if n)
         row.update(soft_p80_um=p.p80_um, soft_specific_energy_kwh_t=p.specific_energy_kwh_t,
                    soft_status=status_name(p.status), soft_s=time.perf_counter() - t1)
 

@@ -415,3 +415,27 @@ def test_a_connection_lost_around_the_setpoint_write_is_audited_as_it_happened(s
         assert not row["written"] and "feed_tph_written" not in row
         assert f"a setpoint write (feed {row['feed_sp_tph']:.4g} t/h" in row["reason"]
         assert "was in flight: the plant may have it" in row["reason"]
+
+
+def test_a_refused_soft_sensor_write_is_logged_and_audited(small_scene, small_tags, small_parts, tmp_path, caplog):
+    """A soft sensor node the server refuses (read-only) kept an older prediction on the operator's screen: the
+    write's result was not read, nothing was logged or audited."""
+    from .conftest import LockStep, free_port
+
+    url = f"opc.tcp://127.0.0.1:{free_port()}"
+    wrong = small_tags.model_copy(deep=True)
+    wrong.soft_sensor.p80_um = "ns=2;s=Simulation.P80True_um"  # the plant's own, read-only
+    ls = LockStep(small_scene, small_tags, small_parts, url, tmp_path / "audit")
+    ls.service = online.Service(small_parts, wrong, online.ServeSettings(
+        url, online.ClientSecurity(insecure=True), tmp_path / "audit2", warmup_h=0.2), clock=ls.clock)
+
+    async def run():
+        await ls.start()
+        await ls.step(3)
+        await ls.stop()
+    with caplog.at_level(logging.WARNING, logger="grindtwin.online"):
+        asyncio.run(run())
+    published = [r for r in ls.rows if "soft_p80_um" in r]
+    assert published and all("the server refused the soft sensor's writes: {'soft_sensor.p80_um': "
+                             "'BadUserAccessDenied'}" in r["reason"] for r in published)
+    assert sum("refused the soft sensor's writes" in m for m in caplog.messages) == 1
