@@ -6,6 +6,10 @@ its value has changed within that time while its timestamps moved on (an analyse
 reporting one number), and its value lies in the tag's :class:`PlausibleRange` (a P80 of -5 um or a
 speed of 3 times critical is an instrument or scaling fault, Bad, never a state of the plant).
 The first failing check names the verdict: bad, uncertain, stale, frozen.
+
+A reading is a new report when its timestamp moved and, for a tag whose source reports every
+``report_period_h``, its value changed or a report period has passed since the last new one: a
+gateway that stamps the held value anew at every scan made each cycle take it as a new analysis.
 """
 
 from __future__ import annotations
@@ -17,6 +21,9 @@ from datetime import datetime
 from scenarios.online.clock import Clock
 
 GOOD, UNCERTAIN, BAD, STALE, FROZEN = "good", "uncertain", "bad", "stale", "frozen"
+#: An unchanged value is a new report once this share of its source's period has passed since the last new one
+#: (source timestamps of reports a period apart, stamped to the clock's resolution, may fall a little short of it).
+REPORT_PERIOD_FRAC = 0.9
 
 
 def severity(status_code: int) -> str:
@@ -96,8 +103,10 @@ class TagQuality:
 
     def __init__(self, name: str, max_age_h: float | None, frozen_after_h: float | None = None,
                  freeze_tolerance: float = 0.0, accept_uncertain: bool = False,
-                 plausible: PlausibleRange | None = None):
+                 plausible: PlausibleRange | None = None, report_period_h: float | None = None):
         self.name = name
+        self.report_period_h = report_period_h  # None: every moved timestamp is a new report
+        self._report: tuple[datetime, float] | None = None  # (time, value) of the last new report
         self.max_age_h, self.frozen_after_h = max_age_h, frozen_after_h
         self.freeze_tolerance, self.accept_uncertain = freeze_tolerance, accept_uncertain
         self.plausible = plausible  # None: no range check
@@ -106,15 +115,17 @@ class TagQuality:
         self._since: datetime | None = None
 
     @classmethod
-    def of(cls, name: str, rule, plausible: PlausibleRange | None = None) -> "TagQuality":
-        """From a tag map entry (a :class:`scenarios.online.tags.Measurement` or the belt analyser)
-        and the range of its values (:func:`scenarios.online.tags.plausible_range`)."""
+    def of(cls, name: str, rule, plausible: PlausibleRange | None = None,
+           report_period_h: float | None = None) -> "TagQuality":
+        """From a tag map entry (a :class:`scenarios.online.tags.Measurement` or the belt analyser),
+        the range of its values (:func:`scenarios.online.tags.plausible_range`) and how often its
+        source reports (:func:`scenarios.online.tags.source_period_h`)."""
         return cls(name, rule.max_age_h, rule.frozen_after_h, rule.freeze_tolerance,
-                   rule.uncertain == "accept", plausible)
+                   rule.uncertain == "accept", plausible, report_period_h)
 
     def assess(self, reading: Reading, now: datetime, clock: Clock) -> Verdict:
         """The verdict on ``reading`` at wall-clock ``now``."""
-        new = reading.time is not None and reading.time != self._last_time
+        new = reading.time is not None and reading.time != self._last_time and self._new_report(reading, clock)
         if reading.time is not None:
             self._last_time = reading.time
         sev = severity(reading.status)
@@ -141,6 +152,17 @@ class TagQuality:
             return Verdict(math.nan, FROZEN, f"value {value:g} unchanged for more than "
                            f"{self.frozen_after_h:g} h", new)
         return Verdict(value, sev, "" if sev == GOOD else f"status {code} accepted", new)
+
+    def _new_report(self, reading: Reading, clock: Clock) -> bool:
+        """A reading whose timestamp moved is a new report unless its value is the last new report's and less than
+        :data:`REPORT_PERIOD_FRAC` of a report period has passed since (the held value stamped anew)."""
+        value = raw_number(reading.value)
+        last = self._report
+        if (self.report_period_h is not None and last is not None and value == last[1]
+                and clock.hours_between(last[0], reading.time) < REPORT_PERIOD_FRAC * self.report_period_h):
+            return False
+        self._report = (reading.time, value)
+        return True
 
     def _frozen_for_h(self, value: float, time: datetime | None, clock: Clock) -> float:
         """How long (source time) the value has stayed within ``freeze_tolerance`` of itself."""

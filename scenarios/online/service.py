@@ -56,7 +56,7 @@ from scenarios.online.opcua import CONNECTION_ERRORS, NodeError, PlantConnection
 from scenarios.online.parts import ControlParts
 from scenarios.online.quality import BAD, GOOD, Reading, TagQuality, Verdict, raw_number, severity
 from scenarios.online.security import ClientSecurity
-from scenarios.online.tags import TagMap, blend_range, plausible_range, setpoint_range
+from scenarios.online.tags import TagMap, blend_range, plausible_range, setpoint_range, source_period_h
 from scenarios.online.writer import Limit, limit_move
 from scenarios.run.closed_loop import ESTIMATOR_WARMUP_H
 from twin import TwinError, power_kw
@@ -131,11 +131,12 @@ class Service(Stoppable):
         self.warmup_h = ESTIMATOR_WARMUP_H if settings.warmup_h is None else settings.warmup_h
         self.n_stages = parts.controller.settings.horizon_steps
         self.limits = {name: Limit.of(name, sp) for name, sp in tags.setpoints}
-        self.quality = {name: TagQuality.of(name, m, plausible_range(name, m, self.scene))
+        self.quality = {name: TagQuality.of(name, m, plausible_range(name, m, self.scene),
+                                            source_period_h(name, self.scene))
                         for name, m in tags.measurements if m is not None}
         if tags.belt_analyser is not None:
-            ba = tags.belt_analyser
-            self.quality |= {f"blend.{o}": TagQuality.of(f"blend.{o}", ba, blend_range(ba)) for o in parts.ores}
+            ba, period = tags.belt_analyser, source_period_h("belt_analyser", self.scene)
+            self.quality |= {f"blend.{o}": TagQuality.of(f"blend.{o}", ba, blend_range(ba), period) for o in parts.ores}
         log.info("plausible ranges (a reading outside is bad): %s",
                  ", ".join(f"{role} {q.plausible}" for role, q in self.quality.items()))
         self.audit = AuditLog(settings.audit_dir, settings.audit_flush_every)

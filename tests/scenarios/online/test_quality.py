@@ -182,3 +182,25 @@ def test_a_feed_reading_in_other_units_is_bad_while_the_service_writes_the_feed(
     assert judged(0.0)["feed_tph"].ok and judged(29.0)["feed_tph"].ok
     svc.mode = "manual"
     assert judged(30.0 / 3.6)["feed_tph"].ok
+
+
+def test_a_held_value_stamped_anew_is_not_a_new_report_before_its_sources_period():
+    """A gateway stamping the held P80 anew every scan made each cycle (0.05 h) take it as a new analysis of an
+    analyser reporting every 0.15 h: the estimator updated on it three times as often."""
+    q = TagQuality("p80", max_age_h=0.3, report_period_h=0.15)
+    news = [q.assess(Reading(210.0, 0, at(t)), at(t), CLOCK).new for t in (0.0, 0.05, 0.1, 0.15, 0.2)]
+    assert news == [True, False, False, True, False]  # the same number once a period: an analyser may repeat it
+    assert q.assess(Reading(212.0, 0, at(0.25)), at(0.25), CLOCK).new  # a changed value is a new report at once
+    assert not q.assess(Reading(212.0, 0, at(0.25)), at(0.3), CLOCK).new  # the timestamp did not move
+    every = TagQuality("p80", max_age_h=0.3)  # no period given: each moved timestamp, as before
+    assert all(every.assess(Reading(210.0, 0, at(t)), at(t), CLOCK).new for t in (0.0, 0.05, 0.1))
+
+
+def test_the_service_judges_new_reports_on_each_sources_period(small_scene, small_tags, small_parts, tmp_path):
+    from scenarios.online.tags import source_period_h
+
+    import scenarios.online as online
+    service = online.Service(small_parts, small_tags, online.ServeSettings(
+        "opc.tcp://127.0.0.1:4840", online.ClientSecurity(insecure=True), tmp_path / "audit"))
+    assert service.quality["p80_um"].report_period_h == source_period_h("p80_um", small_scene)
+    assert service.quality["blend.B"].report_period_h == source_period_h("belt_analyser", small_scene)
