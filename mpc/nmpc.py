@@ -70,7 +70,8 @@ Solvers (``NmpcSettings.solver``), built once and reused:
 Failure handling: if the solver does not converge the controller applies the previous plan
 shifted by one sample (``fallback_used="shifted_plan"``) while the old plan lasts, then holds the
 previous input (``"hold_input"``). A caller that missed samples since the last step (a served
-controller after an outage) passes ``samples``: the warm start and the plan move on by that many. If the solve succeeds but the predicted passing fraction at the
+controller after an outage) passes ``samples``: the warm start and the plan move on by that many.
+If the solve succeeds but the predicted passing fraction at the
 end of the horizon misses 0.80 by more than ``unreachable_tol_frac`` the status says
 ``"target_unreachable"`` (the best plan is still applied).
 """
