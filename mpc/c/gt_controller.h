@@ -167,7 +167,8 @@ void gt_controller_reset(gt_controller *c);
  * speed_frac_critical] and blend (GT_NB fractions) applied over those periods; returns a
  * gt_estimate_status (GT_ESTIMATE_BAD_TIME: a t_h it refuses). After a gap of k periods the next step
  * still starts its iteration from the last plan shifted by one sample, and GT_STEP_SHIFTED_PLAN moves it
- * on by one (the Python controller, which misses no sample, has no rule for a gap to follow) */
+ * on by one, where the Python controller (mpc.Controller.make_step's samples, which grindtwin serve
+ * passes) moves both on by k: after a gap longer than the plan it holds the input */
 int gt_controller_estimate(gt_controller *c, double t_h, const double *y, const double *u_applied,
                            const double *blend);
 /* the NMPC step, once per estimate (else GT_STEP_NO_ESTIMATE): preview = blend fractions of the GT_N
