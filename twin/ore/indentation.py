@@ -21,7 +21,8 @@ Method (Oliver & Pharr 1992, J. Mater. Res. 7(6), 1564-1583; refinements in Oliv
    E_i, nu_i (diamond: 1141 GPa, 0.07; O&P 1992) and the sample's nu.
 
 Units: load mN, depth nm, area nm^2, stiffness mN/nm; moduli and hardness GPa
-(1 mN/nm^2 = 1e6 GPa).
+(1 mN/nm^2 = 1e6 GPa). An H or E_r outside the range of minerals (:data:`HARDNESS_RANGE_GPA`,
+:data:`REDUCED_MODULUS_RANGE_GPA`) is refused: it is the mark of a load or depth in another unit.
 
 :func:`synthesize_curve` builds a curve from known E and H by running the same relations
 backwards (Kick's-law loading ``P ~ h^2``, power-law unloading). Recovering E and H from it is a
@@ -43,8 +44,28 @@ import pandas as pd
 from scipy.optimize import brentq, least_squares, minimize_scalar
 
 from ..errors import TwinInputError, bad_value, check_range
+from .labels import clean_labels
 
 GPA_PER_MN_NM2 = 1e6  # 1 mN/nm^2 = 1e-3 N / 1e-18 m^2 = 1e15 Pa
+
+#: Hardness a mineral can have [GPa]. Low end: a tenth of the softest phase of minerals.csv (kaolinite
+#: aggregate, 0.25 GPa), below talc, Mohs 1 (Broz, Cook & Whitney 2006, Am. Mineral. 91, 135-142, indent
+#: talc to corundum); high end: diamond, Mohs 10 (~100 GPa Vickers), with margin. A load in N written as
+#: mN puts H 1000x low, a load in uN 1000x high, a depth in um written as nm 1e6x high.
+HARDNESS_RANGE_GPA = (0.02, 150.0)
+#: Reduced modulus a mineral can give under a diamond tip [GPa]. Low end: 1/7 of the most compliant
+#: phase of minerals.csv (kaolinite aggregate, E = 3.2 GPa, E_r ~3.5), room for porous clays; high end: a
+#: diamond sample under the diamond tip, 1/(2 (1 - 0.07^2)/1141) = 573 GPa (O&P 1992's E_i, nu_i), above
+#: corundum (Broz 2006). E_r moves with the load by the factor H does: a load in N puts the E_r of every
+#: mineral below 500 GPa (all but diamond) under the low end, where H alone misses corundum (~30 GPa / 1000
+#: lies inside HARDNESS_RANGE_GPA).
+REDUCED_MODULUS_RANGE_GPA = (0.5, 600.0)
+
+
+#: Young's modulus an indenter tip can have [GPa]: from a steel ball (~200 GPa) with margin to diamond, the
+#: stiffest tip (1141 GPa, O&P 1992; 1050-1210 by orientation), with margin. Diamond's 1141 given in Pa
+#: (1.141e12) lies above, in TPa (1.141) below; accepted, the Pa value moved fused silica's E by 6 %.
+INDENTER_YOUNGS_RANGE_GPA = (100.0, 1300.0)
 
 
 @dataclass(frozen=True)
@@ -56,7 +77,10 @@ class Indenter:
     name: str = "diamond Berkovich"
 
     def __post_init__(self):
-        check_range("Indenter", "youngs_gpa", self.youngs_gpa, 0.0, math.inf)
+        lo, hi = INDENTER_YOUNGS_RANGE_GPA
+        if not lo <= check_range("Indenter", "youngs_gpa", self.youngs_gpa, 0.0, math.inf) <= hi:
+            raise bad_value("Indenter", "youngs_gpa", self.youngs_gpa, f"a float in [{lo:g}, {hi:g}] GPa, the "
+                            "moduli of indenter tips (diamond 1141 GPa; a value in Pa or TPa?)")
         check_range("Indenter", "poisson", self.poisson, -1.0, 0.5)
 
 
@@ -215,8 +239,27 @@ def oliver_pharr(load_mn, depth_nm, *, area: AreaFunction = BERKOVICH, epsilon: 
     A = float(area.area_nm2(hc))
     er = math.sqrt(math.pi) / 2.0 * S / (beta * math.sqrt(A)) * GPA_PER_MN_NM2
     H = p_max / A * GPA_PER_MN_NM2
+    _check_mineral_range(H, er, p_max, h_max)
     E = youngs_from_reduced_gpa(er, sample_poisson, indenter)
     return IndentationResult(p_max, h_max, hf, m, alpha, S, hc, A, er, H, E, rmse, int(sel.sum()))
+
+
+def _check_mineral_range(h_gpa: float, er_gpa: float, p_max_mn: float, h_max_nm: float) -> None:
+    """Refuse an H or E_r no mineral has: a load or depth in another unit than mN and nm gives a
+    number with the right shape and a wrong magnitude (a load in N: H = 0.009 GPa for fused silica)."""
+    out = [f"{name} {v:.4g} GPa outside [{lo:g}, {hi:g}] GPa" for name, v, (lo, hi) in
+           (("hardness", h_gpa, HARDNESS_RANGE_GPA), ("reduced modulus", er_gpa, REDUCED_MODULUS_RANGE_GPA))
+           if not lo <= v <= hi]
+    if not out:
+        return
+    low = h_gpa < HARDNESS_RANGE_GPA[0] or er_gpa < REDUCED_MODULUS_RANGE_GPA[0]
+    # a load x k scales H and E_r by k, a depth x k by 1/k^2
+    hint = ("the load in N, not mN (x 1000 to mN)" if low else
+            "the load in uN, not mN (/ 1000 to mN), or the depth in um, not nm (x 1000 to nm)")
+    raise TwinInputError(
+        f"Oliver-Pharr gives {' and '.join(out)}, the range of minerals from clays and talc to diamond "
+        f"(P_max = {p_max_mn:.4g} mN, h_max = {h_max_nm:.4g} nm): likely {hint}. Columns: load_mn "
+        "millinewtons, depth_nm nanometres.")
 
 
 def synthesize_curve(youngs_gpa: float, hardness_gpa: float, *, p_max_mn: float = 10.0,
@@ -284,7 +327,8 @@ def read_curves(path: str | Path) -> dict[str, pd.DataFrame]:
         raise TwinInputError(f"{path}: bad cells in the indentation curves:\n  " + "\n  ".join(problems))
     if "curve_id" not in frame.columns:
         frame["curve_id"] = path.stem
-    ids = frame["curve_id"].astype(str)
+    # ' fs-1' and 'fs-1' split one curve in two, each analysed alone
+    ids = frame["curve_id"] = clean_labels(frame["curve_id"], "curve_id", str(path))
     starts = ids.ne(ids.shift())  # where a run of one id begins: a curve is one run of rows
     again = ids[starts][ids[starts].duplicated()]
     if len(again):  # grouped, two runs of an id were one curve: load, unload, load, unload, analysed as one
@@ -297,11 +341,16 @@ def read_curves(path: str | Path) -> dict[str, pd.DataFrame]:
 
 def analyse_curves(curves: dict | str | Path, **kwargs) -> pd.DataFrame:
     """Oliver-Pharr result of every curve (a dict id -> DataFrame, or a CSV path), one row each."""
+    where = ""
     if not isinstance(curves, dict):
+        where = f"{curves}: "
         curves = read_curves(curves)
     rows = []
     for cid, df in curves.items():
         rec = {"curve_id": cid}
-        rec.update(oliver_pharr(df["load_mn"].to_numpy(), df["depth_nm"].to_numpy(), **kwargs).to_dict())
+        try:
+            rec.update(oliver_pharr(df["load_mn"].to_numpy(), df["depth_nm"].to_numpy(), **kwargs).to_dict())
+        except TwinInputError as exc:  # which of the file's curves it is
+            raise TwinInputError(f"{where}curve_id {cid!r}: {exc}") from None
         rows.append(rec)
     return pd.DataFrame(rows)
