@@ -12,6 +12,9 @@ _API = {
     "fit_fracture_energy": ".fracture_energy", "fit_size_dependence": ".fracture_energy",
     "read_single_particle": ".fracture_energy", "sample_fracture_energies": ".fracture_energy",
     "validate_single_particle": ".fracture_energy",
+    "FRACTURE_ENERGY_RANGE_J_KG": ".fracture_energy", "PARTICLE_SIZE_RANGE_MM": ".fracture_energy",
+    "HARDNESS_RANGE_GPA": ".indentation", "INDENTER_YOUNGS_RANGE_GPA": ".indentation",
+    "REDUCED_MODULUS_RANGE_GPA": ".indentation",
     "AreaFunction": ".indentation", "IndentationResult": ".indentation", "Indenter": ".indentation",
     "analyse_curves": ".indentation", "oliver_pharr": ".indentation", "read_curves": ".indentation",
     "reduced_modulus_gpa": ".indentation", "synthesize_curve": ".indentation",
@@ -29,7 +32,8 @@ _API = {
 }
 
 __all__ = [
-    "MEAN_GRAIN_RANGE_UM",
+    "FRACTURE_ENERGY_RANGE_J_KG", "HARDNESS_RANGE_GPA", "INDENTER_YOUNGS_RANGE_GPA", "MEAN_GRAIN_RANGE_UM",
+    "PARTICLE_SIZE_RANGE_MM", "REDUCED_MODULUS_RANGE_GPA",
     "AreaFunction", "BLEND_SUM_TOLERANCE", "Blend", "BreakageOutcomeFit", "CLAY_MINERALS", "CUSHIONING_MINERALS",
     "FractureEnergyFit", "IndentationResult", "Indenter", "MICA_MINERALS", "Mineral", "Mineralogy", "OreTyper",
     "SULFIDE_MINERALS", "SUM_TOLERANCE_WT_PCT", "SampleTableError", "SizeDependence", "Texture", "analyse_curves",

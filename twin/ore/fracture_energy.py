@@ -28,7 +28,9 @@ Drop-weight tests at set energies give pass/fail outcomes instead of energies; t
 Size dependence of the median (Tavares & King 1998): ``E50(d) = E_inf (1 + (d0 / d)^phi)``,
 fitted across size classes by least squares on ln E50 (:func:`fit_size_dependence`).
 
-Units: energies J/kg, particle sizes mm.
+Units: energies J/kg, particle sizes mm. A single-particle table's energies and sizes must lie in the
+ranges of such tests (:data:`FRACTURE_ENERGY_RANGE_J_KG`, :data:`PARTICLE_SIZE_RANGE_MM`): outside, the
+value is the mark of another unit (kWh/t, um) and the row is refused with the likely one named.
 """
 
 from __future__ import annotations
@@ -45,8 +47,21 @@ from scipy.optimize import least_squares, minimize, minimize_scalar
 from scipy.special import ndtr
 
 from ..errors import TwinInputError, bad_value
+from .labels import clean_labels
 
 _MODELS = ("lognormal", "truncated_lognormal")
+
+#: Specific fracture energies of single-particle tests [J/kg]. Low end: -25+19 mm particles of the
+#: reference ores break at tens of J/kg in the DEM's virtual compression tests; 1 J/kg leaves a decade for
+#: coarser, weaker particles, and a value in kWh/t (1 kWh/t = 3.6 J/g = 3600 J/kg: tens of J/kg are
+#: ~0.01 kWh/t) lies below it. High end: ~10x the JK drop-weight test's highest set energy (2.5 kWh/t =
+#: 9000 J/kg; Napier-Munn et al. 1996, Mineral Comminution Circuits, JKMRC), room for fine particles, whose
+#: fracture energy rises as size falls (Tavares & King 1998). Not caught: a kWh/t value >= 1 (3600 J/kg).
+FRACTURE_ENERGY_RANGE_J_KG = (1.0, 1e5)
+#: Particle sizes of single-particle tests [mm]: from micro-compression of ~10 um grains to ~5x the JK
+#: drop-weight test's top class (-63+53 mm; Napier-Munn et al. 1996). A size in um written as mm lies
+#: above it for every particle coarser than 0.3 mm (21.8 mm -> 21800).
+PARTICLE_SIZE_RANGE_MM = (0.01, 300.0)
 
 
 def breakage_probability(e_j_kg, e50_j_kg: float, sigma: float, e_max_j_kg: float = math.inf):
@@ -213,6 +228,13 @@ def fit_breakage_outcomes(energies_j_kg, broken) -> BreakageOutcomeFit:
     if b.all() or not b.any():
         raise bad_value("fit_breakage_outcomes", "broken", f"{int(b.sum())} of {len(b)} broken",
                         "both broken and unbroken particles")
+    lo, hi = FRACTURE_ENERGY_RANGE_J_KG
+    off = np.flatnonzero((e < lo) | (e > hi))
+    if off.size:  # drop-weight energies are reported in kWh/t (Ecs): E50 came out 3600x low, labelled J/kg
+        i = int(off[0])
+        hint = _RANGES[ENERGY_COLUMN][2 if e[i] < lo else 3]
+        raise bad_value("fit_breakage_outcomes", f"energies_j_kg[{i}]", float(e[i]),
+                        f"in [{lo:g}, {hi:g}] J/kg, the range of single-particle tests ({hint})")
     x = np.log(e)
     if x[b].min() > x[~b].max():
         raise TwinInputError("fit_breakage_outcomes: every broken particle was hit harder than every "
@@ -234,6 +256,12 @@ def fit_breakage_outcomes(energies_j_kg, broken) -> BreakageOutcomeFit:
 # ---------------------------------------------------------------------- tables of results
 ENERGY_COLUMN = "fracture_energy_j_kg"
 GROUP_COLUMNS = ("ore_type", "size_mm")
+#: column -> (allowed range, unit, hint for a value below, hint for a value above)
+_RANGES = {
+    ENERGY_COLUMN: (FRACTURE_ENERGY_RANGE_J_KG, "J/kg", "in kWh/t? x 3600 to J/kg; in J/g or kJ/kg? x 1000",
+                    "in J/t or mJ/kg? / 1000 to J/kg"),
+    "size_mm": (PARTICLE_SIZE_RANGE_MM, "mm", "in m or cm? x 1000 or x 10 to mm", "in um? / 1000 to mm"),
+}
 
 
 def read_single_particle(path: str | Path) -> pd.DataFrame:
@@ -254,26 +282,40 @@ def read_single_particle(path: str | Path) -> pd.DataFrame:
 
 
 def validate_single_particle(frame: pd.DataFrame, source: str = "single-particle table") -> pd.DataFrame:
+    """A clean copy of a single-particle table (energies and sizes as floats, ore types stripped of
+    surrounding spaces) or a TwinInputError naming every bad row: a missing, non-positive or
+    out-of-range energy or size (with its likely unit), an empty ore type, and ore types that differ
+    only by case or whitespace."""
     missing = [c for c in (*GROUP_COLUMNS, ENERGY_COLUMN) if c not in frame.columns]
     if missing:
         raise TwinInputError(f"{source}: the columns {missing} must be present "
                              f"(found {list(frame.columns)}).")
     problems = []
-    ident = frame["particle_id"] if "particle_id" in frame.columns else pd.Series(range(1, len(frame) + 1))
-    for col, allowed in ((ENERGY_COLUMN, "a finite number > 0 J/kg"), ("size_mm", "a finite number > 0 mm")):
-        num = pd.to_numeric(frame[col], errors="coerce").to_numpy(float)
-        for i in np.nonzero(~(np.isfinite(num) & (num > 0)))[0]:
-            problems.append(f"row {i + 1} (particle_id={ident.iloc[i]!r}): column '{col}' must be "
-                            f"{allowed}. Got {frame[col].iloc[i]!r}.")
-    for i in np.nonzero(frame["ore_type"].isna().to_numpy())[0]:
-        problems.append(f"row {i + 1} (particle_id={ident.iloc[i]!r}): column 'ore_type' must be "
-                        "a non-empty label. Got nan.")
+    # python scalars: a message shows 3, not np.int64(3)
+    ident = frame["particle_id"].tolist() if "particle_id" in frame.columns else list(range(1, len(frame) + 1))
+    for col, ((lo, hi), unit, below, above) in _RANGES.items():
+        raw = frame[col].tolist()
+        for i, v in enumerate(pd.to_numeric(frame[col], errors="coerce").to_numpy(float)):
+            if not (np.isfinite(v) and v > 0):
+                allowed = f"a finite number > 0 {unit}"
+            elif not lo <= v <= hi:  # a unit slip: the hint names the likely unit
+                hint = below if v < lo else above
+                allowed = f"in [{lo:g}, {hi:g}] {unit}, the range of single-particle tests ({hint})"
+            else:
+                continue
+            problems.append(f"row {i + 1} (particle_id={ident[i]!r}): column '{col}' must be "
+                            f"{allowed}. Got {raw[i]!r}.")
+    ores = frame["ore_type"].tolist()
+    blank = frame["ore_type"].isna().to_numpy() | (frame["ore_type"].astype(str).str.strip() == "").to_numpy()
+    for i in np.nonzero(blank)[0]:
+        problems.append(f"row {i + 1} (particle_id={ident[i]!r}): column 'ore_type' must be "
+                        f"a non-empty label. Got {ores[i]!r}.")
     if problems:
         raise TwinInputError(f"{source}: {len(problems)} problem(s):\n  " + "\n  ".join(problems))
     out = frame.copy()
     out[ENERGY_COLUMN] = out[ENERGY_COLUMN].astype(float)
     out["size_mm"] = out["size_mm"].astype(float)
-    out["ore_type"] = out["ore_type"].astype(str)
+    out["ore_type"] = clean_labels(out["ore_type"], "ore_type", source)
     return out
 
 
