@@ -127,3 +127,10 @@ def test_drop_weight_energies_in_kwh_t_are_refused():
     assert fit_breakage_outcomes(levels, broken).e50_j_kg > FRACTURE_ENERGY_RANGE_J_KG[0]
     with pytest.raises(TwinInputError, match=r"energies_j_kg\[0\]' .*in \[1, 100000\] J/kg.*in kWh/t\? x 3600"):
         fit_breakage_outcomes(levels / KWH_T_IN_J_KG, broken)
+
+
+def test_a_unit_slip_on_every_row_lists_fifty_and_counts_the_rest():
+    many = pd.concat([_particles(["B"] * 10, scale=1.0 / KWH_T_IN_J_KG)] * 8, ignore_index=True)
+    with pytest.raises(TwinInputError, match=r"80 problem\(s\)") as err:
+        validate_single_particle(many)
+    assert str(err.value).count("column 'fracture_energy_j_kg'") == 50 and "... and 30 more" in str(err.value)

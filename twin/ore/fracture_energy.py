@@ -311,7 +311,8 @@ def validate_single_particle(frame: pd.DataFrame, source: str = "single-particle
         problems.append(f"row {i + 1} (particle_id={ident[i]!r}): column 'ore_type' must be "
                         f"a non-empty label. Got {ores[i]!r}.")
     if problems:
-        raise TwinInputError(f"{source}: {len(problems)} problem(s):\n  " + "\n  ".join(problems))
+        more = [f"... and {len(problems) - 50} more"] if len(problems) > 50 else []  # a unit slip hits every row
+        raise TwinInputError(f"{source}: {len(problems)} problem(s):\n  " + "\n  ".join(problems[:50] + more))
     out = frame.copy()
     out[ENERGY_COLUMN] = out[ENERGY_COLUMN].astype(float)
     out["size_mm"] = out["size_mm"].astype(float)
