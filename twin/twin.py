@@ -25,7 +25,8 @@ from .errors import ModelError, TwinInputError, bad_value, check_int, check_rang
 from .mill import FEED_TPH_MAX, SPEED_FACTOR_ZERO_FRAC_CRITICAL, Mill, get_mill, power_kw
 from .model import Model, ModelSpec
 from .scaleup import scale_breakage
-from .ore import CLAY_MINERALS, CUSHIONING_MINERALS, Blend, Mineralogy, load_ore
+from .ore import (CLAY_MINERALS, CUSHIONING_MINERALS, Blend, Mineralogy, blend_sum_ok, blend_sum_tolerance, load_ore,
+                  normalised_blend)
 from .sizes import GatesGaudinSchuhmann, SizeGrid, TabulatedPSD, discretise, pxx_um
 from .solve import simulate, steady_state, steady_state_at_load
 from .validity import nominal_feed_note
@@ -254,9 +255,10 @@ class Twin:
             fr = np.asarray(blend, float)
         if fr.shape != (len(self.blend.names),):
             raise bad_value("Twin", "blend", blend, f"{len(self.blend.names)} fractions, of {self.blend.names}")
-        if not np.all(np.isfinite(fr)) or abs(fr.sum() - 1.0) > 1e-6 or np.any(fr < 0):
-            raise bad_value("Twin", "blend", [float(v) for v in fr], "non-negative fractions summing to 1")
-        return fr
+        if not np.all(np.isfinite(fr)) or not blend_sum_ok(fr) or np.any(fr < 0):
+            raise bad_value("Twin", "blend", [float(v) for v in fr],
+                            f"non-negative fractions summing to 1 within {blend_sum_tolerance(fr.size):g}")
+        return np.asarray(normalised_blend(fr), float)
 
 
 def _rebuilt(cls, arguments: dict):

@@ -132,7 +132,8 @@ def test_simulate_refuses_a_blend_that_does_not_sum_to_one_naming_the_time():
     from twin.errors import TwinInputError
 
     t = Twin(["B", "D"], effects=["breakage", "transport"])
-    with pytest.raises(TwinInputError, match=r"'blend' parameter of Twin .*summing to 1\. Got \[1\.0, 0\.4\].*"
+    with pytest.raises(TwinInputError, match=r"'blend' parameter of Twin .*summing to 1 within 0\.001\. "
+                                             r"Got \[1\.0, 0\.4\].*"
                                              r"at t = 0\.5 h"):
         t.simulate(1.0, 0.1, blend=lambda th: [1.0, 0.0] if th < 0.5 else [1.0, 0.4])
 

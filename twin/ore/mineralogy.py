@@ -30,8 +30,31 @@ TEXTURE_REFERENCE_GRAIN_UM = 200.0
 #: (pegmatites, ~1 cm); beyond, the value is a unit slip, and the textural index ~ d^-1/2 it enters would be
 #: off by a factor of ~30: a grain given in mm (Table 1's 30-250 um are 0.03-0.25 mm) lies below 1.
 MEAN_GRAIN_RANGE_UM = (1.0, 1e4)
-#: A blend's mass fractions must sum to 1 within this tolerance (Blend, Mineralogy.blend).
-BLEND_SUM_TOLERANCE = 1e-6
+#: How far a blend's mass fractions may sum from 1, per ore of the blend: the one tolerance of every blend (Blend,
+#: Mineralogy.blend, Twin, scenes, the CLI's --blend, mpc; blend_sum_tolerance). A fraction typed to three decimals
+#: is off by up to 5e-4, so n ores' sum by up to n x 5e-4 (thirds typed 0.333 sum to 0.999, within 1.5e-3); a slip
+#: (0.6 + 0.3, or 0.6 + 0.397 of two ores) is further off and refused. Fractions within it are rescaled to sum to 1
+#: (normalised_blend) before use: the components carry the whole feed (mass conserved), one answer wherever typed.
+BLEND_SUM_TOLERANCE_PER_ORE = 5e-4
+
+
+def blend_sum_tolerance(n_ores: int) -> float:
+    """How far the fractions of a blend of ``n_ores`` ores may sum from 1 (:data:`BLEND_SUM_TOLERANCE_PER_ORE`)."""
+    return BLEND_SUM_TOLERANCE_PER_ORE * max(int(n_ores), 1)
+
+
+def blend_sum_ok(fractions) -> bool:
+    """Whether ``fractions`` sum to 1 within :func:`blend_sum_tolerance` (its end included: a 0.5e-3 rounding
+    of each of n ores sums to n x 5e-4 give or take the floats' rounding)."""
+    values = [float(f) for f in fractions]
+    return abs(math.fsum(values) - 1.0) <= blend_sum_tolerance(len(values)) * (1.0 + 1e-9)
+
+
+def normalised_blend(fractions) -> list[float]:
+    """``fractions`` (checked by the caller: >= 0, :func:`blend_sum_ok`) rescaled to sum to 1."""
+    values = [float(f) for f in fractions]
+    total = math.fsum(values)
+    return [f / total for f in values]
 
 
 def fractions_hint(total: float) -> str:
@@ -184,9 +207,10 @@ class Mineralogy:
               for f in fractions]
         if len(fr) != len(ores):  # zip dropped the ores without a fraction
             raise bad_value("Mineralogy.blend", "fractions", list(fractions), f"one per ore ({len(ores)} ores)")
-        if abs(sum(fr) - 1.0) > BLEND_SUM_TOLERANCE:  # (0.6, 0.397): the wt% were rescaled, the grain size not
-            raise bad_value("Mineralogy.blend", "fractions", list(fractions),
-                            f"mass fractions summing to 1 within {BLEND_SUM_TOLERANCE:g} (sum {sum(fr):.6g})")
+        if not blend_sum_ok(fr):  # (0.6, 0.397): the wt% were rescaled, the grain size not
+            raise bad_value("Mineralogy.blend", "fractions", list(fractions), f"mass fractions summing to 1 within "
+                            f"{blend_sum_tolerance(len(fr)):g} (sum {sum(fr):.6g})")
+        fr = normalised_blend(fr)
         if len(ores) == 1:
             return ores[0]
         wt: dict = {}

@@ -10,7 +10,7 @@ from importlib import resources
 from pathlib import Path
 
 from ..errors import TwinInputError, close_matches
-from .mineralogy import BLEND_SUM_TOLERANCE, TEXTURE_COLUMNS, Mineralogy, Texture
+from .mineralogy import TEXTURE_COLUMNS, Mineralogy, Texture, blend_sum_ok, blend_sum_tolerance, normalised_blend
 
 
 @cache
@@ -117,8 +117,10 @@ class Blend:
                 raise TwinInputError(
                     f"The fraction of ore {ore.name!r} in Blend must be a float in [0, 1]. Got {f}.")
         total = sum(self.fractions)
-        if abs(total - 1.0) > BLEND_SUM_TOLERANCE:
-            raise TwinInputError(f"Blend fractions must sum to 1 within {BLEND_SUM_TOLERANCE}. Got {total}.")
+        if not blend_sum_ok(self.fractions):
+            raise TwinInputError(f"Blend fractions must sum to 1 within {blend_sum_tolerance(len(self.fractions)):g}"
+                                 f". Got {total}.")
+        object.__setattr__(self, "fractions", tuple(normalised_blend(self.fractions)))
 
     @classmethod
     def parse(cls, text: str) -> "Blend":
