@@ -4,7 +4,7 @@ They run even when the schema pass found errors, so they read the table defensiv
 check whose inputs have the wrong type is skipped (the schema pass reports those). Each
 message is ``key.path: what is wrong and what is allowed (got VALUE)``.
 
-Tolerances: blend fractions must sum to 1 within ``BLEND_SUM_TOL``; explicit mineralogy
+Tolerances: blend fractions must sum to 1 within the twin's ``blend_sum_tolerance``; explicit mineralogy
 must sum to 100 wt% within ``MINERAL_SUM_TOL_PCT``.
 """
 
@@ -23,9 +23,9 @@ from scenarios.scene.schema import DEFAULT_N_MIXERS, Feed, Sensors
 from twin import SizeGrid, TwinError, get_mill, hydrocyclone_from, is_preset_file, read_preset
 from twin.calibration import DEFAULT_CALIBRATION, load_calibration
 from twin.effects import problems as effect_problems
-from twin.ore import SUM_TOLERANCE_WT_PCT, fractions_hint, mineral_names, mineral_table, reference_ores
+from twin.ore import (SUM_TOLERANCE_WT_PCT, blend_sum_ok, blend_sum_tolerance, fractions_hint, mineral_names,
+                      mineral_table, reference_ores)
 
-BLEND_SUM_TOL = 1e-3
 MINERAL_SUM_TOL_PCT = SUM_TOLERANCE_WT_PCT  # the twin's Mineralogy's own
 #: How far an ore's given solids density may lie outside the range of its minerals' densities (minerals.csv),
 #: relatively: a mixture's solids density (the mass-weighted harmonic mean) lies inside that range, and a mineral's
@@ -212,7 +212,7 @@ def _check_blend(blend: Any, loc: tuple, ore_names: list[str], r: _Report) -> No
     if not blend:
         r.add(loc, "a blend needs at least one ore")
         return
-    total = 0.0
+    values = []
     for ore, frac in blend.items():
         if ore_names and ore not in ore_names:
             r.add(loc + (ore,), f"ore not defined in [ores]{did_you_mean(ore, ore_names)}; "
@@ -220,9 +220,9 @@ def _check_blend(blend: Any, loc: tuple, ore_names: list[str], r: _Report) -> No
         v = _num(frac)
         if v is not None and not 0.0 <= v <= 1.0:
             r.add(loc + (ore,), "fraction must be in [0, 1]", frac)
-        total += v or 0.0
-    if abs(total - 1.0) > BLEND_SUM_TOL:
-        r.add(loc, f"fractions must sum to 1 within {BLEND_SUM_TOL:g}", round(total, 6))
+        values.append(v or 0.0)
+    if not blend_sum_ok(values):
+        r.add(loc, f"fractions must sum to 1 within {blend_sum_tolerance(len(values)):g}", round(sum(values), 6))
 
 
 def _check_feed(data, ore_names: list[str], r: _Report, base_dir: Path = Path(".")) -> None:

@@ -7,8 +7,8 @@ run, so a file with five mistakes gets five messages. Each message reads
 
 After validation, defaults that depend on other fields are filled in visibly (the returned
 ``Scene`` shows them): mill dimensions and ``n_mixers`` from the preset, the P80 analyser's
-sample period (the scene's), and blends are rescaled to sum exactly to 1 (they must already
-sum to 1 within ``checks.BLEND_SUM_TOL``).
+sample period (the scene's), and blends are rescaled to sum to 1 (they must already sum to 1
+within the twin's ``blend_sum_tolerance``; ``twin.ore.normalised_blend``, as the twin rescales them).
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from scenarios.errors import SceneError
 from scenarios.scene.keypaths import allowed_keys, did_you_mean, format_path, type_at
 from scenarios.scene.schema import Scene, mill_preset
 from twin import file_sha256
+from twin.ore import normalised_blend
 
 
 #: Byte-order marks of text encodings that are not UTF-8, to name the encoding in the error.
@@ -163,6 +164,4 @@ def _fill_defaults(scene: Scene) -> None:
     if scene.feed.blend is not None:
         blends.append(scene.feed.blend)
     for blend in blends:
-        total = sum(blend.values())
-        for ore in blend:
-            blend[ore] = blend[ore] / total
+        blend.update(zip(list(blend), normalised_blend(blend.values())))

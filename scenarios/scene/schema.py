@@ -318,8 +318,8 @@ class Feed(Section):
     """
 
     blend: dict[str, float] | None = Field(default=None, json_schema_extra={"unit": "mass fraction"})
-    """Blend at t = 0, ore -> mass fraction (ores of ``[ores]``, summing to 1 within 0.001);
-    required unless ``history`` gives the feed from t = 0."""
+    """Blend at t = 0, ore -> mass fraction (ores of ``[ores]``, summing to 1 within 5e-4 per ore: fractions
+    typed to three decimals, rescaled to sum to 1); required unless ``history`` gives the feed from t = 0."""
     start: Literal["scene", "target"] | None = None
     """Where a continuous run starts: ``"scene"`` at the steady state of ``feed_tph``;
     ``"target"`` at the steady state whose feed rate holds ``controller.target_p80_um`` at the

@@ -410,3 +410,45 @@ def test_a_feed_the_mill_overloads_at_is_bad_input(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--feed-tph 500 t/h: Steady state not found" in err and "The mill overloads" in err
     assert "steady failed" not in err
+
+
+THIRDS_SCENE = """\
+effects = ["breakage", "transport", "holdup", "speed", "cushioning", "rheology", "power", "classification"]
+
+[scene]
+name = "thirds"
+duration_h = 1.0
+sample_period_h = 0.25
+
+[mill]
+preset = "lab"
+
+[ores.A]
+type = "A"
+
+[ores.B]
+type = "B"
+
+[ores.C]
+type = "C"
+
+[feed]
+blend = { A = 0.333, B = 0.333, C = 0.333 }
+feed_tph = 0.031  # the lab mill's nominal feed, which the CLI's twin keeps
+speed_frac_critical = 0.70
+"""
+
+
+def test_a_blend_typed_to_three_decimals_gives_one_answer_from_the_cli_and_from_a_scene(tmp_path, capsys):
+    """--blend A=0.333,B=0.333,C=0.333 was refused (the twin's 1e-6) where a scene took the same blend (1e-3) and
+    rescaled it; both now take it and rescale it to sum to 1: the same steady state."""
+    scene = tmp_path / "thirds.toml"
+    scene.write_text(THIRDS_SCENE + '\n[controller]\nkind = "none"\n', encoding="utf-8")
+    assert main(["steady", "--scene", str(scene), "--json"]) == 0
+    of_scene = strict_json(capsys.readouterr().out)
+    assert main(["steady", "--blend", "A=0.333,B=0.333,C=0.333", "--feed-tph", "0.031", "--speed", "0.70",
+                 "--json"]) == 0
+    of_cli = strict_json(capsys.readouterr().out)
+    assert of_cli["blend"] == pytest.approx({k: 1 / 3 for k in "ABC"}, rel=1e-15)
+    for key in ("p80_um", "power_kw", "specific_energy_kwh_t", "load_frac", "holdup_t", "throughput_tph"):
+        assert of_cli[key] == pytest.approx(of_scene[key], rel=1e-12, abs=0), key
