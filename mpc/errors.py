@@ -3,16 +3,14 @@
 import math
 from numbers import Real
 
-#: How far a blend may sum from 1 (a belt analyser's rounded fractions)
-BLEND_SUM_TOL = 1e-3
+from twin.ore import blend_sum_ok
 
 
 def is_blend(fractions) -> bool:
-    """Finite fractions in [0, 1] summing to 1 within :data:`BLEND_SUM_TOL`: a plan or an estimate on [5, -4]
-    ran on nothing."""
+    """Finite fractions in [0, 1] summing to 1 within the twin's ``blend_sum_tolerance``: a plan or an estimate on
+    [5, -4] ran on nothing. The caller rescales them to sum to 1 (``twin.ore.normalised_blend``), as the twin does."""
     values = [float(f) for f in fractions]
-    return (all(math.isfinite(f) and -1e-9 <= f <= 1 + 1e-9 for f in values)
-            and abs(sum(values) - 1.0) <= BLEND_SUM_TOL)
+    return all(math.isfinite(f) and -1e-9 <= f <= 1 + 1e-9 for f in values) and blend_sum_ok(values)
 
 
 def is_real(value) -> bool:

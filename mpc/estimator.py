@@ -43,7 +43,8 @@ import numpy as np
 
 from mpc.codegen import compiled
 from mpc.discretize import rk4_sensitivity_map
-from mpc.errors import BLEND_SUM_TOL, MpcInputError, MpcSolverError, is_blend, is_real
+from mpc.errors import MpcInputError, MpcSolverError, is_blend, is_real
+from twin.ore import blend_sum_tolerance
 
 MEASUREMENTS = ("p80_um", "power_kw", "load_frac")
 #: Default random-walk intensity of the hardness scale [1/sqrt(h)]: a 1-sigma drift of
@@ -314,7 +315,8 @@ class Ekf:
         if d_all.size not in (self.nd - 1, self.nd) or not is_blend(db):
             raise MpcInputError(f"The 'd_known' parameter of Ekf.make_step must be the {self.nd - 1} blend "
                                 f"fractions (a trailing hardness is ignored), finite, in [0, 1], summing to 1 within "
-                                f"{BLEND_SUM_TOL:g}. Got {d_all.tolist()}.")
+                                f"{blend_sum_tolerance(db.size):g}. Got {d_all.tolist()}.")
+        db = db / db.sum()  # rescaled to sum to 1, as the twin's blend
         if not (u[0] >= 0 and 0 < u[1] < 1):  # a feed of -100 t/h emptied the estimated mill, with no word
             raise MpcInputError(f"The 'u' parameter of Ekf.make_step must be the applied feed [t/h] >= 0 and speed "
                                 f"[fraction of critical] in (0, 1). Got {u.tolist()}.")

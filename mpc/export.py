@@ -60,9 +60,9 @@ from mpc.codegen import C_DIR
 from mpc.condense import stage_functions
 from mpc.errors import MpcInputError, OutsideModelsWarning
 from mpc.estimator import MEASUREMENTS
-from mpc.errors import BLEND_SUM_TOL
 from mpc.nmpc import PASSING_TARGET, speed_max_note
 from twin import LockError, acquire_lock, file_sha256, new_folder_beside, release_lock, replace_folder
+from twin.ore import blend_sum_tolerance
 
 MANIFEST = "grindtwin_export.json"
 #: The C API's version (gt_controller.h), in GT_ABI_HASH: 2 added gt_controller_check_abi; 3 the statuses
@@ -235,7 +235,8 @@ def _constants(controller, estimator, u0, preview_lead_h, measurement_range, fee
                "GT_TOL": repr(s.tol), "GT_HARDNESS0": repr(e.hardness_est),
                "GT_TARGET_P80_UM": repr(float(s.target_p80_um)), "GT_P80_GAIN": repr(float(e.p80_gain)),
                "GT_P80_REFERENCE_UM": repr(float(e.p80_reference_um or 0.0)), "GT_PASSING_TARGET": repr(PASSING_TARGET),
-               "GT_BLEND_SUM_TOL": repr(BLEND_SUM_TOL), "GT_UNREACHABLE_TOL": repr(float(s.unreachable_tol_frac)),
+               "GT_BLEND_SUM_TOL": repr(blend_sum_tolerance(c.nd - 1)),
+               "GT_UNREACHABLE_TOL": repr(float(s.unreachable_tol_frac)),
                "GT_GRID_RATIO": repr(float(c.model.spec.grid.ratio)), "GT_FEED_MAX_TPH": _c_value(feed_max_tph)}
     du_max = np.array([s.feed_rate_max_tph_per_h, s.speed_rate_max_per_h]) * s.dt_h
     arrays = {"gt_x_scale": c.x_scale, "gt_u_lo": [s.feed_tph_min, s.speed_min],
@@ -308,7 +309,7 @@ def config_header(controller, estimator, u0, preview_lead_h: float | None, measu
               "/* GT_STEP_TARGET_UNREACHABLE: the plan's passing fraction at the horizon end differs from",
               " * GT_PASSING_TARGET by more than GT_UNREACHABLE_TOL (mpc.Controller.make_step's rule) */",
               f"#define GT_PASSING_TARGET {sc['GT_PASSING_TARGET']}",
-              "/* a blend's fractions may sum this far from 1 (mpc.errors.BLEND_SUM_TOL) */",
+              "/* a blend's fractions may sum this far from 1 (twin.ore.blend_sum_tolerance of GT_NB ores) */",
               f"#define GT_BLEND_SUM_TOL {sc['GT_BLEND_SUM_TOL']}",
               f"#define GT_UNREACHABLE_TOL {sc['GT_UNREACHABLE_TOL']}", "",
               "/* state scales, input bounds, largest move per sample, passing weights of the target */",

@@ -89,10 +89,11 @@ from mpc.codegen import MODES as CODEGEN_MODES
 from mpc.codegen import RTI_CFLAGS, c_library, compiled
 from mpc.condense import RTI_C_SOURCES, RtiLibrary, condensed_qp_function, stage_functions
 from mpc.discretize import rk4_map, rk4_sensitivity_map
-from mpc.errors import BLEND_SUM_TOL, MpcInputError, MpcSolverError, is_blend, is_real
+from mpc.errors import MpcInputError, MpcSolverError, is_blend, is_real
 from mpc.qpsol import conic
 from mpc.results import ControllerStepResult
 from twin import centrifuging_note, pxx_um
+from twin.ore import blend_sum_tolerance
 
 SOLVERS = ("ipopt", "sqpmethod", "fatrop", "rti")
 QP_SOLVERS = ("hpipm", "qrqp", "osqp", "condensed")
@@ -668,9 +669,10 @@ class Controller:
         blend, hardness = d[:-1, :N], d[-1, :N]
         if not all(is_blend(col) for col in blend.T) or not np.all(hardness > 0):  # a negative hardness: on nothing
             raise MpcInputError(f"The 'd_preview' parameter must hold blend fractions in [0, 1] summing to 1 (within "
-                                f"{BLEND_SUM_TOL:g}) and a hardness > 0 on every stage. Got blend sums "
-                                f"{np.round(blend.sum(axis=0), 6).tolist()[:3]}..., hardness {hardness.min():g} at least.")
-        return d[:, :N]
+                                f"{blend_sum_tolerance(blend.shape[0]):g}) and a hardness > 0 on every stage. Got "
+                                f"blend sums {np.round(blend.sum(axis=0), 6).tolist()[:3]}..., hardness "
+                                f"{hardness.min():g} at least.")
+        return np.vstack([blend / blend.sum(axis=0), hardness])  # rescaled to sum to 1, as the twin's blend
 
     def _initial_guess(self, x0s, u_prev, samples: int = 1):
         """Primal (and, for IPOPT, dual) start: the previous solution shifted by ``samples`` samples

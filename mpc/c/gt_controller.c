@@ -146,15 +146,21 @@ void gt_controller_reset(gt_controller *c) {
     c->passing_end = NAN;
 }
 
-/* mpc.errors.is_blend: finite fractions in [0, 1] summing to 1 within GT_BLEND_SUM_TOL */
-static int blend_ok(const double *b) {
+/* the sum of a blend's GT_NB fractions */
+static double blend_sum(const double *b) {
     double sum = 0.0;
     int i;
-    for (i = 0; i < GT_NB; ++i) {
+    for (i = 0; i < GT_NB; ++i) sum += b[i];
+    return sum;
+}
+
+/* mpc.errors.is_blend: finite fractions in [0, 1] summing to 1 within GT_BLEND_SUM_TOL (its end included, as
+ * twin.ore.blend_sum_ok) */
+static int blend_ok(const double *b) {
+    int i;
+    for (i = 0; i < GT_NB; ++i)
         if (!isfinite(b[i]) || b[i] < -1e-9 || b[i] > 1.0 + 1e-9) return 0;
-        sum += b[i];
-    }
-    return fabs(sum - 1.0) <= GT_BLEND_SUM_TOL;
+    return fabs(blend_sum(b) - 1.0) <= GT_BLEND_SUM_TOL * (1.0 + 1e-9);
 }
 
 /* the sample periods from the last estimate to t_h: k (1 to GT_MAX_PREDICT_PERIODS) when t_h - t_prev is
@@ -171,7 +177,7 @@ static int periods_elapsed(const gt_controller *c, double t_h) {
 int gt_controller_estimate(gt_controller *c, double t_h, const double *y, const double *u_applied,
                            const double *blend) {
     static const double absent[3] = {0.0, 0.0, 0.0}; /* the values and mask of a sample without measurements */
-    double yy[3], mask[3], z[GT_NZ];
+    double yy[3], mask[3], z[GT_NZ], bn[GT_NB], sum;
     int i, j, k, failed, reset = 0, implausible = 0;
     /* mpc.Ekf.make_step refuses these: a NaN input once made the clipped update an empty mill, a feed of
      * -100 t/h emptied it, a blend of [5, -4] drove the hardness to its bound */
@@ -180,6 +186,8 @@ int gt_controller_estimate(gt_controller *c, double t_h, const double *y, const 
         return GT_ESTIMATE_BAD_INPUT;
     k = periods_elapsed(c, t_h);
     if (!k) return GT_ESTIMATE_BAD_TIME;
+    sum = blend_sum(blend);
+    for (i = 0; i < GT_NB; ++i) bn[i] = blend[i] / sum; /* rescaled to sum to 1, as mpc.Ekf.make_step does */
     for (i = 0; i < 3; ++i) { /* outside its physical range: a fault of units or instrument, as absent */
         int ok = isfinite(y[i]) && y[i] >= gt_y_lo[i] && y[i] <= gt_y_hi[i];
         implausible |= isfinite(y[i]) && !ok;
@@ -196,7 +204,7 @@ int gt_controller_estimate(gt_controller *c, double t_h, const double *y, const 
         c->ekf_arg[0] = z;
         c->ekf_arg[1] = c->P;
         c->ekf_arg[2] = u_applied;
-        c->ekf_arg[3] = blend;
+        c->ekf_arg[3] = bn;
         c->ekf_arg[4] = j == k ? yy : absent;
         c->ekf_arg[5] = j == k ? mask : absent;
         c->ekf_res[0] = c->z;
@@ -355,7 +363,8 @@ int gt_controller_step(gt_controller *c, const double *preview, const double *u_
     }
     for (k = 0; k < GT_N; ++k) {
         const double *b = preview + (GT_PREVIEW ? k : 0) * GT_NB;
-        for (i = 0; i < GT_NB; ++i) p[GT_NX + k * GT_ND + i] = b[i];
+        double sum = blend_sum(b); /* rescaled to sum to 1, as mpc.Controller._d_traj and the twin do */
+        for (i = 0; i < GT_NB; ++i) p[GT_NX + k * GT_ND + i] = b[i] / sum;
         p[GT_NX + k * GT_ND + GT_NB] = h;
     }
     for (i = 0; i < GT_NU; ++i) p[GT_NX + GT_N * GT_ND + i] = u_applied[i];

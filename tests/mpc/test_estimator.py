@@ -162,3 +162,15 @@ def test_change_detector_refuses_what_it_cannot_use(ctrl_twin):
     x0 = ctrl_twin.model.initial_state([1.0, 0.0])
     with pytest.raises(MpcInputError, match="'change_detector' parameter of Ekf .* estimates the hardness"):
         Ekf(ctrl_twin.model, 0.05, x0, disturbance_model="p80_bias", change_detector=ChangeDetector())
+
+
+def test_a_blend_of_rounded_fractions_is_estimated_on_rescaled_to_sum_to_one(ctrl_twin):
+    """d_known = [0.6004, 0.4] (within the twin's tolerance) fed the model 0.04 % more ore than the feed; now it
+    is rescaled to sum to 1, as the twin rescales a blend: the estimate of the rescaled blend's."""
+    m = ctrl_twin.model
+    rounded = np.array([0.6004, 0.4])
+    estimates = []
+    for blend in (rounded, rounded / rounded.sum()):
+        ekf = Ekf(m, 0.05, m.initial_state([0.6, 0.4]), p80_noise_um=1.0)
+        estimates.append(ekf.make_step([210.0, np.nan, np.nan], [27.0, 0.7], blend)[0])
+    assert np.allclose(estimates[0], estimates[1], rtol=1e-12, atol=0)

@@ -90,6 +90,50 @@ def test_a_preview_that_is_not_a_blend_is_refused_as_python_refuses_it(built):
         assert (row[2] == "nan") == refused, (name, row)  # no move for a refused preview
 
 
+def test_a_rounded_blend_is_rescaled_to_sum_to_one_in_c_as_in_python(built, tmp_path):
+    """The C estimate and step took a blend within GT_BLEND_SUM_TOL of 1 as it was ([0.6004, 0.4]: 0.04 % more
+    ore in the model than fed); Python rescales it to sum to 1 (the twin's normalised_blend), and so does C now:
+    the estimate and the plan of the rounded blend are those of the rescaled one."""
+    out, _, _, cfg = built
+    assert int(cfg["GT_NB"]) == 2
+    rows, z = _driver_rows(c_tools(), tmp_path, out, [out / "libgtcontroller.a"], ROUNDED_DRIVER)
+    assert rows["rounded"][0] == rows["rescaled"][0] == "0"
+    np.testing.assert_allclose(z["rounded"], z["rescaled"], rtol=1e-12, atol=1e-12 * np.abs(z["rescaled"]).max())
+    assert rows["step_rounded"][0] in ("0", "5") and rows["step_rounded"][0] == rows["step_rescaled"][0]
+    assert float(rows["step_rounded"][1]) == pytest.approx(float(rows["step_rescaled"][1]), rel=1e-12)
+
+
+#: Estimates and a step of one blend given rounded ([0.6004, 0.4]) and rescaled to sum to 1, on new controllers.
+ROUNDED_DRIVER = r"""
+#include <math.h>
+#include <stdio.h>
+#include "gt_controller.h"
+#include "gt_controller_config.h"
+
+static void run(const char *tag, const char *step_tag, const double *blend) {
+    gt_controller *c = gt_controller_new();
+    double y[3] = {210.0, NAN, NAN}, u[2] = {27.0, 0.7}, preview[GT_NB * GT_N], move[2];
+    const double *z;
+    int i, st = gt_controller_estimate(c, 0.0, y, u, blend);
+    z = gt_controller_estimate_state(c);
+    printf("%s %d", tag, st);
+    for (i = 0; i < GT_NZ; ++i) printf(" %.17g", z[i]);
+    printf("\n");
+    for (i = 0; i < GT_N; ++i) { preview[i * GT_NB] = blend[0]; preview[i * GT_NB + 1] = blend[1]; }
+    st = gt_controller_step(c, preview, u, move);
+    printf("%s %d %.17g\n", step_tag, st, gt_controller_passing_end(c));
+    gt_controller_free(c);
+}
+
+int main(void) {
+    double rounded[2] = {0.6004, 0.4}, rescaled[2] = {0.6004 / 1.0004, 0.4 / 1.0004};
+    run("rounded", "step_rounded", rounded);
+    run("rescaled", "step_rescaled", rescaled);
+    return 0;
+}
+"""
+
+
 DRIVER = r"""
 #include <math.h>
 #include <stdio.h>
@@ -135,11 +179,11 @@ int main(void) {
 """
 
 
-def _driver_rows(cc: str, folder: Path, include: Path, objects) -> tuple[dict, dict]:
-    """DRIVER built in ``folder`` against ``include``'s headers and ``objects``: its rows by tag, and the
-    estimates they show."""
+def _driver_rows(cc: str, folder: Path, include: Path, objects, source: str | None = None) -> tuple[dict, dict]:
+    """``source`` (default DRIVER) built in ``folder`` against ``include``'s headers and ``objects``: its rows by
+    tag, and the estimates they show."""
     folder.mkdir(exist_ok=True)
-    (folder / "driver.c").write_text(DRIVER)
+    (folder / "driver.c").write_text(DRIVER if source is None else source)
     exe = folder / "driver"
     build = subprocess.run([cc, "-O1", f"-I{include}", str(folder / "driver.c"), *map(str, objects), "-lm", "-o",
                             str(exe)], capture_output=True, text=True)

@@ -301,3 +301,16 @@ def test_a_prediction_that_overflows_is_reported_as_qp_data_not_finite(ctrl_twin
     ctrl.reset()
     r = ctrl.make_step(ss.x * 1e150, d, ss.u)
     assert not r.success and r.status == "rti QP failed: QP data not finite (nan or inf in H, g or A)"
+
+
+def test_a_preview_of_rounded_fractions_is_planned_on_rescaled_to_sum_to_one(setup):
+    """A preview of [0.6004, 0.4] (within the twin's tolerance of two ores) was planned on as it was, 0.04 % more
+    feed in its components than fed; now it is rescaled to sum to 1 as the twin rescales a blend, and a slip of
+    [0.6, 0.397] is refused as the twin refuses it."""
+    ctrl, _ = setup
+    rounded = np.vstack([np.tile([[0.6004], [0.4]], (1, N)), np.full((1, N), 1.0)])
+    d = ctrl._d_traj(rounded)
+    assert np.allclose(d[:2].sum(axis=0), 1.0, rtol=0, atol=1e-15)
+    assert np.allclose(d[:2, 0], np.array([0.6004, 0.4]) / 1.0004, rtol=1e-15) and np.all(d[2] == 1.0)
+    with pytest.raises(MpcInputError, match="summing to 1 \\(within 0.001\\)"):
+        ctrl._d_traj(np.vstack([np.tile([[0.6], [0.397]], (1, N)), np.full((1, N), 1.0)]))
