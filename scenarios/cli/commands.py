@@ -429,8 +429,10 @@ def _write_sweep(folder: Path, table, traces, scene_path, xlsx: bool) -> None:
     from scenarios.output.workbook import tables_as_json, write_csv
     from scenarios.scene import validate_scene_dict
 
+    if "warnings" in table:  # text, as "error": a failed case has none (NaN beside None made a column of numbers)
+        table = table.astype({"warnings": object})
     flat = tables_as_json(table)  # a case's blend as JSON text: parquet wants plain columns
-    write_csv(flat, folder / "sweep.csv", index=False)  # NaN written as such, as in a run folder
+    write_csv(flat, folder / "sweep.csv", index=False)  # NaN written as such, as in a run folder; no text empty
     flat.to_parquet(folder / "sweep.parquet", index=False)
     # the base scene as the cases were made from it, as they are checked (not as written: its own controller
     # kind may read nothing of keys the cases read), not the file read again now: edited during the sweep, it

@@ -48,9 +48,28 @@ XLSX_NA = "#N/A"
 
 
 def write_csv(table: pd.DataFrame, path: Path, index: bool = True) -> Path:
-    """``table`` as CSV at ``path``, an undefined number written :data:`CSV_NA`."""
-    table.to_csv(path, index=index, na_rep=CSV_NA)
+    """``table`` as CSV at ``path``, an undefined number written :data:`CSV_NA`, a missing text empty
+    (:func:`blank_missing_text`)."""
+    blank_missing_text(table).to_csv(path, index=index, na_rep=CSV_NA)
     return Path(path)
+
+
+def _text_or_missing(value) -> bool:
+    return isinstance(value, str) or value is None or (isinstance(value, float) and math.isnan(value))
+
+
+def blank_missing_text(table: pd.DataFrame) -> pd.DataFrame:
+    """``table`` with the missing cells of its text columns (of strings, or objects holding only text or None: a
+    sweep case's ``error`` and ``warnings``) as empty text: no error is no text, not an undefined number (``NaN``,
+    ``#N/A`` read as one). Columns of numbers keep their NaN (:data:`CSV_NA`, :data:`XLSX_NA`)."""
+    text = [c for c in table.columns if isinstance(table[c].dtype, pd.StringDtype)
+            or (table[c].dtype == object and table[c].map(_text_or_missing).all())]
+    if not text:
+        return table
+    out = table.copy()
+    for c in text:
+        out[c] = out[c].astype(object).where(out[c].notna(), "")
+    return out
 
 
 def workbook_problem(n_samples: int) -> str | None:
@@ -126,10 +145,9 @@ def kpi_header(key: str) -> str:
 def cases_sheet(table: pd.DataFrame) -> pd.DataFrame:
     """A sweep's table of cases as its workbook shows it, as readable as the KPI sheet: the KPIs headed by
     :func:`kpi_header`, shares as percentages (:func:`percent_cells`), cells that are tables as JSON text
-    (:func:`tables_as_json`), and an error column whose case ran empty (a text column: no #N/A error value)."""
-    cases = tables_as_json(table)
-    if "error" in cases:
-        cases["error"] = cases["error"].astype(object).where(cases["error"].notna(), "")
+    (:func:`tables_as_json`), and its text columns' missing cells empty (:func:`blank_missing_text`: an error
+    column whose case ran holds no #N/A error value)."""
+    cases = blank_missing_text(tables_as_json(table))
     cases.attrs["percent_cells"] = percent_cells((i, j, k, v) for j, k in enumerate(cases.columns)
                                                  for i, v in enumerate(cases[k]))
     return cases.rename(columns=kpi_header)
@@ -202,6 +220,7 @@ def _write_sheets(path: Path, sheets: dict[str, tuple[pd.DataFrame, bool]]) -> P
 def _fill_book(tmp: Path, sheets: dict[str, tuple[pd.DataFrame, bool]]) -> None:
     with pd.ExcelWriter(tmp, engine="openpyxl") as xl:
         for name, (table, index) in sheets.items():
+            table = blank_missing_text(table)  # a missing text is empty on a sheet of numbers too, not #N/A
             table.to_excel(xl, sheet_name=name, index=index, na_rep="" if name in TEXT_SHEETS else XLSX_NA)
             ws = xl.sheets[name]
             ws.freeze_panes = "B2" if index else "A2"

@@ -23,7 +23,8 @@ Layout of a run directory::
                              the recorded one: one edited by hand, or the user's, is refused and kept
 
 In every CSV an undefined number (NaN: the P80 of an empty mill, a sample the model leaves
-undefined) is the text ``NaN`` (:data:`scenarios.output.workbook.CSV_NA`), never an empty cell,
+undefined) is the text ``NaN`` (:data:`scenarios.output.workbook.CSV_NA`), never an empty cell
+(a missing text, a sweep case's ``error`` when it ran, is the empty one, in the workbook too),
 and every other number has all its digits, so ``pd.read_csv`` reads back the run's numbers
 exactly, NaN as NaN; Excel shows ``NaN`` as text. In the workbook's tables of numbers (time
 series, size distributions, streams, P80 traces) it is Excel's ``#N/A``; summary.json writes it

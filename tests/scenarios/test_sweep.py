@@ -398,3 +398,40 @@ def test_a_sweep_describes_the_scene_its_cases_were_made_from_not_the_file_read_
     assert drawn["t"] == 210.0
     rows = pd.read_excel(out / "sweep.xlsx", sheet_name="scene").set_index("key")["value"]
     assert (rows["controller.kind"], rows["controller.target_p80_um"]) == ("none", 210)
+
+
+def warned_kpis(scene):
+    """cheap_kpis with the sweep's text column of warnings (None: none), as the CLI's sweep_case returns it."""
+    return cheap_kpis(scene) | {"warnings": None}
+
+
+def test_a_case_without_error_or_warnings_has_empty_text_cells_not_nan(write_scene, monkeypatch, tmp_path):
+    """sweep.csv wrote a case's empty ``error`` (and ``warnings``) as the text NaN, an undefined number, and
+    sweep.xlsx its warnings as #N/A; a missing text is now an empty cell in both, read back as no text by pandas
+    and by the csv module, while an undefined number (the failed case's KPIs) stays NaN / #N/A."""
+    import csv
+
+    import openpyxl
+
+    from scenarios.cli import commands
+    from tests.scenarios.conftest import BASE_SCENE
+    from tests.scenarios.test_cli import grindtwin
+
+    monkeypatch.setattr(commands, "sweep_case", warned_kpis)
+    runnable = BASE_SCENE.replace('kind = "nmpc"', 'kind = "none"')
+    out = tmp_path / "sweep"
+    assert grindtwin(["sweep", write_scene(runnable), "--vary", "feed.feed_tph=25,44", "--workers", "1",
+                      "--out", out, "--xlsx", "--quiet"]) == 1  # case 1 fails
+    failed = "RuntimeError: mill overloaded at 44.0 t/h"
+    with open(out / "sweep.csv", newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["error"] for r in rows] == ["", failed] and [r["warnings"] for r in rows] == ["", ""]
+    assert rows[1]["p80_um"] == "NaN"  # an undefined number is still NaN
+    table = pd.read_csv(out / "sweep.csv")
+    assert table["error"].isna().tolist() == [True, False] and table["error"][1] == failed
+    assert table["warnings"].isna().all() and table["p80_um"].isna().tolist() == [False, True]
+    sheet = openpyxl.load_workbook(out / "sweep.xlsx")["cases"]
+    header = [c.value for c in sheet[1]]
+    cells = [dict(zip(header, row)) for row in sheet.iter_rows(min_row=2, values_only=True)]
+    assert [c["error"] for c in cells] == [None, failed] and [c["warnings"] for c in cells] == [None, None]
+    assert "#N/A" in cells[1].values()  # the failed case's KPIs
