@@ -91,6 +91,32 @@ def file_sha256(path) -> str:
     return digest.hexdigest()
 
 
+def read_once(path) -> tuple[bytes, str]:
+    """A file's bytes and their sha256 (hex), read once: what a run parses and what it records of it are one
+    version of the file, not two when it is rewritten meanwhile."""
+    data = Path(path).read_bytes()
+    return data, hashlib.sha256(data).hexdigest()
+
+
+#: Excel's error values: a line whose first cell is one is a row of data (refused where a number is due), not a
+#: comment; read as one, a sieve row "#N/A,60" was dropped without a word.
+EXCEL_ERRORS = ("#N/A", "#VALUE!", "#REF!", "#DIV/0!", "#NUM!", "#NAME?", "#NULL!", "#SPILL!", "#CALC!")
+
+
+def csv_text(data: bytes) -> str:
+    """A CSV file's ``data`` as text (UTF-8, a byte-order mark dropped) with its comment lines (first
+    non-blank character '#', the first cell no Excel error value) left blank: pandas skips blank lines, so its
+    line numbers stay the file's, and a comment is a whole line (pandas' comment="#" also cut a row at a cell
+    "#VALUE!")."""
+    text = data.decode("utf-8-sig")
+    return "".join("\n" if _is_comment(line) else line for line in text.splitlines(keepends=True))
+
+
+def _is_comment(line: str) -> bool:
+    head = line.lstrip()
+    return head.startswith("#") and head.split(",", 1)[0].strip().upper() not in EXCEL_ERRORS
+
+
 def is_grindtwin_checkout(folder) -> bool:
     """Whether ``folder`` holds a checkout of the grindtwin repository: its pyproject.toml names the
     project (an installed package, or another project's folder, has none that does)."""

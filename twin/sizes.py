@@ -306,11 +306,22 @@ class TabulatedPSD:
     @classmethod
     def from_csv(cls, path) -> "TabulatedPSD":
         """From a CSV file with columns ``size_um`` and ``passing_pct`` (one sieve a row; UTF-8, comma-separated,
-        decimal points)."""
+        decimal points; lines starting with '#' are comments, as in a scene's history: :func:`twin.atomic.csv_text`)."""
+        return cls.read_csv(path)[0]
+
+    @classmethod
+    def read_csv(cls, path) -> tuple["TabulatedPSD", str]:
+        """:meth:`from_csv`, and the sha256 of the bytes it was read from (read once: a run records the file it was
+        fed, as it records a history's)."""
+        import io
+
         import pandas as pd
 
+        from .atomic import csv_text, read_once
+
+        data, sha256 = read_once(path)
         try:
-            frame = pd.read_csv(path, encoding="utf-8-sig", keep_default_na=False, na_values=[""])
+            frame = pd.read_csv(io.StringIO(csv_text(data)), keep_default_na=False, na_values=[""])
         except ValueError as exc:  # a row with a cell more than the header (a decimal comma), not UTF-8, empty
             raise TwinInputError(f"The size-distribution file {path} cannot be read as a comma-separated UTF-8 file "
                                  f"with decimal points: {exc}") from None
@@ -327,7 +338,7 @@ class TabulatedPSD:
                 raise TwinInputError(f"The size-distribution file {path}: column {col} is not a number in data rows "
                                      f"{rows} (e.g. {frame[col][text].iloc[0]!r}); allowed: a number in every row")
             values.append(num.to_numpy(float))
-        return cls.from_sieves(*values)
+        return cls.from_sieves(*values), sha256
 
     @property
     def fine_modulus(self) -> float:

@@ -89,7 +89,7 @@ def calibration_text(cal) -> str | None:
 def preset_file_text(preset) -> str | None:
     """File and hash of the mill preset file a run's scene named (summary.json's ``mill_preset_file``), as
     :func:`calibration_text` gives the calibration's; None for a preset's name. Also the history file a run was
-    fed (``history_file``), of the same form."""
+    fed (``history_file``) and the feed's screen analysis (``psd_file``), of the same form."""
     if not preset:
         return None
     sha = f" (sha256 {preset['sha256'][:12]})" if preset.get("sha256") else ""

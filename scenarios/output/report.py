@@ -153,8 +153,8 @@ def render_report(run_dir) -> str:
 
 #: Fields of summary.json the report reads -> their JSON type (a hand-edited one raised a traceback).
 SUMMARY_FIELDS = {"replay": dict, "versions": dict, "calibration": dict, "mill_preset_file": dict,
-                  "history_file": dict, "effects": list, "plant_effects": list, "components": list, "notes": list,
-                  "warnings": list, "description": str}
+                  "history_file": dict, "psd_file": dict, "effects": list, "plant_effects": list, "components": list,
+                  "notes": list, "warnings": list, "description": str}
 _JSON_NAMES = {dict: "object", list: "array", str: "string"}
 
 
@@ -193,7 +193,8 @@ def _render(run_dir: Path, summary: dict, problems: list[str]) -> str:
              ("calibration", calibration_text(summary.get("calibration"))),
              ("mill preset file", preset_file_text(summary.get("mill_preset_file"))),
              ("scene file", summary.get("source")), *replay_rows(summary),
-             ("history file", preset_file_text(summary.get("history_file")))]
+             ("history file", preset_file_text(summary.get("history_file"))),
+             ("feed screen analysis file", preset_file_text(summary.get("psd_file")))]
     parts.append("<table>" + "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
                                      for k, v in facts if v is not None) + "</table>")
     run_warnings = [str(w) for w in summary.get("warnings") or []]

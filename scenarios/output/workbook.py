@@ -186,7 +186,8 @@ def summary_rows(summary: dict) -> pd.DataFrame:
              ("components", ", ".join(summary.get("components", []))),
              ("calibration", calibration_text(summary.get("calibration"))),
              ("mill preset file", preset_file_text(summary.get("mill_preset_file"))),
-             ("history file", preset_file_text(summary.get("history_file")))]
+             ("history file", preset_file_text(summary.get("history_file"))),
+             ("feed screen analysis file", preset_file_text(summary.get("psd_file")))]
     # the warnings apart, as the report puts them (a run's notes hold its warnings too)
     warnings = [str(w) for w in summary.get("warnings") or []]
     rows += [(f"warning {i + 1}", w) for i, w in enumerate(warnings)]

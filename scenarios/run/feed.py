@@ -3,6 +3,8 @@ mineralogy mapped onto them), and the recorded plant inputs of a history."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 from scipy.optimize import nnls
@@ -119,12 +121,19 @@ def history_file_changes(history: History | None) -> list[str]:
     or removed meanwhile: summary.json records the SHA-256 of what was read); else none."""
     if history is None or history.sha256 is None:
         return []
-    now = file_sha256(history.source) if history.source.is_file() else None
-    if now == history.sha256:
+    return fed_file_changes("history file", history.source, history.sha256)
+
+
+def fed_file_changes(what: str, path, sha256: str) -> list[str]:
+    """A warning when the file at ``path`` (``what``: "history file") is not, at the end of a run, the bytes of
+    ``sha256`` the run was fed (rewritten or removed meanwhile); else none."""
+    path = Path(path)
+    now = file_sha256(path) if path.is_file() else None
+    if now == sha256:
         return []
-    what = f"its SHA-256 is now {now[:12]}" if now else "it is gone"
-    return [f"the history file {history.source} changed during the run (the run was fed the file with SHA-256 "
-            f"{history.sha256[:12]}, which summary.json records; {what}): run again with the file left as it is"]
+    found = f"its SHA-256 is now {now[:12]}" if now else "it is gone"
+    return [f"the {what} {path} changed during the run (the run was fed the file with SHA-256 "
+            f"{sha256[:12]}, which summary.json records; {found}): run again with the file left as it is"]
 
 
 def feed_schedule(scene: Scene, components: list[str], times_h: np.ndarray, ores: dict | None = None

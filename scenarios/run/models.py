@@ -5,7 +5,9 @@ from it, unless the scene says ``calibration_mismatch_ok = true``)."""
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from scenarios.errors import RunError, SceneError
@@ -74,9 +76,30 @@ def scene_feed_psd(scene: Scene):
     if f.psd is not None:
         return TabulatedPSD.from_sieves(f.psd.sizes_um, f.psd.passing_pct)
     if f.psd_csv is not None:
-        path = scene.resolve_path(f.psd_csv)
-        return TabulatedPSD.from_csv(path)
+        return read_psd_csv_once(scene.resolve_path(f.psd_csv))[0]
     return None
+
+
+def feed_psd_file(scene: Scene) -> dict | None:
+    """The screen analysis (``feed.psd_csv``) the scene's twins are fed, as summary.json records it: ``{"path",
+    "sha256"}`` of the bytes read (as a history file's), or None without one."""
+    if scene.feed.psd_csv is None:
+        return None
+    path = scene.resolve_path(scene.feed.psd_csv)
+    return {"path": str(Path(path).resolve()), "sha256": read_psd_csv_once(path)[1]}
+
+
+def read_psd_csv_once(path) -> tuple[TabulatedPSD, str]:
+    """:meth:`TabulatedPSD.read_csv`, read again only when the file has changed (its modification time or size),
+    as a history is (:func:`scenarios.scene.history.read_history_once`): the run's twins and its record of the
+    file are of one reading."""
+    stat = Path(path).stat()
+    return _read_psd_cached(str(path), stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=8)
+def _read_psd_cached(path: str, _mtime_ns: int, _size: int) -> tuple[TabulatedPSD, str]:
+    return TabulatedPSD.read_csv(path)
 
 
 def scene_breakage(scene: Scene, ores: dict, mill) -> tuple[dict, dict]:

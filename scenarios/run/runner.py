@@ -51,9 +51,9 @@ from scenarios.errors import SceneError
 from scenarios.output import claim_output, workbook_problem, write_files
 from scenarios.run.batch import run_batch
 from scenarios.run.closed_loop import run_closed
-from scenarios.run.feed import feed_schedule, fit_warnings, history_changes, history_file_changes
+from scenarios.run.feed import fed_file_changes, feed_schedule, fit_warnings, history_changes, history_file_changes
 from scenarios.run.kpis import compute_kpis, feed_stopped
-from scenarios.run.models import build_models, component_ores, is_batch
+from scenarios.run.models import build_models, component_ores, feed_psd_file, is_batch
 from scenarios.run.open_loop import analyser_trace, run_open_loop
 from scenarios.run.preflight import model_size_problems, refuse, replay_speed_problems, settings_problems
 from scenarios.run.summary import make_summary, preset_file_changes
@@ -120,7 +120,8 @@ def _check_workbook(scene: Scene, xlsx: bool) -> None:
 
 def _scene_files(scene: Scene) -> tuple:
     """The user's files a run reads: their folders are never an output folder."""
-    return tuple(p for p in (scene.source_path, scene.history_path()) if p is not None)
+    psd = scene.resolve_path(scene.feed.psd_csv) if scene.feed.psd_csv is not None else None
+    return tuple(p for p in (scene.source_path, scene.history_path(), psd) if p is not None)
 
 
 def _commit(claim, result: RunResult, csv: bool, plots: bool, xlsx: bool) -> None:
@@ -133,6 +134,7 @@ def _commit(claim, result: RunResult, csv: bool, plots: bool, xlsx: bool) -> Non
 def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
     t_start = time.perf_counter()
     models = build_models(scene)
+    psd_file = feed_psd_file(scene)  # the screen analysis the twins were fed (cached): its hash is recorded
     refuse(scene, model_size_problems(scene, models))
     times = scene.time_grid_h()
     ores = component_ores(scene)
@@ -172,11 +174,15 @@ def _run(scene: Scene, progress: bool, replay: bool) -> RunResult:
                                   product_psd=None if is_batch(scene) else psd,
                                   nominal_pressure_kpa=nominal_pressure_kpa(models.plant.model))
     warnings_ += preset_file_changes(scene) + history_file_changes(history)
+    if psd_file is not None:
+        warnings_ += fed_file_changes("screen analysis (feed.psd_csv)", psd_file["path"], psd_file["sha256"])
     summary = make_summary(scene, models, kpis, notes + warnings_, time.perf_counter() - t_start)
     summary["controller_health"] = health
     summary["warnings"] = warnings_
     if history is not None:  # the bytes the run was fed: a path alone names whatever the file holds later
         summary["history_file"] = {"path": str(history.source.resolve()), "sha256": history.sha256}
+    if psd_file is not None:
+        summary["psd_file"] = psd_file
     if psd is not None:
         summary["final_psd"] = {"what": psd.attrs.get("what", "product"), "time_h": float(psd.index[-1]),
                                 "size_um": [float(x) for x in psd.columns],

@@ -5,7 +5,8 @@ time column may be its index); a header split by semicolons (Excel's CSV where t
 separator) or tabs is refused.
 One row per record, a header row; lines starting with ``#`` are comments (a ``#``
 inside a line is text: Excel's ``#VALUE!`` or ``#N/A`` is refused by rule 5, not read as a comment
-that ends the row).
+that ends the row, nor a line starting with one as a comment: :func:`twin.atomic.csv_text`, which reads a
+feed's ``psd_csv`` too).
 - time: ``timestamp`` (ISO 8601) or ``time_h`` (hours, any origin); time 0 is the first record;
 - composition, one family: mineral wt% columns ``<mineral>_wt_pct`` (e.g. ``quartz_wt_pct``)
   or ore fractions ``ore_<name>_frac`` (``<name>`` an ore of the scene);
@@ -60,7 +61,6 @@ from __future__ import annotations
 
 import bisect
 import functools
-import hashlib
 import io
 import re
 from dataclasses import dataclass, field
@@ -76,6 +76,7 @@ from scenarios.errors import SceneError
 from scenarios.scene.keypaths import did_you_mean
 from scenarios.scene.ranges import feed_level_problem, feed_problem, product_p80_problem, speed_problem
 from scenarios.scene.schema import Texture
+from twin import csv_text, read_once
 from twin.ore import mineral_names
 
 DEFAULT_MAX_GAP_H = 10 / 60
@@ -364,8 +365,8 @@ def _read_table(path: Path) -> tuple[pd.DataFrame, str]:
         raise SceneError(f"{path}: history file not found")
     suffix = path.suffix.lower()
     try:
-        data = path.read_bytes()
-        return _parse_table(path, suffix, data), hashlib.sha256(data).hexdigest()
+        data, sha256 = read_once(path)
+        return _parse_table(path, suffix, data), sha256
     except SceneError:
         raise
     except (ValueError, OSError, pd.errors.ParserError) as exc:
@@ -374,11 +375,9 @@ def _read_table(path: Path) -> tuple[pd.DataFrame, str]:
 
 def _parse_table(path: Path, suffix: str, data: bytes) -> pd.DataFrame:
     if suffix == ".csv":
-        # comments are whole lines: pandas' comment="#" also cut a row at "#VALUE!"; a trailing
-        # delimiter on every row (index_col=False) made pandas shift the columns by one
-        text = data.decode("utf-8-sig")
-        # comment lines left blank (pandas skips them), so that pandas' line numbers are the file's
-        lines = "".join("\n" if line.lstrip().startswith("#") else line for line in text.splitlines(keepends=True))
+        # comment lines blank (csv_text, as a feed's psd_csv); a trailing delimiter on every row
+        # (index_col=False) made pandas shift the columns by one
+        lines = csv_text(data)
         _refuse_other_delimiter(path, lines.lstrip().partition("\n")[0])
         try:
             table = pd.read_csv(io.StringIO(lines), skipinitialspace=True, index_col=False, keep_default_na=False,

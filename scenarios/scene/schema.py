@@ -347,8 +347,9 @@ class Feed(Section):
     psd: FeedPSD | None = None
     """A screen analysis of the fresh feed (``[feed.psd]``), in place of ``p80_um``."""
     psd_csv: str | None = Field(default=None, examples=["data/feed_screen.csv"])
-    """A CSV of the fresh feed's screen analysis (columns ``size_um``, ``passing_pct``; path
-    relative to the scene file), in place of ``p80_um``."""
+    """A CSV of the fresh feed's screen analysis (columns ``size_um``, ``passing_pct``; lines starting
+    with ``#`` are comments, as in a history; path relative to the scene file), in place of ``p80_um``;
+    summary.json, the report and the workbook record its SHA-256, as a history's."""
     schedule: list[ScheduleEvent] = Field(default_factory=list)
     """Blend changes over time (``[[feed.schedule]]``); not with ``history``."""
     history: str | None = None

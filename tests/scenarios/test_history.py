@@ -861,3 +861,51 @@ def test_a_replay_parses_its_history_once_with_the_checks_ranges_and_once_withou
     reads.clear()
     new = read_history_once(hist, 0.05).frame
     assert len(reads) == 1 and np.allclose(new["feed_tph"], old["feed_tph"] + 1.0, rtol=0, atol=1e-12)
+
+
+def test_a_feed_screen_analysis_is_recorded_by_its_hash_as_a_history_is(tmp_path, monkeypatch):
+    """feed.psd_csv took no comment lines (a history does) and its bytes were not recorded: summary.json, the
+    report and the workbook named the history file by its SHA-256 and the screen analysis not at all. Now it
+    is read as a history is (comments, read once), recorded and shown the same way, and a file rewritten during
+    the run is warned of."""
+    import hashlib
+
+    import scenarios.run.runner as runner
+    from scenarios.output.report import write_report
+    from scenarios.run import run_scene
+    from tests.scenarios.test_runner import short_pyrite_scene
+
+    scene = short_pyrite_scene(tmp_path, duration_h=0.25)
+    text = scene.read_text()
+    assert "\np80_um = 3200.0\n" in text
+    scene.write_text(text.replace("\np80_um = 3200.0\n", '\npsd_csv = "screen.csv"\n'))
+    screen = tmp_path / "screen.csv"
+    screen.write_text("# feed belt screen, 2026-12-01\nsize_um,passing_pct\n500,20\n1000,45\n# re-weighed\n"
+                      "2000,70\n4000,90\n6700,100\n")
+    fed = hashlib.sha256(screen.read_bytes()).hexdigest()
+
+    def rewritten(run):
+        def during(*args, **kwargs):
+            screen.write_text(screen.read_text().replace("500,20", "500,25"))
+            return run(*args, **kwargs)
+        return during
+
+    monkeypatch.setattr(runner, "run_open_loop", rewritten(runner.run_open_loop))
+    out = tmp_path / "run"
+    res = run_scene(scene, out_dir=out, progress=False, plots=False, xlsx=True)
+    assert res.summary["psd_file"] == {"path": str(screen.resolve()), "sha256": fed}
+    (changed,) = [w for w in res.summary["warnings"] if "changed during the run" in w]
+    assert "screen analysis (feed.psd_csv)" in changed and fed[:12] in changed
+    shown = f"{screen.resolve()} (sha256 {fed[:12]})"
+    assert f"<th>feed screen analysis file</th><td>{shown}</td>" in write_report(out).read_text(encoding="utf-8")
+    book = pd.read_excel(out / "run.xlsx", sheet_name="summary")
+    assert book.loc[book["item"] == "feed screen analysis file", "value"].tolist() == [shown]
+
+
+def test_a_line_starting_with_an_excel_error_value_is_a_row_not_a_comment(tmp_path):
+    """A record whose first cell is Excel's #N/A was read as a comment line and dropped without a word; it is a
+    row, refused where a number is due, as an #N/A in any other cell is."""
+    text = MESSY.replace("2026-01-15T00:05:00,", "#N/A,", 1)
+    assert text != MESSY
+    with pytest.raises(SceneError, match="N/A"):
+        read_history(write(tmp_path, text), DT)

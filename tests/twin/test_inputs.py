@@ -1,6 +1,7 @@
 """The standard parameterisations an engineer brings (breakage parameters, screen analyses,
 mills, hydrocyclones), their validation, and the scale-up rules."""
 
+import hashlib
 import json
 import math
 
@@ -79,6 +80,12 @@ def test_screen_analysis_csv(tmp_path):
     path = tmp_path / "feed.csv"
     path.write_text("size_um,passing_pct\n1000,100\n500,60\n250,35\n")
     assert TabulatedPSD.from_csv(path).passing(500.0) == pytest.approx(0.6)
+    # comment lines as a scene's history takes them: the header was read from "# screen 3, ..." and refused
+    commented = tmp_path / "commented.csv"
+    commented.write_text("# screen 3, 2026-12-01\nsize_um,passing_pct\n1000,100\n  # sieve 500 re-weighed\n500,60\n"
+                         "250,35\n")
+    psd, sha256 = TabulatedPSD.read_csv(commented)
+    assert psd == TabulatedPSD.from_csv(path) and sha256 == hashlib.sha256(commented.read_bytes()).hexdigest()
     (tmp_path / "bad.csv").write_text("size,pct\n1,2\n")
     with pytest.raises(TwinInputError, match="size_um"):
         TabulatedPSD.from_csv(tmp_path / "bad.csv")
