@@ -44,7 +44,7 @@ from scenarios.errors import SceneError
 from scenarios.online.clock import Clock, Stoppable, sleep_until
 from scenarios.online.security import ServerSecurity, make_server
 from scenarios.online.tags import TagMap
-from scenarios.output import MANIFEST, replace_recorded_files, strangers
+from scenarios.output import MANIFEST, json_safe, replace_recorded_files, strangers
 from scenarios.run import build_models
 from scenarios.run.closed_loop import hold_schedule, plant_start, scene_sensors
 from scenarios.run.feed import component_blend, feed_schedule
@@ -477,7 +477,10 @@ class PlantServer(Stoppable):
         Path(self.s.record_dir).mkdir(parents=True, exist_ok=True)  # at the end: a stop while building left it empty
         replace_recorded_files(Path(self.s.record_dir), "plant-record", {
             "plant.parquet": lambda path: frame.to_parquet(path, index=False),
-            "plant-kpis.json": lambda path: path.write_text(json.dumps(kpis, indent=2), encoding="utf-8")})
+            # an undefined KPI (NaN: the specific energy of a run that fed nothing) is null, as in summary.json: the
+            # text NaN is no JSON
+            "plant-kpis.json": lambda path: path.write_text(json.dumps(json_safe(kpis), indent=2, allow_nan=False),
+                                                            encoding="utf-8")})
 
     # ------------------------------------------------------------------ run
     async def run(self, install_signal_handlers: bool = True) -> None:

@@ -323,3 +323,29 @@ def test_a_record_folder_is_made_when_the_record_is_written(small_scene, small_t
     ticks(p, p.clock, 2)
     p.write_record()
     assert (rec / "plant.parquet").is_file()
+
+
+def test_an_undefined_kpi_of_a_recording_is_null_not_the_text_nan(small_scene, small_tags, small_parts, tmp_path,
+                                                                  monkeypatch):
+    """plant-kpis.json wrote an undefined KPI (the specific energy of a run that fed nothing: NaN) as the text NaN,
+    which is no JSON (a strict reader refuses the file); it is null now, as in a run's summary.json."""
+    import json
+
+    from scenarios.online import plant_server
+
+    def nothing_fed(frame, band):
+        return loop_kpis(frame, band) | {"specific_energy_kwh_t": math.nan}
+
+    monkeypatch.setattr(plant_server, "loop_kpis", nothing_fed)
+    rec = tmp_path / "rec"
+    p = online.PlantServer(small_scene, small_tags, online.PlantServerSettings(
+        "opc.tcp://127.0.0.1:1", online.ServerSecurity(insecure=True), record_dir=rec),
+        models=small_parts.models, clock=online.ManualClock(speedup=3600.0))
+    ticks(p, p.clock, 3)
+    p.write_record()
+
+    def refuse(constant):
+        raise ValueError(f"not JSON: {constant}")
+
+    kpis = json.loads((rec / "plant-kpis.json").read_text(encoding="utf-8"), parse_constant=refuse)
+    assert kpis["specific_energy_kwh_t"] is None and kpis["throughput_t"] > 0
