@@ -124,16 +124,18 @@ def history_file_changes(history: History | None) -> list[str]:
     return fed_file_changes("history file", history.source, history.sha256)
 
 
-def fed_file_changes(what: str, path, sha256: str) -> list[str]:
+def fed_file_changes(what: str, path, sha256: str, *, read: str = "the run was fed the file with SHA-256",
+                     consequence: str = "") -> list[str]:
     """A warning when the file at ``path`` (``what``: "history file") is not, at the end of a run, the bytes of
-    ``sha256`` the run was fed (rewritten or removed meanwhile); else none."""
+    ``sha256`` (``read``: when that was read) the run was fed (rewritten or removed meanwhile); else none.
+    ``consequence``: what the change may have done to the run, said before the advice."""
     path = Path(path)
     now = file_sha256(path) if path.is_file() else None
     if now == sha256:
         return []
     found = f"its SHA-256 is now {now[:12]}" if now else "it is gone"
-    return [f"the {what} {path} changed during the run (the run was fed the file with SHA-256 "
-            f"{sha256[:12]}, which summary.json records; {found}): run again with the file left as it is"]
+    return [f"the {what} {path} changed during the run ({read} {sha256[:12]}, which summary.json records; "
+            f"{found}): {consequence}run again with the file left as it is"]
 
 
 def feed_schedule(scene: Scene, components: list[str], times_h: np.ndarray, ores: dict | None = None

@@ -11,9 +11,9 @@ from pathlib import Path
 from urllib.parse import urlparse
 from urllib.request import url2pathname
 
+from scenarios.run.feed import fed_file_changes
 from scenarios.run.models import Models, is_batch
 from scenarios.scene import Scene
-from twin import file_sha256
 
 
 #: The packages whose files decide whether an installed grindtwin is a given commit.
@@ -135,14 +135,9 @@ def preset_file_changes(scene: Scene) -> list[str]:
     identity = scene.preset_file_identity()
     if identity is None:
         return []
-    path = Path(identity["path"])
-    now = file_sha256(path) if path.is_file() else None
-    if now == identity["sha256"]:
-        return []
-    what = f"its SHA-256 is now {now[:12]}" if now else "it is gone"
-    return [f"the mill preset file {path} changed during the run (SHA-256 {identity['sha256'][:12]} when the scene "
-            f"was loaded, which summary.json records; {what}): the mill the run built may be either file's; run "
-            "again with the file left as it is"]
+    return fed_file_changes("mill preset file", identity["path"], identity["sha256"],
+                            read="the scene was loaded with the file of SHA-256",
+                            consequence="the mill the run built may be either file's; ")
 
 
 #: What the PI baseline knows of the mill (it has no model of its own).
