@@ -76,7 +76,9 @@ SAMPLE_TIME_TOL = 0.05
 #: gt_controller_step's statuses (mpc/c/gt_controller.h's enum gt_step_status), in the manifest.
 STEP_STATUS = {
     0: "ok: the QP solved; u is the plan's first move",
-    1: "shifted_plan: the QP failed; u is the previous plan shifted by one sample",
+    1: "shifted_plan: the QP failed; u is the previous plan shifted by the periods estimated since the last step "
+       "(one a sample, k after a gap of k; hold_input once that moves it past its last stage), clipped to the "
+       "rate limits around u_applied",
     2: "hold_input: the QP failed and no plan is left; u = u_applied projected onto the input bounds",
     3: "bad_bias: the estimated P80 bias is not finite or not below the target; nothing solved, u = u_applied "
        "projected onto the input bounds",

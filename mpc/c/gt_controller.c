@@ -1,8 +1,8 @@
 /* grindtwin's exported NMPC (gt_controller.h): the same arithmetic as mpc.Ekf.make_step and
- * mpc.Controller.make_step with qpsol "condensed" (the warm start shifted by one sample, the
- * real-time iterations of gt_rti.c, the plan clipped to the input bounds, the shifted-plan and
- * hold-input fallbacks, the target_unreachable status), on the CasADi-generated ekf_step, stage
- * functions (gt_cond.c) and gt_plan_passing. */
+ * mpc.Controller.make_step with qpsol "condensed" (the warm start shifted by the periods since the
+ * last step, make_step's samples, the real-time iterations of gt_rti.c, the plan clipped to the input
+ * bounds, the shifted-plan and hold-input fallbacks, the target_unreachable status), on the
+ * CasADi-generated ekf_step, stage functions (gt_cond.c) and gt_plan_passing. */
 #include "gt_controller.h"
 
 #include <math.h>
@@ -25,6 +25,9 @@ struct gt_controller {
     double t_prev; /* the caller's time [h] of the last estimate (have_t: one was made since new/reset) */
     int have_w_prev, have_plan, plan_age, qp_iter, qp_status, have_t;
     int estimated; /* an estimate was made since the last step (or new/reset): the step may plan */
+    /* the periods the estimates predicted since the plan last moved on (mpc.Controller.make_step's samples,
+     * grindtwin serve's samples since the last step), at most GT_N: a plan that old is spent either way */
+    int periods;
     /* the work of the generated ekf_step and gt_plan_passing (called one at a time) */
     const casadi_real **ekf_arg;
     casadi_real **ekf_res;
@@ -139,7 +142,7 @@ void gt_controller_reset(gt_controller *c) {
     if (!c) return;
     reset_estimate(c);
     c->have_w_prev = c->have_plan = c->plan_age = 0;
-    c->have_t = c->estimated = 0;
+    c->have_t = c->estimated = c->periods = 0;
     c->t_prev = NAN;
     c->qp_iter = 0;
     c->qp_status = 0;
@@ -197,6 +200,7 @@ int gt_controller_estimate(gt_controller *c, double t_h, const double *y, const 
     c->t_prev = t_h;
     c->have_t = 1;
     c->estimated = 1;
+    c->periods = c->periods + k < GT_N ? c->periods + k : GT_N;
     /* k periods as the Python loop's k samples: k - 1 without measurements (NaN, absent), then this one's;
      * the input and blend held over all of them, a reset at one continued from the initial estimate */
     for (j = 1; j <= k; ++j) {
@@ -222,9 +226,9 @@ int gt_controller_estimate(gt_controller *c, double t_h, const double *y, const 
     return reset ? GT_ESTIMATE_RESET : implausible ? GT_ESTIMATE_IMPLAUSIBLE : GT_ESTIMATE_OK;
 }
 
-/* mpc.Controller._initial_guess: the previous solution shifted by one sample, its first lifted
- * state replaced by [x/scale; u_prev; 0]; cold: everything at (x, u_prev) */
-static void initial_guess(gt_controller *c, const double *x0s, const double *u_prev) {
+/* mpc.Controller._initial_guess: the previous solution shifted by the periods since the last step (its
+ * last stage held), its first lifted state replaced by [x/scale; u_prev; 0]; cold: everything at (x, u_prev) */
+static void initial_guess(gt_controller *c, const double *x0s, const double *u_prev, int periods) {
     double first[GT_NXL];
     int k, i;
     for (i = 0; i < GT_NX; ++i) first[i] = x0s[i];
@@ -232,11 +236,11 @@ static void initial_guess(gt_controller *c, const double *x0s, const double *u_p
     for (i = GT_NX + GT_NU; i < GT_NXL; ++i) first[i] = 0.0;
     if (GT_WARM_START && c->have_w_prev) {
         for (k = 0; k <= GT_N; ++k) {
-            int src = (k + 1 < GT_N ? k + 1 : GT_N);
+            int src = (k + periods < GT_N ? k + periods : GT_N);
             memcpy(c->w + k * GT_STRIDE, c->w_prev + src * GT_STRIDE, sizeof(double) * GT_NXL);
         }
         for (k = 0; k < GT_N; ++k) {
-            int src = (k + 1 < GT_N - 1 ? k + 1 : GT_N - 1);
+            int src = (k + periods < GT_N - 1 ? k + periods : GT_N - 1);
             memcpy(c->w + k * GT_STRIDE + GT_NXL, c->w_prev + src * GT_STRIDE + GT_NXL,
                    sizeof(double) * GT_NUL);
         }
@@ -297,12 +301,12 @@ static double plan_passing_end(gt_controller *c, const double *wpass) {
     return passing;
 }
 
-/* mpc.Controller._fallback */
-static int fallback(gt_controller *c, const double *u_prev, double *u) {
+/* mpc.Controller._fallback: the last plan moved on by the periods since the last step while it lasts */
+static int fallback(gt_controller *c, const double *u_prev, int periods, double *u) {
     int k, i;
     c->have_w_prev = 0;
-    if (c->have_plan && c->plan_age + 1 < GT_N) {
-        c->plan_age += 1;
+    if (c->have_plan && c->plan_age + periods < GT_N) {
+        c->plan_age += periods;
         for (k = 0; k < GT_N; ++k) {
             int src = k + c->plan_age < GT_N ? k + c->plan_age : GT_N - 1;
             for (i = 0; i < 2; ++i) c->plan[2 * k + i] = c->plan_prev[2 * src + i];
@@ -330,7 +334,7 @@ static int preview_ok(const double *preview) {
 int gt_controller_step(gt_controller *c, const double *preview, const double *u_given, double *u) {
     double x0s[GT_NX], h, *p, bias, u_applied[GT_NU];
     const double *wpass = gt_wpass;
-    int k, i, it, n_it = GT_RTI_ITERATIONS, ok = n_it > 0, projected = 0;
+    int k, i, it, n_it = GT_RTI_ITERATIONS, ok = n_it > 0, projected = 0, periods;
     if (!c) return GT_STEP_BAD_INPUT;
     h = GT_HAS_HARDNESS ? c->z[GT_NX] : GT_HARDNESS0;
     p = c->p;
@@ -350,8 +354,10 @@ int gt_controller_step(gt_controller *c, const double *preview, const double *u_
     if (!isfinite(bias) || bias >= GT_TARGET_P80_UM) { /* mpc.Controller.make_step refuses it */
         u[0] = u_applied[0];
         u[1] = u_applied[1];
-        return GT_STEP_BAD_BIAS;
+        return GT_STEP_BAD_BIAS; /* the plan not moved: its periods kept, as serve keeps its samples */
     }
+    periods = c->periods; /* the plan and the warm start move on by them now, solved or not */
+    c->periods = 0;
     if (bias != 0.0) { /* the model held at target - bias (mpc.Controller.make_step) */
         passing_weights(GT_TARGET_P80_UM - bias, c->wpass);
         wpass = c->wpass;
@@ -369,7 +375,7 @@ int gt_controller_step(gt_controller *c, const double *preview, const double *u_
     }
     for (i = 0; i < GT_NU; ++i) p[GT_NX + GT_N * GT_ND + i] = u_applied[i];
     for (i = 0; i < GT_NPASS; ++i) p[GT_NX + GT_N * GT_ND + GT_NU + i] = wpass[i];
-    initial_guess(c, x0s, u_applied);
+    initial_guess(c, x0s, u_applied, periods);
     c->qp_iter = 0;
     c->qp_status = 0;
     for (it = 1; it <= n_it; ++it) { /* mpc.Controller._rti_solve */
@@ -387,7 +393,7 @@ int gt_controller_step(gt_controller *c, const double *preview, const double *u_
     }
     for (i = 0; ok && i < GT_NW; ++i)
         if (!isfinite(c->w[i])) ok = 0;
-    if (!ok) return fallback(c, u_applied, u);
+    if (!ok) return fallback(c, u_applied, periods, u);
     memcpy(c->w_prev, c->w, sizeof(c->w));
     c->have_w_prev = 1;
     for (k = 0; k < GT_N; ++k)

@@ -41,9 +41,11 @@ typedef struct gt_controller gt_controller;
 /* status of gt_controller_step */
 enum gt_step_status {
     GT_STEP_OK = 0,           /* the QP solved; u is the plan's first move (within gt_u_lo/gt_u_hi) */
-    GT_STEP_SHIFTED_PLAN = 1, /* the QP failed; u is the previous plan shifted by one sample, each
-                                 of its two inputs clipped to within gt_du_max of u_applied
-                                 projected onto the bounds */
+    GT_STEP_SHIFTED_PLAN = 1, /* the QP failed; u is the previous plan shifted by the periods its
+                                 estimates predicted since the last step (one a sample; k after a
+                                 gap of k), each of its two inputs clipped to within gt_du_max of
+                                 u_applied projected onto the bounds. A plan moved past its last
+                                 stage (a gap as long as the horizon) is spent: GT_STEP_HOLD_INPUT */
     GT_STEP_HOLD_INPUT = 2,   /* the QP failed and no plan is left; u = u_applied projected onto the
                                  bounds gt_u_lo/gt_u_hi (u_applied itself when inside them) */
     GT_STEP_BAD_BIAS = 3,     /* the estimated P80 bias is not finite or not below the target (the
@@ -165,10 +167,11 @@ void gt_controller_reset(gt_controller *c);
  * an analyser slower than GT_DT_H reported nothing new, as the scene's closed loop and grindtwin serve
  * do; outside gt_y_lo/gt_y_hi: not used, GT_ESTIMATE_IMPLAUSIBLE); u_applied = [feed_tph,
  * speed_frac_critical] and blend (GT_NB fractions) applied over those periods; returns a
- * gt_estimate_status (GT_ESTIMATE_BAD_TIME: a t_h it refuses). After a gap of k periods the next step
- * still starts its iteration from the last plan shifted by one sample, and GT_STEP_SHIFTED_PLAN moves it
- * on by one, where the Python controller (mpc.Controller.make_step's samples, which grindtwin serve
- * passes) moves both on by k: after a gap longer than the plan it holds the input */
+ * gt_estimate_status (GT_ESTIMATE_BAD_TIME: a t_h it refuses). The next step moves its warm start and
+ * its fallback plan on by the periods predicted since the last step (estimates without a step between
+ * add up), as mpc.Controller.make_step's samples, which grindtwin serve passes: after a gap of k
+ * periods the iteration starts from the last plan shifted by k, and a failed step applies that plan's
+ * move k on (GT_STEP_SHIFTED_PLAN), or holds the input once the gap reaches the horizon */
 int gt_controller_estimate(gt_controller *c, double t_h, const double *y, const double *u_applied,
                            const double *blend);
 /* the NMPC step, once per estimate (else GT_STEP_NO_ESTIMATE): preview = blend fractions of the GT_N

@@ -573,10 +573,20 @@ def test_the_estimate_refuses_a_feed_beyond_its_physical_limit(built):
 
 #: Calls read from stdin, each answered on a line: "E t_h y0 y1 y2 u0 u1 b_1 .. b_NB" -> "E status z..." (the
 #: estimate after it); "C u0 u1" -> "C status u0 u1" (a step on the last blend held over the horizon, u preset
-#: to 123.25, -7.5: what the step left there); "R" -> gt_controller_reset.
+#: to 123.25, -7.5: what the step left there); "R" -> gt_controller_reset. Built with -DGT_FAIL_QP and linked
+#: with --wrap=gt_rti_step, "F u0 u1" is a step whose QPs fail (as tests/mpc/test_nmpc.py breaks the solver).
 CALL_DRIVER = r"""
 #include <stdio.h>
 #include "gt_controller.h"
+
+#ifdef GT_FAIL_QP
+#include "gt_rti.h"
+static int fail_qp;
+int __real_gt_rti_step(gt_rti *r, const double *w, const double *p, double *w_out, int *iter);
+int __wrap_gt_rti_step(gt_rti *r, const double *w, const double *p, double *w_out, int *iter) {
+    return fail_qp ? -1 : __real_gt_rti_step(r, w, p, w_out, iter);
+}
+#endif
 
 int main(void) {
     char kind[2];
@@ -601,6 +611,11 @@ int main(void) {
             for (i = 0; i < GT_PREVIEW_LEN; ++i) preview[i] = b[i % GT_NB];
             move[0] = 123.25;
             move[1] = -7.5;
+#ifdef GT_FAIL_QP
+            fail_qp = kind[0] == 'F';
+#else
+            if (kind[0] == 'F') return 1;
+#endif
             i = gt_controller_step(c, preview, u, move); /* before move is read */
             printf("C %d %.17g %.17g", i, move[0], move[1]);
         }
@@ -612,14 +627,12 @@ int main(void) {
 """
 
 
-@pytest.fixture(scope="module")
-def calls(built, tmp_path_factory):
-    """CALL_DRIVER built against the export: a function of the call lines -> the answers' rows (split)."""
-    out = built[0]
-    folder = tmp_path_factory.mktemp("calls")
+def _call_driver(out: Path, folder: Path, *flags: str):
+    """CALL_DRIVER built in ``folder`` against the export in ``out`` (with ``flags``): a function of the call
+    lines -> the answers' rows (split)."""
     (folder / "driver.c").write_text(CALL_DRIVER)
     exe = folder / "driver"
-    build = subprocess.run([c_tools(), "-O1", "-Wall", f"-I{out}", str(folder / "driver.c"),
+    build = subprocess.run([c_tools(), "-O1", "-Wall", *flags, f"-I{out}", str(folder / "driver.c"),
                             str(out / "libgtcontroller.a"), "-lm", "-o", str(exe)], capture_output=True, text=True)
     assert build.returncode == 0, build.stderr[-2000:]
 
@@ -627,6 +640,19 @@ def calls(built, tmp_path_factory):
         answer = subprocess.run([str(exe)], input="\n".join(lines) + "\n", capture_output=True, text=True, check=True)
         return [ln.split() for ln in answer.stdout.splitlines()]
     return run
+
+
+@pytest.fixture(scope="module")
+def calls(built, tmp_path_factory):
+    """CALL_DRIVER built against the export."""
+    return _call_driver(built[0], tmp_path_factory.mktemp("calls"))
+
+
+@pytest.fixture(scope="module")
+def failing_calls(built, tmp_path_factory):
+    """CALL_DRIVER with "F" lines: steps whose QPs fail (GNU ld's --wrap)."""
+    return _call_driver(built[0], tmp_path_factory.mktemp("failing_calls"), "-DGT_FAIL_QP",
+                        "-Wl,--wrap=gt_rti_step")
 
 
 def _e(t_h: float, y, u=(23.64, 0.7), blend=(1.0, 0.0)) -> str:
@@ -688,6 +714,75 @@ def test_a_missed_cycle_predicts_the_periods_elapsed_as_python_would(built, call
             est.make_step(y_k, u, blend)
         np.testing.assert_allclose(z_gap, est.z, rtol=1e-12, atol=1e-12 * np.abs(est.z).max())
     est.reset()
+
+
+def _python_gap(est, ctrl, y, blend, gap: int, samples: int, fail: bool) -> list:
+    """The Python EKF and NMPC over CALL_DRIVER's steps (``blend`` held over the horizon): two samples from the
+    initial estimate, each estimated (``y``) and stepped, then ``gap`` periods with no step, the ``gap - 1``
+    missed estimated with every measurement absent, and a step told ``samples`` (its QP failing if ``fail``)."""
+    n, target = ctrl.settings.horizon_steps, ctrl.settings.target_p80_um
+
+    def step(u_prev, k):
+        d = np.vstack([np.tile(np.reshape(blend, (-1, 1)), (1, n)), np.full((1, n), est.hardness_est)])
+        return ctrl.make_step(est.x_est, d, u_prev, p80_bias_um=est.controller_p80_bias_um(target), samples=k)
+
+    est.reset()
+    ctrl.reset()
+    u, steps = [23.64, 0.7], []
+    for y_k in ([y], [y], [[np.nan] * 3] * (gap - 1) + [y]):
+        for y_j in y_k:
+            est.make_step(y_j, u, blend)
+        if len(steps) == 2 and fail:
+            solver = ctrl._solver
+
+            def broken(**kwargs):
+                raise RuntimeError("forced failure")
+            ctrl._solver = broken
+            try:
+                steps.append(step(u, samples))
+            finally:
+                ctrl._solver = solver
+        else:
+            steps.append(step(u, 1 if len(steps) < 2 else samples))
+        u = list(steps[-1].u_applied)
+    return steps
+
+
+@pytest.mark.parametrize("gap, fail", [(2, False), (3, False), (2, True), ("horizon", True)])
+def test_a_step_after_missed_periods_moves_the_plan_on_by_them_as_python_does(built, failing_calls, gap, fail):
+    """After a gap of k periods with no step (a DCS task held, a link down) the exported step started its
+    iteration from the last plan shifted by one and a failed step applied that plan's move one on, where the
+    Python controller, told the samples since its last step (grindtwin serve passes them), moves both on by k:
+    after a gap as long as the horizon it holds the input. Now the step moves on by the periods its estimates
+    predicted since the last step, in one estimate k periods on or in k one period apart (the same estimate):
+    its statuses and moves are Python's (1e-9 relative), solved or failed; by one they differ (checked here,
+    so the comparison can fail)."""
+    out, est, ctrl, cfg = built
+    dt, y, blend = cfg["GT_DT_H"], _y_near(est), [1.0, 0.0]
+    gap = int(cfg["GT_N"]) if gap == "horizon" else gap
+    code = {None: None, "shifted_plan": "1", "hold_input": "2"}
+    try:
+        py = _python_gap(est, ctrl, y, blend, gap, gap, fail)
+        by_one = _python_gap(est, ctrl, y, blend, gap, 1, fail)[-1]
+        assert py[-1].fallback_used == ("hold_input" if gap == cfg["GT_N"] else "shifted_plan" if fail else None)
+        assert by_one.fallback_used != py[-1].fallback_used or \
+            np.max(np.abs(by_one.u_applied / py[-1].u_applied - 1.0)) > 1e-6
+        u = [[23.64, 0.7], *([float(v) for v in r.u_applied] for r in py[:2])]
+        first = [_e(0.0, y, u[0], blend), f"C {u[0][0]!r} {u[0][1]!r}", _e(dt, y, u[1], blend),
+                 f"C {u[1][0]!r} {u[1][1]!r}"]
+        last = f"{'F' if fail else 'C'} {u[2][0]!r} {u[2][1]!r}"
+        at_once = failing_calls([*first, _e((1 + gap) * dt, y, u[2], blend), last])
+        apart = failing_calls([*first, *(_e((1 + j) * dt, [np.nan] * 3, u[2], blend) for j in range(1, gap)),
+                               _e((1 + gap) * dt, y, u[2], blend), last])
+        assert apart[-1] == at_once[-1]
+        assert [r[1] for r in at_once if r[0] == "E"] == ["0"] * 3
+        for row, r in zip([r for r in at_once if r[0] == "C"], py, strict=True):
+            solved = "5" if str(r.status).startswith("target_unreachable") else "0"
+            assert row[1] == (code[r.fallback_used] or solved), (row, r.status)
+            np.testing.assert_allclose(np.array(row[2:], float), r.u_applied, rtol=1e-9, atol=0.0)
+    finally:
+        est.reset()
+        ctrl.reset()
 
 
 def test_a_second_step_without_an_estimate_is_refused(calls):
