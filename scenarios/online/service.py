@@ -387,6 +387,13 @@ class Service(Stoppable):
             del self.bad_since[key]
             log.info("%.3f h: %s good again after %.3f h", t_h, key, t_h - since)
 
+    def _refused(self, key: str, results: dict, t_h: float, consequence: str) -> dict:
+        """``{role: status name}`` of the writes among ``results`` (role -> status code) the server refused, logged
+        (``key``, with ``consequence``) when such refusals start and when they end, not at every cycle's write."""
+        refused = {r: status_name(c) for r, c in results.items() if c != ua.StatusCodes.Good}
+        self._condition(key, bool(refused), t_h, f"the server refused the {key}s: {refused}; {consequence}")
+        return refused
+
     def _bad_for_h(self, key: str, t_h: float) -> float:
         since = self.bad_since.get(key)
         return 0.0 if since is None else t_h - since
@@ -597,9 +604,18 @@ class Service(Stoppable):
         t1, c1 = time.perf_counter(), time.process_time()
         results = await self.conn.write(items, self.clock.now())
         row["write_s"], row["write_cpu_s"] = time.perf_counter() - t1, time.process_time() - c1
-        refused = {r: status_name(c) for r, c in results.items() if c != ua.StatusCodes.Good}
+        # a setpoint's refusal comes once (the service holds from the next cycle); the heartbeat's and the status's
+        # would come every cycle, logged when they start and end
+        refused = self._refused("heartbeat or status write", {r: c for r, c in results.items()
+                                                              if not r.startswith("setpoints.")}, t_h,
+                                "the plant's watchdog may shed the service and the operator's screen keeps an older "
+                                "status")
+        setpoints = {r: status_name(c) for r, c in results.items() if r.startswith("setpoints.") and
+                     c != ua.StatusCodes.Good}
+        if setpoints:
+            log.error("the server refused setpoint writes: %s", setpoints)
+        refused |= setpoints
         if refused:
-            log.error("the server refused writes: %s", refused)
             row["write_refused"] = f"the server refused writes: {refused}"
         accepted = [i for i, n in enumerate(INPUTS) if n in values and f"setpoints.{n}" not in refused]
         if accepted:  # each setpoint on its own: a refused feed write discarded the speed's, which was applied
@@ -628,10 +644,8 @@ class Service(Stoppable):
         self._condition("soft sensor", p.status != ua.StatusCodes.Good, row["service_time_h"],
                         f"soft sensor {status_name(p.status)}: {p.reason}")
         results = await self.conn.write(items, self.clock.now())
-        refused = {r: status_name(c) for r, c in results.items() if c != ua.StatusCodes.Good}
         # a refused node kept its last prediction on the operator's screen, and nothing said so
-        self._condition("soft sensor write", bool(refused), row["service_time_h"],
-                        f"the server refused the soft sensor's writes: {refused}; those nodes keep older values")
+        refused = self._refused("soft sensor's write", results, row["service_time_h"], "those nodes keep older values")
         if refused:
             row["reason"] = "; ".join(n for n in (row["reason"], f"the server refused the soft sensor's writes: "
                                                                  f"{refused}") if n)

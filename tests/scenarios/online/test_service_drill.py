@@ -439,3 +439,32 @@ def test_a_refused_soft_sensor_write_is_logged_and_audited(small_scene, small_ta
     assert published and all("the server refused the soft sensor's writes: {'soft_sensor.p80_um': "
                              "'BadUserAccessDenied'}" in r["reason"] for r in published)
     assert sum("refused the soft sensor's writes" in m for m in caplog.messages) == 1
+
+
+def test_a_refused_heartbeat_write_is_logged_when_it_starts_not_every_cycle(small_scene, small_tags, small_parts,
+                                                                           tmp_path, caplog):
+    """A heartbeat (or status) node the server refuses was logged as an error every cycle (each cycle writes it);
+    now it is logged when the refusal starts, as a soft sensor's, and each row's reason still says it."""
+    from .conftest import LockStep, free_port
+
+    url = f"opc.tcp://127.0.0.1:{free_port()}"
+    wrong = small_tags.model_copy(deep=True)
+    wrong.heartbeat.node = "ns=2;s=Simulation.P80True_um"  # the plant's own, read-only
+    ls = LockStep(small_scene, small_tags, small_parts, url, tmp_path / "audit")
+    ls.service = online.Service(small_parts, wrong, online.ServeSettings(
+        url, online.ClientSecurity(insecure=True), tmp_path / "audit2", warmup_h=0.2), clock=ls.clock)
+
+    async def run():
+        await ls.start()
+        await ls.step(4)
+        conn = ls.service.conn  # the node put right (as a restart with the tag map mended would)
+        conn._write_ids["heartbeat"] = ua.NodeId.from_string(small_tags.heartbeat.node)
+        conn._variants["heartbeat"] = ua.VariantType.UInt32
+        await ls.step(2)
+        await ls.stop()
+    with caplog.at_level(logging.INFO, logger="grindtwin.online"):
+        asyncio.run(run())
+    assert all("the server refused writes: {'heartbeat': 'BadUserAccessDenied'}" in r["reason"] for r in ls.rows[:4])
+    assert not any("refused" in r["reason"] for r in ls.rows[4:])
+    assert sum("refused" in m for m in caplog.messages) == 1, caplog.messages
+    assert sum("heartbeat or status write good again" in m for m in caplog.messages) == 1
