@@ -21,7 +21,8 @@ nor the estimator (readings' ages are judged on the wall clock, their source tim
 Modes (each change logged):
 - ``warmup``: for ``warmup_h`` after the estimator starts it estimates and writes only the
   heartbeat (as the in-process loop warms its EKF up on the running plant);
-- ``auto``: the controller's move is written;
+- ``auto``: the controller's move is written, unless it is ready only once the next sample has
+  begun (a solve that overran its sample): then it is discarded and the plant keeps the last setpoints;
 - ``manual`` (the mode node is not ``auto_value``, or unreadable): nothing is written; the
   controller runs with the actual inputs as its last inputs, so the first move back in auto
   starts where the operator left the plant (bumpless);
@@ -150,6 +151,7 @@ class Service(Stoppable):
         self.k = 0
         self.t_model_h: float | None = None  # the service time the estimator has been advanced to [h]
         self.skipped_cycles = 0
+        self.late_moves = 0  # moves discarded because the next sample had begun before they were ready
         self.samples_unsolved = 0  # samples since the controller's last step (it plans nothing while disconnected)
         self.belt: deque = deque()  # (plant time of the reading [h], blend fractions)
         self.u_written: np.ndarray | None = None
@@ -367,6 +369,8 @@ class Service(Stoppable):
         u_prop, res, solve_note = self._solve(mode, x_est, d_est, preview, u_act, row)
         mode, reason = ("hold", solve_note) if solve_note else (mode, reason)
         values, write_note = self._moves(mode, u_prop, u_act)
+        values, late_note = self._in_time(values, t_h, row)
+        write_note = "; ".join(n for n in (write_note, late_note) if n)
         row.update(self._row_values(v, u_act, u_prop, x_est, d_est, res))
         reason = "; ".join(n for n in (reason, write_note) if n)
         self._set_mode(mode, reason)
@@ -585,6 +589,22 @@ class Service(Stoppable):
             out[name] = value
         return out, "; ".join(notes)
 
+    def _in_time(self, values: dict, t_h: float, row: dict) -> tuple[dict, str]:
+        """``(values, note)``: the moves, or none when they are ready only once the next sample has begun, a sample
+        after the cycle read its readings (a solve that overran): such a move, computed for a sample that is over,
+        was written into the next one. The plant keeps the last written setpoints; the row (``move_late``), the
+        log (when late moves start and end) and :attr:`late_moves` say so."""
+        late_h = self.clock.hours_since(self.start_monotonic) - t_h
+        row["move_late"] = late = bool(values) and late_h >= self.dt_h
+        note = (f"the move was ready {late_h:.3g} h after its sample's readings: the next sample had begun, the move "
+                f"is discarded (solve {row.get('solve_s', math.nan):.3g} s) and the setpoints stay at "
+                f"{self._last_written_text()}")
+        self._condition("late moves", late, t_h, note)
+        if not late:
+            return values, ""
+        self.late_moves += 1
+        return {}, note
+
     # ------------------------------------------------------------------ write, soft sensor, audit
     def _set_mode(self, mode: str, reason: str) -> None:
         if mode != self.mode:
@@ -729,4 +749,4 @@ class Service(Stoppable):
             self.start_monotonic), "cycle": self.k, "mode": "stopped", "written": False,
             "reason": f"stopped ({reason}): {left}"})
         self.audit.flush()
-        log.info("stopped (%s): %s", reason, left)
+        log.info("stopped (%s): %s; %d late move(s) discarded", reason, left, self.late_moves)

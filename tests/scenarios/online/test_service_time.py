@@ -2,6 +2,8 @@
 nor its estimator; after a gap of samples the controller's previous plan is moved on by the samples missed."""
 
 import asyncio
+import logging
+import math
 
 import pytest
 
@@ -74,3 +76,43 @@ def test_after_an_outage_longer_than_the_horizon_a_failed_step_holds_the_input(s
                                                                                    ("speed", "_frac_critical"))}
         assert row["mode"] == "auto" and row["fallback"] == "hold_input", (row["fallback"], moved)
         assert all(proposed == actual for proposed, actual in moved.values()), moved
+
+
+def test_a_move_whose_solve_overran_its_sample_is_not_written(small_scene, small_tags, small_parts, url, tmp_path,
+                                                              caplog):
+    """A solve that overran its sample wrote its move late, computed from readings a sample old, into the next
+    sample (the run loop logged the overrun, the audit had solve_s, nothing discarded the move). The move is
+    discarded, the plant keeps the last written setpoints, and the row, the log and a count say so."""
+    dt = small_scene.scene.sample_period_h
+    ls = LockStep(small_scene, small_tags, small_parts, url, tmp_path / "audit")
+    ctrl = small_parts.controller
+    make_step = ctrl.make_step
+
+    def slow(*args, **kwargs):
+        ls.clock.advance(1.2 * dt)  # the solve takes longer than a sample
+        return make_step(*args, **kwargs)
+
+    async def run():
+        await ls.start()
+        before = await ls.step(6)
+        ctrl.make_step = slow
+        try:
+            late = await ls.step()
+        finally:
+            ctrl.make_step = make_step
+        after = await ls.step()
+        await ls.stop()
+        return before, late, after
+
+    with caplog.at_level(logging.INFO, logger="grindtwin.online"):
+        before, late, after = asyncio.run(run())
+    assert late["mode"] == "auto" and not late["written"], late  # it was written, a sample late
+    assert before["mode"] == "auto" and before["written"] and not before["move_late"] and late["move_late"]
+    assert not late["feed_tph_written"] and math.isnan(late["feed_sp_tph"])
+    assert "after its sample's readings: the next sample had begun, the move is discarded" in late["reason"]
+    assert f"setpoints stay at feed {before['feed_sp_tph']:.4g} t/h" in late["reason"]
+    assert after["written"] and not after["move_late"] and ls.service.late_moves == 1
+    assert ls.service.u_written[0] == after["feed_sp_tph"]
+    assert sum("the move is discarded" in m for m in caplog.messages) == 1
+    assert any("late moves good again" in m for m in caplog.messages)
+    assert any("1 late move(s) discarded" in m for m in caplog.messages)
