@@ -441,18 +441,30 @@ class Service(Stoppable):
         return best
 
     def _check_feed_units(self, setpoint: float | None, reading: Reading | None) -> None:
-        """NodeError if the feed reading and the feed setpoint node's value, both above 0 (a running feeder), differ
-        by more than :data:`FEED_FOLLOW_FACTOR` when the session opens: one of them in other units (a reading in
-        kg/s took 30 t/h for 8.3, and the first move in auto, from the actual feed, wrote 8.3 t/h)."""
-        if setpoint is None or reading is None or severity(reading.status) != GOOD:
+        """NodeError if a running feeder's Good feed reading (above 0) lies beyond :data:`FEED_FOLLOW_FACTOR` of the
+        feed setpoint node's value (above 0) when the session opens, or, with no Good value there (a DCS starting up,
+        a node never written), of every feed the service may write (the setpoint's bounds) and the scene's feed: one
+        of them in other units (a reading in kg/s took 30 t/h for 8.3, and the first move in auto, from the actual
+        feed, wrote 8.3 t/h)."""
+        if reading is None or severity(reading.status) != GOOD:
             return
         value = raw_number(reading.value)
-        if _feed_follows(value, setpoint):
+        where = (f"measurements.feed_tph: node {self.tags.measurements.feed_tph.node!r} reads {value:g} while the "
+                 f"feed setpoint node {self.tags.setpoints.feed_tph.node!r}")
+        units = "one of them is in other units (kg/s? kg/h?); give both nodes in t/h"
+        if setpoint is not None:
+            if _feed_follows(value, setpoint):
+                return
+            raise NodeError(f"{where} holds {setpoint:g} t/h: {value / setpoint:.3g} times it, beyond a feeder's "
+                            f"following (a factor {FEED_FOLLOW_FACTOR:g}): {units}")
+        lim, nominal = self.limits["feed_tph"], self.scene.feed.feed_tph
+        lo, hi = (lim.min, lim.max) if nominal is None else (min(lim.min, nominal), max(lim.max, nominal))
+        if not value > 0 or lo / FEED_FOLLOW_FACTOR <= value <= hi * FEED_FOLLOW_FACTOR:
             return
-        raise NodeError(f"measurements.feed_tph: node {self.tags.measurements.feed_tph.node!r} reads {value:g} while "
-                        f"the feed setpoint node {self.tags.setpoints.feed_tph.node!r} holds {setpoint:g} t/h: "
-                        f"{value / setpoint:.3g} times it, beyond a feeder's following (a factor "
-                        f"{FEED_FOLLOW_FACTOR:g}): one of them is in other units (kg/s? kg/h?); give both nodes in t/h")
+        scene = "" if nominal is None else f" and the scene's {nominal:g} t/h"
+        raise NodeError(f"{where} holds no Good value to compare it with: beyond a feeder's following (a factor "
+                        f"{FEED_FOLLOW_FACTOR:g}) of the feeds the service writes, [{lim.min:g}, {lim.max:g}] t/h"
+                        f"{scene}: {units}, and give the setpoint node the plant's setpoint")
 
     def _feed_following(self, v: dict) -> dict:
         """``v`` with a usable feed reading above 0 made Bad when the service is in auto and the reading lies

@@ -178,3 +178,45 @@ def test_a_feed_reading_in_other_units_than_its_setpoint_fails_the_connection(sm
     assert refused.startswith(f"measurements.feed_tph: node {small_tags.measurements.feed_tph.node!r} reads "), refused
     assert f"feed setpoint node {small_tags.setpoints.feed_tph.node!r} holds " in refused
     assert "0.278 times it" in refused and "(kg/s? kg/h?)" in refused
+
+
+#: A node the plant has not given a value (a DCS starting up, a node never written).
+NO_VALUE = ua.DataValue(ua.Variant(None, ua.VariantType.Null), ua.StatusCode(ua.StatusCodes.BadWaitingForInitialData))
+
+
+def test_without_a_good_feed_setpoint_the_feed_reading_is_judged_against_the_feeds_the_service_writes(
+        small_scene, small_tags, small_parts, url, tmp_path):
+    """With no Good value in the feed setpoint node the check of the feed reading's units on connecting was skipped:
+    a feed in kg/s (2.77 for 9.96 t/h) connected, and the first move in auto started from it. The reading is judged
+    against the feeds the service may write (the setpoint's bounds and the scene's feed) within a feeder's following;
+    the plant's own feed and a stopped feeder's 0 connect."""
+    from .conftest import LockStep
+
+    feed = small_tags.measurements.feed_tph.node
+    ls = LockStep(small_scene, small_tags, small_parts, url, tmp_path / "audit")
+
+    async def run():
+        await ls.plant.start()  # one plant for every case: a start builds its integrators
+        server = ls.plant.server
+        actual = server.read_attribute_value(ua.NodeId.from_string(feed)).Value.Value
+        await server.write_attribute_value(ua.NodeId.from_string(small_tags.setpoints.feed_tph.node), NO_VALUE)
+        out = []
+        for factor in (1.0, 0.0, 1.0 / 3.6, 1000.0):  # the plant's, stopped, kg/s, kg/h
+            await server.write_attribute_value(ua.NodeId.from_string(feed),
+                                               ua.DataValue(ua.Variant(factor * actual, ua.VariantType.Double)))
+            try:
+                await ls.service.connect()
+                out.append("")
+                conn, ls.service.conn = ls.service.conn, None
+                await conn.close()
+            except NodeError as exc:
+                out.append(str(exc))
+        await ls.plant.stop_server()
+        return out
+
+    own, stopped, *slips = asyncio.run(run())
+    assert own == "" and stopped == ""
+    for refused in slips:
+        assert refused.startswith(f"measurements.feed_tph: node {feed!r} reads "), refused
+        assert f"feed setpoint node {small_tags.setpoints.feed_tph.node!r} holds no Good value" in refused
+        assert "[8, 30] t/h and the scene's 16 t/h" in refused and "(kg/s? kg/h?)" in refused
