@@ -29,7 +29,8 @@ Modes (each change logged):
 - ``hold``: nothing is written (the plant keeps the last setpoints) while the P80 has been
   unusable for longer than ``fallback.p80_hold_after_h`` (until then the controller runs on its
   model), the actual inputs for longer than ``fallback.inputs_hold_after_h`` (until then the
-  last written setpoints stand in for them), or the estimator or controller failed;
+  last written setpoints stand in for them), the estimator or controller failed, or on taking over an
+  actual input lies outside its bounds by more than a sample's rate limit (the first move would jump);
 - ``disconnected``: the estimator predicts with the last written setpoints, which the plant
   keeps; a task reconnects with exponential back-off.
 SIGTERM or SIGINT ends the service after the running cycle: only the status is written, the
@@ -365,7 +366,7 @@ class Service(Stoppable):
         t1, c1 = time.perf_counter(), time.process_time()
         x_est, d_est, est_note = self._estimate(v, u_act, blend_now, steps, t_h)
         row["estimate_s"], row["estimate_cpu_s"] = time.perf_counter() - t1, time.process_time() - c1
-        mode, reason = self._decide(auto, x_est, t_h, inputs_note or est_note)
+        mode, reason = self._decide(auto, x_est, t_h, inputs_note or est_note, u_act)
         u_prop, res, solve_note = self._solve(mode, x_est, d_est, preview, u_act, row)
         mode, reason = ("hold", solve_note) if solve_note else (mode, reason)
         values, write_note = self._moves(mode, u_prop, u_act)
@@ -540,8 +541,8 @@ class Service(Stoppable):
                             f"{ekf.hardness_bounds}: the ore differs from the model by more than it may say")
         return x, d, ""
 
-    def _decide(self, auto: bool, x_est, t_h: float, note: str) -> tuple[str, str]:
-        """The mode of this cycle and its reason (before the controller runs)."""
+    def _decide(self, auto: bool, x_est, t_h: float, note: str, u_act) -> tuple[str, str]:
+        """The mode of this cycle and its reason (before the controller runs; ``u_act``: the actual inputs)."""
         if x_est is None:
             return "hold", note
         if t_h - self.est_start_h < self.warmup_h:
@@ -558,6 +559,9 @@ class Service(Stoppable):
         p80_bad = self._bad_for_h("p80_um", t_h)
         if p80_bad > self.tags.fallback.p80_hold_after_h:
             return "hold", f"P80 unusable for {p80_bad:.3g} h (> {self.tags.fallback.p80_hold_after_h:g} h)"
+        far = "" if self._continuing() else self._outside_bounds(u_act)
+        if far:
+            return "hold", far
         return "auto", f"on the model: P80 unusable for {p80_bad:.3g} h" if "p80_um" in self.bad_since else ""
 
     def _solve(self, mode: str, x_est, d_est, preview, u_act, row: dict):
@@ -582,6 +586,27 @@ class Service(Stoppable):
             row["solve_s"], row["solve_cpu_s"] = time.perf_counter() - t1, time.process_time() - c1
         return np.asarray(res.u_applied, float), res, ""
 
+    def _continuing(self) -> bool:
+        """True while the service stays in auto on its own setpoints; False when it takes over from the actual inputs
+        (after manual, hold or a start)."""
+        return self.mode == "auto" and self.u_written is not None
+
+    def _outside_bounds(self, u_act) -> str:
+        """Why the service may not take over from the actual inputs ('' if it may): an input outside its setpoint's
+        bounds by more than a sample's rate limit would be stepped into them at once, the bounds winning over the
+        rate limit (a feed in kg/s of 18 t/h read 5, and the first move wrote the bound, 8 t/h: 10 t/h at once)."""
+        far = []
+        for i, name in enumerate(INPUTS):
+            lim, value = self.limits[name], float(u_act[i])
+            step, gap = lim.rate_max_per_h * self.dt_h, max(lim.min - value, value - lim.max)
+            if gap > step * (1 + 1e-9):
+                far.append(f"the actual {name} {value:.4g} lies {gap:.4g} {'below' if value < lim.min else 'above'} "
+                           f"its bounds [{lim.min:g}, {lim.max:g}], beyond the rate limit ({step:.4g} a sample)")
+        if not far:
+            return ""
+        return ("; ".join(far) + ": taking over would step its setpoint into the bounds at once; holding, nothing "
+                "written (bring it within the bounds in manual, or check the reading's units: kg/s? kg/h?)")
+
     def _moves(self, mode: str, u_prop, u_act) -> tuple[dict, str]:
         """The setpoints to write in auto, limited at the writer; ``({name: value}, notes)``."""
         if mode != "auto" or u_prop is None:
@@ -590,7 +615,7 @@ class Service(Stoppable):
         # the rate limit is on the setpoint: from the one this service wrote while it stays in auto (from the
         # actual reading, a lagging or mis-scaled actual let a write jump: 23.6 to 20 t/h against 1 t/h a
         # sample), from the actual input when it takes over (bumpless)
-        continuing = self.mode == "auto" and self.u_written is not None
+        continuing = self._continuing()
         for i, name in enumerate(INPUTS):
             ref = (self.u_written[i] if continuing else u_act[i] if u_act is not None
                    else self.u_written[i] if self.u_written is not None else None)

@@ -76,3 +76,45 @@ def test_out_of_range_readings_are_bad_and_not_passed_on(small_scene, small_tags
     assert good["p80_um_quality_reason"] == ""
     assert bad["p80_um_raw"] == -5.0 and good["p80_um_raw"] == 205.0  # what the tag read is kept, used or not
     assert seen[-1][0][0] == 205.0
+
+
+def test_a_takeover_from_an_input_outside_its_bounds_holds_rather_than_jump(small_scene, small_tags, small_parts,
+                                                                            url, tmp_path):
+    """A feed in kg/s of 18 t/h reads 5, within a feeder's following of the feeds the service writes (8 to 30 t/h),
+    and with no Good value in the setpoint node nothing else to compare it with: the first move in auto started from
+    5 and was written at the bound, 8 t/h, the plant's feed stepped from 18 to 8 t/h against 0.5 t/h a sample (the
+    bounds won over the rate limit). A takeover from an actual input outside its bounds by more than a sample's rate
+    holds: nothing written, the reason names the input, its bounds and the rate."""
+    import scenarios.online as online
+
+    ls = LockStep(small_scene, small_tags, small_parts, url, tmp_path / "audit")
+    publish, node = ls.plant._publish, ua.NodeId.from_string
+
+    def in_kg_s(vals, wall):
+        publish(vals, wall)
+        dv = ls.plant.published["feed_tph"]
+        ls.plant.published["feed_tph"] = ua.DataValue(ua.Variant(dv.Value.Value / 3.6, ua.VariantType.Double),
+                                                      dv.StatusCode, dv.SourceTimestamp)
+
+    async def run():
+        ls.plant._publish = in_kg_s
+        await ls.plant.start()
+        op = online.PlantConnection(url, online.ClientSecurity(insecure=True), {},
+                                    {"feed": small_tags.setpoints.feed_tph.node})
+        await op.open()
+        await op.write({"feed": (18.0, ua.StatusCodes.Good)}, ls.clock.now())  # an operator's, then the node is lost
+        await op.close()
+        await ls.step()
+        await ls.plant.server.write_attribute_value(node(small_tags.setpoints.feed_tph.node), ua.DataValue(
+            ua.Variant(None, ua.VariantType.Null), ua.StatusCode(ua.StatusCodes.BadWaitingForInitialData)))
+        ls.rows.clear()
+        await ls.service.connect()
+        await ls.step(6)
+        await ls.stop()
+
+    asyncio.run(run())
+    assert ls.plant.u[0] == 18.0 and not any(r["written"] for r in ls.rows), [r.get("feed_sp_tph") for r in ls.rows]
+    taking_over = [r for r in ls.rows if r["mode"] != "warmup"]
+    assert taking_over and all(r["mode"] == "hold" for r in taking_over)
+    assert all("the actual feed_tph 5 lies 3 below its bounds [8, 30], beyond the rate limit (0.5 a sample)"
+               in r["reason"] for r in taking_over), taking_over[0]["reason"]
