@@ -116,7 +116,7 @@ class PlantServer(Stoppable):
         self.manual_value = "manual" if isinstance(auto, str) else (0 if auto != 0 else 1)
         self.mode = settings.initial_mode if settings.initial_mode is not None else auto
         self.t_h = self.t_start_h = -float(settings.hold_h)
-        self.anchor = (self.clock.now(), self.t_h)  # (wall time, plant time) of the last sample
+        self.anchor = (self.clock.monotonic(), self.t_h)  # (monotonic clock [s], plant time [h]) of the last sample
         self.fault, self.frozen_value = "none", math.nan
         self.running = not settings.paused
         self.heartbeat_seen_h: float | None = None
@@ -232,7 +232,7 @@ class PlantServer(Stoppable):
 
     def _on_write(self, event, _dispatcher) -> None:
         """A client wrote: setpoints take effect now, mode and heartbeat are noted (PostWrite)."""
-        t = self.plant_time(self.clock.now())
+        t = self.plant_time()
         user = event.user.name or "anonymous"
         by_id = {nid: role for role, nid in self._node_ids.items()}
         for wv, res in zip(event.request_params.NodesToWrite, event.response_params):
@@ -288,16 +288,17 @@ class PlantServer(Stoppable):
         self.fault = fault
 
     # ------------------------------------------------------------------ time
-    def plant_time(self, wall: datetime) -> float:
-        """Plant time at a wall-clock time (standing still while frozen)."""
-        w0, t0 = self.anchor
-        return t0 + self.clock.hours_between(w0, wall) if self.running else self.t_h
+    def plant_time(self) -> float:
+        """Plant time now (standing still while frozen), on the monotonic clock: on the wall clock, a step of it
+        (NTP, an operator) moved the plant time of a client's write, stepped back 1 h a write half a sample in took
+        effect at the sample's start."""
+        m0, t0 = self.anchor
+        return t0 + self.clock.hours_since(m0) if self.running else self.t_h
 
     def _retime(self, speedup: float | None = None, running: bool | None = None) -> None:
         """A new speed-up or run/freeze from now on: plant time so far counts at the old pace, and
         the run loop (woken) times the rest of the sample at the new one."""
-        now = self.clock.now()
-        self.anchor = (now, self.plant_time(now))
+        self.anchor = (self.clock.monotonic(), self.plant_time())
         if speedup is not None:
             self.clock.speedup = speedup
         if running is not None:
@@ -306,17 +307,17 @@ class PlantServer(Stoppable):
         if self._wake is not None:
             self._wake.set()
 
-    def _next_sample(self, loop) -> tuple[float, datetime]:
-        """(loop time, wall time) of the next sample after :meth:`_retime`."""
+    def _next_sample(self, loop) -> tuple[float, datetime, float]:
+        """(loop time, wall time, monotonic clock) of the next sample after :meth:`_retime`."""
         self._retimed = False
         self._wake.clear()
-        now = self.clock.now()
-        left_h = self.t_h + self.dt_h - self.plant_time(now) if self.running else self.dt_h
+        left_h = self.t_h + self.dt_h - self.plant_time() if self.running else self.dt_h
         left_s = self.clock.wall_seconds(min(max(left_h, 0.0), self.dt_h))
-        return loop.time() + left_s, now + timedelta(seconds=left_s)
+        return loop.time() + left_s, self.clock.now() + timedelta(seconds=left_s), self.clock.monotonic() + left_s
 
-    async def tick(self, wall: datetime | None = None) -> None:
-        """Advance one sample (``wall``: the wall-clock time of the new sample instant)."""
+    async def tick(self, wall: datetime | None = None, monotonic: float | None = None) -> None:
+        """Advance one sample (``wall``, ``monotonic``: the wall-clock time, its source timestamps', and the
+        monotonic clock's of the new sample instant; now when not given)."""
         t0, t1 = self.t_h, self.t_h + self.dt_h
         d = self.plant.disturbance(t0, self.schedule(max(t0, 0.0)), 1.0)
         marks = round(1 / MIN_PIECE_FRAC)
@@ -338,7 +339,7 @@ class PlantServer(Stoppable):
             self.u[i] = value
         await self._step(d, self.dt_h if done == 0 else (marks - done) * gap)
         wall = wall or self.clock.now()
-        self.t_h, self.anchor = t1, (wall, t1)
+        self.t_h, self.anchor = t1, (self.clock.monotonic() if monotonic is None else monotonic, t1)
         vals = self._measure()
         self._publish(vals, wall)
         # the record (a file every record_every samples) before the sample is served: a client
@@ -495,22 +496,24 @@ class PlantServer(Stoppable):
             started = True
             period = self.clock.wall_seconds(self.dt_h)
             next_t, next_wall = loop.time() + period, self.clock.now() + timedelta(seconds=period)
+            next_mono = self.clock.monotonic() + period  # the sample instant on the plant's clock
             while self.stop_reason is None:
                 if await sleep_until(next_t, self._wake):
                     if self.stop_reason is None and self._retimed:  # a new speed-up or run/freeze
-                        next_t, next_wall = self._next_sample(loop)
+                        next_t, next_wall, next_mono = self._next_sample(loop)
                     continue
                 period = self.clock.wall_seconds(self.dt_h)
                 if loop.time() - next_t > period:
                     log.warning("the virtual plant fell %.2f s behind real time (x%g); its clock restarts from now",
                                 loop.time() - next_t, self.clock.speedup)
-                    next_t, next_wall = loop.time(), self.clock.now()
-                wall = next_wall
-                next_t, next_wall = next_t + period, next_wall + timedelta(seconds=period)
+                    next_t, next_wall, next_mono = loop.time(), self.clock.now(), self.clock.monotonic()
+                wall, mono = next_wall, next_mono
+                next_t, next_mono = next_t + period, next_mono + period
+                next_wall += timedelta(seconds=period)
                 if not self.running:  # frozen: plant time stands still
-                    self.anchor = (wall, self.t_h)
+                    self.anchor = (mono, self.t_h)
                     continue
-                await self.tick(wall)
+                await self.tick(wall, mono)
                 if self.s.duration_h is not None and self.t_h >= self.s.duration_h - 1e-9:
                     self.request_stop(f"duration {self.s.duration_h:g} h reached")
         finally:

@@ -35,7 +35,7 @@ def test_a_setpoint_takes_effect_at_the_time_it_was_written(plant):
     dt = p.dt_h
     x0, u0, d = p.x.copy(), p.u.copy(), p.plant.disturbance(0.0, p.schedule(0.0), 1.0)
     clock.advance(dt / 4)  # a quarter into the sample the feed setpoint changes
-    p._apply_write("setpoints.feed_tph", 12.0, p.plant_time(clock.now()), "test")
+    p._apply_write("setpoints.feed_tph", 12.0, p.plant_time(), "test")
     clock.advance(3 * dt / 4)
     asyncio.run(p.tick())
     x1, _, _ = p.plant.step(x0, u0, d, dt / 4)
@@ -59,7 +59,7 @@ def test_a_centrifuging_speed_is_logged_as_the_runs_warn(plant, caplog):
     there, and logged nothing. Now a warning when it leaves what its models describe, once."""
     p, clock = plant
     ticks(p, clock, 1)
-    p._apply_write("setpoints.speed_frac_critical", 0.99, p.plant_time(clock.now()), "test")
+    p._apply_write("setpoints.speed_frac_critical", 0.99, p.plant_time(), "test")
     with caplog.at_level("INFO", logger="grindtwin.online.plant"):
         ticks(p, clock, 3)
     said = [r for r in caplog.records if "left what its models describe" in r.getMessage()]
@@ -110,7 +110,7 @@ def test_a_write_storm_costs_at_most_one_integrator_restart_per_5_percent_of_a_s
     monkeypatch.setattr(p.plant, "step", lambda *a: calls.append(a[-1]) or step(*a))
     for k in range(200):  # a client writing 200 times a sample
         clock.advance(p.dt_h / 200)
-        p._apply_write("setpoints.feed_tph", 16.0 + k / 200, p.plant_time(clock.now()) - p.dt_h / 400, "storm")
+        p._apply_write("setpoints.feed_tph", 16.0 + k / 200, p.plant_time() - p.dt_h / 400, "storm")
     asyncio.run(p.tick())
     assert len(calls) <= 1 / MIN_PIECE_FRAC + 1 and sum(calls) == pytest.approx(p.dt_h)
     assert p.u[0] < 17.0 and len(p.writes) > 0  # the last writes wait for the next sample
@@ -128,7 +128,7 @@ def test_a_setpoint_waits_for_the_next_scan_mark_so_piece_lengths_repeat(plant, 
         x0, u0, d = p.x.copy(), p.u.copy(), p.plant.disturbance(p.t_h, p.schedule(max(p.t_h, 0.0)), 1.0)
         frac = rng.uniform(0.0, 1.0 - MIN_PIECE_FRAC)
         clock.advance(frac * p.dt_h)
-        p._apply_write("setpoints.feed_tph", float(u0[0]) + 0.5, p.plant_time(clock.now()), "test")
+        p._apply_write("setpoints.feed_tph", float(u0[0]) + 0.5, p.plant_time(), "test")
         clock.advance((1 - frac) * p.dt_h)
         asyncio.run(p.tick())
     # the last sample: the write took effect at the first 5 % mark after it
@@ -144,18 +144,33 @@ def test_frozen_plant_time_stands_still_for_writes(plant):
     p, clock = plant
     p.running = False
     clock.advance(5 * p.dt_h)
-    assert p.plant_time(clock.now()) == p.t_h
+    assert p.plant_time() == p.t_h
     p.running = True
-    assert p.plant_time(clock.now()) == pytest.approx(p.t_h + 5 * p.dt_h)
+    assert p.plant_time() == pytest.approx(p.t_h + 5 * p.dt_h)
+
+
+def test_a_step_of_the_wall_clock_moves_not_the_plant_time_of_a_write(plant):
+    """The plant's time ran on the wall clock: stepped back 1 h (NTP, an operator) half a sample in, a write then
+    had the plant time of an hour before and took effect at the sample's start, half a sample early (stepped on, it
+    waited for the next sample). It runs on the monotonic clock, as the service's does."""
+    p, clock = plant
+    ticks(p, clock, 1)
+    clock.advance(p.dt_h / 2)
+    clock.step_wall(-1.0)
+    assert p.plant_time() == pytest.approx(p.t_h + p.dt_h / 2)
+    p._apply_write("setpoints.feed_tph", 12.0, p.plant_time(), "test")
+    clock.advance(p.dt_h / 2)
+    asyncio.run(p.tick())
+    assert p.applied_at_frac == pytest.approx(0.5) and p.u[0] == 12.0
 
 
 def test_a_new_speed_up_counts_from_the_time_it_was_written(plant):
     p, clock = plant  # x3600: a wall-clock second is a plant hour
     clock.advance(p.dt_h / 2)
-    p._apply_write("sim.speedup", 7200.0, p.plant_time(clock.now()), "instructor")
+    p._apply_write("sim.speedup", 7200.0, p.plant_time(), "instructor")
     clock.advance(p.dt_h / 2)  # at x7200: half the wall time of the first half
     # the first half at x3600, the second at x7200 (the new pace applied to all: 1.5 samples)
-    assert p.plant_time(clock.now()) == pytest.approx(p.t_h + p.dt_h)
+    assert p.plant_time() == pytest.approx(p.t_h + p.dt_h)
     for bad in (0.0, -2.0, math.inf, "fast"):
         p._apply_write("sim.speedup", bad, 0.0, "instructor")
     assert p.clock.speedup == 7200.0
