@@ -11,3 +11,12 @@ import os
 
 if os.environ.get("PYTEST_XDIST_WORKER"):
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+
+def strict_json(text: str):
+    """``json.loads`` that refuses NaN and Infinity (not JSON, though Python writes them)."""
+    import json
+
+    def refuse(constant):
+        raise ValueError(f"not JSON: {constant}")
+    return json.loads(text, parse_constant=refuse)

@@ -34,6 +34,7 @@ _API = {
     "LockError": ".atomic", "acquire_lock": ".atomic", "release_lock": ".atomic", "remove_by_name": ".atomic",
     "replace_folder": ".atomic", "temporaries_of": ".atomic", "write_atomically": ".atomic",
     "write_beside": ".atomic", "csv_text": ".atomic", "read_once": ".atomic",
+    "JSON_INF": ".atomic", "json_safe": ".atomic", "json_text": ".atomic",
     "check_size_mill_input": ".sizing",
     "trajectory_notes": ".validity",
     "nominal_pressure_note": ".validity",
@@ -55,7 +56,7 @@ __all__ = [
     "file_sha256", "is_grindtwin_checkout", "new_folder_beside", "pxx_um", "reference_ores", "nominal_pressure_note", "trajectory_notes", "write_text_atomically",
     "LockError", "acquire_lock", "release_lock", "remove_by_name", "replace_folder", "temporaries_of",
     "write_atomically", "write_beside", "check_size_mill_input", "sample_count", "nominal_pressure_kpa",
-    "mass_balance_error", "csv_text", "read_once",
+    "mass_balance_error", "csv_text", "read_once", "JSON_INF", "json_safe", "json_text",
     "blend_density_t_m3", "shell_capacity_t", "SPECIFIC_ENERGY_RANGE_KWH_T", "exponent_order_problem",
 ]
 __getattr__, __dir__ = lazy_face(__name__, _API)

@@ -17,7 +17,10 @@ from __future__ import annotations
 import errno
 import fcntl
 import hashlib
+import json
+import math
 import os
+import sys
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -115,6 +118,37 @@ def csv_text(data: bytes) -> str:
 def _is_comment(line: str) -> bool:
     head = line.lstrip()
     return head.startswith("#") and head.split(",", 1)[0].strip().upper() not in EXCEL_ERRORS
+
+
+#: How a JSON file writes an infinity (a number, unlike NaN: null, undefined): the text the CSV files write
+#: for it, which Python's ``float`` and pandas read back as the infinity (null made it undefined).
+JSON_INF = {math.inf: "inf", -math.inf: "-inf"}
+
+
+def json_safe(obj):
+    """NaN -> None (undefined); an infinity -> :data:`JSON_INF`'s text; numpy scalars -> Python;
+    tuples -> lists; keys -> str; recursively."""
+    if isinstance(obj, dict):
+        return {str(k): json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    np = sys.modules.get("numpy")  # a numpy scalar exists only once numpy is imported (the compiled
+    # surrogate's reader runs without it)
+    if isinstance(obj, float) or (np is not None and isinstance(obj, np.floating)):
+        v = float(obj)
+        return None if math.isnan(v) else JSON_INF.get(v, v)
+    if np is not None and isinstance(obj, np.integer):
+        return int(obj)
+    if np is not None and isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj
+
+
+def json_text(obj, **kwargs) -> str:
+    """``obj`` as strict JSON (RFC 8259 has no NaN or infinity: Python's json wrote the tokens NaN and
+    Infinity, which many readers refuse) through :func:`json_safe`; ``kwargs`` go to :func:`json.dumps`.
+    ``allow_nan=False``: a value json_safe leaves non-finite raises instead of writing such a token."""
+    return json.dumps(json_safe(obj), allow_nan=False, **kwargs)
 
 
 def is_grindtwin_checkout(folder) -> bool:

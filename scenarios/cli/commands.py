@@ -713,11 +713,9 @@ def refuse_few_replicates(n: int, calibration, level: float) -> None:
 
 def _steady_scene(args) -> int:
     """`grindtwin steady --scene FILE`: the scene's plant twin at its initial operating point."""
-    import json
-
     from scenarios.run.models import build_models
     from scenarios.scene import load_scene
-    from twin import circuit_cyclone, plitt_factors, plitt_factors_text
+    from twin import circuit_cyclone, json_text, plitt_factors, plitt_factors_text
 
     given = [name for name, v in (("--surrogate", args.surrogate), ("--at-constant-load", args.at_constant_load),
                                   ("--blend", args.blend), ("--ore", args.ore), ("--mill", args.mill),
@@ -744,8 +742,7 @@ def _steady_scene(args) -> int:
     cyclone = circuit_cyclone(models.plant.spec)  # its Plitt factors: a survey's are computed, not typed
     factors = {} if cyclone is None else plitt_factors(cyclone)
     if args.json:
-        print(json.dumps(kpis | ({"cyclone_plitt_factors": factors} if factors else {}) | {"notes": notes},
-                         indent=2, allow_nan=False))
+        print(json_text(kpis | ({"cyclone_plitt_factors": factors} if factors else {}) | {"notes": notes}, indent=2))
         return 0
     print(f"Scene {scene.scene.name} ({args.scene}), steady state")
     for key, val in kpis.items():
@@ -775,8 +772,7 @@ def _scene_steady_notes(scene, models, args) -> list[str]:
 
 @_exit_codes("steady")
 def cmd_steady(args) -> int:
-    import json
-
+    from twin import json_text
     from twin.calibration import load_calibration  # light: the surrogate needs neither CasADi nor scikit-learn
 
     if args.scene:
@@ -842,9 +838,9 @@ def cmd_steady(args) -> int:
         notes += ss.notes  # a twin's steady state carries its notes (texture, a sized circuit not run)
     if args.json:
         mineralogy = {o.name: {"wt_pct": o.wt_pct, **o.summary()} for o in blend.ores}
-        print(json.dumps({"mill": args.mill, "blend": dict(zip(blend.names, blend.fractions)),
-                          "calibration": calibration.identity(), **kpis, "mineralogy": mineralogy,
-                          "notes": notes, **({"uncertainty": unc} if unc else {})}, indent=2, allow_nan=False))
+        print(json_text({"mill": args.mill, "blend": dict(zip(blend.names, blend.fractions)),
+                         "calibration": calibration.identity(), **kpis, "mineralogy": mineralogy,
+                         "notes": notes, **({"uncertainty": unc} if unc else {})}, indent=2))
         return 0
     print(f"Mill {args.mill}, blend " + ", ".join(f"{n} {f:.0%}" for n, f in zip(blend.names, blend.fractions))
           + f"; calibration {calibration.label()}")
@@ -896,9 +892,8 @@ def add_optimize_parser(subparsers):
 
 @_exit_codes("optimize")
 def cmd_optimize(args) -> int:
-    import json
-
     from mpc import MpcInputError, default_feed_bounds, optimal_setpoints
+    from twin import json_text
 
     if args.objective is not None and args.mode != "both":
         raise SceneError(f"--objective {args.objective}: with --mode {args.mode} one input holds the target and "
@@ -916,17 +911,13 @@ def cmd_optimize(args) -> int:
         notes = twin.steady(feed_tph=sp.feed_tph, speed_frac_critical=sp.speed_frac_critical,
                             blend=list(blend.fractions)).notes
     if args.json:
-        from scenarios.output.write import json_safe
-
-        print(json.dumps(json_safe({"feasible": sp.feasible, "message": sp.message, "active": sp.active,
-                                    "mode": sp.mode,
-                                    "objective": sp.objective if args.mode == "both" else None,
-                                    "feed_tph": sp.feed_tph,
-                                    "speed_frac_critical": sp.speed_frac_critical, "p80_um": sp.p80_um,
-                                    "specific_energy_kwh_t": sp.specific_energy_kwh_t, "load_frac": sp.load_frac,
-                                    "power_kw": sp.power_kw, "table": json.loads(table.to_json(orient="records")),
-                                    "notes": notes}),
-                         indent=2, allow_nan=False))
+        # the table's records through json_text too: pandas' to_json wrote an infinity as null (undefined)
+        print(json_text({"feasible": sp.feasible, "message": sp.message, "active": sp.active, "mode": sp.mode,
+                         "objective": sp.objective if args.mode == "both" else None, "feed_tph": sp.feed_tph,
+                         "speed_frac_critical": sp.speed_frac_critical, "p80_um": sp.p80_um,
+                         "specific_energy_kwh_t": sp.specific_energy_kwh_t, "load_frac": sp.load_frac,
+                         "power_kw": sp.power_kw, "table": table.to_dict(orient="records"), "notes": notes},
+                        indent=2))
     else:
         print(f"Target P80 {args.target_p80_um:g} um, mill {args.mill}, blend "
               + ", ".join(f"{n} {f:.0%}" for n, f in zip(blend.names, blend.fractions)))
@@ -992,10 +983,9 @@ def _size_mill_input(name):
 
 @_exit_codes("size-mill")
 def cmd_size_mill(args) -> int:
-    import json
     import shlex
 
-    from twin import (Hydrocyclone, check_preset_path, load_design_cyclone, load_ore, plitt_factors,
+    from twin import (Hydrocyclone, check_preset_path, json_text, load_design_cyclone, load_ore, plitt_factors,
                       plitt_factors_text, size_mill, write_preset)
 
     if args.write_preset is not None:  # an empty path was no preset, silently
@@ -1021,7 +1011,7 @@ def cmd_size_mill(args) -> int:
         print(f"wrote {path}" + (" (replacing the preset it held)" if replaces else ""),
               file=sys.stderr if args.json else sys.stdout)  # --json: stdout is the JSON alone
     if args.json:
-        print(json.dumps(record | {"notes": sized.notes}, indent=2))
+        print(json_text(record | {"notes": sized.notes}, indent=2))
         return 0
     m, z, c = sized.mill, record["sizing"], sized.cyclone
     print(f"Mill for ore {args.ore} at {args.feed_tph:g} t/h, P80 {args.target_p80_um:g} um, {args.speed:.2f} of critical:")

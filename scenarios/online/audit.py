@@ -67,7 +67,7 @@ class AuditLog:
         self._rows.append(row)
         self.folder.mkdir(parents=True, exist_ok=True)
         with open(self._path(".jsonl"), "a", encoding="utf-8") as f:
-            f.write(json.dumps({k: _jsonable(v) for k, v in row.items()}) + "\n")
+            f.write(json.dumps({k: _jsonable(v) for k, v in row.items()}, allow_nan=False) + "\n")
             f.flush()
             os.fsync(f.fileno())
         if len(self._rows) >= self.flush_every:

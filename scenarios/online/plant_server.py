@@ -26,7 +26,6 @@ The server holds every node of a tag map (:mod:`scenarios.online.tags`), as a pl
 from __future__ import annotations
 
 import asyncio
-import json
 import logging
 import math
 import time
@@ -44,12 +43,12 @@ from scenarios.errors import SceneError
 from scenarios.online.clock import Clock, Stoppable, sleep_until
 from scenarios.online.security import ServerSecurity, make_server
 from scenarios.online.tags import TagMap
-from scenarios.output import MANIFEST, json_safe, replace_recorded_files, strangers
+from scenarios.output import MANIFEST, replace_recorded_files, strangers
 from scenarios.run import build_models
 from scenarios.run.closed_loop import hold_schedule, plant_start, scene_sensors
 from scenarios.run.feed import component_blend, feed_schedule
 from scenarios.scene import Scene
-from twin import nominal_pressure_kpa, temporaries_of, trajectory_notes
+from twin import json_text, nominal_pressure_kpa, temporaries_of, trajectory_notes
 
 log = logging.getLogger("grindtwin.online.plant")
 
@@ -480,8 +479,7 @@ class PlantServer(Stoppable):
             "plant.parquet": lambda path: frame.to_parquet(path, index=False),
             # an undefined KPI (NaN: the specific energy of a run that fed nothing) is null, as in summary.json: the
             # text NaN is no JSON
-            "plant-kpis.json": lambda path: path.write_text(json.dumps(json_safe(kpis), indent=2, allow_nan=False),
-                                                            encoding="utf-8")})
+            "plant-kpis.json": lambda path: path.write_text(json_text(kpis, indent=2), encoding="utf-8")})
 
     # ------------------------------------------------------------------ run
     async def run(self, install_signal_handlers: bool = True) -> None:

@@ -20,10 +20,10 @@ from scenarios.errors import SceneError
 from scenarios.output.labels import (KPI_LABELS, calibration_text, effects_rows, kpi_text, preset_file_text,
                                      replay_rows)
 from scenarios.output.plots import PLOTS, plot_caption
-from scenarios.output.write import (INCOMPLETE_MARKER, JSON_INF, MANIFEST, file_sha256, installed_version,
+from scenarios.output.write import (INCOMPLETE_MARKER, MANIFEST, file_sha256, installed_version,
                                     later_file_is_as_written, lock_folder, lock_path, manifest_files, read_manifest,
                                     record_later_file)
-from twin import release_lock, write_text_atomically
+from twin import JSON_INF, release_lock, write_text_atomically
 
 _CSS = """body{font-family:system-ui,sans-serif;max-width:60em;margin:2em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:.3em .7em;text-align:left}

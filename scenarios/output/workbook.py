@@ -16,7 +16,6 @@ shows 15): a number that needs 17 to read back exactly is off by one unit in its
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -25,7 +24,7 @@ import pandas as pd
 
 from scenarios.output.labels import (KPI_LABELS, calibration_text, effects_rows, is_percent, percent_decimals,
                                       preset_file_text, replay_rows)
-from twin import write_atomically
+from twin import json_text, write_atomically
 
 #: Size distributions a run writes as CSV: the stream (``attrs['what']``) -> file name.
 PSD_FILES = {"product": "product_psd.csv", "mill content": "mill_psd.csv"}
@@ -274,7 +273,7 @@ def tables_as_json(table: pd.DataFrame) -> pd.DataFrame:
     out = table.copy()
     for c in out.columns:
         if out[c].map(lambda v: isinstance(v, (dict, list))).any():
-            out[c] = out[c].map(lambda v: json.dumps(v) if isinstance(v, (dict, list)) else v)
+            out[c] = out[c].map(lambda v: json_text(v) if isinstance(v, (dict, list)) else v)
     return out
 
 

@@ -58,7 +58,6 @@ new one cannot be put in place (:func:`twin.atomic.replace_folder`).
 from __future__ import annotations
 
 import json
-import math
 import os
 import time
 from collections.abc import Callable
@@ -66,11 +65,9 @@ from contextlib import nullcontext
 from importlib import metadata
 from pathlib import Path
 
-import numpy as np
-
 from scenarios.errors import RunError, SceneError, raise_if_interrupted
-from twin import (LockError, acquire_lock, file_sha256, release_lock, remove_by_name, replace_folder, temporaries_of,
-                  write_beside, write_text_atomically)
+from twin import (LockError, acquire_lock, file_sha256, json_text, release_lock, remove_by_name, replace_folder,
+                  temporaries_of, write_beside, write_text_atomically)
 from scenarios.output.plots import PLOTS, SWEEP_PLOT, write_plots
 from scenarios.output.workbook import (PSD_FILES, RUN_WORKBOOK, STREAMS_FILE, SWEEP_WORKBOOK, write_csv,
                                       write_size_csvs, write_workbook)
@@ -93,28 +90,6 @@ LATER_SHA256 = "later_sha256"
 RUN_FILES = ("timeseries.parquet", "timeseries.csv", *PSD_FILES.values(), STREAMS_FILE, RUN_WORKBOOK,
              "summary.json", *PLOTS, "sweep.csv", "sweep.parquet", "sweep_traces.csv", SWEEP_PLOT, SWEEP_WORKBOOK,
              MANIFEST, INCOMPLETE_MARKER)
-
-
-#: How summary.json writes an infinity (a number the run computed, unlike NaN: null, undefined): the
-#: text the CSV files write for it, which Python's ``float`` and pandas read back as the infinity.
-JSON_INF = {math.inf: "inf", -math.inf: "-inf"}
-
-
-def json_safe(obj):
-    """NaN -> None (undefined); an infinity -> :data:`JSON_INF`'s text (null made it
-    indistinguishable from undefined); numpy scalars -> Python; recursively."""
-    if isinstance(obj, dict):
-        return {str(k): json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [json_safe(v) for v in obj]
-    if isinstance(obj, (np.floating, float)):
-        v = float(obj)
-        return None if math.isnan(v) else JSON_INF.get(v, v)
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj
 
 
 #: how an error names the output folder: the CLI's option and the Python functions' parameter
@@ -409,7 +384,7 @@ def write_files(result, folder: Path, csv: bool = False, plots: bool = True, xls
     summary = dict(result.summary)
     summary["files"] = sorted(p.name for p in folder.iterdir() if p.name != INCOMPLETE_MARKER) \
         + ["summary.json"]
-    (folder / "summary.json").write_text(json.dumps(json_safe(summary), indent=2) + "\n")
+    (folder / "summary.json").write_text(json_text(summary, indent=2) + "\n")
 
 
 def write_run(result, out_dir, csv: bool = False, plots: bool = True, xlsx: bool = False, protect=()) -> Path:

@@ -66,15 +66,6 @@ def write_scene(tmp_path):
     return write
 
 
-def strict_json(text: str):
-    """``json.loads`` that refuses NaN and Infinity (not JSON, though Python writes them)."""
-    import json
-
-    def refuse(constant):
-        raise ValueError(f"not JSON: {constant}")
-    return json.loads(text, parse_constant=refuse)
-
-
 @pytest.fixture
 def clay_ore(tmp_path) -> Path:
     """An ore file of 90 % kaolinite: its mill slurry is past jamming at the shipped calibration's

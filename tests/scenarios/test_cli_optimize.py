@@ -5,8 +5,7 @@ import json
 import pytest
 
 from scenarios.cli import main
-
-from .conftest import strict_json
+from tests.conftest import strict_json
 
 
 def test_optimize_holds_the_target_at_least_energy(capsys):

@@ -6,8 +6,9 @@ import re
 import pytest
 
 from scenarios.cli import main
+from tests.conftest import strict_json
 
-from .conftest import BASE_SCENE, strict_json
+from .conftest import BASE_SCENE
 
 
 def test_steady_json_has_unit_suffixed_kpis(capsys):

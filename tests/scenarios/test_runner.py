@@ -236,7 +236,7 @@ def test_interrupted_write_leaves_no_complete_looking_output(short_run, tmp_path
     def boom(*args, **kwargs):
         raise KeyboardInterrupt  # Ctrl-C half-way through writing
 
-    monkeypatch.setattr(outputs, "write_plots" if where == "plots" else "json_safe", boom)
+    monkeypatch.setattr(outputs, "write_plots" if where == "plots" else "json_text", boom)
     with pytest.raises(KeyboardInterrupt):
         outputs.write_run(short_run, tmp_path / "fresh", plots=True)
     assert not (tmp_path / "fresh").exists() and not (tmp_path / "fresh.partial").exists()

@@ -1,11 +1,14 @@
 """Writes beside a user's files touch nothing but their target (twin.atomic)."""
 
+import math
 import os
 import stat
 
+import numpy as np
 import pytest
 
-from twin.atomic import new_folder_beside, write_text_atomically
+from tests.conftest import strict_json
+from twin.atomic import json_text, new_folder_beside, write_text_atomically
 from twin.calibration.files import write_json_atomically
 
 
@@ -42,3 +45,10 @@ def test_written_files_and_folders_get_the_usual_permissions(tmp_path):
     folder = new_folder_beside(tmp_path / "export")
     assert _mode(folder) == _mode(tmp_path / "plain")
     assert folder.parent == tmp_path and folder != new_folder_beside(tmp_path / "export")
+
+
+def test_json_text_is_strict_json_that_keeps_what_a_number_means():
+    """Undefined (NaN, numpy's too) is null; an infinity, a number, the text inf / -inf (null would make it
+    undefined); numpy scalars, tuples and keys as JSON has them."""
+    obj = {1: (math.nan, np.float32("nan"), math.inf, -np.inf, np.float64(2.5), np.int64(3), np.bool_(True))}
+    assert strict_json(json_text(obj)) == {"1": [None, None, "inf", "-inf", 2.5, 3, True]}

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
 import pandas as pd
 
+from ..atomic import json_text
 from .design import (DEFAULT_N_MINERALOGIES, DEFAULT_POINTS, DEFAULT_SEED, generate_training_table,
                      load_training_table)
 from .files import COMPILED_PATH, GENERATE_COMMAND, MODEL_PATH, TABLE_PATH, TRAIN_COMMAND, load, save, save_compiled
@@ -63,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.train:
         table = load_training_table(table_path)
         _, meta = train_and_save(table, out=args.out)
-        print(json.dumps({k: meta[k] for k in ("n_rows", "cv_r2", "held_out_r2", "fit_seconds")}, indent=1))
+        print(json_text({k: meta[k] for k in ("n_rows", "cv_r2", "held_out_r2", "fit_seconds")}, indent=1))
     elif args.compile:
         joblib_path = Path(args.out) if args.out else MODEL_PATH
         sur = load(joblib_path)
