@@ -9,11 +9,12 @@ import math
 import numpy as np
 import pytest
 
+from tests.conftest import strict_json
 from twin import FastCalibrationWarning, SizeGrid, SolverError, Twin, TwinInputError
 from twin.calibration import (DEFAULT_CALIBRATION, DEM_FITTED, DEM_NAMES, Calibration, check_writable,
                               fit_log_ratios, load_calibration, predict_table, shipped_names)
 from twin.calibration.fitting import SOLVER_FAILURE_RESIDUAL, TableProblem
-from twin.calibration.files import default_output_path, write_calibration
+from twin.calibration.files import content_digest, default_output_path, write_calibration
 from twin.twin import DEFAULT_EFFECTS
 
 
@@ -107,6 +108,24 @@ def test_new_files_never_overwrite_what_grindtwin_did_not_write(tmp_path, monkey
     written = write_calibration(tmp_path / "copy.json", rec)
     assert written.name == "copy" and check_writable(tmp_path / "copy.json")  # its own file: allowed
     assert load_calibration(tmp_path / "copy.json").sha256 == written.sha256
+
+
+def test_a_calibration_file_is_strict_json_with_an_undefined_number(tmp_path):
+    """A DEM step in which no test had a force mismatch records its mean as NaN (``quasi_static_mismatch_rel``):
+    the file held the token NaN, no JSON (many readers refuse the file). It is null, the file reads back as
+    grindtwin's (its content_sha256 is of what was written), and one an earlier grindtwin wrote with the token
+    still does."""
+    rec = dict(json.loads(json.dumps(load_calibration("dem").record)), name="strict")
+    rec["dem"]["ores"]["A"]["quasi_static_mismatch_rel"] = math.nan
+    written = write_calibration(tmp_path / "strict.json", rec)
+    back = strict_json((tmp_path / "strict.json").read_text(encoding="utf-8"))
+    assert back["dem"]["ores"]["A"]["quasi_static_mismatch_rel"] is None
+    assert load_calibration(tmp_path / "strict.json").sha256 == written.sha256
+    old = dict(back, name="old")  # as written before: the token NaN, and the digest of that text
+    old["dem"]["ores"]["A"]["quasi_static_mismatch_rel"] = math.nan
+    old["content_sha256"] = content_digest(old, strict=False)
+    (tmp_path / "old.json").write_text(json.dumps(old, indent=1) + "\n", encoding="utf-8")
+    assert load_calibration(tmp_path / "old.json").name == "old" and check_writable(tmp_path / "old.json")
 
 
 @pytest.mark.parametrize("command_fast,dem_fast", [(True, True), (False, True), (True, False)],

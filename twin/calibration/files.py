@@ -20,7 +20,7 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..atomic import write_text_atomically
+from ..atomic import json_text, write_text_atomically
 from ..errors import FastCalibrationWarning, TwinInputError, close_matches
 from .model_code import model_identity
 from .record_checks import check_data, check_fields, check_fitted, check_law
@@ -360,11 +360,19 @@ def check_record(record: dict, where: str, law: bool = True, data: bool = True) 
     return record
 
 
-def content_digest(record: dict) -> str:
-    """The SHA-256 of a record's content as JSON (keys sorted), its ``content_sha256`` left out."""
+def content_digest(record: dict, strict: bool = True) -> str:
+    """The SHA-256 of a record's content as JSON (keys sorted), its ``content_sha256`` left out, as it is
+    written (:func:`twin.atomic.json_text`: an undefined number null). ``strict=False``: as a file written
+    before that recorded it (NaN, Infinity as those tokens), which one holding such a number still carries."""
     body = {k: v for k, v in record.items() if k != "content_sha256"}
-    text = json.dumps(json.loads(json.dumps(body)), sort_keys=True, separators=(",", ":"))
+    text = json.dumps(json.loads(json_text(body) if strict else json.dumps(body)), sort_keys=True,
+                      separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()
+
+
+def content_digests(record: dict) -> tuple[str, str]:
+    """The digests a record grindtwin wrote may carry (:func:`content_digest`, strict JSON or not)."""
+    return content_digest(record), content_digest(record, strict=False)
 
 
 def check_content(record: dict, where: str) -> None:
@@ -372,7 +380,7 @@ def check_content(record: dict, where: str) -> None:
     checks (:func:`check_record`) cannot see (a coefficient x3 in all its copies, the effects list, the grid, the reported fit) ran
     with exit 0 and other numbers (P80 72.6 um for 203.6). A record without the field predates it."""
     recorded = record.get("content_sha256")
-    if recorded is not None and recorded != content_digest(record):
+    if recorded is not None and recorded not in content_digests(record):
         from .model_code import refit_command
 
         check_data(record, where)  # an edit these name says what it changed (deferred on a read: run now)
@@ -501,7 +509,7 @@ def check_writable(path: Path) -> Path:
             record = None
         if not _written_by_grindtwin(record):
             raise TwinInputError(f"Refusing to overwrite {path}: it is not a calibration file grindtwin wrote.")
-        if record.get("content_sha256") not in (None, content_digest(record)):  # replaced, with a note only
+        if record.get("content_sha256") not in (None, *content_digests(record)):  # replaced, with a note only
             raise TwinInputError(f"Refusing to overwrite {path}: it was changed after grindtwin wrote it (its content "
                                  "no longer matches its content_sha256): your edits would be lost. Move it away or "
                                  "give another output file.")
@@ -513,7 +521,7 @@ def check_writable(path: Path) -> Path:
 def write_json_atomically(path: Path, record: dict, indent: int = 2) -> None:
     """Write to a fresh temporary file and rename it over ``path``: nothing is ever half-written,
     and no other file is touched (:mod:`twin.atomic`)."""
-    write_text_atomically(path, json.dumps(record, indent=indent) + "\n")
+    write_text_atomically(path, json_text(record, indent=indent) + "\n")
 
 
 def write_calibration(path: Path, record: dict) -> Calibration:
