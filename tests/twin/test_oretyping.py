@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from sklearn.metrics import adjusted_rand_score
 
+from tests.conftest import strict_json
 from twin.errors import TwinInputError
 from twin.ore.oretyping import OreTyper, plot_scores, plot_ternary, ternary_coordinates
 from twin.ore.sample_library import generate_library, load_reference_samples
@@ -103,6 +104,25 @@ def test_command_line_writes_report(tmp_path):
     rep = json.loads((tmp_path / "oretyping.json").read_text())
     assert rep["n_types"] == 4 and rep["criterion"] == "silhouette"
     assert {"assignments.csv", "loadings.csv", "ternary.png", "scores.png"} <= {p.name for p in tmp_path.iterdir()}
+
+
+def test_command_line_report_is_strict_json_with_an_undefined_silhouette(tmp_path, monkeypatch):
+    """A k whose clustering leaves one type (the others empty) has no silhouette (NaN): oretyping.json held
+    the token NaN, which is no JSON (many readers refuse the file). It is null, the other k's as they were."""
+    from twin.ore import oretyping
+
+    real = oretyping.OreTyper._cluster
+
+    def one_type_at_8(self, S, k):
+        labels, bic = real(self, S, k)
+        return (np.zeros_like(labels) if k == 8 else labels), bic
+
+    monkeypatch.setattr(oretyping.OreTyper, "_cluster", one_type_at_8)
+    assert oretyping.main(["--out", str(tmp_path)]) == 0
+    rep = strict_json((tmp_path / "oretyping.json").read_text(encoding="utf-8"))
+    silhouette = rep["criterion_values"]["silhouette"]
+    assert silhouette["8"] is None and all(isinstance(silhouette[str(k)], float) for k in range(2, 8))
+    assert rep["n_types"] == 4
 
 
 def test_centred_log_ratio_option_also_recovers_types():

@@ -509,8 +509,8 @@ def main(argv=None) -> int:
     variance, component names, criterion values, k), ``assignments.csv``, ``loadings.csv``,
     ``ternary.png`` and ``scores.png``."""
     import argparse
-    import json
 
+    from ..atomic import json_text
     from .sample_library import load_reference_samples
     from .samples import read_samples
 
@@ -526,7 +526,7 @@ def main(argv=None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rep = typer.report()
-    (out / "oretyping.json").write_text(json.dumps(rep, indent=2), encoding="utf-8")
+    (out / "oretyping.json").write_text(json_text(rep, indent=2), encoding="utf-8")  # a silhouette of one type: null
     typer.assign(frame).to_csv(out / "assignments.csv", index=False)
     typer.loadings_.to_csv(out / "loadings.csv", index_label="mineral")
     plot_ternary(frame, typer.labels_, out / "ternary.png", names=typer.type_names_)
