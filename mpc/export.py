@@ -61,7 +61,7 @@ from mpc.condense import stage_functions
 from mpc.errors import MpcInputError, OutsideModelsWarning
 from mpc.estimator import MEASUREMENTS
 from mpc.nmpc import PASSING_TARGET, speed_max_note
-from twin import LockError, acquire_lock, file_sha256, new_folder_beside, release_lock, replace_folder
+from twin import LockError, acquire_lock, file_sha256, json_text, new_folder_beside, release_lock, replace_folder
 from twin.ore import blend_sum_tolerance
 
 MANIFEST = "grindtwin_export.json"
@@ -558,7 +558,8 @@ def _export(controller, estimator, u0, out: Path, source: str, preview_lead_h, m
                     "estimate_status": {str(k): v for k, v in ESTIMATE_STATUS.items()},
                     "unreachable_tol_frac": float(s.unreachable_tol_frac), "notes": notes,
                     "sha256": {name: file_sha256(partial / name) for name in files if name != MANIFEST}}
-        (partial / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
+        # no check (an infinite range or feed limit) is the text inf, as summary.json's: Infinity is no JSON
+        (partial / MANIFEST).write_text(json_text(manifest, indent=2) + "\n")
         _replace(out, partial)
     except BaseException:
         shutil.rmtree(partial, ignore_errors=True)

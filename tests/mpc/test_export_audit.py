@@ -8,6 +8,7 @@ a listed name, an unsupported solver refused before any work, no folder left by 
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import shutil
@@ -21,6 +22,7 @@ import pytest
 from mpc import codegen
 from mpc.errors import MpcInputError
 from scenarios.cli import main
+from tests.conftest import strict_json
 from tests.mpc.conftest import c_tools
 from scenarios.run import closed_loop
 
@@ -514,6 +516,19 @@ def test_export_refuses_limits_it_cannot_check(built, tmp_path):
             export_controller(ctrl, est, [23.6, 0.7], tmp_path / "ctl", measurement_range=[[0.0] * 3, [1.0] * 3],
                               feed_max_tph=bad)
     assert not (tmp_path / "ctl").exists()
+
+
+def test_export_manifest_is_strict_json_without_limits(built, tmp_path):
+    """``(-inf, inf)`` and ``feed_max_tph=inf`` check nothing: the manifest held the tokens -Infinity and
+    Infinity, no JSON (many readers refuse the file). They are the text "-inf" / "inf", as in summary.json."""
+    from mpc import export_controller
+
+    _, est, ctrl, _ = built
+    export_controller(ctrl, est, [23.6, 0.7], tmp_path / "ctl", measurement_range=[[-np.inf] * 3, [np.inf] * 3],
+                      feed_max_tph=math.inf)
+    manifest = strict_json((tmp_path / "ctl" / "grindtwin_export.json").read_text(encoding="utf-8"))
+    assert manifest["feed_max_tph"] == "inf"
+    assert manifest["measurement_range"] == {name: ["-inf", "inf"] for name in ("p80_um", "power_kw", "load_frac")}
 
 
 CXX_DRIVER = r"""
