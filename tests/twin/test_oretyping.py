@@ -151,3 +151,29 @@ def test_tables_that_would_be_typed_wrongly_are_refused(reference):
     with pytest.raises(TwinInputError, match="do not sum to 100"):
         ot.assign(df.drop(columns=["quartz_wt_pct"]))
     assert len(ot.assign(df)) == len(df)
+
+
+def test_samples_of_too_few_compositions_are_refused_by_the_command_with_nothing_written(tmp_path, capsys):
+    """A table of one composition copied (or two, each repeated) gave a numpy 'Singular matrix' traceback from
+    the types' pooled covariance: no type has a spread to type new samples against. Said in a line, exit 2."""
+    from twin.ore.oretyping import main
+
+    lib = load_reference_samples()
+    for picks in ([0] * 12, [0, 30] * 6):
+        table = lib.iloc[picks].assign(sample_id=[f"S{i}" for i in range(len(picks))])
+        path = tmp_path / "same.csv"
+        table.to_csv(path, index=False)
+        out = tmp_path / "out"
+        assert main(["--samples", str(path), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert f"the 12 samples have {len(set(picks))} distinct composition" in err and "Traceback" not in err
+        assert not out.exists()
+
+
+def test_types_each_of_one_repeated_composition_are_refused():
+    """Four compositions, each repeated, typed into three or four types: four (a silhouette of 1) puts copies of
+    one in each type, the pooled covariance zero; refused rather than typed against a singular matrix."""
+    lib = load_reference_samples()
+    table = lib.iloc[[0, 15, 30, 40] * 4].reset_index(drop=True)
+    with pytest.raises(TwinInputError, match="each of the 4 types of the 16 samples holds copies of one"):
+        OreTyper(k_range=(3, 4)).fit(table)

@@ -50,6 +50,7 @@ called ``T<i>``.
 from __future__ import annotations
 
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -191,6 +192,11 @@ class OreTyper(BaseEstimator):
         n = len(X)
         k_lo, k_hi = self._check_params(n)
         M, _ = self._matrix(X, fitting=True)
+        distinct = len(np.unique(M, axis=0))
+        if distinct <= k_lo:  # each type then holds copies of one composition: no spread to type new samples by
+            raise TwinInputError(f"OreTyper: the {n} samples have {distinct} distinct composition"
+                                 f"{'s' if distinct != 1 else ''}; typing them into at least {k_lo} types needs "
+                                 "more (repeat assays of a sample are one sample).")
         self.minerals_ = [mineral_of(c) for c in self.feature_names_in_]
         Z = self._scaled(M, fitting=True)
         self.pca_ = PCA(n_components=self.n_components, svd_solver="full",
@@ -258,6 +264,10 @@ class OreTyper(BaseEstimator):
         resid = S - self.means_[self.labels_]
         dof = max(n - k, 1)
         cov = resid.T @ resid / dof
+        if not np.trace(cov) > 0:  # every type's samples the same scores: no spread to type new samples by
+            raise TwinInputError(f"OreTyper: each of the {k} types of the {n} samples holds copies of one "
+                                 "composition: a type's spread, which new samples are typed against, is zero. "
+                                 "Give samples that vary (repeat assays of a sample are one sample).")
         cov += 1e-9 * np.trace(cov) / d * np.eye(d)
         self.covariance_ = cov
         self._prec = np.linalg.inv(cov)
@@ -521,8 +531,12 @@ def main(argv=None) -> int:
     ap.add_argument("--transform", default="standard", choices=_TRANSFORMS)
     ap.add_argument("--seed", type=int, default=0, help="random_state of the clustering")
     args = ap.parse_args(argv)
-    frame = read_samples(args.samples) if args.samples else load_reference_samples()
-    typer = OreTyper(criterion=args.criterion, transform=args.transform, random_state=args.seed).fit(frame)
+    try:  # bad input is said in a line with exit 2, as grindtwin's commands do, before anything is written
+        frame = read_samples(args.samples) if args.samples else load_reference_samples()
+        typer = OreTyper(criterion=args.criterion, transform=args.transform, random_state=args.seed).fit(frame)
+    except TwinInputError as exc:
+        sys.stderr.write(f"{ap.prog}: error: {exc}\n")
+        return 2
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rep = typer.report()
@@ -539,6 +553,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    import sys
-
     sys.exit(main())
