@@ -495,6 +495,19 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "",
     ``notes``. ``built_from``: what the controller was built from (JSON-able; a scene's:
     :func:`scenarios.run.closed_loop.export_provenance`), in the manifest as is.
     The export holds :func:`export_lock` on ``out_dir`` throughout."""
+    measurement_range, notes = _checked_inputs(controller, estimator, preview_lead_h, measurement_range, feed_max_tph)
+    out = Path(out_dir)
+    with export_lock(out):
+        files = _export(controller, estimator, u0, out, source, preview_lead_h, measurement_range, feed_max_tph,
+                        notes, built_from)
+    for note in notes:
+        warnings.warn(note, OutsideModelsWarning, stacklevel=2)
+    return files
+
+
+def _checked_inputs(controller, estimator, preview_lead_h, measurement_range, feed_max_tph) -> tuple[np.ndarray, list]:
+    """export_controller's arguments checked (MpcInputError naming one): the measurement range as an array,
+    and the notes the export carries."""
     _check(controller, estimator)
     if preview_lead_h is not None and not (isinstance(preview_lead_h, (int, float)) and math.isfinite(preview_lead_h)
                                            and preview_lead_h >= 0):
@@ -504,14 +517,7 @@ def export_controller(controller, estimator, u0, out_dir, source: str = "",
     if not (isinstance(feed_max_tph, (int, float)) and feed_max_tph > 0):  # NaN fails too
         raise MpcInputError(f"The 'feed_max_tph' parameter of export_controller must be a number > 0 [t/h] (inf: no "
                             f"limit). Got {feed_max_tph!r}.")
-    notes = [n for n in [speed_max_note(controller.settings)] if n]
-    out = Path(out_dir)
-    with export_lock(out):
-        files = _export(controller, estimator, u0, out, source, preview_lead_h, measurement_range, feed_max_tph,
-                        notes, built_from)
-    for note in notes:
-        warnings.warn(note, OutsideModelsWarning, stacklevel=2)
-    return files
+    return measurement_range, [n for n in [speed_max_note(controller.settings)] if n]
 
 
 def _measurement_range(value) -> np.ndarray:
@@ -533,31 +539,11 @@ def _export(controller, estimator, u0, out: Path, source: str, preview_lead_h, m
     check_out_dir(out)  # again, under the lock
     partial = new_folder_beside(out)
     try:
-        _generate([*stage_functions(controller), plan_passing_function(controller)], "gt_rti_data", partial)
-        _generate([estimator.step_function], "gt_ekf_data", partial)
-        for name in C_FILES:
-            shutil.copyfile(C_DIR / name, partial / name)
         constants = (controller, estimator, u0, preview_lead_h, measurement_range, feed_max_tph)
-        (partial / "gt_controller_config.h").write_text(config_header(*constants))
-        (partial / "gt_exported.c").write_text(exported_source(*constants))
-        (partial / "Makefile").write_text(MAKEFILE)
-        files = sorted(p.name for p in partial.iterdir()) + [MANIFEST]
-        s, layout = controller.settings, abi_layout(controller, estimator, preview_lead_h)
-        manifest = {"source": source, "built_from": built_from, "casadi": ca.__version__, "files": files,
-                    "build_products": list(BUILD_PRODUCTS),
-                    "horizon_steps": s.horizon_steps, "dt_h": s.dt_h, "dt_tol_frac": SAMPLE_TIME_TOL,
-                    "n_x": controller.nx,
-                    "preview": bool(s.preview), "preview_lead_h": preview_lead_h,
-                    "measurement_range": {name: [float(lo), float(hi)] for name, lo, hi
-                                          in zip(MEASUREMENTS, *measurement_range)},
-                    "feed_max_tph": float(feed_max_tph),
-                    "abi": {"hash": f"0x{abi_hash(layout):08x}", "layout": layout},
-                    "estimator_state": int(estimator.z.size), "disturbance_model": estimator.disturbance_model,
-                    "api": "gt_controller.h", "build": "make",
-                    "step_status": {str(k): v for k, v in STEP_STATUS.items()},
-                    "estimate_status": {str(k): v for k, v in ESTIMATE_STATUS.items()},
-                    "unreachable_tol_frac": float(s.unreachable_tol_frac), "notes": notes,
-                    "sha256": {name: file_sha256(partial / name) for name in files if name != MANIFEST}}
+        _write_sources(partial, *constants)
+        manifest = _manifest(partial, controller, estimator, preview_lead_h, measurement_range, feed_max_tph, source,
+                             notes, built_from)
+        files = manifest["files"]
         # no check (an infinite range or feed limit) is the text inf, as summary.json's: Infinity is no JSON
         (partial / MANIFEST).write_text(json_text(manifest, indent=2) + "\n")
         _replace(out, partial)
@@ -565,3 +551,37 @@ def _export(controller, estimator, u0, out: Path, source: str, preview_lead_h, m
         shutil.rmtree(partial, ignore_errors=True)
         raise
     return files
+
+
+def _write_sources(folder: Path, controller, estimator, u0, preview_lead_h, measurement_range, feed_max_tph) -> None:
+    """Every file of an export but its manifest, written into ``folder``."""
+    _generate([*stage_functions(controller), plan_passing_function(controller)], "gt_rti_data", folder)
+    _generate([estimator.step_function], "gt_ekf_data", folder)
+    for name in C_FILES:
+        shutil.copyfile(C_DIR / name, folder / name)
+    constants = (controller, estimator, u0, preview_lead_h, measurement_range, feed_max_tph)
+    (folder / "gt_controller_config.h").write_text(config_header(*constants))
+    (folder / "gt_exported.c").write_text(exported_source(*constants))
+    (folder / "Makefile").write_text(MAKEFILE)
+
+
+def _manifest(folder: Path, controller, estimator, preview_lead_h, measurement_range, feed_max_tph, source, notes,
+              built_from) -> dict:
+    """The manifest of the sources written into ``folder`` (:func:`_write_sources`)."""
+    files = sorted(p.name for p in folder.iterdir()) + [MANIFEST]
+    s, layout = controller.settings, abi_layout(controller, estimator, preview_lead_h)
+    return {"source": source, "built_from": built_from, "casadi": ca.__version__, "files": files,
+            "build_products": list(BUILD_PRODUCTS),
+            "horizon_steps": s.horizon_steps, "dt_h": s.dt_h, "dt_tol_frac": SAMPLE_TIME_TOL,
+            "n_x": controller.nx,
+            "preview": bool(s.preview), "preview_lead_h": preview_lead_h,
+            "measurement_range": {name: [float(lo), float(hi)] for name, lo, hi
+                                  in zip(MEASUREMENTS, *measurement_range)},
+            "feed_max_tph": float(feed_max_tph),
+            "abi": {"hash": f"0x{abi_hash(layout):08x}", "layout": layout},
+            "estimator_state": int(estimator.z.size), "disturbance_model": estimator.disturbance_model,
+            "api": "gt_controller.h", "build": "make",
+            "step_status": {str(k): v for k, v in STEP_STATUS.items()},
+            "estimate_status": {str(k): v for k, v in ESTIMATE_STATUS.items()},
+            "unreachable_tol_frac": float(s.unreachable_tol_frac), "notes": notes,
+            "sha256": {name: file_sha256(folder / name) for name in files if name != MANIFEST}}
