@@ -10,7 +10,7 @@ from mpc.errors import MpcError, MpcInputError, MpcSolverError, OutsideModelsWar
 from mpc.codegen import CompileFallbackWarning, CompileReport, compiled
 from mpc.estimator import DISTURBANCE_MODELS, MEASUREMENTS, ChangeDetector, Ekf
 from mpc.estimator import RK4_SUBSTEPS as EKF_RK4_SUBSTEPS
-from mpc.export import check_out_dir, export_controller, export_lock
+from mpc.export import ExportDifference, check_export, check_out_dir, export_controller, export_lock, recorded_export
 from mpc.kpis import (P80_BAND_UM, cumulative, fresh_feed_t, held_cumulative, held_integral, integral, loop_kpis,
                       outside_band_frac, p80_iae_um_h, specific_energy_kwh_t, within_band_frac)
 from mpc.linear import (Fopdt, LinearMPC, OperatingPoint, StepMoments, discretize, fit_fopdt, fopdt_from_model,
@@ -32,7 +32,7 @@ __all__ = [
     "FixedInputs", "Fopdt", "LeRouxCircuit", "LeRouxParameters", "LeRouxPlant", "LinearMPC", "LoopSettings",
     "MEASUREMENTS", "MatchedTwin", "MpcError", "MpcInputError", "MpcSolverError", "NmpcSettings", "OperatingPoint",
     "P80_BAND_UM", "PiFeedback", "QP_SOLVERS", "SOLVERS", "RK4_RATE_SAFETY", "SensorState", "Sensors", "Setpoints", "StepMoments", "TwinPlant",
-    "FEED_RANGE_NOMINAL",
+    "FEED_RANGE_NOMINAL", "ExportDifference", "check_export", "recorded_export",
     "check_out_dir", "compiled", "cumulative", "cvodes_map", "default_feed_bounds", "discretize", "export_controller", "export_lock", "feed_for_target", "feed_holding_every_blend", "fit_fopdt", "fopdt_from_model", "gain_table",
     "fresh_feed_t", "held_cumulative", "held_integral", "run_closed_loop", "specific_energy_kwh_t",
     "integral", "linearize", "loop_kpis", "matched_twin", "min_rk4_substeps", "optimal_setpoints",

@@ -47,11 +47,14 @@ import hashlib
 import json
 import math
 import os
+import re
 import shutil
 import stat
+import tempfile
 import threading
 import warnings
 from pathlib import Path
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -585,3 +588,130 @@ def _manifest(folder: Path, controller, estimator, preview_lead_h, measurement_r
             "estimate_status": {str(k): v for k, v in ESTIMATE_STATUS.items()},
             "unreachable_tol_frac": float(s.unreachable_tol_frac), "notes": notes,
             "sha256": {name: file_sha256(folder / name) for name in files if name != MANIFEST}}
+
+
+class ExportDifference(NamedTuple):
+    """What differs between an export and what would be exported now (:func:`check_export`): the item
+    (a manifest key path such as ``built_from.calibration.sha256``, a constant of gt_controller_config.h,
+    a file in the folder), its recorded value, its current one, and whether it makes the export stale
+    (False: a note, such as where the scene file was)."""
+    item: str
+    recorded: object
+    current: object
+    stale: bool = True
+
+
+_ABSENT = "(absent)"
+_DEFINE = re.compile(r"^#define (GT_\w+) (.*)$", re.M)
+_ARRAY = re.compile(r"^static const double (gt_\w+)\[\d+\] = \{(.*)\};$", re.M)
+
+
+def recorded_export(out_dir, again: str = "export it again") -> dict:
+    """The manifest of the export in ``out_dir``, with what it was built from (``built_from``);
+    MpcInputError saying so, and how to export (``again``), for a folder that holds no export, a
+    manifest that is not an export's, or one without ``built_from`` (an export made before the
+    manifest recorded it, or by :func:`export_controller` without it: nothing to compare)."""
+    out = Path(out_dir)
+    if not out.is_dir():
+        raise MpcInputError(f"--check {out}: {'is not a folder' if out.exists() else 'no such folder'}; give the "
+                            f"folder an export was written to ({again}).")
+    man = out / MANIFEST
+    if not man.is_file():
+        raise MpcInputError(f"--check {out}: holds no {MANIFEST}, so no export of grindtwin export-controller; "
+                            f"export into it first ({again}).")
+    try:
+        data = json.loads(man.read_text())
+        ok = isinstance(data, dict) and isinstance(data.get("sha256"), dict)
+    except (OSError, ValueError) as exc:
+        raise MpcInputError(f"--check {out}: its {MANIFEST} is not readable ({exc}); export again ({again}).") from None
+    if not ok:
+        raise MpcInputError(f"--check {out}: its {MANIFEST} is not an export's manifest (no sha256 of its files); "
+                            f"export again ({again}).")
+    if not isinstance(data.get("built_from"), dict):
+        raise MpcInputError(f"--check {out}: its {MANIFEST} does not record what the export was built from (no "
+                            "built_from: an export made before the manifest recorded it, or by "
+                            "mpc.export_controller without built_from), so it cannot be compared; export again "
+                            f"({again}) and check that export.")
+    return data
+
+
+def check_export(out_dir, controller, estimator, u0, preview_lead_h: float | None = None, *, measurement_range,
+                 feed_max_tph: float, built_from: dict | None, source: str = "", note_items=("source", "casadi"),
+                 again: str = "export it again") -> list[ExportDifference]:
+    """What differs between the export in ``out_dir`` and what :func:`export_controller` would write
+    there now with these arguments (empty: it is current); nothing is written to ``out_dir``.
+    Compared: every item of the manifest (``built_from`` and each file's sha256 among them) with the
+    manifest the export would write, its files regenerated in a temporary folder (CasADi's code
+    generated, not compiled); each file in ``out_dir`` with its sha256 in the manifest (an edit since
+    the export); and the constants of the folder's gt_controller_config.h with the regenerated ones,
+    by name. Items in ``note_items`` (and under them) are reported as notes, not stale.
+    MpcInputError for a folder without an export or a manifest without ``built_from``
+    (:func:`recorded_export`)."""
+    out = Path(out_dir)
+    recorded = recorded_export(out, again)
+    measurement_range, notes = _checked_inputs(controller, estimator, preview_lead_h, measurement_range, feed_max_tph)
+    constants = (controller, estimator, u0, preview_lead_h, measurement_range, feed_max_tph)
+    with tempfile.TemporaryDirectory(prefix="grindtwin-export-check-") as tmp:
+        _write_sources(Path(tmp), *constants)
+        current = _manifest(Path(tmp), controller, estimator, preview_lead_h, measurement_range, feed_max_tph,
+                            source, notes, built_from)
+        header = (Path(tmp) / "gt_controller_config.h").read_text()
+    current = json.loads(json.dumps(current))  # as the manifest reads back (lists, not tuples)
+    found = _differences(recorded, current, "", tuple(note_items))
+    for name, digest in recorded["sha256"].items():
+        path = out / name
+        now = file_sha256(path) if path.is_file() else _ABSENT
+        if now != digest:
+            found.append(ExportDifference(f"{name} in the folder (sha256; changed since the export)", digest, now))
+    cfg = out / "gt_controller_config.h"
+    if cfg.is_file():  # by name: the numbers behind a file's sha256 (an edited header's are the user's)
+        edited = file_sha256(cfg) != recorded["sha256"].get(cfg.name)
+        found += _header_differences(cfg.read_text(), header, " (as edited in the folder)" if edited else "")
+    return found
+
+
+def _same(a, b) -> bool:
+    return json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)  # NaN equals NaN, as in the file
+
+
+def _differences(recorded, current, item: str, note_items: tuple) -> list[ExportDifference]:
+    """The leaves that differ between two JSON values, dicts by key and lists of one length by index."""
+    if isinstance(recorded, dict) and isinstance(current, dict):
+        keys = [*recorded, *(k for k in current if k not in recorded)]
+        return [d for k in keys for d in _differences(recorded.get(k, _ABSENT), current.get(k, _ABSENT),
+                                                      f"{item}.{k}" if item else str(k), note_items)]
+    if isinstance(recorded, list) and isinstance(current, list) and len(recorded) == len(current):
+        return [d for i, (a, b) in enumerate(zip(recorded, current))
+                for d in _differences(a, b, f"{item}[{i}]", note_items)]
+    if _same(recorded, current):
+        return []
+    note = any(item == n or item.startswith((f"{n}.", f"{n}[")) for n in note_items)
+    return [ExportDifference(item, recorded, current, stale=not note)]
+
+
+def _header_constants(text: str) -> dict:
+    """gt_controller_config.h's macros (name -> text) and arrays (name -> the values' texts)."""
+    out = {name: value.strip() for name, value in _DEFINE.findall(text)}
+    out.update({name: [v.strip() for v in values.split(",")] for name, values in _ARRAY.findall(text)})
+    return out
+
+
+def _header_differences(recorded_text: str, current_text: str, where: str = "") -> list[ExportDifference]:
+    """The constants of two gt_controller_config.h texts that differ, by name (an array: its first differing
+    value, with how many more differ); ``where`` follows the file's name in each item."""
+    rec, cur = _header_constants(recorded_text), _header_constants(current_text)
+    found = []
+    for name in [*rec, *(k for k in cur if k not in rec)]:
+        a, b = rec.get(name, _ABSENT), cur.get(name, _ABSENT)
+        if a == b:
+            continue
+        item = f"gt_controller_config.h{where} {name}"
+        if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+            idx = [i for i, (x, y) in enumerate(zip(a, b)) if x != y]
+            more = f" (and {len(idx) - 1} more of {len(a)})" if len(idx) > 1 else ""
+            found.append(ExportDifference(f"{item}[{idx[0]}]{more}", a[idx[0]], b[idx[0]]))
+        elif isinstance(a, list) or isinstance(b, list):
+            found.append(ExportDifference(item, *(f"{len(v)} values" if isinstance(v, list) else v for v in (a, b))))
+        else:
+            found.append(ExportDifference(item, a, b))
+    return found

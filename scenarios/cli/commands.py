@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import json
 import math
 import os
 import re
@@ -1118,9 +1119,15 @@ def add_export_controller_parser(subparsers):
     p = subparsers.add_parser("export-controller", help="the scene's NMPC and EKF as C source with a small API",
                               description="Write SCENE.toml's controller (EKF step and real-time iteration "
                               "on the condensed QP) as C source with a C API (gt_controller.h), a Makefile "
-                              "and a replay harness into DIR. DIR must be new, empty or a previous export.")
+                              "and a replay harness into DIR. DIR must be new, empty or a previous export. "
+                              "--check DIR writes nothing: it says whether the export in DIR is what SCENE "
+                              "exports now (exit 0), or prints each difference (exit 1).")
     p.add_argument("scene", help="scene file (TOML) with controller.kind = 'nmpc'")
-    p.add_argument("--out", required=True, help="folder for the C source (created)")
+    where = p.add_mutually_exclusive_group(required=True)
+    where.add_argument("--out", help="folder for the C source (created)")
+    where.add_argument("--check", metavar="DIR", help="compare the export in DIR (its grindtwin_export.json's "
+                       "built_from, its files) with what SCENE, its calibration and preset and this grindtwin "
+                       "export now; writes nothing; exit 0 current, 1 stale (each difference printed)")
     p.set_defaults(func=cmd_export_controller)
     return p
 
@@ -1132,11 +1139,39 @@ def cmd_export_controller(args) -> int:
     from scenarios.run import export_scene_controller
 
     scene = load_scene(args.scene)
+    if args.check is not None:
+        return _check_export(scene, args)
     # the folder locked before the models are built: a second export to it is refused at once
     with export_lock(args.out):
         files = export_scene_controller(scene, args.out, source=str(args.scene))
     print(f"{len(files)} files in {args.out}: build with `make -C {args.out}`; API in gt_controller.h")
     return 0
+
+
+def _check_export(scene, args) -> int:
+    """``export-controller SCENE --check DIR``: 0 when the export in DIR is what SCENE exports now, else 1
+    with each difference (item, recorded, now) on stdout; notes (where the files were, versions) either way."""
+    from scenarios.run import check_scene_export
+
+    found = check_scene_export(scene, args.check, source=str(args.scene))
+    stale = [d for d in found if d.stale]
+
+    def shown(value) -> str:
+        text = value if isinstance(value, str) else json.dumps(value)
+        return text if len(text) <= 200 else text[:200] + "..."
+
+    if stale:
+        print(f"{args.check}: stale: {len(stale)} item{'s' if len(stale) > 1 else ''} differ from what "
+              f"{args.scene} exports now:")
+    else:
+        print(f"{args.check}: current: what {args.scene} exports now")
+    for d in stale + [d for d in found if not d.stale]:
+        print(f"  {'' if d.stale else 'note: '}{d.item}: recorded {shown(d.recorded)}, now {shown(d.current)}")
+    if stale:
+        print(f"export again: grindtwin export-controller {args.scene} --out {args.check}")
+    return 1 if stale else 0
+
+
 # --------------------------------------------------------------------------- serve, plant-server (OPC UA)
 def _online():
     """``scenarios.online`` (the ``online`` extra), or a RunError saying how to install it."""

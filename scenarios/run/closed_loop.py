@@ -306,10 +306,45 @@ def measurement_range(scene: Scene) -> np.ndarray:
 def export_scene_controller(scene: Scene, out_dir, source: str = "") -> list[str]:
     """The scene's NMPC and EKF as C source in ``out_dir`` (:func:`mpc.export_controller`), at the
     closed loop's initial state; returns the files written."""
-    from scenarios.run.feed import feed_schedule
-    from scenarios.run.models import build_models, component_ores
-    from scenarios.scene.physical import physical_limits
+    _check_exportable(scene)
+    try:
+        check_out_dir(out_dir)  # before any work
+    except MpcInputError as exc:
+        raise SceneError(str(exc)) from None
+    args, kwargs = _export_arguments(scene)
+    try:
+        return export_controller(*args, out_dir, source=source, **kwargs)
+    except MpcInputError as exc:
+        raise SceneError(str(exc)) from None
 
+
+#: Items of an export's manifest a check reports without calling the export stale: the scene's path as typed
+#: (``source``) and where the scene, calibration and preset files were (a checkout elsewhere, as in CI: their
+#: sha256 are compared), and the versions that made it (the files the export writes are regenerated and compared,
+#: so a version that changes them shows there).
+CHECK_NOTE_ITEMS = ("source", "casadi", "built_from.scene.path", "built_from.calibration.path",
+                    "built_from.mill_preset_file.path", "built_from.versions")
+
+
+def check_scene_export(scene: Scene, out_dir, source: str = "") -> list:
+    """What differs between the export in ``out_dir`` and what :func:`export_scene_controller` would write
+    now (:func:`mpc.export.check_export`: a list of ExportDifference, empty when current); writes nothing.
+    SceneError for a scene it would not export, a folder that holds no export or a manifest that does not
+    say what it was built from."""
+    from mpc import check_export, recorded_export
+
+    _check_exportable(scene)
+    again = f"grindtwin export-controller {source or scene.source_path} --out {out_dir}"
+    try:
+        recorded_export(out_dir, again)  # before any work
+        args, kwargs = _export_arguments(scene)
+        return check_export(out_dir, *args, source=source, note_items=CHECK_NOTE_ITEMS, again=again, **kwargs)
+    except MpcInputError as exc:
+        raise SceneError(str(exc)) from None
+
+
+def _check_exportable(scene: Scene) -> None:
+    """SceneError unless the scene's controller is one export-controller exports (before any model is built)."""
     c = scene.controller
     if c.kind != "nmpc":
         raise SceneError(f"controller.kind = {c.kind!r}: export-controller exports an NMPC "
@@ -320,22 +355,22 @@ def export_scene_controller(scene: Scene, out_dir, source: str = "") -> list[str
         raise SceneError(f"{key} = {value!r}: export-controller exports only {key} = {allowed!r} (the real-time "
                          f"iteration on the condensed QP, the same QP as HPIPM's: controller.solver = 'rti' and "
                          f"controller.qpsol = 'condensed')")
-    try:
-        check_out_dir(out_dir)  # before any work
-    except MpcInputError as exc:
-        raise SceneError(str(exc)) from None
+
+
+def _export_arguments(scene: Scene) -> tuple[tuple, dict]:
+    """The scene's models built, and :func:`mpc.export_controller`'s arguments for its NMPC and EKF at the
+    closed loop's initial state: ``(controller, estimator, u0)`` and the keywords but ``out_dir`` and ``source``."""
+    from scenarios.run.feed import feed_schedule
+    from scenarios.run.models import build_models, component_ores
+    from scenarios.scene.physical import physical_limits
+
     models = build_models(scene)
     feed, _ = feed_schedule(scene, models.components, scene.time_grid_h(), component_ores(scene))
     start = loop_start(scene, models, component_blend(feed, models.components)[0])
     estimator, controller = nmpc_parts(scene, models, start, codegen="off")
-    try:
-        return export_controller(controller, estimator, [start.feed_tph, scene.feed.speed_frac_critical],
-                                 out_dir, source=source, preview_lead_h=c.preview_lead_h,
-                                 measurement_range=measurement_range(scene),
-                                 feed_max_tph=physical_limits("feed_tph", scene)[1],
-                                 built_from=export_provenance(scene, models))
-    except MpcInputError as exc:
-        raise SceneError(str(exc)) from None
+    return ((controller, estimator, [start.feed_tph, scene.feed.speed_frac_critical]),
+            {"preview_lead_h": scene.controller.preview_lead_h, "measurement_range": measurement_range(scene),
+             "feed_max_tph": physical_limits("feed_tph", scene)[1], "built_from": export_provenance(scene, models)})
 
 
 def export_provenance(scene: Scene, models) -> dict:

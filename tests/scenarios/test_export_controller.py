@@ -18,6 +18,7 @@ from scenarios.cli import main
 from scenarios.errors import RunError
 from scenarios.run import closed_loop, run_scene
 from scenarios.scene import load_scene
+from twin import file_sha256
 
 REFERENCE = Path(__file__).parents[2] / "scenarios" / "reference_transition.toml"
 
@@ -297,3 +298,119 @@ def test_the_manifests_step_statuses_are_the_c_headers():
     header = (codegen.C_DIR / "gt_controller.h").read_text()
     enum = {int(v): name.lower() for name, v in re.findall(r"GT_STEP_(\w+) = (\d+)", header)}
     assert enum == {k: text.split(":")[0] for k, text in STEP_STATUS.items()} and 5 in enum
+
+
+# --------------------------------------------------------------------------- export-controller --check
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    """The reference scene exported (not built): the folder."""
+    out = tmp_path_factory.mktemp("check") / "ctl"
+    assert main(["export-controller", str(REFERENCE), "--out", str(out)]) == 0
+    return out
+
+
+def _listing(folder: Path) -> dict:
+    return {p.name: p.stat().st_mtime_ns for p in folder.parent.iterdir()} | {
+        p.name: p.stat().st_mtime_ns for p in folder.iterdir()}
+
+
+def test_check_says_an_export_is_current_and_writes_nothing(exported, capsys):
+    """Nothing compared an export with its scene: a user who re-calibrated or edited the scene kept running a
+    controller built from the old ones with no word. `--check DIR` answers 0 for an export that is what
+    the scene exports now, and writes nothing (neither in the folder nor a lock beside it)."""
+    before = _listing(exported)
+    assert main(["export-controller", str(REFERENCE), "--check", str(exported)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"{exported}: current")
+    assert all(line.startswith("  note: ") for line in out.splitlines()[1:])  # nothing stale among them
+    assert _listing(exported) == before
+
+
+def test_check_names_an_edited_target(exported, tmp_path, capsys):
+    """The scene's target edited after the export: stale (exit 1), the scene item and the exported constant
+    each named with the recorded and the current value, and how to export again."""
+    scene = tmp_path / "edited.toml"
+    text = REFERENCE.read_text()
+    assert text.count("target_p80_um = 210.0\n") == 1
+    scene.write_text(text.replace("target_p80_um = 210.0\n", "target_p80_um = 200.0\n"))
+    assert main(["export-controller", str(scene), "--check", str(exported)]) == 1
+    out = capsys.readouterr().out
+    assert out.startswith(f"{exported}: stale")
+    assert "  built_from.scene_as_loaded.controller.target_p80_um: recorded 210.0, now 200.0\n" in out
+    assert "  gt_controller_config.h GT_TARGET_P80_UM: recorded 210.0, now 200.0\n" in out
+    assert f"  built_from.scene.sha256: recorded {file_sha256(REFERENCE)}, now {file_sha256(scene)}\n" in out
+    assert f"export again: grindtwin export-controller {scene} --out {exported}" in out
+
+
+def test_check_names_a_recalibration(tmp_path, capsys):
+    """The scene's calibration file made again (one fitted number other) after the export, the scene file
+    unchanged: stale, the calibration's sha256 named, and the exported numbers it moved."""
+    from twin.calibration import load_calibration
+    from twin.calibration.files import write_calibration
+
+    record = {**load_calibration("dem").record, "name": "mine"}
+    write_calibration(tmp_path / "mine.json", record)
+    scene = tmp_path / "scene.toml"
+    scene.write_text('calibration = "mine.json"\n' + REFERENCE.read_text())
+    out = tmp_path / "ctl"
+    assert main(["export-controller", str(scene), "--out", str(out)]) == 0
+    assert main(["export-controller", str(scene), "--check", str(out)]) == 0
+    old = file_sha256(tmp_path / "mine.json")
+    name, value = "cushioning_rate_coeff", 1.1 * record["coefficients"]["cushioning_rate_coeff"]
+    again = json.loads(json.dumps(record))  # as a new fit would record it: the value, its fit's and its coefficient
+    again["coefficients"][name] = again["fitted"][name]["value"] = again["fit"]["values"][name] = value
+    write_calibration(tmp_path / "mine.json", again)
+    capsys.readouterr()
+    assert main(["export-controller", str(scene), "--check", str(out)]) == 1
+    text = capsys.readouterr().out
+    stale = [ln for ln in text.splitlines() if ln.startswith("  ") and not ln.startswith("  note: ")]
+    assert f"  built_from.calibration.sha256: recorded {old}, now {file_sha256(tmp_path / 'mine.json')}" in stale
+    assert not any(ln.startswith("  built_from.scene") for ln in stale)  # the scene file is the same
+    assert any(ln.startswith("  gt_controller_config.h gt_") for ln in stale)
+
+
+def test_check_names_a_constant_that_changed_with_the_same_inputs(exported, monkeypatch, capsys):
+    """The export's numbers changed while every recorded input is the same (here grindtwin's passing target,
+    as a code change would): the header regenerated in memory names the constant."""
+    from mpc import export
+
+    monkeypatch.setattr(export, "PASSING_TARGET", 0.75)
+    assert main(["export-controller", str(REFERENCE), "--check", str(exported)]) == 1
+    assert "  gt_controller_config.h GT_PASSING_TARGET: recorded 0.8, now 0.75\n" in capsys.readouterr().out
+
+
+def test_check_refuses_a_folder_without_an_export_or_without_built_from(exported, tmp_path, capsys):
+    """A folder with no export, a missing one, and an export whose manifest predates built_from: bad input
+    (exit 2), said, with the command that exports; nothing written."""
+    (tmp_path / "empty").mkdir()
+    old = tmp_path / "old"
+    shutil.copytree(exported, old)
+    manifest = json.loads((old / "grindtwin_export.json").read_text())
+    del manifest["built_from"]
+    (old / "grindtwin_export.json").write_text(json.dumps(manifest, indent=2) + "\n")
+    before = _listing(old)
+    for folder, words in ((tmp_path / "empty", "holds no grindtwin_export.json"),
+                          (tmp_path / "missing", "no such folder"),
+                          (old, "does not record what the export was built from")):
+        assert main(["export-controller", str(REFERENCE), "--check", str(folder)]) == 2
+        err = capsys.readouterr().err
+        assert words in err and f"grindtwin export-controller {REFERENCE} --out {folder}" in err, err
+        assert "Traceback" not in err
+    assert _listing(old) == before and not any((tmp_path / "empty").iterdir())
+
+
+def test_check_names_a_file_edited_in_the_folder(exported, tmp_path, capsys):
+    """A constant of gt_controller_config.h edited in the folder after the export: stale, the file named with
+    its recorded and its present sha256, and the constant by name."""
+    out = tmp_path / "ctl"
+    shutil.copytree(exported, out)
+    cfg = out / "gt_controller_config.h"
+    text = cfg.read_text()
+    assert text.count("#define GT_TOL 1e-06\n") == 1
+    cfg.write_text(text.replace("#define GT_TOL 1e-06\n", "#define GT_TOL 0.001\n"))
+    assert main(["export-controller", str(REFERENCE), "--check", str(out)]) == 1
+    got = capsys.readouterr().out
+    recorded = json.loads((out / "grindtwin_export.json").read_text())["sha256"]["gt_controller_config.h"]
+    assert (f"  gt_controller_config.h in the folder (sha256; changed since the export): recorded {recorded}, "
+            f"now {file_sha256(cfg)}\n") in got
+    assert "  gt_controller_config.h (as edited in the folder) GT_TOL: recorded 0.001, now 1e-06\n" in got
