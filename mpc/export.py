@@ -38,6 +38,13 @@ the previous export is moved aside first and removed by the names its manifest l
 at a time: it holds ``.DIR.export.lock`` beside ``DIR`` (:func:`export_lock`, ``fcntl.flock``), so a
 second export to the same folder is refused at once; the file is removed at the end, and one left
 by a killed export (no longer locked) is taken over by the next export.
+
+Checking an export (:func:`check_export`; ``grindtwin export-controller SCENE --check DIR``): whether the
+export in a folder is what :func:`export_controller` would write now, writing nothing there. Every item of
+its manifest (``built_from`` and each file's sha256 among them) is compared with the manifest of the files
+regenerated in a temporary folder (CasADi's code generated, not compiled), each file of the folder with its
+sha256, and gt_controller_config.h's constants by name (an input whose file hash is unchanged, a code
+change, moves them). A manifest without ``built_from`` (made before it was recorded) cannot be checked.
 """
 
 from __future__ import annotations
