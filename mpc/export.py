@@ -663,7 +663,7 @@ def check_export(out_dir, controller, estimator, u0, preview_lead_h: float | Non
         current = _manifest(Path(tmp), controller, estimator, preview_lead_h, measurement_range, feed_max_tph,
                             source, notes, built_from)
         header = (Path(tmp) / "gt_controller_config.h").read_text()
-    current = json.loads(json.dumps(current))  # as the manifest reads back (lists, not tuples)
+    current = json.loads(json_text(current))  # as the manifest reads back (lists, not tuples; inf as text)
     found = _differences(recorded, current, "", tuple(note_items))
     for name, digest in recorded["sha256"].items():
         path = out / name

@@ -521,14 +521,17 @@ def test_export_refuses_limits_it_cannot_check(built, tmp_path):
 def test_export_manifest_is_strict_json_without_limits(built, tmp_path):
     """``(-inf, inf)`` and ``feed_max_tph=inf`` check nothing: the manifest held the tokens -Infinity and
     Infinity, no JSON (many readers refuse the file). They are the text "-inf" / "inf", as in summary.json."""
-    from mpc import export_controller
+    from mpc import check_export, export_controller
 
     _, est, ctrl, _ = built
-    export_controller(ctrl, est, [23.6, 0.7], tmp_path / "ctl", measurement_range=[[-np.inf] * 3, [np.inf] * 3],
-                      feed_max_tph=math.inf)
+    limits = {"measurement_range": [[-np.inf] * 3, [np.inf] * 3], "feed_max_tph": math.inf,
+              "built_from": {"scene": "limits"}}
+    export_controller(ctrl, est, [23.6, 0.7], tmp_path / "ctl", **limits)
     manifest = strict_json((tmp_path / "ctl" / "grindtwin_export.json").read_text(encoding="utf-8"))
     assert manifest["feed_max_tph"] == "inf"
     assert manifest["measurement_range"] == {name: ["-inf", "inf"] for name in ("p80_um", "power_kw", "load_frac")}
+    # the check reads the export's "inf" as the writer writes it, not as stale against a float inf
+    assert [d for d in check_export(tmp_path / "ctl", ctrl, est, [23.6, 0.7], **limits) if d.stale] == []
 
 
 CXX_DRIVER = r"""
