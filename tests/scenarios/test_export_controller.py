@@ -326,13 +326,18 @@ def test_check_says_an_export_is_current_and_writes_nothing(exported, capsys):
     assert _listing(exported) == before
 
 
+def _edit_once(source, target, old: str, new: str) -> None:
+    """``target`` written as ``source`` with its one ``old`` replaced by ``new`` (a test of an edit must edit)."""
+    text = source.read_text()
+    assert text.count(old) == 1
+    target.write_text(text.replace(old, new))
+
+
 def test_check_names_an_edited_target(exported, tmp_path, capsys):
     """The scene's target edited after the export: stale (exit 1), the scene item and the exported constant
     each named with the recorded and the current value, and how to export again."""
     scene = tmp_path / "edited.toml"
-    text = REFERENCE.read_text()
-    assert text.count("target_p80_um = 210.0\n") == 1
-    scene.write_text(text.replace("target_p80_um = 210.0\n", "target_p80_um = 200.0\n"))
+    _edit_once(REFERENCE, scene, "target_p80_um = 210.0\n", "target_p80_um = 200.0\n")
     assert main(["export-controller", str(scene), "--check", str(exported)]) == 1
     out = capsys.readouterr().out
     assert out.startswith(f"{exported}: stale")
@@ -405,9 +410,7 @@ def test_check_names_a_file_edited_in_the_folder(exported, tmp_path, capsys):
     out = tmp_path / "ctl"
     shutil.copytree(exported, out)
     cfg = out / "gt_controller_config.h"
-    text = cfg.read_text()
-    assert text.count("#define GT_TOL 1e-06\n") == 1
-    cfg.write_text(text.replace("#define GT_TOL 1e-06\n", "#define GT_TOL 0.001\n"))
+    _edit_once(cfg, cfg, "#define GT_TOL 1e-06\n", "#define GT_TOL 0.001\n")
     assert main(["export-controller", str(REFERENCE), "--check", str(out)]) == 1
     got = capsys.readouterr().out
     recorded = json.loads((out / "grindtwin_export.json").read_text())["sha256"]["gt_controller_config.h"]

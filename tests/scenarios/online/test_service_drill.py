@@ -417,17 +417,23 @@ def test_a_connection_lost_around_the_setpoint_write_is_audited_as_it_happened(s
         assert "was in flight: the plant may have it" in row["reason"]
 
 
-def test_a_refused_soft_sensor_write_is_logged_and_audited(small_scene, small_tags, small_parts, tmp_path, caplog):
-    """A soft sensor node the server refuses (read-only) kept an older prediction on the operator's screen: the
-    write's result was not read, nothing was logged or audited."""
+def _lockstep_serving(tags, small_scene, small_tags, small_parts, tmp_path):
+    """The small scene in lock step, its plant behind the tests' tag map, served with the tag map ``tags``."""
     from .conftest import LockStep, free_port
 
     url = f"opc.tcp://127.0.0.1:{free_port()}"
+    ls = LockStep(small_scene, small_tags, small_parts, url, tmp_path / "audit")
+    ls.service = online.Service(small_parts, tags, online.ServeSettings(
+        url, online.ClientSecurity(insecure=True), tmp_path / "audit2", warmup_h=0.2), clock=ls.clock)
+    return ls
+
+
+def test_a_refused_soft_sensor_write_is_logged_and_audited(small_scene, small_tags, small_parts, tmp_path, caplog):
+    """A soft sensor node the server refuses (read-only) kept an older prediction on the operator's screen: the
+    write's result was not read, nothing was logged or audited."""
     wrong = small_tags.model_copy(deep=True)
     wrong.soft_sensor.p80_um = "ns=2;s=Simulation.P80True_um"  # the plant's own, read-only
-    ls = LockStep(small_scene, small_tags, small_parts, url, tmp_path / "audit")
-    ls.service = online.Service(small_parts, wrong, online.ServeSettings(
-        url, online.ClientSecurity(insecure=True), tmp_path / "audit2", warmup_h=0.2), clock=ls.clock)
+    ls = _lockstep_serving(wrong, small_scene, small_tags, small_parts, tmp_path)
 
     async def run():
         await ls.start()
@@ -445,14 +451,9 @@ def test_a_refused_heartbeat_write_is_logged_when_it_starts_not_every_cycle(smal
                                                                            tmp_path, caplog):
     """A heartbeat (or status) node the server refuses was logged as an error every cycle (each cycle writes it);
     now it is logged when the refusal starts, as a soft sensor's, and each row's reason still says it."""
-    from .conftest import LockStep, free_port
-
-    url = f"opc.tcp://127.0.0.1:{free_port()}"
     wrong = small_tags.model_copy(deep=True)
     wrong.heartbeat.node = "ns=2;s=Simulation.P80True_um"  # the plant's own, read-only
-    ls = LockStep(small_scene, small_tags, small_parts, url, tmp_path / "audit")
-    ls.service = online.Service(small_parts, wrong, online.ServeSettings(
-        url, online.ClientSecurity(insecure=True), tmp_path / "audit2", warmup_h=0.2), clock=ls.clock)
+    ls = _lockstep_serving(wrong, small_scene, small_tags, small_parts, tmp_path)
 
     async def run():
         await ls.start()
