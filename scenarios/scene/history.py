@@ -60,6 +60,7 @@ Rules, applied in this order; each action is written to ``History.report``:
 from __future__ import annotations
 
 import bisect
+import codecs
 import functools
 import io
 import re
@@ -173,11 +174,16 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
     comp_cols, kind, other_cols = _classify_columns(raw, where)
 
     changes = _order_report(raw)
-    df = raw.iloc[np.argsort(raw["_t"].to_numpy(), kind="stable")].reset_index(drop=True)
+    order = np.argsort(raw["_t"].to_numpy(), kind="stable")
+    # each copy of the table alive at once is the file's size again, or more (its strings): rows in time order
+    # already are not copied, others once (reset_index copied them again)
+    df = raw if np.array_equal(order, np.arange(len(order))) else _renumbered(raw.iloc[order])
+    del raw, order
     naive = start is not None and start.tzinfo is None  # local times without a UTC offset
     _refuse_conflicting_repeats(df, where, naive)
     dup = df["_t"].duplicated(keep="last").to_numpy()
-    df = df[~dup].reset_index(drop=True)
+    if dup.any():
+        df = _renumbered(df[~dup])
     if len(df) < 1:
         raise SceneError(f"{where}: no data rows")
 
@@ -186,25 +192,27 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
         start = start + pd.Timedelta(hours=float(df["_t"].iloc[0]))
     changes += _missing_records(t, df["_row"], where, start if naive else None)
     values = _numeric(df, comp_cols + other_cols, where)
-    neg = [f"column {c}: negative values in data rows {_names(df['_row'][values[c].to_numpy() < 0])}; "
+    rows, n_records = df["_row"].copy(), len(df)
+    del df  # its cells as read, now in values
+    neg = [f"column {c}: negative values in data rows {_names(rows[values[c].to_numpy() < 0])}; "
            "allowed: >= 0" for c in values.columns if (values[c] < 0).any()]
     if neg:
         raise SceneError(f"{where}: " + f"\n{where}: ".join(neg))
-    _check_ranges(values, df["_row"], where, feed_nominal_tph, feed_p80_um)
+    _check_ranges(values, rows, where, feed_nominal_tph, feed_p80_um)
     _check_some_feed(values, where, feed_nominal_tph)
 
     comp = values[comp_cols]
     comp_missing = comp.isna().any(axis=1).to_numpy()
     comp = comp.mask(comp_missing[:, None].repeat(len(comp_cols), axis=1))
     errors: list[str] = []
-    _check_holds(t, comp_missing, df["_row"], "composition", max_gap_h, errors)
+    _check_holds(t, comp_missing, rows, "composition", max_gap_h, errors)
     kept_other = []
     for col in other_cols:
         missing = values[col].isna().to_numpy()
         if missing.all():
             changes.append(f"column {col} is empty; dropped")
             continue
-        _check_holds(t, missing, df["_row"], col, max_gap_h, errors)
+        _check_holds(t, missing, rows, col, max_gap_h, errors)
         kept_other.append(col)
     if errors:
         raise SceneError(f"{where}: " + f"\n{where}: ".join(errors))
@@ -213,15 +221,15 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
         changes.append(f"{n_filled} missing values held from the previous row (max gap "
                        f"{max_gap_h * 60:g} min)")
     filled = pd.concat([comp, values[kept_other]], axis=1).ffill()
+    del comp, values
     report += changes
 
     target = 100.0 if kind == "mineralogy" else 1.0
     sums = filled[comp_cols].sum(axis=1).to_numpy()
     off = np.abs(sums / target - 1) > sum_tol_frac
     if off.any():
-        rows = df["_row"][off]
         raise SceneError(f"{where}: composition does not sum to {target:g} within "
-                         f"{sum_tol_frac:.0%} in data rows {_names(rows)} (sums "
+                         f"{sum_tol_frac:.0%} in data rows {_names(rows[off])} (sums "
                          f"{', '.join(f'{s:.4g}' for s in sums[off][:_MAX_NAMED])})")
     rel = np.abs(sums / target - 1)
     rescaled = int(np.sum(rel > 1e-9))
@@ -243,10 +251,16 @@ def read_history(path: str | Path, sample_period_h: float, *, max_gap_h: float =
         report.append(f"irregular records (intervals {steps.min() * 60:.3g} to {steps.max() * 60:.3g}"
                       f" min) resampled to {len(grid)} samples every {sample_period_h * 60:g} min")
     else:
-        report.append(f"{len(df)} records resampled to {len(grid)} samples every "
+        report.append(f"{n_records} records resampled to {len(grid)} samples every "
                       f"{sample_period_h * 60:g} min")
     return History(frame=frame, kind=kind, report=report, source=path, start=start,
                    span_h=float(t[-1]), composition_columns=comp_cols, changes=changes, sha256=sha256)
+
+
+def _renumbered(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` (a copy of other rows) numbered 0, 1, ... as ``reset_index(drop=True)`` numbers it, not copied again."""
+    df.index = pd.RangeIndex(len(df))
+    return df
 
 
 def _order_report(raw: pd.DataFrame) -> list[str]:
@@ -269,8 +283,11 @@ def _order_report(raw: pd.DataFrame) -> list[str]:
         original = int(rows[np.flatnonzero(t == t[i])[0]])
         dropped = raw["_t"].duplicated(keep="last").to_numpy()
         n = int(repeats.sum())
-        cells = raw.drop(columns=["_row", "_t", time_col]).astype(str)
-        unlike = dropped & (cells != cells.groupby(t).transform("last")).any(axis=1).to_numpy()
+        # the cells as texts of the rows whose time repeats only (all rows' were many times the file's size)
+        shared = raw["_t"].duplicated(keep=False).to_numpy()
+        cells = raw.loc[shared].drop(columns=["_row", "_t", time_col]).astype(str)
+        unlike = dropped.copy()
+        unlike[shared] &= (cells != cells.groupby(t[shared]).transform("last")).any(axis=1).to_numpy()
         differ = (f"; the values of dropped data row{'s' if unlike.sum() > 1 else ''} {_names(rows[unlike])} differ "
                   "from those kept") if unlike.any() else ""
         out.append(f"{n} row{'s' if n > 1 else ''} repeat{'' if n > 1 else 's'} the time of an earlier row "
@@ -377,13 +394,13 @@ def _parse_table(path: Path, suffix: str, data: bytes) -> pd.DataFrame:
     if suffix == ".csv":
         # comment lines blank (csv_text, as a feed's psd_csv); a trailing delimiter on every row
         # (index_col=False) made pandas shift the columns by one
-        lines = csv_text(data)
-        _refuse_other_delimiter(path, lines.lstrip().partition("\n")[0])
+        body, header = _csv_bytes(data)
+        _refuse_other_delimiter(path, header)
         try:
-            table = pd.read_csv(io.StringIO(lines), skipinitialspace=True, index_col=False, keep_default_na=False,
-                                na_values=list(MISSING_TEXT))
+            table = pd.read_csv(io.BufferedReader(_Pieces(body)), encoding="utf-8", skipinitialspace=True, index_col=False,
+                                keep_default_na=False, na_values=list(MISSING_TEXT))
         except pd.errors.ParserError as exc:
-            raise SceneError(_row_length_problem(path, str(exc), lines)) from None
+            raise SceneError(_row_length_problem(path, str(exc), csv_text(data))) from None
         # a delimiter closing the header row too makes an unnamed empty column: nothing was recorded in it
         return table.drop(columns=[c for c in table.columns
                                    if str(c).startswith("Unnamed: ") and table[c].isna().all()])
@@ -393,6 +410,56 @@ def _parse_table(path: Path, suffix: str, data: bytes) -> pd.DataFrame:
             table = table.reset_index()  # a frame indexed by time (df.set_index('timestamp')) keeps it there
         return table
     raise SceneError(f"{path}: history must be .csv or .parquet (got {suffix or 'no suffix'!r})")
+
+
+#: Bytes of a CSV history blanked a piece at a time (each cut after a line feed): the whole file split into lines
+#: (a Python string each) and joined again took several times the file's size at once.
+CSV_PIECE_BYTES = 1 << 20
+
+
+def _csv_bytes(data: bytes) -> tuple[list[memoryview], str]:
+    """:func:`twin.atomic.csv_text` of ``data`` encoded as UTF-8 in pieces (one with no ``#`` is the file's bytes,
+    unchanged, once checked as UTF-8: not copied), and its first non-blank line (the header)."""
+    whole = data
+    if data.startswith(codecs.BOM_UTF8):
+        data = data[len(codecs.BOM_UTF8):]  # the one mark utf-8-sig drops (a second is text)
+    view, parts, header, start = memoryview(data), [], "", 0
+    while start < len(data):
+        end = data.find(b"\n", start + CSV_PIECE_BYTES) + 1 or len(data)
+        piece, hashes = view[start:end], data.find(b"#", start, end) >= 0
+        try:
+            # a line feed ahead, so that a piece's leading U+FEFF stays text as it does mid-file
+            text = csv_text(b"\n" + piece)[1:] if hashes else str(piece, "utf-8")
+        except UnicodeDecodeError:
+            whole.decode("utf-8-sig")  # the whole file's error, at its position in the file
+            raise
+        if hashes:
+            piece = memoryview(text.encode("utf-8"))
+        header = header or text.lstrip().partition("\n")[0]
+        parts.append(piece)
+        start = end
+    return parts, header
+
+
+class _Pieces(io.RawIOBase):
+    """The pieces of :func:`_csv_bytes` read as one file, each let go once read."""
+
+    def __init__(self, pieces: list[memoryview]):
+        self._pieces = pieces[::-1]
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer) -> int:
+        while self._pieces and not len(self._pieces[-1]):
+            self._pieces.pop()
+        if not self._pieces:
+            return 0
+        head = self._pieces[-1]
+        n = min(len(buffer), len(head))
+        buffer[:n] = head[:n]
+        self._pieces[-1] = head[n:]
+        return n
 
 
 def _row_length_problem(path: Path, said: str, text: str) -> str:
@@ -633,15 +700,15 @@ def _time_average(t: np.ndarray, values: np.ndarray, grid: np.ndarray, dt: float
     start, length = edges[:-1], np.diff(edges)
     held = np.clip(np.searchsorted(t, start, side="right") - 1, 0, len(t) - 1)
     cell = np.clip(np.searchsorted(bounds, start, side="right") - 1, 0, len(grid) - 1)
-    piece_values = values[held]
-    out = np.empty((len(grid), values.shape[1]))
-    for c in range(values.shape[1]):
-        out[:, c] = np.bincount(cell, weights=piece_values[:, c] * length, minlength=len(grid))
-    out /= dt
-    # a value held over a whole cell is its mean exactly (an entropy of 1 stays in [0, 1])
     first = np.searchsorted(cell, np.arange(len(grid)))
-    lo, hi = np.minimum.reduceat(piece_values, first), np.maximum.reduceat(piece_values, first)
-    return np.where(lo == hi, lo, out)
+    out = np.empty((len(grid), values.shape[1]))
+    for c in range(values.shape[1]):  # a column at a time: all columns' pieces at once were another copy of them
+        piece_values = values[held, c]
+        mean = np.bincount(cell, weights=piece_values * length, minlength=len(grid)) / dt
+        # a value held over a whole cell is its mean exactly (an entropy of 1 stays in [0, 1])
+        lo, hi = np.minimum.reduceat(piece_values, first), np.maximum.reduceat(piece_values, first)
+        out[:, c] = np.where(lo == hi, lo, mean)
+    return out
 
 
 def _names(rows: pd.Series) -> str:

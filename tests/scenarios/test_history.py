@@ -909,3 +909,51 @@ def test_a_line_starting_with_an_excel_error_value_is_a_row_not_a_comment(tmp_pa
     assert text != MESSY
     with pytest.raises(SceneError, match="N/A"):
         read_history(write(tmp_path, text), DT)
+
+
+def _long_history(path: Path, rows: int) -> Path:
+    """A synthetic history of ``rows`` records every 10 s under a comment line."""
+    rng = np.random.default_rng(7)
+    quartz, kaolinite = np.round(60 + rng.standard_normal(rows), 3), np.round(25 + rng.standard_normal(rows), 3)
+    stamps = pd.date_range("2026-01-01", periods=rows, freq="10s").strftime("%Y-%m-%dT%H:%M:%S")
+    table = pd.DataFrame({"timestamp": stamps, "quartz_wt_pct": quartz, "kaolinite_wt_pct": kaolinite,
+                          "calcite_wt_pct": np.round(100 - quartz - kaolinite, 3),
+                          "feed_tph": np.round(30 + rng.standard_normal(rows), 2)})
+    path.write_text("# synthetic\n" + table.to_csv(index=False, lineterminator="\n"), encoding="utf-8")
+    return path
+
+
+def test_reading_a_long_history_takes_a_few_times_the_files_size_in_memory_not_many(tmp_path):
+    """The file's bytes, its text, its lines and a text buffer alive at once, and copies of the table kept to the end,
+    took many times the file's size (benchmarks/scenarios_history_memory.py): a year of 10 s records did not fit."""
+    import tracemalloc
+
+    path = _long_history(tmp_path / "long.csv", 50_000)
+    read_history(path, DT)  # imports and caches first: not the read's own
+    tracemalloc.start()
+    try:
+        history = read_history(path, DT)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert history.report[-1] == f"50000 records resampled to {len(history.frame)} samples every 1 min"
+    assert peak < 5.5 * path.stat().st_size
+
+
+def test_a_history_read_a_piece_at_a_time_is_read_as_one_piece(tmp_path, monkeypatch):
+    """Comment lines, a byte-order mark and an Excel error value where the file is cut into pieces (after a line
+    feed) are blanked, dropped and kept as when it is read whole."""
+    import scenarios.scene.history as history_module
+
+    text = MESSY.replace("2026-01-15T00:05:00", "  # a comment between rows\n2026-01-15T00:05:00")
+    path = tmp_path / "history.csv"
+    path.write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
+    whole = read_history(path, DT)
+    for piece in (1, 7, 40):
+        monkeypatch.setattr(history_module, "CSV_PIECE_BYTES", piece)
+        cut = read_history(path, DT)
+        assert cut.report == whole.report and cut.sha256 == whole.sha256
+        pd.testing.assert_frame_equal(cut.frame, whole.frame)
+    path.write_bytes(text.replace("2026-01-15T00:06:00,50", "#N/A,50").encode("utf-8"))
+    with pytest.raises(SceneError, match="unreadable or missing time in data rows 8"):
+        read_history(path, DT)
